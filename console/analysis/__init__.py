@@ -1,0 +1,1 @@
+"""Pure domain logic: no file I/O, no printing, no widgets."""

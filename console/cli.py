@@ -1,0 +1,195 @@
+"""The `trackside` command line (Typer).
+
+Each command composes parser and analysis calls (console.jobs) and renders
+the result as Rich tables or as one JSON document on stdout.  Exit codes:
+0 ok, 1 findings under ``--strict``, 2 usage errors and unreadable inputs
+(one line on stderr, never a traceback).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import typer
+from rich.console import Console
+
+from console import __version__, exit_codes
+
+app = typer.Typer(
+    name="trackside",
+    help="Terminal console and log analyzer for railway train detection.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+JSON_SCHEMA_ANALYZE = "trackside.analyze/1"
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+FilesArg = Annotated[
+    list[Path],
+    typer.Argument(help="Diagnostic log files (plain or .gz).", show_default=False),
+]
+SpacingOpt = Annotated[
+    float, typer.Option("--spacing", help="Coil spacing Sys1–Sys2 of the counting head, m.", min=0.001)
+]
+TrainLengthOpt = Annotated[
+    float, typer.Option("--train-length", help="First-to-last wheel distance of the train, m.", min=0.1)
+]
+IdleGapOpt = Annotated[
+    float, typer.Option("--idle-gap", help="Seconds without records that end a passage (≥ 1).", min=1.0)
+]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON document on stdout instead of tables.")]
+StrictOpt = Annotated[bool, typer.Option("--strict", help="Exit 1 if any input line was rejected.")]
+
+
+def _fail(message: str, code: int = exit_codes.USAGE) -> typer.Exit:
+    Console(stderr=True, highlight=False).print(f"trackside: error: {message}", markup=False)
+    return typer.Exit(code)
+
+
+def _check_inputs(paths: list[Path]) -> None:
+    for p in paths:
+        if not p.exists():
+            raise _fail(f"{p}: no such file")
+        if p.is_dir():
+            raise _fail(f"{p}: is a directory, expected a log file")
+        if not os.access(p, os.R_OK):
+            raise _fail(f"{p}: permission denied")
+
+
+def _guard(fn: Callable[[], int]) -> int:
+    """Run a command body: input errors become one-line messages and exit 2."""
+    from parsers.sources import InputError
+
+    try:
+        return fn()
+    except (typer.Exit, typer.Abort):
+        raise
+    except InputError as exc:
+        raise _fail(str(exc)) from None
+    except BrokenPipeError:
+        # Output piped into `head` or similar: stop quietly.
+        sys.stderr.close()
+        return exit_codes.OK
+    except MemoryError:
+        raise _fail("out of memory") from None
+    except Exception as exc:
+        if os.environ.get("TRACKSIDE_DEBUG"):
+            raise
+        raise _fail(f"internal error: {type(exc).__name__}: {exc} (set TRACKSIDE_DEBUG=1 for details)") from None
+
+
+def _print_json(doc: dict[str, Any]) -> None:
+    # ensure_ascii: no raw control or C1 bytes from a log can reach a terminal.
+    sys.stdout.write(json.dumps(doc, ensure_ascii=True, indent=2, allow_nan=False))
+    sys.stdout.write("\n")
+    sys.stdout.flush()
+
+
+def _run_diag(files: list[Path], spacing: float, train_length: float, idle_gap: float) -> Any:
+    from console.analysis.diagnostics import SpeedSettings
+    from console.jobs import analyze_files, input_bytes
+    from console.progress import byte_progress
+
+    _check_inputs(files)
+    settings = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
+    with byte_progress(input_bytes(files), "parsing") as advance:
+        return analyze_files(files, settings, on_progress=advance)
+
+
+@app.command()
+def analyze(
+    files: FilesArg,
+    spacing: SpacingOpt = 0.13,
+    train_length: TrainLengthOpt = 28.6,
+    idle_gap: IdleGapOpt = 10.0,
+    json_out: JsonOpt = False,
+    strict: StrictOpt = False,
+) -> None:
+    """Inventory, passages with speeds, and the parse report of diagnostic logs."""
+
+    def body() -> int:
+        job = _run_diag(files, spacing, train_length, idle_gap)
+        if json_out:
+            doc = {
+                "schema": JSON_SCHEMA_ANALYZE,
+                "trackside_version": __version__,
+                "files": job.files,
+                "parse_report": job.report.to_dict(),
+                **job.analysis.to_dict(),
+            }
+            _print_json(doc)
+        else:
+            from console.render.diag_tables import (
+                inventory_table,
+                parse_report_table,
+                passages_table,
+                rejections_table,
+            )
+
+            out = Console(highlight=False)
+            out.print(inventory_table(job.analysis))
+            out.print(passages_table(job.analysis, limit=200))
+            out.print(parse_report_table(job.report))
+            rej = rejections_table(job.report)
+            if rej is not None:
+                out.print(rej)
+            notes = []
+            if job.analysis.overlap_records:
+                notes.append(f"{job.analysis.overlap_records} records repeat another file's second (overlapping exports) and were counted once")
+            if job.analysis.unpaired_detections:
+                notes.append(f"{job.analysis.unpaired_detections} wheel detections on one system only (not axles)")
+            if job.report.unknown_labels:
+                notes.append(f"{sum(job.report.unknown_labels.values())} records with unknown labels: "
+                             + ", ".join(sorted(job.report.unknown_labels)))
+            for n in notes:
+                out.print(n, markup=False)
+        return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
+
+    raise typer.Exit(_guard(body))
+
+
+@app.command()
+def speeds(
+    files: FilesArg,
+    spacing: SpacingOpt = 0.13,
+    train_length: TrainLengthOpt = 28.6,
+    idle_gap: IdleGapOpt = 10.0,
+    json_out: JsonOpt = False,
+    strict: StrictOpt = False,
+) -> None:
+    """The passages table alone: per-second, whole-train and per-axle speeds."""
+
+    def body() -> int:
+        job = _run_diag(files, spacing, train_length, idle_gap)
+        if json_out:
+            _print_json({"schema": "trackside.speeds/1", "passages": job.analysis.passages_json()})
+        else:
+            from console.render.diag_tables import passages_table
+
+            Console(highlight=False).print(passages_table(job.analysis))
+        return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
+
+    raise typer.Exit(_guard(body))
+
+
+def _version(value: bool) -> None:
+    if value:
+        print(f"trackside {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version, is_eager=True, help="Show the version and exit.")
+    ] = False,
+) -> None:
+    """Terminal console and log analyzer for railway train detection."""

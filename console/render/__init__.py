@@ -1,0 +1,1 @@
+"""Renderers: turn analysis results into Rich tables (and, later, reports)."""

@@ -1,0 +1,126 @@
+"""Rich tables for `trackside analyze` / `speeds`: inventory, passages, parse report."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import pandas as pd
+from rich import box
+from rich.table import Table
+from rich.text import Text
+
+from console.analysis.diagnostics import DiagAnalysis
+from console.analysis.inventory import DeviceInventory
+from console.analysis.timefmt import iso
+from console.safe_text import inert
+from parsers.report import ParseReport
+
+REJECTIONS_SHOWN = 20
+
+
+def _num(value: object, fmt: str = "{:.1f}") -> Text:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return Text("–", style="dim")
+    return Text(fmt.format(value))
+
+
+def _time(ns: object) -> Text:
+    if ns is None or pd.isna(ns):  # type: ignore[call-overload]
+        return Text("–", style="dim")
+    return Text((iso(int(ns)) or "").replace("T", " "))  # type: ignore[call-overload]
+
+
+def _table(title: str) -> Table:
+    return Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, title_style="bold")
+
+
+def inventory_table(analysis: DiagAnalysis) -> Table:
+    """Devices as columns, identity fields as rows: reads at 80 columns."""
+    t = _table("Devices")
+    t.add_column("", style="bold", no_wrap=True)
+    for d in analysis.devices:
+        t.add_column(inert(f"ID {d.device_id}"), overflow="fold")
+    fields: list[tuple[str, Callable[[DeviceInventory], object]]] = [
+        ("Device / Type / GS", lambda d: f"{d.device} / {d.type} / {d.gs}"),
+        ("Counting heads", lambda d: ", ".join(d.counting_heads)),
+        ("Channels", lambda d: ", ".join(str(c) for c in d.channels)),
+        ("Designation", lambda d: d.designation),
+        ("Type number", lambda d: d.type_number),
+        ("Hardware state", lambda d: d.hardware_state),
+        ("Serial number", lambda d: d.serial_number),
+        ("Software version", lambda d: d.software_version),
+        ("CRC", lambda d: d.crc),
+        ("Records", lambda d: f"{d.records:,}"),
+        ("First record", lambda d: (iso(d.first_ns) or "").replace("T", " ")),
+        ("Last record", lambda d: (iso(d.last_ns) or "").replace("T", " ")),
+    ]
+    for name, get in fields:
+        t.add_row(name, *(inert(get(d) or "–") for d in analysis.devices))
+    return t
+
+
+def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
+    p = analysis.passages
+    t = _table(f"Passages ({len(p)}), speeds in km/h")
+    t.add_column("Head", no_wrap=True, min_width=4)
+    t.add_column("Start", no_wrap=True)
+    t.add_column("s", justify="right", no_wrap=True)
+    t.add_column("Recs", justify="right", no_wrap=True)
+    t.add_column("Axles", justify="right", no_wrap=True)
+    t.add_column("Dir", no_wrap=True)
+    t.add_column("Per-sec(n)", justify="right", no_wrap=True)
+    t.add_column("Whole", justify="right", no_wrap=True)
+    t.add_column("Axle", justify="right", no_wrap=True)
+    rows = p if limit is None else p.head(limit)
+    for r in rows.itertuples(index=False):
+        per_sec = _num(r.speed_kmh_per_second_method)
+        if not pd.isna(r.records_in_detection_second):
+            per_sec.append(f" ({int(r.records_in_detection_second)})", style="dim")
+        axle = _num(r.speed_kmh_per_axle_mean)
+        t.add_row(
+            inert(r.counting_head),
+            _time(r.start_ns),
+            _num(r.duration_s, "{:.3g}"),
+            Text(f"{r.records:,}"),
+            Text(str(r.axles)),
+            Text({"sys1_to_sys2": "1→2", "sys2_to_sys1": "2→1"}.get(r.direction, r.direction or "–")),
+            per_sec,
+            _num(r.speed_kmh_whole_train, "{:.2f}"),
+            axle,
+        )
+    if limit is not None and len(p) > limit:
+        t.caption = f"first {limit} of {len(p)} passages; --json has all"
+    return t
+
+
+def parse_report_table(report: ParseReport) -> Table:
+    t = _table("Parse report")
+    for c in ("File", "Lines", "Records", "Blank", "Rejected", "Encoding"):
+        t.add_column(c, justify="left" if c in ("File", "Encoding") else "right", overflow="fold")
+    for f in report.files:
+        enc = f.encoding + (", gzip" if f.compressed else "") + (", no final newline" if f.ends_without_newline else "")
+        t.add_row(
+            inert(f.file), Text(f"{f.lines_read:,}"), Text(f"{f.records:,}"), Text(f"{f.blank:,}"),
+            Text(f"{f.rejected:,}", style="bold red" if f.rejected else ""), Text(enc),
+        )
+    if len(report.files) > 1:
+        t.add_row(
+            Text("total", style="bold"), Text(f"{report.lines_read:,}"), Text(f"{report.records:,}"),
+            Text(f"{report.blank:,}"), Text(f"{report.rejected:,}"), Text(""),
+        )
+    return t
+
+
+def rejections_table(report: ParseReport, limit: int = REJECTIONS_SHOWN) -> Table | None:
+    if not report.rejected:
+        return None
+    t = _table(f"Rejected lines ({report.rejected:,})")
+    t.add_column("File:line")
+    t.add_column("Reason")
+    t.add_column("Text")
+    for r in report.rejections[:limit]:
+        t.add_row(inert(f"{r.file}:{r.line}"), inert(r.reason), inert(r.text, style="dim"))
+    if report.rejected > limit:
+        t.caption = f"first {min(limit, len(report.rejections))} of {report.rejected:,} shown; --json lists up to {report.max_rejections_kept}"
+    return t

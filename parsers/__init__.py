@@ -1,0 +1,1 @@
+"""Parsers: bytes → typed tables and events. Formats only, no railway inference."""
