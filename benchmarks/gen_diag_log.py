@@ -48,7 +48,9 @@ def _line(dev: int, head: str, ch: int, adr: str, label: str, data: str, t: dt.d
     )
 
 
-def passage_lines(dev: int, head: str, t0: dt.datetime, speed_mps: float, up: bool, sum_count: int) -> list[tuple[dt.datetime, str]]:
+def passage_lines(
+    dev: int, head: str, t0: dt.datetime, speed_mps: float, up: bool, sum_count: int
+) -> list[tuple[dt.datetime, str]]:
     """All records one train writes while passing one head."""
     out: list[tuple[dt.datetime, str]] = []
     for adr, label, data in IDENTITY_DUMP:

@@ -50,7 +50,11 @@ StrictOpt = Annotated[bool, typer.Option("--strict", help="Exit 1 if any input l
 
 
 def _fail(message: str, code: int = exit_codes.USAGE) -> typer.Exit:
-    Console(stderr=True, highlight=False).print(f"trackside: error: {message}", markup=False)
+    """One unwrapped line on stderr (file names may hold anything: escaped)."""
+    from console.safe_text import clean
+
+    sys.stderr.write(f"trackside: error: {clean(message)}\n")
+    sys.stderr.flush()
     return typer.Exit(code)
 
 
@@ -143,12 +147,17 @@ def analyze(
                 out.print(rej)
             notes = []
             if job.analysis.overlap_records:
-                notes.append(f"{job.analysis.overlap_records} records repeat another file's second (overlapping exports) and were counted once")
+                notes.append(
+                    f"{job.analysis.overlap_records} records repeat another file's second"
+                    " (overlapping exports) and were counted once"
+                )
             if job.analysis.unpaired_detections:
                 notes.append(f"{job.analysis.unpaired_detections} wheel detections on one system only (not axles)")
             if job.report.unknown_labels:
-                notes.append(f"{sum(job.report.unknown_labels.values())} records with unknown labels: "
-                             + ", ".join(sorted(job.report.unknown_labels)))
+                notes.append(
+                    f"{sum(job.report.unknown_labels.values())} records with unknown labels: "
+                    + ", ".join(sorted(job.report.unknown_labels))
+                )
             for n in notes:
                 out.print(n, markup=False)
         return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK

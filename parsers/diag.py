@@ -49,7 +49,20 @@ from parsers.sources import (
     open_input,
 )
 
-FIELD_KEYS = ("Diag_id", "ID", "Device", "Type", "GS", "Trackinfo", "ch", "Adr", "Label", "Data", "Date", "Time")
+FIELD_KEYS = (
+    "Diag_id",
+    "ID",
+    "Device",
+    "Type",
+    "GS",
+    "Trackinfo",
+    "ch",
+    "Adr",
+    "Label",
+    "Data",
+    "Date",
+    "Time",
+)
 N_TABS = len(FIELD_KEYS) - 1
 REGISTER_FIELDS = FIELD_KEYS[:9]
 
@@ -188,7 +201,8 @@ def decode_data(raw: bytes) -> tuple[str, int, str]:
     if len(bare) == 3 and bare[0] == bare[2] == "'" and not _CONTROL_RE.match(bare[1]):
         return bare, ord(bare[1]), "char"
     raise FieldError(
-        "Data", f"Data: expected a number, a hex byte (0xD8) or a quoted character ('T'), found '{escape_text(raw, 40)}'"
+        "Data",
+        f"Data: expected a number, a hex byte (0xD8) or a quoted character ('T'), found '{escape_text(raw, 40)}'",
     )
 
 
@@ -255,6 +269,24 @@ class DiagRegistry:
     _values: dict[bytes, tuple[int, int, int, int] | FieldError] = field(default_factory=dict)
     _arrays: dict[str, np.ndarray] = field(default_factory=dict)
     _arrays_len: int = -1
+    record_counts: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    def count_records(self, register_id: np.ndarray) -> None:
+        """Add parsed records to the per-register totals."""
+        counts = np.bincount(register_id, minlength=len(self.registers))
+        if len(self.record_counts) < len(counts):
+            grown = np.zeros(len(counts), np.int64)
+            grown[: len(self.record_counts)] = self.record_counts
+            self.record_counts = grown
+        self.record_counts[: len(counts)] += counts
+
+    def unknown_labels(self) -> dict[str, int]:
+        """Records per label that maps to no known register (kept verbatim)."""
+        out: dict[str, int] = {}
+        for rid, r in enumerate(self.registers):
+            if r.label and r.label_canonical is None and rid < len(self.record_counts):
+                out[r.label] = out.get(r.label, 0) + int(self.record_counts[rid])
+        return {k: v for k, v in out.items() if v}
 
     def register_id(self, span: bytes) -> int | FieldError:
         found = self._register_ids.get(span)
@@ -270,8 +302,7 @@ class DiagRegistry:
                 self._register_errors[span] = exc
             return exc
         except ValueError:  # wrong number of parts: only for malformed spans
-            exc = FieldError("fields", "expected 12 tab-separated Key:Value fields")
-            return exc
+            return FieldError("fields", "expected 12 tab-separated Key:Value fields")
         rid = self._register_ids[span] = len(self.registers)
         self.registers.append(key)
         for interner, value in (
@@ -293,7 +324,10 @@ class DiagRegistry:
         try:
             text, value, kind, day_ns = parse_value_span(span)
             result: tuple[int, int, int, int] | FieldError = (
-                self.data.code(text), value, DATA_KINDS.index(kind), day_ns
+                self.data.code(text),
+                value,
+                DATA_KINDS.index(kind),
+                day_ns,
             )
         except FieldError as exc:
             result = exc
@@ -372,7 +406,9 @@ def _views(view_buf: pa.Buffer, u4: np.ndarray, starts: np.ndarray, lens: np.nda
     return pa.Array.from_buffers(pa.binary_view(), len(starts), [None, pa.py_buffer(v), view_buf])
 
 
-def _encode(view_buf: pa.Buffer, u4: np.ndarray, starts: np.ndarray, lens: np.ndarray) -> tuple[np.ndarray, list[bytes]]:
+def _encode(
+    view_buf: pa.Buffer, u4: np.ndarray, starts: np.ndarray, lens: np.ndarray
+) -> tuple[np.ndarray, list[bytes]]:
     if len(starts) == 0:
         return np.zeros(0, np.int32), []
     enc = _views(view_buf, u4, starts, lens).dictionary_encode()
@@ -507,6 +543,7 @@ class DiagReader:
         with ThreadPoolExecutor(max_workers=max(1, self.workers)) as pool:
             for path in self.paths:
                 yield from self._file_chunks(path, pool)
+        self.report.unknown_labels.update(self.registry.unknown_labels())
         self.report.check()
 
     def _file_chunks(self, path: Path, pool: ThreadPoolExecutor) -> Iterator[DiagChunk]:
@@ -527,7 +564,13 @@ class DiagReader:
 
         def overlong(o: OverlongLine) -> None:
             fr.lines_read += 1
-            self.report.reject(fr, o.line, "too long", f"line longer than {self.max_line_bytes} bytes ({o.length} bytes)", o.head)
+            self.report.reject(
+                fr,
+                o.line,
+                "too long",
+                f"line longer than {self.max_line_bytes} bytes ({o.length} bytes)",
+                o.head,
+            )
 
         pending: deque[Future[_Tokens]] = deque()
         try:
@@ -595,6 +638,7 @@ class DiagReader:
             line=lines.astype(np.int64) + first_line,
         )
         fr.records += len(out)
+        reg.count_records(out.register_id)
 
         # Everything else is blank or rejected: few lines, so Python is fine here.
         accounted = np.zeros(n_lines, bool)
@@ -707,9 +751,9 @@ def chunks_to_frame(chunks: list[DiagChunk], registry: DiagRegistry) -> pd.DataF
         columns=list(RECORD_COLUMNS),
     )
     # Empty labels carry no register name: missing, not the empty string.
-    frame["label_canonical"] = frame["label_canonical"].cat.remove_categories([""]) if "" in canon else frame[
-        "label_canonical"
-    ]
+    frame["label_canonical"] = (
+        frame["label_canonical"].cat.remove_categories([""]) if "" in canon else frame["label_canonical"]
+    )
     return frame
 
 

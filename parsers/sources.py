@@ -96,12 +96,12 @@ def open_input(path: Path) -> tuple[IO[bytes], IO[bytes], SourceInfo]:
     stream: IO[bytes] = raw
     if head.startswith(GZIP_MAGIC):
         info.compressed = True
-        stream = gzip.GzipFile(fileobj=raw, mode="rb")
+        stream = gzip.GzipFile(fileobj=raw, mode="rb")  # type: ignore[assignment]
         try:
             head = stream.read(4)
         except (OSError, EOFError, zlib.error) as exc:
             raise InputError(f"{path}: not a readable gzip file ({exc})") from None
-        stream = gzip.GzipFile(fileobj=raw, mode="rb")
+        stream = gzip.GzipFile(fileobj=raw, mode="rb")  # type: ignore[assignment]
         raw.seek(0)
     if head.startswith(UTF16_BOMS):
         info.encoding = "utf-16"

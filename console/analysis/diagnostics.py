@@ -9,7 +9,7 @@ record counts), so a multi-GB log is analysed in bounded memory.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pandas as pd
@@ -88,7 +88,6 @@ class DiagAccumulator:
     _buckets: list[pd.DataFrame] = field(default_factory=list)
     _detections: list[pd.DataFrame] = field(default_factory=list)
     _identity: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)
-    _counts: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _head_keys: dict[tuple[int, str], int] = field(default_factory=dict)
     _head_list: list[tuple[int, str]] = field(default_factory=list)
     _luts: _Luts | None = None
@@ -127,11 +126,6 @@ class DiagAccumulator:
         head = luts.head[rid]
         channel = luts.channel[rid]
         self._buckets.append(chunk_buckets(head, channel, chunk.time_ns, chunk.file_id))
-
-        counts = np.bincount(rid, minlength=len(luts.head))
-        if len(self._counts) < len(counts):
-            self._counts = np.concatenate([self._counts, np.zeros(len(counts) - len(self._counts), np.int64)])
-        self._counts[: len(counts)] += counts
 
         wheel = luts.is_wheel[rid] & ((chunk.value == 0) | (chunk.value == 1))
         if wheel.any():
@@ -183,14 +177,23 @@ class DiagAccumulator:
         reg = self.registry
         devices: dict[int, DeviceInventory] = {}
         for rid, r in enumerate(reg.registers):
-            n = int(self._counts[rid]) if rid < len(self._counts) else 0
+            counts = reg.record_counts
+            n = int(counts[rid]) if rid < len(counts) else 0
             if n == 0:
                 continue
             inv = devices.get(r.device_id)
             if inv is None:
                 inv = devices[r.device_id] = DeviceInventory(
-                    device_id=r.device_id, device=r.device, type=r.type, gs=r.gs, diag_ids=[],
-                    counting_heads=[], channels=[], records=0, first_ns=0, last_ns=0,
+                    device_id=r.device_id,
+                    device=r.device,
+                    type=r.type,
+                    gs=r.gs,
+                    diag_ids=[],
+                    counting_heads=[],
+                    channels=[],
+                    records=0,
+                    first_ns=0,
+                    last_ns=0,
                 )
             inv.records += n
             if r.diag_id not in inv.diag_ids:
@@ -219,13 +222,22 @@ class DiagAccumulator:
 
 def _chosen_file_only(parts: list[pd.DataFrame], buckets: pd.DataFrame) -> pd.DataFrame:
     """Detections from the file chosen for their bucket (see passages: overlap)."""
-    cols = {"head": np.int64, "channel": np.int64, "time_ns": np.int64, "value": np.int8, "subsecond": bool, "file": np.int64}
+    cols = {
+        "head": np.int64,
+        "channel": np.int64,
+        "time_ns": np.int64,
+        "value": np.int8,
+        "subsecond": bool,
+        "file": np.int64,
+    }
     if not parts:
         return pd.DataFrame({c: pd.Series(dtype=t) for c, t in cols.items()}).assign(passage=pd.Series(dtype=np.int64))
     det = pd.concat(parts, ignore_index=True)
     det["second"] = det["time_ns"] // NS
     keyed = det.merge(
-        buckets[["head", "channel", "second", "file", "passage"]], on=["head", "channel", "second", "file"], how="inner"
+        buckets[["head", "channel", "second", "file", "passage"]],
+        on=["head", "channel", "second", "file"],
+        how="inner",
     )
     return keyed.drop(columns="second")
 
@@ -268,15 +280,19 @@ def _passages(
 
     # Axles: assign by (head, second) of the earlier onset.
     ax = axles.assign(second=axles["time_ns"] // NS).merge(
-        buckets[["head", "second", "passage"]].drop_duplicates(["head", "second"]), on=["head", "second"], how="inner"
+        buckets[["head", "second", "passage"]].drop_duplicates(["head", "second"]),
+        on=["head", "second"],
+        how="inner",
     )
     ag = ax.groupby("passage")
     p["axles"] = ag.size().reindex(p.index).fillna(0).astype(np.int64)
     n12 = (ax["direction"] == DIRECTION_12).groupby(ax["passage"]).sum().reindex(p.index).fillna(0)
     n21 = (ax["direction"] == DIRECTION_21).groupby(ax["passage"]).sum().reindex(p.index).fillna(0)
-    p["direction"] = np.select(
-        [(n12 > n21), (n21 > n12), (n12 > 0) & (n12 == n21)], [DIRECTION_12, DIRECTION_21, "mixed"], default=None
-    )
+    direction = np.full(len(p), None, dtype=object)
+    direction[(n12 > n21).to_numpy()] = DIRECTION_12
+    direction[(n21 > n12).to_numpy()] = DIRECTION_21
+    direction[((n12 > 0) & (n12 == n21)).to_numpy()] = "mixed"
+    p["direction"] = direction
     speeds = ax.dropna(subset=["speed_kmh"]).groupby("passage")["speed_kmh"]
     p["speed_kmh_per_axle"] = speeds.agg(list).reindex(p.index)
     p["speed_kmh_per_axle_mean"] = speeds.mean().reindex(p.index)
@@ -308,9 +324,9 @@ def _passages(
         p["speed_kmh_whole_train"] = np.where(
             duration > 0, (s.train_length_m + s.spacing_m) / duration * MPS_TO_KMH, np.nan
         )
-    p["whole_train_basis"] = np.where(
-        np.isnan(duration) | (duration <= 0), None, np.where(both_det, "detections", "records")
-    )
+    basis = np.where(both_det, "detections", "records").astype(object)
+    basis[np.isnan(duration) | (duration <= 0)] = None
+    p["whole_train_basis"] = basis
     p["device_id"] = [heads[h][0] for h in p["head"]]
     p["counting_head"] = [heads[h][1] for h in p["head"]]
     p["duration_s"] = (p["end_ns"] - p["start_ns"]) / NS
@@ -360,7 +376,8 @@ def passages_to_json(p: pd.DataFrame) -> list[dict[str, Any]]:
             "records": p["records"].astype(int),
             "axles": p["axles"].astype(int),
             "detections": [
-                {"sys1": int(a), "sys2": int(b)} for a, b in zip(p["detections_sys1"], p["detections_sys2"], strict=True)
+                {"sys1": int(a), "sys2": int(b)}
+                for a, b in zip(p["detections_sys1"], p["detections_sys2"], strict=True)
             ],
             "direction": p["direction"],
             "detection_second": _iso_array(p["detection_second_ns"]),
@@ -375,7 +392,7 @@ def passages_to_json(p: pd.DataFrame) -> list[dict[str, Any]]:
             "subsecond": p["subsecond"].astype(bool),
         }
     )
-    records = out.astype(object).where(out.notna(), None).to_dict("records")
+    records = cast(list[dict[str, Any]], out.astype(object).where(out.notna(), None).to_dict("records"))
     for r in records:
         if r["records_in_detection_second"] is not None:
             r["records_in_detection_second"] = int(r["records_in_detection_second"])

@@ -24,9 +24,7 @@ NS = 1_000_000_000
 BUCKET_COLUMNS = ("head", "channel", "second", "file", "records", "t_first_ns", "t_last_ns")
 
 
-def chunk_buckets(
-    head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, file_id: int
-) -> pd.DataFrame:
+def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, file_id: int) -> pd.DataFrame:
     """Run-length reduce one chunk's records to activity buckets.
 
     Records arrive mostly in time order, so consecutive records share a

@@ -87,7 +87,9 @@ def pair_axles(onsets: pd.DataFrame, settings: PairingSettings) -> tuple[pd.Data
         speed = np.where(exact & (delay_s != 0), settings.spacing_m / np.abs(delay_s) * MPS_TO_KMH, np.nan)
     # Whole-second onsets in the same second say nothing about their order.
     known = exact | (t1 // 10**9 != t2 // 10**9)
-    direction = np.where(known & (t2 > t1), DIRECTION_12, np.where(known & (t2 < t1), DIRECTION_21, None))
+    direction = np.full(len(t1), None, dtype=object)
+    direction[known & (t2 > t1)] = DIRECTION_12
+    direction[known & (t2 < t1)] = DIRECTION_21
     axles = pd.DataFrame(
         {
             "head": m["head"].to_numpy(np.int64),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import pandas as pd
 from rich import box
@@ -25,10 +26,10 @@ def _num(value: object, fmt: str = "{:.1f}") -> Text:
     return Text(fmt.format(value))
 
 
-def _time(ns: object) -> Text:
-    if ns is None or pd.isna(ns):  # type: ignore[call-overload]
+def _time(ns: Any) -> Text:
+    if ns is None or pd.isna(ns):
         return Text("–", style="dim")
-    return Text((iso(int(ns)) or "").replace("T", " "))  # type: ignore[call-overload]
+    return Text((iso(int(ns)) or "").replace("T", " "))
 
 
 def _table(title: str) -> Table:
@@ -73,6 +74,7 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
     t.add_column("Whole", justify="right", no_wrap=True)
     t.add_column("Axle", justify="right", no_wrap=True)
     rows = p if limit is None else p.head(limit)
+    r: Any
     for r in rows.itertuples(index=False):
         per_sec = _num(r.speed_kmh_per_second_method)
         if not pd.isna(r.records_in_detection_second):
@@ -101,13 +103,21 @@ def parse_report_table(report: ParseReport) -> Table:
     for f in report.files:
         enc = f.encoding + (", gzip" if f.compressed else "") + (", no final newline" if f.ends_without_newline else "")
         t.add_row(
-            inert(f.file), Text(f"{f.lines_read:,}"), Text(f"{f.records:,}"), Text(f"{f.blank:,}"),
-            Text(f"{f.rejected:,}", style="bold red" if f.rejected else ""), Text(enc),
+            inert(f.file),
+            Text(f"{f.lines_read:,}"),
+            Text(f"{f.records:,}"),
+            Text(f"{f.blank:,}"),
+            Text(f"{f.rejected:,}", style="bold red" if f.rejected else ""),
+            Text(enc),
         )
     if len(report.files) > 1:
         t.add_row(
-            Text("total", style="bold"), Text(f"{report.lines_read:,}"), Text(f"{report.records:,}"),
-            Text(f"{report.blank:,}"), Text(f"{report.rejected:,}"), Text(""),
+            Text("total", style="bold"),
+            Text(f"{report.lines_read:,}"),
+            Text(f"{report.records:,}"),
+            Text(f"{report.blank:,}"),
+            Text(f"{report.rejected:,}"),
+            Text(""),
         )
     return t
 
@@ -122,5 +132,6 @@ def rejections_table(report: ParseReport, limit: int = REJECTIONS_SHOWN) -> Tabl
     for r in report.rejections[:limit]:
         t.add_row(inert(f"{r.file}:{r.line}"), inert(r.reason), inert(r.text, style="dim"))
     if report.rejected > limit:
-        t.caption = f"first {min(limit, len(report.rejections))} of {report.rejected:,} shown; --json lists up to {report.max_rejections_kept}"
+        shown = min(limit, len(report.rejections))
+        t.caption = f"first {shown} of {report.rejected:,} shown; --json lists up to {report.max_rejections_kept}"
     return t

@@ -1,0 +1,32 @@
+"""Shared fixtures: paths to the shipped samples and a helper to write logs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SAMPLES = ROOT / "sample_logs"
+
+RECORD = (
+    "Diag_id:00002\tID:4083\tDevice:IM\tType:013\tGS:GS03\tTrackinfo:WS4\tch:{ch}\tAdr:{adr}\t"
+    "Label:{label}\tData:{data}\tDate:{date}\tTime:{time}"
+)
+
+
+def record(
+    ch: int | str = 1,
+    adr: str = "080",
+    label: str = "Summenzä",
+    data: str = "18",
+    date: str = "2015-10-31",
+    time: str = "09:32:24",
+) -> str:
+    """One diagnostic record line (no newline)."""
+    return RECORD.format(ch=ch, adr=adr, label=label, data=data, date=date, time=time)
+
+
+@pytest.fixture
+def samples() -> Path:
+    return SAMPLES

@@ -1,0 +1,141 @@
+"""`trackside analyze` / `speeds` as a user runs them: CliRunner and subprocesses."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from console.cli import app
+from tests.conftest import ROOT, record
+
+runner = CliRunner()
+
+
+def test_analyze_prints_inventory_passages_and_parse_report(samples: Path) -> None:
+    res = runner.invoke(app, ["analyze", *map(str, sorted(samples.glob("osong_*.log")))], env={"COLUMNS": "120"})
+    assert res.exit_code == 0, res.output
+    for needle in ("Devices", "TMC", "4803", "Passages (3)", "15.9 (34)", "14.5 (31)", "17.24", "Parse report"):
+        assert needle in res.output
+
+
+def test_analyze_json_document(samples: Path) -> None:
+    res = runner.invoke(app, ["analyze", str(samples / "ws4_subsecond.log"), "--json"])
+    assert res.exit_code == 0
+    doc = json.loads(res.stdout)
+    assert doc["schema"] == "trackside.analyze/1"
+    assert doc["files"] == [str(samples / "ws4_subsecond.log")]
+    pr = doc["parse_report"]
+    assert (pr["lines_read"], pr["records"], pr["rejected"], pr["rejections"]) == (100, 100, 0, [])
+    assert [d["device_id"] for d in doc["devices"]] == [4083]
+    p = doc["passages"][0]
+    for key in (
+        "counting_head", "start", "end", "records", "axles", "direction",
+        "speed_kmh_per_second_method", "speed_kmh_whole_train", "speed_kmh_per_axle",
+    ):
+        assert key in p
+    assert p["counting_head"] == "WS4" and p["axles"] == 8 and p["direction"] == "sys1_to_sys2"
+    assert doc["passages"][1]["speed_kmh_whole_train"] is None  # null where unknown
+
+
+def test_speeds_is_the_passages_table_alone(samples: Path) -> None:
+    res = runner.invoke(app, ["speeds", str(samples / "osong_ws4_1732_passage.log")], env={"COLUMNS": "120"})
+    assert res.exit_code == 0
+    assert "17.24" in res.output and "Devices" not in res.output and "Parse report" not in res.output
+    doc = json.loads(runner.invoke(app, ["speeds", str(samples / "osong_ws4_1732_passage.log"), "--json"]).stdout)
+    assert round(doc["passages"][0]["speed_kmh_whole_train"], 2) == 17.24
+
+
+def test_missing_file_is_exit_2_with_one_line(tmp_path: Path) -> None:
+    res = runner.invoke(app, ["analyze", str(tmp_path / "nope.log")])
+    assert res.exit_code == 2
+    assert res.stderr.strip() == f"trackside: error: {tmp_path / 'nope.log'}: no such file"
+    assert "Traceback" not in res.output
+
+
+def test_directory_is_exit_2(tmp_path: Path) -> None:
+    res = runner.invoke(app, ["analyze", str(tmp_path)])
+    assert res.exit_code == 2 and "is a directory" in res.stderr
+
+
+def test_bad_option_is_exit_2(samples: Path) -> None:
+    res = runner.invoke(app, ["analyze", str(samples / "ws4_subsecond.log"), "--idle-gap", "0.5"])
+    assert res.exit_code == 2
+
+
+def test_empty_file_is_not_an_error(tmp_path: Path) -> None:
+    p = tmp_path / "empty.log"
+    p.write_bytes(b"")
+    res = runner.invoke(app, ["analyze", str(p), "--json"])
+    assert res.exit_code == 0
+    doc = json.loads(res.stdout)
+    assert doc["parse_report"]["records"] == 0 and doc["passages"] == [] and doc["devices"] == []
+
+
+def test_strict_makes_rejections_exit_1(tmp_path: Path) -> None:
+    p = tmp_path / "bad.log"
+    p.write_text(record() + "\n" + record(ch="x") + "\n", encoding="utf-8")
+    assert runner.invoke(app, ["analyze", str(p)]).exit_code == 0
+    res = runner.invoke(app, ["analyze", str(p), "--strict", "--json"])
+    assert res.exit_code == 1
+    (rej,) = json.loads(res.stdout)["parse_report"]["rejections"]
+    assert (rej["file"], rej["line"]) == (str(p), 2) and "ch" in rej["reason"]
+
+
+def test_corrupt_gzip_is_exit_2(tmp_path: Path) -> None:
+    import gzip
+
+    data = gzip.compress(("\n".join([record()] * 2000) + "\n").encode())
+    p = tmp_path / "cut.log.gz"
+    p.write_bytes(data[: len(data) // 2])
+    res = runner.invoke(app, ["analyze", str(p)])
+    assert res.exit_code == 2 and "corrupt or truncated" in res.stderr
+
+
+def test_log_content_never_becomes_markup_or_escapes(tmp_path: Path) -> None:
+    p = tmp_path / "evil.log"
+    lines = [
+        record(label="[bold red]PWNED[/]"),
+        record(label="Sum\x1b]0;title\x07"),  # rejected: shown escaped
+        record().replace("Trackinfo:WS4", "Trackinfo:[link=http://x]WS4[/link]"),
+        "\x1b[2J\x1b[31mjunk line\x9b31m",
+    ]
+    p.write_bytes(("\n".join(lines) + "\n").encode("utf-8"))
+    res = runner.invoke(app, ["analyze", str(p)], env={"COLUMNS": "200"})
+    assert res.exit_code == 0
+    assert "\x1b" not in res.output and "\x9b" not in res.output and "\x07" not in res.output
+    assert "[bold red]PWNED[/]" in res.output or "[bold red]PWNED[/]" in res.output.replace("\n", "")
+    assert "[link=http://x]WS4[/link]" in res.output
+    assert "\\x1b" in res.output  # the rejected junk is shown, escaped
+    js = runner.invoke(app, ["analyze", str(p), "--json"]).stdout
+    assert "\x1b" not in js and "\x9b" not in js
+    json.loads(js)
+
+
+def _run(*args: str) -> subprocess.CompletedProcess[str]:
+    exe = Path(sys.executable).with_name("trackside")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli import app; app()"]
+    return subprocess.run([*cmd, *args], capture_output=True, text=True, cwd=ROOT, timeout=120)
+
+
+def test_subprocess_quick_start_command() -> None:
+    res = _run("analyze", *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "sample_logs").glob("osong_*.log")))
+    assert res.returncode == 0, res.stderr
+    assert "15.9" in res.stdout and "17.24" in res.stdout
+    assert res.stderr == ""  # no progress bar when stderr is not a terminal
+
+
+def test_subprocess_json_and_exit_codes(tmp_path: Path) -> None:
+    res = _run("analyze", "sample_logs/ws4_subsecond.log", "--json")
+    assert res.returncode == 0 and json.loads(res.stdout)["parse_report"]["records"] == 100
+    missing = _run("analyze", str(tmp_path / "missing.log"))
+    assert missing.returncode == 2 and missing.stderr.count("\n") == 1 and "Traceback" not in missing.stderr
+
+
+@pytest.mark.parametrize("cmd", [["--help"], ["analyze", "--help"], ["--version"]])
+def test_help_and_version(cmd: list[str]) -> None:
+    assert runner.invoke(app, cmd).exit_code == 0
