@@ -92,7 +92,8 @@ def _guard(fn: Callable[[], int]) -> int:
 
 def _print_json(doc: dict[str, Any]) -> None:
     # ensure_ascii: no raw control or C1 bytes from a log can reach a terminal.
-    sys.stdout.write(json.dumps(doc, ensure_ascii=True, indent=2, allow_nan=False))
+    # Compact: json's C encoder only runs without indent (pipe into jq to read).
+    sys.stdout.write(json.dumps(doc, ensure_ascii=True, separators=(",", ":"), allow_nan=False))
     sys.stdout.write("\n")
     sys.stdout.flush()
 

@@ -63,13 +63,11 @@ FIELD_KEYS = (
     "Date",
     "Time",
 )
-N_TABS = len(FIELD_KEYS) - 1
 REGISTER_FIELDS = FIELD_KEYS[:9]
 
 # Arrow's binary-view layout stores spans of up to 12 bytes inline; every
 # valid span here is longer, so shorter ones are rejected before viewing.
 _VIEW_INLINE_MAX = 12
-_PAD = 32  # bytes after a chunk so fixed-width loads never run off its end
 _VIEW = np.dtype([("len", "<i4"), ("prefix", "<u4"), ("buf", "<i4"), ("off", "<i4")])
 _TIME_KEY = int.from_bytes(b"Time:", "little")
 _NS = 1_000_000_000
@@ -234,16 +232,27 @@ def parse_value_span(span: bytes) -> tuple[str, int, str, int]:
     return text, value, kind, decode_date(date)
 
 
-def describe_time(raw: bytes) -> str:
-    """Why a Time field was refused (only called for refused lines)."""
+_TIME_RE = re.compile(r"(\d{2}):(\d{2}):(\d{2})(?:\.(\d{1,9}))?")
+
+
+def parse_time(raw: bytes) -> tuple[int, bool]:
+    """``Time:09:32:24[.125]`` → (ns since midnight, has a fraction).
+
+    The per-line reference for the vectorized time parse in :func:`_tokenize`
+    (same rules), used for lines off the fast path.
+    """
     name, sep, value = raw.partition(b":")
     if not sep or name.strip() != b"Time":
-        return f"field 12: expected 'Time:…', found '{escape_text(raw, 40)}'"
-    text = value.decode("utf-8", errors="replace")
-    m = re.fullmatch(r"(\d{2}):(\d{2}):(\d{2})(\.\d{1,9})?", text)
+        raise FieldError("fields", f"field 12: expected 'Time:…', found '{escape_text(raw, 40)}'")
+    text = value.decode("utf-8", errors="replace").strip()
+    m = _TIME_RE.fullmatch(text)
     if not m:
-        return f"Time: expected HH:MM:SS or HH:MM:SS.fff, found '{escape_text(value, 40)}'"
-    return f"Time: impossible time '{text}'"
+        raise FieldError("Time", f"Time: expected HH:MM:SS or HH:MM:SS.fff, found '{escape_text(value, 40)}'")
+    hh, mm, ss = int(m[1]), int(m[2]), int(m[3])
+    if hh > 23 or mm > 59 or ss > 59:
+        raise FieldError("Time", f"Time: impossible time '{text}'")
+    frac = m[4] or ""
+    return ((hh * 60 + mm) * 60 + ss) * _NS + (int(frac.ljust(9, "0")) if frac else 0), bool(frac)
 
 
 @dataclass
@@ -379,14 +388,18 @@ class DiagChunk:
 
 @dataclass
 class _Tokens:
-    """A chunk cut into spans (thread-pool output, before dictionary merging)."""
+    """A chunk cut into spans (thread-pool output, before dictionary merging).
+
+    ``fast`` lists the lines whose shape the vectorized pass recognised; all
+    other non-blank lines go through :meth:`DiagReader._slow_line`.
+    """
 
     chunk: Chunk
-    buf: bytes
+    buf: memoryview | bytes
     starts: np.ndarray
     ends: np.ndarray
     blank: np.ndarray
-    shaped: np.ndarray  # line indices with 12 fields
+    fast: np.ndarray
     reg_idx: np.ndarray
     reg_dict: list[bytes]
     val_idx: np.ndarray
@@ -394,7 +407,6 @@ class _Tokens:
     tod_ns: np.ndarray
     subsecond: np.ndarray
     time_ok: np.ndarray
-    time_starts: np.ndarray
 
 
 def _views(view_buf: pa.Buffer, u4: np.ndarray, starts: np.ndarray, lens: np.ndarray) -> pa.Array:
@@ -415,30 +427,57 @@ def _encode(
     return enc.indices.to_numpy(zero_copy_only=False), enc.dictionary.to_pylist()
 
 
-def _tokenize(chunk: Chunk) -> _Tokens:
-    """Cut a chunk into lines and spans: numpy and Arrow only, no per-line Python."""
-    data = chunk.data if chunk.data.endswith(b"\n") else chunk.data + b"\n"
-    size = len(data)
-    buf = data + b"\0" * _PAD
-    arr = np.frombuffer(buf, np.uint8)
-    # Unaligned 4- and 8-byte loads at any offset (little-endian), for view
-    # prefixes and for reading "HH:MM:SS" as one word.
-    u4 = np.ndarray(shape=(size + _PAD - 8,), dtype="<u4", buffer=buf, strides=(1,))
-    u8 = np.ndarray(shape=(size + _PAD - 8,), dtype="<u8", buffer=buf, strides=(1,))
-    body = arr[:size]
+_LO7 = np.uint64(0x7F7F7F7F7F7F7F7F)
+_TABS = np.uint64(0x0909090909090909)
 
-    sep = np.flatnonzero(body < 11)
-    sep_val = body[sep]
-    if (sep_val < 9).any():  # other control bytes: not separators
-        keep = sep_val >= 9
-        sep, sep_val = sep[keep], sep_val[keep]
-    is_nl = sep_val == 10
-    nl = sep[is_nl]
-    nl_i = np.flatnonzero(is_nl)
-    prev_i = np.empty_like(nl_i)
-    prev_i[:1] = -1
-    prev_i[1:] = nl_i[:-1]
-    n_tabs = nl_i - prev_i - 1
+
+def _tab_bytes(words: np.ndarray) -> np.ndarray:
+    """Per 8-byte word: the high bit of each byte that is a tab (exact, no borrows)."""
+    x = words ^ _TABS
+    return ~(((x & _LO7) + _LO7) | x | _LO7)
+
+
+def _last_tab(u8: np.ndarray, window_end: np.ndarray, words: int) -> np.ndarray:
+    """Offset of the last tab in the ``8 * words`` bytes before window_end, or -1."""
+    found = np.full(len(window_end), -1, np.int64)
+    todo = np.ones(len(window_end), bool)
+    for k in range(1, words + 1):
+        base = window_end - 8 * k
+        mask = _tab_bytes(u8[base])
+        hit = todo & (mask != 0)
+        if hit.any():
+            # Set bits sit at 8j+7 and are sparse, so float log2 finds the top one exactly.
+            top = (np.log2(mask[hit].astype(np.float64)).astype(np.int64) - 7) // 8
+            found[hit] = base[hit] + top
+            todo &= ~hit
+    return found
+
+
+# A valid record is never shorter than this; shorter lines take the slow path,
+# which also keeps the backward byte windows inside the line.
+_MIN_FAST_LINE = 64
+
+
+def _tokenize(chunk: Chunk) -> _Tokens:
+    """Cut a chunk into lines and spans: numpy and Arrow only, no per-line Python.
+
+    Only newlines are scanned for.  In a record the last three tabs stand
+    before Time (at most 24 bytes from the end), before Date (exactly 16
+    bytes earlier: ``Date:YYYY-MM-DD``) and before Data (a short field);
+    they are found with 8-byte loads.  The tab count of the rest is checked
+    when each distinct register span is parsed.
+    """
+    data = chunk.data if chunk.ends_with_newline() else bytes(chunk.data) + b"\n"
+    size = len(data)
+    buf = data
+    arr = np.frombuffer(buf, np.uint8)
+    # Unaligned 4- and 8-byte little-endian loads at any offset.  Every load
+    # below stays inside a line of at least _MIN_FAST_LINE bytes, so no
+    # padding (and no copy of the chunk) is needed.
+    u4 = np.ndarray(shape=(max(size - 3, 0),), dtype="<u4", buffer=buf, strides=(1,))
+    u8 = np.ndarray(shape=(max(size - 7, 0),), dtype="<u8", buffer=buf, strides=(1,))
+
+    nl = np.flatnonzero(arr[:size] == 10)
     starts = np.empty_like(nl)
     starts[:1] = 0
     starts[1:] = nl[:-1] + 1
@@ -451,49 +490,52 @@ def _tokenize(chunk: Chunk) -> _Tokens:
         ends -= trail
     blank = ends == starts
 
-    shaped = np.flatnonzero(n_tabs == N_TABS)
-    base = prev_i[shaped] + 1
-    t8, t10 = sep[base + 8], sep[base + 10]
-    st, en = starts[shaped], ends[shaped]
-    # Trailing-blank trimming may have moved a line end before its last tab.
-    reg_len = t8 - st
-    val_len = t10 - t8 - 1
-    viewable = (reg_len > _VIEW_INLINE_MAX) & (val_len > _VIEW_INLINE_MAX) & (en > t10)
-    if not viewable.all():
-        shaped, t8, t10, st, en = shaped[viewable], t8[viewable], t10[viewable], st[viewable], en[viewable]
-        reg_len, val_len = reg_len[viewable], val_len[viewable]
+    fast = np.flatnonzero(ends - starts >= _MIN_FAST_LINE)
+    st, en = starts[fast], ends[fast]
+    # Whole-second (13 bytes) and millisecond (17 bytes) times by direct look;
+    # other fraction lengths by searching the last 24 bytes.
+    t10 = np.where(arr[en - 14] == 9, en - 14, np.where(arr[en - 18] == 9, en - 18, -1))
+    odd = t10 < 0
+    if odd.any():
+        t10[odd] = _last_tab(u8, en[odd], 3)
+    t9 = t10 - 16
+    ok = (t10 >= 0) & (arr[np.maximum(t9, 0)] == 9)
+    t8 = _last_tab(u8, np.where(ok, t9, en), 2)
+    ok &= (t8 - st > _VIEW_INLINE_MAX) & (en - t10 >= 14)
+    if not ok.all():
+        fast, st, en, t8, t10 = fast[ok], st[ok], en[ok], t8[ok], t10[ok]
     view_buf = pa.py_buffer(buf)
-    reg_idx, reg_dict = _encode(view_buf, u4, st, reg_len)
-    val_idx, val_dict = _encode(view_buf, u4, t8 + 1, val_len)
+    reg_idx, reg_dict = _encode(view_buf, u4, st, t8 - st)
+    val_idx, val_dict = _encode(view_buf, u4, t8 + 1, t10 - t8 - 1)
 
-    # Time: "Time:HH:MM:SS" plus an optional ".f" of 1-9 digits.
+    # Time: "Time:HH:MM:SS" plus an optional ".f" of 1-9 digits (rules of parse_time).
     ts = t10 + 1
     tlen = en - ts
     w_key = u8[ts]
     w_hms = u8[ts + 5]
-    ok = (w_key & np.uint64(0xFF_FFFF_FFFF)) == np.uint64(_TIME_KEY)
-    ok &= (tlen == 13) | ((tlen >= 15) & (tlen <= 23))
+    time_ok = (w_key & np.uint64(0xFF_FFFF_FFFF)) == np.uint64(_TIME_KEY)
+    time_ok &= (tlen == 13) | ((tlen >= 15) & (tlen <= 23))
     digits = []
     for k in (0, 1, 3, 4, 6, 7):
         b = ((w_hms >> np.uint64(8 * k)) & np.uint64(0xFF)).astype(np.int64) - 48
-        ok &= (b >= 0) & (b <= 9)
+        time_ok &= (b >= 0) & (b <= 9)
         digits.append(b)
     for k in (2, 5):
-        ok &= ((w_hms >> np.uint64(8 * k)) & np.uint64(0xFF)) == np.uint64(ord(":"))
+        time_ok &= ((w_hms >> np.uint64(8 * k)) & np.uint64(0xFF)) == np.uint64(ord(":"))
     hh = digits[0] * 10 + digits[1]
     mm = digits[2] * 10 + digits[3]
     ss = digits[4] * 10 + digits[5]
-    ok &= (hh < 24) & (mm < 60) & (ss < 60)
+    time_ok &= (hh < 24) & (mm < 60) & (ss < 60)
     tod = ((hh * 60 + mm) * 60 + ss) * _NS
     n_frac = np.where((tlen >= 15) & (tlen <= 23), tlen - 14, 0)
     subsecond = n_frac > 0
     if subsecond.any():
-        ok &= ~subsecond | (arr[ts + 13] == ord("."))
+        time_ok &= ~subsecond | (arr[np.minimum(ts + 13, size - 1)] == ord("."))
         frac = np.zeros(len(ts), np.int64)
         for k in range(int(n_frac.max())):
             has = n_frac > k
-            b = arr[ts + 14 + k].astype(np.int64) - 48
-            ok &= ~has | ((b >= 0) & (b <= 9))
+            b = arr[np.minimum(ts + 14 + k, size - 1)].astype(np.int64) - 48
+            time_ok &= ~has | ((b >= 0) & (b <= 9))
             frac = np.where(has, frac * 10 + b, frac)
         tod += frac * _POW10[9 - np.minimum(n_frac, 9)]
     return _Tokens(
@@ -502,15 +544,14 @@ def _tokenize(chunk: Chunk) -> _Tokens:
         starts=starts,
         ends=ends,
         blank=blank,
-        shaped=shaped,
+        fast=fast,
         reg_idx=reg_idx,
         reg_dict=reg_dict,
         val_idx=val_idx,
         val_dict=val_dict,
         tod_ns=tod,
         subsecond=subsecond,
-        time_ok=ok,
-        time_starts=ts,
+        time_ok=time_ok,
     )
 
 
@@ -562,47 +603,57 @@ class DiagReader:
                 self.on_progress(pos - last_pos)
             last_pos = pos
 
-        def overlong(o: OverlongLine) -> None:
-            fr.lines_read += 1
-            self.report.reject(
-                fr,
-                o.line,
-                "too long",
-                f"line longer than {self.max_line_bytes} bytes ({o.length} bytes)",
-                o.head,
-            )
+        pending: deque[Future[_Tokens] | OverlongLine] = deque()
+        next_line = 1  # line numbers are handed out here, in file order
 
-        pending: deque[Future[_Tokens]] = deque()
+        def drain() -> DiagChunk | None:
+            nonlocal next_line
+            item = pending.popleft()
+            if isinstance(item, OverlongLine):
+                self._overlong(item, fr, next_line)
+                next_line += 1
+                return None
+            tok = item.result()
+            out = self._resolve(tok, fr, file_id, next_line)
+            next_line += len(tok.starts)
+            return out
+
         try:
             source = iter_chunks(
                 stream,
                 info,
                 chunk_bytes=self.chunk_bytes,
                 max_line_bytes=self.max_line_bytes,
-                on_overlong=overlong,
                 on_bytes=progress,
                 name=name,
             )
-            for chunk in source:
-                pending.append(pool.submit(_tokenize, chunk))
-                if len(pending) > self.workers:
-                    yield self._resolve(pending.popleft().result(), fr, file_id)
+            for item in source:
+                pending.append(item if isinstance(item, OverlongLine) else pool.submit(_tokenize, item))
+                while len(pending) > self.workers:
+                    if (out := drain()) is not None:
+                        yield out
             while pending:
-                yield self._resolve(pending.popleft().result(), fr, file_id)
+                if (out := drain()) is not None:
+                    yield out
         finally:
             for fut in pending:
-                fut.cancel()
+                if isinstance(fut, Future):
+                    fut.cancel()
             stream.close()
             raw.close()
         fr.ends_without_newline = info.ends_without_newline
         fr.bytes_read = last_pos
 
-    def _resolve(self, tok: _Tokens, fr: FileReport, file_id: int) -> DiagChunk:
-        """Merge a chunk's span dictionaries into the registry; reject bad lines."""
+    def _overlong(self, o: OverlongLine, fr: FileReport, line: int) -> None:
+        fr.lines_read += 1
+        reason = f"line longer than {self.max_line_bytes} bytes ({o.length} bytes)"
+        self.report.reject(fr, line, "too long", reason, o.head)
+
+    def _resolve(self, tok: _Tokens, fr: FileReport, file_id: int, first_line: int) -> DiagChunk:
+        """Merge a chunk's span dictionaries into the registry; parse or reject the rest."""
         reg = self.registry
         n_lines = len(tok.starts)
         fr.lines_read += n_lines
-        first_line = tok.chunk.first_line
 
         reg_lut = np.full(len(tok.reg_dict), -1, np.int32)
         reg_err: dict[int, FieldError] = {}
@@ -625,63 +676,99 @@ class DiagReader:
 
         rid = reg_lut[tok.reg_idx]
         good = (rid >= 0) & val_ok[tok.val_idx] & tok.time_ok
-        lines = tok.shaped[good]
         vi = tok.val_idx[good]
+        rid_g = rid[good]
+        time_ns = val_cols[3][vi] + tok.tod_ns[good]
+        subsecond = tok.subsecond[good]
+        value = val_cols[1][vi]
+        data_code = val_cols[0][vi]
+        data_kind = val_cols[2][vi]
+        lines = tok.fast[good]
+
+        # The rest is blank, off the fast path, or rejected: few lines, Python is fine.
+        rest = np.ones(n_lines, bool)
+        rest[lines] = False
+        rest &= ~tok.blank
+        fr.blank += int(tok.blank.sum())
+        bad_j = np.flatnonzero(~good)
+        bad_fast = dict(zip(tok.fast[bad_j].tolist(), bad_j.tolist(), strict=True))
+        last_open = tok.chunk.final and not tok.chunk.ends_with_newline()
+        slow: list[tuple[int, int, int, bool, int, int, int]] = []
+        for li in np.flatnonzero(rest).tolist():
+            raw = bytes(tok.buf[tok.starts[li] : tok.ends[li]])
+            j = bad_fast.get(li)
+            err: FieldError | None = None
+            if j is not None and int(tok.reg_idx[j]) in reg_err:
+                err = reg_err[int(tok.reg_idx[j])]
+            elif j is not None and int(tok.val_idx[j]) in val_err:
+                err = val_err[int(tok.val_idx[j])]
+            else:
+                parsed = self._slow_line(raw)
+                if parsed is None:
+                    fr.blank += 1
+                    continue
+                if isinstance(parsed, FieldError):
+                    err = parsed
+                else:
+                    slow.append((li, *parsed))
+                    continue
+            category, reason = err.category, err.reason
+            if last_open and li == n_lines - 1:
+                category, reason = "truncated", f"truncated last line (no newline at end of file): {reason}"
+            self.report.reject(fr, first_line + li, category, reason, raw)
+        if slow:
+            s_lines, s_rid, s_time, s_sub, s_value, s_code, s_kind = (np.array(c) for c in zip(*slow, strict=True))
+            lines = np.concatenate([lines, s_lines])
+            order = np.argsort(lines, kind="stable")
+            lines = lines[order]
+            rid_g = np.concatenate([rid_g, s_rid])[order]
+            time_ns = np.concatenate([time_ns, s_time])[order]
+            subsecond = np.concatenate([subsecond, s_sub])[order]
+            value = np.concatenate([value, s_value])[order]
+            data_code = np.concatenate([data_code, s_code])[order]
+            data_kind = np.concatenate([data_kind, s_kind])[order]
         out = DiagChunk(
             file_id=file_id,
-            register_id=rid[good],
-            time_ns=val_cols[3][vi] + tok.tod_ns[good],
-            subsecond=tok.subsecond[good],
-            value=val_cols[1][vi],
-            data_code=val_cols[0][vi].astype(np.int32),
-            data_kind=val_cols[2][vi].astype(np.int8),
+            register_id=rid_g.astype(np.int32),
+            time_ns=time_ns.astype(np.int64),
+            subsecond=subsecond.astype(bool),
+            value=value.astype(np.int64),
+            data_code=data_code.astype(np.int32),
+            data_kind=data_kind.astype(np.int8),
             line=lines.astype(np.int64) + first_line,
         )
         fr.records += len(out)
         reg.count_records(out.register_id)
-
-        # Everything else is blank or rejected: few lines, so Python is fine here.
-        accounted = np.zeros(n_lines, bool)
-        accounted[lines] = True
-        blank = tok.blank & ~accounted
-        fr.blank += int(blank.sum())
-        accounted |= blank
-        last_line_open = tok.chunk.final and not tok.chunk.data.endswith(b"\n")
-        bad_shaped = ~good
-        shaped_pos = {int(li): j for j, li in enumerate(tok.shaped[bad_shaped])}
-        bad_reg = tok.reg_idx[bad_shaped]
-        bad_val = tok.val_idx[bad_shaped]
-        bad_ts = tok.time_starts[bad_shaped]
-        for li in np.flatnonzero(~accounted):
-            raw = tok.buf[tok.starts[li] : tok.ends[li]]
-            j = shaped_pos.get(int(li))
-            if j is None:
-                if not raw.strip():
-                    fr.blank += 1
-                    continue
-                category, reason = _shape_reason(raw)
-            elif int(bad_reg[j]) in reg_err:
-                e = reg_err[int(bad_reg[j])]
-                category, reason = e.category, e.reason
-            elif int(bad_val[j]) in val_err:
-                e = val_err[int(bad_val[j])]
-                category, reason = e.category, e.reason
-            else:
-                category, reason = "Time", describe_time(tok.buf[bad_ts[j] : tok.ends[li]])
-            if last_line_open and li == n_lines - 1:
-                category, reason = "truncated", f"truncated last line (no newline at end of file): {reason}"
-            self.report.reject(fr, first_line + int(li), category, reason, raw)
-
         return out
 
+    def _slow_line(self, raw: bytes) -> tuple[int, int, bool, int, int, int] | FieldError | None:
+        """Parse one line in Python with the same field rules (None: blank).
 
-def _shape_reason(raw: bytes) -> tuple[str, str]:
+        Returns (register id, time ns, subsecond, value, data code, kind code).
+        """
+        if not raw.strip():
+            return None
+        parts = raw.split(b"\t")
+        if len(parts) != len(FIELD_KEYS):
+            return FieldError(*_shape_reason(raw, len(parts)))
+        rid = self.registry.register_id(b"\t".join(parts[:9]))
+        if isinstance(rid, FieldError):
+            return rid
+        val = self.registry.value(b"\t".join(parts[9:11]))
+        if isinstance(val, FieldError):
+            return val
+        try:
+            tod, subsecond = parse_time(parts[11])
+        except FieldError as exc:
+            return exc
+        code, value, kind, day_ns = val
+        return rid, day_ns + tod, subsecond, value, code, kind
+
+
+def _shape_reason(raw: bytes, n_fields: int) -> tuple[str, str]:
     if b"\0" in raw or sum(b < 32 and b not in (9, 13) for b in raw[:256]) > 2:
         return "binary", "binary data, not a text record"
-    n = raw.count(b"\t") + 1
-    if n == len(FIELD_KEYS):
-        return "fields", "field too short to be a record (empty fields?)"
-    return "fields", f"expected {len(FIELD_KEYS)} tab-separated Key:Value fields, found {n}"
+    return "fields", f"expected {len(FIELD_KEYS)} tab-separated Key:Value fields, found {n_fields}"
 
 
 RECORD_COLUMNS = (

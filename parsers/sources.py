@@ -32,18 +32,20 @@ class InputError(Exception):
 @dataclass
 class Chunk:
     """Complete lines: ``data`` ends with a newline unless it is the file's last
-    piece and the file ends without one."""
+    piece and the file ends without one.  Line numbers are assigned by the
+    consumer, in order, so the reader never has to count lines."""
 
-    data: bytes
-    first_line: int  # 1-based number of the first line in data
+    data: memoryview | bytes
     final: bool
+
+    def ends_with_newline(self) -> bool:
+        return len(self.data) > 0 and self.data[-1] in (10, b"\n")
 
 
 @dataclass
 class OverlongLine:
     """A line longer than the limit: only its head is kept, for the report."""
 
-    line: int
     head: bytes
     length: int
 
@@ -118,56 +120,58 @@ def iter_chunks(
     *,
     chunk_bytes: int = DEFAULT_CHUNK_BYTES,
     max_line_bytes: int = DEFAULT_MAX_LINE_BYTES,
-    on_overlong: Callable[[OverlongLine], None],
     on_bytes: Callable[[], None] | None = None,
     name: str = "",
-) -> Iterator[Chunk]:
-    """Yield line-aligned chunks; overlong lines go to ``on_overlong``.
+) -> Iterator[Chunk | OverlongLine]:
+    """Yield line-aligned chunks, and overlong lines in their place in the file.
 
-    Memory stays within about ``chunk_bytes + max_line_bytes`` per file.
+    Each chunk is read straight into its own buffer (one copy, from the
+    kernel or the decompressor); only the unfinished last line is carried
+    over.  Memory stays within about ``chunk_bytes + max_line_bytes`` per
+    chunk in flight.
     """
-    line_no = 1
     carry = b""
     skipping: OverlongLine | None = None  # inside an overlong line, discarding to its end
     while True:
+        buf = bytearray(len(carry) + chunk_bytes)
+        buf[: len(carry)] = carry
         try:
-            data = stream.read(chunk_bytes)
+            n = stream.readinto(memoryview(buf)[len(carry) :])  # type: ignore[attr-defined]
         except (OSError, EOFError, zlib.error) as exc:
             raise InputError(f"{name}: read failed, the file is corrupt or truncated ({exc})") from None
         if on_bytes is not None:
             on_bytes()
-        if not data:
+        if not n:
             if skipping is not None:
-                on_overlong(skipping)
-                line_no += 1
                 info.ends_without_newline = True
+                yield skipping
             elif carry:
                 info.ends_without_newline = True
-                yield Chunk(carry, line_no, final=True)
+                yield Chunk(carry, final=True)
             return
+        total = len(carry) + n
+        view = memoryview(buf)[:total]
+        start = 0
         if skipping is not None:
-            nl = data.find(b"\n")
+            nl = buf.find(b"\n", 0, total)
             if nl < 0:
-                skipping.length += len(data)
+                skipping.length += total
+                carry = b""
                 continue
             skipping.length += nl
-            on_overlong(skipping)
+            yield skipping
             skipping = None
-            line_no += 1
-            data = data[nl + 1 :]
-        buf = carry + data if carry else data
-        cut = buf.rfind(b"\n") + 1
+            start = nl + 1
+        cut = buf.rfind(b"\n", start, total) + 1
         if cut == 0:
-            if len(buf) > max_line_bytes:
-                skipping = OverlongLine(line_no, buf[:200], len(buf))
+            if total - start > max_line_bytes:
+                skipping = OverlongLine(bytes(buf[start : start + 200]), total - start)
                 carry = b""
             else:
-                carry = buf
+                carry = bytes(buf[start:total])
             continue
-        carry = buf[cut:]
-        whole = buf[:cut]
+        carry = bytes(buf[cut:total])
         if len(carry) > max_line_bytes:
-            skipping = OverlongLine(line_no + whole.count(b"\n"), carry[:200], len(carry))
+            skipping = OverlongLine(carry[:200], len(carry))
             carry = b""
-        yield Chunk(whole, line_no, final=False)
-        line_no += whole.count(b"\n")
+        yield Chunk(view[start:cut], final=False)

@@ -34,8 +34,15 @@ def test_analyze_json_document(samples: Path) -> None:
     assert [d["device_id"] for d in doc["devices"]] == [4083]
     p = doc["passages"][0]
     for key in (
-        "counting_head", "start", "end", "records", "axles", "direction",
-        "speed_kmh_per_second_method", "speed_kmh_whole_train", "speed_kmh_per_axle",
+        "counting_head",
+        "start",
+        "end",
+        "records",
+        "axles",
+        "direction",
+        "speed_kmh_per_second_method",
+        "speed_kmh_whole_train",
+        "speed_kmh_per_axle",
     ):
         assert key in p
     assert p["counting_head"] == "WS4" and p["axles"] == 8 and p["direction"] == "sys1_to_sys2"

@@ -9,13 +9,13 @@ record counts), so a multi-GB log is analysed in bounded memory.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from console.analysis.inventory import IDENTITY_LABELS, DeviceInventory, IdentityValue, apply_identity
-from console.analysis.passages import NS, chunk_buckets, merge_buckets, split_passages
+from console.analysis.passages import NS, bucket_index, chunk_buckets, merge_buckets, split_passages
 from console.analysis.speed import MPS_TO_KMH
 from console.analysis.wheels import (
     DIRECTION_12,
@@ -127,17 +127,17 @@ class DiagAccumulator:
         channel = luts.channel[rid]
         self._buckets.append(chunk_buckets(head, channel, chunk.time_ns, chunk.file_id))
 
-        wheel = luts.is_wheel[rid] & ((chunk.value == 0) | (chunk.value == 1))
-        if wheel.any():
+        # Wheel onsets (Radsensor turning 1); releases are not needed for speeds.
+        onset = luts.is_wheel[rid] & (chunk.value == 1)
+        if onset.any():
             self._detections.append(
                 pd.DataFrame(
                     {
-                        "head": head[wheel],
-                        "channel": channel[wheel],
-                        "time_ns": chunk.time_ns[wheel],
-                        "value": chunk.value[wheel].astype(np.int8),
-                        "subsecond": chunk.subsecond[wheel],
-                        "file": np.full(int(wheel.sum()), chunk.file_id, np.int64),
+                        "head": head[onset],
+                        "channel": channel[onset],
+                        "time_ns": chunk.time_ns[onset],
+                        "subsecond": chunk.subsecond[onset],
+                        "file": np.full(int(onset.sum()), chunk.file_id, np.int64),
                     }
                 )
             )
@@ -158,8 +158,7 @@ class DiagAccumulator:
         self._lookup()
         buckets, overlap = merge_buckets(self._buckets)
         buckets = split_passages(buckets, settings.idle_gap_s)
-        detections = _chosen_file_only(self._detections, buckets)
-        onsets = detections[detections["value"] == 1]
+        onsets = _chosen_file_only(self._detections, buckets)
         axles, unpaired = pair_axles(onsets, PairingSettings(settings.spacing_m, settings.pair_window_s))
         head_names = [name for _, name in self._head_list]
         passages = _passages(buckets, onsets, axles, settings, self._head_list)
@@ -221,25 +220,18 @@ class DiagAccumulator:
 
 
 def _chosen_file_only(parts: list[pd.DataFrame], buckets: pd.DataFrame) -> pd.DataFrame:
-    """Detections from the file chosen for their bucket (see passages: overlap)."""
-    cols = {
-        "head": np.int64,
-        "channel": np.int64,
-        "time_ns": np.int64,
-        "value": np.int8,
-        "subsecond": bool,
-        "file": np.int64,
-    }
+    """Onsets from the file chosen for their bucket (see passages: overlap), with
+    their bucket row and passage."""
     if not parts:
-        return pd.DataFrame({c: pd.Series(dtype=t) for c, t in cols.items()}).assign(passage=pd.Series(dtype=np.int64))
+        cols = {"head": np.int64, "channel": np.int64, "time_ns": np.int64, "subsecond": bool, "file": np.int64}
+        empty = pd.DataFrame({c: pd.Series(dtype=t) for c, t in cols.items()})
+        return empty.assign(bucket=pd.Series(dtype=np.int64), passage=pd.Series(dtype=np.int64))
     det = pd.concat(parts, ignore_index=True)
-    det["second"] = det["time_ns"] // NS
-    keyed = det.merge(
-        buckets[["head", "channel", "second", "file", "passage"]],
-        on=["head", "channel", "second", "file"],
-        how="inner",
-    )
-    return keyed.drop(columns="second")
+    row = bucket_index(buckets, det["head"].to_numpy(), det["time_ns"].to_numpy())
+    safe = np.maximum(row, 0)
+    keep = (row >= 0) & (buckets["file"].to_numpy()[safe] == det["file"].to_numpy())
+    det = det[keep].assign(bucket=row[keep], passage=buckets["passage"].to_numpy()[row[keep]])
+    return det.sort_values("time_ns", kind="stable").reset_index(drop=True)
 
 
 def _passages(
@@ -252,38 +244,36 @@ def _passages(
     """One row per passage, every figure vectorized over passages."""
     if buckets.empty:
         return pd.DataFrame(columns=list(PASSAGE_COLUMNS))
-    g = buckets.groupby("passage", sort=True)
-    p = g.agg(
+    big, small = np.iinfo(np.int64).max, np.iinfo(np.int64).min
+    p = buckets.groupby("passage", sort=True).agg(
         head=("head", "first"),
         start_ns=("t_first_ns", "min"),
         end_ns=("t_last_ns", "max"),
         records=("records", "sum"),
+        rec_first_1=("t_first_sys1_ns", "min"),
+        rec_first_2=("t_first_sys2_ns", "min"),
+        rec_last_1=("t_last_sys1_ns", "max"),
+        rec_last_2=("t_last_sys2_ns", "max"),
     )
-    ch = buckets.groupby(["passage", "channel"]).agg(first=("t_first_ns", "min"), last=("t_last_ns", "max"))
-    rec_first = ch["first"].unstack()
-    rec_last = ch["last"].unstack()
+    for c in ("rec_first_1", "rec_first_2"):
+        p[c] = p[c].where(p[c] != big)
+    for c in ("rec_last_1", "rec_last_2"):
+        p[c] = p[c].where(p[c] != small)
 
-    # Detections (Radsensor onsets) per passage and channel.
-    on = onsets.groupby(["passage", "channel"]).agg(
-        n=("time_ns", "size"), first=("time_ns", "min"), last=("time_ns", "max"), sub=("subsecond", "all")
-    )
-    det_n = on["n"].unstack()
-    det_first = on["first"].unstack()
-    det_last = on["last"].unstack()
+    # Wheel onsets per passage and system.
+    og = onsets.groupby(["passage", "channel"])["time_ns"].agg(["size", "min", "max"]).unstack()
 
-    def col(frame: pd.DataFrame, c: int) -> pd.Series:
-        return frame[c].reindex(p.index) if c in frame.columns else pd.Series(np.nan, index=p.index)
+    def det(stat: str, ch: int) -> pd.Series:
+        key = (stat, ch)
+        return og[key].reindex(p.index) if key in og.columns else pd.Series(np.nan, index=p.index)
 
-    p["detections_sys1"] = col(det_n, SYS1).fillna(0).astype(np.int64)
-    p["detections_sys2"] = col(det_n, SYS2).fillna(0).astype(np.int64)
+    p["detections_sys1"] = det("size", SYS1).fillna(0).astype(np.int64)
+    p["detections_sys2"] = det("size", SYS2).fillna(0).astype(np.int64)
     p["subsecond"] = onsets.groupby("passage")["subsecond"].all().reindex(p.index).fillna(False).astype(bool)
 
-    # Axles: assign by (head, second) of the earlier onset.
-    ax = axles.assign(second=axles["time_ns"] // NS).merge(
-        buckets[["head", "second", "passage"]].drop_duplicates(["head", "second"]),
-        on=["head", "second"],
-        how="inner",
-    )
+    # Axles belong to the passage of the bucket holding their earlier onset.
+    row = bucket_index(buckets, axles["head"].to_numpy(), axles["time_ns"].to_numpy())
+    ax = axles[row >= 0].assign(passage=buckets["passage"].to_numpy()[row[row >= 0]])
     ag = ax.groupby("passage")
     p["axles"] = ag.size().reindex(p.index).fillna(0).astype(np.int64)
     n12 = (ax["direction"] == DIRECTION_12).groupby(ax["passage"]).sum().reindex(p.index).fillna(0)
@@ -298,25 +288,25 @@ def _passages(
     p["speed_kmh_per_axle_mean"] = speeds.mean().reindex(p.index)
 
     # Paper's per-second method: records at the head in the first detection second.
-    first_onset = onsets.groupby("passage")["time_ns"].min().reindex(p.index)
-    p["detection_second_ns"] = (first_onset // NS) * NS
-    per_sec = buckets.groupby(["passage", "second"])["records"].sum()
-    key = pd.MultiIndex.from_arrays([p.index, (first_onset // NS).fillna(-1).astype(np.int64)])
-    p["records_in_detection_second"] = per_sec.reindex(key).to_numpy()
+    first = onsets.groupby("passage")["bucket"].min().reindex(p.index)
+    has = first.notna().to_numpy()
+    first_row = first.fillna(0).astype(np.int64).to_numpy()
+    p["detection_second_ns"] = np.where(has, buckets["second"].to_numpy()[first_row] * NS, np.nan)
+    p["records_in_detection_second"] = np.where(has, buckets["records"].to_numpy()[first_row], np.nan)
     p["speed_kmh_per_second_method"] = s.spacing_m * p["records_in_detection_second"] * MPS_TO_KMH
 
     # Whole-train: entering system's first record → leaving system's last.
     reverse = (p["direction"] == DIRECTION_21).to_numpy()
-    both_det = (p["detections_sys1"] > 0) & (p["detections_sys2"] > 0)
+    both_det = ((p["detections_sys1"] > 0) & (p["detections_sys2"] > 0)).to_numpy()
     enter_first = np.where(
         both_det,
-        np.where(reverse, col(det_first, SYS2), col(det_first, SYS1)),
-        np.where(reverse, col(rec_first, SYS2), col(rec_first, SYS1)),
+        np.where(reverse, det("min", SYS2), det("min", SYS1)),
+        np.where(reverse, p["rec_first_2"], p["rec_first_1"]),
     )
     leave_last = np.where(
         both_det,
-        np.where(reverse, col(det_last, SYS1), col(det_last, SYS2)),
-        np.where(reverse, col(rec_last, SYS1), col(rec_last, SYS2)),
+        np.where(reverse, det("max", SYS1), det("max", SYS2)),
+        np.where(reverse, p["rec_last_1"], p["rec_last_2"]),
     )
     duration = (leave_last - enter_first) / NS
     p["whole_train_duration_s"] = duration
@@ -327,8 +317,10 @@ def _passages(
     basis = np.where(both_det, "detections", "records").astype(object)
     basis[np.isnan(duration) | (duration <= 0)] = None
     p["whole_train_basis"] = basis
-    p["device_id"] = [heads[h][0] for h in p["head"]]
-    p["counting_head"] = [heads[h][1] for h in p["head"]]
+    head_dev = np.array([h[0] for h in heads], dtype=np.int64)
+    head_name = np.array([h[1] for h in heads], dtype=object)
+    p["device_id"] = head_dev[p["head"].to_numpy()]
+    p["counting_head"] = head_name[p["head"].to_numpy()]
     p["duration_s"] = (p["end_ns"] - p["start_ns"]) / NS
     return p.reset_index(drop=True)[list(PASSAGE_COLUMNS)]
 
@@ -357,43 +349,63 @@ PASSAGE_COLUMNS = (
 
 
 def _iso_array(ns: pd.Series) -> list[str | None]:
-    from console.analysis.timefmt import iso
+    """ISO 8601 strings, vectorized; whole seconds without a fraction."""
+    vals = ns.to_numpy(dtype=float)
+    ok = ~np.isnan(vals)
+    ints = np.where(ok, vals, 0).astype(np.int64)
+    whole = np.datetime_as_string(ints.astype("datetime64[ns]"), unit="s")
+    frac = ints % NS
+    fine = np.datetime_as_string(ints.astype("datetime64[ns]"), unit="ns")
+    out: list[str | None] = []
+    for k, good in enumerate(ok):
+        if not good:
+            out.append(None)
+        elif frac[k] == 0:
+            out.append(str(whole[k]))
+        else:
+            out.append(str(fine[k]).rstrip("0"))
+    return out
 
-    return [None if pd.isna(v) else iso(int(v)) for v in ns]
+
+def _strs(values: pd.Series) -> list[str | None]:
+    # pandas 3 stores these as its string dtype, where missing reads as NaN.
+    return [None if pd.isna(v) else str(v) for v in values.tolist()]
+
+
+def _floats(values: pd.Series, digits: int) -> list[float | None]:
+    arr = values.to_numpy(dtype=float).round(digits)
+    return [None if np.isnan(v) else float(v) for v in arr]
 
 
 def passages_to_json(p: pd.DataFrame) -> list[dict[str, Any]]:
     """The documented JSON form of the passages table (null where unknown)."""
     if p.empty:
         return []
-    out = pd.DataFrame(
-        {
-            "device_id": p["device_id"].astype(int),
-            "counting_head": p["counting_head"],
-            "start": _iso_array(p["start_ns"]),
-            "end": _iso_array(p["end_ns"]),
-            "duration_s": p["duration_s"].round(6),
-            "records": p["records"].astype(int),
-            "axles": p["axles"].astype(int),
-            "detections": [
-                {"sys1": int(a), "sys2": int(b)}
-                for a, b in zip(p["detections_sys1"], p["detections_sys2"], strict=True)
-            ],
-            "direction": p["direction"],
-            "detection_second": _iso_array(p["detection_second_ns"]),
-            "records_in_detection_second": p["records_in_detection_second"],
-            "speed_kmh_per_second_method": p["speed_kmh_per_second_method"].round(3),
-            "speed_kmh_whole_train": p["speed_kmh_whole_train"].round(3),
-            "whole_train_basis": p["whole_train_basis"],
-            "speed_kmh_per_axle": [
-                [round(float(x), 3) for x in v] if isinstance(v, list) else None for v in p["speed_kmh_per_axle"]
-            ],
-            "speed_kmh_per_axle_mean": p["speed_kmh_per_axle_mean"].round(3),
-            "subsecond": p["subsecond"].astype(bool),
-        }
-    )
-    records = cast(list[dict[str, Any]], out.astype(object).where(out.notna(), None).to_dict("records"))
-    for r in records:
-        if r["records_in_detection_second"] is not None:
-            r["records_in_detection_second"] = int(r["records_in_detection_second"])
-    return records
+    n = len(p)
+    detection_n = p["records_in_detection_second"].to_numpy(dtype=float)
+    cols: dict[str, list[Any]] = {
+        "device_id": p["device_id"].astype(int).tolist(),
+        "counting_head": _strs(p["counting_head"]),
+        "start": _iso_array(p["start_ns"]),
+        "end": _iso_array(p["end_ns"]),
+        "duration_s": _floats(p["duration_s"], 6),
+        "records": p["records"].astype(int).tolist(),
+        "axles": p["axles"].astype(int).tolist(),
+        "detections": [
+            {"sys1": a, "sys2": b}
+            for a, b in zip(p["detections_sys1"].tolist(), p["detections_sys2"].tolist(), strict=True)
+        ],
+        "direction": _strs(p["direction"]),
+        "detection_second": _iso_array(p["detection_second_ns"]),
+        "records_in_detection_second": [None if np.isnan(v) else int(v) for v in detection_n],
+        "speed_kmh_per_second_method": _floats(p["speed_kmh_per_second_method"], 3),
+        "speed_kmh_whole_train": _floats(p["speed_kmh_whole_train"], 3),
+        "whole_train_basis": _strs(p["whole_train_basis"]),
+        "speed_kmh_per_axle": [
+            [round(float(x), 3) for x in v] if isinstance(v, list) else None for v in p["speed_kmh_per_axle"]
+        ],
+        "speed_kmh_per_axle_mean": _floats(p["speed_kmh_per_axle_mean"], 3),
+        "subsecond": p["subsecond"].astype(bool).tolist(),
+    }
+    keys = list(cols)
+    return [dict(zip(keys, row, strict=True)) for row in zip(*(cols[k] for k in keys), strict=True)] if n else []
