@@ -8,7 +8,6 @@ the result as Rich tables or as one JSON document on stdout.  Exit codes:
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 from collections.abc import Callable
@@ -91,9 +90,9 @@ def _guard(fn: Callable[[], int]) -> int:
 
 
 def _print_json(doc: dict[str, Any]) -> None:
-    # ensure_ascii: no raw control or C1 bytes from a log can reach a terminal.
-    # Compact: json's C encoder only runs without indent (pipe into jq to read).
-    sys.stdout.write(json.dumps(doc, ensure_ascii=True, separators=(",", ":"), allow_nan=False))
+    from console.jsonout import dumps
+
+    sys.stdout.write(dumps(doc))
     sys.stdout.write("\n")
     sys.stdout.flush()
 
@@ -123,12 +122,15 @@ def analyze(
     def body() -> int:
         job = _run_diag(files, spacing, train_length, idle_gap)
         if json_out:
+            from console.analysis.diagnostics import passages_json_text
+            from console.jsonout import RawJSON
+
             doc = {
                 "schema": JSON_SCHEMA_ANALYZE,
                 "trackside_version": __version__,
                 "files": job.files,
                 "parse_report": job.report.to_dict(),
-                **job.analysis.to_dict(),
+                **job.analysis.to_dict(passages=RawJSON(passages_json_text(job.analysis.passages))),
             }
             _print_json(doc)
         else:
@@ -180,7 +182,11 @@ def speeds(
     def body() -> int:
         job = _run_diag(files, spacing, train_length, idle_gap)
         if json_out:
-            _print_json({"schema": "trackside.speeds/1", "passages": job.analysis.passages_json()})
+            from console.analysis.diagnostics import passages_json_text
+            from console.jsonout import RawJSON
+
+            text = RawJSON(passages_json_text(job.analysis.passages))
+            _print_json({"schema": "trackside.speeds/1", "passages": text})
         else:
             from console.render.diag_tables import passages_table
 

@@ -29,11 +29,14 @@ _LAST = ("t_last_ns", "t_last_sys1_ns", "t_last_sys2_ns")
 BUCKET_COLUMNS = ("head", "second", "file", "records", "records_sys1", "records_sys2", *_FIRST, *_LAST)
 
 
+Columns = dict[str, np.ndarray]
+
+
 def _empty() -> pd.DataFrame:
     return pd.DataFrame({c: pd.Series(dtype=np.int64) for c in BUCKET_COLUMNS})
 
 
-def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, file_id: int) -> pd.DataFrame:
+def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, file_id: int) -> Columns:
     """Run-length reduce one chunk's records to activity buckets.
 
     Records arrive mostly in time order, so consecutive records share a
@@ -43,7 +46,7 @@ def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, fi
     """
     n = len(time_ns)
     if n == 0:
-        return _empty()
+        return {c: np.zeros(0, np.int64) for c in BUCKET_COLUMNS}
     second = time_ns // NS
     change = np.empty(n, bool)
     change[0] = True
@@ -63,25 +66,31 @@ def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, fi
         out[f"records_sys{ch}"] = np.add.reduceat(on.astype(np.int64), starts)
         out[f"t_first_sys{ch}_ns"] = np.minimum.reduceat(np.where(on, time_ns, _BIG), starts)
         out[f"t_last_sys{ch}_ns"] = np.maximum.reduceat(np.where(on, time_ns, _SMALL), starts)
-    return pd.DataFrame(out)[list(BUCKET_COLUMNS)]
+    return out
 
 
-def merge_buckets(parts: list[pd.DataFrame]) -> tuple[pd.DataFrame, int]:
+def merge_buckets(parts: list[Columns]) -> tuple[pd.DataFrame, int]:
     """Combine runs into buckets and resolve overlapping files.
 
     Returns (one bucket per head and second, sorted; overlap records ignored).
     """
     if not parts:
         return _empty(), 0
-    runs = pd.concat(parts, ignore_index=True)
-    agg = {c: "sum" for c in ("records", "records_sys1", "records_sys2")}
-    agg.update({c: "min" for c in _FIRST})
-    agg.update({c: "max" for c in _LAST})
-    keys = ["head", "second", "file"]
-    dup = runs.duplicated(keys, keep=False)
-    if dup.any():
-        merged = runs[dup].groupby(keys, sort=False).agg(agg).reset_index()
-        runs = pd.concat([runs[~dup], merged], ignore_index=True)
+    cols = {c: np.concatenate([part[c] for part in parts]) for c in BUCKET_COLUMNS}
+    # Runs of one (head, second, file) can repeat (chunk edges, interleaved
+    # heads): sort by key, then reduce each group with ufunc.reduceat.
+    order = np.lexsort((cols["file"], cols["second"], cols["head"]))
+    cols = {c: v[order] for c, v in cols.items()}
+    h, sec, f = cols["head"], cols["second"], cols["file"]
+    new = np.ones(len(h), bool)
+    new[1:] = (h[1:] != h[:-1]) | (sec[1:] != sec[:-1]) | (f[1:] != f[:-1])
+    if not new.all():
+        at = np.flatnonzero(new)
+        reduce: dict[str, np.ufunc] = {c: np.add for c in ("records", "records_sys1", "records_sys2")}
+        reduce.update({c: np.minimum for c in _FIRST})
+        reduce.update({c: np.maximum for c in _LAST})
+        cols = {c: (reduce[c].reduceat(v, at) if c in reduce else v[at]) for c, v in cols.items()}
+    runs = pd.DataFrame(cols)
     total = int(runs["records"].sum())
     if runs["file"].nunique() > 1:
         runs = runs.sort_values(["records", "file"], ascending=[False, True], kind="stable").drop_duplicates(

@@ -28,6 +28,7 @@ WHEEL_SENSOR_ADDRESS = 26
 SYS1, SYS2 = 1, 2
 DIRECTION_12 = "sys1_to_sys2"
 DIRECTION_21 = "sys2_to_sys1"
+NS = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -37,62 +38,70 @@ class PairingSettings:
     pair_window_s: float = 0.13 / (1 / 3.6)
 
 
-def pair_axles(onsets: pd.DataFrame, settings: PairingSettings) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _nearest(t1: np.ndarray, t2: np.ndarray, window_ns: int) -> np.ndarray:
+    """For each t1 (sorted), the index of the nearest t2 (sorted) within the window, else -1."""
+    if len(t2) == 0:
+        return np.full(len(t1), -1, np.int64)
+    pos = np.searchsorted(t2, t1)
+    right = np.minimum(pos, len(t2) - 1)
+    left = np.maximum(pos - 1, 0)
+    d_right = np.abs(t2[right] - t1)
+    d_left = np.abs(t1 - t2[left])
+    pick = np.where(d_left <= d_right, left, right)
+    gap = np.minimum(d_left, d_right)
+    return np.where(gap <= window_ns, pick, -1)
+
+
+def pair_axles(onsets: pd.DataFrame, settings: PairingSettings) -> tuple[pd.DataFrame, int]:
     """Pair Sys1 and Sys2 onsets into axles.
 
     ``onsets`` has columns ``head`` (int key), ``channel``, ``time_ns``,
-    ``subsecond``.  Returns (axles, unpaired): axles with ``head``,
-    ``t_sys1_ns``, ``t_sys2_ns``, ``time_ns`` (the earlier onset),
-    ``direction``, ``delay_s``, ``speed_kmh`` (NaN unless both onsets carry
-    sub-second times); unpaired onsets as given.
+    ``subsecond``.  Returns (axles, number of unpaired onsets); axles have
+    ``head``, ``t_sys1_ns``, ``t_sys2_ns``, ``time_ns`` (the earlier onset),
+    ``direction``, ``delay_s`` and ``speed_kmh`` (NaN unless both onsets
+    carry sub-second times).
     """
-    s1 = onsets[onsets["channel"] == SYS1].sort_values("time_ns", kind="stable")
-    s2 = onsets[onsets["channel"] == SYS2].sort_values("time_ns", kind="stable")
-    empty_axles = pd.DataFrame(
-        {
-            "head": pd.Series(dtype=np.int64),
-            "t_sys1_ns": pd.Series(dtype=np.int64),
-            "t_sys2_ns": pd.Series(dtype=np.int64),
-            "time_ns": pd.Series(dtype=np.int64),
-            "direction": pd.Series(dtype=object),
-            "delay_s": pd.Series(dtype=float),
-            "speed_kmh": pd.Series(dtype=float),
-        }
-    )
-    if s1.empty or s2.empty:
-        return empty_axles, onsets
+    head = onsets["head"].to_numpy(np.int64)
+    channel = onsets["channel"].to_numpy(np.int64)
+    time_ns = onsets["time_ns"].to_numpy(np.int64)
+    subsecond = onsets["subsecond"].to_numpy(bool)
+    is1, is2 = channel == SYS1, channel == SYS2
     # Whole-second logs cannot resolve a sub-second delay: allow one second.
-    coarse = ~(s1["subsecond"].all() and s2["subsecond"].all())
-    window_ns = int(max(settings.pair_window_s, 1.0 if coarse else 0.0) * 1e9)
-    left = pd.DataFrame(
-        {"head": s1["head"].to_numpy(), "t1": s1["time_ns"].to_numpy(), "sub1": s1["subsecond"].to_numpy()}
-    )
-    right = pd.DataFrame(
-        {"head": s2["head"].to_numpy(), "t2": s2["time_ns"].to_numpy(), "sub2": s2["subsecond"].to_numpy()}
-    )
-    left["i1"] = np.arange(len(left))
-    right["i2"] = np.arange(len(right))
-    left["key"] = left["t1"]
-    right["key"] = right["t2"]
-    m = pd.merge_asof(left, right, on="key", by="head", direction="nearest", tolerance=window_ns)
-    m = m.dropna(subset=["t2"])
-    m["gap"] = (m["t2"] - m["t1"]).abs()
-    # One to one: a Sys2 onset claimed twice goes to the nearer Sys1 onset.
-    m = m.sort_values(["gap", "t1"], kind="stable").drop_duplicates("i2", keep="first").sort_values("t1")
-    t1 = m["t1"].to_numpy(np.int64)
-    t2 = m["t2"].to_numpy(np.int64)
-    delay_s = (t2 - t1) / 1e9
-    exact = m["sub1"].to_numpy(bool) & m["sub2"].to_numpy(bool)
+    coarse = not bool(subsecond[is1 | is2].all())
+    window_ns = int(max(settings.pair_window_s, 1.0 if coarse else 0.0) * NS)
+
+    idx1_all, idx2_all = [], []
+    for h in np.unique(head):  # a handful of counting heads, not records
+        i1 = np.flatnonzero(is1 & (head == h))
+        i2 = np.flatnonzero(is2 & (head == h))
+        i1 = i1[np.argsort(time_ns[i1], kind="stable")]
+        i2 = i2[np.argsort(time_ns[i2], kind="stable")]
+        j = _nearest(time_ns[i1], time_ns[i2], window_ns)
+        ok = j >= 0
+        a, b = i1[ok], i2[j[ok]]
+        # One to one: a Sys2 onset claimed twice goes to the nearer Sys1 onset.
+        if len(b) != len(np.unique(b)):
+            by_gap = np.argsort(np.abs(time_ns[b] - time_ns[a]), kind="stable")
+            _, first = np.unique(b[by_gap], return_index=True)
+            keep = np.sort(by_gap[first])
+            a, b = a[keep], b[keep]
+        idx1_all.append(a)
+        idx2_all.append(b)
+    a = np.concatenate(idx1_all) if idx1_all else np.zeros(0, np.int64)
+    b = np.concatenate(idx2_all) if idx2_all else np.zeros(0, np.int64)
+    t1, t2 = time_ns[a], time_ns[b]
+    delay_s = (t2 - t1) / NS
+    exact = subsecond[a] & subsecond[b]
     with np.errstate(divide="ignore"):
         speed = np.where(exact & (delay_s != 0), settings.spacing_m / np.abs(delay_s) * MPS_TO_KMH, np.nan)
     # Whole-second onsets in the same second say nothing about their order.
-    known = exact | (t1 // 10**9 != t2 // 10**9)
+    known = exact | (t1 // NS != t2 // NS)
     direction = np.full(len(t1), None, dtype=object)
     direction[known & (t2 > t1)] = DIRECTION_12
     direction[known & (t2 < t1)] = DIRECTION_21
     axles = pd.DataFrame(
         {
-            "head": m["head"].to_numpy(np.int64),
+            "head": head[a],
             "t_sys1_ns": t1,
             "t_sys2_ns": t2,
             "time_ns": np.minimum(t1, t2),
@@ -101,9 +110,5 @@ def pair_axles(onsets: pd.DataFrame, settings: PairingSettings) -> tuple[pd.Data
             "speed_kmh": speed,
         }
     )
-    free1 = np.ones(len(s1), bool)
-    free1[m["i1"].to_numpy(np.int64)] = False
-    free2 = np.ones(len(s2), bool)
-    free2[m["i2"].to_numpy(np.int64)] = False
-    unpaired = pd.concat([s1[free1], s2[free2]]).sort_values("time_ns", kind="stable")
+    unpaired = int((is1 | is2).sum()) - 2 * len(a)
     return axles, unpaired

@@ -18,6 +18,7 @@ from console.safe_text import inert
 from parsers.report import ParseReport
 
 REJECTIONS_SHOWN = 20
+_ARROWS = {"sys1_to_sys2": "1→2", "sys2_to_sys1": "2→1"}
 
 
 def _num(value: object, fmt: str = "{:.1f}") -> Text:
@@ -86,7 +87,7 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
             _num(r.duration_s, "{:.3g}"),
             Text(f"{r.records:,}"),
             Text(str(r.axles)),
-            Text({"sys1_to_sys2": "1→2", "sys2_to_sys1": "2→1"}.get(r.direction, r.direction or "–")),
+            Text("–" if pd.isna(r.direction) else _ARROWS.get(r.direction, str(r.direction))),
             per_sec,
             _num(r.speed_kmh_whole_train, "{:.2f}"),
             axle,
