@@ -90,10 +90,9 @@ def _guard(fn: Callable[[], int]) -> int:
 
 
 def _print_json(doc: dict[str, Any]) -> None:
-    from console.jsonout import dumps
+    from console.jsonout import write
 
-    sys.stdout.write(dumps(doc))
-    sys.stdout.write("\n")
+    write(doc, sys.stdout)
     sys.stdout.flush()
 
 

@@ -3,26 +3,30 @@
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import Any, TextIO
 
 
 class RawJSON(str):
     """Text that is already valid JSON (ASCII only) and is spliced in as is."""
 
 
-def dumps(doc: dict[str, Any]) -> str:
-    """Compact, ASCII-only JSON (no raw control bytes can reach a terminal).
+def _encode(value: Any) -> str:
+    if isinstance(value, RawJSON):
+        return value
+    # ensure_ascii: no raw control or C1 bytes from a log can reach a terminal.
+    # Compact: json's C encoder only runs without indent (pipe into jq to read).
+    return json.dumps(value, ensure_ascii=True, separators=(",", ":"), allow_nan=False)
 
-    Top-level values that are :class:`RawJSON` are inserted verbatim; json's C
-    encoder only runs without ``indent``, so the output is compact (pipe it
-    into ``jq`` to read it).
-    """
-    parts = []
-    for key, value in doc.items():
-        text = (
-            value
-            if isinstance(value, RawJSON)
-            else json.dumps(value, ensure_ascii=True, separators=(",", ":"), allow_nan=False)
-        )
-        parts.append(f"{json.dumps(key)}:{text}")
-    return "{" + ",".join(parts) + "}"
+
+def dumps(doc: dict[str, Any]) -> str:
+    """Compact, ASCII-only JSON; top-level :class:`RawJSON` values go in verbatim."""
+    return "{" + ",".join(f"{json.dumps(k)}:{_encode(v)}" for k, v in doc.items()) + "}"
+
+
+def write(doc: dict[str, Any], out: TextIO) -> None:
+    """Write ``dumps(doc)`` and a newline part by part: no second copy of a large document."""
+    out.write("{")
+    for i, (key, value) in enumerate(doc.items()):
+        out.write(("," if i else "") + json.dumps(key) + ":")
+        out.write(_encode(value))
+    out.write("}\n")

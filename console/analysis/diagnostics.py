@@ -156,8 +156,10 @@ class DiagAccumulator:
     def result(self, settings: SpeedSettings) -> DiagAnalysis:
         self._lookup()
         buckets, overlap = merge_buckets(self._buckets)
+        self._buckets = []  # reduced: free the per-chunk runs
         buckets = split_passages(buckets, settings.idle_gap_s)
         onsets = _chosen_file_only(self._detections, buckets)
+        self._detections = []
         axles, n_unpaired = pair_axles(onsets, PairingSettings(settings.spacing_m, settings.pair_window_s))
         head_names = [name for _, name in self._head_list]
         passages = _passages(buckets, onsets, axles, settings, self._head_list)

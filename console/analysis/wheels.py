@@ -80,7 +80,8 @@ def pair_axles(onsets: pd.DataFrame, settings: PairingSettings) -> tuple[pd.Data
         ok = j >= 0
         a, b = i1[ok], i2[j[ok]]
         # One to one: a Sys2 onset claimed twice goes to the nearer Sys1 onset.
-        if len(b) != len(np.unique(b)):
+        # Nearest indices grow with t1, so a repeated claim is adjacent.
+        if len(b) > 1 and bool((b[1:] == b[:-1]).any()):
             by_gap = np.argsort(np.abs(time_ns[b] - time_ns[a]), kind="stable")
             _, first = np.unique(b[by_gap], return_index=True)
             keep = np.sort(by_gap[first])
