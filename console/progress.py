@@ -19,12 +19,14 @@ MIN_BYTES_FOR_PROGRESS = 4 << 20
 
 
 @contextmanager
-def byte_progress(total_bytes: int, label: str) -> Iterator[Callable[[int], None] | None]:
+def byte_progress(
+    total_bytes: int, label: str, console: Console | None = None
+) -> Iterator[Callable[[int], None] | None]:
     """Yield an ``advance(n_bytes)`` callback, or None when no bar is shown.
 
     Silent when stderr is not a terminal (cron, pipes) or the input is small.
     """
-    console = Console(stderr=True)
+    console = console or Console(stderr=True)
     if not console.is_terminal or total_bytes < MIN_BYTES_FOR_PROGRESS:
         yield None
         return

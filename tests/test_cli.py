@@ -19,7 +19,7 @@ runner = CliRunner()
 def test_analyze_prints_inventory_passages_and_parse_report(samples: Path) -> None:
     res = runner.invoke(app, ["analyze", *map(str, sorted(samples.glob("osong_*.log")))], env={"COLUMNS": "120"})
     assert res.exit_code == 0, res.output
-    for needle in ("Devices", "TMC", "4803", "Passages (3)", "15.9 (34)", "14.5 (31)", "17.24", "Parse report"):
+    for needle in ("Devices", "TMC", "4803", "Passages (3)", "15.9(34)", "14.5(31)", "17.24", "Parse report"):
         assert needle in res.output
 
 

@@ -64,14 +64,13 @@ def inventory_table(analysis: DiagAnalysis) -> Table:
 
 def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
     p = analysis.passages
-    t = _table(f"Passages ({len(p)}), speeds in km/h")
+    t = _table(f"Passages ({len(p)}); speeds in km/h: per-second method (records), whole train, per-axle mean")
     t.add_column("Head", no_wrap=True, min_width=4)
     t.add_column("Start", no_wrap=True)
-    t.add_column("s", justify="right", no_wrap=True)
+    t.add_column("Dur s", justify="right", no_wrap=True)
     t.add_column("Recs", justify="right", no_wrap=True)
-    t.add_column("Axles", justify="right", no_wrap=True)
-    t.add_column("Dir", no_wrap=True)
-    t.add_column("Per-sec(n)", justify="right", no_wrap=True)
+    t.add_column("Axles", no_wrap=True)
+    t.add_column("Per-sec", justify="right", no_wrap=True)
     t.add_column("Whole", justify="right", no_wrap=True)
     t.add_column("Axle", justify="right", no_wrap=True)
     rows = p if limit is None else p.head(limit)
@@ -79,18 +78,19 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
     for r in rows.itertuples(index=False):
         per_sec = _num(r.speed_kmh_per_second_method)
         if not pd.isna(r.records_in_detection_second):
-            per_sec.append(f" ({int(r.records_in_detection_second)})", style="dim")
-        axle = _num(r.speed_kmh_per_axle_mean)
+            per_sec.append(f"({int(r.records_in_detection_second)})", style="dim")
+        axles = Text(str(r.axles))
+        if not pd.isna(r.direction):
+            axles.append(" " + _ARROWS.get(r.direction, str(r.direction)), style="cyan")
         t.add_row(
             inert(r.counting_head),
             _time(r.start_ns),
-            _num(r.duration_s, "{:.3g}"),
+            _num(r.duration_s, "{:.2f}"),
             Text(f"{r.records:,}"),
-            Text(str(r.axles)),
-            Text("–" if pd.isna(r.direction) else _ARROWS.get(r.direction, str(r.direction))),
+            axles,
             per_sec,
             _num(r.speed_kmh_whole_train, "{:.2f}"),
-            axle,
+            _num(r.speed_kmh_per_axle_mean),
         )
     if limit is not None and len(p) > limit:
         t.caption = f"first {limit} of {len(p)} passages; --json has all"
