@@ -225,13 +225,6 @@ def decode_date(raw: bytes) -> int:
     return (day - _EPOCH).days * 86400 * _NS
 
 
-def parse_value_span(span: bytes) -> tuple[str, int, str, int]:
-    """Fields 10–11 (Data, Date) → (data text, value, kind, day in ns)."""
-    data, date = _split_fields(span, ("Data", "Date"), 10)
-    text, value, kind = decode_data(data)
-    return text, value, kind, decode_date(date)
-
-
 _TIME_RE = re.compile(r"(\d{2}):(\d{2}):(\d{2})(?:\.(\d{1,9}))?")
 
 
@@ -276,6 +269,8 @@ class DiagRegistry:
     _register_ids: dict[bytes, int] = field(default_factory=dict)
     _register_errors: dict[bytes, FieldError] = field(default_factory=dict)
     _values: dict[bytes, tuple[int, int, int, int] | FieldError] = field(default_factory=dict)
+    _data: dict[bytes, tuple[int, int, int] | FieldError] = field(default_factory=dict)
+    _days: dict[bytes, int | FieldError] = field(default_factory=dict)
     _arrays: dict[str, np.ndarray] = field(default_factory=dict)
     _arrays_len: int = -1
     record_counts: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -326,26 +321,53 @@ class DiagRegistry:
         return rid
 
     def value(self, span: bytes) -> tuple[int, int, int, int] | FieldError:
-        """(data code, value, kind code, day ns) for a value span."""
+        """(data code, value, kind code, day ns) for a value span ``Data:…\tDate:…``.
+
+        The data and date halves have caches of their own: a long log meets
+        every (value, day) pair anew, but few values and few days.
+        """
         found = self._values.get(span)
         if found is not None:
             return found
-        try:
-            text, value, kind, day_ns = parse_value_span(span)
-            result: tuple[int, int, int, int] | FieldError = (
-                self.data.code(text),
-                value,
-                DATA_KINDS.index(kind),
-                day_ns,
-            )
-        except FieldError as exc:
-            result = exc
-        except ValueError:
+        parts = span.split(b"\t")
+        result: tuple[int, int, int, int] | FieldError
+        if len(parts) != 2:
             result = FieldError("fields", "expected 12 tab-separated Key:Value fields")
+        else:
+            data = self._data.get(parts[0])
+            if data is None:
+                data = self._data[parts[0]] = self._parse_data(parts[0])
+            day = self._days.get(parts[1])
+            if day is None:
+                day = self._days[parts[1]] = self._parse_day(parts[1])
+            if isinstance(data, FieldError):
+                result = data
+            elif isinstance(day, FieldError):
+                result = day
+            else:
+                result = (*data, day)
         if len(self._values) >= _VALUE_CACHE_MAX:
             self._values.clear()  # bounded: a cache, not a store
+            self._data.clear()
+            self._days.clear()
         self._values[span] = result
         return result
+
+    def _parse_data(self, field_bytes: bytes) -> tuple[int, int, int] | FieldError:
+        try:
+            (raw,) = _split_fields(field_bytes, ("Data",), 10)
+            text, value, kind = decode_data(raw)
+        except FieldError as exc:
+            return exc
+        return self.data.code(text), value, DATA_KINDS.index(kind)
+
+    @staticmethod
+    def _parse_day(field_bytes: bytes) -> int | FieldError:
+        try:
+            (raw,) = _split_fields(field_bytes, ("Date",), 11)
+            return decode_date(raw)
+        except FieldError as exc:
+            return exc
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Per-register lookup arrays (indexed by register_id)."""
@@ -424,7 +446,8 @@ def _encode(
     if len(starts) == 0:
         return np.zeros(0, np.int32), []
     enc = _views(view_buf, u4, starts, lens).dictionary_encode()
-    return enc.indices.to_numpy(zero_copy_only=False), enc.dictionary.to_pylist()
+    # intp indices: the main thread's lookups then need no conversion.
+    return enc.indices.to_numpy(zero_copy_only=False).astype(np.intp), enc.dictionary.to_pylist()
 
 
 _LO7 = np.uint64(0x7F7F7F7F7F7F7F7F)
