@@ -220,116 +220,156 @@ class DiagAccumulator:
         return [devices[k] for k in sorted(devices)]
 
 
-def _chosen_file_only(parts: list[dict[str, np.ndarray]], buckets: pd.DataFrame) -> pd.DataFrame:
+Arrays = dict[str, np.ndarray]
+_BIG = np.iinfo(np.int64).max
+_SMALL = np.iinfo(np.int64).min
+
+
+def _chosen_file_only(parts: list[Arrays], buckets: pd.DataFrame) -> Arrays:
     """Onsets from the file chosen for their bucket (see passages: overlap), with
     their bucket row and passage."""
+    names = ("head", "channel", "time_ns", "subsecond", "file")
     if not parts:
-        types = {"head": np.int64, "channel": np.int64, "time_ns": np.int64, "subsecond": bool, "file": np.int64}
-        empty = pd.DataFrame({c: pd.Series(dtype=t) for c, t in types.items()})
-        return empty.assign(bucket=pd.Series(dtype=np.int64), passage=pd.Series(dtype=np.int64))
-    cols = {c: np.concatenate([part[c] for part in parts]) for c in parts[0]}
+        empty = {c: np.zeros(0, bool if c == "subsecond" else np.int64) for c in names}
+        return {**empty, "bucket": np.zeros(0, np.int64), "passage": np.zeros(0, np.int64)}
+    cols = {c: np.concatenate([part[c] for part in parts]) for c in names}
     row = bucket_index(buckets, cols["head"], cols["time_ns"])
     keep = (row >= 0) & (buckets["file"].to_numpy()[np.maximum(row, 0)] == cols["file"])
     cols = {c: v[keep] for c, v in cols.items()}
     cols["bucket"] = row[keep]
     cols["passage"] = buckets["passage"].to_numpy()[cols["bucket"]]
-    return pd.DataFrame(cols)
+    return cols
+
+
+def _group_min(n: int, group: np.ndarray, values: np.ndarray) -> np.ndarray:
+    out = np.full(n, _BIG, np.int64)
+    np.minimum.at(out, group, values)
+    return out
+
+
+def _group_max(n: int, group: np.ndarray, values: np.ndarray) -> np.ndarray:
+    out = np.full(n, _SMALL, np.int64)
+    np.maximum.at(out, group, values)
+    return out
+
+
+def _or_nan(values: np.ndarray, sentinel: int) -> np.ndarray:
+    return np.where(values == sentinel, np.nan, values.astype(np.float64))
 
 
 def _passages(
     buckets: pd.DataFrame,
-    onsets: pd.DataFrame,
+    onsets: Arrays,
     axles: pd.DataFrame,
     s: SpeedSettings,
     heads: list[tuple[int, str]],
 ) -> pd.DataFrame:
-    """One row per passage, every figure vectorized over passages."""
+    """One row per passage, every figure vectorized over passages (no groupby per record)."""
     if buckets.empty:
         return pd.DataFrame(columns=list(PASSAGE_COLUMNS))
-    big, small = np.iinfo(np.int64).max, np.iinfo(np.int64).min
-    p = buckets.groupby("passage", sort=True).agg(
-        head=("head", "first"),
-        start_ns=("t_first_ns", "min"),
-        end_ns=("t_last_ns", "max"),
-        records=("records", "sum"),
-        rec_first_1=("t_first_sys1_ns", "min"),
-        rec_first_2=("t_first_sys2_ns", "min"),
-        rec_last_1=("t_last_sys1_ns", "max"),
-        rec_last_2=("t_last_sys2_ns", "max"),
-    )
-    for c in ("rec_first_1", "rec_first_2"):
-        p[c] = p[c].where(p[c] != big)
-    for c in ("rec_last_1", "rec_last_2"):
-        p[c] = p[c].where(p[c] != small)
+    # Buckets are sorted by head and second, so a passage is a run of rows.
+    passage = buckets["passage"].to_numpy()
+    at = np.flatnonzero(np.r_[True, passage[1:] != passage[:-1]])
+    n = len(at)
+
+    def col(name: str) -> np.ndarray:
+        return buckets[name].to_numpy()
+
+    head = col("head")[at]
+    start_ns = np.minimum.reduceat(col("t_first_ns"), at)
+    end_ns = np.maximum.reduceat(col("t_last_ns"), at)
+    records = np.add.reduceat(col("records"), at)
+    rec_first = {c: _or_nan(np.minimum.reduceat(col(f"t_first_sys{c}_ns"), at), _BIG) for c in (SYS1, SYS2)}
+    rec_last = {c: _or_nan(np.maximum.reduceat(col(f"t_last_sys{c}_ns"), at), _SMALL) for c in (SYS1, SYS2)}
 
     # Wheel onsets per passage and system.
-    og = onsets.groupby(["passage", "channel"])["time_ns"].agg(["size", "min", "max"]).unstack()
-
-    def det(stat: str, ch: int) -> pd.Series:
-        key = (stat, ch)
-        return og[key].reindex(p.index) if key in og.columns else pd.Series(np.nan, index=p.index)
-
-    p["detections_sys1"] = det("size", SYS1).fillna(0).astype(np.int64)
-    p["detections_sys2"] = det("size", SYS2).fillna(0).astype(np.int64)
-    p["subsecond"] = onsets.groupby("passage")["subsecond"].all().reindex(p.index).fillna(False).astype(bool)
+    op, och, ot = onsets["passage"], onsets["channel"], onsets["time_ns"]
+    det_n, det_first, det_last = {}, {}, {}
+    for c in (SYS1, SYS2):
+        m = och == c
+        det_n[c] = np.bincount(op[m], minlength=n)
+        det_first[c] = _or_nan(_group_min(n, op[m], ot[m]), _BIG)
+        det_last[c] = _or_nan(_group_max(n, op[m], ot[m]), _SMALL)
+    n_onsets = np.bincount(op, minlength=n)
+    subsecond = (n_onsets > 0) & (np.bincount(op[~onsets["subsecond"]], minlength=n) == 0)
 
     # Axles belong to the passage of the bucket holding their earlier onset.
     row = bucket_index(buckets, axles["head"].to_numpy(), axles["time_ns"].to_numpy())
-    ax = axles[row >= 0].assign(passage=buckets["passage"].to_numpy()[row[row >= 0]])
-    ag = ax.groupby("passage")
-    p["axles"] = ag.size().reindex(p.index).fillna(0).astype(np.int64)
-    n12 = (ax["direction"] == DIRECTION_12).groupby(ax["passage"]).sum().reindex(p.index).fillna(0)
-    n21 = (ax["direction"] == DIRECTION_21).groupby(ax["passage"]).sum().reindex(p.index).fillna(0)
-    direction = np.full(len(p), None, dtype=object)
-    direction[(n12 > n21).to_numpy()] = DIRECTION_12
-    direction[(n21 > n12).to_numpy()] = DIRECTION_21
-    direction[((n12 > 0) & (n12 == n21)).to_numpy()] = "mixed"
-    p["direction"] = direction
-    # Per-axle speeds stay one sorted array; each passage holds [start, stop) into it.
-    timed = ax.dropna(subset=["speed_kmh"]).sort_values(["passage", "time_ns"], kind="stable")
-    axle_passage = timed["passage"].to_numpy()
-    p["axle_speeds_start"] = np.searchsorted(axle_passage, p.index.to_numpy(), side="left")
-    p["axle_speeds_stop"] = np.searchsorted(axle_passage, p.index.to_numpy(), side="right")
-    p["speed_kmh_per_axle_mean"] = timed.groupby("passage")["speed_kmh"].mean().reindex(p.index)
-    p.attrs["axle_speeds_kmh"] = timed["speed_kmh"].to_numpy()
+    ax_ok = row >= 0
+    ax_p = passage[row[ax_ok]]
+    ax_dir = axles["direction"].to_numpy()[ax_ok]
+    n_axles = np.bincount(ax_p, minlength=n)
+    n12 = np.bincount(ax_p[ax_dir == DIRECTION_12], minlength=n)
+    n21 = np.bincount(ax_p[ax_dir == DIRECTION_21], minlength=n)
+    direction = np.full(n, None, dtype=object)
+    direction[n12 > n21] = DIRECTION_12
+    direction[n21 > n12] = DIRECTION_21
+    direction[(n12 > 0) & (n12 == n21)] = "mixed"
+    # Per-axle speeds stay one array sorted by passage and time; each passage
+    # holds [start, stop) into it.
+    speed = axles["speed_kmh"].to_numpy()[ax_ok]
+    timed = ~np.isnan(speed)
+    order = np.lexsort((axles["time_ns"].to_numpy()[ax_ok][timed], ax_p[timed]))
+    timed_p, timed_v = ax_p[timed][order], speed[timed][order]
+    n_timed = np.bincount(timed_p, minlength=n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        axle_mean = np.bincount(timed_p, weights=timed_v, minlength=n) / n_timed
 
     # Paper's per-second method: records at the head in the first detection second.
-    first = onsets.groupby("passage")["bucket"].min().reindex(p.index)
-    has = first.notna().to_numpy()
-    first_row = first.fillna(0).astype(np.int64).to_numpy()
-    p["detection_second_ns"] = np.where(has, buckets["second"].to_numpy()[first_row] * NS, np.nan)
-    p["records_in_detection_second"] = np.where(has, buckets["records"].to_numpy()[first_row], np.nan)
-    p["speed_kmh_per_second_method"] = s.spacing_m * p["records_in_detection_second"] * MPS_TO_KMH
+    first_bucket = _group_min(n, op, onsets["bucket"])
+    has = first_bucket != _BIG
+    fb = np.where(has, first_bucket, 0)
+    detection_second_ns = np.where(has, col("second")[fb] * NS, np.nan)
+    records_in_second = np.where(has, col("records")[fb], np.nan)
 
     # Whole-train: entering system's first record → leaving system's last.
-    reverse = (p["direction"] == DIRECTION_21).to_numpy()
-    both_det = ((p["detections_sys1"] > 0) & (p["detections_sys2"] > 0)).to_numpy()
+    reverse = direction == DIRECTION_21
+    both = (det_n[SYS1] > 0) & (det_n[SYS2] > 0)
+    enter = np.where(reverse, 2, 1)
+    leave = 3 - enter
     enter_first = np.where(
-        both_det,
-        np.where(reverse, det("min", SYS2), det("min", SYS1)),
-        np.where(reverse, p["rec_first_2"], p["rec_first_1"]),
+        both,
+        np.where(enter == 1, det_first[SYS1], det_first[SYS2]),
+        np.where(enter == 1, rec_first[SYS1], rec_first[SYS2]),
     )
     leave_last = np.where(
-        both_det,
-        np.where(reverse, det("max", SYS1), det("max", SYS2)),
-        np.where(reverse, p["rec_last_1"], p["rec_last_2"]),
+        both,
+        np.where(leave == 2, det_last[SYS2], det_last[SYS1]),
+        np.where(leave == 2, rec_last[SYS2], rec_last[SYS1]),
     )
     duration = (leave_last - enter_first) / NS
-    p["whole_train_duration_s"] = duration
     with np.errstate(invalid="ignore", divide="ignore"):
-        p["speed_kmh_whole_train"] = np.where(
-            duration > 0, (s.train_length_m + s.spacing_m) / duration * MPS_TO_KMH, np.nan
-        )
-    basis = np.where(both_det, "detections", "records").astype(object)
+        whole = np.where(duration > 0, (s.train_length_m + s.spacing_m) / duration * MPS_TO_KMH, np.nan)
+    basis = np.where(both, "detections", "records").astype(object)
     basis[np.isnan(duration) | (duration <= 0)] = None
-    p["whole_train_basis"] = basis
     head_dev = np.array([h[0] for h in heads], dtype=np.int64)
     head_name = np.array([h[1] for h in heads], dtype=object)
-    p["device_id"] = head_dev[p["head"].to_numpy()]
-    p["counting_head"] = head_name[p["head"].to_numpy()]
-    p["duration_s"] = (p["end_ns"] - p["start_ns"]) / NS
-    out = p.reset_index(drop=True)[list(PASSAGE_COLUMNS)]
-    out.attrs["axle_speeds_kmh"] = p.attrs["axle_speeds_kmh"]
+    stop = np.cumsum(n_timed)
+    out = pd.DataFrame(
+        {
+            "device_id": head_dev[head],
+            "counting_head": head_name[head],
+            "start_ns": start_ns,
+            "end_ns": end_ns,
+            "duration_s": (end_ns - start_ns) / NS,
+            "records": records,
+            "detections_sys1": det_n[SYS1],
+            "detections_sys2": det_n[SYS2],
+            "axles": n_axles,
+            "direction": direction,
+            "detection_second_ns": detection_second_ns,
+            "records_in_detection_second": records_in_second,
+            "speed_kmh_per_second_method": s.spacing_m * records_in_second * MPS_TO_KMH,
+            "speed_kmh_whole_train": whole,
+            "whole_train_basis": basis,
+            "whole_train_duration_s": duration,
+            "axle_speeds_start": stop - n_timed,
+            "axle_speeds_stop": stop,
+            "speed_kmh_per_axle_mean": axle_mean,
+            "subsecond": subsecond,
+        }
+    )
+    out.attrs["axle_speeds_kmh"] = timed_v
     return out
 
 
@@ -391,14 +431,12 @@ def passages_json_text(p: pd.DataFrame) -> str:
             "duration_s": p["duration_s"].to_numpy(dtype=float).round(6),
             "records": p["records"].to_numpy(np.int64),
             "axles": p["axles"].to_numpy(np.int64),
-            "detections": [
-                {"sys1": a, "sys2": b}
-                for a, b in zip(p["detections_sys1"].tolist(), p["detections_sys2"].tolist(), strict=True)
-            ],
+            "detections_sys1": p["detections_sys1"].to_numpy(np.int64),
+            "detections_sys2": p["detections_sys2"].to_numpy(np.int64),
             "direction": _objects(p["direction"]),
             "detection_second": iso_strings(p["detection_second_ns"]),
-            "records_in_detection_second": pd.array(
-                [None if np.isnan(v) else int(v) for v in n_det.tolist()], dtype="Int64"
+            "records_in_detection_second": pd.arrays.IntegerArray(
+                np.nan_to_num(n_det).astype(np.int64), np.isnan(n_det)
             ),
             "speed_kmh_per_second_method": p["speed_kmh_per_second_method"].to_numpy(dtype=float).round(3),
             "speed_kmh_whole_train": p["speed_kmh_whole_train"].to_numpy(dtype=float).round(3),

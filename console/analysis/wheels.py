@@ -17,7 +17,9 @@ not an axle; it is counted as an unpaired detection.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -52,19 +54,19 @@ def _nearest(t1: np.ndarray, t2: np.ndarray, window_ns: int) -> np.ndarray:
     return np.where(gap <= window_ns, pick, -1)
 
 
-def pair_axles(onsets: pd.DataFrame, settings: PairingSettings) -> tuple[pd.DataFrame, int]:
+def pair_axles(onsets: Mapping[str, Any], settings: PairingSettings) -> tuple[pd.DataFrame, int]:
     """Pair Sys1 and Sys2 onsets into axles.
 
-    ``onsets`` has columns ``head`` (int key), ``channel``, ``time_ns``,
+    ``onsets`` (a DataFrame or a dict of arrays) has columns ``head`` (int key), ``channel``, ``time_ns``,
     ``subsecond``.  Returns (axles, number of unpaired onsets); axles have
     ``head``, ``t_sys1_ns``, ``t_sys2_ns``, ``time_ns`` (the earlier onset),
     ``direction``, ``delay_s`` and ``speed_kmh`` (NaN unless both onsets
     carry sub-second times).
     """
-    head = onsets["head"].to_numpy(np.int64)
-    channel = onsets["channel"].to_numpy(np.int64)
-    time_ns = onsets["time_ns"].to_numpy(np.int64)
-    subsecond = onsets["subsecond"].to_numpy(bool)
+    head = np.asarray(onsets["head"], np.int64)
+    channel = np.asarray(onsets["channel"], np.int64)
+    time_ns = np.asarray(onsets["time_ns"], np.int64)
+    subsecond = np.asarray(onsets["subsecond"], bool)
     is1, is2 = channel == SYS1, channel == SYS2
     # Whole-second logs cannot resolve a sub-second delay: allow one second.
     coarse = not bool(subsecond[is1 | is2].all())
