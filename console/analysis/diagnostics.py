@@ -60,6 +60,11 @@ class DiagAnalysis:
     overlap_records: int
     unpaired_detections: int
     head_names: list[str]
+    # For the section engine: heads as (device id, name), every wheel-sensor
+    # record (head key, channel, time, 1/0), and per head the seconds with records.
+    heads: list[tuple[int, str]] = field(default_factory=list)
+    wheel_records: pd.DataFrame = field(default_factory=pd.DataFrame)
+    activity: pd.DataFrame = field(default_factory=pd.DataFrame)
 
     def passages_json(self) -> list[dict[str, Any]]:
         return passages_to_json(self.passages)
@@ -128,16 +133,18 @@ class DiagAccumulator:
         channel = luts.channel[rid]
         self._buckets.append(chunk_buckets(head, channel, chunk.time_ns, chunk.file_id))
 
-        # Wheel onsets (Radsensor turning 1); releases are not needed for speeds.
-        onset = luts.is_wheel[rid] & (chunk.value == 1)
-        if onset.any():
+        # Wheel sensor records: onsets (1) for speeds, releases (0) too for the
+        # overlap rule of the section engine.
+        wheel = luts.is_wheel[rid] & ((chunk.value == 1) | (chunk.value == 0))
+        if wheel.any():
             self._detections.append(
                 {
-                    "head": head[onset],
-                    "channel": channel[onset],
-                    "time_ns": chunk.time_ns[onset],
-                    "subsecond": chunk.subsecond[onset],
-                    "file": np.full(int(onset.sum()), chunk.file_id, np.int64),
+                    "head": head[wheel],
+                    "channel": channel[wheel],
+                    "time_ns": chunk.time_ns[wheel],
+                    "value": chunk.value[wheel].astype(np.int8),
+                    "subsecond": chunk.subsecond[wheel],
+                    "file": np.full(int(wheel.sum()), chunk.file_id, np.int64),
                 }
             )
 
@@ -158,8 +165,9 @@ class DiagAccumulator:
         buckets, overlap = merge_buckets(self._buckets)
         self._buckets = []  # reduced: free the per-chunk runs
         buckets = split_passages(buckets, settings.idle_gap_s)
-        onsets = _chosen_file_only(self._detections, buckets)
+        wheel = _chosen_file_only(self._detections, buckets)
         self._detections = []
+        onsets = {c: v[wheel["value"] == 1] for c, v in wheel.items()}
         axles, n_unpaired = pair_axles(onsets, PairingSettings(settings.spacing_m, settings.pair_window_s))
         head_names = [name for _, name in self._head_list]
         passages = _passages(buckets, onsets, axles, settings, self._head_list)
@@ -171,6 +179,9 @@ class DiagAccumulator:
             overlap_records=overlap,
             unpaired_detections=n_unpaired,
             head_names=head_names,
+            heads=list(self._head_list),
+            wheel_records=pd.DataFrame({c: wheel[c] for c in ("head", "channel", "time_ns", "value")}),
+            activity=buckets[["head", "t_first_ns", "t_last_ns"]].copy(),
         )
 
     def _inventory(self, buckets: pd.DataFrame) -> list[DeviceInventory]:
@@ -228,9 +239,10 @@ _SMALL = np.iinfo(np.int64).min
 def _chosen_file_only(parts: list[Arrays], buckets: pd.DataFrame) -> Arrays:
     """Onsets from the file chosen for their bucket (see passages: overlap), with
     their bucket row and passage."""
-    names = ("head", "channel", "time_ns", "subsecond", "file")
+    names = ("head", "channel", "time_ns", "value", "subsecond", "file")
     if not parts:
         empty = {c: np.zeros(0, bool if c == "subsecond" else np.int64) for c in names}
+        empty["value"] = np.zeros(0, np.int8)
         return {**empty, "bucket": np.zeros(0, np.int64), "passage": np.zeros(0, np.int64)}
     cols = {c: np.concatenate([part[c] for part in parts]) for c in names}
     row = bucket_index(buckets, cols["head"], cols["time_ns"])

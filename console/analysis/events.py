@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import Any
 
 import pandas as pd
 
@@ -62,6 +63,7 @@ def events_to_frame(events: Iterable[DetectionEvent]) -> pd.DataFrame:
 def frame_to_events(frame: pd.DataFrame) -> list[DetectionEvent]:
     """The inverse of :func:`events_to_frame`."""
     out = []
+    r: Any
     for r in frame.itertuples(index=False):
         channel = None if pd.isna(r.channel) else int(r.channel)
         out.append(

@@ -18,3 +18,13 @@ def iso(ns: int | None) -> str | None:
     if frac:
         text += f".{frac:09d}".rstrip("0")
     return text
+
+
+def display(ns: int | None) -> str:
+    """For tables: ``2015-10-31 09:32:24`` or ``… 09:32:24.560`` (milliseconds, fixed width)."""
+    if ns is None:
+        return "–"
+    ns = int(ns)
+    whole, frac = divmod(ns, 1_000_000_000)
+    text = (_EPOCH + dt.timedelta(seconds=whole)).isoformat(sep=" ")
+    return text + f".{frac // 1_000_000:03d}" if frac else text

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.speed import MPS_TO_KMH
 
 WHEEL_SENSOR_ADDRESS = 26
@@ -115,3 +116,128 @@ def pair_axles(onsets: Mapping[str, Any], settings: PairingSettings) -> tuple[pd
     )
     unpaired = int((is1 | is2).sum()) - 2 * len(a)
     return axles, unpaired
+
+
+# --- the two-channel overlap rule (seed 003) → detection events --------------
+
+
+@dataclass(frozen=True)
+class CountingSettings:
+    """Timing of the counting rules (seconds)."""
+
+    # Without release records (whole-second logs) onsets pair within this window.
+    pair_window_s: float = 0.13 / (1 / 3.6)
+    # Seed 002's soft timing: a wheel crosses the elements in about 0.5 s even
+    # at 1 km/h; a lone pulse with nothing else at the head within this many
+    # seconds on either side is "isolated" (lightning, tampering, a trolley).
+    isolation_s: float = 3.0
+
+
+def _intervals(times: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Damping intervals [on, off) of one channel from its 1/0 records.
+
+    Returns (on, off, has_releases).  An onset never released ends at +inf
+    (still damped when the log ends).  Without any release record (a log of
+    onsets only) every onset is a point interval.
+    """
+    order = np.argsort(times, kind="stable")
+    t, v = times[order], values[order]
+    prev = np.r_[0, v[:-1]]
+    on = t[(v == 1) & (prev != 1)]
+    has_releases = bool((v == 0).any())
+    if not has_releases:
+        return on, on.copy(), False
+    rel = t[(v == 0) & (prev == 1)]
+    idx = np.searchsorted(rel, on, side="left")
+    off = np.where(idx < len(rel), rel[np.minimum(idx, max(len(rel) - 1, 0))], np.iinfo(np.int64).max)
+    return on, off, True
+
+
+def _overlap_pairs(on1: np.ndarray, off1: np.ndarray, on2: np.ndarray, off2: np.ndarray, tol_ns: int) -> np.ndarray:
+    """For each Sys1 interval, the first Sys2 interval overlapping it (±tol), else -1.
+
+    Intervals of one channel are disjoint and sorted, so the candidates form a
+    contiguous run found with two binary searches.
+    """
+    if len(on2) == 0:
+        return np.full(len(on1), -1, np.int64)
+    lo = np.searchsorted(off2 + tol_ns, on1, side="left")  # first Sys2 ending at/after on1
+    hi = np.searchsorted(on2 - tol_ns, off1, side="right")  # Sys2 starting up to off1
+    match = np.where(lo < hi, lo, -1)
+    # One to one: a Sys2 interval claimed twice keeps its first claimant.
+    claimed = np.flatnonzero(match >= 0)
+    _, first = np.unique(match[claimed], return_index=True)
+    keep = np.zeros(len(match), bool)
+    keep[claimed[first]] = True
+    match[~keep] = -1
+    return match
+
+
+def two_channel_events(
+    head: str,
+    channel: np.ndarray,
+    time_ns: np.ndarray,
+    value: np.ndarray,
+    *,
+    up_is_sys1_first: bool = True,
+    settings: CountingSettings | None = None,
+    source: str = "diag",
+) -> list[DetectionEvent]:
+    """Seed 003's rule for one head: an axle counts when Sys1 and Sys2 are damped
+    with an overlap; the onset order gives the direction.
+
+    A damping of one system only is not an axle.  If it is isolated (nothing
+    else at the head within ``isolation_s``) it is seed 002's accidental
+    pulse: INTERFERENCE (hold the section occupied) then ACCIDENTAL once the
+    quiet time has passed.  Next to other activity it may be a missed axle:
+    SINGLE_CHANNEL, which disturbs the section.  HEAD_DAMPED / HEAD_FREE
+    bracket every time anything is over the head.
+    """
+    s = settings or CountingSettings()
+    c1, c2 = channel == SYS1, channel == SYS2
+    on1, off1, rel1 = _intervals(time_ns[c1], value[c1])
+    on2, off2, rel2 = _intervals(time_ns[c2], value[c2])
+    tol = 0 if (rel1 and rel2) else int(s.pair_window_s * NS)
+    match = _overlap_pairs(on1, off1, on2, off2, tol)
+    events: list[DetectionEvent] = []
+    paired2 = np.zeros(len(on2), bool)
+    for i in np.flatnonzero(match >= 0):
+        j = match[i]
+        paired2[j] = True
+        t1, t2 = int(on1[i]), int(on2[j])
+        order = 0 if t1 == t2 else (1 if t1 < t2 else -1)  # +1: Sys1 first
+        direction = order if up_is_sys1_first else -order
+        events.append(
+            DetectionEvent(max(t1, t2), EventKind.AXLE, head, direction, None, source, f"Sys1 {t1} Sys2 {t2}")
+        )
+    all_on = np.sort(np.r_[on1, on2])
+    iso = int(s.isolation_s * NS)
+    lone = [(int(t), SYS1) for t in on1[match < 0]] + [(int(t), SYS2) for t in on2[~paired2]]
+    for t, ch in lone:
+        # Nothing else (either system) within the isolation time on both sides.
+        near = np.searchsorted(all_on, t + iso, side="right") - np.searchsorted(all_on, t - iso, side="left")
+        if near <= 1:
+            events.append(DetectionEvent(t, EventKind.INTERFERENCE, head, 0, ch, source, "isolated pulse"))
+            events.append(
+                DetectionEvent(
+                    t + iso, EventKind.ACCIDENTAL, head, 0, ch, source, f"nothing else within {s.isolation_s:g} s"
+                )
+            )
+        else:
+            events.append(DetectionEvent(t, EventKind.SINGLE_CHANNEL, head, 0, ch, source, "one system damped"))
+    # Head damped while any interval of either system is open (release mode only):
+    # the union of the intervals, vectorized with a running maximum of ends.
+    if rel1 or rel2:
+        never = np.iinfo(np.int64).max
+        order_idx = np.argsort(np.r_[on1, on2], kind="stable")
+        starts, ends = np.r_[on1, on2][order_idx], np.r_[off1, off2][order_idx]
+        if len(starts):
+            reach = np.maximum.accumulate(ends)
+            new = np.r_[True, starts[1:] > reach[:-1]]
+            group_start = starts[new]
+            group_end = reach[np.r_[np.flatnonzero(new)[1:] - 1, len(starts) - 1]]
+            for a0, b0 in zip(group_start.tolist(), group_end.tolist(), strict=True):
+                events.append(DetectionEvent(a0, EventKind.HEAD_DAMPED, head, 0, None, source))
+                if b0 != never:
+                    events.append(DetectionEvent(b0, EventKind.HEAD_FREE, head, 0, None, source))
+    return events

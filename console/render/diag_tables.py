@@ -13,7 +13,7 @@ from rich.text import Text
 
 from console.analysis.diagnostics import DiagAnalysis
 from console.analysis.inventory import DeviceInventory
-from console.analysis.timefmt import iso
+from console.analysis.timefmt import display, iso
 from console.safe_text import inert
 from parsers.report import ParseReport
 
@@ -30,7 +30,7 @@ def _num(value: object, fmt: str = "{:.1f}") -> Text:
 def _time(ns: Any) -> Text:
     if ns is None or pd.isna(ns):
         return Text("–", style="dim")
-    return Text((iso(int(ns)) or "").replace("T", " "))
+    return Text(display(int(ns)))
 
 
 def _table(title: str) -> Table:

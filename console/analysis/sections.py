@@ -1,0 +1,279 @@
+"""Section states from detection events: the axle counter's safety logic.
+
+States:
+
+* ``clear`` — counts balance (in = out) and nothing is in doubt;
+* ``occupied`` — axles counted in and not yet out, or held by a suspected
+  interference pulse (seed 002's soft timing) until it is confirmed
+  accidental;
+* ``disturbed`` — the count cannot be trusted: count underflow (more out
+  than in), a power or communication loss at a bounding head, a channel
+  fault, an axle of unknown direction, a single-system damping next to
+  other activity (a possibly missed axle), or the channels disagreeing.
+  Disturbed is latched: only an accepted reset leaves it;
+* ``preparatory`` — after an accepted reset (or at the start of a log,
+  when the state is unknown), until a sweep train has run in and out with
+  balanced counts (seed 003: "reset only after it is confirmed really
+  clear").
+
+Fail-safe: the engine never moves to ``clear`` except from a balanced count
+with no doubt active, and nothing moves a disturbed section except a reset
+whose preconditions hold: no bounding head damped, no channel fault, no
+power loss at a bounding head.  A refused reset is recorded with why.
+
+The engine is a pure state machine: :meth:`SectionEngine.step` takes one
+event and returns what changed; the same code runs over a parsed log, in the
+simulator and behind the live view.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import pandas as pd
+
+from console.analysis.events import UNKNOWN, DetectionEvent, EventKind, sort_events
+from console.layout import Layout, Section
+
+
+class SectionState(StrEnum):
+    CLEAR = "clear"
+    OCCUPIED = "occupied"
+    DISTURBED = "disturbed"
+    PREPARATORY = "preparatory"
+
+
+# One letter each, so a state reads without colour.
+STATE_MARK = {
+    SectionState.CLEAR: "·",
+    SectionState.OCCUPIED: "#",
+    SectionState.DISTURBED: "!",
+    SectionState.PREPARATORY: "?",
+}
+
+
+@dataclass
+class _Section:
+    """Mutable state of one section inside the engine."""
+
+    section: Section
+    state: SectionState
+    count: int = 0
+    count_in: int = 0
+    count_out: int = 0
+    reason: str = ""
+    since_ns: int = 0
+    held_by: set[str] = field(default_factory=set)  # heads with a suspected interference pulse
+    swept_in: bool = False  # preparatory: the sweep train has entered
+
+
+@dataclass(frozen=True)
+class Transition:
+    time_ns: int
+    section: str
+    state: SectionState
+    count: int
+    reason: str
+
+
+@dataclass(frozen=True)
+class LedgerEntry:
+    time_ns: int
+    section: str
+    head: str
+    delta: int  # +1 counted in, -1 counted out
+    count: int  # after this axle
+
+
+@dataclass(frozen=True)
+class ResetRecord:
+    time_ns: int
+    section: str
+    accepted: bool
+    reason: str
+
+
+class SectionEngine:
+    """The section state machine over a layout.  Feed it events with :meth:`step`."""
+
+    def __init__(self, layout: Layout, *, initial: SectionState = SectionState.PREPARATORY, start_ns: int = 0) -> None:
+        if initial not in (SectionState.CLEAR, SectionState.PREPARATORY):
+            raise ValueError("a section starts clear (a known empty line) or preparatory (unknown)")
+        self.layout = layout
+        reason = "start: line known empty" if initial is SectionState.CLEAR else "start: state unknown until a sweep"
+        self.sections = {s.id: _Section(s, initial, reason=reason, since_ns=start_ns) for s in layout.sections}
+        self.damped: set[str] = set()  # heads with something over them now
+        self.faults: dict[str, set[int | None]] = {}  # head → faulty channels (None: whole head)
+        self.powerless: set[str] = set()
+        self.transitions: list[Transition] = [Transition(start_ns, s.id, initial, 0, reason) for s in layout.sections]
+        self.ledger: list[LedgerEntry] = []
+        self.resets: list[ResetRecord] = []
+
+    # -- queries --------------------------------------------------------
+    def state(self, section_id: str) -> SectionState:
+        return self.sections[section_id].state
+
+    def count(self, section_id: str) -> int:
+        return self.sections[section_id].count
+
+    def reset_refusal(self, section_id: str) -> str | None:
+        """Why a reset of this section would be refused now, or None."""
+        sec = self.sections[section_id].section
+        damped = [h for h in sec.heads if h in self.damped]
+        if damped:
+            return f"head {', '.join(damped)} is damped (something is over it)"
+        faulty = [h for h in sec.heads if self.faults.get(h)]
+        if faulty:
+            return f"channel fault at {', '.join(faulty)}"
+        dark = [h for h in sec.heads if h in self.powerless]
+        if dark:
+            return f"no power or contact at {', '.join(dark)}"
+        return None
+
+    # -- the state machine ----------------------------------------------
+    def _set(self, s: _Section, state: SectionState, t: int, reason: str) -> Transition | None:
+        if state is s.state:
+            return None  # counts go to the ledger; the timeline keeps state changes
+        s.state, s.reason, s.since_ns = state, reason, t
+        tr = Transition(t, s.section.id, state, s.count, reason)
+        self.transitions.append(tr)
+        return tr
+
+    def _disturb(self, s: _Section, t: int, reason: str) -> Transition | None:
+        if s.state is SectionState.DISTURBED:
+            return None  # latched: keep the first reason
+        return self._set(s, SectionState.DISTURBED, t, reason)
+
+    def _settle(self, s: _Section, t: int, reason: str) -> Transition | None:
+        """After a count change or a lifted hold: the state the count allows."""
+        if s.state is SectionState.DISTURBED:
+            return None
+        if s.count < 0:
+            return self._disturb(s, t, f"count underflow ({s.count}): more axles out than in")
+        if s.state is SectionState.PREPARATORY:
+            if s.count > 0:
+                s.swept_in = True
+                return None
+            if s.swept_in and not s.held_by:
+                s.swept_in = False
+                return self._set(s, SectionState.CLEAR, t, "sweep train in and out: counts balance")
+            return None
+        if s.count > 0:
+            return self._set(s, SectionState.OCCUPIED, t, reason)
+        if s.held_by:
+            return self._set(s, SectionState.OCCUPIED, t, f"held: isolated pulse at {', '.join(sorted(s.held_by))}")
+        return self._set(s, SectionState.CLEAR, t, "counts balance")
+
+    def step(self, e: DetectionEvent) -> list[Transition]:
+        """Apply one event; returns the state changes it caused."""
+        out: list[Transition | None] = []
+        t = e.time_ns
+        if e.kind is EventKind.RESET:
+            out.append(self._reset(e))
+            return [x for x in out if x is not None]
+        bound = self.layout.sections_of(e.head) if self.layout.has_head(e.head) else []
+        secs = [(self.sections[sec.id], sign) for sec, sign in bound]
+        k = e.kind
+        if k is EventKind.AXLE:
+            for s, sign in secs:
+                if e.direction == UNKNOWN:
+                    out.append(self._disturb(s, t, f"axle of unknown direction at {e.head}"))
+                    continue
+                delta = sign * e.direction
+                s.count += delta
+                if delta > 0:
+                    s.count_in += 1
+                else:
+                    s.count_out += 1
+                self.ledger.append(LedgerEntry(t, s.section.id, e.head, delta, s.count))
+                out.append(self._settle(s, t, f"axles counted in: {s.count}"))
+        elif k is EventKind.SINGLE_CHANNEL:
+            for s, _ in secs:
+                what = f"Sys{e.channel}" if e.channel else "one system"
+                out.append(self._disturb(s, t, f"{what} only at {e.head}: possibly a missed axle"))
+        elif k is EventKind.COUNT_ERROR:
+            for s, _ in secs:
+                out.append(self._disturb(s, t, f"count error at {e.head}: {e.detail or 'channels disagree'}"))
+        elif k is EventKind.CHANNEL_FAULT:
+            self.faults.setdefault(e.head, set()).add(e.channel)
+            for s, _ in secs:
+                ch = "whole head" if e.channel is None else f"channel {e.channel}"
+                out.append(self._disturb(s, t, f"{ch} faulty at {e.head}"))
+        elif k is EventKind.CHANNEL_OK:
+            self.faults.get(e.head, set()).discard(e.channel)
+        elif k is EventKind.POWER_LOSS:
+            self.powerless.add(e.head)
+            for s, _ in secs:
+                out.append(
+                    self._disturb(s, t, f"power or contact lost at {e.head}" + (f": {e.detail}" if e.detail else ""))
+                )
+        elif k is EventKind.POWER_RESTORED:
+            self.powerless.discard(e.head)  # the sections stay disturbed until a reset
+        elif k is EventKind.HEAD_DAMPED:
+            self.damped.add(e.head)
+        elif k is EventKind.HEAD_FREE:
+            self.damped.discard(e.head)
+        elif k is EventKind.INTERFERENCE:
+            for s, _ in secs:
+                s.held_by.add(e.head)
+                if s.state is SectionState.CLEAR:
+                    out.append(self._set(s, SectionState.OCCUPIED, t, f"held: isolated pulse at {e.head}"))
+        elif k is EventKind.ACCIDENTAL:
+            for s, _ in secs:
+                s.held_by.discard(e.head)
+                out.append(self._settle(s, t, f"axles counted in: {s.count}"))
+        return [x for x in out if x is not None]
+
+    def _reset(self, e: DetectionEvent) -> Transition | None:
+        sid = e.head
+        if sid not in self.sections:
+            self.resets.append(ResetRecord(e.time_ns, sid, False, f"no section {sid!r} in the layout"))
+            return None
+        why = self.reset_refusal(sid)
+        if why is not None:
+            self.resets.append(ResetRecord(e.time_ns, sid, False, why))
+            return None
+        s = self.sections[sid]
+        s.count, s.swept_in, s.held_by = 0, False, set()
+        self.resets.append(ResetRecord(e.time_ns, sid, True, "preconditions hold: waiting for a sweep train"))
+        return self._set(s, SectionState.PREPARATORY, e.time_ns, "reset accepted: waiting for a sweep train")
+
+    def run(self, events: Iterable[DetectionEvent]) -> SectionsResult:
+        for e in sort_events(events):
+            self.step(e)
+        return self.result()
+
+    def result(self) -> SectionsResult:
+        return SectionsResult(
+            timeline=pd.DataFrame(
+                [(t.time_ns, t.section, str(t.state), t.count, t.reason) for t in self.transitions],
+                columns=["time_ns", "section", "state", "count", "reason"],
+            ),
+            ledger=pd.DataFrame(
+                [(x.time_ns, x.section, x.head, x.delta, x.count) for x in self.ledger],
+                columns=["time_ns", "section", "head", "delta", "count"],
+            ),
+            resets=pd.DataFrame(
+                [(r.time_ns, r.section, r.accepted, r.reason) for r in self.resets],
+                columns=["time_ns", "section", "accepted", "reason"],
+            ),
+            final={sid: (str(s.state), s.count, s.count_in, s.count_out, s.reason) for sid, s in self.sections.items()},
+        )
+
+
+@dataclass
+class SectionsResult:
+    timeline: pd.DataFrame  # every state change: time_ns, section, state, count, reason
+    ledger: pd.DataFrame  # every axle counted: time_ns, section, head, delta, count
+    resets: pd.DataFrame  # every reset request: accepted or refused, and why
+    final: dict[str, tuple[str, int, int, int, str]]  # section → (state, count, in, out, reason)
+
+
+def run_sections(
+    layout: Layout, events: Iterable[DetectionEvent], *, initial: SectionState = SectionState.PREPARATORY
+) -> SectionsResult:
+    """Run the section engine over a whole event stream (batch)."""
+    ev = sort_events(events)
+    return SectionEngine(layout, initial=initial, start_ns=ev[0].time_ns if ev else 0).run(ev)

@@ -1,0 +1,380 @@
+"""Line and station layouts (TOML) → a validated model.
+
+A layout says where the counting heads are, which heads bound which
+sections and with which sign, where the level crossings are, the track's
+polyline and the train consists.  Every error names the file, the key, what
+was expected and what was found, so a maintainer can fix the file.
+
+Direction: *up* is increasing chainage.  ``up`` on a counting head is the
+channel order a train running up produces (``sys1_to_sys2`` for two-channel
+heads, ``s1_to_s3`` for three-element intelligent sensors).  A section bound
+``sign`` is +1 when a train running up past that head *enters* the section
+(the head at the section's low-chainage end) and −1 when it leaves it.
+
+Shipped layouts: ``osong`` (the Osong tram test line of seed 003: one head,
+WS4, 0.13 m coil spacing) and ``example`` (a station pair with five heads,
+four sections, two level crossings and two platforms).
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+BUILTIN = {"osong": "osong.toml", "example": "example_station.toml"}
+UP_ORDERS = {2: ("sys1_to_sys2", "sys2_to_sys1"), 3: ("s1_to_s3", "s3_to_s1")}
+_KP = re.compile(r"^(\d+)\+(\d{3})$")
+
+
+class LayoutError(ValueError):
+    """A layout file that cannot be used, with the place and the fix."""
+
+
+@dataclass(frozen=True)
+class CountingHead:
+    id: str  # as in the log's Trackinfo
+    chainage_m: float
+    spacing_m: float = 0.13  # Sys1–Sys2 (or element) spacing
+    channels: int = 2
+    up: str = "sys1_to_sys2"
+    device_id: int | None = None
+    analog_band: tuple[float, float] | None = None
+
+    @property
+    def up_is_first_channel_first(self) -> bool:
+        """True when a train running up reaches channel 1 first."""
+        return self.up in ("sys1_to_sys2", "s1_to_s3")
+
+
+@dataclass(frozen=True)
+class SectionBound:
+    head: str
+    sign: int  # +1: an up train passing this head enters the section
+
+
+@dataclass(frozen=True)
+class Section:
+    id: str
+    bounds: tuple[SectionBound, ...]
+    name: str = ""
+
+    @property
+    def heads(self) -> tuple[str, ...]:
+        return tuple(b.head for b in self.bounds)
+
+
+@dataclass(frozen=True)
+class LevelCrossing:
+    code: str  # kilometre post, e.g. "11+850"
+    chainage_m: float
+    lat: float
+    lon: float
+    warning_time_s: float = 70.0
+    d_off_m: float = 30.0  # the end of train must be this far past the crossing
+    name: str = ""
+
+
+@dataclass(frozen=True)
+class TrackPoint:
+    chainage_m: float
+    lat: float
+    lon: float
+
+
+@dataclass(frozen=True)
+class Platform:
+    station: str
+    from_m: float
+    to_m: float
+
+
+@dataclass(frozen=True)
+class Consist:
+    id: str
+    length_m: float  # first to last wheel
+    axles_m: tuple[float, ...]  # from the first wheel
+    name: str = ""
+
+
+@dataclass(frozen=True)
+class SpeedLimit:
+    from_m: float
+    to_m: float
+    limit_mps: float
+
+
+@dataclass(frozen=True)
+class Layout:
+    name: str
+    source: str
+    heads: tuple[CountingHead, ...]
+    sections: tuple[Section, ...] = ()
+    crossings: tuple[LevelCrossing, ...] = ()
+    track: tuple[TrackPoint, ...] = ()
+    platforms: tuple[Platform, ...] = ()
+    consists: tuple[Consist, ...] = ()
+    speed_limits: tuple[SpeedLimit, ...] = ()
+    line_speed_mps: float = 20.0
+    _by_id: dict[str, CountingHead] = field(default_factory=dict, compare=False, repr=False)
+
+    def head(self, head_id: str) -> CountingHead:
+        return self._by_id[head_id]
+
+    def has_head(self, head_id: str) -> bool:
+        return head_id in self._by_id
+
+    def sections_of(self, head_id: str) -> list[tuple[Section, int]]:
+        """The sections a head bounds, with the sign it contributes to each."""
+        return [(s, b.sign) for s in self.sections for b in s.bounds if b.head == head_id]
+
+    def consist(self, consist_id: str | None = None) -> Consist | None:
+        if not self.consists:
+            return None
+        if consist_id is None:
+            return self.consists[0]
+        return next((c for c in self.consists if c.id == consist_id), None)
+
+
+def parse_kilometre_post(code: str) -> float:
+    """``11+850`` → 11850.0 m."""
+    m = _KP.match(code.strip())
+    if not m:
+        raise ValueError(f"expected a kilometre post like 11+850, found {code!r}")
+    return int(m[1]) * 1000.0 + int(m[2])
+
+
+def format_kilometre_post(chainage_m: float) -> str:
+    """11850.0 → ``11+850``."""
+    metres = round(chainage_m)
+    return f"{metres // 1000}+{metres % 1000:03d}"
+
+
+class _Reader:
+    """Typed access to a TOML table, raising LayoutError with the key path."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, key: str, expected: str, found: Any) -> LayoutError:
+        shown = "nothing" if found is _MISSING else repr(found)
+        return LayoutError(f"{self.source}: {key}: expected {expected}, found {shown}")
+
+    def get(
+        self, table: dict[str, Any], key: str, path: str, kind: type | tuple[type, ...], default: Any = None
+    ) -> Any:
+        value = table.get(key, _MISSING)
+        if value is _MISSING:
+            if default is not _REQUIRED:
+                return default
+            raise self.fail(f"{path}.{key}", _describe(kind), _MISSING)
+        if kind is float and isinstance(value, int) and not isinstance(value, bool):
+            return float(value)
+        if isinstance(value, bool) and kind is not bool:
+            raise self.fail(f"{path}.{key}", _describe(kind), value)
+        if not isinstance(value, kind):
+            raise self.fail(f"{path}.{key}", _describe(kind), value)
+        return value
+
+    def req(self, table: dict[str, Any], key: str, path: str, kind: type | tuple[type, ...]) -> Any:
+        return self.get(table, key, path, kind, _REQUIRED)
+
+    def tables(self, doc: dict[str, Any], key: str) -> list[dict[str, Any]]:
+        value = doc.get(key, [])
+        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+            raise self.fail(key, f"an array of tables ([[{key}]])", value)
+        return value
+
+
+_MISSING = object()
+_REQUIRED = object()
+
+
+def _describe(kind: type | tuple[type, ...]) -> str:
+    names = {str: "a string", float: "a number", int: "an integer", list: "an array", bool: "true or false"}
+    if isinstance(kind, tuple):
+        return " or ".join(names.get(k, k.__name__) for k in kind)
+    return names.get(kind, kind.__name__)
+
+
+def _positive(r: _Reader, value: float, key: str) -> float:
+    if not value > 0:
+        raise r.fail(key, "a positive number", value)
+    return value
+
+
+def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
+    """Validate a parsed TOML document into a :class:`Layout`."""
+    r = _Reader(source)
+    line = doc.get("line", {})
+    if not isinstance(line, dict):
+        raise r.fail("line", "a table [line]", line)
+    name = r.get(line, "name", "line", str, Path(source).stem)
+    line_speed = _positive(r, r.get(line, "speed_mps", "line", float, 20.0), "line.speed_mps")
+
+    heads: list[CountingHead] = []
+    for i, t in enumerate(r.tables(doc, "heads")):
+        p = f"heads[{i}]"
+        channels = r.get(t, "channels", p, int, 2)
+        if channels not in UP_ORDERS:
+            raise r.fail(f"{p}.channels", "2 (Sys1, Sys2) or 3 (S1..S3)", channels)
+        up = r.get(t, "up", p, str, UP_ORDERS[channels][0])
+        if up not in UP_ORDERS[channels]:
+            raise r.fail(f"{p}.up", " or ".join(UP_ORDERS[channels]), up)
+        band = t.get("analog_band")
+        if band is not None:
+            ok = isinstance(band, list) and len(band) == 2 and all(isinstance(v, int | float) for v in band)
+            if not ok or band[0] >= band[1]:
+                raise r.fail(f"{p}.analog_band", "[low, high] with low < high", band)
+            band = (float(band[0]), float(band[1]))
+        heads.append(
+            CountingHead(
+                id=r.req(t, "id", p, str),
+                chainage_m=r.req(t, "chainage_m", p, float),
+                spacing_m=_positive(r, r.get(t, "spacing_m", p, float, 0.13), f"{p}.spacing_m"),
+                channels=channels,
+                up=up,
+                device_id=r.get(t, "device_id", p, int, None),
+                analog_band=band,
+            )
+        )
+    if not heads:
+        raise r.fail("heads", "at least one [[heads]] table", _MISSING)
+    by_id: dict[str, CountingHead] = {}
+    for i, h in enumerate(heads):
+        if h.id in by_id:
+            raise r.fail(f"heads[{i}].id", "a head id not used before", h.id)
+        by_id[h.id] = h
+
+    sections: list[Section] = []
+    seen_sections: set[str] = set()
+    for i, t in enumerate(r.tables(doc, "sections")):
+        p = f"sections[{i}]"
+        sid = r.req(t, "id", p, str)
+        if sid in seen_sections:
+            raise r.fail(f"{p}.id", "a section id not used before", sid)
+        seen_sections.add(sid)
+        raw_bounds = r.req(t, "bounds", p, list)
+        bounds = []
+        for j, b in enumerate(raw_bounds):
+            bp = f"{p}.bounds[{j}]"
+            if not isinstance(b, dict):
+                raise r.fail(bp, '{ head = "WS1", sign = 1 }', b)
+            head = r.req(b, "head", bp, str)
+            if head not in by_id:
+                raise r.fail(f"{bp}.head", "one of " + ", ".join(sorted(by_id)), head)
+            sign = r.req(b, "sign", bp, int)
+            if sign not in (1, -1):
+                raise r.fail(f"{bp}.sign", "1 (an up train enters here) or -1 (it leaves here)", sign)
+            bounds.append(SectionBound(head, sign))
+        if not bounds:
+            raise r.fail(f"{p}.bounds", "at least one bounding head", raw_bounds)
+        if len({b.head for b in bounds}) != len(bounds):
+            raise r.fail(f"{p}.bounds", "each head once", [b.head for b in bounds])
+        sections.append(Section(sid, tuple(bounds), r.get(t, "name", p, str, "")))
+
+    crossings = []
+    for i, t in enumerate(r.tables(doc, "crossings")):
+        p = f"crossings[{i}]"
+        code = r.req(t, "code", p, str)
+        try:
+            kp = parse_kilometre_post(code)
+        except ValueError:
+            raise r.fail(f"{p}.code", "a kilometre post like 11+850", code) from None
+        chainage = r.get(t, "chainage_m", p, float, kp)
+        lat, lon = r.req(t, "lat", p, float), r.req(t, "lon", p, float)
+        if not -90 <= lat <= 90:
+            raise r.fail(f"{p}.lat", "a latitude in degrees (-90..90)", lat)
+        if not -180 <= lon <= 180:
+            raise r.fail(f"{p}.lon", "a longitude in degrees (-180..180)", lon)
+        crossings.append(
+            LevelCrossing(
+                code=code,
+                chainage_m=chainage,
+                lat=lat,
+                lon=lon,
+                warning_time_s=_positive(r, r.get(t, "warning_time_s", p, float, 70.0), f"{p}.warning_time_s"),
+                d_off_m=_positive(r, r.get(t, "d_off_m", p, float, 30.0), f"{p}.d_off_m"),
+                name=r.get(t, "name", p, str, ""),
+            )
+        )
+
+    track: list[TrackPoint] = []
+    for i, t in enumerate(r.tables(doc, "track")):
+        p = f"track[{i}]"
+        pt = TrackPoint(r.req(t, "chainage_m", p, float), r.req(t, "lat", p, float), r.req(t, "lon", p, float))
+        if track and pt.chainage_m <= track[-1].chainage_m:
+            raise r.fail(f"{p}.chainage_m", f"more than the previous point's {track[-1].chainage_m}", pt.chainage_m)
+        track.append(pt)
+
+    platforms = []
+    for i, t in enumerate(r.tables(doc, "platforms")):
+        p = f"platforms[{i}]"
+        pl = Platform(r.req(t, "station", p, str), r.req(t, "from_m", p, float), r.req(t, "to_m", p, float))
+        if pl.to_m <= pl.from_m:
+            raise r.fail(f"{p}.to_m", f"more than from_m ({pl.from_m})", pl.to_m)
+        platforms.append(pl)
+
+    consists = []
+    for i, t in enumerate(r.tables(doc, "consists")):
+        p = f"consists[{i}]"
+        axles = r.req(t, "axles_m", p, list)
+        if not axles or not all(isinstance(a, int | float) and not isinstance(a, bool) for a in axles):
+            raise r.fail(f"{p}.axles_m", "a list of axle positions in m from the first wheel", axles)
+        if any(b < a for a, b in itertools.pairwise(axles)) or axles[0] != 0:
+            raise r.fail(f"{p}.axles_m", "increasing positions starting at 0", axles)
+        length = r.get(t, "length_m", p, float, float(axles[-1]))
+        if abs(length - axles[-1]) > 1e-6:
+            raise r.fail(f"{p}.length_m", f"the last axle position ({axles[-1]})", length)
+        consists.append(
+            Consist(r.req(t, "id", p, str), length, tuple(float(a) for a in axles), r.get(t, "name", p, str, ""))
+        )
+
+    limits = []
+    for i, t in enumerate(r.tables(doc, "speed_limits")):
+        p = f"speed_limits[{i}]"
+        lim = SpeedLimit(r.req(t, "from_m", p, float), r.req(t, "to_m", p, float), r.req(t, "limit_mps", p, float))
+        _positive(r, lim.limit_mps, f"{p}.limit_mps")
+        limits.append(lim)
+
+    return Layout(
+        name=name,
+        source=source,
+        heads=tuple(heads),
+        sections=tuple(sections),
+        crossings=tuple(crossings),
+        track=tuple(track),
+        platforms=tuple(platforms),
+        consists=tuple(consists),
+        speed_limits=tuple(limits),
+        line_speed_mps=line_speed,
+        _by_id=by_id,
+    )
+
+
+def load_layout(spec: str | Path) -> Layout:
+    """A layout from a file path, or a shipped one by name (``osong``, ``example``)."""
+    name = str(spec)
+    if name in BUILTIN:
+        text = resources.files("console.layouts").joinpath(BUILTIN[name]).read_text(encoding="utf-8")
+        source = f"{name} (shipped layout {BUILTIN[name]})"
+    else:
+        path = Path(spec)
+        if not path.exists():
+            raise LayoutError(f"{path}: no such layout file (or use a shipped one: {', '.join(BUILTIN)})")
+        if path.is_dir():
+            raise LayoutError(f"{path}: is a directory, expected a layout .toml file")
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise LayoutError(f"{path}: cannot read ({exc})") from None
+        source = str(path)
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise LayoutError(f"{source}: not valid TOML ({exc})") from None
+    return layout_from_dict(doc, source)

@@ -1,0 +1,1 @@
+"""Shipped layouts (TOML): ``osong`` and ``example``; see console.layout."""

@@ -1,0 +1,117 @@
+"""Rich tables for `trackside sections`: final states, timeline, ledger, resets."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pandas as pd
+from rich import box
+from rich.table import Table
+from rich.text import Text
+
+from console.analysis.sections import STATE_MARK, SectionsResult, SectionState
+from console.analysis.timefmt import display, iso
+from console.safe_text import inert
+
+STATE_STYLE = {
+    SectionState.CLEAR: "green",
+    SectionState.OCCUPIED: "yellow",
+    SectionState.DISTURBED: "bold red",
+    SectionState.PREPARATORY: "magenta",
+}
+
+
+def _table(title: str) -> Table:
+    return Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, title_style="bold")
+
+
+def state_text(state: str) -> Text:
+    """A state with its mark, so it reads without colour: '! disturbed'."""
+    st = SectionState(state)
+    return Text(f"{STATE_MARK[st]} {st.value}", style=STATE_STYLE[st])
+
+
+def _t(ns: Any) -> str:
+    return display(int(ns))
+
+
+def final_states_table(result: SectionsResult) -> Table:
+    t = _table("Sections now (· clear  # occupied  ! disturbed  ? preparatory)")
+    for c in ("Section", "State", "Count", "In", "Out", "Why"):
+        t.add_column(c, justify="right" if c in ("Count", "In", "Out") else "left")
+    for sid, (state, count, n_in, n_out, reason) in result.final.items():
+        t.add_row(inert(sid), state_text(state), Text(str(count)), Text(str(n_in)), Text(str(n_out)), inert(reason))
+    return t
+
+
+def timeline_table(result: SectionsResult, limit: int = 200) -> Table:
+    tl = result.timeline
+    t = _table(f"State timeline ({len(tl)} changes)")
+    for c in ("Time", "Section", "State", "Count", "Why"):
+        t.add_column(c, no_wrap=c == "Time")
+    r: Any
+    for r in tl.head(limit).itertuples(index=False):
+        t.add_row(Text(_t(r.time_ns)), inert(r.section), state_text(r.state), Text(str(r.count)), inert(r.reason))
+    if len(tl) > limit:
+        t.caption = f"first {limit} of {len(tl)}; --json has all"
+    return t
+
+
+def ledger_summary_table(result: SectionsResult) -> Table:
+    """Counts in and out per section and head (the full ledger is in --json)."""
+    t = _table("Count ledger (axles in / out per head)")
+    for c in ("Section", "Head", "In", "Out", "First", "Last"):
+        t.add_column(c, justify="right" if c in ("In", "Out") else "left", no_wrap=c in ("First", "Last"))
+    led = result.ledger
+    if led.empty:
+        return t
+    g = led.groupby(["section", "head"], sort=True)
+    summary = pd.DataFrame(
+        {
+            "n_in": g["delta"].apply(lambda d: int((d > 0).sum())),
+            "n_out": g["delta"].apply(lambda d: int((d < 0).sum())),
+            "first": g["time_ns"].min(),
+            "last": g["time_ns"].max(),
+        }
+    ).reset_index()
+    r: Any
+    for r in summary.itertuples(index=False):
+        t.add_row(
+            inert(r.section), inert(r.head), Text(str(r.n_in)), Text(str(r.n_out)), Text(_t(r.first)), Text(_t(r.last))
+        )
+    return t
+
+
+def resets_table(result: SectionsResult) -> Table | None:
+    if result.resets.empty:
+        return None
+    t = _table("Reset requests")
+    for c in ("Time", "Section", "Result", "Why"):
+        t.add_column(c)
+    r: Any
+    for r in result.resets.itertuples(index=False):
+        verdict = Text("accepted", style="green") if r.accepted else Text("refused", style="bold red")
+        t.add_row(Text(_t(r.time_ns)), inert(r.section), verdict, inert(r.reason))
+    return t
+
+
+def sections_json(result: SectionsResult) -> dict[str, Any]:
+    """The JSON form (schema trackside.sections/1)."""
+
+    def rows(frame: pd.DataFrame) -> list[dict[str, Any]]:
+        out = []
+        for rec in frame.to_dict("records"):
+            rec = {str(k): v for k, v in rec.items()}
+            rec["time"] = iso(int(rec.pop("time_ns")))
+            out.append({k: (v.item() if hasattr(v, "item") else v) for k, v in rec.items()})
+        return out
+
+    return {
+        "sections": [
+            {"section": sid, "state": st, "count": c, "count_in": i, "count_out": o, "reason": why}
+            for sid, (st, c, i, o, why) in result.final.items()
+        ],
+        "timeline": rows(result.timeline),
+        "ledger": rows(result.ledger),
+        "resets": rows(result.resets),
+    }
