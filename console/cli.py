@@ -249,8 +249,10 @@ def sections(
     ] = "unknown",
     isolation: Annotated[
         float,
-        typer.Option("--isolation", help="Seconds of quiet around a lone pulse that make it accidental.", min=0.5),
-    ] = 3.0,
+        typer.Option(
+            "--isolation", help="Seconds of quiet before and after a lone pulse that make it accidental.", min=1.0
+        ),
+    ] = 60.0,
     json_out: JsonOpt = False,
     strict: Annotated[
         bool, typer.Option("--strict", help="Exit 1 if a line was rejected or a section ends disturbed.")
@@ -260,6 +262,7 @@ def sections(
 
     def body() -> int:
         from console.analysis.diag_events import DiagEventSettings, diag_detection_events
+        from console.analysis.majority import MajoritySettings
         from console.analysis.sections import SectionState, run_sections
         from console.analysis.wheels import CountingSettings
         from console.render import section_tables as st
@@ -271,7 +274,11 @@ def sections(
             raise _fail(f"{lay.source}: the layout has no [[sections]]")
         resets = _parse_resets(reset or [])
         job = _run_diag(files, lay.heads[0].spacing_m, 28.6, 10.0)
-        settings = DiagEventSettings(counting=CountingSettings(isolation_s=isolation), power_gap_s=power_gap)
+        settings = DiagEventSettings(
+            counting=CountingSettings(isolation_s=isolation),
+            majority=MajoritySettings(isolation_s=isolation),
+            power_gap_s=power_gap,
+        )
         events, warnings = diag_detection_events(job.analysis, lay, settings)
         start = SectionState.CLEAR if initial == "clear" else SectionState.PREPARATORY
         result = run_sections(lay, events + resets, initial=start)

@@ -7,7 +7,7 @@ here; ``tests/test_health.py`` asserts them.
 
 Every 5 minutes each head writes a status dump (sum counter, per channel the
 4-edge and 1-edge counters and the two analog values, Adr 134/136); once an
-hour, at :20, an 8-axle tram passes WS4 and a minute later WS5.  WS4's
+hour, at :22:37.250, an 8-axle tram passes WS4 and a minute later WS5.  WS4's
 device restarts at 08:02:30 (identity dump again, counters back to 0).
 Deterministic: the noise comes from a seeded generator.
 
@@ -127,8 +127,8 @@ def main() -> None:
         nxt = t + STATUS_EVERY
         if t < RESTART_AT <= nxt:
             rows += heads[RESTART_HEAD].restart(RESTART_AT)
-        if t.minute == 20:  # an hourly tram, after the :20 dump: WS4, then WS5
-            tram = t.replace(second=7, microsecond=250_000)
+        if t.minute == 20:  # an hourly tram at :22, well clear of the dumps: WS4, then WS5
+            tram = t.replace(minute=22, second=37, microsecond=250_000)
             rows += heads["WS4"].passage(tram)
             rows += heads["WS5"].passage(tram + dt.timedelta(seconds=61, milliseconds=130))
         t = nxt

@@ -39,6 +39,8 @@ class SpeedSettings:
     # any headway between two trams.
     idle_gap_s: float = 10.0
     pair_window_s: float = PairingSettings.pair_window_s
+    # Above this, a "whole-train speed" is an artefact, not a train.
+    max_speed_kmh: float = 400.0
 
 
 @dataclass
@@ -352,8 +354,12 @@ def _passages(
     duration = (leave_last - enter_first) / NS
     with np.errstate(invalid="ignore", divide="ignore"):
         whole = np.where(duration > 0, (s.train_length_m + s.spacing_m) / duration * MPS_TO_KMH, np.nan)
+    # A status dump with no wheel in it spans milliseconds: as a "train" it
+    # would run at thousands of km/h.  No train is faster than max_speed_kmh.
+    implausible = whole > s.max_speed_kmh
+    whole = np.where(implausible, np.nan, whole)
     basis = np.where(both, "detections", "records").astype(object)
-    basis[np.isnan(duration) | (duration <= 0)] = None
+    basis[np.isnan(duration) | (duration <= 0) | implausible] = None
     head_dev = np.array([h[0] for h in heads], dtype=np.int64)
     head_name = np.array([h[1] for h in heads], dtype=object)
     stop = np.cumsum(n_timed)
@@ -379,6 +385,9 @@ def _passages(
             "axle_speeds_stop": stop,
             "speed_kmh_per_axle_mean": axle_mean,
             "subsecond": subsecond,
+            # A train left wheels (or, in the paper's whole-second excerpts, a
+            # plausible Sys1→Sys2 span); otherwise it was a status dump.
+            "kind": np.where((n_onsets > 0) | ~np.isnan(whole), "train", "status").astype(object),
         }
     )
     out.attrs["axle_speeds_kmh"] = timed_v
@@ -406,6 +415,7 @@ PASSAGE_COLUMNS = (
     "axle_speeds_stop",
     "speed_kmh_per_axle_mean",
     "subsecond",
+    "kind",
 )
 
 
@@ -456,6 +466,7 @@ def passages_json_text(p: pd.DataFrame) -> str:
             "speed_kmh_per_axle": axle_speed_lists(p),
             "speed_kmh_per_axle_mean": p["speed_kmh_per_axle_mean"].to_numpy(dtype=float).round(3),
             "subsecond": p["subsecond"].to_numpy(bool),
+            "kind": _objects(p["kind"]),
         }
     )
     return frame.to_json(orient="records", force_ascii=True, double_precision=10)

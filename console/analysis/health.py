@@ -396,10 +396,11 @@ def disturbance_rate_findings(
     Thresholds (per channel): above ``warn_per_hour`` (12/h, one disturbance
     every 5 minutes on average) → WARNING; above ``critical_per_hour``
     (60/h, one a minute) → CRITICAL; otherwise INFO.  A healthy channel sees
-    a few an hour (passing metal, lightning, track work).  Note: on some
-    devices the ``Zähler 1-Fl`` register counts every edge, including the four
-    of each counted wheel (the paper's excerpt shows 72 = 4 × 18 axles);
-    there the thresholds must be raised with the traffic.  ``time_ns`` is
+    a few an hour (passing metal, lightning, track work).  Caution: the
+    paper's excerpt (seed 003) shows ``Zähler 1-Fl`` at 72 beside a sum
+    counter of 18, i.e. 4 × 18: if a device counts every edge of every wheel
+    there, the rate follows the traffic and the thresholds must be raised
+    with it (or the 4-edge growth subtracted).  ``time_ns`` is
     the first reading at which the windowed rate crossed the warning level.
     """
     if not 0 < warn_per_hour <= critical_per_hour:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.wheels import CountingSettings, soft_timing
 
 NS = 1_000_000_000
 
@@ -37,8 +38,8 @@ class MajoritySettings:
     element_spacing_m: float = 0.15
     # The slowest wheel the sensor counts: 1 km/h (seed 002).
     min_speed_mps: float = 1 / 3.6
-    isolation_s: float = 3.0
-    clear_after_s: float = 30.0
+    isolation_s: float = 60.0  # see console.analysis.wheels.CountingSettings
+    clear_after_s: float = 90.0
 
     @property
     def wheel_window_ns(self) -> int:
@@ -59,7 +60,7 @@ def majority_events(
     s = settings or MajoritySettings()
     order = np.argsort(time_ns, kind="stable")
     el, t = element[order].astype(int).tolist(), time_ns[order].astype(np.int64).tolist()
-    iso = int(s.isolation_s * NS)
+    timing = CountingSettings(isolation_s=s.isolation_s)
     all_t = np.asarray(t, dtype=np.int64)
 
     events: list[DetectionEvent] = []
@@ -72,17 +73,9 @@ def majority_events(
         nonlocal cint
         if not g:
             return
-        t0 = min(g.values())
         if len(g) == 1:
-            (e1,) = g
-            near = np.searchsorted(all_t, t0 + iso, side="right") - np.searchsorted(all_t, t0 - iso, side="left")
-            if near <= 1:
-                events.append(DetectionEvent(t0, EventKind.INTERFERENCE, head, 0, e1, source, "isolated pulse"))
-                events.append(
-                    DetectionEvent(t0 + iso, EventKind.ACCIDENTAL, head, 0, e1, source, "confirmed accidental")
-                )
-            else:
-                events.append(DetectionEvent(t0, EventKind.SINGLE_CHANNEL, head, 0, e1, source, "one element only"))
+            ((e1, t0),) = g.items()
+            events.extend(soft_timing(head, [(t0, e1)], all_t, timing, source))
             return
         cint += 1
         for e in g:

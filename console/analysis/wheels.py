@@ -127,10 +127,45 @@ class CountingSettings:
 
     # Without release records (whole-second logs) onsets pair within this window.
     pair_window_s: float = 0.13 / (1 / 3.6)
-    # Seed 002's soft timing: a wheel crosses the elements in about 0.5 s even
-    # at 1 km/h; a lone pulse with nothing else at the head within this many
-    # seconds on either side is "isolated" (lightning, tampering, a trolley).
-    isolation_s: float = 3.0
+    # Seed 002's soft timing calls a pulse "isolated" when nothing else comes
+    # for much longer than the half second a wheel needs to cross the elements
+    # at 1 km/h.  But a wheel one system missed is also alone among its
+    # train's other axles, which at low speed are tens of seconds apart (15 m
+    # at 1 km/h is 54 s).  So a pulse counts as isolated, and can be confirmed
+    # accidental, only with this much quiet at the head before *and* after it.
+    # The fail-safe property test found the shorter windows unsafe.
+    isolation_s: float = 60.0
+
+
+def soft_timing(
+    head: str, lone: list[tuple[int, int]], all_onsets: np.ndarray, s: CountingSettings, source: str
+) -> list[DetectionEvent]:
+    """Seed 002's soft timing for pulses that are not (part of) an axle.
+
+    A lone pulse with nothing at the head for ``isolation_s`` before it holds
+    the section occupied (INTERFERENCE).  If nothing follows for
+    ``isolation_s`` it is accidental (ACCIDENTAL lifts the hold); if anything
+    does, it may have been a wheel one system missed (SINGLE_CHANNEL, at the
+    moment that activity comes, which disturbs the section).  A lone pulse
+    amid other activity is SINGLE_CHANNEL at once.
+    """
+    iso = confirm = int(s.isolation_s * NS)
+    out = []
+    for t, ch in lone:  # per unpaired pulse: rare
+        before = np.searchsorted(all_onsets, t, side="left") - np.searchsorted(all_onsets, t - iso, side="left")
+        if before > 0:
+            out.append(DetectionEvent(t, EventKind.SINGLE_CHANNEL, head, 0, ch, source, "one system damped"))
+            continue
+        out.append(DetectionEvent(t, EventKind.INTERFERENCE, head, 0, ch, source, "isolated pulse: held"))
+        nxt = np.searchsorted(all_onsets, t, side="right")
+        t_next = int(all_onsets[nxt]) if nxt < len(all_onsets) else None
+        if t_next is not None and t_next - t <= confirm:
+            detail = f"more activity {(t_next - t) / NS:.1f} s after an isolated pulse: possibly a missed axle"
+            out.append(DetectionEvent(t_next, EventKind.SINGLE_CHANNEL, head, 0, ch, source, detail))
+        else:
+            detail = f"nothing else within {s.isolation_s:g} s: accidental"
+            out.append(DetectionEvent(t + confirm, EventKind.ACCIDENTAL, head, 0, ch, source, detail))
+    return out
 
 
 def _intervals(times: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
@@ -210,21 +245,8 @@ def two_channel_events(
         events.append(
             DetectionEvent(max(t1, t2), EventKind.AXLE, head, direction, None, source, f"Sys1 {t1} Sys2 {t2}")
         )
-    all_on = np.sort(np.r_[on1, on2])
-    iso = int(s.isolation_s * NS)
     lone = [(int(t), SYS1) for t in on1[match < 0]] + [(int(t), SYS2) for t in on2[~paired2]]
-    for t, ch in lone:
-        # Nothing else (either system) within the isolation time on both sides.
-        near = np.searchsorted(all_on, t + iso, side="right") - np.searchsorted(all_on, t - iso, side="left")
-        if near <= 1:
-            events.append(DetectionEvent(t, EventKind.INTERFERENCE, head, 0, ch, source, "isolated pulse"))
-            events.append(
-                DetectionEvent(
-                    t + iso, EventKind.ACCIDENTAL, head, 0, ch, source, f"nothing else within {s.isolation_s:g} s"
-                )
-            )
-        else:
-            events.append(DetectionEvent(t, EventKind.SINGLE_CHANNEL, head, 0, ch, source, "one system damped"))
+    events += soft_timing(head, lone, np.sort(np.r_[on1, on2]), s, source)
     # Head damped while any interval of either system is open (release mode only):
     # the union of the intervals, vectorized with a running maximum of ends.
     if rel1 or rel2:

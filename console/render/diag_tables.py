@@ -64,6 +64,9 @@ def inventory_table(analysis: DiagAnalysis) -> Table:
 
 def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
     p = analysis.passages
+    status = int((p["kind"] == "status").sum()) if len(p) else 0
+    if status:
+        p = p[p["kind"] == "train"]
     t = _table(f"Passages ({len(p)}); speeds in km/h: per-second method (records), whole train, per-axle mean")
     t.add_column("Head", no_wrap=True, min_width=4)
     t.add_column("Start", no_wrap=True)
@@ -92,8 +95,13 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
             _num(r.speed_kmh_whole_train, "{:.2f}"),
             _num(r.speed_kmh_per_axle_mean),
         )
+    notes = []
     if limit is not None and len(p) > limit:
-        t.caption = f"first {limit} of {len(p)} passages; --json has all"
+        notes.append(f"first {limit} of {len(p)} passages; --json has all")
+    if status:
+        notes.append(f"{status} status-only record bursts (no wheel) not shown; --json has them (kind: status)")
+    if notes:
+        t.caption = "; ".join(notes)
     return t
 
 

@@ -99,9 +99,9 @@ def sections_json(result: SectionsResult) -> dict[str, Any]:
     """The JSON form (schema trackside.sections/1)."""
 
     def rows(frame: pd.DataFrame) -> list[dict[str, Any]]:
-        out = []
-        for rec in frame.to_dict("records"):
-            rec = {str(k): v for k, v in rec.items()}
+        out: list[dict[str, Any]] = []
+        for raw in frame.to_dict("records"):
+            rec: dict[str, Any] = {str(k): v for k, v in raw.items()}
             rec["time"] = iso(int(rec.pop("time_ns")))
             out.append({k: (v.item() if hasattr(v, "item") else v) for k, v in rec.items()})
         return out
