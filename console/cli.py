@@ -311,6 +311,225 @@ def sections(
     raise typer.Exit(_guard(body))
 
 
+def _worst(findings: list[Any]) -> Any:
+    from console.analysis.health import Severity
+
+    return max((f.severity for f in findings), default=Severity.INFO, key=lambda s: s.rank)
+
+
+@app.command()
+def health(
+    files: Annotated[
+        list[Path] | None, typer.Argument(help="Diagnostic log files (plain or .gz).", show_default=False)
+    ] = None,
+    layout: Annotated[
+        str | None, typer.Option("--layout", help="Layout (analog bands per head): a file or osong, example.")
+    ] = None,
+    voltages: Annotated[
+        list[Path] | None,
+        typer.Option("--voltages", help="Receiver voltage table(s): sensor, in-phase mV, anti-phase mV (repeatable)."),
+    ] = None,
+    fail_on: Annotated[
+        str | None,
+        typer.Option("--fail-on", help="Exit 1 when a finding reaches this severity: info, warning, critical."),
+    ] = None,
+    json_out: JsonOpt = False,
+    strict: StrictOpt = False,
+) -> None:
+    """Sensor and channel health: analog bands, voltage margins, disturbance rates, faulty channels."""
+
+    def body() -> int:
+        from console.analysis.diag_events import DiagEventSettings
+        from console.analysis.health import Severity, sort_findings, voltage_margin_findings
+        from console.jobs import HEALTH_REGISTERS, analyze_files, detection_events, health_findings, input_bytes
+        from console.progress import byte_progress
+        from console.render.health_tables import findings_view
+        from parsers.voltages import read_voltages
+
+        if not files and not voltages:
+            raise _fail("give diagnostic log files, --voltages tables, or both")
+        threshold = None
+        if fail_on is not None:
+            try:
+                threshold = Severity.parse(fail_on)
+            except ValueError as exc:
+                raise _fail(f"--fail-on: {exc}") from None
+        lay = _load_layout(layout) if layout else None
+        findings: list[Any] = []
+        reports: list[Any] = []
+        warnings: list[str] = []
+        if files:
+            _check_inputs(files)
+            from console.analysis.diagnostics import SpeedSettings
+
+            with byte_progress(input_bytes(files), "parsing") as advance:
+                job = analyze_files(files, SpeedSettings(), on_progress=advance, keep_registers=HEALTH_REGISTERS)
+            events, warnings = detection_events(job, lay, DiagEventSettings())
+            findings += health_findings(job, lay, events, None)
+            reports.append(job.report)
+        if voltages:
+            _check_inputs(voltages)
+            table, vreport = read_voltages(voltages)
+            findings += voltage_margin_findings(table)
+            reports.append(vreport)
+        findings = sort_findings(findings)
+        rejected = sum(r.rejected for r in reports)
+        if json_out:
+            _print_json(
+                {
+                    "schema": "trackside.health/1",
+                    "files": [str(p) for p in (files or [])],
+                    "voltages": [str(p) for p in (voltages or [])],
+                    "findings": [f.to_dict() for f in findings],
+                    "parse_reports": [r.to_dict() for r in reports],
+                    "warnings": warnings,
+                }
+            )
+        else:
+            out = Console(highlight=False)
+            out.print(findings_view(findings))
+            for w in warnings:
+                out.print(f"warning: {w}", markup=False)
+            if rejected:
+                out.print(f"{rejected} input lines rejected (--json lists them)", markup=False)
+        failing = threshold is not None and any(f.severity >= threshold for f in findings)
+        return exit_codes.FINDINGS if failing or (strict and rejected) else exit_codes.OK
+
+    raise typer.Exit(_guard(body))
+
+
+def _is_can_log(path: Path) -> bool:
+    """CAN logs by suffix (.asc, .blf) or, for .log, by content (candump lines start with '(')."""
+    suffixes = [x.lower() for x in path.suffixes if x.lower() != ".gz"]
+    suffix = suffixes[-1] if suffixes else ""
+    if suffix in (".asc", ".blf"):
+        return True
+    if suffix == ".log":
+        with path.open("rb") as f:
+            head = f.read(4096)
+        if head.startswith(b"LOGG"):
+            return True
+        for line in head.splitlines():
+            line = line.strip()
+            if line and not line.startswith(b"#"):
+                return line.startswith(b"(")
+    return False
+
+
+@app.command()
+def frames(
+    files: Annotated[
+        list[Path], typer.Argument(help="Sensor frame files (text) or CAN logs (candump .log, .asc, .blf).")
+    ],
+    layout: Annotated[
+        str | None, typer.Option("--layout", help="Layout: which travel is up for each sensor (3-element heads).")
+    ] = None,
+    comm_timeout: Annotated[
+        float,
+        typer.Option("--comm-timeout", help="Seconds without frames from a sensor that mean contact lost.", min=0.1),
+    ] = 10.0,
+    json_out: JsonOpt = False,
+    strict: StrictOpt = False,
+) -> None:
+    """Intelligent-sensor frames and CAN count frames: decoded, and as axle events."""
+
+    def body() -> int:
+        import pandas as pd
+
+        from console.analysis.frame_events import frames_to_events
+        from console.analysis.timefmt import iso
+        from console.render.diag_tables import parse_report_table, rejections_table
+        from console.render.frame_tables import events_table, sensor_summary_table
+        from parsers.frames import parse_can, parse_frames
+
+        _check_inputs(files)
+        lay = _load_layout(layout) if layout else None
+        can_files = [p for p in files if _is_can_log(p)]
+        text_files = [p for p in files if p not in can_files]
+        tables, reports = [], []
+        if text_files:
+            tf, tr = parse_frames(text_files)
+            tables.append(tf)
+            reports.append(tr)
+        if can_files:
+            cf, cr = parse_can(can_files)
+            tables.append(cf)
+            reports.append(cr)
+        up: dict[str, bool] | bool = True
+        if lay is not None:
+            up = {h.id: h.up_is_first_channel_first for h in lay.heads}
+        events = []
+        for table in tables:
+            # Each file is its own recording: sequence and count checks run within it.
+            for _, part in table.groupby("file", observed=True, sort=False):
+                events += frames_to_events(part, up_is_s1_to_s3=up, comm_timeout_s=comm_timeout)
+        events.sort(key=lambda e: e.time_ns)
+        all_frames = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
+        rejected = sum(r.rejected for r in reports)
+        if json_out:
+            rows = []
+            if not all_frames.empty:
+                keep = [
+                    c
+                    for c in (
+                        "sensor",
+                        "status",
+                        "byte2",
+                        "check",
+                        "sys",
+                        "ses1",
+                        "ses2",
+                        "ses3",
+                        "der",
+                        "err",
+                        "t_since_s",
+                        "total",
+                        "seq",
+                        "can_id",
+                        "file",
+                        "line",
+                    )
+                    if c in all_frames.columns
+                ]
+                frame_rows = all_frames[keep].astype(object).where(all_frames[keep].notna(), None).to_dict("records")
+                for t_ns, rec in zip(all_frames["time"].astype("int64").tolist(), frame_rows, strict=True):
+                    rows.append(
+                        {"time": iso(t_ns), **{str(k): (v.item() if hasattr(v, "item") else v) for k, v in rec.items()}}
+                    )
+            _print_json(
+                {
+                    "schema": "trackside.frames/1",
+                    "files": [str(p) for p in files],
+                    "frames": rows,
+                    "events": [
+                        {
+                            "time": iso(e.time_ns),
+                            "kind": str(e.kind),
+                            "sensor": e.head,
+                            "direction": e.direction,
+                            "channel": e.channel,
+                            "source": e.source,
+                            "detail": e.detail,
+                        }
+                        for e in events
+                    ],
+                    "parse_reports": [r.to_dict() for r in reports],
+                }
+            )
+        else:
+            out = Console(highlight=False)
+            out.print(sensor_summary_table(all_frames, events))
+            out.print(events_table(events))
+            for r in reports:
+                out.print(parse_report_table(r))
+                rej = rejections_table(r)
+                if rej is not None:
+                    out.print(rej)
+        return exit_codes.FINDINGS if strict and rejected else exit_codes.OK
+
+    raise typer.Exit(_guard(body))
+
+
 def _version(value: bool) -> None:
     if value:
         print(f"trackside {__version__}")

@@ -378,3 +378,10 @@ def load_layout(spec: str | Path) -> Layout:
     except tomllib.TOMLDecodeError as exc:
         raise LayoutError(f"{source}: not valid TOML ({exc})") from None
     return layout_from_dict(doc, source)
+
+
+def layout_from_heads(head_ids: list[str], source: str = "the log's counting heads") -> Layout:
+    """A minimal layout naming only heads (no sections): for analyses that need
+    head facts but were given no layout.  Defaults: 0.13 m, two channels, Sys1 first is up."""
+    heads = tuple(CountingHead(id=h, chainage_m=float(i)) for i, h in enumerate(head_ids))
+    return Layout(name=source, source=source, heads=heads, _by_id={h.id: h for h in heads})

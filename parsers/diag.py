@@ -407,6 +407,19 @@ class DiagChunk:
     def __len__(self) -> int:
         return len(self.register_id)
 
+    def take(self, mask: np.ndarray) -> DiagChunk:
+        """The records where mask is true."""
+        return DiagChunk(
+            self.file_id,
+            self.register_id[mask],
+            self.time_ns[mask],
+            self.subsecond[mask],
+            self.value[mask],
+            self.data_code[mask],
+            self.data_kind[mask],
+            self.line[mask],
+        )
+
 
 @dataclass
 class _Tokens:

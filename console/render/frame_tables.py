@@ -1,0 +1,68 @@
+"""Rich tables for `trackside frames`: per-sensor summary and the events."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import pandas as pd
+from rich import box
+from rich.table import Table
+from rich.text import Text
+
+from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.timefmt import display
+from console.safe_text import inert
+
+
+def _table(title: str) -> Table:
+    return Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, title_style="bold")
+
+
+def sensor_summary_table(frames: pd.DataFrame, events: list[DetectionEvent]) -> Table:
+    t = _table("Sensors (axles up / down; faults, count errors, contact losses)")
+    for c in ("Sensor", "Frames", "From", "To", "Up", "Down", "Fault", "Err", "Lost"):
+        t.add_column(c, justify="left" if c in ("Sensor", "From", "To") else "right", no_wrap=True, min_width=len(c))
+    tally: dict[str, Counter[str]] = {}
+    for e in events:
+        kinds = tally.setdefault(e.head, Counter())
+        if e.kind is EventKind.AXLE:
+            kinds["up" if e.direction > 0 else "down"] += 1
+        else:
+            kinds[str(e.kind)] += 1
+    if frames.empty:
+        return t
+    days = sorted({display(int(x.value))[:10] for x in (frames["time"].min(), frames["time"].max())})
+    t.title = f"Sensors, {' to '.join(days)} (axles up / down; faults, count errors, contact losses)"
+    for sensor, times in frames.groupby("sensor", observed=True)["time"]:
+        k = tally.get(str(sensor), Counter())
+        t.add_row(
+            inert(sensor),
+            Text(str(len(times))),
+            Text(display(int(times.min().value))[11:]),
+            Text(display(int(times.max().value))[11:]),
+            Text(str(k["up"])),
+            Text(str(k["down"])),
+            Text(str(k["channel_fault"]), style="bold red" if k["channel_fault"] else ""),
+            Text(str(k["count_error"]), style="yellow" if k["count_error"] else ""),
+            Text(str(k["power_loss"]), style="yellow" if k["power_loss"] else ""),
+        )
+    return t
+
+
+def events_table(events: list[DetectionEvent], limit: int = 200) -> Table:
+    """Every event except axles (they are summed per sensor above)."""
+    rest = [e for e in events if e.kind is not EventKind.AXLE]
+    t = _table(f"Events other than axles ({len(rest)})")
+    for c in ("Time", "Sensor", "Event", "Channel", "Detail"):
+        t.add_column(c, no_wrap=c != "Detail")
+    for e in rest[:limit]:
+        t.add_row(
+            Text(display(e.time_ns)),
+            inert(e.head),
+            Text(str(e.kind)),
+            Text("–" if e.channel is None else str(e.channel)),
+            inert(e.detail),
+        )
+    if len(rest) > limit:
+        t.caption = f"first {limit} of {len(rest)}; --json has all"
+    return t
