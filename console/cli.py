@@ -96,6 +96,24 @@ def _print_json(doc: dict[str, Any]) -> None:
     sys.stdout.flush()
 
 
+def _layout_summary(files: list[Path], lay: Any, spacing: float, length: float, idle_gap: float) -> Any:
+    """One pass for `analyze --layout`: the job, section states and health findings."""
+    from console.analysis.diag_events import DiagEventSettings
+    from console.analysis.diagnostics import SpeedSettings
+    from console.analysis.sections import run_sections
+    from console.jobs import HEALTH_REGISTERS, analyze_files, detection_events, health_findings, input_bytes
+    from console.progress import byte_progress
+
+    _check_inputs(files)
+    with byte_progress(input_bytes(files), "parsing") as advance:
+        job = analyze_files(
+            files, SpeedSettings(spacing, length, idle_gap), on_progress=advance, keep_registers=HEALTH_REGISTERS
+        )
+    events, warnings = detection_events(job, lay, DiagEventSettings())
+    result = run_sections(lay, events)
+    return job, result, health_findings(job, lay, events, None), warnings
+
+
 def _run_diag(files: list[Path], spacing: float, train_length: float, idle_gap: float) -> Any:
     from console.analysis.diagnostics import SpeedSettings
     from console.jobs import analyze_files, input_bytes
@@ -110,16 +128,34 @@ def _run_diag(files: list[Path], spacing: float, train_length: float, idle_gap: 
 @app.command()
 def analyze(
     files: FilesArg,
-    spacing: SpacingOpt = 0.13,
-    train_length: TrainLengthOpt = 28.6,
+    spacing: Annotated[
+        float | None,
+        typer.Option("--spacing", help="Coil spacing Sys1–Sys2, m [default: the layout's, 0.13]", min=0.001),
+    ] = None,
+    train_length: Annotated[
+        float | None,
+        typer.Option(
+            "--train-length", help="First-to-last wheel, m [default: the layout's first consist, 28.6]", min=0.1
+        ),
+    ] = None,
     idle_gap: IdleGapOpt = 10.0,
+    layout: Annotated[
+        str | None,
+        typer.Option("--layout", help="Layout (file or osong, example): adds section and health summaries."),
+    ] = None,
     json_out: JsonOpt = False,
     strict: StrictOpt = False,
 ) -> None:
     """Inventory, passages with speeds, and the parse report of diagnostic logs."""
 
     def body() -> int:
-        job = _run_diag(files, spacing, train_length, idle_gap)
+        # Line facts come from the layout; the Osong test line when none is given.
+        lay = _load_layout(layout or "osong")
+        consist = lay.consist()
+        spacing_m = spacing if spacing is not None else lay.heads[0].spacing_m
+        length_m = train_length if train_length is not None else (consist.length_m if consist else 28.6)
+        summary = _layout_summary(files, lay, spacing_m, length_m, idle_gap) if layout else None
+        job = summary[0] if summary else _run_diag(files, spacing_m, length_m, idle_gap)
         if json_out:
             from console.analysis.diagnostics import passages_json_text
             from console.jsonout import RawJSON
@@ -131,6 +167,13 @@ def analyze(
                 "parse_report": job.report.to_dict(),
                 **job.analysis.to_dict(passages=RawJSON(passages_json_text(job.analysis.passages))),
             }
+            if summary:
+                from console.render.section_tables import sections_json
+
+                doc["layout"] = lay.source
+                doc["sections"] = sections_json(summary[1])["sections"]
+                doc["health"] = [f.to_dict() for f in summary[2]]
+                doc["warnings"] = summary[3]
             _print_json(doc)
         else:
             from console.render.diag_tables import (
@@ -162,6 +205,14 @@ def analyze(
                 )
             for n in notes:
                 out.print(n, markup=False)
+            if summary:
+                from console.render.health_tables import findings_view
+                from console.render.section_tables import final_states_table
+
+                out.print(final_states_table(summary[1]))
+                out.print(findings_view(summary[2], show_info=False, title="Health"))
+                for w in summary[3]:
+                    out.print(f"warning: {w}", markup=False)
         return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
 
     raise typer.Exit(_guard(body))

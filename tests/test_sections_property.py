@@ -79,11 +79,20 @@ def crossing_ns(tr: Train, head: str, axle_m: float) -> int:
 def scenarios(draw: st.DrawFn) -> tuple[list[Train], dict]:
     trains = draw(trains_st())
     faults = {
-        "miss": draw(st.sets(st.tuples(st.integers(0, 4), st.integers(0, 7), st.sampled_from(list(HEAD_X)), st.sampled_from([1, 2])), max_size=3)),
+        "miss": draw(
+            st.sets(
+                st.tuples(st.integers(0, 4), st.integers(0, 7), st.sampled_from(list(HEAD_X)), st.sampled_from([1, 2])),
+                max_size=3,
+            )
+        ),
         "dead": draw(st.none() | st.tuples(st.sampled_from(list(HEAD_X)), st.sampled_from([1, 2]), st.floats(0, 8000))),
         "power": draw(st.none() | st.tuples(st.sampled_from(list(HEAD_X)), st.floats(0, 8000), st.floats(5, 600))),
-        "pulses": draw(st.lists(st.tuples(st.sampled_from(list(HEAD_X)), st.sampled_from([1, 2]), st.floats(0, 9000)), max_size=3)),
-        "resets": draw(st.lists(st.tuples(st.sampled_from([s.id for s in LAYOUT.sections]), st.floats(0, 12000)), max_size=6)),
+        "pulses": draw(
+            st.lists(st.tuples(st.sampled_from(list(HEAD_X)), st.sampled_from([1, 2]), st.floats(0, 9000)), max_size=3)
+        ),
+        "resets": draw(
+            st.lists(st.tuples(st.sampled_from([s.id for s in LAYOUT.sections]), st.floats(0, 12000)), max_size=6)
+        ),
     }
     return trains, faults
 
