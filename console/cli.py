@@ -107,14 +107,20 @@ def _layout_summary(files: list[Path], lay: Any, spacing: float, length: float, 
     _check_inputs(files)
     with byte_progress(input_bytes(files), "parsing") as advance:
         job = analyze_files(
-            files, SpeedSettings(spacing, length, idle_gap), on_progress=advance, keep_registers=HEALTH_REGISTERS
+            files,
+            SpeedSettings(spacing, length, idle_gap),
+            on_progress=advance,
+            keep_registers=HEALTH_REGISTERS,
+            keep_releases=True,
         )
     events, warnings = detection_events(job, lay, DiagEventSettings())
     result = run_sections(lay, events)
     return job, result, health_findings(job, lay, events, None), warnings
 
 
-def _run_diag(files: list[Path], spacing: float, train_length: float, idle_gap: float) -> Any:
+def _run_diag(
+    files: list[Path], spacing: float, train_length: float, idle_gap: float, keep_releases: bool = False
+) -> Any:
     from console.analysis.diagnostics import SpeedSettings
     from console.jobs import analyze_files, input_bytes
     from console.progress import byte_progress
@@ -122,7 +128,7 @@ def _run_diag(files: list[Path], spacing: float, train_length: float, idle_gap: 
     _check_inputs(files)
     settings = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
     with byte_progress(input_bytes(files), "parsing") as advance:
-        return analyze_files(files, settings, on_progress=advance)
+        return analyze_files(files, settings, on_progress=advance, keep_releases=keep_releases)
 
 
 @app.command()
@@ -324,7 +330,7 @@ def sections(
         if not lay.sections:
             raise _fail(f"{lay.source}: the layout has no [[sections]]")
         resets = _parse_resets(reset or [])
-        job = _run_diag(files, lay.heads[0].spacing_m, 28.6, 10.0)
+        job = _run_diag(files, lay.heads[0].spacing_m, 28.6, 10.0, keep_releases=True)
         settings = DiagEventSettings(
             counting=CountingSettings(isolation_s=isolation),
             majority=MajoritySettings(isolation_s=isolation),
@@ -414,7 +420,9 @@ def health(
             from console.analysis.diagnostics import SpeedSettings
 
             with byte_progress(input_bytes(files), "parsing") as advance:
-                job = analyze_files(files, SpeedSettings(), on_progress=advance, keep_registers=HEALTH_REGISTERS)
+                job = analyze_files(
+                    files, SpeedSettings(), on_progress=advance, keep_registers=HEALTH_REGISTERS, keep_releases=True
+                )
             events, warnings = detection_events(job, lay, DiagEventSettings())
             findings += health_findings(job, lay, events, None)
             reports.append(job.report)

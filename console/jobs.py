@@ -38,6 +38,7 @@ def analyze_files(
     settings: SpeedSettings,
     on_progress: Callable[[int], None] | None = None,
     keep_registers: Collection[str] = (),
+    keep_releases: bool = False,
 ) -> DiagJob:
     """Parse and analyse diagnostic logs in one streaming pass.
 
@@ -46,7 +47,7 @@ def analyze_files(
     else is held in memory.
     """
     reader = DiagReader(paths, on_progress=on_progress)
-    acc = DiagAccumulator(reader.registry)
+    acc = DiagAccumulator(reader.registry, keep_releases=keep_releases)
     kept: list[DiagChunk] = []
     for chunk in reader.chunks():
         acc.add(chunk)

@@ -93,6 +93,8 @@ class DiagAccumulator:
     """Reduce parsed chunks to what the analysis needs, chunk by chunk."""
 
     registry: DiagRegistry
+    # Releases (Radsensor 0) are only needed by the section engine's overlap rule.
+    keep_releases: bool = False
     _buckets: list[dict[str, np.ndarray]] = field(default_factory=list)
     _detections: list[dict[str, np.ndarray]] = field(default_factory=list)
     _identity: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)
@@ -137,7 +139,8 @@ class DiagAccumulator:
 
         # Wheel sensor records: onsets (1) for speeds, releases (0) too for the
         # overlap rule of the section engine.
-        wheel = luts.is_wheel[rid] & ((chunk.value == 1) | (chunk.value == 0))
+        wanted = (chunk.value == 1) | (chunk.value == 0) if self.keep_releases else chunk.value == 1
+        wheel = luts.is_wheel[rid] & wanted
         if wheel.any():
             self._detections.append(
                 {
