@@ -172,7 +172,8 @@ class DiagAccumulator:
         buckets = split_passages(buckets, settings.idle_gap_s)
         wheel = _chosen_file_only(self._detections, buckets)
         self._detections = []
-        onsets = {c: v[wheel["value"] == 1] for c, v in wheel.items()}
+        # Without releases every wheel record is an onset: no copy needed.
+        onsets = {c: v[wheel["value"] == 1] for c, v in wheel.items()} if self.keep_releases else wheel
         axles, n_unpaired = pair_axles(onsets, PairingSettings(settings.spacing_m, settings.pair_window_s))
         head_names = [name for _, name in self._head_list]
         passages = _passages(buckets, onsets, axles, settings, self._head_list)
@@ -185,8 +186,11 @@ class DiagAccumulator:
             unpaired_detections=n_unpaired,
             head_names=head_names,
             heads=list(self._head_list),
-            wheel_records=pd.DataFrame({c: wheel[c] for c in ("head", "channel", "time_ns", "value")}),
-            activity=buckets[["head", "t_first_ns", "t_last_ns"]].copy(),
+            # Only the section engine reads these: not built for speeds alone.
+            wheel_records=pd.DataFrame({c: wheel[c] for c in ("head", "channel", "time_ns", "value")})
+            if self.keep_releases
+            else pd.DataFrame(),
+            activity=buckets[["head", "t_first_ns", "t_last_ns"]].copy() if self.keep_releases else pd.DataFrame(),
         )
 
     def _inventory(self, buckets: pd.DataFrame) -> list[DeviceInventory]:
