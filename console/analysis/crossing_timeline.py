@@ -1,0 +1,151 @@
+"""Crossing timelines: per crossing and train, when the warning came and went.
+
+Times estimated from the fixes themselves (a real log has no other truth):
+
+* ``t_head_arrival`` — the head's chainage reaching the crossing,
+  interpolated between the two head fixes around it (EOT + train length when
+  the head unit was lost);
+* ``t_tail_clear`` — the EOT passing the far edge of the road, interpolated
+  between EOT fixes;
+* lead time = head arrival − warning on (should be ≥ the warning time);
+* excess = warning off − tail clear (road closed for nothing);
+* a **violation** is the warning off (or not yet on) while any part of the
+  train is within the crossing;
+* the fixed-time **baseline** switches off at head arrival + train length /
+  speed + margin; where that comes before the tail clears, the baseline
+  would have opened the road too early.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from console.analysis.crossing import EOT, HEAD, NS, ControllerSettings, CrossingController, Fix
+from console.analysis.timefmt import iso
+
+
+@dataclass(frozen=True)
+class TimelineRow:
+    crossing: str
+    train: str
+    t_on_ns: int | None
+    t_head_arrival_ns: int | None
+    t_tail_clear_ns: int | None
+    t_off_ns: int | None
+    lead_s: float | None
+    excess_s: float | None
+    reason_on: str
+    reason_off: str
+    alarms: tuple[str, ...]
+    violations: tuple[str, ...]
+    baseline_off_ns: int | None
+    baseline_early_s: float | None  # > 0: the baseline opened the road this long before the tail cleared
+    baseline_excess_s: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        def r(x: float | None) -> float | None:
+            return None if x is None else round(x, 3)
+
+        return {
+            "crossing": self.crossing,
+            "train": self.train,
+            "t_on": iso(self.t_on_ns),
+            "t_head_arrival": iso(self.t_head_arrival_ns),
+            "t_tail_clear": iso(self.t_tail_clear_ns),
+            "t_off": iso(self.t_off_ns),
+            "lead_time_s": r(self.lead_s),
+            "excess_warning_s": r(self.excess_s),
+            "reason_on": self.reason_on,
+            "reason_off": self.reason_off,
+            "alarms": list(self.alarms),
+            "violations": list(self.violations),
+            "baseline_off": iso(self.baseline_off_ns),
+            "baseline_early_s": r(self.baseline_early_s),
+            "baseline_excess_s": r(self.baseline_excess_s),
+        }
+
+
+def crossing_time(times_ns: np.ndarray, chainage: np.ndarray, target: float, direction: int) -> int | None:
+    """First time the chainage reaches ``target`` in the direction of travel (linear between fixes)."""
+    if len(times_ns) == 0 or direction == 0:
+        return None
+    signed = direction * (chainage - target)
+    reached = np.flatnonzero(signed >= 0)
+    if len(reached) == 0:
+        return None
+    i = int(reached[0])
+    if i == 0:
+        return int(times_ns[0])
+    a, b = signed[i - 1], signed[i]
+    frac = -a / (b - a) if b != a else 1.0
+    return int(times_ns[i - 1] + frac * (times_ns[i] - times_ns[i - 1]))
+
+
+def timeline(
+    ctl: CrossingController,
+    fixes: Sequence[Fix],
+    settings: ControllerSettings | None = None,
+) -> list[TimelineRow]:
+    """One row per train the controller tracked (from its fixes and events)."""
+    s = settings or ctl.s
+    c = ctl.crossing.chainage_m
+    half = s.crossing_half_width_m
+    rows = []
+    for train, tr in ctl.tracks.items():
+        own = [f for f in fixes if f.train == train and f.valid and not math.isnan(f.chainage_m)]
+        heads = sorted((f for f in own if f.role == HEAD), key=lambda f: f.t_fix_ns)
+        eots = sorted((f for f in own if f.role == EOT), key=lambda f: f.t_fix_ns)
+        d = tr.direction
+        ht = np.array([f.t_fix_ns for f in heads], dtype=np.int64)
+        hc = np.array([f.chainage_m for f in heads])
+        et = np.array([f.t_fix_ns for f in eots], dtype=np.int64)
+        ec = np.array([f.chainage_m for f in eots])
+        t_head = crossing_time(ht, hc, c - d * half, d)
+        if t_head is None and len(et):
+            t_head = crossing_time(et, ec + d * tr.spec.length_m, c - d * half, d)
+        t_tail = crossing_time(et, ec, c + d * half, d)
+        t_on, t_off = tr.t_on, (tr.t_off if not tr.warned else None)
+        if t_on is None and t_head is None:
+            continue  # this train never came near the crossing
+        violations = []
+        if t_head is not None and (t_on is None or t_on > t_head):
+            violations.append("warning not on when the head reached the crossing")
+        if t_off is not None and (t_tail is None or t_off < t_tail):
+            violations.append("warning off before the tail cleared the crossing")
+        speeds = [f.speed_mps for f in heads if not math.isnan(f.speed_mps)] or [
+            f.speed_mps for f in eots if not math.isnan(f.speed_mps)
+        ]
+        base_off = base_early = base_excess = None
+        if t_head is not None and speeds:
+            # Speed near arrival: the fix closest before the head reached the crossing.
+            near = [f.speed_mps for f in heads if f.t_fix_ns <= t_head and not math.isnan(f.speed_mps)]
+            v = (near[-1] if near else speeds[0]) or 0.1
+            base_off = t_head + int((tr.spec.length_m / max(v, 0.1) + s.baseline_margin_s) * NS)
+            if t_tail is not None:
+                base_early = max(0.0, (t_tail - base_off) / NS)
+                base_excess = (base_off - t_tail) / NS
+        rows.append(
+            TimelineRow(
+                crossing=ctl.crossing.code,
+                train=train,
+                t_on_ns=t_on,
+                t_head_arrival_ns=t_head,
+                t_tail_clear_ns=t_tail,
+                t_off_ns=t_off,
+                lead_s=None if t_on is None or t_head is None else (t_head - t_on) / NS,
+                excess_s=None if t_off is None or t_tail is None else (t_off - t_tail) / NS,
+                reason_on=tr.reason_on,
+                reason_off=tr.reason_off if t_off is not None else "held on: no positive evidence the tail has passed",
+                alarms=tuple(e.reason for e in ctl.events if e.train == train and e.kind == "alarm"),
+                violations=tuple(violations),
+                baseline_off_ns=base_off,
+                baseline_early_s=base_early,
+                baseline_excess_s=base_excess,
+            )
+        )
+    return rows

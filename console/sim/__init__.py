@@ -1,0 +1,1 @@
+"""The simulator: trains, sensors, GNSS devices and faults, with a ground truth."""

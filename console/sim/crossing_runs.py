@@ -1,0 +1,261 @@
+"""Synthetic head and EOT tracks past a level crossing, with a ground truth.
+
+One run: a train of known length runs along the layout towards a crossing and
+past it, perhaps stopping before it (a station), crawling, or stopping with
+its tail still on the road (the fixed-time method's classic failure).  A head
+unit and an EOT unit report GNSS fixes every ``period_s`` with position noise
+``noise_m`` (σ, metres, east and north), packet loss ``loss`` and radio
+latency; either unit may fail for good at a chosen time.  The truth gives
+when the head really reached the road and when the tail really cleared it.
+
+The crossing controller runs on the received fixes only; :func:`judge`
+compares its switching with the truth.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from console.analysis.crossing import (
+    EOT,
+    HEAD,
+    NS,
+    ControllerSettings,
+    CrossingController,
+    Fix,
+    TrainSpec,
+    run_controller,
+)
+from console.analysis.geo import TrackProjector
+from console.layout import Layout, LevelCrossing
+
+SCENARIOS = ("through", "stop_before", "stop_on_crossing", "crawl")
+
+
+@dataclass(frozen=True)
+class RunConditions:
+    period_s: float = 10.0
+    noise_m: float = 5.0
+    loss: float = 0.0
+    latency_s: float = 0.5
+    head_fails_at_s: float | None = None  # seconds after the start
+    eot_fails_at_s: float | None = None
+    scenario: str = "through"
+    speed_mps: float = 15.0
+    direction: int = 1
+    length_m: float = 200.0
+    seed: int = 0
+
+
+@dataclass
+class Truth:
+    t_ns: np.ndarray  # simulation times
+    head_m: np.ndarray  # head chainage over time
+    t_head_arrival_ns: int | None  # head reaches the road's near edge
+    t_tail_clear_ns: int | None  # tail passes the road's far edge
+
+
+def _motion(
+    c: LevelCrossing, cond: RunConditions, rng: np.random.Generator, half: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(times s, head chainage m) at 0.2 s steps: cruise, brake, dwell, go."""
+    d, v0, L = cond.direction, cond.speed_mps, cond.length_m
+    approach = v0 * (cond_horizon := 100.0) + 800.0 + rng.uniform(0, 500)
+    start = c.chainage_m - d * approach
+    stop_at = None  # head chainage (signed distance past the crossing) to stop at
+    dwell = rng.uniform(20, 120)
+    if cond.scenario == "stop_before":
+        stop_at = -rng.uniform(60, 600)  # a platform before the crossing
+    elif cond.scenario == "stop_on_crossing":
+        stop_at = rng.uniform(half + 5, max(half + 6, L - 2 * half))  # tail still on the road
+    vmax = 3.0 if cond.scenario == "crawl" else v0
+    brake, accel, dt = 0.6, 0.5, 0.2
+    t, x, v = 0.0, 0.0, vmax  # x: head distance run from start
+    ts, xs = [0.0], [0.0]
+    stopped_until = None
+    end = approach + L + 600.0
+    while x < end and t < 3600:
+        past = x - approach  # head's signed distance past the crossing
+        if stop_at is not None and stopped_until is None and past <= stop_at:
+            to_go = stop_at - past
+            if v * v / (2 * brake) >= to_go:  # time to brake
+                v = max(0.0, v - brake * dt)
+                if v == 0.0 or to_go < 0.05:
+                    v, stopped_until = 0.0, t + dwell
+        elif stopped_until is not None and t < stopped_until:
+            v = 0.0
+        else:
+            v = min(vmax, v + accel * dt)
+        x += v * dt
+        t += dt
+        ts.append(t)
+        xs.append(x)
+        _ = cond_horizon
+    return np.array(ts), start + d * np.array(xs)
+
+
+def simulate(
+    layout: Layout, crossing: LevelCrossing, cond: RunConditions, settings: ControllerSettings
+) -> tuple[list[Fix], Truth, TrainSpec]:
+    rng = np.random.default_rng(cond.seed)
+    half = settings.crossing_half_width_m
+    ts, head = _motion(crossing, cond, rng, half)
+    d, L = cond.direction, cond.length_m
+    tail = head - d * L
+    t0 = 1_700_000_000 * NS
+    t_ns = (t0 + ts * NS).astype(np.int64)
+    c = crossing.chainage_m
+
+    def first(mask: np.ndarray) -> int | None:
+        idx = np.flatnonzero(mask)
+        return int(t_ns[idx[0]]) if len(idx) else None
+
+    truth = Truth(t_ns, head, first(d * (head - c) >= -half), first(d * (tail - c) >= half))
+    proj = TrackProjector(layout.track)
+    m_lat, m_lon = proj.m_per_deg_lat, proj.m_per_deg_lon
+    fixes: list[Fix] = []
+    speed = np.gradient(head, ts) * d
+    for role, pos, fails in ((HEAD, head, cond.head_fails_at_s), (EOT, tail, cond.eot_fails_at_s)):
+        phase = rng.uniform(0, cond.period_s)
+        times = np.arange(phase, ts[-1], cond.period_s)
+        times = times + rng.normal(0, 0.05, len(times))  # receiver timing jitter
+        times = times[(times >= 0) & (times <= ts[-1])]
+        if fails is not None:
+            times = times[times < fails]
+        keep = rng.random(len(times)) >= cond.loss
+        times = times[keep]
+        ch = np.interp(times, ts, pos)
+        lat, lon = proj.position(ch)
+        lat = lat + rng.normal(0, cond.noise_m, len(ch)) / m_lat
+        lon = lon + rng.normal(0, cond.noise_m, len(ch)) / m_lon
+        v = np.maximum(0.0, np.interp(times, ts, speed) + rng.normal(0, 0.2, len(ch)))
+        p = proj.project(lat, lon)
+        latency = rng.uniform(0.1, max(0.1, 2 * cond.latency_s), len(ch))
+        for k in range(len(ch)):  # per fix of one run
+            t_fix = t0 + int(times[k] * NS)
+            fixes.append(
+                Fix(
+                    t_ns=t_fix + int(latency[k] * NS),
+                    t_fix_ns=t_fix,
+                    train="T1",
+                    role=role,
+                    chainage_m=float(p.chainage_m[k]),
+                    speed_mps=float(v[k]),
+                    direction_hint=d if v[k] > 1.0 else 0,
+                )
+            )
+    return fixes, truth, TrainSpec("T1", L)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    violation: str | None  # why the road was open with the train on it, if it was
+    lead_s: float | None  # truth head arrival − warning on
+    excess_s: float | None  # warning off − truth tail clear (None: held on)
+    held: bool  # the warning never ended (no evidence): safe, but the road stays closed
+    alarms: int
+    baseline_early_s: float | None  # > 0 the fixed-time method opened too early
+    warning_time_s: float = 70.0  # the crossing's required lead
+
+
+def judge(
+    ctl: CrossingController, truth: Truth, train: TrainSpec, settings: ControllerSettings, fixes: list[Fix]
+) -> Verdict:
+    """Compare the controller's switching with the truth."""
+    ons = [e.t_ns for e in ctl.events if e.kind == "on"]
+    offs = [e.t_ns for e in ctl.events if e.kind == "off"]
+    th, tt = truth.t_head_arrival_ns, truth.t_tail_clear_ns
+    violation = None
+    if th is not None:
+        on_before = [t for t in ons if t <= th]
+        if not on_before:
+            violation = "warning not on when the head reached the crossing"
+        else:
+            t_on = on_before[-1]
+            off_inside = [t for t in offs if t_on < t and (tt is None or t < tt)]
+            if off_inside:
+                violation = "warning off while the train was on the crossing"
+    lead = (th - ons[0]) / NS if th is not None and ons else None
+    off_after = [t for t in offs if tt is not None and t >= tt]
+    excess = (off_after[0] - tt) / NS if off_after and tt is not None else None
+    held = ctl.warning_on
+    # Fixed-time baseline: head arrival + length / speed at arrival + margin.
+    base_early = None
+    if th is not None and tt is not None:
+        i = int(np.searchsorted(truth.t_ns, th))
+        v = float(np.abs(np.gradient(truth.head_m, truth.t_ns / NS))[min(i, len(truth.t_ns) - 1)])
+        base_off = th + (train.length_m / max(v, 0.1) + settings.baseline_margin_s) * NS
+        base_early = max(0.0, (tt - base_off) / NS)
+    alarms = sum(1 for e in ctl.events if e.kind == "alarm")
+    return Verdict(violation, lead, excess, held, alarms, base_early, ctl.crossing.warning_time_s)
+
+
+def random_conditions(rng: np.random.Generator, seed: int) -> RunConditions:
+    """Conditions across the issue's ranges: period 1-10 s, noise ≤ 5 m, loss ≤ 30 %, device failures."""
+    period = float(rng.uniform(1, 10))
+    failure = rng.choice(["none", "none", "head", "eot"])
+    length = float(rng.choice([28.6, 40.0, 120.0, 300.0, 600.0]))
+    return RunConditions(
+        period_s=period,
+        noise_m=float(rng.uniform(0, 5)),
+        loss=float(rng.uniform(0, 0.3)),
+        latency_s=float(rng.uniform(0.1, 1.5)),
+        head_fails_at_s=float(rng.uniform(0, 200)) if failure == "head" else None,
+        eot_fails_at_s=float(rng.uniform(0, 200)) if failure == "eot" else None,
+        scenario=str(rng.choice(SCENARIOS)),
+        speed_mps=float(rng.uniform(5, 25)),
+        direction=int(rng.choice([1, -1])),
+        length_m=length,
+        seed=seed,
+    )
+
+
+def one_run(layout: Layout, crossing: LevelCrossing, cond: RunConditions) -> Verdict:
+    # The crossing unit knows the line (its speed, the trains' acceleration) and the radio's report period.
+    settings = ControllerSettings(
+        report_period_s=cond.period_s, latency_s=2 * cond.latency_s + 0.5, line_speed_mps=25.0, accel_mps2=0.5
+    )
+    fixes, truth, train = simulate(layout, crossing, cond, settings)
+    ctl = run_controller(crossing, [train], fixes, settings)
+    return judge(ctl, truth, train, settings, fixes)
+
+
+def many_runs(layout: Layout, n: int, seed: int = 0) -> list[tuple[RunConditions, Verdict]]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        crossing = layout.crossings[k % len(layout.crossings)]
+        cond = random_conditions(rng, seed * 100_000 + k)
+        out.append((cond, one_run(layout, crossing, cond)))
+    return out
+
+
+def summary(results: list[tuple[RunConditions, Verdict]]) -> dict[str, float | int | None]:
+    """Violations, lead times, excess warning, held runs; the baseline beside."""
+    v = [r for _, r in results]
+    excess = [r.excess_s for r in v if r.excess_s is not None]
+    leads = [r.lead_s for r in v if r.lead_s is not None]
+    spare = [r.lead_s - r.warning_time_s for r in v if r.lead_s is not None]
+    periods = [c.period_s for c, r in results if r.excess_s is not None]
+    early = [r.baseline_early_s for r in v if r.baseline_early_s is not None]
+    within = [e <= p + 5 for e, p in zip(excess, periods, strict=True)]
+    return {
+        "runs": len(v),
+        "violations": sum(r.violation is not None for r in v),
+        "held_on": sum(r.held for r in v),
+        "median_excess_s": float(np.median(excess)) if excess else None,
+        "median_excess_minus_period_s": float(np.median([e - p for e, p in zip(excess, periods, strict=True)]))
+        if excess
+        else None,
+        "p95_excess_s": float(np.percentile(excess, 95)) if excess else None,
+        "share_excess_within_period_plus_5s": float(np.mean(within)) if within else None,
+        "min_lead_s": float(min(leads)) if leads else None,
+        "min_lead_minus_warning_time_s": float(min(spare)) if spare else None,
+        "median_lead_s": float(np.median(leads)) if leads else None,
+        "baseline_early_runs": sum(e > 0 for e in early),
+        "baseline_max_early_s": float(max(early)) if early else None,
+        "mean_alarms": float(np.mean([r.alarms for r in v])) if v else math.nan,
+    }
