@@ -80,6 +80,16 @@ class LevelCrossing:
 
 
 @dataclass(frozen=True)
+class WorkSite:
+    """A track-worker warning point a known distance beyond an approach counting head."""
+
+    id: str
+    head: str  # the approach head
+    distance_m: float  # from the head to the site along the track: + up the line, − down
+    warning_time_s: float = 30.0
+
+
+@dataclass(frozen=True)
 class TrackPoint:
     chainage_m: float
     lat: float
@@ -119,6 +129,7 @@ class Layout:
     platforms: tuple[Platform, ...] = ()
     consists: tuple[Consist, ...] = ()
     speed_limits: tuple[SpeedLimit, ...] = ()
+    work_sites: tuple[WorkSite, ...] = ()
     line_speed_mps: float = 20.0
     _by_id: dict[str, CountingHead] = field(default_factory=dict, compare=False, repr=False)
 
@@ -131,6 +142,25 @@ class Layout:
     def sections_of(self, head_id: str) -> list[tuple[Section, int]]:
         """The sections a head bounds, with the sign it contributes to each."""
         return [(s, b.sign) for s in self.sections for b in s.bounds if b.head == head_id]
+
+    def max_speed_mps(self, from_m: float, to_m: float) -> float:
+        """The highest speed allowed anywhere between two chainages (limits, else the line speed)."""
+        lo, hi = min(from_m, to_m), max(from_m, to_m)
+        speeds = []
+        covered = []
+        for lim in self.speed_limits:
+            if lim.to_m > lo and lim.from_m < hi:
+                speeds.append(lim.limit_mps)
+                covered.append((max(lim.from_m, lo), min(lim.to_m, hi)))
+        covered.sort()
+        reach = lo
+        for a, b in covered:
+            if a > reach:
+                break
+            reach = max(reach, b)
+        if reach < hi or not speeds:
+            speeds.append(self.line_speed_mps)  # some of the stretch has no limit of its own
+        return max(speeds)
 
     def consist(self, consist_id: str | None = None) -> Consist | None:
         if not self.consists:
@@ -341,6 +371,24 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
         _positive(r, lim.limit_mps, f"{p}.limit_mps")
         limits.append(lim)
 
+    sites = []
+    for i, t in enumerate(r.tables(doc, "work_sites")):
+        p = f"work_sites[{i}]"
+        head = r.req(t, "head", p, str)
+        if head not in by_id:
+            raise r.fail(f"{p}.head", "one of " + ", ".join(sorted(by_id)), head)
+        distance = r.req(t, "distance_m", p, float)
+        if distance == 0:
+            raise r.fail(f"{p}.distance_m", "a non-zero distance from the head (+ up the line, − down)", distance)
+        sites.append(
+            WorkSite(
+                r.req(t, "id", p, str),
+                head,
+                distance,
+                _positive(r, r.get(t, "warning_time_s", p, float, 30.0), f"{p}.warning_time_s"),
+            )
+        )
+
     return Layout(
         name=name,
         source=source,
@@ -351,6 +399,7 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
         platforms=tuple(platforms),
         consists=tuple(consists),
         speed_limits=tuple(limits),
+        work_sites=tuple(sites),
         line_speed_mps=line_speed,
         _by_id=by_id,
     )

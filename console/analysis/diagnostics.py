@@ -392,9 +392,12 @@ def _passages(
             "axle_speeds_stop": stop,
             "speed_kmh_per_axle_mean": axle_mean,
             "subsecond": subsecond,
-            # A train left wheels (or, in the paper's whole-second excerpts, a
-            # plausible Sys1→Sys2 span); otherwise it was a status dump.
-            "kind": np.where((n_onsets > 0) | ~np.isnan(whole), "train", "status").astype(object),
+            # A train: axles counted, or (the paper's whole-second excerpts) a
+            # plausible Sys1→Sys2 span.  A damping: wheel-sensor onsets but no
+            # axle (one system only: a trolley, metal).  Else a status dump.
+            "kind": np.select(
+                [(n_axles > 0) | ~np.isnan(whole), n_onsets > 0], ["train", "damping"], default="status"
+            ).astype(object),
         }
     )
     out.attrs["axle_speeds_kmh"] = timed_v

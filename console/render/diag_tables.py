@@ -66,7 +66,7 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
     p = analysis.passages
     status = int((p["kind"] == "status").sum()) if len(p) else 0
     if status:
-        p = p[p["kind"] == "train"]
+        p = p[p["kind"] != "status"]
     t = _table(f"Passages ({len(p)}); speeds in km/h: per-second method (records), whole train, per-axle mean")
     t.add_column("Head", no_wrap=True, min_width=4)
     t.add_column("Start", no_wrap=True)
