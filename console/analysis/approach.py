@@ -87,7 +87,7 @@ def approach_timeline(
     head = layout.head(site.head)
     toward = 1 if site.distance_m > 0 else -1  # +: the site lies up the line from the head
     distance = abs(site.distance_m)
-    rows = []
+    rows: list[ApproachRow] = []
     if passages.empty:
         return rows
     mine = passages[(passages["counting_head"] == site.head) & (passages["kind"] == "train")]
