@@ -225,7 +225,7 @@ class CrossingController:
             reason = f"within the guard distance ({ahead:.0f} m)"
         elif eta <= horizon_s:
             extra = horizon_s - self.crossing.warning_time_s
-            reason = f"ETA {eta:.0f} s ≤ {self.crossing.warning_time_s:g} s + {extra:g} s"
+            reason = f"ETA {eta:.0f} s ≤ {self.crossing.warning_time_s:g} s + {extra:.0f} s"
         if not reason:
             return []
         if basis != "head":

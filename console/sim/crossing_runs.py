@@ -48,6 +48,7 @@ class RunConditions:
     direction: int = 1
     length_m: float = 200.0
     seed: int = 0
+    run_past_m: float = 600.0  # how far the head runs on past the crossing
 
 
 @dataclass
@@ -76,7 +77,7 @@ def _motion(
     t, x, v = 0.0, 0.0, vmax  # x: head distance run from start
     ts, xs = [0.0], [0.0]
     stopped_until = None
-    end = approach + L + 600.0
+    end = approach + L + cond.run_past_m
     while x < end and t < 3600:
         past = x - approach  # head's signed distance past the crossing
         if stop_at is not None and stopped_until is None and past <= stop_at:
@@ -97,15 +98,33 @@ def _motion(
     return np.array(ts), start + d * np.array(xs)
 
 
+@dataclass(frozen=True)
+class RawFix:
+    """A fix as the device sends it (for writing telemetry files)."""
+
+    t_fix_ns: int
+    role: str
+    lat: float
+    lon: float
+    speed_mps: float
+    course_deg: float
+
+
 def simulate(
-    layout: Layout, crossing: LevelCrossing, cond: RunConditions, settings: ControllerSettings
+    layout: Layout,
+    crossing: LevelCrossing,
+    cond: RunConditions,
+    settings: ControllerSettings,
+    start_ns: int = 1_700_000_000 * NS,
+    raw: list[RawFix] | None = None,
 ) -> tuple[list[Fix], Truth, TrainSpec]:
+    """Fixes as the crossing unit receives them, the truth, the train; ``raw`` collects the sent fixes."""
     rng = np.random.default_rng(cond.seed)
     half = settings.crossing_half_width_m
     ts, head = _motion(crossing, cond, rng, half)
     d, L = cond.direction, cond.length_m
     tail = head - d * L
-    t0 = 1_700_000_000 * NS
+    t0 = start_ns
     t_ns = (t0 + ts * NS).astype(np.int64)
     c = crossing.chainage_m
 
@@ -134,8 +153,11 @@ def simulate(
         v = np.maximum(0.0, np.interp(times, ts, speed) + rng.normal(0, 0.2, len(ch)))
         p = proj.project(lat, lon)
         latency = rng.uniform(0.1, max(0.1, 2 * cond.latency_s), len(ch))
+        bearing = (proj.bearing_deg(float(c)) + (0.0 if d > 0 else 180.0)) % 360.0
         for k in range(len(ch)):  # per fix of one run
             t_fix = t0 + int(times[k] * NS)
+            if raw is not None:
+                raw.append(RawFix(t_fix, role, float(lat[k]), float(lon[k]), float(v[k]), bearing))
             fixes.append(
                 Fix(
                     t_ns=t_fix + int(latency[k] * NS),

@@ -1,0 +1,170 @@
+"""Run the crossing controllers over a table of GNSS fixes (batch).
+
+Fixes (from :mod:`parsers.gnss`) are grouped into trains — a train is a head
+unit and an EOT unit, paired by the caller or, with one of each, by their
+roles — projected onto the layout's track, and fed to one controller per
+level crossing in time order.  Fixes far from the track are set aside and
+counted: they cannot be placed on the line.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from console.analysis.crossing import (
+    EOT,
+    HEAD,
+    ControllerSettings,
+    CrossingController,
+    CrossingEvent,
+    Fix,
+    TrainSpec,
+    run_controller,
+)
+from console.analysis.crossing_timeline import TimelineRow, timeline
+from console.analysis.geo import TrackProjector
+from console.layout import Layout
+
+OFF_TRACK_M = 100.0
+
+
+@dataclass(frozen=True)
+class TrainDevices:
+    train: str
+    head: tuple[str, ...]
+    eot: tuple[str, ...]
+    length_m: float
+
+
+@dataclass
+class CrossingRun:
+    timelines: list[TimelineRow]
+    events: list[CrossingEvent]
+    trains: list[TrainDevices]
+    off_track: int = 0
+    unassigned_devices: list[str] = field(default_factory=list)
+
+
+def pair_trains(
+    fixes: pd.DataFrame, given: Sequence[TrainDevices], default_length_m: float
+) -> tuple[list[TrainDevices], list[str]]:
+    """The trains to follow: as given, else one train of all head and all EOT devices.
+
+    Returns (trains, devices in the data that belong to no train).
+    """
+    devices = sorted(str(d) for d in fixes["device"].unique()) if len(fixes) else []
+    if given:
+        known = {d for t in given for d in (*t.head, *t.eot)}
+        return list(given), [d for d in devices if d not in known]
+    roles = fixes.groupby("device", observed=True)["role"].first() if len(fixes) else pd.Series(dtype=object)
+    heads = tuple(str(d) for d, r in roles.items() if r == HEAD)
+    eots = tuple(str(d) for d, r in roles.items() if r == EOT)
+    # Devices named <train>-head / <train>-eot pair by name.
+    named = {d.rsplit("-", 1)[0] for d in (*heads, *eots) if d.endswith(("-head", "-eot"))}
+    if len(named) > 1 or (named and len(heads) + len(eots) == 2 * len(named)):
+        out = [
+            TrainDevices(
+                n,
+                tuple(d for d in heads if d == f"{n}-head"),
+                tuple(d for d in eots if d == f"{n}-eot"),
+                default_length_m,
+            )
+            for n in sorted(named)
+        ]
+        known = {d for t in out for d in (*t.head, *t.eot)}
+        return out, [d for d in devices if d not in known]
+    if not heads and not eots:
+        return [], devices
+    other = [d for d in devices if d not in heads and d not in eots]
+    return [TrainDevices("train", heads, eots, default_length_m)], other
+
+
+def _hint(course: float, bearing: float, speed: float) -> int:
+    if math.isnan(course) or math.isnan(speed) or speed < 1.0:
+        return 0
+    diff = (course - bearing + 540.0) % 360.0 - 180.0
+    return 1 if abs(diff) < 60 else -1 if abs(diff) > 120 else 0
+
+
+def to_fixes(fixes: pd.DataFrame, layout: Layout, trains: Sequence[TrainDevices]) -> tuple[list[Fix], int]:
+    """Controller fixes (projected, one train each) and the number of off-track fixes."""
+    if not layout.track:
+        raise ValueError(f"{layout.source}: the layout has no [[track]] polyline to place fixes on")
+    proj = TrackProjector(layout.track)
+    owner = {d: (t.train, HEAD) for t in trains for d in t.head}
+    owner.update({d: (t.train, EOT) for t in trains for d in t.eot})
+    sel = fixes[fixes["device"].astype(str).isin(owner) & fixes["valid"].astype(bool)]
+    sel = sel.dropna(subset=["lat", "lon", "time"])
+    if sel.empty:
+        return [], 0
+    p = proj.project(sel["lat"].to_numpy(float), sel["lon"].to_numpy(float))
+    t_ns = pd.to_datetime(sel["time"], utc=True).astype("int64").to_numpy()
+    out: list[Fix] = []
+    off = 0
+    for k, (dev, speed, course) in enumerate(
+        zip(sel["device"].astype(str), sel["speed_mps"].to_numpy(float), sel["course_deg"].to_numpy(float), strict=True)
+    ):  # one per fix: GNSS fixes come a few per second at most
+        if p.offset_m[k] > OFF_TRACK_M:
+            off += 1
+            continue
+        train, role = owner[dev]
+        ch = float(p.chainage_m[k])
+        out.append(
+            Fix(int(t_ns[k]), int(t_ns[k]), train, role, ch, float(speed), _hint(course, proj.bearing_deg(ch), speed))
+        )
+    return out, off
+
+
+def run_crossings(
+    fixes: pd.DataFrame,
+    layout: Layout,
+    trains: Sequence[TrainDevices] = (),
+    settings: ControllerSettings | None = None,
+    report_period_s: float | None = None,
+) -> CrossingRun:
+    """Every crossing of the layout, every train: timelines and events."""
+    consist = layout.consist()
+    chosen, unassigned = pair_trains(fixes, trains, consist.length_m if consist else 100.0)
+    ctl_fixes, off = to_fixes(fixes, layout, chosen)
+    s = settings or ControllerSettings(line_speed_mps=layout.line_speed_mps)
+    if report_period_s is None and ctl_fixes:
+        # The devices' own report period: the median gap between a device's fixes.
+        gaps = []
+        for tr in chosen:
+            for role in (HEAD, EOT):
+                t = np.sort([f.t_fix_ns for f in ctl_fixes if f.train == tr.train and f.role == role])
+                gaps += list(np.diff(t) / 1e9)
+        report_period_s = float(np.median(gaps)) if gaps else s.report_period_s
+    if report_period_s is not None:
+        # A device is stale after several missed reports, never after one lost packet.
+        stale = max(s.stale_after_s, 4 * report_period_s)
+        s = ControllerSettings(**{**s.__dict__, "report_period_s": report_period_s, "stale_after_s": stale})
+    specs = [TrainSpec(t.train, t.length_m) for t in chosen]
+    rows: list[TimelineRow] = []
+    events: list[CrossingEvent] = []
+    for crossing in layout.crossings:
+        ctl: CrossingController = run_controller(crossing, specs, ctl_fixes, s)
+        rows += timeline(ctl, ctl_fixes, s)
+        events += ctl.events
+    events.sort(key=lambda e: e.t_ns)
+    return CrossingRun(rows, events, list(chosen), off, unassigned)
+
+
+def parse_train_option(text: str, default_length_m: float) -> TrainDevices:
+    """``T1=head1,eot1[,length_m]`` → TrainDevices (ValueError with the reason)."""
+    name, sep, rest = text.partition("=")
+    parts = [x.strip() for x in rest.split(",")] if sep else []
+    if not name.strip() or len(parts) not in (2, 3) or not all(parts[:2]):
+        raise ValueError(f"--train {text!r}: expected TRAIN=HEAD_DEVICE,EOT_DEVICE[,LENGTH_M]")
+    length = default_length_m
+    if len(parts) == 3:
+        try:
+            length = float(parts[2])
+        except ValueError:
+            raise ValueError(f"--train {text!r}: length {parts[2]!r} is not a number") from None
+    return TrainDevices(name.strip(), (parts[0],), (parts[1],), length)

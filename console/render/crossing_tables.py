@@ -1,0 +1,98 @@
+"""Rich views for `trackside crossing`: violations first, then the timelines."""
+
+from __future__ import annotations
+
+from rich import box
+from rich.console import Group, RenderableType
+from rich.padding import Padding
+from rich.table import Table
+from rich.text import Text
+
+from console.analysis.crossing import CrossingEvent
+from console.analysis.crossing_timeline import TimelineRow
+from console.analysis.timefmt import display
+from console.safe_text import inert
+
+
+def _t(ns: int | None) -> Text:
+    return Text("–", style="dim") if ns is None else Text(display(ns)[11:19])
+
+
+def _s(x: float | None, warn_below: float | None = None) -> Text:
+    if x is None:
+        return Text("–", style="dim")
+    style = "bold red" if warn_below is not None and x < warn_below else ""
+    return Text(f"{x:.0f}", style=style)
+
+
+def violations_view(rows: list[TimelineRow]) -> Group | None:
+    bad = [r for r in rows if r.violations]
+    if not bad:
+        return None
+    parts: list[RenderableType] = [Text(f"SAFETY VIOLATIONS ({len(bad)})", style="bold white on red")]
+    for r in bad:
+        for v in r.violations:
+            head = Text("!! ", style="bold red")
+            head.append_text(inert(f"{r.crossing}  train {r.train}: {v}"))
+            parts.append(head)
+            when = (
+                f"on {display(r.t_on_ns)}, head {display(r.t_head_arrival_ns)}, "
+                f"tail clear {display(r.t_tail_clear_ns)}, off {display(r.t_off_ns)}"
+            )
+            parts.append(Padding(Text(when), (0, 0, 0, 4)))
+    return Group(*parts)
+
+
+def timeline_table(rows: list[TimelineRow]) -> Table:
+    day = next((display(t)[:10] for r in rows for t in (r.t_on_ns, r.t_head_arrival_ns) if t), "")
+    t = Table(
+        title=f"Level crossings (LC) {day}: times of day; lead, excess (Exc) and baseline in s",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+        title_style="bold",
+        padding=(0, 0),  # nine columns of times must fit 80 columns
+    )
+    for c in ("LC", "Train", "On", "Head", "Tail", "Off", "Lead", "Exc", "Baseline"):
+        t.add_column(
+            c,
+            justify="right" if c in ("Lead", "Exc", "Baseline") else "left",
+            no_wrap=True,
+            min_width=8 if c in ("On", "Head", "Tail", "Off") else None,
+        )
+    for r in rows:
+        if r.baseline_early_s:
+            base = Text(f"{r.baseline_early_s:.0f} early", style="bold yellow")
+        elif r.baseline_excess_s is not None:
+            base = Text(f"+{r.baseline_excess_s:.0f}")
+        else:
+            base = Text("–", style="dim")
+        off = _t(r.t_off_ns) if r.t_off_ns is not None else Text("held on", style="bold yellow")
+        t.add_row(
+            inert(r.crossing),
+            inert(r.train),
+            _t(r.t_on_ns),
+            _t(r.t_head_arrival_ns),
+            _t(r.t_tail_clear_ns),
+            off,
+            _s(r.lead_s),
+            _s(r.excess_s),
+            base,
+        )
+    t.caption = (
+        "Baseline: a fixed-time switch-off at head arrival + length / speed + 10 s; "
+        "'early' = it would have opened the road with the train on it."
+    )
+    return t
+
+
+def reasons_view(rows: list[TimelineRow], events: list[CrossingEvent]) -> Group:
+    parts: list[RenderableType] = [Text("Why", style="bold")]
+    for r in rows:
+        parts.append(inert(f"{r.crossing} train {r.train}: on: {r.reason_on or '–'}; off: {r.reason_off}"))
+    alarms = [e for e in events if e.kind == "alarm"]
+    for e in alarms:
+        line = Text("! ", style="yellow")
+        line.append_text(inert(f"{display(e.t_ns)} {e.crossing} train {e.train}: {e.reason}"))
+        parts.append(line)
+    return Group(*parts)

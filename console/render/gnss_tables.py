@@ -1,0 +1,192 @@
+"""GNSS fixes for people and for machines: Rich tables (80 columns) and a JSON document.
+
+Times in the fix table are UTC (``parsers.nmea``); they are shown as UTC and
+written as ISO 8601 with ``Z``.  Everything that came from a log (device
+ids, file names) goes through :func:`console.safe_text.inert`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pandas as pd
+from rich import box
+from rich.table import Table
+from rich.text import Text
+
+from console.analysis.timefmt import display, iso
+from console.safe_text import inert
+from parsers.report import ParseReport
+
+FIXES_SHOWN = 200
+_MPS_TO_KMH = 3.6
+
+
+def _table(title: str) -> Table:
+    # One space of padding, on the right only: two-character gaps keep nine columns within 80.
+    return Table(
+        title=title,
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+        show_edge=False,
+        padding=(0, 1, 0, 0),
+        title_style="bold",
+    )
+
+
+def _ns(value: Any) -> int | None:
+    return None if value is None or pd.isna(value) else int(pd.Timestamp(value).value)
+
+
+def iso_utc(value: Any) -> str | None:
+    """A UTC timestamp → ``2026-01-19T10:05:00.6Z``; NaT → None."""
+    ns = _ns(value)
+    text = iso(ns)
+    return None if text is None else text + "Z"
+
+
+def _float(value: Any) -> float | None:
+    return None if value is None or pd.isna(value) else float(value)
+
+
+def gnss_json(fixes: pd.DataFrame, report: ParseReport) -> dict[str, Any]:
+    """The fixes and the parse report as plain JSON values (NaN and NaT → null)."""
+    rows = []
+    r: Any
+    for r in fixes.itertuples(index=False):
+        rows.append(
+            {
+                "time": iso_utc(r.time),
+                "lat": _float(r.lat),
+                "lon": _float(r.lon),
+                "speed_mps": _float(r.speed_mps),
+                "course_deg": _float(r.course_deg),
+                "valid": bool(r.valid),
+                "device": str(r.device),
+                "role": str(r.role),
+                "sentence": str(r.sentence),
+                "file": str(r.file),
+                "line": int(r.line),
+            }
+        )
+    return {"fixes": rows, "parse_report": report.to_dict()}
+
+
+class _Clock:
+    """Times for a table: the date goes in the title when every time shares it."""
+
+    def __init__(self, times: pd.Series) -> None:
+        known = [ns for ns in (_ns(t) for t in times) if ns is not None]
+        days = sorted({display(ns)[:10] for ns in known})
+        self.one_day = len(days) == 1
+        self.note = f"{days[0]}, UTC" if self.one_day else "UTC" if days else ""
+
+    @staticmethod
+    def day(value: Any) -> str | None:
+        ns = _ns(value)
+        return None if ns is None else display(ns)[:10]
+
+    def text(self, value: Any, *, seconds: bool = False, with_day: bool | None = None) -> Text:
+        """The time of day (and the date unless one day or ``with_day`` False); ``seconds``: no fraction."""
+        ns = _ns(value)
+        if ns is None:
+            return Text("–", style="dim")
+        shown = display(ns)
+        if seconds:
+            shown = shown[:19]
+        show_day = not self.one_day if with_day is None else with_day
+        return Text(shown if show_day else shown[11:])
+
+
+def _num(value: Any, fmt: str, scale: float = 1.0) -> Text:
+    if value is None or pd.isna(value) or not math.isfinite(float(value)):
+        return Text("–", style="dim")
+    return Text(fmt.format(float(value) * scale))
+
+
+def fixes_table(fixes: pd.DataFrame, limit: int = FIXES_SHOWN) -> Table:
+    """One row per fix: time, device, position, speed (km/h), fix or not, what it came from.
+
+    Course is left to the JSON (``gnss_json``) to keep the table within 80
+    columns.
+
+    Times are UTC; a row with the date opens each day when the table spans
+    several.  Lines are ``file number:line`` when there are several files
+    (the caption names them).
+    """
+    clock = _Clock(fixes["time"])
+    files = [str(f) for f in pd.unique(fixes["file"].astype(str))] if len(fixes) else []
+    title = f"GNSS fixes ({len(fixes):,}"
+    title += f", {int(fixes['valid'].sum()):,} valid" if len(fixes) else ""
+    t = _table(title + (f"; {clock.note})" if clock.note else ")"))
+    t.add_column("Time", no_wrap=True)
+    t.add_column("Device", no_wrap=True, max_width=14)
+    t.add_column("Lat °", justify="right", no_wrap=True)
+    t.add_column("Lon °", justify="right", no_wrap=True)
+    t.add_column("km/h", justify="right", no_wrap=True)
+    t.add_column("Fix", no_wrap=True)
+    t.add_column("From", no_wrap=True)
+    t.add_column("Line", justify="right", no_wrap=True)
+    file_no = {name: i for i, name in enumerate(files, start=1)}
+    last_day: str | None = None
+    r: Any
+    for r in fixes.head(limit).itertuples(index=False):
+        day = clock.day(r.time)
+        if not clock.one_day and day is not None and day != last_day:
+            t.add_row(Text(day, style="bold"))
+            last_day = day
+        line = f"{file_no[str(r.file)]}:{r.line}" if len(files) > 1 else str(r.line)
+        t.add_row(
+            clock.text(r.time, with_day=False),
+            inert(r.device),
+            _num(r.lat, "{:.5f}"),
+            _num(r.lon, "{:.5f}"),
+            _num(r.speed_mps, "{:.1f}", _MPS_TO_KMH),
+            Text("yes", style="green") if r.valid else Text("no", style="dim"),
+            inert(r.sentence or r.source),
+            Text(line),
+        )
+    notes = []
+    if len(fixes) > limit:
+        notes.append(f"first {limit:,} of {len(fixes):,} fixes; --json has all")
+    if len(files) == 1:
+        notes.append(f"file {files[0]}")
+    elif files:
+        notes.append("files " + ", ".join(f"{i} = {name}" for name, i in file_no.items()))
+    if notes:
+        t.caption = inert("; ".join(notes))  # file names are log text: never markup
+        t.caption_justify = "left"
+    return t
+
+
+def devices_table(fixes: pd.DataFrame) -> Table:
+    """Per device: role, fixes, valid fixes, first and last time (UTC, to the second), mean speed of valid fixes."""
+    clock = _Clock(fixes["time"])
+    t = _table("GNSS devices" + (f" ({clock.note})" if clock.note else ""))
+    t.add_column("Device", no_wrap=True, min_width=6, max_width=12)
+    t.add_column("Role", no_wrap=True)
+    t.add_column("Fixes", justify="right", no_wrap=True)
+    t.add_column("Valid", justify="right", no_wrap=True)
+    t.add_column("First", no_wrap=True)
+    t.add_column("Last", no_wrap=True)
+    t.add_column("km/h", justify="right", no_wrap=True)
+    t.caption = Text("km/h: mean speed of the valid fixes", style="dim")
+    t.caption_justify = "left"
+    if fixes.empty:
+        return t
+    for device, rows in fixes.groupby("device", observed=True, sort=True):
+        roles = sorted({str(x) for x in rows["role"]} - {""})
+        valid = rows[rows["valid"]]
+        speeds = valid["speed_mps"].dropna()
+        t.add_row(
+            inert(device),
+            inert("/".join(roles) or "–", style="" if roles else "dim"),
+            Text(f"{len(rows):,}"),
+            Text(f"{len(valid):,}", style="" if len(valid) else "yellow"),
+            clock.text(rows["time"].min(), seconds=True),
+            clock.text(rows["time"].max(), seconds=True),
+            _num(speeds.mean() if len(speeds) else math.nan, "{:.1f}", _MPS_TO_KMH),
+        )
+    return t

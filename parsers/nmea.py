@@ -1,0 +1,613 @@
+"""NMEA 0183 receiver logs → the GNSS fix table (:data:`FIX_COLUMNS`).
+
+This module also defines the fix table that every GNSS source shares
+(``parsers.gnss`` re-exports it): one row per position or speed report.
+
+Columns of the fix table
+------------------------
+``time``        datetime64[ns, UTC]; NaT when unknown (a GGA before any date
+                was seen, a sentence without time).
+``device``      category: the file name stem, or the device tag of the line.
+``role``        category ``"head"``, ``"eot"`` or ``""`` (unknown).
+``lat, lon``    float64 degrees, south and west negative; NaN when absent.
+``speed_mps``   float64 m/s over ground; NaN when the source gives none.
+``course_deg``  float64 degrees true; NaN when the source gives none.
+``valid``       bool: a real position fix.  No-fix rows (RMC status ``V``,
+                GGA quality 0) keep whatever position the receiver printed
+                (often its last fix, or 0,0): never use them as positions.
+``source``      category ``"nmea"``, ``"csv"``, ``"jsonl"`` or ``"centre"``.
+``sentence``    category ``"RMC"``, ``"GGA"``, ``"VTG"``; ``""`` for sources
+                that are not NMEA.
+``file, line``  category and int64: where the row came from.
+
+Which NMEA sentences become rows
+--------------------------------
+Any talker (``GP``, ``GN``, ``GL``, ``GA``, ``GB``, ``GQ``, ``IN`` …):
+
+* ``RMC``: date + time, position, speed (knots × 1852/3600 → m/s, exact),
+  course; valid when the status is ``A`` (and an NMEA 4.1 mode is not
+  ``N``) and the position is present;
+* ``GGA``: time, position; valid for quality 1–6 (7 is a manually entered
+  position, 8 a simulator: not real fixes), except a satellite fix (1–5)
+  from 0 satellites used, a stale flag that gpsd reports as no fix too.
+  GGA carries no date: it takes the date of the device's most recent RMC or
+  ZDA (a day is added when the time of day has wrapped past midnight since),
+  else its time is NaT.  An RMC without a date does the same;
+* ``VTG``: speed and course only.  It becomes its own row with NaN position
+  and ``valid`` False (rows are never merged, so every row points at the one
+  sentence it came from).  VTG carries no time: the row takes the time of the
+  device's latest RMC or GGA, which in the usual RMC–VTG–GGA cycle is the
+  time of its own cycle.  Knots are used, else km/h.  The pre-NMEA 2.0 form
+  without unit fields (``$GPVTG,054.7,034.4,005.5,010.2``) is read too.
+
+Line accounting (``parsers.report``)
+------------------------------------
+* ``records``: lines that gave at least one row (no-fix rows included);
+* ``blank``: nothing to parse: blank lines, ``#`` comments, and well-formed
+  sentences that carry no fix (GSA, GSV, GLL, ZDA, TXT, AIS ``!AIVDM``,
+  proprietary ``$P…``, any other type).  ZDA still sets the device's date;
+* ``rejected``: anything else, with the reason: a line that does not start
+  with ``$`` or ``!`` (after an optional device tag), control or non-ASCII
+  bytes (binary junk), a wrong or malformed checksum, a malformed address
+  field, too few fields (a truncated sentence), a field that does not decode,
+  or an error raised by pynmeagps (its message is kept).
+
+Checksums: a ``*HH`` checksum, when present, must match (gpsd drops such
+sentences too).  A sentence without one is accepted, since NMEA makes the
+checksum optional, but then it must have its complete field count (RMC 11,
+GGA 14, VTG 8 or 4 fields after the address): a line cut off short is
+otherwise indistinguishable from a sentence sent without a checksum.  (gpsd
+itself dropped every checksum-less line of the captures in
+``shared/data/nmea``, so the comparison with gpsd does not cover them.)
+
+Sentences run together on one line (a receiver that lost a line end, or cut
+a sentence short and started the next: ``…*1E$GPRMC,…``, ``…,270,$GPRMC,…``)
+are split before every ``$`` and ``!`` (reserved delimiters that never occur
+inside a sentence) and each is parsed, as gpsd does.  Such a line counts
+once: rejected if any of its sentences was (the reason says which), else a
+record if any gave a row, else blank; the rows of its good sentences are kept
+either way, so ``len(fixes)`` can differ from ``records``.
+
+Devices: one file per device (the device id is the file name stem), or
+interleaved lines, each prefixed with a device tag: ``DEVICE`` followed by
+one comma or by spaces/tabs, then the ``$`` or ``!`` of the sentence, e.g.
+``head1 $GPRMC,…`` or ``eot7,$GNRMC,…``.  A tag is 1–64 letters, digits,
+``_``, ``.`` or ``-``, starting with a letter or digit.  Untagged lines of a
+file belong to the device named by its stem.  Roles come from the ``roles``
+mapping (device → ``"head"``/``"eot"``), default ``""``.
+
+Why pynmeagps: it is maintained (regular releases, NMEA 4.1+ fields,
+proprietary sentences), typed, and ``NMEAReader.parse(raw, validate=…)``
+makes its checks explicit flags: ``VALCKSUM`` (checksum) and ``VALMSGID``
+(raise on an unknown talker or sentence type instead of returning None).
+pynmea2, the older alternative, sees few releases, checks a checksum only
+when one is present and decodes fields lazily, as strings, on attribute
+access.  Neither decides what a *fix* is, nor checks field counts or
+malformed numbers (pynmeagps turns an undecodable latitude into ``""``), so
+those checks are done here.  The checksum is checked here too, before the
+library is called, so that the reason is specific and sentences without one
+can be accepted; the library then gets the sentence with its checksum
+recomputed (pynmeagps requires one) and ``validate=VALMSGID`` only, since
+``VALCKSUM`` would merely repeat the check.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+import re
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from pynmeagps import VALMSGID, NMEAReader
+
+from parsers.report import FileReport, ParseReport
+from parsers.sources import OverlongLine, iter_chunks, open_input
+
+FIX_COLUMNS = (
+    "time",
+    "device",
+    "role",
+    "lat",
+    "lon",
+    "speed_mps",
+    "course_deg",
+    "valid",
+    "source",
+    "sentence",
+    "file",
+    "line",
+)
+ROLES = ("head", "eot", "")
+SOURCES = ("nmea", "csv", "jsonl", "centre")
+SENTENCES = ("RMC", "GGA", "VTG", "")
+ROLE_DTYPE = pd.CategoricalDtype(list(ROLES))
+SOURCE_DTYPE = pd.CategoricalDtype(list(SOURCES))
+SENTENCE_DTYPE = pd.CategoricalDtype(list(SENTENCES))
+
+KNOT_MPS = 1852 / 3600  # 1 international knot = 1852 m per hour, exactly
+KMH_MPS = 1000 / 3600
+
+NAT_NS = int(np.iinfo(np.int64).min)  # the int64 value of NaT
+_NS = 1_000_000_000
+_DAY_NS = 86_400 * _NS
+_EPOCH = dt.date(1970, 1, 1)
+
+# Payload fields (after the address) a complete sentence has, and the fewest
+# a checksummed sentence may have (the fields read here).
+_FULL_FIELDS = {"RMC": 11, "GGA": 14, "VTG": 8}
+_MIN_FIELDS = {"RMC": 9, "GGA": 7, "VTG": 8}
+_VALID_GGA_QUALITY = range(1, 7)
+_DEAD_RECKONING = 6
+
+DEVICE_TAG_RE = re.compile(rb"([A-Za-z0-9][A-Za-z0-9_.-]{0,63})(?:,|[ \t]+)(?=[$!])")
+_UNPRINTABLE_RE = re.compile(rb"[^\t\x20-\x7e]")  # a tab may follow a device tag
+_SENTENCE_START_RE = re.compile(rb"(?=[$!])")
+_CHECKSUM_RE = re.compile(rb"\*([0-9A-Fa-f]{2})")
+_ADDRESS_RE = re.compile(r"[A-Z][A-Z0-9][A-Z0-9]{3}")
+_NUMBER_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
+_DEVICE_TAG_HELP = "'$' or '!' (optionally after a device tag: 'DEVICE,$…' or 'DEVICE $…')"
+
+
+class SentenceError(Exception):
+    """A sentence that cannot be used: ``category`` for the counts, ``reason`` for people."""
+
+    def __init__(self, category: str, reason: str) -> None:
+        super().__init__(reason)
+        self.category = category
+        self.reason = reason
+
+
+# --------------------------------------------------------------------- table
+
+
+@dataclass
+class FixRows:
+    """Fix rows being collected, column by column (``time`` in ns, NaT as :data:`NAT_NS`)."""
+
+    time: list[int] = field(default_factory=list)
+    device: list[str] = field(default_factory=list)
+    role: list[str] = field(default_factory=list)
+    lat: list[float] = field(default_factory=list)
+    lon: list[float] = field(default_factory=list)
+    speed_mps: list[float] = field(default_factory=list)
+    course_deg: list[float] = field(default_factory=list)
+    valid: list[bool] = field(default_factory=list)
+    source: list[str] = field(default_factory=list)
+    sentence: list[str] = field(default_factory=list)
+    file: list[str] = field(default_factory=list)
+    line: list[int] = field(default_factory=list)
+
+    def add(
+        self,
+        *,
+        time_ns: int,
+        device: str,
+        role: str,
+        lat: float,
+        lon: float,
+        speed_mps: float,
+        course_deg: float,
+        valid: bool,
+        source: str,
+        sentence: str,
+        file: str,
+        line: int,
+    ) -> None:
+        self.time.append(time_ns)
+        self.device.append(device)
+        self.role.append(role)
+        self.lat.append(lat)
+        self.lon.append(lon)
+        self.speed_mps.append(speed_mps)
+        self.course_deg.append(course_deg)
+        self.valid.append(valid)
+        self.source.append(source)
+        self.sentence.append(sentence)
+        self.file.append(file)
+        self.line.append(line)
+
+    def __len__(self) -> int:
+        return len(self.line)
+
+    def frame(self) -> pd.DataFrame:
+        """The rows as a fix table with the documented dtypes."""
+        return pd.DataFrame(
+            {
+                "time": utc_times(self.time),
+                "device": pd.Categorical(self.device),
+                "role": pd.Categorical(self.role, dtype=ROLE_DTYPE),
+                "lat": np.array(self.lat, dtype="float64"),
+                "lon": np.array(self.lon, dtype="float64"),
+                "speed_mps": np.array(self.speed_mps, dtype="float64"),
+                "course_deg": np.array(self.course_deg, dtype="float64"),
+                "valid": np.array(self.valid, dtype="bool"),
+                "source": pd.Categorical(self.source, dtype=SOURCE_DTYPE),
+                "sentence": pd.Categorical(self.sentence, dtype=SENTENCE_DTYPE),
+                "file": pd.Categorical(self.file),
+                "line": np.array(self.line, dtype="int64"),
+            },
+            columns=list(FIX_COLUMNS),
+        )
+
+
+def utc_times(ns: list[int] | np.ndarray) -> pd.DatetimeIndex:
+    """int64 ns since the epoch (NaT as :data:`NAT_NS`) → datetime64[ns, UTC]."""
+    return pd.DatetimeIndex(np.asarray(ns, dtype="int64").view("datetime64[ns]")).tz_localize("UTC")
+
+
+def check_roles(roles: Mapping[str, str] | None) -> dict[str, str]:
+    """Validate a device → role mapping; ValueError naming the bad entry."""
+    out = dict(roles or {})
+    for device, role in out.items():
+        if role not in ROLES:
+            raise ValueError(f"device '{device}': role '{role}' is not one of 'head', 'eot' or '' (unknown)")
+    return out
+
+
+# ------------------------------------------------------------------ reading
+
+
+def open_lines(path: Path, report: ParseReport) -> tuple[FileReport, Iterator[tuple[int, bytes]]]:
+    """Open a file: its :class:`FileReport` (appended to ``report``) and its lines.
+
+    The iterator yields (line number, line without its end) and counts
+    ``lines_read``; the caller counts each yielded line as a record, blank or
+    rejection.  Lines too long to be a GNSS record are rejected here.
+    :class:`parsers.sources.InputError` if the file cannot be read.
+    """
+    stream, raw, info = open_input(path)
+    name = str(path)
+    fr = FileReport(file=name, encoding=info.encoding, compressed=info.compressed)
+    report.files.append(fr)
+
+    def lines() -> Iterator[tuple[int, bytes]]:
+        number = 0
+        try:
+            for item in iter_chunks(stream, info, name=name):
+                if isinstance(item, OverlongLine):
+                    number += 1
+                    fr.lines_read += 1
+                    reason = f"line of {item.length} bytes is too long to be a GNSS record"
+                    report.reject(fr, number, "too long", reason, item.head)
+                    continue
+                chunk = bytes(item.data).split(b"\n")
+                if chunk[-1] == b"":
+                    chunk.pop()
+                for text in chunk:
+                    number += 1
+                    fr.lines_read += 1
+                    yield number, text.removesuffix(b"\r")
+            fr.bytes_read = raw.tell()
+        finally:
+            stream.close()
+            raw.close()
+        fr.ends_without_newline = info.ends_without_newline
+
+    return fr, lines()
+
+
+# ------------------------------------------------------------------ decoding
+
+
+@dataclass
+class DeviceClock:
+    """What a device said about the date, for the sentences that carry only a time of day."""
+
+    day: dt.date | None = None
+    day_tod_ns: int | None = None  # time of day of the sentence that gave the date
+    last_time_ns: int = NAT_NS  # time of the latest RMC/GGA row, for VTG
+
+    def set_date(self, day: dt.date, tod_ns: int | None) -> None:
+        self.day = day
+        self.day_tod_ns = tod_ns
+
+    def time_ns(self, tod_ns: int | None) -> int:
+        """A time of day → ns since the epoch on the device's current date (NaT if unknown)."""
+        if tod_ns is None or self.day is None:
+            return NAT_NS
+        day = self.day
+        if self.day_tod_ns is not None:
+            # Past midnight since the date was given: the next day (and the reverse).
+            if tod_ns < self.day_tod_ns - _DAY_NS // 2:
+                day += dt.timedelta(days=1)
+            elif tod_ns > self.day_tod_ns + _DAY_NS // 2:
+                day -= dt.timedelta(days=1)
+        return (day - _EPOCH).days * _DAY_NS + tod_ns
+
+
+@dataclass
+class Fix:
+    """One decoded fix sentence."""
+
+    sentence: str
+    time_ns: int
+    lat: float
+    lon: float
+    speed_mps: float
+    course_deg: float
+    valid: bool
+
+
+def nmea_checksum(body: bytes) -> int:
+    """XOR of the bytes between ``$``/``!`` and ``*``."""
+    total = 0
+    for byte in body:
+        total ^= byte
+    return total
+
+
+def _tod_ns(value: Any, raw: str) -> int | None:
+    if raw == "":
+        return None
+    if not isinstance(value, dt.time):
+        raise SentenceError("field", f"time field '{raw}' is not hhmmss[.ss]")
+    return ((value.hour * 60 + value.minute) * 60 + value.second) * _NS + value.microsecond * 1000
+
+
+def _date(value: Any, raw: str, what: str = "date field") -> dt.date | None:
+    if raw == "":
+        return None
+    if not isinstance(value, dt.date):
+        raise SentenceError("field", f"{what} '{raw}' is not ddmmyy")
+    return value
+
+
+def _coordinate(value: Any, raw: str, hemisphere: str, axis: str) -> float:
+    """pynmeagps's signed degrees, checked against the raw field; NaN when empty."""
+    if raw == "":
+        return math.nan
+    name, limit, signs = ("latitude", 90.0, "NS") if axis == "lat" else ("longitude", 180.0, "EW")
+    if not isinstance(value, float):
+        raise SentenceError("field", f"{name} field '{raw}' is not (d)ddmm.mmmm")
+    if hemisphere not in signs:
+        raise SentenceError("field", f"{name} hemisphere '{hemisphere}' is not {signs[0]} or {signs[1]}")
+    if abs(value) > limit:
+        raise SentenceError("field", f"{name} {value:.6f}° is out of range ±{limit:g}°")
+    return value
+
+
+def _decimal(raw: str, what: str, *, minimum: float | None = None) -> float:
+    if raw == "":
+        return math.nan
+    if not _NUMBER_RE.fullmatch(raw):
+        raise SentenceError("field", f"{what} field '{raw}' is not a number")
+    value = float(raw)
+    if minimum is not None and value < minimum:
+        raise SentenceError("field", f"{what} field '{raw}' is below {minimum:g}")
+    return value
+
+
+def _library_parse(address: str, payload: list[str]) -> Any:
+    """Hand a (re-assembled, checksummed) sentence to pynmeagps; its errors become rejections."""
+    content = ",".join([address, *payload])
+    sentence = f"${content}*{nmea_checksum(content.encode('ascii')):02X}".encode("ascii")
+    try:
+        msg = NMEAReader.parse(sentence, validate=VALMSGID)  # checksum checked by decode_sentence
+    except Exception as exc:  # the library must never crash the parse
+        raise SentenceError("library", f"pynmeagps could not parse {address}: {exc}") from None
+    if msg is None:
+        raise SentenceError("library", f"pynmeagps does not know sentence {address}")
+    return msg
+
+
+def _position(msg: Any, payload: list[str], at: int) -> tuple[float, float]:
+    lat = _coordinate(msg.lat, payload[at], payload[at + 1], "lat")
+    lon = _coordinate(msg.lon, payload[at + 2], payload[at + 3], "lon")
+    if math.isnan(lat) or math.isnan(lon):
+        return math.nan, math.nan
+    return lat, lon
+
+
+def _rmc(address: str, payload: list[str], clock: DeviceClock) -> Fix:
+    msg = _library_parse(address, payload)
+    tod = _tod_ns(msg.time, payload[0])
+    day = _date(msg.date, payload[8])
+    status = payload[1]
+    if status not in ("A", "V", ""):
+        raise SentenceError("field", f"status field '{status}' is not A (valid) or V (no fix)")
+    lat, lon = _position(msg, payload, 2)
+    speed_kn = _decimal(payload[6], "speed (knots)", minimum=0.0)
+    course = _decimal(payload[7], "course")
+    if day is not None:
+        clock.set_date(day, tod)
+    time_ns = clock.time_ns(tod)
+    mode = payload[11] if len(payload) > 11 else ""
+    valid = status == "A" and mode != "N" and not math.isnan(lat)
+    return Fix("RMC", time_ns, lat, lon, speed_kn * KNOT_MPS, course, valid)
+
+
+def _gga(address: str, payload: list[str], clock: DeviceClock) -> Fix:
+    msg = _library_parse(address, payload)
+    tod = _tod_ns(msg.time, payload[0])
+    lat, lon = _position(msg, payload, 1)
+    quality_raw = payload[5]
+    if quality_raw and not quality_raw.isdigit():
+        raise SentenceError("field", f"quality field '{quality_raw}' is not a number 0-8")
+    quality = int(quality_raw) if quality_raw else 0
+    used_raw = payload[6]
+    if used_raw and not used_raw.isdigit():
+        raise SentenceError("field", f"satellites-used field '{used_raw}' is not a number")
+    # A satellite fix from no satellites is a receiver's stale flag (gpsd says no fix too).
+    no_satellites = used_raw != "" and int(used_raw) == 0 and quality != _DEAD_RECKONING
+    valid = quality in _VALID_GGA_QUALITY and not no_satellites and not math.isnan(lat)
+    return Fix("GGA", clock.time_ns(tod), lat, lon, math.nan, math.nan, valid)
+
+
+def _vtg(address: str, payload: list[str], clock: DeviceClock) -> Fix:
+    if len(payload) == 4:  # before NMEA 2.0: course T, course M, knots, km/h, no unit fields
+        payload = [payload[0], "T", payload[1], "M", payload[2], "N", payload[3], "K"]
+    for at, unit in ((1, "T"), (3, "M"), (5, "N"), (7, "K")):
+        if payload[at] not in (unit, ""):
+            raise SentenceError("field", f"VTG unit field {at + 1} is '{payload[at]}', expected '{unit}'")
+    _library_parse(address, payload)  # the library's own verdict on the sentence
+    course = _decimal(payload[0], "course (true)")
+    knots = _decimal(payload[4], "speed (knots)", minimum=0.0)
+    kmh = _decimal(payload[6], "speed (km/h)", minimum=0.0)
+    speed = knots * KNOT_MPS if not math.isnan(knots) else kmh * KMH_MPS
+    return Fix("VTG", clock.last_time_ns, math.nan, math.nan, speed, course, False)
+
+
+def _zda(address: str, payload: list[str], clock: DeviceClock) -> None:
+    if len(payload) < 4 or not all(payload[:4]):
+        return  # no date yet (a receiver without a fix sends empty fields)
+    msg = _library_parse(address, payload)
+    tod = _tod_ns(msg.time, payload[0])
+    try:
+        day = dt.date(int(payload[3]), int(payload[2]), int(payload[1]))
+    except ValueError:
+        raise SentenceError("field", f"ZDA date '{payload[1]}/{payload[2]}/{payload[3]}' is not a date") from None
+    clock.set_date(day, tod)
+
+
+_DECODERS = {"RMC": _rmc, "GGA": _gga, "VTG": _vtg}
+
+
+def decode_sentence(sentence: bytes, clock: DeviceClock) -> Fix | None:
+    """One sentence (``$…`` or ``!…``, printable ASCII, no line end) → a fix, or None if it carries none.
+
+    Raises :class:`SentenceError` with the reason when it cannot be used.
+    """
+    star = sentence.find(b"*")
+    has_checksum = star >= 0
+    if has_checksum:
+        tail = sentence[star:]
+        got = _CHECKSUM_RE.fullmatch(tail)
+        if got is None:
+            raise SentenceError("checksum", f"checksum field '{tail[:12].decode()}' is not '*' and two hex digits")
+        body = sentence[1:star]
+        expected = nmea_checksum(body)
+        if int(got.group(1), 16) != expected:
+            raise SentenceError(
+                "checksum",
+                f"checksum mismatch: the sentence says *{got.group(1).decode()}, its content gives *{expected:02X}",
+            )
+    else:
+        body = sentence[1:]
+    if sentence[:1] == b"!":
+        return None  # AIS and other encapsulated sentences: no fix for us
+    address, *payload = body.decode("ascii").split(",")
+    if address.startswith("P"):
+        return None  # proprietary
+    if not _ADDRESS_RE.fullmatch(address):
+        raise SentenceError(
+            "address", f"address field '{address[:12]}' is not a talker and a sentence type (e.g. GPRMC)"
+        )
+    kind = address[2:]
+    if kind == "ZDA":
+        _zda(address, payload, clock)
+        return None
+    decoder = _DECODERS.get(kind)
+    if decoder is None:
+        return None
+    needed = _MIN_FIELDS[kind] if has_checksum else _FULL_FIELDS[kind]
+    old_vtg = kind == "VTG" and len(payload) == 4  # the pre-2.0 form is complete with 4 fields
+    if len(payload) < needed and not old_vtg:
+        cut = " and no checksum: a truncated sentence" if not has_checksum else ""
+        raise SentenceError("truncated", f"{address}: {len(payload)} fields{cut}; expected at least {needed}")
+    fix = decoder(address, payload, clock)
+    if kind != "VTG" and fix.time_ns != NAT_NS:
+        clock.last_time_ns = fix.time_ns
+    return fix
+
+
+# ------------------------------------------------------------------- parser
+
+
+class NmeaParser:
+    """Parse NMEA files into fix rows, keeping each device's date across files."""
+
+    def __init__(
+        self, report: ParseReport, roles: Mapping[str, str] | None = None, rows: FixRows | None = None
+    ) -> None:
+        self.report = report
+        self.roles = check_roles(roles)
+        self.clocks: dict[str, DeviceClock] = {}
+        self.rows = rows if rows is not None else FixRows()
+
+    def parse_file(self, path: Path) -> None:
+        """Parse one file; its rows are appended to :attr:`rows`."""
+        fr, lines = open_lines(path, self.report)
+        for number, raw in lines:
+            self.parse_line(fr, number, raw, path.stem)
+
+    def parse_line(self, fr: FileReport, number: int, raw: bytes, default_device: str) -> None:
+        """Count one line as a record, blank or rejection; add its rows."""
+        text = raw.strip(b" \t\r")
+        if not text or text[:1] == b"#":
+            fr.blank += 1
+            return
+        bad = _UNPRINTABLE_RE.search(text)
+        if bad is not None:
+            reason = f"binary data: byte 0x{text[bad.start()]:02x} at column {bad.start() + 1}"
+            self.report.reject(fr, number, "binary", reason, raw)
+            return
+        device = default_device
+        if text[:1] not in (b"$", b"!"):
+            tag = DEVICE_TAG_RE.match(text)
+            if tag is None:
+                self.report.reject(fr, number, "not nmea", f"not an NMEA sentence: expected {_DEVICE_TAG_HELP}", raw)
+                return
+            device = tag.group(1).decode("ascii")
+            text = text[tag.end() :]
+        if b"\t" in text:
+            reason = "a tab inside a sentence (a tab may only separate a device tag from its sentence)"
+            self.report.reject(fr, number, "binary", reason, raw)
+            return
+        sentences = [s for s in _SENTENCE_START_RE.split(text) if s]
+        clock = self.clocks.setdefault(device, DeviceClock())
+        role = self.roles.get(device, "")
+        errors: list[tuple[int, SentenceError]] = []
+        rows = 0
+        for k, sentence in enumerate(sentences, start=1):
+            try:
+                fix = decode_sentence(sentence, clock)
+            except SentenceError as exc:
+                errors.append((k, exc))
+                continue
+            if fix is None:
+                continue
+            rows += 1
+            self.rows.add(
+                time_ns=fix.time_ns,
+                device=device,
+                role=role,
+                lat=fix.lat,
+                lon=fix.lon,
+                speed_mps=fix.speed_mps,
+                course_deg=fix.course_deg,
+                valid=fix.valid,
+                source="nmea",
+                sentence=fix.sentence,
+                file=fr.file,
+                line=number,
+            )
+        if errors:
+            k, first = errors[0]
+            where = f"sentence {k} of {len(sentences)} on this line: " if len(sentences) > 1 else ""
+            self.report.reject(fr, number, first.category, where + first.reason, raw)
+        elif rows:
+            fr.records += 1
+        else:
+            fr.blank += 1
+
+
+def parse_nmea(
+    paths: Iterable[Path | str], *, roles: Mapping[str, str] | None = None
+) -> tuple[pd.DataFrame, ParseReport]:
+    """Parse NMEA 0183 logs into one fix table (:data:`FIX_COLUMNS`, file order) and a report.
+
+    ``roles`` maps device ids (file stems or line tags) to ``"head"`` or
+    ``"eot"``; ValueError for any other role.  InputError for an unreadable
+    file.
+    """
+    report = ParseReport()
+    parser = NmeaParser(report, roles)
+    for path in paths:
+        parser.parse_file(Path(path))
+    report.check()
+    return parser.rows.frame(), report

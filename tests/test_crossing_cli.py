@@ -1,0 +1,108 @@
+"""`trackside crossing` and `trackside gnss` on the shipped samples (sample_logs/README.md)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from console.analysis.crossing import ControllerSettings, CrossingController, Fix, TrainSpec
+from console.analysis.crossing_timeline import timeline
+from console.cli import app
+from console.layout import load_layout
+
+runner = CliRunner()
+TRAINS = ["--train", "A=A-head,A-eot,120", "--train", "B=B-head,B-eot,300"]
+
+
+def _crossing(samples: Path, *args: str, path: Path | None = None) -> dict:
+    res = runner.invoke(
+        app, ["crossing", str(path or samples / "crossing_example.csv"), "--layout", "example", "--json", *args]
+    )
+    assert res.exit_code == 0, res.output
+    return json.loads(res.stdout)
+
+
+def test_both_trains_at_both_crossings_switch_off_on_eot_evidence(samples: Path) -> None:
+    doc = _crossing(samples, *TRAINS)
+    assert doc["violations"] == 0
+    rows = {(r["crossing"], r["train"]): r for r in doc["timelines"]}
+    assert set(rows) == {("11+850", "A"), ("11+850", "B"), ("12+940", "A"), ("12+940", "B")}
+    for (code, _), r in rows.items():
+        warning = 70 if code == "11+850" else 60
+        assert r["lead_time_s"] >= warning
+        assert 0 <= r["excess_warning_s"] <= 15  # fixes every 5 or 10 s
+        assert r["reason_off"].startswith("EOT") and not r["violations"]
+
+
+def test_fixed_time_baseline_would_open_with_the_tail_on_the_road(samples: Path) -> None:
+    # Train B stops with its tail on 12+940: the baseline switches off after length / speed + 10 s.
+    r = next(r for r in _crossing(samples, *TRAINS)["timelines"] if (r["crossing"], r["train"]) == ("12+940", "B"))
+    assert r["baseline_early_s"] > 60
+
+
+def test_trains_pair_by_device_name_without_options(samples: Path) -> None:
+    doc = _crossing(samples)
+    assert [t["train"] for t in doc["trains"]] == ["A", "B"]
+    assert doc["violations"] == 0
+
+
+def test_without_eot_fixes_the_warning_is_held_on_with_an_alarm(samples: Path, tmp_path: Path) -> None:
+    lines = (samples / "crossing_example.csv").read_text().splitlines()
+    no_eot = tmp_path / "no_eot.csv"
+    no_eot.write_text("\n".join(line for line in lines if ",A-eot," not in line) + "\n")
+    doc = _crossing(samples, *TRAINS, path=no_eot)
+    a = [r for r in doc["timelines"] if r["train"] == "A"]
+    assert a and all(r["t_off"] is None and "held on" in r["reason_off"] for r in a)
+    assert any(e["kind"] == "alarm" and e["train"] == "A" for e in doc["events"])
+    assert doc["violations"] == 0
+
+
+def test_crossing_usage_errors_are_exit_2(samples: Path) -> None:
+    csv = str(samples / "crossing_example.csv")
+    assert runner.invoke(app, ["crossing", csv, "--layout", "osong"]).exit_code == 2  # no crossings
+    res = runner.invoke(app, ["crossing", csv, "--layout", "example", "--train", "A=onlyhead"])
+    assert res.exit_code == 2 and "TRAIN=HEAD_DEVICE,EOT_DEVICE" in res.stderr
+
+
+def test_crossing_table_lists_violations_first(samples: Path) -> None:
+    res = runner.invoke(app, ["crossing", str(samples / "crossing_example.csv"), "--layout", "example", *TRAINS])
+    assert res.exit_code == 0
+    assert "SAFETY VIOLATIONS" not in res.output and "120 early" in res.output
+
+
+def test_timeline_reports_a_late_switch_off_as_a_violation() -> None:
+    # A controller that was told the tail passed while its fixes show it still on the road.
+    crossing = load_layout("example").crossings[0]
+    ctl = CrossingController(crossing, [TrainSpec("T", 100.0)])
+    c = crossing.chainage_m
+    fixes = [
+        Fix(0, 0, "T", "head", c - 3000, 20.0),
+        Fix(10**9, 10**9, "T", "head", c - 2980, 20.0),
+        Fix(50 * 10**9, 50 * 10**9, "T", "head", c - 2000, 20.0),
+    ]
+    for f in fixes:
+        ctl.step(f)
+    fixes += [
+        Fix(150 * 10**9, 150 * 10**9, "T", "eot", c - 50, 20.0),
+        Fix(160 * 10**9, 160 * 10**9, "T", "eot", c + 150, 20.0),
+    ]
+    tr = ctl.tracks["T"]
+    tr.warned, tr.t_off = False, 151 * 10**9  # switched off before the EOT crossed: must be a violation
+    (row,) = timeline(ctl, fixes, ControllerSettings())
+    assert "warning off before the tail cleared the crossing" in row.violations
+
+
+@pytest.mark.parametrize("name", ["seed004_table1.tsv", "gnss_devices.csv", "gnss_devices.jsonl"])
+def test_gnss_command_decodes_the_samples(samples: Path, name: str) -> None:
+    res = runner.invoke(app, ["gnss", str(samples / name), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["fixes"] and doc["parse_report"]["rejected"] == 0
+    for key in ("time", "lat", "lon", "speed_mps", "course_deg", "valid", "device", "file", "line"):
+        assert key in doc["fixes"][0]
+    if name == "seed004_table1.tsv":
+        assert [round(f["speed_mps"] * 3.6, 1) for f in doc["fixes"]][:2] == [55.6, 55.6]
+        assert doc["fixes"][0]["time"].startswith("2026-01-19T17:05:21")
