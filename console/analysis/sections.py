@@ -3,7 +3,9 @@
 States:
 
 * ``clear`` — counts balance (in = out) and nothing is in doubt;
-* ``occupied`` — axles counted in and not yet out, or held by a suspected
+* ``occupied`` — axles counted in and not yet out; or a bounding head
+  damped right now (as a real counting head reports occupation the moment
+  it is damped, before the axle is confirmed); or held by a suspected
   interference pulse (seed 002's soft timing) until it is confirmed
   accidental;
 * ``disturbed`` — the count cannot be trusted: count underflow (more out
@@ -163,7 +165,13 @@ class SectionEngine:
         if s.count > 0:
             return self._set(s, SectionState.OCCUPIED, t, reason)
         if s.held_by:
-            return self._set(s, SectionState.OCCUPIED, t, f"held: isolated pulse at {', '.join(sorted(s.held_by))}")
+            what = sorted(s.held_by)
+            why = (
+                f"held: {', '.join(what)}"
+                if any("damped" in h for h in what)
+                else f"held: isolated pulse at {', '.join(what)}"
+            )
+            return self._set(s, SectionState.OCCUPIED, t, why)
         return self._set(s, SectionState.CLEAR, t, "counts balance")
 
     def step(self, e: DetectionEvent) -> list[Transition]:
@@ -212,9 +220,18 @@ class SectionEngine:
         elif k is EventKind.POWER_RESTORED:
             self.powerless.discard(e.head)  # the sections stay disturbed until a reset
         elif k is EventKind.HEAD_DAMPED:
+            # As a real counting head does: occupied the moment it is damped,
+            # before the axle is (or is not) confirmed.
             self.damped.add(e.head)
+            for s, _ in secs:
+                s.held_by.add(f"{e.head} damped")
+                if s.state is SectionState.CLEAR:
+                    out.append(self._set(s, SectionState.OCCUPIED, t, f"head {e.head} damped"))
         elif k is EventKind.HEAD_FREE:
             self.damped.discard(e.head)
+            for s, _ in secs:
+                s.held_by.discard(f"{e.head} damped")
+                out.append(self._settle(s, t, f"axles counted in: {s.count}"))
         elif k is EventKind.INTERFERENCE:
             for s, _ in secs:
                 s.held_by.add(e.head)
@@ -236,7 +253,8 @@ class SectionEngine:
             self.resets.append(ResetRecord(e.time_ns, sid, False, why))
             return None
         s = self.sections[sid]
-        s.count, s.swept_in, s.held_by = 0, False, set()
+        s.count, s.swept_in = 0, False
+        s.held_by = {h for h in s.held_by if h.endswith("damped")}
         self.resets.append(ResetRecord(e.time_ns, sid, True, "preconditions hold: waiting for a sweep train"))
         return self._set(s, SectionState.PREPARATORY, e.time_ns, "reset accepted: waiting for a sweep train")
 

@@ -168,44 +168,131 @@ def soft_timing(
     return out
 
 
-def _intervals(times: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-    """Damping intervals [on, off) of one channel from its 1/0 records.
+class HeadCounter:
+    """Seed 003's two-channel overlap rule for one counting head, as a stream.
 
-    Returns (on, off, has_releases).  An onset never released ends at +inf
-    (still damped when the log ends).  Without any release record (a log of
-    onsets only) every onset is a point interval.
+    Feed the head's wheel-sensor records in time order with :meth:`feed`
+    (channel, time, 1 = damped / 0 = free) and let time pass with
+    :meth:`advance`; both return the detection events they settle.  The same
+    object runs over a parsed log (batch: :func:`two_channel_events`) and
+    inside the simulator (live), so both apply the same rules:
+
+    * an axle counts when one system's damping starts while the other's is
+      still on (they overlap); the order of the two onsets gives the
+      direction.  Without release records (``point_mode``: the paper's
+      whole-second exports) onsets pair within ``pair_window_s`` instead;
+    * a damping of one system alone is not an axle.  Seed 002's soft timing
+      decides what it is: with nothing else at the head for ``isolation_s``
+      before it, it holds the section (INTERFERENCE) and is confirmed
+      accidental (ACCIDENTAL) once ``isolation_s`` passes quietly after it;
+      activity inside that window makes it a possibly missed axle
+      (SINGLE_CHANNEL), as does a lone damping amid other activity.  A lone
+      damping is known at its release (or when the pairing window closes),
+      and its event carries that time;
+    * HEAD_DAMPED / HEAD_FREE bracket every time anything is over the head.
     """
-    order = np.argsort(times, kind="stable")
-    t, v = times[order], values[order]
-    prev = np.r_[0, v[:-1]]
-    on = t[(v == 1) & (prev != 1)]
-    has_releases = bool((v == 0).any())
-    if not has_releases:
-        return on, on.copy(), False
-    rel = t[(v == 0) & (prev == 1)]
-    idx = np.searchsorted(rel, on, side="left")
-    off = np.where(idx < len(rel), rel[np.minimum(idx, max(len(rel) - 1, 0))], np.iinfo(np.int64).max)
-    return on, off, True
 
+    def __init__(
+        self,
+        head: str,
+        *,
+        up_is_sys1_first: bool = True,
+        settings: CountingSettings | None = None,
+        point_mode: bool = False,
+        source: str = "diag",
+    ) -> None:
+        self.head, self.up_first, self.point_mode, self.source = head, up_is_sys1_first, point_mode, source
+        self.s = settings or CountingSettings()
+        self.iso = int(self.s.isolation_s * NS)
+        self.tol = int(self.s.pair_window_s * NS)
+        # Per channel: onset of the current damping, whether it is part of an
+        # axle, and the head's previous activity when it began.
+        self.open: dict[int, int | None] = {SYS1: None, SYS2: None}
+        self.paired: dict[int, bool] = {SYS1: False, SYS2: False}
+        self.before: dict[int, int | None] = {SYS1: None, SYS2: None}
+        self.pending: list[tuple[int, int, int | None]] = []  # point mode: (onset, channel, previous activity)
+        self.holds: list[tuple[int, int]] = []  # (pulse onset, channel) held as interference
+        self.last_onset: int | None = None
 
-def _overlap_pairs(on1: np.ndarray, off1: np.ndarray, on2: np.ndarray, off2: np.ndarray, tol_ns: int) -> np.ndarray:
-    """For each Sys1 interval, the first Sys2 interval overlapping it (±tol), else -1.
+    def _ev(
+        self, t: int, kind: EventKind, direction: int = 0, channel: int | None = None, detail: str = ""
+    ) -> DetectionEvent:
+        return DetectionEvent(t, kind, self.head, direction, channel, self.source, detail)
 
-    Intervals of one channel are disjoint and sorted, so the candidates form a
-    contiguous run found with two binary searches.
-    """
-    if len(on2) == 0:
-        return np.full(len(on1), -1, np.int64)
-    lo = np.searchsorted(off2 + tol_ns, on1, side="left")  # first Sys2 ending at/after on1
-    hi = np.searchsorted(on2 - tol_ns, off1, side="right")  # Sys2 starting up to off1
-    match = np.where(lo < hi, lo, -1)
-    # One to one: a Sys2 interval claimed twice keeps its first claimant.
-    claimed = np.flatnonzero(match >= 0)
-    _, first = np.unique(match[claimed], return_index=True)
-    keep = np.zeros(len(match), bool)
-    keep[claimed[first]] = True
-    match[~keep] = -1
-    return match
+    def _axle(self, t_first: int, ch_first: int, t_second: int) -> DetectionEvent:
+        order = 0 if t_first == t_second else (1 if ch_first == SYS1 else -1)  # +1: Sys1 first
+        direction = order if self.up_first else -order
+        t1, t2 = (t_first, t_second) if ch_first == SYS1 else (t_second, t_first)
+        return self._ev(max(t_first, t_second), EventKind.AXLE, direction, None, f"Sys1 {t1} Sys2 {t2}")
+
+    def _lone(self, t_on: int, ch: int, now: int, before: int | None) -> DetectionEvent:
+        """A damping of one system alone, settled at ``now``."""
+        if before is not None and t_on - before <= self.iso:
+            return self._ev(now, EventKind.SINGLE_CHANNEL, 0, ch, "one system damped")
+        self.holds.append((t_on, ch))
+        return self._ev(now, EventKind.INTERFERENCE, 0, ch, "isolated pulse: held")
+
+    def advance(self, t: int) -> list[DetectionEvent]:
+        """Let time pass to ``t``: close pairing windows, confirm quiet holds."""
+        out: list[DetectionEvent] = []
+        while self.pending and self.pending[0][0] + self.tol < t:
+            t_on, ch, before = self.pending.pop(0)
+            out.append(self._lone(t_on, ch, t_on + self.tol, before))
+        if self.holds:
+            due = [h for h in self.holds if h[0] + self.iso <= t]
+            self.holds = [h for h in self.holds if h[0] + self.iso > t]
+            detail = f"nothing else within {self.s.isolation_s:g} s: accidental"
+            out += [self._ev(t_on + self.iso, EventKind.ACCIDENTAL, 0, ch, detail) for t_on, ch in due]
+        return out
+
+    def feed(self, ch: int, t: int, value: int) -> list[DetectionEvent]:
+        """One wheel-sensor record of this head; records must come in time order."""
+        if ch not in (SYS1, SYS2):
+            return []
+        out = self.advance(t)
+        other = SYS2 if ch == SYS1 else SYS1
+        if value == 1:
+            if self.open[ch] is not None:
+                return out  # already damped: a repeated onset
+            before, self.last_onset = self.last_onset, t
+            if self.holds:  # activity during a hold: the held pulse may have been a missed wheel
+                for t_pulse, hch in self.holds:
+                    gap = (t - t_pulse) / NS
+                    out.append(
+                        self._ev(t, EventKind.SINGLE_CHANNEL, 0, hch, f"activity {gap:.1f} s after an isolated pulse")
+                    )
+                self.holds = []
+            if self.point_mode:
+                partner = next((p for p in self.pending if p[1] == other and t - p[0] <= self.tol), None)
+                if partner is not None:
+                    self.pending.remove(partner)
+                    out.append(self._axle(partner[0], other, t))
+                else:
+                    self.pending.append((t, ch, before))
+                return out
+            if self.open[other] is None:
+                out.append(self._ev(t, EventKind.HEAD_DAMPED))
+            o = self.open[other]
+            if o is not None and not self.paired[other]:
+                out.append(self._axle(o, other, t))
+                self.paired[other] = self.paired[ch] = True
+            self.open[ch], self.before[ch] = t, before
+        else:
+            t_on = self.open[ch]
+            if t_on is None:
+                return out
+            if not self.paired[ch]:
+                out.append(self._lone(t_on, ch, t, self.before[ch]))
+            self.open[ch], self.paired[ch] = None, False
+            if self.open[other] is None:
+                out.append(self._ev(t, EventKind.HEAD_FREE))
+        return out
+
+    def flush(self) -> list[DetectionEvent]:
+        """End of input: settle everything still open in time."""
+        if self.last_onset is None:
+            return []
+        return self.advance(self.last_onset + self.iso + self.tol + 1)
 
 
 def two_channel_events(
@@ -218,48 +305,12 @@ def two_channel_events(
     settings: CountingSettings | None = None,
     source: str = "diag",
 ) -> list[DetectionEvent]:
-    """Seed 003's rule for one head: an axle counts when Sys1 and Sys2 are damped
-    with an overlap; the onset order gives the direction.
-
-    A damping of one system only is not an axle.  If it is isolated (nothing
-    else at the head within ``isolation_s``) it is seed 002's accidental
-    pulse: INTERFERENCE (hold the section occupied) then ACCIDENTAL once the
-    quiet time has passed.  Next to other activity it may be a missed axle:
-    SINGLE_CHANNEL, which disturbs the section.  HEAD_DAMPED / HEAD_FREE
-    bracket every time anything is over the head.
-    """
-    s = settings or CountingSettings()
-    c1, c2 = channel == SYS1, channel == SYS2
-    on1, off1, rel1 = _intervals(time_ns[c1], value[c1])
-    on2, off2, rel2 = _intervals(time_ns[c2], value[c2])
-    tol = 0 if (rel1 and rel2) else int(s.pair_window_s * NS)
-    match = _overlap_pairs(on1, off1, on2, off2, tol)
-    events: list[DetectionEvent] = []
-    paired2 = np.zeros(len(on2), bool)
-    for i in np.flatnonzero(match >= 0):
-        j = match[i]
-        paired2[j] = True
-        t1, t2 = int(on1[i]), int(on2[j])
-        order = 0 if t1 == t2 else (1 if t1 < t2 else -1)  # +1: Sys1 first
-        direction = order if up_is_sys1_first else -order
-        events.append(
-            DetectionEvent(max(t1, t2), EventKind.AXLE, head, direction, None, source, f"Sys1 {t1} Sys2 {t2}")
-        )
-    lone = [(int(t), SYS1) for t in on1[match < 0]] + [(int(t), SYS2) for t in on2[~paired2]]
-    events += soft_timing(head, lone, np.sort(np.r_[on1, on2]), s, source)
-    # Head damped while any interval of either system is open (release mode only):
-    # the union of the intervals, vectorized with a running maximum of ends.
-    if rel1 or rel2:
-        never = np.iinfo(np.int64).max
-        order_idx = np.argsort(np.r_[on1, on2], kind="stable")
-        starts, ends = np.r_[on1, on2][order_idx], np.r_[off1, off2][order_idx]
-        if len(starts):
-            reach = np.maximum.accumulate(ends)
-            new = np.r_[True, starts[1:] > reach[:-1]]
-            group_start = starts[new]
-            group_end = reach[np.r_[np.flatnonzero(new)[1:] - 1, len(starts) - 1]]
-            for a0, b0 in zip(group_start.tolist(), group_end.tolist(), strict=True):
-                events.append(DetectionEvent(a0, EventKind.HEAD_DAMPED, head, 0, None, source))
-                if b0 != never:
-                    events.append(DetectionEvent(b0, EventKind.HEAD_FREE, head, 0, None, source))
-    return events
+    """Batch: one head's records through a :class:`HeadCounter` (the rules are there)."""
+    order = np.argsort(time_ns, kind="stable")
+    point_mode = not bool((value == 0).any())
+    hc = HeadCounter(head, up_is_sys1_first=up_is_sys1_first, settings=settings, point_mode=point_mode, source=source)
+    out: list[DetectionEvent] = []
+    for ch, t, v in zip(channel[order].tolist(), time_ns[order].tolist(), value[order].tolist(), strict=True):
+        out += hc.feed(int(ch), int(t), int(v))  # per wheel record: the rules are sequential
+    out += hc.flush()
+    return sorted(out, key=lambda e: e.time_ns)
