@@ -148,6 +148,10 @@ class CrossingController:
         self.tracks = {t.train: _Track(t) for t in trains}
         self.events: list[CrossingEvent] = []
 
+    def add_train(self, spec: TrainSpec) -> None:
+        """Start following a train (a live unit learns of trains as they are registered)."""
+        self.tracks.setdefault(spec.train, _Track(spec))
+
     @property
     def warning_on(self) -> bool:
         return any(t.warned for t in self.tracks.values())

@@ -1,0 +1,540 @@
+"""The simulated line: trains, counting heads, GNSS units, faults, and the live console.
+
+:class:`StationSim` is deterministic for a seed and advanced by one pure
+call, :meth:`StationSim.step` (the live view calls it; tests step it by
+hand).  Each step:
+
+1. trains move under their speed control along the speed limits, platform
+   stops and the train ahead (a simple protection rule keeps followers
+   behind and opposing trains off the line);
+2. every wheel passing a counting head damps Sys1 and Sys2 over the
+   detection zone: onset and release times are interpolated exactly inside
+   the step; faults on demand alter what the heads *report*;
+3. head and EOT GNSS units report fixes every radio report period (LoRa
+   duty cycle), with noise, loss and latency;
+4. the **console** runs live on those reports only: a streaming
+   :class:`~console.analysis.wheels.HeadCounter` per head feeds the
+   :class:`~console.analysis.sections.SectionEngine`; projected fixes feed
+   one :class:`~console.analysis.crossing.CrossingController` per crossing;
+5. the **truth** (every axle at every head, true section occupancy, true
+   head and tail times at crossings) is kept beside it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, CrossingEvent, Fix, TrainSpec
+from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.geo import TrackProjector
+from console.analysis.sections import SectionEngine, SectionState, Transition
+from console.analysis.wheels import SYS1, SYS2, CountingSettings, HeadCounter
+from console.layout import Consist, Layout
+from console.sim.radio import LoRaLink
+
+NS = 1_000_000_000
+DETECTION_ZONE_M = 0.25  # a wheel damps a coil over this length of travel
+FAULT_KINDS = (
+    "dead_channel",
+    "isolated_pulse",
+    "damped_head",
+    "power_loss",
+    "missed_detections",
+    "eot_loss",
+    "head_loss",
+)
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A fault on demand.  ``target``: a head id (sensor faults) or a train id (GNSS unit losses)."""
+
+    kind: str
+    target: str
+    start_s: float
+    end_s: float = math.inf
+    channel: int = SYS2
+    probability: float = 0.2  # missed_detections: the share of one system's wheels missed
+
+    def active(self, t_s: float) -> bool:
+        return self.start_s <= t_s < self.end_s
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    seed: int = 1
+    trains_per_hour: float = 6.0
+    first_train_s: float = 60.0
+    dwell_s: float = 30.0
+    accel_mps2: float = 0.6
+    brake_mps2: float = 0.7
+    gnss_noise_m: float = 3.0
+    gnss_loss: float = 0.05
+    radio: LoRaLink = field(default_factory=LoRaLink)
+    heartbeat_s: float = 20.0  # each head's device writes a status record this often
+    faults: tuple[Fault, ...] = ()
+    start_ns: int = 1_772_438_400 * NS  # 2026-03-02 08:00 UTC
+
+
+@dataclass
+class SimTrain:
+    id: str
+    consist: Consist
+    direction: int
+    x_m: float  # head chainage
+    v_mps: float = 0.0
+    entered_s: float = 0.0
+    dwell_until_s: float | None = None
+    stops: list[float] = field(default_factory=list)  # head chainages to stop at, in order
+    done: bool = False
+    next_head_fix_s: float = 0.0
+    next_eot_fix_s: float = 0.0
+
+    @property
+    def tail_m(self) -> float:
+        return self.x_m - self.direction * self.consist.length_m
+
+
+@dataclass(frozen=True)
+class TruthAxle:
+    """One wheel passing one head's centre, as it really happened."""
+
+    train: str
+    head: str
+    axle: int
+    time_ns: int
+    speed_mps: float
+    direction: int
+
+
+@dataclass(frozen=True)
+class WheelRecord:
+    t_ns: int
+    head: str
+    channel: int
+    value: int  # 1 damped, 0 free
+
+
+@dataclass(frozen=True)
+class SentFix:
+    """A GNSS fix as a unit sends it (written to NMEA; the console gets it after the latency)."""
+
+    t_ns: int
+    train: str
+    role: str
+    lat: float
+    lon: float
+    speed_mps: float
+    course_deg: float
+    valid: bool
+
+
+@dataclass
+class StepResult:
+    records: list[WheelRecord]
+    detection_events: list[DetectionEvent]
+    transitions: list[Transition]
+    crossing_events: list[CrossingEvent]
+    fixes: list[SentFix]
+
+
+class StationSim:
+    """A line with trains and a live console.  ``step(dt)`` advances it."""
+
+    def __init__(
+        self, layout: Layout, config: SimConfig | None = None, motion: Callable[..., tuple[float, float]] | None = None
+    ) -> None:
+        if len(layout.track) < 2:
+            raise ValueError(f"{layout.source}: the simulator needs a [[track]] polyline")
+        self.layout = layout
+        self.cfg = config or SimConfig()
+        self.rng = np.random.default_rng(self.cfg.seed)
+        self.t_s = 0.0
+        self.proj = TrackProjector(layout.track)
+        ch = [p.chainage_m for p in layout.track]
+        self.line_start, self.line_end = min(ch), max(ch)
+        self.trains: list[SimTrain] = []
+        self._spawned = 0
+        self._next_spawn_s = self.cfg.first_train_s
+        self.faults: list[Fault] = list(self.cfg.faults)
+        self.motion = motion or kinematic_motion
+        self.period_s = self.cfg.radio.report_period_s()
+        self.latency_s = self.cfg.radio.latency_s()
+        # The console: live analysis on reports only.
+        counting = CountingSettings()
+        self.counters = {
+            h.id: HeadCounter(h.id, up_is_sys1_first=h.up_is_first_channel_first, settings=counting, source="sim")
+            for h in layout.heads
+        }
+        self.engine = SectionEngine(layout, initial=SectionState.CLEAR, start_ns=self.cfg.start_ns)
+        self.ctl_settings = ControllerSettings(
+            report_period_s=self.period_s,
+            latency_s=self.latency_s + 0.5,
+            line_speed_mps=layout.line_speed_mps,
+            accel_mps2=self.cfg.accel_mps2,
+            stale_after_s=max(30.0, 4 * self.period_s),
+        )
+        self.crossings = {c.code: CrossingController(c, [], self.ctl_settings) for c in layout.crossings}
+        self._inbox: list[tuple[int, Fix]] = []  # fixes in flight to the crossing units
+        self._next_heartbeat_s = 0.0
+        self._swallowed: set[tuple[str, int]] = set()  # (head, channel) whose onset a fault removed
+        # The truth.
+        self.truth_axles: list[TruthAxle] = []
+        self.truth_sections: dict[str, list[tuple[int, int]]] = {
+            s.id: [(self.cfg.start_ns, 0)] for s in layout.sections
+        }
+        self.truth_crossings: list[dict[str, object]] = []
+        self._crossing_seen: dict[tuple[str, str], dict[str, object]] = {}
+        # Everything reported, for the writers.
+        self.all_records: list[WheelRecord] = []
+        self.heartbeats: list[tuple[int, str]] = []
+        self.all_fixes: list[SentFix] = []
+        self.axle_events: list[DetectionEvent] = []  # the console's counted axles (for the frame writer)
+        self.injected: list[tuple[int, Fault]] = [(self.cfg.start_ns + int(f.start_s * NS), f) for f in self.faults]
+
+    # -- public API --------------------------------------------------------
+    @property
+    def now_ns(self) -> int:
+        return self.cfg.start_ns + round(self.t_s * NS)
+
+    def inject(self, fault: Fault) -> None:
+        """Add a fault from now on (the live view's fault keys)."""
+        self.faults.append(fault)
+        self.injected.append((self.now_ns, fault))
+
+    def add_train(self, consist_id: str | None = None, direction: int | None = None) -> SimTrain | None:
+        """A train enters now (or as soon as the line allows)."""
+        return self._spawn(consist_id, direction)
+
+    def reset_section(self, section_id: str) -> tuple[bool, str]:
+        """An operator reset: accepted or refused, with the reason."""
+        self.engine.step(DetectionEvent(self.now_ns, EventKind.RESET, section_id, source="operator"))
+        r = self.engine.resets[-1]
+        return r.accepted, r.reason
+
+    def true_count(self, section_id: str) -> int:
+        return self.truth_sections[section_id][-1][1]
+
+    def step(self, dt_s: float) -> StepResult:
+        """Advance the simulation by ``dt_s`` seconds."""
+        t0, t1 = self.t_s, self.t_s + dt_s
+        if t1 >= self._next_spawn_s:
+            self._spawn(None, None)
+            interval = 3600.0 / self.cfg.trains_per_hour
+            self._next_spawn_s += interval * float(self.rng.uniform(0.8, 1.2))
+        records: list[WheelRecord] = []
+        fixes: list[SentFix] = []
+        for tr in self.trains:
+            if tr.done:
+                continue
+            x0, v0 = tr.x_m, tr.v_mps
+            target = self._target_speed(tr, t0)
+            tr.x_m, tr.v_mps = self.motion(tr, target, dt_s, self.cfg)
+            if tr.dwell_until_s is not None and t1 >= tr.dwell_until_s:
+                tr.dwell_until_s = None
+            self._stop_check(tr, t1)
+            records += self._wheels(tr, x0, tr.x_m, t0, t1, v0)
+            fixes += self._gnss(tr, t0, t1, x0)
+            if (tr.direction > 0 and tr.tail_m > self.line_end + 50) or (
+                tr.direction < 0 and tr.tail_m < self.line_start - 50
+            ):
+                tr.done = True
+        records += self._sensor_faults(t0, t1)
+        records = self._reported(records, t0)
+        records.sort(key=lambda r: (r.t_ns, r.head, r.channel))
+        self.all_records += records
+        self._heartbeat(t1)
+        events = self._console_records(records, t1)
+        self.axle_events += [e for e in events if e.kind is EventKind.AXLE]
+        transitions = []
+        for e in events:
+            transitions += self.engine.step(e)
+        crossing_events = self._console_fixes(fixes, t1)
+        self.all_fixes += fixes
+        self.t_s = t1
+        return StepResult(records, events, transitions, crossing_events, fixes)
+
+    def run(self, duration_s: float, dt_s: float = 0.5, on_step: Callable[[float], None] | None = None) -> None:
+        """Headless: step until ``duration_s``, with larger steps while the line is empty."""
+        while self.t_s < duration_s:
+            busy = any(not t.done for t in self.trains) or self.t_s + 1.0 >= self._next_spawn_s
+            dt = dt_s if busy else min(5.0, max(dt_s, self._next_spawn_s - self.t_s - 1.0))
+            dt = min(dt, duration_s - self.t_s)
+            self.step(dt)
+            if on_step is not None:
+                on_step(self.t_s)
+        self.finish()
+
+    def finish(self) -> None:
+        """Settle the console's pending timers (end of a run)."""
+        end = self.now_ns
+        for hc in self.counters.values():
+            for e in hc.advance(end):
+                self.engine.step(e)
+        for ctl in self.crossings.values():
+            ctl.tick(end)
+
+    # -- trains --------------------------------------------------------------
+    def _spawn(self, consist_id: str | None, direction: int | None) -> SimTrain | None:
+        consists = self.layout.consists
+        if not consists:
+            raise ValueError(f"{self.layout.source}: the simulator needs [[consists]]")
+        k = self._spawned
+        consist = next((c for c in consists if c.id == consist_id), consists[k % len(consists)])
+        d = direction if direction in (1, -1) else (1 if k % 2 == 0 else -1)
+        # Dispatcher rule: no train enters against another still on the line.
+        if any(not t.done and t.direction != d for t in self.trains):
+            self._next_spawn_s = self.t_s + 30.0
+            return None
+        self._spawned += 1
+        start = self.line_start - 300.0 if d > 0 else self.line_end + 300.0
+        stops = sorted(((p.to_m - 15.0) if d > 0 else (p.from_m + 15.0) for p in self.layout.platforms), reverse=d < 0)
+        tr = SimTrain(f"T{k + 1}", consist, d, start, 0.0, self.t_s, stops=stops)
+        tr.v_mps = min(self.layout.line_speed_mps, self._limit(tr, start))
+        tr.next_head_fix_s = self.t_s + float(self.rng.uniform(0, self.period_s))
+        tr.next_eot_fix_s = self.t_s + float(self.rng.uniform(0, self.period_s))
+        self.trains.append(tr)
+        for ctl in self.crossings.values():
+            ctl.add_train(TrainSpec(tr.id, consist.length_m))
+        return tr
+
+    def _limit(self, tr: SimTrain, x: float) -> float:
+        """The speed limit for the whole train at head position x."""
+        lo, hi = sorted((x, x - tr.direction * tr.consist.length_m))
+        v = self.layout.line_speed_mps
+        for lim in self.layout.speed_limits:
+            if lim.to_m > lo and lim.from_m < hi:
+                v = min(v, lim.limit_mps)
+        return v
+
+    def _target_speed(self, tr: SimTrain, t_s: float) -> float:
+        if tr.dwell_until_s is not None:
+            return 0.0
+        b = self.cfg.brake_mps2 * 0.8  # plan with a margin on the service brake
+        v = self._limit(tr, tr.x_m)
+        # Lower limits ahead and the next stop: the speed from which the train can still brake.
+        for lim in self.layout.speed_limits:
+            edge = lim.from_m if tr.direction > 0 else lim.to_m
+            dist = tr.direction * (edge - tr.x_m)
+            if 0 < dist < 2000 and lim.limit_mps < v:
+                v = min(v, math.sqrt(lim.limit_mps**2 + 2 * b * dist))
+        if tr.stops:
+            dist = tr.direction * (tr.stops[0] - tr.x_m)
+            v = min(v, math.sqrt(max(0.0, 2 * b * max(dist - 1.0, 0.0))))
+        # Protection: stay 80 m behind the train ahead.
+        for other in self.trains:
+            if other is tr or other.done or other.direction != tr.direction:
+                continue
+            gap = tr.direction * (other.tail_m - tr.x_m) - 80.0
+            if tr.direction * (other.x_m - tr.x_m) > 0:
+                v = min(v, math.sqrt(max(0.0, 2 * b * gap)) if gap > 0 else 0.0)
+        return v
+
+    def _stop_check(self, tr: SimTrain, t_s: float) -> None:
+        if tr.stops and tr.dwell_until_s is None:
+            dist = tr.direction * (tr.stops[0] - tr.x_m)
+            if dist < 2.0 and tr.v_mps < 0.3:
+                tr.v_mps = 0.0
+                tr.dwell_until_s = t_s + self.cfg.dwell_s
+                tr.stops.pop(0)
+
+    # -- counting heads -------------------------------------------------------
+    def _wheels(self, tr: SimTrain, x0: float, x1: float, t0: float, t1: float, v0: float) -> list[WheelRecord]:
+        """Onsets and releases of every coil the train's wheels passed in this step."""
+        out: list[WheelRecord] = []
+        if x1 == x0:
+            return out
+        axles = np.asarray(tr.consist.axles_m)
+        d = tr.direction
+        # The wheels run from the head back to the tail, behind the direction of travel.
+        ends = (x0, x1, x0 - d * tr.consist.length_m, x1 - d * tr.consist.length_m)
+        lo, hi = min(ends) - 1, max(ends) + 1
+        for head in self.layout.heads:
+            if not lo <= head.chainage_m <= hi:
+                continue
+            half = head.spacing_m / 2
+            # Sys1 sits on the side an up train reaches first when up is Sys1 first.
+            c1 = head.chainage_m - half if head.up_is_first_channel_first else head.chainage_m + half
+            coils = {SYS1: c1, SYS2: 2 * head.chainage_m - c1}
+            p0, p1 = x0 - d * axles, x1 - d * axles  # each axle's position before and after
+            for ch, c in coils.items():
+                for edge, value in ((c - d * DETECTION_ZONE_M / 2, 1), (c + d * DETECTION_ZONE_M / 2, 0)):
+                    crossed = (d * (p0 - edge) < 0) & (d * (p1 - edge) >= 0)
+                    for k in np.flatnonzero(crossed):
+                        frac = (edge - p0[k]) / (p1[k] - p0[k])
+                        t = t0 + frac * (t1 - t0)
+                        out.append(WheelRecord(self.cfg.start_ns + int(t * NS), head.id, ch, value))
+            # The truth: each wheel passing the head's centre.
+            passed = (d * (p0 - head.chainage_m) < 0) & (d * (p1 - head.chainage_m) >= 0)
+            for k in np.flatnonzero(passed):
+                frac = (head.chainage_m - p0[k]) / (p1[k] - p0[k])
+                self._truth_axle(tr, head.id, int(k), t0 + frac * (t1 - t0), v0 + (tr.v_mps - v0) * frac)
+        return out
+
+    def _truth_axle(self, tr: SimTrain, head: str, axle: int, t_s: float, v: float) -> None:
+        t_ns = self.cfg.start_ns + int(t_s * NS)
+        self.truth_axles.append(TruthAxle(tr.id, head, axle, t_ns, v, tr.direction))
+        for sec, sign in self.layout.sections_of(head):
+            n = self.truth_sections[sec.id][-1][1] + sign * tr.direction
+            self.truth_sections[sec.id].append((t_ns, n))
+
+    def _sensor_faults(self, t0: float, t1: float) -> list[WheelRecord]:
+        """Records that faults add: isolated pulses and damped heads."""
+        out = []
+        for f in self.faults:
+            if f.kind == "isolated_pulse" and t0 <= f.start_s < t1:
+                t = self.cfg.start_ns + int(f.start_s * NS)
+                out += [WheelRecord(t, f.target, f.channel, 1), WheelRecord(t + NS // 5, f.target, f.channel, 0)]
+            elif f.kind == "damped_head":
+                if t0 <= f.start_s < t1:
+                    out.append(WheelRecord(self.cfg.start_ns + int(f.start_s * NS), f.target, f.channel, 1))
+                if t0 <= f.end_s < t1:
+                    out.append(WheelRecord(self.cfg.start_ns + int(f.end_s * NS), f.target, f.channel, 0))
+        return out
+
+    def _reported(self, records: list[WheelRecord], t0: float) -> list[WheelRecord]:
+        """What the heads report, after dead channels, power loss and missed detections.
+
+        A damping whose onset a fault swallowed loses its release too (even in
+        a later step): a head never reports freeing a coil it never reported
+        damped.
+        """
+        keep = []
+        for r in sorted(records, key=lambda r: r.t_ns):
+            key = (r.head, r.channel)
+            if r.value == 0 and key in self._swallowed:
+                self._swallowed.discard(key)
+                continue
+            t_s = (r.t_ns - self.cfg.start_ns) / NS
+            drop = False
+            for f in self.faults:
+                if f.target != r.head or not f.active(t_s):
+                    continue
+                if f.kind == "power_loss" or (f.kind == "dead_channel" and f.channel == r.channel):
+                    drop = True
+                elif f.kind == "missed_detections" and f.channel == r.channel and r.value == 1:
+                    drop = bool(self.rng.random() < f.probability)
+            if drop and r.value == 1:
+                self._swallowed.add(key)
+            elif not drop:
+                keep.append(r)
+        return keep
+
+    def _heartbeat(self, t1: float) -> None:
+        while self._next_heartbeat_s <= t1:
+            t = self._next_heartbeat_s
+            for h in self.layout.heads:
+                dark = any(f.kind == "power_loss" and f.target == h.id and f.active(t) for f in self.faults)
+                if not dark:
+                    self.heartbeats.append((self.cfg.start_ns + int(t * NS), h.id))
+            self._next_heartbeat_s += self.cfg.heartbeat_s
+
+    # -- GNSS units -------------------------------------------------------------
+    def _gnss(self, tr: SimTrain, t0: float, t1: float, x0: float) -> list[SentFix]:
+        out = []
+        for role in (HEAD, EOT):
+            attr = "next_head_fix_s" if role == HEAD else "next_eot_fix_s"
+            while getattr(tr, attr) < t1:
+                t = getattr(tr, attr)
+                setattr(tr, attr, t + self.period_s)
+                lost = any(
+                    f.kind == ("head_loss" if role == HEAD else "eot_loss") and f.target == tr.id and f.active(t)
+                    for f in self.faults
+                )
+                if lost or t < t0:
+                    continue
+                frac = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
+                head_x = x0 + frac * (tr.x_m - x0)
+                x = head_x if role == HEAD else head_x - tr.direction * tr.consist.length_m
+                plat, plon = self.proj.position(x)
+                lat = float(plat[0]) + float(self.rng.normal(0, self.cfg.gnss_noise_m)) / self.proj.m_per_deg_lat
+                lon = float(plon[0]) + float(self.rng.normal(0, self.cfg.gnss_noise_m)) / self.proj.m_per_deg_lon
+                course = (self.proj.bearing_deg(x) + (0.0 if tr.direction > 0 else 180.0)) % 360.0
+                speed = max(0.0, tr.v_mps + float(self.rng.normal(0, 0.1)))
+                out.append(SentFix(self.cfg.start_ns + int(t * NS), tr.id, role, lat, lon, speed, course, True))
+        return out
+
+    def _console_fixes(self, sent: list[SentFix], t1: float) -> list[CrossingEvent]:
+        """Deliver fixes after the radio latency (losing some), then run the crossing units."""
+        for f in sent:
+            if self.rng.random() < self.cfg.gnss_loss:
+                continue
+            p = self.proj.project(f.lat, f.lon)
+            d = 1 if abs((f.course_deg - self.proj.bearing_deg(float(p.chainage_m[0])) + 540) % 360 - 180) < 90 else -1
+            fix = Fix(
+                f.t_ns + int(self.latency_s * NS),
+                f.t_ns,
+                f.train,
+                f.role,
+                float(p.chainage_m[0]),
+                f.speed_mps,
+                d if f.speed_mps > 1.0 else 0,
+            )
+            self._inbox.append((fix.t_ns, fix))
+        self._inbox.sort(key=lambda x: x[0])
+        now = self.cfg.start_ns + int(t1 * NS)
+        out: list[CrossingEvent] = []
+        while self._inbox and self._inbox[0][0] <= now:
+            _, fix = self._inbox.pop(0)
+            for ctl in self.crossings.values():
+                out += ctl.step(fix)
+        for ctl in self.crossings.values():
+            out += ctl.tick(now)
+        self._truth_crossings()
+        return out
+
+    def _truth_crossings(self) -> None:
+        half = self.ctl_settings.crossing_half_width_m
+        now = self.now_ns
+        for c in self.layout.crossings:
+            for tr in self.trains:
+                key = (c.code, tr.id)
+                rec = self._crossing_seen.get(key)
+                if rec is None:
+                    rec = self._crossing_seen[key] = {
+                        "crossing": c.code,
+                        "train": tr.id,
+                        "t_head_arrival_ns": None,
+                        "t_tail_clear_ns": None,
+                    }
+                    self.truth_crossings.append(rec)
+                if rec["t_head_arrival_ns"] is None and tr.direction * (tr.x_m - c.chainage_m) >= -half:
+                    rec["t_head_arrival_ns"] = now
+                if rec["t_tail_clear_ns"] is None and tr.direction * (tr.tail_m - c.chainage_m) >= half:
+                    rec["t_tail_clear_ns"] = now
+
+    # -- the console ---------------------------------------------------------
+    def _console_records(self, records: list[WheelRecord], t1: float) -> list[DetectionEvent]:
+        events: list[DetectionEvent] = []
+        for r in records:
+            events += self.counters[r.head].feed(r.channel, r.t_ns, r.value)
+        now = self.cfg.start_ns + int(t1 * NS)
+        for hc in self.counters.values():
+            events += hc.advance(now)
+        # Power loss is what the console sees as missing heartbeats; here, the fault's own event.
+        for when, f in self.injected:
+            if f.kind == "power_loss" and self.cfg.start_ns + int(self.t_s * NS) <= when < now:
+                events.append(DetectionEvent(when, EventKind.POWER_LOSS, f.target, source="sim", detail="no heartbeat"))
+            if f.kind == "power_loss" and math.isfinite(f.end_s):
+                back = self.cfg.start_ns + int(f.end_s * NS)
+                if self.cfg.start_ns + int(self.t_s * NS) <= back < now:
+                    events.append(DetectionEvent(back, EventKind.POWER_RESTORED, f.target, source="sim"))
+            if f.kind == "dead_channel" and self.cfg.start_ns + int(self.t_s * NS) <= when < now:
+                # The head's self-test reports the dead system (as the intelligent sensor's SES bit does).
+                events.append(DetectionEvent(when, EventKind.CHANNEL_FAULT, f.target, channel=f.channel, source="sim"))
+        events.sort(key=lambda e: e.time_ns)
+        return events
+
+
+def kinematic_motion(tr: SimTrain, target_mps: float, dt_s: float, cfg: SimConfig) -> tuple[float, float]:
+    """A bounded-acceleration point mass following the target speed (the default motion)."""
+    v0 = tr.v_mps
+    dv = target_mps - v0
+    a = min(cfg.accel_mps2, dv / dt_s) if dv > 0 else max(-cfg.brake_mps2, dv / dt_s)
+    v1 = max(0.0, v0 + a * dt_s)
+    x1 = tr.x_m + tr.direction * 0.5 * (v0 + v1) * dt_s
+    return x1, v1

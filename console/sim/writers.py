@@ -1,0 +1,297 @@
+"""Write a simulated run in the real formats, with its ground truth.
+
+Into one directory:
+
+* ``diagnostic.log`` — Frauscher-style records, the real grammar, millisecond
+  times: every wheel-sensor onset and release (Radsensor, Adr 026), a status
+  record (Adr 000) from each head's device every heartbeat, and an identity
+  dump per device at the start;
+* ``nmea/<train>-<role>.nmea`` — RMC and GGA sentences per GNSS unit (real
+  checksums), as the units send them;
+* ``gnss_devices.csv`` — the same fixes as a device stream;
+* ``centre.tsv`` — the monitoring-centre table of seed 004 (Vietnamese
+  header, decimal commas, newest first, one row per train every 10 s with
+  each crossing's warning state as the console saw it);
+* ``sensor_frames.txt`` — each head as an intelligent sensor (seed 002
+  frame: status byte and count, 0xA5 check byte while idle);
+* ``layout.toml`` — the layout the run used;
+* ``truth.json`` — every axle's time and speed at every head, every
+  section's true occupancy, every crossing's true head and tail times, the
+  trains, the faults injected, and the console's final section states.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from console.analysis.timefmt import iso
+from console.layout import BUILTIN, Layout
+from console.sim.station import NS, StationSim
+from parsers.frames import encode_status
+
+CHECK_BYTE = 0xA5
+CENTRE_PERIOD_S = 10.0
+IDENTITY = [
+    ("000", "Diagnose I", "2"),
+    ("002", "Bezeichnun", "'T'"),
+    ("003", "Bezeichnun", "'M'"),
+    ("004", "Bezeichnun", "'C'"),
+    ("012", "Typennum", "13"),
+    ("014", "Gerätestan", "3"),
+    ("016", "Seriennum", "4803"),
+    ("020", "CRC-Code", "0xD8"),
+    ("022", "Software V", "41"),
+]
+
+
+def _naive(t_ns: int) -> dt.datetime:
+    return dt.datetime(1970, 1, 1) + dt.timedelta(microseconds=t_ns // 1000)
+
+
+def _diag_line(device: int, head: str, ch: int, adr: str, label: str, data: str, t_ns: int) -> str:
+    t = _naive(t_ns)
+    return (
+        f"Diag_id:00002\tID:{device}\tDevice:IM\tType:013\tGS:GS03\tTrackinfo:{head}\tch:{ch}\tAdr:{adr}\t"
+        f"Label:{label}\tData:{data}\tDate:{t:%Y-%m-%d}\tTime:{t:%H:%M:%S}.{t.microsecond // 1000:03d}"
+    )
+
+
+def device_ids(layout: Layout) -> dict[str, int]:
+    """Each head's device id: the layout's, else 4081, 4082, … in layout order."""
+    return {h.id: h.device_id if h.device_id is not None else 4081 + i for i, h in enumerate(layout.heads)}
+
+
+def write_diagnostic(sim: StationSim, path: Path) -> int:
+    ids = device_ids(sim.layout)
+    rows: list[tuple[int, str]] = []
+    start = sim.cfg.start_ns
+    for h in sim.layout.heads:
+        rows += [(start, _diag_line(ids[h.id], h.id, 1, a, lab, d, start)) for a, lab, d in IDENTITY]
+    rows += [(t, _diag_line(ids[h], h, 1, "000", "Diagnose I", "2", t)) for t, h in sim.heartbeats]
+    # Milliseconds, as the devices write them; an onset and release never share one.
+    for r in sim.all_records:
+        rows.append((r.t_ns, _diag_line(ids[r.head], r.head, r.channel, "026", "Radsensor", str(r.value), r.t_ns)))
+    rows.sort(key=lambda x: x[0])
+    path.write_text("\n".join(line for _, line in rows) + "\n", encoding="utf-8")
+    return len(rows)
+
+
+def _nmea(body: str) -> str:
+    checksum = 0
+    for ch in body.encode("ascii"):
+        checksum ^= ch
+    return f"${body}*{checksum:02X}"
+
+
+def _ddmm(value: float, lat: bool) -> tuple[str, str]:
+    hemi = ("N" if value >= 0 else "S") if lat else ("E" if value >= 0 else "W")
+    v = abs(value)
+    deg = int(v)
+    minutes = (v - deg) * 60
+    return (f"{deg:02d}{minutes:08.5f}" if lat else f"{deg:03d}{minutes:08.5f}"), hemi
+
+
+def nmea_sentences(t_ns: int, lat: float, lon: float, speed_mps: float, course_deg: float) -> list[str]:
+    """RMC and GGA for one fix (GN talker, 5 decimal minutes ≈ 2 cm)."""
+    t = dt.datetime(1970, 1, 1, tzinfo=dt.UTC) + dt.timedelta(microseconds=t_ns // 1000)
+    hms = f"{t:%H%M%S}.{t.microsecond // 10000:02d}"
+    la, ns = _ddmm(lat, True)
+    lo, ew = _ddmm(lon, False)
+    knots = speed_mps * 3600 / 1852
+    rmc = _nmea(f"GNRMC,{hms},A,{la},{ns},{lo},{ew},{knots:.3f},{course_deg:.1f},{t:%d%m%y},,,A")
+    gga = _nmea(f"GNGGA,{hms},{la},{ns},{lo},{ew},1,10,0.9,20.0,M,-20.0,M,,")
+    return [rmc, gga]
+
+
+def write_gnss(sim: StationSim, directory: Path) -> dict[str, int]:
+    nmea_dir = directory / "nmea"
+    nmea_dir.mkdir(exist_ok=True)
+    per_device: dict[str, list[str]] = {}
+    csv = ["time,device,role,lat,lon,speed,course"]
+    for f in sorted(sim.all_fixes, key=lambda f: (f.t_ns, f.train, f.role)):
+        device = f"{f.train}-{f.role}"
+        per_device.setdefault(device, []).extend(nmea_sentences(f.t_ns, f.lat, f.lon, f.speed_mps, f.course_deg))
+        t = (iso(f.t_ns) or "") + "Z"
+        csv.append(f"{t},{device},{f.role},{f.lat:.7f},{f.lon:.7f},{f.speed_mps:.2f},{f.course_deg:.1f}")
+    for device, lines in per_device.items():
+        (nmea_dir / f"{device}.nmea").write_text("\r\n".join(lines) + "\r\n", encoding="ascii")
+    (directory / "gnss_devices.csv").write_text("\n".join(csv) + "\n", encoding="utf-8")
+    return {d: len(v) // 2 for d, v in per_device.items()}
+
+
+def _comma(x: float, digits: int) -> str:
+    return f"{x:.{digits}f}".replace(".", ",")
+
+
+def write_centre_table(sim: StationSim, path: Path) -> int:
+    """Seed 004's monitoring-centre table: one row per train every 10 s while it is on the line."""
+    codes = [c.code for c in sim.layout.crossings]
+    header = ["TIMESTAMP", "Mã tàu", "Vĩ độ", "Kinh độ", "Vận tốc (km/h)"]
+    for k in range(1, len(codes) + 1):
+        header += [f"Mã đường ngang {k}", f"Trạng thái kết nối đường ngang {k}"]
+    # Warning intervals per crossing and train, from the console's own events.
+    intervals: dict[str, list[tuple[int, int | None]]] = {}
+    for code, ctl in sim.crossings.items():
+        on: dict[str, int] = {}
+        for e in ctl.events:
+            if e.kind == "on":
+                on.setdefault(e.train, e.t_ns)
+            elif e.kind == "off" and e.train in on:
+                intervals.setdefault(code, []).append((on.pop(e.train), e.t_ns))
+        intervals.setdefault(code, []).extend((t_on, None) for t_on in on.values())
+
+    def warned(code: str, t: int) -> bool:
+        return any(a <= t and (b is None or t < b) for a, b in intervals.get(code, []))
+
+    heads = sorted((f for f in sim.all_fixes if f.role == "head"), key=lambda f: f.t_ns)
+    rows: list[str] = []
+    last: dict[str, int] = {}
+    for f in heads:
+        if f.t_ns - last.get(f.train, -(10**30)) < CENTRE_PERIOD_S * NS:
+            continue
+        last[f.train] = f.t_ns
+        t = _naive(f.t_ns)
+        cells = [f"{t:%Y-%m-%d %H:%M:%S}", f.train, _comma(f.lat, 5), _comma(f.lon, 5), _comma(f.speed_mps * 3.6, 1)]
+        for code in codes:
+            cells += [code, "Cảnh báo" if warned(code, f.t_ns) else "Bình thường"]
+        rows.append("\t".join(cells))
+    rows.reverse()  # newest first, as the centre shows it
+    path.write_text("\t".join(header) + "\n" + "\n".join(rows) + ("\n" if rows else ""), encoding="utf-8")
+    return len(rows)
+
+
+def write_frames(sim: StationSim, path: Path, idle_every_s: float = 5.0) -> int:
+    """Each head as an intelligent sensor: a frame per axle while counting, the check byte while idle."""
+    lines: list[tuple[int, str]] = []
+    by_head: dict[str, list[tuple[int, int]]] = {}
+    for e in sim.axle_events:
+        by_head.setdefault(e.head, []).append((e.time_ns, e.direction))
+    end = sim.now_ns
+    for h in sim.layout.heads:
+        axles = sorted(by_head.get(h.id, []))
+        count, last_axle = 0, None
+        t = sim.cfg.start_ns
+        k = 0
+        while t < end:
+            nxt = axles[k][0] if k < len(axles) else None
+            if nxt is not None and nxt <= t + int(idle_every_s * NS):
+                t_ax, direction = axles[k]
+                k += 1
+                count = count + 1 if last_axle is not None and t_ax - last_axle < 10 * NS else 1
+                last_axle = t_ax
+                up = h.up_is_first_channel_first
+                s1_to_s3 = (direction > 0) == up
+                status = encode_status(der=not s1_to_s3, t_since_s=0)
+                lines.append(
+                    (t_ax, f"{_naive(t_ax).isoformat(timespec='milliseconds')} {h.id} {status:02X} {count % 256:02X}")
+                )
+                t = t_ax
+            else:
+                t = t + int(idle_every_s * NS)
+                idle = last_axle is None or t - last_axle >= 10 * NS
+                if idle:
+                    status = encode_status(t_since_s=3)
+                    lines.append(
+                        (t, f"{_naive(t).isoformat(timespec='milliseconds')} {h.id} {status:02X} {CHECK_BYTE:02X}")
+                    )
+    lines.sort(key=lambda x: x[0])
+    path.write_text(
+        "# trackside simulated intelligent-sensor frames: time sensor status count\n"
+        + "\n".join(line for _, line in lines)
+        + "\n",
+        encoding="utf-8",
+    )
+    return len(lines)
+
+
+def layout_text(layout: Layout) -> str:
+    """The layout's own TOML text (shipped or from its file)."""
+    name = layout.source.split(" ")[0]
+    if name in BUILTIN:
+        return resources.files("console.layouts").joinpath(BUILTIN[name]).read_text(encoding="utf-8")
+    return Path(layout.source).read_text(encoding="utf-8")
+
+
+def truth(sim: StationSim) -> dict[str, Any]:
+    def t(ns: Any) -> str | None:
+        return None if ns is None else iso(int(ns))
+
+    return {
+        "schema": "trackside.truth/1",
+        "layout": sim.layout.name,
+        "seed": sim.cfg.seed,
+        "start": t(sim.cfg.start_ns),
+        "end": t(sim.now_ns),
+        "radio": {
+            "spreading_factor": sim.cfg.radio.spreading_factor,
+            "airtime_s": round(sim.cfg.radio.airtime_s(), 4),
+            "report_period_s": round(sim.period_s, 3),
+            "latency_s": round(sim.latency_s, 4),
+        },
+        "trains": [
+            {
+                "train": tr.id,
+                "consist": tr.consist.id,
+                "length_m": tr.consist.length_m,
+                "axles": len(tr.consist.axles_m),
+                "direction": tr.direction,
+                "entered": t(sim.cfg.start_ns + int(tr.entered_s * NS)),
+            }
+            for tr in sim.trains
+        ],
+        "axles": [
+            {
+                "time": t(a.time_ns),
+                "head": a.head,
+                "train": a.train,
+                "axle": a.axle,
+                "speed_mps": round(a.speed_mps, 4),
+                "direction": a.direction,
+            }
+            for a in sim.truth_axles
+        ],
+        "sections": {sid: [[t(ns), n] for ns, n in changes] for sid, changes in sim.truth_sections.items()},
+        "crossings": [
+            {
+                "crossing": c["crossing"],
+                "train": c["train"],
+                "t_head_arrival": t(c["t_head_arrival_ns"]),
+                "t_tail_clear": t(c["t_tail_clear_ns"]),
+            }
+            for c in sim.truth_crossings
+            if c["t_head_arrival_ns"] is not None
+        ],
+        "faults": [
+            {
+                "kind": f.kind,
+                "target": f.target,
+                "start": t(sim.cfg.start_ns + int(f.start_s * NS)),
+                "end": None if not np.isfinite(f.end_s) else t(sim.cfg.start_ns + int(f.end_s * NS)),
+                "channel": f.channel,
+            }
+            for _, f in sim.injected
+        ],
+        "console_final": {s: str(sim.engine.state(s)) for s in sim.engine.sections},
+    }
+
+
+def write_run(sim: StationSim, directory: Path) -> dict[str, Any]:
+    """Everything, into ``directory`` (created); returns counts of what was written."""
+    directory.mkdir(parents=True, exist_ok=True)
+    counts: dict[str, Any] = {
+        "diagnostic.log": write_diagnostic(sim, directory / "diagnostic.log"),
+        "nmea": write_gnss(sim, directory),
+        "centre.tsv": write_centre_table(sim, directory / "centre.tsv"),
+        "sensor_frames.txt": write_frames(sim, directory / "sensor_frames.txt"),
+    }
+    (directory / "layout.toml").write_text(layout_text(sim.layout), encoding="utf-8")
+    doc = truth(sim)
+    (directory / "truth.json").write_text(json.dumps(doc, ensure_ascii=False, indent=1) + "\n", encoding="utf-8")
+    counts["truth.json"] = {"axles": len(doc["axles"]), "crossings": len(doc["crossings"])}
+    return counts
