@@ -62,6 +62,14 @@ def pair_trains(
         known = {d for t in given for d in (*t.head, *t.eot)}
         return list(given), [d for d in devices if d not in known]
     roles = fixes.groupby("device", observed=True)["role"].first() if len(fixes) else pd.Series(dtype=object)
+    # NMEA carries no role: a device named <train>-head / <train>-eot says it.
+    roles = pd.Series(
+        {
+            d: (r if r in (HEAD, EOT) else HEAD if str(d).endswith("-head") else EOT if str(d).endswith("-eot") else r)
+            for d, r in roles.items()
+        },
+        dtype=object,
+    )
     heads = tuple(str(d) for d, r in roles.items() if r == HEAD)
     eots = tuple(str(d) for d, r in roles.items() if r == EOT)
     # Devices named <train>-head / <train>-eot pair by name.
@@ -102,6 +110,9 @@ def to_fixes(fixes: pd.DataFrame, layout: Layout, trains: Sequence[TrainDevices]
     sel = sel.dropna(subset=["lat", "lon", "time"])
     if sel.empty:
         return [], 0
+    # One fix per device and instant: NMEA gives an RMC and a GGA for each (keep the one with a speed).
+    sel = sel.assign(_has_speed=sel["speed_mps"].notna()).sort_values(["device", "time", "_has_speed"], kind="stable")
+    sel = sel.drop_duplicates(["device", "time"], keep="last").sort_values("time", kind="stable")
     p = proj.project(sel["lat"].to_numpy(float), sel["lon"].to_numpy(float))
     t_ns = pd.to_datetime(sel["time"], utc=True).astype("int64").to_numpy()
     out: list[Fix] = []

@@ -473,6 +473,7 @@ def passages_json_text(p: pd.DataFrame) -> str:
             "speed_kmh_per_second_method": p["speed_kmh_per_second_method"].to_numpy(dtype=float).round(3),
             "speed_kmh_whole_train": p["speed_kmh_whole_train"].to_numpy(dtype=float).round(3),
             "whole_train_basis": _objects(p["whole_train_basis"]),
+            "whole_train_duration_s": p["whole_train_duration_s"].to_numpy(dtype=float).round(6),
             "speed_kmh_per_axle": axle_speed_lists(p),
             "speed_kmh_per_axle_mean": p["speed_kmh_per_axle_mean"].to_numpy(dtype=float).round(3),
             "subsecond": p["subsecond"].to_numpy(bool),

@@ -135,9 +135,11 @@ class SectionEngine:
         return None
 
     # -- the state machine ----------------------------------------------
-    def _set(self, s: _Section, state: SectionState, t: int, reason: str) -> Transition | None:
-        if state is s.state:
-            return None  # counts go to the ledger; the timeline keeps state changes
+    def _set(self, s: _Section, state: SectionState, t: int, reason: str, note: bool = False) -> Transition | None:
+        """Change state.  Counts go to the ledger; the timeline keeps state changes, and
+        (``note``) a new reason for the same state, such as a hold beginning."""
+        if state is s.state and (not note or reason == s.reason):
+            return None
         s.state, s.reason, s.since_ns = state, reason, t
         tr = Transition(t, s.section.id, state, s.count, reason)
         self.transitions.append(tr)
@@ -235,8 +237,9 @@ class SectionEngine:
         elif k is EventKind.INTERFERENCE:
             for s, _ in secs:
                 s.held_by.add(e.head)
-                if s.state is SectionState.CLEAR:
-                    out.append(self._set(s, SectionState.OCCUPIED, t, f"held: isolated pulse at {e.head}"))
+                if s.state in (SectionState.CLEAR, SectionState.OCCUPIED):
+                    why = f"held: isolated pulse at {e.head}"
+                    out.append(self._set(s, SectionState.OCCUPIED, t, why, note=s.count == 0))
         elif k is EventKind.ACCIDENTAL:
             for s, _ in secs:
                 s.held_by.discard(e.head)

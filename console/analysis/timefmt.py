@@ -28,3 +28,19 @@ def display(ns: int | None) -> str:
     whole, frac = divmod(ns, 1_000_000_000)
     text = (_EPOCH + dt.timedelta(seconds=whole)).isoformat(sep=" ")
     return text + f".{frac // 1_000_000:03d}" if frac else text
+
+
+_DURATION_UNITS = {"s": 1, "m": 60, "h": 3600, "d": 86400}
+
+
+def parse_duration(text: str) -> float:
+    """``90s``, ``30m``, ``2h``, ``1h30m``, or a bare number of seconds → seconds (ValueError otherwise)."""
+    import re
+
+    t = text.strip().lower()
+    if re.fullmatch(r"\d+(\.\d+)?", t):
+        return float(t)
+    parts = re.findall(r"(\d+(?:\.\d+)?)([smhd])", t)
+    if not parts or "".join(n + u for n, u in parts) != t:
+        raise ValueError(f"expected a duration like 90s, 30m, 2h or 1h30m, found {text!r}")
+    return sum(float(n) * _DURATION_UNITS[u] for n, u in parts)

@@ -356,19 +356,12 @@ class StationSim:
         for head in self.layout.heads:
             if not lo <= head.chainage_m <= hi:
                 continue
-            half = head.spacing_m / 2
-            # Sys1 sits on the side an up train reaches first when up is Sys1 first.
-            c1 = head.chainage_m - half if head.up_is_first_channel_first else head.chainage_m + half
-            coils = {SYS1: c1, SYS2: 2 * head.chainage_m - c1}
-            p0, p1 = x0 - d * axles, x1 - d * axles  # each axle's position before and after
-            for ch, c in coils.items():
-                for edge, value in ((c - d * DETECTION_ZONE_M / 2, 1), (c + d * DETECTION_ZONE_M / 2, 0)):
-                    crossed = (d * (p0 - edge) < 0) & (d * (p1 - edge) >= 0)
-                    for k in np.flatnonzero(crossed):
-                        frac = (edge - p0[k]) / (p1[k] - p0[k])
-                        t = t0 + frac * (t1 - t0)
-                        out.append(WheelRecord(self.cfg.start_ns + int(t * NS), head.id, ch, value))
+            for t, ch, value in coil_edges(
+                head.chainage_m, head.spacing_m, head.up_is_first_channel_first, axles, d, x0, x1, t0, t1
+            ):
+                out.append(WheelRecord(self.cfg.start_ns + int(t * NS), head.id, ch, value))
             # The truth: each wheel passing the head's centre.
+            p0, p1 = x0 - d * axles, x1 - d * axles
             passed = (d * (p0 - head.chainage_m) < 0) & (d * (p1 - head.chainage_m) >= 0)
             for k in np.flatnonzero(passed):
                 frac = (head.chainage_m - p0[k]) / (p1[k] - p0[k])
@@ -528,6 +521,39 @@ class StationSim:
                 events.append(DetectionEvent(when, EventKind.CHANNEL_FAULT, f.target, channel=f.channel, source="sim"))
         events.sort(key=lambda e: e.time_ns)
         return events
+
+
+def coil_edges(
+    head_m: float,
+    spacing_m: float,
+    sys1_first_up: bool,
+    axles_m: np.ndarray,
+    direction: int,
+    x0: float,
+    x1: float,
+    t0: float,
+    t1: float,
+    zone_m: float = DETECTION_ZONE_M,
+) -> list[tuple[float, int, int]]:
+    """(time s, channel, 1 onset / 0 release) of every coil edge the wheels cross while the
+    head of the train moves from x0 to x1 between t0 and t1 (linear inside the step).
+
+    Sys1 sits on the side an up train reaches first when the head is "Sys1 first up"; a
+    wheel damps a coil while within ``zone_m / 2`` of it.
+    """
+    half = spacing_m / 2
+    c1 = head_m - half if sys1_first_up else head_m + half
+    coils = ((SYS1, c1), (SYS2, 2 * head_m - c1))
+    d = direction
+    p0, p1 = x0 - d * axles_m, x1 - d * axles_m
+    out = []
+    for ch, c in coils:
+        for edge, value in ((c - d * zone_m / 2, 1), (c + d * zone_m / 2, 0)):
+            crossed = (d * (p0 - edge) < 0) & (d * (p1 - edge) >= 0)
+            for k in np.flatnonzero(crossed):
+                frac = (edge - p0[k]) / (p1[k] - p0[k])
+                out.append((t0 + frac * (t1 - t0), ch, value))
+    return out
 
 
 def kinematic_motion(tr: SimTrain, target_mps: float, dt_s: float, cfg: SimConfig) -> tuple[float, float]:
