@@ -4,9 +4,10 @@ Into one directory:
 
 * ``diagnostic.log`` — Frauscher-style records, the real grammar, microsecond
   times (at 90 km/h a wheel crosses the 0.13 m coil spacing in 5.2 ms, so
-  milliseconds alone would err by up to 10 % in the per-axle speed): every wheel-sensor onset and release (Radsensor, Adr 026), a status
-  record (Adr 000) from each head's device every heartbeat, and an identity
-  dump per device at the start;
+  milliseconds alone would err by up to 10 % in the per-axle speed): every
+  wheel-sensor onset and release (Radsensor, Adr 026), a status record
+  (Adr 000) from each head's device every heartbeat, and an identity dump
+  per device at the start;
 * ``nmea/<train>-<role>.nmea`` — RMC and GGA sentences per GNSS unit (real
   checksums), as the units send them;
 * ``gnss_devices.csv`` — the same fixes as a device stream;
