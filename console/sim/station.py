@@ -22,9 +22,12 @@ hand).  Each step:
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -93,6 +96,9 @@ class SimTrain:
     done: bool = False
     next_head_fix_s: float = 0.0
     next_eot_fix_s: float = 0.0
+    controller: str = "pid"
+    driver: Any = None  # the ATO driver (console.sim.ato.Driver) when the force model runs the train
+    travelled_m: float = 0.0
 
     @property
     def tail_m(self) -> float:
@@ -161,7 +167,7 @@ class StationSim:
         self._spawned = 0
         self._next_spawn_s = self.cfg.first_train_s
         self.faults: list[Fault] = list(self.cfg.faults)
-        self.motion = motion or kinematic_motion
+        self.motion = motion or ato_motion
         self.period_s = self.cfg.radio.report_period_s()
         self.latency_s = self.cfg.radio.latency_s()
         # The console: live analysis on reports only.
@@ -294,6 +300,7 @@ class StationSim:
         start = self.line_start - 300.0 if d > 0 else self.line_end + 300.0
         stops = sorted(((p.to_m - 15.0) if d > 0 else (p.from_m + 15.0) for p in self.layout.platforms), reverse=d < 0)
         tr = SimTrain(f"T{k + 1}", consist, d, start, 0.0, self.t_s, stops=stops)
+        tr.controller = CONTROLLERS[k % len(CONTROLLERS)]
         tr.v_mps = min(self.layout.line_speed_mps, self._limit(tr, start))
         tr.next_head_fix_s = self.t_s + float(self.rng.uniform(0, self.period_s))
         tr.next_eot_fix_s = self.t_s + float(self.rng.uniform(0, self.period_s))
@@ -554,6 +561,44 @@ def coil_edges(
                 frac = (edge - p0[k]) / (p1[k] - p0[k])
                 out.append((t0 + frac * (t1 - t0), ch, value))
     return out
+
+
+CONTROLLERS = ("pid", "fuzzy", "fuzzy-d")
+
+
+def train_model(consist: Consist) -> Any:
+    """Seed 001's train model scaled to a consist: about 2 t per metre, effort in proportion."""
+    from console.sim.dynamics import EffortCurve, seed_001_train
+
+    base = seed_001_train()
+    k = consist.length_m / base.length_m
+    return dataclasses.replace(
+        base,
+        mass_kg=base.mass_kg * k,
+        length_m=consist.length_m,
+        traction=EffortCurve(base.traction.max_force_n * k, base.traction.base_speed_mps),
+        braking=EffortCurve(base.braking.max_force_n * k, base.braking.base_speed_mps),
+    )
+
+
+def ato_motion(tr: SimTrain, target_mps: float, dt_s: float, cfg: SimConfig) -> tuple[float, float]:
+    """The train under its ATO controller on the force model (seed 001), on a level, straight line."""
+    from console.sim.ato import Driver
+    from console.sim.dynamics import TrainState
+
+    if tr.driver is None:
+        tr.driver = Driver(train_model(tr.consist), tr.controller)
+    state = tr.driver.step(_flat_line(), TrainState(tr.travelled_m, tr.v_mps), target_mps, dt_s)
+    step_m = state.x_m - tr.travelled_m
+    tr.travelled_m = state.x_m
+    return tr.x_m + tr.direction * step_m, state.v_mps
+
+
+@functools.cache
+def _flat_line() -> Any:
+    from console.sim.dynamics import LineProfile
+
+    return LineProfile([])  # layouts carry no grades or curves yet
 
 
 def kinematic_motion(tr: SimTrain, target_mps: float, dt_s: float, cfg: SimConfig) -> tuple[float, float]:

@@ -1,0 +1,213 @@
+"""Seed 001's ATO scenario: the run, its metrics beside the paper's, and the views."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import time
+
+import numpy as np
+import pytest
+from rich.console import Console
+
+from console.render.ato_view import ato_json, ato_plot, ato_table
+from console.sim.ato import (
+    PAPER_FIGURES,
+    PAPER_ORDERINGS,
+    SEED_001,
+    Driver,
+    ScenarioResult,
+    braking_target_speed,
+    metrics,
+    run_all,
+    run_scenario,
+)
+from console.sim.control import CONTROLLER_NAMES
+from console.sim.dynamics import LineProfile, TrainState, seed_001_train
+
+
+@pytest.fixture(scope="module")
+def runs() -> list[ScenarioResult]:
+    return run_all()
+
+
+Figures = dict[tuple[str, str], dict[str, float | None]]
+
+
+@pytest.fixture(scope="module")
+def figures(runs: list[ScenarioResult]) -> Figures:
+    return {(r.plant, r.controller): metrics(r) for r in runs}
+
+
+def test_paper_figures_are_as_published() -> None:
+    # Seed 001 §4 (Tiem 2020), about its Figs. 15-16
+    assert PAPER_FIGURES["pid"]["overshoot_pct"] == 9.7
+    assert PAPER_FIGURES["pid"]["stop_error_m"] == 30.0
+    assert PAPER_FIGURES["fuzzy"] == {
+        "overshoot_pct": 0.2,
+        "distance_to_target_m": 12.0,
+        "steady_state_error_mps": 0.272,
+        "stop_error_m": 4.5,
+    }
+    assert PAPER_FIGURES["fuzzy-d"]["steady_state_error_mps"] == 0.028
+    assert PAPER_FIGURES["fuzzy-d"]["stop_error_m"] == 1.0
+
+
+def test_braking_target_speed_is_the_speed_that_can_still_brake_to_the_point() -> None:
+    assert braking_target_speed(100.0, 0.0, 1.125) == pytest.approx(15.0)
+    assert braking_target_speed(100.0, 10.5, (15.0**2 - 10.5**2) / 200.0) == pytest.approx(15.0)
+    assert braking_target_speed(-5.0, 10.5, 1.0) == 10.5
+
+
+def test_target_speed_follows_the_seed_line() -> None:
+    t = SEED_001.target_mps
+    assert t(0.0) == 15.0
+    assert t(899.0) == 15.0  # speed changes begin 100 m ahead of the curve
+    assert t(950.0) == pytest.approx(math.sqrt(10.5**2 + (15.0**2 - 10.5**2) / 100.0 * 50.0))
+    assert t(1000.0) == 10.5
+    assert t(1579.0) == 10.5  # the tail is still in the curve
+    assert t(1581.0) == 15.0
+    assert t(1950.0) == pytest.approx(math.sqrt(2 * 1.125 * 50.0))
+    assert t(2000.0) == 0.0
+
+
+@pytest.mark.parametrize("plant", ["force", "linear"])
+@pytest.mark.parametrize("name", CONTROLLER_NAMES)
+def test_every_controller_ends_stopped_near_2000_m(runs: list[ScenarioResult], name: str, plant: str) -> None:
+    r = next(r for r in runs if r.controller == name and r.plant == plant)
+    assert r.ended == "stopped"
+    assert r.v_mps[-1] == 0.0
+    assert abs(r.final_x_m - 2000.0) < 50.0
+    assert np.all(np.diff(r.x_m) >= 0.0)
+
+
+def _value(figs: Figures, plant: str, name: str, metric: str) -> float:
+    v = figs[(plant, name)][metric]
+    return math.inf if v is None else v
+
+
+# Pairs (better, worse) where the seed claims an order, and what our model gives.
+_PAIRS = [
+    (plant, metric, order[i], order[i + 1])
+    for plant in ("force", "linear")
+    for metric, order in PAPER_ORDERINGS.items()
+    for i in range(len(order) - 1)
+]
+# Orderings our honest model reverses, each with why (strict: an unexpected pass fails).
+# Fuzzy-D against fuzzy is not here: in our model they are near-ties (identical
+# fuzzy parts, since the seed's membership figures are not in its text, and
+# K_D·ė at most 0.5 % of full effort per m/s²), asserted by
+# test_fuzzy_d_and_fuzzy_differ_by_less_than_one_percent instead.
+_NOT_REPRODUCED = {
+    ("force", "distance_to_target_m", "fuzzy", "pid"): (
+        True,
+        "the PID holds full traction until close; the rule (e PB, ė NB) → PS makes the fuzzy ease off early",
+    ),
+    ("linear", "overshoot_pct", "fuzzy", "pid"): (
+        True,
+        "under saturation with anti-windup the PID creeps up on 15 m/s from below on G(s): no overshoot",
+    ),
+    ("linear", "distance_to_target_m", "fuzzy", "pid"): (
+        True,
+        "without an integral the fuzzy settles 0.5 m/s short on G(s) and never comes within 2 %",
+    ),
+}
+
+
+@pytest.mark.parametrize(
+    ("plant", "metric", "better", "worse"),
+    [
+        pytest.param(
+            *pair,
+            marks=[pytest.mark.xfail(strict=True, reason=_NOT_REPRODUCED[pair][1])] if pair in _NOT_REPRODUCED else [],
+            id="-".join(pair),
+        )
+        for pair in _PAIRS
+        if pair[2:] != ("fuzzy-d", "fuzzy")
+    ],
+)
+def test_paper_ordering(figures: Figures, plant: str, metric: str, better: str, worse: str) -> None:
+    assert _value(figures, plant, better, metric) < _value(figures, plant, worse, metric)
+
+
+def test_fuzzy_d_and_fuzzy_differ_by_less_than_one_percent(figures: Figures) -> None:
+    for plant in ("force", "linear"):
+        for metric in ("overshoot_pct", "steady_state_error_mps", "stop_error_m", "distance_to_target_m"):
+            a, b = _value(figures, plant, "fuzzy", metric), _value(figures, plant, "fuzzy-d", metric)
+            assert a == b or abs(a - b) <= 0.01 * max(abs(a), abs(b)) + 1e-6
+
+
+def test_metrics_read_overshoot_and_reach_from_the_first_stretch() -> None:
+    x = np.linspace(0.0, 2000.0, 2001)
+    v = np.full_like(x, 15.0)
+    v[:100] = np.linspace(0.0, 14.0, 100)
+    v[100:150] = 16.5  # 10 % over, reached at 100 m
+    v[-1] = 0.0
+    r = ScenarioResult("pid", "force", 0.05, x, x, v, np.full_like(x, 15.0), np.zeros_like(x), 2000.0, "stopped")
+    m = metrics(r)
+    assert m["overshoot_pct"] == pytest.approx(10.0)
+    assert m["distance_to_target_m"] == 100.0
+    assert m["steady_state_error_mps"] == 0.0
+    assert m["stop_error_m"] == 0.0
+
+
+def test_an_unknown_plant_is_refused() -> None:
+    with pytest.raises(ValueError, match="force"):
+        run_scenario("pid", plant="simulink")
+
+
+def test_ato_json_has_our_figures_the_plant_and_the_papers(runs: list[ScenarioResult]) -> None:
+    rows = ato_json(runs)
+    assert len(rows) == 6
+    for row in rows:
+        assert set(row) == {
+            "controller",
+            "plant",
+            "overshoot_pct",
+            "distance_to_target_m",
+            "steady_state_error_mps",
+            "stop_error_m",
+            "paper",
+        }
+        assert "wording" in row["paper"]
+    json.dumps(rows, allow_nan=False)
+
+
+def _render(renderable: object) -> str:
+    buf = io.StringIO()
+    Console(file=buf, width=80, color_system=None, force_terminal=False).print(renderable)
+    return buf.getvalue()
+
+
+def test_ato_table_fits_80_columns_and_shows_both_sources(runs: list[ScenarioResult]) -> None:
+    out = _render(ato_table(runs))
+    assert max(len(line) for line in out.splitlines()) <= 80
+    assert "paper" in out and "force" in out and "linear" in out and "9.7" in out
+
+
+def test_ato_plot_draws_every_controller_and_the_target_without_a_terminal(runs: list[ScenarioResult]) -> None:
+    out = _render(ato_plot(runs, width=80, height=20))
+    lines = out.splitlines()
+    assert max(len(line) for line in lines) <= 80
+    plot = "\n".join(lines[1:21])
+    assert "P" in plot and ("F" in plot or "D" in plot or "*" in plot) and "·" in plot
+    assert "2000" in out
+
+
+def test_driver_and_one_dynamics_step_cost_well_under_50_microseconds() -> None:
+    driver = Driver(seed_001_train(), "fuzzy-d")
+    profile = SEED_001.profile
+    state = TrainState(0.0, 0.0)
+    n = 20_000
+    t0 = time.perf_counter()
+    for _ in range(n):
+        state = driver.step(profile, state, SEED_001.target_mps(state.x_m % 1900.0), 0.05)
+    per_step_us = (time.perf_counter() - t0) / n * 1e6
+    assert per_step_us < 50.0  # measured about 12 µs
+
+
+def test_driver_command_is_the_controllers() -> None:
+    d = Driver(seed_001_train(), "pid")
+    assert d.command(15.0, 0.0, 0.05) == 1.0
+    assert isinstance(LineProfile(), LineProfile)
