@@ -185,3 +185,17 @@ def test_simulate_command_and_its_errors(tmp_path: Path) -> None:
     assert runner.invoke(app, ["simulate", "-o", str(tmp_path / "x"), "--duration", "soon"]).exit_code == 2
     assert runner.invoke(app, ["simulate", "-o", str(tmp_path / "x"), "--fault", "bogus:WS1:1m"]).exit_code == 2
     assert runner.invoke(app, ["simulate", "-o", str(tmp_path / "x"), "--fault", "dead_channel:WS9:1m"]).exit_code == 2
+
+
+def test_ato_command_json_and_errors() -> None:
+    res = runner.invoke(app, ["ato", "--json"])
+    assert res.exit_code == 0, res.output
+    rows = json.loads(res.stdout)
+    assert [r["controller"] for r in rows] == ["pid", "fuzzy", "fuzzy-d"]
+    for r in rows:
+        for key in ("overshoot_pct", "distance_to_target_m", "steady_state_error_mps", "stop_error_m", "paper"):
+            assert key in r
+        assert r["stop_error_m"] < 40  # every controller brings the train to a stop near 2 km
+    assert runner.invoke(app, ["ato", "--controller", "bang-bang"]).exit_code == 2
+    plot = runner.invoke(app, ["ato", "--controller", "pid", "--plot"], env={"COLUMNS": "80"})
+    assert plot.exit_code == 0 and "Speed (m/s) against distance" in plot.output
