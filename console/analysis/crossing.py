@@ -152,6 +152,15 @@ class CrossingController:
         """Start following a train (a live unit learns of trains as they are registered)."""
         self.tracks.setdefault(spec.train, _Track(spec))
 
+    def forget_train(self, train: str) -> bool:
+        """Stop following a train that has left the line, unless its warning is still on
+        (then it stays, and so do its warning and alarms).  Returns whether it was forgotten."""
+        tr = self.tracks.get(train)
+        if tr is None or tr.warned:
+            return False
+        del self.tracks[train]
+        return True
+
     @property
     def warning_on(self) -> bool:
         return any(t.warned for t in self.tracks.values())

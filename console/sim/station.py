@@ -163,7 +163,8 @@ class StationSim:
         self.proj = TrackProjector(layout.track)
         ch = [p.chainage_m for p in layout.track]
         self.line_start, self.line_end = min(ch), max(ch)
-        self.trains: list[SimTrain] = []
+        self.trains: list[SimTrain] = []  # every train so far
+        self.active: list[SimTrain] = []  # those still on the line
         self._spawned = 0
         self._next_spawn_s = self.cfg.first_train_s
         self.faults: list[Fault] = list(self.cfg.faults)
@@ -234,9 +235,7 @@ class StationSim:
             self._next_spawn_s += interval * float(self.rng.uniform(0.8, 1.2))
         records: list[WheelRecord] = []
         fixes: list[SentFix] = []
-        for tr in self.trains:
-            if tr.done:
-                continue
+        for tr in self.active:
             x0, v0 = tr.x_m, tr.v_mps
             target = self._target_speed(tr, t0)
             tr.x_m, tr.v_mps = self.motion(tr, target, dt_s, self.cfg)
@@ -249,6 +248,11 @@ class StationSim:
                 tr.direction < 0 and tr.tail_m < self.line_start - 50
             ):
                 tr.done = True
+        for t in self.active:
+            if t.done:
+                for ctl in self.crossings.values():
+                    ctl.forget_train(t.id)
+        self.active = [t for t in self.active if not t.done]
         records += self._sensor_faults(t0, t1)
         records = self._reported(records, t0)
         records.sort(key=lambda r: (r.t_ns, r.head, r.channel))
@@ -267,7 +271,7 @@ class StationSim:
     def run(self, duration_s: float, dt_s: float = 0.5, on_step: Callable[[float], None] | None = None) -> None:
         """Headless: step until ``duration_s``, with larger steps while the line is empty."""
         while self.t_s < duration_s:
-            busy = any(not t.done for t in self.trains) or self.t_s + 1.0 >= self._next_spawn_s
+            busy = bool(self.active) or self.t_s + 1.0 >= self._next_spawn_s
             dt = dt_s if busy else min(5.0, max(dt_s, self._next_spawn_s - self.t_s - 1.0))
             dt = min(dt, duration_s - self.t_s)
             self.step(dt)
@@ -293,7 +297,7 @@ class StationSim:
         consist = next((c for c in consists if c.id == consist_id), consists[k % len(consists)])
         d = direction if direction in (1, -1) else (1 if k % 2 == 0 else -1)
         # Dispatcher rule: no train enters against another still on the line.
-        if any(not t.done and t.direction != d for t in self.trains):
+        if any(t.direction != d for t in self.active):
             self._next_spawn_s = self.t_s + 30.0
             return None
         self._spawned += 1
@@ -305,6 +309,7 @@ class StationSim:
         tr.next_head_fix_s = self.t_s + float(self.rng.uniform(0, self.period_s))
         tr.next_eot_fix_s = self.t_s + float(self.rng.uniform(0, self.period_s))
         self.trains.append(tr)
+        self.active.append(tr)
         for ctl in self.crossings.values():
             ctl.add_train(TrainSpec(tr.id, consist.length_m))
         return tr
@@ -333,8 +338,8 @@ class StationSim:
             dist = tr.direction * (tr.stops[0] - tr.x_m)
             v = min(v, math.sqrt(max(0.0, 2 * b * max(dist - 1.0, 0.0))))
         # Protection: stay 80 m behind the train ahead.
-        for other in self.trains:
-            if other is tr or other.done or other.direction != tr.direction:
+        for other in self.active:
+            if other is tr or other.direction != tr.direction:
                 continue
             gap = tr.direction * (other.tail_m - tr.x_m) - 80.0
             if tr.direction * (other.x_m - tr.x_m) > 0:
@@ -491,7 +496,7 @@ class StationSim:
         half = self.ctl_settings.crossing_half_width_m
         now = self.now_ns
         for c in self.layout.crossings:
-            for tr in self.trains:
+            for tr in self.active:
                 key = (c.code, tr.id)
                 rec = self._crossing_seen.get(key)
                 if rec is None:
