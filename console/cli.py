@@ -913,6 +913,45 @@ def ato(
     raise typer.Exit(_guard(body))
 
 
+@app.command()
+def station(
+    layout: Annotated[str, typer.Option("--layout", help="Layout file, or osong / example.")] = "example",
+    seed: Annotated[int, typer.Option("--seed", help="Simulation seed.")] = 1,
+    speed: Annotated[
+        float, typer.Option("--speed", help="Playback speed, 1 to 1000 × real time.", min=1, max=1000)
+    ] = 5,
+    replay: Annotated[
+        list[Path] | None,
+        typer.Option("--replay", help="Replay these logs (diagnostic records, GNSS telemetry) instead of simulating."),
+    ] = None,
+) -> None:
+    """The live station view: sections, trains, crossings and events, simulated or replayed."""
+
+    def body() -> int:
+        from console.tui.app import StationApp
+        from console.tui.model import SPEEDS, StationModel
+        from console.tui.sources import ReplaySource, SimSource
+
+        lay = _load_layout(layout)
+        if replay:
+            _check_inputs(replay)
+            try:
+                source: Any = ReplaySource(replay, lay)
+            except ValueError as exc:
+                raise _fail(str(exc)) from None
+        else:
+            try:
+                source = SimSource(lay, seed=seed)
+            except ValueError as exc:
+                raise _fail(str(exc)) from None
+        model = StationModel(source)
+        model.speed_index = min(range(len(SPEEDS)), key=lambda i: abs(SPEEDS[i] - speed))
+        StationApp(model).run()
+        return exit_codes.OK
+
+    raise typer.Exit(_guard(body))
+
+
 def _version(value: bool) -> None:
     if value:
         print(f"trackside {__version__}")

@@ -1,0 +1,1 @@
+"""The live station view (Textual): `trackside station`."""

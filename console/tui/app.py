@@ -1,0 +1,239 @@
+"""`trackside station`: the live station view (Textual).
+
+One screen: the track diagram on top, the sections and trains panels, the
+event log and the selected train's speed.  A timer every 0.1 s asks a thread
+worker to advance the model (the simulator or a replay) by the wall time
+times the playback speed, then the views are redrawn from one snapshot on
+the UI thread.  Tests drive :class:`StationApp` with Pilot and step the model
+by hand (``app.advance``).
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from textual import work
+from textual.app import App, ComposeResult
+from textual.binding import Binding, BindingType
+from textual.containers import Horizontal
+from textual.widgets import DataTable, Footer, Header
+
+from console.analysis.timefmt import display
+from console.tui.help import HelpScreen
+from console.tui.model import StationModel
+from console.tui.sources import ReplaySource, SimSource
+from console.tui.widgets.event_log import EventLog
+from console.tui.widgets.speed_plot import SpeedPlot
+from console.tui.widgets.tables import SectionsTable, TrainsTable
+from console.tui.widgets.track import TrackDiagram
+
+TICK_S = 0.1
+FAULT_MINUTES = 5
+
+
+class StationApp(App[None]):
+    """The operator's view of a line, simulated or replayed."""
+
+    TITLE = "trackside station"
+    CSS = """
+    Screen { layout: vertical; }
+    #panels { height: 1fr; min-height: 6; }
+    #bottom { height: 1fr; min-height: 5; }
+    """
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("space", "pause", "Pause"),
+        Binding("plus,equals_sign", "faster", "Faster"),
+        Binding("minus", "slower", "Slower"),
+        Binding("full_stop", "single_step", "Step"),
+        Binding("s", "next_section", "Section"),
+        Binding("S", "prev_section", "Prev section", show=False),
+        Binding("w", "next_train", "Train"),
+        Binding("W", "prev_train", "Prev train", show=False),
+        Binding("r", "reset_section", "Reset"),
+        Binding("1", "fault('dead_channel')", "Dead ch", show=False),
+        Binding("2", "fault('isolated_pulse')", "Pulse", show=False),
+        Binding("3", "fault('power_loss')", "Power", show=False),
+        Binding("4", "fault('eot_loss')", "EOT loss", show=False),
+        Binding("5", "fault('head_loss')", "Head loss", show=False),
+        Binding("a", "add_train", "Add train"),
+        Binding("v", "truth", "Truth"),
+        Binding("f", "log_filter", "Filter"),
+        Binding("right_square_bracket", "jump(300)", "+5 min", show=False),
+        Binding("left_square_bracket", "jump(-300)", "-5 min", show=False),
+        Binding("question_mark", "help", "Help"),
+        Binding("q", "quit", "Quit"),
+    ]
+
+    def __init__(self, model: StationModel, *, autoplay: bool = True) -> None:
+        super().__init__()
+        self.model = model
+        self.autoplay = autoplay
+        self._busy = False
+
+    # -- layout ---------------------------------------------------------------
+    def compose(self) -> ComposeResult:
+        yield Header(show_clock=False)
+        yield TrackDiagram(self.model.source.layout, id="track")
+        with Horizontal(id="panels"):
+            yield SectionsTable(id="sections")
+            yield TrainsTable(id="trains")
+        with Horizontal(id="bottom"):
+            yield EventLog(id="log")
+            yield SpeedPlot(id="speed")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.refresh_views()
+        if self.autoplay:
+            self.set_interval(TICK_S, self._on_tick)
+
+    # -- the clock --------------------------------------------------------------
+    def _on_tick(self) -> None:
+        if not self.model.paused and not self._busy:
+            self._busy = True
+            self._advance_worker(TICK_S)
+
+    @work(thread=True, exclusive=True, group="advance")
+    def _advance_worker(self, wall_s: float) -> None:
+        try:
+            self.model.tick(wall_s)
+        finally:
+            self.call_from_thread(self._after_advance)
+
+    def _after_advance(self) -> None:
+        self._busy = False
+        self.refresh_views()
+
+    def advance(self, sim_s: float) -> None:
+        """Advance the model by simulated seconds and redraw (tests, single step)."""
+        self.model.step(sim_s)
+        self.refresh_views()
+
+    # -- drawing -----------------------------------------------------------------
+    def refresh_views(self) -> None:
+        m = self.model
+        snap = m.snapshot()
+        diffs = m.differences(snap) if m.show_truth else set()
+        state = "paused" if snap.paused else f"{snap.speed}×"
+        mode = "replay" if snap.mode == "replay" else "simulation"
+        self.sub_title = f"{mode} · {display(snap.time_ns)[:19]} · {state}" + (" · truth view" if m.show_truth else "")
+        self.query_one(TrackDiagram).render_snapshot(snap, m.section_id(), m.train_id(), diffs)
+        self.query_one(SectionsTable).render_snapshot(snap, m.section_id(), diffs)
+        self.query_one(TrainsTable).render_snapshot(snap, m.train_id())
+        self.query_one(EventLog).render_entries(m.visible_log(), m.log_filter)
+        train = m.train_id()
+        self.query_one(SpeedPlot).show(train, list(m.speed_history.get(train, [])) if train else [])
+
+    # -- actions --------------------------------------------------------------------
+    def action_pause(self) -> None:
+        self.model.toggle_pause()
+        self.refresh_views()
+
+    def action_faster(self) -> None:
+        self.model.faster()
+        self.refresh_views()
+
+    def action_slower(self) -> None:
+        self.model.slower()
+        self.refresh_views()
+
+    def action_single_step(self) -> None:
+        self.advance(1.0)
+
+    def action_next_section(self) -> None:
+        self.model.select_section(1)
+        self.refresh_views()
+
+    def action_prev_section(self) -> None:
+        self.model.select_section(-1)
+        self.refresh_views()
+
+    def action_next_train(self) -> None:
+        self.model.select_train(1)
+        self.refresh_views()
+
+    def action_prev_train(self) -> None:
+        self.model.select_train(-1)
+        self.refresh_views()
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        """A click (or enter) on a row selects that section or train."""
+        key = event.row_key.value
+        if isinstance(event.data_table, SectionsTable):
+            ids = [s.id for s in self.model.source.layout.sections]
+            if key in ids:
+                self.model.selected_section = ids.index(key)
+        elif isinstance(event.data_table, TrainsTable):
+            ids = [t.id for t in self.model.source.trains()]
+            if key in ids:
+                self.model.selected_train = ids.index(key)
+        self.refresh_views()
+
+    def action_reset_section(self) -> None:
+        sid = self.model.section_id()
+        src = self.model.source
+        if sid is None or not isinstance(src, SimSource):
+            self.notify("resets are for the simulated line", severity="warning")
+            return
+        accepted, reason = src.reset(sid)
+        if accepted:
+            self.model.note("warning", f"section {sid}: reset accepted — {reason}")
+            self.notify(f"{sid}: reset accepted, waiting for a sweep train")
+        else:
+            self.model.note("warning", f"section {sid}: reset REFUSED — {reason}")
+            self.notify(f"{sid}: reset refused: {reason}", severity="error")
+        self.refresh_views()
+
+    def action_fault(self, kind: str) -> None:
+        src = self.model.source
+        if not isinstance(src, SimSource):
+            self.notify("faults are injected into the simulated line", severity="warning")
+            return
+        if kind in ("eot_loss", "head_loss"):
+            target = self.model.train_id()
+            if target is None:
+                self.notify("no train to fail", severity="warning")
+                return
+            src.inject(kind, target)
+        else:
+            sid = self.model.section_id()
+            if sid is None:
+                return
+            section = next(s for s in src.layout.sections if s.id == sid)
+            target = section.heads[0]
+            src.inject(kind, target, FAULT_MINUTES * 60 if kind == "power_loss" else None)
+        what = kind.replace("_", " ")
+        self.model.note("warning", f"fault injected: {what} at {target}")
+        self.notify(f"fault: {what} at {target}", severity="warning")
+        self.refresh_views()
+
+    def action_add_train(self) -> None:
+        src = self.model.source
+        if not isinstance(src, SimSource):
+            return
+        tid = src.add_train()
+        self.model.note("info", f"train {tid} added" if tid else "no train added: an opposing train is on the line")
+        self.refresh_views()
+
+    def action_truth(self) -> None:
+        if not isinstance(self.model.source, SimSource):
+            self.notify("a replay has no truth", severity="warning")
+            return
+        self.model.show_truth = not self.model.show_truth
+        self.refresh_views()
+
+    def action_log_filter(self) -> None:
+        self.model.cycle_log_filter()
+        self.refresh_views()
+
+    def action_jump(self, seconds: int) -> None:
+        src = self.model.source
+        if isinstance(src, ReplaySource):
+            src.jump(seconds)
+            self.model.note("info", f"jumped {'forward' if seconds > 0 else 'back'} {abs(seconds) // 60} min")
+        else:
+            self.model.step(max(0, seconds))
+        self.refresh_views()
+
+    def action_help(self) -> None:
+        self.push_screen(HelpScreen())

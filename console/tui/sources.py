@@ -1,0 +1,222 @@
+"""Sources for the station view: the live simulator, or a replay of real logs."""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+from pathlib import Path
+
+from console.analysis.crossing import CrossingController, CrossingEvent, Fix, TrainSpec
+from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.sections import SectionEngine, SectionState, Transition
+from console.layout import Layout
+from console.sim.station import Fault, SimConfig, StationSim
+from console.tui.model import NS, LogEntry, TrainView
+
+NOTABLE = {
+    EventKind.SINGLE_CHANNEL: "warning",
+    EventKind.INTERFERENCE: "warning",
+    EventKind.ACCIDENTAL: "info",
+    EventKind.CHANNEL_FAULT: "critical",
+    EventKind.POWER_LOSS: "critical",
+    EventKind.POWER_RESTORED: "info",
+    EventKind.COUNT_ERROR: "warning",
+}
+
+
+def _crossing_entries(events: Sequence[CrossingEvent]) -> list[LogEntry]:
+    out = []
+    for e in events:
+        sev = "warning" if e.kind == "alarm" else "info"
+        verb = {"on": "warning ON", "off": "road given back", "alarm": "ALARM"}.get(e.kind, e.kind)
+        out.append(LogEntry(e.t_ns, sev, f"crossing {e.crossing} {verb} (train {e.train}): {e.reason}"))
+    return out
+
+
+def _detection_entries(events: Sequence[DetectionEvent]) -> list[LogEntry]:
+    out = []
+    for e in events:
+        sev = NOTABLE.get(e.kind)
+        if sev is not None:
+            ch = f" Sys{e.channel}" if e.channel else ""
+            out.append(
+                LogEntry(e.time_ns, sev, f"head {e.head}{ch}: {e.kind.value.replace('_', ' ')} {e.detail}".strip())
+            )
+    return out
+
+
+class SimSource:
+    """The live simulator as a view source; also takes the operator's actions."""
+
+    mode = "sim"
+
+    def __init__(self, layout: Layout, seed: int = 1, config: SimConfig | None = None) -> None:
+        self.sim = StationSim(layout, config or SimConfig(seed=seed))
+        self.layout = layout
+        self.engine: SectionEngine = self.sim.engine
+        self.crossings: dict[str, CrossingController] = self.sim.crossings
+        self._counts: Counter[str] = Counter()
+
+    @property
+    def now_ns(self) -> int:
+        return self.sim.now_ns
+
+    def advance(self, seconds: float) -> tuple[list[Transition], list[LogEntry]]:
+        transitions: list[Transition] = []
+        entries: list[LogEntry] = []
+        left = seconds
+        while left > 1e-9:
+            dt = min(0.5, left)
+            r = self.sim.step(dt)
+            left -= dt
+            transitions += r.transitions
+            entries += _detection_entries(r.detection_events) + _crossing_entries(r.crossing_events)
+            self._counts.update(e.head for e in r.detection_events if e.kind is EventKind.AXLE)
+        return transitions, entries
+
+    def trains(self) -> list[TrainView]:
+        out = []
+        platforms = self.layout.platforms
+        for t in self.sim.active:
+            nxt = "–"
+            if t.stops:
+                nxt = next((p.station for p in platforms if p.from_m - 20 <= t.stops[0] <= p.to_m + 20), "stop")
+            elif t.dwell_until_s is not None:
+                nxt = "dwelling"
+            out.append(TrainView(t.id, t.x_m, t.tail_m, t.direction, t.v_mps * 3.6, nxt, t.controller))
+        return out
+
+    def true_count(self, section_id: str) -> int | None:
+        return self.sim.true_count(section_id)
+
+    def head_counts(self) -> dict[str, int]:
+        return dict(self._counts)
+
+    # -- operator actions ---------------------------------------------------
+    def reset(self, section_id: str) -> tuple[bool, str]:
+        return self.sim.reset_section(section_id)
+
+    def inject(self, kind: str, target: str, duration_s: float | None = None, channel: int = 2) -> None:
+        start = self.sim.t_s
+        end = start + duration_s if duration_s is not None else float("inf")
+        if kind == "isolated_pulse":
+            start, end = start + 0.1, start + 0.1
+        self.sim.inject(Fault(kind, target, start, end, channel))
+
+    def add_train(self) -> str | None:
+        tr = self.sim.add_train()
+        return tr.id if tr is not None else None
+
+
+class ReplaySource:
+    """Parsed real logs played back: diagnostic records through the section engine,
+    telemetry through the crossing units, at any speed, with jumps in time."""
+
+    mode = "replay"
+
+    def __init__(self, paths: Sequence[Path], layout: Layout) -> None:
+        from console.analysis.crossing_batch import pair_trains, to_fixes
+        from console.analysis.diag_events import DiagEventSettings
+        from console.analysis.diagnostics import SpeedSettings
+        from console.jobs import analyze_files, detection_events
+
+        self.layout = layout
+        diag = [p for p in paths if _is_diag(p)]
+        other = [p for p in paths if p not in diag]
+        self.events: list[DetectionEvent] = []
+        if diag:
+            job = analyze_files(diag, SpeedSettings(), keep_releases=True)
+            self.events, _ = detection_events(job, layout, DiagEventSettings())
+        self.fixes: list[Fix] = []
+        self.train_specs: list[TrainSpec] = []
+        if other and len(layout.track) >= 2:
+            from parsers.gnss import parse_gnss
+
+            frame, _report, _states = parse_gnss(other)
+            consist = layout.consist()
+            trains, _ = pair_trains(frame, (), consist.length_m if consist else 100.0)
+            self.fixes, _ = to_fixes(frame, layout, trains)
+            self.fixes.sort(key=lambda f: f.t_ns)
+            self.train_specs = [TrainSpec(t.train, t.length_m) for t in trains]
+        times = [e.time_ns for e in self.events] + [f.t_ns for f in self.fixes]
+        if not times:
+            raise ValueError("nothing to replay: no wheel-sensor records and no placeable GNSS fixes")
+        self.start_ns, self.end_ns = min(times) - NS, max(times) + NS
+        self._rebuild(self.start_ns)
+
+    def _rebuild(self, t_ns: int) -> None:
+        self._now = t_ns
+        self.engine = SectionEngine(self.layout, initial=SectionState.PREPARATORY, start_ns=t_ns)
+        self.crossings = {c.code: CrossingController(c, self.train_specs) for c in self.layout.crossings}
+        self._i_event = self._i_fix = 0
+        self._counts: Counter[str] = Counter()
+        self._last: dict[tuple[str, str], Fix] = {}
+
+    @property
+    def now_ns(self) -> int:
+        return self._now
+
+    def advance(self, seconds: float) -> tuple[list[Transition], list[LogEntry]]:
+        target = min(self.end_ns, self._now + int(seconds * NS))
+        transitions: list[Transition] = []
+        entries: list[LogEntry] = []
+        while self._i_event < len(self.events) and self.events[self._i_event].time_ns <= target:
+            e = self.events[self._i_event]
+            self._i_event += 1
+            transitions += self.engine.step(e)
+            entries += _detection_entries([e])
+            if e.kind is EventKind.AXLE:
+                self._counts[e.head] += 1
+        while self._i_fix < len(self.fixes) and self.fixes[self._i_fix].t_ns <= target:
+            f = self.fixes[self._i_fix]
+            self._i_fix += 1
+            self._last[(f.train, f.role)] = f
+            for ctl in self.crossings.values():
+                entries += _crossing_entries(ctl.step(f))
+        for ctl in self.crossings.values():
+            entries += _crossing_entries(ctl.tick(target))
+        self._now = target
+        return transitions, entries
+
+    def jump(self, seconds: float) -> None:
+        """Jump in time; backwards replays from the start (quietly) up to the target."""
+        target = min(self.end_ns, max(self.start_ns, self._now + int(seconds * NS)))
+        if target < self._now:
+            self._rebuild(self.start_ns)
+        self.advance((target - self._now) / NS)
+
+    def trains(self) -> list[TrainView]:
+        out = []
+        for spec in self.train_specs:
+            head = self._last.get((spec.train, "head"))
+            eot = self._last.get((spec.train, "eot"))
+            ref = head or eot
+            if ref is None or self._now - ref.t_fix_ns > 120 * NS:
+                continue  # not seen for two minutes: off the line
+            d = ref.direction_hint or 1
+            head_m = head.chainage_m if head else eot.chainage_m + d * spec.length_m  # type: ignore[union-attr]
+            tail_m = eot.chainage_m if eot else head_m - d * spec.length_m
+            v = ref.speed_mps if ref.speed_mps == ref.speed_mps else 0.0
+            out.append(TrainView(spec.train, head_m, tail_m, d, v * 3.6, "–", "–"))
+        return out
+
+    def true_count(self, section_id: str) -> int | None:
+        return None
+
+    def head_counts(self) -> dict[str, int]:
+        return dict(self._counts)
+
+
+def _is_diag(path: Path) -> bool:
+    from parsers.sources import open_input
+
+    try:
+        stream, raw, _ = open_input(path)
+    except Exception:
+        return False
+    try:
+        head = stream.read(4096)
+    finally:
+        stream.close()
+        raw.close()
+    return any(line.strip().startswith(b"Diag_id:") for line in head.splitlines()[:5])

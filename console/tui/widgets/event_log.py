@@ -1,0 +1,31 @@
+"""The event log, newest last, filtered by severity."""
+
+from __future__ import annotations
+
+from rich.text import Text
+from textual.widgets import Static
+
+from console.analysis.timefmt import display
+from console.safe_text import inert
+from console.tui.model import LogEntry
+
+SEVERITY_STYLE = {"info": "dim", "warning": "yellow", "critical": "bold red"}
+SEVERITY_MARK = {"info": "·", "warning": "!", "critical": "‼"}
+
+
+class EventLog(Static):
+    """The last entries that fit, at or above the chosen severity (f cycles it)."""
+
+    DEFAULT_CSS = """
+    EventLog { height: 1fr; border: round $secondary; padding: 0 1; }
+    """
+
+    def render_entries(self, entries: list[LogEntry], least: str) -> None:
+        lines = max(1, (self.size.height or 8) - 2)
+        out = Text()
+        for e in entries[-lines:]:
+            out.append(f"{SEVERITY_MARK[e.severity]} {display(e.time_ns)[11:19]} ", style=SEVERITY_STYLE[e.severity])
+            out.append_text(inert(e.text, style=SEVERITY_STYLE[e.severity]))
+            out.append("\n")
+        self.border_title = f"Events ({least} and above)"
+        self.update(out)

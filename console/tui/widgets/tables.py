@@ -1,0 +1,71 @@
+"""The sections and trains panels."""
+
+from __future__ import annotations
+
+from rich.text import Text
+from textual.widgets import DataTable
+
+from console.analysis.sections import STATE_MARK, SectionState
+from console.safe_text import inert
+from console.tui.model import Snapshot
+from console.tui.widgets.track import STYLE
+
+
+class SectionsTable(DataTable[Text]):
+    """State (with its mark), counts in and out, why; with the truth view, the true count."""
+
+    DEFAULT_CSS = """
+    SectionsTable { height: 1fr; border: round $secondary; }
+    """
+
+    def on_mount(self) -> None:
+        self.cursor_type = "row"
+        self.zebra_stripes = True
+
+    def render_snapshot(self, snap: Snapshot, selected: str | None, differences: set[str]) -> None:
+        truth = any(s.true_count is not None for s in snap.sections)
+        cols = ["Section", "State", "Cnt", "In", "Out", *(["Truth"] if truth else []), "Why"]
+        if [str(c.label) for c in self.columns.values()] != cols:
+            self.clear(columns=True)
+            self.add_columns(*cols)
+        self.clear()
+        for s in snap.sections:
+            st = SectionState(s.state)
+            state = Text(f"{STATE_MARK[st]} {s.state}", style=STYLE[s.state])
+            sid = inert(s.id, style="underline" if s.id in differences else "")
+            row = [sid, state, Text(str(s.count)), Text(str(s.count_in)), Text(str(s.count_out))]
+            if truth:
+                row.append(Text(str(s.true_count), style="bold red" if s.id in differences else "dim"))
+            row.append(inert(s.reason, style="dim"))
+            self.add_row(*row, key=s.id)
+        if selected is not None and selected in [s.id for s in snap.sections]:
+            self.move_cursor(row=[s.id for s in snap.sections].index(selected), animate=False)
+
+
+class TrainsTable(DataTable[Text]):
+    """Each train: speed, next stop, controller, where its head and tail are."""
+
+    DEFAULT_CSS = """
+    TrainsTable { height: 1fr; border: round $secondary; }
+    """
+
+    def on_mount(self) -> None:
+        self.cursor_type = "row"
+        self.zebra_stripes = True
+        self.add_columns("Train", "km/h", "Next stop", "Ctrl", "Head m", "Tail m")
+
+    def render_snapshot(self, snap: Snapshot, selected: str | None) -> None:
+        self.clear()
+        for t in snap.trains:
+            self.add_row(
+                inert(t.id, style="bold cyan"),
+                Text(f"{t.speed_kmh:.0f}"),
+                inert(t.next_stop),
+                inert(t.controller),
+                Text(f"{t.head_m:.0f}"),
+                Text(f"{t.tail_m:.0f}"),
+                key=t.id,
+            )
+        ids = [t.id for t in snap.trains]
+        if selected in ids:
+            self.move_cursor(row=ids.index(selected), animate=False)
