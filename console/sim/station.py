@@ -41,6 +41,7 @@ from console.sim.radio import LoRaLink
 
 NS = 1_000_000_000
 DETECTION_ZONE_M = 0.25  # a wheel damps a coil over this length of travel
+ENTRY_ROOM_M = 400.0  # a new train enters only this far behind the tail of the one before it
 FAULT_KINDS = (
     "dead_channel",
     "isolated_pulse",
@@ -296,8 +297,9 @@ class StationSim:
         k = self._spawned
         consist = next((c for c in consists if c.id == consist_id), consists[k % len(consists)])
         d = direction if direction in (1, -1) else (1 if k % 2 == 0 else -1)
-        # Dispatcher rule: no train enters against another still on the line.
-        if any(t.direction != d for t in self.active):
+        # Dispatcher rules: no train enters against another still on the line,
+        # nor onto the tail of the one before it.
+        if not self.entry_clear(d):
             self._next_spawn_s = self.t_s + 30.0
             return None
         self._spawned += 1
@@ -313,6 +315,20 @@ class StationSim:
         for ctl in self.crossings.values():
             ctl.add_train(TrainSpec(tr.id, consist.length_m))
         return tr
+
+    def entry_clear(self, direction: int) -> bool:
+        """May a train enter now in this direction (no opposing train, room behind the last one)?"""
+        start = self.line_start - 300.0 if direction > 0 else self.line_end + 300.0
+        for t in self.active:
+            if t.direction != direction or direction * (t.tail_m - start) < ENTRY_ROOM_M:
+                return False
+        return True
+
+    def next_direction(self) -> int:
+        """The direction the next train would take: with the trains on the line, else alternating."""
+        if self.active:
+            return self.active[0].direction
+        return 1 if self._spawned % 2 == 0 else -1
 
     def _limit(self, tr: SimTrain, x: float) -> float:
         """The speed limit for the whole train at head position x."""

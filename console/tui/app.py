@@ -211,8 +211,7 @@ class StationApp(App[None]):
         src = self.model.source
         if not isinstance(src, SimSource):
             return
-        tid = src.add_train()
-        self.model.note("info", f"train {tid} added" if tid else "no train added: an opposing train is on the line")
+        self.model.note("info", src.add_train())
         self.refresh_views()
 
     def action_truth(self) -> None:

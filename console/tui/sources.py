@@ -51,11 +51,13 @@ class SimSource:
     mode = "sim"
 
     def __init__(self, layout: Layout, seed: int = 1, config: SimConfig | None = None) -> None:
-        self.sim = StationSim(layout, config or SimConfig(seed=seed))
+        # The station view starts with a train close by, so a new user sees movement at once.
+        self.sim = StationSim(layout, config or SimConfig(seed=seed, first_train_s=5.0))
         self.layout = layout
         self.engine: SectionEngine = self.sim.engine
         self.crossings: dict[str, CrossingController] = self.sim.crossings
         self._counts: Counter[str] = Counter()
+        self.pending_trains = 0  # added by the operator, waiting for the entry to clear
 
     @property
     def now_ns(self) -> int:
@@ -69,6 +71,7 @@ class SimSource:
             dt = min(0.5, left)
             r = self.sim.step(dt)
             left -= dt
+            entries += self._release_pending()
             transitions += r.transitions
             entries += _detection_entries(r.detection_events) + _crossing_entries(r.crossing_events)
             self._counts.update(e.head for e in r.detection_events if e.kind is EventKind.AXLE)
@@ -103,9 +106,26 @@ class SimSource:
             start, end = start + 0.1, start + 0.1
         self.sim.inject(Fault(kind, target, start, end, channel))
 
-    def add_train(self) -> str | None:
-        tr = self.sim.add_train()
-        return tr.id if tr is not None else None
+    def add_train(self) -> str:
+        """Queue a train; it enters, behind the others, as soon as the entry is clear."""
+        self.pending_trains += 1
+        entered = self._release_pending()
+        if entered:
+            return entered[0].text
+        return f"train queued ({self.pending_trains} waiting for the entry to clear)"
+
+    def _release_pending(self) -> list[LogEntry]:
+        if not self.pending_trains:
+            return []
+        d = self.sim.next_direction()
+        if not self.sim.entry_clear(d):
+            return []
+        tr = self.sim.add_train(direction=d)
+        if tr is None:
+            return []
+        self.pending_trains -= 1
+        side = "from the down end" if d > 0 else "from the up end"
+        return [LogEntry(self.sim.now_ns, "info", f"train {tr.id} added by the operator, entering {side}")]
 
 
 class ReplaySource:

@@ -56,11 +56,14 @@ def draw(
 
     # Row 1: platforms and station names.
     plat = [" "] * width
-    for p in layout.platforms:
+    platforms = sorted(layout.platforms, key=lambda p: p.from_m)
+    for n, p in enumerate(platforms):
         a, b = max(0, col(p.from_m)), min(width - 1, col(p.to_m))
-        name = clean(p.station)[: max(1, b - a + 1)]
         for i in range(a, b + 1):
             plat[i] = "▔"
+        # The name may run past a short platform, up to the next one.
+        room = (col(platforms[n + 1].from_m) - 1 if n + 1 < len(platforms) else width) - a
+        name = clean(p.station)[: max(1, room)]
         for k, ch in enumerate(name):
             if a + k < width:
                 plat[a + k] = ch

@@ -1,0 +1,483 @@
+"""What a report holds (:class:`ReportData`) and its JSON form (schema ``trackside.report/1``).
+
+:func:`document` turns the analyses into plain JSON values, in the order
+the report presents them (docs/report-schema.md); the Markdown and HTML
+faces render the outline (:mod:`console.report.outline`) built from that
+same document, so the three formats cannot disagree.  Nothing here
+computes what the analysis modules compute: it selects, groups and names.
+
+Safety classes (the report's first part):
+
+* **unsafe** (counted as ``critical`` by ``--fail-on``): a level-crossing
+  timeline with a safety violation (the road open with the train on it),
+  and every critical health finding (a faulty channel, an analog value
+  drifted out of its band: a head that may stop detecting);
+* **failing** (counted as ``warning``): a section that ended the log
+  disturbed (fail-safe: it shows occupied until a reset, so trains are
+  stopped, not endangered), a refused reset, a crossing warning held on
+  (the road stays closed), and every warning-level health finding.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from console import __version__
+from console.analysis.crossing_batch import CrossingRun
+from console.analysis.diagnostics import SpeedSettings, passages_json_text
+from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.health import Finding, Severity
+from console.analysis.sections import SectionsResult, SectionState
+from console.analysis.timefmt import iso
+from console.jobs import DiagJob
+from console.layout import Layout
+from console.render.section_tables import sections_json
+from parsers.report import ParseReport
+
+SCHEMA = "trackside.report/1"
+
+# Input formats, as the input summary names them.
+DIAGNOSTIC = "diagnostic"
+NMEA = "nmea"
+GNSS_CSV = "gnss-csv"
+GNSS_JSONL = "gnss-jsonl"
+CENTRE = "centre"
+FRAMES = "frames"
+CAN = "can"
+VOLTAGES = "voltages"
+LAYOUT = "layout"
+TRUTH = "truth"
+EMPTY = "empty"
+UNKNOWN = "unknown"
+GNSS_FORMATS = (NMEA, GNSS_CSV, GNSS_JSONL, CENTRE)
+
+# Parse reports by kind, in the order the report lists them.
+REPORT_KINDS = ("diagnostic", "gnss", "frames", "can", "voltages")
+
+UNSAFE = "unsafe"
+FAILING = "failing"
+SECTION_INITIAL = "unknown"  # each section starts preparatory: the log does not say the line was empty
+
+
+@dataclass(frozen=True)
+class InputFile:
+    """One input file: what it was recognised as, whether it was read, and why not."""
+
+    path: str  # as given (a directory's files: the directory as given / the relative path)
+    format: str
+    read: bool
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Attention:
+    """One item of the report's first part: unsafe or failing."""
+
+    severity: Severity  # CRITICAL for unsafe, WARNING (or a finding's own) for failing
+    safety: str  # UNSAFE | FAILING
+    topic: str  # crossing | health | section | reset
+    subject: str
+    time_ns: int | None
+    message: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "class": self.safety,
+            "severity": str(self.severity),
+            "topic": self.topic,
+            "subject": self.subject,
+            "time": iso(self.time_ns),
+            "message": self.message,
+        }
+
+
+@dataclass
+class ReportData:
+    """Everything the report shows, as the analyses returned it."""
+
+    inputs: list[InputFile]
+    layout: Layout | None
+    settings: SpeedSettings
+    job: DiagJob | None = None
+    events: list[DetectionEvent] = field(default_factory=list)  # from the diagnostic logs
+    sections: SectionsResult | None = None
+    section_source: str | None = None  # "diagnostic" | "frames": where the section events came from
+    findings: list[Finding] = field(default_factory=list)
+    frames: pd.DataFrame | None = None  # sensor and CAN frames together
+    frame_events: list[DetectionEvent] = field(default_factory=list)
+    fixes: pd.DataFrame | None = None
+    crossing: CrossingRun | None = None
+    reports: dict[str, ParseReport] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    notes: dict[str, str] = field(default_factory=dict)  # part → why it is empty
+
+    def attention(self) -> list[Attention]:
+        """Unsafe items first, then failing ones; each in time order."""
+        items: list[Attention] = []
+        if self.crossing is not None:
+            for r in self.crossing.timelines:
+                for v in r.violations:
+                    items.append(
+                        Attention(
+                            Severity.CRITICAL,
+                            UNSAFE,
+                            "crossing",
+                            f"{r.crossing} train {r.train}",
+                            r.t_head_arrival_ns or r.t_on_ns,
+                            v,
+                        )
+                    )
+        for f in self.findings:
+            if f.severity is Severity.CRITICAL:
+                items.append(Attention(f.severity, UNSAFE, "health", _where(f), f.time_ns, f.message))
+        if self.sections is not None:
+            tl = self.sections.timeline
+            for sid, (state, count, _in, _out, reason) in self.sections.final.items():
+                if state == SectionState.DISTURBED:
+                    rows = tl[(tl["section"] == sid) & (tl["state"] == state)]
+                    since = int(rows["time_ns"].iloc[-1]) if len(rows) else None
+                    items.append(
+                        Attention(
+                            Severity.WARNING,
+                            FAILING,
+                            "section",
+                            f"section {sid}",
+                            since,
+                            f"ended the log disturbed (count {count}): {reason}; needs a reset and a sweep train",
+                        )
+                    )
+            r: Any
+            for r in self.sections.resets.itertuples(index=False):
+                if not r.accepted:
+                    items.append(
+                        Attention(
+                            Severity.WARNING,
+                            FAILING,
+                            "reset",
+                            f"section {r.section}",
+                            int(r.time_ns),
+                            f"reset refused: {r.reason}",
+                        )
+                    )
+        if self.crossing is not None:
+            for row in self.crossing.timelines:
+                if row.t_off_ns is None and row.t_on_ns is not None:
+                    items.append(
+                        Attention(
+                            Severity.WARNING,
+                            FAILING,
+                            "crossing",
+                            f"{row.crossing} train {row.train}",
+                            row.t_on_ns,
+                            "warning held on to the end of the data: the road stays closed",
+                        )
+                    )
+        for f in self.findings:
+            if f.severity is Severity.WARNING:
+                items.append(Attention(f.severity, FAILING, "health", _where(f), f.time_ns, f.message))
+        order = {UNSAFE: 0, FAILING: 1}
+        return sorted(
+            items, key=lambda a: (order[a.safety], -1 if a.time_ns is None else a.time_ns, a.topic, a.subject)
+        )
+
+    def worst(self) -> Severity | None:
+        """The highest severity among health findings and attention items (None: nothing at all)."""
+        sev = [f.severity for f in self.findings] + [a.severity for a in self.attention()]
+        return max(sev, key=lambda s: s.rank) if sev else None
+
+    def data_end_ns(self) -> int | None:
+        """The last time any log speaks of: where open-ended bars of the plots stop."""
+        ends: list[int] = []
+        if self.job is not None:
+            ends += [d.last_ns for d in self.job.analysis.devices if d.last_ns]
+        if self.frames is not None and len(self.frames):
+            ends.append(int(self.frames["time"].max().value))
+        ends += [e.time_ns for e in self.events[-1:] + self.frame_events[-1:]]
+        if self.sections is not None and len(self.sections.timeline):
+            ends.append(int(self.sections.timeline["time_ns"].max()))
+        return max(ends) if ends else None
+
+
+def _where(f: Finding) -> str:
+    where = f.counting_head or "–"
+    if f.channel is not None:
+        where += f" Sys{f.channel}" if f.channel in (1, 2) else f" ch {f.channel}"
+    return where
+
+
+def _f(x: Any, digits: int = 3) -> float | None:
+    """A finite float rounded for the document, else None."""
+    if x is None:
+        return None
+    v = float(x)
+    return None if not math.isfinite(v) else round(v, digits)
+
+
+# ----------------------------------------------------------------------------- document
+
+
+def _inputs(data: ReportData) -> dict[str, Any]:
+    by_file: dict[str, tuple[str, dict[str, Any]]] = {}
+    for kind in REPORT_KINDS:
+        rep = data.reports.get(kind)
+        if rep is not None:
+            for fr in rep.files:
+                by_file[fr.file] = (kind, fr.to_dict())
+    rows = []
+    for inp in data.inputs:
+        kind, fr = by_file.get(inp.path, ("", {}))
+        rows.append(
+            {
+                "file": inp.path,
+                "format": inp.format,
+                "read": inp.read,
+                "note": inp.note,
+                "lines_read": fr.get("lines_read"),
+                "records": fr.get("records"),
+                "blank": fr.get("blank"),
+                "rejected": fr.get("rejected"),
+                "bytes_read": fr.get("bytes_read"),
+                "encoding": fr.get("encoding"),
+                "compressed": fr.get("compressed"),
+            }
+        )
+    reports = [data.reports[k] for k in REPORT_KINDS if k in data.reports]
+    rejections = [r.to_dict() for rep in reports for r in rep.rejections]
+    by_reason: Counter[str] = Counter()
+    unknown_labels: Counter[str] = Counter()
+    for rep in reports:
+        by_reason.update(rep.rejected_by_reason)
+        unknown_labels.update(rep.unknown_labels)
+    return {
+        "files": rows,
+        "totals": {
+            "files": len(rows),
+            "read": sum(1 for r in rows if r["read"]),
+            "lines_read": sum(rep.lines_read for rep in reports),
+            "records": sum(rep.records for rep in reports),
+            "blank": sum(rep.blank for rep in reports),
+            "rejected": sum(rep.rejected for rep in reports),
+        },
+        "rejections": rejections,
+        "rejected_by_reason": dict(sorted(by_reason.items())),
+        "unknown_labels": dict(sorted(unknown_labels.items())),
+    }
+
+
+def _sensors(data: ReportData) -> list[dict[str, Any]]:
+    """Frame and CAN sensors: frames, span, and their events tallied by kind."""
+    frames = data.frames
+    if frames is None or frames.empty:
+        return []
+    tally: dict[str, Counter[str]] = {}
+    for e in data.frame_events:
+        kinds = tally.setdefault(e.head, Counter())
+        if e.kind is EventKind.AXLE:
+            kinds["up" if e.direction > 0 else "down" if e.direction < 0 else "unknown"] += 1
+        else:
+            kinds[str(e.kind)] += 1
+    out = []
+    for sensor, times in frames.groupby(frames["sensor"].astype(str), sort=True)["time"]:
+        k = tally.get(str(sensor), Counter())
+        out.append(
+            {
+                "sensor": str(sensor),
+                "frames": len(times),
+                "first": iso(int(times.min().value)),
+                "last": iso(int(times.max().value)),
+                "axles_up": k["up"],
+                "axles_down": k["down"],
+                "axles_unknown_direction": k["unknown"],
+                "channel_faults": k[str(EventKind.CHANNEL_FAULT)],
+                "count_errors": k[str(EventKind.COUNT_ERROR)],
+                "contact_losses": k[str(EventKind.POWER_LOSS)],
+            }
+        )
+    return out
+
+
+def _gnss_units(data: ReportData) -> list[dict[str, Any]]:
+    fixes = data.fixes
+    if fixes is None or fixes.empty:
+        return []
+    out = []
+    for device, rows in fixes.groupby(fixes["device"].astype(str), sort=True):
+        roles = sorted({str(x) for x in rows["role"]} - {""})
+        valid = rows[rows["valid"].astype(bool)]
+        times = rows["time"].dropna()
+        out.append(
+            {
+                "device": str(device),
+                "role": "/".join(roles) or None,
+                "sources": sorted({str(x) for x in rows["source"]}),
+                "fixes": len(rows),
+                "valid": len(valid),
+                "first": iso(int(times.min().value)) if len(times) else None,
+                "last": iso(int(times.max().value)) if len(times) else None,
+            }
+        )
+    return out
+
+
+def _passages(data: ReportData) -> tuple[list[dict[str, Any]], int]:
+    if data.job is None:
+        return [], 0
+    p = data.job.analysis.passages
+    status = int((p["kind"] == "status").sum()) if len(p) else 0
+    shown = p[p["kind"] != "status"] if status else p
+    # The same passage objects as `trackside analyze --json`.
+    return list(json.loads(passages_json_text(shown))), status
+
+
+def _ledger_summary(result: SectionsResult) -> list[dict[str, Any]]:
+    led = result.ledger
+    if led.empty:
+        return []
+    out = []
+    for (section, head), g in led.groupby(["section", "head"], sort=True):
+        d = g["delta"].to_numpy()
+        out.append(
+            {
+                "section": str(section),
+                "head": str(head),
+                "count_in": int((d > 0).sum()),
+                "count_out": int((d < 0).sum()),
+                "first": iso(int(g["time_ns"].min())),
+                "last": iso(int(g["time_ns"].max())),
+            }
+        )
+    return out
+
+
+def _sections(data: ReportData) -> dict[str, Any] | None:
+    if data.sections is None:
+        return None
+    body = sections_json(data.sections)
+    return {
+        "initial": SECTION_INITIAL,
+        "events_from": data.section_source,
+        "final": body["sections"],
+        "timeline": body["timeline"],
+        "ledger_summary": _ledger_summary(data.sections),
+        "ledger": body["ledger"],
+        "resets": body["resets"],
+    }
+
+
+def analog_series(data: ReportData) -> pd.DataFrame:
+    """The analog receiver values (``analog_value`` registers) as time_ns, head, channel, address, value."""
+    cols = ["time_ns", "head", "channel", "address", "value"]
+    rec = data.job.records if data.job is not None else pd.DataFrame()
+    if rec.empty or "label_canonical" not in rec.columns:
+        return pd.DataFrame(columns=cols)
+    pick = rec[rec["label_canonical"] == "analog_value"]
+    return (
+        pd.DataFrame(
+            {
+                "time_ns": pick["time"].to_numpy(dtype="datetime64[ns]").view(np.int64),
+                "head": pick["counting_head"].astype(str).to_numpy(),
+                "channel": pick["channel"].to_numpy(dtype=np.int64),
+                "address": pick["address"].to_numpy(dtype=np.int64),
+                "value": pick["value"].to_numpy(dtype=np.float64),
+            },
+            columns=cols,
+        )
+        .sort_values(["head", "channel", "address", "time_ns"], kind="stable")
+        .reset_index(drop=True)
+    )
+
+
+def _analog(data: ReportData) -> list[dict[str, Any]]:
+    series = analog_series(data)
+    out = []
+    for (head, channel, address), g in series.groupby(["head", "channel", "address"], sort=True):
+        v = g["value"].to_numpy()
+        out.append(
+            {
+                "counting_head": str(head),
+                "channel": int(channel),
+                "address": int(address),
+                "values": len(v),
+                "min": _f(v.min()),
+                "mean": _f(v.mean()),
+                "max": _f(v.max()),
+                "first": iso(int(g["time_ns"].min())),
+                "last": iso(int(g["time_ns"].max())),
+            }
+        )
+    return out
+
+
+def _crossings(data: ReportData) -> dict[str, Any] | None:
+    run = data.crossing
+    if run is None:
+        return None
+    return {
+        "violations": sum(1 for r in run.timelines if r.violations),
+        "timelines": [r.to_dict() for r in run.timelines],
+        "events": [
+            {"time": iso(e.t_ns), "crossing": e.crossing, "train": e.train, "kind": e.kind, "reason": e.reason}
+            for e in run.events
+        ],
+        "trains": [
+            {"train": t.train, "head": list(t.head), "eot": list(t.eot), "length_m": t.length_m} for t in run.trains
+        ],
+        "off_track_fixes": run.off_track,
+        "unassigned_devices": list(run.unassigned_devices),
+    }
+
+
+def document(data: ReportData) -> dict[str, Any]:
+    """The report as plain JSON values (schema ``trackside.report/1``), in presentation order."""
+    attention = data.attention()
+    unsafe = sum(1 for a in attention if a.safety == UNSAFE)
+    failing = len(attention) - unsafe
+    worst = data.worst()
+    passages, status = _passages(data)
+    counts = Counter(str(f.severity) for f in data.findings)
+    analysis = data.job.analysis if data.job is not None else None
+    s = data.settings
+    return {
+        "schema": SCHEMA,
+        "trackside_version": __version__,
+        "layout": data.layout.source if data.layout is not None else None,
+        "settings": {
+            "spacing_m": s.spacing_m,
+            "train_length_m": s.train_length_m,
+            "idle_gap_s": s.idle_gap_s,
+            "pair_window_s": s.pair_window_s,
+            "section_initial": SECTION_INITIAL,
+        },
+        "verdict": UNSAFE if unsafe else FAILING if failing else "ok",
+        "worst_severity": None if worst is None else str(worst),
+        "safety": {"unsafe": unsafe, "failing": failing, "items": [a.to_dict() for a in attention]},
+        "inputs": _inputs(data),
+        "devices": [d.to_dict() for d in analysis.devices] if analysis is not None else [],
+        "sensors": _sensors(data),
+        "gnss_units": _gnss_units(data),
+        "passages": passages,
+        "status_bursts": status,
+        "overlap_records": analysis.overlap_records if analysis is not None else 0,
+        "unpaired_detections": analysis.unpaired_detections if analysis is not None else 0,
+        "sections": _sections(data),
+        "health": {
+            "counts": {k: counts.get(k, 0) for k in ("critical", "warning", "info")},
+            "findings": [f.to_dict() for f in data.findings],
+            "analog": _analog(data),
+        },
+        "crossings": _crossings(data),
+        "warnings": list(data.warnings),
+        "notes": dict(sorted(data.notes.items())),
+    }
+
+
+def json_text(doc: dict[str, Any]) -> str:
+    """Indented, ASCII-only, key order as built: the same document gives the same bytes."""
+    return json.dumps(doc, ensure_ascii=True, indent=1, allow_nan=False) + "\n"
