@@ -188,6 +188,7 @@ class StationSim:
         )
         self.crossings = {c.code: CrossingController(c, [], self.ctl_settings) for c in layout.crossings}
         self._inbox: list[tuple[int, Fix]] = []  # fixes in flight to the crossing units
+        self.delivered: dict[tuple[str, str], Fix] = {}  # the console's latest fix per (train, role)
         self._next_heartbeat_s = 0.0
         self._swallowed: set[tuple[str, int]] = set()  # (head, channel) whose onset a fault removed
         # The truth.
@@ -319,10 +320,7 @@ class StationSim:
     def entry_clear(self, direction: int) -> bool:
         """May a train enter now in this direction (no opposing train, room behind the last one)?"""
         start = self.line_start - 300.0 if direction > 0 else self.line_end + 300.0
-        for t in self.active:
-            if t.direction != direction or direction * (t.tail_m - start) < ENTRY_ROOM_M:
-                return False
-        return True
+        return all(t.direction == direction and direction * (t.tail_m - start) >= ENTRY_ROOM_M for t in self.active)
 
     def next_direction(self) -> int:
         """The direction the next train would take: with the trains on the line, else alternating."""
@@ -501,6 +499,7 @@ class StationSim:
         out: list[CrossingEvent] = []
         while self._inbox and self._inbox[0][0] <= now:
             _, fix = self._inbox.pop(0)
+            self.delivered[(fix.train, fix.role)] = fix
             for ctl in self.crossings.values():
                 out += ctl.step(fix)
         for ctl in self.crossings.values():

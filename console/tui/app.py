@@ -119,7 +119,7 @@ class StationApp(App[None]):
         self.sub_title = f"{mode} · {display(snap.time_ns)[:19]} · {state}" + (" · truth view" if m.show_truth else "")
         self.query_one(TrackDiagram).render_snapshot(snap, m.section_id(), m.train_id(), diffs)
         self.query_one(SectionsTable).render_snapshot(snap, m.section_id(), diffs)
-        self.query_one(TrainsTable).render_snapshot(snap, m.train_id())
+        self.query_one(TrainsTable).render_snapshot(snap, m.train_id(), diffs)
         self.query_one(EventLog).render_entries(m.visible_log(), m.log_filter)
         train = m.train_id()
         self.query_one(SpeedPlot).show(train, list(m.speed_history.get(train, [])) if train else [])

@@ -26,6 +26,9 @@ from console.layout import Layout
 NS = 1_000_000_000
 SPEEDS = (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000)
 SEVERITIES = ("info", "warning", "critical")
+# A reported head this far from the true one is a difference: GNSS noise and a
+# fix's age at line speed stay well inside it, a lost head unit soon leaves it.
+TRAIN_DIFF_M = 60.0
 
 
 @dataclass(frozen=True)
@@ -56,6 +59,9 @@ class TrainView:
     speed_kmh: float
     next_stop: str
     controller: str
+    head_age_s: float | None = None  # since the head unit's last fix reached the console
+    eot_age_s: float | None = None  # likewise for the end-of-train unit; None: never heard
+    true_head_m: float | None = None  # the simulator's truth (truth view only)
 
 
 @dataclass(frozen=True)
@@ -94,7 +100,7 @@ class Source(Protocol):
 
     def advance(self, seconds: float) -> tuple[list[Transition], list[LogEntry]]: ...
 
-    def trains(self) -> list[TrainView]: ...
+    def trains(self, truth: bool = False) -> list[TrainView]: ...
 
     def true_count(self, section_id: str) -> int | None: ...
 
@@ -199,7 +205,7 @@ class StationModel:
                     src.true_count(s.id) if self.show_truth else None,
                 )
             )
-        trains = src.trains()
+        trains = src.trains(truth=self.show_truth)
         crossings = []
         for code, ctl in src.crossings.items():
             c = ctl.crossing
@@ -226,8 +232,8 @@ class StationModel:
         )
 
     def differences(self, snap: Snapshot) -> set[str]:
-        """Sections whose console state disagrees with the truth (truth view on)."""
-        out = set()
+        """Sections and trains where the console disagrees with the truth (truth view on)."""
+        out = {t.id for t in snap.trains if t.true_head_m is not None and abs(t.head_m - t.true_head_m) > TRAIN_DIFF_M}
         for s in snap.sections:
             if s.true_count is None:
                 continue

@@ -45,6 +45,53 @@ def _detection_entries(events: Sequence[DetectionEvent]) -> list[LogEntry]:
     return out
 
 
+STALE_S = 30.0  # a unit not heard for this long is shown stale
+GONE_S = 120.0  # a replayed train not heard for this long has left the line
+
+
+def reported_train(
+    train: str,
+    length_m: float,
+    head: Fix | None,
+    eot: Fix | None,
+    now_ns: int,
+    next_stop: str = "–",
+    controller: str = "–",
+    true_head_m: float | None = None,
+) -> TrainView | None:
+    """A train as the console knows it: from the last head and EOT fixes that reached it.
+
+    A missing end is placed a train length from the other, so the diagram still
+    shows the train; the ages tell the panel which end is only inferred."""
+    ref = head or eot
+    if ref is None:
+        return None
+    d = ref.direction_hint or (head.direction_hint if head else 0) or 1
+
+    def now_at(f: Fix) -> float:
+        # Dead reckoning from a fresh fix, so the diagram moves between reports;
+        # a stale unit's train stays where it was last heard.
+        age_s = (now_ns - f.t_fix_ns) / NS
+        v = f.speed_mps if f.speed_mps == f.speed_mps else 0.0
+        return f.chainage_m + (d * v * age_s if 0 < age_s <= STALE_S else 0.0)
+
+    head_m = now_at(head) if head else now_at(ref) + d * length_m
+    tail_m = now_at(eot) if eot else head_m - d * length_m
+    v = ref.speed_mps if ref.speed_mps == ref.speed_mps else 0.0
+    return TrainView(
+        train,
+        head_m,
+        tail_m,
+        d,
+        v * 3.6,
+        next_stop,
+        controller,
+        head_age_s=(now_ns - head.t_fix_ns) / NS if head else None,
+        eot_age_s=(now_ns - eot.t_fix_ns) / NS if eot else None,
+        true_head_m=true_head_m,
+    )
+
+
 class SimSource:
     """The live simulator as a view source; also takes the operator's actions."""
 
@@ -77,16 +124,28 @@ class SimSource:
             self._counts.update(e.head for e in r.detection_events if e.kind is EventKind.AXLE)
         return transitions, entries
 
-    def trains(self) -> list[TrainView]:
+    def trains(self, truth: bool = False) -> list[TrainView]:
+        """The trains on the line, placed where their units last reported them."""
         out = []
         platforms = self.layout.platforms
         for t in self.sim.active:
             nxt = "–"
-            if t.stops:
-                nxt = next((p.station for p in platforms if p.from_m - 20 <= t.stops[0] <= p.to_m + 20), "stop")
-            elif t.dwell_until_s is not None:
+            if t.dwell_until_s is not None:
                 nxt = "dwelling"
-            out.append(TrainView(t.id, t.x_m, t.tail_m, t.direction, t.v_mps * 3.6, nxt, t.controller))
+            elif t.stops:
+                nxt = next((p.station for p in platforms if p.from_m - 20 <= t.stops[0] <= p.to_m + 20), "stop")
+            view = reported_train(
+                t.id,
+                t.consist.length_m,
+                self.sim.delivered.get((t.id, "head")),
+                self.sim.delivered.get((t.id, "eot")),
+                self.sim.now_ns,
+                nxt,
+                t.controller,
+                t.x_m if truth else None,
+            )
+            if view is not None:
+                out.append(view)
         return out
 
     def true_count(self, section_id: str) -> int | None:
@@ -205,19 +264,17 @@ class ReplaySource:
             self._rebuild(self.start_ns)
         self.advance((target - self._now) / NS)
 
-    def trains(self) -> list[TrainView]:
+    def trains(self, truth: bool = False) -> list[TrainView]:
         out = []
         for spec in self.train_specs:
             head = self._last.get((spec.train, "head"))
             eot = self._last.get((spec.train, "eot"))
             ref = head or eot
-            if ref is None or self._now - ref.t_fix_ns > 120 * NS:
-                continue  # not seen for two minutes: off the line
-            d = ref.direction_hint or 1
-            head_m = head.chainage_m if head else eot.chainage_m + d * spec.length_m  # type: ignore[union-attr]
-            tail_m = eot.chainage_m if eot else head_m - d * spec.length_m
-            v = ref.speed_mps if ref.speed_mps == ref.speed_mps else 0.0
-            out.append(TrainView(spec.train, head_m, tail_m, d, v * 3.6, "–", "–"))
+            if ref is None or self._now - ref.t_fix_ns > GONE_S * NS:
+                continue  # not heard for two minutes: off the line
+            view = reported_train(spec.train, spec.length_m, head, eot, self._now)
+            if view is not None:
+                out.append(view)
         return out
 
     def true_count(self, section_id: str) -> int | None:

@@ -8,6 +8,7 @@ from textual.widgets import DataTable
 from console.analysis.sections import STATE_MARK, SectionState
 from console.safe_text import inert
 from console.tui.model import Snapshot
+from console.tui.sources import STALE_S
 from console.tui.widgets.track import STYLE
 
 
@@ -52,20 +53,40 @@ class TrainsTable(DataTable[Text]):
     def on_mount(self) -> None:
         self.cursor_type = "row"
         self.zebra_stripes = True
-        self.add_columns("Train", "km/h", "Next stop", "Ctrl", "Head m", "Tail m")
 
-    def render_snapshot(self, snap: Snapshot, selected: str | None) -> None:
+    def render_snapshot(self, snap: Snapshot, selected: str | None, differences: set[str] | None = None) -> None:
+        diffs = differences or set()
+        truth = any(t.true_head_m is not None for t in snap.trains)
+        cols = ["Train", "km/h", "Next stop", "Ctrl", "Head m", "Tail m", "Units", *(["True head"] if truth else [])]
+        if [str(c.label) for c in self.columns.values()] != cols:
+            self.clear(columns=True)
+            self.add_columns(*cols)
         self.clear()
         for t in snap.trains:
-            self.add_row(
-                inert(t.id, style="bold cyan"),
+            units, bad = unit_health(t.head_age_s, t.eot_age_s)
+            row = [
+                inert(t.id, style="bold cyan underline" if t.id in diffs else "bold cyan"),
                 Text(f"{t.speed_kmh:.0f}"),
                 inert(t.next_stop),
                 inert(t.controller),
                 Text(f"{t.head_m:.0f}"),
                 Text(f"{t.tail_m:.0f}"),
-                key=t.id,
-            )
+                Text(units, style="bold red" if bad else "green"),
+            ]
+            if truth:
+                row.append(Text(f"{t.true_head_m:.0f}", style="bold red" if t.id in diffs else "dim"))
+            self.add_row(*row, key=t.id)
         ids = [t.id for t in snap.trains]
         if selected in ids:
             self.move_cursor(row=ids.index(selected), animate=False)
+
+
+def unit_health(head_age_s: float | None, eot_age_s: float | None) -> tuple[str, bool]:
+    """How the train's GNSS units are heard: 'ok', or which is stale or never heard."""
+    problems = []
+    for name, age in (("head", head_age_s), ("EOT", eot_age_s)):
+        if age is None:
+            problems.append(f"{name} unheard")
+        elif age > STALE_S:
+            problems.append(f"{name} {age:.0f}s old")
+    return (", ".join(problems), True) if problems else ("ok", False)

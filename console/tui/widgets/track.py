@@ -9,6 +9,7 @@ from console.analysis.sections import STATE_MARK, SectionState
 from console.layout import Layout
 from console.safe_text import clean
 from console.tui.model import Snapshot
+from console.tui.sources import STALE_S
 
 STYLE = {"clear": "green", "occupied": "bold yellow", "disturbed": "bold white on red", "preparatory": "bold magenta"}
 
@@ -120,7 +121,15 @@ def draw(
         txt = body + label if t.direction > 0 else label + body
         start = a if t.direction > 0 else a - len(label)
         start = max(0, min(start, width - len(txt)))
-        style = "bold cyan reverse" if t.id == selected_train else "bold cyan"
+        stale = t.head_age_s is None or t.head_age_s > STALE_S
+        if stale:
+            label += "?"  # placed from an old or inferred report
+            txt = body + label if t.direction > 0 else label + body
+        style = "bold red" if stale else "bold cyan"
+        if t.id == selected_train:
+            style += " reverse"
+        if t.id in diffs:
+            style += " underline"
         trains = Text.assemble(trains[:start], Text(txt, style=style), trains[start + len(txt) :])
     out = Text()
     out.append("".join(plat) + "\n", style="dim")

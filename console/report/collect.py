@@ -1,0 +1,317 @@
+"""Report inputs → :class:`ReportData`: expand directories, recognise each file, run the analyses.
+
+Recognition is by content (the first line that is not blank or a ``#``
+comment, read through :func:`parsers.sources.open_input`, so gzip and
+UTF-16 are seen through), in this order:
+
+* ``*.toml`` → a layout (used when no ``--layout`` is given: the first one);
+* ``truth.json`` (or a ``trackside.truth/…`` document) → the simulator's
+  ground truth: listed, **not read** — a report says what the logs say;
+* ``Diag_id:…`` → a diagnostic log;
+* BLF signature, ``.asc``, or a ``.log`` whose first line starts with
+  ``(`` (candump) → a CAN log;
+* ``<ISO time> <sensor> <frame>`` → intelligent-sensor frames;
+* a header naming sensor, in-phase and anti-phase voltages → a voltage table;
+* NMEA, device CSV / JSON lines, or the monitoring-centre table → GNSS
+  (:func:`parsers.gnss.recognise_format`);
+* anything else, and empty files, are listed as not read, with the reason.
+
+A directory is read whole, recursively, in sorted order; entries whose
+name starts with a dot are skipped (and counted in a warning).  A file
+that cannot be opened at all is an error (:class:`ReportInputError`).
+
+The analyses are the ones the other commands run, called the same way:
+``analyze_files`` + ``detection_events`` + ``run_sections`` (each section
+starting preparatory) + ``health_findings`` for diagnostic logs,
+``frames_to_events`` per frame file, ``voltage_margin_findings`` for
+voltage tables, ``parse_gnss`` + ``run_crossings`` for GNSS telemetry.
+Section events come from the diagnostic logs, or from frames only when no
+diagnostic log is given (a simulated run holds both for the same heads, and
+counting both would count each axle twice).  Centre-table fixes feed the
+crossing controller only when no NMEA or device stream is given (the
+centre repeats the head units' positions, under the train's name).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import zlib
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+
+from console.analysis.crossing_batch import run_crossings
+from console.analysis.diag_events import DiagEventSettings
+from console.analysis.diagnostics import SpeedSettings
+from console.analysis.events import DetectionEvent, sort_events
+from console.analysis.frame_events import frames_to_events
+from console.analysis.health import Finding, sort_findings, voltage_margin_findings
+from console.analysis.sections import SectionState, run_sections
+from console.jobs import HEALTH_REGISTERS, analyze_files, detection_events, health_findings, input_bytes
+from console.layout import Layout, LayoutError, load_layout
+from console.progress import byte_progress
+from console.report.model import (
+    CAN,
+    CENTRE,
+    DIAGNOSTIC,
+    EMPTY,
+    FRAMES,
+    GNSS_CSV,
+    GNSS_FORMATS,
+    GNSS_JSONL,
+    LAYOUT,
+    NMEA,
+    TRUTH,
+    UNKNOWN,
+    VOLTAGES,
+    InputFile,
+    ReportData,
+)
+from parsers.frames import frame_line_problem, parse_can, parse_frames
+from parsers.gnss import parse_gnss, recognise_format
+from parsers.report import escape_text
+from parsers.sources import InputError, open_input
+from parsers.voltages import parse_header, read_voltages
+
+PEEK_BYTES = 64 * 1024
+_GNSS = {"nmea": NMEA, "csv": GNSS_CSV, "jsonl": GNSS_JSONL, "centre": CENTRE}
+
+
+class ReportInputError(Exception):
+    """An input, layout or option the report cannot use: one line for the user, exit 2."""
+
+
+def _peek(path: Path) -> bytes:
+    stream, raw, _ = open_input(path)
+    try:
+        return stream.read(PEEK_BYTES)
+    except (OSError, EOFError, zlib.error) as exc:
+        raise InputError(f"{path}: cannot be read, corrupt or truncated ({exc})") from None
+    finally:
+        stream.close()
+        raw.close()
+
+
+def _first_line(head: bytes) -> bytes | None:
+    for line in head.split(b"\n"):
+        text = line.strip()
+        if text and not text.startswith(b"#"):
+            return text
+    return None
+
+
+def _is_voltage_header(text: str) -> bool:
+    delimiter = "\t" if "\t" in text else ";" if ";" in text else ","
+    cells = next(csv.reader([text], delimiter=delimiter, skipinitialspace=True), [])
+    try:
+        parse_header(cells)
+    except ValueError:
+        return False
+    return True
+
+
+def recognise(path: Path) -> tuple[str, str]:
+    """(format, note) of one file; InputError when it cannot be opened at all."""
+    if path.suffix.lower() == ".toml":
+        return LAYOUT, ""
+    head = _peek(path)
+    if head.startswith(b"LOGG"):
+        return CAN, ""
+    suffixes = [s.lower() for s in path.suffixes if s.lower() != ".gz"]
+    suffix = suffixes[-1] if suffixes else ""
+    if path.name == "truth.json" or b'"schema": "trackside.truth/' in head:
+        return TRUTH, "the simulator's ground truth: not read, the report shows what the logs say"
+    first = _first_line(head)
+    if first is None:
+        return EMPTY, "empty: no line to read"
+    if first.startswith(b"Diag_id:"):
+        return DIAGNOSTIC, ""
+    if suffix in (".asc", ".blf") or (suffix == ".log" and first.startswith(b"(")):
+        return CAN, ""
+    text = first.decode("utf-8", errors="replace")
+    if len(text.split()) in (3, 4) and frame_line_problem(text) is None:
+        return FRAMES, ""
+    if _is_voltage_header(text):
+        return VOLTAGES, ""
+    gnss = recognise_format(path)
+    if gnss in _GNSS:
+        return _GNSS[gnss], ""
+    if b"\0" in head[:4096]:
+        return UNKNOWN, "not read: binary data in no format trackside reads"
+    return UNKNOWN, f"not read: unrecognised format, first line '{escape_text(text, 60)}'"
+
+
+def expand(inputs: Sequence[Path], exclude: Path | None = None) -> tuple[list[Path], list[str]]:
+    """Input files in order (a directory's files sorted, recursively), and warnings about what was skipped."""
+    files: list[Path] = []
+    warnings: list[str] = []
+    skip = exclude.resolve() if exclude is not None else None
+    for given in inputs:
+        if not given.exists():
+            raise ReportInputError(f"{given}: no such file or directory")
+        if not given.is_dir():
+            if not os.access(given, os.R_OK):
+                raise ReportInputError(f"{given}: permission denied")
+            files.append(given)
+            continue
+        hidden = 0
+        found: list[Path] = []
+        for root, dirs, names in os.walk(given):
+            hidden += sum(1 for d in dirs if d.startswith(".")) + sum(1 for n in names if n.startswith("."))
+            dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+            found += [Path(root) / n for n in names if not n.startswith(".")]
+        for p in sorted(found, key=lambda q: q.relative_to(given).as_posix()):
+            if skip is not None and p.resolve() == skip:
+                continue  # the report being written into the directory it reads
+            if not os.access(p, os.R_OK):
+                raise ReportInputError(f"{p}: permission denied")
+            files.append(p)
+        if hidden:
+            warnings.append(f"{given}: {hidden} hidden entries (names starting with '.') not read")
+    return files, warnings
+
+
+def _load(spec: str | Path) -> Layout:
+    try:
+        return load_layout(spec)
+    except LayoutError as exc:
+        raise ReportInputError(str(exc)) from None
+
+
+def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | None = None) -> ReportData:
+    """Recognise every input, run every analysis that applies, and return what the report shows."""
+    files, warnings = expand(inputs, exclude)
+    recognised = [(p, *recognise(p)) for p in files]
+    layout: Layout | None = None
+    layout_file: Path | None = None
+    if layout_spec is not None:
+        layout = _load(layout_spec)
+    else:
+        layout_file = next((p for p, fmt, _ in recognised if fmt == LAYOUT), None)
+        if layout_file is not None:
+            layout = _load(layout_file)
+
+    rows: list[InputFile] = []
+    for p, fmt, note in recognised:
+        read = fmt not in (LAYOUT, TRUTH, EMPTY, UNKNOWN)
+        if fmt == LAYOUT:
+            read = p == layout_file
+            note = (
+                "the layout used"
+                if read
+                else "not used: --layout given"
+                if layout_spec is not None
+                else f"not used: the layout {layout_file} is used"
+            )
+        rows.append(InputFile(str(p), fmt, read, note))
+    if not any(r.read and r.format != LAYOUT for r in rows):
+        why = "; ".join(f"{r.path}: {r.note or r.format}" for r in rows[:3]) or "no files"
+        raise ReportInputError(f"no input in a format trackside reads ({why})")
+
+    def of(*formats: str) -> list[Path]:
+        return [p for p, fmt, _ in recognised if fmt in formats]
+
+    consist = layout.consist() if layout is not None else None
+    settings = SpeedSettings(
+        spacing_m=layout.heads[0].spacing_m if layout is not None and layout.heads else SpeedSettings.spacing_m,
+        train_length_m=consist.length_m if consist is not None else SpeedSettings.train_length_m,
+    )
+    data = ReportData(inputs=rows, layout=layout, settings=settings, warnings=warnings)
+
+    findings: list[Finding] = []
+    diag = of(DIAGNOSTIC)
+    if diag:
+        with byte_progress(input_bytes(diag), "parsing") as advance:
+            data.job = analyze_files(
+                diag, settings, on_progress=advance, keep_registers=HEALTH_REGISTERS, keep_releases=True
+            )
+        data.reports["diagnostic"] = data.job.report
+        data.events, ev_warnings = detection_events(data.job, layout, DiagEventSettings())
+        data.warnings += ev_warnings
+        findings += health_findings(data.job, layout, data.events, None)
+
+    _frames(data, of(FRAMES), of(CAN))
+
+    voltages = of(VOLTAGES)
+    if voltages:
+        try:
+            table, vreport = read_voltages(voltages)
+        except OSError as exc:
+            raise InputError(f"voltage table: cannot be read ({exc})") from None
+        data.reports["voltages"] = vreport
+        findings += voltage_margin_findings(table)
+    data.findings = sort_findings(findings)
+
+    _sections(data)
+    _crossings(data, of(*GNSS_FORMATS))
+    return data
+
+
+def _frames(data: ReportData, text_files: list[Path], can_files: list[Path]) -> None:
+    tables: list[pd.DataFrame] = []
+    if text_files:
+        table, report = parse_frames(text_files)
+        tables.append(table)
+        data.reports["frames"] = report
+    if can_files:
+        table, report = parse_can(can_files)
+        tables.append(table)
+        data.reports["can"] = report
+    if not tables:
+        return
+    lay = data.layout
+    up: dict[str, bool] | bool = {h.id: h.up_is_first_channel_first for h in lay.heads} if lay is not None else True
+    events: list[DetectionEvent] = []
+    for table in tables:
+        # Each file is its own recording: sequence and count checks run within it (as `trackside frames`).
+        for _, part in table.groupby("file", observed=True, sort=False):
+            events += frames_to_events(part, up_is_s1_to_s3=up)
+    data.frame_events = sort_events(events)
+    data.frames = pd.concat(tables, ignore_index=True)[["time", "sensor", "file", "line"]]
+
+
+def _sections(data: ReportData) -> None:
+    lay = data.layout
+    if lay is None:
+        data.notes["sections"] = "No section states: they need a layout (--layout, or a layout.toml among the inputs)."
+        return
+    if not lay.sections:
+        data.notes["sections"] = f"No section states: the layout {lay.source} has no [[sections]]."
+        return
+    if data.job is not None:
+        events, data.section_source = data.events, "diagnostic"
+    elif data.frames is not None:
+        events, data.section_source = data.frame_events, "frames"
+    else:
+        data.notes["sections"] = "No section states: no diagnostic log or sensor frames among the inputs."
+        return
+    data.sections = run_sections(lay, events, initial=SectionState.PREPARATORY)
+
+
+def _crossings(data: ReportData, gnss: list[Path]) -> None:
+    lay = data.layout
+    if not gnss:
+        data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."
+        return
+    fixes, report, _states = parse_gnss(gnss)
+    data.reports["gnss"] = report
+    data.fixes = fixes
+    if lay is None:
+        data.notes["crossings"] = "No level-crossing timelines: they need a layout with [[crossings]] and a [[track]]."
+        return
+    if not lay.crossings or len(lay.track) < 2:
+        data.notes["crossings"] = (
+            f"No level-crossing timelines: the layout {lay.source} has no [[crossings]] or no [[track]] polyline."
+        )
+        return
+    own = fixes["source"].astype(str) != "centre"
+    run = run_crossings(fixes[own] if own.any() else fixes, lay)
+    data.crossing = run
+    if run.off_track:
+        data.warnings.append(f"{run.off_track} GNSS fixes more than 100 m from the track were set aside")
+    if run.unassigned_devices:
+        data.warnings.append("GNSS devices in no train: " + ", ".join(run.unassigned_devices))
+    if not run.trains:
+        data.warnings.append("no GNSS head or EOT device found: name them <train>-head / <train>-eot")
