@@ -38,6 +38,7 @@ import csv
 import os
 import zlib
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import pandas as pd
@@ -307,6 +308,9 @@ def _crossings(data: ReportData, gnss: list[Path]) -> None:
         )
         return
     own = fixes["source"].astype(str) != "centre"
+    if own.any() and not own.all():
+        note = "crossings use the NMEA and device streams (each unit's own fixes), not the centre's copy"
+        data.inputs = [replace(i, note=note) if i.format == CENTRE else i for i in data.inputs]
     run = run_crossings(fixes[own] if own.any() else fixes, lay)
     data.crossing = run
     if run.off_track:

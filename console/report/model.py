@@ -23,15 +23,17 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pandas as pd
 
 from console import __version__
 from console.analysis.crossing_batch import CrossingRun
+from console.analysis.crossing_timeline import TimelineRow
 from console.analysis.diagnostics import SpeedSettings, passages_json_text
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.health import Finding, Severity
@@ -123,15 +125,15 @@ class ReportData:
         """Unsafe items first, then failing ones; each in time order."""
         items: list[Attention] = []
         if self.crossing is not None:
-            for r in self.crossing.timelines:
-                for v in r.violations:
+            for tl_row in self.crossing.timelines:
+                for v in tl_row.violations:
                     items.append(
                         Attention(
                             Severity.CRITICAL,
                             UNSAFE,
                             "crossing",
-                            f"{r.crossing} train {r.train}",
-                            r.t_head_arrival_ns or r.t_on_ns,
+                            f"{tl_row.crossing} train {tl_row.train}",
+                            tl_row.t_head_arrival_ns or tl_row.t_on_ns,
                             v,
                         )
                     )
@@ -206,7 +208,23 @@ class ReportData:
         return max(ends) if ends else None
 
 
+_NUMBER_PARTS = re.compile(r"(\d+)")
+
+
+def natural_key(text: str) -> tuple[Any, ...]:
+    """``WS10`` after ``WS9``, train ``T10`` after ``T2``."""
+    return tuple(int(p) if i % 2 else p.casefold() for i, p in enumerate(_NUMBER_PARTS.split(text)))
+
+
+def timeline_order(r: TimelineRow) -> tuple[Any, ...]:
+    """Crossing timelines per crossing, then in the order the trains arrived."""
+    t = r.t_head_arrival_ns if r.t_head_arrival_ns is not None else r.t_on_ns
+    return (natural_key(r.crossing), -1 if t is None else t, natural_key(r.train))
+
+
 def _where(f: Finding) -> str:
+    if f.rule == "voltage_margin":
+        return f"sensor {f.counting_head}"
     where = f.counting_head or "–"
     if f.channel is not None:
         where += f" Sys{f.channel}" if f.channel in (1, 2) else f" ch {f.channel}"
@@ -233,20 +251,20 @@ def _inputs(data: ReportData) -> dict[str, Any]:
                 by_file[fr.file] = (kind, fr.to_dict())
     rows = []
     for inp in data.inputs:
-        kind, fr = by_file.get(inp.path, ("", {}))
+        _kind, fr_dict = by_file.get(inp.path, ("", {}))
         rows.append(
             {
                 "file": inp.path,
                 "format": inp.format,
                 "read": inp.read,
                 "note": inp.note,
-                "lines_read": fr.get("lines_read"),
-                "records": fr.get("records"),
-                "blank": fr.get("blank"),
-                "rejected": fr.get("rejected"),
-                "bytes_read": fr.get("bytes_read"),
-                "encoding": fr.get("encoding"),
-                "compressed": fr.get("compressed"),
+                "lines_read": fr_dict.get("lines_read"),
+                "records": fr_dict.get("records"),
+                "blank": fr_dict.get("blank"),
+                "rejected": fr_dict.get("rejected"),
+                "bytes_read": fr_dict.get("bytes_read"),
+                "encoding": fr_dict.get("encoding"),
+                "compressed": fr_dict.get("compressed"),
             }
         )
     reports = [data.reports[k] for k in REPORT_KINDS if k in data.reports]
@@ -398,7 +416,8 @@ def analog_series(data: ReportData) -> pd.DataFrame:
 def _analog(data: ReportData) -> list[dict[str, Any]]:
     series = analog_series(data)
     out = []
-    for (head, channel, address), g in series.groupby(["head", "channel", "address"], sort=True):
+    for key, g in series.groupby(["head", "channel", "address"], sort=True):
+        head, channel, address = cast(tuple[str, int, int], key)
         v = g["value"].to_numpy()
         out.append(
             {
@@ -422,7 +441,7 @@ def _crossings(data: ReportData) -> dict[str, Any] | None:
         return None
     return {
         "violations": sum(1 for r in run.timelines if r.violations),
-        "timelines": [r.to_dict() for r in run.timelines],
+        "timelines": [r.to_dict() for r in sorted(run.timelines, key=timeline_order)],
         "events": [
             {"time": iso(e.t_ns), "crossing": e.crossing, "train": e.train, "kind": e.kind, "reason": e.reason}
             for e in run.events
@@ -817,7 +836,14 @@ def _sections_part(doc: dict[str, Any]) -> list[Block]:
     out.append(Heading(3, f"Count ledger ({len(sec['ledger']):,} axles counted)", "ledger"))
     if sec["ledger_summary"]:
         rows = [
-            [r["section"], r["head"], str(r["count_in"]), str(r["count_out"]), show_time(r["first"]), show_time(r["last"])]
+            [
+                r["section"],
+                r["head"],
+                str(r["count_in"]),
+                str(r["count_out"]),
+                show_time(r["first"]),
+                show_time(r["last"]),
+            ]
             for r in sec["ledger_summary"]
         ]
         cols = [("Section", False), ("Head", False), ("In", True), ("Out", True), ("First", False), ("Last", False)]

@@ -16,15 +16,16 @@ from textual import work
 from textual.app import App, ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Horizontal
-from textual.widgets import DataTable, Footer, Header
+from textual.widgets import Header
 
 from console.analysis.timefmt import display
 from console.tui.help import HelpScreen
 from console.tui.model import StationModel
 from console.tui.sources import ReplaySource, SimSource
 from console.tui.widgets.event_log import EventLog
+from console.tui.widgets.key_bar import KeyBar
 from console.tui.widgets.speed_plot import SpeedPlot
-from console.tui.widgets.tables import SectionsTable, TrainsTable
+from console.tui.widgets.tables import PickableTable, SectionsTable, TrainsTable
 from console.tui.widgets.track import TrackDiagram
 
 TICK_S = 0.1
@@ -35,6 +36,7 @@ class StationApp(App[None]):
     """The operator's view of a line, simulated or replayed."""
 
     TITLE = "trackside station"
+    ENABLE_COMMAND_PALETTE = False  # every action has its own key
     CSS = """
     Screen { layout: vertical; }
     #panels { height: 1fr; min-height: 6; }
@@ -80,7 +82,7 @@ class StationApp(App[None]):
         with Horizontal(id="bottom"):
             yield EventLog(id="log")
             yield SpeedPlot(id="speed")
-        yield Footer()
+        yield KeyBar()
 
     def on_mount(self) -> None:
         self.refresh_views()
@@ -122,7 +124,9 @@ class StationApp(App[None]):
         self.query_one(TrainsTable).render_snapshot(snap, m.train_id(), diffs)
         self.query_one(EventLog).render_entries(m.visible_log(), m.log_filter)
         train = m.train_id()
-        self.query_one(SpeedPlot).show(train, list(m.speed_history.get(train, [])) if train else [])
+        self.query_one(SpeedPlot).show(
+            train, list(m.speed_history.get(train, [])) if train else [], m.source.layout.line_speed_mps * 3.6
+        )
 
     # -- actions --------------------------------------------------------------------
     def action_pause(self) -> None:
@@ -156,17 +160,16 @@ class StationApp(App[None]):
         self.model.select_train(-1)
         self.refresh_views()
 
-    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+    def on_pickable_table_picked(self, event: PickableTable.Picked) -> None:
         """A click (or enter) on a row selects that section or train."""
-        key = event.row_key.value
-        if isinstance(event.data_table, SectionsTable):
+        if isinstance(event.table, SectionsTable):
             ids = [s.id for s in self.model.source.layout.sections]
-            if key in ids:
-                self.model.selected_section = ids.index(key)
-        elif isinstance(event.data_table, TrainsTable):
+            if event.key in ids:
+                self.model.selected_section = ids.index(event.key)
+        elif isinstance(event.table, TrainsTable):
             ids = [t.id for t in self.model.source.trains()]
-            if key in ids:
-                self.model.selected_train = ids.index(key)
+            if event.key in ids:
+                self.model.selected_train = ids.index(event.key)
         self.refresh_views()
 
     def action_reset_section(self) -> None:

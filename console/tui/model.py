@@ -119,7 +119,7 @@ class StationModel:
     selected_train: int = 0
     log_filter: str = "info"  # the least severity shown
     log: deque[LogEntry] = field(default_factory=lambda: deque(maxlen=2000))
-    speed_history: dict[str, deque[float]] = field(default_factory=dict)
+    speed_history: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)  # (s, km/h)
 
     @property
     def speed(self) -> int:
@@ -152,9 +152,10 @@ class StationModel:
             )
             self.log.append(LogEntry(tr.time_ns, sev, f"section {tr.section}: {tr.state.value} — {tr.reason}"))
         self.log.extend(entries)
+        now_s = self.source.now_ns / NS
         for t in self.source.trains():
-            hist = self.speed_history.setdefault(t.id, deque(maxlen=240))
-            hist.append(t.speed_kmh)
+            hist = self.speed_history.setdefault(t.id, deque(maxlen=1200))
+            hist.append((now_s, t.speed_kmh))
 
     def visible_log(self, limit: int = 200) -> list[LogEntry]:
         least = SEVERITIES.index(self.log_filter)
@@ -237,10 +238,9 @@ class StationModel:
         for s in snap.sections:
             if s.true_count is None:
                 continue
-            held = "damped" in s.reason or "held" in s.reason
-            unsafe = s.state == "clear" and s.true_count > 0  # the dangerous kind
-            spurious = s.state == "occupied" and s.true_count == 0 and not held
-            if unsafe or spurious or s.state in ("disturbed", "preparatory"):
+            # Every disagreement counts: clear over a train is the dangerous kind,
+            # occupied, disturbed or preparatory over an empty section the safe kind.
+            if (s.state == "clear") != (s.true_count == 0):
                 out.add(s.id)
         return out
 

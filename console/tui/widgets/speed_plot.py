@@ -1,32 +1,37 @@
-"""A terminal plot of the selected train's speed."""
+"""A terminal plot of the selected train's reported speed (plotext, through textual-plotext)."""
 
 from __future__ import annotations
 
-from textual.app import ComposeResult
-from textual.containers import Vertical
-from textual.widgets import Label, Sparkline
+from collections.abc import Sequence
+
+from textual_plotext import PlotextPlot
+
+from console.safe_text import inert
+
+WINDOW_S = 600.0  # the last ten minutes
 
 
-class SpeedPlot(Vertical):
-    """The selected train's speed over the last minutes, as a sparkline with its range."""
+class SpeedPlot(PlotextPlot):
+    """Speed over the last ten minutes, km/h against seconds before now, from 0 to the line speed."""
 
     DEFAULT_CSS = """
-    SpeedPlot { width: 30; border: round $secondary; padding: 0 1; }
-    SpeedPlot Sparkline { height: 1fr; }
-    SpeedPlot Label { width: 100%; }
+    SpeedPlot { width: 34; border: round $secondary; }
     """
 
-    def compose(self) -> ComposeResult:
-        yield Label("no train selected", id="speed-label")
-        yield Sparkline([0.0], id="speed-spark")
-
-    def show(self, train: str | None, history: list[float]) -> None:
-        label = self.query_one("#speed-label", Label)
-        spark = self.query_one("#speed-spark", Sparkline)
-        if not train or not history:
-            label.update("no train selected")
-            spark.data = [0.0]
-            return
-        label.update(f"{train}: {history[-1]:.0f} km/h (max {max(history):.0f})")
-        spark.data = list(history)
-        self.border_title = "Speed, km/h"
+    def show(self, train: str | None, history: Sequence[tuple[float, float]], line_speed_kmh: float) -> None:
+        """``history``: (seconds on the model clock, km/h) pairs, oldest first."""
+        plt = self.plt
+        plt.clear_data()
+        plt.clear_figure()
+        ymax = max([line_speed_kmh, *(v for _, v in history)]) * 1.1
+        plt.ylim(0, ymax)
+        plt.xlim(-WINDOW_S, 0)
+        if train and history:
+            now = history[-1][0]
+            pts = [(t - now, v) for t, v in history if now - t <= WINDOW_S]
+            plt.plot([p[0] for p in pts], [p[1] for p in pts], marker="braille")
+            self.border_title = inert(f"{train} {history[-1][1]:.0f} km/h")
+        else:
+            self.border_title = "speed: no train"
+        plt.xlabel("s before now")
+        self.refresh()

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from rich.text import Text
+from textual import events
+from textual.coordinate import Coordinate
+from textual.message import Message
 from textual.widgets import DataTable
 
 from console.analysis.sections import STATE_MARK, SectionState
@@ -12,11 +17,31 @@ from console.tui.sources import STALE_S
 from console.tui.widgets.track import STYLE
 
 
-class SectionsTable(DataTable[Text]):
+class PickableTable(DataTable[Text]):
+    """A table whose rows are picked by a single click (or enter), not a second one."""
+
+    @dataclass
+    class Picked(Message):
+        table: PickableTable
+        key: str
+
+    def on_click(self, event: events.Click) -> None:
+        row = event.style.meta.get("row")
+        if isinstance(row, int) and 0 <= row < self.row_count:
+            key = self.coordinate_to_cell_key(Coordinate(row, 0)).row_key.value
+            if key is not None:
+                self.post_message(self.Picked(self, key))
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        if event.row_key.value is not None:
+            self.post_message(self.Picked(self, event.row_key.value))
+
+
+class SectionsTable(PickableTable):
     """State (with its mark), counts in and out, why; with the truth view, the true count."""
 
     DEFAULT_CSS = """
-    SectionsTable { height: 1fr; border: round $secondary; }
+    SectionsTable { height: 1fr; width: 1fr; border: round $secondary; scrollbar-size-horizontal: 0; }
     """
 
     def on_mount(self) -> None:
@@ -39,15 +64,19 @@ class SectionsTable(DataTable[Text]):
                 row.append(Text(str(s.true_count), style="bold red" if s.id in differences else "dim"))
             row.append(inert(s.reason, style="dim"))
             self.add_row(*row, key=s.id)
-        if selected is not None and selected in [s.id for s in snap.sections]:
-            self.move_cursor(row=[s.id for s in snap.sections].index(selected), animate=False)
+        self.border_title = "Sections"
+        chosen = next((s for s in snap.sections if s.id == selected), None)
+        if chosen is not None:
+            self.move_cursor(row=snap.sections.index(chosen), animate=False)
+            # The reason in full, where a narrow panel would cut the Why column.
+            self.border_subtitle = inert(f"{chosen.id}: {chosen.reason}")
 
 
-class TrainsTable(DataTable[Text]):
+class TrainsTable(PickableTable):
     """Each train: speed, next stop, controller, where its head and tail are."""
 
     DEFAULT_CSS = """
-    TrainsTable { height: 1fr; border: round $secondary; }
+    TrainsTable { height: 1fr; width: 1fr; border: round $secondary; scrollbar-size-horizontal: 0; }
     """
 
     def on_mount(self) -> None:
@@ -57,7 +86,7 @@ class TrainsTable(DataTable[Text]):
     def render_snapshot(self, snap: Snapshot, selected: str | None, differences: set[str] | None = None) -> None:
         diffs = differences or set()
         truth = any(t.true_head_m is not None for t in snap.trains)
-        cols = ["Train", "km/h", "Next stop", "Ctrl", "Head m", "Tail m", "Units", *(["True head"] if truth else [])]
+        cols = ["Train", "km/h", "Head m", *(["True head"] if truth else []), "Units", "Next stop", "Tail m", "Ctrl"]
         if [str(c.label) for c in self.columns.values()] != cols:
             self.clear(columns=True)
             self.add_columns(*cols)
@@ -67,18 +96,24 @@ class TrainsTable(DataTable[Text]):
             row = [
                 inert(t.id, style="bold cyan underline" if t.id in diffs else "bold cyan"),
                 Text(f"{t.speed_kmh:.0f}"),
-                inert(t.next_stop),
-                inert(t.controller),
                 Text(f"{t.head_m:.0f}"),
-                Text(f"{t.tail_m:.0f}"),
-                Text(units, style="bold red" if bad else "green"),
             ]
             if truth:
                 row.append(Text(f"{t.true_head_m:.0f}", style="bold red" if t.id in diffs else "dim"))
+            row += [
+                Text(units, style="bold red" if bad else "green"),
+                inert(t.next_stop),
+                Text(f"{t.tail_m:.0f}"),
+                inert(t.controller),
+            ]
             self.add_row(*row, key=t.id)
+        self.border_title = f"Trains ({len(snap.trains)})"
         ids = [t.id for t in snap.trains]
+        self.border_subtitle = ""
         if selected in ids:
             self.move_cursor(row=ids.index(selected), animate=False)
+            t = snap.trains[ids.index(selected)]
+            self.border_subtitle = inert(f"{t.id}: {unit_health(t.head_age_s, t.eot_age_s)[0]}, {t.controller}")
 
 
 def unit_health(head_age_s: float | None, eot_age_s: float | None) -> tuple[str, bool]:

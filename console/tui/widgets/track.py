@@ -29,12 +29,19 @@ class TrackDiagram(Static):
     def __init__(self, layout: Layout, **kwargs: object) -> None:
         super().__init__("", **kwargs)  # type: ignore[arg-type]
         self.line_layout = layout
+        self._last: tuple[Snapshot, str | None, str | None, set[str]] | None = None
 
     def render_snapshot(
         self, snap: Snapshot, selected_section: str | None, selected_train: str | None, differences: set[str]
     ) -> None:
+        self._last = (snap, selected_section, selected_train, differences)
         width = max(20, self.size.width - 4 if self.size.width else 76)
         self.update(draw(self.line_layout, snap, width, selected_section, selected_train, differences))
+
+    def on_resize(self) -> None:
+        # Redraw to the new width at once, not at the next tick (a paused view has none).
+        if self._last is not None:
+            self.render_snapshot(*self._last)
 
 
 def draw(

@@ -1,0 +1,100 @@
+"""`trackside report`: one call that reads the inputs, renders a format, and writes it atomically.
+
+:func:`run_report` never raises: it returns the exit code (0 ok, 1 a
+finding reached ``--fail-on``, 2 an error) and writes errors as one line
+on stderr, ``trackside: error: …``.  Without ``-o`` the report itself is
+the only thing on stdout; with ``-o`` nothing is printed at all.  Progress
+goes to stderr only on a terminal, for big inputs.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+from pathlib import Path
+
+from console import exit_codes
+from console.analysis.health import Severity
+from console.layout import LayoutError
+from console.report.collect import ReportInputError, collect
+from console.report.html import render_html
+from console.report.markdown import render_markdown
+from console.report.model import ReportData, document, json_text
+from console.report.write import write_atomic
+from console.safe_text import clean
+from parsers.sources import InputError
+
+FORMATS = ("md", "html", "json")
+
+
+def _error(message: str) -> int:
+    sys.stderr.write(f"trackside: error: {clean(message)}\n")
+    sys.stderr.flush()
+    return exit_codes.USAGE
+
+
+def render(data: ReportData, fmt: str) -> str:
+    """The report in one format (md, html or json)."""
+    doc = document(data)
+    if fmt == "json":
+        return json_text(doc)
+    if fmt == "md":
+        return render_markdown(doc)
+    return render_html(data, doc)
+
+
+def exit_code(data: ReportData, threshold: Severity | None) -> int:
+    """1 when a health finding or a safety item (unsafe = critical, failing = warning) reaches the threshold."""
+    if threshold is None:
+        return exit_codes.OK
+    worst = data.worst()
+    return exit_codes.FINDINGS if worst is not None and worst >= threshold else exit_codes.OK
+
+
+def run_report(inputs: list[Path], layout: str | None, fmt: str, output: Path | None, fail_on: str | None) -> int:
+    """Read ``inputs`` (files or directories), write the report to ``output`` (or stdout); the exit code."""
+    if fmt not in FORMATS:
+        return _error(f"--format: expected md, html or json, found {fmt!r}")
+    threshold = None
+    if fail_on is not None:
+        try:
+            threshold = Severity.parse(fail_on)
+        except ValueError as exc:
+            return _error(f"--fail-on: {exc}")
+    if not inputs:
+        return _error("give input files or directories (a `trackside simulate` directory, logs, tables)")
+    if output is not None and output.is_dir():
+        return _error(f"{output}: is a directory, expected a report file name")
+    if output is not None and not output.parent.is_dir() and str(output.parent):
+        return _error(f"{output.parent}: no such directory for the report")
+    try:
+        data = collect(inputs, layout, exclude=output)
+        text = render(data, fmt)
+    except (ReportInputError, InputError, LayoutError) as exc:
+        return _error(str(exc))
+    except MemoryError:
+        return _error("out of memory")
+    except Exception as exc:
+        if os.environ.get("TRACKSIDE_DEBUG"):
+            raise
+        return _error(f"internal error: {type(exc).__name__}: {exc} (set TRACKSIDE_DEBUG=1 for details)")
+    payload = text.encode("utf-8")
+    if output is None:
+        try:
+            if hasattr(sys.stdout, "buffer"):
+                sys.stdout.buffer.write(payload)
+            else:
+                sys.stdout.write(text)
+            sys.stdout.flush()
+        except BrokenPipeError:
+            # Piped into `head` or similar: stop quietly (and keep Python from complaining at exit).
+            with contextlib.suppress(OSError, ValueError, AttributeError):
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return exit_codes.OK
+    else:
+        try:
+            write_atomic(output, payload)
+        except OSError as exc:
+            return _error(f"{output}: cannot write the report ({exc.strerror or exc})")
+    return exit_code(data, threshold)

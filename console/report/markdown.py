@@ -1,0 +1,73 @@
+"""The report as Markdown: the outline's headings, paragraphs and tables, for tickets and mail.
+
+Every text is escaped for Markdown *and* for the HTML a Markdown viewer
+may pass through: control characters become ``\\xNN`` (no terminal escape
+reaches a terminal that prints the file), ``& < >`` become entities, and
+the characters that make Markdown structure (``\\ ` * _ [ ] | # ~``, and
+a list or heading marker at the start of a text) are backslash-escaped.
+A log's text therefore never becomes a link, emphasis, a heading, a table
+cell boundary or live HTML.  Plots are HTML only; their data are the tables.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from console.report.model import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table, outline
+from console.safe_text import clean
+
+_SPECIAL = re.compile(r"([\\`*_\[\]|#~])")
+_LEADING = re.compile(r"^(\s*)([-+*]|\d+[.)])(?=\s|$)")
+_STRONG = ("strong", "verdict-unsafe", "verdict-failing", "verdict-ok", "unsafe")
+
+
+def md_escape(value: object, line_start: bool = False) -> str:
+    """Text made inert in Markdown: no structure, no HTML, no control characters.
+
+    ``line_start``: the text begins a line (a paragraph, a list item), where
+    ``- ``, ``+ ``, ``1. `` would start a list: escape that marker too.
+    """
+    text = clean(value)
+    text = text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    text = _SPECIAL.sub(r"\\\1", text)
+    return _LEADING.sub(lambda m: m.group(1) + "\\" + m.group(2), text) if line_start else text
+
+
+def _cell(c: Cell, line_start: bool = False) -> str:
+    if isinstance(c, Styled):
+        text = md_escape(c.text)
+        return f"**{text}**" if c.style in _STRONG and text else text
+    return md_escape(c, line_start)
+
+
+def _table(t: Table) -> list[str]:
+    out = [
+        "| " + " | ".join(md_escape(c) for c in t.columns) + " |",
+        "|" + "|".join("---:" if n else "---" for n in t.numeric) + "|",
+    ]
+    for row in t.rows:
+        out.append("| " + " | ".join(_cell(c) or " " for c in row) + " |")
+    text = "\n".join(out)
+    return [text, f"_{md_escape(t.note)}_"] if t.note else [text]
+
+
+def render_blocks(blocks: list[Block]) -> str:
+    parts: list[str] = []
+    for b in blocks:
+        if isinstance(b, Heading):
+            parts.append("#" * b.level + " " + md_escape(b.text))
+        elif isinstance(b, Para):
+            parts.append("".join(_cell(c, line_start=i == 0) for i, c in enumerate(b.parts)))
+        elif isinstance(b, Table):
+            parts += _table(b)
+        elif isinstance(b, Bullets):
+            parts.append("\n".join(f"- {md_escape(item, line_start=True)}" for item in b.items))
+        elif isinstance(b, Figure):
+            continue  # plots are drawn in the HTML report; the tables hold their data
+    return "\n\n".join(parts) + "\n"
+
+
+def render_markdown(doc: dict[str, Any]) -> str:
+    """The report document (:func:`console.report.model.document`) as Markdown."""
+    return render_blocks(outline(doc))
