@@ -380,8 +380,9 @@ def test_log_content_stays_inert_in_every_format(tmp_path: Path, capsys: pytest.
     heads = {h for d in doc["devices"] for h in d["counting_heads"]}
     assert {"<script>alert(1)</script>", "[bold red]x[/]", "| pipe |", "# heading"} <= heads  # data kept as is
     assert {u["device"] for u in doc["gnss_units"]} == set(PAYLOADS)
-    assert doc["inputs"]["totals"]["rejected"] == 1  # the ESC in a Trackinfo: rejected, shown escaped
-    assert "\\x1b[31m" in doc["inputs"]["rejections"][0]["text"]
+    # An ESC in a label or a Trackinfo gets the line rejected; the line is shown with the ESC escaped.
+    assert doc["inputs"]["totals"]["rejected"] == 2
+    assert all("\\x1b[31m" in r["text"] for r in doc["inputs"]["rejections"])
 
 
 # ----------------------------------------------------------------------------- Chromium

@@ -367,12 +367,13 @@ def _stepped(seconds: float, keys: tuple[str, ...] = ()) -> StationApp:
         if k == "dead_channel_B1":
             app.model.select_section(1)
             app.model.source.inject("dead_channel", "WS2")  # type: ignore[attr-defined]
-    app.model.step(seconds)
+    for _ in range(int(seconds)):  # second by second, as the live view does, so the plot has a history
+        app.model.step(1.0)
     return app
 
 
 def test_snapshot_main_screen(snap_compare: object) -> None:
-    assert snap_compare(_stepped(90), terminal_size=SIZE)  # type: ignore[operator]
+    assert snap_compare(_stepped(150), terminal_size=SIZE)  # type: ignore[operator]
 
 
 def test_snapshot_help_screen(snap_compare: object) -> None:

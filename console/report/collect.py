@@ -149,13 +149,23 @@ def expand(inputs: Sequence[Path], exclude: Path | None = None) -> tuple[list[Pa
     files: list[Path] = []
     warnings: list[str] = []
     skip = exclude.resolve() if exclude is not None else None
+    seen: set[Path] = set()
+
+    def add(p: Path) -> None:
+        if not os.access(p, os.R_OK):
+            raise ReportInputError(f"{p}: permission denied")
+        real = p.resolve()
+        if real in seen:
+            warnings.append(f"{p}: given twice, read once")
+            return
+        seen.add(real)
+        files.append(p)
+
     for given in inputs:
         if not given.exists():
             raise ReportInputError(f"{given}: no such file or directory")
         if not given.is_dir():
-            if not os.access(given, os.R_OK):
-                raise ReportInputError(f"{given}: permission denied")
-            files.append(given)
+            add(given)
             continue
         hidden = 0
         found: list[Path] = []
@@ -166,9 +176,7 @@ def expand(inputs: Sequence[Path], exclude: Path | None = None) -> tuple[list[Pa
         for p in sorted(found, key=lambda q: q.relative_to(given).as_posix()):
             if skip is not None and p.resolve() == skip:
                 continue  # the report being written into the directory it reads
-            if not os.access(p, os.R_OK):
-                raise ReportInputError(f"{p}: permission denied")
-            files.append(p)
+            add(p)
         if hidden:
             warnings.append(f"{given}: {hidden} hidden entries (names starting with '.') not read")
     return files, warnings

@@ -472,7 +472,7 @@ def document(data: ReportData) -> dict[str, Any]:
             "spacing_m": s.spacing_m,
             "train_length_m": s.train_length_m,
             "idle_gap_s": s.idle_gap_s,
-            "pair_window_s": s.pair_window_s,
+            "pair_window_s": round(s.pair_window_s, 6),
             "section_initial": SECTION_INITIAL,
         },
         "verdict": UNSAFE if unsafe else FAILING if failing else "ok",

@@ -23,18 +23,16 @@ class EventLog(Static):
     def render_entries(self, entries: list[LogEntry], least: str) -> None:
         lines = max(1, (self.size.height or 8) - 2)
         width = max(10, (self.size.width or 80) - 4)
-        # Newest last, as many as fit once long entries wrap.
-        shown: list[LogEntry] = []
+        # Newest last, as many as fit once long entries wrap (measured, not guessed).
+        shown: list[Text] = []
         for e in reversed(entries):
-            need = -(-(len(e.text) + 11) // width)
+            line = Text(f"{SEVERITY_MARK[e.severity]} {display(e.time_ns)[11:19]} ", style=SEVERITY_STYLE[e.severity])
+            line.append_text(inert(e.text, style=SEVERITY_STYLE[e.severity]))
+            need = len(line.wrap(self.app.console, width))
             if need > lines:
                 break
             lines -= need
-            shown.append(e)
-        out = Text()
-        for e in reversed(shown):
-            out.append(f"{SEVERITY_MARK[e.severity]} {display(e.time_ns)[11:19]} ", style=SEVERITY_STYLE[e.severity])
-            out.append_text(inert(e.text, style=SEVERITY_STYLE[e.severity]))
-            out.append("\n")
+            shown.append(line)
+        out = Text("\n").join(reversed(shown))
         self.border_title = f"Events ({least} and above)"
         self.update(out)

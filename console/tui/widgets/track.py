@@ -99,6 +99,9 @@ def draw(
     for h in layout.heads:
         c = col(h.chainage_m)
         label = f"┃{clean(h.id)}:{snap.head_counts.get(h.id, 0)}"
+        if c + len(label) > width:  # the last head's label turns back to stay on screen
+            label = f"{clean(h.id)}:{snap.head_counts.get(h.id, 0)}┃"
+            c = c - len(label) + 1
         for k, ch in enumerate(label):
             if 0 <= c + k < width:
                 heads[c + k] = ch
