@@ -69,6 +69,7 @@ from console.report.model import (
     VOLTAGES,
     InputFile,
     ReportData,
+    natural_key,
 )
 from parsers.frames import frame_line_problem, parse_can, parse_frames
 from parsers.gnss import parse_gnss, recognise_format
@@ -173,7 +174,8 @@ def expand(inputs: Sequence[Path], exclude: Path | None = None) -> tuple[list[Pa
             hidden += sum(1 for d in dirs if d.startswith(".")) + sum(1 for n in names if n.startswith("."))
             dirs[:] = sorted(d for d in dirs if not d.startswith("."))
             found += [Path(root) / n for n in names if not n.startswith(".")]
-        for p in sorted(found, key=lambda q: q.relative_to(given).as_posix()):
+        # Natural order (T2 before T10), by relative path: the same tree always reads the same way.
+        for p in sorted(found, key=lambda q: natural_key(q.relative_to(given).as_posix())):
             if skip is not None and p.resolve() == skip:
                 continue  # the report being written into the directory it reads
             add(p)

@@ -50,7 +50,8 @@ nav{font-size:13px;margin:8px 0 4px}
 nav a{margin-right:12px;color:#0b5cad;text-decoration:none}
 .scroll{overflow-x:auto}
 table{border-collapse:collapse;width:100%;font-size:12.5px;margin:6px 0 4px}
-th,td{border:1px solid #d0d7de;padding:3px 6px;text-align:left;vertical-align:top;overflow-wrap:anywhere}
+th,td{border:1px solid #d0d7de;padding:3px 6px;text-align:left;vertical-align:top;overflow-wrap:break-word}
+td.long{overflow-wrap:anywhere}
 th{background:#eef1f4;font-weight:600}
 th.num,td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap;overflow-wrap:normal}
 tbody tr:nth-child(even){background:#f8f9fa}
@@ -102,6 +103,7 @@ STATE_STYLES = {
     str(SectionState.PREPARATORY): svg.StateStyle("#d1c4e9", "#311b92", "?", "dots"),
 }
 _TAGGED = re.compile(r"^(state|sev)-")
+LONG_CELL_CHARS = 60
 
 
 def _cell(c: Cell) -> str:
@@ -114,12 +116,16 @@ def _cell(c: Cell) -> str:
 
 
 def _table(t: Table) -> str:
-    def cls(i: int) -> str:
-        return ' class="num"' if t.numeric[i] else ""
+    def cls(i: int, cell: Cell | None = None) -> str:
+        if t.numeric[i]:
+            return ' class="num"'
+        # Long unbroken text (an escaped log line) may wrap anywhere; short words keep their column wide.
+        text = cell.text if isinstance(cell, Styled) else cell
+        return ' class="long"' if text is not None and len(text) > LONG_CELL_CHARS else ""
 
     head = "".join(f"<th{cls(i)}>{esc(c)}</th>" for i, c in enumerate(t.columns))
     body = "".join(
-        "<tr>" + "".join(f"<td{cls(i)}>{_cell(c)}</td>" for i, c in enumerate(row)) + "</tr>" for row in t.rows
+        "<tr>" + "".join(f"<td{cls(i, c)}>{_cell(c)}</td>" for i, c in enumerate(row)) + "</tr>" for row in t.rows
     )
     out = f'<div class="scroll"><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>'
     return out + (f'<p class="note">{esc(t.note)}</p>' if t.note else "")

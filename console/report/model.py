@@ -16,7 +16,8 @@ Safety classes (the report's first part):
 * **failing** (counted as ``warning``): a section that ended the log
   disturbed (fail-safe: it shows occupied until a reset, so trains are
   stopped, not endangered), a refused reset, a crossing warning held on
-  (the road stays closed), and every warning-level health finding.
+  after the head arrived with the tail never confirmed clear (the road
+  stays closed), and every warning-level health finding.
 """
 
 from __future__ import annotations
@@ -171,15 +172,18 @@ class ReportData:
                     )
         if self.crossing is not None:
             for row in self.crossing.timelines:
-                if row.t_off_ns is None and row.t_on_ns is not None:
+                # A train still approaching when the data ends is not a fault; one that reached the
+                # crossing with its tail never confirmed clear keeps the road closed.
+                if row.t_off_ns is None and row.t_head_arrival_ns is not None:
                     items.append(
                         Attention(
                             Severity.WARNING,
                             FAILING,
                             "crossing",
                             f"{row.crossing} train {row.train}",
-                            row.t_on_ns,
-                            "warning held on to the end of the data: the road stays closed",
+                            row.t_head_arrival_ns,
+                            f"warning held on after the head arrived ({row.reason_off or 'no tail clear'}): "
+                            "the road stays closed",
                         )
                     )
         for f in self.findings:
@@ -303,7 +307,8 @@ def _sensors(data: ReportData) -> list[dict[str, Any]]:
         else:
             kinds[str(e.kind)] += 1
     out = []
-    for sensor, times in frames.groupby(frames["sensor"].astype(str), sort=True)["time"]:
+    groups = frames.groupby(frames["sensor"].astype(str), sort=True)["time"]
+    for sensor, times in sorted(groups, key=lambda g: natural_key(str(g[0]))):
         k = tally.get(str(sensor), Counter())
         out.append(
             {
@@ -327,7 +332,8 @@ def _gnss_units(data: ReportData) -> list[dict[str, Any]]:
     if fixes is None or fixes.empty:
         return []
     out = []
-    for device, rows in fixes.groupby(fixes["device"].astype(str), sort=True):
+    groups = fixes.groupby(fixes["device"].astype(str), sort=True)
+    for device, rows in sorted(groups, key=lambda g: natural_key(str(g[0]))):
         roles = sorted({str(x) for x in rows["role"]} - {""})
         valid = rows[rows["valid"].astype(bool)]
         times = rows["time"].dropna()
@@ -603,7 +609,8 @@ def _safety_part(doc: dict[str, Any]) -> list[Block]:
             (
                 "Unsafe: a level-crossing safety violation (the road open with the train on it) or a critical "
                 "health finding (a head that may stop detecting). Failing: a section that ended disturbed "
-                "(fail-safe, but trains wait for a reset), a refused reset, a crossing warning held on, "
+                "(fail-safe, but trains wait for a reset), a refused reset, a crossing warning held on after the "
+                "train arrived, "
                 "a warning-level health finding.",
             )
         ),

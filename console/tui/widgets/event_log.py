@@ -35,4 +35,4 @@ class EventLog(Static):
             shown.append(line)
         out = Text("\n").join(reversed(shown))
         self.border_title = f"Events ({least} and above)"
-        self.update(out)
+        self.update(out, layout=False)

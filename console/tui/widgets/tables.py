@@ -36,6 +36,23 @@ class PickableTable(DataTable[Text]):
         if event.row_key.value is not None:
             self.post_message(self.Picked(self, event.row_key.value))
 
+    def show_rows(self, columns: list[str], rows: list[tuple[str, list[Text]]]) -> None:
+        """Show these rows; cells are updated in place while the rows stay the same,
+        so a redraw ten times a second does not re-lay out the table."""
+        if [str(c.label) for c in self.columns.values()] != columns:
+            self.clear(columns=True)
+            self.add_columns(*columns)
+        keys = [str(k.value) for k in self.rows]
+        if keys == [k for k, _ in rows]:
+            for r, (_, cells) in enumerate(rows):
+                for c, cell in enumerate(cells):
+                    if self.get_cell_at(Coordinate(r, c)) != cell:
+                        self.update_cell_at(Coordinate(r, c), cell, update_width=True)
+            return
+        self.clear()
+        for key, cells in rows:
+            self.add_row(*cells, key=key)
+
 
 class SectionsTable(PickableTable):
     """State (with its mark), counts in and out, why; with the truth view, the true count."""
@@ -51,10 +68,7 @@ class SectionsTable(PickableTable):
     def render_snapshot(self, snap: Snapshot, selected: str | None, differences: set[str]) -> None:
         truth = any(s.true_count is not None for s in snap.sections)
         cols = ["Section", "State", "Cnt", "In", "Out", *(["Truth"] if truth else []), "Why"]
-        if [str(c.label) for c in self.columns.values()] != cols:
-            self.clear(columns=True)
-            self.add_columns(*cols)
-        self.clear()
+        rows = []
         for s in snap.sections:
             st = SectionState(s.state)
             state = Text(f"{STATE_MARK[st]} {s.state}", style=STYLE[s.state])
@@ -63,11 +77,13 @@ class SectionsTable(PickableTable):
             if truth:
                 row.append(Text(str(s.true_count), style="bold red" if s.id in differences else "dim"))
             row.append(inert(s.reason, style="dim"))
-            self.add_row(*row, key=s.id)
+            rows.append((s.id, row))
+        self.show_rows(cols, rows)
         self.border_title = "Sections"
         chosen = next((s for s in snap.sections if s.id == selected), None)
         if chosen is not None:
-            self.move_cursor(row=snap.sections.index(chosen), animate=False)
+            if self.cursor_row != snap.sections.index(chosen):
+                self.move_cursor(row=snap.sections.index(chosen), animate=False)
             # The reason in full, where a narrow panel would cut the Why column.
             self.border_subtitle = inert(f"{chosen.id}: {chosen.reason}")
 
@@ -87,10 +103,7 @@ class TrainsTable(PickableTable):
         diffs = differences or set()
         truth = any(t.true_head_m is not None for t in snap.trains)
         cols = ["Train", "km/h", "Head m", *(["True head"] if truth else []), "Units", "Next stop", "Tail m", "Ctrl"]
-        if [str(c.label) for c in self.columns.values()] != cols:
-            self.clear(columns=True)
-            self.add_columns(*cols)
-        self.clear()
+        rows = []
         for t in snap.trains:
             units, bad = unit_health(t.head_age_s, t.eot_age_s)
             row = [
@@ -106,12 +119,14 @@ class TrainsTable(PickableTable):
                 Text(f"{t.tail_m:.0f}"),
                 inert(t.controller),
             ]
-            self.add_row(*row, key=t.id)
+            rows.append((t.id, row))
+        self.show_rows(cols, rows)
         self.border_title = f"Trains ({len(snap.trains)})"
         ids = [t.id for t in snap.trains]
         self.border_subtitle = ""
         if selected in ids:
-            self.move_cursor(row=ids.index(selected), animate=False)
+            if self.cursor_row != ids.index(selected):
+                self.move_cursor(row=ids.index(selected), animate=False)
             t = snap.trains[ids.index(selected)]
             self.border_subtitle = inert(f"{t.id}: {unit_health(t.head_age_s, t.eot_age_s)[0]}, {t.controller}")
 

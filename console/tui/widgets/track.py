@@ -36,7 +36,7 @@ class TrackDiagram(Static):
     ) -> None:
         self._last = (snap, selected_section, selected_train, differences)
         width = max(20, self.size.width - 4 if self.size.width else 76)
-        self.update(draw(self.line_layout, snap, width, selected_section, selected_train, differences))
+        self.update(draw(self.line_layout, snap, width, selected_section, selected_train, differences), layout=False)
 
     def on_resize(self) -> None:
         # Redraw to the new width at once, not at the next tick (a paused view has none).
