@@ -50,10 +50,18 @@ async def measure(updates: int, size: tuple[int, int], speed: int) -> None:
     per = [a + b for a, b in zip(ticks, draws, strict=True)]
     print(
         f"speed {speed:>4}×  trains {min(trains)}–{max(trains)}  "
-        f"tick median {statistics.median(ticks) * 1000:6.2f} ms  p95 {sorted(ticks)[int(0.95 * len(ticks))] * 1000:6.2f} ms  "
-        f"draw median {statistics.median(draws) * 1000:6.2f} ms  p95 {sorted(draws)[int(0.95 * len(draws))] * 1000:6.2f} ms  "
-        f"→ {1 / statistics.median(per):4.0f} updates/s wall (median); CPU {cpu * 1000:5.1f} ms of {wall * 1000:5.1f} ms"
+        f"tick median {ms(statistics.median(ticks))} p95 {ms(p95(ticks))}  "
+        f"draw median {ms(statistics.median(draws))} p95 {ms(p95(draws))}  "
+        f"→ {1 / statistics.median(per):4.0f} updates/s wall (median); CPU {ms(cpu)} of {ms(wall)} per update"
     )
+
+
+def ms(seconds: float) -> str:
+    return f"{seconds * 1000:6.1f} ms"
+
+
+def p95(values: list[float]) -> float:
+    return sorted(values)[int(0.95 * len(values))]
 
 
 def main() -> None:
