@@ -921,9 +921,10 @@ def station(
         float, typer.Option("--speed", help="Playback speed, 1 to 1000 × real time.", min=1, max=1000)
     ] = 5,
     replay: Annotated[
-        list[Path] | None,
-        typer.Option("--replay", help="Replay these logs (diagnostic records, GNSS telemetry) instead of simulating."),
-    ] = None,
+        bool,
+        typer.Option("--replay", help="Replay FILES (diagnostic records, GNSS telemetry) instead of simulating."),
+    ] = False,
+    files: Annotated[list[Path] | None, typer.Argument(help="Logs to replay (with --replay).")] = None,
 ) -> None:
     """The live station view: sections, trains, crossings and events, simulated or replayed."""
 
@@ -933,10 +934,14 @@ def station(
         from console.tui.sources import ReplaySource, SimSource
 
         lay = _load_layout(layout)
-        if replay:
-            _check_inputs(replay)
+        if replay and not files:
+            raise _fail("--replay needs the logs to replay: trackside station --replay FILES...")
+        if files and not replay:
+            raise _fail("FILES are replayed: add --replay (trackside station --replay FILES...)")
+        if files:
+            _check_inputs(files)
             try:
-                source: Any = ReplaySource(replay, lay)
+                source: Any = ReplaySource(files, lay)
             except ValueError as exc:
                 raise _fail(str(exc)) from None
         else:

@@ -313,6 +313,15 @@ def test_replay_drives_the_same_view_and_jumps() -> None:
             assert source.now_ns - start == 300 * 1_000_000_000
             await pilot.press("left_square_bracket")
             assert source.now_ns == start
+            # The two logs are six weeks apart: with no train in view the replay
+            # skips the quiet stretch instead of playing it.
+            first_diag = source.events[0].time_ns
+            for _ in range(200):
+                app.advance(60)
+                if source.now_ns >= first_diag:
+                    break
+            assert source.now_ns >= first_diag
+            assert any("skipped to the next record" in t for t in log_texts(app))
             app.advance((source.end_ns - source.start_ns) / 1e9)
             await pilot.pause()
             assert "replay" in app.sub_title
@@ -382,3 +391,38 @@ def test_snapshot_help_screen(snap_compare: object) -> None:
 
 def test_snapshot_fault(snap_compare: object) -> None:
     assert snap_compare(_stepped(300, ("dead_channel_B1",)), press=["v"], terminal_size=SIZE)  # type: ignore[operator]
+
+
+# -- the command line -------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--replay"], "--replay needs the logs"),
+        (["sample_logs/example_station.log"], "add --replay"),
+        (["--replay", "no_such.log"], "no such file"),
+        (["--replay", "sample_logs/README.md"], "nothing to replay"),
+        (["--layout", "no_such.toml"], "no_such.toml"),
+    ],
+)
+def test_station_command_rejects_bad_input_cleanly(args: list[str], message: str) -> None:
+    from typer.testing import CliRunner
+
+    from console.cli import app as cli
+
+    result = CliRunner().invoke(cli, ["station", *args], catch_exceptions=False)
+    assert result.exit_code == 2
+    assert message in result.stderr
+    assert "Traceback" not in result.output + result.stderr
+
+
+def test_station_command_error_as_a_subprocess() -> None:
+    import subprocess
+    import sys
+
+    exe = Path(sys.executable).with_name("trackside")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli import app; app()"]
+    proc = subprocess.run([*cmd, "station", "--replay"], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("trackside: error: --replay needs the logs")

@@ -45,6 +45,17 @@ def _detection_entries(events: Sequence[DetectionEvent]) -> list[LogEntry]:
     return out
 
 
+QUIET_SKIP_S = 300.0  # a replay skips quiet stretches longer than this
+LEAD_IN_S = 10  # and resumes this long before the next record
+
+
+def _span(seconds: float) -> str:
+    d, rest = divmod(int(seconds), 86400)
+    h, rest = divmod(rest, 3600)
+    m = rest // 60
+    return (f"{d} d " if d else "") + (f"{h} h " if h or d else "") + f"{m} min"
+
+
 STALE_S = 30.0  # a unit not heard for this long is shown stale
 GONE_S = 120.0  # a replayed train not heard for this long has left the line
 
@@ -235,10 +246,10 @@ class ReplaySource:
     def now_ns(self) -> int:
         return self._now
 
-    def advance(self, seconds: float) -> tuple[list[Transition], list[LogEntry]]:
-        target = min(self.end_ns, self._now + int(seconds * NS))
+    def advance(self, seconds: float, skip_quiet: bool = True) -> tuple[list[Transition], list[LogEntry]]:
         transitions: list[Transition] = []
-        entries: list[LogEntry] = []
+        entries: list[LogEntry] = self._skip_quiet() if skip_quiet else []
+        target = min(self.end_ns, self._now + int(seconds * NS))
         while self._i_event < len(self.events) and self.events[self._i_event].time_ns <= target:
             e = self.events[self._i_event]
             self._i_event += 1
@@ -257,12 +268,26 @@ class ReplaySource:
         self._now = target
         return transitions, entries
 
+    def _skip_quiet(self) -> list[LogEntry]:
+        """Logs from different days leave hours of nothing between them: with no
+        train in view, go straight to a little before the next record."""
+        nxt = [self.events[self._i_event].time_ns] if self._i_event < len(self.events) else []
+        nxt += [self.fixes[self._i_fix].t_ns] if self._i_fix < len(self.fixes) else []
+        if not nxt or self.trains():
+            return []
+        to = min(nxt) - LEAD_IN_S * NS
+        if to - self._now < QUIET_SKIP_S * NS:
+            return []
+        gap_s = (to - self._now) / NS
+        self._now = to
+        return [LogEntry(to, "info", f"nothing in the logs for {_span(gap_s)}: skipped to the next record")]
+
     def jump(self, seconds: float) -> None:
         """Jump in time; backwards replays from the start (quietly) up to the target."""
         target = min(self.end_ns, max(self.start_ns, self._now + int(seconds * NS)))
         if target < self._now:
             self._rebuild(self.start_ns)
-        self.advance((target - self._now) / NS)
+        self.advance((target - self._now) / NS, skip_quiet=False)
 
     def trains(self, truth: bool = False) -> list[TrainView]:
         out = []
