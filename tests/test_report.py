@@ -35,7 +35,8 @@ from console.analysis.diagnostics import SpeedSettings
 from console.analysis.health import Severity
 from console.layout import load_layout
 from console.report import command, run_report
-from console.report.model import ReportData, document
+from console.report.collect import expand
+from console.report.model import ReportData, document, natural_key
 from console.report.write import write_atomic
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_run
@@ -263,9 +264,7 @@ def test_a_simulated_run_directory_is_read_whole(sim_dir: Path, capsys: pytest.C
     assert files["sensor_frames.txt"]["format"] == "frames" and files["centre.tsv"]["format"] == "centre"
     assert files["gnss_devices.csv"]["format"] == "gnss-csv"
     assert all(f["format"] == "nmea" for name, f in files.items() if name.startswith("nmea/"))
-    names = list(files)
-    assert names.index("nmea/T2-head.nmea") < names.index("nmea/T10-head.nmea")  # natural order
-    assert names.index("diagnostic.log") < names.index("layout.toml") < names.index("truth.json")
+    assert list(files) == sorted(files, key=natural_key)  # a directory's files in (natural) sorted order
     assert doc["sections"]["events_from"] == "diagnostic" and doc["sections"]["initial"] == "unknown"
     assert {s["section"] for s in doc["sections"]["final"]} == {"1G", "B1", "B2", "2G"}
     assert doc["crossings"]["timelines"] and doc["sensors"] and doc["gnss_units"]
@@ -281,6 +280,15 @@ def test_a_report_written_into_its_input_directory_is_not_read_back(
     assert run_report([sim_dir], None, "json", target, None) == 0
     assert target.read_bytes() == first
     target.unlink()
+
+
+def test_a_directory_is_read_in_natural_order_and_a_file_given_twice_once(tmp_path: Path) -> None:
+    for name in ("T10.nmea", "T2.nmea", "sub/T1.nmea"):
+        (tmp_path / name).parent.mkdir(exist_ok=True)
+        (tmp_path / name).write_text("$GPTXT,01,01,02,x*00\n")
+    files, warnings = expand([tmp_path, tmp_path / "T2.nmea"])
+    assert [p.relative_to(tmp_path).as_posix() for p in files] == ["sub/T1.nmea", "T2.nmea", "T10.nmea"]
+    assert warnings == [f"{tmp_path / 'T2.nmea'}: given twice, read once"]
 
 
 def test_unrecognised_and_empty_files_are_listed_as_not_read(
