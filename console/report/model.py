@@ -453,7 +453,8 @@ def _crossings(data: ReportData) -> dict[str, Any] | None:
             for e in run.events
         ],
         "trains": [
-            {"train": t.train, "head": list(t.head), "eot": list(t.eot), "length_m": t.length_m} for t in run.trains
+            {"train": t.train, "head": list(t.head), "eot": list(t.eot), "length_m": t.length_m}
+            for t in sorted(run.trains, key=lambda t: natural_key(t.train))  # T2 before T10
         ],
         "off_track_fixes": run.off_track,
         "unassigned_devices": list(run.unassigned_devices),
