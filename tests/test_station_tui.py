@@ -426,3 +426,25 @@ def test_station_command_error_as_a_subprocess() -> None:
     proc = subprocess.run([*cmd, "station", "--replay"], capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert proc.returncode == 2
     assert proc.stderr.startswith("trackside: error: --replay needs the logs")
+
+
+def test_crossing_lights_then_barriers() -> None:
+    """The barriers come down a few seconds after the lights start, and rise with them."""
+    from console.tui.model import BARRIER_DELAY_S
+
+    app = make_app()
+    m = app.model
+    seen: list[tuple[bool, bool]] = []
+    on_at = None
+    for _ in range(600):
+        m.step(1.0)
+        c = m.snapshot().crossings[0]
+        seen.append((c.warning_on, c.barrier_down))
+        if c.warning_on and on_at is None:
+            on_at = len(seen)
+        if on_at is not None and not c.warning_on:
+            break
+    assert on_at is not None
+    assert all(not down for on, down in seen if not on)  # never down with the lights off
+    downs = [i for i, (_, down) in enumerate(seen, 1) if down]
+    assert downs and downs[0] - on_at >= BARRIER_DELAY_S - 1

@@ -40,7 +40,8 @@ KEYS: tuple[tuple[str, str], ...] = (
 
 LEGEND = (
     "Section marks, readable without colour: · clear, # occupied, ! disturbed, ? preparatory.\n"
-    "Crossings: ●● warning on (seconds until the next head arrives), ○ road open.\n"
+    "Crossings: ●● lights flashing (seconds until the next head arrives), ▼ barriers down, "
+    "○▲ road open.\n"
     "Trains: ▶/◀ direction, id and km/h; heads: ┃id:axles counted.\n"
     "The view shows what the console derives from the devices' reports, never the simulator's "
     "truth — except in the truth view, where the truth sits beside it."

@@ -29,6 +29,9 @@ SEVERITIES = ("info", "warning", "critical")
 # A reported head this far from the true one is a difference: GNSS noise and a
 # fix's age at line speed stay well inside it, a lost head unit soon leaves it.
 TRAIN_DIFF_M = 60.0
+# Lights flash first, barriers come down a few seconds later (road users clear the
+# crossing); they rise with the lights going out.
+BARRIER_DELAY_S = 8
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,7 @@ class CrossingView:
     warning_on: bool
     countdown_s: float | None  # until the nearest approaching head arrives
     alarm: bool
+    barrier_down: bool = False  # the barriers follow the lights after BARRIER_DELAY_S
 
 
 @dataclass(frozen=True)
@@ -217,7 +221,9 @@ class StationModel:
                     eta = ahead / (tv.speed_kmh / 3.6)
                     countdown = eta if countdown is None else min(countdown, eta)
             alarm = any(tr.alarms for tr in ctl.tracks.values())
-            crossings.append(CrossingView(code, c.chainage_m, ctl.warning_on, countdown, alarm))
+            on_since = [t.t_on for t in ctl.tracks.values() if t.warned and t.t_on is not None]
+            lowered = bool(on_since) and src.now_ns - min(on_since) >= BARRIER_DELAY_S * NS
+            crossings.append(CrossingView(code, c.chainage_m, ctl.warning_on, countdown, alarm, lowered))
         ch = [p.chainage_m for p in src.layout.track] or [h.chainage_m for h in src.layout.heads]
         return Snapshot(
             time_ns=src.now_ns,

@@ -110,12 +110,12 @@ def draw(
     for cv in snap.crossings:
         c = col(cv.chainage_m)
         if cv.warning_on:
-            txt = f"╳{cv.code} ●●"
+            txt = f"╳{cv.code} ●●{'▼' if cv.barrier_down else '▲'}"
             if cv.countdown_s is not None:
                 txt += f" {cv.countdown_s:.0f}s"
             style = "bold red"
         else:
-            txt, style = f"╳{cv.code} ○", "green"
+            txt, style = f"╳{cv.code} ○▲", "green"
         if cv.alarm:
             txt += " ALARM"
             style = "bold white on red"
