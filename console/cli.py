@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
 import typer
-from rich.console import Console
+from rich.console import Console as RichConsole
 
 from console import __version__, exit_codes
 
@@ -65,6 +65,16 @@ def _check_inputs(paths: list[Path]) -> None:
             raise _fail(f"{p}: is a directory, expected a log file")
         if not os.access(p, os.R_OK):
             raise _fail(f"{p}: permission denied")
+
+
+class Console(RichConsole):
+    """Rich's console, but a reader that stops early (``| head``) is not an error:
+    Rich exits 1 on a broken pipe; we stop quietly with 0."""
+
+    def on_broken_pipe(self) -> None:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        raise SystemExit(exit_codes.OK)
 
 
 def _guard(fn: Callable[[], int]) -> int:

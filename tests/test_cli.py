@@ -146,3 +146,16 @@ def test_subprocess_json_and_exit_codes(tmp_path: Path) -> None:
 @pytest.mark.parametrize("cmd", [["--help"], ["analyze", "--help"], ["--version"]])
 def test_help_and_version(cmd: list[str]) -> None:
     assert runner.invoke(app, cmd).exit_code == 0
+
+
+def test_a_reader_that_stops_early_is_not_an_error() -> None:
+    """`trackside analyze ... | head -1`: quiet, exit 0 (Rich alone would exit 1)."""
+    exe = Path(sys.executable).with_name("trackside")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli import app; app()"]
+    logs = sorted(str(p) for p in (ROOT / "sample_logs").glob("osong_*.log"))
+    proc = subprocess.Popen([*cmd, "analyze", *logs], stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.read(10)
+    proc.stdout.close()
+    assert proc.wait(timeout=120) == 0
+    assert proc.stderr.read() == b""
