@@ -20,21 +20,8 @@ import numpy as np
 from console.analysis.sections import SectionState
 from console.analysis.timefmt import display
 from console.report import svg
-from console.report.model import (
-    Block,
-    Bullets,
-    Cell,
-    Figure,
-    Heading,
-    Para,
-    ReportData,
-    Styled,
-    Table,
-    analog_series,
-    natural_key,
-    outline,
-    timeline_order,
-)
+from console.report.model import ReportData, analog_series, natural_key, timeline_order
+from console.report.outline import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table, outline
 from console.report.svg import esc
 
 STYLE = """

@@ -14,7 +14,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from console.report.model import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table, outline
+from console.report.outline import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table, outline
 from console.safe_text import clean
 
 _SPECIAL = re.compile(r"([\\`*_\[\]|#~])")
