@@ -264,6 +264,14 @@ class CrossingController:
         tr.episodes.append((tr.t_on or fix.t_ns, fix.t_ns, tr.reason_on, tr.reason_off))
         return [self._emit(fix.t_ns, tr, "off", tr.reason_off)]
 
+    def _cleared(self, tr: _Track) -> bool:
+        """The whole train is past this crossing and its warning is off: its head
+        unit no longer matters here (a head running off the mapped line at the
+        end of the run is not worth an alarm at a crossing it left behind)."""
+        if tr.warned or tr.eot is None or not tr.direction:
+            return False
+        return tr.direction * (tr.eot.chainage_m - self.crossing.chainage_m) >= self.crossing.d_off_m
+
     def _alarms(self, tr: _Track, t_ns: int) -> list[CrossingEvent]:
         out = []
         if tr.warned and not self._fresh(tr.eot, t_ns) and "eot" not in tr.alarms:
@@ -275,6 +283,7 @@ class CrossingController:
             and self._fresh(tr.eot, t_ns)
             and "head" not in tr.alarms
             and tr.head is not None
+            and not self._cleared(tr)
         ):
             tr.alarms.add("head")
             out.append(self._emit(t_ns, tr, "alarm", "head unit stale: using EOT position + train length"))
