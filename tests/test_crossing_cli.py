@@ -106,3 +106,29 @@ def test_gnss_command_decodes_the_samples(samples: Path, name: str) -> None:
     if name == "seed004_table1.tsv":
         assert [round(f["speed_mps"] * 3.6, 1) for f in doc["fixes"]][:2] == [55.6, 55.6]
         assert doc["fixes"][0]["time"].startswith("2026-01-19T17:05:21")
+
+
+def _run_train(head_until_s: float, until_s: float = 400.0) -> list[str]:
+    """A 100 m train at 20 m/s, head and EOT fixes every 10 s; the head unit goes silent at ``head_until_s``."""
+    crossing = load_layout("example").crossings[0]
+    ctl = CrossingController(crossing, [TrainSpec("T", 100.0)])
+    c = crossing.chainage_m
+    ns = 10**9
+    alarms = []
+    for t in range(0, int(until_s), 10):
+        head = c - 3000 + 20.0 * t
+        if t < head_until_s:
+            alarms += [e.reason for e in ctl.step(Fix(t * ns, t * ns, "T", "head", head, 20.0, 1)) if e.kind == "alarm"]
+        eot = Fix(t * ns + 1, t * ns + 1, "T", "eot", head - 100.0, 20.0, 1)
+        alarms += [e.reason for e in ctl.step(eot) if e.kind == "alarm"]
+    return alarms
+
+
+def test_a_head_unit_lost_on_the_approach_raises_an_alarm() -> None:
+    assert any("head unit stale" in a for a in _run_train(head_until_s=60))
+
+
+def test_a_head_unit_silent_after_the_train_has_cleared_the_crossing_is_not_an_alarm() -> None:
+    # The head passes the crossing at 150 s and the EOT clears it at about 160 s; the
+    # head unit then runs off the mapped line (it is no longer placed): no alarm here.
+    assert _run_train(head_until_s=200) == []
