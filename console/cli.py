@@ -173,7 +173,6 @@ def analyze(
         summary = _layout_summary(files, lay, spacing_m, length_m, idle_gap) if layout else None
         job = summary[0] if summary else _run_diag(files, spacing_m, length_m, idle_gap)
         if json_out:
-            from console.analysis.diagnostics import passages_json_text
             from console.jsonout import RawJSON
 
             doc = {
@@ -181,7 +180,7 @@ def analyze(
                 "trackside_version": __version__,
                 "files": job.files,
                 "parse_report": job.report.to_dict(),
-                **job.analysis.to_dict(passages=RawJSON(passages_json_text(job.analysis.passages))),
+                **job.analysis.to_dict(passages=RawJSON(job.analysis.passages_json_text())),
             }
             if summary:
                 from console.render.section_tables import sections_json
@@ -248,10 +247,9 @@ def speeds(
     def body() -> int:
         job = _run_diag(files, spacing, train_length, idle_gap)
         if json_out:
-            from console.analysis.diagnostics import passages_json_text
             from console.jsonout import RawJSON
 
-            text = RawJSON(passages_json_text(job.analysis.passages))
+            text = RawJSON(job.analysis.passages_json_text())
             _print_json({"schema": "trackside.speeds/1", "passages": text})
         else:
             from console.render.diag_tables import passages_table

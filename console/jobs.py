@@ -3,19 +3,25 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
-from console.analysis.diag_events import DiagEventSettings, diag_detection_events
 from console.analysis.diagnostics import DiagAccumulator, DiagAnalysis, SpeedSettings
-from console.analysis.events import DetectionEvent
-from console.analysis.health import Finding, health_report
-from console.layout import Layout, layout_from_heads
 from parsers.diag import DiagChunk, DiagReader, chunks_to_frame
 from parsers.report import ParseReport
+
+# Imported where used: `analyze --json` needs neither pandas nor the event
+# and health modules.
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from console.analysis.diag_events import DiagEventSettings
+    from console.analysis.events import DetectionEvent
+    from console.analysis.health import Finding
+    from console.layout import Layout
 
 HEALTH_REGISTERS = frozenset({"analog_value", "counter_1_edge"})
 
@@ -25,7 +31,16 @@ class DiagJob:
     files: list[str]
     report: ParseReport
     analysis: DiagAnalysis
-    records: pd.DataFrame = field(default_factory=pd.DataFrame)  # only the kept registers
+    kept_records: pd.DataFrame | None = None  # only the kept registers
+
+    @property
+    def records(self) -> pd.DataFrame:
+        """The kept registers' records (an empty table when none were kept)."""
+        if self.kept_records is None:
+            import pandas as pd
+
+            self.kept_records = pd.DataFrame()
+        return self.kept_records
 
 
 def input_bytes(paths: Sequence[Path]) -> int:
@@ -58,14 +73,17 @@ def analyze_files(
             if mask.any():
                 kept.append(chunk.take(mask))
     analysis = acc.result(settings)
-    records = chunks_to_frame(kept, reader.registry) if keep_registers else pd.DataFrame()
-    return DiagJob(files=[str(p) for p in paths], report=reader.report, analysis=analysis, records=records)
+    records = chunks_to_frame(kept, reader.registry) if keep_registers else None
+    return DiagJob(files=[str(p) for p in paths], report=reader.report, analysis=analysis, kept_records=records)
 
 
 def detection_events(
     job: DiagJob, layout: Layout | None, settings: DiagEventSettings
 ) -> tuple[list[DetectionEvent], list[str]]:
     """The log's detection events on the layout, or on its own heads when none is given."""
+    from console.analysis.diag_events import diag_detection_events
+    from console.layout import layout_from_heads
+
     lay = layout or layout_from_heads(sorted({name for _, name in job.analysis.heads}))
     return diag_detection_events(job.analysis, lay, settings)
 
@@ -73,5 +91,7 @@ def detection_events(
 def health_findings(
     job: DiagJob, layout: Layout | None, events: list[DetectionEvent], voltages: pd.DataFrame | None
 ) -> list[Finding]:
+    from console.analysis.health import health_report
+
     bands = {h.id: h.analog_band for h in layout.heads if h.analog_band} if layout else None
     return health_report(job.records, bands=bands or None, events=events, voltages=voltages)

@@ -33,9 +33,9 @@ from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 import pyarrow as pa
 
 from parsers.labels import canonical_label, decode_label
@@ -48,6 +48,9 @@ from parsers.sources import (
     iter_chunks,
     open_input,
 )
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 FIELD_KEYS = (
     "Diag_id",
@@ -459,8 +462,12 @@ def _encode(
     if len(starts) == 0:
         return np.zeros(0, np.int32), []
     enc = _views(view_buf, u4, starts, lens).dictionary_encode()
-    # intp indices: the main thread's lookups then need no conversion.
-    return enc.indices.to_numpy(zero_copy_only=False).astype(np.intp), enc.dictionary.to_pylist()
+    # The indices (no nulls) read straight from their buffer: Arrow's to_numpy
+    # would import pandas.  intp: the main thread's lookups need no conversion.
+    idx = enc.indices
+    width = idx.type.bit_width // 8
+    codes = np.frombuffer(idx.buffers()[1], f"<i{width}", count=len(idx), offset=idx.offset * width)
+    return codes.astype(np.intp), enc.dictionary.to_pylist()
 
 
 _LO7 = np.uint64(0x7F7F7F7F7F7F7F7F)
@@ -829,12 +836,16 @@ RECORD_COLUMNS = (
 
 
 def _categorical(codes: np.ndarray, values: list[str]) -> pd.Categorical:
+    import pandas as pd
+
     cats = pd.Index(values, dtype=pd.StringDtype("pyarrow"))
     return pd.Categorical.from_codes(codes, categories=cats, validate=False)
 
 
 def chunks_to_frame(chunks: list[DiagChunk], registry: DiagRegistry) -> pd.DataFrame:
     """One DataFrame (the documented record table) from parsed chunks."""
+    import pandas as pd
+
     rid = np.concatenate([c.register_id for c in chunks]) if chunks else np.zeros(0, np.int32)
 
     def cat(name: str) -> np.ndarray:

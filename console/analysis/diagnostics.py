@@ -9,13 +9,13 @@ record counts), so a multi-GB log is analysed in bounded memory.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from functools import cached_property
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from console.analysis.inventory import IDENTITY_LABELS, DeviceInventory, IdentityValue, apply_identity
-from console.analysis.passages import NS, bucket_index, chunk_buckets, merge_buckets, split_passages
+from console.analysis.passages import NS, Columns, bucket_index, chunk_buckets, merge_buckets, split_passages
 from console.analysis.speed import MPS_TO_KMH
 from console.analysis.wheels import (
     DIRECTION_12,
@@ -24,9 +24,13 @@ from console.analysis.wheels import (
     SYS2,
     WHEEL_SENSOR_ADDRESS,
     PairingSettings,
-    pair_axles,
+    axles_frame,
+    pair_axle_arrays,
 )
 from parsers.diag import DATA_KINDS, DiagChunk, DiagRegistry
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 @dataclass(frozen=True)
@@ -53,23 +57,59 @@ class _Luts:
 
 @dataclass
 class DiagAnalysis:
-    """Everything `trackside analyze` reports about a diagnostic log."""
+    """Everything `trackside analyze` reports about a diagnostic log.
+
+    The tables are held as numpy columns; the DataFrames (:attr:`passages`,
+    :attr:`axles`, :attr:`wheel_records`, :attr:`activity`) are built on first
+    use, so a face that only writes JSON never needs pandas.
+    """
 
     settings: SpeedSettings
     devices: list[DeviceInventory]
-    passages: pd.DataFrame
-    axles: pd.DataFrame
+    passage_columns: Columns | None  # see _passages; None: no passages
+    axle_columns: Columns
     overlap_records: int
     unpaired_detections: int
     head_names: list[str]
     # For the section engine: heads as (device id, name), every wheel-sensor
     # record (head key, channel, time, 1/0), and per head the seconds with records.
     heads: list[tuple[int, str]] = field(default_factory=list)
-    wheel_records: pd.DataFrame = field(default_factory=pd.DataFrame)
-    activity: pd.DataFrame = field(default_factory=pd.DataFrame)
+    wheel_columns: Columns | None = None
+    activity_columns: Columns | None = None
+
+    @cached_property
+    def passages(self) -> pd.DataFrame:
+        return _passages_frame(self.passage_columns, self.heads)
+
+    @cached_property
+    def axles(self) -> pd.DataFrame:
+        return axles_frame(self.axle_columns)
+
+    @cached_property
+    def wheel_records(self) -> pd.DataFrame:
+        import pandas as pd
+
+        return pd.DataFrame(self.wheel_columns) if self.wheel_columns is not None else pd.DataFrame()
+
+    @cached_property
+    def activity(self) -> pd.DataFrame:
+        import pandas as pd
+
+        return pd.DataFrame(self.activity_columns) if self.activity_columns is not None else pd.DataFrame()
+
+    def passages_json_text(self) -> str:
+        """The passages as a JSON array, without pandas where the values allow."""
+        from console.analysis.passages_json import encode_passages
+
+        if self.passage_columns is None:
+            return "[]"
+        text = encode_passages(self.passage_columns, self.heads)
+        return text if text is not None else passages_json_text(self.passages)
 
     def passages_json(self) -> list[dict[str, Any]]:
-        return passages_to_json(self.passages)
+        import json
+
+        return list(json.loads(self.passages_json_text()))
 
     def to_dict(self, passages: Any = None) -> dict[str, Any]:
         """The JSON document's analysis part; ``passages`` may be pre-encoded text."""
@@ -174,26 +214,28 @@ class DiagAccumulator:
         self._detections = []
         # Without releases every wheel record is an onset: no copy needed.
         onsets = {c: v[wheel["value"] == 1] for c, v in wheel.items()} if self.keep_releases else wheel
-        axles, n_unpaired = pair_axles(onsets, PairingSettings(settings.spacing_m, settings.pair_window_s))
+        axles, n_unpaired = pair_axle_arrays(onsets, PairingSettings(settings.spacing_m, settings.pair_window_s))
         head_names = [name for _, name in self._head_list]
-        passages = _passages(buckets, onsets, axles, settings, self._head_list)
+        passages = _passages(buckets, onsets, axles, settings)
         return DiagAnalysis(
             settings=settings,
             devices=self._inventory(buckets),
-            passages=passages,
-            axles=axles,
+            passage_columns=passages,
+            axle_columns=axles,
             overlap_records=overlap,
             unpaired_detections=n_unpaired,
             head_names=head_names,
             heads=list(self._head_list),
-            # Only the section engine reads these: not built for speeds alone.
-            wheel_records=pd.DataFrame({c: wheel[c] for c in ("head", "channel", "time_ns", "value")})
+            # Only the section engine reads these: not kept for speeds alone.
+            wheel_columns={c: wheel[c] for c in ("head", "channel", "time_ns", "value")}
             if self.keep_releases
-            else pd.DataFrame(),
-            activity=buckets[["head", "t_first_ns", "t_last_ns"]].copy() if self.keep_releases else pd.DataFrame(),
+            else None,
+            activity_columns={c: buckets[c] for c in ("head", "t_first_ns", "t_last_ns")}
+            if self.keep_releases
+            else None,
         )
 
-    def _inventory(self, buckets: pd.DataFrame) -> list[DeviceInventory]:
+    def _inventory(self, buckets: Columns) -> list[DeviceInventory]:
         reg = self.registry
         devices: dict[int, DeviceInventory] = {}
         for rid, r in enumerate(reg.registers):
@@ -222,7 +264,18 @@ class DiagAccumulator:
                 inv.counting_heads.append(r.counting_head)
             if r.channel not in inv.channels:
                 inv.channels.append(r.channel)
-        span = buckets.groupby("head").agg(first=("t_first_ns", "min"), last=("t_last_ns", "max"))
+        # Per head key: first and last record time (buckets are sorted by head).
+        bh = buckets["head"]
+        at = np.flatnonzero(np.r_[True, bh[1:] != bh[:-1]]) if len(bh) else np.zeros(0, np.int64)
+        span = {
+            int(h): (int(f), int(la))
+            for h, f, la in zip(
+                bh[at].tolist(),
+                np.minimum.reduceat(buckets["t_first_ns"], at).tolist() if len(at) else [],
+                np.maximum.reduceat(buckets["t_last_ns"], at).tolist() if len(at) else [],
+                strict=True,
+            )
+        }
         identity: dict[int, list[IdentityValue]] = {}
         for rid, (_, value, kind, data_code) in self._identity.items():
             r = reg.registers[rid]
@@ -230,10 +283,9 @@ class DiagAccumulator:
                 IdentityValue(r.label_canonical or "", r.address, value, DATA_KINDS[kind], reg.data.values[data_code])
             )
         for dev_id, inv in devices.items():
-            keys = [self._head_keys[(dev_id, h)] for h in inv.counting_heads]
-            rows = span.loc[span.index.intersection(keys)]
-            inv.first_ns = int(rows["first"].min()) if len(rows) else 0
-            inv.last_ns = int(rows["last"].max()) if len(rows) else 0
+            rows = [span[k] for h in inv.counting_heads if (k := self._head_keys[(dev_id, h)]) in span]
+            inv.first_ns = min(f for f, _ in rows) if rows else 0
+            inv.last_ns = max(la for _, la in rows) if rows else 0
             inv.diag_ids.sort()
             inv.channels.sort()
             apply_identity(inv, identity.get(dev_id, []))
@@ -245,7 +297,7 @@ _BIG = np.iinfo(np.int64).max
 _SMALL = np.iinfo(np.int64).min
 
 
-def _chosen_file_only(parts: list[Arrays], buckets: pd.DataFrame) -> Arrays:
+def _chosen_file_only(parts: list[Arrays], buckets: Columns) -> Arrays:
     """Onsets from the file chosen for their bucket (see passages: overlap), with
     their bucket row and passage."""
     names = ("head", "channel", "time_ns", "value", "subsecond", "file")
@@ -255,10 +307,10 @@ def _chosen_file_only(parts: list[Arrays], buckets: pd.DataFrame) -> Arrays:
         return {**empty, "bucket": np.zeros(0, np.int64), "passage": np.zeros(0, np.int64)}
     cols = {c: np.concatenate([part[c] for part in parts]) for c in names}
     row = bucket_index(buckets, cols["head"], cols["time_ns"])
-    keep = (row >= 0) & (buckets["file"].to_numpy()[np.maximum(row, 0)] == cols["file"])
+    keep = (row >= 0) & (buckets["file"][np.maximum(row, 0)] == cols["file"])
     cols = {c: v[keep] for c, v in cols.items()}
     cols["bucket"] = row[keep]
-    cols["passage"] = buckets["passage"].to_numpy()[cols["bucket"]]
+    cols["passage"] = buckets["passage"][cols["bucket"]]
     return cols
 
 
@@ -278,23 +330,28 @@ def _or_nan(values: np.ndarray, sentinel: int) -> np.ndarray:
     return np.where(values == sentinel, np.nan, values.astype(np.float64))
 
 
-def _passages(
-    buckets: pd.DataFrame,
-    onsets: Arrays,
-    axles: pd.DataFrame,
-    s: SpeedSettings,
-    heads: list[tuple[int, str]],
-) -> pd.DataFrame:
-    """One row per passage, every figure vectorized over passages (no groupby per record)."""
-    if buckets.empty:
-        return pd.DataFrame(columns=list(PASSAGE_COLUMNS))
+_BASIS = (None, "detections", "records")
+_KINDS = ("train", "damping", "status")
+
+
+def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings) -> Columns | None:
+    """One row per passage, every figure vectorized over passages (no groupby per record).
+
+    The columns of :data:`PASSAGE_COLUMNS`, except that the text columns are
+    codes: ``head`` (into the head list), ``direction`` (into
+    ``wheels.DIRECTIONS``, 3: mixed), ``whole_train_basis`` (into ``_BASIS``)
+    and ``kind`` (into ``_KINDS``); ``axle_speeds_kmh`` holds the per-axle
+    speeds that ``axle_speeds_start``/``stop`` index.
+    """
+    if len(buckets["head"]) == 0:
+        return None
     # Buckets are sorted by head and second, so a passage is a run of rows.
-    passage = buckets["passage"].to_numpy()
+    passage = buckets["passage"]
     at = np.flatnonzero(np.r_[True, passage[1:] != passage[:-1]])
     n = len(at)
 
     def col(name: str) -> np.ndarray:
-        return buckets[name].to_numpy()
+        return buckets[name]
 
     head = col("head")[at]
     start_ns = np.minimum.reduceat(col("t_first_ns"), at)
@@ -315,22 +372,22 @@ def _passages(
     subsecond = (n_onsets > 0) & (np.bincount(op[~onsets["subsecond"]], minlength=n) == 0)
 
     # Axles belong to the passage of the bucket holding their earlier onset.
-    row = bucket_index(buckets, axles["head"].to_numpy(), axles["time_ns"].to_numpy())
+    row = bucket_index(buckets, axles["head"], axles["time_ns"])
     ax_ok = row >= 0
     ax_p = passage[row[ax_ok]]
-    ax_dir = axles["direction"].to_numpy()[ax_ok]
+    ax_dir = axles["direction"][ax_ok]
     n_axles = np.bincount(ax_p, minlength=n)
-    n12 = np.bincount(ax_p[ax_dir == DIRECTION_12], minlength=n)
-    n21 = np.bincount(ax_p[ax_dir == DIRECTION_21], minlength=n)
-    direction = np.full(n, None, dtype=object)
-    direction[n12 > n21] = DIRECTION_12
-    direction[n21 > n12] = DIRECTION_21
-    direction[(n12 > 0) & (n12 == n21)] = "mixed"
+    n12 = np.bincount(ax_p[ax_dir == 1], minlength=n)
+    n21 = np.bincount(ax_p[ax_dir == 2], minlength=n)
+    direction = np.zeros(n, np.int8)  # codes: see _passages_frame
+    direction[n12 > n21] = 1
+    direction[n21 > n12] = 2
+    direction[(n12 > 0) & (n12 == n21)] = 3
     # Per-axle speeds stay one array sorted by passage and time; each passage
     # holds [start, stop) into it.
-    speed = axles["speed_kmh"].to_numpy()[ax_ok]
+    speed = axles["speed_kmh"][ax_ok]
     timed = ~np.isnan(speed)
-    order = np.lexsort((axles["time_ns"].to_numpy()[ax_ok][timed], ax_p[timed]))
+    order = np.lexsort((axles["time_ns"][ax_ok][timed], ax_p[timed]))
     timed_p, timed_v = ax_p[timed][order], speed[timed][order]
     n_timed = np.bincount(timed_p, minlength=n)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -344,7 +401,7 @@ def _passages(
     records_in_second = np.where(has, col("records")[fb], np.nan)
 
     # Whole-train: entering system's first record → leaving system's last.
-    reverse = direction == DIRECTION_21
+    reverse = direction == 2
     both = (det_n[SYS1] > 0) & (det_n[SYS2] > 0)
     enter = np.where(reverse, 2, 1)
     leave = 3 - enter
@@ -365,42 +422,54 @@ def _passages(
     # would run at thousands of km/h.  No train is faster than max_speed_kmh.
     implausible = whole > s.max_speed_kmh
     whole = np.where(implausible, np.nan, whole)
-    basis = np.where(both, "detections", "records").astype(object)
-    basis[np.isnan(duration) | (duration <= 0) | implausible] = None
+    basis = np.where(both, 1, 2).astype(np.int8)
+    basis[np.isnan(duration) | (duration <= 0) | implausible] = 0
+    stop = np.cumsum(n_timed)
+    return {
+        "head": head,
+        "start_ns": start_ns,
+        "end_ns": end_ns,
+        "duration_s": (end_ns - start_ns) / NS,
+        "records": records,
+        "detections_sys1": det_n[SYS1],
+        "detections_sys2": det_n[SYS2],
+        "axles": n_axles,
+        "direction": direction,
+        "detection_second_ns": detection_second_ns,
+        "records_in_detection_second": records_in_second,
+        "speed_kmh_per_second_method": s.spacing_m * records_in_second * MPS_TO_KMH,
+        "speed_kmh_whole_train": whole,
+        "whole_train_basis": basis,
+        "whole_train_duration_s": duration,
+        "axle_speeds_start": stop - n_timed,
+        "axle_speeds_stop": stop,
+        "speed_kmh_per_axle_mean": axle_mean,
+        "subsecond": subsecond,
+        # A train: axles counted, or (the paper's whole-second excerpts) a
+        # plausible Sys1→Sys2 span.  A damping: wheel-sensor onsets but no
+        # axle (one system only: a trolley, metal).  Else a status dump.
+        "kind": np.select([(n_axles > 0) | ~np.isnan(whole), n_onsets > 0], [0, 1], default=2).astype(np.int8),
+        "axle_speeds_kmh": timed_v,
+    }
+
+
+def _passages_frame(cols: Columns | None, heads: list[tuple[int, str]]) -> pd.DataFrame:
+    """The passages table (:data:`PASSAGE_COLUMNS`) from :func:`_passages`' columns."""
+    import pandas as pd
+
+    if cols is None:
+        return pd.DataFrame(columns=list(PASSAGE_COLUMNS))
     head_dev = np.array([h[0] for h in heads], dtype=np.int64)
     head_name = np.array([h[1] for h in heads], dtype=object)
-    stop = np.cumsum(n_timed)
-    out = pd.DataFrame(
-        {
-            "device_id": head_dev[head],
-            "counting_head": head_name[head],
-            "start_ns": start_ns,
-            "end_ns": end_ns,
-            "duration_s": (end_ns - start_ns) / NS,
-            "records": records,
-            "detections_sys1": det_n[SYS1],
-            "detections_sys2": det_n[SYS2],
-            "axles": n_axles,
-            "direction": direction,
-            "detection_second_ns": detection_second_ns,
-            "records_in_detection_second": records_in_second,
-            "speed_kmh_per_second_method": s.spacing_m * records_in_second * MPS_TO_KMH,
-            "speed_kmh_whole_train": whole,
-            "whole_train_basis": basis,
-            "whole_train_duration_s": duration,
-            "axle_speeds_start": stop - n_timed,
-            "axle_speeds_stop": stop,
-            "speed_kmh_per_axle_mean": axle_mean,
-            "subsecond": subsecond,
-            # A train: axles counted, or (the paper's whole-second excerpts) a
-            # plausible Sys1→Sys2 span.  A damping: wheel-sensor onsets but no
-            # axle (one system only: a trolley, metal).  Else a status dump.
-            "kind": np.select(
-                [(n_axles > 0) | ~np.isnan(whole), n_onsets > 0], ["train", "damping"], default="status"
-            ).astype(object),
-        }
-    )
-    out.attrs["axle_speeds_kmh"] = timed_v
+    text = {
+        "counting_head": head_name[cols["head"]],
+        "direction": np.array([None, DIRECTION_12, DIRECTION_21, "mixed"], dtype=object)[cols["direction"]],
+        "whole_train_basis": np.array(_BASIS, dtype=object)[cols["whole_train_basis"]],
+        "kind": np.array(_KINDS, dtype=object)[cols["kind"]],
+    }
+    data = {"device_id": head_dev[cols["head"]], **{c: text.get(c, cols.get(c)) for c in PASSAGE_COLUMNS[1:]}}
+    out = pd.DataFrame(data)
+    out.attrs["axle_speeds_kmh"] = cols["axle_speeds_kmh"]
     return out
 
 
@@ -451,6 +520,8 @@ def axle_speed_lists(p: pd.DataFrame) -> list[list[float] | None]:
 
 def passages_json_text(p: pd.DataFrame) -> str:
     """The passages as a JSON array (C encoder: fast on 10⁵ passages)."""
+    import pandas as pd
+
     if p.empty:
         return "[]"
     n_det = p["records_in_detection_second"].to_numpy(dtype=float)
@@ -485,6 +556,8 @@ def passages_json_text(p: pd.DataFrame) -> str:
 
 def _objects(values: pd.Series) -> np.ndarray:
     # pandas 3 stores these as its string dtype, where missing reads as NaN.
+    import pandas as pd
+
     out = values.astype(object).to_numpy().copy()
     out[pd.isna(values).to_numpy()] = None
     return out

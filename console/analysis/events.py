@@ -14,9 +14,10 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import pandas as pd
+if TYPE_CHECKING:
+    import pandas as pd
 
 UP, DOWN, UNKNOWN = 1, -1, 0
 
@@ -54,6 +55,8 @@ EVENT_COLUMNS = ("time_ns", "kind", "head", "direction", "channel", "source", "d
 
 def events_to_frame(events: Iterable[DetectionEvent]) -> pd.DataFrame:
     """A table of events (one row each), sorted by time, stable for equal times."""
+    import pandas as pd
+
     rows = [(e.time_ns, str(e.kind), e.head, e.direction, e.channel, e.source, e.detail) for e in events]
     frame = pd.DataFrame(rows, columns=list(EVENT_COLUMNS))
     frame["channel"] = frame["channel"].astype("Int64")
@@ -62,6 +65,8 @@ def events_to_frame(events: Iterable[DetectionEvent]) -> pd.DataFrame:
 
 def frame_to_events(frame: pd.DataFrame) -> list[DetectionEvent]:
     """The inverse of :func:`events_to_frame`."""
+    import pandas as pd
+
     out = []
     r: Any
     for r in frame.itertuples(index=False):

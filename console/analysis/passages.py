@@ -19,7 +19,6 @@ whole seconds, splitting buckets is exact for any idle gap of 1 s or more.
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
 NS = 1_000_000_000
 _BIG = np.iinfo(np.int64).max
@@ -32,8 +31,8 @@ BUCKET_COLUMNS = ("head", "second", "file", "records", "records_sys1", "records_
 Columns = dict[str, np.ndarray]
 
 
-def _empty() -> pd.DataFrame:
-    return pd.DataFrame({c: pd.Series(dtype=np.int64) for c in BUCKET_COLUMNS})
+def _empty() -> Columns:
+    return {c: np.zeros(0, np.int64) for c in BUCKET_COLUMNS}
 
 
 def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, file_id: int) -> Columns:
@@ -69,7 +68,7 @@ def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, fi
     return out
 
 
-def merge_buckets(parts: list[Columns]) -> tuple[pd.DataFrame, int]:
+def merge_buckets(parts: list[Columns]) -> tuple[Columns, int]:
     """Combine runs into buckets and resolve overlapping files.
 
     Returns (one bucket per head and second, sorted; overlap records ignored).
@@ -90,31 +89,33 @@ def merge_buckets(parts: list[Columns]) -> tuple[pd.DataFrame, int]:
         reduce.update({c: np.minimum for c in _FIRST})
         reduce.update({c: np.maximum for c in _LAST})
         cols = {c: (reduce[c].reduceat(v, at) if c in reduce else v[at]) for c, v in cols.items()}
-    runs = pd.DataFrame(cols)
-    total = int(runs["records"].sum())
-    if runs["file"].nunique() > 1:
-        runs = runs.sort_values(["records", "file"], ascending=[False, True], kind="stable").drop_duplicates(
-            ["head", "second"], keep="first"
-        )
-    best = runs.sort_values(["head", "second"], kind="stable").reset_index(drop=True)
-    return best, total - int(best["records"].sum())
+    total = int(cols["records"].sum())
+    h, sec, f = cols["head"], cols["second"], cols["file"]
+    if len(f) and (f != f[0]).any():
+        # Per head and second, the file with the most records (ties: the first file).
+        order = np.lexsort((f, -cols["records"], sec, h))
+        h, sec = h[order], sec[order]
+        first = np.ones(len(h), bool)
+        first[1:] = (h[1:] != h[:-1]) | (sec[1:] != sec[:-1])
+        cols = {c: v[order][first] for c, v in cols.items()}
+    return cols, total - int(cols["records"].sum())
 
 
-def split_passages(buckets: pd.DataFrame, idle_gap_s: float) -> pd.DataFrame:
+def split_passages(buckets: Columns, idle_gap_s: float) -> Columns:
     """Add a ``passage`` number to buckets sorted by head and second."""
     if idle_gap_s < 1:
         raise ValueError("idle gap must be at least 1 s (buckets are whole seconds)")
-    head = buckets["head"].to_numpy()
-    first = buckets["t_first_ns"].to_numpy()
-    last = buckets["t_last_ns"].to_numpy()
-    new = np.ones(len(buckets), bool)
+    head = buckets["head"]
+    first = buckets["t_first_ns"]
+    last = buckets["t_last_ns"]
+    new = np.ones(len(head), bool)
     new[1:] = (head[1:] != head[:-1]) | (first[1:] - last[:-1] > int(idle_gap_s * NS))
-    return buckets.assign(passage=np.cumsum(new) - 1)
+    return {**buckets, "passage": np.cumsum(new) - 1}
 
 
-def bucket_index(buckets: pd.DataFrame, head: np.ndarray, time_ns: np.ndarray) -> np.ndarray:
+def bucket_index(buckets: Columns, head: np.ndarray, time_ns: np.ndarray) -> np.ndarray:
     """Row of ``buckets`` holding each (head, time), or -1 (vectorized lookup)."""
-    key = buckets["head"].to_numpy() * (1 << 40) + buckets["second"].to_numpy()
+    key = buckets["head"] * (1 << 40) + buckets["second"]
     probe = head.astype(np.int64) * (1 << 40) + time_ns // NS
     pos = np.searchsorted(key, probe)
     pos_ok = np.minimum(pos, max(len(key) - 1, 0))

@@ -19,18 +19,21 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.speed import MPS_TO_KMH
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 WHEEL_SENSOR_ADDRESS = 26
 SYS1, SYS2 = 1, 2
 DIRECTION_12 = "sys1_to_sys2"
 DIRECTION_21 = "sys2_to_sys1"
+DIRECTIONS = (None, DIRECTION_12, DIRECTION_21)  # axle direction codes 0, 1, 2
 NS = 1_000_000_000
 
 
@@ -55,15 +58,8 @@ def _nearest(t1: np.ndarray, t2: np.ndarray, window_ns: int) -> np.ndarray:
     return np.where(gap <= window_ns, pick, -1)
 
 
-def pair_axles(onsets: Mapping[str, Any], settings: PairingSettings) -> tuple[pd.DataFrame, int]:
-    """Pair Sys1 and Sys2 onsets into axles.
-
-    ``onsets`` (a DataFrame or a dict of arrays) has columns ``head`` (int key), ``channel``, ``time_ns``,
-    ``subsecond``.  Returns (axles, number of unpaired onsets); axles have
-    ``head``, ``t_sys1_ns``, ``t_sys2_ns``, ``time_ns`` (the earlier onset),
-    ``direction``, ``delay_s`` and ``speed_kmh`` (NaN unless both onsets
-    carry sub-second times).
-    """
+def pair_axle_arrays(onsets: Mapping[str, Any], settings: PairingSettings) -> tuple[dict[str, np.ndarray], int]:
+    """:func:`pair_axles` as columns of arrays, ``direction`` as a code into :data:`DIRECTIONS`."""
     head = np.asarray(onsets["head"], np.int64)
     channel = np.asarray(onsets["channel"], np.int64)
     time_ns = np.asarray(onsets["time_ns"], np.int64)
@@ -100,22 +96,43 @@ def pair_axles(onsets: Mapping[str, Any], settings: PairingSettings) -> tuple[pd
         speed = np.where(exact & (delay_s != 0), settings.spacing_m / np.abs(delay_s) * MPS_TO_KMH, np.nan)
     # Whole-second onsets in the same second say nothing about their order.
     known = exact | (t1 // NS != t2 // NS)
-    direction = np.full(len(t1), None, dtype=object)
-    direction[known & (t2 > t1)] = DIRECTION_12
-    direction[known & (t2 < t1)] = DIRECTION_21
-    axles = pd.DataFrame(
-        {
-            "head": head[a],
-            "t_sys1_ns": t1,
-            "t_sys2_ns": t2,
-            "time_ns": np.minimum(t1, t2),
-            "direction": direction,
-            "delay_s": np.where(exact, delay_s, np.nan),
-            "speed_kmh": speed,
-        }
-    )
+    # Direction as a code into DIRECTIONS: 0 unknown, 1 Sys1→Sys2, 2 Sys2→Sys1.
+    direction = np.zeros(len(t1), np.int8)
+    direction[known & (t2 > t1)] = 1
+    direction[known & (t2 < t1)] = 2
+    axles = {
+        "head": head[a],
+        "t_sys1_ns": t1,
+        "t_sys2_ns": t2,
+        "time_ns": np.minimum(t1, t2),
+        "direction": direction,
+        "delay_s": np.where(exact, delay_s, np.nan),
+        "speed_kmh": speed,
+    }
     unpaired = int((is1 | is2).sum()) - 2 * len(a)
     return axles, unpaired
+
+
+def axles_frame(axles: Mapping[str, np.ndarray]) -> pd.DataFrame:
+    """The axle table of :func:`pair_axles` from :func:`pair_axle_arrays`' columns."""
+    import pandas as pd
+
+    cols = dict(axles)
+    cols["direction"] = np.array(DIRECTIONS, dtype=object)[axles["direction"]]
+    return pd.DataFrame(cols)
+
+
+def pair_axles(onsets: Mapping[str, Any], settings: PairingSettings) -> tuple[pd.DataFrame, int]:
+    """Pair Sys1 and Sys2 onsets into axles.
+
+    ``onsets`` (a DataFrame or a dict of arrays) has columns ``head`` (int key), ``channel``, ``time_ns``,
+    ``subsecond``.  Returns (axles, number of unpaired onsets); axles have
+    ``head``, ``t_sys1_ns``, ``t_sys2_ns``, ``time_ns`` (the earlier onset),
+    ``direction``, ``delay_s`` and ``speed_kmh`` (NaN unless both onsets
+    carry sub-second times).
+    """
+    axles, unpaired = pair_axle_arrays(onsets, settings)
+    return axles_frame(axles), unpaired
 
 
 # --- the two-channel overlap rule (seed 003) → detection events --------------

@@ -1,0 +1,236 @@
+"""The passages array as JSON text, built with numpy byte arithmetic.
+
+Writes, byte for byte, what ``diagnostics.passages_json_text`` gets from
+pandas' ``DataFrame.to_json(orient="records", force_ascii=True,
+double_precision=10)``, without pandas and without a Python loop per
+passage: every value becomes a fixed-width row of bytes (padding is the
+0 byte), the rows of a batch of passages are laid side by side with the
+keys, and dropping the 0 bytes leaves the JSON text.
+
+Numbers follow pandas' encoder (ultrajson's ``Buffer_AppendDoubleUnchecked``):
+a float is its whole part, a point and at most ten decimals, rounded half to
+even-ish as the encoder does, trailing zeros dropped (``17.0``, ``6.105``).
+Values outside what this covers (text that would need escaping, floats the
+encoder writes in exponent form, infinities) return None: the caller then
+uses pandas.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from console.analysis.passages import Columns
+
+_PRECISION = 10
+_POW10_FRAC = float(10**_PRECISION)
+_SAFE = frozenset(chr(c) for c in range(0x20, 0x7F)) - {'"', "\\", "/"}
+_NULL = np.frombuffer(b"null", np.uint8)
+# Rows × axle slots per batch of the per-axle lists: bounds the scratch memory.
+_BATCH_ROWS = 8192
+_BATCH_CELLS = 1 << 18
+
+
+def _const(text: str, n: int) -> np.ndarray:
+    return np.broadcast_to(np.frombuffer(text.encode("ascii"), np.uint8), (n, len(text)))
+
+
+def _digits(u: np.ndarray, width: int, keep_leading: bool = False) -> np.ndarray:
+    """Decimal digits of unsigned ints, right-aligned in ``width`` bytes.
+
+    Leading zeros are 0 bytes (a zero keeps its last digit) unless
+    ``keep_leading``.
+    """
+    pw = np.uint64(10) ** np.arange(width - 1, -1, -1, dtype=np.uint64)
+    d = (u[:, None] // pw) % np.uint64(10)
+    out = (d + np.uint64(48)).astype(np.uint8)
+    if not keep_leading:
+        lead = np.cumsum(d != 0, axis=1) == 0
+        lead[:, -1] = False
+        out[lead] = 0
+    return out
+
+
+def _with_null(tokens: np.ndarray, null: np.ndarray) -> np.ndarray:
+    if null.any():
+        tokens = tokens.copy()
+        tokens[null] = 0
+        tokens[null, : len(_NULL)] = _NULL
+    return tokens
+
+
+def _ints(values: np.ndarray, null: np.ndarray | None = None) -> np.ndarray | None:
+    v = np.asarray(values, np.int64)
+    if len(v) and v.min() == np.iinfo(np.int64).min:
+        return None
+    neg = v < 0
+    sign = np.where(neg, ord("-"), 0).astype(np.uint8)[:, None]
+    out = np.concatenate([sign, _digits(np.abs(v).astype(np.uint64), 19)], axis=1)
+    return _with_null(out, null) if null is not None else out
+
+
+def _floats(values: np.ndarray) -> np.ndarray | None:
+    """ultrajson's fixed-point form with ten decimals; NaN as null."""
+    v = np.asarray(values, np.float64)
+    nan = np.isnan(v)
+    a = np.abs(np.where(nan, 0.0, v))
+    if np.isinf(a).any() or ((a > 1e16 - 1) | ((a != 0) & (a < 1e-15))).any():
+        return None  # the encoder's exponent form (or an error): not covered here
+    neg = v < 0
+    whole = a.astype(np.uint64)
+    tmp = (a - whole.astype(np.float64)) * _POW10_FRAC
+    frac = tmp.astype(np.uint64)
+    diff = tmp - frac.astype(np.float64)
+    odd = (frac & np.uint64(1)) == 1
+    frac = frac + ((diff > 0.5) | ((diff == 0.5) & ((frac == 0) | odd))).astype(np.uint64)
+    roll = frac >= np.uint64(10**_PRECISION)
+    frac[roll] = 0
+    whole = whole + roll.astype(np.uint64)
+    fd = _digits(frac, _PRECISION, keep_leading=True)
+    # Trailing zeros of the decimals go; no decimals at all is ".0".
+    trailing = np.cumsum((fd != ord("0"))[:, ::-1], axis=1)[:, ::-1] == 0
+    fd[trailing] = 0
+    fd[:, 0] = np.where(frac == 0, ord("0"), fd[:, 0])
+    n = len(v)
+    out = np.concatenate(
+        [
+            np.where(neg, ord("-"), 0).astype(np.uint8)[:, None],
+            _digits(whole, 17),
+            np.full((n, 1), ord("."), np.uint8),
+            fd,
+        ],
+        axis=1,
+    )
+    return _with_null(out, nan)
+
+
+def _texts(codes: np.ndarray, values: Sequence[str | None]) -> np.ndarray | None:
+    """JSON strings from a small set (codes into values; None is null)."""
+    encoded = []
+    for s in values:
+        if s is None:
+            encoded.append(b"null")
+        elif set(s) <= _SAFE:
+            encoded.append(b'"' + s.encode("ascii") + b'"')
+        else:
+            return None  # would need escaping: left to pandas' encoder
+    width = max(len(e) for e in encoded)
+    table = np.zeros((len(encoded), width), np.uint8)
+    for i, e in enumerate(encoded):
+        table[i, : len(e)] = np.frombuffer(e, np.uint8)
+    return table[codes]
+
+
+def _iso(ns: np.ndarray) -> np.ndarray | None:
+    """``diagnostics.iso_strings`` as quoted bytes: a fraction only where there is one; null for NaN."""
+    vals = np.asarray(ns, dtype=float)
+    ok = ~np.isnan(vals)
+    ints = np.where(ok, vals, 0).astype(np.int64)
+    text = np.datetime_as_string(ints.astype("datetime64[ns]"), unit="ns")
+    if len(text) and (np.strings.str_len(text) != 29).any():
+        return None  # not YYYY-MM-DDTHH:MM:SS.fffffffff
+    b = text.astype("S29").view(np.uint8).reshape(len(vals), 29).copy()
+    frac = b[:, 20:]
+    trailing = np.cumsum((frac != ord("0"))[:, ::-1], axis=1)[:, ::-1] == 0
+    frac[trailing] = 0
+    b[:, 19] = np.where(trailing[:, 0], 0, b[:, 19])
+    quote = np.full((len(vals), 1), ord('"'), np.uint8)
+    return _with_null(np.concatenate([quote, b, quote], axis=1), ~ok)
+
+
+def _bools(values: np.ndarray) -> np.ndarray:
+    table = np.zeros((2, 5), np.uint8)
+    table[0] = np.frombuffer(b"false", np.uint8)
+    table[1, :4] = np.frombuffer(b"true", np.uint8)
+    return table[np.asarray(values, bool).astype(np.intp)]
+
+
+def _axle_lists(speeds: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray | None:
+    """Per row, ``[v,v,...]`` of its speeds ``speeds[start:stop]``, or null when empty."""
+    n = len(start)
+    count = stop - start
+    width = int(count.max()) if n else 0
+    if width == 0:
+        return _const("null", n).copy()
+    lo, hi = int(start.min()), int(stop.max())
+    tok = _floats(np.round(speeds[lo:hi], 3))
+    if tok is None:
+        return None
+    # Each token then its separator: a comma, or the closing bracket after a row's last.
+    is_last = np.zeros(hi - lo, bool)
+    is_last[(stop[count > 0] - 1) - lo] = True
+    sep = np.where(is_last, ord("]"), ord(",")).astype(np.uint8)[:, None]
+    tok = np.concatenate([tok, sep], axis=1)
+    tok = np.concatenate([tok, np.zeros((1, tok.shape[1]), np.uint8)])  # row -1: empty slot
+    slot = np.arange(width)
+    idx = np.where(slot < count[:, None], start[:, None] - lo + slot, -1)
+    body = tok[idx].reshape(n, width * tok.shape[1])
+    opening = np.where(count > 0, ord("["), 0).astype(np.uint8)[:, None]
+    out = np.concatenate([opening, body], axis=1)
+    return _with_null(out, count == 0)
+
+
+def _batch(cols: Columns, heads: list[tuple[int, str]], lo: int, hi: int, first: bool) -> bytes | None:
+    from console.analysis.wheels import DIRECTION_12, DIRECTION_21
+
+    c = {k: v[lo:hi] for k, v in cols.items() if k != "axle_speeds_kmh"}
+    n = hi - lo
+    head_dev = np.array([h[0] for h in heads], dtype=np.int64)
+    n_det = np.asarray(c["records_in_detection_second"], float)
+    parts: list[tuple[str, np.ndarray | None]] = [
+        ('{"device_id":', _ints(head_dev[c["head"]])),
+        (',"counting_head":', _texts(c["head"], [h[1] for h in heads])),
+        (',"start":', _iso(c["start_ns"])),
+        (',"end":', _iso(c["end_ns"])),
+        (',"duration_s":', _floats(np.round(np.asarray(c["duration_s"], float), 6))),
+        (',"records":', _ints(c["records"])),
+        (',"axles":', _ints(c["axles"])),
+        (',"detections_sys1":', _ints(c["detections_sys1"])),
+        (',"detections_sys2":', _ints(c["detections_sys2"])),
+        (',"direction":', _texts(c["direction"], [None, DIRECTION_12, DIRECTION_21, "mixed"])),
+        (',"detection_second":', _iso(c["detection_second_ns"])),
+        (',"records_in_detection_second":', _ints(np.nan_to_num(n_det).astype(np.int64), np.isnan(n_det))),
+        (',"speed_kmh_per_second_method":', _floats(np.round(c["speed_kmh_per_second_method"], 3))),
+        (',"speed_kmh_whole_train":', _floats(np.round(c["speed_kmh_whole_train"], 3))),
+        (',"whole_train_basis":', _texts(c["whole_train_basis"], [None, "detections", "records"])),
+        (',"whole_train_duration_s":', _floats(np.round(c["whole_train_duration_s"], 6))),
+        (
+            ',"speed_kmh_per_axle":',
+            _axle_lists(cols["axle_speeds_kmh"], c["axle_speeds_start"], c["axle_speeds_stop"]),
+        ),
+        (',"speed_kmh_per_axle_mean":', _floats(np.round(c["speed_kmh_per_axle_mean"], 3))),
+        (',"subsecond":', _bools(c["subsecond"])),
+        (',"kind":', _texts(c["kind"], ["train", "damping", "status"])),
+    ]
+    sep = np.full((n, 1), ord(","), np.uint8)
+    if first:
+        sep[0] = 0
+    blocks = [sep]
+    for key, tokens in parts:
+        if tokens is None:
+            return None
+        blocks += [_const(key, n), tokens]
+    blocks.append(_const("}", n))
+    flat = np.concatenate(blocks, axis=1).ravel()
+    return flat[flat != 0].tobytes()
+
+
+def encode_passages(cols: Columns, heads: list[tuple[int, str]]) -> str | None:
+    """The passages (``diagnostics._passages`` columns) as a JSON array, or None if not covered."""
+    n = len(cols["head"])
+    count = cols["axle_speeds_stop"] - cols["axle_speeds_start"]
+    out = [b"["]
+    lo = 0
+    while lo < n:
+        hi = min(n, lo + _BATCH_ROWS)
+        # Fewer rows per batch where trains have many axles.
+        while hi - lo > 1 and (hi - lo) * int(count[lo:hi].max()) > _BATCH_CELLS:
+            hi = lo + (hi - lo) // 2
+        text = _batch(cols, heads, lo, hi, first=lo == 0)
+        if text is None:
+            return None
+        out.append(text)
+        lo = hi
+    out.append(b"]")
+    return b"".join(out).decode("ascii")
