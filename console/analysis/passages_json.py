@@ -36,12 +36,14 @@ def _const(text: str, n: int) -> np.ndarray:
     return np.broadcast_to(np.frombuffer(text.encode("ascii"), np.uint8), (n, len(text)))
 
 
-def _digits(u: np.ndarray, width: int, keep_leading: bool = False) -> np.ndarray:
-    """Decimal digits of unsigned ints, right-aligned in ``width`` bytes.
+def _digits(u: np.ndarray, width: int | None = None, keep_leading: bool = False) -> np.ndarray:
+    """Decimal digits of unsigned ints, right-aligned in ``width`` bytes (default: as many as the largest needs).
 
     Leading zeros are 0 bytes (a zero keeps its last digit) unless
     ``keep_leading``.
     """
+    if width is None:
+        width = len(str(int(u.max()))) if len(u) else 1
     pw = np.uint64(10) ** np.arange(width - 1, -1, -1, dtype=np.uint64)
     d = (u[:, None] // pw) % np.uint64(10)
     out = (d + np.uint64(48)).astype(np.uint8)
@@ -54,7 +56,8 @@ def _digits(u: np.ndarray, width: int, keep_leading: bool = False) -> np.ndarray
 
 def _with_null(tokens: np.ndarray, null: np.ndarray) -> np.ndarray:
     if null.any():
-        tokens = tokens.copy()
+        pad = max(0, len(_NULL) - tokens.shape[1])
+        tokens = np.pad(tokens, ((0, 0), (0, pad))) if pad else tokens.copy()
         tokens[null] = 0
         tokens[null, : len(_NULL)] = _NULL
     return tokens
@@ -66,7 +69,7 @@ def _ints(values: np.ndarray, null: np.ndarray | None = None) -> np.ndarray | No
         return None
     neg = v < 0
     sign = np.where(neg, ord("-"), 0).astype(np.uint8)[:, None]
-    out = np.concatenate([sign, _digits(np.abs(v).astype(np.uint64), 19)], axis=1)
+    out = np.concatenate([sign, _digits(np.abs(v).astype(np.uint64))], axis=1)
     return _with_null(out, null) if null is not None else out
 
 
@@ -87,8 +90,12 @@ def _floats(values: np.ndarray) -> np.ndarray | None:
     roll = frac >= np.uint64(10**_PRECISION)
     frac[roll] = 0
     whole = whole + roll.astype(np.uint64)
-    fd = _digits(frac, _PRECISION, keep_leading=True)
-    # Trailing zeros of the decimals go; no decimals at all is ".0".
+    # Decimals: ten digits with leading zeros; trailing zeros go (none at all
+    # is ".0").  Trailing zero digits common to every value are not computed.
+    shift = 0
+    while shift < _PRECISION - 1 and not (frac % np.uint64(10 ** (shift + 1))).any():
+        shift += 1
+    fd = _digits(frac // np.uint64(10**shift), _PRECISION - shift, keep_leading=True)
     trailing = np.cumsum((fd != ord("0"))[:, ::-1], axis=1)[:, ::-1] == 0
     fd[trailing] = 0
     fd[:, 0] = np.where(frac == 0, ord("0"), fd[:, 0])
@@ -96,7 +103,7 @@ def _floats(values: np.ndarray) -> np.ndarray | None:
     out = np.concatenate(
         [
             np.where(neg, ord("-"), 0).astype(np.uint8)[:, None],
-            _digits(whole, 17),
+            _digits(whole),
             np.full((n, 1), ord("."), np.uint8),
             fd,
         ],
@@ -127,16 +134,42 @@ def _iso(ns: np.ndarray) -> np.ndarray | None:
     vals = np.asarray(ns, dtype=float)
     ok = ~np.isnan(vals)
     ints = np.where(ok, vals, 0).astype(np.int64)
-    text = np.datetime_as_string(ints.astype("datetime64[ns]"), unit="ns")
-    if len(text) and (np.strings.str_len(text) != 29).any():
-        return None  # not YYYY-MM-DDTHH:MM:SS.fffffffff
-    b = text.astype("S29").view(np.uint8).reshape(len(vals), 29).copy()
-    frac = b[:, 20:]
-    trailing = np.cumsum((frac != ord("0"))[:, ::-1], axis=1)[:, ::-1] == 0
-    frac[trailing] = 0
-    b[:, 19] = np.where(trailing[:, 0], 0, b[:, 19])
-    quote = np.full((len(vals), 1), ord('"'), np.uint8)
-    return _with_null(np.concatenate([quote, b, quote], axis=1), ~ok)
+    n = len(ints)
+    day_ns = 86_400 * 10**9
+    days, tod = np.divmod(ints, day_ns)
+    # A log spans few days: their dates as text once each, the times by arithmetic.
+    uniq, which = np.unique(days, return_inverse=True)
+    dates = np.datetime_as_string(uniq.astype("datetime64[D]"))
+    if len(dates) and (np.strings.str_len(dates) != 10).any():
+        return None  # not YYYY-MM-DD
+    date_bytes = dates.astype("S10").view(np.uint8).reshape(len(uniq), 10)[which]
+    secs, frac = np.divmod(tod, 10**9)
+    hms = _digits((secs // 3600 * 10_000 + secs // 60 % 60 * 100 + secs % 60).astype(np.uint64), 6, keep_leading=True)
+    fd = _digits(frac.astype(np.uint64), 9, keep_leading=True)
+    trailing = np.cumsum((fd != ord("0"))[:, ::-1], axis=1)[:, ::-1] == 0
+    fd[trailing] = 0
+
+    def char(c: str) -> np.ndarray:
+        return np.full((n, 1), ord(c), np.uint8)
+
+    point = np.where(trailing[:, :1], 0, ord(".")).astype(np.uint8)
+    out = np.concatenate(
+        [
+            char('"'),
+            date_bytes,
+            char("T"),
+            hms[:, 0:2],
+            char(":"),
+            hms[:, 2:4],
+            char(":"),
+            hms[:, 4:6],
+            point,
+            fd,
+            char('"'),
+        ],
+        axis=1,
+    )
+    return _with_null(out, ~ok)
 
 
 def _bools(values: np.ndarray) -> np.ndarray:
