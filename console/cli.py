@@ -957,6 +957,9 @@ def station(
                 source = SimSource(lay, seed=seed)
             except ValueError as exc:
                 raise _fail(str(exc)) from None
+        if not (sys.stdin.isatty() and sys.stdout.isatty()):
+            # Textual would draw into a pipe and wait for keys that never come.
+            raise _fail("the station view needs a terminal: run it without pipes or redirection")
         model = StationModel(source)
         model.speed_index = min(range(len(SPEEDS)), key=lambda i: abs(SPEEDS[i] - speed))
         StationApp(model).run()

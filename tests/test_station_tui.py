@@ -404,6 +404,8 @@ def test_snapshot_fault(snap_compare: object) -> None:
         (["--replay", "no_such.log"], "no such file"),
         (["--replay", "sample_logs/README.md"], "nothing to replay"),
         (["--layout", "no_such.toml"], "no_such.toml"),
+        ([], "needs a terminal"),  # CliRunner's streams are no terminal: never hang in a pipe
+        (["--replay", "sample_logs/example_station.log"], "needs a terminal"),
     ],
 )
 def test_station_command_rejects_bad_input_cleanly(args: list[str], message: str) -> None:
