@@ -17,7 +17,7 @@ class EventLog(Static):
     """The last entries that fit, at or above the chosen severity (f cycles it)."""
 
     DEFAULT_CSS = """
-    EventLog { height: 1fr; width: 1fr; border: round $secondary; padding: 0 1; }
+    EventLog { height: 1fr; width: 3fr; border: round $secondary; padding: 0 1; }
     """
 
     def render_entries(self, entries: list[LogEntry], least: str) -> None:

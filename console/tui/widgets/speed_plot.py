@@ -15,7 +15,7 @@ class SpeedPlot(PlotextPlot):
     """Speed over the last ten minutes, km/h against seconds before now, from 0 to the line speed."""
 
     DEFAULT_CSS = """
-    SpeedPlot { width: 34; border: round $secondary; }
+    SpeedPlot { width: 2fr; min-width: 30; max-width: 80; border: round $secondary; }
     """
 
     def show(self, train: str | None, history: Sequence[tuple[float, float]], line_speed_kmh: float) -> None:
