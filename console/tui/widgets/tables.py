@@ -20,6 +20,14 @@ from console.tui.widgets.track import STYLE
 class PickableTable(DataTable[Text]):
     """A table whose rows are picked by a single click (or enter), not a second one."""
 
+    DEFAULT_CSS = """
+    PickableTable { height: 1fr; width: 1fr; border: round $secondary; scrollbar-size-horizontal: 0; }
+    """
+
+    def on_mount(self) -> None:
+        self.cursor_type = "row"
+        self.zebra_stripes = True
+
     @dataclass
     class Picked(Message):
         table: PickableTable
@@ -57,14 +65,6 @@ class PickableTable(DataTable[Text]):
 class SectionsTable(PickableTable):
     """State (with its mark), counts in and out, why; with the truth view, the true count."""
 
-    DEFAULT_CSS = """
-    SectionsTable { height: 1fr; width: 1fr; border: round $secondary; scrollbar-size-horizontal: 0; }
-    """
-
-    def on_mount(self) -> None:
-        self.cursor_type = "row"
-        self.zebra_stripes = True
-
     def render_snapshot(self, snap: Snapshot, selected: str | None, differences: set[str]) -> None:
         truth = any(s.true_count is not None for s in snap.sections)
         cols = ["Section", "State", "Cnt", "In", "Out", *(["Truth"] if truth else []), "Why"]
@@ -90,14 +90,6 @@ class SectionsTable(PickableTable):
 
 class TrainsTable(PickableTable):
     """Each train: speed, next stop, controller, where its head and tail are."""
-
-    DEFAULT_CSS = """
-    TrainsTable { height: 1fr; width: 1fr; border: round $secondary; scrollbar-size-horizontal: 0; }
-    """
-
-    def on_mount(self) -> None:
-        self.cursor_type = "row"
-        self.zebra_stripes = True
 
     def render_snapshot(self, snap: Snapshot, selected: str | None, differences: set[str] | None = None) -> None:
         diffs = differences or set()
