@@ -15,9 +15,10 @@ from console.tui.app import StationApp
 from console.tui.help import HelpScreen
 from console.tui.model import SPEEDS, StationModel
 from console.tui.sources import ReplaySource, SimSource
+from console.tui.widgets.sections_table import SectionsTable
 from console.tui.widgets.speed_plot import SpeedPlot
-from console.tui.widgets.tables import SectionsTable, TrainsTable
 from console.tui.widgets.track import TrackDiagram
+from console.tui.widgets.trains_table import TrainsTable
 
 ROOT = Path(__file__).resolve().parents[1]
 SIZE = (100, 30)

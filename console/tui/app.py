@@ -24,9 +24,11 @@ from console.tui.model import StationModel
 from console.tui.sources import ReplaySource, SimSource
 from console.tui.widgets.event_log import EventLog
 from console.tui.widgets.key_bar import KeyBar
+from console.tui.widgets.pickable_table import PickableTable
+from console.tui.widgets.sections_table import SectionsTable
 from console.tui.widgets.speed_plot import SpeedPlot
-from console.tui.widgets.tables import PickableTable, SectionsTable, TrainsTable
 from console.tui.widgets.track import TrackDiagram
+from console.tui.widgets.trains_table import TrainsTable
 
 TICK_S = 0.1
 FAULT_MINUTES = 5
