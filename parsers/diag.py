@@ -471,6 +471,10 @@ def _encode(
 
 
 _LO7 = np.uint64(0x7F7F7F7F7F7F7F7F)
+_HMS_PATTERN = np.uint64(int.from_bytes(b"00:00:00", "little"))
+_HMS_COLONS = np.uint64(0x0000FF0000FF0000)
+_HMS_DIGIT_LIMIT = np.uint64(0x7676767676767676)  # + 0x76 sets a byte's top bit from 10 up
+_HIGH_BITS = np.uint64(0x8080808080808080)
 _TABS = np.uint64(0x0909090909090909)
 
 
@@ -558,16 +562,16 @@ def _tokenize(chunk: Chunk) -> _Tokens:
     w_hms = u8[ts + 5]
     time_ok = (w_key & np.uint64(0xFF_FFFF_FFFF)) == np.uint64(_TIME_KEY)
     time_ok &= (tlen == 13) | ((tlen >= 15) & (tlen <= 23))
-    digits = []
-    for k in (0, 1, 3, 4, 6, 7):
-        b = ((w_hms >> np.uint64(8 * k)) & np.uint64(0xFF)).astype(np.int64) - 48
-        time_ok &= (b >= 0) & (b <= 9)
-        digits.append(b)
-    for k in (2, 5):
-        time_ok &= ((w_hms >> np.uint64(8 * k)) & np.uint64(0xFF)) == np.uint64(ord(":"))
-    hh = digits[0] * 10 + digits[1]
-    mm = digits[2] * 10 + digits[3]
-    ss = digits[4] * 10 + digits[5]
+    # "HH:MM:SS" in one 8-byte word: XOR with "00:00:00" leaves every digit
+    # as 0-9 and every colon as 0; a byte that is 10 or more (or has its top
+    # bit set) after the XOR was not a digit.  Then byte k * 10 + byte k+1
+    # gives the two-digit fields at bytes 0, 3 and 6 (no carries: bytes ≤ 9).
+    x = w_hms ^ _HMS_PATTERN
+    time_ok &= ((x & _HMS_COLONS) == 0) & ((((x + _HMS_DIGIT_LIMIT) | x) & _HIGH_BITS) == 0)
+    pairs = x * np.uint64(10) + (x >> np.uint64(8))
+    hh = (pairs & np.uint64(0xFF)).astype(np.int64)
+    mm = ((pairs >> np.uint64(24)) & np.uint64(0xFF)).astype(np.int64)
+    ss = ((pairs >> np.uint64(48)) & np.uint64(0xFF)).astype(np.int64)
     time_ok &= (hh < 24) & (mm < 60) & (ss < 60)
     tod = ((hh * 60 + mm) * 60 + ss) * _NS
     n_frac = np.where((tlen >= 15) & (tlen <= 23), tlen - 14, 0)
@@ -648,6 +652,7 @@ class DiagReader:
 
         pending: deque[Future[_Tokens] | OverlongLine] = deque()
         next_line = 1  # line numbers are handed out here, in file order
+        done_buffers: list[bytearray] = []  # read buffers of resolved chunks, to read into again
 
         def drain() -> DiagChunk | None:
             nonlocal next_line
@@ -659,6 +664,9 @@ class DiagReader:
             tok = item.result()
             out = self._resolve(tok, fr, file_id, next_line)
             next_line += len(tok.starts)
+            # Nothing of the chunk's buffer is referenced beyond this point.
+            if isinstance(tok.chunk.data, memoryview) and isinstance(tok.chunk.data.obj, bytearray):
+                done_buffers.append(tok.chunk.data.obj)
             return out
 
         try:
@@ -669,6 +677,7 @@ class DiagReader:
                 max_line_bytes=self.max_line_bytes,
                 on_bytes=progress,
                 name=name,
+                recycle=done_buffers,
             )
             for item in source:
                 pending.append(item if isinstance(item, OverlongLine) else pool.submit(_tokenize, item))

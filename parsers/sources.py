@@ -122,6 +122,7 @@ def iter_chunks(
     max_line_bytes: int = DEFAULT_MAX_LINE_BYTES,
     on_bytes: Callable[[], None] | None = None,
     name: str = "",
+    recycle: list[bytearray] | None = None,
 ) -> Iterator[Chunk | OverlongLine]:
     """Yield line-aligned chunks, and overlong lines in their place in the file.
 
@@ -129,14 +130,22 @@ def iter_chunks(
     kernel or the decompressor); only the unfinished last line is carried
     over.  Memory stays within about ``chunk_bytes + max_line_bytes`` per
     chunk in flight.
+
+    ``recycle``: buffers the consumer has finished with (it appends a chunk's
+    ``data.obj`` once nothing refers to the chunk any more); they are read
+    into again instead of allocating, and faulting in, fresh memory.
     """
     carry = b""
     skipping: OverlongLine | None = None  # inside an overlong line, discarding to its end
     while True:
-        buf = bytearray(len(carry) + chunk_bytes)
+        need = len(carry) + chunk_bytes
+        buf = recycle.pop() if recycle else None
+        if buf is None or len(buf) < need:
+            # A little slack, so that the buffer fits again with the next carry.
+            buf = bytearray(need + (1 << 16 if recycle is not None else 0))
         buf[: len(carry)] = carry
         try:
-            n = stream.readinto(memoryview(buf)[len(carry) :])  # type: ignore[attr-defined]
+            n = stream.readinto(memoryview(buf)[len(carry) : need])  # type: ignore[attr-defined]
         except (OSError, EOFError, zlib.error) as exc:
             raise InputError(f"{name}: read failed, the file is corrupt or truncated ({exc})") from None
         if on_bytes is not None:
