@@ -308,8 +308,11 @@ def _chosen_file_only(parts: list[Arrays], buckets: Columns) -> Arrays:
     cols = {c: np.concatenate([part[c] for part in parts]) for c in names}
     row = bucket_index(buckets, cols["head"], cols["time_ns"])
     keep = (row >= 0) & (buckets["file"][np.maximum(row, 0)] == cols["file"])
-    cols = {c: v[keep] for c, v in cols.items()}
-    cols["bucket"] = row[keep]
+    if keep.all():  # one file, every onset in a bucket: nothing to drop
+        cols["bucket"] = row
+    else:
+        cols = {c: v[keep] for c, v in cols.items()}
+        cols["bucket"] = row[keep]
     cols["passage"] = buckets["passage"][cols["bucket"]]
     return cols
 

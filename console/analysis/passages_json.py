@@ -249,21 +249,34 @@ def _batch(cols: Columns, heads: list[tuple[int, str]], lo: int, hi: int, first:
     return flat[flat != 0].tobytes()
 
 
-def encode_passages(cols: Columns, heads: list[tuple[int, str]]) -> str | None:
-    """The passages (``diagnostics._passages`` columns) as a JSON array, or None if not covered."""
+def encode_passages(cols: Columns, heads: list[tuple[int, str]], workers: int = 2) -> str | None:
+    """The passages (``diagnostics._passages`` columns) as a JSON array, or None if not covered.
+
+    Batches of passages are encoded on ``workers`` threads (numpy releases
+    the GIL) and joined in order.
+    """
     n = len(cols["head"])
     count = cols["axle_speeds_stop"] - cols["axle_speeds_start"]
-    out = [b"["]
+    batches = []
     lo = 0
     while lo < n:
         hi = min(n, lo + _BATCH_ROWS)
         # Fewer rows per batch where trains have many axles.
         while hi - lo > 1 and (hi - lo) * int(count[lo:hi].max()) > _BATCH_CELLS:
             hi = lo + (hi - lo) // 2
-        text = _batch(cols, heads, lo, hi, first=lo == 0)
-        if text is None:
-            return None
-        out.append(text)
+        batches.append((lo, hi))
         lo = hi
-    out.append(b"]")
-    return b"".join(out).decode("ascii")
+
+    def encode(batch: tuple[int, int]) -> bytes | None:
+        return _batch(cols, heads, batch[0], batch[1], first=batch[0] == 0)
+
+    if workers > 1 and len(batches) > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            texts = list(pool.map(encode, batches))
+    else:
+        texts = [encode(b) for b in batches]
+    if any(t is None for t in texts):
+        return None
+    return b"".join([b"[", *(t for t in texts if t is not None), b"]"]).decode("ascii")
