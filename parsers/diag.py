@@ -781,13 +781,14 @@ class DiagReader:
             data_kind = np.concatenate([data_kind, s_kind])[order]
         out = DiagChunk(
             file_id=file_id,
-            register_id=rid_g.astype(np.int32),
-            time_ns=time_ns.astype(np.int64),
-            subsecond=subsecond.astype(bool),
-            value=value.astype(np.int64),
-            data_code=data_code.astype(np.int32),
-            data_kind=data_kind.astype(np.int8),
-            line=lines.astype(np.int64) + first_line,
+            # Every column is a fresh array already: convert, never copy.
+            register_id=rid_g.astype(np.int32, copy=False),
+            time_ns=time_ns.astype(np.int64, copy=False),
+            subsecond=subsecond.astype(bool, copy=False),
+            value=value.astype(np.int64, copy=False),
+            data_code=data_code.astype(np.int32, copy=False),
+            data_kind=data_kind.astype(np.int8, copy=False),
+            line=lines.astype(np.int64, copy=False) + first_line,
         )
         fr.records += len(out)
         reg.count_records(out.register_id)
