@@ -507,7 +507,7 @@ def frames(
         from console.analysis.timefmt import iso
         from console.render.diag_tables import parse_report_table, rejections_table
         from console.render.frame_tables import events_table, sensor_summary_table
-        from parsers.frames import parse_can, parse_frames
+        from parsers.frames import CAN_COLUMNS, parse_can, parse_frames
 
         _check_inputs(files)
         lay = _load_layout(layout) if layout else None
@@ -536,28 +536,7 @@ def frames(
         if json_out:
             rows = []
             if not all_frames.empty:
-                keep = [
-                    c
-                    for c in (
-                        "sensor",
-                        "status",
-                        "byte2",
-                        "check",
-                        "sys",
-                        "ses1",
-                        "ses2",
-                        "ses3",
-                        "der",
-                        "err",
-                        "t_since_s",
-                        "total",
-                        "seq",
-                        "can_id",
-                        "file",
-                        "line",
-                    )
-                    if c in all_frames.columns
-                ]
+                keep = [c for c in CAN_COLUMNS if c != "time" and c in all_frames.columns]
                 frame_rows = all_frames[keep].astype(object).where(all_frames[keep].notna(), None).to_dict("records")
                 for t_ns, rec in zip(all_frames["time"].astype("int64").tolist(), frame_rows, strict=True):
                     rows.append(

@@ -35,9 +35,8 @@ import numpy as np
 from console.analysis.timefmt import iso
 from console.layout import BUILTIN, Layout
 from console.sim.station import NS, StationSim
-from parsers.frames import encode_status
+from parsers.frames import CHECK_BYTE, encode_status
 
-CHECK_BYTE = 0xA5
 CENTRE_PERIOD_S = 10.0
 IDENTITY = [
     ("000", "Diagnose I", "2"),
