@@ -22,10 +22,8 @@ from typing import Any
 import pandas as pd
 
 from console.analysis.crossing import earliest_arrival_s
-from console.analysis.timefmt import iso
+from console.analysis.timefmt import NS, iso
 from console.layout import Layout, WorkSite
-
-NS = 1_000_000_000
 
 
 @dataclass(frozen=True)

@@ -48,9 +48,9 @@ import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
+from console.analysis.timefmt import NS
 from console.layout import LevelCrossing
 
-NS = 1_000_000_000
 HEAD, EOT = "head", "eot"
 
 

@@ -17,10 +17,9 @@ import numpy as np
 from console.analysis.diagnostics import DiagAnalysis
 from console.analysis.events import DetectionEvent, EventKind, sort_events
 from console.analysis.majority import MajoritySettings, majority_events
+from console.analysis.timefmt import NS
 from console.analysis.wheels import CountingSettings, two_channel_events
 from console.layout import Layout
-
-NS = 1_000_000_000
 
 
 @dataclass(frozen=True)

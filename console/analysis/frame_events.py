@@ -32,9 +32,9 @@ import numpy as np
 import pandas as pd
 
 from console.analysis.events import DOWN, UNKNOWN, UP, DetectionEvent, EventKind, sort_events
+from console.analysis.timefmt import NS
 from parsers.frames import check_byte_mask
 
-NS = 1_000_000_000
 COUNT_MODULO = 256  # byte 2 is one byte: a long train's count wraps 255 → 0
 # A fall from this high to this low is the byte wrapping, not the count going back.
 WRAP_FROM, WRAP_TO = 224, 32

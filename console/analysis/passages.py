@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-NS = 1_000_000_000
+from console.analysis.timefmt import NS
+
 _BIG = np.iinfo(np.int64).max
 _SMALL = np.iinfo(np.int64).min
 _FIRST = ("t_first_ns", "t_first_sys1_ns", "t_first_sys2_ns")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import datetime as dt
 
+NS = 1_000_000_000  # nanoseconds per second: every time in the console is an int of ns
+
 _EPOCH = dt.datetime(1970, 1, 1)
 
 
@@ -12,7 +14,7 @@ def iso(ns: int | None) -> str | None:
     if ns is None:
         return None
     ns = int(ns)
-    whole, frac = divmod(ns, 1_000_000_000)
+    whole, frac = divmod(ns, NS)
     t = _EPOCH + dt.timedelta(seconds=whole)
     text = t.isoformat()
     if frac:
@@ -25,7 +27,7 @@ def display(ns: int | None) -> str:
     if ns is None:
         return "–"
     ns = int(ns)
-    whole, frac = divmod(ns, 1_000_000_000)
+    whole, frac = divmod(ns, NS)
     text = (_EPOCH + dt.timedelta(seconds=whole)).isoformat(sep=" ")
     return text + f".{frac // 1_000_000:03d}" if frac else text
 

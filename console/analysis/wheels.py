@@ -25,6 +25,7 @@ import numpy as np
 
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.speed import MPS_TO_KMH
+from console.analysis.timefmt import NS
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -34,7 +35,6 @@ SYS1, SYS2 = 1, 2
 DIRECTION_12 = "sys1_to_sys2"
 DIRECTION_21 = "sys2_to_sys1"
 DIRECTIONS = (None, DIRECTION_12, DIRECTION_21)  # axle direction codes 0, 1, 2
-NS = 1_000_000_000
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from console.analysis.timefmt import NS as _NS
 from console.safe_text import clean
 
 WIDTH = 1000
@@ -29,7 +30,6 @@ PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#0
 SHAPES = ("circle", "square", "triangle", "diamond", "triangle-down", "cross", "plus")
 DASHES = ("", "7 3", "2 3", "9 3 2 3", "4 4")
 _EPOCH = dt.datetime(1970, 1, 1)
-_NS = 1_000_000_000
 _TIME_STEPS_S = (1, 2, 5, 10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200, 10800, 21600, 43200, 86400)
 
 

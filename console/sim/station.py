@@ -35,11 +35,11 @@ from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingCon
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.geo import TrackProjector
 from console.analysis.sections import SectionEngine, SectionState, Transition
+from console.analysis.timefmt import NS
 from console.analysis.wheels import SYS1, SYS2, CountingSettings, HeadCounter
 from console.layout import Consist, Layout
 from console.sim.radio import LoRaLink
 
-NS = 1_000_000_000
 DETECTION_ZONE_M = 0.25  # a wheel damps a coil over this length of travel
 ENTRY_ROOM_M = 400.0  # a new train enters only this far behind the tail of the one before it
 FAULT_KINDS = (

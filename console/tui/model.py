@@ -20,10 +20,9 @@ from typing import Protocol
 
 from console.analysis.crossing import CrossingController
 from console.analysis.sections import SectionEngine, SectionState, Transition
-from console.analysis.timefmt import display
+from console.analysis.timefmt import NS, display
 from console.layout import Layout
 
-NS = 1_000_000_000
 SPEEDS = (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000)
 SEVERITIES = ("info", "warning", "critical")
 # A reported head this far from the true one is a difference: GNSS noise and a
