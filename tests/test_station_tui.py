@@ -433,7 +433,9 @@ def test_station_command_error_as_a_subprocess() -> None:
 
 def test_crossing_lights_then_barriers() -> None:
     """The barriers come down a few seconds after the lights start, and rise with them."""
-    from console.tui.model import BARRIER_DELAY_S
+    from console.analysis.crossing import ControllerSettings
+
+    BARRIER_DELAY_S = ControllerSettings().barrier_delay_s
 
     app = make_app()
     m = app.model

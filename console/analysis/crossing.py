@@ -90,6 +90,9 @@ class ControllerSettings:
     noise_m: float = 15.0  # GNSS noise allowance in the plausibility check
     crossing_half_width_m: float = 5.0  # the road's half width along the track
     baseline_margin_s: float = 10.0  # the fixed-time method's safety margin
+    # Lights flash first; the barriers come down this much later (road users clear
+    # the crossing) and rise with the lights going out.
+    barrier_delay_s: float = 8.0
 
 
 def earliest_arrival_s(distance_m: float, speed_mps: float, accel_mps2: float, max_speed_mps: float) -> float:
@@ -212,12 +215,12 @@ class CrossingController:
         self.events.append(ev)
         return ev
 
-    def _check_on(self, tr: _Track, t_ns: int) -> list[CrossingEvent]:
-        if tr.warned:
-            return []
+    def _approach(self, tr: _Track, t_ns: int) -> tuple[float, float, str] | None:
+        """The head's distance to the crossing (m, < 0 once past), its earliest
+        arrival (s) and the estimate's basis; None without an estimate or once the tail is past."""
         est = self._head_estimate(tr, t_ns)
         if est is None:
-            return []
+            return None
         head_ch, basis = est
         c = self.crossing.chainage_m
         ahead = tr.direction * (c - head_ch) if tr.direction else abs(c - head_ch)
@@ -227,9 +230,31 @@ class CrossingController:
         elif ahead < 0:
             tail_past = -ahead > tr.spec.length_m + self.crossing.d_off_m + 2 * self.s.noise_m
         if tail_past:
-            return []
+            return None
         v = self._speed(tr)
-        eta = earliest_arrival_s(ahead, v, self.s.accel_mps2, max(v, self.s.line_speed_mps))
+        return ahead, earliest_arrival_s(ahead, v, self.s.accel_mps2, max(v, self.s.line_speed_mps)), basis
+
+    def arrival_s(self, t_ns: int) -> float | None:
+        """Earliest arrival of the nearest head still approaching, as this unit estimates it (s)."""
+        etas = [a[1] for tr in self.tracks.values() if (a := self._approach(tr, t_ns)) is not None and a[0] > 0]
+        return min(etas) if etas else None
+
+    def barriers_down(self, t_ns: int) -> bool:
+        """The barriers follow the lights after ``barrier_delay_s`` and rise with them."""
+        on_since = [t.t_on for t in self.tracks.values() if t.warned and t.t_on is not None]
+        return bool(on_since) and t_ns - min(on_since) >= self.s.barrier_delay_s * NS
+
+    @property
+    def alarm(self) -> bool:
+        return any(t.alarms for t in self.tracks.values())
+
+    def _check_on(self, tr: _Track, t_ns: int) -> list[CrossingEvent]:
+        if tr.warned:
+            return []
+        approach = self._approach(tr, t_ns)
+        if approach is None:
+            return []
+        ahead, eta, basis = approach
         horizon_s = self.crossing.warning_time_s + self.s.report_period_s + self.s.latency_s
         reason = ""
         if ahead <= 0:

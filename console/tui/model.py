@@ -28,9 +28,6 @@ SEVERITIES = ("info", "warning", "critical")
 # A reported head this far from the true one is a difference: GNSS noise and a
 # fix's age at line speed stay well inside it, a lost head unit soon leaves it.
 TRAIN_DIFF_M = 60.0
-# Lights flash first, barriers come down a few seconds later (road users clear the
-# crossing); they rise with the lights going out.
-BARRIER_DELAY_S = 8
 
 
 @dataclass(frozen=True)
@@ -71,9 +68,9 @@ class CrossingView:
     code: str
     chainage_m: float
     warning_on: bool
-    countdown_s: float | None  # until the nearest approaching head arrives
+    countdown_s: float | None  # the crossing unit's earliest arrival of the nearest approaching head
     alarm: bool
-    barrier_down: bool = False  # the barriers follow the lights after BARRIER_DELAY_S
+    barrier_down: bool = False
 
 
 @dataclass(frozen=True)
@@ -210,19 +207,17 @@ class StationModel:
                 )
             )
         trains = src.trains(truth=self.show_truth)
-        crossings = []
-        for code, ctl in src.crossings.items():
-            c = ctl.crossing
-            countdown = None
-            for tv in trains:
-                ahead = tv.direction * (c.chainage_m - tv.head_m)
-                if ahead > 0 and tv.speed_kmh > 1:
-                    eta = ahead / (tv.speed_kmh / 3.6)
-                    countdown = eta if countdown is None else min(countdown, eta)
-            alarm = any(tr.alarms for tr in ctl.tracks.values())
-            on_since = [t.t_on for t in ctl.tracks.values() if t.warned and t.t_on is not None]
-            lowered = bool(on_since) and src.now_ns - min(on_since) >= BARRIER_DELAY_S * NS
-            crossings.append(CrossingView(code, c.chainage_m, ctl.warning_on, countdown, alarm, lowered))
+        crossings = [
+            CrossingView(
+                code,
+                ctl.crossing.chainage_m,
+                ctl.warning_on,
+                ctl.arrival_s(src.now_ns),
+                ctl.alarm,
+                ctl.barriers_down(src.now_ns),
+            )
+            for code, ctl in src.crossings.items()
+        ]
         ch = [p.chainage_m for p in src.layout.track] or [h.chainage_m for h in src.layout.heads]
         return Snapshot(
             time_ns=src.now_ns,

@@ -6,7 +6,7 @@ from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
-from console.analysis.crossing import CrossingController, CrossingEvent, Fix, TrainSpec
+from console.analysis.crossing import ControllerSettings, CrossingController, CrossingEvent, Fix, TrainSpec
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.sections import SectionEngine, SectionState, Transition
 from console.layout import Layout
@@ -56,7 +56,7 @@ def _span(seconds: float) -> str:
     return (f"{d} d " if d else "") + (f"{h} h " if h or d else "") + f"{m} min"
 
 
-STALE_S = 30.0  # a unit not heard for this long is shown stale
+STALE_S = ControllerSettings().stale_after_s  # the crossing units' own rule for a silent unit
 GONE_S = 120.0  # a replayed train not heard for this long has left the line
 
 
