@@ -121,11 +121,11 @@ class StationApp(App[None]):
         state = "paused" if snap.paused else f"{snap.speed}×"
         mode = "replay" if snap.mode == "replay" else "simulation"
         self.sub_title = f"{mode} · {display(snap.time_ns)[:19]} · {state}" + (" · truth view" if m.show_truth else "")
-        self.query_one(TrackDiagram).render_snapshot(snap, m.section_id(), m.train_id(), diffs)
-        self.query_one(SectionsTable).render_snapshot(snap, m.section_id(), diffs)
-        self.query_one(TrainsTable).render_snapshot(snap, m.train_id(), diffs)
+        section, train = m.section_id(), m.train_id(snap)
+        self.query_one(TrackDiagram).render_snapshot(snap, section, train, diffs)
+        self.query_one(SectionsTable).render_snapshot(snap, section, diffs)
+        self.query_one(TrainsTable).render_snapshot(snap, train, diffs)
         self.query_one(EventLog).render_entries(m.visible_log(), m.log_filter)
-        train = m.train_id()
         self.query_one(SpeedPlot).show(
             train, list(m.speed_history.get(train, [])) if train else [], m.source.layout.line_speed_mps * 3.6
         )

@@ -170,8 +170,9 @@ class StationModel:
         sections = self.source.layout.sections
         return sections[self.selected_section % len(sections)].id if sections else None
 
-    def train_id(self) -> str | None:
-        trains = self.source.trains()
+    def train_id(self, snap: Snapshot | None = None) -> str | None:
+        """The selected train (from ``snap`` when given: no second pass over the units)."""
+        trains = snap.trains if snap is not None else self.source.trains()
         return trains[self.selected_train % len(trains)].id if trains else None
 
     def select_section(self, delta: int = 1) -> None:
