@@ -291,6 +291,28 @@ class SectionsResult:
     resets: pd.DataFrame  # every reset request: accepted or refused, and why
     final: dict[str, tuple[str, int, int, int, str]]  # section → (state, count, in, out, reason)
 
+    def ledger_summary(self) -> pd.DataFrame:
+        """Per section and head: axles counted in and out, first and last (section, head order)."""
+        cols = ["section", "head", "count_in", "count_out", "first_ns", "last_ns"]
+        led = self.ledger
+        if led.empty:
+            return pd.DataFrame(columns=cols)
+        delta = led["delta"]
+        keyed = pd.DataFrame(
+            {
+                "section": led["section"].astype(str),
+                "head": led["head"].astype(str),
+                "count_in": (delta > 0).astype("int64"),
+                "count_out": (delta < 0).astype("int64"),
+                "time_ns": led["time_ns"].astype("int64"),
+            }
+        )
+        g = keyed.groupby(["section", "head"], sort=True)
+        out = g[["count_in", "count_out"]].sum()
+        out["first_ns"] = g["time_ns"].min()
+        out["last_ns"] = g["time_ns"].max()
+        return out.reset_index()[cols]
+
 
 def run_sections(
     layout: Layout, events: Iterable[DetectionEvent], *, initial: SectionState = SectionState.PREPARATORY

@@ -62,22 +62,15 @@ def ledger_summary_table(result: SectionsResult) -> Table:
     t = _table("Count ledger (axles in / out per head)")
     for c in ("Section", "Head", "In", "Out", "First", "Last"):
         t.add_column(c, justify="right" if c in ("In", "Out") else "left", no_wrap=c in ("First", "Last"))
-    led = result.ledger
-    if led.empty:
-        return t
-    g = led.groupby(["section", "head"], sort=True)
-    summary = pd.DataFrame(
-        {
-            "n_in": g["delta"].apply(lambda d: int((d > 0).sum())),
-            "n_out": g["delta"].apply(lambda d: int((d < 0).sum())),
-            "first": g["time_ns"].min(),
-            "last": g["time_ns"].max(),
-        }
-    ).reset_index()
     r: Any
-    for r in summary.itertuples(index=False):
+    for r in result.ledger_summary().itertuples(index=False):
         t.add_row(
-            inert(r.section), inert(r.head), Text(str(r.n_in)), Text(str(r.n_out)), Text(_t(r.first)), Text(_t(r.last))
+            inert(r.section),
+            inert(r.head),
+            Text(str(r.count_in)),
+            Text(str(r.count_out)),
+            Text(_t(r.first_ns)),
+            Text(_t(r.last_ns)),
         )
     return t
 

@@ -362,23 +362,17 @@ def _passages(data: ReportData) -> tuple[list[dict[str, Any]], int]:
 
 
 def _ledger_summary(result: SectionsResult) -> list[dict[str, Any]]:
-    led = result.ledger
-    if led.empty:
-        return []
-    out = []
-    for (section, head), g in led.groupby(["section", "head"], sort=True):
-        d = g["delta"].to_numpy()
-        out.append(
-            {
-                "section": str(section),
-                "head": str(head),
-                "count_in": int((d > 0).sum()),
-                "count_out": int((d < 0).sum()),
-                "first": iso(int(g["time_ns"].min())),
-                "last": iso(int(g["time_ns"].max())),
-            }
-        )
-    return out
+    return [
+        {
+            "section": section,
+            "head": head,
+            "count_in": int(n_in),
+            "count_out": int(n_out),
+            "first": iso(int(first)),
+            "last": iso(int(last)),
+        }
+        for section, head, n_in, n_out, first, last in result.ledger_summary().itertuples(index=False, name=None)
+    ]
 
 
 def _sections(data: ReportData) -> dict[str, Any] | None:
