@@ -1,0 +1,113 @@
+"""trackside analyze."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from console import __version__, exit_codes
+from console.commands.common import (
+    JSON_SCHEMA_ANALYZE,
+    Console,
+    FilesArg,
+    IdleGapOpt,
+    JsonOpt,
+    StrictOpt,
+    guard,
+    layout_summary,
+    load_layout,
+    print_json,
+    run_diag,
+)
+
+
+def analyze(
+    files: FilesArg,
+    spacing: Annotated[
+        float | None,
+        typer.Option("--spacing", help="Coil spacing Sys1–Sys2, m [default: the layout's, 0.13]", min=0.001),
+    ] = None,
+    train_length: Annotated[
+        float | None,
+        typer.Option(
+            "--train-length", help="First-to-last wheel, m [default: the layout's first consist, 28.6]", min=0.1
+        ),
+    ] = None,
+    idle_gap: IdleGapOpt = 10.0,
+    layout: Annotated[
+        str | None,
+        typer.Option("--layout", help="Layout (file or osong, example): adds section and health summaries."),
+    ] = None,
+    json_out: JsonOpt = False,
+    strict: StrictOpt = False,
+) -> None:
+    """Inventory, passages with speeds, and the parse report of diagnostic logs."""
+
+    def body() -> int:
+        # Line facts come from the layout; the Osong test line when none is given.
+        lay = load_layout(layout or "osong")
+        consist = lay.consist()
+        spacing_m = spacing if spacing is not None else lay.heads[0].spacing_m
+        length_m = train_length if train_length is not None else (consist.length_m if consist else 28.6)
+        summary = layout_summary(files, lay, spacing_m, length_m, idle_gap) if layout else None
+        job = summary[0] if summary else run_diag(files, spacing_m, length_m, idle_gap)
+        if json_out:
+            from console.jsonout import RawJSON
+
+            doc = {
+                "schema": JSON_SCHEMA_ANALYZE,
+                "trackside_version": __version__,
+                "files": job.files,
+                "parse_report": job.report.to_dict(),
+                **job.analysis.to_dict(passages=RawJSON(job.analysis.passages_json_text())),
+            }
+            if summary:
+                from console.render.section_tables import sections_json
+
+                doc["layout"] = lay.source
+                doc["sections"] = sections_json(summary[1])["sections"]
+                doc["health"] = [f.to_dict() for f in summary[2]]
+                doc["warnings"] = summary[3]
+            print_json(doc)
+        else:
+            from console.render.diag_tables import (
+                inventory_table,
+                parse_report_table,
+                passages_table,
+                rejections_table,
+            )
+
+            out = Console(highlight=False)
+            out.print(inventory_table(job.analysis))
+            out.print(passages_table(job.analysis, limit=200))
+            out.print(parse_report_table(job.report))
+            rej = rejections_table(job.report)
+            if rej is not None:
+                out.print(rej)
+            notes = []
+            if job.analysis.overlap_records:
+                notes.append(
+                    f"{job.analysis.overlap_records} records repeat another file's second"
+                    " (overlapping exports) and were counted once"
+                )
+            if job.analysis.unpaired_detections:
+                notes.append(f"{job.analysis.unpaired_detections} wheel detections on one system only (not axles)")
+            if job.report.unknown_labels:
+                notes.append(
+                    f"{sum(job.report.unknown_labels.values())} records with unknown labels: "
+                    + ", ".join(sorted(job.report.unknown_labels))
+                )
+            for n in notes:
+                out.print(n, markup=False)
+            if summary:
+                from console.render.health_tables import findings_view
+                from console.render.section_tables import final_states_table
+
+                out.print(final_states_table(summary[1]))
+                out.print(findings_view(summary[2], show_info=False, title="Health"))
+                for w in summary[3]:
+                    out.print(f"warning: {w}", markup=False)
+        return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
+
+    raise typer.Exit(guard(body))

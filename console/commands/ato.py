@@ -1,0 +1,52 @@
+"""trackside ato."""
+
+from __future__ import annotations
+
+import sys
+from typing import Annotated
+
+import typer
+
+from console import exit_codes
+from console.commands.common import (
+    Console,
+    JsonOpt,
+    fail,
+    guard,
+)
+
+
+def ato(
+    controller: Annotated[str, typer.Option("--controller", help="pid, fuzzy, fuzzy-d or all.")] = "all",
+    plant: Annotated[
+        str, typer.Option("--plant", help="force (our train model), linear (the paper's G(s)) or both.")
+    ] = "force",
+    plot: Annotated[bool, typer.Option("--plot", help="Draw speed against distance in the terminal.")] = False,
+    json_out: JsonOpt = False,
+) -> None:
+    """Seed 001's automatic train operation run: PID, fuzzy and Fuzzy-D beside the paper's figures."""
+
+    def body() -> int:
+        from console.render.ato_view import ato_json, ato_plot, ato_table
+        from console.sim.ato import run_scenario
+        from console.sim.control import CONTROLLER_NAMES
+
+        names = list(CONTROLLER_NAMES) if controller == "all" else [controller]
+        if any(n not in CONTROLLER_NAMES for n in names):
+            raise fail(f"--controller: expected pid, fuzzy, fuzzy-d or all, found {controller!r}")
+        plants = ["force", "linear"] if plant == "both" else [plant]
+        if any(p not in ("force", "linear") for p in plants):
+            raise fail(f"--plant: expected force, linear or both, found {plant!r}")
+        results = [run_scenario(n, p) for p in plants for n in names]
+        if json_out:
+            doc = ato_json(results)
+            sys.stdout.write(__import__("json").dumps(doc, ensure_ascii=True, allow_nan=False) + "\n")
+        else:
+            out = Console(highlight=False)
+            out.print(ato_table(results))
+            if plot:
+                for p in plants:
+                    out.print(ato_plot(results, width=min(out.width, 100), height=20, plant=p))
+        return exit_codes.OK
+
+    raise typer.Exit(guard(body))

@@ -1,0 +1,103 @@
+"""trackside crossing."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from console import exit_codes
+from console.commands.common import (
+    Console,
+    GnssFilesArg,
+    JsonOpt,
+    check_inputs,
+    fail,
+    guard,
+    load_layout,
+    print_json,
+)
+
+
+def crossing(
+    files: GnssFilesArg,
+    layout: Annotated[str, typer.Option("--layout", help="Layout with [[crossings]] and a [[track]] polyline.")],
+    train: Annotated[
+        list[str] | None,
+        typer.Option("--train", help="TRAIN=HEAD_DEVICE,EOT_DEVICE[,LENGTH_M] (repeatable; default: by role or name)."),
+    ] = None,
+    json_out: JsonOpt = False,
+    strict: Annotated[
+        bool, typer.Option("--strict", help="Exit 1 on a safety violation or a rejected input line.")
+    ] = False,
+) -> None:
+    """Level-crossing warning timelines from head and end-of-train telemetry (seed 004)."""
+
+    def body() -> int:
+        from console.analysis.crossing_batch import parse_train_option, run_crossings
+        from console.analysis.timefmt import iso
+        from console.render.crossing_tables import reasons_view, timeline_table, violations_view
+        from parsers.gnss import parse_gnss
+
+        check_inputs(files)
+        lay = load_layout(layout)
+        if not lay.crossings:
+            raise fail(f"{lay.source}: the layout has no [[crossings]]")
+        if len(lay.track) < 2:
+            raise fail(f"{lay.source}: the layout has no [[track]] polyline to place fixes on")
+        consist = lay.consist()
+        default_len = consist.length_m if consist else 100.0
+        try:
+            trains = [parse_train_option(t, default_len) for t in (train or [])]
+        except ValueError as exc:
+            raise fail(str(exc)) from None
+        fixes, report, _states = parse_gnss(files)
+        run = run_crossings(fixes, lay, trains)
+        violations = sum(1 for r in run.timelines if r.violations)
+        warnings = []
+        if run.off_track:
+            warnings.append(f"{run.off_track} fixes more than 100 m from the track were set aside")
+        if run.unassigned_devices:
+            warnings.append("devices in no train: " + ", ".join(run.unassigned_devices))
+        if not run.trains:
+            warnings.append("no head or EOT device found: give --train TRAIN=HEAD,EOT")
+        if json_out:
+            print_json(
+                {
+                    "schema": "trackside.crossing/1",
+                    "files": [str(p) for p in files],
+                    "layout": lay.source,
+                    "violations": violations,
+                    "timelines": [r.to_dict() for r in run.timelines],
+                    "events": [
+                        {
+                            "time": iso(e.t_ns),
+                            "crossing": e.crossing,
+                            "train": e.train,
+                            "kind": e.kind,
+                            "reason": e.reason,
+                        }
+                        for e in run.events
+                    ],
+                    "trains": [
+                        {"train": t.train, "head": list(t.head), "eot": list(t.eot), "length_m": t.length_m}
+                        for t in run.trains
+                    ],
+                    "warnings": warnings,
+                    "parse_report": report.to_dict(),
+                }
+            )
+        else:
+            out = Console(highlight=False)
+            v = violations_view(run.timelines)
+            if v is not None:
+                out.print(v)
+            out.print(timeline_table(run.timelines))
+            out.print(reasons_view(run.timelines, run.events))
+            for w in warnings:
+                out.print(f"warning: {w}", markup=False)
+            if report.rejected:
+                out.print(f"{report.rejected} input lines rejected (trackside gnss lists them)", markup=False)
+        return exit_codes.FINDINGS if strict and (violations or report.rejected) else exit_codes.OK
+
+    raise typer.Exit(guard(body))

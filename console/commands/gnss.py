@@ -1,0 +1,41 @@
+"""trackside gnss."""
+
+from __future__ import annotations
+
+import typer
+
+from console import exit_codes
+from console.commands.common import (
+    Console,
+    GnssFilesArg,
+    JsonOpt,
+    StrictOpt,
+    check_inputs,
+    guard,
+    print_json,
+)
+
+
+def gnss(files: GnssFilesArg, json_out: JsonOpt = False, strict: StrictOpt = False) -> None:
+    """Decoded GNSS fixes per device, and the parse report."""
+
+    def body() -> int:
+        from console.render.diag_tables import parse_report_table, rejections_table
+        from console.render.gnss_tables import devices_table, fixes_table, gnss_json
+        from parsers.gnss import parse_gnss
+
+        check_inputs(files)
+        fixes, report, _states = parse_gnss(files)
+        if json_out:
+            print_json({"schema": "trackside.gnss/1", "files": [str(p) for p in files], **gnss_json(fixes, report)})
+        else:
+            out = Console(highlight=False)
+            out.print(devices_table(fixes))
+            out.print(fixes_table(fixes))
+            out.print(parse_report_table(report))
+            rej = rejections_table(report)
+            if rej is not None:
+                out.print(rej)
+        return exit_codes.FINDINGS if strict and report.rejected else exit_codes.OK
+
+    raise typer.Exit(guard(body))
