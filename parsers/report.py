@@ -83,6 +83,10 @@ class ParseReport:
     rejections: list[Rejection] = field(default_factory=list)
     rejected_by_reason: Counter[str] = field(default_factory=Counter)
     unknown_labels: Counter[str] = field(default_factory=Counter)
+    # Input that is not ours to read but was recognised and passed over on
+    # purpose (binary UBX/RTCM3/SiRF packets in a GNSS stream, extra CSV
+    # columns), counted by kind: nothing vanishes unseen.
+    skipped: Counter[str] = field(default_factory=Counter)
     max_rejections_kept: int = MAX_REJECTIONS_KEPT
 
     @property
@@ -125,5 +129,6 @@ class ParseReport:
             "rejections_shown": len(self.rejections),
             "rejected_by_reason": dict(sorted(self.rejected_by_reason.items())),
             "unknown_labels": dict(sorted(self.unknown_labels.items())),
+            **({"skipped": dict(sorted(self.skipped.items()))} if self.skipped else {}),
             "files": [f.to_dict() for f in self.files],
         }
