@@ -19,7 +19,9 @@ four sections, two level crossings and two platforms).
 from __future__ import annotations
 
 import itertools
+import math
 import re
+import reprlib
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
@@ -27,6 +29,17 @@ from pathlib import Path
 from typing import Any
 
 BUILTIN = {"osong": "osong.toml", "example": "example_station.toml"}
+
+# Bounds on what a layout may say.  They are far beyond any real line; they
+# exist so that a typo (1e308, nan, a pole) is refused here with its key,
+# instead of overflowing into NaN or an internal error in the analysis.
+MAX_CHAINAGE_M = 1e7  # 10 000 km of line, either side of zero
+MAX_SPACING_M = 10.0  # coils or elements of one head sit centimetres apart
+MAX_TRAIN_LENGTH_M = 5000.0  # the longest freight trains are under 4 km
+MAX_SPEED_MPS = 200.0  # 720 km/h
+MAX_TIME_S = 86400.0  # a warning time or similar of more than a day is a typo
+MAX_LATITUDE_DEG = 85.0  # no railway runs nearer the poles; the local plane degenerates there
+MAX_DEVICE_ID = (1 << 31) - 1  # stored as a 32-bit integer downstream
 UP_ORDERS = {2: ("sys1_to_sys2", "sys2_to_sys1"), 3: ("s1_to_s3", "s3_to_s1")}
 _KP = re.compile(r"^(\d+)\+(\d{3})$")
 
@@ -191,7 +204,7 @@ class _Reader:
         self.source = source
 
     def fail(self, key: str, expected: str, found: Any) -> LayoutError:
-        shown = "nothing" if found is _MISSING else repr(found)
+        shown = "nothing" if found is _MISSING else _SHOW.repr(found)
         return LayoutError(f"{self.source}: {key}: expected {expected}, found {shown}")
 
     def get(
@@ -203,7 +216,11 @@ class _Reader:
                 return default
             raise self.fail(f"{path}.{key}", _describe(kind), _MISSING)
         if kind is float and isinstance(value, int) and not isinstance(value, bool):
+            if abs(value) > MAX_CHAINAGE_M * 1e3:  # float() of a 400-digit integer overflows
+                raise self.fail(f"{path}.{key}", "a number of sensible size", value)
             return float(value)
+        if kind is float and isinstance(value, float) and not math.isfinite(value):
+            raise self.fail(f"{path}.{key}", "a finite number", value)
         if isinstance(value, bool) and kind is not bool:
             raise self.fail(f"{path}.{key}", _describe(kind), value)
         if not isinstance(value, kind):
@@ -222,6 +239,9 @@ class _Reader:
 
 _MISSING = object()
 _REQUIRED = object()
+# What a message shows of a bad value: cut short and shallow (a value may be a deeply nested array).
+_SHOW = reprlib.Repr()  # keyword arguments only from Python 3.12
+_SHOW.maxlevel, _SHOW.maxstring, _SHOW.maxother, _SHOW.maxlist, _SHOW.maxdict = 3, 60, 60, 8, 4
 
 
 def _describe(kind: type | tuple[type, ...]) -> str:
@@ -231,10 +251,40 @@ def _describe(kind: type | tuple[type, ...]) -> str:
     return names.get(kind, kind.__name__)
 
 
-def _positive(r: _Reader, value: float, key: str) -> float:
-    if not value > 0:
-        raise r.fail(key, "a positive number", value)
+def _positive(r: _Reader, value: float, key: str, limit: float = math.inf) -> float:
+    if not 0 < value <= limit:
+        expected = "a positive number" if limit == math.inf else f"a positive number up to {limit:g}"
+        raise r.fail(key, expected, value)
     return value
+
+
+def _within(r: _Reader, value: float, key: str, limit: float, what: str = "a number") -> float:
+    """``value`` unless |value| > limit (NaN and infinities are refused by the reader already)."""
+    if not -limit <= value <= limit:
+        raise r.fail(key, f"{what} within ±{limit:g}", value)
+    return value
+
+
+def _chainage(r: _Reader, table: dict[str, Any], key: str, path: str, default: Any = _REQUIRED) -> float:
+    value = r.get(table, key, path, float, default)
+    return _within(r, value, f"{path}.{key}", MAX_CHAINAGE_M, "a chainage in m")
+
+
+def _lat_lon(r: _Reader, table: dict[str, Any], path: str) -> tuple[float, float]:
+    lat, lon = r.req(table, "lat", path, float), r.req(table, "lon", path, float)
+    if not -MAX_LATITUDE_DEG <= lat <= MAX_LATITUDE_DEG:
+        expected = f"a latitude in degrees within ±{MAX_LATITUDE_DEG:g} (no line runs nearer a pole)"
+        raise r.fail(f"{path}.lat", expected, lat)
+    if not -180 <= lon <= 180:
+        raise r.fail(f"{path}.lon", "a longitude in degrees (-180..180)", lon)
+    return lat, lon
+
+
+def _device_id(r: _Reader, table: dict[str, Any], path: str) -> int | None:
+    device_id: int | None = r.get(table, "device_id", path, int, None)
+    if device_id is not None and not 0 <= device_id <= MAX_DEVICE_ID:
+        raise r.fail(f"{path}.device_id", f"a device number 0..{MAX_DEVICE_ID}", device_id)
+    return device_id
 
 
 def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
@@ -244,7 +294,7 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
     if not isinstance(line, dict):
         raise r.fail("line", "a table [line]", line)
     name = r.get(line, "name", "line", str, Path(source).stem)
-    line_speed = _positive(r, r.get(line, "speed_mps", "line", float, 20.0), "line.speed_mps")
+    line_speed = _positive(r, r.get(line, "speed_mps", "line", float, 20.0), "line.speed_mps", MAX_SPEED_MPS)
 
     heads: list[CountingHead] = []
     for i, t in enumerate(r.tables(doc, "heads")):
@@ -257,18 +307,19 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
             raise r.fail(f"{p}.up", " or ".join(UP_ORDERS[channels]), up)
         band = t.get("analog_band")
         if band is not None:
-            ok = isinstance(band, list) and len(band) == 2 and all(isinstance(v, int | float) for v in band)
+            ok = isinstance(band, list) and len(band) == 2
+            ok = ok and all(isinstance(v, int | float) and not isinstance(v, bool) and abs(v) < 1e9 for v in band)
             if not ok or band[0] >= band[1]:
                 raise r.fail(f"{p}.analog_band", "[low, high] with low < high", band)
             band = (float(band[0]), float(band[1]))
         heads.append(
             CountingHead(
                 id=r.req(t, "id", p, str),
-                chainage_m=r.req(t, "chainage_m", p, float),
-                spacing_m=_positive(r, r.get(t, "spacing_m", p, float, 0.13), f"{p}.spacing_m"),
+                chainage_m=_chainage(r, t, "chainage_m", p),
+                spacing_m=_positive(r, r.get(t, "spacing_m", p, float, 0.13), f"{p}.spacing_m", MAX_SPACING_M),
                 channels=channels,
                 up=up,
-                device_id=r.get(t, "device_id", p, int, None),
+                device_id=_device_id(r, t, p),
                 analog_band=band,
             )
         )
@@ -315,20 +366,18 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
             kp = parse_kilometre_post(code)
         except ValueError:
             raise r.fail(f"{p}.code", "a kilometre post like 11+850", code) from None
-        chainage = r.get(t, "chainage_m", p, float, kp)
-        lat, lon = r.req(t, "lat", p, float), r.req(t, "lon", p, float)
-        if not -90 <= lat <= 90:
-            raise r.fail(f"{p}.lat", "a latitude in degrees (-90..90)", lat)
-        if not -180 <= lon <= 180:
-            raise r.fail(f"{p}.lon", "a longitude in degrees (-180..180)", lon)
+        chainage = _chainage(r, t, "chainage_m", p, kp)
+        lat, lon = _lat_lon(r, t, p)
         crossings.append(
             LevelCrossing(
                 code=code,
                 chainage_m=chainage,
                 lat=lat,
                 lon=lon,
-                warning_time_s=_positive(r, r.get(t, "warning_time_s", p, float, 70.0), f"{p}.warning_time_s"),
-                d_off_m=_positive(r, r.get(t, "d_off_m", p, float, 30.0), f"{p}.d_off_m"),
+                warning_time_s=_positive(
+                    r, r.get(t, "warning_time_s", p, float, 70.0), f"{p}.warning_time_s", MAX_TIME_S
+                ),
+                d_off_m=_positive(r, r.get(t, "d_off_m", p, float, 30.0), f"{p}.d_off_m", MAX_TRAIN_LENGTH_M),
                 name=r.get(t, "name", p, str, ""),
             )
         )
@@ -336,7 +385,7 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
     track: list[TrackPoint] = []
     for i, t in enumerate(r.tables(doc, "track")):
         p = f"track[{i}]"
-        pt = TrackPoint(r.req(t, "chainage_m", p, float), r.req(t, "lat", p, float), r.req(t, "lon", p, float))
+        pt = TrackPoint(_chainage(r, t, "chainage_m", p), *_lat_lon(r, t, p))
         if track and pt.chainage_m <= track[-1].chainage_m:
             raise r.fail(f"{p}.chainage_m", f"more than the previous point's {track[-1].chainage_m}", pt.chainage_m)
         track.append(pt)
@@ -344,7 +393,7 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
     platforms = []
     for i, t in enumerate(r.tables(doc, "platforms")):
         p = f"platforms[{i}]"
-        pl = Platform(r.req(t, "station", p, str), r.req(t, "from_m", p, float), r.req(t, "to_m", p, float))
+        pl = Platform(r.req(t, "station", p, str), _chainage(r, t, "from_m", p), _chainage(r, t, "to_m", p))
         if pl.to_m <= pl.from_m:
             raise r.fail(f"{p}.to_m", f"more than from_m ({pl.from_m})", pl.to_m)
         platforms.append(pl)
@@ -353,8 +402,12 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
     for i, t in enumerate(r.tables(doc, "consists")):
         p = f"consists[{i}]"
         axles = r.req(t, "axles_m", p, list)
-        if not axles or not all(isinstance(a, int | float) and not isinstance(a, bool) for a in axles):
-            raise r.fail(f"{p}.axles_m", "a list of axle positions in m from the first wheel", axles)
+        plausible = all(
+            isinstance(a, int | float) and not isinstance(a, bool) and 0 <= a <= MAX_TRAIN_LENGTH_M for a in axles
+        )  # NaN fails the comparison too
+        if not axles or not plausible:
+            expected = f"a list of axle positions in m from the first wheel (0..{MAX_TRAIN_LENGTH_M:g})"
+            raise r.fail(f"{p}.axles_m", expected, axles)
         if any(b < a for a, b in itertools.pairwise(axles)) or axles[0] != 0:
             raise r.fail(f"{p}.axles_m", "increasing positions starting at 0", axles)
         length = r.get(t, "length_m", p, float, float(axles[-1]))
@@ -367,8 +420,8 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
     limits = []
     for i, t in enumerate(r.tables(doc, "speed_limits")):
         p = f"speed_limits[{i}]"
-        lim = SpeedLimit(r.req(t, "from_m", p, float), r.req(t, "to_m", p, float), r.req(t, "limit_mps", p, float))
-        _positive(r, lim.limit_mps, f"{p}.limit_mps")
+        lim = SpeedLimit(_chainage(r, t, "from_m", p), _chainage(r, t, "to_m", p), r.req(t, "limit_mps", p, float))
+        _positive(r, lim.limit_mps, f"{p}.limit_mps", MAX_SPEED_MPS)
         limits.append(lim)
 
     sites = []
@@ -377,7 +430,7 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
         head = r.req(t, "head", p, str)
         if head not in by_id:
             raise r.fail(f"{p}.head", "one of " + ", ".join(sorted(by_id)), head)
-        distance = r.req(t, "distance_m", p, float)
+        distance = _within(r, r.req(t, "distance_m", p, float), f"{p}.distance_m", MAX_CHAINAGE_M, "a distance in m")
         if distance == 0:
             raise r.fail(f"{p}.distance_m", "a non-zero distance from the head (+ up the line, − down)", distance)
         sites.append(
@@ -385,7 +438,7 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
                 r.req(t, "id", p, str),
                 head,
                 distance,
-                _positive(r, r.get(t, "warning_time_s", p, float, 30.0), f"{p}.warning_time_s"),
+                _positive(r, r.get(t, "warning_time_s", p, float, 30.0), f"{p}.warning_time_s", MAX_TIME_S),
             )
         )
 
@@ -426,6 +479,9 @@ def load_layout(spec: str | Path) -> Layout:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise LayoutError(f"{source}: not valid TOML ({exc})") from None
+    except RecursionError:
+        # tomllib parses nested arrays and inline tables recursively
+        raise LayoutError(f"{source}: not valid TOML (arrays or tables nested too deeply)") from None
     return layout_from_dict(doc, source)
 
 

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from console.layout import LayoutError, format_kilometre_post, load_layout, parse_kilometre_post
 
@@ -91,3 +94,134 @@ def test_kilometre_posts() -> None:
     assert format_kilometre_post(905.4) == "0+905"
     with pytest.raises(ValueError):
         parse_kilometre_post("11.850")
+
+
+# --- hostile content: only LayoutError, naming the file and the key -------------------------
+
+WITH_EVERYTHING = (
+    MINIMAL
+    + """
+[[crossings]]
+code = "0+250"
+lat = 20.7
+lon = 105.9
+[[track]]
+chainage_m = 0
+lat = 20.70
+lon = 105.90
+[[track]]
+chainage_m = 600
+lat = 20.705
+lon = 105.90
+[[consists]]
+id = "tram"
+axles_m = [0, 2, 10, 12]
+[[speed_limits]]
+from_m = 0
+to_m = 100
+limit_mps = 10
+[[work_sites]]
+id = "W1"
+head = "WS1"
+distance_m = 50
+"""
+)
+
+
+@pytest.mark.parametrize(
+    ("change", "key"),
+    [
+        (("chainage_m = 500", "chainage_m = nan"), "heads[1].chainage_m: expected a finite number"),
+        (("chainage_m = 500", "chainage_m = -inf"), "heads[1].chainage_m: expected a finite number"),
+        (("chainage_m = 500", "chainage_m = 1e308"), "heads[1].chainage_m: expected a chainage in m within"),
+        (("chainage_m = 500", "chainage_m = 1" + "0" * 400), "heads[1].chainage_m: expected a number of sensible"),
+        (("chainage_m = 500", "chainage_m = 500\nspacing_m = 1e308"), "heads[1].spacing_m: expected a positive"),
+        (("chainage_m = 500", "chainage_m = 500\nspacing_m = nan"), "heads[1].spacing_m: expected a finite"),
+        (("chainage_m = 500", "chainage_m = 500\ndevice_id = " + "9" * 30), "heads[1].device_id: expected a dev"),
+        (("lat = 20.70\n", "lat = 90\n"), "track[0].lat: expected a latitude in degrees within ±85"),
+        (("lat = 20.705", "lat = -89.99"), "track[1].lat: expected a latitude"),
+        (("lat = 20.705", "lat = nan"), "track[1].lat: expected a finite number"),
+        (("lon = 105.90\n[[consists]]", "lon = inf\n[[consists]]"), "track[1].lon: expected a finite number"),
+        (("lat = 20.7\n", "lat = 90.0\n"), "crossings[0].lat: expected a latitude"),
+        (("axles_m = [0, 2, 10, 12]", "axles_m = [0, 2, nan, 12]"), "consists[0].axles_m: expected a list"),
+        (("axles_m = [0, 2, 10, 12]", "axles_m = [0, 1e308]"), "consists[0].axles_m: expected a list"),
+        (("limit_mps = 10", "limit_mps = 1e308"), "speed_limits[0].limit_mps: expected a positive number up to"),
+        (("distance_m = 50", "distance_m = -1e300"), "work_sites[0].distance_m: expected a distance in m"),
+        (('id = "T1"', 'id = "T1"\nname = [[[[[1]]]]]'), "sections[0].name: expected a string, found [[[[...]]]]"),
+    ],
+)
+def test_absurd_numbers_are_refused_with_file_and_key(tmp_path: Path, change: tuple[str, str], key: str) -> None:
+    assert change[0] in WITH_EVERYTHING
+    p = _write(tmp_path, WITH_EVERYTHING.replace(*change, 1))
+    with pytest.raises(LayoutError) as err:
+        load_layout(p)
+    assert str(err.value).startswith(f"{p}: ") and key in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_the_full_example_loads(tmp_path: Path) -> None:
+    lay = load_layout(_write(tmp_path, WITH_EVERYTHING))
+    assert len(lay.track) == 2 and lay.consists[0].length_m == 12.0
+
+
+@pytest.mark.parametrize("depth", [200, 5000])
+def test_deeply_nested_arrays_are_a_layout_error(tmp_path: Path, depth: int) -> None:
+    # tomllib recurses once per level: 5000 levels raise RecursionError inside it
+    p = _write(tmp_path, MINIMAL + "\n[line]\nname = " + "[" * depth + "]" * depth + "\n")
+    with pytest.raises(LayoutError) as err:
+        load_layout(p)
+    assert str(err.value).startswith(f"{p}: ") and len(str(err.value)) < 300
+
+
+# Random and mutated layouts: whatever the content, load_layout returns a Layout or raises
+# LayoutError; nothing else escapes.  50 examples keep this under a few seconds; set
+# LAYOUT_FUZZ_EXAMPLES=2000 to search longer.
+_TOKENS = [
+    "nan", "inf", "-inf", "1e308", "-1e308", "0", "-0.0", "1" + "0" * 30, "90", "-90", "true",
+    '"x"', "[]", "[[1]]", "{}", "{ head = \"WS1\" }", "\"\\u0000\"", "1979-05-27", "0x7f", "[" * 50 + "]" * 50,
+]  # fmt: skip
+
+
+@st.composite
+def _mutated_layouts(draw: st.DrawFn) -> str:
+    text = WITH_EVERYTHING
+    lines = text.splitlines()
+    for _ in range(draw(st.integers(1, 4))):
+        i = draw(st.integers(0, len(lines) - 1))
+        if "=" in lines[i]:
+            key = lines[i].split("=")[0]
+            value = draw(st.sampled_from(_TOKENS) | st.floats(allow_nan=True).map(repr) | st.integers().map(str))
+            lines[i] = f"{key}= {value}"
+        elif draw(st.booleans()):
+            del lines[i]
+    return "\n".join(lines) + "\n"
+
+
+@settings(
+    max_examples=int(os.environ.get("LAYOUT_FUZZ_EXAMPLES", "50")),
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
+@given(text=_mutated_layouts() | st.text(max_size=200))
+def test_any_layout_content_gives_a_layout_or_a_layout_error(tmp_path: Path, text: str) -> None:
+    p = tmp_path / "fuzz.toml"
+    p.write_text(text, encoding="utf-8", errors="surrogatepass")
+    try:
+        lay = load_layout(p)
+    except LayoutError as exc:
+        assert str(exc).startswith(f"{p}: ")
+        return
+    assert lay.heads  # a layout that loads has its heads
+
+
+def test_simulate_with_a_bad_layout_exits_2_with_one_line(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from console.cli import app
+
+    p = _write(tmp_path, WITH_EVERYTHING.replace("lat = 20.70\n", "lat = 90\n"))
+    res = CliRunner().invoke(app, ["simulate", "--layout", str(p), "-o", str(tmp_path / "out"), "--duration", "1m"])
+    assert res.exit_code == 2
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and "track[0].lat" in lines[0] and str(p) in lines[0]
+    assert "internal error" not in res.output
