@@ -28,6 +28,7 @@ from console.commands import (
     speeds,
     station,
 )
+from console.commands.common import install_process_guards
 from console.commands.common import load_layout as _load_layout
 
 __all__ = ["_load_layout", "app"]
@@ -36,8 +37,15 @@ app = typer.Typer(
     name="trackside",
     help="Terminal console and log analyzer for railway train detection.",
     no_args_is_help=True,
-    add_completion=False,
+    # Shell completion: `trackside --install-completion` (bash, zsh, fish, PowerShell).
+    add_completion=True,
     pretty_exceptions_enable=False,
+    # Help is plain text: Rich markup would eat examples such as `[[crossings]]`.
+    rich_markup_mode=None,
+    epilog=(
+        "Exit codes: 0 ok; 1 findings (--strict, --fail-on); 2 bad input or usage. "
+        "A file argument '-' reads standard input."
+    ),
 )
 
 for _module in (analyze, speeds, sections, health, frames, approach, gnss, crossing, simulate, ato, station, report):
@@ -53,8 +61,11 @@ def _version(value: bool) -> None:
 
 @app.callback()
 def main(
+    ctx: typer.Context,
     version: Annotated[
         bool, typer.Option("--version", callback=_version, is_eager=True, help="Show the version and exit.")
     ] = False,
 ) -> None:
     """Terminal console and log analyzer for railway train detection."""
+    # Closed stdout, SIGTERM (exit 143, partial files removed) and the flush at exit.
+    ctx.call_on_close(install_process_guards())

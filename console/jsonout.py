@@ -3,11 +3,30 @@
 from __future__ import annotations
 
 import json
+import re
 from typing import Any, TextIO
+
+# In JSON text from json.dumps(ensure_ascii=True): an escaped backslash, a
+# surrogate pair (a character beyond the BMP), or a lone surrogate.
+_SURROGATE = re.compile(r"\\\\|\\ud[89ab][0-9a-f]{2}\\ud[c-f][0-9a-f]{2}|\\u(d[89a-f][0-9a-f]{2})")
 
 
 class RawJSON(str):
     """Text that is already valid JSON (ASCII only) and is spliced in as is."""
+
+
+def _lone_surrogate(match: re.Match[str]) -> str:
+    if match.group(1) is None:
+        return match.group()
+    code = int(match.group(1), 16)
+    # A byte of a file name that is not UTF-8 (surrogateescape) shows as \xff,
+    # as in the terminal; any other lone surrogate as its code.
+    return f"\\\\x{code - 0xDC00:02x}" if 0xDC80 <= code <= 0xDCFF else f"\\\\u{code:04x}"
+
+
+def valid_unicode(text: str) -> str:
+    """JSON text with lone surrogates (``\\udcff``: not Unicode, refused by strict readers) made visible escapes."""
+    return _SURROGATE.sub(_lone_surrogate, text) if "\\ud" in text else text
 
 
 def _encode(value: Any) -> str:
@@ -15,18 +34,18 @@ def _encode(value: Any) -> str:
         return value
     # ensure_ascii: no raw control or C1 bytes from a log can reach a terminal.
     # Compact: json's C encoder only runs without indent (pipe into jq to read).
-    return json.dumps(value, ensure_ascii=True, separators=(",", ":"), allow_nan=False)
+    return valid_unicode(json.dumps(value, ensure_ascii=True, separators=(",", ":"), allow_nan=False))
 
 
 def dumps(doc: dict[str, Any]) -> str:
     """Compact, ASCII-only JSON; top-level :class:`RawJSON` values go in verbatim."""
-    return "{" + ",".join(f"{json.dumps(k)}:{_encode(v)}" for k, v in doc.items()) + "}"
+    return "{" + ",".join(f"{valid_unicode(json.dumps(k))}:{_encode(v)}" for k, v in doc.items()) + "}"
 
 
 def write(doc: dict[str, Any], out: TextIO) -> None:
     """Write ``dumps(doc)`` and a newline part by part: no second copy of a large document."""
     out.write("{")
     for i, (key, value) in enumerate(doc.items()):
-        out.write(("," if i else "") + json.dumps(key) + ":")
+        out.write(("," if i else "") + valid_unicode(json.dumps(key)) + ":")
         out.write(_encode(value))
     out.write("}\n")

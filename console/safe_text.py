@@ -3,21 +3,46 @@
 Rich would read ``[bold]`` as markup and a terminal would obey ESC
 sequences; log text goes through :func:`inert` into a :class:`rich.text.Text`
 (never parsed as markup) with control characters shown as ``\\xNN``.
+
+Bidirectional formatting characters (embeddings, overrides, isolates and
+the directional marks) are shown as ``\\u202e`` too: left as they are, a
+device name or a rejected line could display reversed and spoof the
+columns beside it.  A file name that is not valid UTF-8 reaches Python
+with its bad bytes as lone surrogates (``os.fsdecode``'s surrogateescape);
+they are shown as the bytes they stand for, ``\\xff``, as ``ls`` does, so
+printing never fails on them.
 """
 
 from __future__ import annotations
 
+import os
 import re
 
 from rich.text import Text
 
-_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+# C0, DEL, C1, line/paragraph separators; bidi marks, embeddings, overrides
+# and isolates (U+061C, U+200E-200F, U+202A-202E, U+2066-2069); surrogates.
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069\ud800-\udfff]")
+
+
+def _escape(match: re.Match[str]) -> str:
+    code = ord(match.group())
+    if code < 0x100:
+        return f"\\x{code:02x}"
+    if 0xDC80 <= code <= 0xDCFF:
+        return f"\\x{code - 0xDC00:02x}"  # a byte of a name that is not UTF-8
+    return f"\\u{code:04x}"
 
 
 def clean(value: object) -> str:
-    """The string with control characters escaped as \\xNN."""
-    text = "" if value is None else str(value)
-    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", text)
+    """The string with control, bidi and undecodable characters escaped (``\\x1b``, ``\\u202e``, ``\\xff``)."""
+    text = "" if value is None else os.fsdecode(value) if isinstance(value, bytes) else str(value)
+    return _CONTROL.sub(_escape, text)
+
+
+def show_path(path: str | os.PathLike[str] | os.PathLike[bytes] | bytes) -> str:
+    """A file name as the user may see it: escaped like log text (``-`` stays ``-``, standard input)."""
+    return clean(os.fsdecode(path))
 
 
 def inert(value: object, style: str = "") -> Text:

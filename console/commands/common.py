@@ -3,7 +3,10 @@ input errors into exit 2, JSON output, layouts and the diagnostic job."""
 
 from __future__ import annotations
 
+import errno
 import os
+import signal
+import stat
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -13,12 +16,14 @@ import typer
 from rich.console import Console as RichConsole
 
 from console import exit_codes
+from console.safe_text import show_path
 
 JSON_SCHEMA_ANALYZE = "trackside.analyze/1"
+STDIN = "-"  # a file argument that means standard input
 
 FilesArg = Annotated[
     list[Path],
-    typer.Argument(help="Diagnostic log files (plain or .gz).", show_default=False),
+    typer.Argument(help="Diagnostic log files (plain or .gz; - reads standard input).", show_default=False),
 ]
 SpacingOpt = Annotated[
     float, typer.Option("--spacing", help="Coil spacing Sys1–Sys2 of the counting head, m.", min=0.001)
@@ -41,7 +46,8 @@ LayoutOpt = Annotated[
 GnssFilesArg = Annotated[
     list[Path],
     typer.Argument(
-        help="GNSS telemetry: NMEA, device streams (CSV, JSON lines), monitoring-centre tables.", show_default=False
+        help="GNSS telemetry: NMEA, device streams (CSV, JSON lines), monitoring-centre tables; - reads stdin.",
+        show_default=False,
     ),
 ]
 
@@ -56,13 +62,157 @@ def fail(message: str, code: int = exit_codes.USAGE) -> typer.Exit:
 
 
 def check_inputs(paths: list[Path]) -> None:
+    """Every input readable, before any work: one line and exit 2 for the first that is not.
+
+    ``-`` is standard input (once); FIFOs, ``/dev/stdin`` and process
+    substitution (``<(zcat x.gz)``) are read as streams; a directory, a
+    dangling symlink or a symlink loop is refused with its own reason.
+    """
+    stdin_given = False
     for p in paths:
-        if not p.exists():
-            raise fail(f"{p}: no such file")
-        if p.is_dir():
-            raise fail(f"{p}: is a directory, expected a log file")
+        if os.fsdecode(p) == STDIN:
+            if stdin_given:
+                raise fail("-: standard input given twice")
+            if sys.stdin is None:
+                raise fail("-: standard input is closed")
+            stdin_given = True
+            continue
+        try:
+            st = os.stat(p)
+        except FileNotFoundError:
+            raise fail(f"{show_path(p)}: {'symlink to nothing' if os.path.islink(p) else 'no such file'}") from None
+        except OSError as exc:
+            reason = "symlink loop" if exc.errno == errno.ELOOP else f"cannot open ({exc.strerror or exc})"
+            raise fail(f"{show_path(p)}: {reason}") from None
+        if stat.S_ISDIR(st.st_mode):
+            raise fail(f"{show_path(p)}: is a directory, expected a log file")
+        if stat.S_ISSOCK(st.st_mode):
+            raise fail(f"{show_path(p)}: is a socket, expected a log file")
         if not os.access(p, os.R_OK):
-            raise fail(f"{p}: permission denied")
+            raise fail(f"{show_path(p)}: permission denied")
+
+
+# Errors that mean the output cannot be written (not that an input is bad):
+# a full disk or quota, a file too large, a closed standard output.
+OUTPUT_ERRNOS = frozenset(
+    e for e in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EBADF, errno.EROFS, errno.EIO) if e is not None
+)
+INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command stopped by Ctrl-C
+TERMINATED = 143  # 128 + SIGTERM
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread so that partial output files are cleaned up on the way out."""
+
+
+class ClosedOutput:
+    """Standard output that was closed before we started (``>&-``): any write fails, as it would on a file."""
+
+    encoding = "utf-8"
+    errors = "strict"
+
+    def write(self, text: str) -> int:
+        raise OSError(errno.EBADF, "standard output is closed")
+
+    def flush(self) -> None:
+        return None
+
+    def isatty(self) -> bool:
+        return False
+
+    def fileno(self) -> int:
+        raise OSError(errno.EBADF, "standard output is closed")
+
+    def writable(self) -> bool:
+        return True
+
+
+def _silence_stdout() -> None:
+    """Point fd 1 at /dev/null so that Python's own flush at exit cannot fail a second time."""
+    try:
+        fd = sys.stdout.fileno() if sys.stdout is not None else -1
+    except (OSError, ValueError, AttributeError):
+        return
+    if fd != 1:
+        return
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 1)
+        os.close(devnull)
+    except OSError:
+        pass
+
+
+def output_failed(exc: OSError) -> int:
+    """The exit code for a failed write to the output: 0 for a reader that left (``| head``), else 2."""
+    _silence_stdout()
+    if isinstance(exc, BrokenPipeError) or exc.errno == errno.EPIPE:
+        return exit_codes.OK
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    try:
+        sys.stderr.write(f"trackside: error: cannot write output: {reason}\n")
+        sys.stderr.flush()
+    except (OSError, ValueError, AttributeError):
+        pass
+    return exit_codes.USAGE
+
+
+def _flush_at_exit() -> None:
+    # Python flushes stdout once more at shutdown and, if that fails, prints
+    # "Exception ignored ... BrokenPipeError" and exits 120: do it here first.
+    try:
+        if sys.stdout is not None:
+            sys.stdout.flush()
+    except OSError as exc:
+        if output_failed(exc) != exit_codes.OK:
+            os._exit(exit_codes.USAGE)
+
+
+def _reopen_closed_std_fds() -> None:
+    """Occupy fds 0-2 if they were closed at start, so no file we open later becomes our stdout."""
+    for fd in (0, 1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            try:
+                new = os.open(os.devnull, os.O_RDWR)
+            except OSError:
+                continue
+            if new != fd:
+                os.dup2(new, fd)
+                os.close(new)
+
+
+_process_guarded = False
+
+
+def install_process_guards() -> Callable[[], None]:
+    """Once per process: closed stdout, SIGTERM and the exit-time flush; returns an undo for SIGTERM."""
+    global _process_guarded
+    if not _process_guarded and sys.stdout is sys.__stdout__:
+        _process_guarded = True
+        _reopen_closed_std_fds()
+        if sys.stdout is None:
+            sys.stdout = ClosedOutput()
+        if sys.stderr is None:
+            sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - lives as long as the process
+        import atexit
+
+        atexit.register(_flush_at_exit)
+    try:
+        previous = signal.getsignal(signal.SIGTERM)
+
+        def on_sigterm(signum: int, frame: object) -> None:
+            raise Terminated()
+
+        signal.signal(signal.SIGTERM, on_sigterm)
+    except ValueError:  # not the main thread (an embedding app): leave signals alone
+        return lambda: None
+
+    def undo() -> None:
+        signal.signal(signal.SIGTERM, previous)
+
+    return undo
 
 
 class Console(RichConsole):
@@ -70,25 +220,40 @@ class Console(RichConsole):
     Rich exits 1 on a broken pipe; we stop quietly with 0."""
 
     def on_broken_pipe(self) -> None:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
+        _silence_stdout()
         raise SystemExit(exit_codes.OK)
 
 
 def guard(fn: Callable[[], int]) -> int:
-    """Run a command body: input errors become one-line messages and exit 2."""
+    """Run a command body: input errors become one-line messages and exit 2.
+
+    The output is flushed here, so a full disk or a closed stdout is
+    reported ("cannot write output: …", exit 2), a reader that left early
+    (``| head``) ends quietly with 0, Ctrl-C exits 130 and SIGTERM 143.
+    """
     from parsers.sources import InputError
 
     try:
-        return fn()
+        code = fn()
+        if sys.stdout is not None:
+            sys.stdout.flush()
+        return code
     except (typer.Exit, typer.Abort):
         raise
     except InputError as exc:
         raise fail(str(exc)) from None
-    except BrokenPipeError:
-        # Output piped into `head` or similar: stop quietly.
-        sys.stderr.close()
-        return exit_codes.OK
+    except KeyboardInterrupt:
+        _silence_stdout()
+        return INTERRUPTED
+    except Terminated:
+        _silence_stdout()
+        return TERMINATED
+    except OSError as exc:
+        if isinstance(exc, BrokenPipeError) or exc.errno in OUTPUT_ERRNOS or exc.errno == errno.EPIPE:
+            return output_failed(exc)
+        if os.environ.get("TRACKSIDE_DEBUG"):
+            raise
+        raise fail(f"internal error: {type(exc).__name__}: {exc} (set TRACKSIDE_DEBUG=1 for details)") from None
     except MemoryError:
         raise fail("out of memory") from None
     except Exception as exc:

@@ -1,0 +1,157 @@
+"""Where a command may write: never over an input, never replacing a special file.
+
+Every command that writes files (``report -o``, ``simulate -o``, the future
+``ingest``) asks here first:
+
+* the target is the same file as an input (same device and inode, so
+  through another spelling of the path, a symlink or a hard link too):
+  refused;
+* a character device or a FIFO (``-o /dev/stdout``, ``-o >(gzip > x)``):
+  written through, opened without creating or truncating, never replaced
+  by a regular file;
+* a directory where a file is expected, a block device or a socket:
+  refused;
+* a parent directory that is missing or not writable: refused before any
+  work is done.
+
+A regular file is written atomically (:func:`console.report.write.write_atomic`):
+a reader, or an interrupted run, leaves the old file or the new one,
+never half of one.  A symlink to a regular file keeps being a link: the
+file it points to is replaced.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import stat
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from console.safe_text import show_path
+
+STDOUT = "-"
+
+
+class OutputError(Exception):
+    """An output path the command refuses: one line for the user, exit 2."""
+
+
+@dataclass(frozen=True)
+class OutputTarget:
+    """A checked output file: ``path`` to write, ``stream`` when it is a device or FIFO written through."""
+
+    path: Path
+    stream: bool = False
+
+
+def file_identity(path: Path) -> tuple[int, int] | None:
+    """(st_dev, st_ino) of what ``path`` names after following links; None when it names nothing."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return st.st_dev, st.st_ino
+
+
+def input_identities(inputs: Iterable[Path]) -> dict[tuple[int, int], Path]:
+    """The identity of every regular input file (standard input and streams are never written over)."""
+    found: dict[tuple[int, int], Path] = {}
+    for p in inputs:
+        if os.fsdecode(p) == STDOUT:
+            continue
+        try:
+            st = os.stat(p)
+        except (OSError, ValueError):
+            continue
+        if stat.S_ISREG(st.st_mode):
+            found.setdefault((st.st_dev, st.st_ino), p)
+    return found
+
+
+def _refuse_input(target: Path, identity: tuple[int, int] | None, inputs: dict[tuple[int, int], Path]) -> None:
+    if identity is not None and identity in inputs:
+        given = inputs[identity]
+        same = "" if os.fsdecode(given) == os.fsdecode(target) else f" (the same file as {show_path(given)})"
+        raise OutputError(f"{show_path(target)}: is an input{same}; refusing to write over it")
+
+
+def _check_parent(target: Path, what: str) -> None:
+    parent = target.parent if str(target.parent) else Path(".")
+    try:
+        st = os.stat(parent)
+    except FileNotFoundError:
+        raise OutputError(f"{show_path(parent)}: no such directory for the {what}") from None
+    except OSError as exc:
+        raise OutputError(f"{show_path(parent)}: cannot write the {what} there ({exc.strerror or exc})") from None
+    if not stat.S_ISDIR(st.st_mode):
+        raise OutputError(f"{show_path(parent)}: not a directory, cannot hold the {what}")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"{show_path(parent)}: directory not writable, cannot write the {what} there")
+
+
+def check_output_file(target: Path, inputs: Iterable[Path], what: str = "output") -> OutputTarget:
+    """``target`` checked as an output file against ``inputs`` (files read); OutputError when refused."""
+    known = input_identities(inputs)
+    try:
+        st = os.stat(target)
+    except FileNotFoundError:
+        if os.path.islink(target):
+            # A dangling link: writing would replace the link, not create what it names.
+            raise OutputError(f"{show_path(target)}: a symlink to nothing, not writing through it") from None
+        _check_parent(target, what)
+        return OutputTarget(target)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise OutputError(f"{show_path(target)}: symlink loop") from None
+        raise OutputError(f"{show_path(target)}: cannot write the {what} ({exc.strerror or exc})") from None
+    _refuse_input(target, (st.st_dev, st.st_ino), known)
+    mode = st.st_mode
+    if stat.S_ISDIR(mode):
+        raise OutputError(f"{show_path(target)}: is a directory, expected a file name for the {what}")
+    if stat.S_ISCHR(mode) or stat.S_ISFIFO(mode):
+        return OutputTarget(target, stream=True)
+    if not stat.S_ISREG(mode):
+        kind = "a block device" if stat.S_ISBLK(mode) else "a socket" if stat.S_ISSOCK(mode) else "a special file"
+        raise OutputError(f"{show_path(target)}: is {kind}, not writing the {what} there")
+    real = Path(os.path.realpath(target))
+    _check_parent(real, what)
+    return OutputTarget(real)
+
+
+def check_output_directory(target: Path, what: str = "output") -> None:
+    """``target`` usable as a directory to write into (it may not exist yet); OutputError when not."""
+    try:
+        st = os.stat(target)
+    except FileNotFoundError:
+        if os.path.islink(target):
+            raise OutputError(f"{show_path(target)}: a symlink to nothing, not writing through it") from None
+        _check_parent(target, what)
+        return
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise OutputError(f"{show_path(target)}: symlink loop") from None
+        raise OutputError(f"{show_path(target)}: cannot write the {what} ({exc.strerror or exc})") from None
+    if not stat.S_ISDIR(st.st_mode):
+        raise OutputError(f"{show_path(target)}: exists and is not a directory")
+    if not os.access(target, os.W_OK | os.X_OK):
+        raise OutputError(f"{show_path(target)}: directory not writable")
+
+
+def write_output(target: OutputTarget, data: bytes) -> None:
+    """Write ``data`` to a checked target: through a device or FIFO, atomically to a file (OSError on failure)."""
+    if target.stream:
+        # No O_CREAT, no O_TRUNC: the special file stays what it is.
+        fd = os.open(target.path, os.O_WRONLY | getattr(os, "O_CLOEXEC", 0))
+        try:
+            view = memoryview(data)
+            while view:
+                n = os.write(fd, view)
+                view = view[n:]
+        finally:
+            os.close(fd)
+        return
+    from console.report.write import write_atomic
+
+    write_atomic(target.path, data)
