@@ -208,6 +208,10 @@ def decode_data(raw: bytes) -> tuple[str, int, str]:
 
 
 _EPOCH = dt.date(1970, 1, 1)
+# Whole days whose every time of day fits in int64 ns since the epoch
+# (1677-09-21 00:12:43 to 2262-04-11 23:47:16).
+_FIRST_DAY = dt.date(1677, 9, 22)
+_LAST_DAY = dt.date(2262, 4, 10)
 
 
 def decode_date(raw: bytes) -> int:
@@ -225,6 +229,10 @@ def decode_date(raw: bytes) -> int:
         day = dt.date(y, m, d)
     except ValueError:
         raise FieldError("Date", f"Date: impossible date '{text}'") from None
+    if not _FIRST_DAY <= day <= _LAST_DAY:
+        # Times are int64 ns (pandas' range): a year 0001 or 9999, or a bit
+        # flipped in the year, would overflow the whole read.
+        raise FieldError("Date", f"Date: date out of range '{text}' (times hold {_FIRST_DAY} to {_LAST_DAY})")
     return (day - _EPOCH).days * 86400 * _NS
 
 

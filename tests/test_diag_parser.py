@@ -129,6 +129,12 @@ def test_binary_junk_is_rejected_with_line_numbers(tmp_path: Path) -> None:
         (record(date="2015-02-30"), "Date", "impossible date '2015-02-30'"),
         (record(date="2015-13-01"), "Date", "impossible date"),
         (record(date="31/10/2015"), "Date", "expected YYYY-MM-DD"),
+        # Outside what int64 ns (pandas) timestamps hold: rejected, not an OverflowError.
+        (record(date="0001-01-01"), "Date", "date out of range '0001-01-01'"),
+        (record(date="9999-12-31"), "Date", "date out of range"),
+        (record(date="1677-09-21"), "Date", "date out of range"),
+        (record(date="2262-04-11"), "Date", "date out of range"),
+        (record(date="01.01.0001"), "Date", "date out of range"),
         (record(time="25:00:00"), "Time", "impossible time '25:00:00'"),
         (record(time="09:61:00"), "Time", "impossible time"),
         (record(time="9:32"), "Time", "expected HH:MM:SS"),
@@ -150,6 +156,23 @@ def test_bad_field_is_rejected_with_reason(tmp_path: Path, line: str, category: 
     assert needle in r.reason
     assert rep.rejected_by_reason[category] == 1
     assert df["line"].tolist() == [1, 3]
+
+
+def test_one_line_dated_out_of_range_among_a_thousand_is_rejected_alone(tmp_path: Path) -> None:
+    # Hostile input: a single bit flip in a year (2015 -> 6111 is 0x07DF -> 0x17DF) among good records.
+    good = [record(time=f"09:{i // 60:02d}:{i % 60:02d}") for i in range(1000)]
+    lines = [*good[:500], record(date="6111-10-31"), *good[500:]]
+    df, rep = read_diag([_write(tmp_path, _lines(*lines))])
+    assert (rep.records, rep.rejected) == (1000, 1)
+    assert rep.rejections[0].line == 501 and "date out of range" in rep.rejections[0].reason
+    assert df["time"].min() == pd.Timestamp("2015-10-31 09:00:00")
+
+
+def test_dates_at_the_edges_of_the_timestamp_range_are_kept(tmp_path: Path) -> None:
+    lines = [record(date="1677-09-22", time="00:00:00"), record(date="2262-04-10", time="23:59:59.999999999")]
+    df, rep = read_diag([_write(tmp_path, _lines(*lines))])
+    assert rep.rejected == 0
+    assert df["time"].tolist() == [pd.Timestamp("1677-09-22"), pd.Timestamp("2262-04-10 23:59:59.999999999")]
 
 
 def test_one_megabyte_line_is_rejected_and_shown_short(tmp_path: Path) -> None:
