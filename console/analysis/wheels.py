@@ -58,51 +58,89 @@ def _nearest(t1: np.ndarray, t2: np.ndarray, window_ns: int) -> np.ndarray:
     return np.where(gap <= window_ns, pick, -1)
 
 
+def _sequence_pairs(ch: np.ndarray, t: np.ndarray, window_ns: int) -> np.ndarray:
+    """Positions i whose onset pairs with onset i + 1 in a head's ordered onsets.
+
+    Whole-second stamps cannot say which onsets are nearest, but the order of
+    the records can: a wheel writes one system's onset, then the other's.  So
+    neighbours on different systems, at most ``window_ns`` apart, pair
+    greedily from the start (in a run of pairable neighbours, every other
+    one), one to one.
+    """
+    if len(ch) < 2:
+        return np.zeros(0, np.int64)
+    link = (ch[1:] != ch[:-1]) & (t[1:] - t[:-1] <= window_ns)
+    k = np.arange(len(link))
+    run_start = link & ~np.r_[False, link[:-1]]
+    offset = k - np.maximum.accumulate(np.where(run_start, k, 0))
+    return np.flatnonzero(link & (offset % 2 == 0))
+
+
 def pair_axle_arrays(onsets: Mapping[str, Any], settings: PairingSettings) -> tuple[dict[str, np.ndarray], int]:
-    """:func:`pair_axles` as columns of arrays, ``direction`` as a code into :data:`DIRECTIONS`."""
+    """:func:`pair_axles` as columns of arrays, ``direction`` as a code into :data:`DIRECTIONS`.
+
+    The onsets' order is evidence: equal times keep the order they come in
+    (file order), never re-sorted.  Per head, sub-second onsets pair with the
+    nearest partner within ``pair_window_s``; a head with whole-second
+    stamps pairs by order (:func:`_sequence_pairs`) within one second.
+    """
     head = np.asarray(onsets["head"], np.int64)
     channel = np.asarray(onsets["channel"], np.int64)
     time_ns = np.asarray(onsets["time_ns"], np.int64)
     subsecond = np.asarray(onsets["subsecond"], bool)
+    file = np.asarray(onsets["file"], np.int64) if "file" in onsets else np.zeros(len(head), np.int64)
     is1, is2 = channel == SYS1, channel == SYS2
-    # Whole-second logs cannot resolve a sub-second delay: allow one second.
-    coarse = not bool(subsecond[is1 | is2].all())
-    window_ns = int(max(settings.pair_window_s, 1.0 if coarse else 0.0) * NS)
+    fine_window_ns = int(settings.pair_window_s * NS)
+    coarse_window_ns = max(fine_window_ns, NS)  # stamps a second apart may be 1 ms apart
 
-    idx1_all, idx2_all = [], []
+    idx1_all, idx2_all, first1_all = [], [], []
+    wheel = np.flatnonzero(is1 | is2)
     # Head keys are small dense ints here: counting beats sorting every onset.
-    dense = len(head) > 0 and head.min() >= 0 and head.max() < 1 << 16
-    heads = np.flatnonzero(np.bincount(head)) if dense else np.unique(head)
+    hw = head[wheel]
+    dense = len(hw) > 0 and hw.min() >= 0 and hw.max() < 1 << 16
+    heads = np.flatnonzero(np.bincount(hw)) if dense else np.unique(hw)
     for h in heads:  # a handful of counting heads, not records
-        i1 = np.flatnonzero(is1 & (head == h))
-        i2 = np.flatnonzero(is2 & (head == h))
-        i1 = i1[np.argsort(time_ns[i1], kind="stable")]
-        i2 = i2[np.argsort(time_ns[i2], kind="stable")]
-        j = _nearest(time_ns[i1], time_ns[i2], window_ns)
-        ok = j >= 0
-        a, b = i1[ok], i2[j[ok]]
-        # One to one: a Sys2 onset claimed twice goes to the nearer Sys1 onset.
-        # Nearest indices grow with t1, so a repeated claim is adjacent.
-        if len(b) > 1 and bool((b[1:] == b[:-1]).any()):
-            by_gap = np.argsort(np.abs(time_ns[b] - time_ns[a]), kind="stable")
-            _, first = np.unique(b[by_gap], return_index=True)
-            keep = np.sort(by_gap[first])
-            a, b = a[keep], b[keep]
+        idx = wheel[hw == h]
+        idx = idx[np.argsort(time_ns[idx], kind="stable")]  # stable: ties keep file order
+        if bool(subsecond[idx].all()):
+            i1, i2 = idx[is1[idx]], idx[is2[idx]]
+            j = _nearest(time_ns[i1], time_ns[i2], fine_window_ns)
+            ok = j >= 0
+            a, b = i1[ok], i2[j[ok]]
+            # One to one: a Sys2 onset claimed twice goes to the nearer Sys1 onset.
+            # Nearest indices grow with t1, so a repeated claim is adjacent.
+            if len(b) > 1 and bool((b[1:] == b[:-1]).any()):
+                by_gap = np.argsort(np.abs(time_ns[b] - time_ns[a]), kind="stable")
+                _, first = np.unique(b[by_gap], return_index=True)
+                keep = np.sort(by_gap[first])
+                a, b = a[keep], b[keep]
+            # Which came first: by time, and by order where the times are equal.
+            rank = np.empty(len(time_ns), np.int64)
+            rank[idx] = np.arange(len(idx))
+            first1 = rank[a] < rank[b]
+        else:
+            at = _sequence_pairs(channel[idx], time_ns[idx], coarse_window_ns)
+            p, q = idx[at], idx[at + 1]
+            first1 = is1[p]
+            a, b = np.where(first1, p, q), np.where(first1, q, p)
         idx1_all.append(a)
         idx2_all.append(b)
+        first1_all.append(first1)
     a = np.concatenate(idx1_all) if idx1_all else np.zeros(0, np.int64)
     b = np.concatenate(idx2_all) if idx2_all else np.zeros(0, np.int64)
+    sys1_first = np.concatenate(first1_all) if first1_all else np.zeros(0, bool)
     t1, t2 = time_ns[a], time_ns[b]
     delay_s = (t2 - t1) / NS
     exact = subsecond[a] & subsecond[b]
     with np.errstate(divide="ignore"):
         speed = np.where(exact & (delay_s != 0), settings.spacing_m / np.abs(delay_s) * MPS_TO_KMH, np.nan)
-    # Whole-second onsets in the same second say nothing about their order.
-    known = exact | (t1 // NS != t2 // NS)
+    # The order of two onsets is known from their times, or, for equal
+    # stamps, from their order in one file; two files' equal stamps say nothing.
+    known = (t1 != t2) | (file[a] == file[b])
     # Direction as a code into DIRECTIONS: 0 unknown, 1 Sys1→Sys2, 2 Sys2→Sys1.
     direction = np.zeros(len(t1), np.int8)
-    direction[known & (t2 > t1)] = 1
-    direction[known & (t2 < t1)] = 2
+    direction[known & sys1_first] = 1
+    direction[known & ~sys1_first] = 2
     axles = {
         "head": head[a],
         "t_sys1_ns": t1,
