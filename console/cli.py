@@ -19,9 +19,12 @@ from console.commands import (
     approach,
     ato,
     crossing,
+    follow,
     frames,
     gnss,
     health,
+    ingest,
+    query,
     report,
     sections,
     simulate,
@@ -48,7 +51,23 @@ app = typer.Typer(
     ),
 )
 
-for _module in (analyze, speeds, sections, health, frames, approach, gnss, crossing, simulate, ato, station, report):
+for _module in (
+    analyze,
+    speeds,
+    sections,
+    health,
+    frames,
+    approach,
+    gnss,
+    crossing,
+    simulate,
+    ato,
+    station,
+    report,
+    follow,
+    ingest,
+    query,
+):
     _name = _module.__name__.rsplit(".", 1)[1]
     app.command(name=_name)(getattr(_module, _name))
 

@@ -1,0 +1,151 @@
+"""trackside follow: live sources → passages, section changes, crossing warnings, health, as they happen."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from console import exit_codes
+from console.commands.common import IdleGapOpt, fail, guard, load_layout
+
+SourcesArg = Annotated[
+    list[str],
+    typer.Argument(
+        help="Sources: file:PATH (or a path), gpsd://HOST:PORT[/DEVICE], mqtt[s]://HOST:PORT/TOPIC,"
+        " can:IFACE[:CHANNEL].",
+        show_default=False,
+    ),
+]
+
+
+def _line(ev: dict[str, Any]) -> str:
+    """One human line per event; log content escaped (it is data, never terminal codes)."""
+    from console.safe_text import clean
+
+    kind = ev.get("type")
+    if kind == "passage":
+        speed = ev.get("speed_kmh_whole_train")
+        sp = f"{speed:.1f} km/h" if isinstance(speed, int | float) else "no speed"
+        text = f"passage  {ev['counting_head']}  {ev['start']} → {ev['end']}  {ev['axles']} axles  {sp}"
+    elif kind == "section":
+        text = f"section  {ev['section']}  {ev['state']}  count {ev['count']}  {ev['time']}  {ev['reason']}"
+    elif kind == "crossing":
+        text = f"crossing {ev['crossing']}  {ev['kind']}  train {ev['train']}  {ev['time']}  {ev['reason']}"
+    elif kind == "health":
+        text = f"health   {ev['severity']}  {ev['rule']}  {ev['counting_head']}  {ev['message']}"
+    elif kind == "source":
+        if ev.get("kind") == "rejected":
+            text = f"rejected {ev['file']}:{ev['line']}: {ev['reason']}: {ev.get('text', '')}"
+        else:
+            text = f"source   {ev.get('source', '')}  {ev.get('kind')}  {ev.get('detail', '')}"
+    else:
+        text = json.dumps(ev)
+    return clean(text)
+
+
+def _summary_lines(summary: dict[str, Any]) -> list[str]:
+    from console.safe_text import clean
+
+    out = [
+        f"followed: {summary['passages']} passages, {summary['section_changes']} section changes, "
+        f"{summary['crossing_events']} crossing events, {summary['health_findings']} health findings"
+    ]
+    for f in summary["files"]:
+        out.append(
+            clean(
+                f"  {f['file']}: {f['lines_read']} lines = {f['records']} records + {f['blank']} blank"
+                f" + {f['rejected']} rejected"
+            )
+        )
+    for s in summary["sources"]:
+        out.append(
+            clean(
+                f"  {s['uri']}: {s['messages']} messages, {s['lost']} lost, {s['malformed']} malformed,"
+                f" {s['duplicates']} duplicates ({s['detail']})"
+            )
+        )
+    for sid, st in summary["sections"].items():
+        out.append(clean(f"  section {sid}: {st['state']} (count {st['count']})"))
+    return out
+
+
+def follow(
+    sources: SourcesArg,
+    layout: Annotated[
+        str | None,
+        typer.Option("--layout", help="Layout (file or osong, example): adds section states and crossing warnings."),
+    ] = None,
+    jsonl: Annotated[bool, typer.Option("--jsonl", help="One JSON object per line, with a `type` field.")] = False,
+    from_start: Annotated[
+        bool, typer.Option("--from-start", help="Read followed files from their start, not their end.")
+    ] = False,
+    poll: Annotated[bool, typer.Option("--poll", help="Poll files instead of inotify (network filesystems).")] = False,
+    idle_gap: IdleGapOpt = 10.0,
+    archive: Annotated[
+        Path | None, typer.Option("--archive", help="Also keep what is followed in this directory.")
+    ] = None,
+    duration: Annotated[
+        float | None, typer.Option("--duration", help="Stop after this many seconds (default: until Ctrl-C).", min=0)
+    ] = None,
+    idle_exit: Annotated[
+        float | None,
+        typer.Option("--idle-exit", help="Stop when nothing has arrived for this many seconds.", min=0.1),
+    ] = None,
+    strict: Annotated[bool, typer.Option("--strict", help="Exit 1 if any line was rejected.")] = False,
+) -> None:
+    """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary."""
+
+    def body() -> int:
+        from console.analysis.diagnostics import SpeedSettings
+        from console.live.engine import Archiver, LiveEngine, run_sources
+        from console.sources import SourceError, open_source
+
+        lay = load_layout(layout) if layout else None
+        try:
+            srcs = [open_source(s, from_start=from_start, force_polling=poll) for s in sources]
+            for s in srcs:
+                s.check()
+        except SourceError as exc:
+            raise fail(str(exc)) from None
+        out = sys.stdout
+
+        def emit(ev: dict[str, Any]) -> None:
+            if jsonl:
+                out.write(json.dumps(ev, ensure_ascii=False, default=str) + "\n")
+            else:
+                out.write(_line(ev) + "\n")
+            out.flush()  # a reader downstream sees each event at once
+
+        spacing = lay.heads[0].spacing_m if lay and lay.heads else 0.13
+        consist = lay.consist() if lay else None
+        settings = SpeedSettings(spacing, consist.length_m if consist else 28.6, idle_gap)
+        archiver = None
+        if archive is not None:
+            archive.mkdir(parents=True, exist_ok=True)
+            archiver = Archiver(archive)
+        engine = LiveEngine(lay, emit, settings, on_item=archiver)
+        last = [time.monotonic(), engine.items]
+
+        def idle() -> bool:
+            if idle_exit is None:
+                return False
+            if engine.items != last[1]:
+                last[:] = [time.monotonic(), engine.items]
+                return False
+            return time.monotonic() - last[0] >= idle_exit
+
+        run_sources(engine, srcs, until=idle, duration_s=duration)
+        summary = engine.summary(srcs)
+        if jsonl:
+            emit(summary)
+        else:
+            sys.stderr.write("\n".join(_summary_lines(summary)) + "\n")
+        rejected = engine.diag.reader.report.rejected
+        return exit_codes.FINDINGS if strict and rejected else exit_codes.OK
+
+    raise typer.Exit(guard(body))

@@ -1,0 +1,103 @@
+"""GNSS fixes arriving live (gpsd, LoRaWAN) → the crossing units' warnings.
+
+Each fix is placed on the layout's track and handed to every crossing's
+:class:`~console.analysis.crossing.CrossingController`, the same unit the
+batch ``crossing`` command and the simulator run.  Time passes through
+:meth:`CrossingFollow.tick`, so a unit that goes silent becomes stale and
+the warning stays on (the controller's rule: off only on fresh evidence).
+
+Clocks: a fix carries the unit's own time.  Units' clocks can be off; the
+console's clock is the reference.  Per device the smallest observed delay
+(reception − measurement) estimates its clock offset; measurement times are
+moved by that offset and never put after their reception, so a unit whose
+clock runs ahead cannot make old positions look fresh.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, CrossingEvent, Fix, TrainSpec
+from console.analysis.crossing_batch import OFF_TRACK_M
+from console.analysis.geo import TrackProjector
+from console.analysis.timefmt import NS, iso
+from console.layout import Layout
+from console.sources.base import GnssFix
+
+Emit = Callable[[dict[str, Any]], None]
+SKEW_TOLERANCE_S = 2.0  # offsets below this are radio and processing delay, not a wrong clock
+
+
+class CrossingFollow:
+    def __init__(self, layout: Layout, emit: Emit, settings: ControllerSettings | None = None) -> None:
+        self.layout = layout
+        self.emit = emit
+        self.settings = settings or ControllerSettings()
+        self.proj = TrackProjector(layout.track) if len(layout.track) >= 2 else None
+        self.controllers = {c.code: CrossingController(c, [], self.settings) for c in layout.crossings}
+        consist = layout.consist()
+        self.default_length_m = consist.length_m if consist else 100.0
+        self.skew_ns: dict[str, int] = {}
+        self.last: dict[tuple[str, str], Fix] = {}
+        self.off_track = 0
+        self.fixes = 0
+        self.events = 0
+
+    def owner(self, f: GnssFix) -> tuple[str, str]:
+        """(train, role): the unit says so (LoRa payload), or its name does (<train>-head / -eot)."""
+        if f.role in (HEAD, EOT):
+            return (f.train or f.device), f.role
+        for role in (HEAD, EOT):
+            if f.device.endswith(f"-{role}"):
+                return f.device[: -len(role) - 1], role
+        return f.device, HEAD
+
+    def fix(self, f: GnssFix, now_ns: int) -> None:
+        if self.proj is None or math.isnan(f.lat_deg) or math.isnan(f.lon_deg):
+            return
+        delay = now_ns - f.t_fix_ns
+        best = self.skew_ns.get(f.device)
+        self.skew_ns[f.device] = delay if best is None else min(best, delay)
+        offset = self.skew_ns[f.device]
+        t_fix = f.t_fix_ns + offset if abs(offset) > SKEW_TOLERANCE_S * NS else f.t_fix_ns
+        t_fix = min(t_fix, now_ns)
+        p = self.proj.project(f.lat_deg, f.lon_deg)
+        if float(p.offset_m[0]) > OFF_TRACK_M:
+            self.off_track += 1
+            return
+        train, role = self.owner(f)
+        chainage = float(p.chainage_m[0])
+        hint = 0
+        if not (math.isnan(f.course_deg) or math.isnan(f.speed_mps)) and f.speed_mps >= 1.0:
+            diff = (f.course_deg - self.proj.bearing_deg(chainage) + 540.0) % 360.0 - 180.0
+            hint = 1 if abs(diff) < 60 else -1 if abs(diff) > 120 else 0
+        fix = Fix(now_ns, t_fix, train, role, chainage, f.speed_mps, hint)
+        self.fixes += 1
+        self.last[(train, role)] = fix
+        for ctl in self.controllers.values():
+            ctl.add_train(TrainSpec(train, self.default_length_m))
+            self._out(ctl.step(fix))
+
+    def tick(self, now_ns: int) -> None:
+        for ctl in self.controllers.values():
+            self._out(ctl.tick(now_ns))
+
+    def _out(self, events: list[CrossingEvent]) -> None:
+        for e in events:
+            self.events += 1
+            self.emit(
+                {
+                    "type": "crossing",
+                    "crossing": e.crossing,
+                    "train": e.train,
+                    "kind": e.kind,
+                    "reason": e.reason,
+                    "time_ns": e.t_ns,
+                    "time": iso(e.t_ns),
+                }
+            )
+
+    def warnings_on(self) -> dict[str, bool]:
+        return {code: ctl.warning_on for code, ctl in self.controllers.items()}

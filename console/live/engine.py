@@ -1,0 +1,179 @@
+"""The live engine: items from any source → the analysis core → events.
+
+Events are plain dicts with a ``type`` (``passage``, ``section``,
+``crossing``, ``health``, ``source``), the JSON lines of ``trackside follow
+--jsonl``.  The engine runs on one thread (the caller's); sources only queue
+items, so the analysis state needs no locks.
+"""
+
+from __future__ import annotations
+
+import queue
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from console.analysis.diagnostics import SpeedSettings
+from console.layout import Layout
+from console.live.crossings import CrossingFollow
+from console.live.diag import DiagFollow
+from console.sources.base import CanFrame, GnssFix, Item, LineBlock, Source, SourceNote
+
+Emit = Callable[[dict[str, Any]], None]
+TICK_S = 0.5  # crossing units' clock and the idle wake-up: two a second is nothing for the CPU
+
+
+@dataclass
+class Archiver:
+    """Where followed input is kept (``--archive``): raw bytes as read, fixes as JSON lines.
+
+    Plugs in as ``on_item``; the archive package's ingest can take these files
+    as it takes any log (growing files by byte offset).
+    """
+
+    root: Any  # pathlib.Path
+
+    def __call__(self, item: Item) -> None:
+        import json
+
+        from console.safe_text import clean
+
+        if isinstance(item, LineBlock):
+            name = clean(item.file).replace("/", "_").replace("#", ".")
+            path = self.root / "raw" / name
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with path.open("ab") as f:
+                f.write(item.data)
+        elif isinstance(item, GnssFix):
+            path = self.root / "gnss" / f"{clean(item.device).replace('/', '_')}.jsonl"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            doc = {
+                "device": item.device,
+                "t_fix_ns": item.t_fix_ns,
+                "lat": item.lat_deg,
+                "lon": item.lon_deg,
+                "speed_mps": None if item.speed_mps != item.speed_mps else item.speed_mps,
+                "course_deg": None if item.course_deg != item.course_deg else item.course_deg,
+                "role": item.role,
+                "train": item.train,
+                "battery_pct": item.battery_pct,
+                **{k: v for k, v in item.meta.items() if isinstance(v, int | float | str)},
+            }
+            with path.open("a") as f:
+                f.write(json.dumps(doc) + "\n")
+
+
+class LiveEngine:
+    def __init__(
+        self,
+        layout: Layout | None,
+        emit: Emit,
+        settings: SpeedSettings | None = None,
+        on_item: Callable[[Item], None] | None = None,
+    ) -> None:
+        self.layout = layout
+        self.emit = emit
+        self.diag = DiagFollow(layout, settings or SpeedSettings(), emit)
+        self.crossings = CrossingFollow(layout, emit) if layout is not None and layout.crossings else None
+        self.on_item = on_item
+        self.can_frames = 0
+        self.items = 0
+        self.notes: dict[str, int] = {}
+
+    @staticmethod
+    def now_ns() -> int:
+        return time.time_ns()
+
+    def handle(self, item: Item) -> None:
+        self.items += 1
+        if self.on_item is not None:
+            self.on_item(item)
+        if isinstance(item, LineBlock):
+            self.diag.add(item.source, item.file, item.first_line, item.data)
+        elif isinstance(item, GnssFix):
+            if self.crossings is not None:
+                self.crossings.fix(item, self.now_ns())
+        elif isinstance(item, CanFrame):
+            self.can_frames += 1
+        elif isinstance(item, SourceNote):
+            self.notes[item.kind] = self.notes.get(item.kind, 0) + 1
+            self.emit({"type": "source", "source": item.source, "kind": item.kind, "detail": item.detail})
+
+    def tick(self) -> None:
+        if self.crossings is not None:
+            self.crossings.tick(self.now_ns())
+
+    def finish(self) -> None:
+        self.diag.finish()
+        self.tick()
+
+    def summary(self, sources: Sequence[Source]) -> dict[str, Any]:
+        rep = self.diag.reader.report
+        files = [
+            {
+                "file": f.file,
+                "lines_read": f.lines_read,
+                "records": f.records,
+                "blank": f.blank,
+                "rejected": f.rejected,
+            }
+            for f in rep.files
+        ]
+        return {
+            "type": "summary",
+            "passages": self.diag.stats.passages,
+            "section_changes": self.diag.stats.section_changes,
+            "health_findings": self.diag.stats.health_findings,
+            "crossing_events": self.crossings.events if self.crossings else 0,
+            "gnss_fixes": self.crossings.fixes if self.crossings else 0,
+            "can_frames": self.can_frames,
+            "files": files,
+            "sections": {k: {"state": s, "count": c} for k, (s, c) in self.diag.section_states().items()},
+            "sources": [s.status().to_dict() for s in sources],
+        }
+
+
+def run_sources(
+    engine: LiveEngine,
+    sources: Sequence[Source],
+    *,
+    until: Callable[[], bool] | None = None,
+    duration_s: float | None = None,
+) -> None:
+    """Start the sources, feed their items to the engine until ``until()`` or Ctrl-C, then stop them.
+
+    KeyboardInterrupt ends the loop cleanly; the engine is finished either way.
+    """
+    q: queue.SimpleQueue[Item] = queue.SimpleQueue()
+    started: list[Source] = []
+    deadline = None if duration_s is None else time.monotonic() + duration_s
+    try:
+        for s in sources:
+            s.start(q.put)
+            started.append(s)
+        next_tick = time.monotonic() + TICK_S
+        while True:
+            now = time.monotonic()
+            if (until is not None and until()) or (deadline is not None and now >= deadline):
+                break
+            try:
+                item = q.get(timeout=max(0.0, min(next_tick - now, TICK_S)))
+            except queue.Empty:
+                item = None
+            if item is not None:
+                engine.handle(item)
+            if time.monotonic() >= next_tick:
+                engine.tick()
+                next_tick = time.monotonic() + TICK_S
+    except KeyboardInterrupt:
+        pass
+    finally:
+        for s in started:
+            s.stop()
+        while True:  # what the sources delivered before stopping is still analysed
+            try:
+                engine.handle(q.get_nowait())
+            except queue.Empty:
+                break
+        engine.finish()

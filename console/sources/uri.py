@@ -1,0 +1,81 @@
+"""Source URIs → source objects (the transports are imported only when used)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from urllib.parse import unquote, urlsplit
+
+from console.sources.base import Source, SourceError
+
+SCHEMES = ("file", "gpsd", "mqtt", "mqtts", "can")
+DEFAULT_PORTS = {"gpsd": 2947, "mqtt": 1883, "mqtts": 8883}
+
+
+@dataclass(frozen=True)
+class SourceURI:
+    scheme: str
+    path: str = ""  # file path, gpsd device, MQTT topic
+    host: str = ""
+    port: int = 0
+    interface: str = ""  # CAN: python-can interface (socketcan, virtual…)
+    channel: str = ""  # CAN channel (vcan0, a virtual bus name)
+    username: str | None = None
+    password: str | None = None
+
+
+def parse_uri(text: str) -> SourceURI:
+    """``file:PATH``, ``gpsd://H:P[/DEV]``, ``mqtt[s]://H:P/TOPIC``, ``can:IFACE[:CHANNEL]``.
+
+    A bare path (no scheme) is a file, so ``trackside follow app.log`` works.
+    """
+    scheme, sep, rest = text.partition(":")
+    if not sep or scheme not in SCHEMES or (len(scheme) == 1 and rest.startswith("\\")):
+        return SourceURI("file", path=text)
+    if scheme == "file":
+        path = rest[2:] if rest.startswith("//") else rest
+        if not path:
+            raise SourceError(f"{text}: expected file:PATH")
+        return SourceURI("file", path=unquote(path) if rest.startswith("//") else path)
+    if scheme == "can":
+        iface, _, channel = rest.partition(":")
+        if not iface:
+            raise SourceError(f"{text}: expected can:INTERFACE[:CHANNEL], e.g. can:socketcan:vcan0")
+        return SourceURI("can", interface=iface, channel=channel)
+    parts = urlsplit(text)
+    if not parts.hostname:
+        raise SourceError(f"{text}: expected {scheme}://HOST:PORT/…")
+    try:
+        port = parts.port or DEFAULT_PORTS[scheme]
+    except ValueError:
+        raise SourceError(f"{text}: the port is not a number 0-65535") from None
+    path = unquote(parts.path.lstrip("/"))
+    if scheme in ("mqtt", "mqtts") and not path:
+        raise SourceError(f"{text}: expected a topic, e.g. {scheme}://HOST:PORT/application/+/device/+/event/up")
+    if scheme == "gpsd" and path:
+        path = "/" + path  # a device path
+    return SourceURI(
+        scheme, path=path, host=parts.hostname, port=port, username=parts.username, password=parts.password
+    )
+
+
+def open_source(text: str, *, from_start: bool = False, force_polling: bool = False) -> Source:
+    """A (not yet started) source for a URI; :class:`SourceError` if it cannot be one."""
+    u = parse_uri(text)
+    if u.scheme == "file":
+        from console.sources.follow import FileSource
+
+        return FileSource(text, Path(u.path), from_start=from_start, force_polling=force_polling)
+    if u.scheme == "gpsd":
+        from console.sources.gpsd import GpsdSource
+
+        return GpsdSource(text, u.host, u.port, u.path or None)
+    if u.scheme in ("mqtt", "mqtts"):
+        from console.sources.mqtt import MqttSource
+
+        return MqttSource(
+            text, u.host, u.port, u.path, tls=u.scheme == "mqtts", username=u.username, password=u.password
+        )
+    from console.sources.can_bus import CanSource
+
+    return CanSource(text, u.interface, u.channel)

@@ -1,0 +1,164 @@
+"""Helpers and fixtures for the live-source tests: real servers on loopback, bounded waits.
+
+gpsd (through gpsfake) and mosquitto run as real processes bound to
+127.0.0.1 on a free port; a test that needs one skips, saying which binary
+is missing, only when it is not installed (``.ci/run`` installs Debian's
+gpsd, gpsd-clients and mosquitto best effort).  Every wait is bounded.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+NMEA_DIR = Path("/work/shared/data/nmea")
+if not NMEA_DIR.is_dir():
+    NMEA_DIR = REPO.parent / "shared" / "data" / "nmea"
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def wait_until(cond: Callable[[], bool], timeout_s: float = 10.0, step_s: float = 0.02) -> bool:
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(step_s)
+    return cond()
+
+
+def port_open(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.settimeout(0.2)
+        return s.connect_ex(("127.0.0.1", port)) == 0
+
+
+def need(binary: str) -> str:
+    path = shutil.which(binary) or next(
+        (p for p in (f"/usr/sbin/{binary}", f"/usr/bin/{binary}") if os.access(p, os.X_OK)), None
+    )
+    if path is None:
+        pytest.skip(f"{binary} is not installed (Debian package: see .ci/run)")
+    return path
+
+
+def stop_process(proc: subprocess.Popen[Any], timeout_s: float = 5.0) -> None:
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout_s)
+
+
+class Mosquitto:
+    """A real broker on 127.0.0.1:port; :meth:`restart` keeps the port."""
+
+    def __init__(self, workdir: Path) -> None:
+        self.binary = need("mosquitto")
+        self.port = free_port()
+        self.conf = workdir / "mosquitto.conf"
+        self.conf.write_text(
+            f"listener {self.port} 127.0.0.1\nallow_anonymous true\npersistence false\nlog_dest none\n"
+            "max_queued_messages 100000\n"
+        )
+        self.proc: subprocess.Popen[bytes] | None = None
+
+    def start(self) -> None:
+        self.proc = subprocess.Popen(
+            [self.binary, "-c", str(self.conf)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
+        if not wait_until(lambda: port_open(self.port), 10):
+            self.stop()
+            pytest.fail("mosquitto did not start listening")
+
+    def stop(self) -> None:
+        if self.proc is not None:
+            stop_process(self.proc)
+            self.proc = None
+
+    def restart(self) -> None:
+        self.stop()
+        self.start()
+
+    @property
+    def url(self) -> str:
+        return f"mqtt://127.0.0.1:{self.port}"
+
+
+@pytest.fixture
+def mosquitto(tmp_path: Path) -> Iterator[Mosquitto]:
+    broker = Mosquitto(tmp_path)
+    broker.start()
+    try:
+        yield broker
+    finally:
+        broker.stop()
+
+
+class GpsFake:
+    """gpsfake feeding a real NMEA capture to its own gpsd on 127.0.0.1:port."""
+
+    def __init__(self, capture: Path, cycle_s: float = 0.05) -> None:
+        need("gpsd")
+        self.binary = need("gpsfake")
+        self.capture = capture
+        self.cycle_s = cycle_s
+        self.port = free_port()
+        self.proc: subprocess.Popen[bytes] | None = None
+
+    def start(self) -> None:
+        # -P port, -c seconds between sentences, -1 once through the log (-l: loop? no: -1 is once),
+        # -q quiet; gpsd options: -N foreground, -n poll at once, -G would listen on all
+        # addresses: not given, so gpsd listens on loopback only.
+        self.proc = subprocess.Popen(
+            [self.binary, "-q", "-P", str(self.port), "-c", str(self.cycle_s), "-o", "-n", str(self.capture)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+        if not wait_until(lambda: port_open(self.port), 15):
+            self.stop()
+            pytest.fail("gpsfake's gpsd did not start listening")
+
+    def stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.proc.pid, signal.SIGTERM)
+            try:
+                self.proc.wait(5)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(self.proc.pid, signal.SIGKILL)
+                self.proc.wait(5)
+        self.proc = None
+
+
+_CLI = "import sys; from console.cli import app; sys.argv[0] = 'trackside'; app()"
+
+
+def trackside(*args: str) -> list[str]:
+    """The command line of ``trackside ARGS`` with this interpreter."""
+    return [sys.executable, "-c", _CLI, *args]
+
+
+def read_jsonl(text: str) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in text.splitlines() if line.strip()]

@@ -1,0 +1,251 @@
+"""file:PATH — following a growing log: partial lines, rotation, copytruncate, and
+`trackside follow` reporting exactly what `trackside analyze` finds in the whole log."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from console.sources.base import Item, LineBlock
+from console.sources.follow import FileSource
+from tests.live_fixtures import REPO, read_jsonl, trackside, wait_until
+
+pytestmark = pytest.mark.timeout(60)
+
+SAMPLE = REPO / "sample_logs" / "example_station.log"
+
+
+class Collector:
+    def __init__(self) -> None:
+        self.items: list[Item] = []
+        self.lock = threading.Lock()
+
+    def __call__(self, item: Item) -> None:
+        with self.lock:
+            self.items.append(item)
+
+    def data(self) -> bytes:
+        with self.lock:
+            return b"".join(i.data for i in self.items if isinstance(i, LineBlock))
+
+    def notes(self, kind: str) -> int:
+        with self.lock:
+            return sum(1 for i in self.items if getattr(i, "kind", None) == kind)
+
+
+def _follow(path: Path, **kw: bool) -> tuple[FileSource, Collector]:
+    src = FileSource(f"file:{path}", path, **kw)
+    got = Collector()
+    src.start(got)
+    return src, got
+
+
+@pytest.mark.parametrize("polling", [False, True], ids=["inotify", "polling"])
+def test_a_partial_last_line_waits_for_its_newline(tmp_path: Path, polling: bool) -> None:
+    log = tmp_path / "a.log"
+    log.write_bytes(b"")
+    src, got = _follow(log, from_start=True, force_polling=polling)
+    try:
+        with log.open("ab") as f:
+            f.write(b"line one\nline tw")
+            f.flush()
+            assert wait_until(lambda: got.data() == b"line one\n", 5)
+            time.sleep(0.2)
+            assert got.data() == b"line one\n"  # "line tw" is not handed over half-written
+            f.write(b"o\n")
+            f.flush()
+        assert wait_until(lambda: got.data() == b"line one\nline two\n", 5)
+    finally:
+        src.stop()
+    blocks = [i for i in got.items if isinstance(i, LineBlock)]
+    assert [b.first_line for b in blocks] == [1, 2]
+
+
+def test_from_the_end_skips_what_is_there_but_keeps_true_line_numbers(tmp_path: Path) -> None:
+    log = tmp_path / "a.log"
+    log.write_bytes(b"old 1\nold 2\nold 3 unfinish")
+    src, got = _follow(log)
+    try:
+        assert wait_until(lambda: src.status().connected, 5)
+        with log.open("ab") as f:
+            f.write(b"ed\nnew 4\n")
+        assert wait_until(lambda: got.data() == b"old 3 unfinished\nnew 4\n", 5)
+    finally:
+        src.stop()
+    first = next(i for i in got.items if isinstance(i, LineBlock))
+    assert first.first_line == 3
+
+
+def test_rotation_by_rename_loses_and_repeats_nothing(tmp_path: Path) -> None:
+    log = tmp_path / "a.log"
+    log.write_bytes(b"")
+    src, got = _follow(log, from_start=True)
+    expected = b""
+    try:
+        with log.open("ab") as f:
+            for i in range(50):
+                line = f"first {i}\n".encode()
+                f.write(line)
+                expected += line
+            f.flush()
+            os.rename(log, tmp_path / "a.log.1")
+            # The writer has not reopened yet: these still go to the renamed file.
+            for i in range(5):
+                line = f"late {i}\n".encode()
+                f.write(line)
+                expected += line
+        with log.open("ab") as f:
+            for i in range(50):
+                line = f"second {i}\n".encode()
+                f.write(line)
+                expected += line
+        assert wait_until(lambda: got.data() == expected, 10), got.data()[-200:]
+    finally:
+        src.stop()
+    assert src.rotations == 1
+    assert got.notes("rotated") == 1
+
+
+def test_copytruncate_takes_what_was_missed_from_the_copy(tmp_path: Path) -> None:
+    log = tmp_path / "a.log"
+    log.write_bytes(b"")
+    src, got = _follow(log, from_start=True)
+    expected = b""
+    try:
+        with log.open("ab") as f:
+            for i in range(100):
+                line = f"before {i:03d}\n".encode()
+                f.write(line)
+                expected += line
+            f.flush()
+            assert wait_until(lambda: got.data() == expected, 5)
+            # Written and copied before the follower looks again, then truncated.
+            tail = b"".join(f"unseen {i:03d}\n".encode() for i in range(7))
+            f.write(tail)
+            f.flush()
+            expected += tail
+            shutil.copyfile(log, tmp_path / "a.log.1")
+            f.truncate(0)
+            for i in range(30):  # grows again, past the old size's tail check
+                line = f"after {i:03d}\n".encode()
+                f.write(line)
+                expected += line
+        assert wait_until(lambda: got.data() == expected, 10), got.data()[-300:]
+    finally:
+        src.stop()
+    assert src.truncations == 1
+
+
+def _write_in_pieces(src: bytes, dest: Path, rotate_at: float, mode: str) -> None:
+    """Write ``src`` into ``dest`` in uneven pieces (lines cut anywhere), rotating at a line boundary."""
+    cut = src.index(b"\n", int(len(src) * rotate_at)) + 1
+    halves = (src[:cut], src[cut:])
+    for k, half in enumerate(halves):
+        with dest.open("ab") as f:
+            step = 7919  # a prime: pieces end mid-line
+            for i in range(0, len(half), step):
+                f.write(half[i : i + step])
+                f.flush()
+                time.sleep(0.01)
+            if k == 0:
+                time.sleep(0.3)
+                if mode == "rename":
+                    os.rename(dest, dest.with_name(dest.name + ".1"))
+                else:
+                    shutil.copyfile(dest, dest.with_name(dest.name + ".1"))
+                    f.truncate(0)
+
+
+@pytest.fixture(scope="module")
+def analyze_passages() -> list[dict[str, object]]:
+    import json
+
+    out = subprocess.run(
+        trackside("analyze", str(SAMPLE), "--json", "--layout", "example"),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    return list(json.loads(out.stdout)["passages"])
+
+
+@pytest.mark.parametrize("mode", ["rename", "copytruncate"])
+def test_follow_of_a_log_written_in_pieces_and_rotated_reports_what_analyze_finds(
+    tmp_path: Path, mode: str, analyze_passages: list[dict[str, object]]
+) -> None:
+    log = tmp_path / "station.log"
+    log.write_bytes(b"")
+    proc = subprocess.Popen(
+        trackside("follow", str(log), "--from-start", "--jsonl", "--layout", "example", "--idle-exit", "1.5"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        time.sleep(0.8)  # the follower is up before the first piece
+        _write_in_pieces(SAMPLE.read_bytes(), log, 0.5, mode)
+        out, err = proc.communicate(timeout=40)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    events = read_jsonl(out)
+    passages = [{k: v for k, v in e.items() if k != "type"} for e in events if e["type"] == "passage"]
+
+    def key(p: dict[str, object]) -> tuple[str, str]:
+        return str(p["start"]), str(p["counting_head"])
+
+    assert len(passages) == len(analyze_passages) > 100
+    assert sorted(passages, key=key) == sorted(analyze_passages, key=key)
+    summary = events[-1]
+    assert summary["type"] == "summary"
+    for f in summary["files"]:
+        assert f["lines_read"] == f["records"] + f["blank"] + f["rejected"]
+    assert sum(f["records"] for f in summary["files"]) == SAMPLE.read_bytes().count(b"\n")
+    kinds = {e.get("kind") for e in events if e["type"] == "source"}
+    assert ("rotated" if mode == "rename" else "truncated") in kinds
+
+
+def test_follow_jsonl_lines_are_flushed_one_by_one_and_rejections_are_shown(tmp_path: Path) -> None:
+    log = tmp_path / "x.log"
+    good = SAMPLE.read_bytes().splitlines(keepends=True)[:30]
+    log.write_bytes(b"".join(good[:10]) + b"\x1b[31mnot a record\n" + b"".join(good[10:]))
+    out = subprocess.run(
+        trackside("follow", f"file:{log}", "--from-start", "--jsonl", "--idle-exit", "0.5", "--strict"),
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
+    assert out.returncode == 1, out.stderr  # --strict: a rejected line is a finding
+    events = read_jsonl(out.stdout)
+    rej = [e for e in events if e.get("kind") == "rejected"]
+    assert len(rej) == 1 and rej[0]["line"] == 11 and rej[0]["file"] == str(log)
+    summary = events[-1]
+    assert summary["files"][0]["lines_read"] == 31 and summary["files"][0]["rejected"] == 1
+
+
+def test_follow_human_output_escapes_log_content(tmp_path: Path) -> None:
+    log = tmp_path / "x.log"
+    log.write_bytes(b"\x1b]0;evil\x07 [bold]x[/bold]\n")
+    out = subprocess.run(
+        trackside("follow", str(log), "--from-start", "--idle-exit", "0.5"),
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
+    assert out.returncode == 0
+    assert "\x1b" not in out.stdout and "\\x1b" in out.stdout
+
+
+def test_follow_of_an_impossible_source_is_a_one_line_error(tmp_path: Path) -> None:
+    out = subprocess.run(trackside("follow", "mqtt://127.0.0.1:1883"), capture_output=True, text=True, timeout=30)
+    assert out.returncode == 2
+    assert out.stderr.startswith("trackside: error:") and "topic" in out.stderr
+    assert "Traceback" not in out.stderr
