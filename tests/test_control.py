@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from console.sim.control import (
+    FUZZY_D_K,
+    FUZZY_D_KD,
     INPUT_CENTRES,
     INPUT_SETS,
     OUTPUT_CENTRES,
@@ -130,12 +132,35 @@ def test_pid_freezes_its_integral_while_saturated() -> None:
     assert pid.integral > 0.0
 
 
-def test_fuzzy_d_adds_k_d_times_the_error_rate_to_ten_times_the_fuzzy_output() -> None:
+def test_fuzzy_d_as_printed_multiplies_speedt_effort_by_k_and_adds_k_d_times_the_error_rate() -> None:
+    # Seed 001 eq. 7: u = 10·U_Fuzzy + 0.05·ė, U_Fuzzy on SpeedT's scale (u = U_FULL·f)
     plain, fd = Fuzzy(), FuzzyD()
+    assert fd.reading == "output-gain"
+    for ctl in (plain, fd):
+        ctl.update(15.0, 14.99, 0.05)
+    a, b = plain.update(15.0, 14.995, 0.05), fd.update(15.0, 14.995, 0.05)
+    assert abs(a) < 0.1  # small enough that K·a stays unsaturated
+    assert b == pytest.approx(FUZZY_D_K * a + FUZZY_D_KD * fd.rate.rate / U_FULL)
+
+
+def test_fuzzy_d_saturates_where_k_times_speedt_would_exceed_full_effort() -> None:
+    fd = FuzzyD()
+    fd.update(15.0, 14.0, 0.05)
+    assert fd.update(15.0, 14.0, 0.05) == 1.0  # SpeedT gives 0.67 here; 6.7 of full effort is clipped
+
+
+def test_fuzzy_d_normalised_reading_is_speedt_plus_k_d_times_the_error_rate() -> None:
+    plain, fd = Fuzzy(), FuzzyD(reading="normalised")
     for ctl in (plain, fd):
         ctl.update(15.0, 14.0, 0.05)
     a, b = plain.update(15.0, 14.2, 0.05), fd.update(15.0, 14.2, 0.05)
     assert b - a == pytest.approx(0.05 * fd.rate.rate / U_FULL)
+
+
+def test_an_unknown_fuzzy_d_reading_is_refused() -> None:
+    with pytest.raises(ValueError, match="output-gain or normalised"):
+        FuzzyD(reading="scaled")
+    assert isinstance(make_controller("fuzzy-d", "normalised"), FuzzyD)
 
 
 @pytest.mark.parametrize("name", ["pid", "fuzzy", "fuzzy-d"])

@@ -21,6 +21,14 @@ def ato(
     plant: Annotated[
         str, typer.Option("--plant", help="force (our train model), linear (the paper's G(s)) or both.")
     ] = "force",
+    fuzzy_d_reading: Annotated[
+        str,
+        typer.Option(
+            "--fuzzy-d-reading",
+            help="Fuzzy-D's eq. 6: output-gain (K multiplies SpeedT-scale output, as printed), normalised "
+            "(K only rescales a [-1, 1] output and cancels) or both.",
+        ),
+    ] = "both",
     plot: Annotated[bool, typer.Option("--plot", help="Draw speed against distance in the terminal.")] = False,
     json_out: JsonOpt = False,
 ) -> None:
@@ -28,8 +36,8 @@ def ato(
 
     def body() -> int:
         from console.render.ato_view import ato_json, ato_plot, ato_table
-        from console.sim.ato import run_scenario
-        from console.sim.control import CONTROLLER_NAMES
+        from console.sim.ato import run_all
+        from console.sim.control import CONTROLLER_NAMES, FUZZY_D_READINGS
 
         names = list(CONTROLLER_NAMES) if controller == "all" else [controller]
         if any(n not in CONTROLLER_NAMES for n in names):
@@ -37,7 +45,10 @@ def ato(
         plants = ["force", "linear"] if plant == "both" else [plant]
         if any(p not in ("force", "linear") for p in plants):
             raise fail(f"--plant: expected force, linear or both, found {plant!r}")
-        results = [run_scenario(n, p) for p in plants for n in names]
+        readings = list(FUZZY_D_READINGS) if fuzzy_d_reading == "both" else [fuzzy_d_reading]
+        if any(r not in FUZZY_D_READINGS for r in readings):
+            raise fail(f"--fuzzy-d-reading: expected output-gain, normalised or both, found {fuzzy_d_reading!r}")
+        results = run_all(plants, names=names, fuzzy_d_readings=readings)
         if json_out:
             doc = ato_json(results)
             sys.stdout.write(__import__("json").dumps(doc, ensure_ascii=True, allow_nan=False) + "\n")

@@ -16,7 +16,7 @@ from rich.table import Table
 from rich.text import Text
 
 from console.sim.ato import PAPER_FIGURES, PAPER_WORDING, ScenarioResult, metrics
-from console.sim.control import CONTROLLER_NAMES
+from console.sim.control import CONTROLLER_NAMES, FUZZY_D_READINGS
 
 LABELS = {"pid": "PID", "fuzzy": "Fuzzy (SpeedT)", "fuzzy-d": "Fuzzy-D"}
 MARKERS = {"pid": "P", "fuzzy": "F", "fuzzy-d": "D"}
@@ -31,9 +31,17 @@ def _fmt(key: str, value: float | None) -> Text:
     return Text(_FORMATS.get(key, "{:.1f}").format(value))
 
 
+# How each reading of the seed's eq. 6 is labelled where Fuzzy-D is shown twice.
+READING_LABELS = {"output-gain": "", "normalised": "  K normalised"}
+
+
+def _reading_rank(r: ScenarioResult) -> int:
+    return FUZZY_D_READINGS.index(r.reading) if r.reading in FUZZY_D_READINGS else 0
+
+
 def _ordered(results: Sequence[ScenarioResult]) -> list[ScenarioResult]:
     rank = {n: i for i, n in enumerate(CONTROLLER_NAMES)}
-    return sorted(results, key=lambda r: (rank.get(r.controller, len(rank)), r.plant))
+    return sorted(results, key=lambda r: (rank.get(r.controller, len(rank)), _reading_rank(r), r.plant))
 
 
 def ato_table(results: Sequence[ScenarioResult]) -> Table:
@@ -44,7 +52,11 @@ def ato_table(results: Sequence[ScenarioResult]) -> Table:
         title_style="bold",
         box=box.SIMPLE_HEAD,
         pad_edge=False,
-        caption="force: our train model; linear: the paper's G(s). never: not within 2 % of 15 m/s before 900 m",
+        caption=(
+            "force: our train model; linear: the paper's G(s). never: not within 2 % of 15 m/s before 900 m."
+            " Fuzzy-D: u = K·U_Fuzzy + K_D·ė with U_Fuzzy on SpeedT's scale (the equations as printed);"
+            " K normalised: U_Fuzzy in [−1, 1], K = 10 only rescales it, so K cancels (docs/ato.md)"
+        ),
         caption_justify="left",
     )
     t.add_column("Controller", no_wrap=True)
@@ -60,7 +72,11 @@ def ato_table(results: Sequence[ScenarioResult]) -> Table:
         if paper is not None:
             t.add_row(label, Text("paper", style="dim"), *(_fmt(k, paper[k]) for k in METRIC_KEYS))
             label = ""
+        reading = runs[0].reading
         for r in runs:
+            if r.reading != reading:
+                reading = r.reading
+                label = READING_LABELS.get(r.reading, r.reading)
             m = metrics(r)
             t.add_row(label, r.plant, *(_fmt(k, m[k]) for k in METRIC_KEYS))
             label = ""
@@ -69,19 +85,35 @@ def ato_table(results: Sequence[ScenarioResult]) -> Table:
     return t
 
 
+def _metrics_json(r: ScenarioResult) -> dict[str, Any]:
+    m = metrics(r)
+    out: dict[str, Any] = {}
+    for k in METRIC_KEYS:
+        value = m[k]
+        out[k] = None if value is None else round(value, 4)
+    return out
+
+
 def ato_json(results: Sequence[ScenarioResult]) -> list[dict[str, Any]]:
-    """One object per run: our metrics (None where undefined), the plant, and the paper's figures and words."""
+    """One object per controller and plant: our metrics (None where undefined), the paper's figures and words.
+
+    Fuzzy-D's object is its first reading's run (the equations as printed when
+    it was run); runs under the other readings of eq. 6 are listed in it under
+    ``other_readings``, so there is one object per controller and plant.
+    """
     out: list[dict[str, Any]] = []
+    placed: dict[tuple[str, str], dict[str, Any]] = {}
     for r in _ordered(results):
-        m = metrics(r)
+        row = placed.get((r.controller, r.plant))
+        if row is not None:
+            row.setdefault("other_readings", []).append({"reading": r.reading, **_metrics_json(r)})
+            continue
         paper: dict[str, Any] = dict(PAPER_FIGURES.get(r.controller, {}))
         if r.controller in PAPER_WORDING:
             paper["wording"] = PAPER_WORDING[r.controller]
-        row: dict[str, Any] = {"controller": r.controller, "plant": r.plant}
-        for k in METRIC_KEYS:
-            value = m[k]
-            row[k] = None if value is None else round(value, 4)
+        row = {"controller": r.controller, "plant": r.plant, "reading": r.reading or None, **_metrics_json(r)}
         row["paper"] = paper
+        placed[(r.controller, r.plant)] = row
         out.append(row)
     return out
 
@@ -92,7 +124,13 @@ def ato_plot(results: Sequence[ScenarioResult], width: int = 80, height: int = 2
     ``plant`` defaults to the first result's.  Where two controllers fall in
     the same cell the cell shows ``*``.
     """
-    runs = [r for r in _ordered(results) if r.plant == (plant or (results[0].plant if results else ""))]
+    # One curve per controller: for Fuzzy-D the equations as printed when they were run, else its first reading.
+    on_plant = plant or (results[0].plant if results else "")
+    shown: dict[str, str] = {}
+    for r in _ordered(results):
+        if r.plant == on_plant:
+            shown.setdefault(r.controller, r.reading)
+    runs = [r for r in _ordered(results) if r.plant == on_plant and shown[r.controller] == r.reading]
     out = Text(no_wrap=True)
     if not runs:
         out.append("no runs to plot\n")

@@ -4,14 +4,22 @@ One scaling for all three
 -------------------------
 The seed's controllers compute ``u``, the input of its identified model
 G(s) (eq. 4), in that model's own units: PID gains 2.774/0.214/4.088 act on
-``u``, and Fuzzy-D is ``u = K·u_fuzzy + K_D·ė`` with K = 10.  Here ``u``
-maps to the dynamics' command in [−1, 1] as ``command = u / U_FULL`` with
-``U_FULL = K = 10``: the fuzzy part's output universe [−1, 1] times K spans
-exactly full braking to full traction, and the same 10 units of ``u`` mean
-full effort for the PID and for the fuzzy SpeedT.  On G(s), 10 units hold
+``u``; SpeedT's output is ``u``; Fuzzy-D is ``u = K·U_Fuzzy + K_D·ė`` with
+K = 10 (eqs. 6-7).  Here ``u`` maps to the dynamics' command in [−1, 1] as
+``command = u / U_FULL`` with ``U_FULL = 10``: the same 10 units of ``u``
+mean full effort for every controller, and SpeedT's rule surface, whose
+output is in [−1, 1], spans them (``u = U_FULL·f``).  On G(s), 10 units hold
 21.9 m/s at steady state (DC gain 612/0.34/822.4 = 2.19 m/s per unit), so
 the seed's 15 m/s needs u = 6.85 and is within reach.  Whatever exceeds
 ±U_FULL is clipped: the seed's Simulink model probably let ``u`` run free.
+
+Fuzzy-D has two readings (:data:`FUZZY_D_READINGS`, ``docs/ato.md``).  As
+printed, ``U_Fuzzy`` is the FLCT's output on SpeedT's scale (``U_FULL·f``)
+and K multiplies it: ``"output-gain"``, the default.  The other reading,
+``"normalised"``, takes the FLCT's output universe as [−1, 1] with K only
+scaling it to the plant (``K·f``); K then cancels against ``U_FULL`` and
+Fuzzy-D is SpeedT plus a tiny ``K_D·ė``.  Only the first gives the seed's
+steady-state errors a ratio near K (0.272 / 0.028 = 9.7).
 
 Speed error ``e = target − speed`` (positive: too slow), and ``ė`` its rate.
 All three controllers take ``ė`` from one estimator, a backward difference
@@ -38,9 +46,9 @@ NB or PB fires).  The scaling factors put physical units on them:
   speed to.  Neither factor is fitted to the seed's results.
 
 Since the seed's membership functions for SpeedT and for Fuzzy-D's FLCT are
-unknown to us, both use these same ones; the two controllers then differ
-only by Fuzzy-D's ``K_D·ė`` term, which is small (0.05 units of ``u`` per
-m/s², half a percent of full effort).
+unknown to us, both use these same ones; under the ``"output-gain"`` reading
+Fuzzy-D is then SpeedT with K times the effort plus ``K_D·ė`` (0.05 units of
+``u`` per m/s², half a percent of full effort).
 
 The rule surface is precomputed once on a 161 × 161 grid of the normalised
 inputs and read by bilinear interpolation (pure float arithmetic, about a
@@ -70,6 +78,10 @@ PID_KD = 4.088
 
 FUZZY_D_K = 10.0  # seed 001 eq. 7
 FUZZY_D_KD = 0.05
+# What U_Fuzzy in eq. 6 is: the FLCT's output on SpeedT's scale, K then a gain on it (the
+# equations as printed), or a normalised output that K only scales to the plant (K cancels).
+FUZZY_D_READINGS = ("output-gain", "normalised")
+FUZZY_D_READING = "output-gain"
 
 FUZZY_E_SCALE_MPS = 1.0
 FUZZY_DE_SCALE_MPS2 = 1.0
@@ -278,7 +290,18 @@ class Fuzzy:
 
 
 class FuzzyD(Fuzzy):
-    """Fuzzy-D (seed 001 eq. 7): ``u = K·u_fuzzy + K_D·ė`` with K = 10, K_D = 0.05; command = u / U_FULL."""
+    """Fuzzy-D (seed 001 eqs. 6-7): ``u = K·U_Fuzzy + K_D·ė`` with K = 10, K_D = 0.05; command = u / U_FULL.
+
+    ``reading`` says what ``U_Fuzzy`` is (see :data:`FUZZY_D_READINGS`):
+
+    * ``"output-gain"`` (default, the equations as printed): the FLCT's
+      output on the same scale as SpeedT's, ``U_FULL·f``; K then multiplies
+      the proportional action, so near a steady state Fuzzy-D's fuzzy gain
+      is K times SpeedT's and its steady-state error about 1/K of it.
+    * ``"normalised"``: the FLCT's output universe is [−1, 1] and K = 10
+      only maps it onto the plant's full range, ``K·f``, which is what
+      SpeedT already commands: K cancels and Fuzzy-D is SpeedT plus K_D·ė.
+    """
 
     name = "fuzzy-d"
 
@@ -288,22 +311,30 @@ class FuzzyD(Fuzzy):
         k_d: float = FUZZY_D_KD,
         e_scale_mps: float = FUZZY_E_SCALE_MPS,
         de_scale_mps2: float = FUZZY_DE_SCALE_MPS2,
+        reading: str = FUZZY_D_READING,
     ) -> None:
         super().__init__(e_scale_mps, de_scale_mps2)
-        self.k, self.k_d = k, k_d
+        if reading not in FUZZY_D_READINGS:
+            raise ValueError(f"unknown Fuzzy-D reading {reading!r}: expected {' or '.join(FUZZY_D_READINGS)}")
+        self.k, self.k_d, self.reading = k, k_d, reading
+        # U_Fuzzy in units of u per unit of the rule surface's output f
+        self._u_per_f = U_FULL if reading == "output-gain" else 1.0
 
     def update(self, target_mps: float, speed_mps: float, dt_s: float) -> float:
         e = target_mps - speed_mps
         de = self.rate.update(e, dt_s)
-        u = self.k * fuzzy_interp(e / self.e_scale, de / self.de_scale) + self.k_d * de
+        u_fuzzy = self._u_per_f * fuzzy_interp(e / self.e_scale, de / self.de_scale)
+        u = self.k * u_fuzzy + self.k_d * de
         return clip(u / U_FULL)
 
 
 _FACTORIES: dict[str, Callable[[], Controller]] = {"pid": PID, "fuzzy": Fuzzy, "fuzzy-d": FuzzyD}
 
 
-def make_controller(name: str) -> Controller:
-    """A fresh controller by name: 'pid', 'fuzzy' (SpeedT) or 'fuzzy-d'."""
+def make_controller(name: str, fuzzy_d_reading: str = FUZZY_D_READING) -> Controller:
+    """A fresh controller by name: 'pid', 'fuzzy' (SpeedT) or 'fuzzy-d' (in ``fuzzy_d_reading``)."""
+    if name.lower() == "fuzzy-d":
+        return FuzzyD(reading=fuzzy_d_reading)
     try:
         return _FACTORIES[name.lower()]()
     except KeyError:
