@@ -45,6 +45,7 @@ from parsers.sources import (
     DEFAULT_MAX_LINE_BYTES,
     Chunk,
     OverlongLine,
+    ReadFailure,
     iter_chunks,
     open_input,
 )
@@ -706,6 +707,9 @@ class DiagReader:
 
     def _overlong(self, o: OverlongLine, fr: FileReport, line: int) -> None:
         fr.lines_read += 1
+        if isinstance(o, ReadFailure):  # the lines before a corrupt spot are kept; it stands for the rest
+            self.report.reject(fr, line, "corrupt", o.message(line - 1), o.head)
+            return
         reason = f"line longer than {self.max_line_bytes} bytes ({o.length} bytes)"
         self.report.reject(fr, line, "too long", reason, o.head)
 

@@ -47,7 +47,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from parsers.report import FileReport, ParseReport, escape_text
-from parsers.sources import Chunk, InputError, OverlongLine, iter_chunks, open_input
+from parsers.sources import Chunk, InputError, OverlongLine, ReadFailure, iter_chunks, open_input
 
 # --- the two-byte frame ------------------------------------------------------
 
@@ -356,7 +356,11 @@ def _read_frame_file(path: Path, file_id: int, cols: _Columns, report: ParseRepo
     line = 1
     try:
         for item in iter_chunks(stream, info, max_line_bytes=_MAX_LINE_BYTES, name=str(path)):
-            if isinstance(item, OverlongLine):
+            if isinstance(item, ReadFailure):  # corrupt gzip: the lines before it are kept
+                fr.lines_read += 1
+                report.reject(fr, line, "corrupt", item.message(line - 1), item.head)
+                line += 1
+            elif isinstance(item, OverlongLine):
                 fr.lines_read += 1
                 report.reject(
                     fr,
@@ -564,6 +568,11 @@ class _LineFeed:
         line = 0
         try:
             for item in iter_chunks(stream, info, max_line_bytes=_MAX_LINE_BYTES, name=str(path)):
+                if isinstance(item, ReadFailure):  # corrupt gzip: the lines before it are kept
+                    line += 1
+                    self.fr.lines_read += 1
+                    self.report.reject(self.fr, line, "corrupt", item.message(line - 1), item.head)
+                    continue
                 if isinstance(item, OverlongLine):
                     line += 1
                     self.fr.lines_read += 1

@@ -93,14 +93,17 @@ def test_strict_makes_rejections_exit_1(tmp_path: Path) -> None:
     assert (rej["file"], rej["line"]) == (str(p), 2) and "ch" in rej["reason"]
 
 
-def test_corrupt_gzip_is_exit_2(tmp_path: Path) -> None:
+def test_corrupt_gzip_keeps_the_lines_before_it_and_is_a_finding(tmp_path: Path) -> None:
     import gzip
 
     data = gzip.compress(("\n".join([record()] * 2000) + "\n").encode())
     p = tmp_path / "cut.log.gz"
     p.write_bytes(data[: len(data) // 2])
-    res = runner.invoke(app, ["analyze", str(p)])
-    assert res.exit_code == 2 and "corrupt or truncated" in res.stderr
+    res = runner.invoke(app, ["analyze", str(p), "--json", "--strict"])
+    assert res.exit_code == 1, res.stderr
+    report = json.loads(res.stdout)["parse_report"]
+    (rej,) = report["rejections"]
+    assert 0 < report["records"] < 2000 and "corrupt gzip (truncated" in rej["reason"]
 
 
 def test_log_content_never_becomes_markup_or_escapes(tmp_path: Path) -> None:

@@ -203,13 +203,18 @@ def test_gzip_input_by_magic_bytes(tmp_path: Path) -> None:
     assert rep.records == 2 and rep.files[0].compressed
 
 
-def test_corrupt_gzip_is_an_input_error(tmp_path: Path) -> None:
-    from parsers.sources import InputError
-
+def test_truncated_gzip_keeps_the_lines_before_the_cut_and_rejects_the_rest(tmp_path: Path) -> None:
     data = gzip.compress(_lines(*[record()] * 1000))
     p = _write(tmp_path, data[: len(data) // 2], "cut.gz")
-    with pytest.raises(InputError, match="corrupt or truncated"):
-        read_diag([p])
+    df, rep = read_diag([p])  # parsers.sources: the complete lines, then one "corrupt" rejection
+    rep.check()
+    assert 0 < rep.records < 1000 and len(df) == rep.records
+    (rej,) = rep.rejections
+    assert (
+        rej.line == rep.records + 1
+        and rej.reason.startswith("corrupt gzip (truncated")
+        and (f"after {rep.records} lines" in rej.reason)
+    )
 
 
 def test_many_files_keep_their_names_and_lines(tmp_path: Path) -> None:

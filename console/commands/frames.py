@@ -26,8 +26,14 @@ def _is_can_log(path: Path) -> bool:
     if suffix in (".asc", ".blf"):
         return True
     if suffix == ".log":
-        with path.open("rb") as f:
-            head = f.read(4096)
+        from parsers.sources import open_input  # one reader: gzip, streams, UTF-16
+
+        stream, raw, _ = open_input(path)
+        try:
+            head = stream.read(4096)
+        finally:
+            stream.close()
+            raw.close()
         if head.startswith(b"LOGG"):
             return True
         for line in head.splitlines():
