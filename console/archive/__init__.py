@@ -1,0 +1,9 @@
+"""The archive: every ingested record in Parquet, derived tables beside them, SQL over both.
+
+Modules: :mod:`store` (directory layout, manifest, lock, atomic publish),
+:mod:`parts` (partitioned Parquet writing), :mod:`records` (parser chunks ⇄
+Arrow), :mod:`ledger` (what was read of which file), :mod:`ingest`,
+:mod:`derive` (the batch analyses run on the archive's records), :mod:`views`
+(DuckDB, read-only), :mod:`presets` (named queries), :mod:`history`
+(report inputs and replay for a time window).
+"""

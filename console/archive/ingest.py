@@ -1,0 +1,407 @@
+"""Ingest files into the archive: once each, growing files from their last offset, published atomically.
+
+One ingest runs under the writers' lock: it removes what killed ingests
+left behind, reads every input the ledger says is new (or new bytes of a
+grown file), writes Parquet parts under fresh names, recomputes the derived
+tables (:mod:`console.archive.derive`) and publishes one new manifest.
+Nothing is visible to readers before the publish; a failure (a full disk,
+a bad input, ``kill -9``) leaves the previous state current.
+"""
+
+from __future__ import annotations
+
+import copy
+import shutil
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+
+from console import __version__
+from console.archive import ledger
+from console.archive.parts import NS_PER_DAY, PartWriter, write_small
+from console.archive.records import RecordEncoder
+from console.archive.store import (
+    TMP,
+    ArchiveError,
+    Manifest,
+    collect_garbage,
+    ensure_layout,
+    publish,
+    read_current,
+    writer_lock,
+)
+
+# Kinds the archive stores, by the report's recognition (console.report.collect.recognise).
+DIAGNOSTIC = "diagnostic"
+STORED_ELSEWHERE = {"nmea": "fixes", "gnss-csv": "fixes", "gnss-jsonl": "fixes", "centre": "fixes"}
+STDIN_NAME = "<stdin>"
+
+
+@dataclass
+class FileOutcome:
+    path: str
+    kind: str
+    action: str  # new, grown, replace, skip, not-read
+    note: str
+    records: int = 0
+    rejected: int = 0
+    bytes_read: int = 0
+
+
+@dataclass
+class IngestSummary:
+    archive: Path
+    generation: int
+    files: list[FileOutcome] = field(default_factory=list)
+    seconds: float = 0.0
+    published: bool = False
+
+    @property
+    def records(self) -> int:
+        return sum(f.records for f in self.files)
+
+    @property
+    def rejected(self) -> int:
+        return sum(f.rejected for f in self.files)
+
+    @property
+    def added(self) -> list[FileOutcome]:
+        return [f for f in self.files if f.action in ("new", "grown", "replace")]
+
+    @property
+    def skipped(self) -> list[FileOutcome]:
+        return [f for f in self.files if f.action in ("skip", "not-read")]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "schema": "trackside.ingest/1",
+            "archive": str(self.archive),
+            "generation": self.generation,
+            "published": self.published,
+            "records": self.records,
+            "rejected": self.rejected,
+            "seconds": round(self.seconds, 3),
+            "files": [f.__dict__ for f in self.files],
+        }
+
+
+def _kind(path: Path) -> tuple[str, str]:
+    from console.report.collect import recognise
+
+    fmt, note = recognise(path)
+    return fmt, note
+
+
+class _Ingest:
+    def __init__(self, root: Path, manifest: Manifest, on_bytes: Callable[[int], None] | None) -> None:
+        self.root = root
+        self.old = manifest
+        self.new = copy.deepcopy(manifest)
+        self.new.generation = manifest.generation + 1
+        self.gen = self.new.generation
+        self.on_bytes = on_bytes
+        self.records = PartWriter(root, "records", self.gen, "r")
+        self.new_parts: list[str] = []
+        self.ingest_rows: list[dict[str, Any]] = []
+        self.rejected_rows: list[dict[str, Any]] = []
+        self.touched: set[str] = set()  # tables whose inputs changed
+        self.started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+        self._tmp_count = 0
+        self.dropped_seqs: set[int] = set()  # diagnostic files replaced: their records leave
+
+    def _next_seq(self) -> int:
+        return max((int(e["file_seq"]) for e in self.new.files), default=-1) + 1
+
+    def _tmp(self) -> Path:
+        self._tmp_count += 1
+        return self.root / TMP / f"g{self.gen:06d}-{self._tmp_count}.part"
+
+    def _range_file(self, path: Path, start: int, end: int, size: int) -> Path:
+        """The bytes [start, end) as a file the parsers can open (the file itself when it is all of it)."""
+        if start == 0 and end == size:
+            return path
+        out = self._tmp()
+        with path.open("rb") as src, out.open("wb") as dst:
+            src.seek(start)
+            left = end - start
+            while left > 0:
+                block = src.read(min(ledger.BLOCK, left))
+                if not block:
+                    break
+                dst.write(block)
+                left -= len(block)
+        return out
+
+    def add_file(self, path: Path, shown: str) -> FileOutcome:
+        kind, note = _kind(path)
+        if kind not in (DIAGNOSTIC, *STORED_ELSEWHERE, "frames", "can"):
+            why = note or f"{kind}: not archived"
+            self._ledger_row(shown, kind, "not-read", why, None, 0, 0, None)
+            return FileOutcome(shown, kind, "not-read", why)
+        entry = ledger.find_entry(self.new.files, shown)
+        s = ledger.scan(path, entry["bytes"] if entry is not None else None)
+        p = ledger.plan(self.new.files, shown, s, entry)
+        if kind != DIAGNOSTIC and p.action == "grown":
+            # Fixes and frames are parsed whole (their parsers keep state across lines).
+            p = ledger.Plan("replace", entry, 0, s.complete_bytes, 0, "grown: read again whole")
+        if p.action == "skip":
+            self._ledger_row(shown, kind, "skip", p.note, s, 0, 0, None)
+            return FileOutcome(shown, kind, "skip", p.note)
+        if p.action == "replace" and p.entry is not None:
+            self._drop_entry(p.entry)
+        if p.action == "grown" and p.entry is not None:
+            e = p.entry
+        else:
+            e = {"file_seq": self._next_seq(), "path": shown, "kind": kind, "bytes": 0, "lines": 0, "active": True}
+            e.update({"records": 0, "blank": 0, "rejected": 0, "parts": [], "sha256": "", "complete_sha256": ""})
+            e["encoding"] = "utf-8"
+            self.new.files.append(e)
+        # Fixes and frames are parsed from the file itself (GNSS names a device after its file).
+        source = self._range_file(path, p.start, p.end, s.size) if kind == DIAGNOSTIC else path
+        outcome = FileOutcome(shown, kind, p.action, p.note)
+        if kind == DIAGNOSTIC:
+            self._diag(source, e, p, outcome)
+        else:
+            self._other(source, kind, e, outcome)
+        outcome.bytes_read = p.end - p.start
+        e["bytes"] = s.complete_bytes
+        e["sha256"] = s.sha256
+        e["complete_sha256"] = s.complete_sha256
+        e["size_seen"] = s.size
+        self._ledger_row(shown, kind, p.action, p.note, s, p.start, p.end, e)
+        if source != path:
+            source.unlink()
+        return outcome
+
+    def _drop_entry(self, entry: dict[str, Any]) -> None:
+        """A replaced file: its parts leave the manifest (the records of a diagnostic log too)."""
+        entry["active"] = False
+        gone = set(entry.get("parts", []))
+        for table, parts in self.new.tables.items():
+            if gone & set(parts):
+                self.new.tables[table] = [p for p in parts if p not in gone]
+                self.touched.add(table)
+        if entry["kind"] == DIAGNOSTIC:
+            self.dropped_seqs.add(int(entry["file_seq"]))
+
+    def _diag(self, source: Path, e: dict[str, Any], p: ledger.Plan, out: FileOutcome) -> None:
+        from parsers.diag import DiagReader
+
+        reader = DiagReader([source], on_progress=self.on_bytes)
+        reader.report.max_rejections_kept = sys.maxsize  # the archive keeps every rejection
+        enc = RecordEncoder(reader.registry)
+        for chunk in reader.chunks():
+            table, device_id = enc.encode(chunk, e["path"], int(e["file_seq"]), p.first_line)
+            day = chunk.time_ns // NS_PER_DAY
+            self.records.add(table, day, device_id)
+        fr = reader.report.files[0]
+        for r in reader.report.rejections:
+            self.rejected_rows.append(
+                {
+                    "file": e["path"],
+                    "file_seq": int(e["file_seq"]),
+                    "line": r.line + p.first_line,
+                    "reason": r.reason,
+                    "text": r.text,
+                    "generation": self.gen,
+                }
+            )
+        e["lines"] = int(e["lines"]) + fr.lines_read
+        e["records"] = int(e["records"]) + fr.records
+        e["blank"] = int(e["blank"]) + fr.blank
+        e["rejected"] = int(e["rejected"]) + fr.rejected
+        if p.start == 0:
+            e["encoding"] = fr.encoding
+            e["compressed"] = fr.compressed
+        e["ends_without_newline"] = fr.ends_without_newline
+        out.records, out.rejected = fr.records, fr.rejected
+        self.touched.add("records")
+
+    def _other(self, source: Path, kind: str, e: dict[str, Any], out: FileOutcome) -> None:
+        from parsers.report import ParseReport
+
+        report: ParseReport
+        if kind in STORED_ELSEWHERE:
+            from parsers.gnss import parse_gnss
+
+            table, report, _states = parse_gnss([source])
+            name = "fixes"
+        elif kind == "frames":
+            from parsers.frames import parse_frames
+
+            table, report = parse_frames([source])
+            name = "frames"
+        else:
+            from parsers.frames import parse_can
+
+            table, report = parse_can([source])
+            name = "frames"
+        table = table.copy()
+        if "file" in table.columns:
+            table["file"] = e["path"]
+        table["file_seq"] = np.int32(e["file_seq"])
+        arrow = pa.Table.from_pandas(table, preserve_index=False)
+        rel = write_small(self.root, name, self.gen, f"f{int(e['file_seq'])}", arrow)
+        if rel is not None:
+            self.new.tables.setdefault(name, []).append(rel)
+            self.new_parts.append(rel)
+            e["parts"] = [*e.get("parts", []), rel]
+        for r in report.rejections:
+            self.rejected_rows.append(
+                {
+                    "file": e["path"],
+                    "file_seq": int(e["file_seq"]),
+                    "line": r.line,
+                    "reason": r.reason,
+                    "text": r.text,
+                    "generation": self.gen,
+                }
+            )
+        e["lines"] = report.lines_read
+        e["records"] = report.records
+        e["blank"] = report.blank
+        e["rejected"] = report.rejected
+        out.records, out.rejected = report.records, report.rejected
+        self.touched.add(name)
+
+    def _ledger_row(
+        self,
+        path: str,
+        kind: str,
+        action: str,
+        note: str,
+        s: ledger.Scan | None,
+        start: int,
+        end: int,
+        e: dict[str, Any] | None,
+    ) -> None:
+        self.ingest_rows.append(
+            {
+                "generation": self.gen,
+                "ingested_at": self.started,
+                "path": path,
+                "kind": kind,
+                "action": action,
+                "note": note,
+                "file_seq": int(e["file_seq"]) if e is not None else None,
+                "size_bytes": s.size if s is not None else None,
+                "byte_start": start,
+                "byte_end": end,
+                "sha256": s.sha256 if s is not None else None,
+                "prefix_sha256": s.complete_sha256 if s is not None else None,
+                "tool_version": __version__,
+            }
+        )
+
+    def finish_records(self) -> None:
+        written = self.records.close()
+        if written:
+            self.new.tables.setdefault("records", []).extend(written)
+            self.new_parts += written
+        if self.dropped_seqs:
+            self._rewrite_records_without(self.dropped_seqs)
+
+    def _rewrite_records_without(self, seqs: set[int]) -> None:
+        """Records of replaced diagnostic files leave the partitions that hold them (rewritten once)."""
+        import pyarrow.parquet as pq
+
+        kept: list[str] = []
+        for rel in self.new.tables.get("records", []):
+            if rel in self.new_parts:
+                kept.append(rel)
+                continue
+            table = pq.read_table(self.root / rel)
+            mask = ~np.isin(table.column("file_seq").to_numpy(), np.fromiter(seqs, np.int32))
+            if mask.all():
+                kept.append(rel)
+                continue
+            if mask.any():
+                out = self.root / rel.replace(".parquet", f"-x{self.gen:06d}.parquet")
+                pq.write_table(table.filter(pa.array(mask)), out, compression="zstd")
+                new_rel = str(out.relative_to(self.root))
+                kept.append(new_rel)
+                self.new_parts.append(new_rel)
+        self.new.tables["records"] = kept
+
+    def finish_ledger(self) -> None:
+        for name, rows in (("ingests", self.ingest_rows), ("rejected", self.rejected_rows)):
+            if not rows:
+                continue
+            rel = write_small(self.root, name, self.gen, "l", pa.Table.from_pylist(rows))
+            if rel is not None:
+                self.new.tables.setdefault(name, []).append(rel)
+                self.new_parts.append(rel)
+
+
+def expand_inputs(paths: Sequence[Path], root: Path) -> list[tuple[Path, str]]:
+    """(file to read, name it is known by): directories read whole (the report's order), ``-`` is stdin."""
+    from console.report.collect import ReportInputError, expand
+
+    out: list[tuple[Path, str]] = []
+    files: list[Path] = []
+    for p in paths:
+        if str(p) == "-":
+            if files:
+                out += [(f, str(f.resolve())) for f in expand(files)[0]]
+                files = []
+            tmp = root / TMP / f"stdin-{time.time_ns()}"
+            with tmp.open("wb") as dst:
+                shutil.copyfileobj(sys.stdin.buffer, dst)
+            out.append((tmp, STDIN_NAME))
+        else:
+            files.append(p)
+    try:
+        if files:
+            out += [(f, str(f.resolve())) for f in expand(files, exclude=None)[0]]
+    except ReportInputError as exc:
+        raise ArchiveError(str(exc)) from None
+    return out
+
+
+def run_ingest(
+    paths: Sequence[Path],
+    root: Path,
+    *,
+    layout: str | None = None,
+    wait: bool = True,
+    on_wait: Callable[[], None] | None = None,
+    on_bytes: Callable[[int], None] | None = None,
+    on_file: Callable[[str], None] | None = None,
+) -> IngestSummary:
+    """Ingest ``paths`` into the archive at ``root``; the summary of what was added, skipped and rejected."""
+    from console.archive.derive import derive_tables
+
+    t0 = time.perf_counter()
+    ensure_layout(root)
+    with writer_lock(root, wait=wait, on_wait=on_wait):
+        current = read_current(root)
+        collect_garbage(root, current)
+        job = _Ingest(root, current, on_bytes)
+        summary = IngestSummary(root, current.generation)
+        try:
+            inputs = expand_inputs(paths, root)
+            for path, shown in inputs:
+                if on_file is not None:
+                    on_file(shown)
+                summary.files.append(job.add_file(path, shown))
+            job.finish_records()
+            relayout = layout is not None and layout != current.derived.get("layout")
+            if summary.added or relayout:
+                job.new_parts += derive_tables(root, job.new, layout)
+            job.finish_ledger()
+            # Nothing new (every file already ingested): no new generation at all.
+            if summary.added or relayout:
+                publish(root, job.new, job.new_parts)
+                summary.generation = job.gen
+                summary.published = True
+        except BaseException:
+            job.records.abort()
+            raise
+    summary.seconds = time.perf_counter() - t0
+    return summary

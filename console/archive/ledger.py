@@ -1,0 +1,115 @@
+"""The ingest ledger: what was read from which file, so nothing is read twice.
+
+Each logical input file has one entry in the manifest (``files``): its path,
+kind, the byte range read so far (always ending on a line end), the SHA-256
+of that prefix, the lines it held, and the parts written from it.  Before a
+file is read, :func:`plan` decides what to do with it:
+
+* its whole content hashes to what some entry already holds → **skip**;
+* it is an entry's file grown (same path, longer, the stored prefix hashes
+  the same) → read **from the stored offset**, line numbers continuing;
+* same path but the prefix changed (rotated, rewritten) → a **new file**,
+  and the note in ``ingests`` says why;
+* otherwise → a new file.
+
+Only complete lines are read: bytes after the last newline are left for the
+next ingest (a writer may be in the middle of that line).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from parsers.sources import GZIP_MAGIC, UTF16_BOMS
+
+BLOCK = 1 << 20
+
+
+@dataclass(frozen=True)
+class Scan:
+    """One pass over a file's bytes."""
+
+    size: int
+    sha256: str  # whole file
+    complete_bytes: int  # up to and including the last newline
+    complete_sha256: str
+    prefix_sha256: str | None  # of the first ``prefix_len`` bytes, when asked
+    whole_only: bool  # gzip or UTF-16: read whole or not at all
+
+
+def scan(path: Path, prefix_len: int | None = None) -> Scan:
+    """Hash a file once: whole, up to its last newline, and a given prefix."""
+    whole = hashlib.sha256()
+    upto_nl = hashlib.sha256()
+    prefix: str | None = None
+    pos = 0
+    last_nl_end = 0
+    head = b""
+    with path.open("rb") as f:
+        while True:
+            block = f.read(BLOCK)
+            if prefix_len is not None and prefix is None and pos + len(block) >= prefix_len:
+                h = whole.copy()
+                h.update(block[: prefix_len - pos])
+                prefix = h.hexdigest()
+            if not block:
+                break
+            if pos == 0:
+                head = block[:4]
+            nl = block.rfind(b"\n")
+            if nl >= 0:
+                upto_nl = whole.copy()
+                upto_nl.update(block[: nl + 1])
+                last_nl_end = pos + nl + 1
+            whole.update(block)
+            pos += len(block)
+    whole_only = head.startswith(GZIP_MAGIC) or head.startswith(UTF16_BOMS)
+    if whole_only:
+        return Scan(pos, whole.hexdigest(), pos, whole.hexdigest(), prefix, True)
+    return Scan(pos, whole.hexdigest(), last_nl_end, upto_nl.hexdigest(), prefix, False)
+
+
+@dataclass
+class Plan:
+    action: str  # "skip", "new", "grown", "replace"
+    entry: dict[str, Any] | None  # the ledger entry it continues or replaces
+    start: int  # first byte to read
+    end: int  # one past the last byte to read
+    first_line: int  # line number of the first line read, minus one
+    note: str
+
+
+def find_entry(files: list[dict[str, Any]], path: str) -> dict[str, Any] | None:
+    """The latest ledger entry for this path (a rotated file leaves older ones behind)."""
+    found = [e for e in files if e["path"] == path and e.get("active", True)]
+    return found[-1] if found else None
+
+
+def plan(files: list[dict[str, Any]], path: str, s: Scan, entry: dict[str, Any] | None) -> Plan:
+    """What to read of a scanned file, given the ledger."""
+    for e in files:
+        if s.sha256 in (e["sha256"], e.get("complete_sha256")) or (
+            s.whole_only is False and s.complete_bytes == e["bytes"] and s.complete_sha256 == e["complete_sha256"]
+        ):
+            same = "" if e["path"] == path else f" as {e['path']}"
+            return Plan("skip", e, 0, 0, 0, f"already ingested: same content{same}")
+    if entry is not None:
+        if s.whole_only:
+            return Plan("replace", entry, 0, s.complete_bytes, 0, "compressed or UTF-16 file changed: read again whole")
+        if s.prefix_sha256 == entry["complete_sha256"] and s.complete_bytes >= entry["bytes"]:
+            if s.complete_bytes == entry["bytes"]:
+                return Plan("skip", entry, 0, 0, 0, "no complete new line since the last ingest")
+            return Plan(
+                "grown",
+                entry,
+                entry["bytes"],
+                s.complete_bytes,
+                entry["lines"],
+                f"grown: read from byte {entry['bytes']} (line {entry['lines'] + 1})",
+            )
+        why = "shorter than before" if s.size < entry["bytes"] else "its first bytes changed"
+        return Plan("new", None, 0, s.complete_bytes, 0, f"rotated or rewritten ({why}): ingested as a new file")
+    return Plan("new", None, 0, s.complete_bytes, 0, "new file")

@@ -1,0 +1,228 @@
+"""Diagnostic records between the parser's chunks and the archive's ``records`` table.
+
+:func:`chunk_to_arrow` turns a parsed :class:`~parsers.diag.DiagChunk` into
+Arrow columns (dictionary-encoded straight from the parser's interners, no
+per-record Python).  :class:`ChunkRebuilder` goes back: Arrow batches read
+from the archive become chunks keyed into a fresh
+:class:`~parsers.diag.DiagRegistry`, registers numbered in first-seen order,
+so the analysis that ran on the files runs on the archive's records and
+gives the same answer.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pyarrow as pa
+
+from parsers.diag import DATA_KINDS, DiagChunk, DiagRegistry, RegisterKey
+
+# Columns stored in the record parts; day and device_id are the partition keys (in the path).
+RECORD_FIELDS = (
+    "time",
+    "diag_id",
+    "device",
+    "type",
+    "gs",
+    "counting_head",
+    "channel",
+    "address",
+    "label",
+    "label_canonical",
+    "label_encoding",
+    "data",
+    "value",
+    "data_kind",
+    "subsecond",
+    "file",
+    "file_seq",
+    "line",
+)
+REGISTER_COLUMNS = (
+    "diag_id",
+    "device_id",
+    "device",
+    "type",
+    "gs",
+    "counting_head",
+    "channel",
+    "address",
+    "label",
+    "label_canonical",
+    "label_encoding",
+)
+_STR = pa.dictionary(pa.int32(), pa.string())
+
+
+def _dict(codes: np.ndarray, values: list[str]) -> pa.DictionaryArray:
+    return pa.DictionaryArray.from_arrays(pa.array(codes, pa.int32()), pa.array(values, pa.string()))
+
+
+class RecordEncoder:
+    """Per-register lookup arrays of one parse, extended as registers appear."""
+
+    def __init__(self, registry: DiagRegistry) -> None:
+        self.registry = registry
+        self._n = -1
+        self._canon_codes = np.zeros(0, np.int32)
+        self._canon_values: list[str | None] = []
+        self._enc_codes = np.zeros(0, np.int32)
+        self._enc_values: list[str] = []
+
+    def _refresh(self) -> dict[str, np.ndarray]:
+        arrays = self.registry.arrays()
+        regs = self.registry.registers
+        if self._n != len(regs):
+            canon: dict[str | None, int] = {}
+            enc: dict[str, int] = {}
+            self._canon_codes = np.array([canon.setdefault(r.label_canonical, len(canon)) for r in regs], np.int32)
+            self._canon_values = list(canon)
+            self._enc_codes = np.array([enc.setdefault(r.label_encoding, len(enc)) for r in regs], np.int32)
+            self._enc_values = list(enc)
+            self._n = len(regs)
+        return arrays
+
+    def encode(self, chunk: DiagChunk, file_name: str, file_seq: int, line_offset: int) -> tuple[pa.Table, np.ndarray]:
+        """(records table, device_id per row) of one parsed chunk."""
+        reg = self.registry
+        a = self._refresh()
+        rid = chunk.register_id
+        n = len(rid)
+        canon_codes = self._canon_codes[rid]
+        # A null entry cannot sit in a dictionary that is unified later: "" stands there, masked.
+        canon_dict = pa.array([v or "" for v in self._canon_values], pa.string())
+        canon = pa.DictionaryArray.from_arrays(
+            pa.array(canon_codes, pa.int32(), mask=np.asarray([v is None for v in self._canon_values])[canon_codes]),
+            canon_dict,
+        )
+        device_id = a["device_id"][rid]
+        cols = {
+            "time": pa.array(chunk.time_ns.view("datetime64[ns]")),
+            "diag_id": pa.array(a["diag_id"][rid]),
+            "device": _dict(a["device"][rid], reg.devices.values),
+            "type": _dict(a["type"][rid], reg.types.values),
+            "gs": _dict(a["gs"][rid], reg.gs.values),
+            "counting_head": _dict(a["counting_head"][rid], reg.heads.values),
+            "channel": pa.array(a["channel"][rid]),
+            "address": pa.array(a["address"][rid].astype(np.int16)),
+            "label": _dict(a["label"][rid], reg.labels.values),
+            "label_canonical": canon,
+            "label_encoding": _dict(self._enc_codes[rid], self._enc_values),
+            "data": _dict(chunk.data_code, reg.data.values),
+            "value": pa.array(chunk.value),
+            "data_kind": _dict(chunk.data_kind.astype(np.int32), list(DATA_KINDS)),
+            "subsecond": pa.array(chunk.subsecond),
+            "file": _dict(np.zeros(n, np.int32), [file_name]),
+            "file_seq": pa.array(np.full(n, file_seq, np.int32)),
+            "line": pa.array(chunk.line + line_offset),
+        }
+        return pa.table(cols), device_id
+
+
+class ChunkRebuilder:
+    """Arrow record batches (from the archive, in file order) → DiagChunks of one registry."""
+
+    def __init__(self) -> None:
+        self.registry = DiagRegistry()
+        self._rids: dict[RegisterKey, int] = {}
+        self._files: dict[int, int] = {}  # file_seq → file_id
+
+    def file_id(self, file_seq: int, name: str) -> int:
+        found = self._files.get(file_seq)
+        if found is None:
+            found = self._files[file_seq] = len(self.registry.files)
+            self.registry.files.append(name)
+        return found
+
+    def _register_ids(self, batch: pa.RecordBatch) -> np.ndarray:
+        codes = []
+        dicts = []
+        for name in REGISTER_COLUMNS:
+            col = batch.column(name)
+            if not pa.types.is_dictionary(col.type):
+                col = col.dictionary_encode()
+            codes.append(col.indices.fill_null(0).to_numpy(zero_copy_only=False).astype(np.int64))
+            dicts.append(col.dictionary.to_pylist())
+            # Nulls (no canonical label) get their own code.
+            if col.null_count:
+                c = codes[-1]
+                c[np.asarray(col.is_null())] = len(dicts[-1])
+                dicts[-1].append(None)
+        stacked = np.stack(codes, axis=1)
+        uniq, first, inverse = np.unique(stacked, axis=0, return_index=True, return_inverse=True)
+        lut = np.empty(len(uniq), np.int32)
+        for u in np.argsort(first, kind="stable").tolist():  # first-seen order, as the parser numbers them
+            vals = [dicts[j][int(uniq[u, j])] for j in range(len(REGISTER_COLUMNS))]
+            key = RegisterKey(
+                diag_id=int(vals[0]),
+                device_id=int(vals[1]),
+                device=vals[2],
+                type=vals[3],
+                gs=vals[4],
+                counting_head=vals[5],
+                channel=int(vals[6]),
+                address=int(vals[7]),
+                label=vals[8],
+                label_canonical=vals[9],
+                label_encoding=vals[10],
+            )
+            lut[u] = self._add_register(key)
+        return lut[inverse.reshape(-1)]
+
+    def _add_register(self, key: RegisterKey) -> int:
+        found = self._rids.get(key)
+        if found is not None:
+            return found
+        reg = self.registry
+        rid = self._rids[key] = len(reg.registers)
+        reg.registers.append(key)
+        for interner, value in (
+            (reg.devices, key.device),
+            (reg.types, key.type),
+            (reg.gs, key.gs),
+            (reg.heads, key.counting_head),
+            (reg.labels, key.label),
+            (reg.canonicals, key.label_canonical or key.label),
+        ):
+            interner.code(value)
+        return rid
+
+    def chunks(self, batch: pa.RecordBatch) -> list[DiagChunk]:
+        """One chunk per input file in the batch (rows must be in file, line order)."""
+        if batch.num_rows == 0:
+            return []
+        rid = self._register_ids(batch)
+        data = batch.column("data")
+        if not pa.types.is_dictionary(data.type):
+            data = data.dictionary_encode()
+        data_lut = np.array([self.registry.data.code(v) for v in data.dictionary.to_pylist()], np.int32)
+        data_code = data_lut[data.indices.to_numpy(zero_copy_only=False)]
+        kind = batch.column("data_kind")
+        kind_values = kind.dictionary.to_pylist() if pa.types.is_dictionary(kind.type) else None
+        if kind_values is not None:
+            kind_lut = np.array([DATA_KINDS.index(v) for v in kind_values], np.int8)
+            data_kind = kind_lut[kind.indices.to_numpy(zero_copy_only=False)]
+        else:
+            data_kind = np.array([DATA_KINDS.index(v) for v in kind.to_pylist()], np.int8)
+        time_ns = batch.column("time").cast(pa.int64()).to_numpy(zero_copy_only=False)
+        seq = batch.column("file_seq").to_numpy(zero_copy_only=False)
+        files = batch.column("file")
+        cuts = np.flatnonzero(np.r_[True, seq[1:] != seq[:-1], True])
+        out = []
+        value = batch.column("value").to_numpy(zero_copy_only=False).astype(np.int64)
+        subsecond = batch.column("subsecond").to_numpy(zero_copy_only=False).astype(bool)
+        line = batch.column("line").to_numpy(zero_copy_only=False).astype(np.int64)
+        for a, b in zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True):
+            fid = self.file_id(int(seq[a]), str(files[a].as_py()))
+            ch = DiagChunk(
+                file_id=fid,
+                register_id=rid[a:b].astype(np.int32),
+                time_ns=time_ns[a:b],
+                subsecond=subsecond[a:b],
+                value=value[a:b],
+                data_code=data_code[a:b],
+                data_kind=data_kind[a:b],
+                line=line[a:b],
+            )
+            self.registry.count_records(ch.register_id)
+            out.append(ch)
+        return out

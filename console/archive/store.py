@@ -1,0 +1,269 @@
+"""Where the archive lives on disk, its manifest, the writers' lock and publishing.
+
+Layout of an archive directory::
+
+    CURRENT                      name of the current manifest (atomically replaced)
+    manifests/manifest-000007.json
+    data/<table>/day=YYYY-MM-DD/device_id=<n>/g000007-0003.parquet
+    tmp/                         scratch of a running ingest (never read)
+    lock                         fcntl.flock: one writer at a time
+
+Readers open ``CURRENT``, then only the files its manifest lists.  A writer
+writes new Parquet parts under fresh names (the generation is in the name),
+fsyncs them, writes the next manifest, fsyncs it, and renames a new
+``CURRENT`` over the old one: a ``kill -9`` at any moment leaves either the
+old manifest current (the new parts are unlisted garbage) or the new one
+(every part it lists is complete on disk).  Garbage is removed by the next
+writer, under the lock.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import os
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+SCHEMA = "trackside.archive"
+SCHEMA_VERSION = 1
+CURRENT = "CURRENT"
+MANIFESTS = "manifests"
+DATA = "data"
+TMP = "tmp"
+LOCK = "lock"
+# Manifests kept besides the current one: a query that opened the previous
+# manifest just before an ingest published still finds its files.
+KEEP_MANIFESTS = 2
+
+
+class ArchiveError(Exception):
+    """An archive that cannot be used as asked: one line for the user, exit 2."""
+
+
+class ArchiveBusy(ArchiveError):
+    """Another ingest holds the lock (and --no-wait was given)."""
+
+
+def archive_dir(given: Path | None) -> Path:
+    """``--archive DIR``, else ``$TRACKSIDE_ARCHIVE``, else ``$XDG_DATA_HOME/trackside/archive``."""
+    if given is not None:
+        return given
+    env = os.environ.get("TRACKSIDE_ARCHIVE")
+    if env:
+        return Path(env)
+    xdg = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(xdg) / "trackside" / "archive"
+
+
+@dataclass
+class Manifest:
+    """One published state of the archive: the Parquet parts of every table and the ingest ledger."""
+
+    generation: int = 0
+    tables: dict[str, list[str]] = field(default_factory=dict)  # table → parts, relative to the archive
+    files: list[dict[str, Any]] = field(default_factory=list)  # the ledger: one entry per logical input file
+    derived: dict[str, Any] = field(default_factory=dict)  # settings the derived tables were computed with
+    schema_version: int = SCHEMA_VERSION
+    created: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "schema": f"{SCHEMA}/{self.schema_version}",
+            "schema_version": self.schema_version,
+            "generation": self.generation,
+            "created": self.created,
+            "tables": {k: sorted(v) for k, v in sorted(self.tables.items())},
+            "files": self.files,
+            "derived": self.derived,
+        }
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any]) -> Manifest:
+        version = int(doc.get("schema_version", 0))
+        doc = migrate(doc, version)
+        return cls(
+            generation=int(doc["generation"]),
+            tables={k: list(v) for k, v in doc["tables"].items()},
+            files=list(doc["files"]),
+            derived=dict(doc.get("derived", {})),
+            schema_version=SCHEMA_VERSION,
+            created=str(doc.get("created", "")),
+        )
+
+    def parts(self, table: str) -> list[str]:
+        return self.tables.get(table, [])
+
+
+def migrate(doc: dict[str, Any], version: int) -> dict[str, Any]:
+    """Bring a manifest written by an older trackside up to SCHEMA_VERSION.
+
+    Each step is one function from version n to n+1; a newer archive than
+    this trackside knows is refused rather than misread.
+    """
+    if version > SCHEMA_VERSION:
+        raise ArchiveError(
+            f"archive schema version {version} is newer than this trackside reads ({SCHEMA_VERSION}): upgrade trackside"
+        )
+    if version < 1:
+        raise ArchiveError(f"not a trackside archive manifest (schema version {version})")
+    steps: dict[int, Any] = {}  # e.g. {1: _v1_to_v2}; none yet
+    while version < SCHEMA_VERSION:
+        doc = steps[version](doc)
+        version += 1
+    return doc
+
+
+def _fsync_dir(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def fsync_file(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def manifest_name(generation: int) -> str:
+    return f"manifest-{generation:06d}.json"
+
+
+def read_current(root: Path) -> Manifest:
+    """The published manifest (an empty one for a new or empty archive)."""
+    pointer = root / CURRENT
+    try:
+        name = pointer.read_text(encoding="utf-8").strip()
+    except FileNotFoundError:
+        if root.exists() and not root.is_dir():
+            raise ArchiveError(f"{root}: not a directory") from None
+        return Manifest()
+    except OSError as exc:
+        raise ArchiveError(f"{pointer}: cannot read ({exc.strerror or exc})") from None
+    path = root / MANIFESTS / name
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ArchiveError(f"{path}: unreadable manifest ({exc})") from None
+    if not str(doc.get("schema", "")).startswith(SCHEMA + "/"):
+        raise ArchiveError(f"{path}: not a trackside archive manifest")
+    return Manifest.from_dict(doc)
+
+
+def ensure_layout(root: Path) -> None:
+    if root.exists() and not root.is_dir():
+        raise ArchiveError(f"{root}: not a directory")
+    try:
+        for sub in (MANIFESTS, DATA, TMP):
+            (root / sub).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ArchiveError(f"{root}: cannot create the archive ({exc.strerror or exc})") from None
+
+
+def publish(root: Path, manifest: Manifest, new_parts: list[str]) -> None:
+    """Make ``manifest`` current: fsync its new parts, write it, then swap CURRENT atomically."""
+    for rel in new_parts:
+        fsync_file(root / rel)
+    for d in sorted({(root / rel).parent for rel in new_parts}):
+        _fsync_dir(d)
+    manifest.created = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    name = manifest_name(manifest.generation)
+    mdir = root / MANIFESTS
+    tmp = mdir / f".{name}.tmp"
+    payload = json.dumps(manifest.to_dict(), indent=1, ensure_ascii=False).encode("utf-8")
+    _write_synced(tmp, payload)
+    os.replace(tmp, mdir / name)
+    _fsync_dir(mdir)
+    pointer_tmp = root / f".{CURRENT}.tmp"
+    _write_synced(pointer_tmp, (name + "\n").encode())
+    os.replace(pointer_tmp, root / CURRENT)
+    _fsync_dir(root)
+
+
+def _write_synced(path: Path, payload: bytes) -> None:
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    try:
+        view = memoryview(payload)
+        while view:
+            n = os.write(fd, view)
+            view = view[n:]
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def collect_garbage(root: Path, current: Manifest) -> int:
+    """Remove what no kept manifest lists: parts of killed ingests, replaced parts, scratch files.
+
+    Runs under the writers' lock.  The previous manifests (KEEP_MANIFESTS)
+    and their parts stay, for queries that opened them a moment ago.
+    """
+    mdir = root / MANIFESTS
+    names = sorted(p.name for p in mdir.glob("manifest-*.json")) if mdir.is_dir() else []
+    current_name = manifest_name(current.generation)
+    kept = [n for n in names if n <= current_name][-(KEEP_MANIFESTS + 1) :]
+    listed: set[str] = set()
+    for n in kept:
+        try:
+            doc = json.loads((mdir / n).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        for parts in doc.get("tables", {}).values():
+            listed.update(parts)
+    removed = 0
+    for n in names:
+        if n not in kept:
+            with contextlib.suppress(OSError):
+                (mdir / n).unlink()
+                removed += 1
+    for p in mdir.glob(".*.tmp"):
+        with contextlib.suppress(OSError):
+            p.unlink()
+    data = root / DATA
+    if data.is_dir():
+        for dirpath, _dirs, files in os.walk(data, topdown=False):
+            for f in files:
+                rel = os.path.relpath(os.path.join(dirpath, f), root)
+                if rel not in listed:
+                    with contextlib.suppress(OSError):
+                        os.unlink(os.path.join(dirpath, f))
+                        removed += 1
+            with contextlib.suppress(OSError):
+                os.rmdir(dirpath)  # only succeeds when empty
+    tmp = root / TMP
+    if tmp.is_dir():
+        for p in tmp.iterdir():
+            with contextlib.suppress(OSError):
+                p.unlink()
+                removed += 1
+    return removed
+
+
+@contextlib.contextmanager
+def writer_lock(root: Path, wait: bool = True, on_wait: Any = None) -> Iterator[None]:
+    """Hold the archive's writer lock; a second ingest waits (``on_wait`` is told) or fails clearly."""
+    ensure_layout(root)
+    fd = os.open(root / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            if not wait:
+                raise ArchiveBusy(
+                    f"{root}: another ingest is writing this archive (try again, or drop --no-wait)"
+                ) from None
+            if on_wait is not None:
+                on_wait()
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # closing releases the lock

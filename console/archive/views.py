@@ -1,0 +1,134 @@
+"""DuckDB over the archive, read-only: one view per table, over the current manifest's parts only.
+
+The connection is in memory.  Before the user's SQL runs, file access is
+limited to exactly the Parquet files the manifest lists
+(``allowed_paths`` + ``enable_external_access = false``) and the
+configuration is locked, so ``COPY … TO``, ``ATTACH``, ``INSTALL`` or
+reading other files fail; besides, only one SELECT-like statement is
+accepted (SELECT, WITH, FROM, VALUES, DESCRIBE, SHOW, SUMMARIZE, EXPLAIN).
+A query that started before an ingest published keeps reading the parts
+of the manifest it opened (the next ingest keeps them, see store.KEEP_MANIFESTS).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from console.archive.store import ArchiveError, Manifest, read_current
+
+if TYPE_CHECKING:
+    import duckdb
+
+# Every table the archive knows, with the partition keys in its part paths.
+TABLES: dict[str, tuple[str, ...]] = {
+    "records": ("day", "device_id"),
+    "fixes": (),
+    "frames": (),
+    "passages": ("day", "device_id"),
+    "axles": ("day", "device_id"),
+    "section_states": ("day",),
+    "count_ledger": ("day",),
+    "crossing_timelines": (),
+    "health_findings": (),
+    "rejected": (),
+    "ingests": (),
+}
+HIVE_TYPES = {"day": "DATE", "device_id": "INTEGER"}
+ALLOWED_STATEMENTS = ("SELECT", "EXPLAIN")
+
+
+class QueryError(Exception):
+    """Bad SQL or a statement the archive does not run: DuckDB's message, one line."""
+
+
+def _quote(text: str) -> str:
+    return "'" + text.replace("'", "''") + "'"
+
+
+def connect(root: Path, manifest: Manifest | None = None) -> tuple[duckdb.DuckDBPyConnection, Manifest]:
+    """An in-memory DuckDB connection with a view per archive table, locked read-only."""
+    import duckdb
+
+    m = manifest if manifest is not None else read_current(root)
+    con = duckdb.connect(":memory:", config={"autoinstall_known_extensions": False, "autoload_known_extensions": False})
+    allowed: list[str] = []
+    for table, keys in TABLES.items():
+        parts = [str((root / rel).resolve()) for rel in m.parts(table)]
+        allowed += parts
+        if parts:
+            files = "[" + ", ".join(_quote(p) for p in parts) + "]"
+            hive = ""
+            if keys:
+                types = ", ".join(f"{_quote(k)}: {HIVE_TYPES[k]}" for k in keys)
+                hive = f", hive_partitioning = true, hive_types = {{{types}}}"
+            else:
+                hive = ", hive_partitioning = false"
+            con.execute(f"CREATE VIEW {table} AS SELECT * FROM read_parquet({files}, union_by_name = true{hive})")
+        else:
+            con.execute(f"CREATE VIEW {table} AS SELECT * FROM (SELECT NULL AS empty) WHERE false")
+    con.execute("SET allowed_paths = " + ("[" + ", ".join(_quote(p) for p in allowed) + "]" if allowed else "[]"))
+    con.execute("SET enable_external_access = false")
+    con.execute("SET lock_configuration = true")
+    return con, m
+
+
+def check_read_only(con: duckdb.DuckDBPyConnection, sql: str) -> None:
+    """One SELECT-like statement, or QueryError."""
+    import duckdb
+
+    try:
+        statements = con.extract_statements(sql)
+    except duckdb.Error as exc:
+        raise QueryError(one_line(exc)) from None
+    if len(statements) != 1:
+        raise QueryError(f"give exactly one statement (found {len(statements)})")
+    kind = statements[0].type.name
+    if kind not in ALLOWED_STATEMENTS:
+        raise QueryError(f"the archive is read-only: {kind} statements are not run (only SELECT-like queries)")
+
+
+def one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__
+
+
+def run_query(root: Path, sql: str) -> tuple[list[str], list[tuple[object, ...]]]:
+    """(column names, rows) of one read-only query over the archive."""
+    import duckdb
+
+    con, _ = connect(root)
+    try:
+        check_read_only(con, sql)
+        try:
+            cur = con.execute(sql)
+            rows = cur.fetchall()
+        except duckdb.Error as exc:
+            raise QueryError(one_line(exc)) from None
+        names = [d[0] for d in cur.description or []]
+        return names, rows
+    finally:
+        con.close()
+
+
+def schema(root: Path) -> list[tuple[str, str, str]]:
+    """(table, column, type) of every view; an empty table shows no columns."""
+    con, m = connect(root)
+    try:
+        out: list[tuple[str, str, str]] = []
+        for table in TABLES:
+            if not m.parts(table):
+                out.append((table, "", "(empty)"))
+                continue
+            for name, typ, *_ in con.execute(f"DESCRIBE {table}").fetchall():
+                out.append((table, str(name), str(typ)))
+        return out
+    finally:
+        con.close()
+
+
+def require_archive(root: Path) -> Manifest:
+    m = read_current(root)
+    if m.generation == 0:
+        raise ArchiveError(f"{root}: no archive here yet (run `trackside ingest FILES --archive {root}`)")
+    return m
