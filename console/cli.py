@@ -19,7 +19,6 @@ from console.commands import (
     approach,
     ato,
     crossing,
-    follow,
     frames,
     gnss,
     health,
@@ -64,7 +63,6 @@ for _module in (
     ato,
     station,
     report,
-    follow,
     ingest,
     query,
 ):
