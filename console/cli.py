@@ -19,6 +19,7 @@ from console.commands import (
     approach,
     ato,
     crossing,
+    follow,
     frames,
     gnss,
     health,
@@ -63,6 +64,7 @@ for _module in (
     ato,
     station,
     report,
+    follow,
     ingest,
     query,
 ):
