@@ -130,7 +130,12 @@ class ChunkRebuilder:
         found = self._files.get(file_seq)
         if found is None:
             found = self._files[file_seq] = len(self.registry.files)
-            self.registry.files.append(name)
+            # A rotated file leaves two files of one name: names of a read are unique.
+            shown, n = name, 1
+            while shown in self.registry.files:
+                n += 1
+                shown = f"{name} ({n})"
+            self.registry.files.append(shown)
         return found
 
     def _register_ids(self, batch: pa.RecordBatch) -> np.ndarray:

@@ -36,6 +36,67 @@ TABLES: dict[str, tuple[str, ...]] = {
 }
 HIVE_TYPES = {"day": "DATE", "device_id": "INTEGER"}
 ALLOWED_STATEMENTS = ("SELECT", "EXPLAIN")
+# An empty table still has the columns the presets and scripts name (the
+# derived tables' full columns come from the analyses, once there are rows).
+_T = "TIMESTAMP_NS"
+EMPTY_COLUMNS: dict[str, tuple[tuple[str, str], ...]] = {
+    "records": (
+        ("time", _T),
+        ("day", "DATE"),
+        ("device_id", "INTEGER"),
+        ("counting_head", "VARCHAR"),
+        ("channel", "TINYINT"),
+        ("label_canonical", "VARCHAR"),
+        ("value", "BIGINT"),
+        ("file", "VARCHAR"),
+        ("file_seq", "INTEGER"),
+        ("line", "BIGINT"),
+    ),
+    "axles": (
+        ("time", _T),
+        ("day", "DATE"),
+        ("device_id", "INTEGER"),
+        ("counting_head", "VARCHAR"),
+        ("direction", "VARCHAR"),
+        ("speed_kmh", "DOUBLE"),
+    ),
+    "passages": (
+        ("start", _T),
+        ("day", "DATE"),
+        ("device_id", "INTEGER"),
+        ("counting_head", "VARCHAR"),
+        ("axles", "BIGINT"),
+    ),
+    "crossing_timelines": (
+        ("crossing", "VARCHAR"),
+        ("train", "VARCHAR"),
+        ("t_on", _T),
+        ("t_head_arrival", _T),
+        ("lead_s", "DOUBLE"),
+        ("warning_time_s", "DOUBLE"),
+        ("late_by_s", "DOUBLE"),
+        ("late_cause", "VARCHAR"),
+        ("violations", "VARCHAR"),
+        ("late", "BOOLEAN"),
+    ),
+    "health_findings": (
+        ("severity", "VARCHAR"),
+        ("rule", "VARCHAR"),
+        ("counting_head", "VARCHAR"),
+        ("channel", "BIGINT"),
+        ("message", "VARCHAR"),
+    ),
+    "section_states": (("time", _T), ("day", "DATE"), ("section", "VARCHAR"), ("state", "VARCHAR")),
+    "count_ledger": (("time", _T), ("day", "DATE"), ("section", "VARCHAR"), ("head", "VARCHAR"), ("delta", "BIGINT")),
+    "rejected": (
+        ("file", "VARCHAR"),
+        ("file_seq", "BIGINT"),
+        ("line", "BIGINT"),
+        ("reason", "VARCHAR"),
+        ("text", "VARCHAR"),
+    ),
+    "ingests": (("generation", "BIGINT"), ("path", "VARCHAR"), ("action", "VARCHAR"), ("note", "VARCHAR")),
+}
 
 
 class QueryError(Exception):
@@ -66,7 +127,9 @@ def connect(root: Path, manifest: Manifest | None = None) -> tuple[duckdb.DuckDB
                 hive = ", hive_partitioning = false"
             con.execute(f"CREATE VIEW {table} AS SELECT * FROM read_parquet({files}, union_by_name = true{hive})")
         else:
-            con.execute(f"CREATE VIEW {table} AS SELECT * FROM (SELECT NULL AS empty) WHERE false")
+            cols = EMPTY_COLUMNS.get(table, (("file", "VARCHAR"), ("line", "BIGINT")))
+            select = ", ".join(f"NULL::{typ} AS {name}" for name, typ in cols)
+            con.execute(f"CREATE VIEW {table} AS SELECT {select} WHERE false")
     con.execute("SET allowed_paths = " + ("[" + ", ".join(_quote(p) for p in allowed) + "]" if allowed else "[]"))
     con.execute("SET enable_external_access = false")
     con.execute("SET lock_configuration = true")
@@ -112,14 +175,11 @@ def run_query(root: Path, sql: str) -> tuple[list[str], list[tuple[object, ...]]
 
 
 def schema(root: Path) -> list[tuple[str, str, str]]:
-    """(table, column, type) of every view; an empty table shows no columns."""
-    con, m = connect(root)
+    """(table, column, type) of every view (an empty table shows the columns it will have)."""
+    con, _ = connect(root)
     try:
         out: list[tuple[str, str, str]] = []
         for table in TABLES:
-            if not m.parts(table):
-                out.append((table, "", "(empty)"))
-                continue
             for name, typ, *_ in con.execute(f"DESCRIBE {table}").fetchall():
                 out.append((table, str(name), str(typ)))
         return out
