@@ -22,10 +22,14 @@ file it points to is replaced.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
+import shutil
 import stat
-from collections.abc import Iterable
+import tempfile
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -137,6 +141,37 @@ def check_output_directory(target: Path, what: str = "output") -> None:
         raise OutputError(f"{show_path(target)}: exists and is not a directory")
     if not os.access(target, os.W_OK | os.X_OK):
         raise OutputError(f"{show_path(target)}: directory not writable")
+
+
+@contextmanager
+def staged_directory(target: Path, inputs: Iterable[Path], what: str = "output") -> Iterator[Path]:
+    """A hidden directory inside ``target`` to write a run into; its files move into ``target`` on success.
+
+    Nothing half-written is ever left under its final name: on any error,
+    Ctrl-C or SIGTERM the stage is removed (and ``target`` too, when this
+    call created it and it is still empty).  Before the first file moves,
+    each is checked not to replace an input (OutputError otherwise).
+    """
+    check_output_directory(target, what)
+    created = not target.exists()
+    target.mkdir(exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=".trackside-", dir=target))
+    try:
+        yield stage
+        known = input_identities(inputs)
+        moves = [(p, target / p.relative_to(stage)) for p in sorted(stage.rglob("*")) if not p.is_dir()]
+        for _, dest in moves:
+            _refuse_input(dest, file_identity(dest), known)
+            if dest.is_dir():
+                raise OutputError(f"{show_path(dest)}: is a directory, cannot write the {what} file there")
+        for src, dest in moves:
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(src, dest)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+        if created:
+            with contextlib.suppress(OSError):
+                target.rmdir()  # only when empty: the run failed before anything was published
 
 
 def write_output(target: OutputTarget, data: bytes) -> None:

@@ -7,10 +7,13 @@ from typing import Annotated
 
 import typer
 
+from console.commands.common import guard
+
 
 def report(
     inputs: Annotated[
-        list[Path], typer.Argument(help="Log files or directories (a `trackside simulate` output reads whole).")
+        list[Path],
+        typer.Argument(help="Log files or directories (a `trackside simulate` output reads whole); - reads stdin."),
     ],
     layout: Annotated[
         str | None,
@@ -18,7 +21,12 @@ def report(
     ] = None,
     fmt: Annotated[str, typer.Option("--format", help="md, html or json.")] = "md",
     output: Annotated[
-        Path | None, typer.Option("-o", "--output", help="Write here (atomically) instead of to stdout.")
+        Path | None,
+        typer.Option(
+            "-o",
+            "--output",
+            help="Write here (atomically; never over an input; a device or FIFO written through) instead of stdout.",
+        ),
     ] = None,
     fail_on: Annotated[
         str | None,
@@ -26,6 +34,10 @@ def report(
     ] = None,
 ) -> None:
     """A report for people (Markdown, HTML) or scripts (JSON): unsafe first, then failing, then the rest."""
-    from console.report import run_report
 
-    raise typer.Exit(run_report(inputs, layout, fmt, output, fail_on))
+    def body() -> int:
+        from console.report import run_report
+
+        return run_report(inputs, layout, fmt, output, fail_on)
+
+    raise typer.Exit(guard(body))

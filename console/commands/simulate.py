@@ -38,7 +38,9 @@ def _parse_fault(text: str) -> Any:
 
 
 def simulate(
-    output: Annotated[Path, typer.Option("-o", "--output", help="Directory to write the run into.")],
+    output: Annotated[
+        Path, typer.Option("-o", "--output", help="Directory to write the run into (created; never over an input).")
+    ],
     layout: Annotated[str, typer.Option("--layout", help="Layout file, or osong / example.")] = "example",
     duration: Annotated[str, typer.Option("--duration", help="Simulated time: 90s, 30m, 2h, 1h30m.")] = "2h",
     seed: Annotated[int, typer.Option("--seed", help="Random seed: the same seed gives the same run.")] = 1,
@@ -59,7 +61,9 @@ def simulate(
 
     def body() -> int:
         from console.analysis.timefmt import parse_duration
+        from console.output_path import OutputError, check_output_directory, staged_directory
         from console.progress import byte_progress
+        from console.safe_text import show_path
         from console.sim.radio import LoRaLink
         from console.sim.station import SimConfig, StationSim
         from console.sim.writers import write_run
@@ -74,8 +78,12 @@ def simulate(
             known = {h.id for h in lay.heads} if f.kind not in ("eot_loss", "head_loss") else None
             if known is not None and f.target not in known:
                 raise fail(f"--fault {f.kind}: {f.target} is not a counting head of {lay.source}")
-        if output.exists() and not output.is_dir():
-            raise fail(f"{output}: exists and is not a directory")
+        layout_file = Path(layout)
+        inputs = [layout_file] if layout_file.is_file() else []
+        try:
+            check_output_directory(output, what="run")
+        except OutputError as exc:
+            raise fail(str(exc)) from None
         config = SimConfig(
             seed=seed, trains_per_hour=trains_per_hour, radio=LoRaLink(spreading_factor=spreading_factor), faults=faults
         )
@@ -93,13 +101,18 @@ def simulate(
                     last[0] = t_s
 
             sim.run(seconds, on_step=tick)
-        counts = write_run(sim, output)
+        try:
+            # Written into a hidden stage first: an interrupted run leaves no half-written log behind.
+            with staged_directory(output, inputs, what="run") as stage:
+                counts = write_run(sim, stage)
+        except OutputError as exc:
+            raise fail(str(exc)) from None
         sim_sections = {
             s: {"console": str(sim.engine.state(s)), "true_count": sim.true_count(s)} for s in sim.engine.sections
         }
         summary = {
             "schema": "trackside.simulate/1",
-            "output": str(output),
+            "output": show_path(output),
             "layout": lay.source,
             "seed": seed,
             "duration_s": seconds,
@@ -121,7 +134,7 @@ def simulate(
                 markup=False,
             )
             for name, n in counts.items():
-                out.print(f"  {output / name}: {n}", markup=False)
+                out.print(f"  {show_path(output / name)}: {n}", markup=False)
             for sid, st in sim_sections.items():
                 out.print(
                     f"  section {sid}: console {st['console']}, axles really inside {st['true_count']}", markup=False

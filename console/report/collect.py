@@ -7,6 +7,7 @@ UTF-16 are seen through), in this order:
 * ``*.toml`` → a layout (used when no ``--layout`` is given: the first one);
 * ``truth.json`` (or a ``trackside.truth/…`` document) → the simulator's
   ground truth: listed, **not read** — a report says what the logs say;
+* a report trackside wrote (Markdown, HTML, JSON) → listed, not read;
 * ``Diag_id:…`` → a diagnostic log;
 * BLF signature, ``.asc``, or a ``.log`` whose first line starts with
   ``(`` (candump) → a CAN log;
@@ -35,7 +36,9 @@ centre repeats the head units' positions, under the train's name).
 from __future__ import annotations
 
 import csv
+import errno
 import os
+import stat
 import zlib
 from collections.abc import Sequence
 from dataclasses import replace
@@ -52,6 +55,7 @@ from console.analysis.health import Finding, sort_findings, voltage_margin_findi
 from console.analysis.sections import SectionState, run_sections
 from console.jobs import HEALTH_REGISTERS, analyze_files, detection_events, health_findings, input_bytes
 from console.layout import Layout, LayoutError, load_layout
+from console.output_path import file_identity
 from console.progress import byte_progress
 from console.report.model import (
     CAN,
@@ -71,6 +75,7 @@ from console.report.model import (
     ReportData,
     natural_key,
 )
+from console.safe_text import show_path
 from parsers.frames import frame_line_problem, parse_can, parse_frames
 from parsers.gnss import parse_gnss, recognise_format
 from parsers.report import escape_text
@@ -78,6 +83,7 @@ from parsers.sources import InputError, open_input
 from parsers.voltages import parse_header, read_voltages
 
 PEEK_BYTES = 64 * 1024
+STDIN_NAME = "-"  # an input that means standard input
 _GNSS = {"nmea": NMEA, "csv": GNSS_CSV, "jsonl": GNSS_JSONL, "centre": CENTRE}
 
 
@@ -125,6 +131,10 @@ def recognise(path: Path) -> tuple[str, str]:
     suffix = suffixes[-1] if suffixes else ""
     if path.name == "truth.json" or b'"schema": "trackside.truth/' in head:
         return TRUTH, "the simulator's ground truth: not read, the report shows what the logs say"
+    if head.startswith(b"# trackside report") or b'"schema": "trackside.report/' in head[:200]:
+        return UNKNOWN, "not read: a trackside report"
+    if head.lstrip().startswith(b"<!DOCTYPE html>") and b"trackside report" in head:
+        return UNKNOWN, "not read: a trackside report"
     first = _first_line(head)
     if first is None:
         return EMPTY, "empty: no line to read"
@@ -145,42 +155,103 @@ def recognise(path: Path) -> tuple[str, str]:
     return UNKNOWN, f"not read: unrecognised format, first line '{escape_text(text, 60)}'"
 
 
+def _special_kind(mode: int) -> str:
+    if stat.S_ISFIFO(mode):
+        return "a FIFO"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    return "not a regular file"
+
+
+def _entry_problem(p: Path) -> str | None:
+    """Why a directory entry is skipped (a dangling link, a loop, a FIFO…), or None for a regular file."""
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        return "a symlink to nothing" if os.path.islink(p) else "vanished while the directory was read"
+    except OSError as exc:
+        return "a symlink loop" if exc.errno == errno.ELOOP else f"cannot be opened ({exc.strerror or exc})"
+    if stat.S_ISREG(st.st_mode):
+        return None
+    # A FIFO would block the report until some writer appears: never opened from a directory.
+    return f"{_special_kind(st.st_mode)}, not a regular file"
+
+
+def _given_problem(p: Path) -> str | None:
+    """Why an input named on the command line cannot be read, or None (files, ``-``, FIFOs, /dev/stdin)."""
+    if os.fsdecode(p) == STDIN_NAME:
+        return None
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        return "a symlink to nothing" if os.path.islink(p) else "no such file or directory"
+    except OSError as exc:
+        return "symlink loop" if exc.errno == errno.ELOOP else f"cannot be opened ({exc.strerror or exc})"
+    if stat.S_ISSOCK(st.st_mode):
+        return "a socket, not a file to read"
+    return None
+
+
 def expand(inputs: Sequence[Path], exclude: Path | None = None) -> tuple[list[Path], list[str]]:
-    """Input files in order (a directory's files sorted, recursively), and warnings about what was skipped."""
+    """Input files in order (a directory's files sorted, recursively), and warnings about what was skipped.
+
+    ``exclude`` is the report being written: inside an input directory it is
+    not read back when it is no log (a previous report); when it is a log
+    the report would replace, or it is named as an input, the report is
+    refused (:class:`ReportInputError`).  Named inputs may be ``-``, FIFOs
+    and ``/dev/stdin`` (read as streams); inside a directory only regular
+    files are read, and every other entry is skipped with its reason.
+    """
     files: list[Path] = []
     warnings: list[str] = []
-    skip = exclude.resolve() if exclude is not None else None
-    seen: set[Path] = set()
+    skip = file_identity(exclude) if exclude is not None else None
+    seen: set[object] = set()
 
     def add(p: Path) -> None:
-        if not os.access(p, os.R_OK):
-            raise ReportInputError(f"{p}: permission denied")
-        real = p.resolve()
-        if real in seen:
-            warnings.append(f"{p}: given twice, read once")
+        if os.fsdecode(p) != STDIN_NAME and not os.access(p, os.R_OK):
+            raise ReportInputError(f"{show_path(p)}: permission denied")
+        key = file_identity(p) or os.fsdecode(p)
+        if key in seen:
+            warnings.append(f"{show_path(p)}: given twice, read once")
             return
-        seen.add(real)
+        seen.add(key)
         files.append(p)
 
     for given in inputs:
-        if not given.exists():
-            raise ReportInputError(f"{given}: no such file or directory")
+        problem = _given_problem(given)
+        if problem is not None:
+            raise ReportInputError(f"{show_path(given)}: {problem}")
         if not given.is_dir():
+            if skip is not None and file_identity(given) == skip:
+                raise ReportInputError(f"{show_path(given)}: is an input; refusing to write the report over it")
             add(given)
             continue
         hidden = 0
         found: list[Path] = []
         for root, dirs, names in os.walk(given):
             hidden += sum(1 for d in dirs if d.startswith(".")) + sum(1 for n in names if n.startswith("."))
+            for d in dirs:
+                if not d.startswith(".") and os.path.islink(os.path.join(root, d)):
+                    warnings.append(f"{show_path(Path(root) / d)}: a symlink to a directory, not followed")
             dirs[:] = sorted(d for d in dirs if not d.startswith("."))
             found += [Path(root) / n for n in names if not n.startswith(".")]
         # Natural order (T2 before T10), by relative path: the same tree always reads the same way.
-        for p in sorted(found, key=lambda q: natural_key(q.relative_to(given).as_posix())):
-            if skip is not None and p.resolve() == skip:
-                continue  # the report being written into the directory it reads
+        for p in sorted(found, key=lambda q: natural_key(os.fsdecode(q.relative_to(given).as_posix()))):
+            problem = _entry_problem(p)
+            if problem is not None:
+                warnings.append(f"{show_path(p)}: {problem}: skipped")
+                continue
+            if skip is not None and file_identity(p) == skip:
+                if recognise(p)[0] in (UNKNOWN, EMPTY):
+                    continue  # the previous report, written into the directory it reads
+                raise ReportInputError(
+                    f"{show_path(p)}: is an input (a log in {show_path(given)}); refusing to write the report over it"
+                )
             add(p)
         if hidden:
-            warnings.append(f"{given}: {hidden} hidden entries (names starting with '.') not read")
+            warnings.append(f"{show_path(given)}: {hidden} hidden entries (names starting with '.') not read")
     return files, warnings
 
 

@@ -1,28 +1,29 @@
 """`trackside report`: one call that reads the inputs, renders a format, and writes it atomically.
 
-:func:`run_report` never raises: it returns the exit code (0 ok, 1 a
+:func:`run_report` raises only when stdout fails: it returns the exit code (0 ok, 1 a
 finding reached ``--fail-on``, 2 an error) and writes errors as one line
-on stderr, ``trackside: error: …``.  Without ``-o`` the report itself is
+on stderr, ``trackside: error: …`` (a failed write to standard output is
+raised, for the command's guard).  Without ``-o`` the report itself is
 the only thing on stdout; with ``-o`` nothing is printed at all.  Progress
 goes to stderr only on a terminal, for big inputs.
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
 import sys
 from pathlib import Path
 
 from console import exit_codes
 from console.analysis.health import Severity
+from console.jsonout import valid_unicode
 from console.layout import LayoutError
+from console.output_path import STDOUT, OutputError, check_output_file, write_output
 from console.report.collect import ReportInputError, collect
 from console.report.html import render_html
 from console.report.markdown import render_markdown
 from console.report.model import ReportData, document, json_text
-from console.report.write import write_atomic
-from console.safe_text import clean
+from console.safe_text import clean, show_path
 from parsers.sources import InputError
 
 FORMATS = ("md", "html", "json")
@@ -38,7 +39,7 @@ def render(data: ReportData, fmt: str) -> str:
     """The report in one format (md, html or json)."""
     doc = document(data)
     if fmt == "json":
-        return json_text(doc)
+        return valid_unicode(json_text(doc))
     if fmt == "md":
         return render_markdown(doc)
     return render_html(data, doc)
@@ -53,7 +54,13 @@ def exit_code(data: ReportData, threshold: Severity | None) -> int:
 
 
 def run_report(inputs: list[Path], layout: str | None, fmt: str, output: Path | None, fail_on: str | None) -> int:
-    """Read ``inputs`` (files or directories), write the report to ``output`` (or stdout); the exit code."""
+    """Read ``inputs`` (files or directories), write the report to ``output`` (or stdout); the exit code.
+
+    ``output`` is checked before any work (:func:`console.output_path.check_output_file`):
+    never an input, a device or FIFO written through, a directory refused.
+    A failed write to standard output raises :class:`OSError` for the
+    command's guard to report (``cannot write output``, or quiet for ``| head``).
+    """
     if fmt not in FORMATS:
         return _error(f"--format: expected md, html or json, found {fmt!r}")
     threshold = None
@@ -64,14 +71,18 @@ def run_report(inputs: list[Path], layout: str | None, fmt: str, output: Path | 
             return _error(f"--fail-on: {exc}")
     if not inputs:
         return _error("give input files or directories (a `trackside simulate` directory, logs, tables)")
-    if output is not None and output.is_dir():
-        return _error(f"{output}: is a directory, expected a report file name")
-    if output is not None and not output.parent.is_dir() and str(output.parent):
-        return _error(f"{output.parent}: no such directory for the report")
+    if output is not None and os.fsdecode(output) == STDOUT:
+        output = None
+    target = None
     try:
+        if output is not None:
+            target = check_output_file(output, inputs, what="report")
         data = collect(inputs, layout, exclude=output)
+        if output is not None:
+            # Again against every file read (those found in directories too).
+            target = check_output_file(output, [Path(i.path) for i in data.inputs], what="report")
         text = render(data, fmt)
-    except (ReportInputError, InputError, LayoutError) as exc:
+    except (ReportInputError, InputError, LayoutError, OutputError) as exc:
         return _error(str(exc))
     except MemoryError:
         return _error("out of memory")
@@ -80,21 +91,15 @@ def run_report(inputs: list[Path], layout: str | None, fmt: str, output: Path | 
             raise
         return _error(f"internal error: {type(exc).__name__}: {exc} (set TRACKSIDE_DEBUG=1 for details)")
     payload = text.encode("utf-8")
-    if output is None:
-        try:
-            if hasattr(sys.stdout, "buffer"):
-                sys.stdout.buffer.write(payload)
-            else:
-                sys.stdout.write(text)
-            sys.stdout.flush()
-        except BrokenPipeError:
-            # Piped into `head` or similar: stop quietly (and keep Python from complaining at exit).
-            with contextlib.suppress(OSError, ValueError, AttributeError):
-                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-            return exit_codes.OK
+    if target is None:
+        if hasattr(sys.stdout, "buffer"):
+            sys.stdout.buffer.write(payload)
+        else:
+            sys.stdout.write(text)
+        sys.stdout.flush()
     else:
         try:
-            write_atomic(output, payload)
+            write_output(target, payload)
         except OSError as exc:
-            return _error(f"{output}: cannot write the report ({exc.strerror or exc})")
+            return _error(f"{show_path(output or target.path)}: cannot write the report ({exc.strerror or exc})")
     return exit_code(data, threshold)
