@@ -80,16 +80,11 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
-from parsers.nmea import (
-    DEVICE_TAG_RE,
-    FIX_COLUMNS,
-    KMH_MPS,
-    FixRows,
-    NmeaParser,
-    check_roles,
-    open_lines,
-    utc_times,
-)
+from parsers.fix_table import FIX_COLUMNS, FixRows, check_roles, utc_times
+from parsers.gnss_lines import open_lines
+from parsers.gnss_stream import StreamParser
+from parsers.gnss_time import parse_time_ns
+from parsers.nmea import DEVICE_TAG_RE, KMH_MPS
 from parsers.report import FileReport, ParseReport
 from parsers.sources import open_input
 
@@ -164,11 +159,6 @@ _DEVICE_KEYS = {alias: column for column, aliases in _DEVICE_ALIASES.items() for
 _UNITS = {"km/h": "kmh", "kmh": "kmh", "kph": "kmh", "m/s": "mps", "mps": "mps", "deg": "deg", "°": "deg"}
 _UNIT_RE = re.compile(r"^(.*?)\s*\(\s*([^)]*?)\s*\)$")
 
-_ISO_RE = re.compile(
-    r"(\d{4})-(\d{2})-(\d{2})[T ](\d{2}):(\d{2}):(\d{2})(?:[.,](\d{1,9}))?\s*(Z|[+-]\d{2}(?::?\d{2})?)?",
-    re.IGNORECASE,
-)
-_DMY_RE = re.compile(r"(\d{1,2})/(\d{1,2})/(\d{4})[T ](\d{2}):(\d{2}):(\d{2})(?:[.,](\d{1,9}))?")
 _NUMBER_RE = re.compile(r"[+-]?\d+(?:[.,]\d+)?")
 _KM_POST_RE = re.compile(r"(?:km\s*)?(\d{1,4})\s*\+\s*(\d{3}(?:[.,]\d+)?)", re.IGNORECASE)
 _MINUS = str.maketrans({"−": "-", "–": "-"})
@@ -194,37 +184,6 @@ def header_key(cell: str) -> str:
         base, unit = m.group(1), m.group(2).replace(" ", "")
         text = f"{base} {_UNITS.get(unit, unit)}".strip()
     return text
-
-
-def parse_time_ns(text: str, utc_offset_h: float = 0.0) -> int:
-    """ISO 8601 date and time (``Z``/offset → UTC; no zone: local time at ``utc_offset_h``, default UTC)
-    or ``DD/MM/YYYY HH:MM:SS`` → ns since the epoch.  ValueError with the reason otherwise."""
-    s = text.strip()
-    m = _ISO_RE.fullmatch(s)
-    zone = None
-    if m:
-        year, month, day, hh, mm, ss, frac, zone = m.groups()
-    else:
-        d = _DMY_RE.fullmatch(s)
-        if d is None:
-            raise ValueError(f"'{s}' is not a date and time (expected e.g. 2026-01-19 17:06:41 or …T17:06:41Z)")
-        day, month, year, hh, mm, ss, frac = d.groups()
-    try:
-        days = (dt.date(int(year), int(month), int(day)) - _EPOCH).days
-    except ValueError:
-        raise ValueError(f"'{s}': no such date") from None
-    h, mi, sec = int(hh), int(mm), int(ss)
-    if h > 23 or mi > 59 or sec > 60:
-        raise ValueError(f"'{s}': no such time of day")
-    ns = ((days * 24 + h) * 60 + mi) * 60 * _NS + sec * _NS + (int(frac.ljust(9, "0")) if frac else 0)
-    if zone is None:
-        offset_s = round(utc_offset_h * 3600)
-    elif zone.upper() == "Z":
-        offset_s = 0
-    else:
-        digits = zone[1:].replace(":", "")
-        offset_s = (int(digits[:2]) * 3600 + int(digits[2:4] or 0) * 60) * (1 if zone[0] == "+" else -1)
-    return ns - offset_s * _NS
 
 
 def parse_decimal(value: Any, what: str) -> float:
@@ -682,7 +641,7 @@ def parse_gnss(
     report = ParseReport()
     role_map = check_roles(roles)
     rows, crossings = FixRows(), CrossingRows()  # one table, in file order, before the sort
-    nmea = NmeaParser(report, role_map, rows)
+    nmea = StreamParser(report, role_map, rows)
     for path in map(Path, paths):
         fmt = recognise_format(path)
         if fmt == "nmea":

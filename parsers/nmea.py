@@ -96,51 +96,51 @@ from __future__ import annotations
 import datetime as dt
 import math
 import re
-from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-import numpy as np
-import pandas as pd
 from pynmeagps import VALMSGID, NMEAReader
 
-from parsers.report import FileReport, ParseReport
-from parsers.sources import OverlongLine, iter_chunks, open_input
-
-FIX_COLUMNS = (
-    "time",
-    "device",
-    "role",
-    "lat",
-    "lon",
-    "speed_mps",
-    "course_deg",
-    "valid",
-    "source",
-    "sentence",
-    "file",
-    "line",
+from parsers.fix_table import (  # re-exported: the fix table's home was here
+    FIX_COLUMNS,
+    NAT_NS,
+    ROLES,
+    SENTENCES,
+    SOURCES,
+    FixRows,
+    check_roles,
+    utc_times,
 )
-ROLES = ("head", "eot", "")
-SOURCES = ("nmea", "csv", "jsonl", "centre")
-SENTENCES = ("RMC", "GGA", "VTG", "")
-ROLE_DTYPE = pd.CategoricalDtype(list(ROLES))
-SOURCE_DTYPE = pd.CategoricalDtype(list(SOURCES))
-SENTENCE_DTYPE = pd.CategoricalDtype(list(SENTENCES))
+
+__all__ = [
+    "FIX_COLUMNS",
+    "NAT_NS",
+    "ROLES",
+    "SENTENCES",
+    "SOURCES",
+    "DeviceClock",
+    "Fix",
+    "FixRows",
+    "SentenceError",
+    "check_roles",
+    "decode_sentence",
+    "nmea_checksum",
+    "utc_times",
+]
 
 KNOT_MPS = 1852 / 3600  # 1 international knot = 1852 m per hour, exactly
 KMH_MPS = 1000 / 3600
 
-NAT_NS = int(np.iinfo(np.int64).min)  # the int64 value of NaT
 _NS = 1_000_000_000
 _DAY_NS = 86_400 * _NS
 _EPOCH = dt.date(1970, 1, 1)
 
 # Payload fields (after the address) a complete sentence has, and the fewest
 # a checksummed sentence may have (the fields read here).
-_FULL_FIELDS = {"RMC": 11, "GGA": 14, "VTG": 8}
-_MIN_FIELDS = {"RMC": 9, "GGA": 7, "VTG": 8}
+_FULL_FIELDS = {"RMC": 11, "GGA": 14, "VTG": 8, "GLL": 6, "GNS": 12}
+_MIN_FIELDS = {"RMC": 9, "GGA": 7, "VTG": 8, "GLL": 6, "GNS": 6}
+# GNS mode characters (one per constellation) that mean a position fix; E is estimated (dead reckoning).
+_GNS_FIX_MODES = frozenset("ADPRFE")
 _VALID_GGA_QUALITY = range(1, 7)
 _DEAD_RECKONING = 6
 
@@ -162,145 +162,25 @@ class SentenceError(Exception):
         self.reason = reason
 
 
-# --------------------------------------------------------------------- table
-
-
-@dataclass
-class FixRows:
-    """Fix rows being collected, column by column (``time`` in ns, NaT as :data:`NAT_NS`)."""
-
-    time: list[int] = field(default_factory=list)
-    device: list[str] = field(default_factory=list)
-    role: list[str] = field(default_factory=list)
-    lat: list[float] = field(default_factory=list)
-    lon: list[float] = field(default_factory=list)
-    speed_mps: list[float] = field(default_factory=list)
-    course_deg: list[float] = field(default_factory=list)
-    valid: list[bool] = field(default_factory=list)
-    source: list[str] = field(default_factory=list)
-    sentence: list[str] = field(default_factory=list)
-    file: list[str] = field(default_factory=list)
-    line: list[int] = field(default_factory=list)
-
-    def add(
-        self,
-        *,
-        time_ns: int,
-        device: str,
-        role: str,
-        lat: float,
-        lon: float,
-        speed_mps: float,
-        course_deg: float,
-        valid: bool,
-        source: str,
-        sentence: str,
-        file: str,
-        line: int,
-    ) -> None:
-        self.time.append(time_ns)
-        self.device.append(device)
-        self.role.append(role)
-        self.lat.append(lat)
-        self.lon.append(lon)
-        self.speed_mps.append(speed_mps)
-        self.course_deg.append(course_deg)
-        self.valid.append(valid)
-        self.source.append(source)
-        self.sentence.append(sentence)
-        self.file.append(file)
-        self.line.append(line)
-
-    def __len__(self) -> int:
-        return len(self.line)
-
-    def frame(self) -> pd.DataFrame:
-        """The rows as a fix table with the documented dtypes."""
-        return pd.DataFrame(
-            {
-                "time": utc_times(self.time),
-                "device": pd.Categorical(self.device),
-                "role": pd.Categorical(self.role, dtype=ROLE_DTYPE),
-                "lat": np.array(self.lat, dtype="float64"),
-                "lon": np.array(self.lon, dtype="float64"),
-                "speed_mps": np.array(self.speed_mps, dtype="float64"),
-                "course_deg": np.array(self.course_deg, dtype="float64"),
-                "valid": np.array(self.valid, dtype="bool"),
-                "source": pd.Categorical(self.source, dtype=SOURCE_DTYPE),
-                "sentence": pd.Categorical(self.sentence, dtype=SENTENCE_DTYPE),
-                "file": pd.Categorical(self.file),
-                "line": np.array(self.line, dtype="int64"),
-            },
-            columns=list(FIX_COLUMNS),
-        )
-
-
-def utc_times(ns: list[int] | np.ndarray) -> pd.DatetimeIndex:
-    """int64 ns since the epoch (NaT as :data:`NAT_NS`) → datetime64[ns, UTC]."""
-    return pd.DatetimeIndex(np.asarray(ns, dtype="int64").view("datetime64[ns]")).tz_localize("UTC")
-
-
-def check_roles(roles: Mapping[str, str] | None) -> dict[str, str]:
-    """Validate a device → role mapping; ValueError naming the bad entry."""
-    out = dict(roles or {})
-    for device, role in out.items():
-        if role not in ROLES:
-            raise ValueError(f"device '{device}': role '{role}' is not one of 'head', 'eot' or '' (unknown)")
-    return out
-
-
-# ------------------------------------------------------------------ reading
-
-
-def open_lines(path: Path, report: ParseReport) -> tuple[FileReport, Iterator[tuple[int, bytes]]]:
-    """Open a file: its :class:`FileReport` (appended to ``report``) and its lines.
-
-    The iterator yields (line number, line without its end) and counts
-    ``lines_read``; the caller counts each yielded line as a record, blank or
-    rejection.  Lines too long to be a GNSS record are rejected here.
-    :class:`parsers.sources.InputError` if the file cannot be read.
-    """
-    stream, raw, info = open_input(path)
-    name = str(path)
-    fr = FileReport(file=name, encoding=info.encoding, compressed=info.compressed)
-    report.files.append(fr)
-
-    def lines() -> Iterator[tuple[int, bytes]]:
-        number = 0
-        try:
-            for item in iter_chunks(stream, info, name=name):
-                if isinstance(item, OverlongLine):
-                    number += 1
-                    fr.lines_read += 1
-                    reason = f"line of {item.length} bytes is too long to be a GNSS record"
-                    report.reject(fr, number, "too long", reason, item.head)
-                    continue
-                chunk = bytes(item.data).split(b"\n")
-                if chunk[-1] == b"":
-                    chunk.pop()
-                for text in chunk:
-                    number += 1
-                    fr.lines_read += 1
-                    yield number, text.removesuffix(b"\r")
-            fr.bytes_read = raw.tell()
-        finally:
-            stream.close()
-            raw.close()
-        fr.ends_without_newline = info.ends_without_newline
-
-    return fr, lines()
-
-
 # ------------------------------------------------------------------ decoding
 
 
-@dataclass
+@dataclass(slots=True)
 class DeviceClock:
-    """What a device said about the date, for the sentences that carry only a time of day."""
+    """What a device said about the date, and which row holds its current epoch.
+
+    Slots and no per-record objects: one of these per device, however many
+    devices a file interleaves.
+    """
 
     day: dt.date | None = None
     day_tod_ns: int | None = None  # time of day of the sentence that gave the date
     last_time_ns: int = NAT_NS  # time of the latest RMC/GGA row, for VTG
+    row: int = -1  # index of the device's latest RMC/GGA/TPV row (the epoch a sentence may join)
+    row_weak: bool = False  # that row is "no fix" only by a weak sign (Fix.weak_no_fix)
+    # Rows whose time of day came before any date (a GGA before the first RMC):
+    # (row index, time of day in ns), dated as soon as a date arrives.
+    undated: list[tuple[int, int]] = field(default_factory=list)
 
     def set_date(self, day: dt.date, tod_ns: int | None) -> None:
         self.day = day
@@ -331,6 +211,9 @@ class Fix:
     speed_mps: float
     course_deg: float
     valid: bool
+    tod_ns: int | None = None  # the time of day the sentence gave (for dating it later)
+    fix_quality: str = ""  # parsers.fix_table.FIX_QUALITIES
+    weak_no_fix: bool = False  # no fix only by a weak sign (a GGA fix quality from 0 satellites)
 
 
 def nmea_checksum(body: bytes) -> int:
@@ -418,7 +301,9 @@ def _rmc(address: str, payload: list[str], clock: DeviceClock) -> Fix:
     time_ns = clock.time_ns(tod)
     mode = payload[11] if len(payload) > 11 else ""
     valid = status == "A" and mode != "N" and not math.isnan(lat)
-    return Fix("RMC", time_ns, lat, lon, speed_kn * KNOT_MPS, course, valid)
+    # NMEA 4.1 mode E: estimated (dead reckoning).
+    quality = "no_fix" if not valid else "dead_reckoning" if mode == "E" else "gnss"
+    return Fix("RMC", time_ns, lat, lon, speed_kn * KNOT_MPS, course, valid, tod, quality)
 
 
 def _gga(address: str, payload: list[str], clock: DeviceClock) -> Fix:
@@ -435,7 +320,11 @@ def _gga(address: str, payload: list[str], clock: DeviceClock) -> Fix:
     # A satellite fix from no satellites is a receiver's stale flag (gpsd says no fix too).
     no_satellites = used_raw != "" and int(used_raw) == 0 and quality != _DEAD_RECKONING
     valid = quality in _VALID_GGA_QUALITY and not no_satellites and not math.isnan(lat)
-    return Fix("GGA", clock.time_ns(tod), lat, lon, math.nan, math.nan, valid)
+    fix_quality = "no_fix" if not valid else "dead_reckoning" if quality == _DEAD_RECKONING else "gnss"
+    fix = Fix("GGA", clock.time_ns(tod), lat, lon, math.nan, math.nan, valid, tod, fix_quality)
+    # Only the satellite count says "no fix": a weak verdict that an RMC of the same epoch may overrule.
+    fix.weak_no_fix = no_satellites and quality in _VALID_GGA_QUALITY and not math.isnan(lat)
+    return fix
 
 
 def _vtg(address: str, payload: list[str], clock: DeviceClock) -> Fix:
@@ -464,7 +353,33 @@ def _zda(address: str, payload: list[str], clock: DeviceClock) -> None:
     clock.set_date(day, tod)
 
 
-_DECODERS = {"RMC": _rmc, "GGA": _gga, "VTG": _vtg}
+def _gll(address: str, payload: list[str], clock: DeviceClock) -> Fix:
+    msg = _library_parse(address, payload)
+    lat, lon = _position(msg, payload, 0)
+    tod = _tod_ns(msg.time, payload[4])
+    status = payload[5]
+    if status not in ("A", "V", ""):
+        raise SentenceError("field", f"status field '{status}' is not A (valid) or V (no fix)")
+    mode = payload[6] if len(payload) > 6 else ""
+    valid = status == "A" and mode != "N" and not math.isnan(lat)
+    quality = "no_fix" if not valid else "dead_reckoning" if mode == "E" else "gnss"
+    return Fix("GLL", clock.time_ns(tod), lat, lon, math.nan, math.nan, valid, tod, quality)
+
+
+def _gns(address: str, payload: list[str], clock: DeviceClock) -> Fix:
+    msg = _library_parse(address, payload)
+    tod = _tod_ns(msg.time, payload[0])
+    lat, lon = _position(msg, payload, 1)
+    modes = payload[5]
+    if not modes.isalpha() and modes != "":
+        raise SentenceError("field", f"mode field '{modes}' is not mode letters (N, A, D, P, R, F, E, M, S)")
+    fixing = {m for m in modes if m in _GNS_FIX_MODES}
+    valid = bool(fixing) and not math.isnan(lat)
+    quality = "no_fix" if not valid else "dead_reckoning" if fixing == {"E"} else "gnss"
+    return Fix("GNS", clock.time_ns(tod), lat, lon, math.nan, math.nan, valid, tod, quality)
+
+
+_DECODERS = {"RMC": _rmc, "GGA": _gga, "VTG": _vtg, "GLL": _gll, "GNS": _gns}
 
 
 def decode_sentence(sentence: bytes, clock: DeviceClock) -> Fix | None:
@@ -513,101 +428,3 @@ def decode_sentence(sentence: bytes, clock: DeviceClock) -> Fix | None:
     if kind != "VTG" and fix.time_ns != NAT_NS:
         clock.last_time_ns = fix.time_ns
     return fix
-
-
-# ------------------------------------------------------------------- parser
-
-
-class NmeaParser:
-    """Parse NMEA files into fix rows, keeping each device's date across files."""
-
-    def __init__(
-        self, report: ParseReport, roles: Mapping[str, str] | None = None, rows: FixRows | None = None
-    ) -> None:
-        self.report = report
-        self.roles = check_roles(roles)
-        self.clocks: dict[str, DeviceClock] = {}
-        self.rows = rows if rows is not None else FixRows()
-
-    def parse_file(self, path: Path) -> None:
-        """Parse one file; its rows are appended to :attr:`rows`."""
-        fr, lines = open_lines(path, self.report)
-        for number, raw in lines:
-            self.parse_line(fr, number, raw, path.stem)
-
-    def parse_line(self, fr: FileReport, number: int, raw: bytes, default_device: str) -> None:
-        """Count one line as a record, blank or rejection; add its rows."""
-        text = raw.strip(b" \t\r")
-        if not text or text[:1] == b"#":
-            fr.blank += 1
-            return
-        bad = _UNPRINTABLE_RE.search(text)
-        if bad is not None:
-            reason = f"binary data: byte 0x{text[bad.start()]:02x} at column {bad.start() + 1}"
-            self.report.reject(fr, number, "binary", reason, raw)
-            return
-        device = default_device
-        if text[:1] not in (b"$", b"!"):
-            tag = DEVICE_TAG_RE.match(text)
-            if tag is None:
-                self.report.reject(fr, number, "not nmea", f"not an NMEA sentence: expected {_DEVICE_TAG_HELP}", raw)
-                return
-            device = tag.group(1).decode("ascii")
-            text = text[tag.end() :]
-        if b"\t" in text:
-            reason = "a tab inside a sentence (a tab may only separate a device tag from its sentence)"
-            self.report.reject(fr, number, "binary", reason, raw)
-            return
-        sentences = [s for s in _SENTENCE_START_RE.split(text) if s]
-        clock = self.clocks.setdefault(device, DeviceClock())
-        role = self.roles.get(device, "")
-        errors: list[tuple[int, SentenceError]] = []
-        rows = 0
-        for k, sentence in enumerate(sentences, start=1):
-            try:
-                fix = decode_sentence(sentence, clock)
-            except SentenceError as exc:
-                errors.append((k, exc))
-                continue
-            if fix is None:
-                continue
-            rows += 1
-            self.rows.add(
-                time_ns=fix.time_ns,
-                device=device,
-                role=role,
-                lat=fix.lat,
-                lon=fix.lon,
-                speed_mps=fix.speed_mps,
-                course_deg=fix.course_deg,
-                valid=fix.valid,
-                source="nmea",
-                sentence=fix.sentence,
-                file=fr.file,
-                line=number,
-            )
-        if errors:
-            k, first = errors[0]
-            where = f"sentence {k} of {len(sentences)} on this line: " if len(sentences) > 1 else ""
-            self.report.reject(fr, number, first.category, where + first.reason, raw)
-        elif rows:
-            fr.records += 1
-        else:
-            fr.blank += 1
-
-
-def parse_nmea(
-    paths: Iterable[Path | str], *, roles: Mapping[str, str] | None = None
-) -> tuple[pd.DataFrame, ParseReport]:
-    """Parse NMEA 0183 logs into one fix table (:data:`FIX_COLUMNS`, file order) and a report.
-
-    ``roles`` maps device ids (file stems or line tags) to ``"head"`` or
-    ``"eot"``; ValueError for any other role.  InputError for an unreadable
-    file.
-    """
-    report = ParseReport()
-    parser = NmeaParser(report, roles)
-    for path in paths:
-        parser.parse_file(Path(path))
-    report.check()
-    return parser.rows.frame(), report

@@ -69,6 +69,7 @@ def gnss_json(fixes: pd.DataFrame, report: ParseReport) -> dict[str, Any]:
                 "sentence": str(r.sentence),
                 "file": str(r.file),
                 "line": int(r.line),
+                "fix_quality": str(r.fix_quality),
             }
         )
     return {"fixes": rows, "parse_report": report.to_dict()}
