@@ -62,7 +62,8 @@ def analyze_files(
     else is held in memory.
     """
     reader = DiagReader(paths, on_progress=on_progress)
-    acc = DiagAccumulator(reader.registry, keep_releases=keep_releases)
+    # One file cannot overlap another: no per-record fingerprints kept then.
+    acc = DiagAccumulator(reader.registry, keep_releases=keep_releases, track_overlap=len(paths) > 1)
     kept: list[DiagChunk] = []
     for chunk in reader.chunks():
         acc.add(chunk)
@@ -73,6 +74,8 @@ def analyze_files(
             if mask.any():
                 kept.append(chunk.take(mask))
     analysis = acc.result(settings)
+    for file_report, overlap in zip(reader.report.files, analysis.overlap_by_file, strict=False):
+        file_report.overlap_records = overlap
     records = chunks_to_frame(kept, reader.registry) if keep_registers else None
     return DiagJob(files=[str(p) for p in paths], report=reader.report, analysis=analysis, kept_records=records)
 

@@ -15,7 +15,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from console.analysis.inventory import IDENTITY_LABELS, DeviceInventory, IdentityValue, apply_identity
-from console.analysis.passages import NS, Columns, bucket_index, chunk_buckets, merge_buckets, split_passages
+from console.analysis.overlap import fingerprints, overlap_mask
+from console.analysis.passages import (
+    NS,
+    Columns,
+    bucket_index,
+    chunk_buckets,
+    merge_buckets,
+    remove_records,
+    split_passages,
+)
 from console.analysis.speed import MPS_TO_KMH
 from console.analysis.wheels import (
     DIRECTION_12,
@@ -71,6 +80,8 @@ class DiagAnalysis:
     overlap_records: int
     unpaired_detections: int
     head_names: list[str]
+    # Per input file (in read order): its records set aside as another file's overlap.
+    overlap_by_file: list[int] = field(default_factory=list)
     # For the section engine: heads as (device id, name), every wheel-sensor
     # record (head key, channel, time, 1/0), and per head the seconds with records.
     heads: list[tuple[int, str]] = field(default_factory=list)
@@ -135,6 +146,12 @@ class DiagAccumulator:
     registry: DiagRegistry
     # Releases (Radsensor 0) are only needed by the section engine's overlap rule.
     keep_releases: bool = False
+    # Overlap between files is found record by record: a fingerprint, register
+    # and time per record (20 bytes) are kept.  A caller reading one file
+    # turns it off (nothing can overlap), so memory stays bounded there.
+    track_overlap: bool = True
+    _prints: list[dict[str, np.ndarray]] = field(default_factory=list)
+    _n_records: int = 0
     _buckets: list[dict[str, np.ndarray]] = field(default_factory=list)
     _detections: list[dict[str, np.ndarray]] = field(default_factory=list)
     _identity: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)
@@ -175,7 +192,18 @@ class DiagAccumulator:
         rid = chunk.register_id
         head = luts.head[rid]
         channel = luts.channel[rid]
-        self._buckets.append(chunk_buckets(head, channel, chunk.time_ns, chunk.file_id))
+        self._buckets.append(chunk_buckets(head, channel, chunk.time_ns))
+        first_record = self._n_records
+        self._n_records += len(chunk)
+        if self.track_overlap:
+            self._prints.append(
+                {
+                    "fp": fingerprints(chunk.time_ns, rid, chunk.value),
+                    "rid": rid.astype(np.int32, copy=False),
+                    "time_ns": chunk.time_ns,
+                    "file": np.full(len(chunk), chunk.file_id, np.int16),
+                }
+            )
 
         # Wheel sensor records: onsets (1) for speeds, releases (0) too for the
         # overlap rule of the section engine.
@@ -190,6 +218,7 @@ class DiagAccumulator:
                     "value": chunk.value[wheel].astype(np.int8),
                     "subsecond": chunk.subsecond[wheel],
                     "file": np.full(int(wheel.sum()), chunk.file_id, np.int64),
+                    "record": first_record + np.flatnonzero(wheel),
                 }
             )
 
@@ -206,11 +235,12 @@ class DiagAccumulator:
                     self._identity[int(r[i])] = (int(t[i]), int(v[i]), int(k[i]), int(d[i]))
 
     def result(self, settings: SpeedSettings) -> DiagAnalysis:
-        self._lookup()
-        buckets, overlap = merge_buckets(self._buckets)
+        luts = self._lookup()
+        buckets = merge_buckets(self._buckets)
         self._buckets = []  # reduced: free the per-chunk runs
+        repeated, overlap_by_file = self._overlap(luts, buckets)
         buckets = split_passages(buckets, settings.idle_gap_s)
-        wheel = _chosen_file_only(self._detections, buckets)
+        wheel = _wheel_records(self._detections, buckets, repeated)
         self._detections = []
         # Without releases every wheel record is an onset: no copy needed.
         onsets = {c: v[wheel["value"] == 1] for c, v in wheel.items()} if self.keep_releases else wheel
@@ -222,9 +252,10 @@ class DiagAccumulator:
             devices=self._inventory(buckets),
             passage_columns=passages,
             axle_columns=axles,
-            overlap_records=overlap,
+            overlap_records=sum(overlap_by_file),
             unpaired_detections=n_unpaired,
             head_names=head_names,
+            overlap_by_file=overlap_by_file,
             heads=list(self._head_list),
             # Only the section engine reads these: not kept for speeds alone.
             wheel_columns={c: wheel[c] for c in ("head", "channel", "time_ns", "value")}
@@ -234,6 +265,22 @@ class DiagAccumulator:
             if self.keep_releases
             else None,
         )
+
+    def _overlap(self, luts: _Luts, buckets: Columns) -> tuple[np.ndarray | None, list[int]]:
+        """Records repeated from another file (a mask over all records, None: none), and their count per file."""
+        n_files = len(self.registry.files)
+        prints, self._prints = self._prints, []
+        if not prints or n_files < 2:
+            return None, [0] * n_files
+        cols = {c: np.concatenate([p[c] for p in prints]) for c in ("fp", "rid", "time_ns", "file")}
+        del prints
+        head = luts.head[cols["rid"]]
+        mask = overlap_mask(cols["file"], head, cols["fp"])
+        if not mask.any():
+            return None, [0] * n_files
+        remove_records(buckets, head[mask], luts.channel[cols["rid"][mask]], cols["time_ns"][mask])
+        per_file = np.bincount(cols["file"][mask].astype(np.int64), minlength=n_files)
+        return mask, [int(x) for x in per_file]
 
     def _inventory(self, buckets: Columns) -> list[DeviceInventory]:
         reg = self.registry
@@ -297,9 +344,9 @@ _BIG = np.iinfo(np.int64).max
 _SMALL = np.iinfo(np.int64).min
 
 
-def _chosen_file_only(parts: list[Arrays], buckets: Columns) -> Arrays:
-    """Onsets from the file chosen for their bucket (see passages: overlap), with
-    their bucket row and passage."""
+def _wheel_records(parts: list[Arrays], buckets: Columns, repeated: np.ndarray | None) -> Arrays:
+    """Wheel-sensor records in read order, less those repeated from another file,
+    with their bucket row and passage."""
     names = ("head", "channel", "time_ns", "value", "subsecond", "file")
     if not parts:
         empty = {c: np.zeros(0, bool if c == "subsecond" else np.int64) for c in names}
@@ -307,8 +354,10 @@ def _chosen_file_only(parts: list[Arrays], buckets: Columns) -> Arrays:
         return {**empty, "bucket": np.zeros(0, np.int64), "passage": np.zeros(0, np.int64)}
     cols = {c: np.concatenate([part[c] for part in parts]) for c in names}
     row = bucket_index(buckets, cols["head"], cols["time_ns"])
-    keep = (row >= 0) & (buckets["file"][np.maximum(row, 0)] == cols["file"])
-    if keep.all():  # one file, every onset in a bucket: nothing to drop
+    keep = row >= 0
+    if repeated is not None:
+        keep &= ~repeated[np.concatenate([part["record"] for part in parts])]
+    if keep.all():  # nothing to drop: no copy
         cols["bucket"] = row
     else:
         cols = {c: v[keep] for c, v in cols.items()}
@@ -503,9 +552,13 @@ PASSAGE_COLUMNS = (
 
 def iso_strings(ns: pd.Series | np.ndarray) -> np.ndarray:
     """ISO 8601 strings, vectorized; a fraction only where the time has one; None for NaN."""
-    vals = np.asarray(ns, dtype=float)
-    ok = ~np.isnan(vals)
-    ints = np.where(ok, vals, 0).astype(np.int64)
+    if np.asarray(ns).dtype.kind in "iu":  # exact: float64 would round epoch ns to 256 ns
+        ints = np.asarray(ns, np.int64)
+        ok = np.ones(len(ints), bool)
+    else:
+        vals = np.asarray(ns, dtype=float)
+        ok = ~np.isnan(vals)
+        ints = np.where(ok, vals, 0).astype(np.int64)
     text = np.datetime_as_string(ints.astype("datetime64[ns]"), unit="ns")
     text = np.strings.rstrip(np.strings.rstrip(text, "0"), ".")
     out = text.astype(object)

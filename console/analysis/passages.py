@@ -1,15 +1,15 @@
 """Passages: a train's run over one counting head.
 
 Records are first reduced, chunk by chunk, to *activity buckets*: one row
-per (head, second, file) with the record count and the first and last record
+per (head, second) with the record count and the first and last record
 time, overall and for Sys1 and Sys2.  A day of logging is at most 86,400
 buckets per head whatever the record rate, so memory stays bounded on long
 logs.
 
-Overlapping exports: when several files hold records for the same head and
-second, that second is taken from the file with the most records there and
-the others' records are counted as overlap, not twice (the paper's excerpts
-repeat the line 09:32:24 Adr 018 in two excerpts).
+Several files are one log: buckets of the same head and second from several
+files add up.  Records one file repeats from another (overlapping exports,
+found record by record in :mod:`console.analysis.overlap`) are taken out
+again with :func:`remove_records`, so they count once.
 
 A passage is a maximal run of a head's buckets in which no gap between
 consecutive records exceeds ``idle_gap_s``.  Because bucket boundaries are
@@ -26,7 +26,7 @@ _BIG = np.iinfo(np.int64).max
 _SMALL = np.iinfo(np.int64).min
 _FIRST = ("t_first_ns", "t_first_sys1_ns", "t_first_sys2_ns")
 _LAST = ("t_last_ns", "t_last_sys1_ns", "t_last_sys2_ns")
-BUCKET_COLUMNS = ("head", "second", "file", "records", "records_sys1", "records_sys2", *_FIRST, *_LAST)
+BUCKET_COLUMNS = ("head", "second", "records", "records_sys1", "records_sys2", *_FIRST, *_LAST)
 
 
 Columns = dict[str, np.ndarray]
@@ -36,7 +36,7 @@ def _empty() -> Columns:
     return {c: np.zeros(0, np.int64) for c in BUCKET_COLUMNS}
 
 
-def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, file_id: int) -> Columns:
+def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray) -> Columns:
     """Run-length reduce one chunk's records to activity buckets.
 
     Records arrive mostly in time order, so consecutive records share a
@@ -56,7 +56,6 @@ def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, fi
     out = {
         "head": head[starts].astype(np.int64),
         "second": second[starts],
-        "file": np.full(len(starts), file_id, np.int64),
         "records": counts.astype(np.int64),
         "t_first_ns": np.minimum.reduceat(time_ns, starts),
         "t_last_ns": np.maximum.reduceat(time_ns, starts),
@@ -69,37 +68,41 @@ def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, fi
     return out
 
 
-def merge_buckets(parts: list[Columns]) -> tuple[Columns, int]:
-    """Combine runs into buckets and resolve overlapping files.
-
-    Returns (one bucket per head and second, sorted; overlap records ignored).
-    """
+def merge_buckets(parts: list[Columns]) -> Columns:
+    """Combine runs (of any chunk or file) into one bucket per head and second, sorted."""
     if not parts:
-        return _empty(), 0
+        return _empty()
     cols = {c: np.concatenate([part[c] for part in parts]) for c in BUCKET_COLUMNS}
-    # Runs of one (head, second, file) can repeat (chunk edges, interleaved
-    # heads): sort by key, then reduce each group with ufunc.reduceat.
-    order = np.lexsort((cols["file"], cols["second"], cols["head"]))
+    # Runs of one (head, second) can repeat (chunk edges, interleaved heads,
+    # several files): sort by key, then reduce each group with ufunc.reduceat.
+    order = np.lexsort((cols["second"], cols["head"]))
     cols = {c: v[order] for c, v in cols.items()}
-    h, sec, f = cols["head"], cols["second"], cols["file"]
+    h, sec = cols["head"], cols["second"]
     new = np.ones(len(h), bool)
-    new[1:] = (h[1:] != h[:-1]) | (sec[1:] != sec[:-1]) | (f[1:] != f[:-1])
+    new[1:] = (h[1:] != h[:-1]) | (sec[1:] != sec[:-1])
     if not new.all():
         at = np.flatnonzero(new)
         reduce: dict[str, np.ufunc] = {c: np.add for c in ("records", "records_sys1", "records_sys2")}
         reduce.update({c: np.minimum for c in _FIRST})
         reduce.update({c: np.maximum for c in _LAST})
         cols = {c: (reduce[c].reduceat(v, at) if c in reduce else v[at]) for c, v in cols.items()}
-    total = int(cols["records"].sum())
-    h, sec, f = cols["head"], cols["second"], cols["file"]
-    if len(f) and (f != f[0]).any():
-        # Per head and second, the file with the most records (ties: the first file).
-        order = np.lexsort((f, -cols["records"], sec, h))
-        h, sec = h[order], sec[order]
-        first = np.ones(len(h), bool)
-        first[1:] = (h[1:] != h[:-1]) | (sec[1:] != sec[:-1])
-        cols = {c: v[order][first] for c, v in cols.items()}
-    return cols, total - int(cols["records"].sum())
+    return cols
+
+
+def remove_records(buckets: Columns, head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray) -> None:
+    """Take records out of the bucket counts (in place).
+
+    Only for records with an identical twin that stays (overlap): the
+    bucket's first and last times are the twin's too, so they stand.
+    """
+    if len(head) == 0:
+        return
+    row = bucket_index(buckets, head, time_ns)
+    found = row >= 0
+    np.subtract.at(buckets["records"], row[found], 1)
+    for ch in (1, 2):
+        on = found & (channel == ch)
+        np.subtract.at(buckets[f"records_sys{ch}"], row[on], 1)
 
 
 def split_passages(buckets: Columns, idle_gap_s: float) -> Columns:

@@ -131,9 +131,13 @@ def _texts(codes: np.ndarray, values: Sequence[str | None]) -> np.ndarray | None
 
 def _iso(ns: np.ndarray) -> np.ndarray | None:
     """``diagnostics.iso_strings`` as quoted bytes: a fraction only where there is one; null for NaN."""
-    vals = np.asarray(ns, dtype=float)
-    ok = ~np.isnan(vals)
-    ints = np.where(ok, vals, 0).astype(np.int64)
+    if np.asarray(ns).dtype.kind in "iu":  # exact: float64 would round epoch ns to 256 ns
+        ints = np.asarray(ns, np.int64)
+        ok = np.ones(len(ints), bool)
+    else:
+        vals = np.asarray(ns, dtype=float)
+        ok = ~np.isnan(vals)
+        ints = np.where(ok, vals, 0).astype(np.int64)
     n = len(ints)
     day_ns = 86_400 * 10**9
     days, tod = np.divmod(ints, day_ns)

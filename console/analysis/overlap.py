@@ -1,0 +1,86 @@
+"""Overlap between files: the same records exported twice, counted once.
+
+Inside one file nothing is ever deduplicated: the order of records is
+evidence, and two identical lines are two events (a wheel crossing twice in
+one whole second writes two identical lines).  Between files, a run of
+identical records at the seam is one export pulled twice (the same export
+twice, or two pulls with overlapping time ranges): the later file's copy of
+the run is *overlap*, set aside and reported per file.
+
+Per counting head, a later file B overlaps an earlier file A when
+
+* B begins inside A: B's first records equal a run of A's records (B's copy
+  of that run is overlap), or
+* A begins inside B: A's first records equal a run in B (that run of B is
+  overlap).
+
+Records are compared by a 64-bit fingerprint of (time, register, value):
+the register holds device, head, channel, address and label.  Where several
+runs start with the same record (identical lines), the longest wins, and
+among equals the one that reaches the end of A (a seam).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_MAX_CANDIDATES = 64  # identical records at one instant: a handful, not thousands
+_M1 = np.uint64(0x9E3779B97F4A7C15)
+_M2 = np.uint64(0xBF58476D1CE4E5B9)
+_M3 = np.uint64(0x94D049BB133111EB)
+
+
+def fingerprints(time_ns: np.ndarray, register_id: np.ndarray, value: np.ndarray) -> np.ndarray:
+    """A 64-bit fingerprint per record (splitmix64 of its time, register and value)."""
+    x = time_ns.astype(np.uint64) * _M1
+    x ^= register_id.astype(np.uint64) * _M2 + value.astype(np.uint64) * _M3
+    x ^= x >> np.uint64(30)
+    x *= _M2
+    x ^= x >> np.uint64(27)
+    x *= _M3
+    return x ^ (x >> np.uint64(31))
+
+
+def _run(a: np.ndarray, b: np.ndarray) -> int:
+    """Length of the common prefix of a and b."""
+    n = min(len(a), len(b))
+    diff = np.flatnonzero(a[:n] != b[:n])
+    return int(diff[0]) if len(diff) else n
+
+
+def _best_run(ref: np.ndarray, probe: np.ndarray) -> tuple[int, int]:
+    """(start in ref, length) of the longest run of ref equal to probe's beginning; (0, 0) if none."""
+    if not len(ref) or not len(probe):
+        return 0, 0
+    cands = np.flatnonzero(ref == probe[0])
+    best = (0, 0)
+    for j in cands[-_MAX_CANDIDATES:].tolist():  # identical records: a few per instant
+        n = _run(ref[j:], probe)
+        if n > best[1] or (n == best[1] and n > 0):  # ties: the later start (a seam)
+            best = (j, n)
+    return best
+
+
+def overlap_mask(file: np.ndarray, head: np.ndarray, fp: np.ndarray) -> np.ndarray:
+    """Records (in read order) that repeat an earlier file's run at a seam."""
+    n = len(fp)
+    out = np.zeros(n, bool)
+    if n == 0 or (file == file[0]).all():
+        return out
+    order = np.lexsort((file, head))  # per head, files in read order, each in its own order
+    h, f = head[order], file[order]
+    cut = np.flatnonzero(np.r_[True, (h[1:] != h[:-1]) | (f[1:] != f[:-1]), True])
+    groups: dict[int, list[tuple[int, np.ndarray]]] = {}
+    for lo, hi in zip(cut[:-1].tolist(), cut[1:].tolist(), strict=True):  # per (head, file)
+        groups.setdefault(int(h[lo]), []).append((int(f[lo]), order[lo:hi]))
+    for parts in groups.values():
+        for k, (_, later) in enumerate(parts):
+            for _, earlier in parts[:k]:
+                fa, fb = fp[earlier], fp[later]
+                # B begins inside A: B's first records are overlap.
+                _, n_b = _best_run(fa, fb)
+                out[later[:n_b]] = True
+                # A begins inside B: the run of B equal to A's beginning is overlap.
+                j, n_a = _best_run(fb, fa)
+                out[later[j : j + n_a]] = True
+    return out
