@@ -60,6 +60,9 @@ class FileReport:
     encoding: str = "utf-8"
     compressed: bool = False
     ends_without_newline: bool = False
+    # Parsed records that repeat another input file's (overlapping exports):
+    # still counted in ``records``; the analysis counts them once.
+    overlap_records: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -68,6 +71,7 @@ class FileReport:
             "records": self.records,
             "blank": self.blank,
             "rejected": self.rejected,
+            "overlap_records": self.overlap_records,
             "bytes_read": self.bytes_read,
             "encoding": self.encoding,
             "compressed": self.compressed,
