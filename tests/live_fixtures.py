@@ -126,11 +126,11 @@ class GpsFake:
         self.proc: subprocess.Popen[bytes] | None = None
 
     def start(self) -> None:
-        # -P port, -c seconds between sentences, -1 once through the log (-l: loop? no: -1 is once),
-        # -q quiet; gpsd options: -N foreground, -n poll at once, -G would listen on all
-        # addresses: not given, so gpsd listens on loopback only.
+        # -P port, -c seconds between sentences, -q quiet; gpsfake starts feeding when the
+        # first client connects.  gpsd's own options (-o=...): -n reads the device at once;
+        # -G (listen on every address) is not given, so gpsd listens on loopback only.
         self.proc = subprocess.Popen(
-            [self.binary, "-q", "-P", str(self.port), "-c", str(self.cycle_s), "-o", "-n", str(self.capture)],
+            [self.binary, "-q", "-P", str(self.port), "-c", str(self.cycle_s), "-o=-n", str(self.capture)],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
             start_new_session=True,

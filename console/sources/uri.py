@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from urllib.parse import unquote, urlsplit
+from urllib.parse import parse_qs, unquote, urlsplit
 
 from console.sources.base import Source, SourceError
 
@@ -22,6 +22,8 @@ class SourceURI:
     channel: str = ""  # CAN channel (vcan0, a virtual bus name)
     username: str | None = None
     password: str | None = None
+    role: str = ""  # gpsd: ?role=head|eot (the receiver's place on the train)
+    train: str = ""  # gpsd: ?train=ID
 
 
 def parse_uri(text: str) -> SourceURI:
@@ -54,8 +56,19 @@ def parse_uri(text: str) -> SourceURI:
         raise SourceError(f"{text}: expected a topic, e.g. {scheme}://HOST:PORT/application/+/device/+/event/up")
     if scheme == "gpsd" and path:
         path = "/" + path  # a device path
+    query = {k: v[-1] for k, v in parse_qs(parts.query).items()}
+    role = query.get("role", "")
+    if role not in ("", "head", "eot"):
+        raise SourceError(f"{text}: role must be head or eot, found {role!r}")
     return SourceURI(
-        scheme, path=path, host=parts.hostname, port=port, username=parts.username, password=parts.password
+        scheme,
+        path=path,
+        host=parts.hostname,
+        port=port,
+        username=parts.username,
+        password=parts.password,
+        role=role,
+        train=query.get("train", ""),
     )
 
 
@@ -69,7 +82,7 @@ def open_source(text: str, *, from_start: bool = False, force_polling: bool = Fa
     if u.scheme == "gpsd":
         from console.sources.gpsd import GpsdSource
 
-        return GpsdSource(text, u.host, u.port, u.path or None)
+        return GpsdSource(text, u.host, u.port, u.path or None, role=u.role, train=u.train)
     if u.scheme in ("mqtt", "mqtts"):
         from console.sources.mqtt import MqttSource
 
