@@ -23,6 +23,8 @@ from console.analysis.frame_events import frames_to_events
 from parsers.frames import (
     CAN_COLUMNS,
     FRAME_COLUMNS,
+    CanFileReport,
+    count_frames_only,
     check_byte_mask,
     decode_status,
     encode_status,
@@ -379,13 +381,24 @@ def test_sensor_names_map_can_nodes_to_layout_heads(tmp_path: Path) -> None:
     assert frames["sensor"].tolist() == ["WS7"]
 
 
-def test_foreign_traffic_is_counted_not_rejected(tmp_path: Path) -> None:
+def test_foreign_remote_and_error_frames_are_rows_of_their_kind_not_rejected(tmp_path: Path) -> None:
     path = write_can(tmp_path / "bus.log", can_messages([(0, "AC07", *CLEAR)]))
     frames, report = parse_can([path])
     f = report.files[0]
-    assert (len(frames), report.rejected) == (1, 0)
-    assert (f.messages, f.foreign, f.remote_frames, f.error_frames) == (5, 2, 1, 1)  # type: ignore[attr-defined]
-    assert (f.lines_read, f.records, f.blank) == (5, 1, 4)
+    assert (len(frames), report.rejected) == (5, 0)
+    assert isinstance(f, CanFileReport)
+    assert (f.messages, f.count_frames, f.foreign, f.remote_frames, f.error_frames) == (5, 1, 2, 1, 1)
+    assert (f.lines_read, f.records, f.blank) == (5, 5, 0)
+    assert frames["kind"].value_counts().to_dict() == {"foreign": 2, "count": 1, "remote": 1, "error": 1}
+    assert frames["sensor"].isna().tolist() == [k != "count" for k in frames["kind"]]
+    foreign = frames[frames["kind"] == "foreign"]
+    assert sorted(zip(foreign["can_id"], foreign["extended"], foreign["data"], strict=True)) == [
+        (0x187, True, "0000000000"),
+        (0x701, False, "05"),
+    ]
+    remote = frames[frames["kind"] == "remote"].iloc[0]
+    assert (remote["can_id"], remote["data"], remote["status"]) == (0x187, "", 0)  # no payload, no status
+    assert len(count_frames_only(frames)) == 1
 
 
 def test_a_count_frame_with_the_wrong_dlc_is_rejected(tmp_path: Path) -> None:
@@ -473,8 +486,9 @@ def test_an_overlong_can_log_line_is_rejected_as_too_long(tmp_path: Path) -> Non
 def test_blf_written_by_python_can_is_read(tmp_path: Path) -> None:
     path = write_can(tmp_path / "bus.blf", can_messages([(2.125, "AC07", *CLEAR), (3, "AC07", 0, 1)]))
     frames, report = parse_can([path])
-    assert frames["time"].tolist() == [pd.Timestamp("2021-06-06T10:15:02.125"), pd.Timestamp("2021-06-06T10:15:03")]
-    assert frames["byte2"].tolist() == [0xA5, 1]
+    counts = count_frames_only(frames)
+    assert counts["time"].tolist() == [pd.Timestamp("2021-06-06T10:15:02.125"), pd.Timestamp("2021-06-06T10:15:03")]
+    assert counts["byte2"].tolist() == [0xA5, 1]
     assert report.files[0].foreign == 2  # type: ignore[attr-defined]
     report.check()
 
@@ -489,7 +503,7 @@ def test_a_corrupt_blf_is_an_input_error(tmp_path: Path) -> None:
 
 def test_an_unknown_can_log_suffix_is_an_input_error(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="unknown CAN log format"):
-        parse_can([write_raw(tmp_path / "bus.trc", b"x\n")])
+        parse_can([write_raw(tmp_path / "bus.pcap", b"x\n")])
 
 
 def test_a_can_check_byte_frame_with_der_set_is_rejected(tmp_path: Path) -> None:

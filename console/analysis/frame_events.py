@@ -70,6 +70,8 @@ def frames_to_events(
     if comm_timeout_s <= 0:
         raise ValueError("comm_timeout_s must be positive")
     src = source or ("can" if "seq" in frames.columns else "frame")
+    if "kind" in frames.columns:  # a CAN table: only count frames are a sensor's
+        frames = frames[frames["kind"] == "count"]
     if frames.empty:
         return []
     time_ns = frames["time"].to_numpy("datetime64[ns]").view(np.int64)
