@@ -76,7 +76,7 @@ from console.report.model import (
     natural_key,
 )
 from console.safe_text import show_path
-from parsers.frames import frame_line_problem, parse_can, parse_frames
+from parsers.frames import count_frames_only, frame_line_problem, parse_can, parse_frames
 from parsers.gnss import parse_gnss, recognise_format
 from parsers.report import escape_text
 from parsers.sources import InputError, open_input
@@ -140,7 +140,7 @@ def recognise(path: Path) -> tuple[str, str]:
         return EMPTY, "empty: no line to read"
     if first.startswith(b"Diag_id:"):
         return DIAGNOSTIC, ""
-    if suffix in (".asc", ".blf") or (suffix == ".log" and first.startswith(b"(")):
+    if suffix in (".asc", ".blf", ".trc") or (suffix == ".log" and first.startswith(b"(")):
         return CAN, ""
     text = first.decode("utf-8", errors="replace")
     if len(text.split()) in (3, 4) and frame_line_problem(text) is None:
@@ -339,7 +339,7 @@ def _frames(data: ReportData, text_files: list[Path], can_files: list[Path]) -> 
         data.reports["frames"] = report
     if can_files:
         table, report = parse_can(can_files)
-        tables.append(table)
+        tables.append(count_frames_only(table))  # foreign, remote and error frames are in the parse report
         data.reports["can"] = report
     if not tables:
         return
