@@ -16,22 +16,49 @@ from typing import Any
 MAX_REJECTIONS_KEPT = 1000
 TEXT_CUT_CHARS = 120
 
-_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\ufffd]")
+REASON_CUT_CHARS = 500
+
+# C0 (tab, CR and LF have their own escapes), DEL, C1, line/paragraph separators,
+# bidi marks, embeddings, overrides and isolates (U+061C, U+200E-200F,
+# U+202A-202E, U+2066-2069), surrogates and U+FFFD (a byte that did not decode).
+# The same set as console.safe_text, which parsers cannot import.
+_CONTROL = re.compile(
+    r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069\ud800-\udfff\ufffd]"
+)
+_WHITESPACE_ESCAPES = str.maketrans({"\t": "\\t", "\r": "\\r", "\n": "\\n"})
+
+
+def _escape(match: re.Match[str]) -> str:
+    code = ord(match.group())
+    if code < 0x100:
+        return f"\\x{code:02x}"
+    if 0xDC80 <= code <= 0xDCFF:
+        return f"\\x{code - 0xDC00:02x}"  # a byte of a file name that is not UTF-8 (surrogateescape)
+    return f"\\u{code:04x}"
 
 
 def escape_text(raw: bytes | str, limit: int = TEXT_CUT_CHARS) -> str:
     """Show offending input safely: control bytes escaped, cut short.
 
     Undecodable bytes become ``\\xNN``; C0/C1 controls (ESC included) become
-    ``\\xNN`` too, so a log line can never drive the terminal.  Tabs are shown
-    as ``\\t`` so the field structure stays visible.
+    ``\\xNN`` too, so a log line can never drive the terminal; bidi controls
+    become ``\\u202e`` so it cannot display reversed.  Tabs are shown as
+    ``\\t`` so the field structure stays visible.
     """
     text = raw.decode("utf-8", errors="backslashreplace") if isinstance(raw, bytes) else raw
     cut = len(text) > limit
-    text = text[:limit]
-    text = text.replace("\t", "\\t").replace("\r", "\\r").replace("\n", "\\n")
-    text = _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}" if ord(m.group()) < 256 else "\\ufffd", text)
+    text = _CONTROL.sub(_escape, text[:limit].translate(_WHITESPACE_ESCAPES))
     return text + "…" if cut else text
+
+
+def escape_name(name: str) -> str:
+    """A file name as shown: a byte that is not UTF-8 as ``\\xff`` (as ``ls`` does), controls and bidi escaped."""
+    return _CONTROL.sub(_escape, name.translate(_WHITESPACE_ESCAPES))
+
+
+def escape_reason(reason: str) -> str:
+    """A rejection reason, which may quote input: escaped like the text, cut long."""
+    return escape_text(reason, REASON_CUT_CHARS)
 
 
 @dataclass(frozen=True)
@@ -44,7 +71,7 @@ class Rejection:
     text: str
 
     def to_dict(self) -> dict[str, Any]:
-        return {"file": self.file, "line": self.line, "reason": self.reason, "text": self.text}
+        return {"file": escape_name(self.file), "line": self.line, "reason": self.reason, "text": self.text}
 
 
 @dataclass
@@ -66,7 +93,7 @@ class FileReport:
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "file": self.file,
+            "file": escape_name(self.file),
             "lines_read": self.lines_read,
             "records": self.records,
             "blank": self.blank,
@@ -114,7 +141,7 @@ class ParseReport:
         file_report.rejected += 1
         self.rejected_by_reason[category] += 1
         if len(self.rejections) < self.max_rejections_kept:
-            self.rejections.append(Rejection(file_report.file, line, reason, escape_text(raw)))
+            self.rejections.append(Rejection(file_report.file, line, escape_reason(reason), escape_text(raw)))
 
     def check(self) -> None:
         """Raise AssertionError if any line is unaccounted for."""
