@@ -12,6 +12,8 @@ from rich.text import Text
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.timefmt import display
 from console.safe_text import inert
+from parsers.can_logs import CanFileReport
+from parsers.report import ParseReport
 
 
 def _table(title: str) -> Table:
@@ -65,4 +67,57 @@ def events_table(events: list[DetectionEvent], limit: int = 200) -> Table:
         )
     if len(rest) > limit:
         t.caption = f"first {limit} of {len(rest)}; --json has all"
+    return t
+
+
+def can_traffic_table(report: ParseReport) -> Table:
+    """Per CAN log: its lines, the frames by kind and what was not a frame; the columns add up to Lines."""
+    t = _table("CAN traffic (lines = count + foreign + remote + error + no frame + rejected)")
+    t.add_column("File (format)", overflow="fold")
+    for c in ("Lines", "Count", "Foreign", "Remote", "Error", "No frame", "Rejected"):
+        t.add_column(c, justify="right", no_wrap=True, min_width=len(c))
+    for f in report.files:
+        if not isinstance(f, CanFileReport):
+            continue
+        fmt = f.format + (", gzip" if f.compressed else "")
+        t.add_row(
+            inert(f"{f.file} ({fmt})"),
+            Text(f"{f.lines_read:,}"),
+            Text(f"{f.count_frames:,}"),
+            Text(f"{f.foreign:,}"),
+            Text(f"{f.remote_frames:,}"),
+            Text(f"{f.error_frames:,}", style="yellow" if f.error_frames else ""),
+            Text(f"{f.blank:,}"),
+            Text(f"{f.rejected:,}", style="bold red" if f.rejected else ""),
+        )
+    return t
+
+
+def other_frames_table(frames: pd.DataFrame, limit: int = 50) -> Table | None:
+    """CAN frames that are no sensor's count frame, by kind and id: how many, when, the last payload."""
+    if frames.empty or "kind" not in frames.columns:
+        return None
+    other = frames[frames["kind"] != "count"]
+    if other.empty:
+        return None
+    t = _table(f"Other CAN frames ({len(other):,}): not count frames, by kind and id")
+    for c in ("Kind", "Id", "Frames", "From", "To", "Last data"):
+        t.add_column(c, justify="right" if c == "Frames" else "left", no_wrap=True, min_width=len(c))
+    days = sorted({display(int(x.value))[:10] for x in (other["time"].min(), other["time"].max())})
+    t.title = f"Other CAN frames ({len(other):,}), {' to '.join(days)}: not count frames, by kind and id"
+    groups = other.groupby(["kind", "can_id", "extended"], observed=True, sort=True)
+    for n, ((kind, can_id, extended), g) in enumerate(groups):
+        if n == limit:
+            t.caption = f"first {limit} kinds and ids; --json lists every frame"
+            break
+        number = int(str(can_id))
+        ident = "–" if kind == "error" else (f"{number:08X}x" if extended else f"{number:03X}")
+        t.add_row(
+            Text(str(kind)),
+            Text(ident),
+            Text(f"{len(g):,}"),
+            Text(display(int(g["time"].min().value))[11:]),
+            Text(display(int(g["time"].max().value))[11:]),
+            inert(str(g["data"].iloc[-1]) or "–"),
+        )
     return t
