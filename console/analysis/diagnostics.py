@@ -192,7 +192,7 @@ class DiagAccumulator:
         rid = chunk.register_id
         head = luts.head[rid]
         channel = luts.channel[rid]
-        self._buckets.append(chunk_buckets(head, channel, chunk.time_ns))
+        self._buckets.append(chunk_buckets(head, channel, chunk.time_ns, chunk.subsecond))
         first_record = self._n_records
         self._n_records += len(chunk)
         if self.track_overlap:
@@ -342,6 +342,8 @@ class DiagAccumulator:
 Arrays = dict[str, np.ndarray]
 _BIG = np.iinfo(np.int64).max
 _SMALL = np.iinfo(np.int64).min
+# The time resolution assumed for stamps with a fraction (the speed bounds).
+SUBSECOND_RESOLUTION_S = 0.001
 
 
 def _wheel_records(parts: list[Arrays], buckets: Columns, repeated: np.ndarray | None) -> Arrays:
@@ -476,6 +478,19 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     whole = np.where(implausible, np.nan, whole)
     basis = np.where(both, 1, 2).astype(np.int8)
     basis[np.isnan(duration) | (duration <= 0) | implausible] = 0
+    # Resolution: each stamp is the true time cut down to its resolution r, so
+    # the true duration lies within (d - r, d + r) and the speed between
+    # these bounds.  Sub-second stamps are taken as millisecond-exact (at
+    # worst; microsecond logs are better).  No upper bound within one step.
+    whole_second = (np.add.reduceat(col("records_whole_second"), at) > 0) | ((n_onsets > 0) & ~subsecond)
+    resolution_s = np.where(whole_second, 1.0, SUBSECOND_RESOLUTION_S)
+    measured = basis > 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        length_m = s.train_length_m + s.spacing_m
+        whole_min = np.where(measured, length_m / (duration + resolution_s) * MPS_TO_KMH, np.nan)
+        whole_max = np.where(
+            measured & (duration > resolution_s), length_m / (duration - resolution_s) * MPS_TO_KMH, np.nan
+        )
     stop = np.cumsum(n_timed)
     return {
         "head": head,
@@ -491,12 +506,15 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
         "records_in_detection_second": records_in_second,
         "speed_kmh_per_second_method": s.spacing_m * records_in_second * MPS_TO_KMH,
         "speed_kmh_whole_train": whole,
+        "speed_kmh_whole_train_min": whole_min,
+        "speed_kmh_whole_train_max": whole_max,
         "whole_train_basis": basis,
         "whole_train_duration_s": duration,
         "axle_speeds_start": stop - n_timed,
         "axle_speeds_stop": stop,
         "speed_kmh_per_axle_mean": axle_mean,
         "subsecond": subsecond,
+        "time_resolution_s": resolution_s,
         # A train: axles counted, or (the paper's whole-second excerpts) a
         # plausible Sys1→Sys2 span.  A damping: wheel-sensor onsets but no
         # axle (one system only: a trolley, metal).  Else a status dump.
@@ -540,12 +558,15 @@ PASSAGE_COLUMNS = (
     "records_in_detection_second",
     "speed_kmh_per_second_method",
     "speed_kmh_whole_train",
+    "speed_kmh_whole_train_min",
+    "speed_kmh_whole_train_max",
     "whole_train_basis",
     "whole_train_duration_s",
     "axle_speeds_start",
     "axle_speeds_stop",
     "speed_kmh_per_axle_mean",
     "subsecond",
+    "time_resolution_s",
     "kind",
 )
 
@@ -599,11 +620,14 @@ def passages_json_text(p: pd.DataFrame) -> str:
             ),
             "speed_kmh_per_second_method": p["speed_kmh_per_second_method"].to_numpy(dtype=float).round(3),
             "speed_kmh_whole_train": p["speed_kmh_whole_train"].to_numpy(dtype=float).round(3),
+            "speed_kmh_whole_train_min": p["speed_kmh_whole_train_min"].to_numpy(dtype=float).round(3),
+            "speed_kmh_whole_train_max": p["speed_kmh_whole_train_max"].to_numpy(dtype=float).round(3),
             "whole_train_basis": _objects(p["whole_train_basis"]),
             "whole_train_duration_s": p["whole_train_duration_s"].to_numpy(dtype=float).round(6),
             "speed_kmh_per_axle": axle_speed_lists(p),
             "speed_kmh_per_axle_mean": p["speed_kmh_per_axle_mean"].to_numpy(dtype=float).round(3),
             "subsecond": p["subsecond"].to_numpy(bool),
+            "time_resolution_s": p["time_resolution_s"].to_numpy(dtype=float),
             "kind": _objects(p["kind"]),
         }
     )

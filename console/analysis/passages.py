@@ -26,7 +26,7 @@ _BIG = np.iinfo(np.int64).max
 _SMALL = np.iinfo(np.int64).min
 _FIRST = ("t_first_ns", "t_first_sys1_ns", "t_first_sys2_ns")
 _LAST = ("t_last_ns", "t_last_sys1_ns", "t_last_sys2_ns")
-BUCKET_COLUMNS = ("head", "second", "records", "records_sys1", "records_sys2", *_FIRST, *_LAST)
+BUCKET_COLUMNS = ("head", "second", "records", "records_sys1", "records_sys2", "records_whole_second", *_FIRST, *_LAST)
 
 
 Columns = dict[str, np.ndarray]
@@ -36,7 +36,7 @@ def _empty() -> Columns:
     return {c: np.zeros(0, np.int64) for c in BUCKET_COLUMNS}
 
 
-def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray) -> Columns:
+def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, subsecond: np.ndarray) -> Columns:
     """Run-length reduce one chunk's records to activity buckets.
 
     Records arrive mostly in time order, so consecutive records share a
@@ -57,6 +57,8 @@ def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray) ->
         "head": head[starts].astype(np.int64),
         "second": second[starts],
         "records": counts.astype(np.int64),
+        # Records stamped to the whole second: their passage's times are only that exact.
+        "records_whole_second": np.add.reduceat((~subsecond).astype(np.int64), starts),
         "t_first_ns": np.minimum.reduceat(time_ns, starts),
         "t_last_ns": np.maximum.reduceat(time_ns, starts),
     }
@@ -82,7 +84,8 @@ def merge_buckets(parts: list[Columns]) -> Columns:
     new[1:] = (h[1:] != h[:-1]) | (sec[1:] != sec[:-1])
     if not new.all():
         at = np.flatnonzero(new)
-        reduce: dict[str, np.ufunc] = {c: np.add for c in ("records", "records_sys1", "records_sys2")}
+        counts = ("records", "records_sys1", "records_sys2", "records_whole_second")
+        reduce: dict[str, np.ufunc] = {c: np.add for c in counts}
         reduce.update({c: np.minimum for c in _FIRST})
         reduce.update({c: np.maximum for c in _LAST})
         cols = {c: (reduce[c].reduceat(v, at) if c in reduce else v[at]) for c, v in cols.items()}

@@ -230,6 +230,8 @@ def _batch(cols: Columns, heads: list[tuple[int, str]], lo: int, hi: int, first:
         (',"records_in_detection_second":', _ints(np.nan_to_num(n_det).astype(np.int64), np.isnan(n_det))),
         (',"speed_kmh_per_second_method":', _floats(np.round(c["speed_kmh_per_second_method"], 3))),
         (',"speed_kmh_whole_train":', _floats(np.round(c["speed_kmh_whole_train"], 3))),
+        (',"speed_kmh_whole_train_min":', _floats(np.round(c["speed_kmh_whole_train_min"], 3))),
+        (',"speed_kmh_whole_train_max":', _floats(np.round(c["speed_kmh_whole_train_max"], 3))),
         (',"whole_train_basis":', _texts(c["whole_train_basis"], [None, "detections", "records"])),
         (',"whole_train_duration_s":', _floats(np.round(c["whole_train_duration_s"], 6))),
         (
@@ -238,6 +240,7 @@ def _batch(cols: Columns, heads: list[tuple[int, str]], lo: int, hi: int, first:
         ),
         (',"speed_kmh_per_axle_mean":', _floats(np.round(c["speed_kmh_per_axle_mean"], 3))),
         (',"subsecond":', _bools(c["subsecond"])),
+        (',"time_resolution_s":', _floats(c["time_resolution_s"])),
         (',"kind":', _texts(c["kind"], ["train", "damping", "status"])),
     ]
     sep = np.full((n, 1), ord(","), np.uint8)

@@ -88,8 +88,8 @@ def analyze(
             notes = []
             if job.analysis.overlap_records:
                 notes.append(
-                    f"{job.analysis.overlap_records} records repeat another file's second"
-                    " (overlapping exports) and were counted once"
+                    f"{job.analysis.overlap_records} records repeat another file's records"
+                    " (overlapping exports) and were counted once; per file in the parse report"
                 )
             if job.analysis.unpaired_detections:
                 notes.append(f"{job.analysis.unpaired_detections} wheel detections on one system only (not axles)")

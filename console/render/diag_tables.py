@@ -69,6 +69,7 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
         p = p[p["kind"] != "status"]
     t = _table(f"Passages ({len(p)}); speeds in km/h: per-second method (records), whole train, per-axle mean")
     t.add_column("Head", no_wrap=True, min_width=4)
+    t.collapse_padding = True  # whole-second bounds widen a column: still 80 columns
     t.add_column("Start", no_wrap=True)
     t.add_column("Dur s", justify="right", no_wrap=True)
     t.add_column("Recs", justify="right", no_wrap=True)
@@ -92,22 +93,38 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
             Text(f"{r.records:,}"),
             axles,
             per_sec,
-            _num(r.speed_kmh_whole_train, "{:.2f}"),
+            _whole_train(r),
             _num(r.speed_kmh_per_axle_mean),
         )
     notes = []
+    if len(p) and (p["time_resolution_s"] >= 1).any():
+        notes.append("whole train from whole-second times: figure, then its bounds (min–max)")
     if limit is not None and len(p) > limit:
         notes.append(f"first {limit} of {len(p)} passages; --json has all")
     if status:
         notes.append(f"{status} status-only record bursts (no wheel) not shown; --json has them (kind: status)")
     if notes:
-        t.caption = "; ".join(notes)
+        t.caption = Text("; ".join(notes))  # Text: brackets in a note are not markup
     return t
+
+
+def _whole_train(r: Any) -> Text:
+    """Whole-train speed; from whole-second times with the bounds they allow."""
+    if r.time_resolution_s < 1 or pd.isna(r.speed_kmh_whole_train):
+        return _num(r.speed_kmh_whole_train, "{:.2f}")
+    # The figure (as the paper prints it), then the bounds that make it honest.
+    text = _num(r.speed_kmh_whole_train, "{:.2f}")
+    hi = "∞" if pd.isna(r.speed_kmh_whole_train_max) else f"{r.speed_kmh_whole_train_max:.0f}"
+    text.append(f" {r.speed_kmh_whole_train_min:.0f}–{hi}", style="dim")
+    return text
 
 
 def parse_report_table(report: ParseReport) -> Table:
     t = _table("Parse report")
-    for c in ("File", "Lines", "Records", "Blank", "Rejected", "Encoding"):
+    # Overlap: records a file repeats from another input file, counted once.
+    overlap = any(f.overlap_records for f in report.files)
+    columns = ("File", "Lines", "Records", "Blank", "Rejected", *(("Overlap",) if overlap else ()), "Encoding")
+    for c in columns:
         t.add_column(c, justify="left" if c in ("File", "Encoding") else "right", overflow="fold")
     for f in report.files:
         enc = f.encoding + (", gzip" if f.compressed else "") + (", no final newline" if f.ends_without_newline else "")
@@ -117,15 +134,18 @@ def parse_report_table(report: ParseReport) -> Table:
             Text(f"{f.records:,}"),
             Text(f"{f.blank:,}"),
             Text(f"{f.rejected:,}", style="bold red" if f.rejected else ""),
+            *((Text(f"{f.overlap_records:,}"),) if overlap else ()),
             Text(enc),
         )
     if len(report.files) > 1:
+        total_overlap = sum(f.overlap_records for f in report.files)
         t.add_row(
             Text("total", style="bold"),
             Text(f"{report.lines_read:,}"),
             Text(f"{report.records:,}"),
             Text(f"{report.blank:,}"),
             Text(f"{report.rejected:,}"),
+            *((Text(f"{total_overlap:,}"),) if overlap else ()),
             Text(""),
         )
     return t
