@@ -4,7 +4,9 @@ Into one directory:
 
 * ``diagnostic.log`` — Frauscher-style records, the real grammar, microsecond
   times (at 90 km/h a wheel crosses the 0.13 m coil spacing in 5.2 ms, so
-  milliseconds alone would err by up to 10 % in the per-axle speed): every
+  milliseconds alone would err by up to 10 % in the per-axle speed; the
+  writer can also stamp milliseconds or whole seconds, per head, and
+  interleave the boards at random as real exports do): every
   wheel-sensor onset and release (Radsensor, Adr 026), a status record
   (Adr 000) from each head's device every heartbeat, and an identity dump
   per device at the start;
@@ -55,12 +57,38 @@ def _naive(t_ns: int) -> dt.datetime:
     return dt.datetime(1970, 1, 1) + dt.timedelta(microseconds=t_ns // 1000)
 
 
-def _diag_line(device: int, head: str, ch: int, adr: str, label: str, data: str, t_ns: int) -> str:
+TIME_RESOLUTIONS = {"us": 1_000, "ms": 1_000_000, "s": NS}
+
+
+def _diag_line(device: int, head: str, ch: int, adr: str, label: str, data: str, t_ns: int, res: str = "us") -> str:
     t = _naive(t_ns)
+    frac = {"us": f".{t:%f}", "ms": f".{t.microsecond // 1000:03d}", "s": ""}[res]
     return (
         f"Diag_id:00002\tID:{device}\tDevice:IM\tType:013\tGS:GS03\tTrackinfo:{head}\tch:{ch}\tAdr:{adr}\t"
-        f"Label:{label}\tData:{data}\tDate:{t:%Y-%m-%d}\tTime:{t:%H:%M:%S.%f}"
+        f"Label:{label}\tData:{data}\tDate:{t:%Y-%m-%d}\tTime:{t:%H:%M:%S}{frac}"
     )
+
+
+def interleave_order(
+    t_ns: np.ndarray, printed_ns: np.ndarray, board: np.ndarray, rng: np.random.Generator | None
+) -> np.ndarray:
+    """The order an export writes records in: by printed time, each board in its own order.
+
+    Records of several boards that print the same time interleave at random
+    (``rng``; None: by true time), but a board's own records never change
+    order: within a whole second their order is the only timing evidence.
+    """
+    if rng is None:
+        return np.lexsort((t_ns, printed_ns))
+    own = np.lexsort((t_ns, board, printed_ns))  # groups (printed, board), each in the board's order
+    p, b = printed_ns[own], board[own]
+    gid = np.cumsum(np.r_[True, (p[1:] != p[:-1]) | (b[1:] != b[:-1])]) - 1
+    u = rng.random(len(t_ns))
+    # Groups are contiguous in `own`: the k-th member of a group takes the
+    # group's k-th smallest key, so sorting by key keeps each board's order.
+    key = np.empty(len(t_ns))
+    key[own] = u[np.lexsort((u, gid))]
+    return np.lexsort((key, printed_ns))
 
 
 def device_ids(layout: Layout) -> dict[str, int]:
@@ -68,18 +96,34 @@ def device_ids(layout: Layout) -> dict[str, int]:
     return {h.id: h.device_id if h.device_id is not None else 4081 + i for i, h in enumerate(layout.heads)}
 
 
-def write_diagnostic(sim: StationSim, path: Path) -> int:
+def write_diagnostic(
+    sim: StationSim, path: Path, resolution: str | dict[str, str] = "us", interleave_seed: int | None = None
+) -> int:
+    """The diagnostic log; ``resolution`` ("us", "ms", "s", or per head id) stamps the times.
+
+    ``interleave_seed``: boards whose records print the same time interleave
+    at random (each board keeping its own order); None: in true time order.
+    """
     ids = device_ids(sim.layout)
-    rows: list[tuple[int, str]] = []
+    res = {h.id: resolution if isinstance(resolution, str) else resolution.get(h.id, "us") for h in sim.layout.heads}
+    rows: list[tuple[int, str, int, str, str, str]] = []  # time, head, channel, address, label, data
     start = sim.cfg.start_ns
     for h in sim.layout.heads:
-        rows += [(start, _diag_line(ids[h.id], h.id, 1, a, lab, d, start)) for a, lab, d in IDENTITY]
-    rows += [(t, _diag_line(ids[h], h, 1, "000", "Diagnose I", "2", t)) for t, h in sim.heartbeats]
-    for r in sim.all_records:
-        rows.append((r.t_ns, _diag_line(ids[r.head], r.head, r.channel, "026", "Radsensor", str(r.value), r.t_ns)))
-    rows.sort(key=lambda x: x[0])
-    path.write_text("\n".join(line for _, line in rows) + "\n", encoding="utf-8")
-    return len(rows)
+        rows += [(start, h.id, 1, a, lab, d) for a, lab, d in IDENTITY]
+    rows += [(t, h, 1, "000", "Diagnose I", "2") for t, h in sim.heartbeats]
+    rows += [(r.t_ns, r.head, r.channel, "026", "Radsensor", str(r.value)) for r in sim.all_records]
+    rows.sort(key=lambda x: x[0])  # stable: a board's records stay in the order it saw them
+    t_ns = np.array([r[0] for r in rows], np.int64)
+    step = np.array([TIME_RESOLUTIONS[res[r[1]]] for r in rows], np.int64)
+    board = np.array([ids[r[1]] for r in rows], np.int64)
+    rng = None if interleave_seed is None else np.random.default_rng(interleave_seed)
+    order = interleave_order(t_ns, t_ns - t_ns % step, board, rng) if rows else np.zeros(0, np.int64)
+    lines = []
+    for i in order.tolist():
+        t, head, ch, adr, label, data = rows[i]
+        lines.append(_diag_line(ids[head], head, ch, adr, label, data, t, res[head]))
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return len(lines)
 
 
 def _nmea(body: str) -> str:
