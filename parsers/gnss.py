@@ -66,27 +66,34 @@ the reason, no exception.
 
 from __future__ import annotations
 
-import csv
 import datetime as dt
-import json
 import math
 import re
 import unicodedata
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 import pandas as pd
 
 from parsers.fix_table import FIX_COLUMNS, FixRows, check_roles, utc_times
+from parsers.gnss_csv import parse_device_file, parse_device_stream
+from parsers.gnss_fields import RowError, header_key
+from parsers.gnss_fields import cells_of as _cells
+from parsers.gnss_fields import decode_line as _decode
+from parsers.gnss_fields import delimiter_of as _delimiter
+from parsers.gnss_fields import position as _position
+from parsers.gnss_fields import speed as _speed
+from parsers.gnss_fields import time_field as _time
 from parsers.gnss_lines import open_lines
 from parsers.gnss_stream import StreamParser
 from parsers.gnss_time import parse_time_ns
-from parsers.nmea import DEVICE_TAG_RE, KMH_MPS
-from parsers.report import FileReport, ParseReport
-from parsers.sources import open_input
+from parsers.gpx import parse_gpx_file
+from parsers.kinds import classify_file
+from parsers.nmea import KMH_MPS
+from parsers.report import ParseReport
 
 __all__ = [
     "CROSSING_COLUMNS",
@@ -104,7 +111,7 @@ __all__ = [
 CROSSING_COLUMNS = ("time", "train", "crossing", "chainage_m", "state", "state_raw", "file", "line")
 CROSSING_STATES = ("warning", "normal", "disconnected")
 
-GnssFormat = Literal["nmea", "jsonl", "csv", "centre", "unknown"]
+GnssFormat = Literal["nmea", "jsonl", "csv", "centre", "gpx", "unknown"]
 _PEEK_BYTES = 64 * 1024
 
 _NS = 1_000_000_000
@@ -118,20 +125,6 @@ _STATE_ALIASES = {
     "mất kết nối": "disconnected",
     "disconnected": "disconnected",
 }
-_ROLE_ALIASES = {
-    "": "",
-    "head": "head",
-    "locomotive": "head",
-    "loco": "head",
-    "ltđk": "head",
-    "eot": "eot",
-    "end of train": "eot",
-    "tail": "eot",
-    "mcđt": "eot",
-}
-_TRUE = {"true", "1", "yes", "y", "a"}
-_FALSE = {"false", "0", "no", "n", "v"}
-
 _CENTRE_ALIASES: dict[str, tuple[str, ...]] = {
     "time": ("timestamp", "time", "thời gian", "thời điểm"),
     "train": ("mã tàu", "train code", "train", "train id"),
@@ -144,83 +137,8 @@ _CROSSING_CODE_RE = re.compile(r"(?:mã đường ngang|crossing) (\d+)(?: code)
 _CROSSING_STATE_RE = re.compile(
     r"(?:trạng thái kết nối đường ngang|trạng thái đường ngang) (\d+)|crossing (\d+) (?:connection )?(?:state|status)"
 )
-_DEVICE_ALIASES: dict[str, tuple[str, ...]] = {
-    "time": ("time", "timestamp", "utc", "datetime", "time utc"),
-    "device": ("device", "device id", "unit", "unit id"),
-    "role": ("role",),
-    "lat": ("lat", "latitude"),
-    "lon": ("lon", "lng", "long", "longitude"),
-    "speed_mps": ("speed", "speed mps"),
-    "speed_kmh": ("speed kmh",),
-    "course_deg": ("course", "course deg", "heading", "track", "cog"),
-    "valid": ("valid", "fix"),
-}
-_DEVICE_KEYS = {alias: column for column, aliases in _DEVICE_ALIASES.items() for alias in aliases}
-_UNITS = {"km/h": "kmh", "kmh": "kmh", "kph": "kmh", "m/s": "mps", "mps": "mps", "deg": "deg", "°": "deg"}
-_UNIT_RE = re.compile(r"^(.*?)\s*\(\s*([^)]*?)\s*\)$")
-
-_NUMBER_RE = re.compile(r"[+-]?\d+(?:[.,]\d+)?")
 _KM_POST_RE = re.compile(r"(?:km\s*)?(\d{1,4})\s*\+\s*(\d{3}(?:[.,]\d+)?)", re.IGNORECASE)
-_MINUS = str.maketrans({"−": "-", "–": "-"})
-
-
-class RowError(Exception):
-    """A row that cannot be used: ``category`` for the counts, ``reason`` for people."""
-
-    def __init__(self, category: str, reason: str) -> None:
-        super().__init__(reason)
-        self.category = category
-        self.reason = reason
-
-
 # ------------------------------------------------------------------- fields
-
-
-def header_key(cell: str) -> str:
-    """``Vận tốc (km/h)`` → ``vận tốc kmh``; ``speed_kmh`` → ``speed kmh``: case, spacing, ``_``/``-`` free."""
-    text = " ".join(unicodedata.normalize("NFC", cell).casefold().replace("_", " ").replace("-", " ").split())
-    m = _UNIT_RE.match(text)
-    if m:
-        base, unit = m.group(1), m.group(2).replace(" ", "")
-        text = f"{base} {_UNITS.get(unit, unit)}".strip()
-    return text
-
-
-def parse_decimal(value: Any, what: str) -> float:
-    """``20,7`` / ``20.7`` / ``−3`` / a JSON number → float; empty or null → NaN; RowError otherwise."""
-    if value is None:
-        return math.nan
-    if isinstance(value, bool):
-        raise RowError("number", f"{what}: expected a number, found {json.dumps(value)}")
-    if isinstance(value, int | float):
-        if not math.isfinite(value):
-            raise RowError("number", f"{what}: expected a finite number, found {value}")
-        return float(value)
-    text = str(value).strip().translate(_MINUS)
-    if not text:
-        return math.nan
-    if not _NUMBER_RE.fullmatch(text):
-        raise RowError("number", f"{what}: expected a number (e.g. 20,7 or 20.7), found '{text}'")
-    return float(text.replace(",", "."))
-
-
-def _position(lat_raw: Any, lon_raw: Any) -> tuple[float, float]:
-    lat = parse_decimal(lat_raw, "latitude")
-    lon = parse_decimal(lon_raw, "longitude")
-    if not math.isnan(lat) and abs(lat) > 90:
-        raise RowError("range", f"latitude {lat:g}° is out of range ±90°")
-    if not math.isnan(lon) and abs(lon) > 180:
-        raise RowError("range", f"longitude {lon:g}° is out of range ±180°")
-    if math.isnan(lat) != math.isnan(lon):
-        raise RowError("position", "latitude and longitude must be given together")
-    return lat, lon
-
-
-def _speed(value: Any, what: str, factor: float) -> float:
-    speed = parse_decimal(value, what)
-    if speed < 0:
-        raise RowError("range", f"{what}: a speed cannot be negative ({speed:g})")
-    return speed * factor
 
 
 def parse_crossing_code(text: str) -> tuple[str, float]:
@@ -230,33 +148,6 @@ def parse_crossing_code(text: str) -> tuple[str, float]:
         raise ValueError(f"crossing code '{text.strip()}' is not a kilometre post km+metres (e.g. 11+850)")
     km, metres = int(m.group(1)), float(m.group(2).replace(",", "."))
     return f"{km}+{m.group(2).replace(',', '.')}", km * 1000.0 + metres
-
-
-def _time(value: Any, utc_offset_h: float = 0.0) -> int:
-    if value is None or (isinstance(value, str) and not value.strip()):
-        raise RowError("time", "time: empty; every row needs a date and time")
-    try:
-        return parse_time_ns(str(value), utc_offset_h)
-    except ValueError as exc:
-        raise RowError("time", f"time: {exc}") from None
-
-
-def _decode(raw: bytes, fr: FileReport) -> str:
-    """UTF-8, else CP1258 (Vietnamese Windows, whose tone marks are combining): NFC either way."""
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        fr.encoding = "cp1258"
-        text = raw.decode("cp1258", errors="replace")
-    return unicodedata.normalize("NFC", text)
-
-
-def _delimiter(line: str) -> str:
-    return "\t" if "\t" in line else ";" if ";" in line else ","
-
-
-def _cells(line: str, delimiter: str) -> list[str]:
-    return next(csv.reader([line], delimiter=delimiter, skipinitialspace=True), [])
 
 
 # ------------------------------------------------------------- centre table
@@ -435,183 +326,23 @@ def parse_centre_table(
     return _in_time_order(fixes.frame()), _in_time_order(crossings.frame()), report
 
 
-# ------------------------------------------------------------ device streams
-
-
-def parse_device_header(cells: list[str]) -> list[str | None]:
-    """Header cells → canonical column names; ValueError with the reason if not a device-stream header."""
-    columns: list[str | None] = []
-    for cell in cells:
-        column = _DEVICE_KEYS.get(header_key(cell))
-        if column is None:
-            raise ValueError(f"unknown column '{cell.strip()}'")
-        if column in columns:
-            raise ValueError(f"column '{cell.strip()}' given twice")
-        columns.append(column)
-    missing = [c for c in ("time", "lat", "lon") if c not in columns]
-    if missing:
-        raise ValueError(f"missing column(s) {', '.join(missing)}")
-    return columns
-
-
-def _flag(value: Any) -> bool:
-    if value is None or isinstance(value, bool):
-        return value is not False
-    text = str(value).strip().casefold()
-    if text in _TRUE or text == "":
-        return True
-    if text in _FALSE:
-        return False
-    raise RowError("valid", f"valid: expected true/false, 1/0 or yes/no, found '{value}'")
-
-
-def _device_row(values: Mapping[str, Any], default_device: str, roles: Mapping[str, str]) -> dict[str, Any]:
-    """One device-stream row (canonical keys → raw values) → fix fields."""
-    time_ns = _time(values.get("time"))
-    device = values.get("device")
-    device = default_device if device is None or str(device).strip() == "" else str(device).strip()
-    role_raw = values.get("role")
-    role_text = "" if role_raw is None else " ".join(unicodedata.normalize("NFC", str(role_raw)).casefold().split())
-    if role_text not in _ROLE_ALIASES:
-        raise RowError("role", f"role: '{role_raw}' is not head or eot")
-    role = _ROLE_ALIASES[role_text] or roles.get(device, "")
-    lat, lon = _position(values.get("lat"), values.get("lon"))
-    speed = _speed(values.get("speed_mps"), "speed (m/s)", 1.0)
-    if math.isnan(speed):
-        speed = _speed(values.get("speed_kmh"), "speed (km/h)", KMH_MPS)
-    course = parse_decimal(values.get("course_deg"), "course")
-    valid = _flag(values.get("valid")) and not math.isnan(lat)
-    return {
-        "time_ns": time_ns,
-        "device": device,
-        "role": role,
-        "lat": lat,
-        "lon": lon,
-        "speed_mps": speed,
-        "course_deg": course,
-        "valid": valid,
-    }
-
-
-def _json_values(text: str) -> dict[str, Any]:
-    try:
-        obj = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise RowError("json", f"not valid JSON: {exc.msg} at column {exc.colno}") from None
-    if not isinstance(obj, dict):
-        raise RowError("json", f"expected a JSON object {{…}}, found a {type(obj).__name__}")
-    values: dict[str, Any] = {}
-    for key, value in obj.items():
-        column = _DEVICE_KEYS.get(header_key(str(key)))
-        if column is None:
-            continue
-        if column in values:
-            raise RowError("json", f"key '{key}' repeats column {column}")
-        if isinstance(value, dict | list):
-            raise RowError("json", f"key '{key}': expected a number or text, found a {type(value).__name__}")
-        values[column] = value
-    missing = [c for c in ("time", "lat", "lon") if c not in values]
-    if missing:
-        raise RowError("json", f"missing key(s) {', '.join(missing)}")
-    return values
-
-
-def _parse_device_file(path: Path, report: ParseReport, rows: FixRows, fmt: str, roles: Mapping[str, str]) -> None:
-    fr, lines = open_lines(path, report)
-    columns: list[str | None] | None = None
-    delimiter = ","
-    for number, raw in lines:
-        text = _decode(raw, fr)
-        if not text.strip() or text.lstrip().startswith("#"):
-            fr.blank += 1
-            continue
-        try:
-            if fmt == "jsonl":
-                values = _json_values(text)
-            elif columns is None:
-                delimiter = _delimiter(text)
-                try:
-                    columns = parse_device_header(_cells(text, delimiter))
-                except ValueError as exc:
-                    raise RowError(
-                        "header", f"not the device-stream header: {exc}; expected time, lat, lon, …"
-                    ) from None
-                fr.blank += 1  # the header: no record, nothing lost
-                continue
-            else:
-                cells = _cells(text, delimiter)
-                if len(cells) != len(columns):
-                    hint = (
-                        " (a decimal comma in a ','-separated file needs quotes)" if len(cells) > len(columns) else ""
-                    )
-                    raise RowError("fields", f"expected {len(columns)} fields, found {len(cells)}{hint}")
-                values = {c: v for c, v in zip(columns, cells, strict=True) if c is not None}
-            fix = _device_row(values, path.stem, roles)
-        except RowError as exc:
-            report.reject(fr, number, exc.category, exc.reason, raw)
-            continue
-        fr.records += 1
-        rows.add(**fix, source=fmt, sentence="", file=fr.file, line=number)
-
-
-def parse_device_stream(
-    paths: Iterable[Path | str], *, roles: Mapping[str, str] | None = None
-) -> tuple[pd.DataFrame, ParseReport]:
-    """Parse device streams (CSV or JSON lines, told apart by content) into a fix table in file order.
-
-    ``roles`` fills in the role of rows that give none (device → head/eot).
-    """
-    report = ParseReport()
-    rows = FixRows()
-    role_map = check_roles(roles)
-    for path in paths:
-        p = Path(path)
-        fmt = recognise_format(p)
-        _parse_device_file(p, report, rows, "jsonl" if fmt == "jsonl" else "csv", role_map)
-    report.check()
-    return rows.frame(), report
-
-
 # -------------------------------------------------------------- recognition
 
 
-def _first_line(path: Path) -> str | None:
-    stream, raw, _ = open_input(path)
-    try:
-        head = stream.read(_PEEK_BYTES)
-    finally:
-        stream.close()
-        raw.close()
-    for line in head.split(b"\n"):
-        text = line.strip()
-        if text and not text.startswith(b"#"):
-            try:
-                return text.decode("utf-8")
-            except UnicodeDecodeError:
-                return text.decode("cp1258", errors="replace")
-    return None
+_KIND_FORMATS: dict[str, GnssFormat] = {
+    "nmea": "nmea",
+    "gpsd": "nmea",  # gpsd JSON is read by the stream parser, beside any NMEA in the file
+    "jsonl": "jsonl",
+    "gnss-csv": "csv",
+    "centre": "centre",
+    "gpx": "gpx",
+}
 
 
 def recognise_format(path: Path | str) -> GnssFormat:
-    """``"nmea"``, ``"jsonl"``, ``"centre"``, ``"csv"`` or ``"unknown"``, from the file's first record line."""
-    first = _first_line(Path(path))
-    if first is None:
-        return "unknown"
-    if first[:1] in ("$", "!") or DEVICE_TAG_RE.match(first.encode("utf-8", errors="replace")):
-        return "nmea"
-    if first[:1] == "{":
-        return "jsonl"
-    cells = _cells(first, _delimiter(first))
-    try:
-        parse_centre_header(cells)
-        return "centre"
-    except ValueError:
-        pass
-    try:
-        parse_device_header(cells)
-        return "csv"
-    except ValueError:
-        return "unknown"
+    """``"nmea"`` (any receiver stream: NMEA, gpsd JSON, binary packets), ``"jsonl"``, ``"centre"``,
+    ``"csv"``, ``"gpx"`` or ``"unknown"``, from the file's head (:func:`parsers.kinds.classify_file`)."""
+    return _KIND_FORMATS.get(classify_file(path).kind, "unknown")
 
 
 def _reject_all(path: Path, report: ParseReport) -> None:
@@ -649,8 +380,29 @@ def parse_gnss(
         elif fmt == "centre":
             _parse_centre_file(path, report, rows, crossings, utc_offset_h)
         elif fmt in ("csv", "jsonl"):
-            _parse_device_file(path, report, rows, fmt, role_map)
+            parse_device_file(path, report, rows, fmt, role_map)
+        elif fmt == "gpx":
+            parse_gpx_file(path, report, rows, role_map)
         else:
             _reject_all(path, report)
     report.check()
     return _in_time_order(rows.frame()), report, _in_time_order(crossings.frame())
+
+
+def nothing_read(report: ParseReport) -> list[str]:
+    """One line per file of which no line was readable (no record, some rejected), with the main reason.
+
+    For commands that refuse such a file (exit 2) rather than report on nothing.
+    """
+    out = []
+    for fr in report.files:
+        if fr.records or not fr.rejected:
+            continue
+        first = next((r for r in report.rejections if r.file == fr.file), None)
+        example = f"; line {first.line}: {first.reason}" if first is not None else ""
+        lines = "line" if fr.rejected == 1 else "lines"
+        out.append(f"{fr.file}: nothing readable as GNSS: {fr.rejected} {lines} rejected, none read{example}")
+    if out and report.skipped:
+        skipped = ", ".join(f"{n} {kind}" for kind, n in sorted(report.skipped.items()))
+        out[0] += f" (skipped, not decoded: {skipped})"
+    return out

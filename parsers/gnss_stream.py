@@ -53,6 +53,7 @@ _UNPRINTABLE_RE = re.compile(rb"[^\t\x20-\x7e]")  # a tab may follow a device ta
 _SENTENCE_START_RE = re.compile(rb"(?=[$!])")
 # Inside binary data a sentence ends at its checksum, at the next '$'/'!', or at a control byte.
 _EMBEDDED_SENTENCE_RE = re.compile(rb"[$!][^$!*\x00-\x1f\x7f-\xff]*(?:\*[0-9A-Fa-f]{2})?")
+_ADDRESS_START_RE = re.compile(rb"[$!][A-Z][A-Z0-9]{4},")
 _DEVICE_TAG_HELP = "'$' or '!' (optionally after a device tag: 'DEVICE,$…' or 'DEVICE $…'), or a gpsd JSON object"
 _WHITESPACE = frozenset(b" \t\r\n")
 _POSITION_KINDS = ("RMC", "GGA", "GLL", "GNS", "TPV")
@@ -185,6 +186,13 @@ class StreamParser:
                 break
             at = m.start()
             if data[at] in b"$!":
+                if not _ADDRESS_START_RE.match(data, at):
+                    # Inside binary data a '$' that opens no sentence address is just a byte.
+                    junk_bytes += 1
+                    if junk_at < 0:
+                        junk_at = at
+                    pos = at + 1
+                    continue
                 sentence = _EMBEDDED_SENTENCE_RE.match(data, at)
                 assert sentence is not None  # the pattern matches at least the '$'
                 sentences.append(sentence.group())

@@ -11,6 +11,7 @@ from console.commands.common import (
     JsonOpt,
     StrictOpt,
     check_inputs,
+    fail,
     guard,
     print_json,
 )
@@ -22,10 +23,18 @@ def gnss(files: GnssFilesArg, json_out: JsonOpt = False, strict: StrictOpt = Fal
     def body() -> int:
         from console.render.diag_tables import parse_report_table, rejections_table
         from console.render.gnss_tables import devices_table, fixes_table, gnss_json
-        from parsers.gnss import parse_gnss
+        from parsers.gnss import nothing_read, parse_gnss
+        from parsers.kinds import not_gnss_reason
 
         check_inputs(files)
+        for path in files:
+            wrong = not_gnss_reason(path)
+            if wrong is not None:
+                raise fail(f"{path}: nothing readable as GNSS: {wrong}")
         fixes, report, _states = parse_gnss(files)
+        unread = nothing_read(report)
+        if unread:
+            raise fail(unread[0])
         if json_out:
             print_json({"schema": "trackside.gnss/1", "files": [str(p) for p in files], **gnss_json(fixes, report)})
         else:

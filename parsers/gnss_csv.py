@@ -1,0 +1,461 @@
+"""GNSS device exports as the world writes them: CSV (any delimiter) and JSON lines.
+
+Columns are recognised by name, whatever the case, spacing, ``_``/``-``
+and unit notation (``lat``, ``Latitude``, ``Latitude [deg]``, ``lat_e7``,
+``Speed (km/h)``, ``speed_mm_s``, ``gSpeed [mm/s]``):
+
+=============  ===========================================================
+``time``       date and time (``time``, ``timestamp``, ``utc``, ``datetime``,
+               ``time utc``, ``gps time``); or a date column (``date``,
+               ``utc date``, ``gps date``) beside a time-of-day column
+               (``time``, ``utc time``, ``time of day``), combined per row.
+``lat, lon``   ``lat``/``latitude``, ``lon``/``lng``/``long``/``longitude``;
+               degrees, or scaled integers when the name or unit says so
+               (``e7``, ``deg*1e7``, ``1e-7 deg``: ×1e-7; ``e6``/``microdeg``).
+``speed``      ``speed``, ``ground speed``, ``gspeed``, ``sog``, ``speed over
+               ground``; unit m/s unless given: km/h, mm/s, cm/s, knots, mph.
+               **No speed column: speed NaN**, never 0.
+``course``     ``course``, ``heading``, ``track``, ``cog``, ``course over
+               ground``, ``headmot``; degrees (``e5``: ×1e-5, u-blox).
+``device``     ``device``, ``device id``, ``unit``, ``unit id``, ``imei``
+               (default: the file's stem).
+``role``       ``head``/``eot`` (also locomotive/LTĐK, tail/end of train/MCĐT).
+``valid``      true/false, 1/0, yes/no, A/V.
+fix quality    ``fix``, ``fix type``, ``fix quality``, ``quality``,
+               ``status``, ``solution``, ``pos mode``, ``mode``: words
+               (``3D``, ``2D``, ``DGPS``, ``RTK fixed``, ``float``, ``no
+               fix``, ``invalid``, ``DR``, ``dead reckoning``, ``estimated``,
+               ``propagated``, ``time only`` …) or numbers — u-blox
+               ``fixType`` codes when the name says *type* (0 no fix,
+               1 dead reckoning, 2 2D, 3 3D, 4 GNSS+DR, 5 time only), NMEA GGA
+               codes when it says *quality* (0 invalid, 1–5 fix, 6 dead
+               reckoning, 7 manual, 8 simulator).  Dead-reckoned fixes keep
+               ``valid`` and are marked ``fix_quality = "dead_reckoning"``.
+=============  ===========================================================
+
+Any other column is read past and listed once per file in
+``report.skipped`` (``CSV column 'hdop' (not read)``): not a reason to
+reject the file.  A unit we do not know on a column we read is a header
+error (we will not guess a scale).  JSON lines use the same names as keys;
+other keys are ignored.  Times are ISO 8601 (``T`` or space; ``Z`` or an
+offset → UTC, no zone → UTC) or ``DD/MM/YYYY HH:MM:SS``.
+
+A broken row (a stray CR, a NUL, a wrong field count, a number beyond any
+range, a lone surrogate, JSON nested a thousand deep) is rejected alone,
+with the field named; the header line and ``#`` comments are blank.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import unicodedata
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from parsers.fix_table import FixRows, check_roles
+from parsers.gnss_fields import (
+    FALSE_WORDS,
+    ROLE_ALIASES,
+    TRUE_WORDS,
+    RowError,
+    cells_of,
+    decode_line,
+    delimiter_of,
+    parse_decimal,
+    time_field,
+)
+from parsers.gnss_lines import open_lines
+from parsers.gpsd_json import JsonRowError, load_object, plain
+from parsers.report import ParseReport
+
+KNOT_MPS = 1852 / 3600
+
+_NAMES: dict[str, tuple[str, ...]] = {
+    "time": ("time", "timestamp", "utc", "datetime", "date time", "time utc", "utc timestamp", "gps time", "ts"),
+    "date": ("date", "utc date", "gps date", "date utc"),
+    "tod": ("time of day", "utc time", "time utc of day", "tod"),
+    "device": ("device", "device id", "unit", "unit id", "imei", "device name"),
+    "role": ("role",),
+    "lat": ("lat", "latitude"),
+    "lon": ("lon", "lng", "long", "longitude"),
+    "speed": ("speed", "ground speed", "gspeed", "sog", "speed over ground", "velocity", "speed mps"),
+    "course": ("course", "heading", "track", "cog", "course over ground", "headmot", "bearing", "course deg"),
+    "valid": ("valid", "fix valid", "gnssfixok", "fix ok"),
+    "quality": (
+        "fix",
+        "fix type",
+        "fixtype",
+        "gps fix",
+        "fix quality",
+        "quality",
+        "gga quality",
+        "status",
+        "fix status",
+        "solution",
+        "solution status",
+        "pos mode",
+        "position mode",
+        "mode",
+        "fix mode",
+    ),
+}
+_BY_NAME = {alias: name for name, aliases in _NAMES.items() for alias in aliases}
+
+# Unit spelled in the header → (kind, factor to our unit: deg, m/s, deg).
+_UNIT_FACTORS: dict[str, float] = {
+    "": 1.0,
+    "deg": 1.0,
+    "degs": 1.0,
+    "degree": 1.0,
+    "degrees": 1.0,
+    "°": 1.0,
+    "dd": 1.0,
+    "e7": 1e-7,
+    "1e7": 1e-7,
+    "deg*1e7": 1e-7,
+    "deg 1e7": 1e-7,
+    "1e-7deg": 1e-7,
+    "1e 7deg": 1e-7,
+    "1e-7": 1e-7,
+    "e6": 1e-6,
+    "1e6": 1e-6,
+    "deg*1e6": 1e-6,
+    "microdeg": 1e-6,
+    "udeg": 1e-6,
+    "1e-6deg": 1e-6,
+    "e5": 1e-5,
+    "1e5": 1e-5,
+    "deg*1e5": 1e-5,
+    "1e-5deg": 1e-5,
+    "m/s": 1.0,
+    "mps": 1.0,
+    "m s": 1.0,
+    "ms": 1.0,
+    "km/h": 1 / 3.6,
+    "kmh": 1 / 3.6,
+    "kph": 1 / 3.6,
+    "km h": 1 / 3.6,
+    "mm/s": 1e-3,
+    "mm s": 1e-3,
+    "mms": 1e-3,
+    "cm/s": 1e-2,
+    "cm s": 1e-2,
+    "cms": 1e-2,
+    "kn": KNOT_MPS,
+    "kt": KNOT_MPS,
+    "kts": KNOT_MPS,
+    "knot": KNOT_MPS,
+    "knots": KNOT_MPS,
+    "mph": 0.44704,
+}
+_ANGLE_UNITS = frozenset(
+    {"", "deg", "degs", "degree", "degrees", "°", "dd"}
+    | {"e7", "1e7", "deg*1e7", "deg 1e7", "1e-7deg", "1e 7deg", "1e-7"}
+    | {"e6", "1e6", "deg*1e6", "microdeg", "udeg", "1e-6deg"}
+    | {"e5", "1e5", "deg*1e5", "1e-5deg"}
+)
+_SPEED_UNITS = frozenset(_UNIT_FACTORS) - _ANGLE_UNITS | {""}
+_BRACKET_UNIT_RE = re.compile(r"^(.*?)\s*[\(\[]\s*([^)\]]*?)\s*[\)\]]$")
+# Units written as the name's last words: lat_e7, speed_mm_s, speed_kmh, speed_knots.
+_SUFFIX_UNITS = ("mm s", "cm s", "m s", "km h", "kmh", "kph", "mps", "knots", "kn", "mph", "e7", "e6", "e5", "deg")
+
+_QUALITY_WORDS_NO_FIX = frozenset(
+    {"no fix", "nofix", "none", "invalid", "not valid", "no", "n", "v", "false", "time only", "time", "0 no fix"}
+)
+_QUALITY_WORDS_DR = frozenset(
+    {"dr", "dead reckoning", "dead reckoned", "dead-reckoning", "estimated", "e", "propagated", "extrapolated"}
+)
+_QUALITY_WORDS_FIX = frozenset(
+    {
+        "fix",
+        "2d",
+        "3d",
+        "2d fix",
+        "3d fix",
+        "gps",
+        "gnss",
+        "dgps",
+        "dgnss",
+        "differential",
+        "sps",
+        "pps",
+        "rtk",
+        "rtk fixed",
+        "rtk float",
+        "fixed",
+        "float",
+        "single",
+        "sbas",
+        "a",
+        "d",
+        "r",
+        "f",
+        "valid",
+        "ok",
+        "yes",
+        "true",
+        "gnss+dr",
+        "gnss + dr",
+        "gps+dr",
+    }
+)
+
+
+@dataclass
+class DeviceHeader:
+    """Where each field is read from, and with what factor."""
+
+    width: int
+    at: dict[str, int] = field(default_factory=dict)
+    factor: dict[str, float] = field(default_factory=dict)
+    quality_codes: str = ""  # "ublox", "gga" or "" (numbers refused)
+    extra: list[str] = field(default_factory=list)
+
+
+def _normal(cell: str) -> str:
+    text = unicodedata.normalize("NFC", cell).casefold().replace("_", " ").replace("-", " ").replace(".", " ")
+    return " ".join(text.split())
+
+
+def split_unit(cell: str) -> tuple[str, str]:
+    """A header cell → (name, unit).
+
+    ``Latitude [deg]`` → (``latitude``, ``deg``); ``lat_e7`` → (``lat``, ``e7``);
+    ``speed_mm_s`` → (``speed``, ``mm s``).
+    """
+    raw = unicodedata.normalize("NFC", cell).strip()
+    m = _BRACKET_UNIT_RE.match(raw)
+    if m:
+        return _normal(m.group(1)), m.group(2).casefold().replace(" ", "")
+    name = _normal(raw)
+    if name in _BY_NAME:
+        return name, ""
+    for unit in _SUFFIX_UNITS:
+        if name.endswith(" " + unit) and name[: -len(unit) - 1] in _BY_NAME:
+            return name[: -len(unit) - 1], unit
+    return name, ""
+
+
+def parse_device_header(cells: list[str]) -> DeviceHeader:
+    """Header cells → a :class:`DeviceHeader`; ValueError with the reason if not a device-stream header."""
+    header = DeviceHeader(len(cells))
+    for i, cell in enumerate(cells):
+        name, unit = split_unit(cell)
+        column = _BY_NAME.get(name)
+        if column is None:
+            header.extra.append(cell.strip())
+            continue
+        if column in header.at:
+            if column == "time" and "tod" not in header.at:
+                column = "tod"  # "date, time": the second is the time of day
+            else:
+                raise ValueError(f"column '{cell.strip()}' given twice")
+        if column in ("lat", "lon", "course", "speed"):
+            factor = _UNIT_FACTORS.get(unit)
+            allowed = _SPEED_UNITS if column == "speed" else _ANGLE_UNITS
+            if factor is None or unit not in allowed:
+                raise ValueError(f"column '{cell.strip()}': unit '{unit}' is not one we know for {column}")
+            header.factor[column] = factor
+        if column == "quality":
+            header.quality_codes = "ublox" if "type" in name else "gga" if "quality" in name or name == "fix" else ""
+        header.at[column] = i
+    if "date" in header.at and "time" in header.at and "tod" not in header.at:
+        header.at["tod"] = header.at.pop("time")
+    has_time = "time" in header.at or ("date" in header.at and "tod" in header.at)
+    missing = [c for c, ok in (("time", has_time), ("lat", "lat" in header.at), ("lon", "lon" in header.at)) if not ok]
+    if missing:
+        raise ValueError(f"missing column(s) {', '.join(missing)}")
+    return header
+
+
+def _flag(value: Any) -> bool:
+    if value is None or isinstance(value, bool):
+        return value is not False
+    text = str(value).strip().casefold()
+    if text in TRUE_WORDS or text == "":
+        return True
+    if text in FALSE_WORDS:
+        return False
+    raise RowError("valid", f"valid: expected true/false, 1/0 or yes/no, found '{value}'")
+
+
+def fix_quality(value: Any, codes: str) -> tuple[bool, str]:
+    """A fix-quality cell → (valid, ``fix_quality``); RowError when it cannot be read."""
+    if value is None:
+        return True, ""
+    text = " ".join(str(value).strip().casefold().replace("_", " ").split())
+    if text == "":
+        return True, ""
+    if text.isdigit():
+        code = int(text)
+        if codes == "ublox" and code <= 5:
+            return {0: (False, "no_fix"), 1: (True, "dead_reckoning"), 5: (False, "no_fix")}.get(code, (True, "gnss"))
+        if codes == "gga" and code <= 8:
+            if code == 6:
+                return True, "dead_reckoning"
+            return (True, "gnss") if 1 <= code <= 5 else (False, "no_fix")
+        hint = "" if codes else " (name the column 'fix type' for u-blox codes or 'fix quality' for NMEA GGA codes)"
+        raise RowError("quality", f"fix quality: code '{text}' is not known{hint}")
+    if text in _QUALITY_WORDS_NO_FIX:
+        return False, "no_fix"
+    if text in _QUALITY_WORDS_DR or text.startswith(("dead reck", "dr only")):
+        return True, "dead_reckoning"
+    if text in _QUALITY_WORDS_FIX or text.startswith(("rtk", "dgps", "3d", "2d")):
+        return True, "gnss"
+    raise RowError("quality", f"fix quality: '{str(value).strip()[:40]}' is not known (e.g. 3D, DGPS, no fix, DR)")
+
+
+def _scaled(value: Any, what: str, factor: float) -> float:
+    number = parse_decimal(value, what)
+    return number * factor
+
+
+def _row(values: Mapping[str, Any], header: DeviceHeader, default_device: str, roles: Mapping[str, str]) -> dict:
+    """One row (field name → raw value) → fix fields."""
+    if "time" in values:
+        time_ns = time_field(values.get("time"))
+    else:
+        date, tod = str(values.get("date") or "").strip(), str(values.get("tod") or "").strip()
+        if not date or not tod:
+            raise RowError("time", "time: the date and the time-of-day columns must both be given")
+        time_ns = time_field(f"{date} {tod}")
+    device = values.get("device")
+    device = default_device if device is None or str(device).strip() == "" else str(device).strip()
+    role_raw = values.get("role")
+    role_text = "" if role_raw is None else " ".join(unicodedata.normalize("NFC", str(role_raw)).casefold().split())
+    if role_text not in ROLE_ALIASES:
+        raise RowError("role", f"role: '{role_raw}' is not head or eot")
+    role = ROLE_ALIASES[role_text] or roles.get(device, "")
+    f = header.factor
+    lat = _scaled(values.get("lat"), "latitude", f.get("lat", 1.0))
+    lon = _scaled(values.get("lon"), "longitude", f.get("lon", 1.0))
+    if abs(lat) > 90:
+        raise RowError("range", f"latitude {lat:g}° is out of range ±90°")
+    if abs(lon) > 180:
+        raise RowError("range", f"longitude {lon:g}° is out of range ±180°")
+    if math.isnan(lat) != math.isnan(lon):
+        raise RowError("position", "latitude and longitude must be given together")
+    speed = _scaled(values.get("speed"), "speed", f.get("speed", 1.0))
+    if speed < 0:
+        raise RowError("range", f"speed: a speed cannot be negative ({speed:g} m/s)")
+    course = _scaled(values.get("course"), "course", f.get("course", 1.0))
+    valid, quality = fix_quality(values.get("quality"), header.quality_codes)
+    valid = valid and _flag(values.get("valid")) and not math.isnan(lat)
+    if not valid:
+        quality = "no_fix"
+    return {
+        "time_ns": time_ns,
+        "device": device,
+        "role": role,
+        "lat": lat,
+        "lon": lon,
+        "speed_mps": speed,
+        "course_deg": course,
+        "valid": valid,
+        "fix_quality": quality,
+    }
+
+
+# JSON keys carry no unit brackets: the few names that imply one.
+_JSON_KEY_UNITS = {"speed kmh": ("speed", 1 / 3.6), "speed mps": ("speed", 1.0)}
+
+
+def _json_values(text: str) -> tuple[dict[str, Any], DeviceHeader]:
+    try:
+        obj = load_object(text)
+    except JsonRowError as exc:
+        raise RowError(exc.category, exc.reason) from None
+    values: dict[str, Any] = {}
+    header = DeviceHeader(0)
+    for key in obj:
+        name, unit = split_unit(str(key))
+        column = _BY_NAME.get(name)
+        if (name, unit) == ("speed", "kmh") or _normal(str(key)) in _JSON_KEY_UNITS:
+            column = "speed"
+            header.factor["speed"] = _JSON_KEY_UNITS.get(_normal(str(key)), ("speed", 1 / 3.6))[1]
+        elif column in ("lat", "lon", "course", "speed") and unit:
+            if unit not in _UNIT_FACTORS:
+                raise RowError("json", f"key '{key}': unit '{unit}' is not one we know")
+            header.factor[column] = _UNIT_FACTORS[unit]
+        if column is None:
+            continue
+        if column in values:
+            raise RowError("json", f"key '{key}' repeats column {column}")
+        try:
+            values[column] = plain(obj, key)
+        except JsonRowError as exc:
+            raise RowError(exc.category, exc.reason) from None
+        if column == "quality":
+            header.quality_codes = "ublox" if "type" in name else "gga" if "quality" in name or name == "fix" else ""
+    missing = [c for c in ("lat", "lon") if c not in values]
+    if "time" not in values and not ("date" in values and "tod" in values):
+        missing.insert(0, "time")
+    if missing:
+        raise RowError("json", f"missing key(s) {', '.join(missing)}")
+    return values, header
+
+
+def parse_device_file(path: Path, report: ParseReport, rows: FixRows, fmt: str, roles: Mapping[str, str]) -> None:
+    """One device export (``fmt`` ``"csv"`` or ``"jsonl"``); rows appended, every line counted."""
+    fr, lines = open_lines(path, report)
+    header: DeviceHeader | None = None
+    delimiter = ","
+    for number, raw in lines:
+        text = decode_line(raw, fr)
+        if not text.strip() or text.lstrip().startswith("#"):
+            fr.blank += 1
+            continue
+        try:
+            if fmt == "jsonl":
+                values, json_header = _json_values(text)
+                fix = _row(values, json_header, path.stem, roles)
+            elif header is None:
+                delimiter = delimiter_of(text)
+                try:
+                    header = parse_device_header(cells_of(text, delimiter))
+                except ValueError as exc:
+                    reason = f"not the device-stream header: {exc}; expected time, lat, lon, …"
+                    raise RowError("header", reason) from None
+                for name in header.extra:
+                    report.skipped[f"CSV column '{name[:40]}' (not read)"] += 1
+                fr.blank += 1  # the header: no record, nothing lost
+                continue
+            else:
+                cells = cells_of(text, delimiter)
+                if len(cells) != header.width:
+                    hint = " (a decimal comma in a ','-separated file needs quotes)" * (len(cells) > header.width)
+                    raise RowError("fields", f"expected {header.width} fields, found {len(cells)}{hint}")
+                values = {name: cells[i] for name, i in header.at.items()}
+                fix = _row(values, header, path.stem, roles)
+        except RowError as exc:
+            report.reject(fr, number, exc.category, exc.reason, raw)
+            continue
+        fr.records += 1
+        rows.add(**fix, source=fmt, sentence="", file=fr.file, line=number)
+
+
+def _is_jsonl(path: Path) -> bool:
+    from parsers.kinds import classify_file
+
+    return classify_file(path).kind in ("jsonl", "gpsd")
+
+
+def parse_device_stream(
+    paths: Iterable[Path | str], *, roles: Mapping[str, str] | None = None
+) -> tuple[pd.DataFrame, ParseReport]:
+    """Parse device streams (CSV or JSON lines, told apart by content) into a fix table in file order.
+
+    ``roles`` fills in the role of rows that give none (device → head/eot).
+    """
+    report = ParseReport()
+    rows = FixRows()
+    role_map = check_roles(roles)
+    for path in map(Path, paths):
+        parse_device_file(path, report, rows, "jsonl" if _is_jsonl(path) else "csv", role_map)
+    report.check()
+    return rows.frame(), report

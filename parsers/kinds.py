@@ -1,0 +1,178 @@
+"""What kind of input a file is, from its head: for commands given a file of the wrong kind.
+
+:func:`classify_file` reads the first 64 KiB (gzip, UTF-16 with or without a
+BOM and CR-only line ends undone, as the parsers read them) and names one of
+:data:`KINDS`, with a phrase for people (``"an axle-counter diagnostic
+log"``).  A command that reads one family of inputs refuses a file of
+another kind up front, with one line naming the file and what it looks like
+(exit 2), instead of rejecting every line of it::
+
+    trackside: error: ws4.log: nothing readable as GNSS: looks like an axle-counter diagnostic log
+
+Recognition is by content, never by the file name (exception: none), in
+this order: a BLF container (``LOGG``); GPX (``<gpx`` in an XML head);
+diagnostic records (``Diag_id:``); CAN logs (candump ``(…) can0 …``, ASC
+``date``/``base hex`` headers, PEAK TRC ``;$FILEVERSION``); gpsd JSON
+(objects with a ``class``) and other JSON lines; NMEA or binary receiver
+packets anywhere in the head; then the first record line as a table header
+(monitoring-centre table, device-stream CSV, receiver voltages) or as a
+sensor-frame line.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Final, Literal
+
+from parsers import gnss_packets as packets
+
+Kind = Literal[
+    "diag", "nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre", "frames", "can", "voltages", "empty", "unknown"
+]
+KINDS: Final = (
+    "diag",
+    "nmea",
+    "gpsd",
+    "jsonl",
+    "gpx",
+    "gnss-csv",
+    "centre",
+    "frames",
+    "can",
+    "voltages",
+    "empty",
+    "unknown",
+)
+GNSS_KINDS: Final = frozenset({"nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre"})
+
+DESCRIPTIONS: Final = {
+    "diag": "an axle-counter diagnostic log",
+    "nmea": "a GNSS receiver stream (NMEA, binary packets)",
+    "gpsd": "gpsd JSON reports",
+    "jsonl": "GNSS device JSON lines",
+    "gpx": "a GPX track",
+    "gnss-csv": "a GNSS device CSV export",
+    "centre": "a monitoring-centre table",
+    "frames": "an intelligent-sensor frame log",
+    "can": "a CAN bus log",
+    "voltages": "a receiver-voltage table",
+    "empty": "an empty file",
+    "unknown": "no format trackside reads",
+}
+
+HEAD_BYTES: Final = 64 * 1024
+_NMEA_RE = re.compile(rb"[$!][A-Z][A-Z0-9]{4},")
+_CANDUMP_RE = re.compile(rb"\(\d+(?:\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
+_ASC_RE = re.compile(rb"^(?:date |base hex|base dec|internal events|Begin Triggerblock)", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class KindGuess:
+    """What a file looks like, and why we think so."""
+
+    kind: str
+    why: str = ""
+
+    @property
+    def description(self) -> str:
+        return DESCRIPTIONS[self.kind]
+
+
+def _record_lines(head: bytes) -> list[bytes]:
+    return [s for s in (line.strip() for line in head.split(b"\n")[:200]) if s and not s.startswith(b"#")]
+
+
+def _has_packet(head: bytes) -> bool:
+    for m in packets.SYNC_RE.finditer(head):
+        kind = packets.packet_kind(head[m.start() : m.start() + 2])
+        if kind is None:
+            continue
+        at = m.start()
+        size = packets.header_bytes(kind)
+        if at + size > len(head):
+            continue
+        total = packets.packet_length(kind, head[at : at + size])
+        if total is not None and at + total <= len(head) and packets.packet_is_valid(kind, head[at : at + total]):
+            return True
+    return False
+
+
+def _cells(text: str) -> list[str]:
+    delimiter = "\t" if "\t" in text else ";" if ";" in text else ","
+    return next(csv.reader([text], delimiter=delimiter, skipinitialspace=True), [])
+
+
+def classify_head(head: bytes) -> KindGuess:
+    """The kind of input whose first bytes (decoded to UTF-8-ish, LF line ends) are ``head``."""
+    if head.startswith(b"LOGG"):
+        return KindGuess("can", "a BLF container")
+    lines = _record_lines(head)
+    if not lines:
+        return KindGuess("empty", "no line to read")
+    first = lines[0]
+    lowered = head[:4096].lower()
+    if b"<gpx" in lowered and (first.startswith(b"<") or lowered.lstrip().startswith(b"<?xml")):
+        return KindGuess("gpx", "a <gpx> document")
+    if first.startswith(b"Diag_id:"):
+        return KindGuess("diag", "lines of Diag_id:… records")
+    if _CANDUMP_RE.match(first) or _ASC_RE.match(first) or first.startswith(b";$FILEVERSION"):
+        return KindGuess("can", "CAN log lines")
+    if first.startswith(b"{"):
+        if b'"class"' in first:
+            return KindGuess("gpsd", "JSON objects with a gpsd class")
+        return KindGuess("jsonl", "JSON objects")
+    if _NMEA_RE.search(head) or _has_packet(head):
+        return KindGuess("nmea", "NMEA sentences or receiver packets")
+    text = first.decode("utf-8", errors="replace")
+    cells = _cells(text)
+    from parsers.gnss import parse_centre_header
+    from parsers.gnss_csv import parse_device_header
+    from parsers.voltages import parse_header as parse_voltage_header
+
+    for kind, check in (
+        ("centre", parse_centre_header),
+        ("gnss-csv", parse_device_header),
+        ("voltages", parse_voltage_header),
+    ):
+        try:
+            check(cells)
+        except ValueError:
+            continue
+        return KindGuess(kind, "its header")
+    from parsers.frames import frame_line_problem
+
+    if len(text.split()) in (3, 4) and frame_line_problem(text) is None:
+        return KindGuess("frames", "frame lines")
+    if b"\0" in head[:4096]:
+        return KindGuess("unknown", "binary data")
+    return KindGuess("unknown", "no NMEA sentence, JSON object, GPX track or known table header")
+
+
+def read_head(path: Path) -> bytes:
+    """The first :data:`HEAD_BYTES` as the GNSS parsers would read them; InputError if unreadable."""
+    from parsers.gnss_lines import open_gnss_stream
+
+    stream, raw, _, _ = open_gnss_stream(path)
+    try:
+        return stream.read(HEAD_BYTES)
+    finally:
+        stream.close()
+        raw.close()
+
+
+def classify_file(path: Path | str) -> KindGuess:
+    """The kind of one file (see the module docstring); InputError if it cannot be read."""
+    return classify_head(read_head(Path(path)))
+
+
+def not_gnss_reason(path: Path | str) -> str | None:
+    """None if the file may hold GNSS data, else ``"looks like …"`` for the error line."""
+    guess = classify_file(path)
+    if guess.kind in GNSS_KINDS:
+        return None
+    if guess.kind in ("empty", "unknown"):
+        return f"{guess.description} ({guess.why})"
+    return f"looks like {guess.description}"
