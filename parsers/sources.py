@@ -150,7 +150,8 @@ class _Layer(io.RawIOBase):
             try:
                 n = self._read_some(view[got:])
             except _LAYER_ERRORS as exc:
-                self._error = exc
+                # Without its traceback: the frames it holds would keep views of the caller's buffer.
+                self._error = exc.with_traceback(None)
                 continue
             if n == 0:
                 break
@@ -162,8 +163,7 @@ class _Layer(io.RawIOBase):
             return self.readall()
         buf = bytearray(size)
         n = self.readinto(buf)
-        del buf[n:]
-        return bytes(buf)
+        return bytes(memoryview(buf)[:n])
 
     def readall(self) -> bytes:
         parts = []
@@ -281,7 +281,8 @@ class _Gunzip(_Layer):
             try:
                 n = self._read_some(view[got:])
             except _LAYER_ERRORS as exc:
-                self._error = exc if isinstance(exc, CorruptInput) else self._corrupt(f"{type(exc).__name__}: {exc}")
+                exc = exc if isinstance(exc, CorruptInput) else self._corrupt(f"{type(exc).__name__}: {exc}")
+                self._error = exc.with_traceback(None)
                 continue
             if n == 0:
                 break
