@@ -868,3 +868,25 @@ def test_a_candump_socketcan_error_class_frame_is_an_error_frame(tmp_path: Path)
     frames, report = parse_can([path])
     assert frames["kind"].tolist() == ["count", "error"]
     assert report.files[0].error_frames == 1  # type: ignore[attr-defined]
+
+
+def test_frames_command_reads_trc_and_lists_every_frame_with_its_kind() -> None:
+    import json
+
+    from typer.testing import CliRunner
+
+    from console.cli import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["frames", str(SAMPLES / "can_counts.trc"), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    kinds_seen = [row["kind"] for row in doc["frames"]]
+    assert {k: kinds_seen.count(k) for k in set(kinds_seen)} == {"count": 56, "foreign": 11, "remote": 1, "error": 1}
+    other = [row for row in doc["frames"] if row["kind"] != "count"]
+    assert all(row["sensor"] is None and row["status"] is None and row["can_id"] is not None for row in other)
+    (f,) = doc["parse_reports"][0]["files"]
+    assert f["lines_read"] == f["count_frames"] + f["foreign"] + f["remote_frames"] + f["error_frames"] + f["blank"]
+    text = runner.invoke(app, ["frames", str(SAMPLES / "can_counts.trc")], env={"COLUMNS": "100"})
+    assert text.exit_code == 0
+    assert "CAN traffic" in text.output and "remote" in text.output and "18FEF100x" in text.output
