@@ -16,7 +16,7 @@ the station view's replay.
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -105,44 +105,6 @@ def record_batches(root: Path, manifest: Manifest, window: Window = Window()) ->
         con.close()
 
 
-def diag_report(manifest: Manifest, root: Path, window: Window) -> ParseReport:
-    """The diagnostic parse report, summed over every ingest of every file (rejections from the archive)."""
-    from parsers.report import FileReport, ParseReport, Rejection
-
-    report = ParseReport()
-    report.max_rejections_kept = 1 << 62
-    for e in sorted(manifest.files, key=lambda e: int(e["file_seq"])):
-        if e["kind"] != "diagnostic" or not e.get("active", True):
-            continue
-        report.files.append(
-            FileReport(
-                file=e["path"],
-                lines_read=int(e["lines"]),
-                records=int(e["records"]),
-                blank=int(e["blank"]),
-                rejected=int(e["rejected"]),
-                bytes_read=int(e["bytes"]),
-                encoding=str(e.get("encoding", "utf-8")),
-                compressed=bool(e.get("compressed", False)),
-                ends_without_newline=bool(e.get("ends_without_newline", False)),
-            )
-        )
-    active = {int(e["file_seq"]) for e in manifest.files if e["kind"] == "diagnostic" and e.get("active", True)}
-    if manifest.parts("rejected") and active:
-        con, _ = connect(root, manifest)
-        try:
-            rows = con.execute(
-                "SELECT file, line, reason, text FROM rejected WHERE file_seq IN (SELECT unnest(?)) "
-                "ORDER BY file_seq, line",
-                [sorted(active)],
-            ).fetchall()
-        finally:
-            con.close()
-        for f, line, reason, text in rows:
-            report.rejections.append(Rejection(str(f), int(line), str(reason), str(text)))
-    return report
-
-
 def diag_job(root: Path, manifest: Manifest, window: Window = Window()) -> DiagJob | None:
     """What ``analyze_files`` returns for the archive's diagnostic records (None: there are none)."""
     from console.analysis.diagnostics import DiagAccumulator
@@ -168,7 +130,7 @@ def diag_job(root: Path, manifest: Manifest, window: Window = Window()) -> DiagJ
         return None
     analysis = acc.result(settings)
     records = chunks_to_frame(kept, rebuild.registry)
-    report = diag_report(manifest, root, window)
+    report = parse_reports(root, manifest)["diagnostic"]
     report.unknown_labels.update(rebuild.registry.unknown_labels())
     files = [f.file for f in report.files]
     return DiagJob(files=files, report=report, analysis=analysis, kept_records=records)
@@ -206,70 +168,147 @@ def _per_file_tables(root: Path, manifest: Manifest, table: str) -> list[tuple[i
 def report_data(
     root: Path, layout_spec: str | None = None, window: Window = Window(), manifest: Manifest | None = None
 ) -> ReportData:
-    """The report's data, from the archive (the inputs listed are the archived files)."""
+    """The report's data, from the archive (the inputs listed are the archived files).
+
+    The same steps as :func:`console.report.collect.collect`, in the same
+    order, on the archived tables instead of freshly parsed files.
+    """
     import pandas as pd
 
-    from console.analysis.crossing_batch import run_crossings
     from console.analysis.diag_events import DiagEventSettings
-    from console.analysis.events import DetectionEvent, sort_events
-    from console.analysis.frame_events import frames_to_events
-    from console.analysis.health import sort_findings
-    from console.analysis.sections import SectionState, run_sections
+    from console.analysis.health import Finding, sort_findings, voltage_margin_findings
     from console.jobs import detection_events, health_findings
-    from console.report.model import CENTRE, InputFile, ReportData
+    from console.report.collect import _sections, crossings_from_fixes, frames_from_tables
+    from console.report.model import InputFile, ReportData
+    from parsers.can_logs import count_frames_only
 
     m = manifest if manifest is not None else read_current(root)
     spec = layout_spec if layout_spec is not None else m.derived.get("layout")
     layout = _layout(spec)
     settings = speed_settings(m, layout)
-    inputs = [
-        InputFile(str(e["path"]), str(e["kind"]), True, "from the archive")
-        for e in sorted(m.files, key=lambda e: int(e["file_seq"]))
-        if e.get("active", True)
-    ]
+    active = sorted((e for e in m.files if e.get("active", True)), key=lambda e: int(e["file_seq"]))
+    kind_of = {int(e["file_seq"]): str(e["kind"]) for e in active}
+    inputs = [InputFile(str(e["path"]), str(e["kind"]), True, "from the archive") for e in active]
     data = ReportData(inputs=inputs, layout=layout, settings=settings)
+    reports = parse_reports(root, m)
+
+    findings: list[Finding] = []
     job = diag_job(root, m, window)
-    findings = []
     if job is not None:
         data.job = job
         data.reports["diagnostic"] = job.report
         data.events, ev_warnings = detection_events(job, layout, DiagEventSettings())
         data.warnings += ev_warnings
         findings += health_findings(job, layout, data.events, None)
-    data.findings = sort_findings(findings)
 
     frames = _per_file_tables(root, m, "frames")
-    if frames and window.whole:
-        up: dict[str, bool] | bool = (
-            {h.id: h.up_is_first_channel_first for h in layout.heads} if layout is not None else True
-        )
-        events: list[DetectionEvent] = []
-        for _, part in frames:
-            events += frames_to_events(part, up_is_s1_to_s3=up)
-        data.frame_events = sort_events(events)
-        data.frames = pd.concat([p for _, p in frames], ignore_index=True)[["time", "sensor", "file", "line"]]
+    text = [df for seq, df in frames if kind_of.get(seq) == "frames"]
+    can = [df for seq, df in frames if kind_of.get(seq) == "can"]
+    tables: list[pd.DataFrame] = []
+    if text:
+        tables.append(_frame_window(pd.concat(text, ignore_index=True), window))
+        data.reports["frames"] = reports["frames"]
+    if can:
+        tables.append(count_frames_only(_frame_window(pd.concat(can, ignore_index=True), window)))
+        data.reports["can"] = reports["can"]
+    frames_from_tables(data, tables)
 
-    if layout is not None and layout.sections:
-        if data.job is not None:
-            data.section_source = "diagnostic"
-            data.sections = run_sections(layout, data.events, initial=SectionState.PREPARATORY)
-        elif data.frames is not None:
-            data.section_source = "frames"
-            data.sections = run_sections(layout, data.frame_events, initial=SectionState.PREPARATORY)
+    volts = _per_file_tables(root, m, "voltages")
+    if volts:
+        data.reports["voltages"] = reports["voltages"]
+        findings += voltage_margin_findings(pd.concat([df for _, df in volts], ignore_index=True))
+    data.findings = sort_findings(findings)
 
+    _sections(data)
     fixes_parts = _per_file_tables(root, m, "fixes")
-    if fixes_parts:
-        fixes = pd.concat([p for _, p in fixes_parts], ignore_index=True)
-        fixes = fixes.sort_values("time", kind="stable", na_position="last").reset_index(drop=True)
-        if window.start is not None:
-            fixes = fixes[fixes["time"] >= pd.Timestamp(window.start)]
-        if window.end is not None:
-            fixes = fixes[fixes["time"] < pd.Timestamp(window.end)]
-        data.fixes = fixes
-        if layout is not None and layout.crossings and len(layout.track) >= 2:
-            own = fixes["source"].astype(str) != CENTRE
-            data.crossing = run_crossings(fixes[own] if own.any() else fixes, layout)
+    if not fixes_parts:
+        data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."
+        return data
+    fixes = pd.concat([p for _, p in fixes_parts], ignore_index=True)
+    # parse_gnss sorts the fixes of all its files by time, stably, unknown times last.
+    fixes = fixes.sort_values("time", kind="stable", na_position="last").reset_index(drop=True)
+    data.reports["gnss"] = reports["gnss"]
+    crossings_from_fixes(data, _cut_fixes(fixes, window))
     return data
+
+
+def _frame_window(frames: pd.DataFrame, window: Window) -> pd.DataFrame:
+    import pandas as pd
+
+    if window.start is not None:
+        frames = frames[frames["time"] >= pd.Timestamp(window.start)]
+    if window.end is not None:
+        frames = frames[frames["time"] < pd.Timestamp(window.end)]
+    return frames
+
+
+REPORT_KINDS = {
+    "diagnostic": "diagnostic",
+    "frames": "frames",
+    "can": "can",
+    "voltages": "voltages",
+    "nmea": "gnss",
+    "gnss-csv": "gnss",
+    "gnss-jsonl": "gnss",
+    "centre": "gnss",
+}
+
+
+def parse_reports(root: Path, manifest: Manifest) -> dict[str, ParseReport]:
+    """Per report section (diagnostic, frames, can, voltages, gnss): the parse report of the archived files.
+
+    Rebuilt from each file's accounting in the ledger and its rejected lines,
+    in file order, the first MAX_REJECTIONS_KEPT kept as a read of the files would.
+    """
+    from collections import Counter
+
+    from parsers.report import FileReport, ParseReport, Rejection
+
+    out: dict[str, ParseReport] = {k: ParseReport() for k in set(REPORT_KINDS.values())}
+    section_of: dict[int, str] = {}
+    for e in sorted(manifest.files, key=lambda e: int(e["file_seq"])):
+        section = REPORT_KINDS.get(str(e["kind"]))
+        if section is None or not e.get("active", True) or "report" not in e:
+            continue
+        section_of[int(e["file_seq"])] = section
+        rep = out[section]
+        known = set(FileReport.__dataclass_fields__)
+        rep.files.append(FileReport(**{k: v for k, v in e["report"].items() if k in known}))
+        rep.rejected_by_reason.update(Counter(e.get("rejected_by_reason", {})))
+        rep.skipped.update(Counter(e.get("skipped", {})))
+    if manifest.parts("rejected") and section_of:
+        con, _ = connect(root, manifest)
+        try:
+            rows = con.execute(
+                "SELECT file_seq, file, line, reason, text FROM rejected ORDER BY file_seq, line"
+            ).fetchall()
+        finally:
+            con.close()
+        for seq, f, line, reason, text in rows:
+            section = section_of.get(int(seq))
+            if section is None:
+                continue
+            rep = out[section]
+            if len(rep.rejections) < rep.max_rejections_kept:
+                rep.rejections.append(Rejection(str(f), int(line), str(reason), str(text)))
+    return out
+
+
+def _cut_fixes(fixes: pd.DataFrame, window: Window) -> pd.DataFrame:
+    """Fixes inside the window (zone-aware fix times are compared in UTC)."""
+    import pandas as pd
+
+    tz = getattr(fixes["time"].dt, "tz", None)
+
+    def stamp(t: dt.datetime) -> pd.Timestamp:
+        ts = pd.Timestamp(t)
+        return ts.tz_localize("UTC") if tz is not None else ts
+
+    if window.start is not None:
+        fixes = fixes[fixes["time"] >= stamp(window.start)]
+    if window.end is not None:
+        fixes = fixes[fixes["time"] < stamp(window.end)]
+    return fixes
 
 
 def replay(root: Path, window: Window = Window()) -> Iterator[pd.DataFrame]:
@@ -285,3 +324,62 @@ def replay(root: Path, window: Window = Window()) -> Iterator[pd.DataFrame]:
             yield batch.to_pandas()
     finally:
         con.close()
+
+
+def archive_collector(
+    archive: Path | None,
+    layout: str | None,
+    start: str | None,
+    end: str | None,
+    head: str | None,
+    device_id: int | None,
+) -> Callable[[], ReportData]:
+    """For ``report --archive``: a collector giving the report's data from the archive, errors as one line."""
+    from console.archive.store import ArchiveError, archive_dir
+    from console.archive.views import require_archive
+    from console.report.collect import ReportInputError
+
+    root = archive_dir(archive)
+
+    def collector() -> ReportData:
+        # Errors raised here reach the report's one-line error handling.
+        try:
+            window = Window(
+                start=parse_time(start) if start else None,
+                end=parse_time(end) if end else None,
+                head=head,
+                device_id=device_id,
+            )
+        except ValueError as exc:
+            raise ReportInputError(f"--from/--to: {exc}") from None
+        try:
+            m = require_archive(root)
+            return report_data(root, layout, window, manifest=m)
+        except ArchiveError as exc:
+            raise ReportInputError(str(exc)) from None
+
+    return collector
+
+
+def replay_inputs(root: Path, layout: Layout, window: Window = Window()) -> tuple[list[Any], pd.DataFrame | None]:
+    """For ``station --replay --archive``: (detection events in time order, GNSS fixes in time order) of a window.
+
+    The same events and fixes the station view's ReplaySource builds from files
+    (``detection_events`` over the records, the archived fixes).
+    """
+    from console.analysis.diag_events import DiagEventSettings
+    from console.archive.views import require_archive
+    from console.jobs import detection_events
+
+    m = require_archive(root)
+    job = diag_job(root, m, window)
+    events = detection_events(job, layout, DiagEventSettings())[0] if job is not None else []
+    fixes = None
+    parts = _per_file_tables(root, m, "fixes")
+    if parts:
+        import pandas as pd
+
+        fixes = pd.concat([p for _, p in parts], ignore_index=True)
+        fixes = fixes.sort_values("time", kind="stable", na_position="last").reset_index(drop=True)
+        fixes = _cut_fixes(fixes, window)
+    return sorted(events, key=lambda e: e.time_ns), fixes

@@ -140,7 +140,7 @@ class _Ingest:
 
     def add_file(self, path: Path, shown: str) -> FileOutcome:
         kind, note = _kind(path)
-        if kind not in (DIAGNOSTIC, *STORED_ELSEWHERE, "frames", "can"):
+        if kind not in (DIAGNOSTIC, *STORED_ELSEWHERE, "frames", "can", "voltages"):
             why = note or f"{kind}: not archived"
             self._ledger_row(shown, kind, "not-read", why, None, 0, 0, None)
             return FileOutcome(shown, kind, "not-read", why)
@@ -220,6 +220,7 @@ class _Ingest:
             e["encoding"] = fr.encoding
             e["compressed"] = fr.compressed
         e["ends_without_newline"] = fr.ends_without_newline
+        ledger.merge_report(e, reader.report, grown=p.action == "grown")
         out.records, out.rejected = fr.records, fr.rejected
         self.touched.add("records")
 
@@ -232,6 +233,11 @@ class _Ingest:
 
             table, report, _states = parse_gnss([source])
             name = "fixes"
+        elif kind == "voltages":
+            from parsers.voltages import read_voltages
+
+            table, report = read_voltages([source])
+            name = "voltages"
         elif kind == "frames":
             from parsers.frames import parse_frames
 
@@ -263,6 +269,7 @@ class _Ingest:
                     "generation": self.gen,
                 }
             )
+        ledger.merge_report(e, report, grown=False)
         e["lines"] = report.lines_read
         e["records"] = report.records
         e["blank"] = report.blank

@@ -113,3 +113,26 @@ def plan(files: list[dict[str, Any]], path: str, s: Scan, entry: dict[str, Any] 
         why = "shorter than before" if s.size < entry["bytes"] else "its first bytes changed"
         return Plan("new", None, 0, s.complete_bytes, 0, f"rotated or rewritten ({why}): ingested as a new file")
     return Plan("new", None, 0, s.complete_bytes, 0, "new file")
+
+
+_SUMMED = ("lines_read", "records", "blank", "rejected", "bytes_read", "overlap_records")
+
+
+def merge_report(entry: dict[str, Any], report: Any, *, grown: bool) -> None:
+    """Keep a file's parse accounting in its ledger entry (summed over the pieces of a grown file)."""
+    fr = report.files[0].to_dict() if report.files else {}
+    old = entry.get("report") if grown else None
+    if old:
+        for k in _SUMMED:
+            if k in fr:
+                fr[k] = int(fr[k]) + int(old.get(k, 0))
+        for k in ("encoding", "compressed"):
+            if k in old:
+                fr[k] = old[k]
+    fr["file"] = entry["path"]
+    entry["report"] = fr
+    for name in ("rejected_by_reason", "skipped"):
+        counts = dict(entry.get(name, {})) if grown else {}
+        for k, v in getattr(report, name, {}).items():
+            counts[k] = counts.get(k, 0) + int(v)
+        entry[name] = counts

@@ -25,6 +25,7 @@ TABLES: dict[str, tuple[str, ...]] = {
     "records": ("day", "device_id"),
     "fixes": (),
     "frames": (),
+    "voltages": (),
     "passages": ("day", "device_id"),
     "axles": ("day", "device_id"),
     "section_states": ("day",),

@@ -7,14 +7,14 @@ from typing import Annotated
 
 import typer
 
-from console.commands.common import guard
+from console.commands.common import fail, guard
 
 
 def report(
     inputs: Annotated[
-        list[Path],
+        list[Path] | None,
         typer.Argument(help="Log files or directories (a `trackside simulate` output reads whole); - reads stdin."),
-    ],
+    ] = None,
     layout: Annotated[
         str | None,
         typer.Option("--layout", help="Layout file, or osong / example (default: a layout.toml among the inputs)."),
@@ -32,12 +32,27 @@ def report(
         str | None,
         typer.Option("--fail-on", help="Exit 1 when a finding reaches this severity (info, warning, critical)."),
     ] = None,
+    archive: Annotated[
+        Path | None,
+        typer.Option("--archive", help="Report from this archive instead of files (see trackside ingest)."),
+    ] = None,
+    start: Annotated[str | None, typer.Option("--from", help="With --archive: from this time (ISO).")] = None,
+    end: Annotated[str | None, typer.Option("--to", help="With --archive: up to this time (ISO, excluded).")] = None,
+    head: Annotated[str | None, typer.Option("--head", help="With --archive: one counting head.")] = None,
+    device: Annotated[int | None, typer.Option("--device", help="With --archive: one device id.")] = None,
 ) -> None:
     """A report for people (Markdown, HTML) or scripts (JSON): unsafe first, then failing, then the rest."""
 
     def body() -> int:
         from console.report import run_report
 
-        return run_report(inputs, layout, fmt, output, fail_on)
+        if archive is not None or start or end or head or device is not None:
+            from console.archive.history import archive_collector
+
+            if inputs:
+                raise fail("give input files or --archive, not both")
+            collector = archive_collector(archive, layout, start, end, head, device)
+            return run_report([], layout, fmt, output, fail_on, collector=collector)
+        return run_report(inputs or [], layout, fmt, output, fail_on)
 
     raise typer.Exit(guard(body))

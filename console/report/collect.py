@@ -341,6 +341,11 @@ def _frames(data: ReportData, text_files: list[Path], can_files: list[Path]) -> 
         table, report = parse_can(can_files)
         tables.append(count_frames_only(table))  # foreign, remote and error frames are in the parse report
         data.reports["can"] = report
+    frames_from_tables(data, tables)
+
+
+def frames_from_tables(data: ReportData, tables: list[pd.DataFrame]) -> None:
+    """Frame tables (already parsed: from files, or from the archive) → frame events and the frames table."""
     if not tables:
         return
     lay = data.layout
@@ -373,12 +378,17 @@ def _sections(data: ReportData) -> None:
 
 
 def _crossings(data: ReportData, gnss: list[Path]) -> None:
-    lay = data.layout
     if not gnss:
         data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."
         return
     fixes, report, _states = parse_gnss(gnss)
     data.reports["gnss"] = report
+    crossings_from_fixes(data, fixes)
+
+
+def crossings_from_fixes(data: ReportData, fixes: pd.DataFrame) -> None:
+    """Parsed fixes (from files, or from the archive) → the crossing controller's run, with its notes."""
+    lay = data.layout
     data.fixes = fixes
     if lay is None:
         data.notes["crossings"] = "No level-crossing timelines: they need a layout with [[crossings]] and a [[track]]."

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from console import exit_codes
@@ -53,7 +54,14 @@ def exit_code(data: ReportData, threshold: Severity | None) -> int:
     return exit_codes.FINDINGS if worst is not None and worst >= threshold else exit_codes.OK
 
 
-def run_report(inputs: list[Path], layout: str | None, fmt: str, output: Path | None, fail_on: str | None) -> int:
+def run_report(
+    inputs: list[Path],
+    layout: str | None,
+    fmt: str,
+    output: Path | None,
+    fail_on: str | None,
+    collector: Callable[[], ReportData] | None = None,
+) -> int:
     """Read ``inputs`` (files or directories), write the report to ``output`` (or stdout); the exit code.
 
     ``output`` is checked before any work (:func:`console.output_path.check_output_file`):
@@ -69,7 +77,7 @@ def run_report(inputs: list[Path], layout: str | None, fmt: str, output: Path | 
             threshold = Severity.parse(fail_on)
         except ValueError as exc:
             return _error(f"--fail-on: {exc}")
-    if not inputs:
+    if not inputs and collector is None:
         return _error("give input files or directories (a `trackside simulate` directory, logs, tables)")
     if output is not None and os.fsdecode(output) == STDOUT:
         output = None
@@ -77,7 +85,8 @@ def run_report(inputs: list[Path], layout: str | None, fmt: str, output: Path | 
     try:
         if output is not None:
             target = check_output_file(output, inputs, what="report")
-        data = collect(inputs, layout, exclude=output)
+        # The archive's faces (report --archive) bring their own collector.
+        data = collector() if collector is not None else collect(inputs, layout, exclude=output)
         if output is not None:
             # Again against every file read (those found in directories too).
             target = check_output_file(output, [Path(i.path) for i in data.inputs], what="report")

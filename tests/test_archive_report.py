@@ -1,0 +1,80 @@
+"""`report --archive` gives the report of the original files, apart from the list of inputs."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from console.archive.history import Window, replay_inputs, report_data
+from console.cli import app
+from console.layout import load_layout
+from tests.conftest import SAMPLES
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    arc = tmp_path_factory.mktemp("report") / "arc"
+    res = runner.invoke(app, ["ingest", str(SAMPLES), "--archive", str(arc), "--layout", "example"])
+    assert res.exit_code == 0, res.output
+    return arc
+
+
+def test_json_report_from_the_archive_equals_the_report_on_the_files(archive: Path) -> None:
+    from_files = runner.invoke(app, ["report", str(SAMPLES), "--layout", "example", "--format", "json"])
+    from_archive = runner.invoke(app, ["report", "--archive", str(archive), "--format", "json"])
+    assert from_files.exit_code == from_archive.exit_code == 0, from_archive.output
+    a, b = json.loads(from_archive.stdout), json.loads(from_files.stdout)
+    a_inputs, b_inputs = a.pop("inputs"), b.pop("inputs")
+    assert a == b
+    # The inputs list names the archived files (absolute), every one the files' report read.
+    read = {Path(f["file"]).name for f in b_inputs["files"] if f["read"]}
+    assert {Path(f["file"]).name for f in a_inputs["files"]} == read
+    assert a["passages"] and a["sections"] and a["crossings"] and a["health"]
+
+
+def test_markdown_report_from_the_archive_differs_only_in_the_inputs(archive: Path) -> None:
+    def body(text: str) -> list[str]:
+        # Input rows name files; the header line and the total row count them.
+        skip = ("Layout:", "| **total** |")
+        return [ln for ln in text.splitlines() if "sample\\_logs" not in ln and not ln.startswith(skip)]
+
+    md_files = runner.invoke(app, ["report", str(SAMPLES), "--layout", "example"]).stdout
+    md_archive = runner.invoke(app, ["report", "--archive", str(archive)]).stdout
+    assert body(md_archive) == body(md_files)
+    assert "| **total** |" in md_archive
+
+
+def test_a_window_and_a_head_cut_the_history(archive: Path) -> None:
+    whole = report_data(archive)
+    one = report_data(archive, window=Window(head="WS2"))
+    assert whole.job is not None and one.job is not None
+    assert set(one.job.analysis.passages["counting_head"]) == {"WS2"}
+    assert len(one.job.analysis.passages) < len(whole.job.analysis.passages)
+    t0 = int(one.job.analysis.passages["start_ns"].min())
+    later = report_data(archive, window=Window(start=_dt(t0 + 600 * 10**9), head="WS2"))
+    assert later.job is not None
+    assert later.job.analysis.passages["start_ns"].min() >= t0 + 600 * 10**9
+
+
+def test_bad_window_and_missing_archive_are_one_line_errors(tmp_path: Path, archive: Path) -> None:
+    res = runner.invoke(app, ["report", "--archive", str(archive), "--from", "yesterday"])
+    assert res.exit_code == 2 and res.stderr.startswith("trackside: error: --from/--to")
+    res = runner.invoke(app, ["report", "--archive", str(tmp_path / "none")])
+    assert res.exit_code == 2 and "no archive here yet" in res.stderr
+
+
+def test_replay_inputs_are_in_time_order(archive: Path) -> None:
+    events, fixes = replay_inputs(archive, load_layout("example"))
+    times = [e.time_ns for e in events]
+    assert times and times == sorted(times)
+    assert fixes is not None and fixes["time"].is_monotonic_increasing
+
+
+def _dt(ns: int) -> dt.datetime:
+    return dt.datetime(1970, 1, 1) + dt.timedelta(microseconds=ns // 1000)
