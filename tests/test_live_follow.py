@@ -43,6 +43,7 @@ def _follow(path: Path, **kw: bool) -> tuple[FileSource, Collector]:
     src = FileSource(f"file:{path}", path, **kw)
     got = Collector()
     src.start(got)
+    assert wait_until(lambda: src.status().connected, 5)  # the file is open before the test writes
     return src, got
 
 
@@ -189,9 +190,12 @@ def test_follow_of_a_log_written_in_pieces_and_rotated_reports_what_analyze_find
         text=True,
     )
     try:
-        time.sleep(0.8)  # the follower is up before the first piece
+        assert proc.stdout is not None
+        first = proc.stdout.readline()  # the follower is up before the first piece
+        assert '"connected"' in first
         _write_in_pieces(SAMPLE.read_bytes(), log, 0.5, mode)
         out, err = proc.communicate(timeout=40)
+        out = first + out
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -202,7 +206,7 @@ def test_follow_of_a_log_written_in_pieces_and_rotated_reports_what_analyze_find
     def key(p: dict[str, object]) -> tuple[str, str]:
         return str(p["start"]), str(p["counting_head"])
 
-    assert len(passages) == len(analyze_passages) > 100
+    assert len(passages) == len(analyze_passages) > 100, (events[-1], err[-500:])
     assert sorted(passages, key=key) == sorted(analyze_passages, key=key)
     summary = events[-1]
     assert summary["type"] == "summary"

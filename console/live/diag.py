@@ -87,6 +87,7 @@ class DiagFollow:
         self._head_keys: dict[tuple[int, str], int] = {}
         self._heads: list[tuple[int, str]] = []
         self._open: dict[int, _HeadRun] = {}
+        self._cuts: dict[int, int] = {}  # head → records up to this time form finished runs
         self.clock_ns = NO_TIME
         self._gap_ns = int(settings.idle_gap_s * NS)
         self._slack_ns = int(ORDER_SLACK_S * NS)
@@ -135,19 +136,31 @@ class DiagFollow:
         return self._head_of_reg[register_id]
 
     def _hold(self, chunk: DiagChunk) -> None:
+        """Hold a chunk's records; a gap longer than the idle gap inside a head's records
+        ends that head's run at once (a log read from its start comes in large blocks)."""
         self._held.append(chunk)
         self.stats.records_held += len(chunk)
         heads = self._heads_of(chunk.register_id)
         t = chunk.time_ns
         self.clock_ns = max(self.clock_ns, int(t.max()))
-        order = np.argsort(heads, kind="stable")
+        order = np.lexsort((t, heads))
         hs, ts = heads[order], t[order]
         starts = np.flatnonzero(np.r_[True, hs[1:] != hs[:-1]])
-        firsts = np.minimum.reduceat(ts, starts)
-        lasts = np.maximum.reduceat(ts, starts)
-        for h, first, last in zip(hs[starts].tolist(), firsts.tolist(), lasts.tolist(), strict=True):  # per head
+        ends = np.r_[starts[1:], len(hs)]
+        # Gaps between consecutive records of one head (sorted by time), found for all heads at once.
+        gap_after = np.r_[(np.diff(ts) > self._gap_ns) & (hs[1:] == hs[:-1]), False]
+        for h, a, b in zip(hs[starts].tolist(), starts.tolist(), ends.tolist(), strict=True):  # per head
             run = self._open.get(h)
-            if run is None:
+            first, last = int(ts[a]), int(ts[b - 1])
+            if run is not None and first - run.last_ns > self._gap_ns:
+                self._cuts[h] = max(self._cuts.get(h, NO_TIME), run.last_ns)
+                run = None
+            inner = np.flatnonzero(gap_after[a : b - 1])
+            if len(inner):
+                i = a + int(inner[-1])
+                self._cuts[h] = max(self._cuts.get(h, NO_TIME), int(ts[i]))
+                self._open[h] = _HeadRun(int(ts[i + 1]), last)
+            elif run is None:
                 self._open[h] = _HeadRun(first, last)
             else:
                 run.first_ns = min(run.first_ns, first)
@@ -156,20 +169,24 @@ class DiagFollow:
     # -- closing runs -----------------------------------------------------
     def _close(self, final: bool) -> None:
         limit = self.clock_ns - self._gap_ns - self._slack_ns
-        done = [h for h, run in self._open.items() if final or run.last_ns < limit]
-        if done:
-            closed = self._take(done)
-            for h in done:
+        cuts = dict(self._cuts)
+        self._cuts.clear()
+        for h, run in list(self._open.items()):
+            if final or run.last_ns < limit:
+                cuts[h] = np.iinfo(np.int64).max
                 del self._open[h]
-            self._analyse(closed)
+        if cuts:
+            self._analyse(self._take(cuts))
         self._release(final)
 
-    def _take(self, heads: list[int]) -> list[DiagChunk]:
-        wanted = np.zeros(len(self._heads), bool)
-        wanted[heads] = True
+    def _take(self, cuts: dict[int, int]) -> list[DiagChunk]:
+        """Records at or before their head's cut time: out of the held chunks."""
+        cut = np.full(len(self._heads), NO_TIME, np.int64)
+        for h, t in cuts.items():
+            cut[h] = t
         closed, kept = [], []
         for c in self._held:
-            mask = wanted[self._heads_of(c.register_id)]
+            mask = c.time_ns <= cut[self._heads_of(c.register_id)]
             if mask.all():
                 closed.append(c)
             elif mask.any():

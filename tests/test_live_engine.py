@@ -1,0 +1,141 @@
+"""The live engine's safety behaviour on live fixes: a unit that goes silent, units whose
+clocks are off, and a diagnostic source that stops mid-train (no servers needed)."""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import pytest
+
+from console.analysis.geo import TrackProjector
+from console.layout import load_layout
+from console.live.engine import LiveEngine
+from console.sources.base import GnssFix, LineBlock
+from tests.live_fixtures import REPO
+
+NS = 10**9
+T0 = 1_800_000_000 * NS
+CROSSING_M = 11850.0  # example layout, crossing 11+850
+TRAIN_M = 28.6
+START_M = 9000.0
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = T0
+
+    def __call__(self) -> int:
+        return self.t
+
+
+def run(
+    skews_s: dict[str, float] | None = None,
+    silent_eot_after_s: float | None = None,
+    speed_mps: float = 15.0,
+    seconds: int = 300,
+) -> tuple[list[dict[str, Any]], LiveEngine]:
+    """A train from chainage 9,000 m (before the mapped track: projected along its end) at constant speed, head and EOT fixes every 2 s."""
+    lay = load_layout("example")
+    proj = TrackProjector(lay.track)
+    events: list[dict[str, Any]] = []
+    engine = LiveEngine(lay, events.append)
+    clock = Clock()
+    engine.now_ns = clock  # type: ignore[method-assign]
+    skews = skews_s or {}
+    for k in range(0, seconds * 2):
+        clock.t = T0 + k * NS // 2
+        if k % 4 == 0:
+            t_s = k / 2
+            head_m = START_M + speed_mps * t_s
+            for role, x in (("head", head_m), ("eot", head_m - TRAIN_M)):
+                if role == "eot" and silent_eot_after_s is not None and t_s > silent_eot_after_s:
+                    continue
+                lat, lon = proj.position(x)
+                dev = f"unit-{role}"
+                engine.handle(
+                    GnssFix(
+                        "mqtt://test",
+                        dev,
+                        clock.t + int(skews.get(dev, 0.0) * NS) - NS // 5,  # measured 0.2 s before reception
+                        float(lat[0]),
+                        float(lon[0]),
+                        speed_mps,
+                        proj.bearing_deg(x),
+                        time.monotonic(),
+                        role=role,
+                        train="7",
+                    )
+                )
+        engine.tick()
+    return [e for e in events if e["type"] == "crossing" and e["crossing"] == "11+850"], engine
+
+
+def kinds(events: list[dict[str, Any]]) -> list[str]:
+    return [e["kind"] for e in events]
+
+
+def test_a_train_passing_turns_the_warning_on_in_time_and_off_after_its_tail() -> None:
+    events, engine = run()
+    assert kinds(events) == ["on", "off"]
+    on_s = (events[0]["time_ns"] - T0) / NS
+    off_s = (events[1]["time_ns"] - T0) / NS
+    arrival_s = (CROSSING_M - START_M) / 15.0
+    tail_past_s = (CROSSING_M + TRAIN_M - START_M) / 15.0
+    warning_time_s = next(c.warning_time_s for c in engine.layout.crossings if c.code == "11+850")  # type: ignore[union-attr]
+    assert arrival_s - on_s >= warning_time_s  # never late
+    assert off_s >= tail_past_s  # never off before the tail is past
+
+
+def test_a_silent_end_of_train_unit_keeps_the_warning_on() -> None:
+    # The EOT falls silent well before the crossing: nothing proves the tail has passed.
+    events, engine = run(silent_eot_after_s=40.0)
+    assert "on" in kinds(events) and "off" not in kinds(events)
+    assert engine.crossings is not None and engine.crossings.warnings_on()["11+850"]
+    assert "alarm" in kinds(events)  # and the stale unit is reported
+
+
+@pytest.mark.parametrize("skew_s", [3600.0, -3600.0, 7.5])
+def test_units_with_wrong_clocks_give_the_same_warning(skew_s: float) -> None:
+    reference, _ = run()
+    skewed, engine = run(skews_s={"unit-head": skew_s, "unit-eot": -skew_s / 2})
+    assert kinds(skewed) == kinds(reference)
+    for a, b in zip(skewed, reference, strict=True):
+        assert abs(a["time_ns"] - b["time_ns"]) <= 2 * NS
+    assert engine.crossings is not None and not any(engine.crossings.warnings_on().values())
+
+
+def test_an_end_of_train_clock_running_ahead_does_not_make_old_positions_fresh() -> None:
+    # The EOT's clock is an hour ahead *and* it goes silent: still stale, still on.
+    events, _ = run(skews_s={"unit-eot": 3600.0}, silent_eot_after_s=40.0)
+    assert "off" not in kinds(events)
+
+
+def test_a_diagnostic_source_that_stops_mid_train_leaves_the_section_occupied() -> None:
+    lines = (REPO / "sample_logs" / "example_station.log").read_bytes().splitlines(keepends=True)
+    events: list[dict[str, Any]] = []
+    engine = LiveEngine(load_layout("example"), events.append)
+    # Feed up to the middle of the first train's run over the line, then nothing more.
+    first_wheel = next(i for i, ln in enumerate(lines) if b"Radsensor" in ln)
+    cut = first_wheel + 40
+    engine.handle(LineBlock("file:x", "x", 1, b"".join(lines[:cut]), time.monotonic()))
+    for _ in range(3):
+        engine.tick()
+    states = engine.diag.section_states()
+    # The sweep train is inside 1G: counted in, not out. Without more evidence it stays so.
+    assert states["1G"][0] != "clear" and states["1G"][1] > 0
+    # Whatever was released to the section engine never shows a section clear with axles inside.
+    for e in events:
+        if e["type"] == "section" and e["state"] == "clear":
+            assert e["count"] == 0
+
+
+def test_speeds_are_finite_or_absent_in_live_passages() -> None:
+    lines = (REPO / "sample_logs" / "example_station.log").read_bytes()
+    events: list[dict[str, Any]] = []
+    engine = LiveEngine(load_layout("example"), events.append)
+    engine.handle(LineBlock("file:x", "x", 1, lines, time.monotonic()))
+    engine.finish()
+    speeds = [e["speed_kmh_whole_train"] for e in events if e["type"] == "passage" and e["axles"]]
+    assert speeds and all(s is None or math.isfinite(s) for s in speeds)
