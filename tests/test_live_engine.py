@@ -36,7 +36,8 @@ def run(
     speed_mps: float = 15.0,
     seconds: int = 300,
 ) -> tuple[list[dict[str, Any]], LiveEngine]:
-    """A train from chainage 9,000 m (before the mapped track: projected along its end) at constant speed, head and EOT fixes every 2 s."""
+    """A train from chainage 9,000 m (before the mapped track: projected along its end) at constant
+    speed, head and EOT fixes every 2 s."""
     lay = load_layout("example")
     proj = TrackProjector(lay.track)
     events: list[dict[str, Any]] = []
