@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import IO
 
 from parsers.report import FileReport, ParseReport
-from parsers.sources import OverlongLine, SourceInfo, iter_chunks, open_input
+from parsers.sources import OverlongLine, ReadFailure, SourceInfo, iter_chunks, open_input
 
 HEAD_BYTES = 64 * 1024
 
@@ -76,23 +76,11 @@ def utf16_without_bom(head: bytes) -> str:
 
 def open_gnss_stream(path: Path) -> tuple[IO[bytes], IO[bytes], str, bool]:
     """(stream of UTF-8-ish bytes with LF line ends, raw file, encoding, compressed)."""
+    # parsers.sources recognises UTF-16 without a BOM and CR-only line ends itself, and holds a corrupt
+    # gzip's failure back until the lines before it are read: no second layer (it lost those lines).
     stream, raw, info = open_input(path)
-    head = stream.read(HEAD_BYTES)
-    encoding = info.encoding
-    utf16 = "" if info.encoding == "utf-16" else utf16_without_bom(head)
-    if utf16:
-        encoding = utf16
-        probe = head.decode(utf16, errors="replace")
-        cr_only = "\r" in probe and "\n" not in probe
-    else:
-        cr_only = b"\r" in head and b"\n" not in head and head.count(b"\r") > 1
-    if utf16 or cr_only:
-        wrapped: IO[bytes] = io.BufferedReader(_Prefixed(head, stream, cr_to_lf=cr_only, utf16=utf16))
-    else:
-        wrapped = io.BufferedReader(_Prefixed(head, stream))
-    if cr_only:
-        encoding += " (CR line ends)"
-    return wrapped, raw, encoding, info.compressed
+    encoding = info.encoding + (" (CR line ends)" if info.line_ends == "cr" else "")
+    return stream, raw, encoding, info.compressed
 
 
 def open_lines(
@@ -116,6 +104,11 @@ def open_lines(
         number = 0
         try:
             for item in iter_chunks(stream, source, name=name):
+                if isinstance(item, ReadFailure):  # corrupt gzip: the lines before it are kept
+                    number += 1
+                    fr.lines_read += 1
+                    report.reject(fr, number, "corrupt", item.message(number - 1), item.head)
+                    continue
                 if isinstance(item, OverlongLine):
                     number += 1
                     fr.lines_read += 1
