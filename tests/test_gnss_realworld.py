@@ -1,0 +1,439 @@
+"""GNSS as receivers and devices really write it (issue "Real data first" §2, and "Hostile input").
+
+Inputs are built in the world's shapes: NMEA with binary UBX / RTCM3 / SiRF
+packets between and before sentences on one line, ``#`` headers, gpsd JSON
+followed by NMEA, device CSV exports (tests/data/gnss), GPX 1.0 / 1.1,
+UTF-16 with and without BOM, CR-only line ends, NULs and stray CRs inside
+fields, hostile JSON.  The gpsd regression corpus, when present at
+/tmp/gpsd_corpus (gpsd's test/daemon captures with their .chk decoding; not
+shipped with this repository), is compared capture by capture; without it
+that test skips and the eight captures in ../shared/data/nmea are compared
+in test_gnss_parsers.py.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from console.cli import app
+from parsers.gnss import parse_centre_table, parse_gnss
+from parsers.gnss_csv import parse_device_stream
+from parsers.gnss_packets import rtcm3_packet, sirf_packet, ubx_packet
+from parsers.gnss_stream import parse_stream_files
+from parsers.kinds import classify_file, not_gnss_reason
+from parsers.nmea import nmea_checksum
+from tests.gpsd_truth import compare_with_gpsd
+
+DATA = Path(__file__).resolve().parent / "data" / "gnss"
+SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
+CORPUS = Path("/tmp/gpsd_corpus")
+runner = CliRunner()
+
+
+def nmea(body: str) -> bytes:
+    return f"${body}*{nmea_checksum(body.encode('ascii')):02X}".encode("ascii")
+
+
+RMC = nmea("GPRMC,123519.00,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W")
+GGA = nmea("GPGGA,123519.00,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,")
+RMC2 = nmea("GPRMC,123520.00,A,4807.040,N,01131.002,E,022.5,084.4,230394,003.1,W")
+# Payloads holding the bytes that break naive line readers: LF, CR, '$'.
+UBX = ubx_packet(0x01, 0x07, bytes(range(92)) + b"\n$GPRMC,\r\n")
+RTCM = rtcm3_packet(bytes([0x43, 0x50]) + b"\n" * 5 + b"$" + bytes(range(20)))
+SIRF = sirf_packet(bytes([0x29]) + b"\n\r$" + bytes(range(40)))
+
+
+def write(tmp_path: Path, name: str, data: bytes) -> Path:
+    path = tmp_path / name
+    path.write_bytes(data)
+    return path
+
+
+def stream(tmp_path: Path, data: bytes, name: str = "rx.log") -> tuple[pd.DataFrame, object]:
+    fixes, report = parse_stream_files([write(tmp_path, name, data)])
+    report.check()
+    return fixes, report
+
+
+# ------------------------------------------------- NMEA among binary packets
+
+
+def test_sentences_after_binary_packets_on_the_same_line_are_read(tmp_path: Path) -> None:
+    data = b"# u-blox M8 port capture\n" + UBX + RTCM + RMC + SIRF + b"\r\n" + SIRF + GGA + b"\r\n" + UBX + RMC2 + b"\n"
+    fixes, report = stream(tmp_path, data)
+    assert list(fixes["sentence"]) == ["RMC+GGA", "RMC"]  # one row per epoch
+    assert fixes["valid"].all()
+    assert report.skipped == {"UBX packets": 2, "RTCM3 packets": 1, "SiRF packets": 2}
+    assert report.rejected == 0
+    assert report.lines_read == data.count(b"\n") == report.records + report.blank
+
+
+def test_a_packet_spanning_line_ends_is_skipped_whole(tmp_path: Path) -> None:
+    data = RMC + b"\r\n" + UBX + UBX + RTCM + GGA + b"\r\n"  # the packets hold 3 + 3 + 5 LFs
+    fixes, report = stream(tmp_path, data)
+    assert list(fixes["sentence"]) == ["RMC+GGA"]
+    assert report.skipped["UBX packets"] == 2 and report.skipped["RTCM3 packets"] == 1
+    assert report.rejected == 0
+    assert fixes["line"].iloc[0] == 1
+    assert report.lines_read == data.count(b"\n")
+
+
+def test_a_false_sync_byte_does_not_swallow_the_sentence_after_it(tmp_path: Path) -> None:
+    data = b"\xd3\x00\x40\xb5\x62\x01\x07\xff\x00" + RMC + b"\n"  # claims of an RTCM3 and a UBX packet, bad CRCs
+    fixes, report = stream(tmp_path, data)
+    assert len(fixes) == 1 and report.records == 1
+    assert report.skipped["unrecognised binary bytes"] == 9
+
+
+def test_binary_of_no_known_kind_alone_on_a_line_is_rejected_with_the_byte(tmp_path: Path) -> None:
+    data = RMC + b"\n" + b"\x10\x8f\xab\x01\x10\x03\n"  # a Trimble TSIP packet
+    fixes, report = stream(tmp_path, data)
+    assert len(fixes) == 1
+    (rejection,) = report.rejections
+    assert rejection.line == 2 and "byte 0x10 at column 1" in rejection.reason
+
+
+def test_two_sentences_on_one_line_are_both_read(tmp_path: Path) -> None:
+    fixes, report = stream(tmp_path, RMC + RMC2 + b"\n")
+    assert len(fixes) == 2 and report.records == 1 and report.rejected == 0
+
+
+# ----------------------------------------------------------------- gpsd JSON
+
+TPV = {
+    "class": "TPV",
+    "device": "/dev/ttyACM0",
+    "mode": 3,
+    "time": "1994-03-23T12:35:19.000Z",
+    "lat": 48.1173,
+    "lon": 11.516666667,
+    "speed": 11.523,
+    "track": 84.4,
+}
+
+
+def test_gpsd_json_then_nmea_gives_fixes_from_both(tmp_path: Path) -> None:
+    lines = [
+        b"# gpspipe -w -r",
+        json.dumps({"class": "VERSION", "release": "3.25"}).encode(),
+        json.dumps(TPV).encode(),
+        json.dumps({"class": "SKY", "nSat": 9}).encode(),
+        json.dumps({**TPV, "time": "1994-03-23T12:35:21.000Z", "mode": 1}).encode(),
+        RMC2,
+    ]
+    fixes, report = stream(tmp_path, b"\n".join(lines) + b"\n")
+    assert list(fixes["source"].astype(str)) == ["gpsd", "gpsd", "nmea"]
+    assert list(fixes["valid"]) == [True, False, True]
+    first = fixes.iloc[0]
+    assert first["speed_mps"] == 11.523 and first["course_deg"] == 84.4 and first["sentence"] == "TPV"
+    assert report.skipped == {"gpsd VERSION reports": 1, "gpsd SKY reports": 1}
+    assert report.records == 3 and report.blank == 3
+
+
+def test_a_tpv_and_the_nmea_of_its_epoch_are_one_fix(tmp_path: Path) -> None:
+    fixes, _ = stream(tmp_path, RMC + b"\n" + json.dumps(TPV).encode() + b"\n")
+    assert list(fixes["sentence"]) == ["RMC+TPV"]
+
+
+def test_gpsd_dead_reckoning_status_is_marked(tmp_path: Path) -> None:
+    fixes, _ = stream(tmp_path, json.dumps({**TPV, "status": 6}).encode() + b"\n")
+    assert fixes["fix_quality"].iloc[0] == "dead_reckoning" and fixes["valid"].iloc[0]
+
+
+@pytest.mark.parametrize(
+    ("value", "reason"),
+    [
+        ("18446744073709551616", "field 'lat': an integer of 20 digits is out of range"),  # 2^64
+        ("9" * 5000, "field 'lat': an integer of 5000 digits is out of range"),
+        ("1e999", "field 'lat': expected a finite number"),
+        ('"\\ud800"', "field 'lat': expected a number"),
+    ],
+)
+def test_hostile_numbers_in_a_tpv_reject_that_row_naming_the_field(tmp_path: Path, value: str, reason: str) -> None:
+    bad = json.dumps(TPV).replace('"lat": 48.1173', f'"lat": {value}').encode()
+    fixes, report = stream(tmp_path, bad + b"\n" + json.dumps(TPV).encode() + b"\n")
+    assert len(fixes) == 1 and report.rejected == 1
+    assert reason in report.rejections[0].reason and report.rejections[0].line == 1
+
+
+@pytest.mark.parametrize(
+    ("line", "reason"),
+    [
+        ('{"a":' * 1000 + "1" + "}" * 1000, "nested more than"),
+        ('{"class": "TPV", "device": "\\ud800", "mode": 3}', "lone surrogate"),
+        ('{"class": "TPV", "mode": 3, "big": ' + "7" * 5000 + "}", ""),  # a field we do not read: no harm
+    ],
+)
+def test_hostile_json_lines_are_rejected_alone(tmp_path: Path, line: str, reason: str) -> None:
+    fixes, report = stream(tmp_path, line.encode() + b"\n" + RMC + b"\n")
+    assert report.lines_read == 2
+    assert (fixes["sentence"] == "RMC").sum() == 1
+    if reason:
+        assert report.rejected == 1 and reason in report.rejections[0].reason
+    else:
+        assert report.rejected == 0
+
+
+def test_hostile_json_in_device_streams_is_rejected_per_row(tmp_path: Path) -> None:
+    good = '{"time": "2026-01-19T10:05:00Z", "device": "h", "lat": 20.6, "lon": 105.9, "speed_kmh": 54}'
+    lines = [
+        good,
+        good.replace("54", "18446744073709551616"),
+        good.replace("20.6", "9" * 5000),
+        good.replace('"h"', '"\\ud800"'),
+        "[" * 1000 + "]" * 1000,
+        '{"time": "2026-01-19T10:05:00Z", "lat": 1, "lon": 2, "x": ' + "[" * 1000 + "]" * 1000 + "}",
+    ]
+    fixes, report = parse_device_stream([write(tmp_path, "h.jsonl", "\n".join(lines).encode())])
+    report.check()
+    assert len(fixes) == 1 and report.rejected == 5
+    reasons = [r.reason for r in report.rejections]
+    assert "speed" in reasons[0] and "20 digits" in reasons[0]
+    assert "lat" in reasons[1] and "5000 digits" in reasons[1]
+    assert "lone surrogate" in reasons[2]
+    assert "nested" in reasons[3] and "nested" in reasons[4]
+
+
+def test_a_centre_table_row_with_a_huge_number_is_rejected_naming_the_field(tmp_path: Path) -> None:
+    header = "TIMESTAMP\tMã tàu\tVĩ độ\tKinh độ\tVận tốc (km/h)"
+    rows = ["2026-01-19 17:06:41\tVN0001\t20,7\t105,9\t" + "9" * 5000, "2026-01-19 17:06:31\tVN0001\t20,7\t105,9\t54,9"]
+    fixes, _, report = parse_centre_table([write(tmp_path, "t.tsv", "\n".join([header, *rows]).encode())])
+    assert len(fixes) == 1 and report.rejected == 1
+    assert "speed (km/h)" in report.rejections[0].reason and "out of range" in report.rejections[0].reason
+
+
+# ------------------------------------------------------- device CSV exports
+
+
+def test_a_ublox_export_with_scaled_integers_split_time_and_fix_types() -> None:
+    fixes, report = parse_device_stream([DATA / "ublox_export.csv"])
+    assert report.rejected == 0 and report.records == 5
+    assert fixes["lat"].iloc[0] == pytest.approx(20.6, abs=1e-9)  # lat_e7 = 206000000
+    assert fixes["speed_mps"].iloc[0] == pytest.approx(15.25)  # gSpeed [mm/s] = 15250
+    assert fixes["course_deg"].iloc[0] == pytest.approx(20.5)  # headMot [deg*1e5]
+    assert fixes["time"].iloc[1] == pd.Timestamp("2026-01-19T10:05:01Z")  # Date + Time columns
+    assert list(fixes["fix_quality"].astype(str)) == ["gnss", "gnss", "dead_reckoning", "no_fix", "gnss"]
+    assert list(fixes["valid"]) == [True, True, True, False, True]
+    assert set(report.skipped) == {
+        f"CSV column '{c}' (not read)" for c in ("iTOW", "numSV", "height_mm", "hAcc_mm", "carrSoln")
+    }
+
+
+def test_an_operator_export_with_unit_headers_and_no_speed() -> None:
+    fixes, report = parse_device_stream([DATA / "operator_positions.csv"])
+    assert report.rejected == 0
+    assert set(fixes["device"].astype(str)) == {"EOT-7"}
+    assert fixes["lat"].iloc[0] == 20.599 and fixes["lon"].iloc[0] == 105.8995  # Latitude [deg], decimal commas
+    assert fixes["speed_mps"].isna().all()  # no speed column: NaN, never 0
+    assert list(fixes["fix_quality"].astype(str)) == ["gnss", "gnss", "dead_reckoning", "no_fix"]
+    assert "CSV column 'HDOP' (not read)" in report.skipped
+
+
+@pytest.mark.parametrize(
+    ("header", "row", "speed_mps"),
+    [
+        ("time,LAT,LON,Speed (km/h)", "2026-01-19T10:05:00Z,20.6,105.9,54", 15.0),
+        ("Time,Latitude,Longitude,speed_knots", "2026-01-19T10:05:00Z,20.6,105.9,10", 10 * 1852 / 3600),
+        ("timestamp;lat (°);lon (°);SOG [m/s]", "2026-01-19T10:05:00Z;20,6;105,9;3,5", 3.5),
+        ("utc date,utc time,lat,lon,speed_mm_s", "2026-01-19,10:05:00,20.6,105.9,1500", 1.5),
+    ],
+)
+def test_column_names_are_matched_whatever_their_case_and_unit(
+    tmp_path: Path, header: str, row: str, speed_mps: float
+) -> None:
+    fixes, report = parse_device_stream([write(tmp_path, "d.csv", f"{header}\n{row}\n".encode())])
+    assert report.rejected == 0, report.rejections
+    assert fixes["speed_mps"].iloc[0] == pytest.approx(speed_mps)
+    assert fixes["time"].iloc[0] == pd.Timestamp("2026-01-19T10:05:00Z")
+
+
+def test_an_unknown_unit_on_a_column_we_read_is_refused_not_guessed(tmp_path: Path) -> None:
+    fixes, report = parse_device_stream([write(tmp_path, "d.csv", b"time,lat,lon,speed [furlong/fortnight]\n")])
+    assert report.rejected == 1 and "furlong" in report.rejections[0].reason
+
+
+def test_a_numeric_status_without_a_convention_is_refused_per_row(tmp_path: Path) -> None:
+    data = b"time,lat,lon,status\n2026-01-19T10:05:00Z,20.6,105.9,3\n2026-01-19T10:05:01Z,20.6,105.9,3D\n"
+    fixes, report = parse_device_stream([write(tmp_path, "d.csv", data)])
+    assert len(fixes) == 1 and "fix type" in report.rejections[0].reason
+
+
+# ---------------------------------------------------------------------- GPX
+
+
+def test_gpx_1_0_track_with_speed_course_and_fix() -> None:
+    fixes, report, _ = parse_gnss([DATA / "track_gpx10.gpx"])
+    report.check()
+    assert list(fixes["speed_mps"].iloc[:2]) == [15.25, 15.5] and list(fixes["course_deg"].iloc[:2]) == [20.5, 21.0]
+    assert list(fixes["valid"]) == [True, True, False]  # <fix>none</fix>
+    assert (fixes["source"] == "gpx").all()
+    assert report.rejected == 1 and "out of range" in report.rejections[0].reason  # lat 91.5
+    assert report.skipped == {"GPX wpt (not a track point)": 1}
+
+
+def test_gpx_1_1_with_garmin_speed_extensions() -> None:
+    fixes, report, _ = parse_gnss([DATA / "track_gpx11_garmin.gpx"], roles={"track_gpx11_garmin": "eot"})
+    assert report.rejected == 0
+    assert list(fixes["speed_mps"]) == [14.8, 15.1]
+    assert fixes["course_deg"].iloc[0] == 19.9 and math.isnan(fixes["course_deg"].iloc[1])
+    assert (fixes["role"] == "eot").all()
+    assert fixes["time"].iloc[0] == pd.Timestamp("2026-01-19T10:05:00Z")
+
+
+def test_gpx_without_speed_keeps_speed_nan_and_a_point_without_time_nat() -> None:
+    fixes, report, _ = parse_gnss([DATA / "phone_gpx11_no_speed.gpx"])
+    assert report.records == 3 and fixes["speed_mps"].isna().all()
+    assert fixes["time"].isna().sum() == 1
+
+
+def test_gpx_with_a_doctype_is_refused_and_every_line_is_counted(tmp_path: Path) -> None:
+    bomb = (
+        b'<?xml version="1.0"?>\n<!DOCTYPE gpx [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;">]>\n'
+        b'<gpx version="1.1"><trk><trkseg><trkpt lat="1" lon="2"><time>&b;</time></trkpt></trkseg></trk></gpx>\n'
+    )
+    fixes, report, _ = parse_gnss([write(tmp_path, "bomb.gpx", bomb)])
+    report.check()
+    assert fixes.empty and report.lines_read == 3
+    assert "document type declaration" in report.rejections[0].reason
+
+
+def test_broken_gpx_keeps_the_points_before_the_error(tmp_path: Path) -> None:
+    text = (DATA / "phone_gpx11_no_speed.gpx").read_bytes().replace(b'</trkpt>\n<trkpt lat="48.1175"', b"<oops")
+    fixes, report, _ = parse_gnss([write(tmp_path, "cut.gpx", text)])
+    report.check()
+    assert len(fixes) >= 1
+    assert report.rejected >= 1 and "XML" in report.rejections[0].reason
+
+
+# ------------------------------------------------- encodings and line ends
+
+CSV_TEXT = "time,device,lat,lon,speed\n2026-01-19T10:05:00Z,h,20.6,105.9,15\n2026-01-19T10:05:02Z,h,20.6,105.9,16\n"
+NMEA_TEXT = (RMC + b"\r\n" + RMC2 + b"\r\n").decode()
+
+
+@pytest.mark.parametrize("encoding", ["utf-16", "utf-16-le", "utf-16-be"])
+@pytest.mark.parametrize("text", [CSV_TEXT, NMEA_TEXT], ids=["csv", "nmea"])
+def test_utf16_with_and_without_bom_is_read(tmp_path: Path, encoding: str, text: str) -> None:
+    fixes, report, _ = parse_gnss([write(tmp_path, "u16.txt", text.encode(encoding))])
+    report.check()
+    assert len(fixes) == 2 and report.rejected == 0
+    assert "utf-16" in report.files[0].encoding
+
+
+@pytest.mark.parametrize("text", [CSV_TEXT, NMEA_TEXT], ids=["csv", "nmea"])
+def test_cr_only_line_ends_are_read(tmp_path: Path, text: str) -> None:
+    data = text.replace("\r\n", "\n").replace("\n", "\r").encode()
+    fixes, report, _ = parse_gnss([write(tmp_path, "mac.txt", data)])
+    report.check()
+    assert len(fixes) == 2 and report.rejected == 0 and report.lines_read == text.count("\n")
+
+
+@pytest.mark.parametrize("poison", ["\x00", "\r"], ids=["nul", "stray-cr"])
+def test_a_nul_or_stray_cr_inside_a_field_rejects_that_row_alone(tmp_path: Path, poison: str) -> None:
+    lines = CSV_TEXT.splitlines()
+    lines.insert(2, f"2026-01-19T10:05:01Z,h,20.{poison}6,105.9,15")
+    fixes, report, _ = parse_gnss([write(tmp_path, "d.csv", ("\n".join(lines) + "\n").encode())])
+    report.check()
+    assert len(fixes) == 2 and report.rejected == 1 and report.rejections[0].line == 3
+
+
+# ----------------------------------------------------------- file kinds
+
+
+@pytest.mark.parametrize(
+    ("path", "kind"),
+    [
+        (SAMPLES / "ws4_health.log", "diag"),
+        (SAMPLES / "sensor_frames.txt", "frames"),
+        (SAMPLES / "can_counts.log", "can"),
+        (SAMPLES / "can_counts.asc", "can"),
+        (SAMPLES / "am_thuong_2021-06-06_voltages.csv", "voltages"),
+        (SAMPLES / "seed004_table1.tsv", "centre"),
+        (SAMPLES / "gnss_devices.csv", "gnss-csv"),
+        (SAMPLES / "gnss_devices.jsonl", "jsonl"),
+        (DATA / "track_gpx10.gpx", "gpx"),
+        (DATA / "ublox_export.csv", "gnss-csv"),
+    ],
+)
+def test_files_are_classified_by_content(path: Path, kind: str) -> None:
+    assert classify_file(path).kind == kind
+
+
+def test_a_binary_first_capture_is_a_receiver_stream(tmp_path: Path) -> None:
+    assert classify_file(write(tmp_path, "b.bin", UBX * 3 + RMC + b"\n")).kind == "nmea"
+    assert not_gnss_reason(write(tmp_path, "c.bin", UBX * 3)) is None
+
+
+def test_gnss_on_a_diagnostic_log_exits_2_with_one_line() -> None:
+    res = runner.invoke(app, ["gnss", str(SAMPLES / "ws4_health.log")])
+    assert res.exit_code == 2
+    assert res.output.strip().endswith(
+        "ws4_health.log: nothing readable as GNSS: looks like an axle-counter diagnostic log"
+    )
+    assert len(res.output.strip().splitlines()) == 1
+
+
+def test_gnss_on_a_file_whose_every_line_is_rejected_exits_2(tmp_path: Path) -> None:
+    bad = RMC[:-2] + b"00\n"
+    res = runner.invoke(app, ["gnss", str(write(tmp_path, "bad.nmea", bad))])
+    assert res.exit_code == 2 and "nothing readable as GNSS" in res.output and "checksum" in res.output
+
+
+def test_gnss_json_lists_skipped_packets(tmp_path: Path) -> None:
+    res = runner.invoke(app, ["gnss", "--json", str(write(tmp_path, "mix.log", UBX + RMC + b"\n"))])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["parse_report"]["skipped"] == {"UBX packets": 1}
+    assert doc["fixes"][0]["fix_quality"] == "gnss"
+
+
+# ------------------------------------------------------------ memory
+
+
+def test_many_distinct_devices_cost_a_small_multiple_of_their_input(tmp_path: Path) -> None:
+    """Per-device state is flat: the memory a row adds (one new device each) is a few times its input bytes.
+
+    Measured as the growth of the traced peak from 2 000 to 10 000 devices, so
+    that the fixed cost (read buffers, pandas) does not count.  A million
+    devices in 52 MB: see docs/gnss.md for the measured whole-process figure.
+    """
+    import tracemalloc
+
+    peaks, sizes = [], []
+    for n in (2_000, 10_000):
+        text = "time,device,lat,lon\n" + "".join(f"2026-01-19T10:05:00Z,d{i},20.6,105.9\n" for i in range(n))
+        path = write(tmp_path, f"many{n}.csv", text.encode())
+        tracemalloc.start()
+        fixes, _ = parse_device_stream([path])
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+        sizes.append(len(text))
+        assert fixes["device"].nunique() == n
+    per_input_byte = (peaks[1] - peaks[0]) / (sizes[1] - sizes[0])
+    assert per_input_byte < 10, f"{per_input_byte:.1f} bytes of memory per byte of input"
+
+
+# ------------------------------------------------------- gpsd's own corpus
+
+# Captures where gpsd's epochs from NMEA and ours differ, measured; why:
+# bundg_zeus_9 is a boat's NMEA multiplexer whose RMC, GGA and GLL of one
+# second carry different positions, and gpsd's reports lag a second behind.
+KNOWN_NMEA_MISSES = {"bundg_zeus_9.log": 49, "humminbird-M37.log": 1}
+CORPUS_LOGS = sorted(p.name for p in CORPUS.glob("*.log") if p.with_name(p.name + ".chk").exists())
+
+
+@pytest.mark.skipif(not CORPUS_LOGS, reason=f"gpsd's test corpus not found at {CORPUS}")
+@pytest.mark.parametrize("capture", CORPUS_LOGS or ["none"])
+def test_gpsd_corpus_fixes_from_nmea_are_ours(capture: str) -> None:
+    log = CORPUS / capture
+    fixes, report = parse_stream_files([log])
+    report.check()
+    counts = compare_with_gpsd(log, fixes)
+    missed = counts["nmea"] - counts["nmea_matched"]
+    assert missed <= KNOWN_NMEA_MISSES.get(capture, 0), dict(counts)
