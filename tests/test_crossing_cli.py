@@ -30,10 +30,12 @@ def test_both_trains_at_both_crossings_switch_off_on_eot_evidence(samples: Path)
     assert doc["violations"] == 0
     rows = {(r["crossing"], r["train"]): r for r in doc["timelines"]}
     assert set(rows) == {("11+850", "A"), ("11+850", "B"), ("12+940", "A"), ("12+940", "B")}
-    for (code, _), r in rows.items():
+    for (code, train), r in rows.items():
         warning = 70 if code == "11+850" else 60
         assert r["lead_time_s"] >= warning
-        assert 0 <= r["excess_warning_s"] <= 15  # fixes every 5 or 10 s
+        # Fixes every 5 or 10 s; off needs two EOT fixes past the crossing: about two periods
+        # (B's EOT at 12+940 loses its fixes for 40 s just after the first one past).
+        assert 0 <= r["excess_warning_s"] <= (60 if (code, train) == ("12+940", "B") else 25)
         assert r["reason_off"].startswith("EOT") and not r["violations"]
 
 

@@ -67,3 +67,46 @@ def test_a_fix_beside_the_track_projects_with_its_offset() -> None:
     lat, lon = proj.position(11_850.0)
     p = proj.project(lat + 30 / proj.m_per_deg_lat, lon)  # 30 m north of the crossing
     assert p.offset_m[0] == pytest.approx(30 * abs(math.sin(math.radians(proj.bearing_deg(11_850.0)))), abs=1.0)
+
+
+def _former_project(proj: TrackProjector, lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The projection as it was before the search tree: every fix against every segment."""
+    from benchmarks.bench_projection import dense_project
+
+    p = dense_project(proj, lat, lon)
+    return p.chainage_m, p.offset_m
+
+
+@pytest.mark.parametrize("track", ["example", "winding"])
+def test_the_tree_projects_as_the_former_dense_method_within_a_millimetre(track: str) -> None:
+    from benchmarks.bench_projection import winding_track
+
+    points = load_layout("example").track if track == "example" else winding_track(2_000, seed=3)
+    proj = TrackProjector(points)
+    rng = np.random.default_rng(7)
+    n = 3_000
+    # On the line, beside it (up to 500 m), and beyond both ends.
+    ch = rng.uniform(proj.chainage[0] - 1_000, proj.chainage[-1] + 1_000, n)
+    lat, lon = proj.position(ch)
+    lat = lat + rng.normal(0, 150, n) / proj.m_per_deg_lat
+    lon = lon + rng.normal(0, 150, n) / proj.m_per_deg_lon
+    got = proj.project(lat, lon)
+    want_ch, want_off = _former_project(proj, lat, lon)
+    assert np.abs(got.offset_m - want_off).max() < 1e-3
+    assert np.abs(got.chainage_m - want_ch).max() < 1e-3
+
+
+def test_projection_memory_is_bounded_for_a_day_of_fixes() -> None:
+    # 86,400 fixes onto a 10,000-point line: the former method needed fixes × segments
+    # arrays (about 33 GB); the tree needs a few MB beyond the inputs (bench_projection.py).
+    import resource
+
+    from benchmarks.bench_projection import fixes_along, winding_track
+
+    proj = TrackProjector(winding_track(10_000))
+    lat, lon = fixes_along(proj, 86_400)
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    p = proj.project(lat, lon)
+    grown_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - before
+    assert not np.isnan(p.chainage_m).any()
+    assert grown_mb < 150

@@ -16,18 +16,26 @@ projected onto the layout's polyline), signed in the train's direction of
 travel.
 
 * **On** (per train, at each fix): the estimated head position, moved on by
-  its speed to the current time, is within
+  its speed to the current time (the most advanced of its last few fixes,
+  so one fix that jumped back cannot delay the warning), is within
   ``v × (warning time + report period + latency)`` of the crossing, or
   within the guard distance whatever the speed (a slow or stopped train near
   the crossing), or already at or past it while the tail is not.  Adding
   one report period and the latency means the warning is on a full warning
   time before arrival even when the next fix comes late.
-* **Off** (per train): on positive evidence only: a fresh EOT fix whose
-  chainage is past the crossing by ``d_off`` in the direction of travel,
-  *and* consistent with the EOT's previous fix (it moved forward, by no more
-  than the train could have run): one implausible fix cannot open the road.
-  This is the paper's "d ≤ d_off, then increasing" in signed form: past the
-  crossing by the margin and moving away.
+* **Speed** (:mod:`console.analysis.crossing_evidence`): the device's
+  reported speed, or, when the export has none, an upper bound estimated
+  from successive fixes; a single fix without speed is the worst case (the
+  most a train can run), never a standstill.  Position jumps are set aside
+  and counted; they do not refresh the device.
+* **Off** (per train): on positive evidence only: two consecutive accepted
+  EOT fixes past the crossing by ``d_off`` in the direction of travel, the
+  second consistent with the first (it moved forward, by no more than the
+  train could have run), with no fix set aside as a jump between them and
+  the device's track not just restarted: one wild fix, plausible-looking or
+  not, cannot open the road.  This is the paper's "d ≤ d_off, then
+  increasing" in signed form: past the crossing by the margin and moving
+  away.
 * **Fail-safe.**  Nothing ever ends a warning by timeout.  A stale EOT
   (no fix for ``stale_after_s``) raises an alarm and keeps the warning on.
   A lost head unit falls back to the EOT position plus the train length.
@@ -45,9 +53,11 @@ each received fix, :meth:`CrossingController.tick` for the passing of time.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
+from console.analysis.crossing_evidence import ESTIMATED, REPORTED, DeviceEvidence, EvidenceLimits, Report
 from console.analysis.timefmt import NS
 from console.layout import LevelCrossing
 
@@ -86,7 +96,9 @@ class ControllerSettings:
     report_period_s: float = 10.0  # expected time between two fixes of a device
     latency_s: float = 2.0  # radio and processing delay allowance
     stale_after_s: float = 30.0  # no fix for this long: the device is stale
-    max_speed_mps: float = 45.0  # no train runs faster (plausibility of an EOT step)
+    max_speed_mps: float = 45.0  # no train runs faster (plausibility; the speed assumed when none is known)
+    jump_accel_mps2: float = 1.5  # no train changes speed faster (a fix implying more is a position jump)
+    speed_window_s: float = 45.0  # how far back the speed bound from positions looks
     noise_m: float = 15.0  # GNSS noise allowance in the plausibility check
     crossing_half_width_m: float = 5.0  # the road's half width along the track
     baseline_margin_s: float = 10.0  # the fixed-time method's safety margin
@@ -118,19 +130,21 @@ class CrossingEvent:
     reason: str
 
 
-@dataclass
-class _Report:
-    t_fix_ns: int
-    chainage_m: float
-    speed_mps: float
+RECENT_FIXES = 3  # the head estimate is the most advanced of this many last fixes
 
 
 @dataclass
 class _Track:
     spec: TrainSpec
-    head: _Report | None = None
-    eot: _Report | None = None
+    head_ev: DeviceEvidence
+    eot_ev: DeviceEvidence
+    head: Report | None = None
+    eot: Report | None = None
+    recent: dict[str, deque[Report]] = field(
+        default_factory=lambda: {HEAD: deque(maxlen=RECENT_FIXES), EOT: deque(maxlen=RECENT_FIXES)}
+    )
     direction: int = 0
+    direction_set_ns: int = 0  # fix time of the last change of direction
     warned: bool = False
     t_on: int | None = None
     reason_on: str = ""
@@ -148,12 +162,25 @@ class CrossingController:
     ) -> None:
         self.crossing = crossing
         self.s = settings or ControllerSettings()
-        self.tracks = {t.train: _Track(t) for t in trains}
+        self.tracks = {t.train: self._new_track(t) for t in trains}
         self.events: list[CrossingEvent] = []
+        # Fixes set aside as position jumps, per (train, role): their fix times.
+        self.set_aside: dict[tuple[str, str], list[int]] = {}
+
+    def _new_track(self, spec: TrainSpec) -> _Track:
+        s = self.s
+        lim = EvidenceLimits(s.noise_m, s.accel_mps2, s.jump_accel_mps2, s.max_speed_mps, s.speed_window_s)
+        return _Track(spec, DeviceEvidence(lim), DeviceEvidence(lim))
+
+    @property
+    def position_jumps(self) -> int:
+        """Fixes set aside as position jumps, all trains and devices."""
+        return sum(len(v) for v in self.set_aside.values())
 
     def add_train(self, spec: TrainSpec) -> None:
         """Start following a train (a live unit learns of trains as they are registered)."""
-        self.tracks.setdefault(spec.train, _Track(spec))
+        if spec.train not in self.tracks:
+            self.tracks[spec.train] = self._new_track(spec)
 
     def forget_train(self, train: str) -> bool:
         """Stop following a train that has left the line, unless its warning is still on
@@ -169,45 +196,72 @@ class CrossingController:
         return any(t.warned for t in self.tracks.values())
 
     # -- estimates -------------------------------------------------------
-    def _fresh(self, r: _Report | None, t_ns: int) -> bool:
+    def _fresh(self, r: Report | None, t_ns: int) -> bool:
         return r is not None and (t_ns - r.t_fix_ns) <= self.s.stale_after_s * NS
 
-    def _speed(self, tr: _Track) -> float:
-        vs = [r.speed_mps for r in (tr.head, tr.eot) if r is not None and not math.isnan(r.speed_mps)]
-        return max(vs) if vs else 0.0
+    def _speed(self, tr: _Track, t_ns: int) -> float:
+        """The fastest the train may be running now (m/s): reported speeds where the devices
+        give them, else the tightest bound the positions prove; unknown is the worst case."""
+        reps = [r for r in (tr.head, tr.eot) if r is not None]
+        fresh = [r for r in reps if self._fresh(r, t_ns)] or reps
+        reported = [r.speed_hi_mps for r in fresh if r.speed_basis == REPORTED]
+        if reported:
+            return max(reported)
+        # Head and EOT ride one train: each bound holds for both, the smaller is the better.
+        return min((r.speed_hi_mps for r in fresh), default=self.s.max_speed_mps)
 
-    def _head_estimate(self, tr: _Track, t_ns: int) -> tuple[float, str] | None:
-        """Head chainage now, moved on by its speed; or the EOT plus the train length."""
+    def _speed_basis(self, tr: _Track) -> str:
+        bases = {r.speed_basis for r in (tr.head, tr.eot) if r is not None}
+        for b, text in ((REPORTED, "reported"), (ESTIMATED, "estimated from the fixes")):
+            if b in bases:
+                return text
+        return "unknown: the most a train runs"
+
+    def _head_estimate(self, tr: _Track, t_ns: int) -> tuple[float, float, str] | None:
+        """Head chainage now: (furthest it can be, where it surely is at least, basis).
+
+        The furthest moves each of the device's last few fixes on at the speed bound and
+        keeps the most advanced (the earliest arrival); the nearest moves the last fix on
+        only by a reported speed (the tail-past test must not run ahead of the evidence).
+        Without a fresh head fix: the EOT plus the train length."""
         d = tr.direction
-        if self._fresh(tr.head, t_ns):
-            r = tr.head
+        v = self._speed(tr, t_ns)
+        for role, r, extra in ((HEAD, tr.head, 0.0), (EOT, tr.eot, tr.spec.length_m)):
+            if not self._fresh(r, t_ns) or (role == EOT and d == 0):
+                continue
             assert r is not None
-            v = 0.0 if math.isnan(r.speed_mps) else r.speed_mps
-            return r.chainage_m + d * v * (t_ns - r.t_fix_ns) / NS, "head"
-        if self._fresh(tr.eot, t_ns) and d != 0:
-            r = tr.eot
-            assert r is not None
-            v = 0.0 if math.isnan(r.speed_mps) else r.speed_mps
-            return r.chainage_m + d * (tr.spec.length_m + v * (t_ns - r.t_fix_ns) / NS), "eot+length"
+            far = r.chainage_m
+            if d:
+                far = d * max(d * q.chainage_m + v * (t_ns - q.t_fix_ns) / NS for q in tr.recent[role])
+            v_sure = r.speed_mps if r.speed_basis == REPORTED else 0.0
+            near = r.chainage_m + d * v_sure * (t_ns - r.t_fix_ns) / NS
+            return far + d * extra, near + d * extra, "head" if role == HEAD else "eot+length"
         return None
 
-    def _update_direction(self, tr: _Track, fix: Fix, prev: _Report | None) -> None:
+    def _update_direction(self, tr: _Track, fix: Fix, ev: DeviceEvidence) -> None:
         """Direction of travel from the best evidence at hand; kept when there is none.
 
-        1. the same device moved by more than the noise since its last fix;
+        1. the same device moved by more than the noise over its recent fixes (medians);
         2. the fix's course against the track's bearing;
         3. the head ahead of the EOT, only when both fixes are recent together
-           (a stale head report must not set the direction).
+           (a stale head report must not set the direction), and only while the
+           direction is unknown: a short train's head fix some seconds older than
+           its EOT fix can lie behind it, and a reversed direction reads an EOT
+           still on the road as past it.
         """
-        if prev is not None and abs(fix.chainage_m - prev.chainage_m) > 2 * self.s.noise_m:
-            tr.direction = 1 if fix.chainage_m > prev.chainage_m else -1
+        before = tr.direction
+        moved = ev.direction()
+        if moved:
+            tr.direction = moved
         elif fix.direction_hint:
             tr.direction = fix.direction_hint
-        elif tr.head is not None and tr.eot is not None:
+        elif tr.head is not None and tr.eot is not None and not tr.direction:
             together = abs(tr.head.t_fix_ns - tr.eot.t_fix_ns) <= 2 * self.s.report_period_s * NS
             apart = abs(tr.head.chainage_m - tr.eot.chainage_m) > 0.5 * tr.spec.length_m
             if together and apart:
                 tr.direction = 1 if tr.head.chainage_m > tr.eot.chainage_m else -1
+        if tr.direction != before:
+            tr.direction_set_ns = fix.t_fix_ns
 
     # -- the state machine -------------------------------------------------
     def _emit(self, t_ns: int, tr: _Track, kind: str, reason: str) -> CrossingEvent:
@@ -221,17 +275,18 @@ class CrossingController:
         est = self._head_estimate(tr, t_ns)
         if est is None:
             return None
-        head_ch, basis = est
+        head_ch, head_near, basis = est
         c = self.crossing.chainage_m
         ahead = tr.direction * (c - head_ch) if tr.direction else abs(c - head_ch)
         tail_past = False
         if tr.eot is not None and tr.direction:
             tail_past = tr.direction * (tr.eot.chainage_m - c) >= self.crossing.d_off_m
-        elif ahead < 0:
-            tail_past = -ahead > tr.spec.length_m + self.crossing.d_off_m + 2 * self.s.noise_m
+        elif tr.direction:
+            past_m = tr.direction * (head_near - c)
+            tail_past = past_m > tr.spec.length_m + self.crossing.d_off_m + 2 * self.s.noise_m
         if tail_past:
             return None
-        v = self._speed(tr)
+        v = self._speed(tr, t_ns)
         return ahead, earliest_arrival_s(ahead, v, self.s.accel_mps2, max(v, self.s.line_speed_mps)), basis
 
     def arrival_s(self, t_ns: int) -> float | None:
@@ -264,6 +319,7 @@ class CrossingController:
         elif eta <= horizon_s:
             extra = horizon_s - self.crossing.warning_time_s
             reason = f"ETA {eta:.0f} s ≤ {self.crossing.warning_time_s:g} s + {extra:.0f} s"
+            reason += f" (speed ≤ {self._speed(tr, t_ns):.1f} m/s, {self._speed_basis(tr)})"
         if not reason:
             return []
         if basis != "head":
@@ -271,15 +327,19 @@ class CrossingController:
         tr.warned, tr.t_on, tr.reason_on, tr.t_off, tr.reason_off = True, t_ns, reason, None, ""
         return [self._emit(t_ns, tr, "on", reason)]
 
-    def _check_off(self, tr: _Track, fix: Fix, prev_eot: _Report | None) -> list[CrossingEvent]:
+    def _check_off(self, tr: _Track, fix: Fix, prev_eot: Report | None, rep: Report) -> list[CrossingEvent]:
         if not tr.warned or fix.role != EOT or tr.direction == 0:
             return []
         c = self.crossing.chainage_m
         past = tr.direction * (fix.chainage_m - c)
         if past < self.crossing.d_off_m:
             return []
-        if prev_eot is None:
-            return []  # a first EOT fix alone is not evidence: wait for the next
+        if prev_eot is None or rep.restarted or tr.direction_set_ns >= prev_eot.t_fix_ns:
+            # A first EOT fix alone is not evidence, nor a pair read in a direction that has
+            # just changed: wait for the next.
+            return []
+        if tr.direction * (prev_eot.chainage_m - c) < self.crossing.d_off_m:
+            return []  # one fix past could be a jump: two in a row are evidence
         dt = (fix.t_fix_ns - prev_eot.t_fix_ns) / NS
         step = tr.direction * (fix.chainage_m - prev_eot.chainage_m)
         if dt <= 0 or step < -self.s.noise_m or step > self.s.max_speed_mps * dt + self.s.noise_m:
@@ -321,20 +381,31 @@ class CrossingController:
     def step(self, fix: Fix) -> list[CrossingEvent]:
         """Process one received fix."""
         tr = self.tracks.get(fix.train)
-        if tr is None or not fix.valid or math.isnan(fix.chainage_m):
+        if tr is None or not fix.valid or math.isnan(fix.chainage_m) or fix.role not in (HEAD, EOT):
             return self.tick(fix.t_ns)
-        rep = _Report(fix.t_fix_ns, fix.chainage_m, fix.speed_mps)
         prev = tr.head if fix.role == HEAD else tr.eot
         if prev is not None and fix.t_fix_ns <= prev.t_fix_ns:
             return self.tick(fix.t_ns)  # late or repeated packet: older than what we know
+        ev = tr.head_ev if fix.role == HEAD else tr.eot_ev
+        jumped_before = ev.rejected_since_last
+        rep = ev.offer(fix.t_fix_ns, fix.chainage_m, fix.speed_mps)
+        aside = self.set_aside.setdefault((fix.train, fix.role), [])
+        if rep is None:
+            aside.append(fix.t_fix_ns)  # a position jump: the device is not refreshed by it
+            return self.tick(fix.t_ns)
+        if rep.restarted and aside:
+            aside.pop()  # the fix set aside before this one started the new track with it
+        # A restarted track keeps the fixes before it among the recent ones: the most
+        # advanced of them still bounds the head (earlier warning, never later).
+        tr.recent[fix.role].append(rep)
         if fix.role == HEAD:
             tr.head = rep
-        elif fix.role == EOT:
-            tr.eot = rep
         else:
-            return self.tick(fix.t_ns)
-        self._update_direction(tr, fix, prev)
-        out = self._check_off(tr, fix, prev if fix.role == EOT else None)
+            tr.eot = rep
+        self._update_direction(tr, fix, ev)
+        # A jump set aside since the previous fix is doubt: that pair is no evidence for off.
+        prev_eot = prev if fix.role == EOT and not jumped_before else None
+        out = self._check_off(tr, fix, prev_eot, rep)
         out += self._check_on(tr, fix.t_ns)
         out += self._alarms(tr, fix.t_ns)
         for other in self.tracks.values():

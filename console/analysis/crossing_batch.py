@@ -48,6 +48,15 @@ class CrossingRun:
     trains: list[TrainDevices]
     off_track: int = 0
     unassigned_devices: list[str] = field(default_factory=list)
+    position_jumps: int = 0  # fixes set aside as implausible for a train (counted once, not per crossing)
+
+    @property
+    def late_warnings(self) -> int:
+        return sum(1 for r in self.timelines if r.late_by_s is not None)
+
+    @property
+    def violations(self) -> int:
+        return sum(1 for r in self.timelines if r.violations)
 
 
 def pair_trains(
@@ -114,7 +123,8 @@ def to_fixes(fixes: pd.DataFrame, layout: Layout, trains: Sequence[TrainDevices]
     sel = sel.assign(_has_speed=sel["speed_mps"].notna()).sort_values(["device", "time", "_has_speed"], kind="stable")
     sel = sel.drop_duplicates(["device", "time"], keep="last").sort_values("time", kind="stable")
     p = proj.project(sel["lat"].to_numpy(float), sel["lon"].to_numpy(float))
-    t_ns = pd.to_datetime(sel["time"], utc=True).astype("int64").to_numpy()
+    # In ns whatever resolution the table came in (pandas 3 keeps µs or s from its source).
+    t_ns = pd.to_datetime(sel["time"], utc=True).dt.as_unit("ns").astype("int64").to_numpy()
     out: list[Fix] = []
     off = 0
     for k, (dev, speed, course) in enumerate(
@@ -158,12 +168,14 @@ def run_crossings(
     specs = [TrainSpec(t.train, t.length_m) for t in chosen]
     rows: list[TimelineRow] = []
     events: list[CrossingEvent] = []
+    jumps = 0
     for crossing in layout.crossings:
         ctl: CrossingController = run_controller(crossing, specs, ctl_fixes, s)
         rows += timeline(ctl, ctl_fixes, s)
         events += ctl.events
+        jumps = ctl.position_jumps  # every controller sees the same fixes and sets aside the same ones
     events.sort(key=lambda e: e.t_ns)
-    return CrossingRun(rows, events, list(chosen), off, unassigned)
+    return CrossingRun(rows, events, list(chosen), off, unassigned, jumps)
 
 
 def parse_train_option(text: str, default_length_m: float) -> TrainDevices:

@@ -10,7 +10,12 @@ Times estimated from the fixes themselves (a real log has no other truth):
 * lead time = head arrival − warning on (should be ≥ the warning time);
 * excess = warning off − tail clear (road closed for nothing);
 * a **violation** is the warning off (or not yet on) while any part of the
-  train is within the crossing;
+  train is within the crossing, or a **late warning**: on less than the
+  crossing's warning time before the head arrived (``late_by_s`` says by how
+  much; the road users did not get the time the crossing promises them).
+  Late warnings are listed first.  Where the telemetry itself began too
+  late for any controller to warn in time, ``late_cause`` says so;
+* fixes the controller set aside as position jumps are left out here too;
 * the fixed-time **baseline** switches off at head arrival + train length /
   speed + margin; where that comes before the tail clears, the baseline
   would have opened the road too early.
@@ -46,6 +51,9 @@ class TimelineRow:
     baseline_off_ns: int | None
     baseline_early_s: float | None  # > 0: the baseline opened the road this long before the tail cleared
     baseline_excess_s: float | None
+    warning_time_s: float = 0.0  # what the crossing promises road users
+    late_by_s: float | None = None  # > 0: the warning came this much short of the warning time
+    late_cause: str = ""  # what in the telemetry made it late, when the data show it
 
     def to_dict(self) -> dict[str, Any]:
         def r(x: float | None) -> float | None:
@@ -59,6 +67,9 @@ class TimelineRow:
             "t_tail_clear": iso(self.t_tail_clear_ns),
             "t_off": iso(self.t_off_ns),
             "lead_time_s": r(self.lead_s),
+            "warning_time_s": self.warning_time_s,
+            "late_by_s": r(self.late_by_s),
+            "late_cause": self.late_cause or None,
             "excess_warning_s": r(self.excess_s),
             "reason_on": self.reason_on,
             "reason_off": self.reason_off,
@@ -96,8 +107,14 @@ def timeline(
     c = ctl.crossing.chainage_m
     half = s.crossing_half_width_m
     rows = []
+    wt = ctl.crossing.warning_time_s
     for train, tr in ctl.tracks.items():
-        own = [f for f in fixes if f.train == train and f.valid and not math.isnan(f.chainage_m)]
+        aside = {(role, t) for (tn, role), times in ctl.set_aside.items() if tn == train for t in times}
+        own = [
+            f
+            for f in fixes
+            if f.train == train and f.valid and not math.isnan(f.chainage_m) and (f.role, f.t_fix_ns) not in aside
+        ]
         heads = sorted((f for f in own if f.role == HEAD), key=lambda f: f.t_fix_ns)
         eots = sorted((f for f in own if f.role == EOT), key=lambda f: f.t_fix_ns)
         d = tr.direction
@@ -113,8 +130,21 @@ def timeline(
         if t_on is None and t_head is None:
             continue  # this train never came near the crossing
         violations = []
+        late_by = None
+        late_cause = ""
         if t_head is not None and (t_on is None or t_on > t_head):
             violations.append("warning not on when the head reached the crossing")
+        if t_head is not None:
+            lead = None if t_on is None else (t_head - t_on) / NS
+            late_by = wt - lead if lead is not None else None
+            if late_by is not None and late_by > 0:
+                violations.insert(
+                    0, f"late warning: on {lead:.1f} s before the head arrived, {late_by:.1f} s short of {wt:g} s"
+                )
+            if late_by is None or late_by > 0:
+                first = min((f.t_fix_ns for f in own), default=None)
+                if first is not None and (t_head - first) / NS < wt:
+                    late_cause = f"the telemetry begins only {(t_head - first) / NS:.1f} s before the head arrived"
         if t_off is not None and (t_tail is None or t_off < t_tail):
             violations.append("warning off before the tail cleared the crossing")
         speeds = [f.speed_mps for f in heads if not math.isnan(f.speed_mps)] or [
@@ -146,6 +176,9 @@ def timeline(
                 baseline_off_ns=base_off,
                 baseline_early_s=base_early,
                 baseline_excess_s=base_excess,
+                warning_time_s=wt,
+                late_by_s=late_by if late_by is not None and late_by > 0 else None,
+                late_cause=late_cause,
             )
         )
     return rows

@@ -5,8 +5,12 @@ past it, perhaps stopping before it (a station), crawling, or stopping with
 its tail still on the road (the fixed-time method's classic failure).  A head
 unit and an EOT unit report GNSS fixes every ``period_s`` with position noise
 ``noise_m`` (σ, metres, east and north), packet loss ``loss`` and radio
-latency; either unit may fail for good at a chosen time.  The truth gives
-when the head really reached the road and when the tail really cleared it.
+latency; either unit may fail for good at a chosen time.  Exports may carry
+no speed at all (as many device exports do: the controller must estimate it
+from the positions), and a share of fixes may be position jumps (multipath,
+a receiver re-acquiring: displaced along the track by 50 m to 2 km, small
+ones look plausible).  The truth gives when the head really reached the road
+and when the tail really cleared it.
 
 The crossing controller runs on the received fixes only; :func:`judge`
 compares its switching with the truth.
@@ -49,6 +53,8 @@ class RunConditions:
     length_m: float = 200.0
     seed: int = 0
     run_past_m: float = 600.0  # how far the head runs on past the crossing
+    speed_reported: bool = True  # False: the export has no speed column (NaN), nor a course
+    jump_rate: float = 0.0  # share of fixes displaced along the track (position jumps)
 
 
 @dataclass
@@ -57,6 +63,7 @@ class Truth:
     head_m: np.ndarray  # head chainage over time
     t_head_arrival_ns: int | None  # head reaches the road's near edge
     t_tail_clear_ns: int | None  # tail passes the road's far edge
+    jumps: int = 0  # fixes sent displaced (position jumps)
 
 
 def _motion(
@@ -77,7 +84,8 @@ def _motion(
     t, x, v = 0.0, 0.0, vmax  # x: head distance run from start
     ts, xs = [0.0], [0.0]
     stopped_until = None
-    end = approach + L + cond.run_past_m
+    # Far enough past for the EOT to report from beyond the crossing a few times, even at 0.1 Hz.
+    end = approach + L + max(cond.run_past_m, 6 * cond.period_s * vmax)
     while x < end and t < 3600:
         past = x - approach  # head's signed distance past the crossing
         if stop_at is not None and stopped_until is None and past <= stop_at:
@@ -151,6 +159,16 @@ def simulate(
         lat = lat + rng.normal(0, cond.noise_m, len(ch)) / m_lat
         lon = lon + rng.normal(0, cond.noise_m, len(ch)) / m_lon
         v = np.maximum(0.0, np.interp(times, ts, speed) + rng.normal(0, 0.2, len(ch)))
+        if not cond.speed_reported:
+            v[:] = np.nan
+        jumped = rng.random(len(ch)) < cond.jump_rate
+        if jumped.any():
+            # Along the track, either way, 50 m to 2 km: the small ones are plausible for a train.
+            shift = rng.choice([-1.0, 1.0], jumped.sum()) * rng.uniform(50, 2000, jumped.sum())
+            jlat, jlon = proj.position(ch[jumped] + shift)
+            lat[jumped] = jlat + rng.normal(0, cond.noise_m, len(shift)) / m_lat
+            lon[jumped] = jlon + rng.normal(0, cond.noise_m, len(shift)) / m_lon
+            truth.jumps += int(jumped.sum())
         p = proj.project(lat, lon)
         latency = rng.uniform(0.1, max(0.1, 2 * cond.latency_s), len(ch))
         bearing = (proj.bearing_deg(float(c)) + (0.0 if d > 0 else 180.0)) % 360.0
@@ -166,7 +184,7 @@ def simulate(
                     role=role,
                     chainage_m=float(p.chainage_m[k]),
                     speed_mps=float(v[k]),
-                    direction_hint=d if v[k] > 1.0 else 0,
+                    direction_hint=d if v[k] > 1.0 else 0,  # NaN (no speed): no course either
                 )
             )
     return fixes, truth, TrainSpec("T1", L)
@@ -181,6 +199,9 @@ class Verdict:
     alarms: int
     baseline_early_s: float | None  # > 0 the fixed-time method opened too early
     warning_time_s: float = 70.0  # the crossing's required lead
+    late_by_s: float | None = None  # > 0: on this much short of the warning time (a safety violation)
+    jumps_sent: int = 0
+    jumps_set_aside: int = 0
 
 
 def judge(
@@ -191,7 +212,12 @@ def judge(
     offs = [e.t_ns for e in ctl.events if e.kind == "off"]
     th, tt = truth.t_head_arrival_ns, truth.t_tail_clear_ns
     violation = None
-    if th is not None:
+    wt = ctl.crossing.warning_time_s
+    late_by = None
+    if th is not None and ons and (th - ons[0]) / NS < wt:
+        late_by = wt - (th - ons[0]) / NS
+        violation = f"late warning: {late_by:.1f} s short of {wt:g} s"
+    if th is not None and violation is None:
         on_before = [t for t in ons if t <= th]
         if not on_before:
             violation = "warning not on when the head reached the crossing"
@@ -212,12 +238,18 @@ def judge(
         base_off = th + (train.length_m / max(v, 0.1) + settings.baseline_margin_s) * NS
         base_early = max(0.0, (tt - base_off) / NS)
     alarms = sum(1 for e in ctl.events if e.kind == "alarm")
-    return Verdict(violation, lead, excess, held, alarms, base_early, ctl.crossing.warning_time_s)
+    return Verdict(violation, lead, excess, held, alarms, base_early, wt, late_by, truth.jumps, ctl.position_jumps)
+
+
+FIX_RATES = ("2.5 Hz", "0.1 Hz", "1-10 s")
 
 
 def random_conditions(rng: np.random.Generator, seed: int) -> RunConditions:
-    """Conditions across the issue's ranges: period 1-10 s, noise ≤ 5 m, loss ≤ 30 %, device failures."""
-    period = float(rng.uniform(1, 10))
+    """Conditions across the issues' ranges: fixes at 2.5 Hz, at 0.1 Hz or every 1-10 s; noise ≤ 5 m;
+    loss ≤ 30 %; device failures; trains up to 35 m/s (126 km/h, faster than the line speed the
+    unit is told); half the exports without speed; half the runs with up to 5 % position jumps."""
+    rate = str(rng.choice(FIX_RATES))
+    period = 0.4 if rate == "2.5 Hz" else 10.0 if rate == "0.1 Hz" else float(rng.uniform(1, 10))
     failure = rng.choice(["none", "none", "head", "eot"])
     length = float(rng.choice([28.6, 40.0, 120.0, 300.0, 600.0]))
     return RunConditions(
@@ -228,10 +260,12 @@ def random_conditions(rng: np.random.Generator, seed: int) -> RunConditions:
         head_fails_at_s=float(rng.uniform(0, 200)) if failure == "head" else None,
         eot_fails_at_s=float(rng.uniform(0, 200)) if failure == "eot" else None,
         scenario=str(rng.choice(SCENARIOS)),
-        speed_mps=float(rng.uniform(5, 25)),
+        speed_mps=float(rng.uniform(5, 35)),
         direction=int(rng.choice([1, -1])),
         length_m=length,
         seed=seed,
+        speed_reported=bool(rng.random() < 0.5),
+        jump_rate=float(rng.uniform(0, 0.05)) if rng.random() < 0.5 else 0.0,
     )
 
 
@@ -258,6 +292,7 @@ def many_runs(layout: Layout, n: int, seed: int = 0) -> list[tuple[RunConditions
 def summary(results: list[tuple[RunConditions, Verdict]]) -> dict[str, float | int | None]:
     """Violations, lead times, excess warning, held runs; the baseline beside."""
     v = [r for _, r in results]
+    conds = [c for c, _ in results]
     excess = [r.excess_s for r in v if r.excess_s is not None]
     leads = [r.lead_s for r in v if r.lead_s is not None]
     spare = [r.lead_s - r.warning_time_s for r in v if r.lead_s is not None]
@@ -266,7 +301,14 @@ def summary(results: list[tuple[RunConditions, Verdict]]) -> dict[str, float | i
     within = [e <= p + 5 for e, p in zip(excess, periods, strict=True)]
     return {
         "runs": len(v),
+        "runs_without_speed": sum(not c.speed_reported for c in conds),
+        "runs_with_jumps": sum(c.jump_rate > 0 for c in conds),
+        "runs_at_2_5_hz": sum(c.period_s == 0.4 for c in conds),
+        "runs_at_0_1_hz": sum(c.period_s == 10.0 for c in conds),
+        "jumps_sent": sum(r.jumps_sent for r in v),
+        "jumps_set_aside": sum(r.jumps_set_aside for r in v),
         "violations": sum(r.violation is not None for r in v),
+        "late_warnings": sum(r.late_by_s is not None for r in v),
         "held_on": sum(r.held for r in v),
         "median_excess_s": float(np.median(excess)) if excess else None,
         "median_excess_minus_period_s": float(np.median([e - p for e, p in zip(excess, periods, strict=True)]))
