@@ -28,6 +28,7 @@ from parsers.gnss_packets import rtcm3_packet, sirf_packet, ubx_packet
 from parsers.gnss_stream import parse_stream_files
 from parsers.kinds import classify_file, not_gnss_reason
 from parsers.nmea import nmea_checksum
+from parsers.report import ParseReport
 from tests.gpsd_truth import compare_with_gpsd
 
 DATA = Path(__file__).resolve().parent / "data" / "gnss"
@@ -55,7 +56,7 @@ def write(tmp_path: Path, name: str, data: bytes) -> Path:
     return path
 
 
-def stream(tmp_path: Path, data: bytes, name: str = "rx.log") -> tuple[pd.DataFrame, object]:
+def stream(tmp_path: Path, data: bytes, name: str = "rx.log") -> tuple[pd.DataFrame, ParseReport]:
     fixes, report = parse_stream_files([write(tmp_path, name, data)])
     report.check()
     return fixes, report
@@ -254,7 +255,7 @@ def test_column_names_are_matched_whatever_their_case_and_unit(
 
 
 def test_an_unknown_unit_on_a_column_we_read_is_refused_not_guessed(tmp_path: Path) -> None:
-    fixes, report = parse_device_stream([write(tmp_path, "d.csv", b"time,lat,lon,speed [furlong/fortnight]\n")])
+    _, report = parse_device_stream([write(tmp_path, "d.csv", b"time,lat,lon,speed [furlong/fortnight]\n")])
     assert report.rejected == 1 and "furlong" in report.rejections[0].reason
 
 
