@@ -56,6 +56,16 @@ def simulate(
         typer.Option("--fault", help="KIND:TARGET:START[:END[:CHANNEL]], e.g. dead_channel:WS3:20m (repeatable)."),
     ] = None,
     json_out: JsonOpt = False,
+    live: Annotated[
+        bool, typer.Option("--live", help="Write the logs as growing files in (scaled) real time, for `follow`.")
+    ] = False,
+    live_speed: Annotated[
+        float, typer.Option("--speed", help="With --live/--mqtt: simulated seconds per real second.", min=0.1, max=1000)
+    ] = 1.0,
+    mqtt: Annotated[
+        str | None,
+        typer.Option("--mqtt", help="Publish the GNSS units' uplinks (ChirpStack v4 JSON) to mqtt://HOST:PORT."),
+    ] = None,
 ) -> None:
     """Simulate a line: trains, counting heads, GNSS units and faults, written as real logs with a truth."""
 
@@ -87,10 +97,19 @@ def simulate(
         config = SimConfig(
             seed=seed, trains_per_hour=trains_per_hour, radio=LoRaLink(spreading_factor=spreading_factor), faults=faults
         )
+        if live or mqtt:  # a live run happens now: the units' clocks and the console's agree
+            import dataclasses
+            import time
+
+            config = dataclasses.replace(config, start_ns=time.time_ns() // 10**9 * 10**9)
         try:
             sim = StationSim(lay, config)
         except ValueError as exc:
             raise fail(str(exc)) from None
+        if live or mqtt:
+            from console.commands.simulate_live import run_live_command
+
+            return run_live_command(sim, seconds, live_speed, output if live else None, mqtt, json_out)
         # The bar counts simulated milliseconds (it only shows on a terminal, for long runs).
         with byte_progress(int(seconds * 1000) if seconds >= 600 else 0, "simulating") as advance:
             last = [0.0]

@@ -1,0 +1,90 @@
+"""One machine, no hardware: `simulate --live --mqtt` feeding `follow` through a real mosquitto."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from tests.live_fixtures import Mosquitto, mosquitto, read_jsonl, trackside  # noqa: F401 - the fixture
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def test_simulated_live_run_is_followed_from_files_and_mqtt(tmp_path: Path, mosquitto: Mosquitto) -> None:  # noqa: F811
+    run = tmp_path / "run"
+    log = run / "diagnostic.log"
+    run.mkdir()
+    follow = subprocess.Popen(
+        trackside(
+            "follow",
+            f"{mosquitto.url}/application/+/device/+/event/up",
+            f"file:{log}",
+            "--from-start",
+            "--layout",
+            "example",
+            "--jsonl",
+            "--idle-exit",
+            "2",
+        ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert follow.stdout is not None
+        first = follow.stdout.readline()
+        assert '"connected"' in first and "mqtt://" in first
+        sim = subprocess.run(
+            trackside(
+                "simulate",
+                "-o",
+                str(run),
+                "--layout",
+                "example",
+                "--live",
+                "--speed",
+                "150",
+                "--duration",
+                "12m",
+                "--trains-per-hour",
+                "20",
+                "--mqtt",
+                mosquitto.url,
+                "--json",
+            ),
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert sim.returncode == 0, sim.stderr
+        out, err = follow.communicate(timeout=60)
+    finally:
+        if follow.poll() is None:
+            follow.kill()
+    assert follow.returncode == 0, err
+    summary_sim = json.loads(sim.stdout)
+    assert summary_sim["uplinks"] == summary_sim["fixes"] > 10
+    events = read_jsonl(first + out)
+    summary = events[-1]
+    mqtt_status = next(s for s in summary["sources"] if s["uri"].startswith("mqtt://"))
+    assert mqtt_status["messages"] == summary_sim["uplinks"]
+    assert mqtt_status["lost"] == 0 and mqtt_status["malformed"] == 0
+    crossings = [e for e in events if e["type"] == "crossing"]
+    assert {"on", "off"} <= {e["kind"] for e in crossings}
+    # The followed log gives what analyze finds in the finished log.
+    analyze = subprocess.run(
+        trackside("analyze", str(log), "--json"), capture_output=True, text=True, timeout=60, check=True
+    )
+    expected = json.loads(analyze.stdout)["passages"]
+    got = [{k: v for k, v in e.items() if k != "type"} for e in events if e["type"] == "passage"]
+
+    def key(p: dict[str, object]) -> tuple[str, str]:
+        return str(p["start"]), str(p["counting_head"])
+
+    assert sorted(got, key=key) == sorted(expected, key=key)
+    assert any(p["axles"] > 0 for p in got)
+    # And its truth.json is written at the end, as in a batch run.
+    assert (run / "truth.json").exists()
