@@ -1,25 +1,58 @@
-"""Timestamps as the log wrote them: naive local time, ISO 8601."""
+"""Times for people and for JSON.
+
+Every time in the console is an int of ns since the epoch.  Sources with a
+zone (NMEA, gpsd, device CSVs with ``Z`` or an offset) are converted to UTC
+when parsed; sources without one (the diagnostic logs, centre tables without
+``--utc-offset``) are read as UTC too, so one scale holds for all.
+
+* :func:`iso` — JSON: ISO 8601 / RFC 3339 in UTC with ``Z``, milliseconds
+  always (``2026-03-02T08:00:13.250Z``, ``…T08:00:13.000Z``): fixed width,
+  so the strings sort as the times do; micro- or nanoseconds only where the
+  time has them (``…13.250125Z``), so nothing measured is cut off.
+* :func:`display` — tables: ``2015-10-31 09:32:24`` (``.560`` when present).
+"""
 
 from __future__ import annotations
 
 import datetime as dt
+
+import numpy as np
 
 NS = 1_000_000_000  # nanoseconds per second: every time in the console is an int of ns
 
 _EPOCH = dt.datetime(1970, 1, 1)
 
 
+def _fraction(frac_ns: int) -> str:
+    """Nanoseconds of a second → ``.250``, ``.250125`` or ``.250125001`` (groups of three)."""
+    digits = f"{frac_ns:09d}"
+    if digits[6:] != "000":
+        return "." + digits
+    if digits[3:6] != "000":
+        return "." + digits[:6]
+    return "." + digits[:3]
+
+
 def iso(ns: int | None) -> str | None:
-    """ns since the epoch (naive) → ``2015-10-31T09:32:24`` (fraction only when present)."""
+    """ns since the epoch → ``2015-10-31T09:32:24.000Z`` (UTC, milliseconds at least)."""
     if ns is None:
         return None
-    ns = int(ns)
-    whole, frac = divmod(ns, NS)
-    t = _EPOCH + dt.timedelta(seconds=whole)
-    text = t.isoformat()
-    if frac:
-        text += f".{frac:09d}".rstrip("0")
-    return text
+    whole, frac = divmod(int(ns), NS)
+    return (_EPOCH + dt.timedelta(seconds=whole)).isoformat() + _fraction(frac) + "Z"
+
+
+def iso_array(ns: np.ndarray) -> np.ndarray:
+    """:func:`iso` over an array of ns (float with NaN for none → None), vectorized."""
+    vals = np.asarray(ns)
+    ok = ~np.isnan(vals) if vals.dtype.kind == "f" else np.ones(len(vals), dtype=bool)
+    ints = np.where(ok, vals, 0).astype(np.int64)
+    text = np.datetime_as_string(ints.astype("datetime64[ns]"), unit="ns")  # …T09:32:24.250125000
+    frac = ints % NS
+    # Casting to a shorter string type cuts the digits off: ms, µs or ns as the time needs.
+    cut = np.where(frac % 1_000_000 == 0, text.astype("U23"), np.where(frac % 1_000 == 0, text.astype("U26"), text))
+    out = np.strings.add(cut, "Z").astype(object)
+    out[~ok] = None
+    return out
 
 
 def display(ns: int | None) -> str:

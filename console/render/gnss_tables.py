@@ -41,10 +41,8 @@ def _ns(value: Any) -> int | None:
 
 
 def iso_utc(value: Any) -> str | None:
-    """A UTC timestamp → ``2026-01-19T10:05:00.6Z``; NaT → None."""
-    ns = _ns(value)
-    text = iso(ns)
-    return None if text is None else text + "Z"
+    """A UTC timestamp → ``2026-01-19T10:05:00.600Z``; NaT → None."""
+    return iso(_ns(value))
 
 
 def _float(value: Any) -> float | None:

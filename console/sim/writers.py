@@ -161,7 +161,7 @@ def write_gnss(sim: StationSim, directory: Path) -> dict[str, int]:
     for f in sorted(sim.all_fixes, key=lambda f: (f.t_ns, f.train, f.role)):
         device = f"{f.train}-{f.role}"
         per_device.setdefault(device, []).extend(nmea_sentences(f.t_ns, f.lat, f.lon, f.speed_mps, f.course_deg))
-        t = (iso(f.t_ns) or "") + "Z"
+        t = iso(f.t_ns) or ""  # UTC with its Z
         csv.append(f"{t},{device},{f.role},{f.lat:.7f},{f.lon:.7f},{f.speed_mps:.2f},{f.course_deg:.1f}")
     for device, lines in per_device.items():
         (nmea_dir / f"{device}.nmea").write_text("\r\n".join(lines) + "\r\n", encoding="ascii")
