@@ -1,0 +1,201 @@
+"""Whole-second logs, boards interleaved, overlapping files: axles counted as they happened.
+
+The truth comes from the simulator (every wheel passing every head), never
+from the parser.  One simulated run is written at microsecond, millisecond
+and whole-second resolution, per head mixed, with the boards interleaved in
+different orders; every version must give the same train passages and the
+same axles per head, equal to the truth.
+
+CI runs a few one-hour runs (well under the 40 s budget).  The long profile
+runs more and longer days::
+
+    TRACKSIDE_LONG=1 python -m pytest tests/test_whole_second.py
+"""
+
+from __future__ import annotations
+
+import os
+from collections import Counter
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from benchmarks.gen_realistic_diag import generate as generate_realistic
+from console.analysis.diagnostics import SpeedSettings
+from console.jobs import analyze_files
+from console.layout import load_layout
+from console.sim.station import SimConfig, StationSim
+from console.sim.writers import write_diagnostic
+from tests.conftest import record
+
+LONG = bool(os.environ.get("TRACKSIDE_LONG"))
+RUN_S = 6 * 3600 if LONG else 3600
+EXAMPLES = 20 if LONG else 3
+
+
+def _sim(seed: int) -> StationSim:
+    sim = StationSim(load_layout("example"), SimConfig(seed=seed, trains_per_hour=12))
+    sim.run(RUN_S)
+    return sim
+
+
+def _truth(sim: StationSim) -> tuple[Counter[str], list[tuple[str, int, str]]]:
+    """Axles per head, and per (train, head) passage: (head, axles, direction)."""
+    up_first = {h.id: h.up_is_first_channel_first for h in sim.layout.heads}
+    per_head: Counter[str] = Counter(a.head for a in sim.truth_axles)
+    runs: dict[tuple[str, str], list[int]] = {}
+    for a in sim.truth_axles:
+        runs.setdefault((a.train, a.head), []).append(a.direction)
+    passages = []
+    for (_, head), dirs in runs.items():
+        sys1_first = (dirs[0] > 0) == up_first[head]
+        passages.append((head, len(dirs), "sys1_to_sys2" if sys1_first else "sys2_to_sys1"))
+    return per_head, sorted(passages)
+
+
+def _found(path: Path, length_m: float = 28.6) -> tuple[Counter[str], list[tuple[str, int, str]], list[dict]]:
+    job = analyze_files([path], SpeedSettings(train_length_m=length_m))
+    assert job.report.rejected == 0
+    trains = [p for p in job.analysis.passages_json() if p["kind"] == "train"]
+    per_head: Counter[str] = Counter()
+    for p in trains:
+        per_head[p["counting_head"]] += p["axles"]
+    return per_head, sorted((p["counting_head"], p["axles"], p["direction"] or "") for p in trains), trains
+
+
+@settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(seed=st.integers(1, 10_000), interleave=st.integers(0, 2**31))
+def test_one_run_at_every_resolution_counts_every_axle(tmp_path: Path, seed: int, interleave: int) -> None:
+    sim = _sim(seed)
+    truth_axles, truth_passages = _truth(sim)
+    assert sum(truth_axles.values()) > 0
+    heads = [h.id for h in sim.layout.heads]
+    mixed = {h: ("us", "ms", "s")[i % 3] for i, h in enumerate(heads)}
+    versions: list[tuple[str | dict[str, str], int | None]] = [
+        ("us", None),
+        ("ms", interleave),
+        ("s", interleave),
+        ("s", interleave + 1),  # the same seconds, boards interleaved otherwise
+        (mixed, interleave),
+    ]
+    for k, (resolution, order) in enumerate(versions):
+        path = tmp_path / f"run{k}.log"
+        write_diagnostic(sim, path, resolution=resolution, interleave_seed=order)
+        axles, passages, _ = _found(path)
+        assert axles == truth_axles, (resolution, order)
+        assert passages == truth_passages, (resolution, order)
+
+
+def test_whole_second_bounds_hold_the_exact_whole_train_speed(tmp_path: Path) -> None:
+    """A passage timed from whole seconds: its min-max holds what microseconds measure."""
+    sim = _sim(11)
+    write_diagnostic(sim, tmp_path / "us.log", resolution="us")
+    write_diagnostic(sim, tmp_path / "s.log", resolution="s", interleave_seed=5)
+    _, _, exact = _found(tmp_path / "us.log")
+    _, _, coarse = _found(tmp_path / "s.log")
+    assert len(exact) == len(coarse) > 0
+    key = {(p["counting_head"], p["start"][:16]): p for p in exact}
+    checked = 0
+    for p in coarse:
+        q = key.get((p["counting_head"], p["start"][:16]))
+        if q is None or q["speed_kmh_whole_train"] is None:
+            continue
+        assert p["time_resolution_s"] == 1.0 and q["time_resolution_s"] == 0.001
+        hi = p["speed_kmh_whole_train_max"]
+        assert p["speed_kmh_whole_train_min"] <= q["speed_kmh_whole_train"]
+        assert hi is None or q["speed_kmh_whole_train"] <= hi
+        checked += 1
+    assert checked >= len(coarse) // 2
+
+
+def test_realistic_multi_board_export_counts_every_head_exactly(tmp_path: Path) -> None:
+    """benchmarks/gen_realistic_diag.py: 40 boards, us/ms/s boards mixed, damaged lines among them."""
+    path = tmp_path / "export.log"
+    truth = generate_realistic(20_000, path, seed=3, interleave_seed=4)
+    job = analyze_files([path], SpeedSettings())
+    rep = job.report
+    assert rep.lines_read == truth["lines"] == rep.records + rep.rejected
+    assert rep.rejected == truth["corrupt_lines"] > 0
+    counted: Counter[str] = Counter()
+    for p in job.analysis.passages_json():
+        counted[p["counting_head"]] += p["axles"]
+    assert dict(counted) == {h: n for h, n in truth["axles_per_head"].items() if n}
+
+
+def _lines(path: Path) -> list[bytes]:
+    return path.read_bytes().splitlines(keepends=True)
+
+
+@pytest.fixture(scope="module")
+def export(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    path = tmp_path_factory.mktemp("export") / "export.log"
+    return path, generate_realistic(12_000, path, boards=12, seed=5, interleave_seed=6, corrupt=False)
+
+
+def _per_head_axles(paths: list[Path]) -> tuple[Counter[str], list[int], str]:
+    job = analyze_files(paths, SpeedSettings())
+    counted: Counter[str] = Counter()
+    for p in job.analysis.passages_json():
+        counted[p["counting_head"]] += p["axles"]
+    text = sorted(job.analysis.passages_json(), key=lambda p: (p["counting_head"], p["start"]))
+    return counted, [f.overlap_records for f in job.report.files], repr(text)
+
+
+@pytest.mark.parametrize(
+    ("cut_a", "cut_b", "overlap"),
+    [
+        (0.6, 0.4, True),  # two pulls with overlapping ranges
+        (0.5, 0.5, False),  # split mid-second, nothing repeated
+        (1.0, 0.0, True),  # the same export pulled twice
+    ],
+)
+def test_files_that_overlap_count_the_overlap_once(
+    tmp_path: Path, export: tuple[Path, dict], cut_a: float, cut_b: float, overlap: bool
+) -> None:
+    path, truth = export
+    lines = _lines(path)
+    a, b = tmp_path / "a.log", tmp_path / "b.log"
+    a.write_bytes(b"".join(lines[: int(len(lines) * cut_a)]))
+    b.write_bytes(b"".join(lines[int(len(lines) * cut_b) :]))
+    repeated = int(len(lines) * cut_a) - int(len(lines) * cut_b)
+    whole, _, whole_text = _per_head_axles([path])
+    assert dict(whole) == {h: n for h, n in truth["axles_per_head"].items() if n}
+    for files in ([a, b], [b, a]):
+        counted, per_file, text = _per_head_axles(files)
+        assert counted == whole
+        assert text == whole_text  # the same passages, to the record
+        # Said per file: the later file's copy of the seam run.
+        assert per_file == ([0, repeated] if overlap else [0, 0])
+
+
+def test_identical_lines_in_one_file_are_two_events(tmp_path: Path) -> None:
+    # Two wheels within one whole second write the same two lines twice: two axles, no overlap.
+    rad = {"adr": "026", "label": "Radsensor", "time": "09:00:00"}
+    wheel = [record(ch=1, data="1", **rad), record(ch=2, data="1", **rad)]
+    path = tmp_path / "log.txt"
+    path.write_text("\n".join(wheel * 2) + "\n", encoding="utf-8")
+    job = analyze_files([path], SpeedSettings())
+    (p,) = job.analysis.passages_json()
+    assert (p["axles"], p["direction"], p["records"]) == (2, "sys1_to_sys2", 4)
+    assert job.analysis.overlap_records == 0
+
+
+def test_a_repeated_line_inside_a_second_file_is_not_overlap_unless_at_the_seam(tmp_path: Path) -> None:
+    a, b = tmp_path / "a.log", tmp_path / "b.log"
+    a.write_text(record(time="09:00:00") + "\n" + record(time="09:00:01") + "\n", encoding="utf-8")
+    # b starts with a record a does not have: its copy of a's 09:00:01 line is not at a seam.
+    b.write_text(record(time="08:59:59") + "\n" + record(time="09:00:01") + "\n", encoding="utf-8")
+    job = analyze_files([a, b], SpeedSettings())
+    assert [f.overlap_records for f in job.report.files] == [0, 0]
+
+
+def test_passage_without_a_measurable_speed_is_shown_not_dropped(tmp_path: Path) -> None:
+    # One system only, one second: no axle, no duration, still a passage with nulls.
+    path = tmp_path / "log.txt"
+    path.write_text(record(ch=1, adr="026", label="Radsensor", data="1") + "\n", encoding="utf-8")
+    (p,) = analyze_files([path], SpeedSettings()).analysis.passages_json()
+    assert p["kind"] == "damping" and p["speed_kmh_whole_train"] is None
+    assert p["speed_kmh_whole_train_min"] is None and p["speed_kmh_whole_train_max"] is None
+    assert p["time_resolution_s"] == 1.0
