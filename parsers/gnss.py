@@ -38,30 +38,22 @@ Each data row gives one fix: ``device`` = the train code, ``role`` ``head``
 (the centre reports the locomotive unit), ``source`` ``centre``, speed from
 km/h, ``valid`` True (the centre gives no fix quality), no course.
 
-Device streams
---------------
-CSV (delimiter as above) with a header, or JSON lines (one object a line)
-with the same keys: ``time`` (required), ``device`` (default: the file name
-stem), ``role`` (``head``/``eot``; also ``locomotive``/``LTĐK`` and
-``end of train``/``tail``/``MCĐT``; default ``""``), ``lat``, ``lon``,
-``speed`` or ``speed_mps`` (m/s) or ``speed_kmh`` / ``speed (km/h)``, optional
-``course``/``course_deg``, optional ``valid`` (true/false, 1/0, yes/no).
-Other keys of a JSON object are ignored.  Times are ISO 8601 with a date and
-a time (``T`` or a space between); ``Z`` or an offset is converted to UTC, a
-time without a zone is taken as UTC.  A row without a position, or with
-``valid`` false, is a no-fix row (``valid`` False).
-
-Line accounting: a header line and ``#`` comment lines are counted as blank
-(no record, nothing lost); lines before the header, and rows that do not
-parse, are rejected with the reason.
+Other GNSS sources (each its own module)
+----------------------------------------
+* receiver streams — NMEA, gpsd JSON, binary UBX/RTCM3/SiRF packets, mixed
+  line by line: ``parsers.gnss_stream``;
+* device exports, CSV and JSON lines: ``parsers.gnss_csv``;
+* GPX 1.0/1.1 tracks: ``parsers.gpx``.
 
 Format recognition (:func:`parse_gnss`)
 ---------------------------------------
-From the first line that is not blank or a ``#`` comment: ``$`` or ``!``
-(possibly after a device tag) → NMEA; ``{`` → JSON lines; a header that
-reads as a centre table (it has a train column) → centre; a header that
-reads as a device stream → CSV.  Anything else: every line is rejected with
-the reason, no exception.
+By content, from the file's head (``parsers.kinds``): NMEA sentences or
+binary receiver packets anywhere in it, or gpsd JSON → stream; other JSON
+lines → device stream; ``<gpx`` → GPX; a header that reads as a centre
+table (it has a train column) → centre; a header that reads as a device
+export → CSV.  Anything else: every line is rejected with the reason, no
+exception; commands refuse such a file up front (``parsers.kinds``,
+:func:`nothing_read`).
 """
 
 from __future__ import annotations

@@ -1,24 +1,8 @@
-"""NMEA 0183 receiver logs → the GNSS fix table (:data:`FIX_COLUMNS`).
+"""NMEA 0183 sentences → decoded fixes (:class:`Fix`), one sentence at a time.
 
-This module also defines the fix table that every GNSS source shares
-(``parsers.gnss`` re-exports it): one row per position or speed report.
-
-Columns of the fix table
-------------------------
-``time``        datetime64[ns, UTC]; NaT when unknown (a GGA before any date
-                was seen, a sentence without time).
-``device``      category: the file name stem, or the device tag of the line.
-``role``        category ``"head"``, ``"eot"`` or ``""`` (unknown).
-``lat, lon``    float64 degrees, south and west negative; NaN when absent.
-``speed_mps``   float64 m/s over ground; NaN when the source gives none.
-``course_deg``  float64 degrees true; NaN when the source gives none.
-``valid``       bool: a real position fix.  No-fix rows (RMC status ``V``,
-                GGA quality 0) keep whatever position the receiver printed
-                (often its last fix, or 0,0): never use them as positions.
-``source``      category ``"nmea"``, ``"csv"``, ``"jsonl"`` or ``"centre"``.
-``sentence``    category ``"RMC"``, ``"GGA"``, ``"VTG"``; ``""`` for sources
-                that are not NMEA.
-``file, line``  category and int64: where the row came from.
+The fix table they become is defined in ``parsers.fix_table`` (re-exported
+here); reading files, binary packets between sentences, gpsd JSON and the
+merging of one epoch's sentences into one row are ``parsers.gnss_stream``.
 
 Which NMEA sentences become rows
 --------------------------------
@@ -28,23 +12,28 @@ Any talker (``GP``, ``GN``, ``GL``, ``GA``, ``GB``, ``GQ``, ``IN`` …):
   course; valid when the status is ``A`` (and an NMEA 4.1 mode is not
   ``N``) and the position is present;
 * ``GGA``: time, position; valid for quality 1–6 (7 is a manually entered
-  position, 8 a simulator: not real fixes), except a satellite fix (1–5)
-  from 0 satellites used, a stale flag that gpsd reports as no fix too.
-  GGA carries no date: it takes the date of the device's most recent RMC or
-  ZDA (a day is added when the time of day has wrapped past midnight since),
-  else its time is NaT.  An RMC without a date does the same;
-* ``VTG``: speed and course only.  It becomes its own row with NaN position
-  and ``valid`` False (rows are never merged, so every row points at the one
-  sentence it came from).  VTG carries no time: the row takes the time of the
-  device's latest RMC or GGA, which in the usual RMC–VTG–GGA cycle is the
-  time of its own cycle.  Knots are used, else km/h.  The pre-NMEA 2.0 form
-  without unit fields (``$GPVTG,054.7,034.4,005.5,010.2``) is read too.
+  position, 8 a simulator: not real fixes; 6 is dead reckoning, marked
+  ``fix_quality = "dead_reckoning"``), except a satellite fix (1–5) from 0
+  satellites used, a stale flag that gpsd reports as no fix too (a weak
+  verdict: an RMC of the same epoch that says ``A`` overrules it).  GGA
+  carries no date: it takes the date of the device's most recent RMC or ZDA
+  (a day is added when the time of day has wrapped past midnight since);
+  before any date, ``parsers.gnss_stream`` dates it when the next RMC or ZDA
+  arrives.  An RMC without a date does the same;
+* ``GLL``: position and time of day; valid when the status is ``A`` and the
+  mode is not ``N`` (``E``: dead reckoning);
+* ``GNS``: time, position, one mode letter per constellation; valid when one
+  of them is a fix (A, D, P, R, F, E; only E: dead reckoning);
+* ``VTG``: speed and course only, no time: it joins the row of the device's
+  epoch (``parsers.gnss_stream``).  Knots are used, else km/h.  The
+  pre-NMEA 2.0 form without unit fields (``$GPVTG,054.7,034.4,005.5,010.2``)
+  is read too.
 
-Line accounting (``parsers.report``)
-------------------------------------
-* ``records``: lines that gave at least one row (no-fix rows included);
+Line accounting (``parsers.report``, done by ``parsers.gnss_stream``)
+--------------------------------------------------------------------
+* ``records``: lines that gave or joined at least one row (no-fix rows included);
 * ``blank``: nothing to parse: blank lines, ``#`` comments, and well-formed
-  sentences that carry no fix (GSA, GSV, GLL, ZDA, TXT, AIS ``!AIVDM``,
+  sentences that carry no fix (GSA, GSV, ZDA, TXT, AIS ``!AIVDM``,
   proprietary ``$P…``, any other type).  ZDA still sets the device's date;
 * ``rejected``: anything else, with the reason: a line that does not start
   with ``$`` or ``!`` (after an optional device tag), control or non-ASCII
@@ -55,7 +44,7 @@ Line accounting (``parsers.report``)
 Checksums: a ``*HH`` checksum, when present, must match (gpsd drops such
 sentences too).  A sentence without one is accepted, since NMEA makes the
 checksum optional, but then it must have its complete field count (RMC 11,
-GGA 14, VTG 8 or 4 fields after the address): a line cut off short is
+GGA 14, GLL 6, GNS 12, VTG 8 or 4 fields after the address): a line cut off short is
 otherwise indistinguishable from a sentence sent without a checksum.  (gpsd
 itself dropped every checksum-less line of the captures in
 ``shared/data/nmea``, so the comparison with gpsd does not cover them.)
