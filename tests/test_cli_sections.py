@@ -43,7 +43,7 @@ def test_example_station_day(samples: Path) -> None:
     states = [(t["section"], t["state"]) for t in held]
     assert states[:2] == [("1G", "occupied"), ("B1", "occupied")] and "WS2 damped" in held[0]["reason"]
     assert [t["reason"] for t in held[2:4]] == ["held: isolated pulse at WS2"] * 2
-    assert states[4:] == [("1G", "clear"), ("B1", "clear")] and held[4]["time"] == "2026-03-02T10:31:00"
+    assert states[4:] == [("1G", "clear"), ("B1", "clear")] and held[4]["time"] == "2026-03-02T10:31:00.000Z"
 
 
 def test_without_resets_the_disturbed_sections_stay_disturbed(samples: Path) -> None:

@@ -600,8 +600,8 @@ def test_gnss_json_gives_utc_times_with_z_and_null_for_missing_values(tmp_path: 
     doc = gnss_json(fixes, report)
     json.dumps(doc, allow_nan=False)  # no NaN can reach the JSON
     first, rmc = doc["fixes"]
-    assert first["time"] == "1994-03-23T12:35:20Z" and first["speed_mps"] is None  # a GGA dated by the RMC after it
-    assert rmc["time"] == "1994-03-23T12:35:19Z"
+    assert first["time"] == "1994-03-23T12:35:20.000Z" and first["speed_mps"] is None  # a GGA dated by the RMC after it
+    assert rmc["time"] == "1994-03-23T12:35:19.000Z"
     none, _ = one_file(tmp_path, [nmea(VTG)], name="vtg.log")
     vtg = gnss_json(none, report)["fixes"][0]
     assert vtg["lat"] is None and vtg["valid"] is False and vtg["time"] is None

@@ -108,7 +108,7 @@ def test_finding_to_dict_is_json_ready() -> None:
     f = Finding(Severity.WARNING, "analog_band", "WS5", 2, "text", 2300.0, float("nan"), ns("2015-10-31T07:50:00"))
     d = json.loads(json.dumps(f.to_dict(), allow_nan=False))
     assert d["severity"] == "warning" and d["threshold"] is None
-    assert d["time"] == "2015-10-31T07:50:00"
+    assert d["time"] == "2015-10-31T07:50:00.000Z"
 
 
 # --------------------------------------------------------------------------- voltage margin (seed 000)
