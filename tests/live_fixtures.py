@@ -162,3 +162,98 @@ def trackside(*args: str) -> list[str]:
 
 def read_jsonl(text: str) -> list[dict[str, Any]]:
     return [json.loads(line) for line in text.splitlines() if line.strip()]
+
+
+class HeadlessChromium:
+    """Headless Chromium driven over the DevTools protocol (loopback only): screenshots, and the
+    text the page receives on its websockets (what the served app draws)."""
+
+    def __init__(self, tmp: Path) -> None:
+        self.binary = next((b for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None)
+        if self.binary is None:
+            pytest.skip("chromium is not installed (Debian package: see .ci/run)")
+        self.port = free_port()
+        self.proc = subprocess.Popen(
+            [
+                self.binary,
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-background-networking",
+                "--no-first-run",
+                f"--remote-debugging-port={self.port}",
+                "--remote-debugging-address=127.0.0.1",
+                f"--user-data-dir={tmp / 'chromium-profile'}",
+                "--window-size=1400,1000",
+                "about:blank",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+
+    def page_ws_url(self) -> str:
+        import urllib.request
+
+        end = time.monotonic() + 20
+        while time.monotonic() < end:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{self.port}/json/list", timeout=1) as r:
+                    pages = [t for t in json.load(r) if t.get("type") == "page"]
+                if pages:
+                    return str(pages[0]["webSocketDebuggerUrl"])
+            except OSError:
+                pass
+            time.sleep(0.1)
+        pytest.fail("chromium's DevTools endpoint did not come up")
+
+    def close(self) -> None:
+        stop_process(self.proc)
+
+
+class DevToolsPage:
+    """One page over CDP: navigate, screenshot, and the websocket text it has received."""
+
+    def __init__(self, ws: Any) -> None:
+        self.ws = ws
+        self.next_id = 0
+        self.frames: list[str] = []
+
+    async def call(self, method: str, **params: Any) -> dict[str, Any]:
+        self.next_id += 1
+        mid = self.next_id
+        await self.ws.send_json({"id": mid, "method": method, "params": params})
+        async for msg in self.ws:
+            doc = json.loads(msg.data)
+            if doc.get("method") == "Network.webSocketFrameReceived":
+                self.frames.append(doc["params"]["response"].get("payloadData", ""))
+            if doc.get("id") == mid:
+                return dict(doc.get("result") or {})
+        raise RuntimeError("DevTools connection closed")
+
+    async def pump(self, seconds: float) -> None:
+        """Let the page run, collecting websocket frames."""
+        import asyncio
+
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            try:
+                msg = await asyncio.wait_for(self.ws.receive(), timeout=max(0.01, end - time.monotonic()))
+            except TimeoutError:
+                return
+            doc = json.loads(msg.data)
+            if doc.get("method") == "Network.webSocketFrameReceived":
+                self.frames.append(doc["params"]["response"].get("payloadData", ""))
+
+    def text(self) -> str:
+        """Every received frame as text (binary frames arrive base64-encoded), terminal escapes removed."""
+        import base64
+        import binascii
+        import re
+
+        out = []
+        for f in self.frames:
+            try:
+                out.append(base64.b64decode(f, validate=True).decode("utf-8", "replace"))
+            except (binascii.Error, ValueError):
+                out.append(f)
+        return re.sub(r"\x1b\[[0-9;?$]*[A-Za-z]", "", "".join(out))

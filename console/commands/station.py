@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 from typing import Annotated, Any
@@ -28,10 +29,21 @@ def station(
         typer.Option("--replay", help="Replay FILES (diagnostic records, GNSS telemetry) instead of simulating."),
     ] = False,
     files: Annotated[list[Path] | None, typer.Argument(help="Logs to replay (with --replay).")] = None,
+    live: Annotated[
+        list[str] | None,
+        typer.Option("--live", help="Follow a live source (file:PATH, gpsd://…, mqtt://…/TOPIC, can:…); repeatable."),
+    ] = None,
+    serve: Annotated[bool, typer.Option("--serve", help="Serve the view to a browser (textual-serve).")] = False,
+    host: Annotated[str, typer.Option("--host", help="With --serve: address to listen on.")] = "127.0.0.1",
+    port: Annotated[int, typer.Option("--port", help="With --serve: port to listen on.", min=1, max=65535)] = 8000,
 ) -> None:
-    """The live station view: sections, trains, crossings and events, simulated or replayed."""
+    """The live station view: sections, trains, crossings and events, simulated, replayed or live."""
 
     def body() -> int:
+        if serve or live:
+            from console.commands.station_live import run_live_station
+
+            return run_live_station(layout, live or [], serve, host, port, seed, speed, replay, files or [])
         from console.tui.app import StationApp
         from console.tui.model import SPEEDS, StationModel
         from console.tui.sources import ReplaySource, SimSource
@@ -52,7 +64,7 @@ def station(
                 source = SimSource(lay, seed=seed)
             except ValueError as exc:
                 raise fail(str(exc)) from None
-        if not (sys.stdin.isatty() and sys.stdout.isatty()):
+        if not (sys.stdin.isatty() and sys.stdout.isatty()) and "TEXTUAL_DRIVER" not in os.environ:
             # Textual would draw into a pipe and wait for keys that never come.
             raise fail("the station view needs a terminal: run it without pipes or redirection")
         model = StationModel(source)

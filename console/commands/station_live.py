@@ -1,0 +1,61 @@
+"""`trackside station --live SOURCE` and `--serve`: the station view on live feeds, and in a browser."""
+
+from __future__ import annotations
+
+import os
+import shlex
+import sys
+from pathlib import Path
+
+from console import exit_codes
+from console.commands.common import fail, load_layout
+
+_CLI = "from console.cli import app; app()"
+WEB_DRIVER_ENV = "TEXTUAL_DRIVER"  # set by textual-serve for the app it runs
+
+
+def served_command(layout: str, live: list[str], seed: int, speed: float, replay: bool, files: list[Path]) -> list[str]:
+    """The command textual-serve runs for each browser: this station view, without --serve."""
+    cmd = [sys.executable, "-c", _CLI, "station", "--layout", layout]
+    for s in live:
+        cmd += ["--live", s]
+    if not live:
+        cmd += ["--seed", str(seed), "--speed", str(speed)]
+        if replay:
+            cmd += ["--replay", *(str(f) for f in files)]
+    return cmd
+
+
+def run_live_station(
+    layout: str,
+    live: list[str],
+    serve: bool,
+    host: str,
+    port: int,
+    seed: int,
+    speed: float,
+    replay: bool,
+    files: list[Path],
+) -> int:
+    from console.sources import SourceError, open_source
+
+    lay = load_layout(layout)
+    try:
+        sources = [open_source(s) for s in live]
+        for s in sources:
+            s.check()
+    except SourceError as exc:
+        raise fail(str(exc)) from None
+    if serve:
+        from textual_serve.server import Server
+
+        command = shlex.join(served_command(layout, live, seed, speed, replay, files))
+        Server(command, host=host, port=port, title="trackside station").serve()
+        return exit_codes.OK
+    if not (sys.stdin.isatty() and sys.stdout.isatty()) and WEB_DRIVER_ENV not in os.environ:
+        raise fail("the station view needs a terminal: run it without pipes or redirection (or use --serve)")
+    from console.tui.live_app import LiveStationApp
+    from console.tui.live_source import LiveSource
+
+    LiveStationApp(LiveSource(lay, sources)).run()
+    return exit_codes.OK

@@ -1,0 +1,133 @@
+"""station --live and --serve: the live view in the terminal (Pilot) and in headless Chromium."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from console.layout import load_layout
+from console.sources import open_source
+from console.tui.live_app import LiveStationApp
+from console.tui.live_source import LiveSource
+from tests.live_fixtures import REPO, DevToolsPage, HeadlessChromium, free_port, port_open, trackside, wait_until
+
+pytestmark = pytest.mark.timeout(90)
+
+SAMPLE = (REPO / "sample_logs" / "example_station.log").read_bytes().splitlines(keepends=True)
+FIRST_WHEEL = next(i for i, line in enumerate(SAMPLE) if b"Radsensor" in line)
+BEFORE_TRAIN = b"".join(SAMPLE[:FIRST_WHEEL])
+FIRST_TRAIN = b"".join(SAMPLE[FIRST_WHEEL : FIRST_WHEEL + 400])  # the sweep train over the whole line
+
+
+def test_live_station_view_follows_a_growing_log_and_shows_each_source(tmp_path: Path) -> None:
+    log = tmp_path / "station.log"
+    log.write_bytes(BEFORE_TRAIN)
+    source = LiveSource(load_layout("example"), [open_source(f"file:{log}", from_start=True)])
+    app = LiveStationApp(source)
+
+    async def scenario() -> float:
+        async with app.run_test(size=(160, 50)) as pilot:
+
+            async def until(cond: object, timeout_s: float) -> bool:
+                end = time.monotonic() + timeout_s
+                while time.monotonic() < end:
+                    if cond():  # type: ignore[operator]
+                        return True
+                    await pilot.pause(0.02)
+                return False
+
+            status = app.query_one("#sources")
+            assert await until(lambda: "connected" in str(status.render()), 5)
+            states = lambda: {s.id: s.state for s in app.model.snapshot().sections}  # noqa: E731
+            assert set(states().values()) == {"preparatory"}
+            t0 = time.monotonic()
+            with log.open("ab") as f:
+                f.write(FIRST_TRAIN)
+            assert await until(lambda: "clear" in states().values(), 5), states()
+            return time.monotonic() - t0
+
+    seconds = asyncio.run(scenario())
+    # Appended to shown on screen: the 0.1 s redraw tick plus inotify and the engine.
+    assert seconds < 2.0
+    source.stop()
+
+
+def _serve(log: Path, port: int) -> subprocess.Popen[bytes]:
+    return subprocess.Popen(
+        trackside(
+            "station",
+            "--serve",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--layout",
+            "example",
+            "--live",
+            f"file:{log}",
+        ),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,  # textual-serve starts the app per browser: stop the whole group
+        env={**os.environ, "COLUMNS": "160"},
+    )
+
+
+def test_served_station_view_loads_in_headless_chromium_shows_the_track_and_updates(tmp_path: Path) -> None:
+    import aiohttp
+
+    log = tmp_path / "station.log"
+    log.write_bytes(BEFORE_TRAIN)
+    port = free_port()
+    server = _serve(log, port)
+    browser = HeadlessChromium(tmp_path)
+    try:
+        assert wait_until(lambda: port_open(port), 20), "textual-serve did not listen"
+        ws_url = browser.page_ws_url()
+
+        async def scenario() -> tuple[str, str, bytes, bytes]:
+            import base64
+
+            async with aiohttp.ClientSession() as session, session.ws_connect(ws_url, max_msg_size=0) as ws:
+                page = DevToolsPage(ws)
+                await page.call("Network.enable")
+                await page.call("Page.enable")
+                await page.call("Page.navigate", url=f"http://127.0.0.1:{port}/")
+                for _ in range(40):  # the app starts in its own process: up to 20 s
+                    await page.pump(0.5)
+                    shown = page.text()
+                    if "WS5" in shown and "12+940" in shown and "connected" in shown:
+                        break
+                first = page.text()
+                shot1 = base64.b64decode((await page.call("Page.captureScreenshot", format="png"))["data"])
+                page.frames.clear()
+                with log.open("ab") as f:
+                    f.write(FIRST_TRAIN)
+                for _ in range(20):
+                    await page.pump(0.5)
+                    if "clear" in page.text():
+                        break
+                shot2 = base64.b64decode((await page.call("Page.captureScreenshot", format="png"))["data"])
+                return first, page.text(), shot1, shot2
+
+        first, later, shot1, shot2 = asyncio.run(scenario())
+    finally:
+        browser.close()
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(server.pid, signal.SIGTERM)
+        server.wait(10)
+    # The track diagram: every counting head and both crossings of the example line.
+    for label in ("WS1", "WS2", "WS3", "WS4", "WS5", "11+850", "12+940", "preparatory"):
+        assert label in first, label
+    assert "connected" in first  # the source status line
+    # It updates: the sweep train cleared sections, and the picture changed.
+    assert "clear" in later
+    assert shot1[:8] == b"\x89PNG\r\n\x1a\n" and shot1 != shot2
+    (tmp_path / "served.png").write_bytes(shot2)
