@@ -90,6 +90,7 @@ from console.sim.dynamics import LineProfile, Segment, TrainModel, TrainState, s
 
 STALL_S = 10.0
 PLANTS = ("force", "linear")
+CONTROL_PERIOD_S = 0.05  # the ATO loop period: the scenario's step, and the Driver's longest
 
 
 def braking_target_speed(distance_to_point_m: float, target_speed_at_point_mps: float, decel_mps2: float) -> float:
@@ -175,7 +176,7 @@ class ScenarioResult:
 def run_scenario(
     controller_name: str,
     plant: str = "force",
-    dt_s: float = 0.05,
+    dt_s: float = CONTROL_PERIOD_S,
     max_time_s: float = 600.0,
     scenario: Scenario = SEED_001,
     train: TrainModel | None = None,
@@ -312,7 +313,7 @@ PAPER_ORDERINGS: dict[str, tuple[str, ...]] = {
 
 def run_all(
     plants: Sequence[str] = PLANTS,
-    dt_s: float = 0.05,
+    dt_s: float = CONTROL_PERIOD_S,
     names: Sequence[str] = CONTROLLER_NAMES,
     fuzzy_d_readings: Sequence[str] = FUZZY_D_READINGS,
 ) -> list[ScenarioResult]:
@@ -331,7 +332,7 @@ class Driver:
     """A small ATO driver for the station simulator: one controller driving one train.
 
     Pure and cheap: :meth:`command` is the controller's update, :meth:`step`
-    adds one RK4 step of the force model.
+    runs the controller and the force model's RK4 steps for one caller step.
     """
 
     def __init__(self, model: TrainModel, controller_name: str) -> None:
@@ -346,5 +347,14 @@ class Driver:
         return self.controller.update(target_mps, speed_mps, dt_s)
 
     def step(self, profile: LineProfile, state: TrainState, target_mps: float, dt_s: float) -> TrainState:
-        """Command from the controller, then one step of the train's motion."""
-        return step(self.model, profile, state, self.controller.update(target_mps, state.v_mps, dt_s), dt_s)
+        """Advance ``dt_s``: the controller acts every :data:`CONTROL_PERIOD_S` at most, then the motion follows.
+
+        An ATO runs its loop at a fixed period whatever step the caller takes
+        (the station simulator steps 0.5 s): a stiff controller such as Fuzzy-D
+        as printed would otherwise swing the train at the caller's step.
+        """
+        n = max(1, math.ceil(dt_s / CONTROL_PERIOD_S - 1e-9))
+        h = dt_s / n
+        for _ in range(n):
+            state = step(self.model, profile, state, self.controller.update(target_mps, state.v_mps, h), h)
+        return state
