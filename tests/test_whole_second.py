@@ -14,6 +14,7 @@ runs more and longer days::
 
 from __future__ import annotations
 
+import json
 import os
 from collections import Counter
 from pathlib import Path
@@ -199,3 +200,20 @@ def test_passage_without_a_measurable_speed_is_shown_not_dropped(tmp_path: Path)
     assert p["kind"] == "damping" and p["speed_kmh_whole_train"] is None
     assert p["speed_kmh_whole_train_min"] is None and p["speed_kmh_whole_train_max"] is None
     assert p["time_resolution_s"] == 1.0
+
+
+def test_sections_on_a_whole_second_log_end_as_on_the_microsecond_log(tmp_path: Path) -> None:
+    """Line order times the two systems within a second: no axle of unknown direction, no false disturbance."""
+    from typer.testing import CliRunner
+
+    from console.cli import app
+
+    sim = _sim(4)
+    finals = []
+    for resolution in ("us", "s"):
+        path = tmp_path / f"{resolution}.log"
+        write_diagnostic(sim, path, resolution=resolution, interleave_seed=2)
+        res = CliRunner().invoke(app, ["sections", str(path), "--layout", "example", "--json"])
+        assert res.exit_code == 0, res.output
+        finals.append({s["section"]: s["state"] for s in json.loads(res.stdout)["sections"]})
+    assert finals[0] == finals[1] == {s: str(sim.engine.state(s)) for s in sim.engine.sections}

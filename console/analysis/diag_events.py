@@ -50,6 +50,7 @@ def diag_detection_events(
             ch = rows["channel"].to_numpy(np.int64)
             t = rows["time_ns"].to_numpy(np.int64)
             v = rows["value"].to_numpy(np.int64)
+            whole_second = "subsecond" in rows and not bool(rows["subsecond"].all())
             if head.channels == 3:
                 on = v == 1
                 events += majority_events(
@@ -57,7 +58,13 @@ def diag_detection_events(
                 )
             else:
                 events += two_channel_events(
-                    name, ch, t, v, up_is_sys1_first=head.up_is_first_channel_first, settings=s.counting
+                    name,
+                    ch,
+                    t,
+                    v,
+                    up_is_sys1_first=head.up_is_first_channel_first,
+                    settings=s.counting,
+                    whole_second=whole_second,
                 )
         if s.power_gap_s is not None and len(analysis.activity):
             act = analysis.activity[analysis.activity["head"] == key].sort_values("t_first_ns")

@@ -258,7 +258,7 @@ class DiagAccumulator:
             overlap_by_file=overlap_by_file,
             heads=list(self._head_list),
             # Only the section engine reads these: not kept for speeds alone.
-            wheel_columns={c: wheel[c] for c in ("head", "channel", "time_ns", "value")}
+            wheel_columns={c: wheel[c] for c in ("head", "channel", "time_ns", "value", "subsecond")}
             if self.keep_releases
             else None,
             activity_columns={c: buckets[c] for c in ("head", "t_first_ns", "t_last_ns")}

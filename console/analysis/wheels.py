@@ -239,6 +239,10 @@ class HeadCounter:
       still on (they overlap); the order of the two onsets gives the
       direction.  Without release records (``point_mode``: the paper's
       whole-second exports) onsets pair within ``pair_window_s`` instead;
+    * ``whole_second``: the stamps are whole seconds, so two onsets in one
+      second are ordered by the order they come in (the log's line order,
+      the only timing evidence there), and point-mode onsets pair within a
+      second, not the sub-second window;
     * a damping of one system alone is not an axle.  Seed 002's soft timing
       decides what it is: with nothing else at the head for ``isolation_s``
       before it, it holds the section (INTERFERENCE) and is confirmed
@@ -258,11 +262,14 @@ class HeadCounter:
         settings: CountingSettings | None = None,
         point_mode: bool = False,
         source: str = "diag",
+        whole_second: bool = False,
     ) -> None:
         self.head, self.up_first, self.point_mode, self.source = head, up_is_sys1_first, point_mode, source
+        self.whole_second = whole_second
         self.s = settings or CountingSettings()
         self.iso = int(self.s.isolation_s * NS)
-        self.tol = int(self.s.pair_window_s * NS)
+        # Whole-second stamps of one wheel's two onsets may differ by a second.
+        self.tol = max(int(self.s.pair_window_s * NS), NS if whole_second else 0)
         # Per channel: onset of the current damping, whether it is part of an
         # axle, and the head's previous activity when it began.
         self.open: dict[int, int | None] = {SYS1: None, SYS2: None}
@@ -278,7 +285,10 @@ class HeadCounter:
         return DetectionEvent(t, kind, self.head, direction, channel, self.source, detail)
 
     def _axle(self, t_first: int, ch_first: int, t_second: int) -> DetectionEvent:
-        order = 0 if t_first == t_second else (1 if ch_first == SYS1 else -1)  # +1: Sys1 first
+        # +1: Sys1 first.  Equal sub-second stamps say nothing about the order;
+        # equal whole-second stamps are ordered by the lines (fed first = first).
+        same = t_first == t_second and not self.whole_second
+        order = 0 if same else (1 if ch_first == SYS1 else -1)
         direction = order if self.up_first else -order
         t1, t2 = (t_first, t_second) if ch_first == SYS1 else (t_second, t_first)
         return self._ev(max(t_first, t_second), EventKind.AXLE, direction, None, f"Sys1 {t1} Sys2 {t2}")
@@ -362,11 +372,22 @@ def two_channel_events(
     up_is_sys1_first: bool = True,
     settings: CountingSettings | None = None,
     source: str = "diag",
+    whole_second: bool = False,
 ) -> list[DetectionEvent]:
-    """Batch: one head's records through a :class:`HeadCounter` (the rules are there)."""
+    """Batch: one head's records through a :class:`HeadCounter` (the rules are there).
+
+    Records come in the log's order; equal times keep it (a stable sort).
+    """
     order = np.argsort(time_ns, kind="stable")
     point_mode = not bool((value == 0).any())
-    hc = HeadCounter(head, up_is_sys1_first=up_is_sys1_first, settings=settings, point_mode=point_mode, source=source)
+    hc = HeadCounter(
+        head,
+        up_is_sys1_first=up_is_sys1_first,
+        settings=settings,
+        point_mode=point_mode,
+        source=source,
+        whole_second=whole_second,
+    )
     out: list[DetectionEvent] = []
     for ch, t, v in zip(channel[order].tolist(), time_ns[order].tolist(), value[order].tolist(), strict=True):
         out += hc.feed(int(ch), int(t), int(v))  # per wheel record: the rules are sequential
