@@ -1,13 +1,17 @@
-"""`trackside analyze` / `speeds` as a user runs them: CliRunner and subprocesses."""
+"""The command line as a user runs it: CliRunner and subprocesses; help, completion, standard input."""
 
 from __future__ import annotations
 
 import json
+import os
+import re
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
+import typer
 from typer.testing import CliRunner
 
 from console.cli import app
@@ -162,3 +166,105 @@ def test_a_reader_that_stops_early_is_not_an_error() -> None:
     proc.stdout.close()
     assert proc.wait(timeout=120) == 0
     assert proc.stderr.read() == b""
+
+
+# --- help, completion, standard input ------------------------------------------------------
+
+HELP_ENV = {"COLUMNS": "200", "TERM": "dumb"}
+
+
+def _commands() -> list[tuple[str, Any]]:
+    # Typer 0.29 carries its own copy of click: the group is duck-typed, not a click.Group.
+    return sorted(typer.main.get_command(app).commands.items())  # type: ignore[attr-defined]
+
+
+def _texts(cmd: Any) -> list[str]:
+    texts = [cmd.help or "", cmd.epilog or ""]
+    texts += [getattr(p, "help", None) or "" for p in cmd.params]
+    return texts
+
+
+def test_every_help_shows_its_bracketed_examples_literally() -> None:
+    """Rich markup would eat `[[crossings]]` or `[:END[:CHANNEL]]`: help is plain text."""
+    checked = 0
+    for name, cmd in [("", typer.main.get_command(app)), *_commands()]:
+        res = runner.invoke(app, [name, "--help"] if name else ["--help"], env=HELP_ENV)
+        assert res.exit_code == 0, (name, res.output)
+        shown = "".join(res.output.split())  # wrapping may split lines anywhere between words
+        for text in _texts(cmd):
+            for token in text.split():
+                if "[" in token or "]" in token:
+                    assert token in shown, (name, token)
+                    checked += 1
+    assert checked >= 8  # [[crossings]], [[track]], [[work_sites]], [,LENGTH_M], [:END[:CHANNEL]], ...
+
+
+def test_help_cites_papers_by_author_never_by_seed_number() -> None:
+    for name, _ in _commands():
+        out = runner.invoke(app, [name, "--help"], env=HELP_ENV).output
+        assert re.search(r"\bseed\s*0\d\d|\bseed's\b", out, re.IGNORECASE) is None, name
+
+
+def test_shell_completion_is_offered() -> None:
+    res = runner.invoke(app, ["--help"], env=HELP_ENV)
+    assert "--install-completion" in res.output and "Exit codes: 0 ok" in res.output
+    script = runner.invoke(app, ["--show-completion", "bash"])
+    assert script.exit_code == 0 and "_TRACKSIDE_COMPLETE" in script.output
+
+
+# Every command that takes files, with a sample it reads from standard input and what shows it was read.
+STDIN_CASES = [
+    (["analyze", "-", "--json"], "ws4_subsecond.log", '"records":100'),
+    (["speeds", "-", "--json"], "osong_ws4_1732_passage.log", '"passages"'),
+    (["sections", "-", "--layout", "example", "--json"], "example_station.log", '"sections"'),
+    (["health", "-", "--json"], "ws4_health.log", '"findings"'),
+    (["health", "--voltages", "-", "--json"], "am_thuong_2021-06-06_voltages.csv", '"findings"'),
+    (["frames", "-", "--json"], "sensor_frames.txt", '"frames"'),
+    (["approach", "-", "--json"], "osong_ws4_1732_passage.log", '"schema"'),
+    (["gnss", "-", "--json"], "gnss_devices.csv", '"fixes"'),
+    (["crossing", "-", "--layout", "example", "--json"], "crossing_example.csv", '"violations"'),
+    (["report", "-", "--layout", "example", "--format", "json"], "example_station.log", '"diagnostic"'),
+]
+
+
+@pytest.mark.parametrize(("args", "sample", "needle"), STDIN_CASES, ids=lambda v: v[0] if isinstance(v, list) else "")
+def test_dash_reads_standard_input(args: list[str], sample: str, needle: str, samples: Path) -> None:
+    data = (samples / sample).read_bytes()
+    res = runner.invoke(app, args, input=data)
+    assert res.exit_code == 0, res.output
+    assert needle in res.stdout
+    json.loads(res.stdout)
+
+
+# A real process costs 1-5 s: two commands by default, all of them with TRACKSIDE_SLOW_TESTS=1.
+PIPE_CASES = STDIN_CASES if os.environ.get("TRACKSIDE_SLOW_TESTS") else [STDIN_CASES[0], STDIN_CASES[-1]]
+
+
+@pytest.mark.parametrize(("args", "sample", "needle"), PIPE_CASES, ids=lambda v: v[0] if isinstance(v, list) else "")
+def test_dash_reads_a_real_pipe(args: list[str], sample: str, needle: str, samples: Path) -> None:
+    """`zcat x.log.gz | trackside analyze -`: a pipe, not a file (no seek, no size)."""
+    exe = Path(sys.executable).with_name("trackside")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli import app; app()"]
+    cat = subprocess.Popen(["cat", str(samples / sample)], stdout=subprocess.PIPE)
+    res = subprocess.run([*cmd, *args], stdin=cat.stdout, capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert cat.stdout is not None
+    cat.stdout.close()
+    cat.wait()
+    assert res.returncode == 0, res.stderr
+    assert needle in res.stdout
+    json.loads(res.stdout)
+
+
+def test_standard_input_twice_is_a_usage_error() -> None:
+    res = runner.invoke(app, ["analyze", "-", "-"], input=b"")
+    assert res.exit_code == 2 and res.stderr == "trackside: error: -: standard input given twice\n"
+
+
+def test_bidi_controls_from_a_log_are_shown_escaped(tmp_path: Path) -> None:
+    """U+202E in a field or a file name would display the rest of the line reversed."""
+    p = tmp_path / "evil\u202egol.log"
+    p.write_text(record() + "\n" + "junk \u2066spoof\u2069 \u202etxt.exe\n", encoding="utf-8")
+    res = runner.invoke(app, ["analyze", str(p)], env={"COLUMNS": "250"})
+    assert res.exit_code == 0, res.output
+    assert not set("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069\u200e\u200f\u061c") & set(res.output)
+    assert "\\u202e" in res.output and "\\u2066" in res.output

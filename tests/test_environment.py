@@ -1,0 +1,249 @@
+"""The process in a hostile environment: outputs that must not destroy data, special files, signals.
+
+Refusals that happen before any work run in-process (CliRunner); what
+needs real file descriptors (/dev/full, a closed stdout, ``| head``,
+signals, a terminal-less byte stream) runs ``trackside`` as a process, one
+short run on a small sample each (1-3 s on a loaded machine).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from console.cli import app
+from tests.conftest import ROOT, SAMPLES
+
+STATION_LOG = SAMPLES / "example_station.log"
+SMALL_LOG = SAMPLES / "ws4_subsecond.log"
+
+
+def _cmd() -> list[str]:
+    exe = Path(sys.executable).with_name("trackside")
+    return [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli import app; app()"]
+
+
+def run(*args: str | Path, **kw: object) -> subprocess.CompletedProcess[bytes]:
+    kw.setdefault("capture_output", True)
+    return subprocess.run([*_cmd(), *map(os.fsencode, args)], cwd=ROOT, timeout=120, **kw)  # type: ignore[call-overload,no-any-return]
+
+
+def invoke(*args: str | Path) -> subprocess.CompletedProcess[bytes]:
+    """In-process, shaped like :func:`run`'s result."""
+    res = CliRunner().invoke(app, [os.fspath(a) for a in args])
+    return subprocess.CompletedProcess(args, res.exit_code, res.stdout_bytes, res.stderr_bytes)
+
+
+def one_line_error(res: subprocess.CompletedProcess[bytes], *needles: str) -> str:
+    err = res.stderr.decode("utf-8", "backslashreplace")
+    assert res.returncode == 2, (res.returncode, err)
+    assert err.startswith("trackside: error: ") and err.count("\n") == 1, err
+    assert "Traceback" not in err and "internal error" not in err
+    for n in needles:
+        assert n in err, err
+    return err
+
+
+@pytest.fixture
+def log_copy(tmp_path: Path) -> Path:
+    p = tmp_path / "station.log"
+    p.write_bytes(STATION_LOG.read_bytes())
+    return p
+
+
+# --- -o never destroys an input ------------------------------------------------------------
+
+
+def test_report_onto_its_input_by_another_path_and_by_links_is_refused(log_copy: Path) -> None:
+    before = log_copy.read_bytes()
+    (log_copy.parent / "soft.log").symlink_to(log_copy.name)
+    os.link(log_copy, log_copy.parent / "hard.log")
+    other_spelling = log_copy.parent / ".." / log_copy.parent.name / "station.log"
+    for target in (log_copy, other_spelling, log_copy.parent / "soft.log", log_copy.parent / "hard.log"):
+        res = invoke("report", log_copy, SAMPLES / "crossing_example.csv", "--layout", "example", "-o", target)
+        one_line_error(res, "refusing to write over it")
+    assert log_copy.read_bytes() == before
+    assert (log_copy.parent / "soft.log").is_symlink()
+
+
+def test_simulate_onto_its_layout_file_is_refused(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    layout = run_dir / "layout.toml"
+    layout.write_bytes((ROOT / "console" / "layouts" / "example_station.toml").read_bytes())
+    before = layout.read_bytes()
+    res = invoke("simulate", "-o", run_dir, "--layout", layout, "--duration", "2m")
+    one_line_error(res, "layout.toml", "refusing to write over it")
+    assert layout.read_bytes() == before
+    assert sorted(p.name for p in run_dir.iterdir()) == ["layout.toml"]  # nothing else published, no stage left
+
+
+def test_output_onto_a_fifo_is_written_through_not_replaced(tmp_path: Path) -> None:
+    fifo = tmp_path / "out.fifo"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_bytes()))
+    reader.start()
+    res = invoke("report", STATION_LOG, "--layout", "example", "-o", fifo)
+    if reader.is_alive():  # the report never opened the FIFO: let the reader's open() return
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+    reader.join(timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert got and got[0].startswith(b"# trackside report")
+    assert fifo.is_fifo()  # still the FIFO, not a regular file in its place
+
+
+def test_output_onto_a_character_device_is_written_through() -> None:
+    res = run("report", STATION_LOG, "--layout", "example", "--format", "json", "-o", "/dev/stdout")
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout)["schema"].startswith("trackside.report/")
+    assert invoke("report", STATION_LOG, "--layout", "example", "-o", "/dev/null").returncode == 0
+    assert Path("/dev/null").is_char_device()
+
+
+def test_output_onto_a_directory_or_into_a_missing_or_unwritable_one_is_one_line(tmp_path: Path) -> None:
+    report = ("report", STATION_LOG, "--layout", "example", "-o")
+    one_line_error(invoke(*report, tmp_path), "is a directory")
+    one_line_error(invoke(*report, tmp_path / "no" / "r.md"), "no such directory")
+    # /proc takes no new files even for root, who may write into a chmod 555 directory.
+    one_line_error(invoke(*report, "/proc/trackside-report.md"), "cannot write")
+    one_line_error(invoke("simulate", "-o", STATION_LOG, "--duration", "1m"), "not a directory")
+    if os.geteuid() != 0:
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o555)
+        one_line_error(invoke(*report, locked / "r.md"), "not writable")
+    assert sorted(p.name for p in tmp_path.iterdir()) == (["locked"] if os.geteuid() != 0 else [])
+
+
+# --- stdout that cannot be written -----------------------------------------------------------
+
+
+@pytest.mark.parametrize("args", [["analyze", str(SMALL_LOG)], ["report", str(STATION_LOG), "--layout", "example"]])
+def test_stdout_to_a_full_disk_is_cannot_write_output(args: list[str]) -> None:
+    with open("/dev/full", "wb") as full:
+        res = run(*args, stdout=full, stderr=subprocess.PIPE, capture_output=False)
+    one_line_error(res, "cannot write output: No space left on device")
+
+
+@pytest.mark.parametrize("args", [["analyze", str(SMALL_LOG)], ["report", str(STATION_LOG), "--layout", "example"]])
+def test_closed_stdout_is_cannot_write_output(args: list[str]) -> None:
+    # The child starts with fd 1 closed, as `trackside ... >&-` does.
+    code = "import os, sys; os.close(1); os.execvp(sys.argv[1], sys.argv[1:])"
+    res = subprocess.run([sys.executable, "-c", code, *_cmd(), *args], stderr=subprocess.PIPE, cwd=ROOT, timeout=120)
+    one_line_error(res, "cannot write output: standard output is closed")
+
+
+def test_report_with_o_needs_no_stdout(tmp_path: Path) -> None:
+    code = "import os, sys; os.close(1); os.execvp(sys.argv[1], sys.argv[1:])"
+    out = tmp_path / "r.md"
+    res = subprocess.run(
+        [sys.executable, "-c", code, *_cmd(), "report", str(STATION_LOG), "--layout", "example", "-o", str(out)],
+        stderr=subprocess.PIPE,
+        cwd=ROOT,
+        timeout=120,
+    )
+    assert res.returncode == 0, res.stderr
+    assert out.read_bytes().startswith(b"# trackside report")
+
+
+def test_a_reader_that_takes_one_line_ends_the_report_quietly() -> None:
+    proc = subprocess.Popen(
+        [*_cmd(), "report", str(STATION_LOG), "--layout", "example"], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.readline()
+    proc.stdout.close()
+    assert proc.wait(timeout=120) == 0
+    assert proc.stderr.read() == b""  # no "Exception ignored ... BrokenPipeError"
+
+
+# --- special inputs --------------------------------------------------------------------------
+
+
+def test_a_fifo_and_a_process_substitution_are_read_as_streams(tmp_path: Path) -> None:
+    fifo = tmp_path / "in.fifo"
+    os.mkfifo(fifo)
+    writer = threading.Thread(target=lambda: fifo.write_bytes(SMALL_LOG.read_bytes()))
+    writer.start()
+    res = invoke("analyze", fifo, "--json")
+    if writer.is_alive():  # the command never opened the FIFO: let the writer's open() return
+        os.close(os.open(fifo, os.O_RDONLY | os.O_NONBLOCK))
+    writer.join(timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout)["parse_report"]["records"] == 100
+    # <(cat log): the shell hands over /dev/fd/N, a pipe.
+    r, w = os.pipe()
+    feeder = threading.Thread(target=lambda: (os.write(w, SMALL_LOG.read_bytes()), os.close(w)))
+    feeder.start()
+    try:
+        res = invoke("analyze", f"/dev/fd/{r}", "--json")
+    finally:
+        feeder.join(timeout=60)
+        os.close(r)
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout)["parse_report"]["records"] == 100
+
+
+def test_special_entries_in_a_report_directory_are_skipped_with_their_reason(tmp_path: Path) -> None:
+    d = tmp_path / "logs"
+    d.mkdir()
+    (d / "station.log").write_bytes(STATION_LOG.read_bytes())
+    os.mkfifo(d / "feed.fifo")  # opening it would block the report forever
+    (d / "gone.log").symlink_to(tmp_path / "nowhere.log")
+    (d / "loop.log").symlink_to("loop.log")
+    res = run("report", d, "--layout", "example", "--format", "json")
+    assert res.returncode == 0, res.stderr
+    warnings = json.loads(res.stdout)["warnings"]
+    assert f"{d / 'feed.fifo'}: a FIFO, not a regular file: skipped" in warnings
+    assert f"{d / 'gone.log'}: a symlink to nothing: skipped" in warnings
+    assert f"{d / 'loop.log'}: a symlink loop: skipped" in warnings
+    assert [i["file"] for i in json.loads(res.stdout)["inputs"]["files"]] == [str(d / "station.log")]
+
+
+def test_a_file_name_that_is_not_utf8_is_shown_escaped_and_analysed(tmp_path: Path) -> None:
+    name = os.fsdecode(b"ws4-\xff.log")
+    (tmp_path / name).write_bytes(SMALL_LOG.read_bytes())
+    res = invoke("analyze", tmp_path / name, "--json")
+    assert res.returncode == 0, res.stderr
+    doc = json.loads(res.stdout.decode("utf-8"))  # strict UTF-8: no lone surrogate escapes either
+    assert doc["files"] == [str(tmp_path / "ws4-\\xff.log")] and doc["parse_report"]["records"] == 100
+    text = run("analyze", tmp_path / name)
+    assert text.returncode == 0, text.stderr
+    text.stdout.decode("utf-8")
+    assert b"ws4-\\xff.log" in text.stdout.replace(b"\n", b"")
+    one_line_error(invoke("analyze", tmp_path / os.fsdecode(b"gone-\xfe.log")), "gone-\\xfe.log: no such file")
+
+
+# --- signals ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("sig", "code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_mid_run_exits_128_plus_n_and_leaves_no_partial_report(
+    tmp_path: Path, sig: signal.Signals, code: int
+) -> None:
+    fifo = tmp_path / "in.fifo"
+    os.mkfifo(fifo)
+    out = tmp_path / "report.md"
+    proc = subprocess.Popen(
+        [*_cmd(), "report", str(fifo), "--layout", "example", "-o", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    # Opening the write end returns once the report has opened the FIFO: it is mid-run.
+    with open(fifo, "wb") as feed:
+        feed.write(STATION_LOG.read_bytes()[:5000])
+        feed.flush()
+        time.sleep(0.3)
+        proc.send_signal(sig)
+        assert proc.wait(timeout=60) == code
+    assert proc.stderr is not None and b"Traceback" not in proc.stderr.read()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.fifo"]
