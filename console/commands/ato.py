@@ -32,7 +32,7 @@ def ato(
     plot: Annotated[bool, typer.Option("--plot", help="Draw speed against distance in the terminal.")] = False,
     json_out: JsonOpt = False,
 ) -> None:
-    """Seed 001's automatic train operation run: PID, fuzzy and Fuzzy-D beside the paper's figures."""
+    """Automatic train operation run of Nguyen Van Tiem (TCSJ 2020): PID, fuzzy and Fuzzy-D beside its figures."""
 
     def body() -> int:
         from console.render.ato_view import ato_json, ato_plot, ato_table

@@ -47,7 +47,7 @@ def _ordered(results: Sequence[ScenarioResult]) -> list[ScenarioResult]:
 def ato_table(results: Sequence[ScenarioResult]) -> Table:
     """Per controller the paper's figures, then ours on each plant that was run (fits 80 columns)."""
     t = Table(
-        title="Seed 001 ATO run: ours beside the paper's (Tiem 2020, §4)",
+        title="ATO run: ours beside the paper's (Nguyen Van Tiem, TCSJ 2020, §4)",
         title_justify="left",
         title_style="bold",
         box=box.SIMPLE_HEAD,
