@@ -31,7 +31,7 @@ def crossing(
         bool, typer.Option("--strict", help="Exit 1 on a safety violation or a rejected input line.")
     ] = False,
 ) -> None:
-    """Level-crossing warning timelines from head and end-of-train telemetry (seed 004)."""
+    """Level-crossing warning timelines from head and end-of-train telemetry (Co Nhu Van, TCSJ 2026)."""
 
     def body() -> int:
         from console.analysis.crossing_batch import parse_train_option, run_crossings
