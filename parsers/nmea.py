@@ -66,18 +66,16 @@ file belong to the device named by its stem.  Roles come from the ``roles``
 mapping (device → ``"head"``/``"eot"``), default ``""``.
 
 Why pynmeagps: it is maintained (regular releases, NMEA 4.1+ fields,
-proprietary sentences), typed, and ``NMEAReader.parse(raw, validate=…)``
-makes its checks explicit flags: ``VALCKSUM`` (checksum) and ``VALMSGID``
-(raise on an unknown talker or sentence type instead of returning None).
-pynmea2, the older alternative, sees few releases, checks a checksum only
-when one is present and decodes fields lazily, as strings, on attribute
-access.  Neither decides what a *fix* is, nor checks field counts or
-malformed numbers (pynmeagps turns an undecodable latitude into ``""``), so
-those checks are done here.  The checksum is checked here too, before the
-library is called, so that the reason is specific and sentences without one
-can be accepted; the library then gets the sentence with its checksum
-recomputed (pynmeagps requires one) and ``validate=VALMSGID`` only, since
-``VALCKSUM`` would merely repeat the check.
+proprietary sentences) and typed.  We use its tables of talkers and sentence
+types (an unknown one is rejected with its message) and its field helpers
+(``time2utc``, ``date2utc``, ``dmm2ddd``), not ``NMEAReader.parse``: that
+builds a whole message object per sentence and cost three quarters of the
+parse time (150 000 lines: 12.0 s → 4.7 s of CPU).  pynmea2, the older
+alternative, sees few releases and decodes fields lazily, as strings.
+Neither decides what a *fix* is, nor checks field counts or malformed
+numbers (pynmeagps turns an undecodable latitude into ``""``), so those
+checks are done here, as is the checksum, before anything else, so that the
+reason is specific and sentences without one can be accepted.
 """
 
 from __future__ import annotations
@@ -88,7 +86,8 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
-from pynmeagps import VALMSGID, NMEAReader
+from pynmeagps import NMEA_MSGIDS, NMEA_TALKERS
+from pynmeagps.nmeahelpers import date2utc, dmm2ddd, time2utc
 
 from parsers.fix_table import (  # re-exported: the fix table's home was here
     FIX_COLUMNS,
@@ -254,20 +253,58 @@ def _decimal(raw: str, what: str, *, minimum: float | None = None) -> float:
     return value
 
 
-def _library_parse(address: str, payload: list[str]) -> Any:
-    """Hand a (re-assembled, checksummed) sentence to pynmeagps; its errors become rejections."""
-    content = ",".join([address, *payload])
-    sentence = f"${content}*{nmea_checksum(content.encode('ascii')):02X}".encode("ascii")
+# Where the time, the latitude (then N/S, longitude, E/W) and the date sit in each sentence we decode.
+_LAYOUT: dict[str, tuple[int | None, int | None, int | None]] = {
+    "RMC": (0, 2, 8),
+    "GGA": (0, 1, None),
+    "GLL": (4, 0, None),
+    "GNS": (0, 1, None),
+    "ZDA": (0, None, None),
+    "VTG": (None, None, None),
+}
+
+
+@dataclass(slots=True)
+class _Decoded:
+    """The fields pynmeagps's helpers decoded ("" where the raw field did not decode)."""
+
+    time: Any = ""
+    date: Any = ""
+    lat: Any = ""
+    lon: Any = ""
+
+
+def _library_parse(address: str, payload: list[str]) -> _Decoded:
+    """pynmeagps's verdict on the address and its decoding of time, date and position.
+
+    The talker and sentence type are checked against pynmeagps's own tables
+    (what ``NMEAReader.parse(validate=VALMSGID)`` checks) and the fields are
+    decoded by its helpers (``time2utc``, ``date2utc``, ``dmm2ddd``): the
+    library's semantics, without building a whole message object per sentence,
+    which cost three quarters of the parse time.
+    """
+    talker, kind = address[:2], address[2:]
+    if talker not in NMEA_TALKERS:
+        raise SentenceError("library", f"pynmeagps could not parse {address}: unknown talker {talker}")
+    if kind not in NMEA_MSGIDS:
+        raise SentenceError("library", f"pynmeagps does not know sentence {address}")
+    at_time, at_lat, at_date = _LAYOUT[kind]
+    out = _Decoded()
     try:
-        msg = NMEAReader.parse(sentence, validate=VALMSGID)  # checksum checked by decode_sentence
+        if at_time is not None:
+            out.time = time2utc(payload[at_time])
+        if at_date is not None:
+            out.date = date2utc(payload[at_date])
+        if at_lat is not None:
+            lat, lon = dmm2ddd(payload[at_lat]), dmm2ddd(payload[at_lat + 2])
+            out.lat = -lat if isinstance(lat, float) and payload[at_lat + 1] == "S" else lat
+            out.lon = -lon if isinstance(lon, float) and payload[at_lat + 3] == "W" else lon
     except Exception as exc:  # the library must never crash the parse
         raise SentenceError("library", f"pynmeagps could not parse {address}: {exc}") from None
-    if msg is None:
-        raise SentenceError("library", f"pynmeagps does not know sentence {address}")
-    return msg
+    return out
 
 
-def _position(msg: Any, payload: list[str], at: int) -> tuple[float, float]:
+def _position(msg: _Decoded, payload: list[str], at: int) -> tuple[float, float]:
     lat = _coordinate(msg.lat, payload[at], payload[at + 1], "lat")
     lon = _coordinate(msg.lon, payload[at + 2], payload[at + 3], "lon")
     if math.isnan(lat) or math.isnan(lon):
