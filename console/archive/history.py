@@ -96,13 +96,21 @@ def record_batches(root: Path, manifest: Manifest, window: Window = Window()) ->
     """The records (in file, line order: the order a batch read sees them), in Arrow batches."""
     if not manifest.parts("records"):
         return
-    con, _ = connect(root, manifest)
+    import shutil
+    import tempfile
+
+    from console.archive.store import TMP
+
+    (root / TMP).mkdir(parents=True, exist_ok=True)
+    spill = Path(tempfile.mkdtemp(prefix="duckdb-", dir=root / TMP))
+    con, _ = connect(root, manifest, spill_dir=spill)
     try:
         where, params = window.where()
         rel = con.sql(f"SELECT {_RECORD_COLUMNS} FROM records{where} ORDER BY file_seq, line", params=params)
         yield from rel.to_arrow_reader(BATCH_ROWS)
     finally:
         con.close()
+        shutil.rmtree(spill, ignore_errors=True)
 
 
 def diag_job(root: Path, manifest: Manifest, window: Window = Window()) -> DiagJob | None:

@@ -23,6 +23,7 @@ import contextlib
 import fcntl
 import json
 import os
+import shutil
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -243,7 +244,10 @@ def collect_garbage(root: Path, current: Manifest) -> int:
     if tmp.is_dir():
         for p in tmp.iterdir():
             with contextlib.suppress(OSError):
-                p.unlink()
+                if p.is_dir():
+                    shutil.rmtree(p)  # a killed ingest's sort spill
+                else:
+                    p.unlink()
                 removed += 1
     return removed
 

@@ -13,7 +13,7 @@ of the manifest it opened (the next ingest keeps them, see store.KEEP_MANIFESTS)
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from console.archive.store import ArchiveError, Manifest, read_current
 
@@ -108,12 +108,24 @@ def _quote(text: str) -> str:
     return "'" + text.replace("'", "''") + "'"
 
 
-def connect(root: Path, manifest: Manifest | None = None) -> tuple[duckdb.DuckDBPyConnection, Manifest]:
-    """An in-memory DuckDB connection with a view per archive table, locked read-only."""
+# The ingest's own reads (derived tables) sort every record: bounded memory, spilled under tmp/.
+INTERNAL_MEMORY_LIMIT = "160MB"
+
+
+def connect(
+    root: Path, manifest: Manifest | None = None, *, spill_dir: Path | None = None
+) -> tuple[duckdb.DuckDBPyConnection, Manifest]:
+    """An in-memory DuckDB connection with a view per archive table, locked read-only.
+
+    ``spill_dir``: the ingest's own connection, memory-bounded, sorting through that directory.
+    """
     import duckdb
 
     m = manifest if manifest is not None else read_current(root)
-    con = duckdb.connect(":memory:", config={"autoinstall_known_extensions": False, "autoload_known_extensions": False})
+    config: dict[str, Any] = {"autoinstall_known_extensions": False, "autoload_known_extensions": False}
+    if spill_dir is not None:
+        config.update(memory_limit=INTERNAL_MEMORY_LIMIT, temp_directory=str(spill_dir), threads=2)
+    con = duckdb.connect(":memory:", config=config)
     allowed: list[str] = []
     for table, keys in TABLES.items():
         parts = [str((root / rel).resolve()) for rel in m.parts(table)]
