@@ -53,10 +53,12 @@ def crossing(
             raise fail(str(exc)) from None
         fixes, report, _states = parse_gnss(files)
         run = run_crossings(fixes, lay, trains)
-        violations = sum(1 for r in run.timelines if r.violations)
+        violations = run.violations
         warnings = []
         if run.off_track:
             warnings.append(f"{run.off_track} fixes more than 100 m from the track were set aside")
+        if run.position_jumps:
+            warnings.append(f"{run.position_jumps} fixes set aside as position jumps (implausible for a train)")
         if run.unassigned_devices:
             warnings.append("devices in no train: " + ", ".join(run.unassigned_devices))
         if not run.trains:
@@ -68,7 +70,10 @@ def crossing(
                     "files": [str(p) for p in files],
                     "layout": lay.source,
                     "violations": violations,
-                    "timelines": [r.to_dict() for r in run.timelines],
+                    "late_warnings": run.late_warnings,
+                    "position_jumps": run.position_jumps,
+                    # Rows with a violation first (late warnings lead their own lists), then the rest.
+                    "timelines": [r.to_dict() for r in sorted(run.timelines, key=lambda r: not r.violations)],
                     "events": [
                         {
                             "time": iso(e.t_ns),

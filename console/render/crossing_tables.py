@@ -26,7 +26,8 @@ def _s(x: float | None, warn_below: float | None = None) -> Text:
 
 
 def violations_view(rows: list[TimelineRow]) -> Group | None:
-    bad = [r for r in rows if r.violations]
+    # Late warnings first (each row lists its late warning first), then the other violations.
+    bad = sorted((r for r in rows if r.violations), key=lambda r: r.late_by_s is None)
     if not bad:
         return None
     parts: list[RenderableType] = [Text(f"SAFETY VIOLATIONS ({len(bad)})", style="bold white on red")]
@@ -40,6 +41,8 @@ def violations_view(rows: list[TimelineRow]) -> Group | None:
                 f"tail clear {display(r.t_tail_clear_ns)}, off {display(r.t_off_ns)}"
             )
             parts.append(Padding(Text(when), (0, 0, 0, 4)))
+            if v.startswith("late") and r.late_cause:
+                parts.append(Padding(inert(f"cause: {r.late_cause}"), (0, 0, 0, 4)))
     return Group(*parts)
 
 
@@ -75,7 +78,7 @@ def timeline_table(rows: list[TimelineRow]) -> Table:
             _t(r.t_head_arrival_ns),
             _t(r.t_tail_clear_ns),
             off,
-            _s(r.lead_s),
+            _s(r.lead_s, warn_below=r.warning_time_s),
             _s(r.excess_s),
             base,
         )

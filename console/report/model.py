@@ -10,7 +10,9 @@ names.
 Safety classes (the report's first part):
 
 * **unsafe** (counted as ``critical`` by ``--fail-on``): a level-crossing
-  timeline with a safety violation (the road open with the train on it),
+  timeline with a safety violation (the road open with the train on it, or
+  a late warning: on less than the crossing's warning time before the head
+  arrived, with how late and, where the data show it, why),
   and every critical health finding (a faulty channel, an analog value
   drifted out of its band: a head that may stop detecting);
 * **failing** (counted as ``warning``): a section that ended the log
@@ -128,6 +130,8 @@ class ReportData:
         if self.crossing is not None:
             for tl_row in self.crossing.timelines:
                 for v in tl_row.violations:
+                    if v.startswith("late") and tl_row.late_cause:
+                        v = f"{v} ({tl_row.late_cause})"
                     items.append(
                         Attention(
                             Severity.CRITICAL,
@@ -440,7 +444,9 @@ def _crossings(data: ReportData) -> dict[str, Any] | None:
     if run is None:
         return None
     return {
-        "violations": sum(1 for r in run.timelines if r.violations),
+        "violations": run.violations,
+        "late_warnings": run.late_warnings,
+        "position_jumps": run.position_jumps,
         "timelines": [r.to_dict() for r in sorted(run.timelines, key=timeline_order)],
         "events": [
             {"time": iso(e.t_ns), "crossing": e.crossing, "train": e.train, "kind": e.kind, "reason": e.reason}

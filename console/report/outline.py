@@ -69,9 +69,10 @@ def show_time(text: str | None) -> str:
     """ISO 8601 → ``2026-03-02 08:00:00.500`` (milliseconds when the time has a fraction); None → ``–``."""
     if not text:
         return "–"
-    day, _, clock = text.partition("T")
-    whole, dot, frac = clock.partition(".")
-    return f"{day} {whole}" + (f".{(frac + '000')[:3]}" if dot else "")
+    day, _, clock = text.removesuffix("Z").partition("T")  # JSON times are UTC (timefmt.iso)
+    whole, _, frac = clock.partition(".")
+    ms = (frac + "000")[:3]
+    return f"{day} {whole}" + (f".{ms}" if ms != "000" else "")
 
 
 def _clock(text: str | None, day: str | None) -> str:
