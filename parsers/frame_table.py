@@ -191,7 +191,11 @@ def _file_column(files: list[str], file_id: np.ndarray) -> pd.Categorical:
     unique = list(dict.fromkeys(files))
     remap = np.array([unique.index(f) for f in files], np.int32)
     codes = remap[file_id] if len(files) else file_id
-    return pd.Categorical.from_codes(codes, categories=pd.Index(unique, dtype="str"))
+    try:
+        categories = pd.Index(unique, dtype="str")
+    except UnicodeEncodeError:  # a file name with undecodable bytes (surrogate escapes): keep it exact
+        categories = pd.Index(unique, dtype=object)
+    return pd.Categorical.from_codes(codes, categories=categories)
 
 
 def finish_table(cols: FrameColumns, files: list[str], report: ParseReport, extra: Mapping[str, Any]) -> pd.DataFrame:
