@@ -134,3 +134,64 @@ def test_a_head_unit_silent_after_the_train_has_cleared_the_crossing_is_not_an_a
     # The head passes the crossing at 150 s and the EOT clears it at about 160 s; the
     # head unit then runs off the mapped line (it is no longer placed): no alarm here.
     assert _run_train(head_until_s=200) == []
+
+
+def _no_speed_export(path: Path, start_s: float = 0.0, jump_at_s: float | None = None) -> Path:
+    """A 121 km/h, 200 m train past 11+850 (70 s) exported as many devices do: time, lat, lon, no speed.
+
+    Head and EOT at 1 Hz, 2 m of noise; the head reaches the crossing 178.5 s after 08:00:00.
+    ``start_s`` cuts the recording's beginning; ``jump_at_s`` displaces that head fix 2 km ahead."""
+    import datetime as dt
+
+    import numpy as np
+
+    from console.analysis.geo import TrackProjector
+
+    lay = load_layout("example")
+    proj = TrackProjector(lay.track)
+    c, v, length = lay.crossings[0].chainage_m, 121 / 3.6, 200.0
+    rng = np.random.default_rng(1)
+    t0 = dt.datetime(2026, 3, 2, 8, 0, 0, tzinfo=dt.UTC)
+    rows = ["time,device,role,lat,lon"]
+    for k in range(int(start_s), 260):
+        head = c - 6000 + v * k
+        for dev, role, ch, ms in (("X-head", "head", head, 0), ("X-eot", "eot", head - length, 200)):
+            if role == "head" and k == jump_at_s:
+                ch += 2000.0
+            lat, lon = proj.position(ch)
+            lat = lat[0] + rng.normal(0, 2) / proj.m_per_deg_lat
+            lon = lon[0] + rng.normal(0, 2) / proj.m_per_deg_lon
+            t = (t0 + dt.timedelta(seconds=k, milliseconds=ms)).isoformat().replace("+00:00", "Z")
+            rows.append(f"{t},{dev},{role},{lat:.7f},{lon:.7f}")
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+X = ["--train", "X=X-head,X-eot,200"]
+
+
+def test_a_121_kmh_export_without_speed_is_warned_a_full_warning_time_ahead(samples: Path, tmp_path: Path) -> None:
+    # "Real data first" §3: a fix without speed was taken for a standstill (the warning came
+    # 31 s ahead on this export, no violation shown); the speed now comes from the fixes.
+    doc = _crossing(samples, *X, path=_no_speed_export(tmp_path / "x.csv", jump_at_s=120))
+    assert doc["violations"] == 0 and doc["late_warnings"] == 0
+    row = next(r for r in doc["timelines"] if r["crossing"] == "11+850")
+    assert row["lead_time_s"] >= 70 and "estimated from the fixes" in row["reason_on"]
+    assert doc["position_jumps"] == 1
+    for key in ("t_on", "t_head_arrival", "t_tail_clear", "t_off"):
+        assert row[key].endswith("Z"), key  # ISO 8601, UTC
+    assert all(e["time"].endswith("Z") for e in doc["events"])
+
+
+def test_a_late_warning_is_a_violation_listed_first_with_how_late(samples: Path, tmp_path: Path) -> None:
+    # The recording begins 40 s before the head reaches 11+850: no unit could warn 70 s ahead.
+    path = _no_speed_export(tmp_path / "late.csv", start_s=138)
+    doc = _crossing(samples, *X, path=path)
+    first = doc["timelines"][0]
+    assert doc["late_warnings"] == 1 and first["crossing"] == "11+850"
+    assert first["violations"][0].startswith("late warning") and 29 < first["late_by_s"] < 31
+    assert "telemetry begins only" in first["late_cause"]
+    res = runner.invoke(app, ["crossing", str(path), "--layout", "example", *X, "--strict"])
+    assert res.exit_code == 1
+    assert res.output.index("SAFETY VIOLATIONS") < res.output.index("Level crossings")
+    assert "late warning" in res.output
