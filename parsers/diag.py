@@ -39,7 +39,7 @@ import numpy as np
 import pyarrow as pa
 
 from parsers.labels import canonical_label, decode_label
-from parsers.report import FileReport, ParseReport, escape_text
+from parsers.report import FileReport, ParseReport, escape_name, escape_text
 from parsers.sources import (
     DEFAULT_CHUNK_BYTES,
     DEFAULT_MAX_LINE_BYTES,
@@ -857,10 +857,19 @@ RECORD_COLUMNS = (
 )
 
 
+def _utf8_name(value: str) -> str:
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:
+        return escape_name(value)
+    return value
+
+
 def _categorical(codes: np.ndarray, values: list[str]) -> pd.Categorical:
     import pandas as pd
 
-    cats = pd.Index(values, dtype=pd.StringDtype("pyarrow"))
+    # Arrow strings are UTF-8: a file name that is not (surrogateescape) is stored as shown, ``\xff``.
+    cats = pd.Index([_utf8_name(v) for v in values], dtype=pd.StringDtype("pyarrow"))
     return pd.Categorical.from_codes(codes, categories=cats, validate=False)
 
 
