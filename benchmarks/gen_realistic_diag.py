@@ -125,7 +125,7 @@ class Generator:
         out: list[tuple[int, int, int, int, str]] = []
         releases_seen = 0
         for t, ch, value in edges:
-            t_ns = round(t * NS)
+            t_ns = int(float(t) * NS + 0.5)  # a Python float: numpy scalars round slowly
             out.append((t_ns, k, RAD, ch, str(value)))
             out.append((t_ns, k, DIAG, ch, str(value)))
             if value == 0:
@@ -224,16 +224,15 @@ def generate(
     """Write about ``n_records`` records to ``path``; returns the truth document."""
     board_list = _boards(boards, resolution)
     gen = Generator(board_list, seed, interleave_seed)
-    prefixes = [
-        [
-            (
-                f"Diag_id:00002\tID:{board_list[h.board].device_id}\tDevice:IM\tType:013\tGS:GS03\t"
-                f"Trackinfo:{h.name}\tch:{{ch}}\tAdr:{adr}\tLabel:{label}\tData:"
-            )
-            for adr, label in REGISTERS
-        ]
-        for h in gen.heads
-    ]
+    prefixes = {
+        (k, reg, ch): (
+            f"Diag_id:00002\tID:{board_list[h.board].device_id}\tDevice:IM\tType:013\tGS:GS03\t"
+            f"Trackinfo:{h.name}\tch:{ch}\tAdr:{adr}\tLabel:{label}\tData:"
+        )
+        for k, h in enumerate(gen.heads)
+        for reg, (adr, label) in enumerate(REGISTERS)
+        for ch in (1, 2)
+    }
     head_board = np.array([h.board for h in gen.heads])
     board_res = np.array([RESOLUTIONS.index(b.resolution) for b in board_list])
     res_ns = np.array([_RES_NS[r] for r in RESOLUTIONS])
@@ -262,7 +261,7 @@ def generate(
             lines = []
             for i, tt in zip(order.tolist(), times, strict=True):
                 _, k, reg, ch, data = events[i]
-                lines.append(prefixes[k][reg].replace("{ch}", str(ch)) + data + "\tDate:" + tt)
+                lines.append(f"{prefixes[k, reg, ch]}{data}\tDate:{tt}")
             data_bytes = ("\n".join(lines) + "\n").encode("utf-8")
             if corrupt:
                 out = []
