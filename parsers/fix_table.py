@@ -12,9 +12,9 @@ Columns (:data:`FIX_COLUMNS`)
 ``course_deg``  float64 degrees true; NaN when the source gives none.
 ``valid``       bool: a real position fix (see ``fix_quality``).
 ``source``      category ``"nmea"``, ``"csv"``, ``"jsonl"``, ``"centre"``,
-                ``"gpsd"`` (gpsd JSON TPV) or ``"gpx"``.
-``sentence``    category: the NMEA sentences (and gpsd TPV) merged into the
-                row, in the order RMC, GGA, GLL, GNS, VTG, TPV joined by ``+``
+                ``"gpsd"`` (gpsd JSON TPV), ``"gpx"`` or ``"ubx"`` (UBX-NAV-PVT).
+``sentence``    category: the NMEA sentences (and gpsd TPV, UBX NAV-PVT) merged
+                into the row, in the order RMC, GGA, GLL, GNS, VTG, TPV, PVT joined by ``+``
                 (``"RMC+GGA"``); ``""`` for sources that are not NMEA/gpsd.
 ``file, line``  category and int64: where the row (its first sentence) came from.
 ``fix_quality`` category: ``"gnss"`` a satellite fix (any augmentation),
@@ -53,8 +53,8 @@ FIX_COLUMNS = (
     "fix_quality",
 )
 ROLES = ("head", "eot", "")
-SOURCES = ("nmea", "csv", "jsonl", "centre", "gpsd", "gpx")
-SENTENCE_KINDS = ("RMC", "GGA", "GLL", "GNS", "VTG", "TPV")
+SOURCES = ("nmea", "csv", "jsonl", "centre", "gpsd", "gpx", "ubx")
+SENTENCE_KINDS = ("RMC", "GGA", "GLL", "GNS", "VTG", "TPV", "PVT")
 SENTENCES = (
     *("+".join(c) for n in range(1, len(SENTENCE_KINDS) + 1) for c in itertools.combinations(SENTENCE_KINDS, n)),
     "",

@@ -5,6 +5,13 @@ between (and inside the lines of) NMEA sentences.  We read none of their
 content; we frame them so that their bytes are neither mistaken for junk nor
 allowed to hide the sentences around them, and count them by kind.
 
+One packet is also read: u-blox UBX-NAV-PVT (class 0x01, id 0x07), the
+navigation solution every u-blox receiver since generation 8 sends once per
+epoch: :func:`nav_pvt` (time, position, ground speed, heading of motion, fix
+type).  Its time is the UTC date and time fields plus ``nano``, rounded to
+the millisecond (the epoch's nominal time, as gpsd reports it; ``nano``
+carries the receiver clock's offset from it).
+
 Framing (all three carry a length and a checksum, so a false sync byte in
 other binary data is refused, and the scan moves on by one byte):
 
@@ -18,7 +25,10 @@ other binary data is refused, and the scan moves on by one byte):
 
 from __future__ import annotations
 
+import datetime as dt
 import re
+import struct
+from dataclasses import dataclass
 from typing import Final
 
 UBX: Final = "UBX"
@@ -122,3 +132,46 @@ def sirf_packet(payload: bytes) -> bytes:
     """A framed SiRF binary packet (for tests and the simulator)."""
     checksum = sum(payload) & 0x7FFF
     return b"\xa0\xa2" + len(payload).to_bytes(2, "big") + payload + checksum.to_bytes(2, "big") + b"\xb0\xb3"
+
+
+NAV_PVT_CLASS_ID: Final = (0x01, 0x07)
+_PVT_HEAD = struct.Struct("<IHBBBBBBIiBBBBii")  # iTOW … lat, the first 32 bytes
+_PVT_MOTION = struct.Struct("<ii")  # gSpeed (mm/s), headMot (1e-5 deg), at offset 60
+_EPOCH = dt.datetime(1970, 1, 1)
+_MS_NS = 1_000_000
+
+
+@dataclass(frozen=True)
+class NavPvt:
+    """What a UBX-NAV-PVT says (time in ns since the epoch, None when the receiver marks it not valid)."""
+
+    time_ns: int | None
+    lat: float
+    lon: float
+    speed_mps: float
+    course_deg: float
+    fix_type: int  # 0 no fix, 1 dead reckoning only, 2 2D, 3 3D, 4 GNSS + dead reckoning, 5 time only
+    fix_ok: bool  # flags.gnssFixOK: the fix is within the receiver's accuracy masks
+
+
+def nav_pvt(packet: bytes) -> NavPvt | None:
+    """A valid UBX packet → its NAV-PVT contents, or None if it is another message, too short, or impossible."""
+    if (packet[2], packet[3]) != NAV_PVT_CLASS_ID or len(packet) < 8 + 84:
+        return None
+    payload = packet[6:-2]
+    _, year, month, day, hour, minute, sec, valid, _, nano, fix_type, flags, _, _, lon, lat = _PVT_HEAD.unpack_from(
+        payload, 0
+    )
+    speed_mm_s, heading = _PVT_MOTION.unpack_from(payload, 60)
+    if abs(lat) > 900_000_000 or abs(lon) > 1_800_000_000 or speed_mm_s < 0 or fix_type > 5:
+        return None  # a checksum that holds over impossible values: not a navigation solution we can use
+    time_ns = None
+    if valid & 0x03 == 0x03 and 1980 <= year <= 2200:  # validDate and validTime, a year int64 ns can hold
+        try:
+            whole = dt.datetime(year, month, day, hour, minute, min(sec, 59)) - _EPOCH
+        except ValueError:
+            whole = None
+        if whole is not None:
+            ns = (whole.days * 86_400 + whole.seconds + (sec == 60)) * 1_000_000_000 + nano
+            time_ns = (ns + _MS_NS // 2) // _MS_NS * _MS_NS
+    return NavPvt(time_ns, lat * 1e-7, lon * 1e-7, speed_mm_s / 1000, heading * 1e-5, fix_type, bool(flags & 0x01))

@@ -56,7 +56,7 @@ _EMBEDDED_SENTENCE_RE = re.compile(rb"[$!][^$!*\x00-\x1f\x7f-\xff]*(?:\*[0-9A-Fa
 _ADDRESS_START_RE = re.compile(rb"[$!][A-Z][A-Z0-9]{4},")
 _DEVICE_TAG_HELP = "'$' or '!' (optionally after a device tag: 'DEVICE,$…' or 'DEVICE $…'), or a gpsd JSON object"
 _WHITESPACE = frozenset(b" \t\r\n")
-_POSITION_KINDS = ("RMC", "GGA", "GLL", "GNS", "TPV")
+_POSITION_KINDS = ("RMC", "GGA", "GLL", "GNS", "TPV", "PVT")
 UNKNOWN_BINARY = "unrecognised binary bytes"
 
 
@@ -174,6 +174,7 @@ class StreamParser:
         known = False
         junk_at = -1
         junk_bytes = 0
+        packet_rows = 0
         while pos < len(data):
             m = packets.SYNC_RE.search(data, pos)
             gap_end = len(data) if m is None else m.start()
@@ -208,8 +209,13 @@ class StreamParser:
                 pos = at + 1
                 continue
             known = True
-            self.report.skipped[f"{kind} packets"] += 1
-            lines_used, end = framed
+            lines_used, end, packet = framed
+            pvt = packets.nav_pvt(packet) if kind == packets.UBX else None
+            if pvt is None:
+                self.report.skipped[f"{kind} packets"] += 1
+            else:
+                self._emit(fr, number, stem, _pvt_fix(pvt), "ubx")
+                packet_rows += 1
             if lines_used < 0:
                 pos = end
                 continue
@@ -230,10 +236,10 @@ class StreamParser:
             )
             self.report.reject(fr, number, "binary", reason, text_of(raw))
             return
-        self._finish_line(fr, number, text_of(raw), stem, sentences, known=known)
+        self._finish_line(fr, number, text_of(raw), stem, sentences, known=known, packet_rows=packet_rows)
 
-    def _frame(self, kind: str, data: bytes, at: int, feed: _Feed) -> tuple[int, int] | None:
-        """A valid packet at ``data[at]``: (look-ahead lines wholly inside it, end offset), else None."""
+    def _frame(self, kind: str, data: bytes, at: int, feed: _Feed) -> tuple[int, int, bytes] | None:
+        """A valid packet at ``data[at]``: (look-ahead lines wholly inside it, end offset, the packet), else None."""
         head = _span(data, at, packets.header_bytes(kind), feed)
         if head is None:
             return None
@@ -243,7 +249,7 @@ class StreamParser:
         whole = _span(data, at, total, feed)
         if whole is None or not packets.packet_is_valid(kind, whole[0]):
             return None
-        return whole[1], whole[2]
+        return whole[1], whole[2], whole[0]
 
     def _json_line(self, fr: FileReport, number: int, text: bytes, stem: str) -> None:
         try:
@@ -278,14 +284,22 @@ class StreamParser:
         fr.records += 1
 
     def _finish_line(
-        self, fr: FileReport, number: int, raw: bytes, device: str, sentences: list[bytes], *, known: bool
+        self,
+        fr: FileReport,
+        number: int,
+        raw: bytes,
+        device: str,
+        sentences: list[bytes],
+        *,
+        known: bool,
+        packet_rows: int = 0,
     ) -> None:
         """Decode a line's sentences, add their rows, count the line once."""
         clock = self.clocks.get(device)
         if clock is None:
             clock = self.clocks[device] = DeviceClock()
         errors: list[tuple[int, SentenceError]] = []
-        rows = 0
+        rows = packet_rows
         for k, sentence in enumerate(sentences, start=1):
             try:
                 fix = decode_sentence(sentence, clock)
@@ -392,6 +406,14 @@ class StreamParser:
                 quality = "gnss"
             rows.set_quality(row, quality)
         rows.set_sentence(row, merged_sentence(rows.sentence_at(row), fix.sentence))
+
+
+def _pvt_fix(pvt: packets.NavPvt) -> Fix:
+    """A UBX-NAV-PVT as a fix: valid when gnssFixOK and the fix type is a position (1-4)."""
+    valid = pvt.fix_ok and 1 <= pvt.fix_type <= 4
+    quality = "no_fix" if not valid else "dead_reckoning" if pvt.fix_type == 1 else "gnss"
+    time_ns = NAT_NS if pvt.time_ns is None else pvt.time_ns
+    return Fix("PVT", time_ns, pvt.lat, pvt.lon, pvt.speed_mps, pvt.course_deg, valid, None, quality)
 
 
 def parse_stream_files(

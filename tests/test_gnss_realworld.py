@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+import struct
 from pathlib import Path
 
 import pandas as pd
@@ -45,7 +46,7 @@ RMC = nmea("GPRMC,123519.00,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W"
 GGA = nmea("GPGGA,123519.00,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,")
 RMC2 = nmea("GPRMC,123520.00,A,4807.040,N,01131.002,E,022.5,084.4,230394,003.1,W")
 # Payloads holding the bytes that break naive line readers: LF, CR, '$'.
-UBX = ubx_packet(0x01, 0x07, bytes(range(92)) + b"\n$GPRMC,\r\n")
+UBX = ubx_packet(0x02, 0x15, bytes(range(92)) + b"\n$GPRMC,\r\n")  # RXM-RAWX: skipped, not read
 RTCM = rtcm3_packet(bytes([0x43, 0x50]) + b"\n" * 5 + b"$" + bytes(range(20)))
 SIRF = sirf_packet(bytes([0x29]) + b"\n\r$" + bytes(range(40)))
 
@@ -98,6 +99,53 @@ def test_binary_of_no_known_kind_alone_on_a_line_is_rejected_with_the_byte(tmp_p
     assert len(fixes) == 1
     (rejection,) = report.rejections
     assert rejection.line == 2 and "byte 0x10 at column 1" in rejection.reason
+
+
+def _nav_pvt(*, fix_type: int = 3, fix_ok: bool = True, nano: int = -100_231, lat_e7: int = 481173000) -> bytes:
+    payload = bytearray(92)
+    # iTOW, 2026-01-19 10:05:01 UTC, valid date+time, tAcc, nano, fixType, flags, flags2, numSV, lon, lat
+    struct.pack_into(
+        "<IHBBBBBBIiBBBBii",
+        payload,
+        0,
+        0,
+        2026,
+        1,
+        19,
+        10,
+        5,
+        1,
+        0x07,
+        30,
+        nano,
+        fix_type,
+        int(fix_ok),
+        0,
+        9,
+        115166667,
+        lat_e7,
+    )
+    struct.pack_into("<ii", payload, 60, 15_250, 2_050_000)  # gSpeed 15.25 m/s, headMot 20.5°
+    return ubx_packet(0x01, 0x07, bytes(payload))
+
+
+def test_a_ubx_nav_pvt_is_a_fix(tmp_path: Path) -> None:
+    data = _nav_pvt() + UBX + b"\n" + _nav_pvt(fix_type=5, nano=200_000_000) + b"\n" + _nav_pvt(fix_type=1) + b"\n"
+    fixes, report = stream(tmp_path, data)
+    assert list(fixes["source"].astype(str)) == ["ubx", "ubx", "ubx"]
+    first = fixes.iloc[0]
+    # 10:05:01 - 100 231 ns: the epoch's nominal time is the millisecond it rounds to (as gpsd reports it).
+    assert fixes["time"].iloc[0] == pd.Timestamp("2026-01-19T10:05:01Z")
+    assert first["lat"] == pytest.approx(48.1173, abs=1e-9) and first["speed_mps"] == 15.25
+    assert first["course_deg"] == pytest.approx(20.5) and first["sentence"] == "PVT"
+    assert not fixes["valid"].iloc[1]  # fix type 5: time only
+    assert fixes["valid"].iloc[2] and fixes["fix_quality"].iloc[2] == "dead_reckoning"  # fix type 1
+    assert report.skipped == {"UBX packets": 1} and report.records == 3
+
+
+def test_a_nav_pvt_outside_the_receivers_accuracy_mask_is_no_fix(tmp_path: Path) -> None:
+    fixes, _ = stream(tmp_path, _nav_pvt(fix_ok=False) + b"\n")
+    assert not fixes["valid"].iloc[0] and fixes["fix_quality"].iloc[0] == "no_fix"
 
 
 def test_two_sentences_on_one_line_are_both_read(tmp_path: Path) -> None:
