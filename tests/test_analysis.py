@@ -73,6 +73,23 @@ def test_pairing_is_one_to_one_and_windowed() -> None:
     assert list(axles["direction"]) == ["sys1_to_sys2", "sys2_to_sys1"]
 
 
+def test_whole_second_onsets_pair_by_their_order() -> None:
+    # Three wheels in one whole second, a stray Sys1 onset before them: the
+    # order of the lines pairs them (every second link of a run), one to one.
+    rows = [(0, 1, 9.0, False)] + [(0, ch, 10.0, False) for _ in range(3) for ch in (1, 2)]
+    axles, unpaired = pair_axles(_onsets(rows), PairingSettings())
+    assert (len(axles), unpaired) == (3, 1)
+    assert set(axles["direction"]) == {"sys1_to_sys2"}
+    assert axles["speed_kmh"].isna().all()  # whole seconds cannot time 0.13 m
+
+
+def test_each_head_pairs_at_its_own_resolution() -> None:
+    # A whole-second head elsewhere in the log does not widen a millisecond head's window.
+    rows = [(0, 1, 10.0, False), (0, 2, 10.0, False), (1, 1, 20.000, True), (1, 2, 20.900, True)]
+    axles, unpaired = pair_axles(_onsets(rows), PairingSettings())
+    assert list(axles["head"]) == [0] and unpaired == 2
+
+
 def test_whole_second_log_pairs_but_times_no_axle(tmp_path: Path) -> None:
     lines = [
         record(ch=1, adr="026", label="Radsensor", data="1", time="09:00:00"),
@@ -83,7 +100,7 @@ def test_whole_second_log_pairs_but_times_no_axle(tmp_path: Path) -> None:
     (p,) = _analyze(tmp_path, lines)
     assert p["axles"] == 2
     assert p["speed_kmh_per_axle"] is None  # whole seconds cannot time 0.13 m
-    assert p["direction"] == "sys1_to_sys2"  # only the pair split across seconds says it
+    assert p["direction"] == "sys1_to_sys2"  # the line order, and the pair split across seconds
     assert p["whole_train_basis"] == "detections"
     assert p["speed_kmh_whole_train"] == pytest.approx((28.6 + 0.13) / 4 * 3.6)
 
