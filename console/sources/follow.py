@@ -97,8 +97,8 @@ class FileSource(Source):
                     self.path.parent,
                     watch_filter=ours,
                     stop_event=self._stop,
-                    debounce=50,
-                    step=1,
+                    debounce=25,
+                    step=10,  # the watcher thread wakes this often (ms): latency vs idle CPU
                     rust_timeout=500,
                     yield_on_timeout=True,
                     recursive=False,

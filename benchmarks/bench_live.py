@@ -1,0 +1,279 @@
+"""Live-source targets: latency, station update, idle CPU, sustained rate with bounded memory.
+
+    python benchmarks/bench_live.py latency-file            # line appended → event on stdout
+    python benchmarks/bench_live.py latency-mqtt            # message published → event on stdout (needs mosquitto)
+    python benchmarks/bench_live.py station                 # line appended → station view model updated
+    python benchmarks/bench_live.py idle-cpu --seconds 30   # follow with nothing arriving
+    python benchmarks/bench_live.py rate --rate 2000 --seconds 600   # sustained input, RSS sampled
+
+Targets (issue "Live"): latency median ≤ 50 ms and p99 ≤ 200 ms; station view
+updated within 250 ms; idle CPU ≤ 2 %; 2,000 records/s for 10 minutes with
+bounded memory.
+
+What "event" means: a diagnostic line that starts a new run at its counting
+head (the previous record is more than the idle gap + order slack older)
+closes the previous run, and ``follow --jsonl`` prints its passage; the
+latency is from that line's write to the passage line read from follow's
+stdout.  For MQTT, each uplink skips one frame counter, so each one makes
+``follow`` print a ``lost`` source event at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+CLI = "import sys; from console.cli import app; sys.argv[0] = 'trackside'; app()"
+T0 = 1_772_438_400  # 2026-03-02 08:00:00
+
+
+def diag_line(head: int, t_s: float, adr: str = "000", label: str = "Diagnose I", data: str = "2", ch: int = 1) -> str:
+    import datetime as dt
+
+    t = dt.datetime(1970, 1, 1) + dt.timedelta(seconds=t_s)
+    return (
+        f"Diag_id:00002\tID:{4080 + head}\tDevice:IM\tType:013\tGS:GS03\tTrackinfo:WS{head}\tch:{ch}\tAdr:{adr}\t"
+        f"Label:{label}\tData:{data}\tDate:{t:%Y-%m-%d}\tTime:{t:%H:%M:%S}.{t.microsecond // 1000:03d}\n"
+    )
+
+
+def percentiles(values: list[float]) -> str:
+    v = sorted(values)
+    p99 = v[min(len(v) - 1, int(round(0.99 * (len(v) - 1))))]
+    return f"n={len(v)} median={statistics.median(v) * 1000:.1f} ms p99={p99 * 1000:.1f} ms max={v[-1] * 1000:.1f} ms"
+
+
+def start_follow(*args: str) -> subprocess.Popen[str]:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", CLI, "follow", "--jsonl", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        bufsize=1,
+    )
+    assert proc.stdout is not None
+    first = proc.stdout.readline()
+    if '"connected"' not in first:
+        raise SystemExit(f"follow did not start: {first!r} {proc.stderr.read() if proc.stderr else ''}")
+    return proc
+
+
+def stop(proc: subprocess.Popen[str]) -> str:
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=30)
+    return out
+
+
+def latency_file(n: int, gap_s: float) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "live.log"
+        log.write_text("")
+        proc = start_follow(f"file:{log}", "--from-start")
+        assert proc.stdout is not None
+        sent: dict[str, float] = {}
+        got: list[float] = []
+        with log.open("a") as f:
+            for k in range(n + 1):
+                t_s = T0 + k * 13.5  # > idle gap 10 s + order slack 2 s: each line closes the previous run
+                now = time.perf_counter()
+                f.write(diag_line(1, t_s))
+                f.flush()
+                if k:
+                    sent[time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(T0 + (k - 1) * 13.5))] = now
+                    line = proc.stdout.readline()
+                    arrived = time.perf_counter()
+                    ev = json.loads(line)
+                    if ev.get("type") != "passage":
+                        raise SystemExit(f"expected a passage, got {line!r}")
+                    got.append(arrived - sent[ev["start"][:19]])
+                time.sleep(gap_s)
+        stop(proc)
+    print(f"latency file → passage on stdout: {percentiles(got)}")
+
+
+def latency_mqtt(n: int, gap_s: float) -> None:
+    import paho.mqtt.client as mqtt
+
+    from parsers.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
+    from tests.live_fixtures import Mosquitto
+
+    with tempfile.TemporaryDirectory() as tmp:
+        broker = Mosquitto(Path(tmp))
+        broker.start()
+        try:
+            proc = start_follow(f"{broker.url}/application/+/device/+/event/up")
+            assert proc.stdout is not None
+            pub = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2)
+            pub.connect("127.0.0.1", broker.port)
+            pub.loop_start()
+            eui = "70b3d5e75e000100"
+            payload = encode_payload(UnitReport("head", 1, 20.75, 105.9, 10.0, 180.0, 90.0, T0 * 10**9))
+            got = []
+            for k in range(n):
+                doc = json.dumps(chirpstack_uplink(eui, 2 * k, payload, time.time_ns()))
+                t = time.perf_counter()
+                pub.publish(chirpstack_topic(eui), doc, qos=0)
+                if k:
+                    while True:
+                        ev = json.loads(proc.stdout.readline())
+                        if ev.get("kind") == "lost":
+                            break
+                    got.append(time.perf_counter() - t)
+                time.sleep(gap_s)
+            pub.loop_stop()
+            pub.disconnect()
+            stop(proc)
+        finally:
+            broker.stop()
+    print(f"latency mqtt publish → event on stdout: {percentiles(got)}")
+
+
+def station(n: int) -> None:
+    import asyncio
+
+    from console.layout import load_layout
+    from console.sources import open_source
+    from console.tui.live_app import LiveStationApp
+    from console.tui.live_source import LiveSource
+
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "live.log"
+        log.write_text("")
+        src = LiveSource(load_layout("example"), [open_source(f"file:{log}", from_start=True)])
+        app = LiveStationApp(src)
+        got: list[float] = []
+
+        async def run() -> None:
+            async with app.run_test(size=(160, 50)) as pilot:
+                await pilot.pause(0.5)
+                with log.open("a") as f:
+                    for k in range(n + 1):
+                        before = len(app.model.log)
+                        t = time.perf_counter()
+                        f.write(diag_line(2, T0 + k * 13.5))
+                        f.flush()
+                        if k:
+                            # The model's log gains the passage once the worker has advanced and redrawn.
+                            while len(app.model.log) == before and time.perf_counter() - t < 5:
+                                await pilot.pause(0.005)
+                            got.append(time.perf_counter() - t)
+                        await pilot.pause(0.05)
+
+        asyncio.run(run())
+        src.stop()
+    print(f"station view updated after a line: {percentiles(got)}")
+
+
+def cpu_seconds(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def idle_cpu(seconds: float) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "live.log"
+        log.write_text(diag_line(1, T0))
+        proc = start_follow(f"file:{log}", "--from-start", "--layout", "example")
+        time.sleep(2)  # settle after start-up
+        c0, t0 = cpu_seconds(proc.pid), time.monotonic()
+        time.sleep(seconds)
+        c1, t1 = cpu_seconds(proc.pid), time.monotonic()
+        stop(proc)
+    print(f"idle CPU of follow over {t1 - t0:.0f} s: {100 * (c1 - c0) / (t1 - t0):.2f} %")
+
+
+def rate(records_per_s: int, seconds: float) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "live.log"
+        log.write_text("")
+        proc = start_follow(f"file:{log}", "--from-start", "--layout", "example")
+        assert proc.stdout is not None
+        events = [0]
+
+        def drain() -> None:
+            assert proc.stdout is not None
+            for _ in proc.stdout:
+                events[0] += 1
+
+        reader = threading.Thread(target=drain, daemon=True)
+        reader.start()
+        written = 0
+        samples: list[tuple[float, float]] = []
+        start = time.monotonic()
+        per_tick = records_per_s // 10
+        next_sample = start
+        with log.open("a") as f:
+            k = 0
+            while time.monotonic() - start < seconds:
+                tick = time.monotonic()
+                lines = []
+                for _ in range(per_tick):
+                    t_s = T0 + k * (1.0 / records_per_s)
+                    head = 1 + (k // 400) % 5  # a burst per head, like trains passing
+                    value = "1" if k % 4 < 2 else "0"
+                    lines.append(diag_line(head, t_s, "026", "Radsensor", value, ch=1 + k % 2))
+                    k += 1
+                f.write("".join(lines))
+                f.flush()
+                written += per_tick
+                if tick >= next_sample:
+                    samples.append((tick - start, rss_mb(proc.pid)))
+                    next_sample += 10
+                time.sleep(max(0.0, 0.1 - (time.monotonic() - tick)))
+        time.sleep(3)
+        cpu = cpu_seconds(proc.pid)
+        proc.send_signal(signal.SIGINT)
+        proc.wait(60)
+        reader.join(10)
+    elapsed = time.monotonic() - start
+    rss = [r for _, r in samples]
+    print(
+        f"rate: {written} records in {seconds:.0f} s ({written / seconds:.0f}/s), {events[0]} events;"
+        f" follow CPU {cpu:.1f} s ({100 * cpu / elapsed:.0f} %); RSS MB first/median/max/last:"
+        f" {rss[0]:.0f}/{statistics.median(rss):.0f}/{max(rss):.0f}/{rss[-1]:.0f}"
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("what", choices=["latency-file", "latency-mqtt", "station", "idle-cpu", "rate"])
+    ap.add_argument("-n", type=int, default=200)
+    ap.add_argument("--gap", type=float, default=0.02, help="seconds between two appends/publishes")
+    ap.add_argument("--seconds", type=float, default=30)
+    ap.add_argument("--rate", type=int, default=2000)
+    a = ap.parse_args()
+    if a.what == "latency-file":
+        latency_file(a.n, a.gap)
+    elif a.what == "latency-mqtt":
+        if not (shutil.which("mosquitto") or Path("/usr/sbin/mosquitto").exists()):
+            raise SystemExit("mosquitto is not installed")
+        latency_mqtt(a.n, a.gap)
+    elif a.what == "station":
+        station(min(a.n, 100))
+    elif a.what == "idle-cpu":
+        idle_cpu(a.seconds)
+    else:
+        rate(a.rate, a.seconds)
+
+
+if __name__ == "__main__":
+    main()
