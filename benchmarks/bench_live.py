@@ -51,7 +51,7 @@ def diag_line(head: int, t_s: float, adr: str = "000", label: str = "Diagnose I"
 
 def percentiles(values: list[float]) -> str:
     v = sorted(values)
-    p99 = v[min(len(v) - 1, int(round(0.99 * (len(v) - 1))))]
+    p99 = v[min(len(v) - 1, round(0.99 * (len(v) - 1)))]
     return f"n={len(v)} median={statistics.median(v) * 1000:.1f} ms p99={p99 * 1000:.1f} ms max={v[-1] * 1000:.1f} ms"
 
 
