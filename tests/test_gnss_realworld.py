@@ -474,15 +474,34 @@ def test_many_distinct_devices_cost_a_small_multiple_of_their_input(tmp_path: Pa
 # bundg_zeus_9 is a boat's NMEA multiplexer whose RMC, GGA and GLL of one
 # second carry different positions, and gpsd's reports lag a second behind.
 KNOWN_NMEA_MISSES = {"bundg_zeus_9.log": 49, "humminbird-M37.log": 1}
+# Epochs gpsd decoded from UBX-NAV-PVT that we read too (measured).  The
+# rest of the binary epochs come from protocols we skip (SiRF, TSIP, GREIS,
+# Oncore, NAV-SOL/POSLLH …) or are NAV-PVTs we call no fix on purpose
+# (gnssFixOK clear, fix type 5 "time only"), where gpsd reports a fix.
+BINARY_MATCHED = {
+    "navisys-gr8013.log": 35,
+    "ublox-f9p-rtcm.log": 1,
+    "ublox-glo.log": 16,
+    "ublox-neo-f9v.log": 3,
+    "ublox-neo-m8l.log": 17,
+    "ublox-neo-m8n.log": 22,
+    "ublox-neo-m8p.log": 58,
+    "ublox-neo-m8u.log": 2,
+    "ublox-zed-f9p-hp.log": 28,
+    "ublox-zed-f9p-rtk.log": 9,
+    "ublox-zed-f9p-sfrbx.log": 18,
+    "ublox8-uniqid-monhw.log": 3,
+}
 CORPUS_LOGS = sorted(p.name for p in CORPUS.glob("*.log") if p.with_name(p.name + ".chk").exists())
 
 
 @pytest.mark.skipif(not CORPUS_LOGS, reason=f"gpsd's test corpus not found at {CORPUS}")
 @pytest.mark.parametrize("capture", CORPUS_LOGS or ["none"])
-def test_gpsd_corpus_fixes_from_nmea_are_ours(capture: str) -> None:
+def test_gpsd_corpus_fixes_are_ours(capture: str) -> None:
     log = CORPUS / capture
     fixes, report = parse_stream_files([log])
     report.check()
     counts = compare_with_gpsd(log, fixes)
     missed = counts["nmea"] - counts["nmea_matched"]
     assert missed <= KNOWN_NMEA_MISSES.get(capture, 0), dict(counts)
+    assert counts["binary_matched"] >= BINARY_MATCHED.get(capture, 0), dict(counts)
