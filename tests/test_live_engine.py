@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -140,3 +141,30 @@ def test_speeds_are_finite_or_absent_in_live_passages() -> None:
     engine.finish()
     speeds = [e["speed_kmh_whole_train"] for e in events if e["type"] == "passage" and e["axles"]]
     assert speeds and all(s is None or math.isfinite(s) for s in speeds)
+
+
+def test_followed_input_is_ingested_into_the_archive_once(tmp_path: Path) -> None:
+    import json
+    import subprocess
+
+    from console.live.archive import LiveArchiver
+    from tests.live_fixtures import trackside
+
+    data = (REPO / "sample_logs" / "example_station.log").read_bytes()
+    cut = data.index(b"\n", len(data) // 2) + 1
+    archive = tmp_path / "arc"
+    arch = LiveArchiver(archive)
+    engine = LiveEngine(load_layout("example"), lambda ev: None, archiver=arch)
+    # Before and after a rotation: two files of one followed source.
+    engine.handle(LineBlock("file:x", "x.log", 1, data[:cut], time.monotonic()))
+    arch.ingest()
+    engine.handle(LineBlock("file:x", "x.log#2", 1, data[cut:], time.monotonic()))
+    engine.finish()  # ingests the grown spool: only what is new
+    out = subprocess.run(
+        trackside("query", "--archive", str(archive), "--format", "json", "SELECT count(*) AS n FROM records"),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    assert json.loads(out.stdout)[0]["n"] == data.count(b"\n")

@@ -87,7 +87,8 @@ def follow(
     poll: Annotated[bool, typer.Option("--poll", help="Poll files instead of inotify (network filesystems).")] = False,
     idle_gap: IdleGapOpt = 10.0,
     archive: Annotated[
-        Path | None, typer.Option("--archive", help="Also keep what is followed in this directory.")
+        Path | None,
+        typer.Option("--archive", help="Also ingest what is followed into this archive (spooled in DIR.live)."),
     ] = None,
     duration: Annotated[
         float | None, typer.Option("--duration", help="Stop after this many seconds (default: until Ctrl-C).", min=0)
@@ -102,7 +103,8 @@ def follow(
 
     def body() -> int:
         from console.analysis.diagnostics import SpeedSettings
-        from console.live.engine import Archiver, LiveEngine, run_sources
+        from console.live.archive import LiveArchiver
+        from console.live.engine import LiveEngine, run_sources
         from console.sources import SourceError, open_source
 
         lay = load_layout(layout) if layout else None
@@ -124,11 +126,8 @@ def follow(
         spacing = lay.heads[0].spacing_m if lay and lay.heads else 0.13
         consist = lay.consist() if lay else None
         settings = SpeedSettings(spacing, consist.length_m if consist else 28.6, idle_gap)
-        archiver = None
-        if archive is not None:
-            archive.mkdir(parents=True, exist_ok=True)
-            archiver = Archiver(archive)
-        engine = LiveEngine(lay, emit, settings, on_item=archiver)
+        archiver = LiveArchiver(archive, layout) if archive is not None else None
+        engine = LiveEngine(lay, emit, settings, archiver=archiver)
         last = [time.monotonic(), engine.items]
 
         def idle() -> bool:

@@ -11,11 +11,11 @@ from __future__ import annotations
 import queue
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 from console.analysis.diagnostics import SpeedSettings
 from console.layout import Layout
+from console.live.archive import LiveArchiver
 from console.live.crossings import CrossingFollow
 from console.live.diag import DiagFollow
 from console.sources.base import CanFrame, GnssFix, Item, LineBlock, Source, SourceNote
@@ -24,59 +24,19 @@ Emit = Callable[[dict[str, Any]], None]
 TICK_S = 0.5  # crossing units' clock and the idle wake-up: two a second is nothing for the CPU
 
 
-@dataclass
-class Archiver:
-    """Where followed input is kept (``--archive``): raw bytes as read, fixes as JSON lines.
-
-    Plugs in as ``on_item``; the archive package's ingest can take these files
-    as it takes any log (growing files by byte offset).
-    """
-
-    root: Any  # pathlib.Path
-
-    def __call__(self, item: Item) -> None:
-        import json
-
-        from console.safe_text import clean
-
-        if isinstance(item, LineBlock):
-            name = clean(item.file).replace("/", "_").replace("#", ".")
-            path = self.root / "raw" / name
-            path.parent.mkdir(parents=True, exist_ok=True)
-            with path.open("ab") as f:
-                f.write(item.data)
-        elif isinstance(item, GnssFix):
-            path = self.root / "gnss" / f"{clean(item.device).replace('/', '_')}.jsonl"
-            path.parent.mkdir(parents=True, exist_ok=True)
-            doc = {
-                "device": item.device,
-                "t_fix_ns": item.t_fix_ns,
-                "lat": item.lat_deg,
-                "lon": item.lon_deg,
-                "speed_mps": None if item.speed_mps != item.speed_mps else item.speed_mps,
-                "course_deg": None if item.course_deg != item.course_deg else item.course_deg,
-                "role": item.role,
-                "train": item.train,
-                "battery_pct": item.battery_pct,
-                **{k: v for k, v in item.meta.items() if isinstance(v, int | float | str)},
-            }
-            with path.open("a") as f:
-                f.write(json.dumps(doc) + "\n")
-
-
 class LiveEngine:
     def __init__(
         self,
         layout: Layout | None,
         emit: Emit,
         settings: SpeedSettings | None = None,
-        on_item: Callable[[Item], None] | None = None,
+        archiver: LiveArchiver | None = None,
     ) -> None:
         self.layout = layout
         self.emit = emit
         self.diag = DiagFollow(layout, settings or SpeedSettings(), emit)
         self.crossings = CrossingFollow(layout, emit) if layout is not None and layout.crossings else None
-        self.on_item = on_item
+        self.archiver = archiver
         self.can_frames = 0
         self.items = 0
         self.notes: dict[str, int] = {}
@@ -87,8 +47,8 @@ class LiveEngine:
 
     def handle(self, item: Item) -> None:
         self.items += 1
-        if self.on_item is not None:
-            self.on_item(item)
+        if self.archiver is not None:
+            self.archiver(item)
         if isinstance(item, LineBlock):
             self.diag.add(item.source, item.file, item.first_line, item.data)
         elif isinstance(item, GnssFix):
@@ -103,10 +63,15 @@ class LiveEngine:
     def tick(self) -> None:
         if self.crossings is not None:
             self.crossings.tick(self.now_ns())
+        if self.archiver is not None:
+            self.archiver.tick()
 
     def finish(self) -> None:
         self.diag.finish()
-        self.tick()
+        if self.crossings is not None:
+            self.crossings.tick(self.now_ns())
+        if self.archiver is not None:
+            self.archiver.finish()
 
     def summary(self, sources: Sequence[Source]) -> dict[str, Any]:
         rep = self.diag.reader.report
