@@ -22,7 +22,7 @@ def test_per_second_method_0932_is_15_9_kmh(samples: Path) -> None:
     # §2.2.1: 34 records in 09:32:24 → v = 0.13 × 34 = 4.42 m/s = 15.9 km/h
     (p,) = _passages(samples / "osong_ws4_0932_detection.log")
     assert p["records_in_detection_second"] == 34
-    assert p["detection_second"] == "2015-10-31T09:32:24"
+    assert p["detection_second"] == "2015-10-31T09:32:24.000Z"
     assert round(p["speed_kmh_per_second_method"], 1) == 15.9
 
 
@@ -37,8 +37,8 @@ def test_per_second_method_1032_is_14_5_kmh(samples: Path) -> None:
 @pytest.mark.parametrize(
     ("name", "start", "end"),
     [
-        ("osong_ws4_0932_passage.log", "2015-10-31T09:32:24", "2015-10-31T09:32:30"),
-        ("osong_ws4_1732_passage.log", "2015-10-31T17:32:23", "2015-10-31T17:32:29"),
+        ("osong_ws4_0932_passage.log", "2015-10-31T09:32:24.000Z", "2015-10-31T09:32:30.000Z"),
+        ("osong_ws4_1732_passage.log", "2015-10-31T17:32:23.000Z", "2015-10-31T17:32:29.000Z"),
     ],
 )
 def test_whole_train_speed_is_17_24_kmh(samples: Path, name: str, start: str, end: str) -> None:
@@ -61,7 +61,7 @@ def test_methods_differ_by_about_12_percent(samples: Path) -> None:
 def test_excerpts_together_give_one_passage_with_both_figures(samples: Path) -> None:
     job = analyze_files(sorted(samples.glob("osong_*.log")), SpeedSettings())
     ps = job.analysis.passages_json()
-    assert [p["start"] for p in ps] == ["2015-10-31T09:32:24", "2015-10-31T10:32:23", "2015-10-31T17:32:23"]
+    assert [p["start"] for p in ps] == ["2015-10-31T09:32:24.000Z", "2015-10-31T10:32:23.000Z", "2015-10-31T17:32:23.000Z"]
     first = ps[0]
     assert round(first["speed_kmh_per_second_method"], 1) == 15.9
     assert round(first["speed_kmh_whole_train"], 2) == 17.24

@@ -130,7 +130,7 @@ def _texts(codes: np.ndarray, values: Sequence[str | None]) -> np.ndarray | None
 
 
 def _iso(ns: np.ndarray) -> np.ndarray | None:
-    """``diagnostics.iso_strings`` as quoted bytes: a fraction only where there is one; null for NaN."""
+    """``diagnostics.iso_strings`` as quoted bytes (UTC, ``Z``, ms at least, µs/ns where present); null for NaN."""
     if np.asarray(ns).dtype.kind in "iu":  # exact: float64 would round epoch ns to 256 ns
         ints = np.asarray(ns, np.int64)
         ok = np.ones(len(ints), bool)
@@ -150,13 +150,14 @@ def _iso(ns: np.ndarray) -> np.ndarray | None:
     secs, frac = np.divmod(tod, 10**9)
     hms = _digits((secs // 3600 * 10_000 + secs // 60 % 60 * 100 + secs % 60).astype(np.uint64), 6, keep_leading=True)
     fd = _digits(frac.astype(np.uint64), 9, keep_leading=True)
-    trailing = np.cumsum((fd != ord("0"))[:, ::-1], axis=1)[:, ::-1] == 0
-    fd[trailing] = 0
+    # Milliseconds always; micro- and nanoseconds only where the time has them (timefmt.iso).
+    keep = np.where(frac % 1_000_000 == 0, 3, np.where(frac % 1_000 == 0, 6, 9))
+    fd[np.arange(9)[None, :] >= keep[:, None]] = 0
 
     def char(c: str) -> np.ndarray:
         return np.full((n, 1), ord(c), np.uint8)
 
-    point = np.where(trailing[:, :1], 0, ord(".")).astype(np.uint8)
+    point = char(".")
     out = np.concatenate(
         [
             char('"'),
@@ -169,6 +170,7 @@ def _iso(ns: np.ndarray) -> np.ndarray | None:
             hms[:, 4:6],
             point,
             fd,
+            char("Z"),
             char('"'),
         ],
         axis=1,
