@@ -20,6 +20,8 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from console.cli import app
@@ -151,6 +153,25 @@ def test_a_nav_pvt_outside_the_receivers_accuracy_mask_is_no_fix(tmp_path: Path)
 def test_two_sentences_on_one_line_are_both_read(tmp_path: Path) -> None:
     fixes, report = stream(tmp_path, RMC + RMC2 + b"\n")
     assert len(fixes) == 2 and report.records == 1 and report.rejected == 0
+
+
+def _rmc_at(second: int) -> bytes:
+    return nmea(f"GPRMC,1235{second:02d}.00,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W")
+
+
+_JUNK = st.binary(min_size=1, max_size=12).map(lambda b: bytes(x | 0x80 for x in b))  # never ASCII, never a LF
+_PIECE = st.one_of(st.just(UBX), st.just(RTCM), st.just(SIRF), _JUNK, st.sampled_from([b"\n", b"\r\n", b""]))
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.lists(st.lists(_PIECE, max_size=4), min_size=1, max_size=12))
+def test_every_sentence_among_random_packets_and_junk_is_read(tmp_path: Path, gaps: list[list[bytes]]) -> None:
+    """Sentences at distinct seconds, separated by any mix of packets, binary junk and line ends: all read."""
+    data = b"".join(b"".join(gap) + _rmc_at(k) for k, gap in enumerate(gaps)) + b"\n"
+    fixes, report = stream(tmp_path, data)
+    assert list(fixes["time"].dt.second) == list(range(len(gaps)))
+    assert fixes["valid"].all()
+    assert report.lines_read == data.count(b"\n") == report.records + report.blank + report.rejected
 
 
 # ----------------------------------------------------------------- gpsd JSON
