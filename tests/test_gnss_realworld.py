@@ -526,3 +526,11 @@ def test_gpsd_corpus_fixes_are_ours(capture: str) -> None:
     missed = counts["nmea"] - counts["nmea_matched"]
     assert missed <= KNOWN_NMEA_MISSES.get(capture, 0), dict(counts)
     assert counts["binary_matched"] >= BINARY_MATCHED.get(capture, 0), dict(counts)
+
+
+def test_the_fix_table_marks_dead_reckoned_fixes() -> None:
+    res = runner.invoke(app, ["gnss", str(DATA / "ublox_export.csv")], env={"COLUMNS": "100"})
+    assert res.exit_code == 0, res.output
+    row = next(line for line in res.output.splitlines() if line.startswith("10:05:02"))
+    assert " DR " in row
+

@@ -143,7 +143,7 @@ def fixes_table(fixes: pd.DataFrame, limit: int = FIXES_SHOWN) -> Table:
             _num(r.lat, "{:.5f}"),
             _num(r.lon, "{:.5f}"),
             _num(r.speed_mps, "{:.1f}", _MPS_TO_KMH),
-            Text("yes", style="green") if r.valid else Text("no", style="dim"),
+            _fix_text(bool(r.valid), str(getattr(r, "fix_quality", ""))),
             inert(r.sentence or r.source),
             Text(line),
         )
@@ -189,3 +189,10 @@ def devices_table(fixes: pd.DataFrame) -> Table:
             _num(speeds.mean() if len(speeds) else math.nan, "{:.1f}", _MPS_TO_KMH),
         )
     return t
+
+
+def _fix_text(valid: bool, quality: str) -> Text:
+    """``yes``, ``DR`` (a dead-reckoned fix: valid, but not from satellites) or ``no``."""
+    if not valid:
+        return Text("no", style="dim")
+    return Text("DR", style="yellow") if quality == "dead_reckoning" else Text("yes", style="green")
