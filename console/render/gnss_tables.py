@@ -116,7 +116,8 @@ def fixes_table(fixes: pd.DataFrame, limit: int = FIXES_SHOWN) -> Table:
     (the caption names them).
     """
     clock = _Clock(fixes["time"])
-    files = [str(f) for f in pd.unique(fixes["file"].astype(str))] if len(fixes) else []
+    # Object, not Arrow, strings: a file name that is not UTF-8 cannot become an Arrow string.
+    files = [str(f) for f in pd.unique(fixes["file"].to_numpy(dtype=object))] if len(fixes) else []
     title = f"GNSS fixes ({len(fixes):,}"
     title += f", {int(fixes['valid'].sum()):,} valid" if len(fixes) else ""
     t = _table(title + (f"; {clock.note})" if clock.note else ")"))
