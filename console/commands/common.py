@@ -3,7 +3,9 @@ input errors into exit 2, JSON output, layouts and the diagnostic job."""
 
 from __future__ import annotations
 
+import contextlib
 import errno
+import io
 import os
 import signal
 import stat
@@ -196,6 +198,12 @@ def install_process_guards() -> Callable[[], None]:
             sys.stdout = ClosedOutput()
         if sys.stderr is None:
             sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - lives as long as the process
+        # Last line of defence: a name that is not UTF-8 and escaped nobody's escaping
+        # prints as \udcff instead of failing the whole command.
+        for stream in (sys.stdout, sys.stderr):
+            if isinstance(stream, io.TextIOWrapper):
+                with contextlib.suppress(ValueError, OSError):
+                    stream.reconfigure(errors="backslashreplace")
         import atexit
 
         atexit.register(_flush_at_exit)
