@@ -291,8 +291,8 @@ def fix_quality(value: Any, codes: str) -> tuple[bool, str]:
     text = " ".join(str(value).strip().casefold().replace("_", " ").split())
     if text == "":
         return True, ""
-    if text.isdigit():
-        code = int(text)
+    if text.isascii() and text.isdigit():
+        code = int(text) if len(text) <= 3 else 999
         if codes == "ublox" and code <= 5:
             return {0: (False, "no_fix"), 1: (True, "dead_reckoning"), 5: (False, "no_fix")}.get(code, (True, "gnss"))
         if codes == "gga" and code <= 8:
@@ -300,7 +300,7 @@ def fix_quality(value: Any, codes: str) -> tuple[bool, str]:
                 return True, "dead_reckoning"
             return (True, "gnss") if 1 <= code <= 5 else (False, "no_fix")
         hint = "" if codes else " (name the column 'fix type' for u-blox codes or 'fix quality' for NMEA GGA codes)"
-        raise RowError("quality", f"fix quality: code '{text}' is not known{hint}")
+        raise RowError("quality", f"fix quality: code '{text[:12]}' is not known{hint}")
     if text in _QUALITY_WORDS_NO_FIX:
         return False, "no_fix"
     if text in _QUALITY_WORDS_DR or text.startswith(("dead reck", "dr only")):

@@ -7,6 +7,8 @@ import re
 
 _NS = 1_000_000_000
 _EPOCH = dt.date(1970, 1, 1)
+# Years a datetime64[ns] holds (1677-09-21 … 2262-04-11), whole years only.
+FIRST_YEAR, LAST_YEAR = 1678, 2261
 
 _ISO_RE = re.compile(
     r"(\d{4})-(\d{2})-(\d{2})[T ](\d{2}):(\d{2}):(\d{2})(?:[.,](\d{1,9}))?\s*(Z|[+-]\d{2}(?::?\d{2})?)?",
@@ -32,6 +34,8 @@ def parse_time_ns(text: str, utc_offset_h: float = 0.0) -> int:
         days = (dt.date(int(year), int(month), int(day)) - _EPOCH).days
     except ValueError:
         raise ValueError(f"'{s}': no such date") from None
+    if not FIRST_YEAR <= int(year) <= LAST_YEAR:
+        raise ValueError(f"'{s}': year {int(year)} is outside {FIRST_YEAR}-{LAST_YEAR}")
     h, mi, sec = int(hh), int(mm), int(ss)
     if h > 23 or mi > 59 or sec > 60:
         raise ValueError(f"'{s}': no such time of day")

@@ -337,12 +337,12 @@ def _gga(address: str, payload: list[str], clock: DeviceClock) -> Fix:
     tod = _tod_ns(msg.time, payload[0])
     lat, lon = _position(msg, payload, 1)
     quality_raw = payload[5]
-    if quality_raw and not quality_raw.isdigit():
-        raise SentenceError("field", f"quality field '{quality_raw}' is not a number 0-8")
+    if quality_raw and not (quality_raw.isdigit() and len(quality_raw) <= 2):
+        raise SentenceError("field", f"quality field '{quality_raw[:12]}' is not a number 0-8")
     quality = int(quality_raw) if quality_raw else 0
     used_raw = payload[6]
-    if used_raw and not used_raw.isdigit():
-        raise SentenceError("field", f"satellites-used field '{used_raw}' is not a number")
+    if used_raw and not (used_raw.isdigit() and len(used_raw) <= 3):
+        raise SentenceError("field", f"satellites-used field '{used_raw[:12]}' is not a number of 1-3 digits")
     # A satellite fix from no satellites is a receiver's stale flag (gpsd says no fix too).
     no_satellites = used_raw != "" and int(used_raw) == 0 and quality != _DEAD_RECKONING
     valid = quality in _VALID_GGA_QUALITY and not no_satellites and not math.isnan(lat)
@@ -376,6 +376,8 @@ def _zda(address: str, payload: list[str], clock: DeviceClock) -> None:
         day = dt.date(int(payload[3]), int(payload[2]), int(payload[1]))
     except ValueError:
         raise SentenceError("field", f"ZDA date '{payload[1]}/{payload[2]}/{payload[3]}' is not a date") from None
+    if not 1980 <= day.year <= 2200:  # GPS time began in 1980; later years would overflow ns timestamps
+        raise SentenceError("field", f"ZDA year {day.year} is outside 1980-2200")
     clock.set_date(day, tod)
 
 
