@@ -278,6 +278,25 @@ def test_a_centre_table_row_with_a_huge_number_is_rejected_naming_the_field(tmp_
     assert "speed (km/h)" in report.rejections[0].reason and "out of range" in report.rejections[0].reason
 
 
+@pytest.mark.parametrize(
+    ("line", "reason"),
+    [
+        (nmea("GPZDA,123500.00,23,03,9999,00,00"), "ZDA year 9999"),
+        (nmea("GPGGA,123520.00,4807.038,N,01131.000,E,1," + "9" * 5000 + ",0.9,545.4,M,46.9,M,,"), "satellites-used"),
+        (nmea("GPGGA,123520.00,4807.038,N,01131.000,E," + "1" * 30 + ",08,0.9,545.4,M,46.9,M,,"), "quality field"),
+    ],
+)
+def test_sentences_with_numbers_beyond_any_range_are_rejected_alone(tmp_path: Path, line: bytes, reason: str) -> None:
+    fixes, report = stream(tmp_path, line + b"\n" + RMC + b"\n")
+    assert len(fixes) == 1 and report.rejected == 1 and reason in report.rejections[0].reason
+
+
+def test_a_device_row_dated_beyond_the_timestamp_range_is_rejected_alone(tmp_path: Path) -> None:
+    data = b"time,lat,lon\n9999-01-19T10:05:00Z,20.6,105.9\n2026-01-19T10:05:00Z,20.6,105.9\n"
+    fixes, report = parse_device_stream([write(tmp_path, "d.csv", data)])
+    assert len(fixes) == 1 and "year 9999" in report.rejections[0].reason
+
+
 # ------------------------------------------------------- device CSV exports
 
 
@@ -533,4 +552,3 @@ def test_the_fix_table_marks_dead_reckoned_fixes() -> None:
     assert res.exit_code == 0, res.output
     row = next(line for line in res.output.splitlines() if line.startswith("10:05:02"))
     assert " DR " in row
-
