@@ -85,7 +85,7 @@ def _motion(
     ts, xs = [0.0], [0.0]
     stopped_until = None
     # Far enough past for the EOT to report from beyond the crossing a few times, even at 0.1 Hz.
-    end = approach + L + max(cond.run_past_m, 6 * cond.period_s * vmax)
+    end = approach + L + max(cond.run_past_m, 10 * cond.period_s * vmax)
     while x < end and t < 3600:
         past = x - approach  # head's signed distance past the crossing
         if stop_at is not None and stopped_until is None and past <= stop_at:
