@@ -144,31 +144,46 @@ def _per_head_axles(paths: list[Path]) -> tuple[Counter[str], list[int], str]:
     return counted, [f.overlap_records for f in job.report.files], repr(text)
 
 
-@pytest.mark.parametrize(
-    ("cut_a", "cut_b", "overlap"),
-    [
-        (0.6, 0.4, True),  # two pulls with overlapping ranges
-        (0.5, 0.5, False),  # split mid-second, nothing repeated
-        (1.0, 0.0, True),  # the same export pulled twice
-    ],
-)
-def test_files_that_overlap_count_the_overlap_once(
-    tmp_path: Path, export: tuple[Path, dict], cut_a: float, cut_b: float, overlap: bool
-) -> None:
-    path, truth = export
+def _check_split(path: Path, truth: dict, tmp_path: Path, end_a: int, start_b: int) -> None:
     lines = _lines(path)
     a, b = tmp_path / "a.log", tmp_path / "b.log"
-    a.write_bytes(b"".join(lines[: int(len(lines) * cut_a)]))
-    b.write_bytes(b"".join(lines[int(len(lines) * cut_b) :]))
-    repeated = int(len(lines) * cut_a) - int(len(lines) * cut_b)
+    a.write_bytes(b"".join(lines[:end_a]))
+    b.write_bytes(b"".join(lines[start_b:]))
     whole, _, whole_text = _per_head_axles([path])
     assert dict(whole) == {h: n for h, n in truth["axles_per_head"].items() if n}
     for files in ([a, b], [b, a]):
         counted, per_file, text = _per_head_axles(files)
         assert counted == whole
         assert text == whole_text  # the same passages, to the record
-        # Said per file: the later file's copy of the seam run.
-        assert per_file == ([0, repeated] if overlap else [0, 0])
+        # Said per file: the later file's copy of the seam run, every repeated line.
+        assert per_file == [0, end_a - start_b]
+
+
+@pytest.mark.parametrize(
+    ("cut_a", "cut_b"),
+    [
+        (0.6, 0.4),  # two pulls with overlapping ranges
+        (0.5, 0.5),  # split mid-second, nothing repeated
+        (1.0, 0.0),  # the same export pulled twice
+    ],
+)
+def test_files_that_overlap_count_the_overlap_once(
+    tmp_path: Path, export: tuple[Path, dict], cut_a: float, cut_b: float
+) -> None:
+    path, truth = export
+    n = len(_lines(path))
+    _check_split(path, truth, tmp_path, int(n * cut_a), int(n * cut_b))
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(end_a=st.floats(0.02, 1.0), repeated=st.floats(0.0, 1.0))
+def test_any_split_with_any_overlap_gives_the_same_passages(
+    tmp_path: Path, export: tuple[Path, dict], end_a: float, repeated: float
+) -> None:
+    path, truth = export
+    n = len(_lines(path))
+    a_end = max(1, int(n * end_a))
+    _check_split(path, truth, tmp_path, a_end, a_end - int(a_end * repeated))
 
 
 def test_identical_lines_in_one_file_are_two_events(tmp_path: Path) -> None:
@@ -190,6 +205,24 @@ def test_a_repeated_line_inside_a_second_file_is_not_overlap_unless_at_the_seam(
     b.write_text(record(time="08:59:59") + "\n" + record(time="09:00:01") + "\n", encoding="utf-8")
     job = analyze_files([a, b], SpeedSettings())
     assert [f.overlap_records for f in job.report.files] == [0, 0]
+
+
+def test_an_identical_line_inside_the_seam_second_is_not_overlap(tmp_path: Path) -> None:
+    # Whole seconds: a's first line equals a later wheel's line inside b, but the
+    # run stops short of both files' ends: identical events, not a repeated export.
+    on1 = record(ch=1, adr="026", label="Radsensor", data="1", time="09:00:00")
+    on2 = record(ch=2, adr="026", label="Radsensor", data="1", time="09:00:00")
+    a, b = tmp_path / "a.log", tmp_path / "b.log"
+    a.write_text("\n".join([on1, on2, record(time="09:00:00")]) + "\n", encoding="utf-8")
+    b.write_text(
+        "\n".join([record(data="7", time="09:00:00"), on1, on2, record(data="9", time="09:00:00")]) + "\n",
+        encoding="utf-8",
+    )
+    for files in ([a, b], [b, a]):
+        job = analyze_files(files, SpeedSettings())
+        assert [f.overlap_records for f in job.report.files] == [0, 0]
+        (p,) = job.analysis.passages_json()
+        assert p["axles"] == 2
 
 
 def test_passage_without_a_measurable_speed_is_shown_not_dropped(tmp_path: Path) -> None:

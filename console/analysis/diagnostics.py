@@ -365,8 +365,30 @@ def _wheel_records(parts: list[Arrays], buckets: Columns, repeated: np.ndarray |
     else:
         cols = {c: v[keep] for c, v in cols.items()}
         cols["bucket"] = row[keep]
+    if len(parts) > 1 and (cols["file"] != cols["file"][0]).any():
+        order = _merged_order(cols["head"], cols["file"], cols["time_ns"])
+        cols = {c: v[order] for c, v in cols.items()}
     cols["passage"] = buckets["passage"][cols["bucket"]]
     return cols
+
+
+def _merged_order(head: np.ndarray, file: np.ndarray, time_ns: np.ndarray) -> np.ndarray:
+    """Read order → one log's order: by time; equal times by file, each file in its own order.
+
+    Equal whole-second stamps from two files meet at a seam (a pull that
+    ends mid-second, the next that begins there): per head, the file whose
+    records begin earlier holds the earlier part of that second, whatever
+    order the files were given in.
+    """
+    key = head * (int(file.max()) + 1) + file
+    groups, inverse = np.unique(key, return_inverse=True)
+    first = np.full(len(groups), _BIG, np.int64)
+    np.minimum.at(first, inverse, time_ns)
+    g_head = groups // (int(file.max()) + 1)
+    g_order = np.lexsort((groups, first, g_head))  # per head: by first time, then file
+    rank = np.empty(len(groups), np.int64)
+    rank[g_order] = np.arange(len(groups))
+    return np.lexsort((np.arange(len(time_ns)), rank[inverse], time_ns))
 
 
 def _group_min(n: int, group: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -15,9 +15,11 @@ Per counting head, a later file B overlaps an earlier file A when
   overlap).
 
 Records are compared by a 64-bit fingerprint of (time, register, value):
-the register holds device, head, channel, address and label.  Where several
-runs start with the same record (identical lines), the longest wins, and
-among equals the one that reaches the end of A (a seam).
+the register holds device, head, channel, address and label.  A run counts
+only when it reaches the end of one of the two files (that is what a seam
+is): a whole-second log repeats identical lines within a second as distinct
+events, so a record of A that happens to equal one inside B is no overlap.
+Where several runs qualify, the longest wins.
 """
 
 from __future__ import annotations
@@ -49,14 +51,16 @@ def _run(a: np.ndarray, b: np.ndarray) -> int:
 
 
 def _best_run(ref: np.ndarray, probe: np.ndarray) -> tuple[int, int]:
-    """(start in ref, length) of the longest run of ref equal to probe's beginning; (0, 0) if none."""
+    """(start in ref, length) of the longest run of ref equal to all of probe's
+    beginning that reaches the end of ref or of probe (a seam); (0, 0) if none."""
     if not len(ref) or not len(probe):
         return 0, 0
     cands = np.flatnonzero(ref == probe[0])
     best = (0, 0)
     for j in cands[-_MAX_CANDIDATES:].tolist():  # identical records: a few per instant
         n = _run(ref[j:], probe)
-        if n > best[1] or (n == best[1] and n > 0):  # ties: the later start (a seam)
+        seam = j + n == len(ref) or n == len(probe)
+        if seam and n > best[1]:
             best = (j, n)
     return best
 
