@@ -185,6 +185,14 @@ def parse_centre_header(cells: list[str]) -> CentreHeader:
     return CentreHeader(len(cells), columns, [(n, codes[n], states[n]) for n in sorted(codes)])
 
 
+def _file_categorical(files: list[str]) -> pd.Categorical:
+    """File names with object categories: a name that is not UTF-8 cannot be an Arrow string."""
+    names = list(dict.fromkeys(files))
+    index = {name: i for i, name in enumerate(names)}
+    codes = np.fromiter((index[f] for f in files), dtype=np.int32, count=len(files))
+    return pd.Categorical.from_codes(codes, categories=pd.Index(names, dtype=object))
+
+
 @dataclass
 class CrossingRows:
     """Crossing-state rows being collected."""
@@ -207,7 +215,7 @@ class CrossingRows:
                 "chainage_m": np.array(self.chainage_m, dtype="float64"),
                 "state": pd.Categorical(self.state),
                 "state_raw": pd.Series(self.state_raw, dtype=str),
-                "file": pd.Categorical(self.file),
+                "file": _file_categorical(self.file),
                 "line": np.array(self.line, dtype="int64"),
             },
             columns=list(CROSSING_COLUMNS),

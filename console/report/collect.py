@@ -356,7 +356,9 @@ def frames_from_tables(data: ReportData, tables: list[pd.DataFrame]) -> None:
         for _, part in table.groupby("file", observed=True, sort=False):
             events += frames_to_events(part, up_is_s1_to_s3=up)
     data.frame_events = sort_events(events)
-    data.frames = pd.concat(tables, ignore_index=True)[["time", "sensor", "file", "line"]]
+    # File names as objects: pandas would infer Arrow strings, which a name that is not UTF-8 cannot be.
+    columns = ["time", "sensor", "file", "line"]
+    data.frames = pd.concat([t[columns].astype({"file": object}) for t in tables], ignore_index=True)
 
 
 def _sections(data: ReportData) -> None:
