@@ -102,3 +102,22 @@ def test_report_into_its_input_directory_refuses_to_replace_a_log(tmp_path: Path
         res = CliRunner().invoke(app, ["report", str(tmp_path), "--layout", "example", "-o", str(out)])
         assert res.exit_code == 0, res.stderr
     assert "report.md" not in out.read_text(encoding="utf-8").split("## Devices")[0].split("not read")[0]
+
+
+def test_report_over_files_of_every_kind_with_names_that_are_not_utf8(tmp_path: Path) -> None:
+    """Each reader keeps its file names in a table: none may need them to be valid UTF-8."""
+    prefix = os.fsdecode(b"\xff\xe2\x80\xae")  # a byte that is not UTF-8, then U+202E
+    for sample in ("ws4_subsecond.log", "sensor_frames.txt", "can_counts.log", "crossing_example.csv"):
+        (tmp_path / (prefix + sample)).write_bytes((ROOT / "sample_logs" / sample).read_bytes())
+    for fmt in ("md", "json"):
+        res = CliRunner().invoke(app, ["report", str(tmp_path), "--layout", "example", "--format", fmt])
+        assert res.exit_code == 0, res.stderr
+        text = res.stdout_bytes.decode("utf-8")
+        assert "\u202e" not in text and "xff" in text
+    formats = {f["file"].rsplit("/", 1)[1]: f["format"] for f in json.loads(text)["inputs"]["files"]}
+    assert formats == {
+        "\\xff\u202ews4_subsecond.log": "diagnostic",
+        "\\xff\u202esensor_frames.txt": "frames",
+        "\\xff\u202ecan_counts.log": "can",
+        "\\xff\u202ecrossing_example.csv": "gnss-csv",
+    }
