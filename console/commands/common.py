@@ -94,11 +94,11 @@ def check_inputs(paths: list[Path]) -> None:
             raise fail(f"{show_path(p)}: permission denied")
 
 
-# Errors that mean the output cannot be written (not that an input is bad):
-# a full disk or quota, a file too large, a closed standard output.
-OUTPUT_ERRNOS = frozenset(
-    e for e in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EBADF, errno.EROFS, errno.EIO) if e is not None
-)
+# Errors that mean the output cannot be written (not that an input is bad: the
+# readers turn theirs into InputError): a full disk or quota, a file too large,
+# a read-only file system, a closed standard output.  Not EIO, which a failing
+# input disk raises too.
+OUTPUT_ERRNOS = frozenset((errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EBADF, errno.EROFS))
 INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command stopped by Ctrl-C
 TERMINATED = 143  # 128 + SIGTERM
 
