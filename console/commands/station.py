@@ -54,6 +54,9 @@ def station(
         if files and not replay:
             raise fail("FILES are replayed: add --replay (trackside station --replay FILES...)")
         if files:
+            if any(os.fsdecode(f) == "-" for f in files):
+                # The view reads its keys from standard input: the log must come another way.
+                raise fail("--replay -: the station view reads keys from standard input; give a file or <(zcat …)")
             check_inputs(files)
             try:
                 source: Any = ReplaySource(files, lay)
