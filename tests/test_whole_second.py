@@ -89,9 +89,14 @@ def test_one_run_at_every_resolution_counts_every_axle(tmp_path: Path, seed: int
         assert passages == truth_passages, (resolution, order)
 
 
-def test_whole_second_bounds_hold_the_exact_whole_train_speed(tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def day() -> StationSim:
+    return _sim(11)
+
+
+def test_whole_second_bounds_hold_the_exact_whole_train_speed(tmp_path: Path, day: StationSim) -> None:
     """A passage timed from whole seconds: its min-max holds what microseconds measure."""
-    sim = _sim(11)
+    sim = day
     write_diagnostic(sim, tmp_path / "us.log", resolution="us")
     write_diagnostic(sim, tmp_path / "s.log", resolution="s", interleave_seed=5)
     _, _, exact = _found(tmp_path / "us.log")
@@ -130,9 +135,13 @@ def _lines(path: Path) -> list[bytes]:
 
 
 @pytest.fixture(scope="module")
-def export(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+def export(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, tuple[Counter[str], str]]:
+    """A 12-board export, its truth, and what one read of it finds (axles per head, passages)."""
     path = tmp_path_factory.mktemp("export") / "export.log"
-    return path, generate_realistic(12_000, path, boards=12, seed=5, interleave_seed=6, corrupt=False)
+    truth = generate_realistic(12_000, path, boards=12, seed=5, interleave_seed=6, corrupt=False)
+    whole, _, whole_text = _per_head_axles([path])
+    assert dict(whole) == {h: n for h, n in truth["axles_per_head"].items() if n}
+    return path, truth, (whole, whole_text)
 
 
 def _per_head_axles(paths: list[Path]) -> tuple[Counter[str], list[int], str]:
@@ -144,13 +153,12 @@ def _per_head_axles(paths: list[Path]) -> tuple[Counter[str], list[int], str]:
     return counted, [f.overlap_records for f in job.report.files], repr(text)
 
 
-def _check_split(path: Path, truth: dict, tmp_path: Path, end_a: int, start_b: int) -> None:
+def _check_split(export: tuple[Path, dict, tuple[Counter[str], str]], tmp_path: Path, end_a: int, start_b: int) -> None:
+    path, _, (whole, whole_text) = export
     lines = _lines(path)
     a, b = tmp_path / "a.log", tmp_path / "b.log"
     a.write_bytes(b"".join(lines[:end_a]))
     b.write_bytes(b"".join(lines[start_b:]))
-    whole, _, whole_text = _per_head_axles([path])
-    assert dict(whole) == {h: n for h, n in truth["axles_per_head"].items() if n}
     for files in ([a, b], [b, a]):
         counted, per_file, text = _per_head_axles(files)
         assert counted == whole
@@ -168,22 +176,20 @@ def _check_split(path: Path, truth: dict, tmp_path: Path, end_a: int, start_b: i
     ],
 )
 def test_files_that_overlap_count_the_overlap_once(
-    tmp_path: Path, export: tuple[Path, dict], cut_a: float, cut_b: float
+    tmp_path: Path, export: tuple[Path, dict, tuple[Counter[str], str]], cut_a: float, cut_b: float
 ) -> None:
-    path, truth = export
-    n = len(_lines(path))
-    _check_split(path, truth, tmp_path, int(n * cut_a), int(n * cut_b))
+    n = len(_lines(export[0]))
+    _check_split(export, tmp_path, int(n * cut_a), int(n * cut_b))
 
 
-@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(end_a=st.floats(0.02, 1.0), repeated=st.floats(0.0, 1.0))
 def test_any_split_with_any_overlap_gives_the_same_passages(
-    tmp_path: Path, export: tuple[Path, dict], end_a: float, repeated: float
+    tmp_path: Path, export: tuple[Path, dict, tuple[Counter[str], str]], end_a: float, repeated: float
 ) -> None:
-    path, truth = export
-    n = len(_lines(path))
+    n = len(_lines(export[0]))
     a_end = max(1, int(n * end_a))
-    _check_split(path, truth, tmp_path, a_end, a_end - int(a_end * repeated))
+    _check_split(export, tmp_path, a_end, a_end - int(a_end * repeated))
 
 
 def test_identical_lines_in_one_file_are_two_events(tmp_path: Path) -> None:
@@ -235,13 +241,13 @@ def test_passage_without_a_measurable_speed_is_shown_not_dropped(tmp_path: Path)
     assert p["time_resolution_s"] == 1.0
 
 
-def test_sections_on_a_whole_second_log_end_as_on_the_microsecond_log(tmp_path: Path) -> None:
+def test_sections_on_a_whole_second_log_end_as_on_the_microsecond_log(tmp_path: Path, day: StationSim) -> None:
     """Line order times the two systems within a second: no axle of unknown direction, no false disturbance."""
     from typer.testing import CliRunner
 
     from console.cli import app
 
-    sim = _sim(4)
+    sim = day
     finals = []
     for resolution in ("us", "s"):
         path = tmp_path / f"{resolution}.log"
