@@ -70,7 +70,8 @@ def test_simulated_live_run_is_followed_from_files_and_mqtt(tmp_path: Path, mosq
     events = read_jsonl(first + out)
     summary = events[-1]
     mqtt_status = next(s for s in summary["sources"] if s["uri"].startswith("mqtt://"))
-    assert mqtt_status["messages"] == summary_sim["uplinks"]
+    assert summary_sim["uplinks_acknowledged"] == summary_sim["uplinks"]
+    assert mqtt_status["messages"] == summary_sim["uplinks"], (mqtt_status, sim.stderr)
     assert mqtt_status["lost"] == 0 and mqtt_status["malformed"] == 0
     crossings = [e for e in events if e["type"] == "crossing"]
     assert {"on", "off"} <= {e["kind"] for e in crossings}

@@ -95,7 +95,9 @@ def follow(
     ] = None,
     idle_exit: Annotated[
         float | None,
-        typer.Option("--idle-exit", help="Stop when nothing has arrived for this many seconds.", min=0.1),
+        typer.Option(
+            "--idle-exit", help="Stop when nothing has arrived for this many seconds (after the first record).", min=0.1
+        ),
     ] = None,
     strict: Annotated[bool, typer.Option("--strict", help="Exit 1 if any line was rejected.")] = False,
 ) -> None:
@@ -129,14 +131,19 @@ def follow(
         archiver = LiveArchiver(archive, layout) if archive is not None else None
         engine = LiveEngine(lay, emit, settings, archiver=archiver)
         last = [time.monotonic(), engine.items]
+        data_items = [0]
 
         def idle() -> bool:
+            # Counted from the first record or message: a follower started before its
+            # writer waits for it (notes such as "connected" do not count).
             if idle_exit is None:
                 return False
-            if engine.items != last[1]:
-                last[:] = [time.monotonic(), engine.items]
+            n = engine.items - sum(engine.notes.values())
+            if n != last[1]:
+                last[:] = [time.monotonic(), n]
+                data_items[0] = n
                 return False
-            return time.monotonic() - last[0] >= idle_exit
+            return data_items[0] > 0 and time.monotonic() - last[0] >= idle_exit
 
         run_sources(engine, srcs, until=idle, duration_s=duration)
         summary = engine.summary(srcs)

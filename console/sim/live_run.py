@@ -52,6 +52,8 @@ class UplinkPublisher:
         self.client.connect(host, port)
         self.client.loop_start()
         self.sent = 0
+        self.delivered = 0
+        self._pending: list[Any] = []
 
     def publish(self, f: SentFix) -> None:
         eui = unit_eui(f.train, f.role)
@@ -72,10 +74,24 @@ class UplinkPublisher:
         doc = chirpstack_uplink(
             eui, n, payload, time.time_ns(), application_id=self.application_id, device_name=f"{f.train}-{f.role}"
         )
-        self.client.publish(chirpstack_topic(eui, self.application_id), json.dumps(doc), qos=1)
+        info = self.client.publish(chirpstack_topic(eui, self.application_id), json.dumps(doc), qos=1)
+        self._pending.append(info)
+        if len(self._pending) > 1000:
+            self._pending = [i for i in self._pending if not i.is_published()]
         self.sent += 1
 
-    def close(self) -> None:
+    def close(self, timeout_s: float = 10.0) -> None:
+        """Stop once every uplink has reached the broker (QoS 1 acknowledged), or after the timeout."""
+        end = time.monotonic() + timeout_s
+        for info in self._pending:
+            left = end - time.monotonic()
+            if left <= 0:
+                break
+            try:
+                info.wait_for_publish(left)
+            except (RuntimeError, ValueError):
+                break  # not connected: what is left is lost, and the summary says how many were sent
+        self.delivered = sum(1 for i in self._pending if i.is_published()) + (self.sent - len(self._pending))
         self.client.loop_stop()
         self.client.disconnect()
 
@@ -186,6 +202,7 @@ def run_live(
         "diagnostic_lines": writer.lines if writer else 0,
         "fixes": writer.fixes if writer else 0,
         "uplinks": publisher.sent if publisher else 0,
+        "uplinks_acknowledged": publisher.delivered if publisher else 0,
         "start_ns": sim.cfg.start_ns,
         "wall_s": round(time.monotonic() - t_wall0, 3),
         "speed": speed,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from textual.app import ComposeResult
+from textual.css.query import NoMatches
 from textual.widgets import Header, Static
 
 from console.analysis.timefmt import display
@@ -33,7 +34,10 @@ class LiveStationApp(StationApp):
                 yield Static("", id="sources", markup=False)
 
     def refresh_views(self) -> None:
-        super().refresh_views()
+        try:
+            super().refresh_views()
+        except NoMatches:
+            return  # a redraw that lands after the screen has gone (the app is closing)
         src = self.live_source
         snap_time = display(src.now_ns)[:19]
         self.sub_title = f"live · {snap_time} · {len(src.sources)} source(s)"
