@@ -19,7 +19,8 @@ survive:
   range, binary junk): it must be rejected, and it never replaces a record.
 
 The output streams in blocks of simulated time (constant memory); the truth
-(axles per head, every passage) goes to ``--truth`` as JSON.
+(axles and passages per head) goes to ``--truth`` as JSON, every passage to
+``--passages`` as JSON lines, also streamed.
 
     python benchmarks/gen_realistic_diag.py 200000 /tmp/real_200k.log --truth /tmp/real_200k.truth.json
 """
@@ -29,10 +30,12 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import json
+import os
 import sys
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 
@@ -74,11 +77,7 @@ class HeadState:
     sum_counter: int = 0
     busy_until_s: float = -1e9
     axles: int = 0
-
-
-@dataclass
-class Truth:
-    passages: list[dict[str, object]] = field(default_factory=list)
+    passages: int = 0
 
 
 def _boards(n: int, resolution: str) -> list[Board]:
@@ -96,7 +95,9 @@ def _iso(t_s: float) -> str:
 class Generator:
     """Per head, trains one after another; events gathered and written block by block."""
 
-    def __init__(self, boards: list[Board], seed: int, interleave_seed: int) -> None:
+    def __init__(
+        self, boards: list[Board], seed: int, interleave_seed: int, passages: IO[str] | list[dict[str, object]]
+    ) -> None:
         self.boards = boards
         self.rng = np.random.default_rng(seed)
         self.mix = np.random.default_rng(interleave_seed)
@@ -107,7 +108,7 @@ class Generator:
             for name in board.heads:
                 first = float(self.rng.uniform(5, 120))
                 self.heads.append(HeadState(name, b, first, float(self.rng.uniform(0, HEARTBEAT_S))))
-        self.truth = Truth()
+        self.passages = passages  # where each true passage goes: a JSON-lines file, or a list
         # Events (time ns, head index, register, channel, data) not yet written: a later block's.
         self.carry: list[tuple[int, int, int, int, str]] = []
 
@@ -135,7 +136,8 @@ class Generator:
                     out.append((t_ns, k, SUM, 1, str(h.sum_counter)))
         first, last = edges[0][0], edges[-1][0]
         h.axles += len(axles)
-        self.truth.passages.append(
+        h.passages += 1
+        self._truth(
             {
                 "head": h.name,
                 "device_id": self.boards[h.board].device_id,
@@ -150,6 +152,12 @@ class Generator:
         h.busy_until_s = last
         h.next_start_s = last + float(self.rng.uniform(30, 240))
         return out
+
+    def _truth(self, passage: dict[str, object]) -> None:
+        if isinstance(self.passages, list):
+            self.passages.append(passage)
+        else:
+            self.passages.write(json.dumps(passage) + "\n")
 
     def block(self, t0_s: float, t1_s: float) -> list[tuple[int, int, int, int, str]]:
         """Every event with a time in [t0, t1), in no particular order."""
@@ -220,10 +228,34 @@ def generate(
     seed: int = 1,
     interleave_seed: int = 0,
     corrupt: bool = True,
+    passages_path: Path | None = None,
 ) -> dict[str, object]:
-    """Write about ``n_records`` records to ``path``; returns the truth document."""
+    """Write about ``n_records`` records to ``path``; returns the truth document.
+
+    Every true passage goes to ``passages_path`` (JSON lines) when given, else
+    into the document's ``passages`` list (small runs).
+    """
     board_list = _boards(boards, resolution)
-    gen = Generator(board_list, seed, interleave_seed)
+    sink = passages_path.open("w", encoding="utf-8") if passages_path else None
+    listed: list[dict[str, object]] = []
+    try:
+        return _generate(n_records, path, board_list, seed, interleave_seed, corrupt, sink or listed, listed)
+    finally:
+        if sink is not None:
+            sink.close()
+
+
+def _generate(
+    n_records: int,
+    path: Path,
+    board_list: list[Board],
+    seed: int,
+    interleave_seed: int,
+    corrupt: bool,
+    sink: IO[str] | list[dict[str, object]],
+    listed: list[dict[str, object]],
+) -> dict[str, object]:
+    gen = Generator(board_list, seed, interleave_seed, sink)
     prefixes = {
         (k, reg, ch): (
             f"Diag_id:00002\tID:{board_list[h.board].device_id}\tDevice:IM\tType:013\tGS:GS03\t"
@@ -276,6 +308,7 @@ def generate(
             f.write(data_bytes)
             written += len(lines)
     per_head = {h.name: h.axles for h in gen.heads}
+    passages = {h.name: h.passages for h in gen.heads}
     return {
         "schema": "trackside.realistic_diag_truth/1",
         "records": written,
@@ -284,7 +317,8 @@ def generate(
         "boards": [{"device_id": b.device_id, "heads": list(b.heads), "resolution": b.resolution} for b in board_list],
         "axles_per_head": per_head,
         "axles": sum(per_head.values()),
-        "passages": gen.truth.passages,
+        "passages_per_head": passages,
+        **({"passages": listed} if sink is listed else {}),
     }
 
 
@@ -297,6 +331,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("records", type=int, help="about how many records to write")
     ap.add_argument("out", type=Path)
     ap.add_argument("--truth", type=Path, help="write the ground truth JSON here")
+    ap.add_argument("--passages", type=Path, help="write every true passage here (JSON lines)")
     ap.add_argument("--boards", type=int, default=40)
     ap.add_argument("--resolution", choices=(*RESOLUTIONS, "mixed"), default="mixed")
     ap.add_argument("--seed", type=int, default=1)
@@ -311,12 +346,13 @@ def main(argv: list[str] | None = None) -> int:
         seed=a.seed,
         interleave_seed=a.interleave_seed,
         corrupt=not a.no_corrupt,
+        passages_path=a.passages or Path(os.devnull),
     )
     if a.truth:
         a.truth.write_text(json.dumps(truth, indent=1) + "\n", encoding="utf-8")
     print(
         f"{truth['records']:,} records, {truth['corrupt_lines']} damaged lines, "
-        f"{truth['axles']:,} axles, {len(truth['passages']):,} passages -> {a.out}",  # type: ignore[arg-type]
+        f"{truth['axles']:,} axles, {sum(truth['passages_per_head'].values()):,} passages -> {a.out}",  # type: ignore[attr-defined]
         file=sys.stderr,
     )
     return 0

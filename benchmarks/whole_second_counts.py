@@ -36,8 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     for p in job.analysis.passages_json():
         counted[p["counting_head"]] += p["axles"]
         trains[p["counting_head"]] += p["kind"] == "train"
-    true_trains = Counter(p["head"] for p in truth["passages"])
-    rows = {}
+    true_trains = Counter(truth["passages_per_head"])
+    rows: dict[str, list[int]] = {}
     for head, n_true in truth["axles_per_head"].items():
         r = rows.setdefault(res_of[head], [0, 0, 0, 0, 0, 0])
         r[0] += 1
