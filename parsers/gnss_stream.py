@@ -325,9 +325,9 @@ class StreamParser:
 
     def _date_rows(self, clock: DeviceClock) -> None:
         """Date the rows that came before the device's first date."""
-        for row, tod in clock.undated:
+        for row, tod in clock.undated or ():
             self.rows.time[row] = clock.time_ns(tod)
-        clock.undated.clear()
+        clock.undated = None
         if clock.row >= 0:
             clock.last_time_ns = self.rows.time[clock.row]
 
@@ -346,7 +346,7 @@ class StreamParser:
                     fix.time_ns == NAT_NS
                     and rows.time[row] == NAT_NS
                     and fix.tod_ns is not None
-                    and any(r == row and t == fix.tod_ns for r, t in clock.undated)
+                    and any(r == row and t == fix.tod_ns for r, t in clock.undated or ())
                 )
             )
             if same_epoch:
@@ -375,6 +375,8 @@ class StreamParser:
             if fix.time_ns != NAT_NS:
                 clock.last_time_ns = fix.time_ns
             elif fix.tod_ns is not None:
+                if clock.undated is None:
+                    clock.undated = []
                 clock.undated.append((index, fix.tod_ns))
 
     def _merge(self, row: int, fix: Fix, clock: DeviceClock) -> None:

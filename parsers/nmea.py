@@ -83,7 +83,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from pynmeagps import NMEA_MSGIDS, NMEA_TALKERS
@@ -168,7 +168,7 @@ class DeviceClock:
     row_weak: bool = False  # that row is "no fix" only by a weak sign (Fix.weak_no_fix)
     # Rows whose time of day came before any date (a GGA before the first RMC):
     # (row index, time of day in ns), dated as soon as a date arrives.
-    undated: list[tuple[int, int]] = field(default_factory=list)
+    undated: list[tuple[int, int]] | None = None
 
     def set_date(self, day: dt.date, tod_ns: int | None) -> None:
         self.day = day

@@ -552,3 +552,18 @@ def test_the_fix_table_marks_dead_reckoned_fixes() -> None:
     assert res.exit_code == 0, res.output
     row = next(line for line in res.output.splitlines() if line.startswith("10:05:02"))
     assert " DR " in row
+
+
+def test_gnss_tables_list_the_skipped_packets(tmp_path: Path) -> None:
+    res = runner.invoke(app, ["gnss", str(write(tmp_path, "mix.log", UBX + RTCM + RMC + b"\n"))])
+    assert res.exit_code == 0, res.output
+    assert "Skipped, not read" in res.output
+    assert any(line.split() == ["RTCM3", "packets", "1"] for line in res.output.splitlines())
+
+
+def test_report_reads_two_sentences_on_one_line(tmp_path: Path) -> None:
+    """Hostile input: two NMEA sentences on one line once crashed `report`."""
+    path = write(tmp_path, "two.nmea", RMC + RMC2 + b"\n")
+    res = runner.invoke(app, ["report", str(path), "--layout", "example", "--format", "json"])
+    assert res.exit_code == 0, res.output
+    assert "internal error" not in res.output

@@ -22,7 +22,7 @@ def gnss(files: GnssFilesArg, json_out: JsonOpt = False, strict: StrictOpt = Fal
 
     def body() -> int:
         from console.render.diag_tables import parse_report_table, rejections_table
-        from console.render.gnss_tables import devices_table, fixes_table, gnss_json
+        from console.render.gnss_tables import devices_table, fixes_table, gnss_json, skipped_table
         from parsers.gnss import nothing_read, parse_gnss
         from parsers.kinds import not_gnss_reason
 
@@ -42,6 +42,9 @@ def gnss(files: GnssFilesArg, json_out: JsonOpt = False, strict: StrictOpt = Fal
             out.print(devices_table(fixes))
             out.print(fixes_table(fixes))
             out.print(parse_report_table(report))
+            skipped = skipped_table(report)
+            if skipped is not None:
+                out.print(skipped)
             rej = rejections_table(report)
             if rej is not None:
                 out.print(rej)

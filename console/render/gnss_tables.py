@@ -197,3 +197,15 @@ def _fix_text(valid: bool, quality: str) -> Text:
     if not valid:
         return Text("no", style="dim")
     return Text("DR", style="yellow") if quality == "dead_reckoning" else Text("yes", style="green")
+
+
+def skipped_table(report: ParseReport) -> Table | None:
+    """What was recognised and passed over on purpose (binary packets, extra columns …), by kind; None if nothing."""
+    if not report.skipped:
+        return None
+    t = _table("Skipped, not read")
+    t.add_column("What", overflow="fold")
+    t.add_column("Count", justify="right")
+    for kind, count in sorted(report.skipped.items()):
+        t.add_row(inert(kind), f"{count:,}")
+    return t
