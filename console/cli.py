@@ -9,7 +9,7 @@ never a traceback).
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -31,12 +31,25 @@ from console.commands import (
     speeds,
     station,
 )
-from console.commands.common import install_process_guards
+from console.commands.common import OUTPUT_ERRNOS, install_process_guards, output_failed
 from console.commands.common import load_layout as _load_layout
 
 __all__ = ["_load_layout", "app"]
 
-app = typer.Typer(
+
+class _Trackside(typer.Typer):
+    """The app, plus: output that fails outside a command body (``--help > /dev/full``) is one line, not a traceback."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        try:
+            return super().__call__(*args, **kwargs)
+        except OSError as exc:
+            if isinstance(exc, BrokenPipeError) or exc.errno in OUTPUT_ERRNOS:
+                raise SystemExit(output_failed(exc)) from None
+            raise
+
+
+app = _Trackside(
     name="trackside",
     help="Terminal console and log analyzer for railway train detection.",
     no_args_is_help=True,
