@@ -209,10 +209,13 @@ def rate(records_per_s: int, seconds: float) -> None:
         assert proc.stdout is not None
         events = [0]
 
+        last_line = [""]
+
         def drain() -> None:
             assert proc.stdout is not None
-            for _ in proc.stdout:
+            for line in proc.stdout:
                 events[0] += 1
+                last_line[0] = line
 
         reader = threading.Thread(target=drain, daemon=True)
         reader.start()
@@ -228,7 +231,9 @@ def rate(records_per_s: int, seconds: float) -> None:
                 lines = []
                 for _ in range(per_tick):
                     t_s = T0 + k * (1.0 / records_per_s)
-                    head = 1 + (k // 400) % 5  # a burst per head, like trains passing
+                    # One head at a time for 5 s, like trains passing: each head then rests 15 s,
+                    # more than the idle gap, so its passages close and memory is given back.
+                    head = 1 + int(k / records_per_s // 5) % 4
                     value = "1" if k % 4 < 2 else "0"
                     lines.append(diag_line(head, t_s, "026", "Radsensor", value, ch=1 + k % 2))
                     k += 1
@@ -241,13 +246,18 @@ def rate(records_per_s: int, seconds: float) -> None:
                 time.sleep(max(0.0, 0.1 - (time.monotonic() - tick)))
         time.sleep(3)
         cpu = cpu_seconds(proc.pid)
+        elapsed = time.monotonic() - start
+        t_int = time.monotonic()
         proc.send_signal(signal.SIGINT)
-        proc.wait(60)
+        proc.wait(600)
+        exit_s = time.monotonic() - t_int  # long if follow had fallen behind (its queue drains first)
         reader.join(10)
-    elapsed = time.monotonic() - start
     rss = [r for _, r in samples]
+    summary = json.loads(last_line[0]) if last_line[0].startswith("{") else {}
+    lines_read = sum(f["lines_read"] for f in summary.get("files", []))
     print(
-        f"rate: {written} records in {seconds:.0f} s ({written / seconds:.0f}/s), {events[0]} events;"
+        f"rate: {written} records written, {lines_read} lines read by follow; exit {exit_s:.1f} s after Ctrl-C;"
+        f" {events[0]} events;"
         f" follow CPU {cpu:.1f} s ({100 * cpu / elapsed:.0f} %); RSS MB first/median/max/last:"
         f" {rss[0]:.0f}/{statistics.median(rss):.0f}/{max(rss):.0f}/{rss[-1]:.0f}"
     )
