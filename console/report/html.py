@@ -7,7 +7,8 @@ arrival and the tail clearing, and the analog values per channel.  It
 reads at 1024 px and prints on A4 (``@media print``: no navigation, no
 scroll boxes, colours kept, rows and plots not split across pages).
 Every log-derived text, in tables and inside SVG, goes through
-:func:`console.report.svg.esc`.
+:func:`console.report.svg.esc`: control characters as ``\\xNN``, bidi
+overrides and isolates as ``\\u202e``, then entity-escaped.
 """
 
 from __future__ import annotations

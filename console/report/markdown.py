@@ -2,7 +2,9 @@
 
 Every text is escaped for Markdown *and* for the HTML a Markdown viewer
 may pass through: control characters become ``\\xNN`` (no terminal escape
-reaches a terminal that prints the file), ``& < >`` become entities, and
+reaches a terminal that prints the file), bidirectional overrides and
+isolates ``\\u202e`` (no name or log line displays reversed), a file
+name's bytes that are not UTF-8 ``\\xff``, ``& < >`` become entities, and
 the characters that make Markdown structure (``\\ ` * _ [ ] | # ~``, and
 a list or heading marker at the start of a text) are backslash-escaped.
 A log's text therefore never becomes a link, emphasis, a heading, a table
