@@ -129,7 +129,7 @@ def test_output_onto_a_directory_or_into_a_missing_or_unwritable_one_is_one_line
 # --- stdout that cannot be written -----------------------------------------------------------
 
 
-@pytest.mark.parametrize("args", [["analyze", str(SMALL_LOG)], SMALL_REPORT])
+@pytest.mark.parametrize("args", [["analyze", str(SMALL_LOG)], SMALL_REPORT, ["--help"]])
 def test_stdout_to_a_full_disk_is_cannot_write_output(args: list[str]) -> None:
     with open("/dev/full", "wb") as full:
         res = run(*args, stdout=full, stderr=subprocess.PIPE, capture_output=False)
