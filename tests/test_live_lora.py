@@ -57,7 +57,7 @@ reports = st.builds(
 )
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(reports)
 def test_any_report_on_the_field_grid_survives_a_round_trip(r: UnitReport) -> None:
     back = decode_payload(encode_payload(r))
@@ -68,7 +68,7 @@ def test_any_report_on_the_field_grid_survives_a_round_trip(r: UnitReport) -> No
         assert (math.isnan(a) and math.isnan(b)) or a == b
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(st.binary(min_size=0, max_size=40))
 def test_any_bytes_decode_or_are_rejected_with_a_reason(data: bytes) -> None:
     try:
