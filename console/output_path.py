@@ -124,6 +124,19 @@ def check_output_file(target: Path, inputs: Iterable[Path], what: str = "output"
     return OutputTarget(real)
 
 
+def check_outside(target: Path, directory: Path, what: str = "output") -> None:
+    """OutputError when ``target`` lies inside ``directory`` (an archive the command reads), through links too."""
+    home = file_identity(directory)
+    if home is None:
+        return
+    here = Path(os.path.realpath(target)).parent
+    for folder in (here, *here.parents):
+        if file_identity(folder) == home:
+            raise OutputError(
+                f"{show_path(target)}: inside {show_path(directory)}, which is read; not writing the {what} there"
+            )
+
+
 def check_output_directory(target: Path, what: str = "output") -> None:
     """``target`` usable as a directory to write into (it may not exist yet); OutputError when not."""
     try:

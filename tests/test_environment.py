@@ -258,3 +258,15 @@ def test_a_signal_mid_run_exits_128_plus_n_and_leaves_no_partial_report(
         assert proc.wait(timeout=60) == code
     assert proc.stderr is not None and b"Traceback" not in proc.stderr.read()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.fifo"]
+
+
+def test_an_output_inside_a_directory_that_is_read_is_refused_through_links_too(tmp_path: Path) -> None:
+    from console.output_path import OutputError, check_outside
+
+    archive = tmp_path / "archive"
+    (archive / "data").mkdir(parents=True)
+    (tmp_path / "alias").symlink_to(archive)
+    for target in (archive / "r.md", archive / "data" / "new" / "r.md", tmp_path / "alias" / "r.md"):
+        with pytest.raises(OutputError, match="which is read"):
+            check_outside(target, archive, what="report")
+    check_outside(tmp_path / "r.md", archive, what="report")  # beside it is fine

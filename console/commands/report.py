@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Annotated
 
@@ -51,6 +52,13 @@ def report(
 
             if inputs:
                 raise fail("give input files or --archive, not both")
+            if archive is not None and output is not None and os.fsdecode(output) != "-":
+                from console.output_path import OutputError, check_outside
+
+                try:
+                    check_outside(output, archive, what="report")  # never a file among the archive's own
+                except OutputError as exc:
+                    raise fail(str(exc)) from None
             collector = archive_collector(archive, layout, start, end, head, device)
             return run_report([], layout, fmt, output, fail_on, collector=collector)
         return run_report(inputs or [], layout, fmt, output, fail_on)
