@@ -99,8 +99,6 @@ def check_inputs(paths: list[Path]) -> None:
 # a read-only file system, a closed standard output.  Not EIO, which a failing
 # input disk raises too.
 OUTPUT_ERRNOS = frozenset((errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EBADF, errno.EROFS))
-INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command stopped by Ctrl-C
-TERMINATED = 143  # 128 + SIGTERM
 
 
 class Terminated(BaseException):
@@ -252,10 +250,10 @@ def guard(fn: Callable[[], int]) -> int:
         raise fail(str(exc)) from None
     except KeyboardInterrupt:
         _silence_stdout()
-        return INTERRUPTED
+        return exit_codes.INTERRUPTED
     except Terminated:
         _silence_stdout()
-        return TERMINATED
+        return exit_codes.TERMINATED
     except OSError as exc:
         if isinstance(exc, BrokenPipeError) or exc.errno in OUTPUT_ERRNOS or exc.errno == errno.EPIPE:
             return output_failed(exc)
