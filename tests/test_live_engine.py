@@ -3,12 +3,15 @@ clocks are off, and a diagnostic source that stops mid-train (no servers needed)
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from console.analysis.geo import TrackProjector
 from console.layout import load_layout
@@ -168,3 +171,36 @@ def test_followed_input_is_ingested_into_the_archive_once(tmp_path: Path) -> Non
         check=True,
     )
     assert json.loads(out.stdout)[0]["n"] == data.count(b"\n")
+
+
+@pytest.fixture(scope="module")
+def batch_passages() -> list[dict[str, Any]]:
+    from console.analysis.diagnostics import SpeedSettings
+    from console.jobs import analyze_files
+
+    job = analyze_files([REPO / "sample_logs" / "example_station.log"], SpeedSettings())
+    return sorted(job.analysis.passages_json(), key=lambda p: (p["start"], p["counting_head"]))
+
+
+# Property: however the log's lines arrive in blocks, the live engine finds the batch passages.
+@settings(max_examples=3, deadline=None)  # about 1.5 s each: the whole sample log
+@given(st.lists(st.floats(0.0, 1.0), min_size=1, max_size=12))
+def test_passages_do_not_depend_on_how_the_lines_arrive(
+    batch_passages: list[dict[str, Any]], cuts: list[float]
+) -> None:
+    data = (REPO / "sample_logs" / "example_station.log").read_bytes()
+    # Block ends at line ends, as the file source hands them over.
+    bounds = sorted({0, len(data)} | {data.find(b"\n", int(c * len(data))) + 1 or len(data) for c in cuts})
+    events: list[dict[str, Any]] = []
+    engine = LiveEngine(None, events.append)
+    line = 1
+    for a, b in itertools.pairwise(bounds):
+        if b > a:
+            engine.handle(LineBlock("file:x", "x", line, data[a:b], time.monotonic()))
+            line += data[a:b].count(b"\n")
+    engine.finish()
+    got = sorted(
+        ({k: v for k, v in e.items() if k != "type"} for e in events if e["type"] == "passage"),
+        key=lambda p: (p["start"], p["counting_head"]),
+    )
+    assert got == batch_passages
