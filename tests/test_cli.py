@@ -12,6 +12,8 @@ from typing import Any
 
 import pytest
 import typer
+from hypothesis import given
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from console.cli import app
@@ -269,3 +271,32 @@ def test_bidi_controls_from_a_log_are_shown_escaped(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
     assert not set("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069\u200e\u200f\u061c") & set(res.output)
     assert "\\u202e" in res.output and "\\u2066" in res.output
+
+
+# --- what reaches a terminal or a JSON reader, for any text ----------------------------------
+
+_DANGEROUS = re.compile(r"[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069\ud800-\udfff]")
+
+
+@given(st.text(alphabet=st.characters(codec=None, categories=None)))
+def test_clean_leaves_no_control_bidi_or_surrogate_and_always_encodes(text: str) -> None:
+    from console.safe_text import clean
+
+    shown = clean(text)
+    assert _DANGEROUS.search(shown) is None
+    shown.encode("utf-8")  # never a UnicodeEncodeError on a terminal
+    if _DANGEROUS.search(text) is None:
+        assert shown == text  # ordinary text, any script, passes unchanged
+
+
+@given(st.lists(st.text(alphabet=st.characters(codec=None, categories=None)), max_size=5))
+def test_json_output_is_strict_utf8_json_for_any_strings(values: list[str]) -> None:
+    from console.jsonout import dumps
+
+    text = dumps({"files": values})
+    doc = json.loads(text.encode("utf-8"))  # strict: no lone surrogate escapes
+    for given_value, read in zip(values, doc["files"], strict=True):
+        if not re.search(r"[\ud800-\udfff]", given_value):
+            assert read == given_value  # everything else round-trips exactly
+        else:
+            read.encode("utf-8")
