@@ -12,6 +12,7 @@ heads and days is the planned optimisation, see docs/archive.md.
 
 from __future__ import annotations
 
+import datetime as dt
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +20,7 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
-from console.archive.parts import NS_PER_DAY, PartWriter, write_small
+from console.archive.parts import write_small
 from console.archive.store import Manifest
 
 DERIVED = ("passages", "axles", "section_states", "count_ledger", "crossing_timelines", "health_findings")
@@ -33,7 +34,9 @@ def _arrow(df: pd.DataFrame) -> pa.Table:
             # No value at all: the column still gets its type (numbers for units, text otherwise).
             df[c] = df[c].astype("float64" if c.endswith(("_s", "_ns", "_m", "_kmh")) else "string")
         elif df[c].dtype == object:
-            df[c] = df[c].map(lambda v: None if v is None else v if isinstance(v, str | int | float | bool) else str(v))
+            df[c] = df[c].map(
+                lambda v: None if v is None else v if isinstance(v, str | int | float | bool | dt.date) else str(v)
+            )
     return pa.Table.from_pandas(df, preserve_index=False)
 
 
@@ -96,21 +99,14 @@ def derive_tables(root: Path, manifest: Manifest, layout: str | None) -> list[st
         df = frames.get(name)
         if df is None or df.empty:
             continue
-        table = _arrow(df)
-        if name in ("passages", "axles"):
-            t_ns = df["start_ns" if name == "passages" else "time_ns"].to_numpy(np.int64)
-            w = PartWriter(root, name, gen, "d")
-            table = table.drop_columns(["device_id"])
-            w.add(table, t_ns // NS_PER_DAY, df["device_id"].to_numpy(np.int64))
-            parts = w.close()
-        elif name in ("section_states", "count_ledger"):
-            t_ns = df["time_ns"].to_numpy(np.int64)
-            w = PartWriter(root, name, gen, "d", by_device=False)
-            w.add(table, t_ns // NS_PER_DAY)
-            parts = w.close()
-        else:
-            rel = write_small(root, name, gen, "d", table)
-            parts = [rel] if rel else []
+        time_col = {"passages": "start_ns", "axles": "time_ns", "section_states": "time_ns", "count_ledger": "time_ns"}
+        if name in time_col:
+            # One part per table, in time order with a day column: derived tables are rewritten whole
+            # at each ingest, and a part per day and device would be thousands of tiny files.
+            df = df.sort_values(time_col[name], kind="stable")
+            df["day"] = pd.to_datetime(df[time_col[name]], unit="ns").dt.date
+        rel = write_small(root, name, gen, "d", _arrow(df))
+        parts = [rel] if rel else []
         manifest.tables[name] = parts
         written += parts
     return written
