@@ -177,6 +177,8 @@ def test_a_121_kmh_export_without_speed_is_warned_a_full_warning_time_ahead(samp
     assert doc["violations"] == 0 and doc["late_warnings"] == 0
     row = next(r for r in doc["timelines"] if r["crossing"] == "11+850")
     assert row["lead_time_s"] >= 70 and "estimated from the fixes" in row["reason_on"]
+    # The fixed-time baseline takes the mean speed of the fixes around arrival: 200 m / 33.6 m/s + 10 s.
+    assert row["baseline_off"] is not None and 0 < row["baseline_excess_s"] < 20
     assert doc["position_jumps"] == 1
     for key in ("t_on", "t_head_arrival", "t_tail_clear", "t_off"):
         assert row[key].endswith("Z"), key  # ISO 8601, UTC

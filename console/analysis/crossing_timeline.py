@@ -97,6 +97,14 @@ def crossing_time(times_ns: np.ndarray, chainage: np.ndarray, target: float, dir
     return int(times_ns[i - 1] + frac * (times_ns[i] - times_ns[i - 1]))
 
 
+def _mean_speed_near(times_ns: np.ndarray, chainage: np.ndarray, t_ns: int, window_s: float = 20.0) -> float | None:
+    """Mean speed (m/s) over the fixes within ``window_s`` of ``t_ns``: first to last, along the track."""
+    sel = np.flatnonzero(np.abs(times_ns - t_ns) <= window_s * NS)
+    if len(sel) < 2 or times_ns[sel[-1]] <= times_ns[sel[0]]:
+        return None
+    return float(abs(chainage[sel[-1]] - chainage[sel[0]]) / ((times_ns[sel[-1]] - times_ns[sel[0]]) / NS))
+
+
 def timeline(
     ctl: CrossingController,
     fixes: Sequence[Fix],
@@ -151,10 +159,14 @@ def timeline(
             f.speed_mps for f in eots if not math.isnan(f.speed_mps)
         ]
         base_off = base_early = base_excess = None
-        if t_head is not None and speeds:
+        v_fixes = None
+        if t_head is not None and not speeds:
+            # An export without speed: the baseline takes the head's mean speed around arrival.
+            v_fixes = _mean_speed_near(ht, hc, t_head) if len(ht) else _mean_speed_near(et, ec, t_head)
+        if t_head is not None and (speeds or v_fixes is not None):
             # Speed near arrival: the fix closest before the head reached the crossing.
             near = [f.speed_mps for f in heads if f.t_fix_ns <= t_head and not math.isnan(f.speed_mps)]
-            v = (near[-1] if near else speeds[0]) or 0.1
+            v = v_fixes if v_fixes is not None else (near[-1] if near else speeds[0]) or 0.1
             base_off = t_head + int((tr.spec.length_m / max(v, 0.1) + s.baseline_margin_s) * NS)
             if t_tail is not None:
                 base_early = max(0.0, (t_tail - base_off) / NS)
