@@ -275,3 +275,28 @@ def test_an_output_inside_a_directory_that_is_read_is_refused_through_links_too(
         with pytest.raises(OutputError, match="which is read"):
             check_outside(target, archive, what="report")
     check_outside(tmp_path / "r.md", archive, what="report")  # beside it is fine
+
+
+def test_an_interrupted_simulate_publishes_nothing(tmp_path: Path) -> None:
+    """simulate writes into a hidden stage: Ctrl-C mid-write leaves no half-written run, and no stage."""
+    from console.output_path import staged_directory
+
+    target = tmp_path / "run"
+    with pytest.raises(KeyboardInterrupt), staged_directory(target, []) as stage:
+        (stage / "diagnostic.log").write_text("Diag_id:00002\tID:4083\n")
+        raise KeyboardInterrupt
+    assert not target.exists()
+    target.mkdir()
+    (target / "notes.txt").write_text("mine\n")
+    with pytest.raises(KeyboardInterrupt), staged_directory(target, []) as stage:
+        (stage / "diagnostic.log").write_text("partial")
+        raise KeyboardInterrupt
+    assert sorted(p.name for p in target.iterdir()) == ["notes.txt"]
+    with staged_directory(target, []) as stage:
+        (stage / "nmea").mkdir()
+        (stage / "nmea" / "T1-head.nmea").write_text("$GPRMC\n")
+    assert sorted(p.relative_to(target).as_posix() for p in target.rglob("*")) == [
+        "nmea",
+        "nmea/T1-head.nmea",
+        "notes.txt",
+    ]
