@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import threading
 import time
@@ -257,3 +258,19 @@ def test_follow_of_an_impossible_source_is_a_one_line_error(tmp_path: Path) -> N
     assert out.returncode == 2
     assert out.stderr.startswith("trackside: error:") and "topic" in out.stderr
     assert "Traceback" not in out.stderr
+
+
+@pytest.mark.parametrize(("sig", "code"), [(signal.SIGINT, 0), (signal.SIGTERM, 143)])
+def test_ctrl_c_or_sigterm_end_follow_cleanly_with_a_summary(tmp_path: Path, sig: int, code: int) -> None:
+    log = tmp_path / "x.log"
+    log.write_bytes(b"".join(SAMPLE.read_bytes().splitlines(keepends=True)[:50]))
+    proc = subprocess.Popen(
+        trackside("follow", str(log), "--from-start"), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    assert proc.stdout is not None
+    assert "connected" in proc.stdout.readline()
+    proc.send_signal(sig)
+    _out, err = proc.communicate(timeout=30)
+    assert proc.returncode == code, err
+    assert "Traceback" not in err
+    assert "followed:" in err and "50 lines = 50 records + 0 blank + 0 rejected" in err

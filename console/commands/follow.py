@@ -145,13 +145,19 @@ def follow(
                 return False
             return data_items[0] > 0 and time.monotonic() - last[0] >= idle_exit
 
-        run_sources(engine, srcs, until=idle, duration_s=duration)
+        # Ctrl-C ends it cleanly (exit 0, it is how following ends); SIGTERM (a service
+        # stopping) too, with the summary, then 143.
+        import signal
+
+        terminated = run_sources(engine, srcs, until=idle, duration_s=duration) == signal.SIGTERM
         summary = engine.summary(srcs)
         if jsonl:
             emit(summary)
         else:
             sys.stderr.write("\n".join(_summary_lines(summary)) + "\n")
         rejected = engine.diag.reader.report.rejected
+        if terminated:
+            return exit_codes.TERMINATED
         return exit_codes.FINDINGS if strict and rejected else exit_codes.OK
 
     raise typer.Exit(guard(body))

@@ -9,6 +9,7 @@ items, so the analysis state needs no locks.
 from __future__ import annotations
 
 import queue
+import signal
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -105,20 +106,29 @@ def run_sources(
     *,
     until: Callable[[], bool] | None = None,
     duration_s: float | None = None,
-) -> None:
-    """Start the sources, feed their items to the engine until ``until()`` or Ctrl-C, then stop them.
+) -> int | None:
+    """Start the sources, feed their items to the engine until ``until()``, the duration, or
+    Ctrl-C / SIGTERM; then stop them and finish the engine.  Returns the signal that ended it.
 
-    KeyboardInterrupt ends the loop cleanly; the engine is finished either way.
+    The signals only set a flag (from the main thread): an item is never cut half-way through
+    its analysis, and what the sources delivered before stopping is still analysed.
     """
     q: queue.SimpleQueue[Item] = queue.SimpleQueue()
     started: list[Source] = []
     deadline = None if duration_s is None else time.monotonic() + duration_s
+    stopped_by: list[int] = []
+    previous: dict[int, Any] = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            previous[sig] = signal.signal(sig, lambda signum, _frame: stopped_by.append(signum))
+        except ValueError:  # not the main thread: the caller stops us through ``until``
+            break
     try:
         for s in sources:
             s.start(q.put)
             started.append(s)
         next_tick = time.monotonic() + TICK_S
-        while True:
+        while not stopped_by:
             now = time.monotonic()
             if (until is not None and until()) or (deadline is not None and now >= deadline):
                 break
@@ -131,8 +141,6 @@ def run_sources(
             if time.monotonic() >= next_tick:
                 engine.tick()
                 next_tick = time.monotonic() + TICK_S
-    except KeyboardInterrupt:
-        pass
     finally:
         for s in started:
             s.stop()
@@ -142,3 +150,6 @@ def run_sources(
             except queue.Empty:
                 break
         engine.finish()
+        for restored, handler in previous.items():
+            signal.signal(restored, handler)
+    return stopped_by[0] if stopped_by else None
