@@ -86,16 +86,26 @@ class _Codes:
         self.index: dict[str, int] = {}
         self.codes = array("i")
 
-    def append(self, value: str) -> None:
+    def code_of(self, value: str) -> int:
         code = self.index.get(value)
         if code is None:
             code = self.index[value] = len(self.index)
-        self.codes.append(code)
+        return code
+
+    def append(self, value: str) -> None:
+        self.codes.append(self.code_of(value))
 
     def categorical(self) -> pd.Categorical:
-        categories = list(self.index)
+        """The codes as a Categorical whose categories are the values used, in order of first appearance
+        (whatever order they were interned in: rows may be read in batches and put back in line order)."""
+        names = list(self.index)
         codes = np.frombuffer(self.codes, dtype=np.int32) if len(self.codes) else np.zeros(0, np.int32)
-        return pd.Categorical.from_codes(codes, categories=pd.Index(categories, dtype=object))
+        used, first = np.unique(codes, return_index=True)
+        order = used[np.argsort(first, kind="stable")]
+        renumber = np.zeros(len(names), np.int32)
+        renumber[order] = np.arange(len(order), dtype=np.int32)
+        categories = pd.Index([names[i] for i in order], dtype=object)
+        return pd.Categorical.from_codes(renumber[codes], categories=categories)
 
 
 class FixRows:
@@ -152,6 +162,77 @@ class FixRows:
         self.line.append(line)
         self.fix_quality.append(_QUALITY_CODE[fix_quality])
         return len(self.line) - 1
+
+    def extend(
+        self,
+        *,
+        time_ns: np.ndarray,
+        device_names: list[str],
+        device_code: np.ndarray,
+        role: np.ndarray,
+        lat: np.ndarray,
+        lon: np.ndarray,
+        speed_mps: np.ndarray,
+        course_deg: np.ndarray,
+        valid: np.ndarray,
+        source: str,
+        file: str,
+        line: np.ndarray,
+        fix_quality: np.ndarray,
+    ) -> None:
+        """Append rows given as columns (``device_code`` indexes ``device_names``): no Python loop per row."""
+        n = len(line)
+        if n == 0:
+            return
+        global_codes = np.array([self.device.code_of(d) for d in device_names], dtype=np.int32)
+        self.device.codes.frombytes(global_codes[np.asarray(device_code)].astype(np.int32).tobytes())
+        self.file.codes.frombytes(np.full(n, self.file.code_of(file), np.int32).tobytes())
+
+        def small(values: np.ndarray, categories: tuple[str, ...]) -> bytes:
+            codes = pd.Categorical(values, categories=list(categories)).codes
+            assert (codes >= 0).all(), "a value outside its categories"
+            return codes.astype(np.int8).tobytes()
+
+        self.time.frombytes(np.asarray(time_ns, np.int64).tobytes())
+        self.role.frombytes(small(role, ROLES))
+        for target, values in (
+            (self.lat, lat),
+            (self.lon, lon),
+            (self.speed_mps, speed_mps),
+            (self.course_deg, course_deg),
+        ):
+            target.frombytes(np.asarray(values, np.float64).tobytes())
+        self.valid.frombytes(np.asarray(valid, bool).astype(np.int8).tobytes())
+        self.source.frombytes(np.full(n, _SOURCE_CODE[source], np.int8).tobytes())
+        self.sentence.frombytes(np.full(n, _SENTENCE_CODE[""], np.int8).tobytes())
+        self.line.frombytes(np.asarray(line, np.int64).tobytes())
+        self.fix_quality.frombytes(small(fix_quality, FIX_QUALITIES))
+
+    def sort_by_line_from(self, start: int) -> None:
+        """Put rows ``start:`` (one file's) in line order, stably."""
+        lines = np.frombuffer(self.line[start:], dtype=np.int64)
+        order = np.argsort(lines, kind="stable")
+        if (order == np.arange(len(order))).all():
+            return
+        for name in (
+            "time",
+            "role",
+            "lat",
+            "lon",
+            "speed_mps",
+            "course_deg",
+            "valid",
+            "source",
+            "sentence",
+            "line",
+            "fix_quality",
+        ):
+            column = getattr(self, name)
+            values = np.frombuffer(column[start:], dtype=np.dtype(column.typecode if column.typecode != "b" else "i1"))
+            column[start:] = array(column.typecode, values[order].tobytes())
+        for codes in (self.device.codes, self.file.codes):
+            values = np.frombuffer(codes[start:], dtype=np.int32)
+            codes[start:] = array("i", values[order].tobytes())
 
     def sentence_at(self, i: int) -> str:
         return SENTENCES[self.sentence[i]]

@@ -55,9 +55,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from parsers.fix_table import FixRows, check_roles
+from parsers.gnss_csv_fast import fast_batch
 from parsers.gnss_fields import (
     FALSE_WORDS,
     ROLE_ALIASES,
@@ -400,43 +402,108 @@ def _json_values(text: str) -> tuple[dict[str, Any], DeviceHeader]:
     return values, header
 
 
+# Rows of a CSV read together on the vectorized path (parsers.gnss_csv_fast); smaller
+# batches (a short file, the tail) are read per row, where the fixed cost would dominate.
+FAST_BATCH_ROWS = 50_000
+FAST_MIN_ROWS = 64
+FAST_PATH = True  # False: every row per row (the tests compare the two paths)
+
+
+def _one_line(
+    text: str, fmt: str, header: DeviceHeader | None, delimiter: str, stem: str, roles: Mapping[str, str]
+) -> dict[str, Any]:
+    """One data line → fix fields; RowError with the reason."""
+    if fmt == "jsonl":
+        values, json_header = _json_values(text)
+        return _row(values, json_header, stem, roles)
+    assert header is not None
+    cells = cells_of(text, delimiter)
+    if len(cells) != header.width:
+        hint = " (a decimal comma in a ','-separated file needs quotes)" * (len(cells) > header.width)
+        raise RowError("fields", f"expected {header.width} fields, found {len(cells)}{hint}")
+    return _row({name: cells[i] for name, i in header.at.items()}, header, stem, roles)
+
+
 def parse_device_file(path: Path, report: ParseReport, rows: FixRows, fmt: str, roles: Mapping[str, str]) -> None:
     """One device export (``fmt`` ``"csv"`` or ``"jsonl"``); rows appended, every line counted."""
     fr, lines = open_lines(path, report)
     header: DeviceHeader | None = None
     delimiter = ","
+    start = len(rows)
+    batch: list[tuple[int, bytes]] = []
+    mixed = False
+
+    def per_row(number: int, raw: bytes) -> None:
+        text = decode_line(raw, fr)
+        if not text.strip() or text.lstrip().startswith("#"):
+            fr.blank += 1
+            return
+        try:
+            fix = _one_line(text, fmt, header, delimiter, path.stem, roles)
+        except RowError as exc:
+            report.reject(fr, number, exc.category, exc.reason, raw)
+            return
+        fr.records += 1
+        rows.add(**fix, source=fmt, sentence="", file=fr.file, line=number)
+
+    def flush() -> None:
+        nonlocal mixed
+        fast = None
+        if FAST_PATH and header is not None and len(batch) >= FAST_MIN_ROWS:
+            fast = fast_batch([raw for _, raw in batch], header, delimiter, path.stem, roles, fix_quality, _flag)
+        if fast is None:
+            for number, raw in batch:
+                per_row(number, raw)
+        else:
+            ok = fast.ok
+            numbers = np.fromiter((number for number, _ in batch), np.int64, len(batch))
+            rows.extend(
+                time_ns=fast.time_ns[ok],
+                device_names=fast.device,
+                device_code=fast.device_code[ok],
+                role=fast.role[ok],
+                lat=fast.lat[ok],
+                lon=fast.lon[ok],
+                speed_mps=fast.speed_mps[ok],
+                course_deg=fast.course_deg[ok],
+                valid=fast.valid[ok],
+                source=fmt,
+                file=fr.file,
+                line=numbers[ok],
+                fix_quality=fast.fix_quality[ok],
+            )
+            fr.records += int(ok.sum())
+            for k in np.flatnonzero(~ok):
+                per_row(*batch[k])
+            mixed = mixed or not ok.all()
+        batch.clear()
+
     for number, raw in lines:
+        if header is not None:
+            batch.append((number, raw))
+            if len(batch) >= FAST_BATCH_ROWS:
+                flush()
+            continue
         text = decode_line(raw, fr)
         if not text.strip() or text.lstrip().startswith("#"):
             fr.blank += 1
             continue
-        try:
-            if fmt == "jsonl":
-                values, json_header = _json_values(text)
-                fix = _row(values, json_header, path.stem, roles)
-            elif header is None:
-                delimiter = delimiter_of(text)
-                try:
-                    header = parse_device_header(cells_of(text, delimiter))
-                except ValueError as exc:
-                    reason = f"not the device-stream header: {exc}; expected time, lat, lon, …"
-                    raise RowError("header", reason) from None
-                for name in header.extra:
-                    report.skipped[f"CSV column '{name[:40]}' (not read)"] += 1
-                fr.blank += 1  # the header: no record, nothing lost
-                continue
-            else:
-                cells = cells_of(text, delimiter)
-                if len(cells) != header.width:
-                    hint = " (a decimal comma in a ','-separated file needs quotes)" * (len(cells) > header.width)
-                    raise RowError("fields", f"expected {header.width} fields, found {len(cells)}{hint}")
-                values = {name: cells[i] for name, i in header.at.items()}
-                fix = _row(values, header, path.stem, roles)
-        except RowError as exc:
-            report.reject(fr, number, exc.category, exc.reason, raw)
+        if fmt == "jsonl":
+            per_row(number, raw)
             continue
-        fr.records += 1
-        rows.add(**fix, source=fmt, sentence="", file=fr.file, line=number)
+        delimiter = delimiter_of(text)
+        try:
+            header = parse_device_header(cells_of(text, delimiter))
+        except (ValueError, RowError) as exc:
+            reason = f"not the device-stream header: {exc}; expected time, lat, lon, …"
+            report.reject(fr, number, "header", reason, raw)
+            continue
+        for name in header.extra:
+            report.skipped[f"CSV column '{name[:40]}' (not read)"] += 1
+        fr.blank += 1  # the header: no record, nothing lost
+    flush()
+    if mixed:
+        rows.sort_by_line_from(start)  # rows read per row came after their batch's vectorized ones
 
 
 def _is_jsonl(path: Path) -> bool:

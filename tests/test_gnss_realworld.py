@@ -353,6 +353,55 @@ def test_a_numeric_status_without_a_convention_is_refused_per_row(tmp_path: Path
     assert len(fixes) == 1 and "fix type" in report.rejections[0].reason
 
 
+_CELLS = {
+    "time": [
+        "2026-01-19T10:05:00Z",
+        "2026-01-19 10:05:01",
+        "2026-01-19T17:05:02+07:00",
+        "2026-01-19T10:05:03.25Z",
+        "19/01/2026 10:05:04",
+        "2026-01-19T10:05:05,5Z",
+        "2026-01-19T10:05:60Z",
+        "9999-01-01T00:00:00Z",
+        "2026-02-30T10:00:00Z",
+        "",
+        "yesterday",
+        " 2026-01-19T10:05:06Z",
+    ],
+    "device": ["h1", "e7", "", " h1", "d-1.x"],
+    "role": ["head", "EOT", "", "tail", "driver", "Locomotive"],
+    "lat": ["20.6", "20,61", "-20.6", "+20.6", "", "91", "1e1", "−20.6", "20.", "9" * 50],
+    "lon": ["105.9", "105,91", "", "181", "abc"],
+    "speed": ["15", "15.5", "", "-1", "0", "1" * 25],
+    "quality": ["3D", "no fix", "DR", "", "3", "weird", "RTK fixed"],
+}
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    st.lists(
+        st.fixed_dictionaries({k: st.sampled_from(v) for k, v in _CELLS.items()}).map(
+            lambda r: ",".join(r[k] for k in _CELLS)
+        )
+        | st.sampled_from(["", "# note", "2026-01-19T10:05:00Z,h1,head,20.6", "a,b,c,d,e,f,g,h"]),
+        min_size=64,
+        max_size=120,
+    )
+)
+def test_the_vectorized_csv_path_reads_exactly_what_the_per_row_path_reads(tmp_path: Path, lines: list[str]) -> None:
+    import parsers.gnss_csv as gnss_csv
+
+    path = write(tmp_path, "d.csv", ("time,device,role,lat,lon,speed,fix quality\n" + "\n".join(lines) + "\n").encode())
+    fast, fast_report = parse_device_stream([path])
+    gnss_csv.FAST_PATH = False
+    try:
+        slow, slow_report = parse_device_stream([path])
+    finally:
+        gnss_csv.FAST_PATH = True
+    pd.testing.assert_frame_equal(fast, slow)
+    assert fast_report.to_dict() == slow_report.to_dict()
+
+
 # ---------------------------------------------------------------------- GPX
 
 
