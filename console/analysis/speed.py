@@ -10,7 +10,8 @@ Three estimates, each with its own evidence:
 * **whole-train speed** (§2.2.2): (first-to-last-wheel length + spacing) over
   the time from the first Sys1 to the last Sys2 record of the passage.
 * **per-axle speed**: spacing over the Sys1 → Sys2 delay of one wheel, only
-  when the log has sub-second times.
+  when the log has sub-second times fine enough to time that delay to 10 %
+  (at least ten steps: millisecond stamps stop at 46.8 km/h on 0.13 m).
 """
 
 from __future__ import annotations
