@@ -27,6 +27,7 @@ import os
 import resource
 import subprocess
 import sys
+import threading
 import time
 import tracemalloc
 from pathlib import Path
@@ -114,14 +115,31 @@ def profile(argv: list[str], top: int = 12) -> None:
 
     tracemalloc.start(8)
     tracemalloc.reset_peak()
+    best: list[tracemalloc.Snapshot | int] = [0]
+    done = threading.Event()
+
+    def sample() -> None:
+        # A snapshot whenever the traced total passes the last one's by 10 %: the last is near the peak.
+        while not done.wait(0.2):
+            current, _ = tracemalloc.get_traced_memory()
+            if current > 1.1 * float(best[-1] if isinstance(best[-1], int) else 0):
+                best[:] = [tracemalloc.take_snapshot(), current]
+
+    sampler = threading.Thread(target=sample, daemon=True)
+    sampler.start()
     quiet = io.StringIO()
     with contextlib.redirect_stdout(quiet), contextlib.redirect_stderr(quiet), contextlib.suppress(SystemExit):
         app(argv, standalone_mode=False)
-    current, peak = tracemalloc.get_traced_memory()
-    snapshot = tracemalloc.take_snapshot()
+    done.set()
+    sampler.join()
+    _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    print(f"  tracemalloc: peak {peak / 2**20:.0f} MB traced, {current / 2**20:.0f} MB still held at the end")
-    print("  largest sites still held (file:line, MB, blocks):")
+    print(f"  tracemalloc: peak {peak / 2**20:.0f} MB traced")
+    if len(best) < 2:
+        return
+    snapshot, at = best
+    assert isinstance(snapshot, tracemalloc.Snapshot) and isinstance(at, int)
+    print(f"  largest sites held when {at / 2**20:.0f} MB were traced (file:line, MB, blocks):")
     for stat in snapshot.statistics("lineno")[:top]:
         frame = stat.traceback[0]
         print(f"    {frame.filename.split('/work/main/')[-1]}:{frame.lineno}  {stat.size / 2**20:.1f} MB  {stat.count}")
@@ -135,6 +153,7 @@ def main() -> int:
     ap.add_argument("--limit-mb", type=int, default=6144, help="address-space limit of each child")
     ap.add_argument("--timeout", type=float, default=300.0, help="seconds before a child is killed")
     ap.add_argument("--profile", action="store_true", help="also profile each command in-process (tracemalloc)")
+    ap.add_argument("--only", default="", help="comma-separated commands to run: analyze, analyze-text, gnss")
     args = ap.parse_args()
     args.dir.mkdir(parents=True, exist_ok=True)
     exe = str(Path(sys.executable).with_name("trackside"))
@@ -155,7 +174,10 @@ def main() -> int:
         jobs += [("gnss", ["gnss", str(csv), "--json"], csv)]
 
     print(f"{'command':<16} {'input':>28} {'MB in':>7} {'wall s':>7} {'peak RSS MB':>12} {'RSS/in':>7}  exit")
+    wanted = {w.strip() for w in args.only.split(",") if w.strip()}
     for name, argv, path in jobs:
+        if wanted and name.replace(" (text)", "-text") not in wanted:
+            continue
         size_mb = path.stat().st_size / 2**20
         wall, rss_mb, code, err = run([exe, *argv], args.limit_mb, args.timeout)
         print(
