@@ -35,7 +35,7 @@ import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import numpy as np
 
@@ -229,7 +229,7 @@ def generate(
     interleave_seed: int = 0,
     corrupt: bool = True,
     passages_path: Path | None = None,
-) -> dict[str, object]:
+) -> dict[str, Any]:
     """Write about ``n_records`` records to ``path``; returns the truth document.
 
     Every true passage goes to ``passages_path`` (JSON lines) when given, else
@@ -254,7 +254,7 @@ def _generate(
     corrupt: bool,
     sink: IO[str] | list[dict[str, object]],
     listed: list[dict[str, object]],
-) -> dict[str, object]:
+) -> dict[str, Any]:
     gen = Generator(board_list, seed, interleave_seed, sink)
     prefixes = {
         (k, reg, ch): (
@@ -352,7 +352,7 @@ def main(argv: list[str] | None = None) -> int:
         a.truth.write_text(json.dumps(truth, indent=1) + "\n", encoding="utf-8")
     print(
         f"{truth['records']:,} records, {truth['corrupt_lines']} damaged lines, "
-        f"{truth['axles']:,} axles, {sum(truth['passages_per_head'].values()):,} passages -> {a.out}",  # type: ignore[attr-defined]
+        f"{truth['axles']:,} axles, {sum(truth['passages_per_head'].values()):,} passages -> {a.out}",
         file=sys.stderr,
     )
     return 0
