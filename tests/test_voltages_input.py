@@ -30,7 +30,8 @@ def _cp1258(text: str) -> bytes:
     """As Vietnamese Windows writes it: a precomposed base where CP1258 has one, then combining tone marks."""
     out = bytearray()
     for ch in text:
-        base, *marks = unicodedata.normalize("NFD", ch)
+        decomposed = unicodedata.normalize("NFD", ch)
+        base, marks = decomposed[0], list(decomposed[1:])
         for order in itertools.permutations(marks):
             for k in range(len(order), -1, -1):
                 try:
