@@ -157,6 +157,9 @@ class StationSim:
     ) -> None:
         if len(layout.track) < 2:
             raise ValueError(f"{layout.source}: the simulator needs a [[track]] polyline")
+        if not layout.consists:
+            # Found at the first spawn otherwise, mid-run, where it is no longer a clean usage error.
+            raise ValueError(f"{layout.source}: the simulator needs [[consists]]")
         self.layout = layout
         self.cfg = config or SimConfig()
         self.rng = np.random.default_rng(self.cfg.seed)

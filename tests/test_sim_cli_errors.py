@@ -1,0 +1,29 @@
+"""simulate on a layout the simulator cannot run: one line, exit 2, before any work."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from console.cli import app
+from console.layouts import __file__ as layouts_init
+
+
+def test_simulate_on_a_layout_without_consists_is_a_usage_error(tmp_path: Path) -> None:
+    example = Path(layouts_init).with_name("example_station.toml").read_text(encoding="utf-8")
+    kept, skipping = [], False
+    for line in example.splitlines():
+        if line.strip() == "[[consists]]":
+            skipping = True
+        elif line.startswith("[") and skipping:
+            skipping = False
+        if not skipping:
+            kept.append(line)
+    layout = tmp_path / "no_consists.toml"
+    layout.write_text("\n".join(kept) + "\n", encoding="utf-8")
+    result = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "60s", "--layout", str(layout)])
+    assert result.exit_code == 2
+    assert "needs [[consists]]" in result.output
+    assert "internal error" not in result.output
+    assert not (tmp_path / "run").exists()
