@@ -22,7 +22,9 @@ def test_simulate_on_a_layout_without_consists_is_a_usage_error(tmp_path: Path) 
             kept.append(line)
     layout = tmp_path / "no_consists.toml"
     layout.write_text("\n".join(kept) + "\n", encoding="utf-8")
-    result = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "60s", "--layout", str(layout)])
+    result = CliRunner().invoke(
+        app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "60s", "--layout", str(layout)]
+    )
     assert result.exit_code == 2
     assert "needs [[consists]]" in result.output
     assert "internal error" not in result.output
