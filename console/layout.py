@@ -482,6 +482,10 @@ def load_layout(spec: str | Path) -> Layout:
     except RecursionError:
         # tomllib parses nested arrays and inline tables recursively
         raise LayoutError(f"{source}: not valid TOML (arrays or tables nested too deeply)") from None
+    except ValueError as exc:
+        # tomllib turns a too-long integer literal into int() and lets Python's
+        # digit limit raise ValueError, not TOMLDecodeError.
+        raise LayoutError(f"{source}: not valid TOML ({str(exc)[:120]})") from None
     return layout_from_dict(doc, source)
 
 

@@ -73,9 +73,6 @@ _HEAD_BYTES = 32 << 10
 OPEN_F1_GNSS = pytest.mark.xfail(
     strict=False, reason="F1: parsers/gnss_csv_fast.py puts a non-UTF-8 file stem into an Arrow string (H2)"
 )
-OPEN_F4 = pytest.mark.xfail(
-    strict=False, reason="F4: analyze/sections print unknown labels and head names with raw bidi controls (H5)"
-)
 
 
 def _argv(key: str, path: Path, json_out: bool, out: Path) -> list[str]:
@@ -126,8 +123,6 @@ def test_every_command_runs_on_its_sample(key: str, tmp_path: Path) -> None:
 def test_damaged_inputs_give_exit_0_1_or_2_and_clean_output(
     key: str, tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest
 ) -> None:
-    if key in ("analyze", "analyze-layout", "sections"):
-        request.applymarker(OPEN_F4)  # a bidi string put into a label or head name reaches the text output
     sample = SAMPLES / COMMANDS[key][0]
     head = sample.read_bytes()[:_HEAD_BYTES]
 
@@ -149,8 +144,6 @@ def test_damaged_inputs_give_exit_0_1_or_2_and_clean_output(
 def test_extreme_values_in_every_field_give_exit_0_1_or_2_and_clean_output(
     key: str, json_out: bool, tmp_path: Path, request: pytest.FixtureRequest
 ) -> None:
-    if not json_out and key in ("analyze", "analyze-layout", "sections"):
-        request.applymarker(OPEN_F4)
     sample = SAMPLES / COMMANDS[key][0]
     path = tmp_path / sample.name
     path.write_bytes(field_variants(sample.read_bytes()[:_HEAD_BYTES]))

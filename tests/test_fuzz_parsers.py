@@ -264,7 +264,6 @@ def test_damaged_layouts_load_or_fail_with_a_layout_error(
     damaged()
 
 
-@pytest.mark.xfail(strict=False, reason="F5: tomllib's int-digit ValueError escapes load_layout (H4)")
 def test_a_layout_with_a_5000_digit_number_is_a_layout_error(tmp_path: Path) -> None:
     # Found by the long fuzz run (seed 29083619): Python refuses ints over 4300 digits with a ValueError.
     from console.layout import LayoutError, load_layout

@@ -20,6 +20,7 @@ from console.commands.common import (
     print_json,
     run_diag,
 )
+from console.safe_text import clean
 
 
 def analyze(
@@ -99,7 +100,7 @@ def analyze(
                     + ", ".join(sorted(job.report.unknown_labels))
                 )
             for n in notes:
-                out.print(n, markup=False)
+                out.print(clean(n), markup=False)
             if summary:
                 from console.render.health_tables import findings_view
                 from console.render.section_tables import final_states_table
@@ -107,7 +108,7 @@ def analyze(
                 out.print(final_states_table(summary[1]))
                 out.print(findings_view(summary[2], show_info=False, title="Health"))
                 for w in summary[3]:
-                    out.print(f"warning: {w}", markup=False)
+                    out.print(clean(f"warning: {w}"), markup=False)
         return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
 
     raise typer.Exit(guard(body))

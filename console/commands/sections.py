@@ -18,6 +18,7 @@ from console.commands.common import (
     print_json,
     run_diag,
 )
+from console.safe_text import clean
 
 
 def _parse_resets(values: list[str]) -> list[Any]:
@@ -112,7 +113,7 @@ def sections(
             if rt is not None:
                 out.print(rt)
             for w in warnings:
-                out.print(f"warning: {w}", markup=False)
+                out.print(clean(f"warning: {w}"), markup=False)
             if job.report.rejected:
                 out.print(f"{job.report.rejected} input lines rejected (trackside analyze lists them)", markup=False)
         return exit_codes.FINDINGS if strict and (job.report.rejected or disturbed) else exit_codes.OK
