@@ -275,6 +275,29 @@ def print_json(doc: dict[str, Any]) -> None:
     sys.stdout.flush()
 
 
+# Kinds a diagnostic-log command refuses outright: files it could only reject line by line.
+_NOT_DIAG_KINDS = frozenset({"nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre", "frames", "can", "voltages"})
+
+
+def refuse_wrong_kind(paths: list[Path], expected: str) -> None:
+    """A file that plainly holds another kind of data: one line naming it and what it looks like, exit 2.
+
+    ``expected`` is "diag" or "gnss".  Damaged or unrecognised files are not refused
+    here: they are read and their lines rejected with reasons, as any other input.
+    """
+    from parsers.kinds import classify_file, not_gnss_reason
+
+    for p in paths:
+        if expected == "gnss":
+            wrong = not_gnss_reason(p)
+            if wrong is not None:
+                raise fail(f"{show_path(p)}: nothing readable as GNSS: {wrong}")
+            continue
+        guess = classify_file(p)
+        if guess.kind in _NOT_DIAG_KINDS:
+            raise fail(f"{show_path(p)}: not an axle-counter diagnostic log: looks like {guess.description}")
+
+
 def layout_summary(files: list[Path], lay: Any, spacing: float, length: float, idle_gap: float) -> Any:
     """One pass for `analyze --layout`: the job, section states and health findings."""
     from console.analysis.diag_events import DiagEventSettings
@@ -284,6 +307,7 @@ def layout_summary(files: list[Path], lay: Any, spacing: float, length: float, i
     from console.progress import byte_progress
 
     check_inputs(files)
+    refuse_wrong_kind(files, "diag")
     with byte_progress(input_bytes(files), "parsing") as advance:
         job = analyze_files(
             files,
@@ -305,6 +329,7 @@ def run_diag(
     from console.progress import byte_progress
 
     check_inputs(files)
+    refuse_wrong_kind(files, "diag")
     settings = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
     with byte_progress(input_bytes(files), "parsing") as advance:
         return analyze_files(files, settings, on_progress=advance, keep_releases=keep_releases)

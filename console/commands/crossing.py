@@ -16,6 +16,7 @@ from console.commands.common import (
     guard,
     load_layout,
     print_json,
+    refuse_wrong_kind,
 )
 
 
@@ -40,6 +41,7 @@ def crossing(
         from parsers.gnss import parse_gnss
 
         check_inputs(files)
+        refuse_wrong_kind(files, "gnss")
         lay = load_layout(layout)
         if not lay.crossings:
             raise fail(f"{lay.source}: the layout has no [[crossings]]")

@@ -17,6 +17,7 @@ from console.commands.common import (
     guard,
     load_layout,
     print_json,
+    refuse_wrong_kind,
 )
 
 
@@ -68,6 +69,7 @@ def health(
         warnings: list[str] = []
         if files:
             check_inputs(files)
+            refuse_wrong_kind(files, "diag")
             from console.analysis.diagnostics import SpeedSettings
 
             with byte_progress(input_bytes(files), "parsing") as advance:
