@@ -69,10 +69,6 @@ COMMANDS: dict[str, tuple[str, list[str]]] = {
     "report": ("osong_ws4_0932_passage.log", ["--layout", "osong"]),
 }
 _HEAD_BYTES = 32 << 10
-# Findings routed to their owners (/tmp/fuzz_findings.md), not fixed by the deadline:
-OPEN_F1_GNSS = pytest.mark.xfail(
-    strict=False, reason="F1: parsers/gnss_csv_fast.py puts a non-UTF-8 file stem into an Arrow string (H2)"
-)
 
 
 def _argv(key: str, path: Path, json_out: bool, out: Path) -> list[str]:
@@ -167,8 +163,6 @@ HOSTILE_NAMES = {
 def test_hostile_file_names_are_analysed_and_shown_escaped(
     key: str, name: str, tmp_path: Path, request: pytest.FixtureRequest
 ) -> None:
-    if name == "0xff" and key in ("gnss", "crossing"):
-        request.applymarker(OPEN_F1_GNSS)
     sample = SAMPLES / COMMANDS[key][0]
     path = Path(os.fsdecode(os.fsencode(tmp_path) + b"/" + HOSTILE_NAMES[name] + sample.suffix.encode()))
     path.write_bytes(sample.read_bytes())

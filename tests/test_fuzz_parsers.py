@@ -109,10 +109,7 @@ PARSERS: dict[str, tuple[Callable[[list[Path]], ParseReport], list[Path]]] = {
 }
 
 _HEAD_BYTES = 64 << 10
-# Findings routed to their owners (/tmp/fuzz_findings.md), not fixed by the deadline:
-OPEN_F1_GNSS = pytest.mark.xfail(
-    strict=False, reason="F1: parsers/gnss_csv_fast.py puts a non-UTF-8 file stem into an Arrow string (H2)"
-)  # fuzz the first 64 KiB of a big capture: the damage matters, not the size
+# fuzz the first 64 KiB of a big capture: the damage matters, not the size
 
 
 def check_report(report: ParseReport) -> None:
@@ -217,9 +214,6 @@ def test_hostile_file_names_are_read_and_shown_escaped(
     name: str, file_name: bytes, tmp_path: Path, request: pytest.FixtureRequest
 ) -> None:
     import os
-
-    if name == "gnss" and b"\xff" in file_name:
-        request.applymarker(OPEN_F1_GNSS)
 
     _, samples = PARSERS[name]
     if not samples:
