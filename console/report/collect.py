@@ -13,7 +13,7 @@ UTF-16 are seen through), in this order:
   ``(`` (candump) → a CAN log;
 * ``<ISO time> <sensor> <frame>`` → intelligent-sensor frames;
 * a header naming sensor, in-phase and anti-phase voltages → a voltage table;
-* NMEA, device CSV / JSON lines, or the monitoring-centre table → GNSS
+* NMEA, device CSV / JSON lines, GPX tracks, or the monitoring-centre table → GNSS
   (:func:`parsers.gnss.recognise_format`);
 * anything else, and empty files, are listed as not read, with the reason.
 
@@ -66,6 +66,7 @@ from console.report.model import (
     GNSS_CSV,
     GNSS_FORMATS,
     GNSS_JSONL,
+    GPX,
     LAYOUT,
     NMEA,
     TRUTH,
@@ -84,7 +85,7 @@ from parsers.voltages import parse_header, read_voltages
 
 PEEK_BYTES = 64 * 1024
 STDIN_NAME = "-"  # an input that means standard input
-_GNSS = {"nmea": NMEA, "csv": GNSS_CSV, "jsonl": GNSS_JSONL, "centre": CENTRE}
+_GNSS = {"nmea": NMEA, "csv": GNSS_CSV, "jsonl": GNSS_JSONL, "centre": CENTRE, "gpx": GPX}
 
 
 class ReportInputError(Exception):

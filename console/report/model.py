@@ -55,6 +55,7 @@ NMEA = "nmea"
 GNSS_CSV = "gnss-csv"
 GNSS_JSONL = "gnss-jsonl"
 CENTRE = "centre"
+GPX = "gpx"
 FRAMES = "frames"
 CAN = "can"
 VOLTAGES = "voltages"
@@ -62,7 +63,7 @@ LAYOUT = "layout"
 TRUTH = "truth"
 EMPTY = "empty"
 UNKNOWN = "unknown"
-GNSS_FORMATS = (NMEA, GNSS_CSV, GNSS_JSONL, CENTRE)
+GNSS_FORMATS = (NMEA, GNSS_CSV, GNSS_JSONL, CENTRE, GPX)
 
 # Parse reports by kind, in the order the report lists them.
 REPORT_KINDS = ("diagnostic", "gnss", "frames", "can", "voltages")
