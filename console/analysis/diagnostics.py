@@ -163,27 +163,35 @@ class DiagAccumulator:
 
     def _lookup(self) -> _Luts:
         regs = self.registry.registers
-        if self._luts is None or self._luts_len != len(regs):
-            head = np.empty(len(regs), np.int64)
-            for i, r in enumerate(regs):
-                key = (r.device_id, r.counting_head)
-                if key not in self._head_keys:
-                    self._head_keys[key] = len(self._head_list)
-                    self._head_list.append(key)
-                head[i] = self._head_keys[key]
-            self._luts = _Luts(
-                head=head,
-                channel=np.array([r.channel for r in regs], np.int64),
-                is_wheel=np.array(
-                    [
-                        r.label_canonical == "wheel_sensor" or (not r.label and r.address == WHEEL_SENSOR_ADDRESS)
-                        for r in regs
-                    ],
-                    bool,
-                ),
-                is_identity=np.array([r.label_canonical in IDENTITY_LABELS for r in regs], bool),
-            )
-            self._luts_len = len(regs)
+        done = self._luts_len if self._luts is not None else 0
+        if done == len(regs):
+            assert self._luts is not None
+            return self._luts
+        # Only the registers new since the last chunk are looked at: rebuilding the
+        # tables over every register on each chunk made many-head logs quadratic.
+        new = regs[done:]
+        head = np.empty(len(new), np.int64)
+        for i, r in enumerate(new):
+            key = (r.device_id, r.counting_head)
+            if key not in self._head_keys:
+                self._head_keys[key] = len(self._head_list)
+                self._head_list.append(key)
+            head[i] = self._head_keys[key]
+        channel = np.fromiter((r.channel for r in new), np.int64, len(new))
+        is_wheel = np.fromiter(
+            (r.label_canonical == "wheel_sensor" or (not r.label and r.address == WHEEL_SENSOR_ADDRESS) for r in new),
+            bool,
+            len(new),
+        )
+        is_identity = np.fromiter((r.label_canonical in IDENTITY_LABELS for r in new), bool, len(new))
+        if self._luts is not None:
+            old = self._luts
+            head = np.concatenate([old.head, head])
+            channel = np.concatenate([old.channel, channel])
+            is_wheel = np.concatenate([old.is_wheel, is_wheel])
+            is_identity = np.concatenate([old.is_identity, is_identity])
+        self._luts = _Luts(head=head, channel=channel, is_wheel=is_wheel, is_identity=is_identity)
+        self._luts_len = len(regs)
         return self._luts
 
     def add(self, chunk: DiagChunk) -> None:
