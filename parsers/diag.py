@@ -319,7 +319,13 @@ class DiagRegistry:
             return exc
         except ValueError:  # wrong number of parts: only for malformed spans
             return FieldError("fields", "expected 12 tab-separated Key:Value fields")
-        rid = self._register_ids[span] = len(self.registers)
+        rid = self._register_ids[span] = self.add_register(key)
+        return rid
+
+    def add_register(self, key: RegisterKey) -> int:
+        """Append a register and intern its strings; its id.  (Also used by readers
+        that rebuild a registry from stored records, such as the archive.)"""
+        rid = len(self.registers)
         self.registers.append(key)
         for interner, value in (
             (self.devices, key.device),

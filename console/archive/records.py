@@ -195,18 +195,7 @@ class ChunkRebuilder:
         found = self._rids.get(key)
         if found is not None:
             return found
-        reg = self.registry
-        rid = self._rids[key] = len(reg.registers)
-        reg.registers.append(key)
-        for interner, value in (
-            (reg.devices, key.device),
-            (reg.types, key.type),
-            (reg.gs, key.gs),
-            (reg.heads, key.counting_head),
-            (reg.labels, key.label),
-            (reg.canonicals, key.label_canonical or key.label),
-        ):
-            interner.code(value)
+        rid = self._rids[key] = self.registry.add_register(key)
         return rid
 
     def chunks(self, batch: pa.RecordBatch) -> list[DiagChunk]:
