@@ -163,10 +163,9 @@ class DiagAccumulator:
 
     def _lookup(self) -> _Luts:
         regs = self.registry.registers
-        done = self._luts_len if self._luts is not None else 0
-        if done == len(regs):
-            assert self._luts is not None
+        if self._luts is not None and self._luts_len == len(regs):
             return self._luts
+        done = self._luts_len if self._luts is not None else 0
         # Only the registers new since the last chunk are looked at: rebuilding the
         # tables over every register on each chunk made many-head logs quadratic.
         new = regs[done:]
