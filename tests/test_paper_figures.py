@@ -61,7 +61,11 @@ def test_methods_differ_by_about_12_percent(samples: Path) -> None:
 def test_excerpts_together_give_one_passage_with_both_figures(samples: Path) -> None:
     job = analyze_files(sorted(samples.glob("osong_*.log")), SpeedSettings())
     ps = job.analysis.passages_json()
-    assert [p["start"] for p in ps] == ["2015-10-31T09:32:24.000Z", "2015-10-31T10:32:23.000Z", "2015-10-31T17:32:23.000Z"]
+    assert [p["start"] for p in ps] == [
+        "2015-10-31T09:32:24.000Z",
+        "2015-10-31T10:32:23.000Z",
+        "2015-10-31T17:32:23.000Z",
+    ]
     first = ps[0]
     assert round(first["speed_kmh_per_second_method"], 1) == 15.9
     assert round(first["speed_kmh_whole_train"], 2) == 17.24
