@@ -33,6 +33,12 @@ def station(
         list[str] | None,
         typer.Option("--live", help="Follow a live source (file:PATH, gpsd://…, mqtt://…/TOPIC, can:…); repeatable."),
     ] = None,
+    archive: Annotated[
+        Path | None,
+        typer.Option("--archive", help="With --replay: replay history from this archive (see trackside ingest)."),
+    ] = None,
+    start: Annotated[str | None, typer.Option("--from", help="With --replay --archive: from this time (ISO).")] = None,
+    end: Annotated[str | None, typer.Option("--to", help="With --replay --archive: up to this time (ISO).")] = None,
     serve: Annotated[bool, typer.Option("--serve", help="Serve the view to a browser (textual-serve).")] = False,
     host: Annotated[str, typer.Option("--host", help="With --serve: address to listen on.")] = "127.0.0.1",
     port: Annotated[int, typer.Option("--port", help="With --serve: port to listen on.", min=1, max=65535)] = 8000,
@@ -49,17 +55,25 @@ def station(
         from console.tui.sources import ReplaySource, SimSource
 
         lay = load_layout(layout)
-        if replay and not files:
-            raise fail("--replay needs the logs to replay: trackside station --replay FILES...")
+        from_archive = archive is not None or bool(start) or bool(end)
+        if from_archive and not replay:
+            raise fail("--archive/--from/--to replay history: add --replay (trackside station --replay --archive DIR)")
+        if from_archive and files:
+            raise fail("replay either FILES or --archive, not both")
+        if replay and not files and not from_archive:
+            raise fail("--replay needs the logs to replay: trackside station --replay FILES... (or --archive DIR)")
         if files and not replay:
             raise fail("FILES are replayed: add --replay (trackside station --replay FILES...)")
-        if files:
+        source: Any
+        if from_archive:
+            source = archive_replay_source(archive, lay, start, end)
+        elif files:
             if any(os.fsdecode(f) == "-" for f in files):
                 # The view reads its keys from standard input: the log must come another way.
                 raise fail("--replay -: the station view reads keys from standard input; give a file or <(zcat …)")
             check_inputs(files)
             try:
-                source: Any = ReplaySource(files, lay)
+                source = ReplaySource(files, lay)
             except ValueError as exc:
                 raise fail(str(exc)) from None
         else:
@@ -76,3 +90,22 @@ def station(
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
+
+
+def archive_replay_source(archive: Path | None, lay: Any, start: str | None, end: str | None) -> Any:
+    """The station view's replay source over the archive's history in [--from, --to): one line on any error."""
+    from console.archive.history import Window, parse_time, replay_inputs
+    from console.archive.store import ArchiveError, archive_dir
+    from console.tui.sources import ReplaySource
+
+    try:
+        window = Window(start=parse_time(start) if start else None, end=parse_time(end) if end else None)
+    except ValueError as exc:
+        raise fail(f"--from/--to: {exc}") from None
+    try:
+        events, fixes = replay_inputs(archive_dir(archive), lay, window)
+        return ReplaySource.from_parts(lay, events, fixes)
+    except ArchiveError as exc:
+        raise fail(str(exc)) from None
+    except ValueError as exc:  # nothing to replay in that window
+        raise fail(f"archive: {exc}") from None

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from console.analysis.crossing import ControllerSettings, CrossingController, CrossingEvent, Fix, TrainSpec
 from console.analysis.events import DetectionEvent, EventKind
@@ -12,6 +13,9 @@ from console.analysis.sections import SectionEngine, SectionState, Transition
 from console.layout import Layout
 from console.sim.station import Fault, SimConfig, StationSim
 from console.tui.model import NS, LogEntry, TrainView
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 NOTABLE = {
     EventKind.SINGLE_CHANNEL: "warning",
@@ -205,24 +209,38 @@ class ReplaySource:
     mode = "replay"
 
     def __init__(self, paths: Sequence[Path], layout: Layout) -> None:
-        from console.analysis.crossing_batch import pair_trains, to_fixes
         from console.analysis.diag_events import DiagEventSettings
         from console.analysis.diagnostics import SpeedSettings
         from console.jobs import analyze_files, detection_events
 
-        self.layout = layout
         diag = [p for p in paths if _is_diag(p)]
         other = [p for p in paths if p not in diag]
-        self.events: list[DetectionEvent] = []
+        events: list[DetectionEvent] = []
         if diag:
             job = analyze_files(diag, SpeedSettings(), keep_releases=True)
-            self.events, _ = detection_events(job, layout, DiagEventSettings())
-        self.fixes: list[Fix] = []
-        self.train_specs: list[TrainSpec] = []
+            events, _ = detection_events(job, layout, DiagEventSettings())
+        frame = None
         if other and len(layout.track) >= 2:
             from parsers.gnss import parse_gnss
 
             frame, _report, _states = parse_gnss(other)
+        self._setup(layout, events, frame)
+
+    @classmethod
+    def from_parts(cls, layout: Layout, events: list[DetectionEvent], fixes: pd.DataFrame | None) -> ReplaySource:
+        """A replay of detection events and a GNSS fix table already at hand (the archive's history)."""
+        source = cls.__new__(cls)
+        source._setup(layout, events, fixes)
+        return source
+
+    def _setup(self, layout: Layout, events: list[DetectionEvent], frame: pd.DataFrame | None) -> None:
+        from console.analysis.crossing_batch import pair_trains, to_fixes
+
+        self.layout = layout
+        self.events = sorted(events, key=lambda e: e.time_ns)
+        self.fixes: list[Fix] = []
+        self.train_specs: list[TrainSpec] = []
+        if frame is not None and len(frame) and len(layout.track) >= 2:
             consist = layout.consist()
             trains, _ = pair_trains(frame, (), consist.length_m if consist else 100.0)
             self.fixes, _ = to_fixes(frame, layout, trains)
