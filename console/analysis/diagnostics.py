@@ -26,7 +26,7 @@ from console.analysis.passages import (
     split_passages,
 )
 from console.analysis.speed import MPS_TO_KMH
-from console.analysis.timefmt import iso_array
+from console.analysis.timefmt import exact_ns, iso_array
 from console.analysis.wheels import (
     DIRECTION_12,
     DIRECTION_21,
@@ -603,13 +603,7 @@ PASSAGE_COLUMNS = (
 
 def iso_strings(ns: pd.Series | np.ndarray) -> np.ndarray:
     """ISO 8601 strings in UTC with Z (:func:`timefmt.iso_array`: milliseconds at least), vectorized; None for NaN."""
-    if np.asarray(ns).dtype.kind in "iu":  # exact: float64 would round epoch ns to 256 ns
-        ints = np.asarray(ns, np.int64)
-        ok = np.ones(len(ints), bool)
-    else:
-        vals = np.asarray(ns, dtype=float)
-        ok = ~np.isnan(vals)
-        ints = np.where(ok, vals, 0).astype(np.int64)
+    ints, ok = exact_ns(ns)
     out = iso_array(ints)
     out[~ok] = None
     return out

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from console.analysis.passages import Columns
+from console.analysis.timefmt import exact_ns
 
 _PRECISION = 10
 _POW10_FRAC = float(10**_PRECISION)
@@ -131,13 +132,7 @@ def _texts(codes: np.ndarray, values: Sequence[str | None]) -> np.ndarray | None
 
 def _iso(ns: np.ndarray) -> np.ndarray | None:
     """``diagnostics.iso_strings`` as quoted bytes (UTC, ``Z``, ms at least, µs/ns where present); null for NaN."""
-    if np.asarray(ns).dtype.kind in "iu":  # exact: float64 would round epoch ns to 256 ns
-        ints = np.asarray(ns, np.int64)
-        ok = np.ones(len(ints), bool)
-    else:
-        vals = np.asarray(ns, dtype=float)
-        ok = ~np.isnan(vals)
-        ints = np.where(ok, vals, 0).astype(np.int64)
+    ints, ok = exact_ns(ns)
     n = len(ints)
     day_ns = 86_400 * 10**9
     days, tod = np.divmod(ints, day_ns)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import datetime as dt
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 NS = 1_000_000_000  # nanoseconds per second: every time in the console is an int of ns
 
@@ -31,6 +32,17 @@ def _fraction(frac_ns: int) -> str:
     if digits[3:6] != "000":
         return "." + digits[:6]
     return "." + digits[:3]
+
+
+def exact_ns(ns: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """(epoch ns as int64, which are present): integer columns exactly, float columns
+    with NaN as absent (float64 would round epoch ns to 256 ns, so ints stay ints)."""
+    if np.asarray(ns).dtype.kind in "iu":
+        ints = np.asarray(ns, np.int64)
+        return ints, np.ones(len(ints), bool)
+    vals = np.asarray(ns, dtype=float)
+    ok = ~np.isnan(vals)
+    return np.where(ok, vals, 0).astype(np.int64), ok
 
 
 def iso(ns: int | None) -> str | None:
