@@ -719,6 +719,11 @@ class DiagReader:
         reason = f"line longer than {self.max_line_bytes} bytes ({o.length} bytes)"
         self.report.reject(fr, line, "too long", reason, o.head)
 
+    def parse_lines(self, data: bytes, fr: FileReport, file_id: int, first_line: int) -> DiagChunk:
+        """Whole lines of a growing file (newline-terminated), numbered from ``first_line``:
+        parsed into this reader's registry, rejections into ``fr`` (the live follower's entry)."""
+        return self._resolve(_tokenize(Chunk(data, final=False)), fr, file_id, first_line)
+
     def _resolve(self, tok: _Tokens, fr: FileReport, file_id: int, first_line: int) -> DiagChunk:
         """Merge a chunk's span dictionaries into the registry; parse or reject the rest."""
         reg = self.registry

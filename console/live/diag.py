@@ -35,9 +35,8 @@ from console.analysis.timefmt import NS
 from console.analysis.wheels import CountingSettings, HeadCounter
 from console.jobs import HEALTH_REGISTERS
 from console.layout import Layout
-from parsers.diag import DiagChunk, DiagReader, _tokenize, chunks_to_frame
+from parsers.diag import DiagChunk, DiagReader, chunks_to_frame
 from parsers.report import FileReport
-from parsers.sources import Chunk
 
 # Logs interleave boards, each with its own clock resolution: a record may
 # come this much after a later-stamped one of another board.
@@ -52,8 +51,7 @@ def parse_lines(reader: DiagReader, data: bytes, report: FileReport, file_id: in
 
     The reader keeps one register registry and one parse report for all followed files.
     """
-    # ``DiagReader`` reads whole files; its per-chunk steps are what a growing file needs.
-    return reader._resolve(_tokenize(Chunk(data, final=False)), report, file_id, first_line)
+    return reader.parse_lines(data, report, file_id, first_line)
 
 
 @dataclass
