@@ -9,6 +9,7 @@ never a traceback).
 
 from __future__ import annotations
 
+import sys
 from typing import Annotated, Any
 
 import typer
@@ -43,6 +44,12 @@ class _Trackside(typer.Typer):
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
         try:
             return super().__call__(*args, **kwargs)
+        except SystemExit as exc:
+            # Click ends a help or usage text cut by a closed pipe (`--help | head -1`) with exit 1;
+            # a reader that stopped early is not a failure, as with every command's own output.
+            if exc.code == 1 and type(sys.stdout).__name__ == "PacifyFlushWrapper":
+                raise SystemExit(0) from None
+            raise
         except OSError as exc:
             if isinstance(exc, BrokenPipeError) or exc.errno in OUTPUT_ERRNOS:
                 raise SystemExit(output_failed(exc)) from None

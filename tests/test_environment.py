@@ -158,7 +158,7 @@ def test_report_with_o_needs_no_stdout(tmp_path: Path) -> None:
 
 
 # `analyze | head` is tests/test_cli.py's; here the report, which writes its bytes itself.
-@pytest.mark.parametrize("args", [SMALL_REPORT])
+@pytest.mark.parametrize("args", [SMALL_REPORT, ["--help"], ["analyze", "--help"]])
 def test_a_reader_that_left_before_the_output_is_not_an_error(args: list[str]) -> None:
     """`trackside ... | head -0`: the pipe's reader is gone before the first write (EPIPE, not a full buffer)."""
     r, w = os.pipe()
