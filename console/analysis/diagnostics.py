@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from console.analysis.inventory import IDENTITY_LABELS, DeviceInventory, IdentityValue, apply_identity
+from console.analysis.inventory import DeviceInventory
 from console.analysis.overlap import fingerprints, overlap_mask
 from console.analysis.passages import (
     NS,
@@ -25,6 +25,7 @@ from console.analysis.passages import (
     remove_records,
     split_passages,
 )
+from console.analysis.registers import RegisterTables, inventory
 from console.analysis.speed import MPS_TO_KMH
 from console.analysis.timefmt import exact_ns, iso_array
 from console.analysis.wheels import (
@@ -32,12 +33,11 @@ from console.analysis.wheels import (
     DIRECTION_21,
     SYS1,
     SYS2,
-    WHEEL_SENSOR_ADDRESS,
     PairingSettings,
     axles_frame,
     pair_axle_arrays,
 )
-from parsers.diag import DATA_KINDS, DiagChunk, DiagRegistry
+from parsers.diag import DiagChunk, DiagRegistry
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -55,14 +55,6 @@ class SpeedSettings:
     pair_window_s: float = PairingSettings.pair_window_s
     # Above this, a "whole-train speed" is an artefact, not a train.
     max_speed_kmh: float = 400.0
-
-
-@dataclass
-class _Luts:
-    head: np.ndarray
-    channel: np.ndarray
-    is_wheel: np.ndarray
-    is_identity: np.ndarray
 
 
 @dataclass
@@ -156,42 +148,24 @@ class DiagAccumulator:
     _buckets: list[dict[str, np.ndarray]] = field(default_factory=list)
     _detections: list[dict[str, np.ndarray]] = field(default_factory=list)
     _identity: dict[int, tuple[int, int, int, int]] = field(default_factory=dict)
-    _head_keys: dict[tuple[int, str], int] = field(default_factory=dict)
-    _head_list: list[tuple[int, str]] = field(default_factory=list)
-    _luts: _Luts | None = None
-    _luts_len: int = -1
+    _tables: RegisterTables | None = None
+    # Per head key: first and last record time (int64 max/min: none yet), for the inventory.
+    head_first_ns: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    head_last_ns: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
-    def _lookup(self) -> _Luts:
-        regs = self.registry.registers
-        if self._luts is not None and self._luts_len == len(regs):
-            return self._luts
-        done = self._luts_len if self._luts is not None else 0
-        # Only the registers new since the last chunk are looked at: rebuilding the
-        # tables over every register on each chunk made many-head logs quadratic.
-        new = regs[done:]
-        head = np.empty(len(new), np.int64)
-        for i, r in enumerate(new):
-            key = (r.device_id, r.counting_head)
-            if key not in self._head_keys:
-                self._head_keys[key] = len(self._head_list)
-                self._head_list.append(key)
-            head[i] = self._head_keys[key]
-        channel = np.fromiter((r.channel for r in new), np.int64, len(new))
-        is_wheel = np.fromiter(
-            (r.label_canonical == "wheel_sensor" or (not r.label and r.address == WHEEL_SENSOR_ADDRESS) for r in new),
-            bool,
-            len(new),
-        )
-        is_identity = np.fromiter((r.label_canonical in IDENTITY_LABELS for r in new), bool, len(new))
-        if self._luts is not None:
-            old = self._luts
-            head = np.concatenate([old.head, head])
-            channel = np.concatenate([old.channel, channel])
-            is_wheel = np.concatenate([old.is_wheel, is_wheel])
-            is_identity = np.concatenate([old.is_identity, is_identity])
-        self._luts = _Luts(head=head, channel=channel, is_wheel=is_wheel, is_identity=is_identity)
-        self._luts_len = len(regs)
-        return self._luts
+    def _lookup(self) -> RegisterTables:
+        if self._tables is None:
+            self._tables = RegisterTables(self.registry)
+        return self._tables.update()
+
+    def _track_spans(self, buckets: Columns) -> None:
+        n = len(self._lookup().head_device)
+        if len(self.head_first_ns) < n:
+            grow = n - len(self.head_first_ns)
+            self.head_first_ns = np.r_[self.head_first_ns, np.full(grow, _BIG, np.int64)]
+            self.head_last_ns = np.r_[self.head_last_ns, np.full(grow, _SMALL, np.int64)]
+        np.minimum.at(self.head_first_ns, buckets["head"], buckets["t_first_ns"])
+        np.maximum.at(self.head_last_ns, buckets["head"], buckets["t_last_ns"])
 
     def add(self, chunk: DiagChunk) -> None:
         if len(chunk) == 0:
@@ -200,7 +174,9 @@ class DiagAccumulator:
         rid = chunk.register_id
         head = luts.head[rid]
         channel = luts.channel[rid]
-        self._buckets.append(chunk_buckets(head, channel, chunk.time_ns, chunk.subsecond))
+        buckets = chunk_buckets(head, channel, chunk.time_ns, chunk.subsecond)
+        self._buckets.append(buckets)
+        self._track_spans(buckets)
         first_record = self._n_records
         self._n_records += len(chunk)
         if self.track_overlap:
@@ -247,34 +223,27 @@ class DiagAccumulator:
         buckets = merge_buckets(self._buckets)
         self._buckets = []  # reduced: free the per-chunk runs
         repeated, overlap_by_file = self._overlap(luts, buckets)
-        buckets = split_passages(buckets, settings.idle_gap_s)
-        wheel = _wheel_records(self._detections, buckets, repeated)
-        self._detections = []
-        # Without releases every wheel record is an onset: no copy needed.
-        onsets = {c: v[wheel["value"] == 1] for c, v in wheel.items()} if self.keep_releases else wheel
-        axles, n_unpaired = pair_axle_arrays(onsets, PairingSettings(settings.spacing_m, settings.pair_window_s))
-        head_names = [name for _, name in self._head_list]
-        passages = _passages(buckets, onsets, axles, settings)
+        detections, self._detections = self._detections, []
+        part = analyse_parts(buckets, detections, settings, self.keep_releases, repeated)
         return DiagAnalysis(
             settings=settings,
-            devices=self._inventory(buckets),
-            passage_columns=passages,
-            axle_columns=axles,
+            devices=self.devices(),
+            passage_columns=part.passages,
+            axle_columns=part.axles,
             overlap_records=sum(overlap_by_file),
-            unpaired_detections=n_unpaired,
-            head_names=head_names,
+            unpaired_detections=part.unpaired,
+            head_names=[name for _, name in luts.heads],
             overlap_by_file=overlap_by_file,
-            heads=list(self._head_list),
+            heads=luts.heads,
             # Only the section engine reads these: not kept for speeds alone.
-            wheel_columns={c: wheel[c] for c in ("head", "channel", "time_ns", "value", "subsecond")}
-            if self.keep_releases
-            else None,
-            activity_columns={c: buckets[c] for c in ("head", "t_first_ns", "t_last_ns")}
-            if self.keep_releases
-            else None,
+            wheel_columns=part.wheel if self.keep_releases else None,
+            activity_columns=part.activity if self.keep_releases else None,
         )
 
-    def _overlap(self, luts: _Luts, buckets: Columns) -> tuple[np.ndarray | None, list[int]]:
+    def devices(self) -> list[DeviceInventory]:
+        return inventory(self._lookup(), self.head_first_ns, self.head_last_ns, self._identity)
+
+    def _overlap(self, luts: RegisterTables, buckets: Columns) -> tuple[np.ndarray | None, list[int]]:
         """Records repeated from another file (a mask over all records, None: none), and their count per file."""
         n_files = len(self.registry.files)
         prints, self._prints = self._prints, []
@@ -290,61 +259,42 @@ class DiagAccumulator:
         per_file = np.bincount(cols["file"][mask].astype(np.int64), minlength=n_files)
         return mask, [int(x) for x in per_file]
 
-    def _inventory(self, buckets: Columns) -> list[DeviceInventory]:
-        reg = self.registry
-        devices: dict[int, DeviceInventory] = {}
-        for rid, r in enumerate(reg.registers):
-            counts = reg.record_counts
-            n = int(counts[rid]) if rid < len(counts) else 0
-            if n == 0:
-                continue
-            inv = devices.get(r.device_id)
-            if inv is None:
-                inv = devices[r.device_id] = DeviceInventory(
-                    device_id=r.device_id,
-                    device=r.device,
-                    type=r.type,
-                    gs=r.gs,
-                    diag_ids=[],
-                    counting_heads=[],
-                    channels=[],
-                    records=0,
-                    first_ns=0,
-                    last_ns=0,
-                )
-            inv.records += n
-            if r.diag_id not in inv.diag_ids:
-                inv.diag_ids.append(r.diag_id)
-            if r.counting_head not in inv.counting_heads:
-                inv.counting_heads.append(r.counting_head)
-            if r.channel not in inv.channels:
-                inv.channels.append(r.channel)
-        # Per head key: first and last record time (buckets are sorted by head).
-        bh = buckets["head"]
-        at = np.flatnonzero(np.r_[True, bh[1:] != bh[:-1]]) if len(bh) else np.zeros(0, np.int64)
-        span = {
-            int(h): (int(f), int(la))
-            for h, f, la in zip(
-                bh[at].tolist(),
-                np.minimum.reduceat(buckets["t_first_ns"], at).tolist() if len(at) else [],
-                np.maximum.reduceat(buckets["t_last_ns"], at).tolist() if len(at) else [],
-                strict=True,
-            )
-        }
-        identity: dict[int, list[IdentityValue]] = {}
-        for rid, (_, value, kind, data_code) in self._identity.items():
-            r = reg.registers[rid]
-            identity.setdefault(r.device_id, []).append(
-                IdentityValue(r.label_canonical or "", r.address, value, DATA_KINDS[kind], reg.data.values[data_code])
-            )
-        for dev_id, inv in devices.items():
-            rows = [span[k] for h in inv.counting_heads if (k := self._head_keys[(dev_id, h)]) in span]
-            inv.first_ns = min(f for f, _ in rows) if rows else 0
-            inv.last_ns = max(la for _, la in rows) if rows else 0
-            inv.diag_ids.sort()
-            inv.channels.sort()
-            apply_identity(inv, identity.get(dev_id, []))
-        return [devices[k] for k in sorted(devices)]
+
+@dataclass
+class PartAnalysis:
+    """Passages, axles and unpaired onsets of a set of whole passages' reductions."""
+
+    passages: Columns | None
+    axles: Columns
+    unpaired: int
+    wheel: Columns | None = None
+    activity: Columns | None = None
+
+
+def analyse_parts(
+    buckets: Columns,
+    detections: list[dict[str, np.ndarray]],
+    settings: SpeedSettings,
+    keep_releases: bool = False,
+    repeated: np.ndarray | None = None,
+) -> PartAnalysis:
+    """Merged buckets and wheel detections of whole passages → their passages and axles.
+
+    The batch analysis calls it once for the whole log; the streaming one
+    (:mod:`console.analysis.stream`) once per batch of closed passages.
+    """
+    buckets = split_passages(buckets, settings.idle_gap_s)
+    wheel = _wheel_records(detections, buckets, repeated)
+    # Without releases every wheel record is an onset: no copy needed.
+    onsets = {c: v[wheel["value"] == 1] for c, v in wheel.items()} if keep_releases else wheel
+    axles, n_unpaired = pair_axle_arrays(onsets, PairingSettings(settings.spacing_m, settings.pair_window_s))
+    return PartAnalysis(
+        passages=_passages(buckets, onsets, axles, settings),
+        axles=axles,
+        unpaired=n_unpaired,
+        wheel={c: wheel[c] for c in ("head", "channel", "time_ns", "value", "subsecond")} if keep_releases else None,
+        activity={c: buckets[c] for c in ("head", "t_first_ns", "t_last_ns")} if keep_releases else None,
+    )
 
 
 Arrays = dict[str, np.ndarray]
