@@ -9,9 +9,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from console.analysis.diagnostics import DiagAccumulator, DiagAnalysis, SpeedSettings
+from console.analysis.diagnostics import DiagAccumulator, DiagAnalysis, PartAnalysis, SpeedSettings
+from console.analysis.passages import Columns
+from console.analysis.status import StatusSummary
+from console.analysis.stream import PassageStream, by_head_and_start, by_start, concat_passages, take_passages
 from parsers.diag import DiagChunk, DiagReader, chunks_to_frame
 from parsers.report import ParseReport
+from parsers.sources import DEFAULT_CHUNK_BYTES
 
 # Imported where used: `analyze --json` needs neither pandas nor the event
 # and health modules.
@@ -32,6 +36,8 @@ class DiagJob:
     report: ParseReport
     analysis: DiagAnalysis
     kept_records: pd.DataFrame | None = None  # only the kept registers
+    # Passages with status records only, counted per head (None: they are in the passages table).
+    status: StatusSummary | None = None
 
     @property
     def records(self) -> pd.DataFrame:
@@ -62,6 +68,16 @@ def analyze_files(
     else is held in memory.
     """
     reader = DiagReader(paths, on_progress=on_progress)
+    return _read_whole(reader, paths, settings, keep_registers, keep_releases)
+
+
+def _read_whole(
+    reader: DiagReader,
+    paths: Sequence[Path],
+    settings: SpeedSettings,
+    keep_registers: Collection[str] = (),
+    keep_releases: bool = False,
+) -> DiagJob:
     # One file cannot overlap another: no per-record fingerprints kept then.
     acc = DiagAccumulator(reader.registry, keep_releases=keep_releases, track_overlap=len(paths) > 1)
     kept: list[DiagChunk] = []
@@ -78,6 +94,125 @@ def analyze_files(
         file_report.overlap_records = overlap
     records = chunks_to_frame(kept, reader.registry) if keep_registers else None
     return DiagJob(files=[str(p) for p in paths], report=reader.report, analysis=analysis, kept_records=records)
+
+
+# A batch of closed passages (columns of diagnostics._passages, by start time) and the head list.
+OnPassages = Callable[[Columns, list[tuple[int, str]]], None]
+
+
+def stream_files(
+    paths: Sequence[Path],
+    settings: SpeedSettings,
+    on_progress: Callable[[int], None] | None = None,
+    on_passages: OnPassages | None = None,
+    include_status: bool = True,
+    chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+    max_rejections_kept: int | None = None,
+    on_reject: Callable[..., None] | None = None,
+) -> DiagJob:
+    """:func:`analyze_files` in memory bounded by the heads and open passages, for one log.
+
+    Passages are handed to ``on_passages`` as they close; the job's
+    passages table (by head, then start, as a whole-file read orders it)
+    holds one row per passage, no records.  Without ``include_status``,
+    status-only passages are counted per head instead of kept.
+    """
+    reader = DiagReader(paths, on_progress=on_progress, chunk_bytes=chunk_bytes)
+    if max_rejections_kept is not None:
+        reader.report.max_rejections_kept = max_rejections_kept
+    reader.report.on_reject = on_reject
+    status = None if include_status else StatusSummary()
+    if len(paths) > 1:
+        # Several files may overlap (the same export pulled twice): that is found by
+        # comparing the files' records, so they are read whole, as analyze_files does.
+        job = _read_whole(reader, paths, settings)
+        cols = job.analysis.passage_columns
+        if cols is not None:
+            if status is not None:
+                cols = job.analysis.passage_columns = status.take(cols)
+            if on_passages is not None and len(cols["head"]):
+                on_passages(take_passages(cols, by_start(cols)), job.analysis.heads)
+        job.status = status
+        return job
+    stream = PassageStream(reader.registry, settings)
+    kept: list[Columns] = []
+    axles: list[Columns] = []
+
+    def closed(part: PartAnalysis | None) -> None:
+        if part is None or part.passages is None:
+            return
+        cols = take_passages(part.passages, by_start(part.passages))
+        if status is not None:
+            cols = status.take(cols)
+        axles.append(part.axles)
+        if len(cols["head"]):
+            kept.append(cols)
+            if on_passages is not None:
+                on_passages(cols, stream.heads)
+
+    for chunk in reader.chunks():
+        closed(stream.add(chunk))
+    closed(stream.finish())
+    cols = concat_passages(kept)
+    cols = take_passages(cols, by_head_and_start(cols)) if cols is not None else None
+    axle_cols = {c: np.concatenate([a[c] for a in axles]) for c in axles[0]} if axles else _no_axles()
+    analysis = DiagAnalysis(
+        settings=settings,
+        devices=stream.acc.devices(),
+        passage_columns=cols,
+        axle_columns=axle_cols,
+        overlap_records=0,
+        unpaired_detections=stream.unpaired_detections,
+        head_names=[name for _, name in stream.heads],
+        overlap_by_file=[0] * len(reader.report.files),
+        heads=stream.heads,
+    )
+    return DiagJob(files=[str(p) for p in paths], report=reader.report, analysis=analysis, status=status)
+
+
+def summarise_status(job: DiagJob) -> None:
+    """Count a whole read's status-only passages per head instead of listing them."""
+    job.status = StatusSummary()
+    cols = job.analysis.passage_columns
+    if cols is not None:
+        job.analysis.passage_columns = job.status.take(cols)
+        job.analysis.__dict__.pop("passages", None)  # the cached table, if built
+
+
+def summary_doc(job: DiagJob, schema: str) -> dict[str, object]:
+    """The ``summary`` line of ``--jsonl``: what the JSON document holds besides passages and devices."""
+    from console import __version__
+
+    a, s = job.analysis, job.analysis.settings
+    cols = a.passage_columns
+    report = job.report.to_dict()
+    report.pop("rejections")  # listed as lines of their own
+    return {
+        "schema": schema,
+        "trackside_version": __version__,
+        "files": job.files,
+        "settings": {
+            "spacing_m": s.spacing_m,
+            "train_length_m": s.train_length_m,
+            "idle_gap_s": s.idle_gap_s,
+            "pair_window_s": s.pair_window_s,
+        },
+        "passages": len(cols["head"]) if cols is not None else 0,
+        **({"status_passages": job.status.to_dict(a.heads)} if job.status is not None else {}),
+        "overlap_records": a.overlap_records,
+        "unpaired_detections": a.unpaired_detections,
+        "parse_report": report,
+    }
+
+
+def _no_axles() -> Columns:
+    from console.analysis.wheels import PairingSettings, pair_axle_arrays
+
+    empty = np.zeros(0, np.int64)
+    axles, _ = pair_axle_arrays(
+        {"head": empty, "channel": empty, "time_ns": empty, "subsecond": np.zeros(0, bool)}, PairingSettings()
+    )
+    return axles
 
 
 def detection_events(

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -119,6 +120,8 @@ class ParseReport:
     # columns), counted by kind: nothing vanishes unseen.
     skipped: Counter[str] = field(default_factory=Counter)
     max_rejections_kept: int = MAX_REJECTIONS_KEPT
+    # Called with every rejection as it is found (a stream that lists them all), kept or not.
+    on_reject: Callable[[Rejection], None] | None = None
 
     @property
     def lines_read(self) -> int:
@@ -140,8 +143,13 @@ class ParseReport:
         """Count one rejected line; keep its details while under the cap."""
         file_report.rejected += 1
         self.rejected_by_reason[category] += 1
-        if len(self.rejections) < self.max_rejections_kept:
-            self.rejections.append(Rejection(file_report.file, line, escape_reason(reason), escape_text(raw)))
+        keep = len(self.rejections) < self.max_rejections_kept
+        if keep or self.on_reject is not None:
+            rejection = Rejection(file_report.file, line, escape_reason(reason), escape_text(raw))
+            if keep:
+                self.rejections.append(rejection)
+            if self.on_reject is not None:
+                self.on_reject(rejection)
 
     def check(self) -> None:
         """Raise AssertionError if any line is unaccounted for."""

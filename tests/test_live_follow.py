@@ -169,7 +169,7 @@ def analyze_passages() -> list[dict[str, object]]:
     import json
 
     out = subprocess.run(
-        trackside("analyze", str(SAMPLE), "--json", "--layout", "example"),
+        trackside("analyze", str(SAMPLE), "--json", "--include-status", "--layout", "example"),
         capture_output=True,
         text=True,
         timeout=60,

@@ -77,7 +77,11 @@ def test_simulated_live_run_is_followed_from_files_and_mqtt(tmp_path: Path, mosq
     assert {"on", "off"} <= {e["kind"] for e in crossings}
     # The followed log gives what analyze finds in the finished log.
     analyze = subprocess.run(
-        trackside("analyze", str(log), "--json"), capture_output=True, text=True, timeout=60, check=True
+        trackside("analyze", str(log), "--json", "--include-status"),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
     )
     expected = json.loads(analyze.stdout)["passages"]
     got = [{k: v for k, v in e.items() if k != "type"} for e in events if e["type"] == "passage"]

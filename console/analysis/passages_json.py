@@ -205,7 +205,9 @@ def _axle_lists(speeds: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.n
     return _with_null(out, count == 0)
 
 
-def _batch(cols: Columns, heads: list[tuple[int, str]], lo: int, hi: int, first: bool) -> bytes | None:
+def _batch(
+    cols: Columns, heads: list[tuple[int, str]], lo: int, hi: int, first: bool, opening: str = "{", sep: str = ","
+) -> bytes | None:
     from console.analysis.wheels import DIRECTION_12, DIRECTION_21
 
     c = {k: v[lo:hi] for k, v in cols.items() if k != "axle_speeds_kmh"}
@@ -213,7 +215,7 @@ def _batch(cols: Columns, heads: list[tuple[int, str]], lo: int, hi: int, first:
     head_dev = np.array([h[0] for h in heads], dtype=np.int64)
     n_det = np.asarray(c["records_in_detection_second"], float)
     parts: list[tuple[str, np.ndarray | None]] = [
-        ('{"device_id":', _ints(head_dev[c["head"]])),
+        (opening + '"device_id":', _ints(head_dev[c["head"]])),
         (',"counting_head":', _texts(c["head"], [h[1] for h in heads])),
         (',"start":', _iso(c["start_ns"])),
         (',"end":', _iso(c["end_ns"])),
@@ -240,10 +242,10 @@ def _batch(cols: Columns, heads: list[tuple[int, str]], lo: int, hi: int, first:
         (',"time_resolution_s":', _floats(c["time_resolution_s"])),
         (',"kind":', _texts(c["kind"], ["train", "damping", "status"])),
     ]
-    sep = np.full((n, 1), ord(","), np.uint8)
+    seps = np.full((n, 1), ord(sep), np.uint8)
     if first:
-        sep[0] = 0
-    blocks = [sep]
+        seps[0] = 0
+    blocks = [seps]
     for key, tokens in parts:
         if tokens is None:
             return None
@@ -253,13 +255,22 @@ def _batch(cols: Columns, heads: list[tuple[int, str]], lo: int, hi: int, first:
     return flat[flat != 0].tobytes()
 
 
-def encode_passages(cols: Columns, heads: list[tuple[int, str]], workers: int = 2) -> str | None:
+def encode_passages(
+    cols: Columns, heads: list[tuple[int, str]], workers: int = 2, lines_of_type: str | None = None
+) -> str | None:
     """The passages (``diagnostics._passages`` columns) as a JSON array, or None if not covered.
 
-    Batches of passages are encoded on ``workers`` threads (numpy releases
-    the GIL) and joined in order.
+    With ``lines_of_type``, JSON lines instead: one object per passage, each
+    beginning with ``"type"`` set to it and ending with a newline.  Batches
+    of passages are encoded on ``workers`` threads (numpy releases the GIL)
+    and joined in order.
     """
+    opening, sep = ("{", ",") if lines_of_type is None else ('{"type":"' + lines_of_type + '",', "\n")
+    if lines_of_type is not None and not set(lines_of_type) <= _SAFE:
+        return None
     n = len(cols["head"])
+    if lines_of_type is not None and n == 0:
+        return ""
     count = cols["axle_speeds_stop"] - cols["axle_speeds_start"]
     batches = []
     lo = 0
@@ -272,7 +283,7 @@ def encode_passages(cols: Columns, heads: list[tuple[int, str]], workers: int = 
         lo = hi
 
     def encode(batch: tuple[int, int]) -> bytes | None:
-        return _batch(cols, heads, batch[0], batch[1], first=batch[0] == 0)
+        return _batch(cols, heads, batch[0], batch[1], batch[0] == 0 and lines_of_type is None, opening, sep)
 
     if workers > 1 and len(batches) > 1:
         from concurrent.futures import ThreadPoolExecutor
@@ -283,4 +294,5 @@ def encode_passages(cols: Columns, heads: list[tuple[int, str]], workers: int = 
         texts = [encode(b) for b in batches]
     if any(t is None for t in texts):
         return None
-    return b"".join([b"[", *(t for t in texts if t is not None), b"]"]).decode("ascii")
+    body = b"".join(t for t in texts if t is not None).decode("ascii")
+    return body[1:] + "\n" if lines_of_type is not None else "[" + body + "]"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Annotated
 
 import typer
@@ -9,16 +10,21 @@ import typer
 from console import __version__, exit_codes
 from console.commands.common import (
     JSON_SCHEMA_ANALYZE,
+    REJECTIONS_LISTED,
     Console,
     FilesArg,
     IdleGapOpt,
+    IncludeStatusOpt,
+    JsonlOpt,
     JsonOpt,
+    RejectedAllOpt,
     StrictOpt,
+    fail,
     guard,
     layout_summary,
     load_layout,
     print_json,
-    run_diag,
+    run_diag_stream,
 )
 from console.safe_text import clean
 
@@ -41,19 +47,37 @@ def analyze(
         typer.Option("--layout", help="Layout (file or osong, example): adds section and health summaries."),
     ] = None,
     json_out: JsonOpt = False,
+    jsonl: JsonlOpt = False,
+    include_status: IncludeStatusOpt = False,
+    rejected_all: RejectedAllOpt = False,
     strict: StrictOpt = False,
 ) -> None:
     """Inventory, passages with speeds, and the parse report of diagnostic logs."""
 
     def body() -> int:
+        from console.jobs import summarise_status, summary_doc
+        from console.render.diag_stream import JsonLinesOut
+
+        if json_out and jsonl:
+            raise fail("--json and --jsonl: choose one")
+        if jsonl and layout:
+            raise fail("--jsonl is not available with --layout yet; use --json")
         # Line facts come from the layout; the Osong test line when none is given.
         lay = load_layout(layout or "osong")
         consist = lay.consist()
         spacing_m = spacing if spacing is not None else lay.heads[0].spacing_m
         length_m = train_length if train_length is not None else (consist.length_m if consist else 28.6)
         summary = layout_summary(files, lay, spacing_m, length_m, idle_gap) if layout else None
-        job = summary[0] if summary else run_diag(files, spacing_m, length_m, idle_gap)
-        if json_out:
+        lines = JsonLinesOut(sys.stdout, None if rejected_all else REJECTIONS_LISTED) if jsonl else None
+        if summary:
+            job = summary[0]
+            if not include_status:
+                summarise_status(job)
+        else:
+            job = run_diag_stream(files, spacing_m, length_m, idle_gap, include_status, rejected_all, lines)
+        if lines is not None:
+            lines.finish([d.to_dict() for d in job.analysis.devices], summary_doc(job, JSON_SCHEMA_ANALYZE))
+        elif json_out:
             from console.jsonout import RawJSON
 
             doc = {
@@ -63,6 +87,8 @@ def analyze(
                 "parse_report": job.report.to_dict(),
                 **job.analysis.to_dict(passages=RawJSON(job.analysis.passages_json_text())),
             }
+            if job.status is not None:
+                doc["status_passages"] = job.status.to_dict(job.analysis.heads)
             if summary:
                 from console.render.section_tables import sections_json
 
@@ -98,6 +124,11 @@ def analyze(
                 notes.append(
                     f"{sum(job.report.unknown_labels.values())} records with unknown labels: "
                     + ", ".join(sorted(job.report.unknown_labels))
+                )
+            if job.status is not None and job.status.passages.sum():
+                notes.append(
+                    f"{int(job.status.passages.sum())} passages of status records only (no wheel onset) not listed;"
+                    " --include-status lists them"
                 )
             for n in notes:
                 out.print(clean(n), markup=False)

@@ -38,6 +38,19 @@ IdleGapOpt = Annotated[
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON document on stdout instead of tables.")]
 StrictOpt = Annotated[bool, typer.Option("--strict", help="Exit 1 if any input line was rejected.")]
+JsonlOpt = Annotated[
+    bool,
+    typer.Option("--jsonl", help="JSON lines on stdout, each written as found: rejected, passage, device, summary."),
+]
+IncludeStatusOpt = Annotated[
+    bool,
+    typer.Option("--include-status", help="List passages of status records only (default: counted per head)."),
+]
+RejectedAllOpt = Annotated[
+    bool, typer.Option("--rejected-all", help="List every rejected line (default: all counted, the first 100 listed).")
+]
+# Rejected lines listed (and held) by default; all are counted.
+REJECTIONS_LISTED = 100
 
 
 LayoutOpt = Annotated[
@@ -333,6 +346,38 @@ def run_diag(
     settings = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
     with byte_progress(input_bytes(files), "parsing") as advance:
         return analyze_files(files, settings, on_progress=advance, keep_releases=keep_releases)
+
+
+def run_diag_stream(
+    files: list[Path],
+    spacing: float,
+    train_length: float,
+    idle_gap: float,
+    include_status: bool,
+    rejected_all: bool,
+    jsonl: Any = None,
+) -> Any:
+    """The diagnostic job in bounded memory (:func:`console.jobs.stream_files`); with ``jsonl``
+    (a :class:`~console.render.diag_stream.JsonLinesOut`), passages and rejections are written as found."""
+    import sys as _sys
+
+    from console.analysis.diagnostics import SpeedSettings
+    from console.jobs import input_bytes, stream_files
+    from console.progress import byte_progress
+
+    check_inputs(files)
+    refuse_wrong_kind(files, "diag")
+    settings = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
+    with byte_progress(input_bytes(files), "parsing") as advance:
+        return stream_files(
+            files,
+            settings,
+            on_progress=advance,
+            on_passages=jsonl.passages if jsonl is not None else None,
+            include_status=include_status,
+            max_rejections_kept=_sys.maxsize if rejected_all else REJECTIONS_LISTED,
+            on_reject=jsonl.rejected if jsonl is not None else None,
+        )
 
 
 def load_layout(spec: str) -> Any:

@@ -2,20 +2,26 @@
 
 from __future__ import annotations
 
+import sys
+
 import typer
 
 from console import exit_codes
 from console.commands.common import (
+    REJECTIONS_LISTED,
     Console,
     FilesArg,
     IdleGapOpt,
+    IncludeStatusOpt,
+    JsonlOpt,
     JsonOpt,
     SpacingOpt,
     StrictOpt,
     TrainLengthOpt,
+    fail,
     guard,
     print_json,
-    run_diag,
+    run_diag_stream,
 )
 
 
@@ -25,17 +31,30 @@ def speeds(
     train_length: TrainLengthOpt = 28.6,
     idle_gap: IdleGapOpt = 10.0,
     json_out: JsonOpt = False,
+    jsonl: JsonlOpt = False,
+    include_status: IncludeStatusOpt = False,
     strict: StrictOpt = False,
 ) -> None:
     """The passages table alone: per-second, whole-train and per-axle speeds."""
 
     def body() -> int:
-        job = run_diag(files, spacing, train_length, idle_gap)
-        if json_out:
+        from console.jobs import summary_doc
+        from console.render.diag_stream import JsonLinesOut
+
+        if json_out and jsonl:
+            raise fail("--json and --jsonl: choose one")
+        lines = JsonLinesOut(sys.stdout, REJECTIONS_LISTED) if jsonl else None
+        job = run_diag_stream(files, spacing, train_length, idle_gap, include_status, False, lines)
+        if lines is not None:
+            lines.finish([], summary_doc(job, "trackside.speeds/1"))
+        elif json_out:
             from console.jsonout import RawJSON
 
             text = RawJSON(job.analysis.passages_json_text())
-            print_json({"schema": "trackside.speeds/1", "passages": text})
+            doc = {"schema": "trackside.speeds/1", "passages": text}
+            if job.status is not None:
+                doc["status_passages"] = job.status.to_dict(job.analysis.heads)
+            print_json(doc)
         else:
             from console.render.diag_tables import passages_table
 

@@ -1,0 +1,58 @@
+"""Passages of status records only: counted per head, not listed.
+
+A board writes status dumps (identity, analog values, counters) whether or
+not a train passes; each dump with no wheel onset becomes a passage of kind
+``status``.  On a busy station they are most passages and most of the JSON,
+and say little one by one, so by default they are summarised per counting
+head (how many, how many records) and listed only on request.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from console.analysis.passages import Columns
+
+STATUS_KIND = 2  # diagnostics._KINDS.index("status")
+
+
+@dataclass
+class StatusSummary:
+    """Per head key: status-only passages and their records."""
+
+    passages: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    records: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    def take(self, cols: Columns) -> Columns:
+        """Count the status passages of ``cols``; the others, in order."""
+        from console.analysis.stream import take_passages
+
+        status = cols["kind"] == STATUS_KIND
+        if not status.any():
+            return cols
+        head = cols["head"][status]
+        n = max(len(self.passages), int(head.max()) + 1)
+        self.passages = np.r_[self.passages, np.zeros(n - len(self.passages), np.int64)]
+        self.records = np.r_[self.records, np.zeros(n - len(self.records), np.int64)]
+        np.add.at(self.passages, head, 1)
+        np.add.at(self.records, head, cols["records"][status])
+        return take_passages(cols, np.flatnonzero(~status))
+
+    def to_dict(self, heads: list[tuple[int, str]]) -> dict[str, Any]:
+        rows = np.flatnonzero(self.passages)
+        return {
+            "passages": int(self.passages.sum()),
+            "records": int(self.records.sum()),
+            "by_head": [
+                {
+                    "device_id": heads[h][0],
+                    "counting_head": heads[h][1],
+                    "passages": int(self.passages[h]),
+                    "records": int(self.records[h]),
+                }
+                for h in rows.tolist()  # per head with status passages
+            ],
+        }

@@ -1,0 +1,196 @@
+"""Passages as soon as they are whole: one engine for batch reads and live following.
+
+A passage of a counting head ends where the head's records pause for more
+than the idle gap.  Reading a log in chunks, a head's records up to such a
+pause are *closed*: nothing read later can join them, so they are analysed
+at once (by the batch analysis itself, :func:`diagnostics.analyse_parts`)
+and dropped.  What stays in memory is, per head, the reductions of its
+open run (activity buckets, wheel onsets) and a few numbers: memory grows
+with the heads and the open passages, not with the log.
+
+A head's run also closes once the log's clock (the latest record time
+read) is more than the idle gap plus :data:`ORDER_SLACK_S` past its last
+record: logs interleave boards whose clocks step differently, so a record
+may come up to that slack after a later-stamped one of another board, but
+never more.  Within one head records come in time order, so a pause inside
+a head's own records closes the run before it at once.
+
+A wheel, a whole-second group or a passage that straddles a chunk boundary
+is simply still open when the next chunk comes: the reductions of both
+chunks merge before the run is analysed, so the passages, axles and speeds
+are those of a whole-file read (``tests/test_streaming_property.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, analyse_parts
+from console.analysis.passages import Columns, merge_buckets
+from console.analysis.timefmt import NS
+from parsers.diag import DiagChunk, DiagRegistry
+
+ORDER_SLACK_S = 2.0
+NO_TIME = np.iinfo(np.int64).min
+ALL_TIME = np.iinfo(np.int64).max
+# Held reductions are merged into one part once there are this many (bounds list overhead).
+_MERGE_PARTS = 16
+
+
+def _grown(values: np.ndarray, n: int, fill: int) -> np.ndarray:
+    if len(values) >= n:
+        return values
+    return np.r_[values, np.full(n - len(values), fill, np.int64)]
+
+
+@dataclass
+class PassageStream:
+    """Feed parsed chunks in read order; get each batch of closed passages back as :class:`PartAnalysis`."""
+
+    registry: DiagRegistry
+    settings: SpeedSettings
+    keep_releases: bool = False
+    order_slack_s: float = ORDER_SLACK_S
+    unpaired_detections: int = 0
+    passages_closed: int = 0
+    clock_ns: int = NO_TIME
+    acc: DiagAccumulator = field(init=False)
+    _open_first: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    _open_last: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    _cut: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    def __post_init__(self) -> None:
+        # One read of one log: no other file to overlap (see jobs.analyze_files).
+        self.acc = DiagAccumulator(self.registry, keep_releases=self.keep_releases, track_overlap=False)
+        self._gap_ns = int(self.settings.idle_gap_s * NS)
+        self._slack_ns = int(self.order_slack_s * NS)
+
+    @property
+    def heads(self) -> list[tuple[int, str]]:
+        return self.acc._lookup().heads
+
+    def open_first_ns(self) -> int:
+        """The earliest record time of any open run (int64 max: none open)."""
+        open_ = self._open_last != NO_TIME
+        return int(self._open_first[open_].min()) if open_.any() else ALL_TIME
+
+    def add(self, chunk: DiagChunk) -> PartAnalysis | None:
+        """Take in a chunk; the passages it completed, if any."""
+        if len(chunk) == 0:
+            return None
+        self.acc.add(chunk)
+        tables = self.acc._lookup()
+        n = len(tables.head_device)
+        self._open_first = _grown(self._open_first, n, NO_TIME)
+        self._open_last = _grown(self._open_last, n, NO_TIME)
+        self._cut = _grown(self._cut, n, NO_TIME)
+        self._advance(tables.head[chunk.register_id], chunk.time_ns)
+        return self._close(final=False)
+
+    def finish(self) -> PartAnalysis | None:
+        """End of input: every open run is whole."""
+        return self._close(final=True)
+
+    def _advance(self, heads: np.ndarray, t: np.ndarray) -> None:
+        """Move each head's open run over the chunk's records, all heads at once."""
+        self.clock_ns = max(self.clock_ns, int(t.max()))
+        order = np.lexsort((t, heads))
+        hs, ts = heads[order], t[order]
+        starts = np.flatnonzero(np.r_[True, hs[1:] != hs[:-1]])
+        ends = np.r_[starts[1:], len(hs)] - 1
+        h = hs[starts]
+        first, last = ts[starts], ts[ends]
+        prev = self._open_last[h]
+        # The chunk's first record is more than the gap after the open run: that run is whole.
+        broke = (prev != NO_TIME) & (first - prev > self._gap_ns)
+        self._cut[h[broke]] = np.maximum(self._cut[h[broke]], prev[broke])
+        new_run = (prev == NO_TIME) | broke
+        self._open_first[h[new_run]] = first[new_run]
+        # A pause inside the chunk's records of a head: everything up to the last pause is whole.
+        pause = np.r_[(np.diff(ts) > self._gap_ns) & (hs[1:] == hs[:-1]), False]
+        at = np.maximum.reduceat(np.where(pause, np.arange(len(ts)), -1), starts)
+        inner = at >= 0
+        self._cut[h[inner]] = np.maximum(self._cut[h[inner]], ts[at[inner]])
+        self._open_first[h[inner]] = ts[at[inner] + 1]
+        self._open_last[h] = np.where(prev == NO_TIME, last, np.maximum(prev, last))
+
+    def _close(self, final: bool) -> PartAnalysis | None:
+        idle = self._open_last != NO_TIME
+        if not final:
+            idle &= self._open_last < self.clock_ns - self._gap_ns - self._slack_ns
+        self._cut[idle] = ALL_TIME
+        self._open_last[idle] = NO_TIME
+        if not (self._cut != NO_TIME).any():
+            return None
+        cut, self._cut = self._cut, np.full(len(self._cut), NO_TIME, np.int64)
+        buckets, self.acc._buckets = _split(self.acc._buckets, cut, "t_first_ns")
+        detections, self.acc._detections = _split(self.acc._detections, cut, "time_ns")
+        if len(self.acc._buckets) > _MERGE_PARTS:
+            self.acc._buckets = [merge_buckets(self.acc._buckets)]
+        if len(self.acc._detections) > _MERGE_PARTS:
+            held = self.acc._detections
+            self.acc._detections = [{c: np.concatenate([d[c] for d in held]) for c in held[0]}]
+        if not buckets:
+            return None
+        part = analyse_parts(merge_buckets(buckets), detections, self.settings, self.keep_releases)
+        self.unpaired_detections += part.unpaired
+        self.passages_closed += len(part.passages["head"]) if part.passages is not None else 0
+        return part
+
+
+def _split(parts: list[Columns], cut: np.ndarray, time_column: str) -> tuple[list[Columns], list[Columns]]:
+    """Each part's rows at or before their head's cut time, and the rest (read order kept)."""
+    closed, kept = [], []
+    for p in parts:
+        mask = p[time_column] <= cut[p["head"]]
+        if mask.all():
+            closed.append(p)
+        elif not mask.any():
+            kept.append(p)
+        else:
+            closed.append({c: v[mask] for c, v in p.items()})
+            kept.append({c: v[~mask] for c, v in p.items()})
+    return closed, kept
+
+
+# -- passage columns: concatenating batches, taking rows ----------------------------------
+
+
+def take_passages(cols: Columns, rows: np.ndarray) -> Columns:
+    """The passages at ``rows`` (in that order), their per-axle speeds re-indexed."""
+    start, stop = cols["axle_speeds_start"][rows], cols["axle_speeds_stop"][rows]
+    count = stop - start
+    new_stop = np.cumsum(count)
+    new_start = new_stop - count
+    speeds = cols["axle_speeds_kmh"][
+        np.repeat(start - new_start, count) + np.arange(int(new_stop[-1]) if len(rows) else 0)
+    ]
+    out = {c: v[rows] for c, v in cols.items() if c != "axle_speeds_kmh"}
+    out.update(axle_speeds_start=new_start, axle_speeds_stop=new_stop, axle_speeds_kmh=speeds)
+    return out
+
+
+def concat_passages(parts: list[Columns]) -> Columns | None:
+    """Batches of passage columns as one table (per-axle speed indices shifted)."""
+    if not parts:
+        return None
+    offsets = np.cumsum([0] + [len(p["axle_speeds_kmh"]) for p in parts[:-1]])
+    out: Columns = {}
+    for c in parts[0]:
+        if c in ("axle_speeds_start", "axle_speeds_stop"):
+            out[c] = np.concatenate([p[c] + off for p, off in zip(parts, offsets, strict=True)])
+        else:
+            out[c] = np.concatenate([p[c] for p in parts])
+    return out
+
+
+def by_head_and_start(cols: Columns) -> np.ndarray:
+    """Row order of a whole-file read: by head key, then start time."""
+    return np.lexsort((cols["start_ns"], cols["head"]))
+
+
+def by_start(cols: Columns) -> np.ndarray:
+    """Row order of a stream: by start time, then head key."""
+    return np.lexsort((cols["head"], cols["start_ns"]))
