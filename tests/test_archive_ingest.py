@@ -9,7 +9,7 @@ import os
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
+from typer.testing import CliRunner, Result
 
 from console.archive.store import read_current
 from console.cli import app
@@ -19,11 +19,11 @@ runner = CliRunner()
 STATION = SAMPLES / "example_station.log"
 
 
-def _ingest(archive: Path, *paths: Path | str, extra: tuple[str, ...] = (), stdin: bytes | None = None) -> object:
+def _ingest(archive: Path, *paths: Path | str, extra: tuple[str, ...] = (), stdin: bytes | None = None) -> Result:
     return runner.invoke(app, ["ingest", *map(str, paths), "--archive", str(archive), *extra], input=stdin)
 
 
-def _query(archive: Path, sql: str, *extra: str) -> object:
+def _query(archive: Path, sql: str, *extra: str) -> Result:
     return runner.invoke(app, ["query", sql, "--archive", str(archive), "--format", "json", *extra])
 
 
@@ -34,7 +34,7 @@ def _rows(archive: Path, sql: str) -> list[dict[str, object]]:
 
 
 def _count(archive: Path, table: str = "records") -> int:
-    return int(_rows(archive, f"SELECT count(*) AS n FROM {table}")[0]["n"])  # type: ignore[arg-type]
+    return int(_rows(archive, f"SELECT count(*) AS n FROM {table}")[0]["n"])  # type: ignore[call-overload]
 
 
 def test_ingesting_the_same_file_twice_adds_nothing(tmp_path: Path) -> None:
@@ -82,6 +82,41 @@ def test_a_grown_file_is_read_from_where_the_last_ingest_stopped(tmp_path: Path)
     notes = _rows(arc, "SELECT action, byte_start FROM ingests ORDER BY generation")
     assert [n["action"] for n in notes] == ["new", "grown"]
     assert notes[1]["byte_start"] == len(b"".join(lines[:1000]))
+
+
+def test_each_ingest_of_a_growing_file_leaves_one_part_per_day_and_board(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import console.archive.ingest as ingest_module
+
+    lines = STATION.read_bytes().splitlines(keepends=True)
+    log = tmp_path / "growing.log"
+    arc = tmp_path / "arc"
+    cuts = [0, 700, 1500, 2600, len(lines)]
+    for end in cuts[1:]:
+        log.write_bytes(b"".join(lines[:end]))
+        assert _ingest(arc, log).exit_code == 0
+        m = read_current(arc)
+        folders = [str(Path(rel).parent) for rel in m.parts("records")]
+        # Compaction: the pieces of one partition are merged into one part, under a fresh name.
+        assert len(folders) == len(set(folders)), folders
+        assert _count(arc) == end
+    got = _rows(arc, "SELECT count(DISTINCT line) AS n, min(line) AS a, max(line) AS b FROM records")[0]
+    assert got == {"n": len(lines), "a": 1, "b": len(lines)}
+    # The merged pieces this ingest wrote are deleted at once (no manifest lists them); older ones
+    # stay for the kept manifests and leave with the clean-up of a later ingest.
+    gen = read_current(arc).generation
+    on_disk = {str(p.relative_to(arc)) for p in (arc / "data" / "records").rglob(f"g{gen:06d}-*.parquet")}
+    assert on_disk == {rel for rel in read_current(arc).parts("records") if f"g{gen:06d}-" in rel}
+    # A partition whose parts would exceed the compaction limit keeps them apart.
+    monkeypatch.setattr(ingest_module, "COMPACT_MAX_ROWS", 10)
+    more = tmp_path / "more.log"
+    more.write_bytes(b"".join(lines[:50]).replace(b"Diag_id:", b"Diag_id:9", 1))
+    run = ingest_module.run_ingest([more], arc)
+    assert run.published
+    folders = [str(Path(rel).parent) for rel in read_current(arc).parts("records")]
+    assert len(folders) > len(set(folders))
+    assert _count(arc) == len(lines) + 50
 
 
 def test_a_rotated_file_is_ingested_as_a_new_file_and_the_ledger_says_why(tmp_path: Path) -> None:
@@ -134,7 +169,7 @@ def test_query_schema_and_presets(tmp_path: Path) -> None:
             app, ["query", "--preset", "axles-per-head-per-day", "--archive", str(arc), "--format", "json"]
         ).stdout
     )
-    direct = _rows(arc, "SELECT count(*) AS n FROM axles")[0]["n"]
+    direct = int(_rows(arc, "SELECT count(*) AS n FROM axles")[0]["n"])  # type: ignore[call-overload]
     assert sum(int(r["axles"]) for r in axles) == direct > 0
     for preset in ("late-warnings", "failing-sensors"):
         res = runner.invoke(app, ["query", "--preset", preset, "--archive", str(arc)])

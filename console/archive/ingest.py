@@ -11,6 +11,7 @@ a bad input, ``kill -9``) leaves the previous state current.
 from __future__ import annotations
 
 import copy
+import os
 import shutil
 import sys
 import time
@@ -24,7 +25,16 @@ import pyarrow as pa
 
 from console import __version__
 from console.archive import ledger
-from console.archive.parts import NS_PER_DAY, PartWriter, write_small
+from console.archive.parts import (
+    COMPACT_MAX_ROWS,
+    NS_PER_DAY,
+    PartWriter,
+    compact,
+    part_rows,
+    read_part,
+    write_part,
+    write_small,
+)
 from console.archive.records import RecordEncoder
 from console.archive.store import (
     TMP,
@@ -41,6 +51,8 @@ from console.archive.store import (
 DIAGNOSTIC = "diagnostic"
 STORED_ELSEWHERE = {"nmea": "fixes", "gnss-csv": "fixes", "gnss-jsonl": "fixes", "centre": "fixes"}
 STDIN_NAME = "<stdin>"
+# Record parts are sorted by head, then time: one head's hour is a few consecutive rows of one row group.
+RECORD_ORDER = ("counting_head", "time")
 
 
 @dataclass
@@ -106,7 +118,7 @@ class _Ingest:
         self.new.generation = manifest.generation + 1
         self.gen = self.new.generation
         self.on_bytes = on_bytes
-        self.records = PartWriter(root, "records", self.gen, "r")
+        self.records = PartWriter(root, "records", self.gen, "r", sort_by=RECORD_ORDER)
         self.new_parts: list[str] = []
         self.ingest_rows: list[dict[str, Any]] = []
         self.rejected_rows: list[dict[str, Any]] = []
@@ -313,25 +325,53 @@ class _Ingest:
             self.new_parts += written
         if self.dropped_seqs:
             self._rewrite_records_without(self.dropped_seqs)
+        self._compact_records(set(written))
+
+    def _compact_records(self, fresh: set[str]) -> None:
+        """Partitions this ingest added a part to, that hold other parts: the small ones merged into one.
+
+        Each ingest of a growing file would otherwise leave one more part per day and board, and a
+        query pays for every part its view lists.  The merged part gets a fresh name and replaces the
+        parts it holds in the same manifest (old parts are garbage after the publish, as ever).
+        """
+        by_dir: dict[str, list[str]] = {}
+        for rel in self.new.tables.get("records", []):
+            by_dir.setdefault(os.path.dirname(rel), []).append(rel)
+        for folder, rels in sorted(by_dir.items()):
+            if len(rels) < 2 or not fresh.intersection(rels):
+                continue
+            rows = {rel: part_rows(self.root, rel) for rel in rels}
+            chosen: list[str] = []
+            total = 0
+            for rel in sorted(rels, key=lambda r: rows[r]):  # smallest first: big parts stay as they are
+                if total + rows[rel] > COMPACT_MAX_ROWS:
+                    break
+                chosen.append(rel)
+                total += rows[rel]
+            if len(chosen) < 2:
+                continue
+            out = compact(self.root, chosen, os.path.join(folder, f"g{self.gen:06d}-c.parquet"), RECORD_ORDER)
+            gone = set(chosen)
+            self.new.tables["records"] = [r for r in self.new.tables["records"] if r not in gone] + [out]
+            for rel in gone.intersection(self.new_parts):
+                (self.root / rel).unlink()  # written by this ingest, listed nowhere
+            self.new_parts = [r for r in self.new_parts if r not in gone] + [out]
 
     def _rewrite_records_without(self, seqs: set[int]) -> None:
         """Records of replaced diagnostic files leave the partitions that hold them (rewritten once)."""
-        import pyarrow.parquet as pq
-
         kept: list[str] = []
         for rel in self.new.tables.get("records", []):
             if rel in self.new_parts:
                 kept.append(rel)
                 continue
-            table = pq.read_table(self.root / rel)
+            table = read_part(self.root, rel)
             mask = ~np.isin(table.column("file_seq").to_numpy(), np.fromiter(seqs, np.int32))
             if mask.all():
                 kept.append(rel)
                 continue
             if mask.any():
-                out = self.root / rel.replace(".parquet", f"-x{self.gen:06d}.parquet")
-                pq.write_table(table.filter(pa.array(mask)), out, compression="zstd")
-                new_rel = str(out.relative_to(self.root))
+                new_rel = rel.replace(".parquet", f"-x{self.gen:06d}.parquet")
+                write_part(self.root, new_rel, table.filter(pa.array(mask)))
                 kept.append(new_rel)
                 self.new_parts.append(new_rel)
         self.new.tables["records"] = kept

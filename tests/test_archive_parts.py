@@ -1,0 +1,107 @@
+"""Record parts as the ingest writes them: one per partition, sorted row groups, bounded buffers, compaction."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from console.archive import parts
+from console.archive.parts import PartWriter, compact, read_part
+
+HEADS = ["WS1", "WS2", "WS3"]
+
+
+def _chunk(rng: np.random.Generator, n: int, t0: int) -> tuple[pa.Table, np.ndarray, np.ndarray]:
+    """n records in time order, heads interleaved, over 3 boards and 2 days."""
+    time_ns = t0 + np.sort(rng.integers(0, 10**9, n))
+    head = rng.integers(0, len(HEADS), n)
+    device = rng.integers(0, 3, n) + 5000
+    day = time_ns // parts.NS_PER_DAY
+    table = pa.table(
+        {
+            "time": pa.array(time_ns.view("datetime64[ns]")),
+            "counting_head": pa.DictionaryArray.from_arrays(pa.array(head, pa.int32()), pa.array(HEADS)),
+            "value": pa.array(rng.integers(0, 100, n)),
+            "line": pa.array(np.arange(t0, t0 + n)),
+        }
+    )
+    return table, day, device
+
+
+def _write(tmp_path: Path, chunks: int, rows: int) -> tuple[PartWriter, set[int]]:
+    rng = np.random.default_rng(7)
+    w = PartWriter(tmp_path, "records", 3, "r", sort_by=("counting_head", "time"))
+    lines: set[int] = set()
+    # Half a second before midnight: the first chunk straddles two days.
+    start = 20_000 * parts.NS_PER_DAY - 5 * 10**8
+    for k in range(chunks):
+        table, day, device = _chunk(rng, rows, start + k * 10**9)
+        lines.update(table.column("line").to_pylist())
+        w.add(table, day, device)
+    w.close()
+    return w, lines
+
+
+def _check_sorted(table: pa.Table) -> None:
+    head = np.asarray(table.column("counting_head").combine_chunks().indices)
+    t = table.column("time").cast(pa.int64()).to_numpy()
+    key = np.lexsort((t, head))
+    assert (key == np.arange(len(key))).all()
+
+
+def test_one_part_per_partition_rows_complete_and_row_groups_sorted_by_head_then_time(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(parts, "BUFFER_BYTES", 20_000)  # write out every few chunks: several row groups
+    w, lines = _write(tmp_path, chunks=12, rows=700)
+    # 3 boards x 2 days, one file each.
+    assert len(w.written) == 6
+    assert len({Path(rel).parent for rel in w.written}) == 6
+    seen: list[int] = []
+    row_groups = 0
+    for rel in w.written:
+        f = pq.ParquetFile(tmp_path / rel)
+        row_groups += f.num_row_groups
+        day = rel.split("day=")[1][:10]
+        device = int(rel.split("device_id=")[1].split("/")[0])
+        for g in range(f.num_row_groups):
+            rg = f.read_row_group(g)
+            _check_sorted(rg)
+            days = {str(d)[:10] for d in rg.column("time").to_pylist()}
+            assert days == {day}, (rel, days)
+        seen += read_part(tmp_path, rel).column("line").to_pylist()
+        assert device in (5000, 5001, 5002)
+    assert row_groups > 6  # the buffer was written out before the end
+    assert sorted(seen) == sorted(lines)
+
+
+def test_open_files_are_bounded_and_a_closed_partition_continues_in_a_second_part(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(parts, "BUFFER_BYTES", 5_000)
+    monkeypatch.setattr(parts, "MAX_OPEN_WRITERS", 2)
+    w, lines = _write(tmp_path, chunks=6, rows=300)
+    assert len(w.written) > 6  # some partitions were closed and reopened as a second part
+    assert any(rel.endswith("-r1.parquet") for rel in w.written)
+    seen = [x for rel in w.written for x in read_part(tmp_path, rel).column("line").to_pylist()]
+    assert sorted(seen) == sorted(lines)
+
+
+def test_compact_merges_parts_into_one_sorted_part(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(parts, "BUFFER_BYTES", 5_000)
+    monkeypatch.setattr(parts, "MAX_OPEN_WRITERS", 1)
+    w, _ = _write(tmp_path, chunks=4, rows=200)
+    folders = [Path(rel).parent for rel in w.written]
+    folder = max(folders, key=folders.count)
+    same = [rel for rel in w.written if Path(rel).parent == folder]
+    assert len(same) >= 2
+    before = sorted(x for rel in same for x in read_part(tmp_path, rel).column("line").to_pylist())
+    out = compact(tmp_path, same, str(folder / "g000004-c.parquet"), ("counting_head", "time"))
+    merged = read_part(tmp_path, out)
+    assert sorted(merged.column("line").to_pylist()) == before
+    _check_sorted(merged)
+    assert merged.schema.equals(read_part(tmp_path, same[0]).schema)
