@@ -16,7 +16,7 @@ the station view's replay.
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -92,8 +92,13 @@ _RECORD_COLUMNS = (
 )
 
 
-def record_batches(root: Path, manifest: Manifest, window: Window = Window()) -> Iterator[pa.RecordBatch]:
-    """The records (in file, line order: the order a batch read sees them), in Arrow batches."""
+def record_batches(
+    root: Path, manifest: Manifest, window: Window = Window(), tables: Collection[str] | None = None
+) -> Iterator[pa.RecordBatch]:
+    """The records (in file, line order: the order a batch read sees them), in Arrow batches.
+
+    ``tables``: only these views are built (a partition's derivation needs only ``records``).
+    """
     if not manifest.parts("records"):
         return
     import shutil
@@ -103,7 +108,7 @@ def record_batches(root: Path, manifest: Manifest, window: Window = Window()) ->
 
     (root / TMP).mkdir(parents=True, exist_ok=True)
     spill = Path(tempfile.mkdtemp(prefix="duckdb-", dir=root / TMP))
-    con, _ = connect(root, manifest, spill_dir=spill)
+    con, _ = connect(root, manifest, spill_dir=spill, tables=tables)
     try:
         where, params = window.where()
         rel = con.sql(f"SELECT {_RECORD_COLUMNS} FROM records{where} ORDER BY file_seq, line", params=params)

@@ -1,0 +1,357 @@
+"""Derived passages and axles per partition (device, day), with the state that crosses midnight carried.
+
+The unit of work of the archive's derivation (issue 13's incremental derive,
+issue 15's Dask engine)::
+
+    keys = partitions(manifest)                  # every (device_id, day) holding records
+    carried = carried_state(keys)                # per key: the day before, the days after
+    rows = derive_partition(root, manifest, key, carried[key], settings)   # pure: reads, computes, writes nothing
+    tables = combine(rows_list)                  # passages, axles, wheel records, heads: one DataFrame each
+
+:func:`derive_partition` returns the rows of the passages that *start* in
+its day (UTC day of the naive log time, the records' ``day`` partition),
+with their axles and wheel-sensor records, computed by the batch analysis
+(:class:`~console.analysis.diagnostics.DiagAccumulator`) over a window of
+the device's records:
+
+* **before**: the whole day before, when the device has records that day.
+  A passage open at midnight began there: in the window its records come
+  before the day's, so the day's first records are not taken for a new
+  passage.  Passage boundaries are idle gaps, which do not depend on where
+  a window starts, and a gap of a whole day is always a boundary (the idle
+  gap is seconds), so the day before is enough.
+* **after**: the days after, one at a time, while a passage started in the
+  day still has records on the last day of the window (a passage over
+  midnight, or one longer than a day).
+
+So the result does not depend on how the history was split: the property
+test (tests/test_archive_derive.py) derives simulator logs that run over
+midnight per partition and compares with ``analyze`` of the whole file.
+:func:`derive_run` does several consecutive days of one device in one window
+(the local engine's batches: each record is read about once, where one
+window per day reads each day three times).
+
+The cross-head tables (section states, the count ledger, health findings,
+crossing timelines) are not per partition: see :mod:`console.archive.derive`.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from console.archive.store import Manifest
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
+
+NS_PER_DAY = 86_400 * 1_000_000_000
+_KEY_IN_PATH = re.compile(r"day=(\d{4}-\d{2}-\d{2})/device_id=(-?\d+)/")
+WHEEL_COLUMNS = ("device_id", "counting_head", "channel", "time_ns", "value", "subsecond")
+HEAD_COLUMNS = ("device_id", "counting_head", "first_file_seq", "first_line")
+
+
+@dataclass(frozen=True, order=True)
+class PartitionKey:
+    """One device's records of one day: the unit the derived tables are computed and stored by."""
+
+    device_id: int
+    day: dt.date
+
+    @property
+    def name(self) -> str:
+        return f"{self.device_id}/{self.day.isoformat()}"
+
+    @classmethod
+    def parse(cls, name: str) -> PartitionKey:
+        dev, day = name.split("/")
+        return cls(int(dev), dt.date.fromisoformat(day))
+
+
+@dataclass(frozen=True)
+class Carried:
+    """What crosses a partition's edges: which neighbouring days of its device hold records.
+
+    ``day_before``: the day before, when it holds records (a passage open at
+    midnight began there).  ``days_after``: the run of consecutive following
+    days with records (a passage started in the partition may run on into them).
+    """
+
+    day_before: dt.date | None = None
+    days_after: tuple[dt.date, ...] = ()
+
+
+@dataclass
+class DerivedRows:
+    """A partition's derived rows: passages starting in it, their axles, wheel records and the heads seen."""
+
+    keys: tuple[PartitionKey, ...]
+    passages: pd.DataFrame
+    axles: pd.DataFrame
+    wheel: pd.DataFrame  # WHEEL_COLUMNS: the section engine's input, in the batch's order per head
+    heads: pd.DataFrame  # HEAD_COLUMNS: each head's first record (file, line) in these days
+    last_end_day: dict[str, str]  # key name → day of its latest passage end (ISO)
+
+    def only(self, key: PartitionKey) -> DerivedRows:
+        """The rows of one of the keys (a run's rows split per partition for storage)."""
+        return DerivedRows(
+            keys=(key,),
+            passages=self.passages[_day_of(self.passages["start_ns"]) == key.day].reset_index(drop=True),
+            axles=self.axles[self.axles["_key_day"] == key.day].reset_index(drop=True),
+            wheel=self.wheel[self.wheel["_key_day"] == key.day].reset_index(drop=True),
+            heads=self.heads[self.heads["_key_day"] == key.day].reset_index(drop=True),
+            last_end_day={k: v for k, v in self.last_end_day.items() if k == key.name},
+        )
+
+
+def _day_of(ns: pd.Series | np.ndarray) -> np.ndarray:
+    return (np.asarray(ns, np.int64) // NS_PER_DAY).astype("datetime64[D]").astype(object)
+
+
+def key_of_part(rel: str) -> PartitionKey | None:
+    """The partition of a records part, from its hive path (None: not a day/device part)."""
+    m = _KEY_IN_PATH.search(rel.replace("\\", "/"))
+    return PartitionKey(int(m.group(2)), dt.date.fromisoformat(m.group(1))) if m else None
+
+
+def partitions(manifest: Manifest) -> list[PartitionKey]:
+    """Every (device, day) holding records, sorted; ValueError if a records part is not partitioned."""
+    keys: set[PartitionKey] = set()
+    for rel in manifest.parts("records"):
+        k = key_of_part(rel)
+        if k is None:
+            raise ValueError(f"records part {rel} is not under day=/device_id=")
+        keys.add(k)
+    return sorted(keys)
+
+
+def carried_state(keys: Iterable[PartitionKey]) -> dict[PartitionKey, Carried]:
+    """Per key, its neighbouring days with records (from the key list alone: no data read)."""
+    days: dict[int, set[dt.date]] = {}
+    for k in keys:
+        days.setdefault(k.device_id, set()).add(k.day)
+    out: dict[PartitionKey, Carried] = {}
+    one = dt.timedelta(days=1)
+    for dev, have in days.items():
+        for d in sorted(have):
+            after: list[dt.date] = []
+            nxt = d + one
+            while nxt in have:
+                after.append(nxt)
+                nxt += one
+            out[PartitionKey(dev, d)] = Carried(d - one if d - one in have else None, tuple(after))
+    return out
+
+
+def derive_partition(
+    root: Path, manifest: Manifest, key: PartitionKey, carried: Carried, settings: SpeedSettings
+) -> DerivedRows:
+    """The derived rows of one partition (reads the archive, writes nothing)."""
+    return derive_run(root, manifest, key.device_id, [key.day], carried, settings)
+
+
+def derive_run(
+    root: Path,
+    manifest: Manifest,
+    device_id: int,
+    days: Sequence[dt.date],
+    carried: Carried,
+    settings: SpeedSettings,
+) -> DerivedRows:
+    """The derived rows of consecutive ``days`` of one device, in one window.
+
+    ``carried``: the neighbours of the run (``day_before`` of its first day,
+    ``days_after`` of its last day).
+    """
+    if settings.idle_gap_s >= 86_400:
+        raise ValueError("idle gap must be shorter than a day (a partition is a day)")
+    days = sorted(days)
+    lo = carried.day_before if carried.day_before is not None else days[0]
+    later = list(carried.days_after)
+    hi = days[-1]
+    idle_ns = int(settings.idle_gap_s * 1e9)
+    while True:
+        analysis, heads = _analyse_window(root, manifest, device_id, lo, hi, settings)
+        rows = _rows(analysis, heads, device_id, days)
+        # A passage started in the run whose last record is within an idle gap of the window's end may go on
+        # into the next day: read that day too (a passage over midnight; rarely, one longer than a day).
+        window_end_ns = (np.datetime64(hi, "D").astype(np.int64) + 1) * NS_PER_DAY
+        if later and len(rows.passages) and int(rows.passages["end_ns"].max()) + idle_ns >= window_end_ns:
+            hi = later.pop(0)
+            continue
+        return rows
+
+
+def _window_manifest(manifest: Manifest, device_id: int, lo: dt.date, hi: dt.date) -> Manifest:
+    parts = []
+    for rel in manifest.parts("records"):
+        k = key_of_part(rel)
+        if k is not None and k.device_id == device_id and lo <= k.day <= hi:
+            parts.append(rel)
+    return replace(manifest, tables={"records": parts})
+
+
+def _analyse_window(
+    root: Path, manifest: Manifest, device_id: int, lo: dt.date, hi: dt.date, settings: SpeedSettings
+) -> tuple[DiagAnalysis | None, pd.DataFrame]:
+    """The batch analysis of the device's records of days [lo, hi]; each head's first record per day."""
+    from console.analysis.diagnostics import DiagAccumulator
+    from console.archive.history import Window, record_batches
+    from console.archive.records import ChunkRebuilder
+    from console.archive.views import connect
+
+    window_m = _window_manifest(manifest, device_id, lo, hi)
+    rebuild = ChunkRebuilder()
+    acc = DiagAccumulator(rebuild.registry, keep_releases=True)
+    n = 0
+    for batch in record_batches(root, window_m, Window(device_id=device_id), tables=("records",)):
+        for chunk in rebuild.chunks(batch):
+            n += len(chunk)
+            acc.add(chunk)
+    con, _ = connect(root, window_m, tables=("records",))
+    try:
+        # Read order is (file_seq, line): one integer orders both (lines < 2**32).
+        heads = con.sql(
+            "SELECT device_id, counting_head, day AS _key_day, min(file_seq::BIGINT * 4294967296 + line) AS pos"
+            " FROM records WHERE device_id = ? GROUP BY ALL ORDER BY ALL",
+            params=[device_id],
+        ).df()
+        pos = heads.pop("pos").to_numpy(np.int64)
+        heads["first_file_seq"] = pos >> 32
+        heads["first_line"] = pos & 0xFFFFFFFF
+    finally:
+        con.close()
+    if n == 0:
+        return None, heads
+    return acc.result(settings), heads
+
+
+def _rows(analysis: DiagAnalysis | None, heads: pd.DataFrame, device_id: int, days: Sequence[dt.date]) -> DerivedRows:
+    import pandas as pd
+
+    keys = tuple(PartitionKey(device_id, d) for d in days)
+    heads = heads.copy()
+    heads["_key_day"] = pd.to_datetime(heads["_key_day"]).dt.date
+    heads = heads[heads["_key_day"].isin(set(days))].reset_index(drop=True)
+    if analysis is None:
+        empty = pd.DataFrame({"_key_day": pd.Series(dtype=object)})
+        return DerivedRows(keys, passages_table(analysis), empty, empty, heads, {})
+    p = passages_table(analysis)
+    start_day = _day_of(p["start_ns"])
+    keep = np.isin(start_day, np.array(list(days), dtype=object))
+    # Every axle and wheel record lies in one passage of its head: the passage starting at or before it.
+    head_index = pd.MultiIndex.from_tuples(analysis.heads, names=["device_id", "counting_head"])
+    p_head = head_index.get_indexer(pd.MultiIndex.from_frame(p[["device_id", "counting_head"]])).astype(np.int64)
+    starts = p["start_ns"].to_numpy(np.int64)
+
+    def owner(head: np.ndarray, time_ns: np.ndarray) -> np.ndarray:
+        """Row in ``p`` of the passage holding each (head, time)."""
+        out = np.full(len(head), -1, np.int64)
+        for h in np.unique(head).tolist():
+            rows = np.flatnonzero(p_head == h)
+            at = head == h
+            i = np.searchsorted(starts[rows], time_ns[at], side="right") - 1
+            out[at] = np.where(i >= 0, rows[np.maximum(i, 0)], -1)
+        return out
+
+    axles = axles_table(analysis)
+    a_owner = owner(analysis.axle_columns["head"].astype(np.int64), axles["time_ns"].to_numpy(np.int64))
+    a_keep = (a_owner >= 0) & keep[np.maximum(a_owner, 0)]
+    axles = axles[a_keep].reset_index(drop=True)
+    axles["_key_day"] = start_day[a_owner[a_keep]]
+
+    wr = analysis.wheel_records
+    if len(wr):
+        w_head = wr["head"].to_numpy(np.int64)
+        w_owner = owner(w_head, wr["time_ns"].to_numpy(np.int64))
+        w_keep = (w_owner >= 0) & keep[np.maximum(w_owner, 0)]
+        dev = np.array([h[0] for h in analysis.heads], np.int64)
+        name = np.array([h[1] for h in analysis.heads], object)
+        wheel = pd.DataFrame(
+            {
+                "device_id": dev[w_head[w_keep]],
+                "counting_head": name[w_head[w_keep]],
+                "channel": wr["channel"].to_numpy()[w_keep],
+                "time_ns": wr["time_ns"].to_numpy()[w_keep],
+                "value": wr["value"].to_numpy()[w_keep],
+                "subsecond": wr["subsecond"].to_numpy()[w_keep],
+                "_key_day": start_day[w_owner[w_keep]],
+            }
+        )
+    else:
+        wheel = pd.DataFrame({c: pd.Series(dtype="int64") for c in WHEEL_COLUMNS} | {"_key_day": []})
+    kept = p[keep].reset_index(drop=True)
+    # Per start day, the day its latest passage ends (the incremental derive's reach back over midnight).
+    reach = pd.Series(kept["end_ns"].to_numpy(np.int64)).groupby(start_day[keep]).max()
+    ends = _day_of(reach.to_numpy(np.int64))
+    last = {f"{device_id}/{d.isoformat()}": e.isoformat() for d, e in zip(reach.index, ends, strict=True)}
+    return DerivedRows(keys, kept, axles, wheel, heads, last)
+
+
+def passages_table(analysis: DiagAnalysis | None) -> pd.DataFrame:
+    """The archived passages of an analysis: analyze's passage table with a ``start`` timestamp.
+
+    ``axle_speeds_start``/``stop`` index an in-memory array of per-axle speeds
+    (the JSON's lists): not archived (the axles table holds the speeds).
+    """
+    import pandas as pd
+
+    from console.analysis.diagnostics import PASSAGE_COLUMNS
+
+    if analysis is None:
+        p = pd.DataFrame(columns=list(PASSAGE_COLUMNS))
+    else:
+        p = analysis.passages.copy()
+        p.attrs = {}
+    p = p.drop(columns=["axle_speeds_start", "axle_speeds_stop"])
+    p["start"] = pd.to_datetime(p["start_ns"], unit="ns")
+    return _string_columns(p)
+
+
+def _string_columns(df: pd.DataFrame) -> pd.DataFrame:
+    """Text columns as one string dtype: passages that all lack a direction hold None in an
+    object column, others a string column; concatenated they would mix None and NaN."""
+    for column in df.columns[df.dtypes == object]:
+        if df[column].map(lambda v: isinstance(v, str) or v is None or v != v).all():
+            df[column] = df[column].astype("str")
+    return df
+
+
+def axles_table(analysis: DiagAnalysis) -> pd.DataFrame:
+    """The archived axles: analyze's axle table with the head named (device id, counting head) and a timestamp."""
+    import pandas as pd
+
+    ax = analysis.axles.copy()
+    heads = analysis.heads
+    if len(ax):
+        idx = ax["head"].to_numpy(np.int64)
+        ax["device_id"] = np.array([h[0] for h in heads], np.int64)[idx]
+        ax["counting_head"] = np.array([h[1] for h in heads], object)[idx]
+    else:
+        ax["device_id"] = pd.Series(dtype="int64")
+        ax["counting_head"] = pd.Series(dtype=object)
+    ax["time"] = pd.to_datetime(ax["time_ns"], unit="ns")
+    return ax.drop(columns=["head"], errors="ignore")
+
+
+def combine(rows: Iterable[DerivedRows]) -> dict[str, pd.DataFrame]:
+    """Partitions' rows → one table each (``passages``, ``axles``, ``wheel``, ``heads``), in key order."""
+    import pandas as pd
+
+    ordered = sorted(rows, key=lambda r: r.keys)
+    out: dict[str, pd.DataFrame] = {}
+    for name in ("passages", "axles", "wheel", "heads"):
+        frames = [getattr(r, name) for r in ordered]
+        # Empty partitions left out of the concatenation, but their columns kept when all are empty.
+        frames = [f for f in frames if len(f)] or frames[:1]
+        df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+        out[name] = _string_columns(df.drop(columns=["_key_day"], errors="ignore"))
+    return out
