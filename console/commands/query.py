@@ -6,13 +6,16 @@ import csv
 import datetime as dt
 import json
 import sys
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from console import exit_codes
 from console.commands.common import Console, fail, guard
 from console.commands.ingest import ArchiveOpt
+
+if TYPE_CHECKING:
+    import pyarrow as pa
 
 FORMATS = ("table", "csv", "json", "jsonl")
 
@@ -30,7 +33,7 @@ def query(
     """SQL (DuckDB) over the archive, read-only: one view per table."""
     from console.archive.presets import PRESETS
     from console.archive.store import ArchiveError, archive_dir
-    from console.archive.views import QueryError, require_archive, run_query, schema
+    from console.archive.views import QueryError, require_archive, run_query_arrow, schema
 
     root = archive_dir(archive)
 
@@ -54,17 +57,20 @@ def query(
                     raise fail(f"--preset: unknown {preset!r}; known: {', '.join(PRESETS)}")
                 text = PRESETS[preset].sql
             assert text is not None
-            names, rows = run_query(root, text)
+            result = run_query_arrow(root, text)
         except (ArchiveError, QueryError) as exc:
             raise fail(str(exc)) from None
-        _emit(names, rows, fmt)
+        _emit_table(result, fmt)
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
 
 
 def _plain(value: Any) -> Any:
-    if isinstance(value, dt.datetime | dt.date | dt.time):
+    """A Python value as JSON and CSV can hold it (times are formatted per column, see _column)."""
+    if isinstance(value, dt.datetime):
+        return _utc_text(value)
+    if isinstance(value, dt.date | dt.time):
         return value.isoformat()
     if isinstance(value, dt.timedelta):
         return value.total_seconds()
@@ -74,22 +80,68 @@ def _plain(value: Any) -> Any:
         return None
     if hasattr(value, "as_tuple"):  # Decimal
         return float(value)
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
     return value
 
 
+def _utc_text(value: dt.datetime) -> str:
+    """A datetime inside a nested value: ISO in UTC with Z (a naive time is the logs' own, read as UTC)."""
+    if value.tzinfo is not None:
+        value = value.astimezone(dt.UTC).replace(tzinfo=None)
+    return value.isoformat(timespec="milliseconds" if not value.microsecond % 1000 else "microseconds") + "Z"
+
+
+def _column(col: pa.ChunkedArray) -> list[Any]:
+    """One result column as output values; timestamps as ISO 8601 UTC with Z, nanoseconds kept.
+
+    The archive's times are the logs' (naive, read as UTC like every other
+    trackside command, console.analysis.timefmt); a zone-aware timestamp is
+    stored as UTC by Arrow.  Either way the text is timefmt.iso's.
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    from console.analysis.timefmt import iso_array
+
+    typ = col.type
+    if pa.types.is_timestamp(typ):
+        ns = pc.cast(col.cast(pa.timestamp(typ.unit, typ.tz)), pa.timestamp("ns", typ.tz)).cast(pa.int64())
+        present = pc.is_valid(ns).to_numpy(zero_copy_only=False)
+        text = iso_array(ns.fill_null(0).to_numpy())
+        text[~present] = None
+        return text.tolist()
+    if typ == pa.month_day_nano_interval():
+        # Seconds, as a timedelta was; an interval of months has no fixed length: its text.
+        return [
+            None if v is None else str(v) if v.months else v.days * 86_400 + v.nanoseconds / 1e9
+            for v in col.to_pylist()
+        ]
+    return [_plain(v) for v in col.to_pylist()]
+
+
+def _emit_table(result: pa.Table, fmt: str) -> None:
+    columns = [_column(c) for c in result.columns]
+    rows = list(zip(*columns, strict=True)) if columns else []
+    _emit(list(result.column_names), rows, fmt)
+
+
 def _emit(names: list[str], rows: list[tuple[Any, ...]] | list[tuple[str, str, str]], fmt: str) -> None:
+    """Rows whose values are already plain (see _column)."""
     out = sys.stdout
     if fmt == "csv":
         w = csv.writer(out, lineterminator="\n")
         w.writerow(names)
         for r in rows:
-            w.writerow(["" if v is None else _plain(v) for v in r])
+            w.writerow(["" if v is None else v for v in r])
     elif fmt == "json":
-        json.dump([dict(zip(names, map(_plain, r), strict=True)) for r in rows], out, ensure_ascii=False, default=str)
+        json.dump([dict(zip(names, r, strict=True)) for r in rows], out, ensure_ascii=False, default=str)
         out.write("\n")
     elif fmt == "jsonl":
         for r in rows:
-            out.write(json.dumps(dict(zip(names, map(_plain, r), strict=True)), ensure_ascii=False, default=str) + "\n")
+            out.write(json.dumps(dict(zip(names, r, strict=True)), ensure_ascii=False, default=str) + "\n")
     else:
         from rich.table import Column, Table
 
@@ -97,7 +149,7 @@ def _emit(names: list[str], rows: list[tuple[Any, ...]] | list[tuple[str, str, s
 
         table = Table(*[Column(inert(n)) for n in names], show_lines=False)
         for r in rows:
-            table.add_row(*[inert("" if v is None else _plain(v)) for v in r])
+            table.add_row(*[inert("" if v is None else v) for v in r])
         con = Console(highlight=False)
         con.print(table)
         con.print(f"{len(rows)} rows", markup=False)

@@ -59,7 +59,11 @@ def report(
                     check_outside(output, archive, what="report")  # never a file among the archive's own
                 except OutputError as exc:
                     raise fail(str(exc)) from None
-            collector = archive_collector(archive, layout, start, end, head, device)
+            from console.archive.trends import with_trends
+
+            collector = with_trends(
+                archive_collector(archive, layout, start, end, head, device), archive, start, end, head, device
+            )
             return run_report([], layout, fmt, output, fail_on, collector=collector)
         return run_report(inputs or [], layout, fmt, output, fail_on)
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from console.analysis.sections import SectionState
 from console.analysis.timefmt import display
-from console.report import svg
+from console.report import svg, trends
 from console.report.model import ReportData, analog_series, natural_key, timeline_order
 from console.report.outline import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table, outline
 from console.report.svg import esc
@@ -264,6 +264,12 @@ def _figure(plot: str, data: ReportData) -> str:
         bodies = _analog(data)
         caption = "Analog receiver values per channel; the shaded band is the layout's, where it gives one."
         return "".join(f"<figure>{b}<figcaption>{esc(caption)}</figcaption></figure>" for b in bodies)
+    if plot.startswith("trend-"):
+        caption = trends.caption(plot)
+        return "".join(
+            f"<figure>{b}<figcaption>{esc(caption)}</figcaption></figure>"
+            for b in trends.trend_plots(plot, data.trends)
+        )
     return ""
 
 

@@ -124,6 +124,8 @@ class ReportData:
     reports: dict[str, ParseReport] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     notes: dict[str, str] = field(default_factory=dict)  # part → why it is empty
+    # Daily trends (console.archive.trends): only a report from the archive has history.
+    trends: dict[str, Any] | None = None
 
     def attention(self) -> list[Attention]:
         """Unsafe items first, then failing ones; each in time order."""
@@ -501,6 +503,7 @@ def document(data: ReportData) -> dict[str, Any]:
             "analog": _analog(data),
         },
         "crossings": _crossings(data),
+        **({"trends": data.trends} if data.trends is not None else {}),
         "warnings": list(data.warnings),
         "notes": dict(sorted(data.notes.items())),
     }

@@ -506,4 +506,7 @@ def outline(doc: dict[str, Any]) -> list[Block]:
     for part in (_safety_part, _inputs_part, _devices_part, _passages_part, _sections_part, _health_part):
         blocks += part(doc)
     blocks += _crossings_part(doc)
+    from console.report.trends import trends_part  # it builds on this module's helpers
+
+    blocks += trends_part(doc)  # only a report from the archive has them
     return blocks

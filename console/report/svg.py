@@ -502,3 +502,84 @@ def warning_bars(bars: Sequence[WarningBar], title: str) -> str:
         x += 40 + 7.0 * len(text)
     out.append("</svg>")
     return "".join(out)
+
+
+# ----------------------------------------------------------------------------- values per day
+
+
+@dataclass(frozen=True)
+class DaySeries:
+    """One series of daily values: days as ``YYYY-MM-DD``, a value each (None: no value that day)."""
+
+    label: str
+    days: tuple[str, ...]
+    values: tuple[float | None, ...]
+
+
+def day_ticks(d0: int, d1: int, max_ticks: int = 10) -> list[tuple[float, str]]:
+    """Whole days between d0 and d1 (days since the epoch), labelled ``MM-DD`` (``YYYY-MM-DD`` when years differ)."""
+    step = next((s for s in (1, 2, 7, 14, 28, 91, 182, 365) if (d1 - d0) / s <= max_ticks), 365)
+    years = {str(np.datetime64(d0, "D"))[:4], str(np.datetime64(d1, "D"))[:4]}
+    out = []
+    for d in range(d0, d1 + 1, step):
+        text = str(np.datetime64(d, "D"))
+        out.append((float(d), text if len(years) > 1 else text[5:]))
+    return out
+
+
+def lines_per_day(
+    series: Sequence[DaySeries], title: str, y_caption: str, heading: str = "", zero_line: bool = False
+) -> str:
+    """One line per series over whole days, a marker (the series' shape) on each day's value; gaps stay gaps."""
+    day_index = {d: int(np.datetime64(d, "D").astype(np.int64)) for s in series for d in s.days}
+    values = [v for s in series for v in s.values if v is not None]
+    if not day_index or not values:
+        return ""
+    d0, d1 = min(day_index.values()), max(day_index.values())
+    lo, hi = min(values), max(values)
+    if zero_line:
+        lo, hi = min(lo, 0.0), max(hi, 0.0)
+    lo, hi = nice_range(lo, hi, pad=0.08)
+    height = 260.0
+    f = Frame(height, 62, 20, 34, 52, d0 - 0.5, d1 + 0.5, lo, hi)
+    out = [open_svg(height, title)]
+    first, last = str(np.datetime64(d0, "D")), str(np.datetime64(d1, "D"))
+    out += _x_axis(f, day_ticks(d0, d1), f"day, {first} to {last}" if d1 > d0 else f"day, {first}")
+    out += _y_axis(f, value_ticks(lo, hi), y_caption)
+    if zero_line and lo < 0 < hi:
+        out.append(
+            f'<line x1="{_fmt(f.left)}" y1="{_fmt(f.y(0))}" x2="{_fmt(WIDTH - f.right)}" y2="{_fmt(f.y(0))}" '
+            'stroke="#b71c1c" stroke-dasharray="4 3"><title>0: the band edge</title></line>'
+        )
+    for i, s in enumerate(series):
+        colour, dash, shape = PALETTE[i % len(PALETTE)], DASHES[i % len(DASHES)], SHAPES[i % len(SHAPES)]
+        pts = sorted((day_index[d], v) for d, v in zip(s.days, s.values, strict=True) if v is not None)
+        # Consecutive days are joined; a day without a value breaks the line.
+        run: list[tuple[int, float]] = []
+        for p in [*pts, None]:
+            if p is not None and (not run or p[0] == run[-1][0] + 1):
+                run.append(p)
+                continue
+            if len(run) > 1:
+                xy = " ".join(f"{_fmt(f.x(d))},{_fmt(f.y(v))}" for d, v in run)
+                dash_attr = f' stroke-dasharray="{dash}"' if dash else ""
+                out.append(f'<polyline points="{xy}" fill="none" stroke="{colour}" stroke-width="1.8"{dash_attr}/>')
+            run = [p] if p is not None else []
+        for d, v in pts:
+            tip = f"{s.label}, {np.datetime64(d, 'D')}: {v:g}"
+            out.append(marker(shape, f.x(d), f.y(v), colour, True, tip, 3.5))
+    x = f.left
+    if heading:
+        out.append(f'<text x="{_fmt(x)}" y="21" fill="#111" font-size="14" font-weight="bold">{esc(heading)}</text>')
+        x += 24 + 8.5 * len(clean(heading))
+    for i, s in enumerate(series):
+        colour, dash, shape = PALETTE[i % len(PALETTE)], DASHES[i % len(DASHES)], SHAPES[i % len(SHAPES)]
+        dash_attr = f' stroke-dasharray="{dash}"' if dash else ""
+        out.append(
+            f'<line x1="{_fmt(x)}" y1="16" x2="{_fmt(x + 26)}" y2="16" stroke="{colour}" stroke-width="2"{dash_attr}/>'
+        )
+        out.append(marker(shape, x + 13, 16, colour, True, "", 3.5))
+        out.append(f'<text x="{_fmt(x + 32)}" y="20" fill="#222">{esc(s.label)}</text>')
+        x += 44 + 7.2 * len(clean(s.label))
+    out.append("</svg>")
+    return "".join(out)

@@ -1,0 +1,227 @@
+"""Daily trends from the archive for ``report --archive``: axles, disturbances, analog margins, late warnings.
+
+Four daily aggregates, each one DuckDB query over the archive (the
+``axles`` and ``crossing_timelines`` derived tables, the ``records`` of two
+registers), cut to the report's window (``--from/--to/--head/--device``):
+
+* **axles** per device, counting head and day (the derived ``axles`` table);
+* **disturbances** per device, counting head and day: the growth of the
+  1-edge counters (``counter_1_edge``) summed over the head's channels and
+  addresses, a decrease counted as a reset (the new reading is the
+  growth), as :func:`console.analysis.health.disturbance_rate_findings`
+  takes it; ``per_hour`` divides by the span of that day's readings (none
+  under 10 minutes, the health rule's shortest span);
+* **analog margin** per counting head, channel and day: how far the day's
+  analog values (``analog_value``) stayed inside the channel's band, in
+  counts (negative: out of band).  The band is the layout's for the head,
+  else the one :func:`console.analysis.health.learn_band` learns from the
+  window's first values, as the health rule does;
+* **late warnings** per crossing and day (the day of the head's arrival,
+  else of the warning's start): warnings and how many were late.
+
+Trends exist only for the archive: a report on files has no history.
+Times are the logs' own, read as UTC like everywhere in trackside.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
+
+import numpy as np
+
+from console.archive.history import Window
+
+if TYPE_CHECKING:
+    import duckdb
+
+    from console.archive.store import Manifest
+    from console.layout import Layout
+    from console.report.model import ReportData
+
+NS_PER_HOUR = 3_600 * 10**9
+MIN_RATE_SPAN_NS = 600 * 10**9  # the disturbance rule's shortest span (health.disturbance_rate_findings)
+
+
+def _rows(con: duckdb.DuckDBPyConnection, sql: str, params: list[Any]) -> list[dict[str, Any]]:
+    cur = con.execute(sql, params)
+    names = [d[0] for d in cur.description or []]
+    return [dict(zip(names, r, strict=True)) for r in cur.fetchall()]
+
+
+def axles_per_day(con: duckdb.DuckDBPyConnection, window: Window) -> list[dict[str, Any]]:
+    where, params = window.where()
+    rows = _rows(
+        con,
+        f"SELECT day, device_id, counting_head, count(*) AS axles FROM axles{where} "
+        "GROUP BY ALL ORDER BY day, device_id, counting_head",
+        params,
+    )
+    return [{**r, "day": str(r["day"])} for r in rows]
+
+
+def disturbances_per_day(con: duckdb.DuckDBPyConnection, window: Window) -> list[dict[str, Any]]:
+    where, params = window.where()
+    cond = f"{where} AND label_canonical = 'counter_1_edge'" if where else " WHERE label_canonical = 'counter_1_edge'"
+    # Growth since the series' previous reading (file and line break ties, as the batch read orders them).
+    rows = _rows(
+        con,
+        f"""
+        WITH c AS (
+            SELECT day, device_id, counting_head, time, value,
+                   value - lag(value) OVER (
+                       PARTITION BY device_id, counting_head, channel, address ORDER BY time, file_seq, line
+                   ) AS step
+            FROM records{cond}
+        )
+        SELECT day, device_id, counting_head,
+               sum(CASE WHEN step IS NULL THEN 0 WHEN step < 0 THEN value ELSE step END)::BIGINT AS disturbances,
+               count(*) AS readings,
+               epoch_ns(max(time)) - epoch_ns(min(time)) AS span_ns
+        FROM c GROUP BY ALL ORDER BY day, device_id, counting_head
+        """,
+        params,
+    )
+    out = []
+    for r in rows:
+        span = int(r.pop("span_ns"))
+        rate = r["disturbances"] / (span / NS_PER_HOUR) if span >= MIN_RATE_SPAN_NS else None
+        out.append({**r, "day": str(r["day"]), "hours": round(span / NS_PER_HOUR, 3), "per_hour": _round(rate)})
+    return out
+
+
+def analog_margins_per_day(
+    con: duckdb.DuckDBPyConnection, window: Window, layout: Layout | None
+) -> list[dict[str, Any]]:
+    """Per (head, channel, day): values, min, max, the band, and the margin (least distance inside it)."""
+    import pandas as pd
+
+    from console.analysis.health import learn_band
+
+    where, params = window.where()
+    cond = f"{where} AND label_canonical = 'analog_value'" if where else " WHERE label_canonical = 'analog_value'"
+    df = con.execute(
+        f"SELECT strftime(day, '%Y-%m-%d') AS day, counting_head, channel, value::DOUBLE AS value FROM records{cond} "
+        "ORDER BY counting_head, channel, time, file_seq, line",
+        params,
+    ).df()
+    if df.empty:
+        return []
+    bands: dict[str, tuple[float, float]] = (
+        {h.id: h.analog_band for h in layout.heads if h.analog_band} if layout is not None else {}
+    )
+    low = np.empty(len(df))
+    high = np.empty(len(df))
+    origin = np.empty(len(df), dtype=object)
+    # One band per (head, channel), as the health rule judges it: a loop over channels, not records.
+    groups = cast(dict[tuple[str, int], np.ndarray], df.groupby(["counting_head", "channel"], sort=False).indices)
+    for (head, _channel), idx in groups.items():
+        if head in bands:
+            lo, hi = (float(x) for x in bands[head])
+            how = "layout"
+        else:
+            lo, hi, _ = learn_band(df["value"].to_numpy()[idx])
+            how = "learned"
+        low[idx], high[idx], origin[idx] = lo, hi, how
+    v = df["value"].to_numpy()
+    df["margin"] = np.minimum(v - low, high - v)
+    df["out_of_band"] = df["margin"] < 0
+    df["band_low"], df["band_high"], df["band"] = low, high, origin
+    g = df.groupby(["day", "counting_head", "channel"], sort=True)
+    agg = pd.DataFrame(
+        {
+            "values": g.size(),
+            "min": g["value"].min(),
+            "max": g["value"].max(),
+            "band_low": g["band_low"].first(),
+            "band_high": g["band_high"].first(),
+            "band": g["band"].first(),
+            "margin": g["margin"].min(),
+            "out_of_band": g["out_of_band"].sum(),
+        }
+    ).reset_index()
+    out: list[dict[str, Any]] = []
+    for r in agg.to_dict("records"):
+        out.append(
+            {
+                "day": str(r["day"]),
+                "counting_head": str(r["counting_head"]),
+                "channel": int(r["channel"]),
+                "values": int(r["values"]),
+                **{k: _round(r[k]) for k in ("min", "max", "band_low", "band_high")},
+                "band": str(r["band"]),
+                "margin": _round(r["margin"]),
+                "out_of_band": int(r["out_of_band"]),
+            }
+        )
+    return out
+
+
+def late_warnings_per_day(con: duckdb.DuckDBPyConnection, window: Window) -> list[dict[str, Any]]:
+    when = "coalesce(t_head_arrival, t_on)"
+    conds: list[str] = [f"{when} IS NOT NULL"]
+    params: list[Any] = []
+    if window.start is not None:
+        conds.append(f"{when} >= ?")
+        params.append(window.start)
+    if window.end is not None:
+        conds.append(f"{when} < ?")
+        params.append(window.end)
+    rows = _rows(
+        con,
+        f"SELECT CAST({when} AS DATE) AS day, crossing, count(*) AS warnings, "
+        f"count(*) FILTER (WHERE late) AS late FROM crossing_timelines WHERE {' AND '.join(conds)} "
+        "GROUP BY 1, 2 ORDER BY 1, 2",
+        params,
+    )
+    return [{**r, "day": str(r["day"])} for r in rows]
+
+
+def _round(x: float | None, digits: int = 3) -> float | None:
+    if x is None or not np.isfinite(x):
+        return None
+    return round(float(x), digits)
+
+
+def archive_trends(root: Path, manifest: Manifest, window: Window, layout: Layout | None) -> dict[str, Any]:
+    """The four daily trends of the window, as plain JSON values (the report's ``trends`` part)."""
+    from console.archive.views import connect
+
+    con, _ = connect(root, manifest, tables={"records", "axles", "crossing_timelines"})
+    try:
+        return {
+            "axles_per_head_per_day": axles_per_day(con, window),
+            "disturbances_per_head_per_day": disturbances_per_day(con, window),
+            "analog_margin_per_head_per_day": analog_margins_per_day(con, window, layout),
+            "late_warnings_per_crossing_per_day": late_warnings_per_day(con, window),
+        }
+    finally:
+        con.close()
+
+
+def with_trends(
+    collector: Callable[[], ReportData],
+    archive: Path | None,
+    start: str | None,
+    end: str | None,
+    head: str | None,
+    device_id: int | None,
+) -> Callable[[], ReportData]:
+    """``report --archive``'s collector, its data completed with the window's trends."""
+    from console.archive.history import parse_time
+    from console.archive.store import archive_dir, read_current
+
+    def collect() -> ReportData:
+        data = collector()  # checks the archive and the window first (one-line errors)
+        root = archive_dir(archive)
+        window = Window(
+            start=parse_time(start) if start else None,
+            end=parse_time(end) if end else None,
+            head=head,
+            device_id=device_id,
+        )
+        data.trends = archive_trends(root, read_current(root), window, data.layout)
+        return data
+
+    return collect

@@ -1,0 +1,99 @@
+"""`trackside query` output: times as ISO 8601 UTC with Z in every format, nanoseconds kept; still read-only."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from console.analysis.timefmt import iso
+from console.cli import app
+from tests.conftest import SAMPLES
+
+runner = CliRunner()
+LOG = SAMPLES / "osong_ws4_0932_detection.log"
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    arc = tmp_path_factory.mktemp("query") / "arc"
+    res = runner.invoke(app, ["ingest", str(LOG), "--archive", str(arc)])
+    assert res.exit_code == 0, res.output
+    return arc
+
+
+def _run(arc: Path, sql: str, fmt: str) -> str:
+    res = runner.invoke(app, ["query", sql, "--archive", str(arc), "--format", fmt])
+    assert res.exit_code == 0, res.output
+    return str(res.stdout)
+
+
+# A naive log time with nanoseconds, a zone-aware one (+02:00 → UTC), a null, and a date (no Z: not a time).
+TIMES_SQL = (
+    "SELECT TIMESTAMP_NS '2026-03-02 08:00:13.250125001' AS t_ns, "
+    "TIMESTAMPTZ '2026-03-02 10:00:00+02' AS t_tz, NULL::TIMESTAMP AS t_null, DATE '2026-03-02' AS d"
+)
+EXPECTED = {
+    "t_ns": "2026-03-02T08:00:13.250125001Z",
+    "t_tz": "2026-03-02T08:00:00.000Z",
+    "t_null": None,
+    "d": "2026-03-02",
+}
+
+
+def test_times_are_iso_utc_with_z_in_json_and_jsonl(archive: Path) -> None:
+    assert json.loads(_run(archive, TIMES_SQL, "json")) == [EXPECTED]
+    assert [json.loads(line) for line in _run(archive, TIMES_SQL, "jsonl").splitlines()] == [EXPECTED]
+
+
+def test_times_are_iso_utc_with_z_in_csv(archive: Path) -> None:
+    rows = list(csv.DictReader(io.StringIO(_run(archive, TIMES_SQL, "csv"))))
+    assert rows == [{k: "" if v is None else v for k, v in EXPECTED.items()}]
+
+
+def test_times_are_iso_utc_with_z_in_the_table(archive: Path) -> None:
+    out = _run(archive, "SELECT TIMESTAMP '2026-03-02 08:00:13.5' AS t", "table")
+    assert "2026-03-02T08:00:13.500Z" in out
+
+
+def test_record_times_keep_their_nanoseconds_and_match_timefmt(archive: Path) -> None:
+    # The archive's own column: what the query prints is timefmt.iso of the stored ns.
+    sql = "SELECT time, epoch_ns(time) AS ns FROM records ORDER BY file_seq, line LIMIT 50"
+    rows = json.loads(_run(archive, sql, "json"))
+    assert rows and all(r["time"] == iso(r["ns"]) and r["time"].endswith("Z") for r in rows)
+
+
+def test_times_inside_lists_and_structs_get_z_too(archive: Path) -> None:
+    sql = "SELECT [TIMESTAMP '2026-01-01 00:00:00.123456'] AS l, {'a': TIMESTAMP '2026-01-01 00:00:00'} AS s"
+    assert json.loads(_run(archive, sql, "json")) == [
+        {"l": ["2026-01-01T00:00:00.123456Z"], "s": {"a": "2026-01-01T00:00:00.000Z"}}
+    ]
+
+
+def test_presets_print_utc_times(archive: Path) -> None:
+    rows = json.loads(_run(archive, "SELECT min(time) AS first FROM records", "json"))
+    assert rows[0]["first"].endswith("Z")
+    res = runner.invoke(app, ["query", "--preset", "axles-per-head-per-day", "--archive", str(archive)])
+    assert res.exit_code == 0, res.output
+
+
+@pytest.mark.parametrize(
+    "sql",
+    [
+        "COPY (SELECT 1) TO '{arc}/data/x.parquet'",
+        "CREATE VIEW v AS SELECT 1",
+        "SET enable_external_access = true",
+        "SELECT * FROM read_parquet('{arc}/../*.parquet')",
+        "SELECT 1; DROP VIEW records",
+    ],
+)
+def test_still_read_only(archive: Path, sql: str) -> None:
+    before = sorted((p.relative_to(archive), p.stat().st_mtime_ns) for p in archive.rglob("*"))
+    res = runner.invoke(app, ["query", sql.format(arc=archive), "--archive", str(archive)])
+    assert res.exit_code == 2
+    assert res.stderr.startswith("trackside: error: ") and res.stderr.count("\n") == 1
+    assert sorted((p.relative_to(archive), p.stat().st_mtime_ns) for p in archive.rglob("*")) == before

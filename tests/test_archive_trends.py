@@ -1,0 +1,190 @@
+"""Trends per head and day in `report --archive`: each number equals a direct computation on the analyses' output."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from console.analysis.health import learn_band
+from console.archive.history import Window, report_data
+from console.archive.store import read_current
+from console.archive.trends import archive_trends
+from console.cli import app
+from console.layout import load_layout
+from console.report.model import ReportData
+from tests.archive_days import DAYS, DRIFT_PER_DAY, write_days
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    base = tmp_path_factory.mktemp("trends")
+    arc = base / "arc"
+    res = runner.invoke(
+        app, ["ingest", *map(str, write_days(base / "in")), "--archive", str(arc), "--layout", "example"]
+    )
+    assert res.exit_code == 0, res.output
+    return arc
+
+
+@pytest.fixture(scope="module")
+def data(archive: Path) -> ReportData:
+    return report_data(archive)
+
+
+@pytest.fixture(scope="module")
+def trends(archive: Path) -> dict[str, Any]:
+    res = runner.invoke(app, ["report", "--archive", str(archive), "--format", "json"])
+    assert res.exit_code in (0, 1), res.output
+    return dict(json.loads(res.stdout)["trends"])
+
+
+def _day(ns: np.ndarray | pd.Series) -> np.ndarray:
+    return np.asarray(ns, dtype="int64").astype("datetime64[ns]").astype("datetime64[D]").astype(str)
+
+
+def test_axles_per_head_per_day_are_the_analysis_axles_counted(trends: dict[str, Any], data: ReportData) -> None:
+    assert data.job is not None
+    ax = data.job.analysis.axles
+    heads = data.job.analysis.heads
+    direct = (
+        pd.DataFrame(
+            {
+                "day": _day(ax["time_ns"]),
+                "device_id": [heads[h][0] for h in ax["head"]],
+                "counting_head": [heads[h][1] for h in ax["head"]],
+            }
+        )
+        .groupby(["day", "device_id", "counting_head"])
+        .size()
+    )
+    got = {(r["day"], r["device_id"], r["counting_head"]): r["axles"] for r in trends["axles_per_head_per_day"]}
+    assert got == {k: int(v) for k, v in direct.items()}
+    assert len({d for d, _, _ in got}) == DAYS
+
+
+def _records(data: ReportData, label: str) -> pd.DataFrame:
+    assert data.job is not None
+    rec = data.job.records
+    r = rec[rec["label_canonical"] == label].copy()
+    r["time_ns"] = r["time"].to_numpy(dtype="datetime64[ns]").view(np.int64)
+    r["day"] = _day(r["time_ns"])
+    return r
+
+
+def test_disturbances_are_the_counter_growth_with_resets(trends: dict[str, Any], data: ReportData) -> None:
+    r = _records(data, "counter_1_edge").sort_values("time_ns", kind="stable")  # ties: file, line order
+    step = r.groupby(["device_id", "counting_head", "channel", "address"])["value"].diff()
+    r["growth"] = np.where(step < 0, r["value"], step.fillna(0))
+    g = r.groupby(["day", "device_id", "counting_head"])
+    direct = {k: (int(v), int(n)) for (k, v), n in zip(g["growth"].sum().items(), g.size(), strict=True)}
+    span = g["time_ns"].max() - g["time_ns"].min()
+    got = trends["disturbances_per_head_per_day"]
+    assert {(x["day"], x["device_id"], x["counting_head"]): (x["disturbances"], x["readings"]) for x in got} == direct
+    for x in got:
+        hours = span[(x["day"], x["device_id"], x["counting_head"])] / 3.6e12
+        assert x["per_hour"] == pytest.approx(x["disturbances"] / hours, abs=1e-3)
+    assert any(x["disturbances"] > 0 for x in got)
+
+
+def test_analog_margin_is_the_least_distance_inside_the_learned_band(trends: dict[str, Any], data: ReportData) -> None:
+    r = _records(data, "analog_value").sort_values("time_ns", kind="stable")
+    expected = {}
+    for (head, ch), g in r.groupby(["counting_head", "channel"]):
+        lo, hi, _ = learn_band(g["value"].to_numpy(dtype=float))
+        for day, d in g.groupby("day"):
+            v = d["value"].to_numpy(dtype=float)
+            expected[(day, head, ch)] = (
+                round(float(np.minimum(v - lo, hi - v).min()), 3),
+                int(((v < lo) | (v > hi)).sum()),
+            )
+    got = {
+        (x["day"], x["counting_head"], x["channel"]): (x["margin"], x["out_of_band"])
+        for x in trends["analog_margin_per_head_per_day"]
+    }
+    assert got == expected
+    # The samples drift DRIFT_PER_DAY counts a day: WS4 Sys1's margin falls by that much each day, and goes negative.
+    ws4 = [
+        x["margin"]
+        for x in trends["analog_margin_per_head_per_day"]
+        if x["counting_head"] == "WS4" and x["channel"] == 1
+    ]
+    assert np.allclose(np.diff(ws4), -DRIFT_PER_DAY) and ws4[-1] < 0
+
+
+def test_a_layout_band_is_used_when_the_layout_sets_one(archive: Path, data: ReportData) -> None:
+    base = load_layout("example")
+    heads = tuple(dataclasses.replace(h, analog_band=(2300.0, 2500.0)) if h.id == "WS4" else h for h in base.heads)
+    layout = dataclasses.replace(base, heads=heads)
+    got = archive_trends(archive, read_current(archive), Window(head="WS4"), layout)["analog_margin_per_head_per_day"]
+    r = _records(data, "analog_value")
+    r = r[r["counting_head"] == "WS4"]
+    for x in got:
+        v = r[(r["day"] == x["day"]) & (r["channel"] == x["channel"])]["value"].to_numpy(dtype=float)
+        assert x["band"] == "layout" and x["margin"] == pytest.approx(min((v - 2300).min(), (2500 - v).min()))
+
+
+def test_late_warnings_per_crossing_per_day_count_the_timelines(trends: dict[str, Any], data: ReportData) -> None:
+    assert data.crossing is not None and data.crossing.timelines
+    expected: dict[tuple[str, str], list[int]] = {}
+    for t in data.crossing.timelines:
+        when = t.t_head_arrival_ns if t.t_head_arrival_ns is not None else t.t_on_ns
+        key = (str(_day(np.array([when]))[0]), t.crossing)
+        late = bool(t.violations) or (t.late_by_s is not None and t.late_by_s > 0)
+        expected.setdefault(key, [0, 0])
+        expected[key][0] += 1
+        expected[key][1] += int(late)
+    got = {(x["day"], x["crossing"]): [x["warnings"], x["late"]] for x in trends["late_warnings_per_crossing_per_day"]}
+    assert got == expected
+
+
+def test_the_window_cuts_the_trends(archive: Path) -> None:
+    res = runner.invoke(
+        app,
+        [
+            "report",
+            "--archive",
+            str(archive),
+            "--format",
+            "json",
+            "--from",
+            "2015-11-01",
+            "--to",
+            "2015-11-03",
+            "--head",
+            "WS4",
+        ],
+    )
+    t = json.loads(res.stdout)["trends"]
+    for part in ("axles_per_head_per_day", "disturbances_per_head_per_day", "analog_margin_per_head_per_day"):
+        assert {x["day"] for x in t[part]} == {"2015-11-01", "2015-11-02"}, part
+        assert {x["counting_head"] for x in t[part]} == {"WS4"}
+    assert t["late_warnings_per_crossing_per_day"] == []  # the crossings are in 2026
+
+
+def test_markdown_has_trend_tables_and_html_has_plots_with_log_text_escaped(archive: Path) -> None:
+    md = runner.invoke(app, ["report", "--archive", str(archive)]).stdout
+    assert "## 8. Trends per day" in md and "| 2015-11-03 | WS4 | Sys1 |" in md
+    html = runner.invoke(app, ["report", "--archive", str(archive), "--format", "html"]).stdout
+    part = html[html.index('id="trends"') :]
+    assert part.count("<svg") == 4  # axles, disturbances, analog margin, late warnings
+    assert "WS4 Sys1" in part and "<script" not in html
+    files = runner.invoke(app, ["report", str(archive.parent / "in"), "--layout", "example", "--format", "html"]).stdout
+    assert 'id="trends"' not in files  # no history in a report on files
+
+
+def test_log_text_in_a_trend_plot_is_inert() -> None:
+    from console.report.trends import trend_plots
+
+    evil = '<script>x</script>\u202e&"'
+    rows = [{"day": "2026-03-02", "crossing": evil, "warnings": 1, "late": 1}]
+    (plot,) = trend_plots("trend-late", {"late_warnings_per_crossing_per_day": rows})
+    assert "<script" not in plot and "\u202e" not in plot and "&lt;script&gt;" in plot
