@@ -1,0 +1,223 @@
+"""Where the archive's partitions run: :func:`run_with_engine` chooses, :func:`map_partitions` runs them.
+
+A command wraps its whole job — an ingest, a report's collection — in
+:func:`run_with_engine`; the archive code inside it calls
+:func:`map_partitions` at the point where it would loop over its
+partitions (:mod:`console.archive.partition`: one device's records of one
+day, with the neighbouring days it needs named in its ``Carried``).  The
+engine is held in a context variable, so nothing between the command and
+the archive's derivation passes it along, and the archive code runs
+unchanged on the local engine (the default) in every other caller.
+
+On Dask every partition is one task; the arguments all partitions share
+(the archive root, the manifest, the speed settings) are sent to the
+cluster once.  Results come back as one list in the order the partitions
+were given, whatever ran where and whenever it finished, so what the
+caller combines from it — and every byte it writes — is the same on every
+engine and every number of workers.
+
+A worker that dies (killed, over its memory limit) loses its tasks; the
+scheduler runs them again on another worker from the same inputs, so the
+answer is the same, later.  A partition that kills
+``distributed.scheduler.allowed-failures`` workers in turn, or a cluster
+that goes away, ends the run with one line (:class:`FleetError`); an
+error raised by the partition function itself is raised again as itself,
+for the caller's own one-line handling.  Nothing here writes to the
+archive: the caller publishes what this returns through the manifest
+(:func:`console.archive.store.publish`), so a failed run leaves the
+archive as it was.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import uuid
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, TypeVar
+
+from console.fleet.options import EngineSpec
+from console.fleet.progress import task_progress
+
+if TYPE_CHECKING:
+    from distributed import Client, Future
+    from rich.console import Console
+
+R = TypeVar("R")
+T = TypeVar("T")
+
+
+class FleetError(Exception):
+    """The cluster could not finish the run: one line for the user, exit 2 (the archive is unchanged)."""
+
+
+class _Engine:
+    """Runs partitions here, one after the other (the local engine)."""
+
+    def __init__(self, console: Console | None = None, progress: bool = False) -> None:
+        self.console = console
+        self.progress = progress
+
+    def bar(self, total: int, label: str) -> contextlib.AbstractContextManager[Callable[[int], None]]:
+        return task_progress(total if self.progress else 0, label, self.console)
+
+    def map(
+        self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
+    ) -> list[R]:
+        out: list[R] = []
+        with self.bar(len(items), label) as done:
+            for item in items:
+                out.append(fn(**common, **item))
+                done(1)
+        return out
+
+
+class _DaskEngine(_Engine):
+    """Runs partitions as tasks of a connected Dask client."""
+
+    def __init__(self, client: Client, console: Console | None = None, progress: bool = False) -> None:
+        super().__init__(console, progress)
+        self.client = client
+
+    def map(
+        self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
+    ) -> list[R]:
+        from distributed import as_completed
+
+        if not items:
+            return []
+        client = self.client
+        run = uuid.uuid4().hex[:12]  # task names unique on a shared scheduler
+        # Shared arguments once to the cluster, not once per task (the manifest lists every part).
+        shared = {k: client.scatter(v, hash=False) for k, v in common.items()}
+        futures: list[Future] = [
+            # The arguments as one dict (their names may clash with submit's own: key, workers, …).
+            client.submit(_call, fn, {**shared, **item}, key=f"trackside-{label}-{run}-{i}", pure=False)
+            for i, item in enumerate(items)
+        ]
+        index = {f.key: i for i, f in enumerate(futures)}
+        try:
+            with self.bar(len(futures), label) as done:
+                for fut in as_completed(futures, loop=client.loop):
+                    if fut.status == "error":
+                        _raise_for(fut, items[index[fut.key]])
+                    done(1)
+            return list(client.gather(futures))
+        except FleetError:
+            raise
+        except Exception as exc:
+            if _is_cluster_failure(exc):
+                raise FleetError(f"the dask cluster failed during the run: {_line(exc)}; archive unchanged") from None
+            raise
+        finally:
+            client.cancel([*futures, *shared.values()])
+
+
+# None: the local engine without a bar (every caller outside run_with_engine: tests, the library).
+def _call(fn: Callable[..., R], kwargs: Mapping[str, Any]) -> R:
+    """One task: the partition function with its arguments (futures in the dict resolved by the worker)."""
+    return fn(**kwargs)
+
+
+_current: contextvars.ContextVar[_Engine | None] = contextvars.ContextVar("trackside_fleet_engine", default=None)
+
+
+def map_partitions(
+    fn: Callable[..., R],
+    items: Sequence[Mapping[str, Any]],
+    *,
+    common: Mapping[str, Any] | None = None,
+    label: str = "partitions",
+) -> list[R]:
+    """``[fn(**common, **item) for item in items]`` on the current engine, in the order of ``items``.
+
+    ``fn`` must be a module-level function (Dask sends it to the workers by
+    name) that reads what it needs and writes nothing; ``common`` holds the
+    arguments every call shares, sent to a cluster once.  Outside
+    :func:`run_with_engine` this is the plain local loop.
+    """
+    engine = _current.get() or _Engine()
+    return engine.map(fn, items, common or {}, label)
+
+
+def run_with_engine(
+    spec: EngineSpec,
+    job: Callable[[], T],
+    *,
+    say: Callable[[str], None] | None = None,
+    console: Console | None = None,
+    progress: bool = True,
+) -> T:
+    """Run ``job()`` with its :func:`map_partitions` calls on the engine ``spec`` names.
+
+    ``--engine dask --workers N`` starts a LocalCluster for the job and stops
+    it after, whatever happens; ``--scheduler`` connects to an existing one.
+    ``say`` hears one-line notes (the cluster, its dashboard); with
+    ``progress`` a bar of partitions done / total goes to ``console``
+    (default: stderr) when it is a terminal — off when the command already
+    shows a bar of its own at that moment.
+    """
+    with engine_scope(spec, say=say, console=console, progress=progress):
+        return job()
+
+
+@contextlib.contextmanager
+def engine_scope(
+    spec: EngineSpec,
+    *,
+    say: Callable[[str], None] | None = None,
+    console: Console | None = None,
+    progress: bool = True,
+) -> Iterator[None]:
+    """The engine of ``spec`` current for the block (a LocalCluster, if any, lives as long as the block)."""
+    if spec.kind == "local":
+        token = _current.set(_Engine(console, progress))
+        try:
+            yield
+        finally:
+            _current.reset(token)
+        return
+    from console.fleet.cluster import open_client, quiet_logs
+
+    with open_client(spec, say) as client, quiet_logs():
+        token = _current.set(_DaskEngine(client, console, progress))
+        try:
+            yield
+        finally:
+            _current.reset(token)
+
+
+def _raise_for(fut: Future, item: Mapping[str, Any]) -> None:
+    exc = fut.exception()
+    if exc is None:
+        return
+    what = _describe(item)
+    if _is_killed_worker(exc):
+        raise FleetError(
+            f"partition {what}: the workers running it died repeatedly (out of memory or killed); archive unchanged"
+        ) from None
+    if _is_cluster_failure(exc):
+        raise FleetError(f"partition {what}: the dask cluster failed: {_line(exc)}; archive unchanged") from None
+    raise exc  # the partition function's own error: the caller's one-line handling applies
+
+
+def _describe(item: Mapping[str, Any]) -> str:
+    key = item.get("key", next(iter(item.values()), "?"))
+    return str(getattr(key, "name", key))
+
+
+def _is_killed_worker(exc: BaseException) -> bool:
+    from distributed.scheduler import KilledWorker
+
+    return isinstance(exc, KilledWorker)
+
+
+def _is_cluster_failure(exc: BaseException) -> bool:
+    from distributed.comm.core import CommClosedError
+
+    return _is_killed_worker(exc) or isinstance(exc, CommClosedError | TimeoutError | ConnectionError)
+
+
+def _line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__

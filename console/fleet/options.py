@@ -1,0 +1,95 @@
+"""The engine options every archive command shares: ``--engine``, ``--workers``, ``--scheduler``.
+
+Typer option types (one place, so ``ingest`` and ``report --archive`` spell
+them the same) and :func:`engine_spec`, which checks their combination
+before any work starts: a usage mistake is one line and exit 2, never a
+cluster started for nothing.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Annotated, Literal
+
+import typer
+
+ENGINES = ("local", "dask")
+# A worker's memory is bounded: the nanny restarts a worker that goes over
+# (the partition is then retried elsewhere).  One partition (a counting head
+# for a day) needs a few tens of MB; the rest is the interpreter, pandas,
+# pyarrow and DuckDB loaded once per worker.
+WORKER_MEMORY_LIMIT_BYTES = 512 << 20
+MAX_LOCAL_WORKERS = 64
+_SCHEDULER = re.compile(r"^(tcp|tls)://[^\s/:]+(:\d{1,5})?$|^(tcp|tls)://\[[0-9A-Fa-f:.]+\](:\d{1,5})?$")
+
+EngineOpt = Annotated[
+    str,
+    typer.Option(
+        "--engine",
+        help="Where the archive's partitions (counting head × day) run: local (this process) or dask.",
+    ),
+]
+WorkersOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--workers",
+        help="With --engine dask: start a local cluster of N worker processes (512 MB each) [default: 2].",
+        show_default=False,
+    ),
+]
+SchedulerOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--scheduler",
+        help="With --engine dask: an existing distributed scheduler, tcp://HOST:PORT (workers must see the archive).",
+        show_default=False,
+    ),
+]
+
+
+class EngineUsageError(ValueError):
+    """An impossible combination of engine options: one line for the user, exit 2."""
+
+
+@dataclass(frozen=True)
+class EngineSpec:
+    """Where the work runs: in this process, a LocalCluster of ``workers`` processes, or ``scheduler``."""
+
+    kind: Literal["local", "dask"] = "local"
+    workers: int | None = None
+    scheduler: str | None = None
+    memory_limit_bytes: int = WORKER_MEMORY_LIMIT_BYTES
+
+    @property
+    def starts_cluster(self) -> bool:
+        return self.kind == "dask" and self.scheduler is None
+
+    def describe(self) -> str:
+        if self.kind == "local":
+            return "local engine (this process)"
+        if self.scheduler is not None:
+            return f"dask scheduler {self.scheduler}"
+        return f"dask local cluster, {self.workers} workers of {self.memory_limit_bytes >> 20} MB"
+
+
+def engine_spec(engine: str = "local", workers: int | None = None, scheduler: str | None = None) -> EngineSpec:
+    """Check the options' combination; :class:`EngineUsageError` names what is wrong."""
+    engine = engine.strip().lower()
+    if engine not in ENGINES:
+        raise EngineUsageError(f"--engine: expected local or dask, found {engine!r}")
+    if engine == "local":
+        if workers is not None or scheduler is not None:
+            given = "--workers" if workers is not None else "--scheduler"
+            raise EngineUsageError(f"{given} needs --engine dask")
+        return EngineSpec()
+    if workers is not None and scheduler is not None:
+        raise EngineUsageError("give --workers N (a local cluster) or --scheduler tcp://HOST:PORT, not both")
+    if scheduler is not None:
+        if not _SCHEDULER.match(scheduler):
+            raise EngineUsageError(f"--scheduler: expected tcp://HOST:PORT, found {scheduler!r}")
+        return EngineSpec(kind="dask", scheduler=scheduler)
+    n = 2 if workers is None else workers
+    if not 1 <= n <= MAX_LOCAL_WORKERS:
+        raise EngineUsageError(f"--workers: expected 1 to {MAX_LOCAL_WORKERS}, found {n}")
+    return EngineSpec(kind="dask", workers=n)
