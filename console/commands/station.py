@@ -28,10 +28,17 @@ def station(
         bool,
         typer.Option("--replay", help="Replay FILES (diagnostic records, GNSS telemetry) instead of simulating."),
     ] = False,
-    files: Annotated[list[Path] | None, typer.Argument(help="Logs to replay (with --replay).")] = None,
+    # Text, not paths: after --live they may be URIs, whose "//" a Path would fold.
+    args: Annotated[
+        list[str] | None,
+        typer.Argument(help="Logs to replay (with --replay), or more live sources (after --live).", metavar="FILES"),
+    ] = None,
     live: Annotated[
         list[str] | None,
-        typer.Option("--live", help="Follow a live source (file:PATH, gpsd://…, mqtt://…/TOPIC, can:…); repeatable."),
+        typer.Option(
+            "--live",
+            help="Follow live sources (file:PATH, gpsd://…, mqtt[s]://…/TOPIC, can:…): --live A --live B, --live A B.",
+        ),
     ] = None,
     archive: Annotated[
         Path | None,
@@ -45,11 +52,14 @@ def station(
 ) -> None:
     """The live station view: sections, trains, crossings and events, simulated, replayed or live."""
 
+    files = [Path(a) for a in args or []]
+
     def body() -> int:
         if serve or live:
-            from console.commands.station_live import run_live_station
+            from console.commands.station_live import live_uris, run_live_station
 
-            return run_live_station(layout, live or [], serve, host, port, seed, speed, replay, files or [])
+            uris = live_uris(live or [], args or [], replay)
+            return run_live_station(layout, uris, serve, host, port, seed, speed, replay, files)
         from console.tui.app import StationApp
         from console.tui.model import SPEEDS, StationModel
         from console.tui.sources import ReplaySource, SimSource

@@ -26,6 +26,15 @@ def served_command(layout: str, live: list[str], seed: int, speed: float, replay
     return cmd
 
 
+def live_uris(live: list[str], args: list[str], replay: bool) -> list[str]:
+    """The sources of ``--live A --live B`` and of ``--live A B`` (B arrives as a positional argument)."""
+    if live and replay:
+        raise fail("--live follows sources as they grow; --replay plays files back: give one or the other")
+    if args and not live and not replay:
+        raise fail("FILES are replayed: add --replay (trackside station --replay FILES...), or follow them with --live")
+    return [*live, *args] if live else []
+
+
 def run_live_station(
     layout: str,
     live: list[str],

@@ -52,12 +52,16 @@ class GnssFix:
 
 @dataclass(frozen=True, slots=True)
 class CanFrame:
+    """One frame from a CAN bus (error frames are counted by the source, not handed over)."""
+
     source: str
-    t_ns: int
+    t_ns: int  # the bus's receive time, to the microsecond as in recorded logs
     arbitration_id: int
     data: bytes
     channel: str
     received_mono: float
+    extended: bool = False  # 29-bit id
+    remote: bool = False  # RTR: no payload
 
 
 @dataclass(frozen=True, slots=True)

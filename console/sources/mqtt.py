@@ -93,12 +93,14 @@ class MqttSource(Source):
         topic: str,
         *,
         tls: bool = False,
+        ca_file: str | None = None,
         username: str | None = None,
         password: str | None = None,
         client_id: str = "",
     ) -> None:
         super().__init__(uri)
         self.host, self.port, self.topic, self.tls = host, port, topic, tls
+        self.ca_file = ca_file
         self.username, self.password = username, password
         self.client_id = client_id
         self.ledger = UplinkLedger()
@@ -113,6 +115,11 @@ class MqttSource(Source):
             raise SourceError("mqtt sources need paho-mqtt (pip install 'paho-mqtt>=2')") from None
         if "\0" in self.topic or ("#" in self.topic and not self.topic.endswith("#")):
             raise SourceError(f"{self.uri}: not a valid MQTT topic filter")
+        if self.ca_file is not None:
+            try:
+                ssl.create_default_context(cafile=self.ca_file)
+            except (OSError, ssl.SSLError) as exc:
+                raise SourceError(f"{self.uri}: ?ca={self.ca_file}: not a readable PEM CA bundle ({exc})") from None
 
     def run(self) -> None:
         import paho.mqtt.client as mqtt
@@ -123,7 +130,8 @@ class MqttSource(Source):
         if self.username:
             client.username_pw_set(self.username, self.password)
         if self.tls:
-            client.tls_set(cert_reqs=ssl.CERT_REQUIRED)
+            # The broker's certificate is checked (chain and host name): against ?ca=PATH when given.
+            client.tls_set(ca_certs=self.ca_file, cert_reqs=ssl.CERT_REQUIRED)
         client.reconnect_delay_set(min_delay=1, max_delay=5)
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
@@ -132,7 +140,7 @@ class MqttSource(Source):
         while not self.stopping:
             try:
                 client.connect(self.host, self.port, keepalive=15)
-            except OSError as exc:
+            except OSError as exc:  # ssl.SSLError too: a certificate that does not verify
                 self.set_connected(False, f"cannot connect: {exc.strerror or exc}")
                 if self.wait(0.5):
                     return

@@ -24,10 +24,14 @@ class SourceURI:
     password: str | None = None
     role: str = ""  # gpsd: ?role=head|eot (the receiver's place on the train)
     train: str = ""  # gpsd: ?train=ID
+    ca_file: str = ""  # mqtts: ?ca=PATH, the CA bundle that signed the broker's certificate
 
 
 def parse_uri(text: str) -> SourceURI:
-    """``file:PATH``, ``gpsd://H:P[/DEV]``, ``mqtt[s]://H:P/TOPIC``, ``can:IFACE[:CHANNEL]``.
+    """``file:PATH``, ``gpsd://H:P[/DEV]``, ``mqtt[s]://H:P/TOPIC[?ca=PATH]``, ``can:IFACE[:CHANNEL]``.
+
+    ``mqtts://`` verifies the broker's certificate against the system's CAs,
+    or against ``?ca=PATH`` (a PEM bundle: a private or self-signed CA).
 
     A bare path (no scheme) is a file, so ``trackside follow app.log`` works.
     """
@@ -60,6 +64,9 @@ def parse_uri(text: str) -> SourceURI:
     role = query.get("role", "")
     if role not in ("", "head", "eot"):
         raise SourceError(f"{text}: role must be head or eot, found {role!r}")
+    ca_file = query.get("ca", "")
+    if ca_file and scheme != "mqtts":
+        raise SourceError(f"{text}: ?ca= is for mqtts:// (TLS) only")
     return SourceURI(
         scheme,
         path=path,
@@ -69,6 +76,7 @@ def parse_uri(text: str) -> SourceURI:
         password=parts.password,
         role=role,
         train=query.get("train", ""),
+        ca_file=ca_file,
     )
 
 
@@ -87,7 +95,14 @@ def open_source(text: str, *, from_start: bool = False, force_polling: bool = Fa
         from console.sources.mqtt import MqttSource
 
         return MqttSource(
-            text, u.host, u.port, u.path, tls=u.scheme == "mqtts", username=u.username, password=u.password
+            text,
+            u.host,
+            u.port,
+            u.path,
+            tls=u.scheme == "mqtts",
+            ca_file=u.ca_file or None,
+            username=u.username,
+            password=u.password,
         )
     from console.sources.can_bus import CanSource
 
