@@ -19,6 +19,7 @@ from console.layout import Layout
 from console.live.archive import LiveArchiver
 from console.live.crossings import CrossingFollow
 from console.live.diag import DiagFollow
+from console.live.frames import FrameFollow
 from console.sources.base import CanFrame, GnssFix, Item, LineBlock, Source, SourceNote
 
 Emit = Callable[[dict[str, Any]], None]
@@ -37,6 +38,7 @@ class LiveEngine:
         self.emit = emit
         self.diag = DiagFollow(layout, settings or SpeedSettings(), emit)
         self.crossings = CrossingFollow(layout, emit) if layout is not None and layout.crossings else None
+        self.frames = FrameFollow(layout, emit)
         self.archiver = archiver
         self.can_frames = 0
         self.items = 0
@@ -57,11 +59,17 @@ class LiveEngine:
                 self.crossings.fix(item, self.now_ns())
         elif isinstance(item, CanFrame):
             self.can_frames += 1
+            self.frames.add(item)
         elif isinstance(item, SourceNote):
             self.notes[item.kind] = self.notes.get(item.kind, 0) + 1
             self.emit({"type": "source", "source": item.source, "kind": item.kind, "detail": item.detail})
 
+    def idle(self) -> None:
+        """Nothing more is queued: analyse what is buffered (CAN frames come one by one, are analysed in blocks)."""
+        self.frames.flush()
+
     def tick(self) -> None:
+        self.frames.flush()
         if self.crossings is not None:
             self.crossings.tick(self.now_ns())
         if self.archiver is not None:
@@ -69,6 +77,7 @@ class LiveEngine:
 
     def finish(self) -> None:
         self.diag.finish()
+        self.frames.finish()
         if self.crossings is not None:
             self.crossings.tick(self.now_ns())
         if self.archiver is not None:
@@ -88,16 +97,20 @@ class LiveEngine:
         ]
         return {
             "type": "summary",
-            "passages": self.diag.stats.passages,
-            "section_changes": self.diag.stats.section_changes,
-            "health_findings": self.diag.stats.health_findings,
+            "passages": self.diag.stats.passages + self.frames.stats.passages,
+            "section_changes": self.diag.stats.section_changes + self.frames.stats.section_changes,
+            "health_findings": self.diag.stats.health_findings + self.frames.stats.health_findings,
             "crossing_events": self.crossings.events if self.crossings else 0,
             "gnss_fixes": self.crossings.fixes if self.crossings else 0,
             "can_frames": self.can_frames,
             "files": files,
-            "sections": {k: {"state": s, "count": c} for k, (s, c) in self.diag.section_states().items()},
+            "sections": {k: {"state": s, "count": c} for k, (s, c) in self.section_states().items()},
             "sources": [s.status().to_dict() for s in sources],
         }
+
+    def section_states(self) -> dict[str, tuple[str, int]]:
+        """Sections as the diagnostic log says, else as the CAN frames say (a line has one or the other)."""
+        return self.diag.section_states() or self.frames.section_states()
 
 
 def run_sources(
@@ -138,6 +151,8 @@ def run_sources(
                 item = None
             if item is not None:
                 engine.handle(item)
+                if q.empty():
+                    engine.idle()
             if time.monotonic() >= next_tick:
                 engine.tick()
                 next_tick = time.monotonic() + TICK_S

@@ -66,13 +66,29 @@ class CanSource(Source):
             return
         data = bytes(msg.data)
         node = msg.arbitration_id - COUNT_ID_BASE
-        if not msg.is_extended_id and NODE_MIN <= node <= NODE_MAX and len(data) == COUNT_DLC:
+        if (
+            not msg.is_extended_id
+            and not msg.is_remote_frame
+            and NODE_MIN <= node <= NODE_MAX
+            and len(data) == COUNT_DLC
+        ):
             seq = data[4]
             prev = self._seq.get(node)
             if prev is not None and seq != (prev + 1) % 256 and seq != prev:
                 self.count_lost((seq - prev - 1) % 256)
             self._seq[node] = seq
-        t_ns = int(msg.timestamp * 1e9) if msg.timestamp else time.time_ns()
+        # Microseconds, as the log readers take them: the same frames give the same times live and recorded.
+        t_ns = round(msg.timestamp * 1e6) * 1000 if msg.timestamp else time.time_ns()
+        channel = str(msg.channel or self.channel)
         self.emit(
-            CanFrame(self.uri, t_ns, msg.arbitration_id, data, str(msg.channel or self.channel), time.monotonic())
+            CanFrame(
+                self.uri,
+                t_ns,
+                msg.arbitration_id,
+                data,
+                channel,
+                time.monotonic(),
+                extended=bool(msg.is_extended_id),
+                remote=bool(msg.is_remote_frame),
+            )
         )
