@@ -12,6 +12,7 @@ import typer
 
 from console import exit_codes
 from console.commands.common import Console, fail, guard, print_json
+from console.fleet.options import EngineOpt, SchedulerOpt, WorkersOpt
 
 ArchiveOpt = Annotated[
     Path | None,
@@ -37,6 +38,9 @@ def ingest(
         bool, typer.Option("--no-wait", help="Fail at once when another ingest holds the archive.")
     ] = False,
     json_out: Annotated[bool, typer.Option("--json", help="Print the summary as one JSON document.")] = False,
+    engine: EngineOpt = "local",
+    workers: WorkersOpt = None,
+    scheduler: SchedulerOpt = None,
 ) -> None:
     """Ingest logs into the archive, once each: a file seen before adds nothing; a grown file is read from where
     the last ingest stopped."""
@@ -51,16 +55,33 @@ def ingest(
         err.print(f"waiting for another ingest to finish writing {root} …", markup=False)
 
     def body() -> int:
+        from console.commands.engine import checked_spec, engine_failure
+        from console.fleet import FleetError, engine_scope
+
+        spec = checked_spec(engine, workers, scheduler)  # a usage mistake: one line, before anything is read
         if layout is not None:
             from console.commands.common import load_layout
 
             load_layout(layout)  # a bad layout fails before anything is read
         summary: IngestSummary
         try:
-            with _progress(err) as (on_bytes, on_file):
-                summary = run_ingest(
-                    paths, root, layout=layout, wait=not no_wait, on_wait=waiting, on_bytes=on_bytes, on_file=on_file
-                )
+            with _progress(err) as bar:
+                on_bytes, on_file = bar.callbacks()
+                # The derivation's partitions run on the engine; their tasks get a line in the ingest's bar.
+                with engine_scope(
+                    spec, say=lambda line: err.print(line, markup=False, soft_wrap=True), console=err, host=bar.host
+                ):
+                    summary = run_ingest(
+                        paths,
+                        root,
+                        layout=layout,
+                        wait=not no_wait,
+                        on_wait=waiting,
+                        on_bytes=on_bytes,
+                        on_file=on_file,
+                    )
+        except FleetError as exc:
+            raise engine_failure(exc) from None
         except ArchiveError as exc:
             raise fail(str(exc)) from None
         except InputError as exc:
@@ -87,7 +108,14 @@ class _progress:
         self.console = console
         self.bar: Any = None
 
-    def __enter__(self) -> tuple[Callable[[int], None] | None, Callable[[str], None] | None]:
+    def __enter__(self) -> _progress:
+        return self
+
+    def host(self) -> Any:
+        """The live bar, if any (the engine's task line goes in it)."""
+        return self.bar
+
+    def callbacks(self) -> tuple[Callable[[int], None] | None, Callable[[str], None] | None]:
         if not self.console.is_terminal:
             return None, None
         from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn

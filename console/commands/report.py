@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from console.commands.common import fail, guard
+from console.fleet.options import EngineOpt, SchedulerOpt, WorkersOpt
 
 
 def report(
@@ -41,13 +42,21 @@ def report(
     end: Annotated[str | None, typer.Option("--to", help="With --archive: up to this time (ISO, excluded).")] = None,
     head: Annotated[str | None, typer.Option("--head", help="With --archive: one counting head.")] = None,
     device: Annotated[int | None, typer.Option("--device", help="With --archive: one device id.")] = None,
+    engine: EngineOpt = "local",
+    workers: WorkersOpt = None,
+    scheduler: SchedulerOpt = None,
 ) -> None:
     """A report for people (Markdown, HTML) or scripts (JSON): unsafe first, then failing, then the rest."""
 
     def body() -> int:
+        from console.commands.engine import checked_spec, engine_failure
         from console.report import run_report
 
-        if archive is not None or start or end or head or device is not None:
+        spec = checked_spec(engine, workers, scheduler)
+        on_archive = archive is not None or start or end or head or device is not None
+        if spec.kind != "local" and not on_archive:
+            raise fail("--engine dask needs --archive (a report on files runs here)")
+        if on_archive:
             from console.archive.history import archive_collector
 
             if inputs:
@@ -60,11 +69,19 @@ def report(
                 except OutputError as exc:
                     raise fail(str(exc)) from None
             from console.archive.trends import with_trends
+            from console.commands.common import Console
+            from console.fleet import FleetError, engine_scope
 
             collector = with_trends(
                 archive_collector(archive, layout, start, end, head, device), archive, start, end, head, device
             )
-            return run_report([], layout, fmt, output, fail_on, collector=collector)
+            err = Console(stderr=True, highlight=False)
+            try:
+                # The archive's partitions the report computes run on the engine (a LocalCluster lives as long).
+                with engine_scope(spec, say=lambda line: err.print(line, markup=False, soft_wrap=True), console=err):
+                    return run_report([], layout, fmt, output, fail_on, collector=collector)
+            except FleetError as exc:
+                raise engine_failure(exc) from None
         return run_report(inputs or [], layout, fmt, output, fail_on)
 
     raise typer.Exit(guard(body))

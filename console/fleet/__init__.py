@@ -15,7 +15,7 @@ publishes them through the archive's manifest (:func:`console.archive.store.publ
 so a worker killed mid-run can never leave half a result behind.
 """
 
-from console.fleet.engine import FleetError, engine_scope, map_partitions, run_with_engine
+from console.fleet.engine import FleetError, engine_scope, fleet_mapper, map_partitions, run_with_engine
 from console.fleet.options import EngineOpt, EngineSpec, SchedulerOpt, WorkersOpt, engine_spec
 
 __all__ = [
@@ -26,6 +26,7 @@ __all__ = [
     "WorkersOpt",
     "engine_scope",
     "engine_spec",
+    "fleet_mapper",
     "map_partitions",
     "run_with_engine",
 ]

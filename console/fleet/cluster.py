@@ -100,7 +100,8 @@ def open_client(spec: EngineSpec, say: Callable[[str], None] | None = None) -> I
             client = Client(cluster, set_as_default=False)
             try:
                 where = f"dashboard {cluster.dashboard_link}" if dashboard else "no dashboard (install bokeh for one)"
-                tell(f"dask local cluster {cluster.scheduler_address}: {spec.workers} workers; {where}")
+                n = spec.workers or 1
+                tell(f"dask local cluster {cluster.scheduler_address}: {n} worker{'s' if n != 1 else ''}; {where}")
                 yield client
             finally:
                 client.close()

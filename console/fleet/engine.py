@@ -42,6 +42,7 @@ from console.fleet.progress import task_progress
 if TYPE_CHECKING:
     from distributed import Client, Future
     from rich.console import Console
+    from rich.progress import Progress
 
 R = TypeVar("R")
 T = TypeVar("T")
@@ -54,12 +55,16 @@ class FleetError(Exception):
 class _Engine:
     """Runs partitions here, one after the other (the local engine)."""
 
-    def __init__(self, console: Console | None = None, progress: bool = False) -> None:
+    def __init__(
+        self, console: Console | None = None, progress: bool = False, host: Callable[[], Progress | None] | None = None
+    ) -> None:
         self.console = console
         self.progress = progress
+        self.host = host
 
     def bar(self, total: int, label: str) -> contextlib.AbstractContextManager[Callable[[int], None]]:
-        return task_progress(total if self.progress else 0, label, self.console)
+        host = self.host() if self.host is not None else None
+        return task_progress(total if self.progress else 0, label, self.console, host)
 
     def map(
         self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
@@ -75,8 +80,14 @@ class _Engine:
 class _DaskEngine(_Engine):
     """Runs partitions as tasks of a connected Dask client."""
 
-    def __init__(self, client: Client, console: Console | None = None, progress: bool = False) -> None:
-        super().__init__(console, progress)
+    def __init__(
+        self,
+        client: Client,
+        console: Console | None = None,
+        progress: bool = False,
+        host: Callable[[], Progress | None] | None = None,
+    ) -> None:
+        super().__init__(console, progress, host)
         self.client = client
 
     def map(
@@ -140,6 +151,20 @@ def map_partitions(
     return engine.map(fn, items, common or {}, label)
 
 
+def fleet_mapper(fn: Callable[[Any], R], items: Sequence[Any], label: str = "derive") -> list[R]:
+    """``[fn(item) for item in items]`` on the current engine, in order: the ``mapper`` the archive's derivation takes.
+
+    :func:`console.archive.derive.derive_tables` hands its per-partition work
+    to a ``mapper(fn, items)``; this one sends it to the engine of the
+    enclosing :func:`run_with_engine` (``fn`` is sent once, each item is a task).
+    """
+    return map_partitions(_apply_one, [{"item": it} for it in items], common={"fn": fn}, label=label)
+
+
+def _apply_one(fn: Callable[[Any], R], item: Any) -> R:
+    return fn(item)
+
+
 def run_with_engine(
     spec: EngineSpec,
     job: Callable[[], T],
@@ -147,6 +172,7 @@ def run_with_engine(
     say: Callable[[str], None] | None = None,
     console: Console | None = None,
     progress: bool = True,
+    host: Callable[[], Progress | None] | None = None,
 ) -> T:
     """Run ``job()`` with its :func:`map_partitions` calls on the engine ``spec`` names.
 
@@ -154,10 +180,11 @@ def run_with_engine(
     it after, whatever happens; ``--scheduler`` connects to an existing one.
     ``say`` hears one-line notes (the cluster, its dashboard); with
     ``progress`` a bar of partitions done / total goes to ``console``
-    (default: stderr) when it is a terminal — off when the command already
-    shows a bar of its own at that moment.
+    (default: stderr) when it is a terminal; ``host`` gives the bar the
+    command already shows, if any (the tasks then get a line in it: Rich
+    shows one live display at a time).
     """
-    with engine_scope(spec, say=say, console=console, progress=progress):
+    with engine_scope(spec, say=say, console=console, progress=progress, host=host):
         return job()
 
 
@@ -168,10 +195,11 @@ def engine_scope(
     say: Callable[[str], None] | None = None,
     console: Console | None = None,
     progress: bool = True,
+    host: Callable[[], Progress | None] | None = None,
 ) -> Iterator[None]:
     """The engine of ``spec`` current for the block (a LocalCluster, if any, lives as long as the block)."""
     if spec.kind == "local":
-        token = _current.set(_Engine(console, progress))
+        token = _current.set(_Engine(console, progress, host))
         try:
             yield
         finally:
@@ -180,7 +208,7 @@ def engine_scope(
     from console.fleet.cluster import open_client, quiet_logs
 
     with open_client(spec, say) as client, quiet_logs():
-        token = _current.set(_DaskEngine(client, console, progress))
+        token = _current.set(_DaskEngine(client, console, progress, host))
         try:
             yield
         finally:

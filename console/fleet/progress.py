@@ -10,8 +10,21 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 
 @contextmanager
-def task_progress(total: int, label: str, console: Console | None = None) -> Iterator[Callable[[int], None]]:
-    """Yield ``done(n)``: n more tasks finished.  A bar when stderr is a terminal, a no-op otherwise."""
+def task_progress(
+    total: int, label: str, console: Console | None = None, host: Progress | None = None
+) -> Iterator[Callable[[int], None]]:
+    """Yield ``done(n)``: n more tasks finished.  A bar when stderr is a terminal, a no-op otherwise.
+
+    ``host``: a bar the command already shows (Rich allows one live display at
+    a time): the tasks get a line of their own in it, removed when done.
+    """
+    if host is not None and total > 0:
+        line = host.add_task(f"{label} (tasks)", total=total)
+        try:
+            yield lambda n: host.advance(line, n)
+        finally:
+            host.remove_task(line)
+        return
     console = console or Console(stderr=True)
     if not console.is_terminal or total <= 0:
         yield lambda _n: None
