@@ -229,17 +229,22 @@ def generate(
     interleave_seed: int = 0,
     corrupt: bool = True,
     passages_path: Path | None = None,
+    corrupt_every: int = CORRUPT_EVERY,
+    block_s: int = BLOCK_S,
 ) -> dict[str, Any]:
     """Write about ``n_records`` records to ``path``; returns the truth document.
 
     Every true passage goes to ``passages_path`` (JSON lines) when given, else
-    into the document's ``passages`` list (small runs).
+    into the document's ``passages`` list (small runs).  ``corrupt_every``
+    and ``block_s`` (simulated seconds written at a time: the smallest log)
+    let tests write small logs dense with damaged lines.
     """
     board_list = _boards(boards, resolution)
     sink = passages_path.open("w", encoding="utf-8") if passages_path else None
     listed: list[dict[str, object]] = []
     try:
-        return _generate(n_records, path, board_list, seed, interleave_seed, corrupt, sink or listed, listed)
+        every = corrupt_every if corrupt else 0
+        return _generate(n_records, path, board_list, seed, interleave_seed, every, block_s, sink or listed, listed)
     finally:
         if sink is not None:
             sink.close()
@@ -251,7 +256,8 @@ def _generate(
     board_list: list[Board],
     seed: int,
     interleave_seed: int,
-    corrupt: bool,
+    corrupt_every: int,
+    block_s: int,
     sink: IO[str] | list[dict[str, object]],
     listed: list[dict[str, object]],
 ) -> dict[str, Any]:
@@ -275,8 +281,8 @@ def _generate(
     with path.open("wb") as f:
         while True:
             if written < n_records:
-                events = gen.block(t0, t0 + BLOCK_S)
-                t0 += BLOCK_S
+                events = gen.block(t0, t0 + block_s)
+                t0 += block_s
             elif gen.carry:  # the trains still passing: no truth cut short
                 events, gen.carry = gen.carry, []
             else:
@@ -295,9 +301,9 @@ def _generate(
                 _, k, reg, ch, data = events[i]
                 lines.append(f"{prefixes[k, reg, ch]}{data}\tDate:{tt}")
             data_bytes = ("\n".join(lines) + "\n").encode("utf-8")
-            if corrupt:
+            if corrupt_every:
                 out = []
-                cuts = np.flatnonzero(junk.random(len(lines)) < 1 / CORRUPT_EVERY)
+                cuts = np.flatnonzero(junk.random(len(lines)) < 1 / corrupt_every)
                 if len(cuts):
                     encoded = [line.encode("utf-8") for line in lines]
                     for c in sorted(cuts.tolist(), reverse=True):

@@ -617,6 +617,20 @@ def _tokenize(chunk: Chunk) -> _Tokens:
     )
 
 
+# Below this chunk size the thread pool's hand-over costs more than tokenizing in the reading thread.
+_POOL_MIN_CHUNK_BYTES = 256 << 10
+
+
+@dataclass
+class _Ready:
+    """A chunk tokenized in the reading thread, queued like a worker's future."""
+
+    tokens: _Tokens
+
+    def result(self) -> _Tokens:
+        return self.tokens
+
+
 class DiagReader:
     """Streams diagnostic records from files as :class:`DiagChunk` batches.
 
@@ -665,7 +679,9 @@ class DiagReader:
                 self.on_progress(pos - last_pos)
             last_pos = pos
 
-        pending: deque[Future[_Tokens] | OverlongLine] = deque()
+        pending: deque[Future[_Tokens] | _Ready | OverlongLine] = deque()
+        # Small chunks are tokenized in this thread: handing each to a worker costs more than it saves.
+        inline = self.workers <= 1 or self.chunk_bytes < _POOL_MIN_CHUNK_BYTES
         next_line = 1  # line numbers are handed out here, in file order
         done_buffers: list[bytearray] = []  # read buffers of resolved chunks, to read into again
 
@@ -695,7 +711,12 @@ class DiagReader:
                 recycle=done_buffers,
             )
             for item in source:
-                pending.append(item if isinstance(item, OverlongLine) else pool.submit(_tokenize, item))
+                if isinstance(item, OverlongLine):
+                    pending.append(item)
+                elif inline:
+                    pending.append(_Ready(_tokenize(item)))
+                else:
+                    pending.append(pool.submit(_tokenize, item))
                 while len(pending) > self.workers:
                     if (out := drain()) is not None:
                         yield out
