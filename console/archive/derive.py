@@ -1,29 +1,70 @@
 """Derived tables: what the batch analyses compute on the archive's inputs read together.
 
-The tables are written from :func:`console.archive.history.report_data`,
-which calls the same analysis functions ``trackside report`` calls on the
-files, so a derived table cannot drift from the batch result: passages,
-axles, section states, the count ledger, health findings and crossing
-timelines.  Every ingest that adds something recomputes them over the whole
-archive (state that straddles an ingest boundary — a passage, an occupied
-section — is then carried by construction); recomputing only the affected
-heads and days is the planned optimisation, see docs/archive.md.
+Two steps, at each ingest that adds something:
+
+1. **Per partition** (device, day), through :mod:`console.archive.partition`:
+   passages, axles and the wheel-sensor records the section engine needs,
+   with the state over midnight carried.  Only the partitions the ingest
+   touched are derived again — those whose records parts changed, the day
+   after each (it reads the changed day as its "day before") and the earlier
+   days whose passages may run into a changed day (their last passage ends
+   within an idle gap of its midnight) — the others are kept as they are.
+   Each partition's rows are stored in ``data/<table>/day=…/device_id=…/``
+   parts; ``manifest.derived["partitions"]`` records, per partition, the
+   records parts it was derived from (a hash), the generation that derived it,
+   its parts, its heads' first records and how far its passages reach.
+2. **Across heads** (section states, the count ledger, health findings,
+   crossing timelines): computed over the whole archive from the combined
+   per-partition rows — the wheel records become detection events, as
+   :func:`console.jobs.detection_events` does on a batch analysis — and the
+   health registers' records (read alone, by label), by
+   :func:`console.archive.history.report_data`, never re-reading every record.
+
+The equality with the batch analysis of all files read together is the
+property tested in tests/test_archive_equality.py and
+tests/test_archive_incremental.py.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
+import hashlib
+import os
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import pandas as pd
 import pyarrow as pa
 
-from console.archive.parts import write_small
-from console.archive.store import Manifest
+from console.archive.partition import (
+    NS_PER_DAY,
+    DerivedRows,
+    PartitionKey,
+    carried_state,
+    key_of_part,
+    make_tasks,
+    partitions,
+    run_task,
+)
+from console.archive.parts import write_part, write_small
+from console.archive.store import DATA, Manifest
+
+if TYPE_CHECKING:
+    from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
+    from console.jobs import DiagJob
 
 DERIVED = ("passages", "axles", "section_states", "count_ledger", "crossing_timelines", "health_findings")
+# Stored per (day, device) partition; wheel_records is the section engine's input (not a query view).
+PER_PARTITION = ("passages", "axles", "wheel_records")
+CROSS_HEAD = ("section_states", "count_ledger", "crossing_timelines", "health_findings")
+# Bump when the per-partition rows change meaning: every partition is then derived again.
+DERIVE_VERSION = 1
+
+Mapper = Callable[[Callable[..., Any], list[Any]], list[Any]]
 
 
 def _arrow(df: pd.DataFrame) -> pa.Table:
@@ -58,6 +99,13 @@ def tables_from(data: Any) -> dict[str, pd.DataFrame]:
             ax["counting_head"] = pd.Series(dtype=object)
         ax["time"] = pd.to_datetime(ax["time_ns"], unit="ns")
         out["axles"] = ax.drop(columns=["head"])
+    out.update(cross_head_tables(data))
+    return out
+
+
+def cross_head_tables(data: Any) -> dict[str, pd.DataFrame]:
+    """Section states, count ledger, health findings and crossing timelines of one ReportData."""
+    out: dict[str, pd.DataFrame] = {}
     if data.sections is not None:
         tl = data.sections.timeline.copy()
         tl["time"] = pd.to_datetime(tl["time_ns"], unit="ns")
@@ -84,29 +132,262 @@ def tables_from(data: Any) -> dict[str, pd.DataFrame]:
     return out
 
 
-def derive_tables(root: Path, manifest: Manifest, layout: str | None) -> list[str]:
-    """Recompute every derived table into new parts of ``manifest`` (not yet published); the parts written."""
-    from console.archive.history import report_data
+@dataclass
+class _WheelAnalysis:
+    """What :func:`console.jobs.detection_events` reads of a DiagAnalysis: the heads (in the batch's order,
+    first record first) and each head's wheel-sensor records (in the batch's order)."""
+
+    heads: list[tuple[int, str]]
+    wheel_records: pd.DataFrame
+    activity: pd.DataFrame = field(default_factory=pd.DataFrame)
+
+
+def _signature(parts: Iterable[str]) -> str:
+    return hashlib.sha256("\n".join(sorted(parts)).encode()).hexdigest()[:20]
+
+
+def _fingerprint(settings: SpeedSettings) -> dict[str, Any]:
+    return {"version": DERIVE_VERSION, "settings": dataclasses.asdict(settings)}
+
+
+def affected_partitions(
+    keys: Iterable[PartitionKey],
+    changed: Iterable[PartitionKey],
+    info: dict[str, dict[str, Any]],
+    idle_gap_s: float,
+) -> set[PartitionKey]:
+    """The partitions to derive again when ``changed`` (records added, removed, or new) changed.
+
+    A partition's rows depend on its own records, the whole day before (is
+    its first passage a continuation?) and the days after as far as its
+    passages run.  So: each changed partition that still exists, the day
+    after it, and the earlier days of its device (consecutive) whose
+    passages, as last derived (``info[..]["reach_ns"]``: the latest end of a
+    passage starting there), end within an idle gap of its midnight.
+    """
+    have = set(keys)
+    one = dt.timedelta(days=1)
+    idle_ns = int(idle_gap_s * 1e9)
+    by_device: dict[int, list[dt.date]] = {}
+    for k in have:
+        by_device.setdefault(k.device_id, []).append(k.day)
+    # Per key, the latest reach of its day and the consecutive days before it (a running maximum).
+    reach_upto: dict[PartitionKey, int] = {}
+    for dev, days in by_device.items():
+        running: int | None = None
+        prev: dt.date | None = None
+        for d in sorted(days):
+            k = PartitionKey(dev, d)
+            r = info.get(k.name, {}).get("reach_ns")
+            if prev is None or prev + one != d:
+                running = None
+            if r is not None:
+                running = int(r) if running is None else max(running, int(r))
+            if running is not None:
+                reach_upto[k] = running
+            prev = d
+    out: set[PartitionKey] = set()
+    for k in changed:
+        if k in have:
+            out.add(k)
+        after = PartitionKey(k.device_id, k.day + one)
+        if after in have:
+            out.add(after)
+        midnight = (k.day - dt.date(1970, 1, 1)).days * NS_PER_DAY
+        e = PartitionKey(k.device_id, k.day - one)
+        while e in have and reach_upto.get(e, -(1 << 62)) + idle_ns >= midnight:
+            if int(info.get(e.name, {}).get("reach_ns") or -(1 << 62)) + idle_ns >= midnight:
+                out.add(e)
+            e = PartitionKey(e.device_id, e.day - one)
+    return out
+
+
+def _part_path(table: str, key: PartitionKey, generation: int) -> str:
+    return os.path.join(
+        DATA, table, f"day={key.day.isoformat()}", f"device_id={key.device_id}", f"g{generation:06d}-d.parquet"
+    )
+
+
+def _store_partition(root: Path, key: PartitionKey, rows: DerivedRows, generation: int) -> dict[str, str]:
+    """Write one partition's passages, axles and wheel records; the parts written per table."""
+    frames: dict[str, pd.DataFrame] = {}
+    p = rows.passages.drop(columns=["_key_day"], errors="ignore")
+    if len(p):
+        p = p.sort_values("start_ns", kind="stable").reset_index(drop=True)
+        p["day"] = key.day
+        frames["passages"] = p
+    ax = rows.axles.drop(columns=["_key_day"], errors="ignore")
+    if len(ax):
+        ax = ax.sort_values("time_ns", kind="stable").reset_index(drop=True)
+        ax["day"] = key.day
+        frames["axles"] = ax
+    wheel = rows.wheel.drop(columns=["_key_day"], errors="ignore")
+    if len(wheel):
+        frames["wheel_records"] = wheel.reset_index(drop=True)  # the batch's order: kept
+    out: dict[str, str] = {}
+    for table, df in frames.items():
+        rel = _part_path(table, key, generation)
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        out[table] = write_part(root, rel, _arrow(df))
+    return out
+
+
+def _heads_of(rows: DerivedRows) -> list[list[Any]]:
+    h = rows.heads
+    return [
+        [None if name is None or name != name else str(name), int(seq), int(line)]
+        for name, seq, line in zip(h["counting_head"], h["first_file_seq"], h["first_line"], strict=True)
+    ]
+
+
+def _reach(rows: DerivedRows) -> int | None:
+    return int(rows.passages["end_ns"].max()) if len(rows.passages) else None
+
+
+def derive_tables(
+    root: Path,
+    manifest: Manifest,
+    layout: str | None,
+    *,
+    mapper: Mapper | None = None,
+) -> list[str]:
+    """Derive the tables into new parts of ``manifest`` (not yet published); the parts written.
+
+    Passages, axles and wheel records are derived again only for the
+    partitions the records changed (see :func:`affected_partitions`); the
+    cross-head tables are computed from all partitions' rows.  ``mapper``:
+    how the partition tasks run, ``mapper(run_task, tasks)`` returning the
+    results in task order (the Dask engine); else one after the other here.
+    """
+    from console.archive.history import _layout, speed_settings
 
     spec = layout if layout is not None else manifest.derived.get("layout")
-    manifest.derived = {"layout": spec, "tables": list(DERIVED)}
-    data = report_data(root, spec, manifest=manifest)
-    frames = tables_from(data)
+    settings = speed_settings(manifest, _layout(spec))
+    fingerprint = _fingerprint(settings)
+    old = manifest.derived
+    info: dict[str, dict[str, Any]] = dict(old.get("partitions", {})) if old.get("fingerprint") == fingerprint else {}
     gen = manifest.generation
     written: list[str] = []
-    for name in DERIVED:
+
+    parts_of: dict[str, list[str]] = {}
+    for rel in manifest.parts("records"):
+        k = key_of_part(rel)
+        if k is not None:
+            parts_of.setdefault(k.name, []).append(rel)
+    keys = partitions(manifest)
+    signature = {k.name: _signature(parts_of[k.name]) for k in keys}
+    changed = [k for k in keys if info.get(k.name, {}).get("records") != signature[k.name]]
+    changed += [PartitionKey.parse(n) for n in info if n not in signature]
+    redo = affected_partitions(keys, changed, info, settings.idle_gap_s)
+
+    # Parts of partitions derived again, or gone, leave the manifest; so does anything not per partition
+    # (an archive derived whole by an older trackside, or with other settings).
+    keep = {n: i for n, i in info.items() if n in signature and PartitionKey.parse(n) not in redo}
+    kept_parts = {rel for i in keep.values() for rel in i.get("parts", {}).values()}
+    for table in PER_PARTITION:
+        manifest.tables[table] = [rel for rel in manifest.parts(table) if rel in kept_parts]
+
+    carried = carried_state(keys)
+    tasks = make_tasks(root, manifest, redo, carried, settings)
+    results = mapper(run_task, tasks) if mapper is not None else [run_task(t) for t in tasks]
+    fresh: dict[PartitionKey, DerivedRows] = {}
+    for task, rows in zip(tasks, results, strict=True):
+        for key in task.keys:
+            one = rows.only(key)
+            fresh[key] = one
+            stored = _store_partition(root, key, one, gen)
+            for table, rel in stored.items():
+                manifest.tables[table].append(rel)
+                written.append(rel)
+            keep[key.name] = {
+                "records": signature[key.name],
+                "generation": gen,
+                "reach_ns": _reach(one),
+                "heads": _heads_of(one),
+                "parts": stored,
+            }
+    manifest.derived = {
+        "layout": spec,
+        "tables": list(DERIVED),
+        "fingerprint": fingerprint,
+        "partitions": {k: keep[k] for k in sorted(keep)},
+    }
+
+    written += _derive_cross_head(root, manifest, spec, keys, fresh)
+    return written
+
+
+def _combined_job(
+    root: Path, manifest: Manifest, keys: list[PartitionKey], fresh: dict[PartitionKey, DerivedRows]
+) -> DiagJob | None:
+    """A DiagJob holding what the cross-head analyses read: heads, wheel records, health-register records."""
+    import pyarrow.parquet as pq
+
+    from console.archive.history import health_records
+    from console.jobs import DiagJob
+    from parsers.report import ParseReport
+
+    if not keys:
+        return None
+    info = manifest.derived["partitions"]
+    first: dict[tuple[int, str], tuple[int, int]] = {}
+    for k in keys:
+        for name, seq, line in info[k.name]["heads"]:
+            h = (k.device_id, name)
+            first[h] = min(first.get(h, (seq, line)), (seq, line))
+    heads = sorted(first, key=lambda h: first[h])
+    index = {h: i for i, h in enumerate(heads)}
+    frames: list[pd.DataFrame] = []
+    for k in keys:  # key order: per head, day after day, each in the batch's order
+        if k in fresh:
+            w = fresh[k].wheel
+        else:
+            rel = info[k.name]["parts"].get("wheel_records")
+            if rel is None:
+                continue
+            w = pq.read_table(root / rel).to_pandas()
+        if len(w):
+            frames.append(w)
+    wheel = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["device_id", "counting_head"])
+    head_ix = np.array(
+        [index[(int(d), n)] for d, n in zip(wheel["device_id"], wheel["counting_head"], strict=True)], np.int64
+    )
+    records = pd.DataFrame(
+        {
+            "head": head_ix,
+            "channel": wheel.get("channel", pd.Series(dtype="int64")).to_numpy(),
+            "time_ns": wheel.get("time_ns", pd.Series(dtype="int64")).to_numpy(np.int64),
+            "value": wheel.get("value", pd.Series(dtype="int64")).to_numpy(),
+            "subsecond": wheel.get("subsecond", pd.Series(dtype=bool)).to_numpy(),
+        }
+    )
+    view = _WheelAnalysis(heads=heads, wheel_records=records)
+    return DiagJob(
+        files=[], report=ParseReport(), analysis=cast("DiagAnalysis", view), kept_records=health_records(root, manifest)
+    )
+
+
+def _derive_cross_head(
+    root: Path, manifest: Manifest, spec: str | None, keys: list[PartitionKey], fresh: dict[PartitionKey, DerivedRows]
+) -> list[str]:
+    from console.archive.history import report_data
+
+    job = _combined_job(root, manifest, keys, fresh)
+    data = report_data(root, spec, manifest=manifest, job=job)
+    frames = cross_head_tables(data)
+    written: list[str] = []
+    time_col = {"section_states": "time_ns", "count_ledger": "time_ns"}
+    for name in CROSS_HEAD:
         manifest.tables[name] = []
         df = frames.get(name)
         if df is None or df.empty:
             continue
-        time_col = {"passages": "start_ns", "axles": "time_ns", "section_states": "time_ns", "count_ledger": "time_ns"}
         if name in time_col:
-            # One part per table, in time order with a day column: derived tables are rewritten whole
-            # at each ingest, and a part per day and device would be thousands of tiny files.
+            # One part per table, in time order with a day column: cross-head tables are rewritten whole.
             df = df.sort_values(time_col[name], kind="stable")
             df["day"] = pd.to_datetime(df[time_col[name]], unit="ns").dt.date
-        rel = write_small(root, name, gen, "d", _arrow(df))
-        parts = [rel] if rel else []
-        manifest.tables[name] = parts
-        written += parts
+        rel = write_small(root, name, manifest.generation, "d", _arrow(df))
+        if rel:
+            manifest.tables[name] = [rel]
+            written.append(rel)
     return written

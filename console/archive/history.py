@@ -16,10 +16,11 @@ the station view's replay.
 from __future__ import annotations
 
 import datetime as dt
+from collections import defaultdict
 from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -93,11 +94,17 @@ _RECORD_COLUMNS = (
 
 
 def record_batches(
-    root: Path, manifest: Manifest, window: Window = Window(), tables: Collection[str] | None = None
+    root: Path,
+    manifest: Manifest,
+    window: Window = Window(),
+    tables: Collection[str] | None = None,
+    *,
+    labels: Collection[str] | None = None,
 ) -> Iterator[pa.RecordBatch]:
     """The records (in file, line order: the order a batch read sees them), in Arrow batches.
 
     ``tables``: only these views are built (a partition's derivation needs only ``records``).
+    ``labels``: only the records of these canonical labels (the health registers).
     """
     if not manifest.parts("records"):
         return
@@ -111,6 +118,9 @@ def record_batches(
     con, _ = connect(root, manifest, spill_dir=spill, tables=tables)
     try:
         where, params = window.where()
+        if labels is not None:
+            where += (" AND " if where else " WHERE ") + "label_canonical IN (SELECT unnest(?))"
+            params.append(sorted(labels))
         rel = con.sql(f"SELECT {_RECORD_COLUMNS} FROM records{where} ORDER BY file_seq, line", params=params)
         yield from rel.to_arrow_reader(BATCH_ROWS)
     finally:
@@ -149,6 +159,19 @@ def diag_job(root: Path, manifest: Manifest, window: Window = Window()) -> DiagJ
     return DiagJob(files=files, report=report, analysis=analysis, kept_records=records)
 
 
+def health_records(root: Path, manifest: Manifest) -> pd.DataFrame:
+    """The records of the health registers, as ``diag_job`` keeps them (without reading the other records)."""
+    from console.archive.records import ChunkRebuilder
+    from console.jobs import HEALTH_REGISTERS
+    from parsers.diag import DiagChunk, chunks_to_frame
+
+    rebuild = ChunkRebuilder()
+    kept: list[DiagChunk] = []
+    for batch in record_batches(root, manifest, tables=("records",), labels=HEALTH_REGISTERS):
+        kept += rebuild.chunks(batch)
+    return chunks_to_frame(kept, rebuild.registry)
+
+
 def speed_settings(manifest: Manifest, layout: Layout | None = None) -> Any:
     from console.analysis.diagnostics import SpeedSettings
 
@@ -179,12 +202,20 @@ def _per_file_tables(root: Path, manifest: Manifest, table: str) -> list[tuple[i
 
 
 def report_data(
-    root: Path, layout_spec: str | None = None, window: Window = Window(), manifest: Manifest | None = None
+    root: Path,
+    layout_spec: str | None = None,
+    window: Window = Window(),
+    manifest: Manifest | None = None,
+    *,
+    job: DiagJob | Literal["read"] | None = "read",
 ) -> ReportData:
     """The report's data, from the archive (the inputs listed are the archived files).
 
     The same steps as :func:`console.report.collect.collect`, in the same
     order, on the archived tables instead of freshly parsed files.
+    ``job``: the diagnostic job when the caller has it (the derivation builds it
+    from the per-partition rows, :mod:`console.archive.derive`; the parse
+    reports are then not rebuilt), else read from the records.
     """
     import pandas as pd
 
@@ -194,6 +225,7 @@ def report_data(
     from console.report.collect import _sections, crossings_from_fixes, frames_from_tables
     from console.report.model import InputFile, ReportData
     from parsers.can_logs import count_frames_only
+    from parsers.report import ParseReport
 
     m = manifest if manifest is not None else read_current(root)
     spec = layout_spec if layout_spec is not None else m.derived.get("layout")
@@ -203,10 +235,11 @@ def report_data(
     kind_of = {int(e["file_seq"]): str(e["kind"]) for e in active}
     inputs = [InputFile(str(e["path"]), str(e["kind"]), True, "from the archive") for e in active]
     data = ReportData(inputs=inputs, layout=layout, settings=settings)
-    reports = parse_reports(root, m)
+    reports: dict[str, ParseReport] = parse_reports(root, m) if job == "read" else defaultdict(ParseReport)
 
     findings: list[Finding] = []
-    job = diag_job(root, m, window)
+    if job == "read":
+        job = diag_job(root, m, window)
     if job is not None:
         data.job = job
         data.reports["diagnostic"] = job.report

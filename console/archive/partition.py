@@ -190,6 +190,70 @@ def derive_run(
         return rows
 
 
+@dataclass(frozen=True)
+class PartitionTask:
+    """One unit of derivation, small and picklable (it may run in another process: the Dask engine).
+
+    ``records``: the device's records parts of every day the run may read
+    (the day before, the days, the days after); ``days``: consecutive days
+    of the device whose rows are wanted.
+    """
+
+    root: str
+    records: tuple[str, ...]
+    device_id: int
+    days: tuple[dt.date, ...]
+    carried: Carried
+    settings: SpeedSettings
+
+    @property
+    def keys(self) -> tuple[PartitionKey, ...]:
+        return tuple(PartitionKey(self.device_id, d) for d in self.days)
+
+
+def run_task(task: PartitionTask) -> DerivedRows:
+    """The rows of a task's days (module-level: a mapper may pickle it to a worker)."""
+    m = Manifest(tables={"records": list(task.records)})
+    return derive_run(Path(task.root), m, task.device_id, task.days, task.carried, task.settings)
+
+
+def make_tasks(
+    root: Path,
+    manifest: Manifest,
+    wanted: Iterable[PartitionKey],
+    carried: dict[PartitionKey, Carried],
+    settings: SpeedSettings,
+    max_days: int = 8,
+) -> list[PartitionTask]:
+    """The wanted keys as tasks: runs of at most ``max_days`` consecutive days of one device, in key order."""
+    parts_of: dict[PartitionKey, list[str]] = {}
+    for rel in manifest.parts("records"):
+        k = key_of_part(rel)
+        if k is not None:
+            parts_of.setdefault(k, []).append(rel)
+    one = dt.timedelta(days=1)
+    runs: list[list[PartitionKey]] = []
+    for k in sorted(set(wanted)):
+        last = runs[-1][-1] if runs else None
+        if (
+            last is not None
+            and last.device_id == k.device_id
+            and last.day + one == k.day
+            and len(runs[-1]) < max_days
+        ):
+            runs[-1].append(k)
+        else:
+            runs.append([k])
+    tasks = []
+    for run in runs:
+        c = Carried(carried[run[0]].day_before, carried[run[-1]].days_after)
+        days = [d for d in (c.day_before, *(k.day for k in run), *c.days_after) if d is not None]
+        dev = run[0].device_id
+        records = tuple(rel for d in days for rel in sorted(parts_of.get(PartitionKey(dev, d), [])))
+        tasks.append(PartitionTask(str(root), records, dev, tuple(k.day for k in run), c, settings))
+    return tasks
+
+
 def _window_manifest(manifest: Manifest, device_id: int, lo: dt.date, hi: dt.date) -> Manifest:
     parts = []
     for rel in manifest.parts("records"):
@@ -319,7 +383,7 @@ def passages_table(analysis: DiagAnalysis | None) -> pd.DataFrame:
 def _string_columns(df: pd.DataFrame) -> pd.DataFrame:
     """Text columns as one string dtype: passages that all lack a direction hold None in an
     object column, others a string column; concatenated they would mix None and NaN."""
-    for column in df.columns[df.dtypes == object]:
+    for column in [c for c in df.columns if df[c].dtype == object]:
         if df[column].map(lambda v: isinstance(v, str) or v is None or v != v).all():
             df[column] = df[column].astype("str")
     return df
