@@ -55,32 +55,66 @@ def stamp_resolution_s(time_ns: np.ndarray) -> float:
     return 1e-6 if bool((time_ns % 1_000 == 0).all()) else 1e-9
 
 
-def _nearest(t1: np.ndarray, t2: np.ndarray, window_ns: int) -> np.ndarray:
-    """For each t1 (sorted), the index of the nearest t2 (sorted) within the window, else -1."""
-    if len(t2) == 0:
-        return np.full(len(t1), -1, np.int64)
-    pos = np.searchsorted(t2, t1)
-    right = np.minimum(pos, len(t2) - 1)
+def _group_starts(keys: np.ndarray) -> np.ndarray:
+    """Start positions of the runs of equal values in ``keys``."""
+    return np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]]) if len(keys) else np.zeros(0, np.int64)
+
+
+def _fine_pairs(
+    order: np.ndarray, gh: np.ndarray, t: np.ndarray, on1: np.ndarray, on2: np.ndarray, window_ns: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest-partner pairs of sub-second heads, all heads at once: positions (a, b) into ``order``.
+
+    ``order`` sorts the heads' onsets by head, then time (ties in read
+    order); ``gh`` is each position's head.  Each Sys1 onset takes the
+    nearest Sys2 onset of its head within the window (one ``np.searchsorted``
+    over a (head, time) rank stands for one per head), then a Sys2 onset
+    claimed twice goes to the nearer Sys1 onset.
+    """
+    n = len(order)
+    # Dense rank of (head, time): one sorted key that compares as the pair does.
+    new = np.r_[True, (gh[1:] != gh[:-1]) | (t[1:] != t[:-1])] if n else np.zeros(0, bool)
+    key = np.cumsum(new)
+    p1, p2 = np.flatnonzero(on1), np.flatnonzero(on2)
+    if not len(p1) or not len(p2):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    pos = np.searchsorted(key[p2], key[p1])
+    right = np.minimum(pos, len(p2) - 1)
     left = np.maximum(pos - 1, 0)
-    d_right = np.abs(t2[right] - t1)
-    d_left = np.abs(t1 - t2[left])
+    h1 = gh[p1]
+    has_right = (pos < len(p2)) & (gh[p2[right]] == h1)
+    has_left = (pos > 0) & (gh[p2[left]] == h1)
+    # One side missing: the other side stands for both (as a per-head search clips to its ends).
+    right = np.where(has_right, right, left)
+    left = np.where(has_left, left, right)
+    any_partner = has_left | has_right
+    t1 = t[p1]
+    d_right = np.abs(t[p2[right]] - t1)
+    d_left = np.abs(t1 - t[p2[left]])
     pick = np.where(d_left <= d_right, left, right)
-    gap = np.minimum(d_left, d_right)
-    return np.where(gap <= window_ns, pick, -1)
+    ok = any_partner & (np.minimum(d_left, d_right) <= window_ns)
+    a, b = p1[ok], p2[pick[ok]]
+    # One to one: a Sys2 onset claimed twice goes to the nearer Sys1 onset (the earlier on a tie).
+    if len(b) > 1 and bool((b[1:] == b[:-1]).any()):
+        by_gap = np.argsort(np.abs(t[b] - t[a]), kind="stable")
+        _, first = np.unique(b[by_gap], return_index=True)
+        keep = np.sort(by_gap[first])
+        a, b = a[keep], b[keep]
+    return a, b
 
 
-def _sequence_pairs(ch: np.ndarray, t: np.ndarray, window_ns: int) -> np.ndarray:
-    """Positions i whose onset pairs with onset i + 1 in a head's ordered onsets.
+def _coarse_pairs(gh: np.ndarray, ch: np.ndarray, t: np.ndarray, window_ns: int) -> np.ndarray:
+    """Positions i whose onset pairs with onset i + 1, in heads' onsets ordered by head and time.
 
     Whole-second stamps cannot say which onsets are nearest, but the order of
     the records can: a wheel writes one system's onset, then the other's.  So
-    neighbours on different systems, at most ``window_ns`` apart, pair
-    greedily from the start (in a run of pairable neighbours, every other
-    one), one to one.
+    neighbours of one head on different systems, at most ``window_ns``
+    apart, pair greedily from the start (in a run of pairable neighbours,
+    every other one), one to one.
     """
     if len(ch) < 2:
         return np.zeros(0, np.int64)
-    link = (ch[1:] != ch[:-1]) & (t[1:] - t[:-1] <= window_ns)
+    link = (gh[1:] == gh[:-1]) & (ch[1:] != ch[:-1]) & (t[1:] - t[:-1] <= window_ns)
     k = np.arange(len(link))
     run_start = link & ~np.r_[False, link[:-1]]
     offset = k - np.maximum.accumulate(np.where(run_start, k, 0))
@@ -93,7 +127,9 @@ def pair_axle_arrays(onsets: Mapping[str, Any], settings: PairingSettings) -> tu
     The onsets' order is evidence: equal times keep the order they come in
     (file order), never re-sorted.  Per head, sub-second onsets pair with the
     nearest partner within ``pair_window_s``; a head with whole-second
-    stamps pairs by order (:func:`_sequence_pairs`) within one second.
+    stamps pairs by order (:func:`_coarse_pairs`) within one second.
+    Every head is paired at once, over one sort by (head, time): a log of a
+    million heads costs what a log of one head with as many onsets does.
     """
     head = np.asarray(onsets["head"], np.int64)
     channel = np.asarray(onsets["channel"], np.int64)
@@ -104,44 +140,33 @@ def pair_axle_arrays(onsets: Mapping[str, Any], settings: PairingSettings) -> tu
     fine_window_ns = int(settings.pair_window_s * NS)
     coarse_window_ns = max(fine_window_ns, NS)  # stamps a second apart may be 1 ms apart
 
-    idx1_all, idx2_all, first1_all = [], [], []
-    step_s = np.ones(len(head))  # per onset: its head's stamp resolution
     wheel = np.flatnonzero(is1 | is2)
-    # Head keys are small dense ints here: counting beats sorting every onset.
-    hw = head[wheel]
-    dense = len(hw) > 0 and hw.min() >= 0 and hw.max() < 1 << 16
-    heads = np.flatnonzero(np.bincount(hw)) if dense else np.unique(hw)
-    for h in heads:  # a handful of counting heads, not records
-        idx = wheel[hw == h]
-        idx = idx[np.argsort(time_ns[idx], kind="stable")]  # stable: ties keep file order
-        if bool(subsecond[idx].all()):
-            step_s[idx] = stamp_resolution_s(time_ns[idx])
-            i1, i2 = idx[is1[idx]], idx[is2[idx]]
-            j = _nearest(time_ns[i1], time_ns[i2], fine_window_ns)
-            ok = j >= 0
-            a, b = i1[ok], i2[j[ok]]
-            # One to one: a Sys2 onset claimed twice goes to the nearer Sys1 onset.
-            # Nearest indices grow with t1, so a repeated claim is adjacent.
-            if len(b) > 1 and bool((b[1:] == b[:-1]).any()):
-                by_gap = np.argsort(np.abs(time_ns[b] - time_ns[a]), kind="stable")
-                _, first = np.unique(b[by_gap], return_index=True)
-                keep = np.sort(by_gap[first])
-                a, b = a[keep], b[keep]
-            # Which came first: by time, and by order where the times are equal.
-            rank = np.empty(len(time_ns), np.int64)
-            rank[idx] = np.arange(len(idx))
-            first1 = rank[a] < rank[b]
-        else:
-            at = _sequence_pairs(channel[idx], time_ns[idx], coarse_window_ns)
-            p, q = idx[at], idx[at + 1]
-            first1 = is1[p]
-            a, b = np.where(first1, p, q), np.where(first1, q, p)
-        idx1_all.append(a)
-        idx2_all.append(b)
-        first1_all.append(first1)
-    a = np.concatenate(idx1_all) if idx1_all else np.zeros(0, np.int64)
-    b = np.concatenate(idx2_all) if idx2_all else np.zeros(0, np.int64)
-    sys1_first = np.concatenate(first1_all) if first1_all else np.zeros(0, bool)
+    # By head, then time; stable: ties keep file order.
+    order = wheel[np.lexsort((time_ns[wheel], head[wheel]))]
+    gh, t = head[order], time_ns[order]
+    starts = _group_starts(gh)
+    size = np.diff(np.r_[starts, len(order)])
+    # Per head: all its stamps sub-second (pairs by nearest time), and their resolution.
+    fine_head = np.logical_and.reduceat(subsecond[order], starts) if len(order) else np.zeros(0, bool)
+    fine = np.repeat(fine_head, size)
+    ms = np.repeat(np.logical_and.reduceat(t % 1_000_000 == 0, starts), size) if len(order) else fine
+    us = np.repeat(np.logical_and.reduceat(t % 1_000 == 0, starts), size) if len(order) else fine
+    step_s = np.ones(len(head))  # per onset: its head's stamp resolution
+    step_s[order[fine]] = np.where(ms, 1e-3, np.where(us, 1e-6, 1e-9))[fine]
+
+    ch = channel[order]
+    fa, fb = _fine_pairs(order, gh, t, fine & (ch == SYS1), fine & (ch == SYS2), fine_window_ns)
+    coarse = np.flatnonzero(~fine)
+    at = coarse[_coarse_pairs(gh[coarse], ch[coarse], t[coarse], coarse_window_ns)]
+    nxt = coarse[np.searchsorted(coarse, at) + 1]
+    c_first1 = ch[at] == SYS1
+    ca, cb = np.where(c_first1, at, nxt), np.where(c_first1, nxt, at)
+    # Pairs in head order, each head's in its own order (sub-second and whole-second heads are apart).
+    pa, pb = np.r_[fa, ca], np.r_[fb, cb]
+    by_head = np.argsort(gh[pa], kind="stable")
+    pa, pb = pa[by_head], pb[by_head]
+    sys1_first = pa < pb  # positions in time order, ties in file order
+    a, b = order[pa], order[pb]
     t1, t2 = time_ns[a], time_ns[b]
     delay_s = (t2 - t1) / NS
     exact = subsecond[a] & subsecond[b]

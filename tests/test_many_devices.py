@@ -1,0 +1,121 @@
+"""Many devices: per-device work is vectorized and per-device state flat (issue 16, "Memory from many devices").
+
+The memory and time figures are a benchmark (``benchmarks/bench_many_devices.py``);
+these tests pin the behaviour the vectorized code must keep: the same axles
+as pairing head by head, and correct results for logs of many thousands of
+heads and GNSS devices.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from console.analysis.timefmt import NS
+from console.analysis.wheels import SYS1, SYS2, PairingSettings, pair_axle_arrays, stamp_resolution_s
+
+
+def _pair_head_by_head(onsets: dict[str, np.ndarray], s: PairingSettings) -> tuple[dict[str, np.ndarray], int]:
+    """The pairing rule written head by head (as it was before it was vectorized): the reference."""
+    head, channel, time_ns = onsets["head"], onsets["channel"], onsets["time_ns"]
+    subsecond, file = onsets["subsecond"], onsets["file"]
+    is1, is2 = channel == SYS1, channel == SYS2
+    fine_ns, coarse_ns = int(s.pair_window_s * NS), max(int(s.pair_window_s * NS), NS)
+    wheel = np.flatnonzero(is1 | is2)
+    step_s = np.ones(len(head))
+    pairs: list[tuple[int, int, bool]] = []
+    for h in np.unique(head[wheel]):
+        idx = wheel[head[wheel] == h]
+        idx = idx[np.argsort(time_ns[idx], kind="stable")]
+        rank = {int(i): k for k, i in enumerate(idx)}
+        if subsecond[idx].all():
+            step_s[idx] = stamp_resolution_s(time_ns[idx])
+            i1, i2 = idx[is1[idx]], idx[is2[idx]]
+            claims: dict[int, tuple[int, int]] = {}  # sys2 onset -> (gap, sys1 onset), first nearest wins
+            found = []
+            for a in i1:
+                if not len(i2):
+                    break
+                pos = int(np.searchsorted(time_ns[i2], time_ns[a]))
+                left, right = i2[max(pos - 1, 0)], i2[min(pos, len(i2) - 1)]
+                dl, dr = abs(time_ns[a] - time_ns[left]), abs(time_ns[right] - time_ns[a])
+                b, gap = (left, dl) if dl <= dr else (right, dr)
+                if gap <= fine_ns:
+                    found.append((int(a), int(b)))
+                    if int(b) not in claims or gap < claims[int(b)][0]:
+                        claims[int(b)] = (int(gap), int(a))
+            pairs += [(a, b, rank[a] < rank[b]) for a, b in found if claims[b][1] == a]
+        else:
+            k = 0
+            while k + 1 < len(idx):
+                p, q = int(idx[k]), int(idx[k + 1])
+                if channel[p] != channel[q] and time_ns[q] - time_ns[p] <= coarse_ns:
+                    pairs.append((p, q, True) if is1[p] else (q, p, False))
+                    k += 2
+                else:
+                    k += 1
+    a = np.array([p[0] for p in pairs], np.int64)
+    b = np.array([p[1] for p in pairs], np.int64)
+    first1 = np.array([p[2] for p in pairs], bool)
+    t1, t2 = time_ns[a], time_ns[b]
+    delay = (t2 - t1) / NS
+    exact = subsecond[a] & subsecond[b]
+    timed = exact & (np.abs(delay) >= s.min_delay_steps * step_s[a])
+    with np.errstate(divide="ignore"):
+        speed = np.where(timed & (delay != 0), s.spacing_m / np.abs(delay) * 3.6, np.nan)
+    known = (t1 != t2) | (file[a] == file[b])
+    direction = np.where(known, np.where(first1, 1, 2), 0).astype(np.int8)
+    axles = {
+        "head": head[a],
+        "t_sys1_ns": t1,
+        "t_sys2_ns": t2,
+        "time_ns": np.minimum(t1, t2),
+        "direction": direction,
+        "delay_s": np.where(exact, delay, np.nan),
+        "speed_kmh": speed,
+    }
+    return axles, int((is1 | is2).sum()) - 2 * len(a)
+
+
+def _random_onsets(rng: np.random.Generator) -> dict[str, np.ndarray]:
+    n = int(rng.integers(0, 50))
+    step = int(rng.choice([1, 1000, 1_000_000, NS]))
+    subsecond = rng.random(n) < (0.2 if rng.random() < 0.3 else 1.0)
+    return {
+        "head": rng.integers(0, int(rng.integers(1, 6)), n) * int(rng.choice([1, 70_000])),
+        "channel": rng.integers(0, 4, n),  # 0 and 3: not a wheel system
+        # Few distinct times: ties within a head, across heads and across files.
+        "time_ns": 1_700_000_000 * NS + rng.integers(0, 30, n) * step * int(rng.choice([1, 37, 300])),
+        "subsecond": subsecond,
+        "file": rng.integers(0, 2, n),
+    }
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_pairing_all_heads_at_once_equals_pairing_head_by_head(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    settings = PairingSettings()
+    for _ in range(150):
+        onsets = _random_onsets(rng)
+        got, got_unpaired = pair_axle_arrays(onsets, settings)
+        want, want_unpaired = _pair_head_by_head(onsets, settings)
+        assert got_unpaired == want_unpaired
+        for column, values in want.items():
+            np.testing.assert_array_equal(got[column], values, err_msg=column)
+
+
+def test_pairing_twenty_thousand_heads_each_pairs_its_own_wheel() -> None:
+    heads = 20_000
+    t0 = 1_700_000_000 * NS
+    # Head h: Sys1 then Sys2 4 ms later (odd heads the other way round), all heads within the same second.
+    head = np.repeat(np.arange(heads), 2)
+    channel = np.tile([SYS1, SYS2], heads)
+    channel[2 * np.arange(1, heads, 2)], channel[2 * np.arange(1, heads, 2) + 1] = SYS2, SYS1
+    time_ns = t0 + np.repeat(np.arange(heads) % 500, 2) * 1_000_000 + np.tile([0, 40_000_000], heads)
+    onsets = {"head": head, "channel": channel, "time_ns": time_ns, "subsecond": np.ones(2 * heads, bool)}
+    axles, unpaired = pair_axle_arrays(onsets, PairingSettings())
+    assert unpaired == 0
+    np.testing.assert_array_equal(axles["head"], np.arange(heads))
+    np.testing.assert_array_equal(axles["direction"], np.where(np.arange(heads) % 2 == 0, 1, 2))
+    # 0.13 m in 40 ms: 11.7 km/h.
+    np.testing.assert_allclose(axles["speed_kmh"], 0.13 / 0.04 * 3.6)
