@@ -10,14 +10,17 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import psutil  # type: ignore[import-untyped]  # (distributed depends on it; no stubs installed)
 from distributed import Client, LocalCluster
 
 from console.fleet.options import WORKER_MEMORY_LIMIT_BYTES
+from console.sim.station import Fault
 
 
 @contextmanager
@@ -76,3 +79,59 @@ def _running(pid: int) -> bool:
         return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
     except psutil.NoSuchProcess:
         return False
+
+
+# 2026-03-03 00:00 UTC: the simulated logs run over this midnight.
+MIDNIGHT_S = 1_772_496_000
+
+
+def simulate_over_midnight(
+    path: Path, seed: int, before_s: int, minutes: int, nights: int = 1, faults: tuple[Fault, ...] = ()
+) -> None:
+    """A diagnostic log of ``minutes`` from ``before_s`` before midnight, on ``nights`` consecutive nights.
+
+    Busy (40 trains an hour, the first 30 s in), so passages run over
+    midnight; ``faults`` (their times from each night's start) as the
+    simulator injects them.
+    """
+    from console.layout import load_layout
+    from console.sim.station import SimConfig, StationSim
+    from console.sim.writers import write_diagnostic
+
+    lines: list[str] = []
+    for night in range(nights):
+        start_ns = (MIDNIGHT_S + night * 86_400 - before_s) * 1_000_000_000
+        cfg = SimConfig(seed=seed + night, trains_per_hour=40, first_train_s=30, start_ns=start_ns, faults=faults)
+        sim = StationSim(load_layout("example"), cfg)
+        sim.run(minutes * 60)
+        part = path.with_suffix(f".{night}")
+        write_diagnostic(sim, part)
+        lines += part.read_text(encoding="utf-8").splitlines()
+        part.unlink()
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def archive_snapshot(root: Path) -> dict[str, bytes]:
+    """Every file of an archive but its lock and scratch space: relative path → bytes."""
+    out: dict[str, bytes] = {}
+    for p in sorted(root.rglob("*")):
+        rel = p.relative_to(root).as_posix()
+        if p.is_file() and rel != "lock" and not rel.startswith("tmp/"):
+            out[rel] = p.read_bytes()
+    return out
+
+
+def kill_a_busy_worker(client: Client, prefix: str, timeout_s: float = 60.0) -> int | None:
+    """SIGKILL the process of the first worker seen running a task whose key starts with ``prefix``.
+
+    Returns its pid, or None when no such task ran within ``timeout_s``.
+    """
+    pids = worker_pids(client)
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for addr, keys in client.processing().items():
+            if any(str(k).startswith(prefix) for k in keys) and addr in pids:
+                os.kill(pids[addr], signal.SIGKILL)
+                return pids[addr]
+        time.sleep(0.005)
+    return None

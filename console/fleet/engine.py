@@ -99,8 +99,10 @@ class _DaskEngine(_Engine):
             return []
         client = self.client
         run = uuid.uuid4().hex[:12]  # task names unique on a shared scheduler
-        # Shared arguments once to the cluster, not once per task (the manifest lists every part).
-        shared = {k: client.scatter(v, hash=False) for k, v in common.items()}
+        # Shared arguments once to the cluster, not once per task (the manifest lists every part).  As tasks,
+        # not scattered data: a value held only by a worker that dies is computed again, where scattered
+        # data would be lost with it and every partition needing it cancelled.
+        shared = {k: client.submit(_value, v, key=f"trackside-common-{run}-{k}", pure=False) for k, v in common.items()}
         futures: list[Future] = [
             # The arguments as one dict (their names may clash with submit's own: key, workers, …).
             client.submit(_call, fn, {**shared, **item}, key=f"trackside-{label}-{run}-{i}", pure=False)
@@ -122,6 +124,10 @@ class _DaskEngine(_Engine):
             raise
         finally:
             client.cancel([*futures, *shared.values()])
+
+
+def _value(v: T) -> T:
+    return v
 
 
 # None: the local engine without a bar (every caller outside run_with_engine: tests, the library).
@@ -241,9 +247,12 @@ def _is_killed_worker(exc: BaseException) -> bool:
 
 
 def _is_cluster_failure(exc: BaseException) -> bool:
+    from distributed.client import FutureCancelledError
     from distributed.comm.core import CommClosedError
 
-    return _is_killed_worker(exc) or isinstance(exc, CommClosedError | TimeoutError | ConnectionError)
+    return _is_killed_worker(exc) or isinstance(
+        exc, CommClosedError | TimeoutError | ConnectionError | FutureCancelledError
+    )
 
 
 def _line(exc: BaseException) -> str:

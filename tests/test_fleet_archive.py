@@ -1,0 +1,269 @@
+"""The archive on the fleet engine: the same rows and the same report bytes on Dask as here, whatever the workers.
+
+Random simulator archives (busy nights, passages over midnight, a sensor
+fault) are derived per (device, day) partition on the local engine and on
+Dask clusters of 1 and 3 workers; then ingested and reported through the
+commands with ``--engine local`` and ``--engine dask``.  A worker killed
+while it runs a partition costs a retry, never the answer, and the archive
+is never half written.  More examples with ``TRACKSIDE_FLEET_EXAMPLES=20``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from console.archive.fleet_derive import derive_partitions
+from console.archive.partition import partitions
+from console.archive.store import read_current
+from console.cli import app
+from console.fleet import engine_spec, run_with_engine
+from console.sim.station import Fault
+from tests.fleet_fixtures import (
+    archive_snapshot,
+    kill_a_busy_worker,
+    local_cluster,
+    simulate_over_midnight,
+    worker_pids,
+)
+
+pytestmark = pytest.mark.timeout(600)
+
+EXAMPLES = int(os.environ.get("TRACKSIDE_FLEET_EXAMPLES", 2))
+MINUTES = 20
+SENSOR_FAULTS = ("dead_channel", "isolated_pulse", "damped_head", "power_loss", "missed_detections")
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def cluster1() -> Iterator[tuple[Any, Any]]:
+    with local_cluster(1) as pair:
+        yield pair
+
+
+@pytest.fixture(scope="module")
+def cluster3() -> Iterator[tuple[Any, Any]]:
+    with local_cluster(3) as pair:
+        yield pair
+
+
+def _fault(kind: str | None, head: int, at_s: int) -> tuple[Fault, ...]:
+    if kind is None:
+        return ()
+    return (Fault(kind, f"WS{head}", float(at_s), float(at_s + 300)),)
+
+
+def _invoke(args: list[str]) -> Any:
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, (args, res.stdout, res.stderr)
+    return res
+
+
+def _derived(archive: Path) -> dict[str, Any]:
+    """The derived passages and axles of an archive, as ``query --format json`` prints them."""
+    out = {}
+    for table, order in (
+        ("passages", "device_id, counting_head, start_ns"),
+        ("axles", "device_id, counting_head, time_ns"),
+    ):
+        sql = f"SELECT * EXCLUDE (day) FROM {table} ORDER BY {order}"
+        res = _invoke(["query", sql, "--archive", str(archive), "--format", "json"])
+        out[table] = json.loads(res.stdout)
+    return out
+
+
+def _assert_same_frames(got: dict[str, pd.DataFrame], want: dict[str, pd.DataFrame], engine: str) -> None:
+    assert set(got) == set(want)
+    for name in want:
+        pd.testing.assert_frame_equal(got[name], want[name], check_exact=True, obj=f"{name} on {engine}")
+
+
+@settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    seed=st.integers(1, 1000),
+    before_s=st.integers(30, 900),
+    nights=st.integers(1, 2),
+    fault=st.sampled_from((None, *SENSOR_FAULTS)),
+    fault_head=st.integers(1, 5),
+    fault_at_s=st.integers(0, MINUTES * 60 - 300),
+)
+def test_the_same_rows_and_report_bytes_on_every_engine(
+    tmp_path_factory: pytest.TempPathFactory,
+    cluster1: tuple[Any, Any],
+    cluster3: tuple[Any, Any],
+    seed: int,
+    before_s: int,
+    nights: int,
+    fault: str | None,
+    fault_head: int,
+    fault_at_s: int,
+) -> None:
+    tmp = tmp_path_factory.mktemp("fleet")
+    log = tmp / "sim.log"
+    simulate_over_midnight(log, seed, before_s, MINUTES, nights, _fault(fault, fault_head, fault_at_s))
+
+    # The partitions (device × day, the day before and the days after carried), on each engine.
+    local_arc = tmp / "local"
+    _invoke(["ingest", str(log), "--archive", str(local_arc), "--layout", "example"])
+    m = read_current(local_arc)
+    keys = partitions(m)
+    assert len({k.day for k in keys}) >= 2  # the log runs over midnight: the work is split there
+    want = derive_partitions(local_arc, m)
+    assert len(want["passages"]) > 0
+    for name, (cluster, _client) in (("1 worker", cluster1), ("3 workers", cluster3)):
+        spec = engine_spec("dask", scheduler=cluster.scheduler_address)
+        got = run_with_engine(spec, lambda: derive_partitions(local_arc, m), progress=False)
+        _assert_same_frames(got, want, name)
+
+    # Through the commands: ingest and report --archive on Dask give the bytes the local engine gives.
+    dask_arc = tmp / "dask"
+    address = cluster3[0].scheduler_address
+    _invoke(
+        [
+            "ingest",
+            str(log),
+            "--archive",
+            str(dask_arc),
+            "--layout",
+            "example",
+            "--engine",
+            "dask",
+            "--scheduler",
+            address,
+        ]
+    )
+    assert _derived(dask_arc) == _derived(local_arc)
+    local_json = _invoke(["report", "--archive", str(local_arc), "--format", "json"]).stdout
+    dask_json = _invoke(
+        ["report", "--archive", str(dask_arc), "--format", "json", "--engine", "dask", "--scheduler", address]
+    ).stdout
+    assert json.loads(local_json)["passages"]  # a report with something in it
+    assert dask_json == local_json
+
+
+def test_a_local_cluster_started_by_the_command_gives_the_same_report(tmp_path: Path) -> None:
+    log = tmp_path / "sim.log"
+    simulate_over_midnight(log, 7, 400, MINUTES, 1, _fault("missed_detections", 2, 120))
+    local_arc, dask_arc = tmp_path / "local", tmp_path / "dask"
+    _invoke(["ingest", str(log), "--archive", str(local_arc), "--layout", "example"])
+    res = _invoke(
+        ["ingest", str(log), "--archive", str(dask_arc), "--layout", "example", "--engine", "dask", "--workers", "2"]
+    )
+    # The cluster and its dashboard said on stderr, one line.
+    assert re.search(
+        r"^dask local cluster tcp://127\.0\.0\.1:\d+: 2 workers; dashboard http://127\.0\.0\.1:\d+/status$",
+        res.stderr,
+        re.M,
+    )
+    assert _derived(dask_arc) == _derived(local_arc)
+    local_json = _invoke(["report", "--archive", str(local_arc), "--format", "json"]).stdout
+    dask_json = _invoke(
+        ["report", "--archive", str(dask_arc), "--format", "json", "--engine", "dask", "--workers", "1"]
+    ).stdout
+    assert dask_json == local_json
+
+
+def test_a_worker_killed_during_derivation_costs_a_retry_not_the_answer(
+    tmp_path: Path, cluster3: tuple[Any, Any]
+) -> None:
+    cluster, client = cluster3
+    log = tmp_path / "sim.log"
+    simulate_over_midnight(log, 11, 600, MINUTES, 2)
+    arc = tmp_path / "arc"
+    _invoke(["ingest", str(log), "--archive", str(arc), "--layout", "example"])
+    m = read_current(arc)
+    want = derive_partitions(arc, m)
+    before = set(worker_pids(client).values())
+    killed: list[int | None] = []
+    killer = threading.Thread(target=lambda: killed.append(kill_a_busy_worker(client, "trackside-derive-")))
+    killer.start()
+    try:
+        spec = engine_spec("dask", scheduler=cluster.scheduler_address)
+        got = run_with_engine(spec, lambda: derive_partitions(arc, m), progress=False)
+    finally:
+        killer.join()
+    assert killed[0] in before  # a worker died while it ran a partition
+    _assert_same_frames(got, want, "3 workers, one killed")
+
+
+def test_a_worker_killed_during_ingest_leaves_the_archive_whole(tmp_path: Path, cluster3: tuple[Any, Any]) -> None:
+    """The ingest's derivation on Dask with a worker killed mid-partition: the right archive, or one line
+    and the archive as it was before (never half)."""
+    cluster, client = cluster3
+    first, second = tmp_path / "night1.log", tmp_path / "night2.log"
+    simulate_over_midnight(first, 21, 500, MINUTES, 1)
+    simulate_over_midnight(second, 22, 300, MINUTES, 1)
+    ref, arc = tmp_path / "ref", tmp_path / "arc"
+    for root in (ref, arc):
+        _invoke(["ingest", str(first), "--archive", str(root), "--layout", "example"])
+    _invoke(["ingest", str(second), "--archive", str(ref), "--layout", "example"])
+    before = archive_snapshot(arc)
+    killed: list[int | None] = []
+    killer = threading.Thread(target=lambda: killed.append(kill_a_busy_worker(client, "trackside-derive-")))
+    killer.start()
+    try:
+        args = ["ingest", str(second), "--archive", str(arc), "--layout", "example"]
+        res = runner.invoke(app, [*args, "--engine", "dask", "--scheduler", cluster.scheduler_address])
+    finally:
+        killer.join()
+    assert killed[0] is not None  # a worker died while it derived a partition
+    if res.exit_code == 0:
+        assert _derived(arc) == _derived(ref)
+    else:
+        assert res.exit_code == 2
+        assert res.stderr.count("\n") == 1 and res.stderr.startswith("trackside: error: ")
+        assert archive_snapshot(arc) == before
+
+
+def test_engine_failures_are_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import socket
+
+    from console.fleet import cluster as fleet_cluster
+
+    monkeypatch.setattr(fleet_cluster, "CONNECT_TIMEOUT_S", 2)
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    log = tmp_path / "sim.log"
+    simulate_over_midnight(log, 3, 60, 5, 1)
+    arc = tmp_path / "arc"
+    cases = [
+        (
+            ["ingest", str(log), "--archive", str(arc), "--engine", "dask", "--workers", "0"],
+            "--workers: expected 1 to 64, found 0",
+        ),
+        (["ingest", str(log), "--archive", str(arc), "--engine", "spark"], "--engine: expected local or dask"),
+        (["report", "--archive", str(arc), "--workers", "2"], "--workers needs --engine dask"),
+        (["report", str(log), "--engine", "dask"], "--engine dask needs --archive"),
+        (
+            ["ingest", str(log), "--archive", str(arc), "--engine", "dask", "--scheduler", f"tcp://127.0.0.1:{port}"],
+            f"cannot reach the dask scheduler tcp://127.0.0.1:{port}",
+        ),
+    ]
+    for args, message in cases:
+        res = runner.invoke(app, args)
+        assert res.exit_code == 2, args
+        assert res.stderr.startswith(f"trackside: error: {message}") and res.stderr.count("\n") == 1, res.stderr
+    assert not (arc / "CURRENT").exists()  # nothing was ingested by any of them
+
+
+def test_dask_not_installed_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "distributed" else real(name, *a))
+    res = runner.invoke(app, ["report", "--archive", str(tmp_path), "--engine", "dask"])
+    assert res.exit_code == 2
+    assert res.stderr == "trackside: error: --engine dask needs distributed: pip install 'trackside[fleet]'\n"
