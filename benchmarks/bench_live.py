@@ -2,7 +2,7 @@
 
     python benchmarks/bench_live.py latency-file            # line appended → event on stdout
     python benchmarks/bench_live.py latency-mqtt            # message published → event on stdout (needs mosquitto)
-    python benchmarks/bench_live.py station                 # line appended → station view model updated
+    python benchmarks/bench_live.py station -n 100          # line appended → station view redrawn, painted
     python benchmarks/bench_live.py idle-cpu --seconds 30   # follow with nothing arriving
     python benchmarks/bench_live.py rate --rate 2000 --seconds 600   # sustained input, RSS sampled
 
@@ -141,7 +141,15 @@ def latency_mqtt(n: int, gap_s: float) -> None:
 
 
 def station(n: int) -> None:
+    """Line appended → the station view redrawn with its passage and painted (headless Textual app).
+
+    The app's ``refresh_views`` is wrapped to note when a redraw shows a longer event log, and
+    ``call_after_refresh`` when that redraw has been painted.  Lines are written at random gaps
+    (0.15-0.45 s, so they do not phase-lock with the status timer), and the test loop only sleeps:
+    Pilot's ``pause`` waits for every widget's message queue and would slow the app it measures.
+    """
     import asyncio
+    import random
 
     from console.layout import load_layout
     from console.sources import open_source
@@ -153,27 +161,48 @@ def station(n: int) -> None:
         log.write_text("")
         src = LiveSource(load_layout("example"), [open_source(f"file:{log}", from_start=True)])
         app = LiveStationApp(src)
-        got: list[float] = []
+        painted: list[tuple[float, int]] = []  # (when painted, event-log length drawn)
+        redrawn: list[tuple[float, int]] = []  # (when refresh_views returned, event-log length)
+        redraw_s: list[float] = []
+        refresh = app.refresh_views
+
+        def timed_refresh() -> None:
+            t = time.perf_counter()
+            refresh()
+            redraw_s.append(time.perf_counter() - t)
+            shown = len(app.model.log)
+            redrawn.append((time.perf_counter(), shown))
+            app.call_after_refresh(lambda: painted.append((time.perf_counter(), shown)))
+
+        app.refresh_views = timed_refresh  # type: ignore[method-assign]
+        writes: list[tuple[float, int]] = []  # (when written, log length before)
+        rng = random.Random(14)
 
         async def run() -> None:
-            async with app.run_test(size=(160, 50)) as pilot:
-                await pilot.pause(0.5)
+            async with app.run_test(size=(160, 50)):
+                await asyncio.sleep(1.0)
                 with log.open("a") as f:
                     for k in range(n + 1):
                         before = len(app.model.log)
                         t = time.perf_counter()
                         f.write(diag_line(2, T0 + k * 13.5))
                         f.flush()
-                        if k:
-                            # The model's log gains the passage once the worker has advanced and redrawn.
-                            while len(app.model.log) == before and time.perf_counter() - t < 5:
-                                await pilot.pause(0.005)
-                            got.append(time.perf_counter() - t)
-                        await pilot.pause(0.05)
+                        if k:  # the first line opens a run; each next one closes the previous: a passage
+                            writes.append((t, before))
+                        await asyncio.sleep(rng.uniform(0.15, 0.45))
+                await asyncio.sleep(1.0)
 
         asyncio.run(run())
         src.stop()
-    print(f"station view updated after a line: {percentiles(got)}")
+    for what, marks in (("redrawn (widgets updated)", redrawn), ("painted", painted)):
+        got = []
+        for t, before in writes:
+            shown = [p for p, length in marks if p > t and length > before]
+            if not shown:
+                raise SystemExit(f"a passage was never {what} (line written at {t:.3f})")
+            got.append(shown[0] - t)
+        print(f"line appended → station view {what} with its passage: {percentiles(got)}")
+    print(f"  one redraw (refresh_views): {percentiles(redraw_s)}; advances: {app.advances}")
 
 
 def cpu_seconds(pid: int) -> float:
@@ -278,7 +307,7 @@ def main() -> None:
             raise SystemExit("mosquitto is not installed")
         latency_mqtt(a.n, a.gap)
     elif a.what == "station":
-        station(min(a.n, 100))
+        station(a.n)
     elif a.what == "idle-cpu":
         idle_cpu(a.seconds)
     else:

@@ -59,6 +59,79 @@ def test_live_station_view_follows_a_growing_log_and_shows_each_source(tmp_path:
     source.stop()
 
 
+def test_the_live_view_redraws_when_data_arrives_not_on_a_timer(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import console.tui.live_app as live_app
+
+    # With the status timer an hour long, only the sources' wake-up can bring the new state on screen.
+    monkeypatch.setattr(live_app, "STATUS_S", 3600.0)
+    log = tmp_path / "station.log"
+    log.write_bytes(BEFORE_TRAIN)
+    source = LiveSource(load_layout("example"), [open_source(f"file:{log}", from_start=True)])
+    app = LiveStationApp(source)
+    drawn: list[set[str]] = []
+    refresh = app.refresh_views
+
+    def noted() -> None:
+        refresh()
+        drawn.append({s.state for s in app.model.snapshot().sections})
+
+    app.refresh_views = noted  # type: ignore[method-assign]
+
+    async def scenario() -> tuple[float, int]:
+        async with app.run_test(size=(160, 50)):
+            end = time.monotonic() + 5
+            while source.statuses()[0].messages == 0 and time.monotonic() < end:
+                await asyncio.sleep(0.02)
+            await asyncio.sleep(0.3)
+            idle_advances = app.advances
+            await asyncio.sleep(1.0)  # nothing arrives: no advance, no redraw
+            assert app.advances == idle_advances
+            t0 = time.monotonic()
+            with log.open("ab") as f:
+                f.write(FIRST_TRAIN)
+            while not any("clear" in d for d in drawn) and time.monotonic() - t0 < 5:
+                await asyncio.sleep(0.01)
+            return time.monotonic() - t0, app.advances - idle_advances
+
+    seconds, advances = asyncio.run(scenario())
+    source.stop()
+    assert any("clear" in d for d in drawn)
+    assert seconds < 2.0
+    assert advances >= 1
+
+
+def test_an_unchanged_panel_is_not_repainted() -> None:
+    from rich.text import Text
+    from textual.app import App, ComposeResult
+    from textual.widgets import Static
+
+    from console.tui.widgets.quiet import retitle, update_if_changed
+
+    class One(App[None]):
+        def compose(self) -> ComposeResult:
+            yield Static("", id="panel")
+
+    repaints: list[bool] = []
+
+    async def scenario() -> str | None:
+        app = One()
+        async with app.run_test():
+            panel = app.query_one("#panel", Static)
+            panel.refresh = lambda *a, **k: repaints.append(True) or panel  # type: ignore[method-assign]
+            assert update_if_changed(panel, Text("WS1 · 4 axles", style="green"))
+            assert not update_if_changed(panel, Text("WS1 · 4 axles", style="green"))
+            assert update_if_changed(panel, Text("WS1 · 4 axles", style="red"))  # a new style is a change
+            retitle(panel, title="Sections", subtitle="B1: ok")
+            retitle(panel, title="Sections", subtitle="B1: ok")
+            retitle(panel, subtitle="B1: count 2")
+            return panel.border_subtitle
+
+    assert asyncio.run(scenario()) == "B1: count 2"
+    assert len(repaints) == 2 + 2 + 1
+
+
 def _serve(log: Path, port: int) -> subprocess.Popen[bytes]:
     return subprocess.Popen(
         trackside(

@@ -20,7 +20,7 @@ from textual.widgets import Header
 
 from console.analysis.timefmt import display
 from console.tui.help import HelpScreen
-from console.tui.model import StationModel
+from console.tui.model import Snapshot, StationModel
 from console.tui.sources import ReplaySource, SimSource
 from console.tui.widgets.event_log import EventLog
 from console.tui.widgets.key_bar import KeyBar
@@ -118,9 +118,7 @@ class StationApp(App[None]):
         m = self.model
         snap = m.snapshot()
         diffs = m.differences(snap) if m.show_truth else set()
-        state = "paused" if snap.paused else f"{snap.speed}×"
-        mode = "replay" if snap.mode == "replay" else "simulation"
-        self.sub_title = f"{mode} · {display(snap.time_ns)[:19]} · {state}" + (" · truth view" if m.show_truth else "")
+        self.sub_title = self.subtitle(snap)
         section, train = m.section_id(), m.train_id(snap)
         self.query_one(TrackDiagram).render_snapshot(snap, section, train, diffs)
         self.query_one(SectionsTable).render_snapshot(snap, section, diffs)
@@ -129,6 +127,13 @@ class StationApp(App[None]):
         self.query_one(SpeedPlot).show(
             train, list(m.speed_history.get(train, [])) if train else [], m.source.layout.line_speed_mps * 3.6
         )
+
+    def subtitle(self, snap: Snapshot) -> str:
+        """The header's second line (a change of it re-lays out the screen: the live view keeps it steady)."""
+        state = "paused" if snap.paused else f"{snap.speed}×"
+        mode = "replay" if snap.mode == "replay" else "simulation"
+        truth = " · truth view" if self.model.show_truth else ""
+        return f"{mode} · {display(snap.time_ns)[:19]} · {state}{truth}"
 
     # -- actions --------------------------------------------------------------------
     def action_pause(self) -> None:

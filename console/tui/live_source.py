@@ -12,7 +12,7 @@ from __future__ import annotations
 import queue
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from console.analysis.crossing import CrossingController
@@ -64,6 +64,8 @@ class LiveSource:
         self._placeholder = SectionEngine(layout, initial=SectionState.PREPARATORY, start_ns=time.time_ns())
         self._counts: Counter[str] = Counter()
         self.started = False
+        # Called from the sources' threads after each item is queued: the app wakes on data, not on a timer.
+        self.on_data: Callable[[], None] | None = None
         # The live engine makes its section engine at the first detection; until then all are preparatory.
         self.engine: SectionEngine = self._placeholder
         self.crossings: dict[str, CrossingController] = (
@@ -72,8 +74,18 @@ class LiveSource:
 
     def start(self) -> None:
         for s in self.sources:
-            s.start(self._queue.put)
+            s.start(self._put)
         self.started = True
+
+    def _put(self, item: Item) -> None:
+        self._queue.put(item)
+        wake = self.on_data
+        if wake is not None:
+            wake()
+
+    def pending(self) -> bool:
+        """Items are waiting (a burst larger than one advance takes)."""
+        return not self._queue.empty()
 
     def stop(self) -> None:
         for s in self.sources:
@@ -93,7 +105,7 @@ class LiveSource:
             except queue.Empty:
                 break
         self.live.tick()
-        self.engine = self.live.diag.sections or self._placeholder
+        self.engine = self.live.diag.sections or self.live.frames.sections or self._placeholder
         now = self.now_ns
         transitions: list[Transition] = []
         entries: list[LogEntry] = []

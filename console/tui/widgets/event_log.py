@@ -8,6 +8,7 @@ from textual.widgets import Static
 from console.analysis.timefmt import display
 from console.safe_text import inert
 from console.tui.model import LogEntry
+from console.tui.widgets.quiet import retitle, update_if_changed
 
 SEVERITY_STYLE = {"info": "dim", "warning": "yellow", "critical": "bold red"}
 SEVERITY_MARK = {"info": "·", "warning": "!", "critical": "‼"}
@@ -34,5 +35,5 @@ class EventLog(Static):
             lines -= need
             shown.append(line)
         out = Text("\n").join(reversed(shown))
-        self.border_title = f"Events ({least} and above)"
-        self.update(out, layout=False)
+        retitle(self, title=f"Events ({least} and above)")
+        update_if_changed(self, out)

@@ -10,6 +10,8 @@ from textual.coordinate import Coordinate
 from textual.message import Message
 from textual.widgets import DataTable
 
+from console.tui.widgets.quiet import same
+
 
 class PickableTable(DataTable[Text]):
     """A table whose rows are picked by a single click (or enter), not a second one."""
@@ -48,7 +50,7 @@ class PickableTable(DataTable[Text]):
         if keys == [k for k, _ in rows]:
             for r, (_, cells) in enumerate(rows):
                 for c, cell in enumerate(cells):
-                    if self.get_cell_at(Coordinate(r, c)) != cell:
+                    if not same(self.get_cell_at(Coordinate(r, c)), cell):
                         self.update_cell_at(Coordinate(r, c), cell, update_width=True)
             return
         self.clear()

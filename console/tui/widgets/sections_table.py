@@ -8,6 +8,7 @@ from console.analysis.sections import STATE_MARK, SectionState
 from console.safe_text import inert
 from console.tui.model import Snapshot
 from console.tui.widgets.pickable_table import PickableTable
+from console.tui.widgets.quiet import retitle
 from console.tui.widgets.track import STYLE
 
 
@@ -28,10 +29,10 @@ class SectionsTable(PickableTable):
             row.append(inert(s.reason, style="dim"))
             rows.append((s.id, row))
         self.show_rows(cols, rows)
-        self.border_title = "Sections"
+        retitle(self, title="Sections")
         chosen = next((s for s in snap.sections if s.id == selected), None)
         if chosen is not None:
             if self.cursor_row != snap.sections.index(chosen):
                 self.move_cursor(row=snap.sections.index(chosen), animate=False)
             # The reason in full, where a narrow panel would cut the Why column.
-            self.border_subtitle = inert(f"{chosen.id}: {chosen.reason}")
+            retitle(self, subtitle=inert(f"{chosen.id}: {chosen.reason}"))

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from textual_plotext import PlotextPlot
 
 from console.safe_text import inert
+from console.tui.widgets.quiet import retitle
 
 WINDOW_S = 600.0  # the last ten minutes
 
@@ -20,6 +21,11 @@ class SpeedPlot(PlotextPlot):
 
     def show(self, train: str | None, history: Sequence[tuple[float, float]], line_speed_kmh: float) -> None:
         """``history``: (seconds on the model clock, km/h) pairs, oldest first."""
+        # Plotting and repainting take tens of milliseconds: only when the plot would change.
+        key = (train, len(history), history[-1] if history else None, line_speed_kmh)
+        if key == self.__dict__.get("_shown"):
+            return
+        self.__dict__["_shown"] = key
         plt = self.plt
         plt.clear_data()
         plt.clear_figure()
@@ -30,8 +36,8 @@ class SpeedPlot(PlotextPlot):
             now = history[-1][0]
             pts = [(t - now, v) for t, v in history if now - t <= WINDOW_S]
             plt.plot([p[0] for p in pts], [p[1] for p in pts], marker="braille")
-            self.border_title = inert(f"{train} {history[-1][1]:.0f} km/h")
+            retitle(self, title=inert(f"{train} {history[-1][1]:.0f} km/h"))
         else:
-            self.border_title = "speed: no train"
+            retitle(self, title="speed: no train")
         plt.xlabel("s before now")
         self.refresh()

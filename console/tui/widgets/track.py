@@ -10,6 +10,7 @@ from console.layout import Layout
 from console.safe_text import clean
 from console.tui.model import Snapshot
 from console.tui.sources import STALE_S
+from console.tui.widgets.quiet import update_if_changed
 
 STYLE = {"clear": "green", "occupied": "bold yellow", "disturbed": "bold white on red", "preparatory": "bold magenta"}
 
@@ -36,7 +37,7 @@ class TrackDiagram(Static):
     ) -> None:
         self._last = (snap, selected_section, selected_train, differences)
         width = max(20, self.size.width - 4 if self.size.width else 76)
-        self.update(draw(self.line_layout, snap, width, selected_section, selected_train, differences), layout=False)
+        update_if_changed(self, draw(self.line_layout, snap, width, selected_section, selected_train, differences))
 
     def on_resize(self) -> None:
         # Redraw to the new width at once, not at the next tick (a paused view has none).

@@ -8,6 +8,7 @@ from console.safe_text import inert
 from console.tui.model import Snapshot
 from console.tui.sources import STALE_S
 from console.tui.widgets.pickable_table import PickableTable
+from console.tui.widgets.quiet import retitle
 
 
 class TrainsTable(PickableTable):
@@ -35,14 +36,14 @@ class TrainsTable(PickableTable):
             ]
             rows.append((t.id, row))
         self.show_rows(cols, rows)
-        self.border_title = f"Trains ({len(snap.trains)})"
         ids = [t.id for t in snap.trains]
-        self.border_subtitle = ""
+        subtitle: str | Text = ""
         if selected in ids:
             if self.cursor_row != ids.index(selected):
                 self.move_cursor(row=ids.index(selected), animate=False)
             t = snap.trains[ids.index(selected)]
-            self.border_subtitle = inert(f"{t.id}: {unit_health(t.head_age_s, t.eot_age_s)[0]}, {t.controller}")
+            subtitle = inert(f"{t.id}: {unit_health(t.head_age_s, t.eot_age_s)[0]}, {t.controller}")
+        retitle(self, title=f"Trains ({len(snap.trains)})", subtitle=subtitle)
 
 
 def unit_health(head_age_s: float | None, eot_age_s: float | None) -> tuple[str, bool]:
