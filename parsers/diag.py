@@ -388,10 +388,11 @@ class DiagRegistry:
             return exc
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Per-register lookup arrays (indexed by register_id)."""
-        if self._arrays_len != len(self.registers):
-            regs = self.registers
-            self._arrays = {
+        """Per-register lookup arrays (indexed by register_id), extended for new registers only."""
+        done = max(self._arrays_len, 0)
+        if done != len(self.registers):
+            regs = self.registers[done:]
+            new: dict[str, np.ndarray] = {
                 "diag_id": np.array([r.diag_id for r in regs], dtype=np.int32),
                 "device_id": np.array([r.device_id for r in regs], dtype=np.int32),
                 "device": np.array([self.devices.code(r.device) for r in regs], dtype=np.int32),
@@ -405,7 +406,9 @@ class DiagRegistry:
                     [self.canonicals.code(r.label_canonical or r.label) for r in regs], dtype=np.int32
                 ),
             }
-            self._arrays_len = len(regs)
+            # A log of a million heads adds registers in every chunk: never rebuild the old ones.
+            self._arrays = {k: np.concatenate([self._arrays[k], v]) for k, v in new.items()} if done else new
+            self._arrays_len = len(self.registers)
         return self._arrays
 
 

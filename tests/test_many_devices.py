@@ -8,6 +8,8 @@ heads and GNSS devices.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -119,3 +121,55 @@ def test_pairing_twenty_thousand_heads_each_pairs_its_own_wheel() -> None:
     np.testing.assert_array_equal(axles["direction"], np.where(np.arange(heads) % 2 == 0, 1, 2))
     # 0.13 m in 40 ms: 11.7 km/h.
     np.testing.assert_allclose(axles["speed_kmh"], 0.13 / 0.04 * 3.6)
+
+
+_RECORD = (
+    "Diag_id:00002\tID:{dev}\tDevice:IM\tType:013\tGS:GS03\tTrackinfo:H{head:06d}\tch:{ch}\tAdr:026\t"
+    "Label:Radsensor\tData:{data}\tDate:2026-03-02\tTime:10:{mm:02d}:{ss:02d}.{ms:03d}\n"
+)
+_SERIAL = (
+    "Diag_id:00002\tID:{dev}\tDevice:IM\tType:013\tGS:GS03\tTrackinfo:H{head:06d}\tch:1\tAdr:028\t"
+    "Label:Seriennummer\tData:{serial}\tDate:2026-03-02\tTime:10:00:00.000\n"
+)
+
+
+def test_twenty_thousand_heads_inventory_per_device(tmp_path: Path) -> None:
+    """20 k heads on 500 devices, each head a wheel on Sys1 then Sys2 4 ms later: every head,
+    device, record count, span and axle is where the log put it."""
+    from console.analysis.diagnostics import SpeedSettings
+    from console.jobs import stream_files
+
+    heads, devices = 20_000, 500
+    lines = []
+    for i in range(heads):
+        t_ms = 5 * i  # 100 s of log; each head's two onsets 4 ms apart
+        for ch, dt in ((1, 0), (2, 4)):
+            s, ms = divmod(t_ms + dt, 1000)
+            lines.append(_RECORD.format(dev=1000 + i % devices, head=i, ch=ch, data=1, mm=s // 60, ss=s % 60, ms=ms))
+    lines += [_SERIAL.format(dev=1000 + d, head=d, serial=700000 + d) for d in range(0, devices, 7)]
+    log = tmp_path / "heads.log"
+    log.write_text("".join(lines), encoding="utf-8")
+
+    job = stream_files([log], SpeedSettings(), chunk_bytes=256 << 10)
+
+    assert job.report.records == 2 * heads + len(range(0, devices, 7))
+    inv = job.analysis.devices
+    assert [d.device_id for d in inv] == [1000 + d for d in range(devices)]
+    for d in (0, 7, 123, 499):
+        dev = inv[d]
+        mine = range(d, heads, devices)
+        assert dev.counting_heads == [f"H{i:06d}" for i in mine]
+        assert dev.records == 2 * len(mine) + (d % 7 == 0)
+        assert dev.channels == [1, 2]
+        assert dev.diag_ids == [2]
+        assert dev.serial_number == (str(700000 + d) if d % 7 == 0 else None)
+        t0 = int(np.datetime64("2026-03-02T10:00:00", "ns").astype(np.int64))
+        first_ms = 0 if d % 7 == 0 else 5 * d  # the serial record is at 10:00:00.000
+        assert (dev.first_ns - t0) // 1_000_000 == first_ms
+        assert (dev.last_ns - t0) // 1_000_000 == 5 * mine[-1] + 4
+    # Every head: one passage of one axle, Sys1 → Sys2 at 0.13 m / 4 ms.
+    axles = job.analysis.axle_columns
+    assert len(axles["head"]) == heads
+    assert (axles["direction"] == 1).all()
+    assert job.analysis.unpaired_detections == 0
+    assert len(job.analysis.heads) == heads

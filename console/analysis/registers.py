@@ -144,29 +144,55 @@ def inventory(
                 reg.data.values[data_code],
             )
         )
-    names = reg.heads.values
-    # The pairs are sorted by device: each device's values are one slice.
-    at_diag = [*np.searchsorted(d_diag, devices).tolist(), len(d_diag)]
-    at_chan = [*np.searchsorted(d_chan, devices).tolist(), len(d_chan)]
-    at_head = [*np.searchsorted(d_head, devices).tolist(), len(d_head)]
+    # The pairs are sorted by device: each device's values are one run, cut once.
+    at_diag = np.searchsorted(d_diag, devices)
+    at_chan = np.searchsorted(d_chan, devices)
+    at_head = np.searchsorted(d_head, devices)
+    # Every device with records has a head (a register always names one, perhaps ""):
+    # its span is over its heads' first and last record times.
+    first = np.minimum.reduceat(hf[v_head], at_head)
+    last = np.maximum.reduceat(hl[v_head], at_head)
+    first[first == _NONE] = 0
+    last[last == -_NONE] = 0
+    # Lists, not arrays, per device: one tolist per column, then list slices.
+    diag_ids = _runs(np.lexsort((v_diag, d_diag)), v_diag, at_diag)
+    channels = _runs(np.lexsort((v_chan, d_chan)), v_chan, at_chan)
+    head_names = np.asarray(reg.heads.values, dtype=object)[tables.head_name_code[v_head]].tolist()
+    head_cuts = [*at_head.tolist(), len(v_head)]
+    r0 = rid[first_rid]
+    device_names = _texts(reg.devices.values, arr["device"][r0])
+    type_names = _texts(reg.types.values, arr["type"][r0])
+    gs_names = _texts(reg.gs.values, arr["gs"][r0])
     out = []
-    for i, d in enumerate(devices.tolist()):  # per device
-        r0 = int(rid[first_rid[i]])
-        heads = v_head[at_head[i] : at_head[i + 1]]
-        first = hf[heads][hf[heads] != _NONE]
-        last = hl[heads][hl[heads] != -_NONE]
+    for i, (d, n, f, la) in enumerate(
+        zip(devices.tolist(), records.tolist(), first.tolist(), last.tolist(), strict=True)
+    ):  # per device: only the object the faces read
         inv = DeviceInventory(
             device_id=d,
-            device=reg.devices.values[arr["device"][r0]],
-            type=reg.types.values[arr["type"][r0]],
-            gs=reg.gs.values[arr["gs"][r0]],
-            diag_ids=sorted(v_diag[at_diag[i] : at_diag[i + 1]].tolist()),
-            counting_heads=[names[int(tables.head_name_code[h])] for h in heads.tolist()],
-            channels=sorted(v_chan[at_chan[i] : at_chan[i + 1]].tolist()),
-            records=int(records[i]),
-            first_ns=int(first.min()) if len(first) else 0,
-            last_ns=int(last.max()) if len(last) else 0,
+            device=device_names[i],
+            type=type_names[i],
+            gs=gs_names[i],
+            diag_ids=diag_ids[i],
+            counting_heads=head_names[head_cuts[i] : head_cuts[i + 1]],
+            channels=channels[i],
+            records=int(n),
+            first_ns=f,
+            last_ns=la,
         )
-        apply_identity(inv, ident.get(d, []))
+        values = ident.get(d)
+        if values:
+            apply_identity(inv, values)
         out.append(inv)
     return out
+
+
+def _texts(values: list[str], codes: np.ndarray) -> list[str]:
+    """Interned strings by code, as a list."""
+    return np.asarray(values, dtype=object)[codes].tolist() if len(codes) else []
+
+
+def _runs(order: np.ndarray, values: np.ndarray, at: np.ndarray) -> list[list[int]]:
+    """Per group (starting at ``at`` in group-sorted pairs), its values in ascending order."""
+    flat = values[order].tolist()
+    cuts = [*at.tolist(), len(flat)]
+    return [flat[cuts[i] : cuts[i + 1]] for i in range(len(at))]
