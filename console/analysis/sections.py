@@ -266,18 +266,27 @@ class SectionEngine:
             self.step(e)
         return self.result()
 
-    def result(self) -> SectionsResult:
+    def result(
+        self,
+        transitions: list[Transition] | None = None,
+        ledger: list[LedgerEntry] | None = None,
+        resets: list[ResetRecord] | None = None,
+    ) -> SectionsResult:
+        """The run so far; the history given (drained out of the engine as it ran) or the engine's own."""
+        trs = self.transitions if transitions is None else transitions
+        led = self.ledger if ledger is None else ledger
+        rst = self.resets if resets is None else resets
         return SectionsResult(
             timeline=pd.DataFrame(
-                [(t.time_ns, t.section, str(t.state), t.count, t.reason) for t in self.transitions],
+                [(t.time_ns, t.section, str(t.state), t.count, t.reason) for t in trs],
                 columns=["time_ns", "section", "state", "count", "reason"],
             ),
             ledger=pd.DataFrame(
-                [(x.time_ns, x.section, x.head, x.delta, x.count) for x in self.ledger],
+                [(x.time_ns, x.section, x.head, x.delta, x.count) for x in led],
                 columns=["time_ns", "section", "head", "delta", "count"],
             ),
             resets=pd.DataFrame(
-                [(r.time_ns, r.section, r.accepted, r.reason) for r in self.resets],
+                [(r.time_ns, r.section, r.accepted, r.reason) for r in rst],
                 columns=["time_ns", "section", "accepted", "reason"],
             ),
             final={sid: (str(s.state), s.count, s.count_in, s.count_out, s.reason) for sid, s in self.sections.items()},
@@ -290,10 +299,14 @@ class SectionsResult:
     ledger: pd.DataFrame  # every axle counted: time_ns, section, head, delta, count
     resets: pd.DataFrame  # every reset request: accepted or refused, and why
     final: dict[str, tuple[str, int, int, int, str]]  # section → (state, count, in, out, reason)
+    # The ledger summary when the ledger itself was not kept (a streamed run: console.stream_jobs).
+    summary: pd.DataFrame | None = None
 
     def ledger_summary(self) -> pd.DataFrame:
         """Per section and head: axles counted in and out, first and last (section, head order)."""
         cols = ["section", "head", "count_in", "count_out", "first_ns", "last_ns"]
+        if self.summary is not None:
+            return self.summary
         led = self.ledger
         if led.empty:
             return pd.DataFrame(columns=cols)
@@ -312,6 +325,14 @@ class SectionsResult:
         out["first_ns"] = g["time_ns"].min()
         out["last_ns"] = g["time_ns"].max()
         return out.reset_index()[cols]
+
+
+def ledger_summary_frame(totals: dict[tuple[str, str], list[int]]) -> pd.DataFrame:
+    """:meth:`SectionsResult.ledger_summary` from running totals: (section, head) → [in, out, first, last]."""
+    cols = ["section", "head", "count_in", "count_out", "first_ns", "last_ns"]
+    rows = [(s, h, *v) for (s, h), v in sorted(totals.items())]
+    frame = pd.DataFrame(rows, columns=cols)
+    return frame.astype({c: "int64" for c in cols[2:]})
 
 
 def run_sections(

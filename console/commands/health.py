@@ -50,7 +50,7 @@ def health(
     def body() -> int:
         from console.analysis.diag_events import DiagEventSettings
         from console.analysis.health import Severity, sort_findings, voltage_margin_findings
-        from console.jobs import HEALTH_REGISTERS, analyze_files, detection_events, health_findings, input_bytes
+        from console.jobs import HEALTH_REGISTERS, health_findings, input_bytes
         from console.progress import byte_progress
         from console.render.health_tables import findings_view
         from parsers.voltages import read_voltages
@@ -71,13 +71,20 @@ def health(
             check_inputs(files)
             refuse_wrong_kind(files, "diag")
             from console.analysis.diagnostics import SpeedSettings
+            from console.stream_jobs import stream_diag
 
+            # In bounded memory: only the channel-fault events and the health registers' records are kept.
             with byte_progress(input_bytes(files), "parsing") as advance:
-                job = analyze_files(
-                    files, SpeedSettings(), on_progress=advance, keep_registers=HEALTH_REGISTERS, keep_releases=True
+                run = stream_diag(
+                    files,
+                    SpeedSettings(),
+                    layout=lay,
+                    event_settings=DiagEventSettings(),
+                    keep_registers=HEALTH_REGISTERS,
+                    on_progress=advance,
                 )
-            events, warnings = detection_events(job, lay, DiagEventSettings())
-            findings += health_findings(job, lay, events, None)
+            job, warnings = run.job, run.warnings
+            findings += health_findings(job, lay, run.health_events, None)
             reports.append(job.report)
         if voltages:
             check_inputs(voltages)

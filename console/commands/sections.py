@@ -12,11 +12,11 @@ from console.commands.common import (
     FilesArg,
     JsonOpt,
     LayoutOpt,
+    check_inputs,
     fail,
     guard,
     load_layout,
-    print_json,
-    run_diag,
+    refuse_wrong_kind,
 )
 from console.safe_text import clean
 
@@ -37,6 +37,56 @@ def _parse_resets(values: list[str]) -> list[Any]:
             raise fail(f"--reset {v!r}: expected SECTION@TIME, e.g. B1@2026-03-02T09:30:00")
         out.append(DetectionEvent(int(t.value), EventKind.RESET, section.strip(), source="operator", detail="--reset"))
     return out
+
+
+def _write_json(run: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
+    """The document of ``sections_json``, its timeline and ledger copied in from the sink's spill files."""
+    import sys
+
+    from console.jsonout import dumps
+
+    head = dumps(
+        {
+            "schema": "trackside.sections/1",
+            "files": run.job.files,
+            "layout": lay.source,
+            "parse_report": run.job.report.to_dict(),
+            "warnings": run.warnings,
+            "sections": [
+                {"section": sid, "state": st_, "count": c, "count_in": i, "count_out": o, "reason": why}
+                for sid, (st_, c, i, o, why) in final.items()
+            ],
+        }
+    )
+    out = sys.stdout
+    out.write(head[:-1] + ",")
+    sink.write_json_arrays(out)
+    out.write("}\n")
+    out.flush()
+
+
+def _print_tables(run: Any, final: dict[str, Any], sink: Any) -> None:
+    from console.analysis.sections import SectionsResult, ledger_summary_frame
+    from console.render import section_tables as st
+
+    head = run.engine.result(sink.timeline_first, [], sink.resets)
+    result = SectionsResult(head.timeline, head.ledger, head.resets, final, ledger_summary_frame(sink.ledger_totals))
+    out = Console(highlight=False)
+    out.print(st.final_states_table(result))
+    timeline = st.timeline_table(result)
+    # The table shows the first rows kept; title and caption count them all.
+    limit, n = 200, sink.timeline_rows
+    timeline.title = f"State timeline ({n} changes)"
+    timeline.caption = f"first {limit} of {n}; --json has all" if n > limit else None
+    out.print(timeline)
+    out.print(st.ledger_summary_table(result))
+    rt = st.resets_table(result)
+    if rt is not None:
+        out.print(rt)
+    for w in run.warnings:
+        out.print(clean(f"warning: {w}"), markup=False)
+    if run.job.report.rejected:
+        out.print(f"{run.job.report.rejected} input lines rejected (trackside analyze lists them)", markup=False)
 
 
 def sections(
@@ -71,11 +121,14 @@ def sections(
     """Section states from axle counting: state timeline, count ledger, resets."""
 
     def body() -> int:
-        from console.analysis.diag_events import DiagEventSettings, diag_detection_events
+        from console.analysis.diag_events import DiagEventSettings
+        from console.analysis.diagnostics import SpeedSettings
         from console.analysis.majority import MajoritySettings
-        from console.analysis.sections import SectionState, run_sections
+        from console.analysis.sections import SectionState
         from console.analysis.wheels import CountingSettings
-        from console.render import section_tables as st
+        from console.jobs import input_bytes
+        from console.progress import byte_progress
+        from console.stream_jobs import SectionsSink, stream_diag
 
         if initial not in ("unknown", "clear"):
             raise fail(f"--initial: expected unknown or clear, found {initial!r}")
@@ -83,39 +136,40 @@ def sections(
         if not lay.sections:
             raise fail(f"{lay.source}: the layout has no [[sections]]")
         resets = _parse_resets(reset or [])
-        job = run_diag(files, lay.heads[0].spacing_m, 28.6, 10.0, keep_releases=True)
+        check_inputs(files)
+        refuse_wrong_kind(files, "diag")
         settings = DiagEventSettings(
             counting=CountingSettings(isolation_s=isolation),
             majority=MajoritySettings(isolation_s=isolation),
             power_gap_s=power_gap,
         )
-        events, warnings = diag_detection_events(job.analysis, lay, settings)
         start = SectionState.CLEAR if initial == "clear" else SectionState.PREPARATORY
-        result = run_sections(lay, events + resets, initial=start)
-        disturbed = [sid for sid, f in result.final.items() if f[0] == SectionState.DISTURBED]
-        if json_out:
-            print_json(
-                {
-                    "schema": "trackside.sections/1",
-                    "files": job.files,
-                    "layout": lay.source,
-                    "parse_report": job.report.to_dict(),
-                    "warnings": warnings,
-                    **st.sections_json(result),
-                }
-            )
-        else:
-            out = Console(highlight=False)
-            out.print(st.final_states_table(result))
-            out.print(st.timeline_table(result))
-            out.print(st.ledger_summary_table(result))
-            rt = st.resets_table(result)
-            if rt is not None:
-                out.print(rt)
-            for w in warnings:
-                out.print(clean(f"warning: {w}"), markup=False)
-            if job.report.rejected:
-                out.print(f"{job.report.rejected} input lines rejected (trackside analyze lists them)", markup=False)
+        speed = SpeedSettings(spacing_m=lay.heads[0].spacing_m, train_length_m=28.6, idle_gap_s=10.0)
+        sink = SectionsSink(spill=json_out)
+        try:
+            with byte_progress(input_bytes(files), "parsing") as advance:
+                run = stream_diag(
+                    files,
+                    speed,
+                    layout=lay,
+                    event_settings=settings,
+                    sections_layout=lay,
+                    resets=resets,
+                    initial=start,
+                    sink=sink,
+                    on_progress=advance,
+                )
+            sink = run.sink or sink
+            assert run.engine is not None
+            final = run.engine.result().final
+            disturbed = [sid for sid, f in final.items() if f[0] == SectionState.DISTURBED]
+            if json_out:
+                _write_json(run, lay, final, sink)
+            else:
+                _print_tables(run, final, sink)
+        finally:
+            sink.close()
+        job = run.job
         return exit_codes.FINDINGS if strict and (job.report.rejected or disturbed) else exit_codes.OK
 
     raise typer.Exit(guard(body))

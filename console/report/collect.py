@@ -53,7 +53,7 @@ from console.analysis.events import DetectionEvent, sort_events
 from console.analysis.frame_events import frames_to_events
 from console.analysis.health import Finding, sort_findings, voltage_margin_findings
 from console.analysis.sections import SectionState, run_sections
-from console.jobs import HEALTH_REGISTERS, analyze_files, detection_events, health_findings, input_bytes
+from console.jobs import HEALTH_REGISTERS, health_findings, input_bytes
 from console.layout import Layout, LayoutError, load_layout
 from console.output_path import file_identity
 from console.progress import byte_progress
@@ -77,6 +77,7 @@ from console.report.model import (
     natural_key,
 )
 from console.safe_text import show_path
+from console.stream_jobs import SectionsSink, stream_diag
 from parsers.frames import count_frames_only, frame_line_problem, parse_can, parse_frames
 from parsers.gnss import parse_gnss, recognise_format
 from parsers.report import escape_text
@@ -306,14 +307,33 @@ def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | 
     findings: list[Finding] = []
     diag = of(DIAGNOSTIC)
     if diag:
+        # One streaming read: passages, the section engine's run and the health inputs, in bounded
+        # memory for one log (console.stream_jobs); the report's renderers still get whole tables.
+        sections_layout = layout if layout is not None and layout.sections else None
+        sink = SectionsSink(keep_all=True) if sections_layout is not None else None
         with byte_progress(input_bytes(diag), "parsing") as advance:
-            data.job = analyze_files(
-                diag, settings, on_progress=advance, keep_registers=HEALTH_REGISTERS, keep_releases=True
+            run = stream_diag(
+                diag,
+                settings,
+                layout=layout,
+                event_settings=DiagEventSettings(),
+                sections_layout=sections_layout,
+                initial=SectionState.PREPARATORY,
+                sink=sink,
+                keep_registers=HEALTH_REGISTERS,
+                keep_passages=True,
+                on_progress=advance,
             )
+        data.job = run.job
         data.reports["diagnostic"] = data.job.report
-        data.events, ev_warnings = detection_events(data.job, layout, DiagEventSettings())
-        data.warnings += ev_warnings
-        findings += health_findings(data.job, layout, data.events, None)
+        # The report reads the events only for the time the data ends: the last one stands for them.
+        data.events = [run.last_event] if run.last_event is not None else []
+        data.warnings += run.warnings
+        findings += health_findings(data.job, layout, run.health_events, None)
+        if run.engine is not None and run.sink is not None:
+            sk = run.sink
+            data.sections = run.engine.result(sk.timeline_all, sk.ledger_all, sk.resets)
+            data.section_source = "diagnostic"
 
     _frames(data, of(FRAMES), of(CAN))
 
@@ -370,6 +390,8 @@ def _sections(data: ReportData) -> None:
     if not lay.sections:
         data.notes["sections"] = f"No section states: the layout {lay.source} has no [[sections]]."
         return
+    if data.job is not None and data.sections is not None:
+        return  # run while the diagnostic log was read (collect)
     if data.job is not None:
         events, data.section_source = data.events, "diagnostic"
     elif data.frames is not None:

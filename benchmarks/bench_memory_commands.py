@@ -1,0 +1,101 @@
+"""Peak RSS and wall time of `trackside sections`, `health` and `report` on big diagnostic logs.
+
+Each command runs as a fresh process (stdout to /dev/null); wall time and
+peak RSS come from ``os.wait4`` (``ru_maxrss``).  The logs are the realistic
+multi-board exports of ``gen_realistic_diag.py`` (40 boards, 80 heads WS1 …
+WS80, device ids 5001 …).  No shipped layout names those heads, so the
+benchmark writes one (:func:`write_layout`): each board's two heads bound one
+section (WS1 in, WS2 out, …).  The generator's trains are independent per
+head, so most sections end disturbed (count underflow): that is fine for a
+memory benchmark, every axle still goes through the section engine and into
+the ledger.
+
+    python benchmarks/gen_realistic_diag.py 3000000 /work/bench_data/r3m.log --truth /work/bench_data/r3m.json
+    python benchmarks/bench_memory_commands.py /work/bench_data/r3m.log --repeat 1
+
+Target (issue 12): peak RSS ≤ 256 MB for every command at 3 M, 12 M and 30 M records.
+
+Results: see the table below (filled in by the last measurement).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+TARGET_MB = 256.0
+BOARDS = 40
+COMMANDS = ("sections", "sections-json", "health", "health-json", "report-md", "report-json", "report-html")
+
+
+def write_layout(path: Path, boards: int = BOARDS) -> None:
+    """A layout for gen_realistic_diag's heads: board b's WS(2b+1), WS(2b+2) bound section S(b+1)."""
+    lines = ['[line]\nname = "benchmark: realistic multi-board export"\nspeed_mps = 20.0\n']
+    for b in range(boards):
+        for k in (1, 2):
+            n = 2 * b + k
+            lines.append(
+                f'[[heads]]\nid = "WS{n}"\ndevice_id = {5001 + b}\nchainage_m = {1000.0 * n}\n'
+                'spacing_m = 0.13\nup = "sys1_to_sys2"\n'
+            )
+    for b in range(boards):
+        lines.append(
+            f'[[sections]]\nid = "S{b + 1}"\n'
+            f'bounds = [{{ head = "WS{2 * b + 1}", sign = 1 }}, {{ head = "WS{2 * b + 2}", sign = -1 }}]\n'
+        )
+    path.write_text("\n".join(lines), encoding="utf-8")
+
+
+def command(name: str, exe: str, log: Path, layout: Path) -> list[str]:
+    if name.startswith("sections"):
+        return [exe, "sections", str(log), "--layout", str(layout), *(["--json"] if name.endswith("json") else [])]
+    if name.startswith("health"):
+        return [exe, "health", str(log), *(["--json"] if name.endswith("json") else [])]
+    fmt = name.split("-")[1]
+    return [exe, "report", str(log), "--layout", str(layout), "--format", fmt]
+
+
+def run(cmd: list[str]) -> tuple[float, float, int]:
+    """Wall seconds, peak RSS (MB) and exit code of one child process; stdout discarded."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
+    code = os.waitstatus_to_exitcode(status)
+    if code not in (0, 1):
+        raise SystemExit(f"{' '.join(cmd)} failed ({code}): {err[-2000:]}")
+    return wall, usage.ru_maxrss / 1024, code
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("logs", type=Path, nargs="+")
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--commands", default=",".join(COMMANDS), help=f"comma-separated, of {', '.join(COMMANDS)}")
+    args = ap.parse_args()
+    exe = shutil.which("trackside") or sys.exit("trackside is not installed (pip install .)")
+    names = [c.strip() for c in args.commands.split(",") if c.strip()]
+    bad = [c for c in names if c not in COMMANDS]
+    if bad:
+        sys.exit(f"--commands: unknown {', '.join(bad)}")
+    with tempfile.TemporaryDirectory() as tmp:
+        layout = Path(tmp) / "layout.toml"
+        write_layout(layout)
+        print(f"{'log':<28} {'command':<14} {'wall s':>8} {'peak MB':>8}  target")
+        for log in args.logs:
+            for name in names:
+                for _ in range(args.repeat):
+                    wall, rss, _code = run(command(name, exe, log, layout))
+                    verdict = "ok" if rss <= TARGET_MB else "OVER"
+                    print(f"{log.name:<28} {name:<14} {wall:8.2f} {rss:8.0f}  {verdict}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
