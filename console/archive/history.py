@@ -87,10 +87,28 @@ def parse_time(text: str) -> dt.datetime:
     return t.replace(tzinfo=None) if t.tzinfo is None else t.astimezone(dt.UTC).replace(tzinfo=None)
 
 
-_RECORD_COLUMNS = (
-    "time, diag_id, device_id, device, type, gs, counting_head, channel, address, label, label_canonical, "
-    "label_encoding, data, value, data_kind, subsecond, file, file_seq, line"
+RECORD_COLUMNS = (
+    "time",
+    "diag_id",
+    "device_id",
+    "device",
+    "type",
+    "gs",
+    "counting_head",
+    "channel",
+    "address",
+    "label",
+    "label_canonical",
+    "label_encoding",
+    "data",
+    "value",
+    "data_kind",
+    "subsecond",
+    "file",
+    "file_seq",
+    "line",
 )
+_RECORD_COLUMNS = ", ".join(RECORD_COLUMNS)
 
 
 def record_batches(
