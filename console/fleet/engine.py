@@ -109,13 +109,19 @@ class _DaskEngine(_Engine):
             for i, item in enumerate(items)
         ]
         index = {f.key: i for i, f in enumerate(futures)}
+        results: list[Any] = [None] * len(futures)
         try:
             with self.bar(len(futures), label) as done:
                 for fut in as_completed(futures, loop=client.loop):
                     if fut.status == "error":
                         _raise_for(fut, items[index[fut.key]])
+                    # Fetched as each finishes and released: a worker holds no finished results, so its
+                    # memory stays that of the partition it runs (a list gathered at the end would sit
+                    # on the workers, spilled to disk and pausing them as it grows).
+                    results[index[fut.key]] = fut.result()
+                    fut.release()
                     done(1)
-            return list(client.gather(futures))
+            return results
         except FleetError:
             raise
         except Exception as exc:
