@@ -17,6 +17,10 @@ runs in a child process of its own (``--one``), in turn (local, 1 worker,
 
 * ``start_s``: the LocalCluster's start (not in ``derive_s``);
 * ``derive_s``: the map and the combine;
+* ``client_cpu_s``, ``worker_cpu_s``: CPU seconds (user + system) spent
+  during the derivation here and in each worker: on a machine shared with
+  other jobs the wall time says how much CPU we were given, the CPU time
+  what the work costs, and how evenly the workers shared it;
 * ``peak_rss_mb``: this process's peak (the local engine computes here;
   with Dask it holds the gathered rows), and per worker process its peak
   (``getrusage`` in the worker after the run) — each worker is bounded to
@@ -45,6 +49,12 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
+def _cpu_s() -> float:
+    """CPU seconds of this process so far (user + system): the work done, whatever else the machine runs."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
 def one(archive: Path, engine: str) -> dict[str, Any]:
     """One configuration, in this process: ``local`` or ``dask:N``."""
     from console.archive.fleet_derive import derive_partitions
@@ -59,14 +69,19 @@ def one(archive: Path, engine: str) -> dict[str, Any]:
     t0 = time.perf_counter()
     out: dict[str, Any] = {"engine": engine, "partitions": n_parts}
     with engine_scope(spec, progress=False):
+        current = fleet_engine._current.get()
+        client = getattr(current, "client", None)
+        cpu_at_start: dict[str, float] = client.run(_cpu_s) if client is not None else {}
+        cpu0 = _cpu_s()
         started = time.perf_counter()
         tables = derive_partitions(archive, m)
         done = time.perf_counter()
-        current = fleet_engine._current.get()
-        client = getattr(current, "client", None)
+        out["client_cpu_s"] = round(_cpu_s() - cpu0, 1)
         if client is not None:
             rss = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
             out["worker_peak_rss_mb"] = sorted(round(v, 1) for v in rss.values())
+            cpu = client.run(_cpu_s)
+            out["worker_cpu_s"] = sorted(round(v - cpu_at_start.get(k, 0.0), 1) for k, v in cpu.items())
     out["start_s"] = round(started - t0, 2)
     out["derive_s"] = round(done - started, 2)
     out["rows"] = {k: len(v) for k, v in tables.items()}
@@ -123,7 +138,9 @@ def main() -> None:
             print(
                 f"round {r} {engine:7s} derive {run['derive_s']:7.1f} s ({rate:,.0f} k rec/s)"
                 f"  start {run['start_s']:5.1f} s  client peak {run['peak_rss_mb']:6.0f} MB"
-                + (f"  workers peak {workers} MB" if workers else ""),
+                + (f"  workers peak {workers} MB" if workers else "")
+                + f"  cpu client {run['client_cpu_s']} s"
+                + (f" workers {run['worker_cpu_s']} s" if workers else ""),
                 flush=True,
             )
     by: dict[str, list[float]] = {}
