@@ -204,3 +204,58 @@ def test_passages_do_not_depend_on_how_the_lines_arrive(
         key=lambda p: (p["start"], p["counting_head"]),
     )
     assert got == batch_passages
+
+
+def _shifted(line: bytes, seconds: float) -> bytes:
+    import datetime as dt
+    import re
+
+    m = re.search(rb"Date:(\S+)\tTime:(\S+)", line)
+    assert m is not None
+    t = dt.datetime.fromisoformat(f"{m[1].decode()}T{m[2].decode()}") + dt.timedelta(seconds=seconds)
+    stamp = f"Date:{t:%Y-%m-%d}\tTime:{t:%H:%M:%S}.{t.microsecond // 1000:03d}".encode()
+    return line[: m.start()] + stamp + line[m.end() :]
+
+
+@pytest.mark.parametrize("skew_s", [0.0, 3600.0, -3600.0])
+def test_two_logs_with_skewed_clocks_give_each_logs_own_passages(skew_s: float, tmp_path: Path) -> None:
+    """Two boards' logs followed at once, the second's clock ``skew_s`` off, arriving interleaved:
+    each log's passages are what ``analyze`` finds in it alone (a log running ahead does not cut
+    the other's trains into pieces), and the sections are those of both logs read together."""
+    from console.analysis.diagnostics import SpeedSettings
+    from console.jobs import analyze_files
+
+    lines = (REPO / "sample_logs" / "example_station.log").read_bytes().splitlines(keepends=True)
+    arrival = [
+        ("a", ln) if b"Trackinfo:WS1\t" in ln or b"Trackinfo:WS2\t" in ln else ("b", _shifted(ln, skew_s))
+        for ln in lines
+    ]
+    logs = {s: b"".join(ln for src, ln in arrival if src == s) for s in "ab"}
+    expected = []
+    for s, data in logs.items():
+        (tmp_path / f"{s}.log").write_bytes(data)
+        job = analyze_files([tmp_path / f"{s}.log"], SpeedSettings())
+        expected += [(p["counting_head"], p["start"], p["axles"]) for p in job.analysis.passages_json()]
+
+    def follow(blocks: list[tuple[str, bytes]]) -> list[dict[str, Any]]:
+        events: list[dict[str, Any]] = []
+        engine = LiveEngine(load_layout("example"), events.append)
+        line = dict.fromkeys("abx", 1)
+        for src, data in blocks:
+            engine.handle(LineBlock(f"file:{src}", src, line[src], data, time.monotonic()))
+            line[src] += data.count(b"\n")
+        engine.finish()
+        return events
+
+    # Forty lines of one log, then forty of the other...: the second log's block may reach far ahead.
+    blocks = []
+    for s in "ab":
+        mine = [ln for src, ln in arrival if src == s]
+        blocks += [(k, s, b"".join(mine[k : k + 40])) for k in range(0, len(mine), 40)]
+    events = follow([(s, data) for _, s, data in sorted(blocks, key=lambda b: (b[0], b[1]))])
+    got = [(p["counting_head"], p["start"], p["axles"]) for p in events if p["type"] == "passage"]
+    assert sorted(got) == sorted(expected)
+    together = follow([("x", b"".join(ln for _, ln in arrival))])
+    sections = [(e["section"], e["state"], e["count"]) for e in events if e["type"] == "section"]
+    assert sections == [(e["section"], e["state"], e["count"]) for e in together if e["type"] == "section"]
+    assert all(count == 0 for _, state, count in sections if state == "clear")

@@ -87,6 +87,11 @@ class DiagFollow:
         self._open: dict[int, _HeadRun] = {}
         self._cuts: dict[int, int] = {}  # head → records up to this time form finished runs
         self.clock_ns = NO_TIME
+        # Each followed file's own clock (its latest record) and the file each head's records come
+        # from: a head's run is closed by its own file's clock, so a file that runs ahead (a skewed
+        # clock, or a source read faster) does not cut the runs of another file mid-train.
+        self._file_clock: dict[int, int] = {}
+        self._head_file: dict[int, int] = {}
         self._gap_ns = int(settings.idle_gap_s * NS)
         self._slack_ns = int(ORDER_SLACK_S * NS)
         self._counters: dict[str, HeadCounter] = {}
@@ -141,6 +146,7 @@ class DiagFollow:
         heads = self._heads_of(chunk.register_id)
         t = chunk.time_ns
         self.clock_ns = max(self.clock_ns, int(t.max()))
+        self._file_clock[chunk.file_id] = max(self._file_clock.get(chunk.file_id, NO_TIME), int(t.max()))
         order = np.lexsort((t, heads))
         hs, ts = heads[order], t[order]
         starts = np.flatnonzero(np.r_[True, hs[1:] != hs[:-1]])
@@ -148,6 +154,7 @@ class DiagFollow:
         # Gaps between consecutive records of one head (sorted by time), found for all heads at once.
         gap_after = np.r_[(np.diff(ts) > self._gap_ns) & (hs[1:] == hs[:-1]), False]
         for h, a, b in zip(hs[starts].tolist(), starts.tolist(), ends.tolist(), strict=True):  # per head
+            self._head_file[h] = chunk.file_id
             run = self._open.get(h)
             first, last = int(ts[a]), int(ts[b - 1])
             if run is not None and first - run.last_ns > self._gap_ns:
@@ -166,11 +173,11 @@ class DiagFollow:
 
     # -- closing runs -----------------------------------------------------
     def _close(self, final: bool) -> None:
-        limit = self.clock_ns - self._gap_ns - self._slack_ns
         cuts = dict(self._cuts)
         self._cuts.clear()
         for h, run in list(self._open.items()):
-            if final or run.last_ns < limit:
+            clock = self._file_clock.get(self._head_file.get(h, -1), self.clock_ns)
+            if final or run.last_ns < clock - self._gap_ns - self._slack_ns:
                 cuts[h] = np.iinfo(np.int64).max
                 del self._open[h]
         if cuts:
