@@ -144,9 +144,17 @@ def test_copytruncate_takes_what_was_missed_from_the_copy(tmp_path: Path) -> Non
     assert src.truncations == 1
 
 
-def _write_in_pieces(src: bytes, dest: Path, rotate_at: float, mode: str) -> None:
-    """Write ``src`` into ``dest`` in uneven pieces (lines cut anywhere), rotating at a line boundary."""
-    cut = src.index(b"\n", int(len(src) * rotate_at)) + 1
+def mid_train(src: bytes, after: float) -> int:
+    """A line boundary inside a train: ten wheel-sensor lines into the first train after ``after`` of the log."""
+    start = src.index(b"Label:Radsensor", int(len(src) * after))
+    cut = src.rindex(b"\n", 0, start) + 1
+    for _ in range(10):
+        cut = src.index(b"\n", cut) + 1
+    return cut
+
+
+def _write_in_pieces(src: bytes, dest: Path, cut: int, mode: str) -> None:
+    """Write ``src`` into ``dest`` in uneven pieces (lines cut anywhere), rotating at byte ``cut`` (a line end)."""
     halves = (src[:cut], src[cut:])
     for k, half in enumerate(halves):
         with dest.open("ab") as f:
@@ -179,7 +187,7 @@ def analyze_passages() -> list[dict[str, object]]:
 
 
 @pytest.mark.parametrize("mode", ["rename", "copytruncate"])
-def test_follow_of_a_log_written_in_pieces_and_rotated_reports_what_analyze_finds(
+def test_follow_of_a_log_written_in_pieces_and_rotated_mid_train_reports_what_analyze_finds(
     tmp_path: Path, mode: str, analyze_passages: list[dict[str, object]]
 ) -> None:
     log = tmp_path / "station.log"
@@ -194,7 +202,11 @@ def test_follow_of_a_log_written_in_pieces_and_rotated_reports_what_analyze_find
         assert proc.stdout is not None
         first = proc.stdout.readline()  # the follower is up before the first piece
         assert '"connected"' in first
-        _write_in_pieces(SAMPLE.read_bytes(), log, 0.5, mode)
+        data = SAMPLE.read_bytes()
+        cut = mid_train(data, 0.5)
+        # The rotation falls inside a train: wheel records just before and just after it.
+        assert data[:cut].splitlines()[-1].count(b"Radsensor") == data[cut:].splitlines()[0].count(b"Radsensor") == 1
+        _write_in_pieces(data, log, cut, mode)
         out, err = proc.communicate(timeout=40)
         out = first + out
     finally:
