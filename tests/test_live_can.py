@@ -138,15 +138,25 @@ def follow_in_blocks(items: list[CanFrame], lay: Layout, cuts: list[int]) -> tup
 T0_S = 1_772_438_400.0  # 2026-03-02 08:00:00 UTC
 
 
-def trains_log(tmp_path: Path, *, silent_end: bool = False) -> Path:
+TRAINS = ((7, 10, 8, 0), (8, 20, 8, 0), (7, 40, 6, 0), (8, 52, 6, 0), (7, 70, 4, 8))  # (node, start s, axles, DER)
+
+
+def trains_log(
+    tmp_path: Path,
+    *,
+    silent_end: bool = False,
+    ac08_silent_from_s: float | None = None,
+    trains: tuple[tuple[int, int, int, int], ...] = TRAINS,
+) -> Path:
     """Two sensors bounding B1, idle frames (check byte) every 2 s, trains counted axle by axle.
 
     Two trains go up through B1 (in at AC07, out at AC08), then a trolley of 4 axles comes
     back down at AC07 and leaves again.  ``silent_end``: AC08 stops reporting for the last
-    30 s while AC07 goes on (contact lost at the end of the data).
+    30 s while AC07 goes on (contact lost at the end of the data); ``ac08_silent_from_s``: AC08
+    stops reporting from then on.
     """
     counting: dict[tuple[int, int], tuple[int, int]] = {}  # (node, 0.25 s tick) → (status, count)
-    for node, start_s, axles, der in ((7, 10, 8, 0), (8, 20, 8, 0), (7, 40, 6, 0), (8, 52, 6, 0), (7, 70, 4, 8)):
+    for node, start_s, axles, der in trains:
         for k in range(1, axles + 1):
             counting[(node, 4 * start_s + 2 * k)] = (der, k)
     msgs: list[can.Message] = []
@@ -156,7 +166,8 @@ def trains_log(tmp_path: Path, *, silent_end: bool = False) -> Path:
     end_s = 110 if silent_end else 90
     for tick in range(4 * end_s):
         for node, phase in ((7, 0), (8, 1)):
-            if node == 8 and silent_end and tick >= 4 * 80:
+            silent_from_s = 80 if silent_end else ac08_silent_from_s
+            if node == 8 and silent_from_s is not None and tick >= 4 * silent_from_s:
                 continue
             if (node, tick) in counting:
                 status, value = counting[(node, tick)]
@@ -172,7 +183,7 @@ def trains_log(tmp_path: Path, *, silent_end: bool = False) -> Path:
             msgs.append(
                 can.Message(timestamp=T0_S + tick / 4, arbitration_id=0x180 + node, data=data, is_extended_id=False)
             )
-    path = tmp_path / ("silent.log" if silent_end else "trains.log")
+    path = tmp_path / ("silent.log" if silent_end else f"trains{ac08_silent_from_s or ''}.log")
     with can.Logger(str(path)) as log:  # type: ignore[attr-defined]
         for m in msgs:
             log.on_message_received(m)
@@ -216,6 +227,23 @@ def test_a_silent_sensor_is_lost_when_the_bus_clock_passes_its_timeout_not_only_
         if lost_at is None and any(st.lost_announced for st in ff.sensors.values()):
             lost_at = k
     assert lost_at is not None and lost_at < len(items) - 5  # announced while AC07 goes on reporting
+
+
+def test_a_sensor_silent_while_a_train_is_inside_never_lets_the_section_clear(layout: Layout, tmp_path: Path) -> None:
+    # A sweep clears B1; a second train goes in at AC07 (40 s); AC08, where it would leave, falls
+    # silent at 45 s; the train then backs out over AC07 (60 s), so the counts balance again.
+    # Balanced counts with one of the two sensors unheard are stale evidence: B1 must not clear.
+    trains = ((7, 10, 8, 0), (8, 20, 8, 0), (7, 40, 6, 0), (7, 60, 6, 8))
+    path = trains_log(tmp_path, ac08_silent_from_s=45, trains=trains)
+    expected, events = batch(path, layout)
+    got, ff = follow_in_blocks(as_items(recorded(path)), layout, list(range(0, 400, 7)))
+    assert sections_of(got) == expected
+    lost = [e.time_ns for e in events if e.kind is EventKind.POWER_LOSS and e.head == "AC08"]
+    balanced = [e.time_ns for e in events if e.kind is EventKind.AXLE and e.head == "AC07"][-1]
+    assert len(lost) == 1 and lost[0] < balanced
+    assert ("clear", 0) in [(s, c) for t, _, s, c in expected if t < lost[0]]  # the sweep cleared it before
+    assert all(s != "clear" for t, _, s, _ in expected if t >= lost[0])
+    assert ff.section_states()["B1"] == ("disturbed", 0)
 
 
 def test_bad_count_frames_are_rejected_with_source_line_and_reason(layout: Layout) -> None:
