@@ -423,6 +423,7 @@ def run_ingest(
 ) -> IngestSummary:
     """Ingest ``paths`` into the archive at ``root``; the summary of what was added, skipped and rejected."""
     from console.archive.derive import derive_tables
+    from console.fleet import fleet_mapper
 
     t0 = time.perf_counter()
     ensure_layout(root)
@@ -440,7 +441,7 @@ def run_ingest(
             job.finish_records()
             relayout = layout is not None and layout != current.derived.get("layout")
             if summary.added or relayout:
-                job.new_parts += derive_tables(root, job.new, layout)
+                job.new_parts += derive_tables(root, job.new, layout, mapper=fleet_mapper)  # on the command's --engine
             job.finish_ledger()
             # Nothing new (every file already ingested): no new generation at all.
             if summary.added or relayout:
