@@ -11,8 +11,9 @@ Two steps, at each ingest that adds something:
    within an idle gap of its midnight) — the others are kept as they are.
    Each partition's rows are stored in ``data/<table>/day=…/device_id=…/``
    parts; ``manifest.derived["partitions"]`` records, per partition, the
-   records parts it was derived from (a hash), the generation that derived it,
-   its parts, its heads' first records and how far its passages reach.
+   records parts it was derived from (a hash), the generation that derived it
+   (its parts' names follow: :func:`partition_parts`), the tables it has rows
+   in, its heads' first records and how far its passages reach.
 2. **Across heads** (section states, the count ledger, health findings,
    crossing timelines): computed over the whole archive from the combined
    per-partition rows — the wheel records become detection events, as
@@ -62,7 +63,7 @@ DERIVED = ("passages", "axles", "section_states", "count_ledger", "crossing_time
 PER_PARTITION = ("passages", "axles", "wheel_records")
 CROSS_HEAD = ("section_states", "count_ledger", "crossing_timelines", "health_findings")
 # Bump when the per-partition rows change meaning: every partition is then derived again.
-DERIVE_VERSION = 1
+DERIVE_VERSION = 2
 
 Mapper = Callable[[Callable[..., Any], list[Any]], list[Any]]
 
@@ -232,6 +233,12 @@ def _store_partition(root: Path, key: PartitionKey, rows: DerivedRows, generatio
     return out
 
 
+def partition_parts(name: str, info: dict[str, Any]) -> dict[str, str]:
+    """A derived partition's parts per table, from its ``manifest.derived["partitions"]`` entry."""
+    key = PartitionKey.parse(name)
+    return {table: _part_path(table, key, int(info["generation"])) for table in info.get("tables", ())}
+
+
 def _heads_of(rows: DerivedRows) -> list[list[Any]]:
     h = rows.heads
     return [
@@ -283,7 +290,7 @@ def derive_tables(
     # Parts of partitions derived again, or gone, leave the manifest; so does anything not per partition
     # (an archive derived whole by an older trackside, or with other settings).
     keep = {n: i for n, i in info.items() if n in signature and PartitionKey.parse(n) not in redo}
-    kept_parts = {rel for i in keep.values() for rel in i.get("parts", {}).values()}
+    kept_parts = {rel for n, i in keep.items() for rel in partition_parts(n, i).values()}
     for table in PER_PARTITION:
         manifest.tables[table] = [rel for rel in manifest.parts(table) if rel in kept_parts]
 
@@ -304,7 +311,7 @@ def derive_tables(
                 "generation": gen,
                 "reach_ns": _reach(one),
                 "heads": _heads_of(one),
-                "parts": stored,
+                "tables": sorted(stored),  # its parts: partition_parts
             }
     manifest.derived = {
         "layout": spec,
@@ -330,7 +337,7 @@ def _combined_job(
     if not keys:
         return None
     info = manifest.derived["partitions"]
-    first: dict[tuple[int, str], tuple[int, int]] = {}
+    first: dict[tuple[int, Any], tuple[int, int]] = {}
     for k in keys:
         for name, seq, line in info[k.name]["heads"]:
             h = (k.device_id, name)
@@ -342,16 +349,20 @@ def _combined_job(
         if k in fresh:
             w = fresh[k].wheel
         else:
-            rel = info[k.name]["parts"].get("wheel_records")
+            rel = partition_parts(k.name, info[k.name]).get("wheel_records")
             if rel is None:
                 continue
             w = pq.read_table(root / rel).to_pandas()
         if len(w):
             frames.append(w)
     wheel = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["device_id", "counting_head"])
-    head_ix = np.array(
-        [index[(int(d), n)] for d, n in zip(wheel["device_id"], wheel["counting_head"], strict=True)], np.int64
+    # Each row's head index: factorized (device, head) pairs, then one lookup per distinct head.
+    pairs = pd.MultiIndex.from_arrays(
+        [wheel["device_id"].to_numpy(np.int64), wheel["counting_head"].astype(object).to_numpy()]
     )
+    codes, distinct = pd.factorize(pairs)
+    lut = np.array([index[(int(d), None if n != n else n)] for d, n in distinct], np.int64)
+    head_ix = lut[codes] if len(codes) else np.zeros(0, np.int64)
     records = pd.DataFrame(
         {
             "head": head_ix,
