@@ -105,3 +105,52 @@ def test_compact_merges_parts_into_one_sorted_part(tmp_path: Path, monkeypatch: 
     assert sorted(merged.column("line").to_pylist()) == before
     _check_sorted(merged)
     assert merged.schema.equals(read_part(tmp_path, same[0]).schema)
+
+
+def test_rows_in_input_order_are_written_in_that_order_and_times_are_delta_coded(tmp_path: Path) -> None:
+    rng = np.random.default_rng(3)
+    w = PartWriter(tmp_path, "records", 3, "r", sort_by=("line",))
+    for k in range(5):
+        table, day, device = _chunk(rng, 400, 20_000 * parts.NS_PER_DAY + k * 10**9)
+        w.add(table, day, device)
+    w.close()
+    for rel in w.written:
+        f = pq.ParquetFile(tmp_path / rel)
+        lines = read_part(tmp_path, rel).column("line").to_numpy()
+        assert (np.diff(lines) > 0).all()
+        cols = {f.metadata.row_group(0).column(i).path_in_schema: f.metadata.row_group(0).column(i) for i in range(4)}
+        assert "DELTA_BINARY_PACKED" in cols["time"].encodings
+        assert "DELTA_BINARY_PACKED" in cols["line"].encodings
+        assert any("DICTIONARY" in e for e in cols["value"].encodings)
+
+
+def _labelled(codes: list[int], labels: list[str], first_line: int) -> pa.Table:
+    n = len(codes)
+    return pa.table(
+        {
+            "time": pa.array(np.full(n, 20_000 * parts.NS_PER_DAY, np.int64).view("datetime64[ns]")),
+            "label": pa.DictionaryArray.from_arrays(pa.array(codes, pa.int32()), pa.array(labels)),
+            "line": pa.array(np.arange(first_line, first_line + n)),
+        }
+    )
+
+
+@pytest.mark.parametrize("second_file", [False, True])
+def test_growing_and_foreign_dictionaries_keep_every_value(tmp_path: Path, second_file: bool) -> None:
+    # The encoder's dictionaries grow chunk by chunk (a prefix each time); another file's do not.
+    chunks = [
+        _labelled([0, 1, 0], ["Radsensor", "Diagnose"], 1),
+        _labelled([2, 0], ["Radsensor", "Diagnose", "Status"], 4),
+        _labelled([1, 1], ["Radsensor", "Diagnose"], 6),
+        _labelled([0, 1], ["Zähler", "Radsensor"] if second_file else ["Radsensor", "Diagnose"], 8),
+    ]
+    w = PartWriter(tmp_path, "records", 3, "r")
+    expected: list[str] = []
+    for t in chunks:
+        expected += [str(v) for v in t.column("label").to_pylist()]
+        w.add(t, np.full(t.num_rows, 20_000), np.full(t.num_rows, 5000))
+    w.close()
+    assert len(w.written) == 1
+    got = read_part(tmp_path, w.written[0])
+    assert got.column("label").to_pylist() == expected
+    assert got.column("line").to_pylist() == list(range(1, 10))

@@ -51,8 +51,10 @@ from console.archive.store import (
 DIAGNOSTIC = "diagnostic"
 STORED_ELSEWHERE = {"nmea": "fixes", "gnss-csv": "fixes", "gnss-jsonl": "fixes", "centre": "fixes"}
 STDIN_NAME = "<stdin>"
-# Record parts are sorted by head, then time: one head's hour is a few consecutive rows of one row group.
-RECORD_ORDER = ("counting_head", "time")
+# Record parts keep the input's order (file, line; time order in an exported log): the order the derivation
+# reads them in, no sort when they are written, and row groups that each span a stretch of time (a query for
+# one hour skips the others by their statistics).
+RECORD_ORDER = ("file_seq", "line")
 
 
 @dataclass
@@ -73,6 +75,8 @@ class IngestSummary:
     files: list[FileOutcome] = field(default_factory=list)
     seconds: float = 0.0
     published: bool = False
+    # Wall seconds per step: read (parse and write the inputs), records (close, compact), derive, publish.
+    phases: dict[str, float] = field(default_factory=dict)
 
     @property
     def records(self) -> int:
@@ -99,6 +103,7 @@ class IngestSummary:
             "records": self.records,
             "rejected": self.rejected,
             "seconds": round(self.seconds, 3),
+            "phase_seconds": {k: round(v, 3) for k, v in self.phases.items()},
             "files": [f.__dict__ for f in self.files],
         }
 
@@ -386,6 +391,19 @@ class _Ingest:
                 self.new_parts.append(rel)
 
 
+class _PhaseClock:
+    """Wall seconds of consecutive steps, into ``phases`` (the summary's, also in ``ingest --json``)."""
+
+    def __init__(self, phases: dict[str, float]) -> None:
+        self.phases = phases
+        self.t = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.phases[name] = self.phases.get(name, 0.0) + now - self.t
+        self.t = now
+
+
 def expand_inputs(paths: Sequence[Path], root: Path) -> list[tuple[Path, str]]:
     """(file to read, name it is known by): directories read whole (the report's order), ``-`` is stdin."""
     from console.report.collect import ReportInputError, expand
@@ -433,21 +451,26 @@ def run_ingest(
         job = _Ingest(root, current, on_bytes)
         summary = IngestSummary(root, current.generation)
         try:
+            clock = _PhaseClock(summary.phases)
             inputs = expand_inputs(paths, root)
             for path, shown in inputs:
                 if on_file is not None:
                     on_file(shown)
                 summary.files.append(job.add_file(path, shown))
+            clock.lap("read")
             job.finish_records()
+            clock.lap("records")
             relayout = layout is not None and layout != current.derived.get("layout")
             if summary.added or relayout:
                 job.new_parts += derive_tables(root, job.new, layout, mapper=fleet_mapper)  # on the command's --engine
+            clock.lap("derive")
             job.finish_ledger()
             # Nothing new (every file already ingested): no new generation at all.
             if summary.added or relayout:
                 publish(root, job.new, job.new_parts)
                 summary.generation = job.gen
                 summary.published = True
+            clock.lap("publish")
         except BaseException:
             job.records.abort()
             raise

@@ -1,14 +1,18 @@
 """Writing Parquet parts: zstd, partitioned hive-style by day and device, bounded memory.
 
 A :class:`PartWriter` takes Arrow tables for one archive table, splits them
-by partition (one sort per table added, no loop per row), and appends each
-partition's rows to one open Parquet file: at most one part per partition
-per ingest, rows appended across the parser's chunks.  Memory is bounded by
-:data:`BUFFER_BYTES` of buffered rows in all: past it, every partition's
-buffer is written out as a row group (so a partition that gets a few rows
-per chunk cannot pin the chunks it came from).  A row group is sorted by
-``sort_by`` (records: counting head, then time), so a reader looking for
-one head's hour finds it in one row group.  At most :data:`MAX_OPEN_WRITERS`
+by partition (one stable sort and one take per table added, no loop per
+row), and appends each partition's rows to one open Parquet file: at most
+one part per partition per ingest, rows appended across the parser's
+chunks.  Memory is bounded by :data:`BUFFER_BYTES` of buffered rows in all:
+past it, every partition's rows are written out as a row group (so a
+partition that gets a few rows per chunk cannot pin the chunks it came
+from).  The buffered pieces share one dictionary per column
+(:class:`_Dictionaries`), so a partition's pieces concatenate without
+hashing.  Rows keep their order inside a partition unless ``sort_by`` asks
+for another (records keep the input's: file and line, time order in an
+exported log, so a row group spans a stretch of time and a query for one
+hour skips the others by their statistics).  At most :data:`MAX_OPEN_WRITERS`
 files are open; past it the least recently written one is closed and a
 later row of its partition starts a second part (compaction merges them).
 Every file written is listed in :attr:`PartWriter.written` (relative to the
@@ -31,11 +35,14 @@ from console.archive.store import DATA
 NS_PER_DAY = 86_400 * 1_000_000_000
 ROW_GROUP_ROWS = 256_000
 # Rows waiting to be written, all partitions together (Arrow bytes of the tables added since the last
-# write-out): about 2 s of parsing, a fifth of the 256 MB an ingest may use.
-BUFFER_BYTES = 48 << 20
+# write-out): about a second of parsing.  Bigger buffers make bigger row groups (a 3 M-record log of
+# 40 boards: 48 MB gives an archive 8 % smaller) for more memory (+30 MB peak RSS).
+BUFFER_BYTES = 32 << 20
 MAX_OPEN_WRITERS = 128
 COMPRESSION = "zstd"
 COMPRESSION_LEVEL = 6
+# Integer columns that grow steadily along a part (delta-coded); *_ns columns are times too.
+DELTA_COLUMNS = frozenset({"line", "time_ns", "start_ns", "end_ns", "t_sys1_ns", "t_sys2_ns"})
 # Compaction merges a partition's parts while the merged part stays under this many rows
 # (its rows are held in memory to be sorted: ~60 bytes a record row).
 COMPACT_MAX_ROWS = 1_500_000
@@ -45,38 +52,112 @@ def day_text(day_index: int) -> str:
     return str(np.datetime64(int(day_index), "D"))
 
 
+def encodings(schema: pa.Schema) -> dict[str, object]:
+    """Parquet encodings by column: times and line numbers delta-coded, everything else dictionary-coded.
+
+    Times and lines grow steadily (a delta is a few bits); register fields, values and small integers
+    repeat (a dictionary code is a few bits; the writer falls back to plain when a dictionary grows
+    too big).  On a realistic log this is a fifth smaller than delta-coding every integer, for the
+    same writing time (docs/archive.md, Measured).
+    """
+    delta = [
+        f.name
+        for f in schema
+        if pa.types.is_timestamp(f.type) or (pa.types.is_integer(f.type) and f.name in DELTA_COLUMNS)
+    ]
+    return {
+        "use_dictionary": [f.name for f in schema if f.name not in delta],
+        "column_encoding": dict.fromkeys(delta, "DELTA_BINARY_PACKED"),
+    }
+
+
 def _writer(path: Path, schema: pa.Schema) -> pq.ParquetWriter:
     return pq.ParquetWriter(
         path,
         schema,
         compression=COMPRESSION,
         compression_level=COMPRESSION_LEVEL,
-        use_dictionary=[f.name for f in schema if pa.types.is_dictionary(f.type)],
-        column_encoding={
-            f.name: "DELTA_BINARY_PACKED"
-            for f in schema
-            if pa.types.is_integer(f.type) or pa.types.is_timestamp(f.type)
-        },
         write_statistics=True,
+        **encodings(schema),
     )
+
+
+def _sort_keys(table: pa.Table, sort_by: Sequence[str]) -> list[np.ndarray]:
+    """``sort_by``'s columns as integer arrays, primary key first (dictionary columns by their codes)."""
+    keys = []
+    for name in sort_by:
+        col = table.column(name)
+        if pa.types.is_dictionary(col.type):
+            col = pa.chunked_array([c.indices for c in col.chunks], col.type.index_type)
+        if pa.types.is_timestamp(col.type):
+            col = col.cast(pa.int64())
+        keys.append(col.fill_null(-1).to_numpy())
+    return keys
+
+
+def _in_order(keys: list[np.ndarray]) -> bool:
+    """Rows already in lexicographic order of ``keys`` (one pass, no sort): the usual case of input order."""
+    undecided = np.ones(len(keys[0]) - 1, bool)  # pairs equal on every key so far
+    for k in keys:
+        a, b = k[:-1], k[1:]
+        if (undecided & (a > b)).any():
+            return False
+        undecided &= a == b
+    return True
 
 
 def sorted_rows(table: pa.Table, sort_by: Sequence[str]) -> pa.Table:
     """``table`` in ``sort_by`` order (dictionary columns by their codes: grouped, not alphabetical)."""
     if not sort_by or table.num_rows < 2:
         return table
-    keys = []
-    for name in reversed(sort_by):  # np.lexsort: the last key is the primary one
-        col = table.column(name).combine_chunks()
-        if pa.types.is_dictionary(col.type):
-            col = col.indices
-        if pa.types.is_timestamp(col.type):
-            col = col.cast(pa.int64())
-        keys.append(col.fill_null(-1).to_numpy(zero_copy_only=False))
-    order = np.lexsort(keys)
-    if (order[1:] > order[:-1]).all():
+    keys = _sort_keys(table, sort_by)
+    if _in_order(keys):
         return table
+    order = np.lexsort(keys[::-1])  # np.lexsort: the last key is the primary one
     return table.take(pa.array(order))
+
+
+class _Dictionaries:
+    """One dictionary per dictionary column, shared by every table buffered, so tables concatenate without a hash.
+
+    The record encoder's dictionaries only grow (each chunk's is the registry's values so far): the
+    longest one holds every earlier one as a prefix, and the earlier codes are valid in it.  A table
+    whose dictionary is not such a prefix (another file's name) marks the buffer for unification.
+    """
+
+    def __init__(self) -> None:
+        self.values: dict[str, pa.Array] = {}
+        self.mixed = False
+
+    def adopt(self, table: pa.Table) -> None:
+        for i, f in enumerate(table.schema):
+            if not pa.types.is_dictionary(f.type):
+                continue
+            col = table.column(i)
+            for c in col.chunks:
+                known = self.values.get(f.name)
+                d = c.dictionary
+                if known is None or (len(d) > len(known) and d.slice(0, len(known)).equals(known)):
+                    self.values[f.name] = d
+                elif not (len(d) <= len(known) and known.slice(0, len(d)).equals(d)):
+                    self.mixed = True
+
+    def concat(self, pieces: list[pa.Table]) -> pa.Table:
+        """The pieces as one contiguous table, every dictionary column on the shared dictionary."""
+        if self.mixed or len(pieces) < 2:
+            table = pa.concat_tables(pieces)
+            return table.unify_dictionaries().combine_chunks() if self.mixed else table.combine_chunks()
+        schema = pieces[0].schema
+        cols = []
+        for i, f in enumerate(schema):
+            chunks = [c for p in pieces for c in p.column(i).chunks]
+            if pa.types.is_dictionary(f.type) and f.name in self.values:
+                d = self.values[f.name]
+                indices = pa.concat_arrays([c.indices for c in chunks])
+                cols.append(pa.DictionaryArray.from_arrays(indices, d))
+            else:
+                cols.append(pa.concat_arrays(chunks))
+        return pa.Table.from_arrays(cols, schema=schema)
 
 
 class PartWriter:
@@ -104,8 +185,8 @@ class PartWriter:
         self.rows = 0
         self._writers: dict[tuple[int, int], pq.ParquetWriter] = {}  # insertion order = least recently written
         self._parts_of: dict[tuple[int, int], int] = {}
-        self._buffers: dict[tuple[int, int], list[pa.Table]] = {}
-        self._buffered: dict[tuple[int, int], int] = {}
+        self._pieces: dict[int, list[pa.Table]] = {}  # rows added since the last write-out, by day << 32 | device
+        self._dicts = _Dictionaries()
         self._pending_bytes = 0
 
     def _path(self, key: tuple[int, int]) -> str:
@@ -124,12 +205,16 @@ class PartWriter:
         if table.num_rows == 0:
             return
         n = table.num_rows
+        self.rows += n
+        if self._pieces and not table.schema.equals(next(iter(self._pieces.values()))[0].schema):
+            self._write_out()  # another schema (a file with other columns): its rows in parts of their own
+        self._dicts.adopt(table)
         days = day_index if self.by_day and day_index is not None else np.zeros(n, np.int64)
         devs = device_id if self.by_device and device_id is not None else np.zeros(n, np.int64)
         key = days.astype(np.int64) * (1 << 32) + devs.astype(np.int64)
         self._pending_bytes += table.nbytes
         if (key == key[0]).all():  # one day, one board in this table
-            self._add_part((int(days[0]), int(devs[0])), table)
+            self._pieces.setdefault(int(key[0]), []).append(table)
         else:
             # One stable sort by partition, one take, then zero-copy slices (not a take per partition).
             order = np.argsort(key, kind="stable")
@@ -137,28 +222,19 @@ class PartWriter:
             sorted_key = key[order]
             cuts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1], True])
             for a, b in zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True):
-                k = int(sorted_key[a])
-                self._add_part((k >> 32, k & 0xFFFFFFFF), grouped.slice(a, b - a))
+                self._pieces.setdefault(int(sorted_key[a]), []).append(grouped.slice(a, b - a))
         if self._pending_bytes > BUFFER_BYTES:
-            for buffered in list(self._buffers):
-                self._flush(buffered)
-            self._pending_bytes = 0
+            self._write_out()
 
-    def _add_part(self, key: tuple[int, int], table: pa.Table) -> None:
-        self.rows += table.num_rows
-        self._buffers.setdefault(key, []).append(table)
-        self._buffered[key] = self._buffered.get(key, 0) + table.num_rows
-        if self._buffered[key] >= ROW_GROUP_ROWS:
-            self._flush(key)
+    def _write_out(self) -> None:
+        """Every partition's buffered rows as one row group of its file (in ``sort_by`` order)."""
+        pieces, self._pieces, self._pending_bytes = self._pieces, {}, 0
+        dicts, self._dicts = self._dicts, _Dictionaries()
+        for k, rows in pieces.items():
+            table = sorted_rows(dicts.concat(rows), self.sort_by)
+            self._write((k >> 32, k & 0xFFFFFFFF), table)
 
-    def _flush(self, key: tuple[int, int]) -> None:
-        pieces = self._buffers.pop(key, [])
-        self._buffered.pop(key, None)
-        if not pieces:
-            return
-        table = pa.concat_tables(pieces).unify_dictionaries().combine_chunks()
-        del pieces
-        table = sorted_rows(table, self.sort_by)
+    def _write(self, key: tuple[int, int], table: pa.Table) -> None:
         writer = self._writers.pop(key, None)
         if writer is None:
             if len(self._writers) >= MAX_OPEN_WRITERS:
@@ -177,8 +253,7 @@ class PartWriter:
 
     def close(self) -> list[str]:
         """Flush every buffer and close every file; the parts written (relative paths)."""
-        for key in list(self._buffers):
-            self._flush(key)
+        self._write_out()
         for w in self._writers.values():
             w.close()
         self._writers.clear()
@@ -189,7 +264,7 @@ class PartWriter:
             with contextlib.suppress(Exception):  # the parts are unlisted garbage anyway
                 w.close()
         self._writers.clear()
-        self._buffers.clear()
+        self._pieces = {}
 
 
 def read_part(root: Path, rel: str) -> pa.Table:
