@@ -17,7 +17,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from console.analysis.timefmt import NS
-from console.archive.derive import cross_head_tables, derive_tables, partition_parts
+from console.archive.derive import affected_partitions, cross_head_tables, derive_tables, partition_parts
 from console.archive.history import report_data, speed_settings
 from console.archive.ingest import run_ingest
 from console.archive.partition import PartitionKey, axles_table, passages_table
@@ -176,3 +176,34 @@ def test_a_mapper_runs_the_picklable_tasks_with_the_same_result(tmp_path: Path) 
         assert len(mine) == len(theirs)
         for a, b in zip(mine, theirs, strict=True):
             pd.testing.assert_frame_equal(a, b, obj=table)
+
+
+def test_affected_partitions_follow_the_passages_over_midnight() -> None:
+    """Which partitions a change derives again: itself, the day after, earlier days whose passages reach it."""
+    day = [dt.date(2026, 3, 1) + dt.timedelta(days=i) for i in range(7)]
+
+    def key(i: int, dev: int = 1) -> PartitionKey:
+        return PartitionKey(dev, day[i])
+
+    def midnight(i: int) -> int:
+        return (day[i] - dt.date(1970, 1, 1)).days * 86_400 * NS
+
+    keys = [key(i) for i in (0, 1, 2, 3, 4, 6)] + [key(i, dev=2) for i in range(7)]
+    info = {
+        key(0).name: {"reach_ns": midnight(3) + 1},  # a passage from day 0 running into day 3
+        key(1).name: {"reach_ns": None},
+        key(2).name: {"reach_ns": midnight(3) - 5 * NS},  # ends 5 s before midnight: within the 10 s idle gap
+        key(3).name: {"reach_ns": midnight(3) + 3600 * NS},
+        key(4).name: {"reach_ns": midnight(5) - 1},  # up to midnight; day 5 has no records (any more)
+    }
+
+    def affected(*changed: PartitionKey) -> set[PartitionKey]:
+        return affected_partitions(keys, changed, info, idle_gap_s=10.0)
+
+    assert affected(key(3)) == {key(0), key(2), key(3), key(4)}
+    assert affected(key(1)) == {key(0), key(1), key(2)}  # day 0's passage runs over day 1 too
+    assert affected(key(2)) == {key(0), key(2), key(3)}  # ... and day 2; day 1's passages end early
+    assert affected(key(6)) == {key(6)}  # a day without records before it: nothing carried
+    assert affected(key(4, dev=2)) == {key(4, dev=2), key(5, dev=2)}  # other devices' days never
+    # A day gone (its records replaced): the day after derives again, and what reached it.
+    assert affected(key(5)) == {key(4), key(6)}
