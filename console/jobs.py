@@ -77,12 +77,15 @@ def _read_whole(
     settings: SpeedSettings,
     keep_registers: Collection[str] = (),
     keep_releases: bool = False,
+    on_records: Callable[[int], None] | None = None,
 ) -> DiagJob:
     # One file cannot overlap another: no per-record fingerprints kept then.
     acc = DiagAccumulator(reader.registry, keep_releases=keep_releases, track_overlap=len(paths) > 1)
     kept: list[DiagChunk] = []
     for chunk in reader.chunks():
         acc.add(chunk)
+        if on_records is not None:
+            on_records(len(chunk))
         if keep_registers:
             regs = reader.registry.registers
             wanted = np.fromiter((r.label_canonical in keep_registers for r in regs), bool, len(regs))
@@ -109,6 +112,7 @@ def stream_files(
     chunk_bytes: int = DEFAULT_CHUNK_BYTES,
     max_rejections_kept: int | None = None,
     on_reject: Callable[..., None] | None = None,
+    on_records: Callable[[int], None] | None = None,
 ) -> DiagJob:
     """:func:`analyze_files` in memory bounded by the heads and open passages, for one log.
 
@@ -116,6 +120,7 @@ def stream_files(
     passages table (by head, then start, as a whole-file read orders it)
     holds one row per passage, no records.  Without ``include_status``,
     status-only passages are counted per head instead of kept.
+    ``on_records`` is told how many records each chunk held (progress).
     """
     reader = DiagReader(paths, on_progress=on_progress, chunk_bytes=chunk_bytes)
     if max_rejections_kept is not None:
@@ -125,7 +130,7 @@ def stream_files(
     if len(paths) > 1:
         # Several files may overlap (the same export pulled twice): that is found by
         # comparing the files' records, so they are read whole, as analyze_files does.
-        job = _read_whole(reader, paths, settings)
+        job = _read_whole(reader, paths, settings, on_records=on_records)
         cols = job.analysis.passage_columns
         if cols is not None:
             if status is not None:
@@ -151,6 +156,8 @@ def stream_files(
                 on_passages(cols, stream.heads)
 
     for chunk in reader.chunks():
+        if on_records is not None:
+            on_records(len(chunk))
         closed(stream.add(chunk))
     closed(stream.finish())
     cols = concat_passages(kept)

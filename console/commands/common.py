@@ -377,6 +377,7 @@ def run_diag_stream(
             include_status=include_status,
             max_rejections_kept=_sys.maxsize if rejected_all else REJECTIONS_LISTED,
             on_reject=jsonl.rejected if jsonl is not None else None,
+            on_records=advance.records if advance is not None else None,
         )
 
 
