@@ -202,7 +202,7 @@ def station(n: int) -> None:
                 raise SystemExit(f"a passage was never {what} (line written at {t:.3f})")
             got.append(shown[0] - t)
         print(f"line appended → station view {what} with its passage: {percentiles(got)}")
-    print(f"  one redraw (refresh_views): {percentiles(redraw_s)}; advances: {app.advances}")
+    print(f"  one redraw (refresh_views): {percentiles(redraw_s)}; advances: {getattr(app, 'advances', 'n/a')}")
 
 
 def cpu_seconds(pid: int) -> float:
