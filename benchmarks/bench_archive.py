@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import statistics
@@ -38,20 +39,47 @@ def run_rss_last() -> float:
 
 
 def show(label: str, seconds: float, n: int, rss_mb: float) -> None:
-    print(f"{label:30s}: {seconds:6.1f} s  {n / seconds:10,.0f} records/s  peak RSS {rss_mb:5.0f} MB")
+    print(
+        f"{label:34s}: {seconds:6.1f} s  {n / seconds:10,.0f} records/s  peak RSS {rss_mb:5.0f} MB"
+        f"  CPU {_LAST_CPU[0]:6.1f} s"
+    )
 
 
-def run(cmd: list[str]) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MB) of one child process; stdout discarded."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    err = proc.stderr.read().decode() if proc.stderr else ""
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed: {err}")
+_LAST_OUT = [b""]
+_LAST_CPU = [0.0]
+
+
+def run(cmd: list[str], keep_stdout: bool = False) -> tuple[float, float]:
+    """Wall seconds and peak RSS (MB) of one child process; stdout discarded unless ``keep_stdout``."""
+    with tempfile.TemporaryFile() as out_file:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=out_file if keep_stdout else subprocess.DEVNULL, stderr=subprocess.PIPE)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        err = proc.stderr.read().decode() if proc.stderr else ""
+        if os.waitstatus_to_exitcode(status) != 0:
+            raise SystemExit(f"{' '.join(cmd)} failed: {err}")
+        out_file.seek(0)
+        _LAST_OUT[0] = out_file.read()
     _LAST_RSS[0] = usage.ru_maxrss / 1024
+    _LAST_CPU[0] = usage.ru_utime + usage.ru_stime
     return wall, usage.ru_maxrss / 1024
+
+
+# The ingest's reading step alone (parse, encode, write the record parts; no derivation, nothing published):
+# what the ingest costs besides the analyses it shares with `report`.
+READ_ONLY = """
+import sys
+from pathlib import Path
+from console.archive.ingest import _Ingest, expand_inputs
+from console.archive.store import ensure_layout, read_current
+root = Path(sys.argv[2])
+ensure_layout(root)
+job = _Ingest(root, read_current(root), None)
+for path, shown in expand_inputs([Path(sys.argv[1])], root):
+    job.add_file(path, shown)
+job.finish_records()
+"""
 
 
 def du(path: Path) -> int:
@@ -145,24 +173,43 @@ def timed(fn: object, runs: int = 5) -> float:
     return statistics.median(times)
 
 
+def median_run(cmd: list[str], runs: int = 3) -> float:
+    return statistics.median(run(cmd)[0] for _ in range(runs))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("log", type=Path)
     ap.add_argument("--replicas", type=int, default=15)
-    ap.add_argument("--skip-processes", action="store_true", help="only the query part")
+    ap.add_argument("--skip-processes", action="store_true", help="no analyze, report or read-only runs")
+    ap.add_argument("--skip-ingest", action="store_true", help="reuse WORK/arc (an archive of LOG, see --work)")
+    ap.add_argument("--work", type=Path, help="work directory, kept (default: a temporary one, removed)")
     args = ap.parse_args()
-    work = Path(tempfile.mkdtemp(prefix="bench-archive-"))
+    work = args.work or Path(tempfile.mkdtemp(prefix="bench-archive-"))
+    work.mkdir(parents=True, exist_ok=True)
     arc = work / "arc"
     exe = [sys.executable, "-c", "from console.cli import app; app()"]
     raw = args.log.stat().st_size
     try:
-        t_ing, r_ing = run([*exe, "ingest", str(args.log), "--archive", str(arc)])
+        if not args.skip_ingest:
+            shutil.rmtree(arc, ignore_errors=True)
+            t_ing, r_ing = run([*exe, "ingest", str(args.log), "--archive", str(arc), "--json"], keep_stdout=True)
+            cpu_ing = _LAST_CPU[0]
+            phases = json.loads(_LAST_OUT[0]).get("phase_seconds", {})
         from console.archive.views import run_query
 
         n = int(run_query(arc, "SELECT count(*) FROM records")[1][0][0])  # type: ignore[call-overload]
         print(f"log: {args.log} {raw / 1e6:.0f} MB, {n:,} records")
-        show("ingest (parse, write, derive)", t_ing, n, r_ing)
+        if not args.skip_ingest:
+            _LAST_CPU[0] = cpu_ing
+            show("ingest (parse, write, derive)", t_ing, n, r_ing)
+            print("  phases (s): " + ", ".join(f"{k} {v:.1f}" for k, v in phases.items()))
         if not args.skip_processes:
+            scratch = work / "read-only"
+            shutil.rmtree(scratch, ignore_errors=True)
+            read_only = [sys.executable, "-c", READ_ONLY, str(args.log), str(scratch)]
+            show("ingest's read step alone", *run(read_only)[:1], n, run_rss_last())
+            shutil.rmtree(scratch, ignore_errors=True)
             show("analyze --json", *run([*exe, "analyze", "--json", str(args.log)])[:1], n, run_rss_last())
             show(
                 "report --format json", *run([*exe, "report", str(args.log), "--format", "json"])[:1], n, run_rss_last()
@@ -171,10 +218,18 @@ def main() -> None:
         rec = du(arc / "data" / "records")
         print(f"archive size: {size / 1e6:.1f} MB = {100 * size / raw:.2f} % of the raw log", end="")
         print(f"; records alone {100 * rec / raw:.2f} %")
+        for table in sorted(p.name for p in (arc / "data").iterdir()):
+            print(f"  {table}: {du(arc / 'data' / table) / 1e6:.2f} MB")
 
         big = work / "big"
+        shutil.rmtree(big, ignore_errors=True)
         total = replicate(arc, big, args.replicas)
-        print(f"big archive: {total:,} records ({args.replicas} replicas), {du(big) / 1e6:.0f} MB")
+        from console.archive.store import read_current
+
+        n_parts = len(read_current(big).parts("records"))
+        print(
+            f"big archive: {total:,} records ({args.replicas} replicas, {n_parts} record parts), {du(big) / 1e6:.0f} MB"
+        )
         from console.archive.history import Window, report_data
         from console.archive.presets import PRESETS
         from console.archive.views import connect
@@ -190,8 +245,8 @@ def main() -> None:
             f" AND time < TIMESTAMP '{t_end}' AND day = DATE '{t_first.date()}'"
         )
         axles_sql = PRESETS["axles-per-head-per-day"].sql
-        print(f"axles per head per day (query command) : {timed(lambda: run_query(big, axles_sql)):.3f} s")
-        print(f"one hour of one head   (query command) : {timed(lambda: run_query(big, hour_sql)):.3f} s")
+        print(f"axles per head per day (run_query)      : {timed(lambda: run_query(big, axles_sql)):.3f} s")
+        print(f"one hour of one head   (run_query)      : {timed(lambda: run_query(big, hour_sql)):.3f} s")
         # A long-lived reader (a TUI, a service) keeps its connection: the query alone.
         con, _ = connect(big)
         print(f"axles per head per day (open connection): {timed(lambda: con.execute(axles_sql).fetchall()):.3f} s")
@@ -199,9 +254,20 @@ def main() -> None:
         con.close()
         day0 = dt.datetime.combine(t_first.date(), dt.time())
         w = Window(start=day0, end=day0 + dt.timedelta(days=1))
-        print(f"one-day report data                     : {timed(lambda: report_data(big, None, w), runs=3):.3f} s")
+        print(f"one-day report data (report_data)       : {timed(lambda: report_data(big, None, w), runs=3):.3f} s")
+        # Through the commands, as a user runs them: a new process each time (median of 3).
+        q = [*exe, "query", "--archive", str(big), "--format", "csv"]
+        print(f"trackside --version (process start)     : {median_run([*exe, '--version']):.3f} s")
+        print(
+            f"axles per head per day (trackside query): {median_run([*q, '--preset', 'axles-per-head-per-day']):.3f} s"
+        )
+        print(f"one hour of one head   (trackside query): {median_run([*q, hour_sql]):.3f} s")
+        day1 = (day0 + dt.timedelta(days=1)).isoformat()
+        rep = [*exe, "report", "--archive", str(big), "--from", day0.isoformat(), "--to", day1, "--format", "json"]
+        print(f"one-day report (trackside report)       : {median_run(rep):.3f} s")
     finally:
-        shutil.rmtree(work, ignore_errors=True)
+        if args.work is None:
+            shutil.rmtree(work, ignore_errors=True)
 
 
 if __name__ == "__main__":

@@ -97,3 +97,24 @@ def test_still_read_only(archive: Path, sql: str) -> None:
     assert res.exit_code == 2
     assert res.stderr.startswith("trackside: error: ") and res.stderr.count("\n") == 1
     assert sorted((p.relative_to(archive), p.stat().st_mtime_ns) for p in archive.rglob("*")) == before
+
+
+# Plain types: rows fetched as Python values (no Arrow); the same text as through Arrow.
+PLAIN_SQL = (
+    "SELECT 3::BIGINT AS n, 2.5::DECIMAL(4, 2) AS dec, 'WS4' AS head, DATE '2026-03-02' AS d, "
+    "[1, 2] AS l, {'a': 1} AS s, NULL::INTEGER AS nothing, INTERVAL 90 SECOND AS iv"
+)
+
+
+def test_plain_results_skip_arrow_and_print_as_arrow_would(archive: Path) -> None:
+    from console.archive.views import run_query_result
+
+    plain = run_query_result(archive, "SELECT count(*) AS n, min(counting_head) AS head FROM records")
+    assert plain.arrow is None and plain.rows is not None and plain.rows[0][0] > 0
+    assert run_query_result(archive, "SELECT min(time) AS t FROM records").arrow is not None
+    expected = {"n": 3, "dec": 2.5, "head": "WS4", "d": "2026-03-02", "l": [1, 2], "s": {"a": 1}, "nothing": None}
+    assert json.loads(_run(archive, PLAIN_SQL, "json")) == [{**expected, "iv": 90.0}]
+    rows = list(
+        csv.DictReader(io.StringIO(_run(archive, PLAIN_SQL.replace(", [1, 2] AS l, {'a': 1} AS s", ""), "csv")))
+    )
+    assert rows == [{"n": "3", "dec": "2.5", "head": "WS4", "d": "2026-03-02", "nothing": "", "iv": "90.0"}]

@@ -33,7 +33,7 @@ def query(
     """SQL (DuckDB) over the archive, read-only: one view per table."""
     from console.archive.presets import PRESETS
     from console.archive.store import ArchiveError, archive_dir
-    from console.archive.views import QueryError, require_archive, run_query_arrow, schema
+    from console.archive.views import QueryError, require_archive, run_query_result, schema
 
     root = archive_dir(archive)
 
@@ -57,10 +57,13 @@ def query(
                     raise fail(f"--preset: unknown {preset!r}; known: {', '.join(PRESETS)}")
                 text = PRESETS[preset].sql
             assert text is not None
-            result = run_query_arrow(root, text)
+            result = run_query_result(root, text)
         except (ArchiveError, QueryError) as exc:
             raise fail(str(exc)) from None
-        _emit_table(result, fmt)
+        if result.arrow is not None:
+            _emit_table(result.arrow, fmt)
+        else:
+            _emit(result.names, [tuple(_plain(v) for v in r) for r in result.rows or []], fmt)
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
@@ -102,12 +105,13 @@ def _column(col: pa.ChunkedArray) -> list[Any]:
     stored as UTC by Arrow.  Either way the text is timefmt.iso's.
     """
     import pyarrow as pa
-    import pyarrow.compute as pc
-
-    from console.analysis.timefmt import iso_array
 
     typ = col.type
     if pa.types.is_timestamp(typ):
+        import pyarrow.compute as pc
+
+        from console.analysis.timefmt import iso_array
+
         ns = pc.cast(col.cast(pa.timestamp(typ.unit, typ.tz)), pa.timestamp("ns", typ.tz)).cast(pa.int64())
         present = pc.is_valid(ns).to_numpy(zero_copy_only=False)
         text = iso_array(ns.fill_null(0).to_numpy())
