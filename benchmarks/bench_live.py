@@ -80,7 +80,7 @@ def latency_file(n: int, gap_s: float) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "live.log"
         log.write_text("")
-        proc = start_follow(f"file:{log}", "--from-start")
+        proc = start_follow(f"file:{log}", "--from-start", "--include-status")  # status records: their passages
         assert proc.stdout is not None
         sent: dict[str, float] = {}
         got: list[float] = []

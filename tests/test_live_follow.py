@@ -193,7 +193,17 @@ def test_follow_of_a_log_written_in_pieces_and_rotated_mid_train_reports_what_an
     log = tmp_path / "station.log"
     log.write_bytes(b"")
     proc = subprocess.Popen(
-        trackside("follow", str(log), "--from-start", "--jsonl", "--layout", "example", "--idle-exit", "1.5"),
+        trackside(
+            "follow",
+            str(log),
+            "--from-start",
+            "--jsonl",
+            "--layout",
+            "example",
+            "--idle-exit",
+            "1.5",
+            "--include-status",
+        ),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -228,6 +238,25 @@ def test_follow_of_a_log_written_in_pieces_and_rotated_mid_train_reports_what_an
     assert sum(f["records"] for f in summary["files"]) == SAMPLE.read_bytes().count(b"\n")
     kinds = {e.get("kind") for e in events if e["type"] == "source"}
     assert ("rotated" if mode == "rename" else "truncated") in kinds
+
+
+def test_passages_of_status_records_only_are_counted_not_listed_unless_asked(
+    tmp_path: Path, analyze_passages: list[dict[str, object]]
+) -> None:
+    log = tmp_path / "station.log"
+    log.write_bytes(SAMPLE.read_bytes())
+    out = subprocess.run(
+        trackside("follow", f"file:{log}", "--from-start", "--jsonl", "--layout", "example", "--idle-exit", "0.5"),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert out.returncode == 0, out.stderr
+    events = read_jsonl(out.stdout)
+    listed = [{k: v for k, v in e.items() if k != "type"} for e in events if e["type"] == "passage"]
+    trains = [p for p in analyze_passages if p["kind"] != "status"]
+    assert listed and sorted(listed, key=str) == sorted(trains, key=str)
+    assert events[-1]["status_only_passages"] == len(analyze_passages) - len(trains) > 0
 
 
 def test_follow_jsonl_lines_are_flushed_one_by_one_and_rejections_are_shown(tmp_path: Path) -> None:

@@ -28,6 +28,7 @@ def test_simulated_live_run_is_followed_from_files_and_mqtt(tmp_path: Path, mosq
             "--jsonl",
             "--idle-exit",
             "2",
+            "--include-status",
         ),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,

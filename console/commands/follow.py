@@ -11,7 +11,7 @@ from typing import Annotated, Any
 import typer
 
 from console import exit_codes
-from console.commands.common import IdleGapOpt, fail, guard, load_layout
+from console.commands.common import IdleGapOpt, IncludeStatusOpt, fail, guard, load_layout
 
 SourcesArg = Annotated[
     list[str],
@@ -55,6 +55,8 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
         f"followed: {summary['passages']} passages, {summary['section_changes']} section changes, "
         f"{summary['crossing_events']} crossing events, {summary['health_findings']} health findings"
     ]
+    if summary.get("status_only_passages"):
+        out[0] += f" ({summary['status_only_passages']} passages of status records only not listed: --include-status)"
     for f in summary["files"]:
         out.append(
             clean(
@@ -100,6 +102,7 @@ def follow(
         ),
     ] = None,
     strict: Annotated[bool, typer.Option("--strict", help="Exit 1 if any line was rejected.")] = False,
+    include_status: IncludeStatusOpt = False,
 ) -> None:
     """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary."""
 
@@ -117,8 +120,13 @@ def follow(
         except SourceError as exc:
             raise fail(str(exc)) from None
         out = sys.stdout
+        status_only = [0]
 
         def emit(ev: dict[str, Any]) -> None:
+            # A board's status dumps make a passage each, train or not: counted, listed on request (as analyze).
+            if not include_status and ev.get("type") == "passage" and ev.get("kind") == "status":
+                status_only[0] += 1
+                return
             if jsonl:
                 out.write(json.dumps(ev, ensure_ascii=False, default=str) + "\n")
             else:
@@ -151,6 +159,8 @@ def follow(
 
         terminated = run_sources(engine, srcs, until=idle, duration_s=duration) == signal.SIGTERM
         summary = engine.summary(srcs)
+        if not include_status:
+            summary["status_only_passages"] = status_only[0]
         if jsonl:
             emit(summary)
         else:
