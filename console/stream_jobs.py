@@ -195,7 +195,8 @@ class _Run:
     def step(self, events: list[DetectionEvent]) -> None:
         if not events:
             return
-        self.last = events[-1]
+        # The last diagnostic event (the report's data end): operator resets do not count.
+        self.last = next((e for e in reversed(events) if e.kind is not EventKind.RESET), self.last)
         if self.layout is None or self.sink is None:
             return
         if self.engine is None:
