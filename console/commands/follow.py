@@ -56,7 +56,8 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
         f"{summary['crossing_events']} crossing events, {summary['health_findings']} health findings"
     ]
     if summary.get("status_only_passages"):
-        out[0] += f" ({summary['status_only_passages']} passages of status records only not listed: --include-status)"
+        n = summary["status_only_passages"]
+        out[0] += f" ({n} of them of status records only, not listed: --include-status lists them)"
     for f in summary["files"]:
         out.append(
             clean(
