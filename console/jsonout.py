@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Iterable
 from typing import Any, TextIO
 
 # In JSON text from json.dumps(ensure_ascii=True): an escaped backslash, a
@@ -13,6 +14,14 @@ _SURROGATE = re.compile(r"\\\\|\\ud[89ab][0-9a-f]{2}\\ud[c-f][0-9a-f]{2}|\\u(d[8
 
 class RawJSON(str):
     """Text that is already valid JSON (ASCII only) and is spliced in as is."""
+
+
+class JSONParts:
+    """Pieces of text that together are valid JSON (ASCII only), written one by one:
+    a large array is never one string.  Iterable once."""
+
+    def __init__(self, parts: Iterable[str]) -> None:
+        self.parts = parts
 
 
 def _lone_surrogate(match: re.Match[str]) -> str:
@@ -32,9 +41,16 @@ def valid_unicode(text: str) -> str:
 def _encode(value: Any) -> str:
     if isinstance(value, RawJSON):
         return value
+    if isinstance(value, JSONParts):
+        return "".join(value.parts)
     # ensure_ascii: no raw control or C1 bytes from a log can reach a terminal.
     # Compact: json's C encoder only runs without indent (pipe into jq to read).
     return valid_unicode(json.dumps(value, ensure_ascii=True, separators=(",", ":"), allow_nan=False))
+
+
+def encode(value: Any) -> str:
+    """One value as compact, ASCII-only JSON text (lone surrogates made visible)."""
+    return _encode(value)
 
 
 def dumps(doc: dict[str, Any]) -> str:
@@ -47,5 +63,9 @@ def write(doc: dict[str, Any], out: TextIO) -> None:
     out.write("{")
     for i, (key, value) in enumerate(doc.items()):
         out.write(("," if i else "") + valid_unicode(json.dumps(key)) + ":")
-        out.write(_encode(value))
+        if isinstance(value, JSONParts):
+            for part in value.parts:
+                out.write(part)
+        else:
+            out.write(_encode(value))
     out.write("}\n")

@@ -173,3 +173,42 @@ def test_twenty_thousand_heads_inventory_per_device(tmp_path: Path) -> None:
     assert (axles["direction"] == 1).all()
     assert job.analysis.unpaired_detections == 0
     assert len(job.analysis.heads) == heads
+
+
+def test_twenty_thousand_gnss_devices_json_and_device_table(tmp_path: Path) -> None:
+    """One fix per device: every fix in the streamed JSON (blocks joined), the device table
+    summarised without a table per device and cut to its first rows with a note."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from console.cli import app
+    from console.render.gnss_tables import DEVICES_SHOWN, FIX_BLOCK, devices_table, gnss_json
+    from parsers.gnss import parse_gnss
+
+    devices = 20_000
+    assert devices > FIX_BLOCK  # the JSON crosses a block boundary
+    rows = [
+        f"2026-01-19T10:{(i // 600) % 60:02d}:{(i // 10) % 60:02d}Z,D{i:06d},{'head' if i % 2 == 0 else 'eot'},"
+        f"{20.6 + i * 1e-6:.6f},{105.9 + i * 1e-6:.6f},{i % 60}.5\n"
+        for i in range(devices)
+    ]
+    csv = tmp_path / "devices.csv"
+    csv.write_text("time,device,role,lat,lon,speed\n" + "".join(rows), encoding="utf-8")
+
+    result = CliRunner().invoke(app, ["gnss", str(csv), "--json"])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    fixes, report = parse_gnss([csv])[:2]
+    assert doc["fixes"] == gnss_json(fixes, report)["fixes"]
+    assert len(doc["fixes"]) == devices
+    by_device = {f["device"]: f for f in doc["fixes"]}
+    assert by_device["D012345"]["role"] == "eot"
+    assert by_device["D012345"]["lat"] == pytest.approx(20.6 + 12345e-6)
+    assert by_device["D012345"]["speed_mps"] == 45.5  # a bare "speed" column of a device export: m/s
+
+    table = devices_table(fixes)
+    assert table.row_count == DEVICES_SHOWN
+    assert f"first {DEVICES_SHOWN:,} of {devices:,} devices" in str(table.caption)
+    assert list(table.columns[0].cells)[:2] == ["D000000", "D000001"]
+    assert list(table.columns[1].cells)[:2] == ["head", "eot"]

@@ -22,7 +22,7 @@ def gnss(files: GnssFilesArg, json_out: JsonOpt = False, strict: StrictOpt = Fal
 
     def body() -> int:
         from console.render.diag_tables import parse_report_table, rejections_table
-        from console.render.gnss_tables import devices_table, fixes_table, gnss_json, skipped_table
+        from console.render.gnss_tables import devices_table, fixes_table, gnss_json_parts, skipped_table
         from parsers.gnss import nothing_read, parse_gnss
         from parsers.kinds import not_gnss_reason
 
@@ -36,7 +36,9 @@ def gnss(files: GnssFilesArg, json_out: JsonOpt = False, strict: StrictOpt = Fal
         if unread:
             raise fail(unread[0])
         if json_out:
-            print_json({"schema": "trackside.gnss/1", "files": [str(p) for p in files], **gnss_json(fixes, report)})
+            print_json(
+                {"schema": "trackside.gnss/1", "files": [str(p) for p in files], **gnss_json_parts(fixes, report)}
+            )
         else:
             out = Console(highlight=False)
             out.print(devices_table(fixes))

@@ -8,19 +8,24 @@ ids, file names) goes through :func:`console.safe_text.inert`.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from typing import Any
 
+import numpy as np
 import pandas as pd
 from rich import box
 from rich.table import Table
 from rich.text import Text
 
-from console.analysis.timefmt import display, iso
+from console.analysis.timefmt import display, iso, iso_array
+from console.jsonout import JSONParts, encode
 from console.safe_text import inert
 from parsers.report import ParseReport
 
 FIXES_SHOWN = 200
+DEVICES_SHOWN = 200
 _MPS_TO_KMH = 3.6
+_DAY_NS = 86_400 * 1_000_000_000
 
 
 def _table(title: str) -> Table:
@@ -45,40 +50,87 @@ def iso_utc(value: Any) -> str | None:
     return iso(_ns(value))
 
 
+def _utc_ns(times: pd.Series) -> np.ndarray:
+    """Times (UTC, or naive read as UTC) as int64 ns; NaT as int64 min."""
+    if getattr(times.dt, "tz", None) is not None:
+        times = times.dt.tz_convert(None)
+    return np.asarray(times.to_numpy(dtype="datetime64[ns]")).view(np.int64)
+
+
 def _float(value: Any) -> float | None:
     return None if value is None or pd.isna(value) else float(value)
 
 
+_FIX_KEYS = (
+    "time",
+    "lat",
+    "lon",
+    "speed_mps",
+    "course_deg",
+    "valid",
+    "device",
+    "role",
+    "sentence",
+    "file",
+    "line",
+    "fix_quality",
+)
+# Fixes encoded per block: a million fixes never become a million dicts at once.
+FIX_BLOCK = 10_000
+
+
+def _floats(values: pd.Series) -> list[float | None]:
+    out = values.to_numpy(dtype=float).astype(object)
+    out[pd.isna(values).to_numpy()] = None
+    return list(out.tolist())
+
+
+def _fix_rows(fixes: pd.DataFrame) -> list[dict[str, Any]]:
+    """The fixes as JSON rows (NaN and NaT → null), column by column."""
+    times = fixes["time"]
+    ns = _utc_ns(times) if len(fixes) else np.zeros(0, np.int64)
+    iso_times = iso_array(ns)
+    iso_times[pd.isna(times).to_numpy()] = None
+    columns = (
+        iso_times.tolist(),
+        _floats(fixes["lat"]),
+        _floats(fixes["lon"]),
+        _floats(fixes["speed_mps"]),
+        _floats(fixes["course_deg"]),
+        fixes["valid"].to_numpy(dtype=bool).tolist(),
+        *([str(v) for v in fixes[c].tolist()] for c in ("device", "role", "sentence", "file")),
+        fixes["line"].to_numpy(dtype=np.int64).tolist(),
+        [str(v) for v in fixes["fix_quality"].tolist()],
+    )
+    return [dict(zip(_FIX_KEYS, row, strict=True)) for row in zip(*columns, strict=True)]
+
+
 def gnss_json(fixes: pd.DataFrame, report: ParseReport) -> dict[str, Any]:
     """The fixes and the parse report as plain JSON values (NaN and NaT → null)."""
-    rows = []
-    r: Any
-    for r in fixes.itertuples(index=False):
-        rows.append(
-            {
-                "time": iso_utc(r.time),
-                "lat": _float(r.lat),
-                "lon": _float(r.lon),
-                "speed_mps": _float(r.speed_mps),
-                "course_deg": _float(r.course_deg),
-                "valid": bool(r.valid),
-                "device": str(r.device),
-                "role": str(r.role),
-                "sentence": str(r.sentence),
-                "file": str(r.file),
-                "line": int(r.line),
-                "fix_quality": str(r.fix_quality),
-            }
-        )
-    return {"fixes": rows, "parse_report": report.to_dict()}
+    return {"fixes": _fix_rows(fixes), "parse_report": report.to_dict()}
+
+
+def gnss_json_parts(fixes: pd.DataFrame, report: ParseReport) -> dict[str, Any]:
+    """:func:`gnss_json` for :func:`console.jsonout.write`: the fixes as JSON text, block by block."""
+
+    def blocks() -> Iterator[str]:
+        yield "["
+        for start in range(0, len(fixes), FIX_BLOCK):
+            text = encode(_fix_rows(fixes.iloc[start : start + FIX_BLOCK]))
+            yield ("," if start else "") + text[1:-1]
+        yield "]"
+
+    return {"fixes": JSONParts(blocks()), "parse_report": report.to_dict()}
 
 
 class _Clock:
     """Times for a table: the date goes in the title when every time shares it."""
 
     def __init__(self, times: pd.Series) -> None:
-        known = [ns for ns in (_ns(t) for t in times) if ns is not None]
-        days = sorted({display(ns)[:10] for ns in known})
+        # Days from the ns, formatted once per distinct day (not per fix).
+        known = times[times.notna()]
+        ns = _utc_ns(known) if len(known) else np.zeros(0, np.int64)
+        days = [display(int(d) * _DAY_NS)[:10] for d in np.unique(ns // _DAY_NS)]
         self.one_day = len(days) == 1
         self.note = f"{days[0]}, UTC" if self.one_day else "UTC" if days else ""
 
@@ -161,7 +213,7 @@ def fixes_table(fixes: pd.DataFrame, limit: int = FIXES_SHOWN) -> Table:
     return t
 
 
-def devices_table(fixes: pd.DataFrame) -> Table:
+def devices_table(fixes: pd.DataFrame, limit: int = DEVICES_SHOWN) -> Table:
     """Per device: role, fixes, valid fixes, first and last time (UTC, to the second), mean speed of valid fixes."""
     clock = _Clock(fixes["time"])
     t = _table("GNSS devices" + (f" ({clock.note})" if clock.note else ""))
@@ -176,19 +228,35 @@ def devices_table(fixes: pd.DataFrame) -> Table:
     t.caption_justify = "left"
     if fixes.empty:
         return t
-    for device, rows in fixes.groupby("device", observed=True, sort=True):
-        roles = sorted({str(x) for x in rows["role"]} - {""})
-        valid = rows[rows["valid"]]
-        speeds = valid["speed_mps"].dropna()
+    # One grouped reduction per figure: no table per device (a file may hold a million devices).
+    by = fixes.groupby("device", observed=True, sort=True)
+    count = by.size()
+    shown = count.index[:limit]
+    valid = fixes["valid"].astype(bool)
+    n_valid = valid.groupby(fixes["device"], observed=True, sort=True).sum()
+    first, last = by["time"].min(), by["time"].max()
+    speed = fixes["speed_mps"].where(valid).groupby(fixes["device"], observed=True, sort=True).mean()
+    in_shown = fixes["device"].isin(shown).to_numpy()
+    pairs = pd.DataFrame(
+        {"device": fixes["device"].to_numpy()[in_shown], "role": [str(x) for x in fixes["role"].to_numpy()[in_shown]]}
+    ).drop_duplicates()
+    roles_of: dict[Any, set[str]] = {}
+    for device, role in zip(pairs["device"].tolist(), pairs["role"].tolist(), strict=True):
+        roles_of.setdefault(device, set()).add(role)
+    for device in shown:
+        roles = sorted(roles_of.get(device, set()) - {""})
+        nv = int(n_valid[device])
         t.add_row(
             inert(device),
             inert("/".join(roles) or "–", style="" if roles else "dim"),
-            Text(f"{len(rows):,}"),
-            Text(f"{len(valid):,}", style="" if len(valid) else "yellow"),
-            clock.text(rows["time"].min(), seconds=True),
-            clock.text(rows["time"].max(), seconds=True),
-            _num(speeds.mean() if len(speeds) else math.nan, "{:.1f}", _MPS_TO_KMH),
+            Text(f"{int(count[device]):,}"),
+            Text(f"{nv:,}", style="" if nv else "yellow"),
+            clock.text(first[device], seconds=True),
+            clock.text(last[device], seconds=True),
+            _num(speed[device], "{:.1f}", _MPS_TO_KMH),
         )
+    if len(count) > limit:
+        t.caption = Text(f"first {limit:,} of {len(count):,} devices; km/h: mean speed of the valid fixes", style="dim")
     return t
 
 
