@@ -38,6 +38,8 @@ class DiagJob:
     kept_records: pd.DataFrame | None = None  # only the kept registers
     # Passages with status records only, counted per head (None: they are in the passages table).
     status: StatusSummary | None = None
+    # Passages listed, when the job does not hold them (streamed: see stream_files).
+    passage_count: int | None = None
 
     @property
     def records(self) -> pd.DataFrame:
@@ -113,6 +115,8 @@ def stream_files(
     max_rejections_kept: int | None = None,
     on_reject: Callable[..., None] | None = None,
     on_records: Callable[[int], None] | None = None,
+    hold_passages: bool = True,
+    keep_axles: bool = True,
 ) -> DiagJob:
     """:func:`analyze_files` in memory bounded by the heads and open passages, for one log.
 
@@ -121,6 +125,9 @@ def stream_files(
     holds one row per passage, no records.  Without ``include_status``,
     status-only passages are counted per head instead of kept.
     ``on_records`` is told how many records each chunk held (progress).
+    Without ``hold_passages`` the job holds no passages (``on_passages``
+    had them all: memory stays bounded however many there are), only their
+    count; without ``keep_axles``, no axles table.
     """
     reader = DiagReader(paths, on_progress=on_progress, chunk_bytes=chunk_bytes)
     if max_rejections_kept is not None:
@@ -142,6 +149,7 @@ def stream_files(
     stream = PassageStream(reader.registry, settings)
     kept: list[Columns] = []
     axles: list[Columns] = []
+    count = 0
 
     def closed(part: PartAnalysis | None) -> None:
         if part is None or part.passages is None:
@@ -149,9 +157,13 @@ def stream_files(
         cols = take_passages(part.passages, by_start(part.passages))
         if status is not None:
             cols = status.take(cols)
-        axles.append(part.axles)
+        if keep_axles:
+            axles.append(part.axles)
+        nonlocal count
+        count += len(cols["head"])
         if len(cols["head"]):
-            kept.append(cols)
+            if hold_passages:
+                kept.append(cols)
             if on_passages is not None:
                 on_passages(cols, stream.heads)
 
@@ -174,7 +186,9 @@ def stream_files(
         overlap_by_file=[0] * len(reader.report.files),
         heads=stream.heads,
     )
-    return DiagJob(files=[str(p) for p in paths], report=reader.report, analysis=analysis, status=status)
+    return DiagJob(
+        files=[str(p) for p in paths], report=reader.report, analysis=analysis, status=status, passage_count=count
+    )
 
 
 def summarise_status(job: DiagJob) -> None:
@@ -204,7 +218,7 @@ def summary_doc(job: DiagJob, schema: str) -> dict[str, object]:
             "idle_gap_s": s.idle_gap_s,
             "pair_window_s": s.pair_window_s,
         },
-        "passages": len(cols["head"]) if cols is not None else 0,
+        "passages": job.passage_count if job.passage_count is not None else (len(cols["head"]) if cols else 0),
         **({"status_passages": job.status.to_dict(a.heads)} if job.status is not None else {}),
         "overlap_records": a.overlap_records,
         "unpaired_detections": a.unpaired_detections,

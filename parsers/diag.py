@@ -390,7 +390,7 @@ class DiagRegistry:
     def arrays(self) -> dict[str, np.ndarray]:
         """Per-register lookup arrays (indexed by register_id), extended for new registers only."""
         done = max(self._arrays_len, 0)
-        if done != len(self.registers):
+        if done != len(self.registers) or not self._arrays:  # not self._arrays: none built yet (no register)
             regs = self.registers[done:]
             new: dict[str, np.ndarray] = {
                 "diag_id": np.array([r.diag_id for r in regs], dtype=np.int32),

@@ -57,6 +57,7 @@ def analyze(
     def body() -> int:
         from console.jobs import summarise_status, summary_doc
         from console.render.diag_stream import JsonLinesOut
+        from console.render.passage_spool import PassageSpool
 
         if json_out and jsonl:
             raise fail("--json and --jsonl: choose one")
@@ -69,23 +70,25 @@ def analyze(
         length_m = train_length if train_length is not None else (consist.length_m if consist else 28.6)
         summary = layout_summary(files, lay, spacing_m, length_m, idle_gap) if layout else None
         lines = JsonLinesOut(sys.stdout, None if rejected_all else REJECTIONS_LISTED) if jsonl else None
+        spool = PassageSpool() if json_out and not summary else None
         if summary:
             job = summary[0]
             if not include_status:
                 summarise_status(job)
         else:
-            job = run_diag_stream(files, spacing_m, length_m, idle_gap, include_status, rejected_all, lines)
+            job = run_diag_stream(files, spacing_m, length_m, idle_gap, include_status, rejected_all, lines, spool)
         if lines is not None:
             lines.finish([d.to_dict() for d in job.analysis.devices], summary_doc(job, JSON_SCHEMA_ANALYZE))
         elif json_out:
             from console.jsonout import RawJSON
 
+            passages = spool.json_parts() if spool is not None else RawJSON(job.analysis.passages_json_text())
             doc = {
                 "schema": JSON_SCHEMA_ANALYZE,
                 "trackside_version": __version__,
                 "files": job.files,
                 "parse_report": job.report.to_dict(),
-                **job.analysis.to_dict(passages=RawJSON(job.analysis.passages_json_text())),
+                **job.analysis.to_dict(passages=passages),
             }
             if job.status is not None:
                 doc["status_passages"] = job.status.to_dict(job.analysis.heads)
@@ -97,6 +100,8 @@ def analyze(
                 doc["health"] = [f.to_dict() for f in summary[2]]
                 doc["warnings"] = summary[3]
             print_json(doc)
+            if spool is not None:
+                spool.close()
         else:
             from console.render.diag_tables import (
                 inventory_table,

@@ -356,9 +356,12 @@ def run_diag_stream(
     include_status: bool,
     rejected_all: bool,
     jsonl: Any = None,
+    spool: Any = None,
 ) -> Any:
     """The diagnostic job in bounded memory (:func:`console.jobs.stream_files`); with ``jsonl``
-    (a :class:`~console.render.diag_stream.JsonLinesOut`), passages and rejections are written as found."""
+    (a :class:`~console.render.diag_stream.JsonLinesOut`), passages and rejections are written as found;
+    with ``spool`` (a :class:`~console.render.passage_spool.PassageSpool`), passages are encoded into it
+    as they close.  Either way the job then holds no passages, only their count."""
     import sys as _sys
 
     from console.analysis.diagnostics import SpeedSettings
@@ -373,11 +376,13 @@ def run_diag_stream(
             files,
             settings,
             on_progress=advance,
-            on_passages=jsonl.passages if jsonl is not None else None,
+            on_passages=jsonl.passages if jsonl is not None else spool.add if spool is not None else None,
             include_status=include_status,
             max_rejections_kept=_sys.maxsize if rejected_all else REJECTIONS_LISTED,
             on_reject=jsonl.rejected if jsonl is not None else None,
             on_records=advance.records if advance is not None else None,
+            hold_passages=jsonl is None and spool is None,
+            keep_axles=False,  # no face of analyze or speeds shows the axles table
         )
 
 

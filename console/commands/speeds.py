@@ -40,21 +40,23 @@ def speeds(
     def body() -> int:
         from console.jobs import summary_doc
         from console.render.diag_stream import JsonLinesOut
+        from console.render.passage_spool import PassageSpool
 
         if json_out and jsonl:
             raise fail("--json and --jsonl: choose one")
         lines = JsonLinesOut(sys.stdout, REJECTIONS_LISTED) if jsonl else None
-        job = run_diag_stream(files, spacing, train_length, idle_gap, include_status, False, lines)
+        spool = PassageSpool() if json_out else None
+        job = run_diag_stream(files, spacing, train_length, idle_gap, include_status, False, lines, spool)
         if lines is not None:
             lines.finish([], summary_doc(job, "trackside.speeds/1"))
         elif json_out:
-            from console.jsonout import RawJSON
-
-            text = RawJSON(job.analysis.passages_json_text())
-            doc = {"schema": "trackside.speeds/1", "passages": text}
+            assert spool is not None
+            doc = {"schema": "trackside.speeds/1", "passages": spool.json_parts()}
             if job.status is not None:
                 doc["status_passages"] = job.status.to_dict(job.analysis.heads)
             print_json(doc)
+            if spool is not None:
+                spool.close()
         else:
             from console.render.diag_tables import passages_table
 
