@@ -72,10 +72,15 @@ def _arrow(df: pd.DataFrame) -> pa.Table:
     df = df.copy()
     df.attrs = {}  # per-axle speed lists of passages: not a column, not archived
     for c in df.columns:
-        if df[c].dtype == object and df[c].isna().all():
+        if df[c].dtype != object:
+            continue
+        if df[c].isna().all():
             # No value at all: the column still gets its type (numbers for units, text otherwise).
             df[c] = df[c].astype("float64" if c.endswith(("_s", "_ns", "_m", "_kmh")) else "string")
-        elif df[c].dtype == object:
+            continue
+        try:
+            pa.array(df[c], from_pandas=True)  # plain values (text, numbers, dates): as they are
+        except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):
             df[c] = df[c].map(
                 lambda v: None if v is None else v if isinstance(v, str | int | float | bool | dt.date) else str(v)
             )
