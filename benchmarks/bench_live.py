@@ -5,6 +5,7 @@
     python benchmarks/bench_live.py station -n 100          # line appended → station view redrawn, painted
     python benchmarks/bench_live.py idle-cpu --seconds 30   # follow with nothing arriving
     python benchmarks/bench_live.py rate --rate 2000 --seconds 600   # sustained input, RSS sampled
+    python benchmarks/bench_live.py rate-can --rate 2000 --seconds 180  # CAN frames (virtual bus, in-process)
 
 Targets (issue "Live"): latency median ≤ 50 ms and p99 ≤ 200 ms; station view
 updated within 250 ms; idle CPU ≤ 2 %; 2,000 records/s for 10 minutes with
@@ -302,9 +303,71 @@ def rate(records_per_s: int, seconds: float) -> None:
     print(f"  RSS each minute (MB): {' '.join(per_min)}; second half max-min {max(half) - min(half):.1f} MB")
 
 
+def rate_can(frames_per_s: int, seconds: float) -> None:
+    """CAN count frames on python-can's virtual bus (in this process) into the live engine, by the clock.
+
+    Two sensors count trains of 8 axles then send the check byte, endlessly.  Reports whether the
+    engine kept up (frames sent but not yet taken, sampled every 0.1 s) and this process's RSS.
+    """
+    import tomllib
+    import uuid
+
+    import can
+
+    from console.layout import layout_from_dict
+    from console.live.engine import LiveEngine, run_sources
+    from console.sources import open_source
+    from tests.test_live_can import LAYOUT
+
+    lay = layout_from_dict(tomllib.loads(LAYOUT), "bench")
+    channel = f"bench-{uuid.uuid4().hex[:8]}"
+    src = open_source(f"can:virtual:{channel}")
+    engine = LiveEngine(lay, lambda _ev: None)
+    done = threading.Event()
+    runner = threading.Thread(target=run_sources, args=(engine, [src]), kwargs={"until": done.is_set})
+    runner.start()
+    while not src.status().connected:
+        time.sleep(0.05)
+    bus = can.Bus(interface="virtual", channel=channel)
+    seq = {7: 0, 8: 0}
+    total = {7: 0, 8: 0}
+    backlog: list[int] = []
+    rss: list[float] = []
+    k = 0
+    start = time.monotonic()
+    while (now := time.monotonic()) - start < seconds:
+        while k < round((now - start) * frames_per_s):
+            node, c = 7 + k % 2, (k // 2) % 10
+            seq[node] = (seq[node] + 1) % 256
+            total[node] += c < 8
+            status, byte2 = (0, c + 1) if c < 8 else (3, 0xA5)
+            data = [status, byte2, total[node] & 0xFF, (total[node] >> 8) & 0xFF, seq[node]]
+            bus.send(can.Message(arbitration_id=0x180 + node, data=data, is_extended_id=False))
+            k += 1
+        backlog.append(k - engine.frames.stats.frames)
+        if len(backlog) % 100 == 1:
+            rss.append(rss_mb(os.getpid()))
+        time.sleep(0.1)
+    sent_s = time.monotonic() - start
+    t_end = time.monotonic()
+    while engine.frames.stats.count_frames < k and time.monotonic() - t_end < 60:
+        time.sleep(0.01)
+    drain_s = time.monotonic() - t_end
+    done.set()
+    runner.join(30)
+    bus.shutdown()
+    st = engine.frames.stats
+    print(
+        f"can rate: {k} frames sent in {sent_s:.0f} s ({k / sent_s:.0f}/s), {st.count_frames} analysed,"
+        f" {st.events} events, {st.passages} passages; not yet taken: median {statistics.median(backlog):.0f},"
+        f" max {max(backlog)} frames; all analysed {drain_s * 1000:.0f} ms after the last;"
+        f" RSS MB first/max/last {rss[0]:.0f}/{max(rss):.0f}/{rss[-1]:.0f}"
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", choices=["latency-file", "latency-mqtt", "station", "idle-cpu", "rate"])
+    ap.add_argument("what", choices=["latency-file", "latency-mqtt", "station", "idle-cpu", "rate", "rate-can"])
     ap.add_argument("-n", type=int, default=200)
     ap.add_argument("--gap", type=float, default=0.02, help="seconds between two appends/publishes")
     ap.add_argument("--seconds", type=float, default=30)
@@ -320,6 +383,8 @@ def main() -> None:
         station(a.n)
     elif a.what == "idle-cpu":
         idle_cpu(a.seconds)
+    elif a.what == "rate-can":
+        rate_can(a.rate, a.seconds)
     else:
         rate(a.rate, a.seconds)
 
