@@ -303,9 +303,8 @@ def derive_tables(
     tasks = make_tasks(root, manifest, redo, carried, settings)
     results = mapper(run_task, tasks) if mapper is not None else [run_task(t) for t in tasks]
     fresh: dict[PartitionKey, DerivedRows] = {}
-    for task, rows in zip(tasks, results, strict=True):
-        for key in task.keys:
-            one = rows.only(key)
+    for _task, rows in zip(tasks, results, strict=True):  # strict: a mapper returns one result per task
+        for key, one in rows.split().items():
             fresh[key] = one
             stored = _store_partition(root, key, one, gen)
             for table, rel in stored.items():

@@ -113,6 +113,30 @@ class DerivedRows:
         )
 
 
+    def split(self) -> dict[PartitionKey, DerivedRows]:
+        """The rows of each key (as :meth:`only`, each table's days converted once, not once per key)."""
+
+        def days(values: object) -> np.ndarray:
+            return np.asarray(values, dtype="datetime64[D]")
+
+        p_day = (np.asarray(self.passages["start_ns"], np.int64) // NS_PER_DAY).astype("datetime64[D]")
+        a_day = days(self.axles["_key_day"])
+        w_day = days(self.wheel["_key_day"])
+        h_day = days(self.heads["_key_day"])
+        out: dict[PartitionKey, DerivedRows] = {}
+        for key in self.keys:
+            d = np.datetime64(key.day, "D")
+            out[key] = DerivedRows(
+                keys=(key,),
+                passages=self.passages[p_day == d].reset_index(drop=True),
+                axles=self.axles[a_day == d].reset_index(drop=True),
+                wheel=self.wheel[w_day == d].reset_index(drop=True),
+                heads=self.heads[h_day == d].reset_index(drop=True),
+                last_end_day={k: v for k, v in self.last_end_day.items() if k == key.name},
+            )
+        return out
+
+
 def _day_of(ns: pd.Series | np.ndarray) -> np.ndarray:
     return (np.asarray(ns, np.int64) // NS_PER_DAY).astype("datetime64[D]").astype(object)
 
