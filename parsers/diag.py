@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import datetime as dt
 import re
+import sys
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -97,7 +98,7 @@ class FieldError(Exception):
         self.reason = reason
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)  # slots: a log of a million heads holds a million keys
 class RegisterKey:
     """Fields 1–9 of a record: who wrote it, on which channel, which register."""
 
@@ -172,16 +173,17 @@ def parse_register_span(span: bytes) -> RegisterKey:
     if _CONTROL_RE.search(label_text):
         raise FieldError("Label", f"Label: control characters in '{escape_text(label, 40)}'")
     label_text = label_text.strip()
+    # Names shared by many registers are one string each (sys.intern), not one per register.
     return RegisterKey(
         diag_id=_digits(diag, "Diag_id", "digits"),
         device_id=_digits(dev_id, "ID", "a numeric device id"),
-        device=device_name,
-        type=_text(typ, "Type"),
-        gs=_text(gs, "GS"),
+        device=sys.intern(device_name),
+        type=sys.intern(_text(typ, "Type")),
+        gs=sys.intern(_text(gs, "GS")),
         counting_head=counting_head,
         channel=channel,
         address=_digits(adr, "Adr", "a numeric register address"),
-        label=label_text,
+        label=sys.intern(label_text),
         label_canonical=canonical_label(label_text) if label_text else None,
         label_encoding=label_encoding,
     )

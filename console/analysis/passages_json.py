@@ -212,11 +212,13 @@ def _batch(
 
     c = {k: v[lo:hi] for k, v in cols.items() if k != "axle_speeds_kmh"}
     n = hi - lo
-    head_dev = np.array([h[0] for h in heads], dtype=np.int64)
+    # Only this batch's heads: a log may have a million heads and many batches.
+    used, head_code = np.unique(c["head"], return_inverse=True)
+    head_dev = np.array([heads[h][0] for h in used.tolist()], dtype=np.int64)
     n_det = np.asarray(c["records_in_detection_second"], float)
     parts: list[tuple[str, np.ndarray | None]] = [
-        (opening + '"device_id":', _ints(head_dev[c["head"]])),
-        (',"counting_head":', _texts(c["head"], [h[1] for h in heads])),
+        (opening + '"device_id":', _ints(head_dev[head_code])),
+        (',"counting_head":', _texts(head_code, [heads[h][1] for h in used.tolist()])),
         (',"start":', _iso(c["start_ns"])),
         (',"end":', _iso(c["end_ns"])),
         (',"duration_s":', _floats(np.round(np.asarray(c["duration_s"], float), 6))),

@@ -41,6 +41,7 @@ class RegisterTables:
     head_name_code: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _sorted_keys: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _sorted_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    _heads: list[tuple[int, str]] = field(default_factory=list)
 
     def update(self) -> RegisterTables:
         """Extend the tables to registers added since the last call."""
@@ -88,8 +89,13 @@ class RegisterTables:
 
     @property
     def heads(self) -> list[tuple[int, str]]:
-        names = self.registry.heads.values
-        return [(int(d), names[int(c)]) for d, c in zip(self.head_device, self.head_name_code, strict=True)]
+        """(device id, counting head name) per head key; built once per head, copied (C speed) per call."""
+        if len(self._heads) < len(self.head_device):
+            names = self.registry.heads.values
+            done = len(self._heads)
+            codes = self.head_name_code[done:].tolist()
+            self._heads += zip(self.head_device[done:].tolist(), [names[c] for c in codes], strict=True)
+        return list(self._heads)
 
 
 def _unique_in_order(group: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
