@@ -118,3 +118,16 @@ def test_plain_results_skip_arrow_and_print_as_arrow_would(archive: Path) -> Non
         csv.DictReader(io.StringIO(_run(archive, PLAIN_SQL.replace(", [1, 2] AS l, {'a': 1} AS s", ""), "csv")))
     )
     assert rows == [{"n": "3", "dec": "2.5", "head": "WS4", "d": "2026-03-02", "nothing": "", "iv": "90.0"}]
+
+
+def test_a_time_column_with_nulls_between_values_keeps_each_row(archive: Path) -> None:
+    sql = (
+        "SELECT i, CASE i % 3 WHEN 1 THEN NULL WHEN 0 THEN TIMESTAMP_NS '2026-03-02 08:00:00.000000001' "
+        "ELSE TIMESTAMP_NS '2026-03-02 09:00:00.000000002' END AS t FROM range(0, 5000) r(i) ORDER BY i"
+    )
+    rows = [json.loads(line) for line in _run(archive, sql, "jsonl").splitlines()]
+    assert [r["i"] for r in rows] == list(range(5000))
+    midnight_ns = 1772409600 * 10**9  # 2026-03-02T00:00Z
+    expected = {0: iso(midnight_ns + 8 * 3600 * 10**9 + 1), 1: None, 2: iso(midnight_ns + 9 * 3600 * 10**9 + 2)}
+    assert expected[0] == "2026-03-02T08:00:00.000000001Z"
+    assert all(r["t"] == expected[r["i"] % 3] for r in rows)

@@ -108,13 +108,21 @@ def _column(col: pa.ChunkedArray) -> list[Any]:
 
     typ = col.type
     if pa.types.is_timestamp(typ):
-        import pyarrow.compute as pc
+        import numpy as np
 
         from console.analysis.timefmt import iso_array
 
-        ns = pc.cast(col.cast(pa.timestamp(typ.unit, typ.tz)), pa.timestamp("ns", typ.tz)).cast(pa.int64())
-        present = pc.is_valid(ns).to_numpy(zero_copy_only=False)
-        text = iso_array(ns.fill_null(0).to_numpy())
+        # Straight from the Arrow buffers: to_numpy/fill_null on an array with nulls import pandas (0.3 s).
+        ns = col.combine_chunks().cast(pa.timestamp("ns", typ.tz)).cast(pa.int64())
+        n, off = len(ns), ns.offset
+        values = np.frombuffer(ns.buffers()[1], np.int64, count=off + n)[off:].copy()
+        if ns.null_count:
+            bits = np.unpackbits(np.frombuffer(ns.buffers()[0], np.uint8), bitorder="little")
+            present = bits[off : off + n].astype(bool)
+            values[~present] = 0
+        else:
+            present = np.ones(n, bool)
+        text = iso_array(values)
         text[~present] = None
         return text.tolist()
     if typ == pa.month_day_nano_interval():
