@@ -183,6 +183,7 @@ def main() -> None:
     ap.add_argument("--replicas", type=int, default=15)
     ap.add_argument("--skip-processes", action="store_true", help="no analyze, report or read-only runs")
     ap.add_argument("--skip-ingest", action="store_true", help="reuse WORK/arc (an archive of LOG, see --work)")
+    ap.add_argument("--report-runs", type=int, default=3, help="runs of the one-day report timings (median)")
     ap.add_argument("--work", type=Path, help="work directory, kept (default: a temporary one, removed)")
     args = ap.parse_args()
     work = args.work or Path(tempfile.mkdtemp(prefix="bench-archive-"))
@@ -254,7 +255,7 @@ def main() -> None:
         con.close()
         day0 = dt.datetime.combine(t_first.date(), dt.time())
         w = Window(start=day0, end=day0 + dt.timedelta(days=1))
-        print(f"one-day report data (report_data)       : {timed(lambda: report_data(big, None, w), runs=3):.3f} s")
+        print(f"one-day report data (report_data)       : {timed(lambda: report_data(big, None, w), runs=args.report_runs):.3f} s")
         # Through the commands, as a user runs them: a new process each time (median of 3).
         q = [*exe, "query", "--archive", str(big), "--format", "csv"]
         print(f"trackside --version (process start)     : {median_run([*exe, '--version']):.3f} s")
@@ -264,7 +265,7 @@ def main() -> None:
         print(f"one hour of one head   (trackside query): {median_run([*q, hour_sql]):.3f} s")
         day1 = (day0 + dt.timedelta(days=1)).isoformat()
         rep = [*exe, "report", "--archive", str(big), "--from", day0.isoformat(), "--to", day1, "--format", "json"]
-        print(f"one-day report (trackside report)       : {median_run(rep):.3f} s")
+        print(f"one-day report (trackside report)       : {median_run(rep, args.report_runs):.3f} s")
     finally:
         if args.work is None:
             shutil.rmtree(work, ignore_errors=True)
