@@ -255,7 +255,8 @@ def main() -> None:
         con.close()
         day0 = dt.datetime.combine(t_first.date(), dt.time())
         w = Window(start=day0, end=day0 + dt.timedelta(days=1))
-        print(f"one-day report data (report_data)       : {timed(lambda: report_data(big, None, w), runs=args.report_runs):.3f} s")
+        t_report = timed(lambda: report_data(big, None, w), runs=args.report_runs)
+        print(f"one-day report data (report_data)       : {t_report:.3f} s")
         # Through the commands, as a user runs them: a new process each time (median of 3).
         q = [*exe, "query", "--archive", str(big), "--format", "csv"]
         print(f"trackside --version (process start)     : {median_run([*exe, '--version']):.3f} s")
