@@ -205,6 +205,8 @@ def test_live_frames_in_any_blocks_give_the_batch_section_changes(sample: str, l
         got, ff = follow_in_blocks(items, layout, cuts)
         assert sections_of(got) == expected, cuts
         assert ff.stats.events == len(events), cuts
+        # Emitted as it happens, kept nowhere: following for days does not grow a history.
+        assert ff.sections is not None and not ff.sections.transitions and not ff.sections.ledger
     # Passages: every axle the batch counted at a sensor, between its clears.
     axles = Counter(e.head for e in events if e.kind is EventKind.AXLE)
     passages = [e for e in got if e["type"] == "passage"]

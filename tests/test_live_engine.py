@@ -130,6 +130,8 @@ def test_a_diagnostic_source_that_stops_mid_train_leaves_the_section_occupied() 
     states = engine.diag.section_states()
     # The sweep train is inside 1G: counted in, not out. Without more evidence it stays so.
     assert states["1G"][0] != "clear" and states["1G"][1] > 0
+    # The section changes went out as events; the engine keeps no growing history of them.
+    assert engine.diag.sections is not None and not engine.diag.sections.ledger
     # Whatever was released to the section engine never shows a section clear with axles inside.
     for e in events:
         if e["type"] == "section" and e["state"] == "clear":

@@ -35,6 +35,7 @@ from console.analysis.timefmt import NS
 from console.analysis.wheels import CountingSettings, HeadCounter
 from console.jobs import HEALTH_REGISTERS
 from console.layout import Layout
+from console.live.frames import drain_history
 from parsers.diag import DiagChunk, DiagReader, chunks_to_frame
 from parsers.report import FileReport
 
@@ -276,6 +277,8 @@ class DiagFollow:
                 self.sections = SectionEngine(self.layout, initial=SectionState.PREPARATORY, start_ns=e.time_ns)
             for tr in self.sections.step(e):
                 self._section(tr)
+        if self.sections is not None:
+            drain_history(self.sections)
 
     def _section(self, tr: Transition) -> None:
         self.stats.section_changes += 1

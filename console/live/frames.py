@@ -257,6 +257,8 @@ class FrameFollow:
                         self._section(tr)
                 for tr in self.sections.step(e):
                     self._section(tr)
+        if self.sections is not None:
+            drain_history(self.sections)
         for f in channel_fault_findings(events):
             key = (f.rule, f.counting_head, f.channel)
             if key in self._seen_findings or str(f.severity) == "info":
@@ -311,3 +313,11 @@ class FrameFollow:
         if self.sections is None:
             return {}
         return {sid: (str(s.state), s.count) for sid, s in self.sections.sections.items()}
+
+
+def drain_history(engine: SectionEngine) -> None:
+    """Drop the section engine's history: live, each change is emitted as it happens, and a
+    history kept for days (every axle in the ledger) would grow without bound."""
+    engine.transitions.clear()
+    engine.ledger.clear()
+    engine.resets.clear()
