@@ -40,6 +40,8 @@ class DiagJob:
     status: StatusSummary | None = None
     # Passages listed, when the job does not hold them (streamed: see stream_files).
     passage_count: int | None = None
+    # Records later than their passage's close (a log out of time order): see PassageStream.
+    late_records: int = 0
 
     @property
     def records(self) -> pd.DataFrame:
@@ -117,6 +119,7 @@ def stream_files(
     on_records: Callable[[int], None] | None = None,
     hold_passages: bool = True,
     keep_axles: bool = True,
+    whole: bool = False,
 ) -> DiagJob:
     """:func:`analyze_files` in memory bounded by the heads and open passages, for one log.
 
@@ -127,14 +130,15 @@ def stream_files(
     ``on_records`` is told how many records each chunk held (progress).
     Without ``hold_passages`` the job holds no passages (``on_passages``
     had them all: memory stays bounded however many there are), only their
-    count; without ``keep_axles``, no axles table.
+    count; without ``keep_axles``, no axles table.  ``whole``: read the log
+    whole instead (as several files are), for a log out of time order.
     """
     reader = DiagReader(paths, on_progress=on_progress, chunk_bytes=chunk_bytes)
     if max_rejections_kept is not None:
         reader.report.max_rejections_kept = max_rejections_kept
     reader.report.on_reject = on_reject
     status = None if include_status else StatusSummary()
-    if len(paths) > 1:
+    if len(paths) > 1 or whole:
         # Several files may overlap (the same export pulled twice): that is found by
         # comparing the files' records, so they are read whole, as analyze_files does.
         job = _read_whole(reader, paths, settings, on_records=on_records)
@@ -145,6 +149,7 @@ def stream_files(
             if on_passages is not None and len(cols["head"]):
                 on_passages(take_passages(cols, by_start(cols)), job.analysis.heads)
         job.status = status
+        job.passage_count = len(cols["head"]) if cols is not None else 0
         return job
     stream = PassageStream(reader.registry, settings)
     kept: list[Columns] = []
@@ -187,7 +192,12 @@ def stream_files(
         heads=stream.heads,
     )
     return DiagJob(
-        files=[str(p) for p in paths], report=reader.report, analysis=analysis, status=status, passage_count=count
+        files=[str(p) for p in paths],
+        report=reader.report,
+        analysis=analysis,
+        status=status,
+        passage_count=count,
+        late_records=stream.late_records,
     )
 
 
@@ -223,6 +233,7 @@ def summary_doc(job: DiagJob, schema: str) -> dict[str, object]:
         "overlap_records": a.overlap_records,
         "unpaired_detections": a.unpaired_detections,
         "parse_report": report,
+        **({"late_records": job.late_records} if job.late_records else {}),
     }
 
 

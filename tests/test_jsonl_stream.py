@@ -172,3 +172,23 @@ def test_passages_reach_a_pipe_while_the_input_is_still_being_written(tmp_path: 
     lines = head + [json.loads(line) for line in rest.splitlines()]
     assert lines[-1]["type"] == "summary"
     assert lines[-1]["passages"] == len(by_type(lines, "passage")) > 1
+
+
+def test_a_log_out_of_time_order_is_read_whole_for_json_and_warned_about_for_jsonl(tmp_path: Path) -> None:
+    log = tmp_path / "b.log"
+    generate(40_000, log, boards=3, seed=1)  # > one 4 MiB chunk
+    lines = log.read_bytes().splitlines(keepends=True)
+    swapped = tmp_path / "swapped.log"
+    swapped.write_bytes(b"".join(lines[len(lines) // 2 :] + lines[: len(lines) // 2]))
+    out = run("analyze", "--json", str(swapped))
+    assert "warning" not in out.stderr
+    from console.analysis.diagnostics import SpeedSettings
+    from console.jobs import analyze_files, summarise_status
+
+    job = analyze_files([swapped], SpeedSettings())
+    summarise_status(job)
+    assert json.loads(out.stdout)["passages"] == json.loads(job.analysis.passages_json_text())
+    streamed = run("analyze", "--jsonl", str(swapped))
+    assert "out of time order" in streamed.stderr and len(streamed.stderr.splitlines()) == 1
+    summary = json.loads(streamed.stdout.splitlines()[-1])
+    assert summary["late_records"] > 0

@@ -87,6 +87,7 @@ def check_log(path: Path, chunk_bytes: int, idle_gap_s: float) -> DiagJob:
     s = SpeedSettings(idle_gap_s=idle_gap_s)
     whole = analyze_files([path], s)
     streamed = stream_files([path], s, chunk_bytes=chunk_bytes)
+    assert streamed.late_records == 0  # exports in time order: nothing came after its passage closed
     assert_same_as_whole(whole, streamed)
     assert_status_adds_up(streamed, stream_files([path], s, chunk_bytes=chunk_bytes, include_status=False))
     return whole
@@ -161,3 +162,19 @@ def test_simulated_run_in_any_chunks_equals_a_whole_read(
     whole = check_log(path, chunk_bytes, idle_gap_s)
     trains = [p for p in whole.analysis.passages_json() if p["kind"] == "train"]
     assert sum(p["axles"] for p in trains) == len(sim_run.truth_axles)
+
+
+def test_a_log_out_of_time_order_is_counted_as_late(tmp_path: Path) -> None:
+    """Two halves of an export swapped: records come after their head's passage closed."""
+    path, _ = _realistic(tmp_path, 3000, 3, 1, 0)
+    lines = path.read_bytes().splitlines(keepends=True)
+    swapped = tmp_path / "swapped.log"
+    swapped.write_bytes(b"".join(lines[len(lines) // 2 :] + lines[: len(lines) // 2]))
+    assert stream_files([path], SpeedSettings(), chunk_bytes=20_000).late_records == 0
+    late = stream_files([swapped], SpeedSettings(), chunk_bytes=20_000)
+    assert late.late_records > 0
+    # Read whole, as the commands then do, it is the whole read.
+    whole = stream_files([swapped], SpeedSettings(), chunk_bytes=20_000, whole=True)
+    assert (
+        whole.analysis.passages_json_text() == analyze_files([swapped], SpeedSettings()).analysis.passages_json_text()
+    )

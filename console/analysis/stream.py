@@ -15,6 +15,11 @@ may come up to that slack after a later-stamped one of another board, but
 never more.  Within one head records come in time order, so a pause inside
 a head's own records closes the run before it at once.
 
+A record that comes later than that (a log out of time order, e.g. two
+exports concatenated the wrong way round) would have joined a passage
+already closed: it is counted in :attr:`PassageStream.late_records`, and the
+commands read such a file again, whole, or warn where they cannot.
+
 A wheel, a whole-second group or a passage that straddles a chunk boundary
 is simply still open when the next chunk comes: the reductions of both
 chunks merge before the run is analysed, so the passages, axles and speeds
@@ -55,11 +60,16 @@ class PassageStream:
     order_slack_s: float = ORDER_SLACK_S
     unpaired_detections: int = 0
     passages_closed: int = 0
+    # Records that came after their head's passage was closed, near enough to have joined it
+    # (or earlier than it): the log is out of time order beyond the slack, and the passages
+    # around them are not those of a whole read.  Counted, so a face can say so.
+    late_records: int = 0
     clock_ns: int = NO_TIME
     acc: DiagAccumulator = field(init=False)
     _open_first: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _open_last: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _cut: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    _closed_upto: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     def __post_init__(self) -> None:
         # One read of one log: no other file to overlap (see jobs.analyze_files).
@@ -86,7 +96,10 @@ class PassageStream:
         self._open_first = _grown(self._open_first, n, NO_TIME)
         self._open_last = _grown(self._open_last, n, NO_TIME)
         self._cut = _grown(self._cut, n, NO_TIME)
-        self._advance(tables.head[chunk.register_id], chunk.time_ns)
+        self._closed_upto = _grown(self._closed_upto, n, NO_TIME)
+        heads = tables.head[chunk.register_id]
+        self.late_records += int(np.count_nonzero(chunk.time_ns <= self._closed_upto[heads] + self._gap_ns))
+        self._advance(heads, chunk.time_ns)
         return self._close(final=False)
 
     def finish(self) -> PartAnalysis | None:
@@ -120,6 +133,8 @@ class PassageStream:
         idle = self._open_last != NO_TIME
         if not final:
             idle &= self._open_last < self.clock_ns - self._gap_ns - self._slack_ns
+        closing = np.where(idle, self._open_last, self._cut)
+        self._closed_upto = np.maximum(self._closed_upto, closing)
         self._cut[idle] = ALL_TIME
         self._open_last[idle] = NO_TIME
         if not (self._cut != NO_TIME).any():

@@ -371,19 +371,40 @@ def run_diag_stream(
     check_inputs(files)
     refuse_wrong_kind(files, "diag")
     settings = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
-    with byte_progress(input_bytes(files), "parsing") as advance:
-        return stream_files(
-            files,
-            settings,
-            on_progress=advance,
-            on_passages=jsonl.passages if jsonl is not None else spool.add if spool is not None else None,
-            include_status=include_status,
-            max_rejections_kept=_sys.maxsize if rejected_all else REJECTIONS_LISTED,
-            on_reject=jsonl.rejected if jsonl is not None else None,
-            on_records=advance.records if advance is not None else None,
-            hold_passages=jsonl is None and spool is None,
-            keep_axles=False,  # no face of analyze or speeds shows the axles table
-        )
+
+    def read(whole: bool) -> Any:
+        with byte_progress(input_bytes(files), "parsing") as advance:
+            return stream_files(
+                files,
+                settings,
+                on_progress=advance,
+                on_passages=jsonl.passages if jsonl is not None else spool.add if spool is not None else None,
+                include_status=include_status,
+                max_rejections_kept=_sys.maxsize if rejected_all else REJECTIONS_LISTED,
+                on_reject=jsonl.rejected if jsonl is not None else None,
+                on_records=advance.records if advance is not None else None,
+                hold_passages=jsonl is None and spool is None,
+                keep_axles=False,  # no face of analyze or speeds shows the axles table
+                whole=whole,
+            )
+
+    job = read(whole=False)
+    if job.late_records:
+        from console.analysis.stream import ORDER_SLACK_S
+
+        order = f"{job.late_records} records came after their passage had closed (the log is out of time order"
+        if jsonl is not None or any(os.fsdecode(f) == STDIN or not os.path.isfile(f) for f in files):
+            # Passages already written, or a stream that cannot be read again: say so.
+            sys.stderr.write(
+                f"trackside: warning: {order} by more than {ORDER_SLACK_S:g} s); passages near them may be split"
+                " or differ from a whole read: --json on the file reads it whole\n"
+            )
+        else:
+            # Nothing written yet: read the file again, whole, as several files are.
+            if spool is not None:
+                spool.clear()
+            job = read(whole=True)
+    return job
 
 
 def load_layout(spec: str) -> Any:

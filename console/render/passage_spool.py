@@ -67,6 +67,13 @@ class PassageSpool:
         self._size += int(lengths.sum())
         self.count += len(texts)
 
+    def clear(self) -> None:
+        """Forget every passage taken so far (the log is read again)."""
+        self._file.seek(0)
+        self._file.truncate()
+        self._size = self.count = 0
+        self._head, self._start, self._offset, self._length = [], [], [], []
+
     def json_parts(self) -> JSONParts:
         """The passages as a JSON array in a whole read's order (by head, then start), written piece by piece."""
         return JSONParts(self._parts())
