@@ -9,6 +9,7 @@ heads and GNSS devices.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -133,13 +134,16 @@ _SERIAL = (
 )
 
 
-def test_twenty_thousand_heads_inventory_per_device(tmp_path: Path) -> None:
-    """20 k heads on 500 devices, each head a wheel on Sys1 then Sys2 4 ms later: every head,
-    device, record count, span and axle is where the log put it."""
+_HEADS, _DEVICES = 20_000, 500
+
+
+@pytest.fixture(scope="module")
+def many_heads_job(tmp_path_factory: pytest.TempPathFactory) -> Any:
+    """20 k heads on 500 devices, each head a wheel on Sys1 then Sys2 4 ms later, read in 256 KB chunks."""
     from console.analysis.diagnostics import SpeedSettings
     from console.jobs import stream_files
 
-    heads, devices = 20_000, 500
+    heads, devices = _HEADS, _DEVICES
     lines = []
     for i in range(heads):
         t_ms = 5 * i  # 100 s of log; each head's two onsets 4 ms apart
@@ -147,11 +151,14 @@ def test_twenty_thousand_heads_inventory_per_device(tmp_path: Path) -> None:
             s, ms = divmod(t_ms + dt, 1000)
             lines.append(_RECORD.format(dev=1000 + i % devices, head=i, ch=ch, data=1, mm=s // 60, ss=s % 60, ms=ms))
     lines += [_SERIAL.format(dev=1000 + d, head=d, serial=700000 + d) for d in range(0, devices, 7)]
-    log = tmp_path / "heads.log"
+    log = tmp_path_factory.mktemp("many") / "heads.log"
     log.write_text("".join(lines), encoding="utf-8")
+    return stream_files([log], SpeedSettings(), chunk_bytes=256 << 10)
 
-    job = stream_files([log], SpeedSettings(), chunk_bytes=256 << 10)
 
+def test_twenty_thousand_heads_inventory_per_device(many_heads_job: Any) -> None:
+    """Every head, device, record count, span and axle is where the log put it."""
+    job, heads, devices = many_heads_job, _HEADS, _DEVICES
     assert job.report.records == 2 * heads + len(range(0, devices, 7))
     inv = job.analysis.devices
     assert [d.device_id for d in inv] == [1000 + d for d in range(devices)]
@@ -212,3 +219,17 @@ def test_twenty_thousand_gnss_devices_json_and_device_table(tmp_path: Path) -> N
     assert f"first {DEVICES_SHOWN:,} of {devices:,} devices" in str(table.caption)
     assert [str(c) for c in table.columns[0].cells][:2] == ["D000000", "D000001"]
     assert [str(c) for c in table.columns[1].cells][:2] == ["head", "eot"]
+
+
+def test_many_devices_text_tables_show_the_first_and_say_how_many(many_heads_job: Any) -> None:
+    from console.render.diag_tables import DEVICES_SHOWN, inventory_table, passages_table
+
+    inv = inventory_table(many_heads_job.analysis)
+    assert len(inv.columns) == 1 + DEVICES_SHOWN
+    assert f"first {DEVICES_SHOWN} of {_DEVICES:,} devices" in str(inv.caption)
+    table = passages_table(many_heads_job.analysis, limit=200)
+    assert table.row_count == 200
+    assert f"Passages ({_HEADS})" in str(table.title)
+    assert f"first 200 of {_HEADS} passages" in str(table.caption)
+    # The rows listed are the first passages of the whole table (by head, then start).
+    assert [str(c) for c in table.columns[0].cells][:3] == ["H000000", "H000001", "H000002"]

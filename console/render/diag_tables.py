@@ -6,6 +6,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
 import pandas as pd
 from rich import box
 from rich.table import Table
@@ -18,6 +19,7 @@ from console.safe_text import inert
 from parsers.report import ParseReport
 
 REJECTIONS_SHOWN = 20
+DEVICES_SHOWN = 6  # devices are columns: more do not fit in 80
 _ARROWS = {"sys1_to_sys2": "1→2", "sys2_to_sys1": "2→1"}
 
 
@@ -37,11 +39,14 @@ def _table(title: str) -> Table:
     return Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, title_style="bold")
 
 
-def inventory_table(analysis: DiagAnalysis) -> Table:
-    """Devices as columns, identity fields as rows: reads at 80 columns."""
-    t = _table("Devices")
+def inventory_table(analysis: DiagAnalysis, limit: int = DEVICES_SHOWN) -> Table:
+    """Devices as columns, identity fields as rows: reads at 80 columns (the first ``limit`` devices)."""
+    shown = analysis.devices[:limit]
+    t = _table("Devices" if len(shown) == len(analysis.devices) else f"Devices ({len(analysis.devices):,})")
     t.add_column("", style="bold", no_wrap=True)
-    for d in analysis.devices:
+    if len(shown) < len(analysis.devices):
+        t.caption = Text(f"first {len(shown)} of {len(analysis.devices):,} devices; --json has all")
+    for d in shown:
         t.add_column(inert(f"ID {d.device_id}"), overflow="fold")
     fields: list[tuple[str, Callable[[DeviceInventory], object]]] = [
         ("Device / Type / GS", lambda d: f"{d.device} / {d.type} / {d.gs}"),
@@ -58,16 +63,13 @@ def inventory_table(analysis: DiagAnalysis) -> Table:
         ("Last record", lambda d: (iso(d.last_ns) or "").replace("T", " ")),
     ]
     for name, get in fields:
-        t.add_row(name, *(inert(get(d) or "–") for d in analysis.devices))
+        t.add_row(name, *(inert(get(d) or "–") for d in shown))
     return t
 
 
 def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
-    p = analysis.passages
-    status = int((p["kind"] == "status").sum()) if len(p) else 0
-    if status:
-        p = p[p["kind"] != "status"]
-    t = _table(f"Passages ({len(p)}); speeds in km/h: per-second method (records), whole train, per-axle mean")
+    p, status, total = _listed_passages(analysis, limit)
+    t = _table(f"Passages ({total}); speeds in km/h: per-second method (records), whole train, per-axle mean")
     t.add_column("Head", no_wrap=True, min_width=4)
     t.collapse_padding = True  # whole-second bounds widen a column: still 80 columns
     t.add_column("Start", no_wrap=True)
@@ -99,13 +101,32 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
     notes = []
     if len(p) and (p["time_resolution_s"] >= 1).any():
         notes.append("whole train from whole-second times: figure, then its bounds (min–max)")
-    if limit is not None and len(p) > limit:
-        notes.append(f"first {limit} of {len(p)} passages; --json has all")
+    if limit is not None and total > limit:
+        notes.append(f"first {limit} of {total} passages; --json has all")
     if status:
         notes.append(f"{status} status-only record bursts (no wheel) not shown; --json has them (kind: status)")
     if notes:
         t.caption = Text("; ".join(notes))  # Text: brackets in a note are not markup
     return t
+
+
+def _listed_passages(analysis: DiagAnalysis, limit: int | None) -> tuple[pd.DataFrame, int, int]:
+    """The passages to list (no status-only ones), how many status-only, and how many listed in all.
+
+    With a limit, only the rows shown become a table: a log of a million heads
+    has a passage per head.
+    """
+    cols = analysis.passage_columns
+    if limit is None or cols is None:
+        p = analysis.passages
+        status = int((p["kind"] == "status").sum()) if len(p) else 0
+        return (p[p["kind"] != "status"] if status else p), status, len(p) - status
+    from console.analysis.diagnostics import _KINDS, _passages_frame
+    from console.analysis.stream import take_passages
+
+    listed = np.flatnonzero(cols["kind"] != _KINDS.index("status"))
+    rows = take_passages(cols, listed[:limit])
+    return _passages_frame(rows, analysis.heads), len(cols["kind"]) - len(listed), len(listed)
 
 
 def _whole_train(r: Any) -> Text:
