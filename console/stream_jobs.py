@@ -38,7 +38,7 @@ from console.analysis.passages import Columns
 from console.analysis.sections import LedgerEntry, ResetRecord, SectionEngine, SectionState, Transition
 from console.analysis.stream import PassageStream, by_head_and_start, by_start, concat_passages, take_passages
 from console.analysis.stream_sections import EventStream, HeadFacts
-from console.analysis.timefmt import iso
+from console.analysis.timefmt import NS, _fraction, iso
 from console.jobs import DiagJob, analyze_files, detection_events
 from console.jsonout import valid_unicode
 from console.layout import Layout
@@ -50,7 +50,7 @@ HEALTH_EVENT_KINDS = frozenset({EventKind.CHANNEL_FAULT, EventKind.CHANNEL_OK, E
 TIMELINE_ROWS_KEPT = 201  # the text table shows 200 and says whether there are more
 
 
-def _row_json(row: dict[str, Any]) -> str:
+def _row_json(row: dict[str, Any] | str) -> str:
     return valid_unicode(json.dumps(row, ensure_ascii=True, separators=(",", ":"), allow_nan=False))
 
 
@@ -62,7 +62,30 @@ def transition_json(t: Transition) -> str:
 
 
 def ledger_json(x: LedgerEntry) -> str:
+    """One ledger row as ``sections --json`` writes it (:func:`_LedgerText` writes the same, faster)."""
     return _row_json({"section": x.section, "head": x.head, "delta": x.delta, "count": x.count, "time": iso(x.time_ns)})
+
+
+class _LedgerText:
+    """:func:`ledger_json` for a row per counted axle: the JSON of each (section, head) and of each
+    second's time text made once (``tests/test_stream_sections.py`` holds them equal)."""
+
+    def __init__(self) -> None:
+        self._prefix: dict[tuple[str, str], str] = {}
+        self._second: dict[int, str] = {}
+
+    def __call__(self, x: LedgerEntry) -> str:
+        prefix = self._prefix.get((x.section, x.head))
+        if prefix is None:
+            text = '{"section":' + _row_json(x.section) + ',"head":' + _row_json(x.head) + ',"delta":'
+            prefix = self._prefix[(x.section, x.head)] = text
+        whole, frac = divmod(x.time_ns, NS)
+        second = self._second.get(whole)
+        if second is None:
+            if len(self._second) > 1 << 16:
+                self._second.clear()
+            second = self._second[whole] = str(iso(whole * NS))[:-5]  # without ".000Z"
+        return f'{prefix}{x.delta},"count":{x.count},"time":"{second}{_fraction(frac)}Z"}}'
 
 
 def reset_json(r: ResetRecord) -> str:
@@ -113,6 +136,7 @@ class SectionsSink:
     ledger_all: list[LedgerEntry] = field(default_factory=list)
     _timeline: _Spill | None = None
     _ledger: _Spill | None = None
+    _ledger_text: _LedgerText = field(default_factory=_LedgerText)
 
     def __post_init__(self) -> None:
         if self.spill:
@@ -143,7 +167,7 @@ class SectionsSink:
                 tot[2] = min(tot[2], x.time_ns)
                 tot[3] = max(tot[3], x.time_ns)
                 if self._ledger is not None:
-                    self._ledger.add(ledger_json(x))
+                    self._ledger.add(self._ledger_text(x))
             if self.keep_all:
                 self.ledger_all += led
         if engine.resets:

@@ -40,7 +40,7 @@ from console.layout import Layout, load_layout
 from console.render.section_tables import sections_json
 from console.sim.station import Fault, SimConfig, StationSim
 from console.sim.writers import write_diagnostic
-from console.stream_jobs import SectionsSink, stream_diag
+from console.stream_jobs import SectionsSink, _LedgerText, ledger_json, stream_diag
 
 LONG = bool(os.environ.get("TRACKSIDE_LONG"))
 EXAMPLES = 150 if LONG else 4
@@ -96,7 +96,9 @@ def assert_streamed_equals_whole(
         assert sections_json(streamed) == sections_json(whole)
         assert ledger_summary_frame(sk.ledger_totals).values.tolist() == whole.ledger_summary().values.tolist()
         assert (sk.timeline_rows, sk.ledger_rows) == (len(whole.timeline), len(whole.ledger))
-        assert [transition for transition in sk.timeline_first] == sk.timeline_all[: len(sk.timeline_first)]
+        assert sk.timeline_first == sk.timeline_all[: len(sk.timeline_first)]
+        fast = _LedgerText()
+        assert [fast(x) for x in sk.ledger_all] == [ledger_json(x) for x in sk.ledger_all]
     return len(events)
 
 

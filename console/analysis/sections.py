@@ -112,6 +112,7 @@ class SectionEngine:
         self.transitions: list[Transition] = [Transition(start_ns, s.id, initial, 0, reason) for s in layout.sections]
         self.ledger: list[LedgerEntry] = []
         self.resets: list[ResetRecord] = []
+        self._bound: dict[str, list[tuple[_Section, int]]] = {}  # head → the sections it bounds, with signs
 
     # -- queries --------------------------------------------------------
     def state(self, section_id: str) -> SectionState:
@@ -183,8 +184,10 @@ class SectionEngine:
         if e.kind is EventKind.RESET:
             out.append(self._reset(e))
             return [x for x in out if x is not None]
-        bound = self.layout.sections_of(e.head) if self.layout.has_head(e.head) else []
-        secs = [(self.sections[sec.id], sign) for sec, sign in bound]
+        secs = self._bound.get(e.head)
+        if secs is None:  # once per head: the layout is fixed
+            bound = self.layout.sections_of(e.head) if self.layout.has_head(e.head) else []
+            secs = self._bound[e.head] = [(self.sections[sec.id], sign) for sec, sign in bound]
         k = e.kind
         if k is EventKind.AXLE:
             for s, sign in secs:
