@@ -48,8 +48,9 @@ RATIO_TARGET = 0.5
 LINEAR_TARGET = 4.3 / 4  # 12 M in ≤ 4.3x the time of 3 M: per record, ≤ 1.075x
 
 
-def run(cmd: list[str]) -> tuple[float, float]:
-    """Wall seconds and peak RSS (MB) of one child process; stdout discarded."""
+def run(cmd: list[str]) -> tuple[float, float, float]:
+    """Wall seconds, peak RSS (MB) and CPU seconds (user + system, all threads) of one child process;
+    stdout discarded.  CPU time is what to compare on a machine shared with other jobs."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(proc.pid, 0)
@@ -57,7 +58,7 @@ def run(cmd: list[str]) -> tuple[float, float]:
     err = proc.stderr.read().decode() if proc.stderr else ""
     if os.waitstatus_to_exitcode(status) != 0:
         raise SystemExit(f"{' '.join(cmd[:3])} failed: {err}")
-    return wall, usage.ru_maxrss / 1024
+    return wall, usage.ru_maxrss / 1024, usage.ru_utime + usage.ru_stime
 
 
 def records_in(log: Path) -> int:
@@ -86,33 +87,38 @@ def bench(exe: str, log: Path, repeat: int) -> dict[str, float]:
     speeds_rss = run([exe, "speeds", "--json", str(log)])[1]
     records = records_in(log)
     size_mb = log.stat().st_size / 1e6
-    o_t = statistics.median(w for w, _ in ours)
-    b_t = statistics.median(w for w, _ in bare)
+    o_t = statistics.median(w for w, _, _ in ours)
+    b_t = statistics.median(w for w, _, _ in bare)
+    o_cpu = statistics.median(c for _, _, c in ours)
+    b_cpu = statistics.median(c for _, _, c in bare)
     row = {
         "records": records,
         "size_mb": size_mb,
         "ours_s": o_t,
         "bare_s": b_t,
         "ratio": o_t / b_t,
-        "ours_rss_mb": max(r for _, r in ours),
-        "bare_rss_mb": max(r for _, r in bare),
+        "ours_cpu_s": o_cpu,
+        "bare_cpu_s": b_cpu,
+        "ours_rss_mb": max(r for _, r, _ in ours),
+        "bare_rss_mb": max(r for _, r, _ in bare),
         "speeds_rss_mb": speeds_rss,
         "records_per_s": records / o_t,
         "mb_per_s": size_mb / o_t,
     }
     print(f"input: {log} ({size_mb:,.0f} MB, {records:,} records), {repeat} alternating runs each")
-    print(f"  trackside analyze --json : median {o_t:.2f} s  peak RSS {row['ours_rss_mb']:.0f} MB")
-    print(f"  bare pandas/pyarrow read : median {b_t:.2f} s  peak RSS {row['bare_rss_mb']:.0f} MB")
+    print(f"  trackside analyze --json : median {o_t:.2f} s ({o_cpu:.2f} s CPU)  peak RSS {row['ours_rss_mb']:.0f} MB")
+    print(f"  bare pandas/pyarrow read : median {b_t:.2f} s ({b_cpu:.2f} s CPU)  peak RSS {row['bare_rss_mb']:.0f} MB")
     print(f"  trackside speeds --json  : peak RSS {speeds_rss:.0f} MB")
     print(f"  throughput               : {row['records_per_s']:,.0f} records/s, {row['mb_per_s']:.0f} MB/s")
     print(f"  ratio (trackside / bare) : {row['ratio']:.2f}  [{mark(row['ratio'] <= RATIO_TARGET)} ≤ {RATIO_TARGET}]")
+    print(f"  CPU-time ratio           : {o_cpu / b_cpu:.2f}")
     rss_ok = max(row["ours_rss_mb"], speeds_rss) <= RSS_TARGET_MB
     print(f"  peak RSS target          : [{mark(rss_ok)} ≤ {RSS_TARGET_MB} MB]")
     print(
         "  runs (s): trackside "
-        + " ".join(f"{w:.2f}" for w, _ in ours)
+        + " ".join(f"{w:.2f}" for w, _, _ in ours)
         + " | bare "
-        + " ".join(f"{w:.2f}" for w, _ in bare),
+        + " ".join(f"{w:.2f}" for w, _, _ in bare),
         flush=True,
     )
     return row
@@ -136,14 +142,15 @@ def main() -> None:
                 f" ({per_record:.2f}x per record) [{mark(per_record <= LINEAR_TARGET)} ≤ {LINEAR_TARGET:.3f}x]"
             )
     print(
-        "| log | records | MB | analyze --json s | bare read s | ratio | analyze RSS MB | speeds RSS MB"
-        " | bare RSS MB | records/s | MB/s |"
+        "| log | records | MB | analyze --json s (CPU s) | bare read s (CPU s) | ratio | CPU ratio"
+        " | analyze RSS MB | speeds RSS MB | bare RSS MB | records/s | MB/s |"
     )
-    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for log, r in zip(args.logs, rows, strict=True):
         print(
-            f"| {log.name} | {r['records']:,} | {r['size_mb']:,.0f} | {r['ours_s']:.2f} | {r['bare_s']:.2f}"
-            f" | {r['ratio']:.2f} | {r['ours_rss_mb']:.0f} | {r['speeds_rss_mb']:.0f} | {r['bare_rss_mb']:.0f}"
+            f"| {log.name} | {r['records']:,} | {r['size_mb']:,.0f} | {r['ours_s']:.2f} ({r['ours_cpu_s']:.2f})"
+            f" | {r['bare_s']:.2f} ({r['bare_cpu_s']:.2f}) | {r['ratio']:.2f} | {r['ours_cpu_s'] / r['bare_cpu_s']:.2f}"
+            f" | {r['ours_rss_mb']:.0f} | {r['speeds_rss_mb']:.0f} | {r['bare_rss_mb']:.0f}"
             f" | {r['records_per_s']:,.0f} | {r['mb_per_s']:.0f} |"
         )
     if args.json_out:
