@@ -4,6 +4,7 @@
     python benchmarks/bench_live.py latency-mqtt            # message published → event on stdout (needs mosquitto)
     python benchmarks/bench_live.py station -n 100          # line appended → station view redrawn, painted
     python benchmarks/bench_live.py idle-cpu --seconds 30   # follow with nothing arriving
+    python benchmarks/bench_live.py idle-station --seconds 30   # the live station view, nothing arriving
     python benchmarks/bench_live.py rate --rate 2000 --seconds 600   # sustained input, RSS sampled
     python benchmarks/bench_live.py rate-can --rate 2000 --seconds 180  # CAN frames (virtual bus, in-process)
 
@@ -365,9 +366,38 @@ def rate_can(frames_per_s: int, seconds: float) -> None:
     )
 
 
+def idle_station(seconds: float) -> None:
+    """The live station view (headless, in this process) on a file where nothing arrives: CPU used."""
+    import asyncio
+
+    from console.layout import load_layout
+    from console.sources import open_source
+    from console.tui.live_app import LiveStationApp
+    from console.tui.live_source import LiveSource
+
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "live.log"
+        log.write_text(diag_line(1, T0))
+        src = LiveSource(load_layout("example"), [open_source(f"file:{log}", from_start=True)])
+        app = LiveStationApp(src)
+        got: list[float] = []
+
+        async def run() -> None:
+            async with app.run_test(size=(160, 50)):
+                await asyncio.sleep(2)  # settle after start-up
+                c0, t0 = cpu_seconds(os.getpid()), time.monotonic()
+                await asyncio.sleep(seconds)
+                got.append(100 * (cpu_seconds(os.getpid()) - c0) / (time.monotonic() - t0))
+
+        asyncio.run(run())
+        src.stop()
+    print(f"idle CPU of the live station view (headless) over {seconds:.0f} s: {got[0]:.2f} %")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", choices=["latency-file", "latency-mqtt", "station", "idle-cpu", "rate", "rate-can"])
+    what = ["latency-file", "latency-mqtt", "station", "idle-cpu", "idle-station", "rate", "rate-can"]
+    ap.add_argument("what", choices=what)
     ap.add_argument("-n", type=int, default=200)
     ap.add_argument("--gap", type=float, default=0.02, help="seconds between two appends/publishes")
     ap.add_argument("--seconds", type=float, default=30)
@@ -383,6 +413,8 @@ def main() -> None:
         station(a.n)
     elif a.what == "idle-cpu":
         idle_cpu(a.seconds)
+    elif a.what == "idle-station":
+        idle_station(a.seconds)
     elif a.what == "rate-can":
         rate_can(a.rate, a.seconds)
     else:
