@@ -131,3 +131,78 @@ def test_a_time_column_with_nulls_between_values_keeps_each_row(archive: Path) -
     expected = {0: iso(midnight_ns + 8 * 3600 * 10**9 + 1), 1: None, 2: iso(midnight_ns + 9 * 3600 * 10**9 + 2)}
     assert expected[0] == "2026-03-02T08:00:00.000000001Z"
     assert all(r["t"] == expected[r["i"] % 3] for r in rows)
+
+
+@pytest.mark.parametrize(
+    ("sql", "expected"),
+    [
+        (
+            "SELECT * FROM records WHERE head = 'WS1' AND day = DATE '2026-03-02' AND device_id = 5001",
+            {"records": {"day": "2026-03-02", "device_id": "5001"}},
+        ),
+        ("SELECT count(*) FROM records r WHERE r.day = '2026-03-02'", {"records": {"day": "2026-03-02"}}),
+        ("SELECT * FROM records WHERE '2026-03-02' = day", {"records": {"day": "2026-03-02"}}),
+        # Not certain: nothing pruned.
+        ("SELECT * FROM records WHERE day = DATE '2026-03-02' OR device_id = 5001", {}),
+        ("SELECT * FROM records WHERE day = DATE '2026-03-02' AND time > (SELECT min(time) FROM records)", {}),
+        ("WITH x AS (SELECT 1) SELECT * FROM records WHERE day = DATE '2026-03-02'", {}),
+        ("SELECT * FROM records JOIN axles USING (day) WHERE day = DATE '2026-03-02'", {}),
+        ("SELECT * FROM records WHERE day = TIMESTAMP '2026-03-02 10:00'", {}),
+        ("SELECT * FROM axles WHERE day = DATE '2026-03-02'", {}),
+    ],
+)
+def test_partition_filter_only_when_certain(sql: str, expected: dict[str, dict[str, str]]) -> None:
+    import duckdb
+
+    from console.archive.views import partition_filter
+
+    assert partition_filter(duckdb.connect(), sql) == expected
+
+
+@pytest.fixture(scope="module")
+def two_days(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Records of 2 boards over 2 days, written as the ingest writes them (4 partitions)."""
+    import numpy as np
+    import pyarrow as pa
+
+    from console.archive import parts
+    from console.archive.store import Manifest, ensure_layout, publish
+
+    root = tmp_path_factory.mktemp("days") / "arc"
+    ensure_layout(root)
+    n = 4000
+    time_ns = 20_000 * parts.NS_PER_DAY + np.arange(n, dtype=np.int64) * 40 * 10**9  # 40 s apart: ~2 days
+    device = 5000 + np.arange(n) % 2
+    table = pa.table(
+        {
+            "time": pa.array(time_ns.view("datetime64[ns]")),
+            "counting_head": pa.array([f"WS{d - 4999}" for d in device]),
+            "line": pa.array(np.arange(n)),
+        }
+    )
+    w = parts.PartWriter(root, "records", 1, "r")
+    w.add(table, time_ns // parts.NS_PER_DAY, device)
+    written = w.close()
+    assert len(written) == 4
+    publish(root, Manifest(generation=1, tables={"records": written}), written)
+    return root
+
+
+@pytest.mark.parametrize(
+    "sql",
+    [
+        "SELECT count(*), min(line), max(line) FROM records WHERE day = DATE '2024-10-04' AND device_id = 5001",
+        "SELECT * FROM records WHERE day = '2024-10-05' ORDER BY line",
+        "SELECT * FROM records WHERE day = DATE '1999-01-01'",  # no such day: no rows, every column
+    ],
+)
+def test_a_pruned_view_gives_what_the_whole_view_gives(two_days: Path, sql: str) -> None:
+    from console.archive.views import check_read_only, connect, partition_filter
+
+    assert partition_filter(connect(two_days)[0], sql)  # pruned indeed
+    pruned, _ = connect(two_days, sql=sql)
+    whole, _ = connect(two_days)
+    check_read_only(pruned, sql)
+    a, b = pruned.sql(sql), whole.sql(sql)
+    assert a.columns == b.columns
+    assert a.fetchall() == b.fetchall()

@@ -122,12 +122,15 @@ def connect(
     *,
     spill_dir: Path | None = None,
     tables: Collection[str] | None = None,
+    sql: str | None = None,
 ) -> tuple[duckdb.DuckDBPyConnection, Manifest]:
     """An in-memory DuckDB connection with a view per archive table, locked read-only.
 
     ``spill_dir``: the ingest's own connection, memory-bounded, sorting through that directory.
     ``tables``: only these views read their parts (the rest are empty): a view over
     thousands of parts costs a few hundred ms to create.
+    ``sql``: the one query the connection is for: where it keeps only some days or devices of
+    a partitioned table (see :func:`partition_filter`), that view lists only their parts.
     """
     import duckdb
 
@@ -137,8 +140,13 @@ def connect(
         config.update(memory_limit=INTERNAL_MEMORY_LIMIT, temp_directory=str(spill_dir), threads=2)
     con = duckdb.connect(":memory:", config=config)
     base = root.resolve()
+    only = partition_filter(con, sql) if sql is not None else {}
     for table, keys in TABLES.items():
-        parts = [str(base / rel) for rel in m.parts(table)] if tables is None or table in tables else []
+        rels = m.parts(table) if tables is None or table in tables else []
+        if table in only:
+            # The query's WHERE drops every other partition anyway; one part stays to give the view its columns.
+            rels = [r for r in rels if all(f"/{k}={only[table][k]}/" in r for k in only[table])] or rels[:1]
+        parts = [str(base / rel) for rel in rels]
         if parts:
             files = "[" + ", ".join(_quote(p) for p in parts) + "]"
             hive = ""
@@ -160,6 +168,96 @@ def connect(
     con.execute("SET enable_external_access = false")
     con.execute("SET lock_configuration = true")
     return con, m
+
+
+def partition_filter(con: duckdb.DuckDBPyConnection, sql: str) -> dict[str, dict[str, str]]:
+    """The partition keys a query fixes, per table: ``{"records": {"day": "2026-03-02", "device_id": "5001"}}``.
+
+    Only when it is certain, from DuckDB's own parse of the query: one SELECT whose only reference
+    to the table is its FROM (no join, no CTE, no other mention anywhere, subqueries included), and
+    ``day = DATE '…'`` / ``day = '…'`` or ``device_id = <integer>`` among the top-level AND terms of
+    its WHERE.  Anything else gives nothing (every part is listed, as without this).
+    """
+    import json
+
+    import duckdb
+
+    try:
+        doc = json.loads(con.execute("SELECT json_serialize_sql(?)", [sql]).fetchone()[0])  # type: ignore[index]
+    except (duckdb.Error, TypeError, ValueError):
+        return {}
+    statements = doc.get("statements") or []
+    if doc.get("error") or len(statements) != 1:
+        return {}
+    node = statements[0].get("node") or {}
+    source = node.get("from_table") or {}
+    table = str(source.get("table_name", "")).lower()
+    keys = TABLES.get(table) if source.get("type") == "BASE_TABLE" and not source.get("schema_name") else None
+    if not keys or node.get("type") != "SELECT_NODE" or (node.get("cte_map") or {}).get("map"):
+        return {}
+    if _mentions(doc, table) != 1:
+        return {}
+    found: dict[str, str] = {}
+    for term in _and_terms(node.get("where_clause")):
+        if term.get("type") != "COMPARE_EQUAL":
+            continue
+        for col, other in ((term.get("left"), term.get("right")), (term.get("right"), term.get("left"))):
+            name = _column_name(col, table, source.get("alias", ""))
+            value = _key_value(name, other) if name in keys else None
+            if name is not None and value is not None:
+                found[name] = value
+    return {table: found} if found else {}
+
+
+def _mentions(node: object, table: str) -> int:
+    """How many times the parsed query refers to ``table`` (as a table, anywhere)."""
+    if isinstance(node, list):
+        return sum(_mentions(x, table) for x in node)
+    if not isinstance(node, dict):
+        return 0
+    here = int(node.get("type") == "BASE_TABLE" and str(node.get("table_name", "")).lower() == table)
+    return here + sum(_mentions(v, table) for v in node.values())
+
+
+def _and_terms(expr: object) -> list[dict[str, Any]]:
+    if not isinstance(expr, dict):
+        return []
+    if expr.get("type") == "CONJUNCTION_AND":
+        return [t for child in expr.get("children") or [] for t in _and_terms(child)]
+    return [expr]
+
+
+def _column_name(expr: object, table: str, alias: str) -> str | None:
+    """``day``, ``records.day`` or ``r.day`` (the FROM's alias) as ``day``; anything else None."""
+    if not isinstance(expr, dict) or expr.get("type") != "COLUMN_REF":
+        return None
+    names = [str(n) for n in expr.get("column_names") or []]
+    if len(names) == 1 or (len(names) == 2 and names[0].lower() in {table, alias.lower()} - {""}):
+        return names[-1].lower()
+    return None
+
+
+def _key_value(key: str, expr: object) -> str | None:
+    """The partition directory's value for ``key = expr``, when expr is a literal of the key's type."""
+    import datetime as dt
+
+    if isinstance(expr, dict) and expr.get("type") == "OPERATOR_CAST":
+        type_name = str((expr.get("type_expr") or {}).get("type_name", "")).upper()
+        if key != "day" or type_name != "DATE":
+            return None
+        expr = expr.get("child")
+    if not isinstance(expr, dict) or expr.get("type") != "VALUE_CONSTANT":
+        return None
+    literal = expr.get("literal") or {}
+    text = str(literal.get("text", ""))
+    if key == "day" and literal.get("kind") == "STRING" and len(text) == 10:
+        try:
+            return dt.date.fromisoformat(text).isoformat()
+        except ValueError:
+            return None
+    if key == "device_id" and literal.get("kind") == "INTEGER" and text.lstrip("-").isdigit():
+        return str(int(text))
+    return None
 
 
 def check_read_only(con: duckdb.DuckDBPyConnection, sql: str) -> None:
@@ -226,7 +324,7 @@ def run_query_result(root: Path, sql: str) -> QueryResult:
 def _query_connection(root: Path, sql: str) -> duckdb.DuckDBPyConnection:
     """A connection with views for the tables ``sql`` names, the statement checked read-only."""
     named = {t for t in TABLES if re.search(rf"\b{t}\b", sql, re.IGNORECASE)}
-    con, _ = connect(root, tables=named)
+    con, _ = connect(root, tables=named, sql=sql)
     try:
         check_read_only(con, sql)
     except BaseException:
