@@ -197,3 +197,22 @@ def test_progress_counts_tasks_on_a_terminal_only() -> None:
     with task_progress(40, "derive", Console(file=pipe, force_terminal=False)) as done:
         done(40)
     assert pipe.getvalue() == ""
+
+
+def test_progress_joins_the_bar_a_command_already_shows() -> None:
+    """Rich shows one live display at a time: inside ingest's bar, the tasks get a line of their own, removed after."""
+    from rich.progress import Progress
+
+    tty = io.StringIO()
+    host = Progress(console=Console(file=tty, force_terminal=True, width=100))
+    with host:
+        outer = host.add_task("ingest", total=None)
+        lines: list[int] = []
+        with task_progress(12, "derive", host=host) as done:
+            lines.append(len(host.tasks))
+            done(5)
+            done(7)
+            lines.append(int(next(t for t in host.tasks if t.id != outer).completed))
+        lines.append(len(host.tasks))
+    assert lines == [2, 12, 1]
+    assert "derive (tasks)" in tty.getvalue()
