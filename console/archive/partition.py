@@ -112,7 +112,6 @@ class DerivedRows:
             last_end_day={k: v for k, v in self.last_end_day.items() if k == key.name},
         )
 
-
     def split(self) -> dict[PartitionKey, DerivedRows]:
         """The rows of each key (as :meth:`only`, each table's days converted once, not once per key)."""
 
