@@ -120,11 +120,13 @@ class _progress:
             return None, None
         from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn, TransferSpeedColumn
 
+        from console.fleet.progress import TasksOr
+
         bar = Progress(
             TextColumn("{task.description}"),
             BarColumn(),
-            DownloadColumn(),
-            TransferSpeedColumn(),
+            TasksOr(DownloadColumn()),  # the engine's line (--engine dask) counts tasks, not bytes
+            TasksOr(TransferSpeedColumn(), show_tasks=False),
             console=self.console,
             transient=True,
         )

@@ -5,8 +5,34 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.console import Console, RenderableType
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    ProgressColumn,
+    Task,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+from rich.text import Text
+
+TASKS = "tasks"  # the unit field of the engine's line in a command's bar
+
+
+class TasksOr(ProgressColumn):
+    """In a command's bar: its own column for its lines, "done/total tasks" (or nothing) for the engine's line."""
+
+    def __init__(self, column: ProgressColumn, show_tasks: bool = True) -> None:
+        super().__init__()
+        self.column = column
+        self.show_tasks = show_tasks
+
+    def render(self, task: Task) -> RenderableType:
+        if task.fields.get("unit") != TASKS:
+            return self.column.render(task)
+        return Text(f"{int(task.completed)}/{int(task.total or 0)} tasks" if self.show_tasks else "")
 
 
 @contextmanager
@@ -16,10 +42,11 @@ def task_progress(
     """Yield ``done(n)``: n more tasks finished.  A bar when stderr is a terminal, a no-op otherwise.
 
     ``host``: a bar the command already shows (Rich allows one live display at
-    a time): the tasks get a line of their own in it, removed when done.
+    a time): the tasks get a line of their own in it (``unit`` field
+    ``"tasks"``: wrap the bar's unit columns in :class:`TasksOr`), removed when done.
     """
     if host is not None and total > 0:
-        line = host.add_task(f"{label} (tasks)", total=total)
+        line = host.add_task(f"{label} (tasks)", total=total, unit=TASKS)
         try:
             yield lambda n: host.advance(line, n)
         finally:
