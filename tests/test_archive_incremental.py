@@ -207,3 +207,26 @@ def test_affected_partitions_follow_the_passages_over_midnight() -> None:
     assert affected(key(4, dev=2)) == {key(4, dev=2), key(5, dev=2)}  # other devices' days never
     # A day gone (its records replaced): the day after derives again, and what reached it.
     assert affected(key(5)) == {key(4), key(6)}
+
+
+def test_a_rotated_file_adds_its_new_content_to_the_days_already_derived(tmp_path: Path) -> None:
+    """A log rotated in place (its first bytes changed) is a new file: its records join days already
+    derived (one of them shared with the old content), and the archive equals ``analyze`` of both files."""
+    log = tmp_path / "unit.log"
+    old = tmp_path / "unit.log.1"
+    root = tmp_path / "arc"
+    simulate_over_midnight(log, SEED, BEFORE_S, minutes=6, days=3)  # 03-02 .. 03-05 00:0x
+    run_ingest([log], root, layout="example")
+    gen1 = _generations(root)
+    old.write_bytes(log.read_bytes())
+    later = tmp_path / "later.log"
+    simulate_over_midnight(later, SEED + 1, BEFORE_S, minutes=6, days=4)
+    log.write_bytes(_split_at(later, "2026-03-05")[1])  # from 03-05 00:00 on: the rotated log's new content
+    run_ingest([log], root)
+    gens = _generations(root)
+    g = read_current(root).generation
+    days = {k: PartitionKey.parse(k).day.isoformat() for k in gens}
+    assert {k for k in gens if days[k] <= "2026-03-03"} == {k for k in gen1 if days[k] <= "2026-03-03"}
+    assert all(gens[k] == gen1[k] for k in gens if days[k] <= "2026-03-03")  # untouched
+    assert all(gens[k] == g for k in gens if days[k] >= "2026-03-05")
+    _assert_equals_analyze(root, [old, log])
