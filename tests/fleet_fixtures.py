@@ -112,12 +112,19 @@ def simulate_over_midnight(
 
 
 def archive_snapshot(root: Path) -> dict[str, bytes]:
-    """Every file of an archive but its lock and scratch space: relative path → bytes."""
+    """What readers of an archive see: relative path → bytes of its manifests and of every data part the
+    current manifest names (data files it does not name are invisible to every reader)."""
+    from console.archive.store import read_current
+
+    named = {rel for parts in read_current(root).tables.values() for rel in parts}
     out: dict[str, bytes] = {}
     for p in sorted(root.rglob("*")):
         rel = p.relative_to(root).as_posix()
-        if p.is_file() and rel != "lock" and not rel.startswith("tmp/"):
-            out[rel] = p.read_bytes()
+        if not p.is_file() or rel == "lock" or rel.startswith("tmp/"):
+            continue
+        if rel.startswith("data/") and rel not in named:
+            continue
+        out[rel] = p.read_bytes()
     return out
 
 

@@ -197,10 +197,12 @@ def test_a_worker_killed_during_derivation_costs_a_retry_not_the_answer(
     _assert_same_frames(got, want, "3 workers, one killed")
 
 
-def test_a_worker_killed_during_ingest_leaves_the_archive_whole(tmp_path: Path, cluster3: tuple[Any, Any]) -> None:
-    """The ingest's derivation on Dask with a worker killed mid-partition: the right archive, or one line
-    and the archive as it was before (never half)."""
-    cluster, client = cluster3
+def _ingest_with_a_worker_killed(tmp_path: Path, cluster: Any, client: Any) -> tuple[Any, Path, Path, dict[str, bytes]]:
+    """A second night ingested on Dask while one worker is SIGKILLed in the middle of a partition.
+
+    Returns the command's result, the archive, a reference archive (the same two ingests, local)
+    and the archive's files before the second ingest.
+    """
     first, second = tmp_path / "night1.log", tmp_path / "night2.log"
     simulate_over_midnight(first, 21, 500, MINUTES, 1)
     simulate_over_midnight(second, 22, 300, MINUTES, 1)
@@ -218,12 +220,39 @@ def test_a_worker_killed_during_ingest_leaves_the_archive_whole(tmp_path: Path, 
     finally:
         killer.join()
     assert killed[0] is not None  # a worker died while it derived a partition
-    if res.exit_code == 0:
-        assert _derived(arc) == _derived(ref)
-    else:
-        assert res.exit_code == 2
-        assert res.stderr.count("\n") == 1 and res.stderr.startswith("trackside: error: ")
-        assert archive_snapshot(arc) == before
+    return res, arc, ref, before
+
+
+def test_a_worker_killed_during_ingest_is_retried_and_the_archive_is_right(
+    tmp_path: Path, cluster3: tuple[Any, Any]
+) -> None:
+    res, arc, ref, _before = _ingest_with_a_worker_killed(tmp_path, *cluster3)
+    assert res.exit_code == 0, res.stderr
+    assert _derived(arc) == _derived(ref)
+
+
+@pytest.fixture
+def fragile_cluster() -> Iterator[tuple[Any, Any]]:
+    """A cluster whose scheduler gives up on a partition at the first worker that dies with it."""
+    import dask
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), local_cluster(2) as pair:
+        yield pair
+
+
+def test_a_run_the_cluster_gives_up_is_one_line_and_the_archive_as_before(
+    tmp_path: Path, fragile_cluster: tuple[Any, Any]
+) -> None:
+    res, arc, _ref, before = _ingest_with_a_worker_killed(tmp_path, *fragile_cluster)
+    assert res.exit_code == 2
+    note, error = res.stderr.splitlines()  # the cluster it used, then the one-line error
+    assert note.startswith("dask scheduler tcp://127.0.0.1:")
+    assert re.fullmatch(
+        r"trackside: error: partition \d+/\d{4}-\d\d-\d\d(\.\.\d{4}-\d\d-\d\d)?: the workers running it died"
+        r" repeatedly \(out of memory or killed\); archive unchanged",
+        error,
+    ), error
+    assert archive_snapshot(arc) == before  # never half written
 
 
 def test_engine_failures_are_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

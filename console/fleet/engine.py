@@ -242,8 +242,14 @@ def _raise_for(fut: Future, item: Mapping[str, Any]) -> None:
 
 
 def _describe(item: Mapping[str, Any]) -> str:
-    key = item.get("key", next(iter(item.values()), "?"))
-    return str(getattr(key, "name", key))
+    """A partition in a few words: its name (device/day), or device and days of a derivation task."""
+    obj = item.get("key", item.get("item", next(iter(item.values()), "?")))
+    name = getattr(obj, "name", None)
+    days = getattr(obj, "days", None)
+    if name is None and days and hasattr(obj, "device_id"):
+        name = f"{obj.device_id}/{days[0]}" + (f"..{days[-1]}" if len(days) > 1 else "")
+    text = " ".join(str(obj if name is None else name).split())
+    return text if len(text) <= 80 else text[:79] + "…"
 
 
 def _is_killed_worker(exc: BaseException) -> bool:
