@@ -58,6 +58,7 @@ _MAJORITY = "majority not unanimous"  # frames_to_events' COUNT_ERROR for ERR tu
 @dataclass
 class _Sensor:
     context: dict[str, Any]  # the last accepted count frame, as a row of the frame table
+    context_frame: pd.DataFrame | None = None  # the same row as a one-row table, its column types kept
     last_count: tuple[int, int] | None = None  # (time, byte 2) of its last non-0xA5 frame: P of the 0xA5 rule
     lost_announced: bool = False
     axles: int = 0
@@ -198,8 +199,10 @@ class FrameFollow:
     def _sensor_block(self, name: str, part: pd.DataFrame) -> list[DetectionEvent]:
         st = self.sensors.get(name)
         ctx = st.context if st is not None else None
-        table = part if ctx is None else pd.concat([pd.DataFrame([ctx]), part], ignore_index=True)
-        table = table.astype({"time": "datetime64[ns]"})
+        before = st.context_frame if st is not None else None
+        # The context row kept as a table: concatenated with its column types, nothing to convert (a
+        # row rebuilt from a dict would be object columns, and converting them took most of a flush).
+        table = part if before is None else pd.concat([before, part], ignore_index=True)
         events = frames_to_events(table, up_is_s1_to_s3=self.up, comm_timeout_s=self.timeout_ns / NS, source="can")
         if ctx is not None and st is not None:
             events = self._without_context(events, ctx, st)
@@ -207,6 +210,7 @@ class FrameFollow:
         if st is None:
             st = self.sensors[name] = _Sensor(context={})
         st.context = {str(k): v for k, v in last.items()}
+        st.context_frame = part.iloc[[-1]]
         counts = part[part["byte2"] != CHECK_BYTE]
         if len(counts):
             st.last_count = (int(counts["time"].iloc[-1].value), int(counts["byte2"].iloc[-1]))
@@ -259,7 +263,9 @@ class FrameFollow:
                     self._section(tr)
         if self.sections is not None:
             drain_history(self.sections)
-        for f in channel_fault_findings(events):
+        # Findings come from channel faults only (frames give no single-channel events): most blocks have none.
+        faults = [e for e in events if e.kind in (EventKind.CHANNEL_FAULT, EventKind.CHANNEL_OK)]
+        for f in channel_fault_findings(faults) if any(e.kind is EventKind.CHANNEL_FAULT for e in faults) else []:
             key = (f.rule, f.counting_head, f.channel)
             if key in self._seen_findings or str(f.severity) == "info":
                 continue
