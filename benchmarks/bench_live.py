@@ -2,6 +2,7 @@
 
     python benchmarks/bench_live.py latency-file            # line appended → event on stdout
     python benchmarks/bench_live.py latency-mqtt            # message published → event on stdout (needs mosquitto)
+    python benchmarks/bench_live.py latency-can             # CAN frame (virtual bus) → passage event
     python benchmarks/bench_live.py station -n 100          # line appended → station view redrawn, painted
     python benchmarks/bench_live.py idle-cpu --seconds 30   # follow with nothing arriving
     python benchmarks/bench_live.py idle-station --seconds 30   # the live station view, nothing arriving
@@ -394,9 +395,66 @@ def idle_station(seconds: float) -> None:
     print(f"idle CPU of the live station view (headless) over {seconds:.0f} s: {got[0]:.2f} %")
 
 
+def latency_can(n: int, gap_s: float) -> None:
+    """CAN frame sent (virtual bus, in this process) → the live engine's passage event.
+
+    One axle frame, then the check byte that clears the sensor: the passage is emitted when that
+    clear is analysed.  The latency is from sending the check-byte frame to the emit call.
+    """
+    import tomllib
+    import uuid
+
+    import can
+
+    from console.layout import layout_from_dict
+    from console.live.engine import LiveEngine, run_sources
+    from console.sources import open_source
+    from tests.test_live_can import LAYOUT
+
+    passages: list[float] = []
+
+    def emit(ev: dict[str, object]) -> None:
+        if ev["type"] == "passage":
+            passages.append(time.perf_counter())
+
+    channel = f"bench-{uuid.uuid4().hex[:8]}"
+    src = open_source(f"can:virtual:{channel}")
+    engine = LiveEngine(layout_from_dict(tomllib.loads(LAYOUT), "bench"), emit)
+    done = threading.Event()
+    runner = threading.Thread(target=run_sources, args=(engine, [src]), kwargs={"until": done.is_set})
+    runner.start()
+    while not src.status().connected:
+        time.sleep(0.05)
+    bus = can.Bus(interface="virtual", channel=channel)
+    got: list[float] = []
+    seq = total = 0
+    for _ in range(n):
+        seq, total = (seq + 1) % 256, total + 1
+        bus.send(
+            can.Message(arbitration_id=0x187, data=[0, 1, total & 0xFF, total >> 8 & 0xFF, seq], is_extended_id=False)
+        )
+        time.sleep(gap_s)
+        seq, before = (seq + 1) % 256, len(passages)
+        t = time.perf_counter()
+        bus.send(
+            can.Message(
+                arbitration_id=0x187, data=[3, 0xA5, total & 0xFF, total >> 8 & 0xFF, seq], is_extended_id=False
+            )
+        )
+        while len(passages) == before and time.perf_counter() - t < 5:
+            time.sleep(0.0005)
+        if len(passages) > before:
+            got.append(passages[before] - t)
+        time.sleep(gap_s)
+    done.set()
+    runner.join(10)
+    bus.shutdown()
+    print(f"latency can frame → passage event: {percentiles(got)}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    what = ["latency-file", "latency-mqtt", "station", "idle-cpu", "idle-station", "rate", "rate-can"]
+    what = ["latency-file", "latency-mqtt", "latency-can", "station", "idle-cpu", "idle-station", "rate", "rate-can"]
     ap.add_argument("what", choices=what)
     ap.add_argument("-n", type=int, default=200)
     ap.add_argument("--gap", type=float, default=0.02, help="seconds between two appends/publishes")
@@ -409,6 +467,8 @@ def main() -> None:
         if not (shutil.which("mosquitto") or Path("/usr/sbin/mosquitto").exists()):
             raise SystemExit("mosquitto is not installed")
         latency_mqtt(a.n, a.gap)
+    elif a.what == "latency-can":
+        latency_can(a.n, max(a.gap, 0.03))
     elif a.what == "station":
         station(a.n)
     elif a.what == "idle-cpu":
