@@ -154,3 +154,24 @@ def test_growing_and_foreign_dictionaries_keep_every_value(tmp_path: Path, secon
     got = read_part(tmp_path, w.written[0])
     assert got.column("label").to_pylist() == expected
     assert got.column("line").to_pylist() == list(range(1, 10))
+
+
+def test_a_partition_idle_for_some_write_outs_is_closed_and_a_late_row_starts_a_second_part(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(parts, "BUFFER_BYTES", 1)  # a write-out after every table
+    monkeypatch.setattr(parts, "IDLE_WRITE_OUTS", 2)
+    w = PartWriter(tmp_path, "records", 3, "r")
+    day1 = [_labelled([0], ["Radsensor"], line) for line in (1, 2)]
+    day2 = [_labelled([0], ["Radsensor"], line) for line in (3, 4, 5)]
+    for t in day1:
+        w.add(t, np.full(1, 20_000), np.full(1, 5000))
+    assert len(w._writers) == 1
+    for t in day2:
+        w.add(t, np.full(1, 20_001), np.full(1, 5000))
+    assert list(w._writers) == [(20_001, 5000)]  # day 1's file is closed
+    w.add(_labelled([0], ["Radsensor"], 6), np.full(1, 20_000), np.full(1, 5000))  # a late record of day 1
+    w.close()
+    day1_parts = [rel for rel in w.written if "day=2024-10-04" in rel]
+    assert len(day1_parts) == 2
+    assert sorted(x for rel in day1_parts for x in read_part(tmp_path, rel).column("line").to_pylist()) == [1, 2, 6]

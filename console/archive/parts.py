@@ -39,6 +39,7 @@ ROW_GROUP_ROWS = 256_000
 # 40 boards: 48 MB gives an archive 8 % smaller) for more memory (+30 MB peak RSS).
 BUFFER_BYTES = 32 << 20
 MAX_OPEN_WRITERS = 128
+IDLE_WRITE_OUTS = 3
 COMPRESSION = "zstd"
 COMPRESSION_LEVEL = 6
 # Integer columns that grow steadily along a part (delta-coded); *_ns columns are times too.
@@ -188,6 +189,8 @@ class PartWriter:
         self._pieces: dict[int, list[pa.Table]] = {}  # rows added since the last write-out, by day << 32 | device
         self._dicts = _Dictionaries()
         self._pending_bytes = 0
+        self._write_outs = 0
+        self._last_write_out: dict[tuple[int, int], int] = {}
 
     def _path(self, key: tuple[int, int]) -> str:
         parts = [DATA, self.table]
@@ -227,12 +230,21 @@ class PartWriter:
             self._write_out()
 
     def _write_out(self) -> None:
-        """Every partition's buffered rows as one row group of its file (in ``sort_by`` order)."""
+        """Every partition's buffered rows as one row group of its file (in ``sort_by`` order).
+
+        A file that got no rows in the last :data:`IDLE_WRITE_OUTS` write-outs is closed (a day that is
+        over, in a log in time order): an open writer holds its buffers (~0.3 MB), and a long log would
+        otherwise keep :data:`MAX_OPEN_WRITERS` of them.  A later row starts a second part (compacted).
+        """
         pieces, self._pieces, self._pending_bytes = self._pieces, {}, 0
         dicts, self._dicts = self._dicts, _Dictionaries()
+        self._write_outs += 1
         for k, rows in pieces.items():
-            table = sorted_rows(dicts.concat(rows), self.sort_by)
-            self._write((k >> 32, k & 0xFFFFFFFF), table)
+            key = (k >> 32, k & 0xFFFFFFFF)
+            self._write(key, sorted_rows(dicts.concat(rows), self.sort_by))
+            self._last_write_out[key] = self._write_outs
+        for key in [k for k in self._writers if self._last_write_out[k] <= self._write_outs - IDLE_WRITE_OUTS]:
+            self._writers.pop(key).close()
 
     def _write(self, key: tuple[int, int], table: pa.Table) -> None:
         writer = self._writers.pop(key, None)
