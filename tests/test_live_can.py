@@ -294,3 +294,33 @@ def test_follow_turns_frames_from_a_virtual_bus_into_the_batch_section_changes(l
     summary = engine.summary([src])
     assert summary["can_frames"] == len(recorded(path))
     assert summary["sections"]["B1"]["state"] == expected[-1][2]
+
+
+def test_the_live_station_view_shows_the_sections_the_frames_give(layout: Layout, tmp_path: Path) -> None:
+    from console.tui.live_source import LiveSource
+    from console.tui.model import StationModel
+
+    path = trains_log(tmp_path)
+    expected, events = batch(path, layout)
+    final = run_sections(layout, events, initial=SectionState.PREPARATORY).final["B1"]  # (state, count, …)
+    channel = f"trackside-{uuid.uuid4().hex[:8]}"
+    source = LiveSource(layout, [open_source(f"can:virtual:{channel}")])
+    model = StationModel(source)
+    model.step(0.1)  # starts the sources
+    sender = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    try:
+        assert wait_until(lambda: source.statuses()[0].connected, 5)
+        for m in recorded(path):
+            sender.send(m)
+
+        def shown() -> tuple[str, int]:
+            model.step(0.1)
+            b1 = next(s for s in model.snapshot().sections if s.id == "B1")
+            return b1.state, b1.count
+
+        assert wait_until(lambda: shown() == (final[0], final[1]), 5), shown()
+    finally:
+        sender.shutdown()
+        source.stop()
+    # The section changes reach the view's event log too.
+    assert sum("section B1" in e.text for e in model.log) == len(expected)
