@@ -15,7 +15,35 @@ the ledger.
 
 Target (issue 12): peak RSS ≤ 256 MB for every command at 3 M, 12 M and 30 M records.
 
-Results: see the table below (filled in by the last measurement).
+Measured 2026-11-23 on the shared 2-core machine while ~5 other jobs ran
+(wall times are inflated and noisy; compare them only within one row pair).
+Logs: gen_realistic_diag.py 3 M (400 MB), 12 M (1.6 GB), 30 M (4.0 GB)
+records; layout from :func:`write_layout` (80 heads, 40 sections).
+A process that imports the CLI and reads an empty log peaks at ~135 MB.
+
+| log | command | before (whole-file read) | after (streamed) |
+| --- | --- | --- | --- |
+| 3 M | `sections` | 664 MB, 54.9 s | 192 MB, 52.8 s |
+| 3 M | `sections --json` | 862 MB, 63.0 s | 195 MB, 62.1 s |
+| 3 M | `health` | 885 MB, 30.3 s | 195 MB, 31.3 s |
+| 3 M | `report --format md` | 898 MB, 75.0 s | 543 MB, 78.4 s (over: see below) |
+| 12 M | `sections` | — | 206 MB, 383.6 s |
+| 12 M | `sections --json` | — | 207 MB, 514.4 s |
+| 12 M | `health` | — | 208 MB, 243.2 s |
+| 30 M | `sections --json` | — | 231 MB, 1478 s |
+
+Side by side at 3 M (``/tmp/h2/ab.py``: the commit before the streaming
+read and this one, alternating, one run each, heavier load):
+`sections --json` 186.6 s / 863 MB → 135.8 s / 204 MB (0.73× the time);
+`health` 105.3 s / 873 MB → 88.3 s / 194 MB (0.84×); `report --format md`
+205.9 s / 891 MB → 124.6 s / 539 MB (0.60×).
+
+`report` stays over the target: the analysis streams now, but the report
+document (console/report/model.py ``document``) is built whole before it
+is rendered: every passage, every state change and every ledger row as a
+dict (332 k ledger rows and 41 k passages at 3 M), then the Markdown, HTML
+or JSON text in one string.  Bounding it needs the renderers to write those
+lists as they are made (as ``sections --json`` now copies its spilled rows).
 """
 
 from __future__ import annotations
