@@ -12,6 +12,7 @@ the ledger.
 
     python benchmarks/gen_realistic_diag.py 3000000 /work/bench_data/r3m.log --truth /work/bench_data/r3m.json
     python benchmarks/bench_memory_commands.py /work/bench_data/r3m.log --repeat 1
+    python benchmarks/bench_memory_commands.py /work/bench_data/r3m.log --baseline /tmp/old --commands health
 
 Target (issue 12): peak RSS ≤ 256 MB for every command at 3 M, 12 M and 30 M records.
 
@@ -32,8 +33,9 @@ A process that imports the CLI and reads an empty log peaks at ~135 MB.
 | 12 M | `health` | — | 208 MB, 243.2 s |
 | 30 M | `sections --json` | — | 231 MB, 1478 s |
 
-Side by side at 3 M (``/tmp/h2/ab.py``: the commit before the streaming
-read and this one, alternating, one run each, heavier load):
+Side by side at 3 M (``--baseline DIR``: a checkout of the commit before the
+streaming read, 43c5cc4, made with ``git archive 43c5cc4 | tar -x -C DIR``;
+alternating, one run each, heavier load):
 `sections --json` 186.6 s / 863 MB → 135.8 s / 204 MB (0.73× the time);
 `health` 105.3 s / 873 MB → 88.3 s / 194 MB (0.84×); `report --format md`
 205.9 s / 891 MB → 124.6 s / 539 MB (0.60×).
@@ -89,10 +91,16 @@ def command(name: str, exe: str, log: Path, layout: Path) -> list[str]:
     return [exe, "report", str(log), "--layout", str(layout), "--format", fmt]
 
 
-def run(cmd: list[str]) -> tuple[float, float, int]:
+def in_checkout(cmd: list[str]) -> list[str]:
+    """The command for ``python -c`` run in another checkout (its ``console`` is imported first there)."""
+    launch = "import sys; sys.argv = ['trackside'] + sys.argv[1:]; from console.cli import app; app()"
+    return [sys.executable, "-c", launch, *cmd[1:]]
+
+
+def run(cmd: list[str], cwd: Path | None = None) -> tuple[float, float, int]:
     """Wall seconds, peak RSS (MB) and exit code of one child process; stdout discarded."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=cwd)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
@@ -107,6 +115,7 @@ def main() -> None:
     ap.add_argument("logs", type=Path, nargs="+")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--commands", default=",".join(COMMANDS), help=f"comma-separated, of {', '.join(COMMANDS)}")
+    ap.add_argument("--baseline", type=Path, help="also run each command from this checkout, alternately")
     args = ap.parse_args()
     exe = shutil.which("trackside") or sys.exit("trackside is not installed (pip install .)")
     names = [c.strip() for c in args.commands.split(",") if c.strip()]
@@ -119,8 +128,12 @@ def main() -> None:
         print(f"{'log':<28} {'command':<14} {'wall s':>8} {'peak MB':>8}  target")
         for log in args.logs:
             for name in names:
+                cmd = command(name, exe, log.resolve(), layout.resolve())
                 for _ in range(args.repeat):
-                    wall, rss, _code = run(command(name, exe, log, layout))
+                    if args.baseline is not None:
+                        wall, rss, _code = run(in_checkout(cmd), cwd=args.baseline)
+                        print(f"{log.name:<28} {name + ' (base)':<14} {wall:8.2f} {rss:8.0f}", flush=True)
+                    wall, rss, _code = run(cmd)
                     verdict = "ok" if rss <= TARGET_MB else "OVER"
                     print(f"{log.name:<28} {name:<14} {wall:8.2f} {rss:8.0f}  {verdict}", flush=True)
 
