@@ -1,18 +1,25 @@
-"""The archive's targets, measured (issue "The archive").
+"""The archive's targets, measured (issue "The archive"; figures in docs/archive.md, Measured).
 
-    python benchmarks/gen_diag_log.py 2000000 /tmp/diag_2M.log
-    python benchmarks/bench_archive.py /tmp/diag_2M.log --replicas 15
+    python benchmarks/gen_realistic_diag.py 3000000 r3m.log --truth r3m.json
+    python benchmarks/bench_archive.py r3m.log --replicas 10 --work W3
+    python benchmarks/bench_archive.py r3m.log --replicas 10 --work W3 --skip-ingest --skip-processes
 
-1. ingest vs analyze vs report on the same log: wall time and peak RSS of
-   each child process (wait4's ru_maxrss);
-2. archive size against the raw text (the whole archive, and records alone);
+1. ingest vs analyze vs report on the same log: wall time, CPU time and
+   peak RSS of each child process (wait4's rusage); the ingest's phases
+   (``ingest --json``) and its read step alone (parse, encode, write the
+   record parts: no derivation, nothing published);
+2. archive size against the raw text (the whole archive, and per table);
 3. queries on a big archive: the ingested records (and axles) are
    replicated ``--replicas`` times, each copy shifted by whole days into
    partitions of their own (as more days of the same line would be), and
-   published as one manifest; then the median of 5 runs of
-   * axles per head per day (the preset),
-   * one hour of one head's records,
-   * a one-day report's data (``history.report_data`` for one day and head set).
+   published as one manifest; then
+   * axles per head per day (the preset) and one hour of one head's records:
+     in process as ``trackside query`` runs them, on an open connection, and
+     through a new ``trackside query`` process (beside ``trackside --version``
+     and ``query "SELECT 1"``: the start-up alone);
+   * a one-day report: ``history.report_data`` and ``trackside report --archive``.
+
+On a shared machine compare the CPU seconds: wall time counts other jobs' turns.
 """
 
 from __future__ import annotations
