@@ -301,11 +301,14 @@ class QueryResult:
     arrow: pa.Table | None = None
 
 
-def run_query_result(root: Path, sql: str) -> QueryResult:
-    """One read-only query over the archive: Arrow only when the result holds times (see QueryResult)."""
+def run_query_result(root: Path, sql: str, manifest: Manifest | None = None) -> QueryResult:
+    """One read-only query over the archive: Arrow only when the result holds times (see QueryResult).
+
+    ``manifest``: the current one, when the caller has read it already (a year's manifest is megabytes).
+    """
     import duckdb
 
-    con = _query_connection(root, sql)
+    con = _query_connection(root, sql, manifest)
     try:
         try:
             rel = con.sql(sql)
@@ -321,10 +324,10 @@ def run_query_result(root: Path, sql: str) -> QueryResult:
         con.close()
 
 
-def _query_connection(root: Path, sql: str) -> duckdb.DuckDBPyConnection:
+def _query_connection(root: Path, sql: str, manifest: Manifest | None = None) -> duckdb.DuckDBPyConnection:
     """A connection with views for the tables ``sql`` names, the statement checked read-only."""
     named = {t for t in TABLES if re.search(rf"\b{t}\b", sql, re.IGNORECASE)}
-    con, _ = connect(root, tables=named, sql=sql)
+    con, _ = connect(root, manifest, tables=named, sql=sql)
     try:
         check_read_only(con, sql)
     except BaseException:

@@ -47,7 +47,7 @@ def query(
         if given != 1:
             raise fail("give one of: SQL, --preset NAME, --schema")
         try:
-            require_archive(root)
+            manifest = require_archive(root)
             if show_schema:
                 _emit(["table", "column", "type"], schema(root), fmt)
                 return exit_codes.OK
@@ -57,7 +57,7 @@ def query(
                     raise fail(f"--preset: unknown {preset!r}; known: {', '.join(PRESETS)}")
                 text = PRESETS[preset].sql
             assert text is not None
-            result = run_query_result(root, text)
+            result = run_query_result(root, text, manifest)
         except (ArchiveError, QueryError) as exc:
             raise fail(str(exc)) from None
         if result.arrow is not None:
