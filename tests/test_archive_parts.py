@@ -175,3 +175,12 @@ def test_a_partition_idle_for_some_write_outs_is_closed_and_a_late_row_starts_a_
     day1_parts = [rel for rel in w.written if "day=2024-10-04" in rel]
     assert len(day1_parts) == 2
     assert sorted(x for rel in day1_parts for x in read_part(tmp_path, rel).column("line").to_pylist()) == [1, 2, 6]
+
+
+def test_statistics_are_written_for_filtered_columns_only(tmp_path: Path) -> None:
+    t = _labelled([0, 1], ["Radsensor", "Diagnose"], 1).append_column("data", pa.array(["0001", "0002"]))
+    rel = parts.write_part(tmp_path, "p.parquet", t)
+    rg = pq.ParquetFile(tmp_path / rel).metadata.row_group(0)
+    cols = {rg.column(i).path_in_schema: rg.column(i) for i in range(rg.num_columns)}
+    assert cols["time"].is_stats_set and cols["label"].is_stats_set and cols["line"].is_stats_set
+    assert not cols["data"].is_stats_set  # in NO_STATISTICS

@@ -42,6 +42,8 @@ MAX_OPEN_WRITERS = 128
 IDLE_WRITE_OUTS = 3
 COMPRESSION = "zstd"
 COMPRESSION_LEVEL = 6
+# Record columns no query filters on by range: no min/max statistics written for them.
+NO_STATISTICS = frozenset({"type", "gs", "label_encoding", "data", "data_kind", "subsecond", "file"})
 # Integer columns that grow steadily along a part (delta-coded); *_ns columns are times too.
 DELTA_COLUMNS = frozenset({"line", "time_ns", "start_ns", "end_ns", "t_sys1_ns", "t_sys2_ns"})
 # Compaction merges a partition's parts while the merged part stays under this many rows
@@ -69,6 +71,8 @@ def encodings(schema: pa.Schema) -> dict[str, object]:
     return {
         "use_dictionary": [f.name for f in schema if f.name not in delta],
         "column_encoding": dict.fromkeys(delta, "DELTA_BINARY_PACKED"),
+        # Min/max per row group where a query filters (a fifth of the writing time for the others).
+        "write_statistics": [f.name for f in schema if f.name not in NO_STATISTICS],
     }
 
 
@@ -78,7 +82,6 @@ def _writer(path: Path, schema: pa.Schema) -> pq.ParquetWriter:
         schema,
         compression=COMPRESSION,
         compression_level=COMPRESSION_LEVEL,
-        write_statistics=True,
         **encodings(schema),
     )
 
