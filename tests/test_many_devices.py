@@ -233,3 +233,24 @@ def test_many_devices_text_tables_show_the_first_and_say_how_many(many_heads_job
     assert f"first 200 of {_HEADS} passages" in str(table.caption)
     # The rows listed are the first passages of the whole table (by head, then start).
     assert [str(c) for c in table.columns[0].cells][:3] == ["H000000", "H000001", "H000002"]
+
+
+def test_report_gnss_units_many_devices_in_natural_order(tmp_path: Path) -> None:
+    """The report's GNSS units from grouped reductions: each device once, natural order, counts right."""
+    from console.report.model import ReportData, _gnss_units
+    from parsers.gnss import parse_gnss
+
+    rows = [f"2026-01-19T10:00:{i % 60:02d}Z,U{i},{'head' if i % 3 else 'eot'},20.6,105.9,1.0\n" for i in range(3000)]
+    rows += ["2026-01-19T11:00:00Z,U7,head,,,\n"]  # a second fix for U7, no position: not valid
+    csv = tmp_path / "devices.csv"
+    csv.write_text("time,device,role,lat,lon,speed\n" + "".join(rows), encoding="utf-8")
+    fixes = parse_gnss([csv])[0]
+    data = ReportData.__new__(ReportData)
+    data.fixes = fixes
+    units = _gnss_units(data)
+    assert [u["device"] for u in units[:12]] == [f"U{i}" for i in range(12)]  # U2 before U10
+    assert len(units) == 3000
+    u7 = units[7]
+    assert (u7["fixes"], u7["valid"], u7["role"]) == (2, 1, "head")
+    assert (u7["first"], u7["last"]) == ("2026-01-19T10:00:07.000Z", "2026-01-19T11:00:00.000Z")
+    assert units[9]["role"] == "eot"

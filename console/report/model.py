@@ -338,21 +338,32 @@ def _gnss_units(data: ReportData) -> list[dict[str, Any]]:
     fixes = data.fixes
     if fixes is None or fixes.empty:
         return []
+    # Grouped reductions, not a table per device: a file may hold a million devices.
+    code, names = pd.factorize(fixes["device"].astype(str), sort=True)
+    n = len(names)
+    count = np.bincount(code, minlength=n)
+    n_valid = np.bincount(code, weights=fixes["valid"].astype(bool).to_numpy(), minlength=n)
+    by = fixes["time"].groupby(code, sort=True)
+    first, last = by.min(), by.max()
+    roles: list[set[str]] = [set() for _ in range(n)]
+    sources: list[set[str]] = [set() for _ in range(n)]
+    for sets, column in ((roles, "role"), (sources, "source")):
+        pairs = pd.DataFrame({"d": code, "v": [str(x) for x in fixes[column].to_numpy()]}).drop_duplicates()
+        for d, v in zip(pairs["d"].tolist(), pairs["v"].tolist(), strict=True):
+            sets[d].add(v)
     out = []
-    groups = fixes.groupby(fixes["device"].astype(str), sort=True)
-    for device, rows in sorted(groups, key=lambda g: natural_key(str(g[0]))):
-        roles = sorted({str(x) for x in rows["role"]} - {""})
-        valid = rows[rows["valid"].astype(bool)]
-        times = rows["time"].dropna()
+    for i in sorted(range(n), key=lambda i: natural_key(str(names[i]))):
+        role = sorted(roles[i] - {""})
+        t0, t1 = first.get(i), last.get(i)
         out.append(
             {
-                "device": str(device),
-                "role": "/".join(roles) or None,
-                "sources": sorted({str(x) for x in rows["source"]}),
-                "fixes": len(rows),
-                "valid": len(valid),
-                "first": iso(int(times.min().value)) if len(times) else None,
-                "last": iso(int(times.max().value)) if len(times) else None,
+                "device": str(names[i]),
+                "role": "/".join(role) or None,
+                "sources": sorted(sources[i]),
+                "fixes": int(count[i]),
+                "valid": int(n_valid[i]),
+                "first": None if t0 is None or pd.isna(t0) else iso(int(t0.value)),
+                "last": None if t1 is None or pd.isna(t1) else iso(int(t1.value)),
             }
         )
     return out
