@@ -15,7 +15,57 @@ prints the allocation sites holding the most memory at the peak (Python and
 numpy allocations; Arrow's own memory pool is not traced).
 
 Target (issue "Memory from many devices"): per-device state small and flat,
-peak RSS within a small multiple of the input size.
+peak RSS within a small multiple (<= ~4x) of the input size, no super-linear time.
+
+``--code DIR`` (twice: alternating) runs the commands from other checkouts,
+e.g. ``git archive 43c5cc4 | tar -x -C /tmp/h7_old`` for "before".
+
+Measured 2026-11-23 on the shared 2-core box (load average 9-14 from other
+jobs all the while: times are noisy, RSS less so; a bare ``trackside
+analyze`` of a tiny log peaks at 142 MB, imports included).  "before" is
+43c5cc4, "after" the tree at 216977f-76147c7.
+
+100 k heads / 100 k devices, before and after run alternately::
+
+    python benchmarks/bench_many_devices.py --heads 100000 --devices 100000 \
+        --code /tmp/h7_old --code /work/main --only analyze,analyze-text,gnss,gnss-text
+
+    command          input                 MB in   before s / MB        after s / MB
+    analyze --json   heads_100000.log       13.2     81.1 /  412          50.4 /  317
+    analyze (text)   heads_100000.log       13.2    254.4 /  886          30.6 /  285
+    gnss --json      devices_100000.csv      5.9     21.9 /  313          13.5 /  216
+    gnss (text)      devices_100000.csv      5.9    killed at 300 s       7.8 /  228
+    report (json)    heads_100000.log       13.2        -                31.8 /  801
+
+1 M heads / 1 M devices, after (``--heads 1000000 --devices 1000000``)::
+
+    command          input                 MB in   wall s   peak RSS MB   RSS/in
+    analyze --json   heads_1000000.log     132.5     81.2          1184      8.9
+    analyze (text)   heads_1000000.log     132.5     34.8          1305      9.9
+    gnss --json      devices_1000000.csv    59.4     33.4           526      8.8
+    gnss (text)      devices_1000000.csv    59.4     18.2           522      8.8
+
+Before, ``analyze --json`` on the 1 M-head log was killed after 400 s at
+1568 MB; with only the pairing and inventory fixed it finished in 664 s at
+2327 MB (the passages JSON then encoded every head's name per batch).
+
+What the fixes were: axle pairing over all heads at once (was a loop over
+heads, each a scan of every onset: heads x onsets); the device inventory
+without numpy calls per device; ``DiagRegistry.arrays`` extended, not
+rebuilt, per chunk; the passages JSON encodes only each batch's heads; the
+head list built once; ``RegisterKey`` with slots and shared names interned;
+``gnss --json`` written block by block (was one dict per fix for the whole
+file); the GNSS device table, the report's GNSS units and the analyze text
+tables from grouped reductions or only the rows shown (were a DataFrame per
+device, or a column per device).
+
+Still over the target (so not met): at 1 M heads most of the memory is the
+diagnostic registry's Python objects per register (a ``RegisterKey``, its
+head name, the span bytes that key the register cache: ~0.5 kB a
+register, against ~139 bytes of log line); flat, columnar registers in
+``parsers.diag`` are the next step.  ``report`` on many heads holds a
+``HeadCounter`` object per head in the section engine
+(``console/analysis/stream_sections.py``).
 """
 
 from __future__ import annotations
@@ -81,7 +131,9 @@ def write_devices_csv(path: Path, devices: int) -> None:
         f.write("".join(batch))
 
 
-def run(cmd: list[str], limit_mb: int, timeout_s: float) -> tuple[float, float, int, str]:
+def run(
+    cmd: list[str], limit_mb: int, timeout_s: float, env: dict[str, str] | None = None
+) -> tuple[float, float, int, str]:
     """(wall s, peak RSS MB, exit code, stderr tail) of one child; stdout discarded."""
 
     def limit() -> None:
@@ -89,7 +141,7 @@ def run(cmd: list[str], limit_mb: int, timeout_s: float) -> tuple[float, float, 
         resource.setrlimit(resource.RLIMIT_AS, (limit_bytes, limit_bytes))
 
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, preexec_fn=limit)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, preexec_fn=limit, env=env)
     assert proc.stderr is not None
     deadline = t0 + timeout_s
     while True:
@@ -153,10 +205,22 @@ def main() -> int:
     ap.add_argument("--limit-mb", type=int, default=6144, help="address-space limit of each child")
     ap.add_argument("--timeout", type=float, default=300.0, help="seconds before a child is killed")
     ap.add_argument("--profile", action="store_true", help="also profile each command in-process (tracemalloc)")
-    ap.add_argument("--only", default="", help="comma-separated commands to run: analyze, analyze-text, gnss")
+    ap.add_argument(
+        "--only", default="", help="comma-separated commands to run: analyze, analyze-text, gnss, gnss-text, report"
+    )
+    ap.add_argument(
+        "--code",
+        type=Path,
+        action="append",
+        default=[],
+        help="run the commands from this checkout (e.g. a `git archive` of an older commit); "
+        "given twice or more, each command alternates between them",
+    )
     args = ap.parse_args()
     args.dir.mkdir(parents=True, exist_ok=True)
     exe = str(Path(sys.executable).with_name("trackside"))
+    runner = "import sys; from console.cli import app; sys.argv[0] = 'trackside'; app()"
+    codes: list[Path | None] = list(args.code) or [None]
 
     jobs = []
     if args.heads:
@@ -166,24 +230,34 @@ def main() -> int:
         jobs += [
             ("analyze", ["analyze", str(log), "--json"], log),
             ("analyze (text)", ["analyze", str(log)], log),
+            ("report", ["report", str(log), "--format", "json"], log),
         ]
     if args.devices:
         csv = args.dir / f"devices_{args.devices}.csv"
         if not csv.exists():
             write_devices_csv(csv, args.devices)
-        jobs += [("gnss", ["gnss", str(csv), "--json"], csv)]
+        jobs += [
+            ("gnss", ["gnss", str(csv), "--json"], csv),
+            ("gnss (text)", ["gnss", str(csv)], csv),
+            ("report", ["report", str(csv), "--format", "json"], csv),
+        ]
 
-    print(f"{'command':<16} {'input':>28} {'MB in':>7} {'wall s':>7} {'peak RSS MB':>12} {'RSS/in':>7}  exit")
+    print(f"{'command':<16} {'input':>28} {'MB in':>7} {'wall s':>7} {'peak RSS MB':>12} {'RSS/in':>7}  exit  code")
     wanted = {w.strip() for w in args.only.split(",") if w.strip()}
     for name, argv, path in jobs:
         if wanted and name.replace(" (text)", "-text") not in wanted:
             continue
         size_mb = path.stat().st_size / 2**20
-        wall, rss_mb, code, err = run([exe, *argv], args.limit_mb, args.timeout)
-        print(
-            f"{name:<16} {path.name:>28} {size_mb:7.1f} {wall:7.1f} {rss_mb:12.0f} {rss_mb / size_mb:7.1f}  {code}"
-            + (f"  {err}" if code not in (0, 1) else "")
-        )
+        for code in codes:
+            cmd = [exe, *argv] if code is None else [sys.executable, "-P", "-c", runner, *argv]  # -P: not the cwd first
+            env = None if code is None else {**os.environ, "PYTHONPATH": str(code)}
+            wall, rss_mb, rc, err = run(cmd, args.limit_mb, args.timeout, env)
+            print(
+                f"{name:<16} {path.name:>28} {size_mb:7.1f} {wall:7.1f} {rss_mb:12.0f} {rss_mb / size_mb:7.1f}  {rc:4d}"
+                + f"  {code or 'installed'}"
+                + (f"  {err}" if rc not in (0, 1) else ""),
+                flush=True,
+            )
         if args.profile:
             profile(argv)
     return 0
