@@ -31,6 +31,7 @@ A process that imports the CLI and reads an empty log peaks at ~135 MB.
 | 12 M | `sections` | — | 206 MB, 383.6 s |
 | 12 M | `sections --json` | — | 207 MB, 514.4 s |
 | 12 M | `health` | — | 208 MB, 243.2 s |
+| 12 M | `report --format md` | — | 1619 MB, 266.1 s (over) |
 | 30 M | `sections --json` | — | 231 MB, 1478 s |
 
 Side by side at 3 M (``--baseline DIR``: a checkout of the commit before the
