@@ -255,3 +255,26 @@ def test_a_full_disk_is_one_line_exit_2_and_the_archive_stays_as_it_was(
     # The next ingest cleans up and succeeds.
     assert _ingest(arc, STATION).exit_code == 0
     assert _count(arc) == n + 3385
+
+
+def test_a_full_disk_in_the_derivation_leaves_no_part_of_the_failed_ingest(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The records parts are written when the derivation runs out of space: they are removed at once."""
+    import errno
+
+    import console.archive.derive as derive
+
+    arc = tmp_path / "arc"
+    _ingest(arc, SAMPLES / "osong_ws4_0932_detection.log")
+    files_before = sorted(p.relative_to(arc) for p in (arc / "data").rglob("*") if p.is_file())
+
+    def full(*_a: object, **_k: object) -> list[str]:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(derive, "derive_tables", full)
+    res = _ingest(arc, STATION)
+    monkeypatch.undo()
+    assert res.exit_code == 2, res.output
+    assert "no space left on device" in res.stderr
+    assert sorted(p.relative_to(arc) for p in (arc / "data").rglob("*") if p.is_file()) == files_before

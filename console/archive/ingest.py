@@ -10,6 +10,7 @@ a bad input, ``kill -9``) leaves the previous state current.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import os
 import shutil
@@ -473,6 +474,11 @@ def run_ingest(
             clock.lap("publish")
         except BaseException:
             job.records.abort()
+            # No manifest names them: remove this run's parts now (a full disk wants its space
+            # back); what a kill leaves behind, the next ingest's collect_garbage removes.
+            for rel in job.new_parts:
+                with contextlib.suppress(OSError):
+                    (root / rel).unlink()
             raise
     summary.seconds = time.perf_counter() - t0
     return summary
