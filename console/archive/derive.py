@@ -31,8 +31,9 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import hashlib
+import itertools
 import os
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
@@ -40,6 +41,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 import pandas as pd
 import pyarrow as pa
+import pyarrow.compute as pc
 
 from console.archive.partition import (
     NS_PER_DAY,
@@ -256,6 +258,19 @@ def _reach(rows: DerivedRows) -> int | None:
     return int(rows.passages["end_ns"].max()) if len(rows.passages) else None
 
 
+# Partition tasks handed to a mapper at once: their results are held together until stored.
+TASKS_PER_CALL = 8
+
+
+def _results(mapper: Mapper | None, tasks: list[Any]) -> Iterator[DerivedRows]:
+    """The tasks' rows in task order, a few tasks' at a time (not every partition's rows at once)."""
+    if mapper is None:
+        yield from (run_task(t) for t in tasks)
+        return
+    for i in range(0, len(tasks), TASKS_PER_CALL):
+        yield from mapper(run_task, tasks[i : i + TASKS_PER_CALL])
+
+
 def derive_tables(
     root: Path,
     manifest: Manifest,
@@ -301,11 +316,9 @@ def derive_tables(
 
     carried = carried_state(keys)
     tasks = make_tasks(root, manifest, redo, carried, settings)
-    results = mapper(run_task, tasks) if mapper is not None else [run_task(t) for t in tasks]
-    fresh: dict[PartitionKey, DerivedRows] = {}
-    for _task, rows in zip(tasks, results, strict=True):  # strict: a mapper returns one result per task
+    # One task's rows at a time (stored, then dropped): the cross-head step reads them back from their parts.
+    for _task, rows in zip(tasks, _results(mapper, tasks), strict=True):  # strict: one result per task
         for key, one in rows.split().items():
-            fresh[key] = one
             stored = _store_partition(root, key, one, gen)
             for table, rel in stored.items():
                 manifest.tables[table].append(rel)
@@ -324,52 +337,58 @@ def derive_tables(
         "partitions": {k: keep[k] for k in sorted(keep)},
     }
 
-    written += _derive_cross_head(root, manifest, spec, keys, fresh)
+    written += _derive_cross_head(root, manifest, spec, keys)
     return written
 
 
-def _combined_job(
-    root: Path, manifest: Manifest, keys: list[PartitionKey], fresh: dict[PartitionKey, DerivedRows]
-) -> DiagJob | None:
-    """A DiagJob holding what the cross-head analyses read: heads, wheel records, health-register records."""
-    import pyarrow.parquet as pq
-
-    from console.archive.history import health_records
-    from console.jobs import DiagJob
-    from parsers.report import ParseReport
-
-    if not keys:
-        return None
+def _head_order(manifest: Manifest, keys: list[PartitionKey]) -> list[tuple[int, Any]]:
+    """The heads in the batch's order (first record first), from the partitions' entries."""
     info = manifest.derived["partitions"]
     first: dict[tuple[int, Any], tuple[int, int]] = {}
     for k in keys:
         for name, seq, line in info[k.name]["heads"]:
             h = (k.device_id, name)
             first[h] = min(first.get(h, (seq, line)), (seq, line))
-    heads = sorted(first, key=lambda h: first[h])
-    index = {h: i for i, h in enumerate(heads)}
-    frames: list[pd.DataFrame] = []
-    for k in keys:  # key order: per head, day after day, each in the batch's order
-        if k in fresh:
-            w = fresh[k].wheel
-        else:
-            rel = partition_parts(k.name, info[k.name]).get("wheel_records")
-            if rel is None:
-                continue
-            w = pq.read_table(root / rel).to_pandas()
-        if len(w):
-            frames.append(w)
-    wheel = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["device_id", "counting_head"])
-    # Each row's head index: factorized (device, head) pairs, then one lookup per distinct head.
+    return sorted(first, key=lambda h: first[h])
+
+
+def _wheel_of(root: Path, manifest: Manifest, key: PartitionKey, columns: list[str] | None = None) -> pd.DataFrame:
+    """A partition's stored wheel records (in the batch's order), empty when it has none."""
+    import pyarrow.parquet as pq
+
+    rel = partition_parts(key.name, manifest.derived["partitions"][key.name]).get("wheel_records")
+    if rel is None:
+        return pd.DataFrame(columns=columns or ["device_id", "counting_head"])
+    return pq.read_table(root / rel, columns=columns).to_pandas()
+
+
+def _head_index(wheel: pd.DataFrame, index: dict[tuple[int, Any], int]) -> np.ndarray:
+    """Each row's head index: factorized (device, head) pairs, then one lookup per distinct head."""
+    if not len(wheel):
+        return np.zeros(0, np.int64)
     pairs = pd.MultiIndex.from_arrays(
         [wheel["device_id"].to_numpy(np.int64), wheel["counting_head"].astype(object).to_numpy()]
     )
     codes, distinct = pd.factorize(pairs)
     lut = np.array([index[(int(d), None if n != n else n)] for d, n in distinct], np.int64)
-    head_ix = lut[codes] if len(codes) else np.zeros(0, np.int64)
+    return cast("np.ndarray", lut[codes])
+
+
+def _combined_job(root: Path, manifest: Manifest, keys: list[PartitionKey]) -> DiagJob | None:
+    """A DiagJob holding what the cross-head analyses read: heads, wheel records, health-register records."""
+    from console.archive.history import health_records
+    from console.jobs import DiagJob
+    from parsers.report import ParseReport
+
+    if not keys:
+        return None
+    heads = _head_order(manifest, keys)
+    index = {h: i for i, h in enumerate(heads)}
+    frames = [w for k in keys if len(w := _wheel_of(root, manifest, k))]  # per head, day after day
+    wheel = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["device_id", "counting_head"])
     records = pd.DataFrame(
         {
-            "head": head_ix,
+            "head": _head_index(wheel, index),
             "channel": wheel.get("channel", pd.Series(dtype="int64")).to_numpy(),
             "time_ns": wheel.get("time_ns", pd.Series(dtype="int64")).to_numpy(np.int64),
             "value": wheel.get("value", pd.Series(dtype="int64")).to_numpy(),
@@ -382,18 +401,248 @@ def _combined_job(
     )
 
 
-def _derive_cross_head(
-    root: Path, manifest: Manifest, spec: str | None, keys: list[PartitionKey], fresh: dict[PartitionKey, DerivedRows]
-) -> list[str]:
-    from console.archive.history import report_data
+def _health_job(root: Path, manifest: Manifest, heads: list[tuple[int, Any]]) -> DiagJob:
+    """A DiagJob with the heads and the health registers' records, no wheel record (they were streamed)."""
+    from console.archive.history import health_records
+    from console.jobs import DiagJob
+    from parsers.report import ParseReport
 
-    job = _combined_job(root, manifest, keys, fresh)
-    data = report_data(root, spec, manifest=manifest, job=job)
-    frames = cross_head_tables(data)
-    written: list[str] = []
-    time_col = {"section_states": "time_ns", "count_ledger": "time_ns"}
+    empty = pd.DataFrame(
+        {c: pd.Series(dtype=t) for c, t in (("head", "int64"), ("channel", "int64"), ("time_ns", "int64"))}
+        | {"value": pd.Series(dtype="int64"), "subsecond": pd.Series(dtype=bool)}
+    )
+    view = _WheelAnalysis(heads=heads, wheel_records=empty)
+    return DiagJob(
+        files=[], report=ParseReport(), analysis=cast("DiagAnalysis", view), kept_records=health_records(root, manifest)
+    )
+
+
+@dataclass
+class _Plan:
+    """The streamed cross-head step's read plan: the days' partitions, where each day's wheel records
+    start, and the per-head facts the batch path takes from all of a head's records."""
+
+    days: list[list[PartitionKey]]
+    starts: list[int]  # per day, its earliest wheel record (ALL_TIME: none)
+    facts: dict[int, Any]  # head index → HeadFacts
+
+
+def _plan(root: Path, manifest: Manifest, keys: list[PartitionKey], index: dict[tuple[int, Any], int]) -> _Plan | None:
+    """One read of the wheel records' keys and times; None when a head's records go back in time from one
+    day's partition to a later one's (the batch path's per-head time sort would interleave them)."""
+    from console.analysis.stream_sections import ALL_TIME, HeadFacts
+
+    by_day: dict[dt.date, list[PartitionKey]] = {}
+    for k in keys:
+        by_day.setdefault(k.day, []).append(k)
+    days = [sorted(by_day[d]) for d in sorted(by_day)]
+    latest: dict[int, int] = {}  # head → its latest record so far
+    release: set[int] = set()
+    whole: set[int] = set()
+    starts: list[int] = []
+    for group in days:
+        start = ALL_TIME
+        ends: dict[int, int] = {}
+        for k in group:
+            w = _day_arrays(root, manifest, [k], index)
+            if not len(w["head"]):
+                continue
+            hi, t, v, sub = w["head"], w["time_ns"], w["value"], w["subsecond"]
+            for h in np.unique(hi).tolist():
+                m = hi == h
+                th = t[m]
+                lo, hi_t = int(th.min()), int(th.max())
+                if h in latest and lo < latest[h]:
+                    return None
+                ends[h] = max(ends.get(h, hi_t), hi_t)
+                start = min(start, lo)
+                if (v[m] == 0).any():
+                    release.add(h)
+                if not sub[m].all():
+                    whole.add(h)
+        latest.update(ends)
+        starts.append(start)
+    facts = {h: HeadFacts(point_mode=h not in release, whole_second=h in whole) for h in range(len(index))}
+    return _Plan(days, starts, facts)
+
+
+# Wheel records fed to the event stream between two releases (about: a day is cut in equal times).
+SLICE_ROWS = 100_000
+
+
+def _day_arrays(
+    root: Path, manifest: Manifest, group: list[PartitionKey], index: dict[tuple[int, Any], int]
+) -> dict[str, np.ndarray]:
+    """One day's wheel records (its partitions in key order, each in the batch's order) as compact arrays."""
+    import pyarrow.parquet as pq
+
+    cols: dict[str, list[np.ndarray]] = {c: [] for c in ("head", "channel", "time_ns", "value", "subsecond")}
+    info = manifest.derived["partitions"]
+    for k in group:
+        rel = partition_parts(k.name, info[k.name]).get("wheel_records")
+        if rel is None:
+            continue
+        t = pq.read_table(root / rel, columns=["counting_head", "channel", "time_ns", "value", "subsecond"])
+        if not t.num_rows:
+            continue
+        # Every row is of the partition's device: the head from the name's dictionary code.
+        names = pc.dictionary_encode(t["counting_head"]).combine_chunks()
+        lut = np.array([index[(k.device_id, n)] for n in names.dictionary.to_pylist()] or [0], np.int32)
+        codes = names.indices.to_numpy(zero_copy_only=False)
+        if names.null_count:
+            codes = np.where(names.is_null().to_numpy(zero_copy_only=False), len(lut), codes)
+            lut = np.r_[lut, np.int32(index[(k.device_id, None)])]
+        cols["head"].append(lut[codes.astype(np.int64)])
+        cols["channel"].append(t["channel"].to_numpy().astype(np.int16))
+        cols["time_ns"].append(t["time_ns"].to_numpy().astype(np.int64))
+        cols["value"].append(t["value"].to_numpy().astype(np.int8))
+        cols["subsecond"].append(t["subsecond"].to_numpy().astype(bool))
+        del t, names
+    if not cols["head"]:
+        return {"head": np.zeros(0, np.int32), "time_ns": np.zeros(0, np.int64)}
+    return {c: np.concatenate(v) for c, v in cols.items()}
+
+
+class _HistoryWriter:
+    """The section engine's history (state timeline, count ledger) written out as it is made."""
+
+    def __init__(self, root: Path, generation: int) -> None:
+        from console.archive.parts import PartWriter
+
+        self.writers = {
+            name: PartWriter(root, name, generation, "d", by_device=False, by_day=False)
+            for name in ("section_states", "count_ledger")
+        }
+
+    @staticmethod
+    def _timed(df: pd.DataFrame) -> pa.Table:
+        df["time"] = pd.to_datetime(df["time_ns"], unit="ns")
+        df["day"] = df["time"].dt.date
+        return _arrow(df)
+
+    def take(self, engine: Any) -> None:
+        if engine.transitions:
+            trs, engine.transitions = engine.transitions, []
+            df = pd.DataFrame(
+                [(t.time_ns, t.section, str(t.state), t.count, t.reason) for t in trs],
+                columns=["time_ns", "section", "state", "count", "reason"],
+            )
+            self.writers["section_states"].add(self._timed(df))
+        if engine.ledger:
+            led, engine.ledger = engine.ledger, []
+            df = pd.DataFrame(
+                [(x.time_ns, x.section, x.head, x.delta, x.count) for x in led],
+                columns=["time_ns", "section", "head", "delta", "count"],
+            )
+            self.writers["count_ledger"].add(self._timed(df))
+        engine.resets = []  # no operator reset in an archive: nothing to keep
+
+    def close(self) -> dict[str, list[str]]:
+        return {name: w.close() for name, w in self.writers.items()}
+
+    def abort(self) -> None:
+        for w in self.writers.values():
+            w.abort()
+
+
+def _stream_cross_head(
+    root: Path, manifest: Manifest, layout: Any, keys: list[PartitionKey]
+) -> tuple[DiagJob, tuple[list[Any], list[str], Any], dict[str, list[str]]] | None:
+    """Detection events and section states in memory bounded by heads and one day's wheel records.
+
+    The wheel records are read a day at a time (every device's partitions of
+    that day) into :class:`console.analysis.stream_sections.EventStream`,
+    events released below the next day's earliest record into the section
+    engine, whose history is written out as it is made.  The events are the
+    batch path's, in its order (``tests/test_stream_sections.py``); only the
+    channel events health reads are kept.  None: not streamable (no
+    diagnostic partition, three-element heads, a head whose records go back
+    in time from one day to the next): the caller reads it whole.
+    Returns (the job for health, (health events, warnings, sections result), parts per table).
+    """
+    from console.analysis.diag_events import DiagEventSettings
+    from console.analysis.sections import SectionEngine, SectionState
+    from console.analysis.stream_sections import EventStream
+    from console.stream_jobs import HEALTH_EVENT_KINDS
+
+    if not keys or (layout is not None and any(h.channels == 3 for h in layout.heads)):
+        return None
+    heads = _head_order(manifest, keys)
+    index = {h: i for i, h in enumerate(heads)}
+    plan = _plan(root, manifest, keys, index)
+    if plan is None:
+        return None
+    with_sections = layout is not None and bool(layout.sections)
+    stream = EventStream(layout, DiagEventSettings(), facts=plan.facts)
+    health: list[Any] = []
+    engine: SectionEngine | None = None
+    history = _HistoryWriter(root, manifest.generation) if with_sections else None
+
+    def step(events: list[Any]) -> None:
+        nonlocal engine
+        health.extend(e for e in events if e.kind in HEALTH_EVENT_KINDS)
+        if history is None or not events:
+            return
+        if engine is None:
+            engine = SectionEngine(layout, initial=SectionState.PREPARATORY, start_ns=events[0].time_ns)
+        for e in events:
+            engine.step(e)
+        history.take(engine)
+
+    # Where the records still to come start: the earliest of the days after.
+    after = np.minimum.accumulate(np.array([*plan.starts[1:], np.iinfo(np.int64).max][::-1], np.int64))[::-1]
+    try:
+        for group, watermark in zip(plan.days, after.tolist(), strict=True):
+            day = _day_arrays(root, manifest, group, index)
+            # The day in time slices (each slice's rows in the batch's order), released slice by slice:
+            # the events held wait for one slice, not the day.
+            t = day["time_ns"]
+            n = len(t)
+            slices = max(1, n // SLICE_ROWS)
+            if n:
+                lo, hi = int(t.min()), int(t.max()) + 1
+                cuts = [lo + (hi - lo) * i // slices for i in range(slices + 1)]
+                for a, b in itertools.pairwise(cuts):
+                    if a == b:
+                        continue
+                    m = (t >= a) & (t < b)
+                    if m.any():
+                        stream.add({c: v[m] for c, v in day.items()}, None, heads)
+                    step(stream.release(min(b, watermark)))
+            del day, t
+            step(stream.release(watermark))
+        step(stream.finish())
+        if history is not None and engine is None:
+            engine = SectionEngine(layout, initial=SectionState.PREPARATORY, start_ns=0)  # no event: as run_sections
+            history.take(engine)
+    except BaseException:
+        if history is not None:
+            history.abort()
+        raise
+    parts = history.close() if history is not None else {}
+    result = engine.result([], [], []) if engine is not None else None
+    return _health_job(root, manifest, heads), (health, stream.warnings(heads), result), parts
+
+
+def _derive_cross_head(root: Path, manifest: Manifest, spec: str | None, keys: list[PartitionKey]) -> list[str]:
+    from console.archive.history import _layout, report_data
+
     for name in CROSS_HEAD:
         manifest.tables[name] = []
+    streamed = _stream_cross_head(root, manifest, _layout(spec), keys)
+    written: list[str] = []
+    if streamed is not None:
+        job, events, history = streamed
+        data = report_data(root, spec, manifest=manifest, job=job, streamed=events)
+        for name, rels in history.items():
+            manifest.tables[name] = list(rels)
+            written += rels
+        frames = {k: v for k, v in cross_head_tables(data).items() if k not in history}
+    else:
+        data = report_data(root, spec, manifest=manifest, job=_combined_job(root, manifest, keys))
+        frames = cross_head_tables(data)
+    time_col = {"section_states": "time_ns", "count_ledger": "time_ns"}
+    for name in CROSS_HEAD:
         df = frames.get(name)
         if df is None or df.empty:
             continue

@@ -226,6 +226,7 @@ def report_data(
     manifest: Manifest | None = None,
     *,
     job: DiagJob | Literal["read"] | None = "read",
+    streamed: tuple[list[Any], list[str], Any] | None = None,
 ) -> ReportData:
     """The report's data, from the archive (the inputs listed are the archived files).
 
@@ -234,6 +235,9 @@ def report_data(
     ``job``: the diagnostic job when the caller has it (the derivation builds it
     from the per-partition rows, :mod:`console.archive.derive`; the parse
     reports are then not rebuilt), else read from the records.
+    ``streamed``: the job's events already run (the derivation's bounded-memory
+    step): (the channel events health reads, the warnings, the section engine's
+    result or None); ``data.events`` is then left empty.
     """
     import pandas as pd
 
@@ -261,9 +265,15 @@ def report_data(
     if job is not None:
         data.job = job
         data.reports["diagnostic"] = job.report
-        data.events, ev_warnings = detection_events(job, layout, DiagEventSettings())
+        if streamed is not None:
+            health_events, ev_warnings, sections = streamed
+            if sections is not None:
+                data.sections, data.section_source = sections, "diagnostic"
+        else:
+            data.events, ev_warnings = detection_events(job, layout, DiagEventSettings())
+            health_events = data.events
         data.warnings += ev_warnings
-        findings += health_findings(job, layout, data.events, None)
+        findings += health_findings(job, layout, health_events, None)
 
     frames = _per_file_tables(root, m, "frames")
     text = [df for seq, df in frames if kind_of.get(seq) == "frames"]
