@@ -67,6 +67,55 @@ def test_a_window_and_a_head_cut_the_history(archive: Path) -> None:
     assert later.job.analysis.passages["start_ns"].min() >= t0 + 600 * 10**9
 
 
+def test_the_derived_tables_give_the_report_the_records_give(archive: Path) -> None:
+    # report --archive reads the derived tables; recomputing every analysis from the records is the oracle.
+    from console.archive.history_diag import derived_for
+    from console.archive.store import read_current
+    from console.report.model import document
+
+    assert derived_for(read_current(archive), None)
+    history = document(report_data(archive, job="history"))
+    recomputed = document(report_data(archive, job="read"))
+    assert history == recomputed
+    assert history["passages"] and history["sections"]["timeline"] and history["devices"]
+
+
+def test_a_window_is_the_history_cut_to_it(archive: Path) -> None:
+    whole = report_data(archive, job="history")
+    assert whole.job is not None and whole.sections is not None
+    p = whole.job.analysis.passages
+    ordered = sorted(p["start_ns"].tolist())
+    # Cut through the busy hours, just after a passage's start (window bounds are whole microseconds).
+    a, b = (ordered[len(ordered) * i // 3] // 1000 * 1000 + 1000 for i in (1, 2))
+    cut = report_data(archive, window=Window(start=_dt(a), end=_dt(b)), job="history")
+    assert cut.job is not None and cut.sections is not None
+    # Passages: those starting in the window, no more, no less (a passage belongs to the window it starts in).
+    starts = p["start_ns"].to_numpy()
+    want = sorted(starts[(starts >= a) & (starts < b)].tolist())
+    assert sorted(cut.job.analysis.passages["start_ns"].tolist()) == want and want
+    # Section states: the whole timeline's rows in the window; each section's final state is the last before b.
+    tl = whole.sections.timeline
+    inside = tl[(tl["time_ns"] >= a) & (tl["time_ns"] < b)]
+    assert cut.sections.timeline["time_ns"].tolist() == inside["time_ns"].tolist()
+    for sid, (state, *_rest) in cut.sections.final.items():
+        before = tl[(tl["section"] == sid) & (tl["time_ns"] < b)]
+        if len(before):
+            assert state == before["state"].iloc[-1], sid
+    led = whole.sections.ledger
+    n_in = int(((led["time_ns"] >= a) & (led["time_ns"] < b) & (led["delta"] > 0)).sum())
+    assert sum(v[2] for v in cut.sections.final.values()) == n_in
+    # The devices are those with records in the window, each counting only those records.
+    assert sum(d.records for d in cut.job.analysis.devices) < sum(d.records for d in whole.job.analysis.devices)
+
+
+def test_a_report_with_another_layout_is_recomputed_from_the_records(archive: Path) -> None:
+    from console.archive.history_diag import derived_for
+    from console.archive.store import read_current
+
+    m = read_current(archive)
+    assert derived_for(m, "example") and not derived_for(m, "osong")
+
+
 def test_bad_window_and_missing_archive_are_one_line_errors(tmp_path: Path, archive: Path) -> None:
     res = runner.invoke(app, ["report", "--archive", str(archive), "--from", "yesterday"])
     assert res.exit_code == 2 and res.stderr.startswith("trackside: error: --from/--to")

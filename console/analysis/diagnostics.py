@@ -80,6 +80,8 @@ class DiagAnalysis:
     heads: list[tuple[int, str]] = field(default_factory=list)
     wheel_columns: Columns | None = None
     activity_columns: Columns | None = None
+    # The times of the records set aside as overlap (the archive counts them per day).
+    overlap_times_ns: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     @cached_property
     def passages(self) -> pd.DataFrame:
@@ -222,7 +224,7 @@ class DiagAccumulator:
         luts = self._lookup()
         buckets = merge_buckets(self._buckets)
         self._buckets = []  # reduced: free the per-chunk runs
-        repeated, overlap_by_file = self._overlap(luts, buckets)
+        repeated, overlap_by_file, overlap_times = self._overlap(luts, buckets)
         detections, self._detections = self._detections, []
         part = analyse_parts(buckets, detections, settings, self.keep_releases, repeated)
         return DiagAnalysis(
@@ -238,26 +240,29 @@ class DiagAccumulator:
             # Only the section engine reads these: not kept for speeds alone.
             wheel_columns=part.wheel if self.keep_releases else None,
             activity_columns=part.activity if self.keep_releases else None,
+            overlap_times_ns=overlap_times,
         )
 
     def devices(self) -> list[DeviceInventory]:
         return inventory(self._lookup(), self.head_first_ns, self.head_last_ns, self._identity)
 
-    def _overlap(self, luts: RegisterTables, buckets: Columns) -> tuple[np.ndarray | None, list[int]]:
-        """Records repeated from another file (a mask over all records, None: none), and their count per file."""
+    def _overlap(self, luts: RegisterTables, buckets: Columns) -> tuple[np.ndarray | None, list[int], np.ndarray]:
+        """Records repeated from another file (a mask over all records, None: none), their count per file
+        and their times."""
         n_files = len(self.registry.files)
         prints, self._prints = self._prints, []
+        none = np.zeros(0, np.int64)
         if not prints or n_files < 2:
-            return None, [0] * n_files
+            return None, [0] * n_files, none
         cols = {c: np.concatenate([p[c] for p in prints]) for c in ("fp", "rid", "time_ns", "file")}
         del prints
         head = luts.head[cols["rid"]]
         mask = overlap_mask(cols["file"], head, cols["fp"])
         if not mask.any():
-            return None, [0] * n_files
+            return None, [0] * n_files, none
         remove_records(buckets, head[mask], luts.channel[cols["rid"][mask]], cols["time_ns"][mask])
         per_file = np.bincount(cols["file"][mask].astype(np.int64), minlength=n_files)
-        return mask, [int(x) for x in per_file]
+        return mask, [int(x) for x in per_file], cols["time_ns"][mask].astype(np.int64)
 
 
 @dataclass

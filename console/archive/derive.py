@@ -63,9 +63,10 @@ if TYPE_CHECKING:
 DERIVED = ("passages", "axles", "section_states", "count_ledger", "crossing_timelines", "health_findings")
 # Stored per (day, device) partition; wheel_records is the section engine's input (not a query view).
 PER_PARTITION = ("passages", "axles", "wheel_records")
-CROSS_HEAD = ("section_states", "count_ledger", "crossing_timelines", "health_findings")
+CROSS_HEAD = ("section_states", "count_ledger", "crossing_timelines", "health_findings", "channel_events")
 # Bump when the per-partition rows change meaning: every partition is then derived again.
-DERIVE_VERSION = 2
+# 3: passages carry their per-axle speeds; channel events and the sections' final state kept (report --archive).
+DERIVE_VERSION = 3
 
 Mapper = Callable[[Callable[..., Any], list[Any]], list[Any]]
 
@@ -329,6 +330,7 @@ def derive_tables(
                 "reach_ns": _reach(one),
                 "heads": _heads_of(one),
                 "tables": sorted(stored),  # its parts: partition_parts
+                "overlap": one.overlap.get(key.name, 0),  # records set aside as another file's overlap
             }
     manifest.derived = {
         "layout": spec,
@@ -624,6 +626,21 @@ def _stream_cross_head(
     return _health_job(root, manifest, heads), (health, stream.warnings(heads), result), parts
 
 
+def _channel_events(events: Iterable[Any]) -> pd.DataFrame:
+    """The events health judges (channel faults and recoveries, single-channel pulses), as a table."""
+    from console.analysis.events import EVENT_COLUMNS
+    from console.stream_jobs import HEALTH_EVENT_KINDS
+
+    rows = [
+        (e.time_ns, str(e.kind), e.head, e.direction, e.channel, e.source, e.detail)
+        for e in events
+        if e.kind in HEALTH_EVENT_KINDS
+    ]
+    df = pd.DataFrame(rows, columns=list(EVENT_COLUMNS))
+    df["channel"] = df["channel"].astype("Int64")
+    return df
+
+
 def _derive_cross_head(root: Path, manifest: Manifest, spec: str | None, keys: list[PartitionKey]) -> list[str]:
     from console.archive.history import _layout, report_data
 
@@ -638,10 +655,16 @@ def _derive_cross_head(root: Path, manifest: Manifest, spec: str | None, keys: l
             manifest.tables[name] = list(rels)
             written += rels
         frames = {k: v for k, v in cross_head_tables(data).items() if k not in history}
+        channel = events[0]
     else:
         data = report_data(root, spec, manifest=manifest, job=_combined_job(root, manifest, keys))
         frames = cross_head_tables(data)
-    time_col = {"section_states": "time_ns", "count_ledger": "time_ns"}
+        channel = data.events
+    frames["channel_events"] = _channel_events(channel)
+    # The report of the whole archive shows each section's final state (report --archive reads it here).
+    final = data.sections.final if data.sections is not None else {}
+    manifest.derived["sections_final"] = {sid: list(v) for sid, v in final.items()}
+    time_col = {"section_states": "time_ns", "count_ledger": "time_ns", "channel_events": "time_ns"}
     for name in CROSS_HEAD:
         df = frames.get(name)
         if df is None or df.empty:

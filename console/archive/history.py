@@ -177,7 +177,7 @@ def diag_job(root: Path, manifest: Manifest, window: Window = Window()) -> DiagJ
     return DiagJob(files=files, report=report, analysis=analysis, kept_records=records)
 
 
-def health_records(root: Path, manifest: Manifest) -> pd.DataFrame:
+def health_records(root: Path, manifest: Manifest, window: Window = Window()) -> pd.DataFrame:
     """The records of the health registers, as ``diag_job`` keeps them (without reading the other records)."""
     from console.archive.records import ChunkRebuilder
     from console.jobs import HEALTH_REGISTERS
@@ -185,7 +185,7 @@ def health_records(root: Path, manifest: Manifest) -> pd.DataFrame:
 
     rebuild = ChunkRebuilder()
     kept: list[DiagChunk] = []
-    for batch in record_batches(root, manifest, tables=("records",), labels=HEALTH_REGISTERS):
+    for batch in record_batches(root, manifest, window, tables=("records",), labels=HEALTH_REGISTERS):
         kept += rebuild.chunks(batch)
     return chunks_to_frame(kept, rebuild.registry)
 
@@ -225,7 +225,7 @@ def report_data(
     window: Window = Window(),
     manifest: Manifest | None = None,
     *,
-    job: DiagJob | Literal["read"] | None = "read",
+    job: DiagJob | Literal["read", "history"] | None = "read",
     streamed: tuple[list[Any], list[str], Any] | None = None,
 ) -> ReportData:
     """The report's data, from the archive (the inputs listed are the archived files).
@@ -234,7 +234,9 @@ def report_data(
     order, on the archived tables instead of freshly parsed files.
     ``job``: the diagnostic job when the caller has it (the derivation builds it
     from the per-partition rows, :mod:`console.archive.derive`; the parse
-    reports are then not rebuilt), else read from the records.
+    reports are then not rebuilt); ``"read"``: recomputed from the records;
+    ``"history"``: read from the derived tables (:mod:`console.archive.history_diag`;
+    the caller checks :func:`~console.archive.history_diag.derived_for` first).
     ``streamed``: the job's events already run (the derivation's bounded-memory
     step): (the channel events health reads, the warnings, the section engine's
     result or None); ``data.events`` is then left empty.
@@ -257,10 +259,17 @@ def report_data(
     kind_of = {int(e["file_seq"]): str(e["kind"]) for e in active}
     inputs = [InputFile(str(e["path"]), str(e["kind"]), True, "from the archive") for e in active]
     data = ReportData(inputs=inputs, layout=layout, settings=settings)
-    reports: dict[str, ParseReport] = parse_reports(root, m) if job == "read" else defaultdict(ParseReport)
+    reports: dict[str, ParseReport] = parse_reports(root, m) if job in ("read", "history") else defaultdict(ParseReport)
 
     findings: list[Finding] = []
-    if job == "read":
+    if job == "history":
+        from console.archive.history_diag import history_diag
+
+        found = history_diag(root, m, layout, settings, window)
+        job = None if found is None else found.job
+        if found is not None:
+            streamed = (found.channel_events, found.warnings, found.sections)
+    elif job == "read":
         job = diag_job(root, m, window)
     if job is not None:
         data.job = job
@@ -427,8 +436,12 @@ def archive_collector(
         except ValueError as exc:
             raise ReportInputError(f"--from/--to: {exc}") from None
         try:
+            from console.archive.history_diag import derived_for
+
             m = require_archive(root)
-            return report_data(root, layout, window, manifest=m)
+            # The derived tables when they hold this report (the layout they were derived with), else the records.
+            how: Literal["read", "history"] = "history" if derived_for(m, layout) else "read"
+            return report_data(root, layout, window, manifest=m, job=how)
         except ArchiveError as exc:
             raise ReportInputError(str(exc)) from None
 

@@ -40,7 +40,7 @@ from __future__ import annotations
 import datetime as dt
 import re
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -100,6 +100,7 @@ class DerivedRows:
     wheel: pd.DataFrame  # WHEEL_COLUMNS: the section engine's input, in the batch's order per head
     heads: pd.DataFrame  # HEAD_COLUMNS: each head's first record (file, line) in these days
     last_end_day: dict[str, str]  # key name → day of its latest passage end (ISO)
+    overlap: dict[str, int] = field(default_factory=dict)  # key name → records set aside as another file's overlap
 
     def only(self, key: PartitionKey) -> DerivedRows:
         """The rows of one of the keys (a run's rows split per partition for storage)."""
@@ -110,6 +111,7 @@ class DerivedRows:
             wheel=self.wheel[self.wheel["_key_day"] == key.day].reset_index(drop=True),
             heads=self.heads[self.heads["_key_day"] == key.day].reset_index(drop=True),
             last_end_day={k: v for k, v in self.last_end_day.items() if k == key.name},
+            overlap={k: v for k, v in self.overlap.items() if k == key.name},
         )
 
     def split(self) -> dict[PartitionKey, DerivedRows]:
@@ -132,6 +134,7 @@ class DerivedRows:
                 wheel=self.wheel[w_day == d].reset_index(drop=True),
                 heads=self.heads[h_day == d].reset_index(drop=True),
                 last_end_day={k: v for k, v in self.last_end_day.items() if k == key.name},
+                overlap={k: v for k, v in self.overlap.items() if k == key.name},
             )
         return out
 
@@ -411,14 +414,16 @@ def _rows(analysis: DiagAnalysis | None, heads: pd.DataFrame, device_id: int, da
     reach = pd.Series(kept["end_ns"].to_numpy(np.int64)).groupby(start_day[keep]).max()
     ends = _day_of(reach.to_numpy(np.int64))
     last = {f"{device_id}/{d.isoformat()}": e.isoformat() for d, e in zip(reach.index, ends, strict=True)}
-    return DerivedRows(keys, kept, axles, wheel, heads, last)
+    overlap_day = _day_of(analysis.overlap_times_ns)
+    overlap = {k.name: int((overlap_day == k.day).sum()) for k in keys}
+    return DerivedRows(keys, kept, axles, wheel, heads, last, overlap)
 
 
 def passages_table(analysis: DiagAnalysis | None) -> pd.DataFrame:
     """The archived passages of an analysis: analyze's passage table with a ``start`` timestamp.
 
     ``axle_speeds_start``/``stop`` index an in-memory array of per-axle speeds
-    (the JSON's lists): not archived (the axles table holds the speeds).
+    (the JSON's lists): archived as a list per passage, ``axle_speeds_kmh``.
     """
     import pandas as pd
 
@@ -426,10 +431,15 @@ def passages_table(analysis: DiagAnalysis | None) -> pd.DataFrame:
 
     if analysis is None:
         p = pd.DataFrame(columns=list(PASSAGE_COLUMNS))
+        speeds: list[list[float]] = []
     else:
         p = analysis.passages.copy()
+        flat = np.asarray(p.attrs.get("axle_speeds_kmh", np.zeros(0)), np.float64).tolist()
+        bounds = zip(p["axle_speeds_start"].tolist(), p["axle_speeds_stop"].tolist(), strict=True)
+        speeds = [flat[a:b] for a, b in bounds]
         p.attrs = {}
     p = p.drop(columns=["axle_speeds_start", "axle_speeds_stop"])
+    p["axle_speeds_kmh"] = pd.Series(speeds, index=p.index, dtype=object)
     p["start"] = pd.to_datetime(p["start_ns"], unit="ns")
     return _string_columns(p)
 

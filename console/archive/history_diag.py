@@ -1,0 +1,359 @@
+"""The report's diagnostic part read from the archive's derived tables, not recomputed from its records.
+
+``report --archive`` over a day of a busy station would otherwise parse
+that day's millions of records again and run every analysis over them.
+The derivation (:mod:`console.archive.derive`) has already written the
+analyses down: passages (with their per-axle speeds), section states and
+the count ledger, the channel events health judges, the sections' final
+state.  Here they are read back for a window and handed to the report as
+the batch analyses would have returned them; only small things are
+computed: the device inventory (one SQL aggregate per register over the
+window's records) and the health verdicts (from the window's channel events
+and health-register records, by the same :func:`console.jobs.health_findings`).
+
+A window is the archive's history cut to it, not the window's records
+analysed as a log on their own: a passage belongs to the window it starts
+in, a section enters the window in the state the history left it, and its
+final state is the one at the window's end.  Without a window the report
+equals the report on all the archived files (tests/test_archive_report.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from console.archive.store import Manifest
+
+if TYPE_CHECKING:
+    import duckdb
+    import pandas as pd
+
+    from console.analysis.diagnostics import SpeedSettings
+    from console.analysis.events import DetectionEvent
+    from console.analysis.inventory import DeviceInventory
+    from console.analysis.sections import SectionsResult
+    from console.archive.history import Window
+    from console.jobs import DiagJob
+    from console.layout import Layout
+
+
+@dataclass
+class HistoryDiag:
+    """The diagnostic part of a report, from the derived tables."""
+
+    job: DiagJob
+    sections: SectionsResult | None
+    channel_events: list[DetectionEvent]  # the events health reads (channel faults, single-channel pulses)
+    warnings: list[str]  # heads of the log the layout does not count
+
+
+def derived_for(manifest: Manifest, layout_spec: str | None) -> bool:
+    """Whether the derived tables hold this report: derived by this version, with this layout."""
+    from console.archive.derive import DERIVE_VERSION
+
+    d = manifest.derived
+    fingerprint = d.get("fingerprint") or {}
+    return (
+        bool(manifest.parts("records"))
+        and "partitions" in d
+        and "sections_final" in d
+        and fingerprint.get("version") == DERIVE_VERSION
+        and (layout_spec is None or layout_spec == d.get("layout"))
+    )
+
+
+def history_diag(
+    root: Path, manifest: Manifest, layout: Layout | None, settings: SpeedSettings, window: Window
+) -> HistoryDiag | None:
+    """The window's diagnostic analyses from the derived tables (None: no diagnostic records in it)."""
+    from console.analysis.diagnostics import DiagAnalysis
+    from console.archive.history import health_records, parse_reports
+    from console.archive.views import connect
+    from console.jobs import DiagJob
+
+    con, _ = connect(root, manifest, tables=("records", "passages", "section_states", "count_ledger"))
+    try:
+        devices = _inventory(con, window)
+        if not devices:
+            return None
+        heads = _heads(manifest)
+        passages = _passages(con, window, heads)
+        sections = _sections(con, manifest, layout, window)
+    finally:
+        con.close()
+    report = parse_reports(root, manifest)["diagnostic"]
+    analysis = DiagAnalysis(
+        settings=settings,
+        devices=devices,
+        passage_columns=None,
+        axle_columns={},
+        overlap_records=_overlap(manifest, window),
+        # Every wheel onset lies in a passage; the unpaired are those no axle took.
+        unpaired_detections=int(
+            (passages["detections_sys1"].sum() + passages["detections_sys2"].sum() - 2 * passages["axles"].sum())
+            if len(passages)
+            else 0
+        ),
+        head_names=[name for _, name in heads],
+        heads=heads,
+    )
+    analysis.__dict__["passages"] = passages  # the cached table, as DiagAnalysis.passages builds it
+    job = DiagJob(
+        files=[f.file for f in report.files],
+        report=report,
+        analysis=analysis,
+        kept_records=health_records(root, manifest, window),
+    )
+    return HistoryDiag(job, sections, _channel_events(root, manifest, window), _warnings(layout, heads))
+
+
+def _heads(manifest: Manifest) -> list[tuple[int, Any]]:
+    from console.archive.derive import _head_order
+    from console.archive.partition import PartitionKey
+
+    keys = [PartitionKey.parse(name) for name in manifest.derived["partitions"]]
+    return _head_order(manifest, keys)
+
+
+def _overlap(manifest: Manifest, window: Window) -> int:
+    """Records set aside as another file's overlap, in the window's days (counted per partition)."""
+    from console.archive.partition import PartitionKey
+
+    lo = window.start.date() if window.start is not None else None
+    hi = window.end.date() if window.end is not None else None
+    total = 0
+    for name, info in manifest.derived["partitions"].items():
+        k = PartitionKey.parse(name)
+        if (lo is not None and k.day < lo) or (hi is not None and k.day > hi):
+            continue
+        if window.device_id is not None and k.device_id != window.device_id:
+            continue
+        total += int(info.get("overlap", 0))
+    return total
+
+
+def _warnings(layout: Layout | None, heads: list[tuple[int, Any]]) -> list[str]:
+    from console.analysis.diag_events import DiagEventSettings
+    from console.analysis.stream_sections import EventStream
+
+    return EventStream(layout, DiagEventSettings()).warnings(heads)
+
+
+def _where(window: Window, time_column: str, *, heads: bool = True) -> tuple[str, list[Any]]:
+    """A window's WHERE over a derived table (times as ns integers or timestamps)."""
+    conds: list[str] = []
+    params: list[Any] = []
+    for bound, op in ((window.start, ">="), (window.end, "<")):
+        if bound is not None:
+            conds.append(f"{time_column} {op} ?")
+            params.append(bound if not time_column.endswith("_ns") else _ns(bound))
+    if heads and window.head is not None:
+        conds.append("counting_head = ?")
+        params.append(window.head)
+    if heads and window.device_id is not None:
+        conds.append("device_id = ?")
+        params.append(window.device_id)
+    return (" WHERE " + " AND ".join(conds)) if conds else "", params
+
+
+def _ns(t: Any) -> int:
+    import datetime as dt
+
+    return (t - dt.datetime(1970, 1, 1)) // dt.timedelta(microseconds=1) * 1000
+
+
+def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[int, Any]]) -> pd.DataFrame:
+    """The window's passages as ``DiagAnalysis.passages`` gives them (per-axle speeds in ``attrs``)."""
+    import pandas as pd
+
+    from console.analysis.diagnostics import PASSAGE_COLUMNS
+
+    where, params = _where(window, "start_ns")
+    columns = [c for c in PASSAGE_COLUMNS if c not in ("axle_speeds_start", "axle_speeds_stop")]
+    names = con.sql("SELECT * FROM passages LIMIT 0").columns
+    if "axle_speeds_kmh" not in names:  # no passage at all: the view has the empty table's columns
+        return pd.DataFrame(columns=list(PASSAGE_COLUMNS))
+    select = ", ".join(f'"{c}"' for c in [*columns, "axle_speeds_kmh"])
+    df = con.execute(f"SELECT {select} FROM passages{where} ORDER BY start_ns", params).df()
+    # The batch lists passages head by head (heads in the order they first appear), each in time order.
+    index = {h: i for i, h in enumerate(heads)}
+    pairs = zip(df["device_id"].tolist(), df["counting_head"].tolist(), strict=True)
+    rank = np.fromiter((index.get((d, None if n != n else n), len(index)) for d, n in pairs), np.int64, len(df))
+    df = df.iloc[np.argsort(rank, kind="stable")].reset_index(drop=True)
+    speeds = df.pop("axle_speeds_kmh")
+    n = np.fromiter((0 if v is None else len(v) for v in speeds), np.int64, len(speeds))
+    stop = np.cumsum(n)
+    flat = [x for v in speeds if v is not None for x in v]
+    df.insert(columns.index("speed_kmh_per_axle_mean"), "axle_speeds_start", stop - n)
+    df.insert(columns.index("speed_kmh_per_axle_mean") + 1, "axle_speeds_stop", stop)
+    df = df[list(PASSAGE_COLUMNS)]
+    df.attrs["axle_speeds_kmh"] = np.asarray(flat, np.float64)
+    return df
+
+
+def _inventory(con: duckdb.DuckDBPyConnection, window: Window) -> list[DeviceInventory]:
+    """The devices of the window's records, as the batch inventory gives them, from per-register aggregates."""
+    from console.analysis.inventory import IDENTITY_LABELS, DeviceInventory, IdentityValue, apply_identity
+
+    where, params = window.where()
+    rows = con.execute(
+        "SELECT device_id, first(device ORDER BY file_seq, line), first(type ORDER BY file_seq, line), "
+        "first(gs ORDER BY file_seq, line), list(DISTINCT diag_id ORDER BY diag_id), "
+        "list(DISTINCT channel ORDER BY channel), count(*), min(time), max(time) "
+        f"FROM records{where} GROUP BY device_id ORDER BY device_id",
+        params,
+    ).fetchall()
+    if not rows:
+        return []
+    # Heads per device in the order they first appear (the batch numbers heads so).
+    heads: dict[int, list[str]] = {}
+    for device_id, head in con.execute(
+        f"SELECT device_id, counting_head FROM records{where} GROUP BY device_id, counting_head "
+        "ORDER BY device_id, min(file_seq::BIGINT * 4294967296 + line)",
+        params,
+    ).fetchall():
+        heads.setdefault(int(device_id), []).append(head)
+    # Identity registers: each one's latest value (by time; ties: the later line).
+    labels = sorted(IDENTITY_LABELS)
+    ident_where = where + (" AND " if where else " WHERE ") + "label_canonical IN (SELECT unnest(?))"
+    identity: dict[int, list[IdentityValue]] = {}
+    for device_id, canonical, address, value, kind, data in con.execute(
+        "SELECT device_id, label_canonical, address, "
+        "arg_max(value, (time, file_seq, line)), arg_max(data_kind, (time, file_seq, line)), "
+        "arg_max(data, (time, file_seq, line)) "
+        f"FROM records{ident_where} GROUP BY device_id, diag_id, device, type, gs, counting_head, channel, "
+        "address, label, label_canonical, label_encoding",
+        [*params, labels],
+    ).fetchall():
+        identity.setdefault(int(device_id), []).append(
+            IdentityValue(str(canonical), int(address), int(value), str(kind), str(data))
+        )
+    out = []
+    for device_id, device, type_, gs, diag_ids, channels, n, first, last in rows:
+        inv = DeviceInventory(
+            device_id=int(device_id),
+            device=str(device),
+            type=str(type_),
+            gs=str(gs),
+            diag_ids=[int(x) for x in diag_ids],
+            counting_heads=heads.get(int(device_id), []),
+            channels=[int(x) for x in channels],
+            records=int(n),
+            first_ns=_ns(first),
+            last_ns=_ns(last),
+        )
+        values = identity.get(int(device_id))
+        if values:
+            apply_identity(inv, values)
+        out.append(inv)
+    return out
+
+
+def _sections(
+    con: duckdb.DuckDBPyConnection, manifest: Manifest, layout: Layout | None, window: Window
+) -> SectionsResult | None:
+    """The section history cut to the window; the final state at its end (stored for the whole history)."""
+    import pandas as pd
+
+    from console.analysis.sections import SectionEngine, SectionsResult, SectionState
+    from console.archive.history import Window
+
+    if layout is None or not layout.sections:
+        return None
+    where, params = _where(window, "time_ns", heads=False)
+    timeline = _rows(con, "section_states", ["time_ns", "section", "state", "count", "reason"], where, params)
+    ledger = _rows(con, "count_ledger", ["time_ns", "section", "head", "delta", "count"], where, params)
+    resets = pd.DataFrame(columns=["time_ns", "section", "accepted", "reason"])
+    if window.start is None and window.end is None:
+        stored = manifest.derived["sections_final"]
+        whole = {sid: (str(v[0]), int(v[1]), int(v[2]), int(v[3]), str(v[4])) for sid, v in stored.items()}
+        return SectionsResult(timeline, ledger, resets, whole)
+    # The state at the window's end: the last change before it (else the state the engine starts in),
+    # the count of the last axle before it; axles in and out counted within the window.
+    end_where, end_params = _where(Window(end=window.end), "time_ns", heads=False)
+    start = SectionEngine(layout, initial=SectionState.PREPARATORY, start_ns=0).sections
+    final: dict[str, tuple[str, int, int, int, str]] = {
+        sid: (str(s.state), s.count, 0, 0, s.reason) for sid, s in start.items()
+    }
+    for sid, state, count, reason in _last_rows(con, "section_states", "state, count, reason", end_where, end_params):
+        if sid in final:
+            final[sid] = (str(state), int(count), 0, 0, str(reason))
+    if len(ledger):
+        counts = {sid: c for sid, c in _last_rows(con, "count_ledger", "count", end_where, end_params)}
+        inward = ledger[ledger["delta"] > 0].groupby("section").size()
+        outward = ledger[ledger["delta"] < 0].groupby("section").size()
+        for sid, (state, count, _, _, reason) in list(final.items()):
+            final[sid] = (
+                state,
+                int(counts.get(sid, count)),
+                int(inward.get(sid, 0)),
+                int(outward.get(sid, 0)),
+                reason,
+            )
+    return SectionsResult(timeline, ledger, resets, final)
+
+
+def _last_rows(
+    con: duckdb.DuckDBPyConnection, table: str, columns: str, where: str, params: list[Any]
+) -> list[tuple[Any, ...]]:
+    """Per section, its last row (in the table's order: the engine's) among those ``where`` selects."""
+    if "time_ns" not in con.sql(f"SELECT * FROM {table} LIMIT 0").columns:
+        return []
+    latest = con.execute(f"SELECT section, max(time_ns) FROM {table}{where} GROUP BY section", params).fetchall()
+    if not latest:
+        return []
+    last_ns = dict(latest)
+    # Rows at those instants, in stored order (DuckDB keeps a scan's order): the last per section wins.
+    out: dict[Any, tuple[Any, ...]] = {}
+    for row in con.execute(
+        f"SELECT section, time_ns, {columns} FROM {table} WHERE time_ns IN (SELECT unnest(?))",
+        [sorted(set(last_ns.values()))],
+    ).fetchall():
+        if last_ns.get(row[0]) == row[1]:
+            out[row[0]] = (row[0], *row[2:])
+    return list(out.values())
+
+
+def _rows(
+    con: duckdb.DuckDBPyConnection, table: str, columns: list[str], where: str, params: list[Any]
+) -> pd.DataFrame:
+    """A derived table's rows in time order (an empty table when it has none: no rows were ever derived)."""
+    import pandas as pd
+
+    if not set(columns) <= set(con.sql(f"SELECT * FROM {table} LIMIT 0").columns):
+        return pd.DataFrame(columns=columns)
+    return con.execute(f"SELECT {', '.join(columns)} FROM {table}{where} ORDER BY time_ns", params).df()
+
+
+def _channel_events(root: Path, manifest: Manifest, window: Window) -> list[DetectionEvent]:
+    """The stored channel events (the events health reads) in the window, in time order."""
+    import pyarrow.parquet as pq
+
+    from console.analysis.events import DetectionEvent, EventKind
+
+    out: list[DetectionEvent] = []
+    lo = _ns(window.start) if window.start is not None else None
+    hi = _ns(window.end) if window.end is not None else None
+    for rel in manifest.parts("channel_events"):
+        t = pq.read_table(root / rel).to_pylist()
+        for r in t:  # channel events are rare: a few per fault
+            if (lo is not None and r["time_ns"] < lo) or (hi is not None and r["time_ns"] >= hi):
+                continue
+            if window.head is not None and r["head"] != window.head:
+                continue
+            out.append(
+                DetectionEvent(
+                    int(r["time_ns"]),
+                    EventKind(r["kind"]),
+                    r["head"],
+                    int(r["direction"]),
+                    None if r["channel"] is None else int(r["channel"]),
+                    r["source"],
+                    r["detail"],
+                )
+            )
+    return out
