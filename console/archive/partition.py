@@ -102,20 +102,8 @@ class DerivedRows:
     last_end_day: dict[str, str]  # key name → day of its latest passage end (ISO)
     overlap: dict[str, int] = field(default_factory=dict)  # key name → records set aside as another file's overlap
 
-    def only(self, key: PartitionKey) -> DerivedRows:
-        """The rows of one of the keys (a run's rows split per partition for storage)."""
-        return DerivedRows(
-            keys=(key,),
-            passages=self.passages[_day_of(self.passages["start_ns"]) == key.day].reset_index(drop=True),
-            axles=self.axles[self.axles["_key_day"] == key.day].reset_index(drop=True),
-            wheel=self.wheel[self.wheel["_key_day"] == key.day].reset_index(drop=True),
-            heads=self.heads[self.heads["_key_day"] == key.day].reset_index(drop=True),
-            last_end_day={k: v for k, v in self.last_end_day.items() if k == key.name},
-            overlap={k: v for k, v in self.overlap.items() if k == key.name},
-        )
-
     def split(self) -> dict[PartitionKey, DerivedRows]:
-        """The rows of each key (as :meth:`only`, each table's days converted once, not once per key)."""
+        """The rows of each key (each table's days converted once, not once per key)."""
 
         def days(values: object) -> np.ndarray:
             return np.asarray(values, dtype="datetime64[D]")
@@ -367,6 +355,8 @@ def _rows(analysis: DiagAnalysis | None, heads: pd.DataFrame, device_id: int, da
         return DerivedRows(keys, passages_table(analysis), empty, empty, heads, {})
     p = passages_table(analysis)
     start_day = _day_of(p["start_ns"])
+    # The same days as datetime64 for the per-row columns (python dates per axle and record cost seconds).
+    start_day64 = (p["start_ns"].to_numpy(np.int64) // NS_PER_DAY).astype("datetime64[D]")
     keep = np.isin(start_day, np.array(list(days), dtype=object))
     # Every axle and wheel record lies in one passage of its head: the passage starting at or before it.
     head_index = pd.MultiIndex.from_tuples(analysis.heads, names=["device_id", "counting_head"])
@@ -387,7 +377,7 @@ def _rows(analysis: DiagAnalysis | None, heads: pd.DataFrame, device_id: int, da
     a_owner = owner(analysis.axle_columns["head"].astype(np.int64), axles["time_ns"].to_numpy(np.int64))
     a_keep = (a_owner >= 0) & keep[np.maximum(a_owner, 0)]
     axles = axles[a_keep].reset_index(drop=True)
-    axles["_key_day"] = start_day[a_owner[a_keep]]
+    axles["_key_day"] = start_day64[a_owner[a_keep]]
 
     wr = analysis.wheel_records
     if len(wr):
@@ -404,7 +394,7 @@ def _rows(analysis: DiagAnalysis | None, heads: pd.DataFrame, device_id: int, da
                 "time_ns": wr["time_ns"].to_numpy()[w_keep],
                 "value": wr["value"].to_numpy()[w_keep],
                 "subsecond": wr["subsecond"].to_numpy()[w_keep],
-                "_key_day": start_day[w_owner[w_keep]],
+                "_key_day": start_day64[w_owner[w_keep]],
             }
         )
     else:
