@@ -89,6 +89,68 @@ def one(archive: Path, engine: str) -> dict[str, Any]:
     return out
 
 
+def one_derive_tables(archive: Path, engine: str) -> dict[str, Any]:
+    """``--what derive-tables``: the derivation an ingest runs (console.archive.derive.derive_tables), all of it.
+
+    Every partition derived again (the manifest's derived state dropped), each
+    task's rows stored as they come back (parts of an unpublished generation,
+    removed after the run), then the cross-head step (section states, ledger,
+    health, crossings) in this process.  ``map_s`` is the partition tasks on the
+    engine, ``cross_s`` the step after them.
+    """
+    import copy
+    import shutil
+
+    from console.archive.derive import derive_tables
+    from console.archive.partition import partitions
+    from console.archive.store import read_current
+    from console.fleet import engine as fleet_engine
+    from console.fleet import engine_scope, engine_spec, fleet_mapper
+
+    m = copy.deepcopy(read_current(archive))
+    layout = m.derived.get("layout")
+    m.derived = {}
+    m.generation += 100_000  # parts of a generation no manifest will name
+    spec = engine_spec() if engine == "local" else engine_spec("dask", workers=int(engine.split(":")[1]))
+    out: dict[str, Any] = {"engine": engine, "partitions": len(partitions(m))}
+    mapped = {"s": 0.0}
+
+    def timed(fn: Any, items: Any) -> Any:
+        t = time.perf_counter()
+        try:
+            return fleet_mapper(fn, items)
+        finally:
+            mapped["s"] += time.perf_counter() - t
+
+    t0 = time.perf_counter()
+    written: list[str] = []
+    with engine_scope(spec, progress=False):
+        client = getattr(fleet_engine._current.get(), "client", None)
+        cpu_at_start: dict[str, float] = client.run(_cpu_s) if client is not None else {}
+        cpu0 = _cpu_s()
+        started = time.perf_counter()
+        try:
+            written = derive_tables(archive, m, layout, mapper=timed)
+        finally:
+            done = time.perf_counter()
+            for rel in written:
+                (archive / rel).unlink(missing_ok=True)
+            shutil.rmtree(archive / "tmp", ignore_errors=True)
+        out["client_cpu_s"] = round(_cpu_s() - cpu0, 1)
+        if client is not None:
+            rss = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+            out["worker_peak_rss_mb"] = sorted(round(v, 1) for v in rss.values())
+            cpu = client.run(_cpu_s)
+            out["worker_cpu_s"] = sorted(round(v - cpu_at_start.get(k, 0.0), 1) for k, v in cpu.items())
+    out["start_s"] = round(started - t0, 2)
+    out["derive_s"] = round(done - started, 2)
+    out["map_s"] = round(mapped["s"], 2)
+    out["cross_s"] = round(done - started - mapped["s"], 2)
+    out["parts_written"] = len(written)
+    out["peak_rss_mb"] = round(_peak_rss_mb(), 1)
+    return out
+
+
 def records_of(archive: Path) -> int:
     from console.archive.views import run_query
 
@@ -103,12 +165,19 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--workers", default="1,2", help="worker counts to run, e.g. 1,2")
     ap.add_argument("--no-local", action="store_true", help="skip the local engine")
+    ap.add_argument(
+        "--what",
+        choices=("partitions", "derive-tables"),
+        default="partitions",
+        help="partitions: the partition tasks, rows gathered here; derive-tables: an ingest's whole derivation",
+    )
     ap.add_argument("--one", help=argparse.SUPPRESS)
     ap.add_argument("--json", type=Path, help="write the runs here")
     args = ap.parse_args()
 
     if args.one:
-        print(json.dumps(one(args.archive, args.one)))
+        run_one = one_derive_tables if args.what == "derive-tables" else one
+        print(json.dumps(run_one(args.archive, args.one)))
         return
     if not (args.archive / "CURRENT").exists():
         if args.build_from is None:
@@ -126,7 +195,7 @@ def main() -> None:
     runs: list[dict[str, Any]] = []
     for r in range(args.rounds):
         for engine in configs:
-            cmd = [sys.executable, __file__, str(args.archive), "--one", engine]
+            cmd = [sys.executable, __file__, str(args.archive), "--what", args.what, "--one", engine]
             res = subprocess.run(cmd, capture_output=True, text=True, check=False)
             if res.returncode != 0:
                 sys.exit(f"{engine}: {res.stderr.strip().splitlines()[-1:]}")
@@ -139,6 +208,7 @@ def main() -> None:
                 f"round {r} {engine:7s} derive {run['derive_s']:7.1f} s ({rate:,.0f} k rec/s)"
                 f"  start {run['start_s']:5.1f} s  client peak {run['peak_rss_mb']:6.0f} MB"
                 + (f"  workers peak {workers} MB" if workers else "")
+                + (f"  map {run['map_s']} s cross-head {run['cross_s']} s" if "map_s" in run else "")
                 + f"  cpu client {run['client_cpu_s']} s"
                 + (f" workers {run['worker_cpu_s']} s" if workers else ""),
                 flush=True,
