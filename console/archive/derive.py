@@ -68,7 +68,8 @@ CROSS_HEAD = ("section_states", "count_ledger", "crossing_timelines", "health_fi
 # 3: passages carry their per-axle speeds; channel events and the sections' final state kept (report --archive).
 DERIVE_VERSION = 3
 
-Mapper = Callable[[Callable[..., Any], list[Any]], list[Any]]
+# mapper(fn, items) → the results in the order of items (a list, or an iterator giving them as they come).
+Mapper = Callable[[Callable[..., Any], list[Any]], Iterable[Any]]
 
 
 def _arrow(df: pd.DataFrame) -> pa.Table:
@@ -259,17 +260,12 @@ def _reach(rows: DerivedRows) -> int | None:
     return int(rows.passages["end_ns"].max()) if len(rows.passages) else None
 
 
-# Partition tasks handed to a mapper at once: their results are held together until stored.
-TASKS_PER_CALL = 8
-
-
 def _results(mapper: Mapper | None, tasks: list[Any]) -> Iterator[DerivedRows]:
-    """The tasks' rows in task order, a few tasks' at a time (not every partition's rows at once)."""
+    """The tasks' rows in task order, as the mapper gives them (fleet_mapper: one at a time)."""
     if mapper is None:
         yield from (run_task(t) for t in tasks)
         return
-    for i in range(0, len(tasks), TASKS_PER_CALL):
-        yield from mapper(run_task, tasks[i : i + TASKS_PER_CALL])
+    yield from mapper(run_task, tasks)
 
 
 def derive_tables(

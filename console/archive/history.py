@@ -178,15 +178,51 @@ def diag_job(root: Path, manifest: Manifest, window: Window = Window()) -> DiagJ
 
 
 def health_records(root: Path, manifest: Manifest, window: Window = Window()) -> pd.DataFrame:
-    """The records of the health registers, as ``diag_job`` keeps them (without reading the other records)."""
+    """The records of the health registers, as ``diag_job`` keeps them (without reading the other records).
+
+    Read with pyarrow, part by part, filtered by label as each part is read: a DuckDB connection
+    costs ~50 MB of memory to open, more than these few records.
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    from console.archive.partition import key_of_part
     from console.archive.records import ChunkRebuilder
     from console.jobs import HEALTH_REGISTERS
     from parsers.diag import DiagChunk, chunks_to_frame
 
+    wanted = pc.field("label_canonical").isin(sorted(HEALTH_REGISTERS))
+    if window.start is not None:
+        wanted &= pc.field("time") >= pa.scalar(window.start, pa.timestamp("ns"))
+    if window.end is not None:
+        wanted &= pc.field("time") < pa.scalar(window.end, pa.timestamp("ns"))
+    if window.head is not None:
+        wanted &= pc.field("counting_head") == window.head
+    tables = []
+    for rel in manifest.parts("records"):
+        key = key_of_part(rel)
+        if key is None or (window.device_id is not None and key.device_id != window.device_id):
+            continue
+        if (window.start is not None and key.day < window.start.date()) or (
+            window.end is not None and key.day > window.end.date()
+        ):
+            continue
+        t = pq.read_table(root / rel, filters=wanted, partitioning=None)
+        if t.num_rows:
+            t = t.cast(
+                pa.schema(
+                    [pa.field(f.name, f.type.value_type) if pa.types.is_dictionary(f.type) else f for f in t.schema]
+                )
+            )
+            tables.append(t.append_column("device_id", pa.array(np.full(t.num_rows, key.device_id, np.int32))))
     rebuild = ChunkRebuilder()
     kept: list[DiagChunk] = []
-    for batch in record_batches(root, manifest, window, tables=("records",), labels=HEALTH_REGISTERS):
-        kept += rebuild.chunks(batch)
+    if tables:
+        table = pa.concat_tables(tables, promote_options="permissive").select(list(RECORD_COLUMNS))
+        order = np.lexsort((table.column("line").to_numpy(), table.column("file_seq").to_numpy()))
+        for batch in table.take(pa.array(order)).to_batches(BATCH_ROWS):
+            kept += rebuild.chunks(batch)
     return chunks_to_frame(kept, rebuild.registry)
 
 

@@ -56,6 +56,8 @@ STDIN_NAME = "<stdin>"
 # reads them in, no sort when they are written, and row groups that each span a stretch of time (a query for
 # one hour skips the others by their statistics).
 RECORD_ORDER = ("file_seq", "line")
+# Rejected lines gathered before they go to the rejected table's writer (a few MB of rows at most).
+REJECTED_BATCH_ROWS = 20_000
 
 
 @dataclass
@@ -127,11 +129,23 @@ class _Ingest:
         self.records = PartWriter(root, "records", self.gen, "r", sort_by=RECORD_ORDER)
         self.new_parts: list[str] = []
         self.ingest_rows: list[dict[str, Any]] = []
-        self.rejected_rows: list[dict[str, Any]] = []
+        # Every rejected line, written out as it comes (a hostile file may reject millions of lines).
+        self.rejected = PartWriter(root, "rejected", self.gen, "l", by_device=False, by_day=False)
+        self._rejected_rows: list[dict[str, Any]] = []
         self.touched: set[str] = set()  # tables whose inputs changed
         self.started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
         self._tmp_count = 0
         self.dropped_seqs: set[int] = set()  # diagnostic files replaced: their records leave
+
+    def _reject(self, row: dict[str, Any]) -> None:
+        self._rejected_rows.append(row)
+        if len(self._rejected_rows) >= REJECTED_BATCH_ROWS:
+            self._flush_rejected()
+
+    def _flush_rejected(self) -> None:
+        if self._rejected_rows:
+            self.rejected.add(pa.Table.from_pylist(self._rejected_rows))
+            self._rejected_rows = []
 
     def _next_seq(self) -> int:
         return max((int(e["file_seq"]) for e in self.new.files), default=-1) + 1
@@ -212,24 +226,24 @@ class _Ingest:
         from parsers.diag import DiagReader
 
         reader = DiagReader([source], on_progress=self.on_bytes)
-        reader.report.max_rejections_kept = sys.maxsize  # the archive keeps every rejection
+        seq, gen = int(e["file_seq"]), self.gen
+        # The archive keeps every rejection: each goes to the rejected table as it is found.
+        reader.report.on_reject = lambda r: self._reject(
+            {
+                "file": e["path"],
+                "file_seq": seq,
+                "line": r.line + p.first_line,
+                "reason": r.reason,
+                "text": r.text,
+                "generation": gen,
+            }
+        )
         enc = RecordEncoder(reader.registry)
         for chunk in reader.chunks():
             table, device_id = enc.encode(chunk, e["path"], int(e["file_seq"]), p.first_line)
             day = chunk.time_ns // NS_PER_DAY
             self.records.add(table, day, device_id)
         fr = reader.report.files[0]
-        for r in reader.report.rejections:
-            self.rejected_rows.append(
-                {
-                    "file": e["path"],
-                    "file_seq": int(e["file_seq"]),
-                    "line": r.line + p.first_line,
-                    "reason": r.reason,
-                    "text": r.text,
-                    "generation": self.gen,
-                }
-            )
         e["lines"] = int(e["lines"]) + fr.lines_read
         e["records"] = int(e["records"]) + fr.records
         e["blank"] = int(e["blank"]) + fr.blank
@@ -277,7 +291,7 @@ class _Ingest:
             self.new_parts.append(rel)
             e["parts"] = [*e.get("parts", []), rel]
         for r in report.rejections:
-            self.rejected_rows.append(
+            self._reject(
                 {
                     "file": e["path"],
                     "file_seq": int(e["file_seq"]),
@@ -383,13 +397,16 @@ class _Ingest:
         self.new.tables["records"] = kept
 
     def finish_ledger(self) -> None:
-        for name, rows in (("ingests", self.ingest_rows), ("rejected", self.rejected_rows)):
-            if not rows:
-                continue
-            rel = write_small(self.root, name, self.gen, "l", pa.Table.from_pylist(rows))
+        if self.ingest_rows:
+            rel = write_small(self.root, "ingests", self.gen, "l", pa.Table.from_pylist(self.ingest_rows))
             if rel is not None:
-                self.new.tables.setdefault(name, []).append(rel)
+                self.new.tables.setdefault("ingests", []).append(rel)
                 self.new_parts.append(rel)
+        self._flush_rejected()
+        written = self.rejected.close()
+        if written:
+            self.new.tables.setdefault("rejected", []).extend(written)
+            self.new_parts += written
 
 
 class _PhaseClock:
@@ -474,6 +491,7 @@ def run_ingest(
             clock.lap("publish")
         except BaseException:
             job.records.abort()
+            job.rejected.abort()
             # No manifest names them: remove this run's parts now (a full disk wants its space
             # back); what a kill leaves behind, the next ingest's collect_garbage removes.
             for rel in job.new_parts:

@@ -288,14 +288,12 @@ def _window_records(root: Path, manifest: Manifest, device_id: int, lo: dt.date,
     tables = []
     for rel in sorted(_window_manifest(manifest, device_id, lo, hi).parts("records")):
         t = pq.read_table(root / rel)
-        plain = pa.schema(
-            [pa.field(f.name, f.type.value_type) if pa.types.is_dictionary(f.type) else f for f in t.schema]
-        )
-        t = t.cast(plain)
         tables.append(t.append_column("device_id", pa.array(np.full(t.num_rows, device_id, np.int32))))
     if not tables:
         return pa.table({})
-    table = pa.concat_tables(tables, promote_options="permissive").select(list(RECORD_COLUMNS))
+    # Text columns stay dictionary-coded (a few bytes a record, where plain strings take tens): the
+    # parts' dictionaries unified into one per column, which ChunkRebuilder reads as codes.
+    table = pa.concat_tables(tables, promote_options="permissive").unify_dictionaries().select(list(RECORD_COLUMNS))
     seq = table.column("file_seq").to_numpy().astype(np.int64)
     line = table.column("line").to_numpy().astype(np.int64)
     order = np.lexsort((line, seq))

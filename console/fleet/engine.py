@@ -69,12 +69,16 @@ class _Engine:
     def map(
         self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
     ) -> list[R]:
-        out: list[R] = []
+        return list(self.imap(fn, items, common, label))
+
+    def imap(
+        self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
+    ) -> Iterator[R]:
+        """The results one by one, in the order of ``items``: the caller holds only the one it is given."""
         with self.bar(len(items), label) as done:
             for item in items:
-                out.append(fn(**common, **item))
+                yield fn(**common, **item)
                 done(1)
-        return out
 
 
 class _DaskEngine(_Engine):
@@ -90,38 +94,56 @@ class _DaskEngine(_Engine):
         super().__init__(console, progress, host)
         self.client = client
 
-    def map(
+    def imap(
         self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
-    ) -> list[R]:
-        from distributed import as_completed
+    ) -> Iterator[R]:
+        """The results in the order of ``items``, each fetched as soon as it and those before it are done.
+
+        At most :func:`in_flight` tasks run at once: the cluster stays busy, and the results waiting here
+        for an earlier one to finish stay few (a list of every result would grow with the archive).
+        """
+        from collections import deque
 
         if not items:
-            return []
+            return
         client = self.client
         run = uuid.uuid4().hex[:12]  # task names unique on a shared scheduler
         # Shared arguments once to the cluster, not once per task (the manifest lists every part).  As tasks,
         # not scattered data: a value held only by a worker that dies is computed again, where scattered
         # data would be lost with it and every partition needing it cancelled.
         shared = {k: client.submit(_value, v, key=f"trackside-common-{run}-{k}", pure=False) for k, v in common.items()}
-        futures: list[Future] = [
+        window = in_flight()
+        pending: deque[tuple[int, Future]] = deque()
+        submitted: list[Future] = []
+
+        def submit(i: int) -> None:
             # The arguments as one dict (their names may clash with submit's own: key, workers, …).
-            client.submit(_call, fn, {**shared, **item}, key=f"trackside-{label}-{run}-{i}", pure=False)
-            for i, item in enumerate(items)
-        ]
-        index = {f.key: i for i, f in enumerate(futures)}
-        results: list[Any] = [None] * len(futures)
+            fut = client.submit(_call, fn, {**shared, **items[i]}, key=f"trackside-{label}-{run}-{i}", pure=False)
+            pending.append((i, fut))
+            submitted.append(fut)
+
         try:
-            with self.bar(len(futures), label) as done:
-                for fut in as_completed(futures, loop=client.loop):
-                    if fut.status == "error":
-                        _raise_for(fut, items[index[fut.key]])
-                    # Fetched as each finishes and released: a worker holds no finished results, so its
-                    # memory stays that of the partition it runs (a list gathered at the end would sit
-                    # on the workers, spilled to disk and pausing them as it grows).
-                    results[index[fut.key]] = fut.result()
+            with self.bar(len(items), label) as done:
+                nxt = 0
+                while nxt < len(items) and len(pending) < window:
+                    submit(nxt)
+                    nxt += 1
+                while pending:
+                    i, fut = pending.popleft()
+                    try:
+                        # Fetched and released at once: a worker holds no finished result, so its memory stays
+                        # that of the partition it runs (results left on the workers would spill and pause them).
+                        result = fut.result()
+                    except Exception:
+                        if fut.status == "error":
+                            _raise_for(fut, items[i])
+                        raise
                     fut.release()
+                    if nxt < len(items):
+                        submit(nxt)
+                        nxt += 1
                     done(1)
-            return results
+                    yield result
         except FleetError:
             raise
         except Exception as exc:
@@ -129,7 +151,16 @@ class _DaskEngine(_Engine):
                 raise FleetError(f"the dask cluster failed during the run: {_line(exc)}; archive unchanged") from None
             raise
         finally:
-            client.cancel([*futures, *shared.values()])
+            client.cancel([*submitted, *shared.values()])
+
+
+def in_flight() -> int:
+    """How many partition tasks to have running at once on the current engine: two per worker thread on a
+    cluster (one running, one queued behind it), one here."""
+    client = getattr(_current.get(), "client", None)
+    if client is None:
+        return 1
+    return max(2, 2 * sum(client.nthreads().values()))
 
 
 def _value(v: T) -> T:
@@ -163,14 +194,18 @@ def map_partitions(
     return engine.map(fn, items, common or {}, label)
 
 
-def fleet_mapper(fn: Callable[[Any], R], items: Sequence[Any], label: str = "derive") -> list[R]:
-    """``[fn(item) for item in items]`` on the current engine, in order: the ``mapper`` the archive's derivation takes.
+def fleet_mapper(fn: Callable[[Any], R], items: Sequence[Any], label: str = "derive") -> Iterator[R]:
+    """``fn(item) for item in items`` on the current engine, in order, one result at a time: the ``mapper``
+    the archive's derivation takes.
 
     :func:`console.archive.derive.derive_tables` hands its per-partition work
     to a ``mapper(fn, items)``; this one sends it to the engine of the
-    enclosing :func:`run_with_engine` (``fn`` is sent once, each item is a task).
+    enclosing :func:`run_with_engine` (``fn`` is sent once, each item is a task)
+    and gives the results back as they come, so the caller stores each one
+    and lets it go.
     """
-    return map_partitions(_apply_one, [{"item": it} for it in items], common={"fn": fn}, label=label)
+    engine = _current.get() or _Engine()
+    return engine.imap(_apply_one, [{"item": it} for it in items], {"fn": fn}, label)
 
 
 def _apply_one(fn: Callable[[Any], R], item: Any) -> R:
