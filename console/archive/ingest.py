@@ -33,6 +33,7 @@ from console.archive.parts import (
     compact,
     part_rows,
     read_part,
+    return_freed_memory,
     write_part,
     write_small,
 )
@@ -462,6 +463,7 @@ def run_ingest(
     from console.fleet import fleet_mapper
 
     t0 = time.perf_counter()
+    return_freed_memory()  # an ingest's phases each need their memory, one after the other
     ensure_layout(root)
     with writer_lock(root, wait=wait, on_wait=on_wait):
         current = read_current(root)
