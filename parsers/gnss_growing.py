@@ -24,35 +24,46 @@ Device exports (CSV, JSON lines) are row by row: :class:`DeviceLines` in
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 import pandas as pd
 
 from parsers import gnss_packets as packets
-from parsers.fix_table import FixRows
 from parsers.gnss_lines import _split_lf, text_of
 from parsers.gnss_stream import _UNPRINTABLE_RE, StreamParser, _Feed
 from parsers.report import FileReport, ParseReport
 from parsers.sources import DEFAULT_MAX_LINE_BYTES
 
 
-def _waits_for_more(line: bytes, start: int, following: list[bytes]) -> bool:
-    """Whether a packet starting in ``line[start:]`` may run past the lines at hand (``following``)."""
-    have = len(line) + sum(len(r) for r in following)
-    whole: bytes | None = None
+def _waits_for_more(ahead: deque[tuple[int, bytes, int]]) -> bool:
+    """Whether a packet starting in the first line at hand may run past the lines at hand."""
+    _, line, start = ahead[0]
+    syncs = []
     at = start
-    while (m := packets.SYNC_RE.search(line, at)) is not None:
+    while (m := packets.SYNC_RE.search(line, at)) is not None:  # '$'/'!' start sentences, no look-ahead
         at = m.start()
         kind = packets.packet_kind(line[at : at + 2])
         if kind is not None:
-            size = packets.header_bytes(kind)
-            if at + size > have:
-                return True
-            if whole is None:
-                whole = line + b"".join(following)
-            total = packets.packet_length(kind, whole[at : at + size])
-            if total is not None and at + total > have:
-                return True
+            syncs.append((at, kind))
         at += 1
+    if not syncs:
+        return False
+    # A packet is at most MAX_PACKET_BYTES: that much past the line's end is all it can need.
+    parts, have = [line], len(line)
+    for k in range(1, len(ahead)):
+        if have >= len(line) + packets.MAX_PACKET_BYTES:
+            return False
+        parts.append(ahead[k][1])
+        have += len(ahead[k][1])
+    whole = b"".join(parts)
+    for at, kind in syncs:
+        size = packets.header_bytes(kind)
+        if at + size > have:
+            return True
+        total = packets.packet_length(kind, whole[at : at + size])
+        if total is not None and at + total > have:
+            return True
     return False
 
 
@@ -100,7 +111,7 @@ class GrowingStream:
             assert fr is not None
             _, raw, start = feed.ahead[0]
             binary = start > 0 or (raw.lstrip(b" \t")[:1] != b"{" and _UNPRINTABLE_RE.search(text_of(raw)))
-            if binary and not final and _waits_for_more(raw, start, [r for _, r, _ in list(feed.ahead)[1:]]):
+            if binary and not final and _waits_for_more(feed.ahead):
                 return
             item = feed.next()
             assert item is not None
@@ -130,8 +141,3 @@ class GrowingStream:
             if clock.undated:
                 clock.undated = [(renumber[r], tod) for r, tod in clock.undated]
         return settled, ids[done]
-
-
-def empty_rows() -> pd.DataFrame:
-    """A fix table with no rows."""
-    return FixRows().frame()

@@ -567,3 +567,32 @@ def test_follow_jsonl_on_a_growing_nmea_file_shows_the_crossing_warning(tmp_path
         (f.lines_read, f.rejected) for f in report.files
     ]
     assert 0 < summary["gnss_fixes"] <= len(usable(batch))
+
+
+def test_a_big_file_read_here_is_handed_on_in_pieces_while_it_is_read(tmp_path: Path) -> None:
+    from console.sim.writers import nmea_sentences
+
+    # Five hours of 1 Hz fixes (2.7 MB), read from the start: 1 MiB reads, each about 0.6 s of
+    # parsing.  Lines are counted and fixes handed on a piece (64 KiB) at a time, so the engine
+    # (and --idle-exit, which counts lines read) sees the file arrive while it is read.
+    t0_ns = 1_772_438_400 * 10**9
+    log = tmp_path / "unit-head.nmea"
+    with log.open("w") as f:
+        for k in range(5 * 3600):
+            f.write("\r\n".join(nmea_sentences(t0_ns + k * 10**9, 20.75 - k * 1e-6, 105.89, 20.0, 164.9)) + "\r\n")
+    src = FileSource(f"file:{log}", log, from_start=True)
+    seen: list[int] = []  # lines counted when each fix arrived
+
+    def sink(item: Item) -> None:
+        if isinstance(item, GnssFix):
+            seen.append(src.message_count)
+
+    src.start(sink)
+    try:
+        assert wait_until(lambda: len(seen) == 5 * 3600 - 1, 60)  # the last epoch is open until the end
+    finally:
+        src.stop()
+    assert len(seen) == 5 * 3600
+    size = log.stat().st_size
+    assert len(set(seen)) >= size // (64 << 10)  # one count per piece, not one per 1 MiB read
+    assert src.message_count == 2 * 5 * 3600

@@ -150,7 +150,8 @@ def follow(
             # writer waits for it (notes such as "connected" do not count).
             if idle_exit is None:
                 return False
-            n = engine.items - sum(engine.notes.values())
+            # Lines a source read count too: a big followed file may give few items while it is read.
+            n = engine.items - sum(engine.notes.values()) + sum(s.message_count for s in srcs)
             if n != last[1]:
                 last[:] = [time.monotonic(), n]
                 data_items[0] = n

@@ -213,6 +213,11 @@ class Source(ABC):
             while self._recent and self._recent[0][0] < now - RATE_WINDOW_S:
                 self._recent.popleft()
 
+    @property
+    def message_count(self) -> int:
+        """Messages (lines of a file) received so far: cheap, for a caller that asks after every item."""
+        return self._messages
+
     def count_lost(self, n: int) -> None:
         with self._lock:
             self._lost += n

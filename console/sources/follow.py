@@ -33,6 +33,7 @@ from parsers.kinds import HEAD_BYTES
 
 READ_BYTES = 1 << 20
 MAX_LINE_BYTES = 4 << 20
+PIECE_BYTES = 64 << 10
 SIGNATURE_BYTES = 64
 POLL_S = 0.05  # without inotify: 20 stat calls a second, negligible CPU
 CHECK_S = 1.0  # with inotify: a safety re-check, in case an event was missed
@@ -266,11 +267,22 @@ class FileSource(Source):
         self._emit(data[:cut])
 
     def _emit(self, lines: bytes) -> None:
-        n = lines.count(b"\n")
-        block = LineBlock(self.uri, self.label, self._line, lines, time.monotonic())
-        self._line += n
-        self.count_messages(n)
-        self._hand_over(self.files.lines(block))
+        start = 0
+        while start < len(lines):
+            # A file read here (not a diagnostic log: the engine parses those) goes in pieces, so that
+            # its items, and the count of its lines, keep flowing while a big file is read.
+            cut = len(lines)
+            if self.files.kind != "diag" and cut - start > PIECE_BYTES:
+                cut = lines.rfind(b"\n", start, start + PIECE_BYTES) + 1
+                if cut <= start:  # one line longer than a piece
+                    cut = lines.index(b"\n", start) + 1
+            piece = lines[start:cut] if start or cut < len(lines) else lines
+            n = piece.count(b"\n")
+            block = LineBlock(self.uri, self.label, self._line, piece, time.monotonic())
+            self._line += n
+            self.count_messages(n)
+            self._hand_over(self.files.lines(block))
+            start = cut
 
     def _hand_over(self, items: list[Item]) -> None:
         for item in items:
