@@ -41,6 +41,7 @@ from parsers.gnss_csv import parse_device_stream
 from parsers.gnss_growing import GrowingStream
 from parsers.gnss_stream import parse_stream_files
 from parsers.report import FileReport, ParseReport
+from tests.gpsd_truth import compare_with_gpsd
 from tests.live_fixtures import NMEA_DIR, REPO, read_jsonl, trackside, wait_until
 from tests.test_gnss_realworld import RTCM, SIRF, UBX, _nav_pvt
 
@@ -174,6 +175,8 @@ class Collector:
 def follow_pieces(data: bytes, dest: Path, cuts: list[int], **kw: bool) -> tuple[FileSource, Collector]:
     """Follow ``dest`` while ``data`` is written into it in pieces ending at ``cuts`` (anywhere in a line),
     each read by the follower before the next is written; then stop following."""
+    if not dest.exists():
+        dest.write_bytes(b"")
     src = FileSource(f"file:{dest}", dest, force_polling=True, **{"from_start": True, **kw})
     got = Collector()
     src.start(got)
@@ -270,6 +273,29 @@ def test_a_gnss_file_written_in_pieces_gives_the_batch_fixes(data: st.DataObject
         b.rejected,
     )
     assert not got.of(LineBlock) and len(got.notes("info")) == 1
+
+
+@pytest.mark.skipif(not CAPTURES, reason=f"gpsd captures not found at {NMEA_DIR}")
+@pytest.mark.parametrize("capture", [p.name for p in CAPTURES])
+def test_a_receiver_capture_followed_in_pieces_matches_gpsds_own_decoding(capture: str, tmp_path: Path) -> None:
+    log = NMEA_DIR / capture
+    raw = log.read_bytes()
+    cuts = sorted(random.Random(capture).sample(range(1, len(raw)), 7))
+    _, got = follow_pieces(raw, tmp_path / capture, cuts)
+    fixes = got.of(GnssFix)
+    live = pd.DataFrame(
+        {
+            "valid": np.ones(len(fixes), bool),
+            "time": pd.to_datetime([f.t_fix_ns for f in fixes], unit="ns", utc=True),
+            "lat": [f.lat_deg for f in fixes],
+            "lon": [f.lon_deg for f in fixes],
+            "speed_mps": [f.speed_mps for f in fixes],
+        }
+    )
+    batch, _ = parse_stream_files([log])
+    counts, batch_counts = compare_with_gpsd(log, live), compare_with_gpsd(log, batch)
+    assert counts == batch_counts
+    assert counts["nmea_matched"] == counts["nmea"], dict(counts)  # every epoch gpsd reports, read live
 
 
 # -- CAN logs and sensor frame logs ----------------------------------------------------------------

@@ -10,7 +10,7 @@ batch parsers produce and runs the same analysis core on them.
 
 A source is named by a URI (:func:`open_source`)::
 
-    file:PATH                      follow a growing file (tail -F)
+    file:PATH                      follow a growing file (tail -F): a diagnostic, GNSS, CAN or frame log
     gpsd://HOST:PORT[/DEVICE]      a running gpsd, WATCH JSON
     mqtt://HOST:PORT/TOPIC         LoRaWAN uplinks (ChirpStack v4, The Things Stack v3)
     mqtts://HOST:PORT/TOPIC        the same over TLS

@@ -189,6 +189,8 @@ class FileLines:
             reader = CanLines(self.source.uri, fr.format, fr, self.report)
             if self._skipped:
                 reader.skip_header(self._skipped)
+                if reader.failed:
+                    self.source.note("unrecognised", f"{label}: {reader.failed}; its lines are not read")
             self._reader = reader
         elif kind == "frames":
             fr = FileReport(file=label)
