@@ -246,9 +246,10 @@ GNSS_INPUTS = gnss_inputs()
 
 
 @SLOW
-@given(st.data())
-def test_a_gnss_file_written_in_pieces_gives_the_batch_fixes(data: st.DataObject) -> None:
-    name, raw = GNSS_INPUTS[data.draw(st.integers(0, len(GNSS_INPUTS) - 1), label="input")]
+@given(data=st.data())
+def test_a_gnss_file_written_in_pieces_gives_the_batch_fixes(data: st.DataObject, simulated: Path) -> None:
+    inputs = GNSS_INPUTS + [(p.name, p.read_bytes()) for p in sorted((simulated / "nmea").glob("*.nmea"))]
+    name, raw = inputs[data.draw(st.integers(0, len(inputs) - 1), label="input")]
     cuts = sorted(data.draw(st.sets(st.integers(1, len(raw) - 1), max_size=10), label="cuts"))
     with tempfile.TemporaryDirectory() as tmp:
         whole, dest = Path(tmp) / "whole" / name, Path(tmp) / name
@@ -518,13 +519,21 @@ def query(archive: Path, sql: str) -> list[dict[str, Any]]:
 
 
 def test_fixes_and_frames_of_followed_files_are_archived(tmp_path: Path) -> None:
-    nmea, can_log = tmp_path / "unit-head.nmea", tmp_path / "bus.log"
+    nmea, can_log, frame_log = tmp_path / "unit-head.nmea", tmp_path / "bus.log", tmp_path / "sensors.txt"
     nmea.write_bytes((NMEA_DIR / "bt451.log").read_bytes())
     can_log.write_bytes((SAMPLES / "can_counts.log").read_bytes())
+    frame_log.write_bytes((SAMPLES / "sensor_frames.txt").read_bytes())
     archive = tmp_path / "arc"
     out = subprocess.run(
         trackside(
-            "follow", str(nmea), str(can_log), "--from-start", "--jsonl", "--idle-exit", "1", "--archive", str(archive)
+            "follow",
+            *map(str, (nmea, can_log, frame_log)),
+            "--from-start",
+            "--jsonl",
+            "--idle-exit",
+            "1",
+            "--archive",
+            str(archive),
         ),
         capture_output=True,
         text=True,
@@ -534,11 +543,15 @@ def test_fixes_and_frames_of_followed_files_are_archived(tmp_path: Path) -> None
     fixes, _ = parse_stream_files([NMEA_DIR / "bt451.log"])
     frames, _ = parse_can([SAMPLES / "can_counts.log"])
     assert query(archive, "SELECT count(*) AS n FROM fixes")[0]["n"] == len(usable(fixes))
+    text_frames, _ = parse_frames([SAMPLES / "sensor_frames.txt"])
     n_count = int((frames["kind"] == "count").sum())
-    assert query(archive, "SELECT count(*) AS n FROM frames")[0]["n"] == n_count
-    got = query(archive, "SELECT sensor, count(*) AS n FROM frames GROUP BY sensor ORDER BY sensor")
-    counts = frames[frames["kind"] == "count"]["sensor"].astype(str).value_counts()
-    assert {r["sensor"]: r["n"] for r in got} == counts.to_dict()
+    assert query(archive, "SELECT count(*) AS n FROM frames")[0]["n"] == n_count + len(text_frames)
+    sql = "SELECT sensor, count(*) AS n, min(time) AS first FROM frames WHERE kind = 'count' GROUP BY sensor"
+    counts = frames[frames["kind"] == "count"].groupby("sensor", observed=True)["time"].agg(["count", "min"])
+    assert {r["sensor"]: r["n"] for r in query(archive, sql)} == counts["count"].to_dict()
+    # Times as the batch reads them from the log (to the microsecond).
+    firsts = {r["sensor"]: pd.Timestamp(r["first"]).tz_localize(None) for r in query(archive, sql)}
+    assert firsts == {k: pd.Timestamp(v) for k, v in counts["min"].items()}
 
 
 def test_follow_jsonl_on_a_growing_nmea_file_shows_the_crossing_warning(tmp_path: Path) -> None:
