@@ -96,6 +96,8 @@ _ASC_MESSAGE_LINE = re.compile(r"\s*\d+\.\d+\s+\d+\s+(?:[0-9A-Fa-f]+x?\s+(?:Rx|T
 _ASC_TRIGGER = re.compile(r"\s*begin\s+triggerblock\s+\w+\s+(?P<when>.+)", re.I)
 _ASC_DATE = re.compile(r"\s*date\s+\w+\s+(?P<when>.+)", re.I)
 _ASC_RELATIVE = re.compile(r"\s*base\s+\w+\s+timestamps\s+relative", re.I)
+# What python-can's ASC header scan reads past: date, base and // comment lines.
+_ASC_HEADER_LINE = re.compile(r"\s*(?:date\s+\w+\s+.+|base\s+(?:hex|dec)\b.*|//.*)$", re.I)
 # candump: an id with SocketCAN's CAN_ERR_FLAG is an error frame, whatever else its bits say
 # (python-can only calls it one when the bus-error bit is set too).
 _CANDUMP_ID = re.compile(r"\s*\(\S*\)\s+\S+\s+(?P<id>[0-9A-Fa-f]{8})#")
@@ -205,7 +207,7 @@ class _LineFeed:
     """
 
     def __init__(
-        self, path: Path, fr: CanFileReport, report: ParseReport, on_unread: Callable[[_LineFeed], None] | None = None
+        self, fr: CanFileReport, report: ParseReport, on_unread: Callable[[_LineFeed], None] | None = None
     ) -> None:
         self.fr = fr
         self.report = report
@@ -216,35 +218,7 @@ class _LineFeed:
         self.raw = b""
         self.used = 0  # the last line that produced a message or a rejection
         self.base_ns = 0  # ASC: wall-clock start of the measurement
-        self._lines = self._read(path)
-
-    def _read(self, path: Path) -> Iterator[tuple[int, bytes]]:
-        stream, raw, info = open_input(path)
-        self.fr.encoding, self.fr.compressed = info.encoding, info.compressed
-        line = 0
-        try:
-            for item in iter_chunks(stream, info, max_line_bytes=_MAX_LINE_BYTES, name=str(path)):
-                if isinstance(item, OverlongLine):
-                    line += 1
-                    self.fr.lines_read += 1
-                    if isinstance(item, ReadFailure):
-                        self.report.reject(self.fr, line, "corrupt", item.message(line - 1), item.head)
-                        continue
-                    reason = f"line of {item.length} bytes; a CAN log line is under {MAX_CAN_LINE_CHARS}"
-                    self.report.reject(self.fr, line, "too long", reason, item.head)
-                    continue
-                data = bytes(item.data)
-                pieces = data.split(b"\n")
-                if pieces[-1] == b"":
-                    pieces.pop()
-                for piece in pieces:
-                    line += 1
-                    yield line, piece
-            self.fr.bytes_read = raw.tell()
-        finally:
-            stream.close()
-            raw.close()
-        self.fr.ends_without_newline = info.ends_without_newline
+        self.lines: Iterator[tuple[int, bytes]] = iter(())  # (number, line without its end), set by the reader
 
     def _check_unread(self) -> None:
         if self.on_unread is None or self.used == self.line_no or not self.line_no:
@@ -261,7 +235,7 @@ class _LineFeed:
     def __next__(self) -> str:
         self._check_unread()
         while True:
-            self.line_no, self.raw = next(self._lines)
+            self.line_no, self.raw = next(self.lines)
             self.fr.lines_read += 1
             if len(self.raw) <= MAX_CAN_LINE_CHARS:
                 break
@@ -323,45 +297,122 @@ def _new_reader(fmt: str, source: TextIO, previous: can.io.generic.MessageReader
     return can.CanutilsLogReader(source)
 
 
-def _read_text_can(path: Path, fmt: str, fr: CanFileReport, report: ParseReport, msgs: _CanMessages) -> None:
-    reader: Any = None
+def _file_lines(path: Path, fr: CanFileReport, report: ParseReport) -> Iterator[tuple[int, bytes]]:
+    """A CAN log's lines (number, line without its end); overlong and unreadable ones rejected here."""
+    stream, raw, info = open_input(path)
+    fr.encoding, fr.compressed = info.encoding, info.compressed
+    line = 0
+    try:
+        for item in iter_chunks(stream, info, max_line_bytes=_MAX_LINE_BYTES, name=str(path)):
+            if isinstance(item, OverlongLine):
+                line += 1
+                fr.lines_read += 1
+                if isinstance(item, ReadFailure):
+                    report.reject(fr, line, "corrupt", item.message(line - 1), item.head)
+                    continue
+                reason = f"line of {item.length} bytes; a CAN log line is under {MAX_CAN_LINE_CHARS}"
+                report.reject(fr, line, "too long", reason, item.head)
+                continue
+            data = bytes(item.data)
+            pieces = data.split(b"\n")
+            if pieces[-1] == b"":
+                pieces.pop()
+            for piece in pieces:
+                line += 1
+                yield line, piece
+        fr.bytes_read = raw.tell()
+    finally:
+        stream.close()
+        raw.close()
+    fr.ends_without_newline = info.ends_without_newline
 
-    def add(msg: can.Message, *, error: bool = False) -> None:
+
+class TextCanReader:
+    """A text CAN log (candump, ASC, TRC) → CAN frames through python-can's reader, line by line.
+
+    :meth:`read` takes the lines at hand, all of a file or a block of a growing
+    one: a reader that ran out of lines is followed by a resumed one (the
+    header's state carried, as after a line the reader failed on), so the
+    frames are those of one read of the whole file.  Frames collect in
+    :attr:`msgs` (:meth:`take` hands them over).
+    """
+
+    def __init__(self, fmt: str, fr: CanFileReport, report: ParseReport, msgs: _CanMessages | None = None) -> None:
+        self.fmt = fmt
+        self.fr = fr
+        self.msgs = msgs if msgs is not None else _CanMessages()
+        self.reader: Any = None
+        self._failed_at = -1
+        on_unread = {"asc": self._unread_asc, "trc": self._unread_trc}.get(fmt)
+        self.feed = _LineFeed(fr, report, on_unread)
+
+    def _add(self, msg: can.Message, *, error: bool = False) -> None:
+        feed = self.feed
         feed.used = feed.line_no
-        problem = _collect(msgs, msg, feed.line_no, feed.base_ns, feed.raw, error=error)
+        problem = _collect(self.msgs, msg, feed.line_no, feed.base_ns, feed.raw, error=error)
         if problem is not None:
             feed.reject(*problem)
 
-    def unread_asc(f: _LineFeed) -> None:
+    def _unread_asc(self, f: _LineFeed) -> None:
         if _ASC_MESSAGE_LINE.match(f.text):
             f.reject("format", "a CAN message line the ASC reader did not read")
 
-    def unread_trc(f: _LineFeed) -> None:
-        what = classify_unread(reader, f.text)
+    def _unread_trc(self, f: _LineFeed) -> None:
+        what = classify_unread(self.reader, f.text)
         if what.kind == "error":
-            start = reader._start_time or 0.0
-            add(can.Message(timestamp=what.offset_ms / 1000.0 + start, is_error_frame=True), error=True)
+            start = self.reader._start_time or 0.0
+            self._add(can.Message(timestamp=what.offset_ms / 1000.0 + start, is_error_frame=True), error=True)
         elif what.kind == "reject":
             f.reject("format", what.reason)
 
-    on_unread = {"asc": unread_asc, "trc": unread_trc}.get(fmt)
-    feed = _LineFeed(path, fr, report, on_unread)
-    source = cast(TextIO, feed)
-    failed_at = -1
-    with _quiet_trc_reader():
-        while True:
-            try:
-                reader = _new_reader(fmt, source, reader)
-                for msg in reader:
-                    add(msg, error=fmt == "candump" and _candump_error_id(feed.text))
-                break
-            except _READER_ERRORS as exc:
-                if feed.line_no == failed_at:  # no line consumed since the last failure: the reader cannot go on
-                    raise InputError(f"{path}: {_WHAT[fmt]} reader failed at line {feed.line_no} ({exc})") from None
-                failed_at = feed.line_no
-                what = _WHAT[fmt] if fmt != "trc" else f"a TRC {version_name(reader.file_version)} message line"
-                feed.reject("format", f"not {what} ({type(exc).__name__}: {exc})")
-        feed.finish()
+    def read(self, lines: Iterator[tuple[int, bytes]]) -> None:
+        """Read ``lines`` (number, line without its end) to their end; InputError if the reader cannot go on."""
+        feed = self.feed
+        feed.lines = lines
+        source = cast(TextIO, feed)
+        fmt = self.fmt
+        with _quiet_trc_reader():
+            while True:
+                try:
+                    self.reader = _new_reader(fmt, source, self.reader)
+                    for msg in self.reader:
+                        self._add(msg, error=fmt == "candump" and _candump_error_id(feed.text))
+                    return
+                except _READER_ERRORS as exc:
+                    if feed.line_no == self._failed_at:  # no line consumed since the last failure: it cannot go on
+                        raise InputError(
+                            f"{self.fr.file}: {_WHAT[fmt]} reader failed at line {feed.line_no} ({exc})"
+                        ) from None
+                    self._failed_at = feed.line_no
+                    what = (
+                        _WHAT[fmt] if fmt != "trc" else f"a TRC {version_name(self.reader.file_version)} message line"
+                    )
+                    feed.reject("format", f"not {what} ({type(exc).__name__}: {exc})")
+
+    def finish(self) -> None:
+        """The file ends: its last line is accounted for."""
+        self.feed.finish()
+
+    def take(self) -> _CanMessages:
+        """The frames read since the last take."""
+        msgs, self.msgs = self.msgs, _CanMessages()
+        return msgs
+
+
+def header_complete(fmt: str, lines: Iterable[bytes]) -> bool:
+    """Whether ``lines``, a CAN log's first lines, hold its whole header (a line past it): python-can
+    reads the header once, so a growing log's first reader waits for it."""
+    if fmt == "trc":
+        return any(not line.strip().startswith(b";") for line in lines)
+    if fmt == "asc":
+        return any(not _ASC_HEADER_LINE.match(line.decode("utf-8", errors="replace")) for line in lines)
+    return True
+
+
+def _read_text_can(path: Path, fmt: str, fr: CanFileReport, report: ParseReport, msgs: _CanMessages) -> None:
+    reader = TextCanReader(fmt, fr, report, msgs)
+    reader.read(_file_lines(path, fr, report))
+    reader.finish()
 
 
 def _candump_error_id(text: str) -> bool:
@@ -490,6 +541,16 @@ def parse_can(
     return finish_table(cols, files, report, extra), report
 
 
+def decode_messages(
+    msgs: _CanMessages, fr: CanFileReport, report: ParseReport, sensor_names: Mapping[int, str] | None = None
+) -> FrameColumns:
+    """Frames a :class:`TextCanReader` took (a block of a growing log) → frame-table columns, as
+    :func:`parse_can` makes them (file id 0); bad count frames rejected, the file's counts added to."""
+    cols = FrameColumns()
+    _decode_can(msgs, 0, fr, report, cols, dict(sensor_names or {}))
+    return cols
+
+
 def count_frames_only(frames: pd.DataFrame) -> pd.DataFrame:
     """The count frames of a frame table (a text-frame table is all count frames)."""
     if "kind" not in frames.columns:
@@ -518,14 +579,17 @@ def _decode_can(
     cols: FrameColumns,
     names: Mapping[int, str],
 ) -> None:
-    """Sort one file's frames by kind, reject bad count frames, add the rest as rows (vectorized)."""
+    """Sort one file's frames by kind, reject bad count frames, add the rest as rows (vectorized).
+
+    Called once per file, or once per block of a growing file: the counts add up.
+    """
     can_id = np.array(msgs.can_id, np.int64)
     flags = np.array(msgs.flags, np.int64)
     dlc = np.array(msgs.dlc, np.int64)
     length = np.array(msgs.length, np.int64)
     line = np.array(msgs.line, np.int64)
     data = np.frombuffer(bytes(msgs.data), np.uint8).reshape(-1, 8)
-    fr.messages = len(can_id)
+    fr.messages += len(can_id)
     error = (flags & _FLAG_ERROR) != 0
     remote = ((flags & _FLAG_REMOTE) != 0) & ~error
     node = can_id - COUNT_ID_BASE
@@ -537,9 +601,9 @@ def _decode_can(
             f"count frame 0x{can_id[i]:03X}: expected DLC {COUNT_DLC}, found DLC {dlc[i]} with {length[i]} data bytes"
         )
         report.reject(fr, int(line[i]), "dlc", reason, msgs.text.get(i, b""))
-    fr.error_frames = int(error.sum())
-    fr.remote_frames = int(remote.sum())
-    fr.foreign = int(foreign.sum())
+    fr.error_frames += int(error.sum())
+    fr.remote_frames += int(remote.sum())
+    fr.foreign += int(foreign.sum())
     rows = np.flatnonzero(~bad_dlc)
     is_count = count_id[rows]
     kind = np.select(

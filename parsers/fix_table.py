@@ -234,6 +234,32 @@ class FixRows:
             values = np.frombuffer(codes[start:], dtype=np.int32)
             codes[start:] = array("i", values[order].tobytes())
 
+    def subset(self, rows: np.ndarray) -> FixRows:
+        """The rows at ``rows`` (indices, in the order given) as new FixRows sharing the string tables."""
+        out = FixRows()
+        out.device.index, out.file.index = self.device.index, self.file.index
+        idx = np.asarray(rows, np.int64)
+        for name in (
+            "time",
+            "role",
+            "lat",
+            "lon",
+            "speed_mps",
+            "course_deg",
+            "valid",
+            "source",
+            "sentence",
+            "line",
+            "fix_quality",
+        ):
+            column = getattr(self, name)
+            values = np.frombuffer(column, dtype=np.dtype(column.typecode if column.typecode != "b" else "i1"))
+            getattr(out, name).frombytes(values[idx].tobytes() if len(column) else b"")
+        for mine, theirs in ((self.device, out.device), (self.file, out.file)):
+            values = np.frombuffer(mine.codes, dtype=np.int32) if len(mine.codes) else np.zeros(0, np.int32)
+            theirs.codes.frombytes(values[idx].astype(np.int32).tobytes())
+        return out
+
     def sentence_at(self, i: int) -> str:
         return SENTENCES[self.sentence[i]]
 

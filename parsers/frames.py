@@ -92,6 +92,7 @@ __all__ = [
     "frame_line_problem",
     "parse_can",
     "parse_frames",
+    "read_frame_lines",
 ]
 
 MAX_LINE_CHARS = 256  # a frame line is about 35 characters; longer is not one
@@ -255,6 +256,34 @@ def _read_frame_file(path: Path, file_id: int, cols: FrameColumns, report: Parse
         stream.close()
         raw.close()
     fr.ends_without_newline = info.ends_without_newline
+
+
+def read_frame_lines(data: bytes, first_line: int, fr: FileReport, report: ParseReport) -> FrameColumns:
+    """Complete lines of a frame log (a block of a growing one, from line ``first_line``) → frame-table
+    columns (file id 0), every line counted in ``fr`` as :func:`parse_frames` counts it."""
+    cols = FrameColumns()
+    pieces: list[bytes] = [data]
+    if len(data) > _MAX_LINE_BYTES:  # an overlong line is refused whole, as the batch reader's splitter does
+        lines = data.split(b"\n")[:-1]
+        pieces, run = [], []
+        for raw in lines:
+            if len(raw) <= _MAX_LINE_BYTES:
+                run.append(raw)
+                continue
+            pieces.append(b"".join(r + b"\n" for r in run))
+            pieces.append(raw)
+            run = []
+        pieces.append(b"".join(r + b"\n" for r in run))
+    line = first_line
+    for piece in pieces:
+        if len(piece) > _MAX_LINE_BYTES and not piece.endswith(b"\n"):
+            fr.lines_read += 1
+            reason = f"line of {len(piece)} bytes; a frame line is under {MAX_LINE_CHARS}"
+            report.reject(fr, line, "too long", reason, piece[:1024])
+            line += 1
+        elif piece:
+            line += _frame_chunk(Chunk(piece, final=False), line, 0, fr, cols, report)
+    return cols
 
 
 def parse_frames(paths: Iterable[Path | str]) -> tuple[pd.DataFrame, ParseReport]:

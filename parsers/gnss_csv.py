@@ -73,7 +73,7 @@ from parsers.gnss_fields import (
 )
 from parsers.gnss_lines import open_lines
 from parsers.gpsd_json import JsonRowError, load_object, plain
-from parsers.report import ParseReport
+from parsers.report import FileReport, ParseReport
 
 KNOT_MPS = 1852 / 3600
 
@@ -424,86 +424,105 @@ def _one_line(
     return _row({name: cells[i] for name, i in header.at.items()}, header, stem, roles)
 
 
+class DeviceLines:
+    """One device export's lines, read as they come (all at once, or a block at a time as a file grows).
+
+    Every line is counted; rows are appended to ``rows`` in line order.  A
+    data row depends only on the header, so a block's rows are final.
+    """
+
+    def __init__(
+        self, fr: FileReport, report: ParseReport, rows: FixRows, fmt: str, stem: str, roles: Mapping[str, str]
+    ) -> None:
+        self.fr, self.report, self.rows = fr, report, rows
+        self.fmt, self.stem, self.roles = fmt, stem, roles
+        self.header: DeviceHeader | None = None
+        self.delimiter = ","
+
+    def _per_row(self, number: int, raw: bytes) -> None:
+        fr = self.fr
+        text = decode_line(raw, fr)
+        if not text.strip() or text.lstrip().startswith("#"):
+            fr.blank += 1
+            return
+        try:
+            fix = _one_line(text, self.fmt, self.header, self.delimiter, self.stem, self.roles)
+        except RowError as exc:
+            self.report.reject(fr, number, exc.category, exc.reason, raw)
+            return
+        fr.records += 1
+        self.rows.add(**fix, source=self.fmt, sentence="", file=fr.file, line=number)
+
+    def _flush(self, batch: list[tuple[int, bytes]]) -> None:
+        fast = None
+        header, fr = self.header, self.fr
+        if FAST_PATH and header is not None and len(batch) >= FAST_MIN_ROWS:
+            fast = fast_batch(
+                [raw for _, raw in batch], header, self.delimiter, self.stem, self.roles, fix_quality, _flag
+            )
+        if fast is None:
+            for number, raw in batch:
+                self._per_row(number, raw)
+            return
+        start = len(self.rows)
+        ok = fast.ok
+        numbers = np.fromiter((number for number, _ in batch), np.int64, len(batch))
+        self.rows.extend(
+            time_ns=fast.time_ns[ok],
+            device_names=fast.device,
+            device_code=fast.device_code[ok],
+            role=fast.role[ok],
+            lat=fast.lat[ok],
+            lon=fast.lon[ok],
+            speed_mps=fast.speed_mps[ok],
+            course_deg=fast.course_deg[ok],
+            valid=fast.valid[ok],
+            source=self.fmt,
+            file=fr.file,
+            line=numbers[ok],
+            fix_quality=fast.fix_quality[ok],
+        )
+        fr.records += int(ok.sum())
+        for k in np.flatnonzero(~ok):
+            self._per_row(*batch[k])
+        if not ok.all():
+            self.rows.sort_by_line_from(start)  # rows read per row came after the batch's vectorized ones
+
+    def add(self, lines: Iterable[tuple[int, bytes]]) -> None:
+        """Lines (number, text without its end); the caller counts them in ``lines_read``."""
+        fr = self.fr
+        batch: list[tuple[int, bytes]] = []
+        for number, raw in lines:
+            if self.header is not None:
+                batch.append((number, raw))
+                if len(batch) >= FAST_BATCH_ROWS:
+                    self._flush(batch)
+                    batch.clear()
+                continue
+            text = decode_line(raw, fr)
+            if not text.strip() or text.lstrip().startswith("#"):
+                fr.blank += 1
+                continue
+            if self.fmt == "jsonl":
+                self._per_row(number, raw)
+                continue
+            self.delimiter = delimiter_of(text)
+            try:
+                self.header = parse_device_header(cells_of(text, self.delimiter))
+            except (ValueError, RowError) as exc:
+                reason = f"not the device-stream header: {exc}; expected time, lat, lon, …"
+                self.report.reject(fr, number, "header", reason, raw)
+                continue
+            for name in self.header.extra:
+                self.report.skipped[f"CSV column '{name[:40]}' (not read)"] += 1
+            fr.blank += 1  # the header: no record, nothing lost
+        self._flush(batch)
+
+
 def parse_device_file(path: Path, report: ParseReport, rows: FixRows, fmt: str, roles: Mapping[str, str]) -> None:
     """One device export (``fmt`` ``"csv"`` or ``"jsonl"``); rows appended, every line counted."""
     fr, lines = open_lines(path, report)
-    header: DeviceHeader | None = None
-    delimiter = ","
-    start = len(rows)
-    batch: list[tuple[int, bytes]] = []
-    mixed = False
-
-    def per_row(number: int, raw: bytes) -> None:
-        text = decode_line(raw, fr)
-        if not text.strip() or text.lstrip().startswith("#"):
-            fr.blank += 1
-            return
-        try:
-            fix = _one_line(text, fmt, header, delimiter, path.stem, roles)
-        except RowError as exc:
-            report.reject(fr, number, exc.category, exc.reason, raw)
-            return
-        fr.records += 1
-        rows.add(**fix, source=fmt, sentence="", file=fr.file, line=number)
-
-    def flush() -> None:
-        nonlocal mixed
-        fast = None
-        if FAST_PATH and header is not None and len(batch) >= FAST_MIN_ROWS:
-            fast = fast_batch([raw for _, raw in batch], header, delimiter, path.stem, roles, fix_quality, _flag)
-        if fast is None:
-            for number, raw in batch:
-                per_row(number, raw)
-        else:
-            ok = fast.ok
-            numbers = np.fromiter((number for number, _ in batch), np.int64, len(batch))
-            rows.extend(
-                time_ns=fast.time_ns[ok],
-                device_names=fast.device,
-                device_code=fast.device_code[ok],
-                role=fast.role[ok],
-                lat=fast.lat[ok],
-                lon=fast.lon[ok],
-                speed_mps=fast.speed_mps[ok],
-                course_deg=fast.course_deg[ok],
-                valid=fast.valid[ok],
-                source=fmt,
-                file=fr.file,
-                line=numbers[ok],
-                fix_quality=fast.fix_quality[ok],
-            )
-            fr.records += int(ok.sum())
-            for k in np.flatnonzero(~ok):
-                per_row(*batch[k])
-            mixed = mixed or not ok.all()
-        batch.clear()
-
-    for number, raw in lines:
-        if header is not None:
-            batch.append((number, raw))
-            if len(batch) >= FAST_BATCH_ROWS:
-                flush()
-            continue
-        text = decode_line(raw, fr)
-        if not text.strip() or text.lstrip().startswith("#"):
-            fr.blank += 1
-            continue
-        if fmt == "jsonl":
-            per_row(number, raw)
-            continue
-        delimiter = delimiter_of(text)
-        try:
-            header = parse_device_header(cells_of(text, delimiter))
-        except (ValueError, RowError) as exc:
-            reason = f"not the device-stream header: {exc}; expected time, lat, lon, …"
-            report.reject(fr, number, "header", reason, raw)
-            continue
-        for name in header.extra:
-            report.skipped[f"CSV column '{name[:40]}' (not read)"] += 1
-        fr.blank += 1  # the header: no record, nothing lost
-    flush()
-    if mixed:
-        rows.sort_by_line_from(start)  # rows read per row came after their batch's vectorized ones
+    DeviceLines(fr, report, rows, fmt, path.stem, roles).add(lines)
 
 
 def _is_jsonl(path: Path) -> bool:

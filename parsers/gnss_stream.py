@@ -132,13 +132,17 @@ class StreamParser:
         self._gpsd_devices = {}
         feed = _Feed(lines)
         while (item := feed.next()) is not None:
-            number, raw, start = item
-            if start == 0 and raw.lstrip(b" \t")[:1] == b"{":
-                self._json_line(fr, number, text_of(raw).strip(b" \t"), path.stem)
-            elif start == 0 and not _UNPRINTABLE_RE.search(text_of(raw)):
-                self._text_line(fr, number, text_of(raw), path.stem)
-            else:
-                self._binary_line(fr, number, raw, start, path.stem, feed)
+            self._line(fr, item, path.stem, feed)
+
+    def _line(self, fr: FileReport, item: tuple[int, bytes, int], stem: str, feed: _Feed) -> None:
+        """One line (with its end; ``start`` > 0: the rest of it after a packet that ended there)."""
+        number, raw, start = item
+        if start == 0 and raw.lstrip(b" \t")[:1] == b"{":
+            self._json_line(fr, number, text_of(raw).strip(b" \t"), stem)
+        elif start == 0 and not _UNPRINTABLE_RE.search(text_of(raw)):
+            self._text_line(fr, number, text_of(raw), stem)
+        else:
+            self._binary_line(fr, number, raw, start, stem, feed)
 
     # ------------------------------------------------------------ lines
 

@@ -61,6 +61,11 @@ def check_trc_header(path: Path) -> TrcHeader:
     finally:
         stream.close()
         raw.close()
+    return check_trc_head(head, str(path))
+
+
+def check_trc_head(head: bytes, name: str) -> TrcHeader:
+    """:func:`check_trc_header` on a file's first bytes (``name`` for the message)."""
     version, start = "1.0", None
     columns: tuple[str, ...] = ()
     for line in head.decode("utf-8", errors="replace").splitlines():
@@ -76,15 +81,15 @@ def check_trc_header(path: Path) -> TrcHeader:
             except ValueError:
                 start = None
             if start is None or not 0.0 <= start <= _MAX_START_DAYS:
-                raise InputError(f"{path}: ;$STARTTIME: expected a day number since 1899-12-30, found '{value[:40]}'")
+                raise InputError(f"{name}: ;$STARTTIME: expected a day number since 1899-12-30, found '{value[:40]}'")
         elif key == ";$COLUMNS":
             columns = tuple(value.strip().split(","))
     if version not in TRC_VERSIONS_READ:
         raise InputError(
-            f"{path}: TRC file version '{version[:20]}' is not read (python-can reads {', '.join(TRC_VERSIONS_READ)})"
+            f"{name}: TRC file version '{version[:20]}' is not read (python-can reads {', '.join(TRC_VERSIONS_READ)})"
         )
     if version.startswith("2.") and not {"O", "T", "I", "d"} <= set(columns):
-        raise InputError(f"{path}: TRC {version} without a ;$COLUMNS line naming O, T, I and d")
+        raise InputError(f"{name}: TRC {version} without a ;$COLUMNS line naming O, T, I and d")
     return TrcHeader(version, start, columns)
 
 

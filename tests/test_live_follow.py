@@ -1,5 +1,9 @@
 """file:PATH — following a growing log: partial lines, rotation, copytruncate, and
-`trackside follow` reporting exactly what `trackside analyze` finds in the whole log."""
+`trackside follow` reporting exactly what `trackside analyze` finds in the whole log.
+
+The transport tests write lines that start like diagnostic records (``Diag_id:``): a file
+is followed as the format its first lines show (tests/test_live_follow_formats.py), and
+a diagnostic log's lines are handed on as they are read."""
 
 from __future__ import annotations
 
@@ -55,14 +59,14 @@ def test_a_partial_last_line_waits_for_its_newline(tmp_path: Path, polling: bool
     src, got = _follow(log, from_start=True, force_polling=polling)
     try:
         with log.open("ab") as f:
-            f.write(b"line one\nline tw")
+            f.write(b"Diag_id: line one\nDiag_id: line tw")
             f.flush()
-            assert wait_until(lambda: got.data() == b"line one\n", 5)
+            assert wait_until(lambda: got.data() == b"Diag_id: line one\n", 5)
             time.sleep(0.2)
-            assert got.data() == b"line one\n"  # "line tw" is not handed over half-written
+            assert got.data() == b"Diag_id: line one\n"  # "line tw" is not handed over half-written
             f.write(b"o\n")
             f.flush()
-        assert wait_until(lambda: got.data() == b"line one\nline two\n", 5)
+        assert wait_until(lambda: got.data() == b"Diag_id: line one\nDiag_id: line two\n", 5)
     finally:
         src.stop()
     blocks = [i for i in got.items if isinstance(i, LineBlock)]
@@ -71,13 +75,13 @@ def test_a_partial_last_line_waits_for_its_newline(tmp_path: Path, polling: bool
 
 def test_from_the_end_skips_what_is_there_but_keeps_true_line_numbers(tmp_path: Path) -> None:
     log = tmp_path / "a.log"
-    log.write_bytes(b"old 1\nold 2\nold 3 unfinish")
+    log.write_bytes(b"Diag_id: old 1\nDiag_id: old 2\nDiag_id: old 3 unfinish")
     src, got = _follow(log)
     try:
         assert wait_until(lambda: src.status().connected, 5)
         with log.open("ab") as f:
-            f.write(b"ed\nnew 4\n")
-        assert wait_until(lambda: got.data() == b"old 3 unfinished\nnew 4\n", 5)
+            f.write(b"ed\nDiag_id: new 4\n")
+        assert wait_until(lambda: got.data() == b"Diag_id: old 3 unfinished\nDiag_id: new 4\n", 5)
     finally:
         src.stop()
     first = next(i for i in got.items if isinstance(i, LineBlock))
@@ -92,19 +96,19 @@ def test_rotation_by_rename_loses_and_repeats_nothing(tmp_path: Path) -> None:
     try:
         with log.open("ab") as f:
             for i in range(50):
-                line = f"first {i}\n".encode()
+                line = f"Diag_id: first {i}\n".encode()
                 f.write(line)
                 expected += line
             f.flush()
             os.rename(log, tmp_path / "a.log.1")
             # The writer has not reopened yet: these still go to the renamed file.
             for i in range(5):
-                line = f"late {i}\n".encode()
+                line = f"Diag_id: late {i}\n".encode()
                 f.write(line)
                 expected += line
         with log.open("ab") as f:
             for i in range(50):
-                line = f"second {i}\n".encode()
+                line = f"Diag_id: second {i}\n".encode()
                 f.write(line)
                 expected += line
         assert wait_until(lambda: got.data() == expected, 10), got.data()[-200:]
@@ -122,20 +126,20 @@ def test_copytruncate_takes_what_was_missed_from_the_copy(tmp_path: Path) -> Non
     try:
         with log.open("ab") as f:
             for i in range(100):
-                line = f"before {i:03d}\n".encode()
+                line = f"Diag_id: before {i:03d}\n".encode()
                 f.write(line)
                 expected += line
             f.flush()
             assert wait_until(lambda: got.data() == expected, 5)
             # Written and copied before the follower looks again, then truncated.
-            tail = b"".join(f"unseen {i:03d}\n".encode() for i in range(7))
+            tail = b"".join(f"Diag_id: unseen {i:03d}\n".encode() for i in range(7))
             f.write(tail)
             f.flush()
             expected += tail
             shutil.copyfile(log, tmp_path / "a.log.1")
             f.truncate(0)
             for i in range(30):  # grows again, past the old size's tail check
-                line = f"after {i:03d}\n".encode()
+                line = f"Diag_id: after {i:03d}\n".encode()
                 f.write(line)
                 expected += line
         assert wait_until(lambda: got.data() == expected, 10), got.data()[-300:]

@@ -16,7 +16,8 @@ from console.commands.common import IdleGapOpt, IncludeStatusOpt, fail, guard, l
 SourcesArg = Annotated[
     list[str],
     typer.Argument(
-        help="Sources: file:PATH (or a path), gpsd://HOST:PORT[/DEVICE], mqtt[s]://HOST:PORT/TOPIC,"
+        help="Sources: file:PATH (or a path: a diagnostic, NMEA, gpsd JSON, GNSS device CSV/JSON lines, CAN or"
+        " sensor frame log, told by its content), gpsd://HOST:PORT[/DEVICE], mqtt[s]://HOST:PORT/TOPIC,"
         " can:IFACE[:CHANNEL].",
         show_default=False,
     ),
@@ -102,7 +103,9 @@ def follow(
             "--idle-exit", help="Stop when nothing has arrived for this many seconds (after the first record).", min=0.1
         ),
     ] = None,
-    strict: Annotated[bool, typer.Option("--strict", help="Exit 1 if any line was rejected.")] = False,
+    strict: Annotated[
+        bool, typer.Option("--strict", help="Exit 1 if any line of a followed file was rejected.")
+    ] = False,
     include_status: IncludeStatusOpt = False,
 ) -> None:
     """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary."""
@@ -147,7 +150,8 @@ def follow(
             # writer waits for it (notes such as "connected" do not count).
             if idle_exit is None:
                 return False
-            n = engine.items - sum(engine.notes.values())
+            # Lines a source read count too: a big followed file may give few items while it is read.
+            n = engine.items - sum(engine.notes.values()) + sum(s.message_count for s in srcs)
             if n != last[1]:
                 last[:] = [time.monotonic(), n]
                 data_items[0] = n
@@ -166,7 +170,7 @@ def follow(
             emit(summary)
         else:
             sys.stderr.write("\n".join(_summary_lines(summary)) + "\n")
-        rejected = engine.diag.reader.report.rejected
+        rejected = sum(f["rejected"] for f in summary["files"])  # diagnostic, GNSS, CAN and frame logs
         if terminated:
             return exit_codes.TERMINATED
         return exit_codes.FINDINGS if strict and rejected else exit_codes.OK

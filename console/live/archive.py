@@ -1,9 +1,12 @@
 """``follow --archive DIR``: what is followed is kept, and ingested into the archive.
 
-Followed bytes are appended, exactly as read, to spool files beside the
-archive (``DIR.live/``: one per followed file, one per rotation); GNSS fixes
-from gpsd and MQTT go to a device CSV (``time,device,role,lat,lon,speed,
-course``, the stream form ``trackside gnss`` reads).  Every
+Followed diagnostic logs are appended, exactly as read, to spool files beside
+the archive (``DIR.live/``: one per followed file, one per rotation); GNSS
+fixes (gpsd, MQTT, followed NMEA or device files) go to a device CSV
+(``time,device,role,lat,lon,speed,course``, the stream form ``trackside
+gnss`` reads); CAN frames (a bus, or count frames of a followed CAN log) to
+a candump log, and sensor frames of a followed frame log to a frame log, the
+forms ``trackside frames`` reads.  Every
 ``INGEST_EVERY_S`` and at the end, the spool is ingested with the archive's
 own ingest (``console.archive.ingest.run_ingest``), which reads a grown file
 from where the last ingest stopped: nothing is stored twice, and the
@@ -17,10 +20,41 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
+
 from console.analysis.timefmt import iso
-from console.sources.base import GnssFix, Item, LineBlock
+from console.sources.base import CanFrame, FrameRows, GnssFix, Item, LineBlock
 
 INGEST_EVERY_S = 30.0
+FLUSH_LINES = 4096  # CAN frames come one by one: written in blocks
+_HEX = np.array([f"{b:02X}" for b in range(256)], dtype=object)
+
+
+def candump_line(frame: CanFrame) -> str:
+    """One frame as ``candump -l`` writes it: ``(1622974500.000000) can0 187#03A5E80300``."""
+    s, ns = divmod(frame.t_ns, 1_000_000_000)
+    ident = f"{frame.arbitration_id:08X}" if frame.extended else f"{frame.arbitration_id:03X}"
+    channel = "".join(c for c in frame.channel if c.isalnum() or c in "-_.") or "can0"
+    payload = "R" if frame.remote else frame.data.hex().upper()
+    return f"({s}.{ns // 1000:06d}) {channel} {ident}#{payload}\n"
+
+
+def frame_rows_text(rows: FrameRows) -> str:
+    """Count frames read from a followed log, as a log of their kind (candump for CAN, frame lines else)."""
+    t = np.asarray(rows.time_ns, np.int64)
+    hexes = _HEX[rows.status] + _HEX[rows.byte2]
+    if rows.kind == "can" and rows.can_id is not None and rows.total is not None and rows.seq is not None:
+        s, us = t // 1_000_000_000, (t % 1_000_000_000) // 1000
+        stamp = pd.Series(s).astype(str) + "." + pd.Series(us).astype(str).str.zfill(6)
+        ident = pd.Series(rows.can_id).map("{:03X}".format)
+        total = np.asarray(rows.total, np.int64)
+        payload = hexes + _HEX[total & 0xFF] + _HEX[total >> 8] + _HEX[rows.seq]
+        lines = "(" + stamp + ") log " + ident + "#" + pd.Series(payload)
+    else:
+        stamp = pd.Series(np.datetime_as_string(t.view("datetime64[ns]"), unit="ns"))
+        lines = stamp + " " + pd.Series(rows.sensor).astype(str) + " " + pd.Series(hexes)
+    return "".join((lines + "\n").tolist())
 
 
 def spool_dir(archive: Path) -> Path:
@@ -38,6 +72,7 @@ class LiveArchiver:
         self._files: dict[str, Path] = {}
         self._last_ingest = time.monotonic()
         self._thread: threading.Thread | None = None
+        self._can_lines: dict[str, list[str]] = {}  # by source: frames not written yet
         self.ingests = 0
         self.errors: list[str] = []
 
@@ -63,11 +98,28 @@ class LiveArchiver:
                 if new:
                     f.write("time,device,role,lat,lon,speed,course\n")
                 f.write(
-                    f"{iso(item.t_fix_ns)}Z,{device},{role},{item.lat_deg:.7f},{item.lon_deg:.7f},{speed},{course}\n"
+                    f"{iso(item.t_fix_ns)},{device},{role},{item.lat_deg:.7f},{item.lon_deg:.7f},{speed},{course}\n"
                 )
+        elif isinstance(item, CanFrame):
+            pending = self._can_lines.setdefault(item.source, [])
+            pending.append(candump_line(item))
+            if len(pending) >= FLUSH_LINES:
+                self._write_can()
+        elif isinstance(item, FrameRows) and len(item):
+            key, suffix = ("can-", ".log") if item.kind == "can" else ("frames-", ".txt")
+            with self._path(key + item.source, suffix).open("a", encoding="utf-8") as f:
+                f.write(frame_rows_text(item))
+
+    def _write_can(self) -> None:
+        for source, lines in self._can_lines.items():
+            if lines:
+                with self._path("can-" + source, ".log").open("a", encoding="utf-8") as f:
+                    f.write("".join(lines))
+                lines.clear()
 
     def tick(self) -> None:
         """Ingest in the background every INGEST_EVERY_S (never two at once)."""
+        self._write_can()
         if time.monotonic() - self._last_ingest < INGEST_EVERY_S:
             return
         if self._thread is not None and self._thread.is_alive():
@@ -94,4 +146,5 @@ class LiveArchiver:
     def finish(self) -> None:
         if self._thread is not None:
             self._thread.join()
+        self._write_can()
         self.ingest(wait=True)

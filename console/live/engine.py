@@ -20,7 +20,7 @@ from console.live.archive import LiveArchiver
 from console.live.crossings import CrossingFollow
 from console.live.diag import DiagFollow
 from console.live.frames import FrameFollow
-from console.sources.base import CanFrame, GnssFix, Item, LineBlock, Source, SourceNote
+from console.sources.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote
 
 Emit = Callable[[dict[str, Any]], None]
 TICK_S = 0.5  # crossing units' clock and the idle wake-up: two a second is nothing for the CPU
@@ -41,6 +41,7 @@ class LiveEngine:
         self.frames = FrameFollow(layout, emit)
         self.archiver = archiver
         self.can_frames = 0
+        self.file_frames = 0  # count frames read from followed CAN and frame logs
         self.items = 0
         self.notes: dict[str, int] = {}
 
@@ -60,6 +61,9 @@ class LiveEngine:
         elif isinstance(item, CanFrame):
             self.can_frames += 1
             self.frames.add(item)
+        elif isinstance(item, FrameRows):
+            self.file_frames += len(item)
+            self.frames.add_rows(item)
         elif isinstance(item, SourceNote):
             self.notes[item.kind] = self.notes.get(item.kind, 0) + 1
             self.emit({"type": "source", "source": item.source, "kind": item.kind, "detail": item.detail})
@@ -95,6 +99,7 @@ class LiveEngine:
             }
             for f in rep.files
         ]
+        files += [f for s in sources for f in s.file_reports()]
         return {
             "type": "summary",
             "passages": self.diag.stats.passages + self.frames.stats.passages,
@@ -103,6 +108,7 @@ class LiveEngine:
             "crossing_events": self.crossings.events if self.crossings else 0,
             "gnss_fixes": self.crossings.fixes if self.crossings else 0,
             "can_frames": self.can_frames,
+            "file_frames": self.file_frames,
             "files": files,
             "sections": {k: {"state": s, "count": c} for k, (s, c) in self.section_states().items()},
             "sources": [s.status().to_dict() for s in sources],

@@ -1,6 +1,9 @@
-"""CAN count frames arriving live → detection events → sections, frame passages, health.
+"""Count frames arriving live → detection events → sections, frame passages, health.
 
-The batch path reads a CAN log into a frame table (:func:`parsers.can_logs.parse_can`)
+Frames come from a CAN bus one by one (:meth:`FrameFollow.add`, ``can:``) or
+from a followed CAN log or sensor frame log a block at a time
+(:meth:`FrameFollow.add_rows`, ``file:``).  The batch path reads a log into a
+frame table (:func:`parsers.can_logs.parse_can`, :func:`parsers.frames.parse_frames`)
 and turns it into detection events with
 :func:`~console.analysis.frame_events.frames_to_events`.  Live frames go
 through that same function, a block at a time: each block of a sensor's
@@ -45,9 +48,10 @@ from console.analysis.health import channel_fault_findings
 from console.analysis.sections import SectionEngine, SectionState, Transition
 from console.analysis.timefmt import NS, iso
 from console.layout import Layout
-from console.sources.base import CanFrame
+from console.sources.base import CanFrame, FrameRows
 from parsers.can_logs import COUNT_DLC, COUNT_ID_BASE, NODE_MAX, NODE_MIN, default_sensor_name
 from parsers.frame_table import CHECK_BYTE, DER_BIT, check_byte_mask, decode_status
+from parsers.report import escape_text
 
 Emit = Callable[[dict[str, Any]], None]
 MAX_BUFFERED = 4096  # frames held between flushes (a burst is analysed in blocks of this size)
@@ -61,6 +65,7 @@ class _Sensor:
     context_frame: pd.DataFrame | None = None  # the same row as a one-row table, its column types kept
     last_count: tuple[int, int] | None = None  # (time, byte 2) of its last non-0xA5 frame: P of the 0xA5 rule
     lost_announced: bool = False
+    source: str = "can"  # what its frames come from: can | frame (text frames), as the batch events say
     axles: int = 0
     first_axle_ns: int = 0
     up: int = 0
@@ -121,13 +126,27 @@ class FrameFollow:
             return
         block, numbers = self._buffer, self._numbers
         self._buffer, self._numbers = [], []
-        table = self._count_table(block, numbers)
+        self._analyse(self._count_table(block, numbers), "can")
+
+    def add_rows(self, rows: FrameRows) -> None:
+        """Count frames read from a followed CAN or frame log: analysed at once (a block of the file)."""
+        self.flush()  # frames of a bus that came before, first
+        self.stats.frames += len(rows)
+
+        def reject(i: int, category: str, reason: str) -> None:
+            line = int(rows.line[i])
+            self._emit_rejection(rows.file, line, category, reason, escape_text(rows.text.get(line, b"")))
+
+        extra = {k: v for k, v in (("total", rows.total), ("seq", rows.seq)) if v is not None}
+        self._analyse(self._table(rows.time_ns, rows.sensor, rows.status, rows.byte2, extra, reject), rows.kind)
+
+    def _analyse(self, table: pd.DataFrame, source: str) -> None:
         events: list[DetectionEvent] = []
         if len(table):
             self.stats.count_frames += len(table)
             self.clock_ns = max(self.clock_ns or 0, int(table["time_ns"].max()))
             for sensor, part in table.groupby("sensor", sort=True):  # per sensor (a few), not per frame
-                events += self._sensor_block(str(sensor), part.drop(columns="time_ns"))
+                events += self._sensor_block(str(sensor), part.drop(columns="time_ns"), source)
         events += self._silences()
         self._publish(sort_events(events))
 
@@ -145,33 +164,48 @@ class FrameFollow:
         data = np.frombuffer(b"".join(f.data[:8].ljust(8, b"\0") for f in block), np.uint8).reshape(n, 8)
         node = can_id - COUNT_ID_BASE
         count_id = ~flags & (node >= NODE_MIN) & (node <= NODE_MAX)
-        status, byte2 = data[:, 0], data[:, 1]
         bad_dlc = count_id & (length != COUNT_DLC)
         for i in np.flatnonzero(bad_dlc).tolist():  # rare: one line per bad frame
             reason = f"count frame 0x{can_id[i]:03X}: expected DLC {COUNT_DLC}, found {length[i]} data bytes"
             self._reject(block[i], numbers[i], "dlc", reason)
         keep = np.flatnonzero(count_id & ~bad_dlc)
-        order = keep[np.argsort(t_ns[keep], kind="stable")]
-        sensor = np.array([self.names.get(k, default_sensor_name(k)) for k in node[order].tolist()], dtype=object)
-        check = self._check(sensor, t_ns[order], byte2[order])
+        sensor = np.array([self.names.get(k, default_sensor_name(k)) for k in node[keep].tolist()], dtype=object)
+        d = data[keep]
+        extra = {"total": d[:, 2].astype(np.uint16) | (d[:, 3].astype(np.uint16) << 8), "seq": d[:, 4]}
+
+        def reject(j: int, category: str, reason: str) -> None:
+            i = int(keep[j])
+            self._reject(block[i], numbers[i], category, reason)
+
+        return self._table(t_ns[keep], sensor, d[:, 0], d[:, 1], extra, reject)
+
+    def _table(
+        self,
+        t_ns: np.ndarray,
+        sensor: np.ndarray,
+        status: np.ndarray,
+        byte2: np.ndarray,
+        extra: Mapping[str, np.ndarray],
+        reject: Callable[[int, str, str], None],
+    ) -> pd.DataFrame:
+        """Count frames → frame-table rows in time order (stably); check-byte frames with DER = 1 rejected."""
+        order = np.argsort(t_ns, kind="stable")
+        check = self._check(sensor[order], t_ns[order], byte2[order])
         broken = check & ((status[order] & DER_BIT) != 0)
         for j in np.flatnonzero(broken).tolist():
-            i = int(order[j])
             reason = "byte 2 is the check byte 0xA5 here (no count reaching 165 around it) but DER = 1"
-            self._reject(block[i], numbers[i], "protocol", reason + "; a check-byte frame has DER = 0")
+            reject(int(order[j]), "protocol", reason + "; a check-byte frame has DER = 0")
         rows, ok = order[~broken], ~broken
-        d = data[rows]
         return pd.DataFrame(
             {
                 "time_ns": t_ns[rows],
                 "time": pd.to_datetime(t_ns[rows], unit="ns"),
-                "sensor": sensor[ok],
+                "sensor": sensor[order][ok],
                 "status": status[rows],
                 "byte2": byte2[rows],
                 "check": check[ok],
                 **decode_status(status[rows]),
-                "total": d[:, 2].astype(np.uint16) | (d[:, 3].astype(np.uint16) << 8),
-                "seq": d[:, 4],
+                **{k: np.asarray(v)[rows] for k, v in extra.items()},
             }
         )
 
@@ -188,27 +222,30 @@ class FrameFollow:
         return out
 
     def _reject(self, frame: CanFrame, number: int, category: str, reason: str) -> None:
-        self.stats.rejected += 1
         text = f"{frame.arbitration_id:03X}#{frame.data.hex().upper()}"
+        self._emit_rejection(frame.source, number, category, reason, text)
+
+    def _emit_rejection(self, file: str, line: int, category: str, reason: str, text: str) -> None:
+        self.stats.rejected += 1
         self.emit(
-            {"type": "source", "kind": "rejected", "file": frame.source, "line": number, "category": category}
+            {"type": "source", "kind": "rejected", "file": file, "line": line, "category": category}
             | {"reason": reason, "text": text}
         )
 
     # -- a sensor's block → events ---------------------------------------
-    def _sensor_block(self, name: str, part: pd.DataFrame) -> list[DetectionEvent]:
+    def _sensor_block(self, name: str, part: pd.DataFrame, source: str) -> list[DetectionEvent]:
         st = self.sensors.get(name)
         ctx = st.context if st is not None else None
         before = st.context_frame if st is not None else None
         # The context row kept as a table: concatenated with its column types, nothing to convert (a
         # row rebuilt from a dict would be object columns, and converting them took most of a flush).
         table = part if before is None else pd.concat([before, part], ignore_index=True)
-        events = frames_to_events(table, up_is_s1_to_s3=self.up, comm_timeout_s=self.timeout_ns / NS, source="can")
+        events = frames_to_events(table, up_is_s1_to_s3=self.up, comm_timeout_s=self.timeout_ns / NS, source=source)
         if ctx is not None and st is not None:
             events = self._without_context(events, ctx, st)
         last = part.iloc[-1]
         if st is None:
-            st = self.sensors[name] = _Sensor(context={})
+            st = self.sensors[name] = _Sensor(context={}, source=source)
         st.context = {str(k): v for k, v in last.items()}
         st.context_frame = part.iloc[[-1]]
         counts = part[part["byte2"] != CHECK_BYTE]
@@ -245,7 +282,9 @@ class FrameFollow:
                 st.lost_announced = True
                 detail = f"no frames for {self.timeout_ns / NS:g} s"
                 out.append(
-                    DetectionEvent(t_last + self.timeout_ns, EventKind.POWER_LOSS, name, source="can", detail=detail)
+                    DetectionEvent(
+                        t_last + self.timeout_ns, EventKind.POWER_LOSS, name, source=st.source, detail=detail
+                    )
                 )
         return out
 
@@ -290,7 +329,7 @@ class FrameFollow:
             self.emit(
                 {
                     "type": "passage",
-                    "source": "can",
+                    "source": st.source,
                     "counting_head": e.head,
                     "start": iso(st.first_axle_ns),
                     "end": iso(e.time_ns),

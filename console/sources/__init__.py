@@ -3,13 +3,14 @@
 A source knows its transport, not railways.  Each one runs in its own thread
 and hands *items* to one queue: raw record bytes of a followed log
 (:class:`LineBlock`), GNSS fixes (:class:`GnssFix`), CAN frames
-(:class:`CanFrame`) and notes about itself (:class:`SourceNote`).  The live
+(:class:`CanFrame`), count frames read from a followed CAN or frame log
+(:class:`FrameRows`) and notes about itself (:class:`SourceNote`).  The live
 engine (:mod:`console.live`) turns those into the same tables and events the
 batch parsers produce and runs the same analysis core on them.
 
 A source is named by a URI (:func:`open_source`)::
 
-    file:PATH                      follow a growing file (tail -F)
+    file:PATH                      follow a growing file (tail -F): a diagnostic, GNSS, CAN or frame log
     gpsd://HOST:PORT[/DEVICE]      a running gpsd, WATCH JSON
     mqtt://HOST:PORT/TOPIC         LoRaWAN uplinks (ChirpStack v4, The Things Stack v3)
     mqtts://HOST:PORT/TOPIC        the same over TLS
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 from console.sources.base import (
     CanFrame,
+    FrameRows,
     GnssFix,
     Item,
     LineBlock,
@@ -32,6 +34,7 @@ from console.sources.uri import open_source, parse_uri
 
 __all__ = [
     "CanFrame",
+    "FrameRows",
     "GnssFix",
     "Item",
     "LineBlock",

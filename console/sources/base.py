@@ -16,6 +16,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 
 class SourceError(Exception):
     """A source that cannot be set up (bad URI, missing interface): exit 2."""
@@ -64,17 +66,45 @@ class CanFrame:
     remote: bool = False  # RTR: no payload
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class FrameRows:
+    """Count frames read from a followed file (a CAN log or a sensor frame log), a block at a time.
+
+    Columns as the batch frame table has them (``parsers.frames``): one entry
+    per frame, in line order.  ``kind`` is ``can`` (CAN count frames, with
+    ``total`` and ``seq``) or ``frame`` (intelligent-sensor text frames).
+    """
+
+    source: str
+    file: str  # the followed path, with ``#N`` from the Nth file after a rotation
+    kind: str  # can | frame
+    time_ns: np.ndarray  # int64, as written (no zone: naive)
+    sensor: np.ndarray  # object: the sensor's name
+    status: np.ndarray  # uint8
+    byte2: np.ndarray  # uint8: the count or the check byte 0xA5
+    line: np.ndarray  # int64
+    received_mono: float
+    total: np.ndarray | None = None  # CAN: uint16, cumulative axles
+    seq: np.ndarray | None = None  # CAN: uint8, sequence number
+    can_id: np.ndarray | None = None  # CAN: the frame's id (0x180 + node)
+    text: dict[int, bytes] = field(default_factory=dict)  # line → its text, for frames the follower may reject
+
+    def __len__(self) -> int:
+        return len(self.line)
+
+
 @dataclass(frozen=True, slots=True)
 class SourceNote:
     """Something about the transport itself: connected, lost, malformed, rotated…"""
 
     source: str
-    kind: str  # connected | disconnected | malformed | lost | duplicate | rotated | truncated | info
+    # connected | disconnected | malformed | lost | duplicate | rotated | truncated | unrecognised | info
+    kind: str
     detail: str
     received_mono: float
 
 
-Item = LineBlock | GnssFix | CanFrame | SourceNote
+Item = LineBlock | GnssFix | CanFrame | FrameRows | SourceNote
 Sink = Callable[[Item], None]
 
 
@@ -183,6 +213,11 @@ class Source(ABC):
             while self._recent and self._recent[0][0] < now - RATE_WINDOW_S:
                 self._recent.popleft()
 
+    @property
+    def message_count(self) -> int:
+        """Messages (lines of a file) received so far: cheap, for a caller that asks after every item."""
+        return self._messages
+
     def count_lost(self, n: int) -> None:
         with self._lock:
             self._lost += n
@@ -218,6 +253,10 @@ class Source(ABC):
                 duplicates=self._duplicates,
                 detail=self._detail,
             )
+
+    def file_reports(self) -> list[dict[str, Any]]:
+        """Line accounting of the files this source read itself (a followed GNSS or CAN log), for the summary."""
+        return []
 
     def wait(self, seconds: float) -> bool:
         """Sleep unless stopped; True if stopping."""

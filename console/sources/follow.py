@@ -13,6 +13,10 @@
   between our last read and the copy is taken from the copy (a sibling file
   whose content starts with what we read), so nothing is lost or repeated.
 * Wakes on inotify through watchfiles; polls when watchfiles cannot watch.
+
+What the lines are is recognised per file (:mod:`console.sources.file_kinds`):
+a diagnostic log's lines go on as :class:`LineBlock`, a GNSS file's as
+fixes, a CAN or sensor frame log's as frames.
 """
 
 from __future__ import annotations
@@ -21,11 +25,15 @@ import os
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
-from console.sources.base import LineBlock, Source, SourceError
+from console.sources.base import Item, LineBlock, Source, SourceError
+from console.sources.file_kinds import FileLines
+from parsers.kinds import HEAD_BYTES
 
 READ_BYTES = 1 << 20
 MAX_LINE_BYTES = 4 << 20
+PIECE_BYTES = 64 << 10
 SIGNATURE_BYTES = 64
 POLL_S = 0.05  # without inotify: 20 stat calls a second, negligible CPU
 CHECK_S = 1.0  # with inotify: a safety re-check, in case an event was missed
@@ -51,12 +59,18 @@ class FileSource(Source):
         self.rotations = 0
         self.truncations = 0
         self.watching = "poll"
+        self.files = FileLines(self, path)
 
     def check(self) -> None:
         if self.path.is_dir():
             raise SourceError(f"{self.path}: is a directory, expected a log file")
         if not self.path.parent.is_dir():
             raise SourceError(f"{self.path}: no such directory {self.path.parent}")
+
+    @property
+    def bytes_read(self) -> int:
+        """How far the current file has been read (its size once the reader has caught up)."""
+        return self._pos
 
     @property
     def label(self) -> str:
@@ -73,6 +87,7 @@ class FileSource(Source):
             self._wake.clear()
         self._pump(False)
         self._flush_carry("end")
+        self._hand_over(self.files.finish())
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
@@ -153,9 +168,14 @@ class FileSource(Source):
         self._generation += 1
         self._pos, self._line, self._carry, self._tail = 0, 1, b"", b""
         self._head = os.pread(fd, SIGNATURE_BYTES, 0)
+        skipped = b""
         if first and not self.from_start:
             self._skip_to_end(st.st_size)
+            # The lines skipped are not delivered, but the first of them tell what the file is.
+            skipped = os.pread(fd, min(HEAD_BYTES, self._pos), 0)
+            skipped = skipped[: skipped.rfind(b"\n") + 1]
         self.set_connected(True, f"following ({self.watching})")
+        self._hand_over(self.files.start(self.label, skipped))
 
     def _skip_to_end(self, size: int) -> None:
         """Start after the last complete line, counting the lines skipped (numbers stay true)."""
@@ -197,6 +217,7 @@ class FileSource(Source):
         self._generation += 1
         self._pos, self._line, self._tail = 0, 1, b""
         self._head = os.pread(self._fd, SIGNATURE_BYTES, 0)
+        self._hand_over(self.files.start(self.label, b""))
 
     def _find_copy(self) -> Path | None:
         """A sibling that starts like the file did and holds at least what we read."""
@@ -246,9 +267,29 @@ class FileSource(Source):
         self._emit(data[:cut])
 
     def _emit(self, lines: bytes) -> None:
-        n = lines.count(b"\n")
-        self.emit(LineBlock(self.uri, self.label, self._line, lines, time.monotonic()), messages=n)
-        self._line += n
+        start = 0
+        while start < len(lines):
+            # A file read here (not a diagnostic log: the engine parses those) goes in pieces, so that
+            # its items, and the count of its lines, keep flowing while a big file is read.
+            cut = len(lines)
+            if self.files.kind != "diag" and cut - start > PIECE_BYTES:
+                cut = lines.rfind(b"\n", start, start + PIECE_BYTES) + 1
+                if cut <= start:  # one line longer than a piece
+                    cut = lines.index(b"\n", start) + 1
+            piece = lines[start:cut] if start or cut < len(lines) else lines
+            n = piece.count(b"\n")
+            block = LineBlock(self.uri, self.label, self._line, piece, time.monotonic())
+            self._line += n
+            self.count_messages(n)
+            self._hand_over(self.files.lines(block))
+            start = cut
+
+    def _hand_over(self, items: list[Item]) -> None:
+        for item in items:
+            self.emit(item, messages=0)
+
+    def file_reports(self) -> list[dict[str, Any]]:
+        return self.files.reports()
 
     def _flush_carry(self, why: str) -> None:
         """An unfinished line when the file ends for good: handed over, so it is accounted for."""

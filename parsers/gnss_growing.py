@@ -1,0 +1,143 @@
+"""GNSS files read as they grow: the batch parsers' fix rows, a block of lines at a time.
+
+A receiver stream (NMEA, gpsd JSON, binary packets) goes line by line
+through the batch :class:`~parsers.gnss_stream.StreamParser` itself, so a
+sentence is decoded, an epoch merged and a packet framed exactly as when
+the whole file is read.  Two things the batch reader knows from having the
+whole file are waited for instead:
+
+* a binary packet may run past the end of its line (0x0A is just a byte in
+  it): a line where a packet starts whose length reaches past the lines at
+  hand waits for more (at most :data:`~parsers.gnss_packets.MAX_PACKET_BYTES`);
+  at the end of the file it is read as the batch reader reads a file's end;
+* a row stays *open* while a later line may still change it: it is its
+  device's current epoch (the GGA of the same second merges into the RMC's
+  row), or it waits for a date (a GGA before the device's first RMC).
+  :meth:`GrowingStream.settle` hands out the rows that are no longer open,
+  and forgets them: memory holds the open rows (one or two per device), not
+  the file.  So the fixes come out one epoch late (the next epoch's first
+  sentence, or the end, closes an epoch), and they are the batch rows.
+
+Device exports (CSV, JSON lines) are row by row: :class:`DeviceLines` in
+:mod:`parsers.gnss_csv`; their rows are never open.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import pandas as pd
+
+from parsers import gnss_packets as packets
+from parsers.gnss_lines import _split_lf, text_of
+from parsers.gnss_stream import _UNPRINTABLE_RE, StreamParser, _Feed
+from parsers.report import FileReport, ParseReport
+from parsers.sources import DEFAULT_MAX_LINE_BYTES
+
+
+def _waits_for_more(ahead: deque[tuple[int, bytes, int]]) -> bool:
+    """Whether a packet starting in the first line at hand may run past the lines at hand."""
+    _, line, start = ahead[0]
+    syncs = []
+    at = start
+    while (m := packets.SYNC_RE.search(line, at)) is not None:  # '$'/'!' start sentences, no look-ahead
+        at = m.start()
+        kind = packets.packet_kind(line[at : at + 2])
+        if kind is not None:
+            syncs.append((at, kind))
+        at += 1
+    if not syncs:
+        return False
+    # A packet is at most MAX_PACKET_BYTES: that much past the line's end is all it can need.
+    parts, have = [line], len(line)
+    for k in range(1, len(ahead)):
+        if have >= len(line) + packets.MAX_PACKET_BYTES:
+            return False
+        parts.append(ahead[k][1])
+        have += len(ahead[k][1])
+    whole = b"".join(parts)
+    for at, kind in syncs:
+        size = packets.header_bytes(kind)
+        if at + size > have:
+            return True
+        total = packets.packet_length(kind, whole[at : at + size])
+        if total is not None and at + total > have:
+            return True
+    return False
+
+
+class GrowingStream:
+    """Receiver streams read as they grow; one per followed source (a device's date and epoch carry
+    across its files, as across the files of one batch run)."""
+
+    def __init__(self, report: ParseReport) -> None:
+        self.report = report
+        self.parser = StreamParser(report)
+        self._feed = _Feed(iter(()))
+        self._fr: FileReport | None = None
+        self._stem = ""
+        # Row ids in the order the batch reader creates the rows: the open rows' ids, the next id.
+        self._open_ids = np.zeros(0, np.int64)
+        self._next_id = 0
+
+    def open_file(self, fr: FileReport, stem: str) -> None:
+        """Start a file (a rotation's next one): the previous one ends here."""
+        self.end_file()
+        self._fr, self._stem = fr, stem
+        self._feed = _Feed(iter(()))
+        self.parser._gpsd_devices = {}
+
+    def add(self, first_line: int, data: bytes) -> None:
+        """Complete lines of the current file (each ends with a newline), from line ``first_line`` on."""
+        fr = self._fr
+        assert fr is not None, "open_file first"
+        for k, raw in enumerate(_split_lf(data)):
+            fr.lines_read += 1
+            if len(raw) > DEFAULT_MAX_LINE_BYTES:  # as the batch reader's line splitter refuses it
+                reason = f"line of {len(raw)} bytes is too long to be a GNSS record"
+                self.report.reject(fr, first_line + k, "too long", reason, raw[:1024])
+                continue
+            self._feed.ahead.append((first_line + k, raw, 0))
+        self._run(final=False)
+
+    def end_file(self) -> None:
+        """The current file is complete: lines held for a packet's bytes are read as at a file's end."""
+        self._run(final=True)
+
+    def _run(self, final: bool) -> None:
+        feed, fr = self._feed, self._fr
+        while feed.ahead:
+            assert fr is not None
+            _, raw, start = feed.ahead[0]
+            binary = start > 0 or (raw.lstrip(b" \t")[:1] != b"{" and _UNPRINTABLE_RE.search(text_of(raw)))
+            if binary and not final and _waits_for_more(feed.ahead):
+                return
+            item = feed.next()
+            assert item is not None
+            self.parser._line(fr, item, self._stem, feed)
+
+    def settle(self, final: bool = False) -> tuple[pd.DataFrame, np.ndarray]:
+        """The rows no later line can change (every row when ``final``), in the order the batch reader
+        made them, with their ids (0, 1, … in that order); they leave the parser."""
+        rows = self.parser.rows
+        n = len(rows)
+        ids = np.concatenate([self._open_ids, np.arange(self._next_id, self._next_id + n - len(self._open_ids))])
+        self._next_id += n - len(self._open_ids)
+        open_rows: set[int] = set()
+        if not final:
+            for clock in self.parser.clocks.values():  # per device: a handful
+                if clock.row >= 0:
+                    open_rows.add(clock.row)
+                open_rows.update(r for r, _ in clock.undated or ())
+        keep = np.array(sorted(open_rows), np.int64)
+        done = np.setdiff1d(np.arange(n), keep)
+        settled = rows.subset(done).frame()
+        self.parser.rows = rows.subset(keep)
+        self._open_ids = ids[keep]
+        renumber = {int(old): new for new, old in enumerate(keep.tolist())}
+        for clock in self.parser.clocks.values():
+            clock.row = renumber.get(clock.row, -1)
+            if clock.undated:
+                clock.undated = [(renumber[r], tod) for r, tod in clock.undated]
+        return settled, ids[done]
