@@ -157,6 +157,23 @@ def test_rejected_lines_are_kept_with_file_line_and_reason(tmp_path: Path) -> No
     assert rows[0]["reason"]
 
 
+def test_every_rejected_line_of_a_mostly_bad_file_is_archived(tmp_path: Path) -> None:
+    # More rejections than a parse report lists (1000) and than one batch to the writer: every one is
+    # stored, in line order, beside the good records; none is lost when the in-memory list is capped.
+    from console.archive import ingest
+
+    good = (SAMPLES / "osong_ws4_0932_detection.log").read_bytes().splitlines(keepends=True)
+    bad = [f"junk {i}\n".encode() for i in range(2 * ingest.REJECTED_BATCH_ROWS + 7)]
+    log = tmp_path / "mostly_bad.log"
+    log.write_bytes(b"".join(good[:3] + bad + good[3:]))
+    arc = tmp_path / "arc"
+    res = _ingest(arc, log)
+    assert res.exit_code == 0, res.output
+    rows = _rows(arc, "SELECT count(*) AS n, min(line) AS first, max(line) AS last FROM rejected")
+    assert rows == [{"n": len(bad), "first": 4, "last": 3 + len(bad)}]
+    assert _count(arc) == len(good)
+
+
 def test_query_schema_and_presets(tmp_path: Path) -> None:
     arc = tmp_path / "arc"
     _ingest(arc, STATION, extra=("--layout", "example"))
