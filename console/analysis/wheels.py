@@ -414,22 +414,19 @@ def two_channel_events(
     source: str = "diag",
     whole_second: bool = False,
 ) -> list[DetectionEvent]:
-    """Batch: one head's records through a :class:`HeadCounter` (the rules are there).
+    """Batch: one head's records through the overlap rule (:class:`HeadCounter`'s events, made by
+    :class:`~console.analysis.counting.CounterBank` without a loop per record), in time order.
 
     Records come in the log's order; equal times keep it (a stable sort).
     """
+    from console.analysis.counting import CounterBank  # the bank builds on this module
+
     order = np.argsort(time_ns, kind="stable")
-    point_mode = not bool((value == 0).any())
-    hc = HeadCounter(
-        head,
-        up_is_sys1_first=up_is_sys1_first,
-        settings=settings,
-        point_mode=point_mode,
-        source=source,
-        whole_second=whole_second,
+    bank = CounterBank(settings, names=[head], source=source)
+    point_mode = not bool((np.asarray(value) == 0).any())
+    bank.configure(
+        np.zeros(1, np.int64), np.array([up_is_sys1_first]), np.array([point_mode]), np.array([whole_second])
     )
-    out: list[DetectionEvent] = []
-    for ch, t, v in zip(channel[order].tolist(), time_ns[order].tolist(), value[order].tolist(), strict=True):
-        out += hc.feed(int(ch), int(t), int(v))  # per wheel record: the rules are sequential
-    out += hc.flush()
-    return sorted(out, key=lambda e: e.time_ns)
+    fed = bank.feed(np.zeros(len(order), np.int64), channel[order], time_ns[order], value[order])
+    events = fed.events() + bank.flush().events()
+    return sorted(events, key=lambda e: e.time_ns)
