@@ -55,16 +55,25 @@ class StringPool:
         return i
 
 
+_TEXT, _SYS1_FIRST, _SYS2_FIRST, _ACTIVITY = (
+    int(Detail.TEXT),
+    int(Detail.AXLE_SYS1_FIRST),
+    int(Detail.AXLE_SYS2_FIRST),
+    int(Detail.ACTIVITY),
+)
+
+
 def _detail(code: int, t: int, aux: int, pool: Sequence[str]) -> str:
-    if code == Detail.NONE:
+    # Plain ints, not the enum: this runs once per event made into an object.
+    if code == 0:
         return ""
-    if code == Detail.TEXT:
+    if code == _TEXT:
         return pool[aux]
-    if code == Detail.AXLE_SYS1_FIRST:
+    if code == _SYS1_FIRST:
         return f"Sys1 {aux} Sys2 {t}"
-    if code == Detail.AXLE_SYS2_FIRST:
+    if code == _SYS2_FIRST:
         return f"Sys1 {t} Sys2 {aux}"
-    if code == Detail.ACTIVITY:
+    if code == _ACTIVITY:
         return f"activity {(t - aux) / NS:.1f} s after an isolated pulse"
     return f"no records for {np.int64(aux) / NS:.0f} s"  # as numpy divides the gap
 
