@@ -20,14 +20,22 @@ from __future__ import annotations
 import itertools
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from console.analysis.counting import CounterBank
-from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.diag_events import DiagEventSettings, diag_detection_events
+from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
+from console.analysis.events import DetectionEvent, EventKind, sort_events
 from console.analysis.wheels import CountingSettings, HeadCounter
+from console.jobs import analyze_files
+from console.layout import Layout, load_layout
+from console.sim.station import Fault, SimConfig, StationSim
+from console.sim.writers import write_diagnostic
 
 NS = 1_000_000_000
 MS = 1_000_000
@@ -164,3 +172,68 @@ def test_a_block_of_plain_wheels_makes_no_lone_pulse_and_no_rare_state() -> None
     assert len(events) == 20 * 3  # head damped, axle, head free per wheel
     assert not bank.pending and not bank.holds
     assert bank.flush().events() == []
+
+
+# --- the batch path: every head at once equals the loop over heads it replaced -------------
+
+
+def _per_head_reference(analysis: DiagAnalysis, layout: Layout, s: DiagEventSettings) -> list[DetectionEvent]:
+    """The batch path before the bank: a HeadCounter per two-channel head, a record at a time."""
+    events: list[DetectionEvent] = []
+    wr = analysis.wheel_records
+    for key, (device_id, name) in enumerate(analysis.heads):
+        if not layout.has_head(name) or layout.head(name).device_id not in (None, device_id):
+            continue
+        head = layout.head(name)
+        rows = wr[wr["head"] == key] if len(wr) else wr
+        if len(rows):
+            order = np.argsort(rows["time_ns"].to_numpy(np.int64), kind="stable")
+            ch, t, v = (rows[c].to_numpy(np.int64)[order] for c in ("channel", "time_ns", "value"))
+            hc = HeadCounter(
+                name,
+                up_is_sys1_first=head.up_is_first_channel_first,
+                settings=s.counting,
+                point_mode=not bool((v == 0).any()),
+                whole_second=not bool(rows["subsecond"].all()),
+            )
+            own = [e for c, tt, vv in zip(ch.tolist(), t.tolist(), v.tolist(), strict=True) for e in hc.feed(c, tt, vv)]
+            events += sorted(own + hc.flush(), key=lambda e: e.time_ns)
+        if s.power_gap_s is not None and len(analysis.activity):
+            act = analysis.activity[analysis.activity["head"] == key].sort_values("t_first_ns", kind="stable")
+            first, last = act["t_first_ns"].to_numpy(), act["t_last_ns"].to_numpy()
+            gap = first[1:] - last[:-1]
+            for i in np.flatnonzero(gap > int(s.power_gap_s * NS)).tolist():
+                lost = int(last[i]) + int(s.power_gap_s * NS)
+                detail = f"no records for {gap[i] / NS:.0f} s"
+                events.append(DetectionEvent(lost, EventKind.POWER_LOSS, name, 0, None, "diag", detail))
+                events.append(DetectionEvent(int(first[i + 1]), EventKind.POWER_RESTORED, name, 0, None, "diag"))
+    return sort_events(events)
+
+
+@pytest.fixture(scope="module")
+def faulty_log(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Layout]:
+    faults = (
+        Fault("missed_detections", "WS3", 150.0, 500.0, channel=2, probability=0.3),
+        Fault("isolated_pulse", "WS2", 250.0),
+        Fault("power_loss", "WS5", 350.0, 420.0),
+        Fault("damped_head", "WS4", 780.0, 820.0),
+    )
+    sim = StationSim(load_layout("example"), SimConfig(seed=5, trains_per_hour=30, faults=faults))
+    sim.run(900)
+    path = tmp_path_factory.mktemp("faulty") / "sim.log"
+    heads = [h.id for h in sim.layout.heads]
+    write_diagnostic(sim, path, resolution={h: ("us", "ms", "s")[i % 3] for i, h in enumerate(heads)})
+    return path, sim.layout
+
+
+@pytest.mark.parametrize("power_gap", [None, 5.0])
+@pytest.mark.parametrize("isolation", [5.0, 60.0])
+def test_the_batch_path_gives_the_per_head_loops_events(
+    faulty_log: tuple[Path, Layout], power_gap: float | None, isolation: float
+) -> None:
+    path, layout = faulty_log
+    s = DiagEventSettings(counting=CountingSettings(isolation_s=isolation), power_gap_s=power_gap)
+    job = analyze_files([path], SpeedSettings(), keep_releases=True)
+    events, _ = diag_detection_events(job.analysis, layout, s)
+    assert events == _per_head_reference(job.analysis, layout, s)
+    assert {e.kind for e in events} >= {EventKind.AXLE, EventKind.SINGLE_CHANNEL, EventKind.INTERFERENCE}
