@@ -271,9 +271,11 @@ class HeadCounter:
 
     Feed the head's wheel-sensor records in time order with :meth:`feed`
     (channel, time, 1 = damped / 0 = free) and let time pass with
-    :meth:`advance`; both return the detection events they settle.  The same
-    object runs over a parsed log (batch: :func:`two_channel_events`) and
-    inside the simulator (live), so both apply the same rules:
+    :meth:`advance`; both return the detection events they settle.  It runs
+    inside the simulator and the live engine, a record at a time; over a
+    parsed log the same rules run as array operations, many heads at once
+    (:class:`console.analysis.counting.CounterBank`, held to give exactly
+    this class's events by ``tests/test_counting_bank.py``):
 
     * an axle counts when one system's damping starts while the other's is
       still on (they overlap); the order of the two onsets gives the
