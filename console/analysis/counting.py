@@ -41,7 +41,18 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from console.analysis.counting_holds import NONE, Collector, Lone, settle
+from console.analysis.counting_holds import (
+    ACCIDENTAL,
+    EXPIRED,
+    FREE,
+    NONE,
+    OWN,
+    Collector,
+    Lone,
+    lone_event,
+    settle,
+)
+from console.analysis.counting_point import group_starts, pair_point_onsets
 from console.analysis.event_block import KIND_CODE, NO_CHANNEL, Detail, EventBlock, StringPool
 from console.analysis.events import EventKind
 from console.analysis.timefmt import NS
@@ -49,12 +60,6 @@ from console.analysis.wheels import SYS1, SYS2, CountingSettings
 
 ALL_TIME = np.iinfo(np.int64).max
 _AXLE, _DAMPED, _FREE_KIND = (KIND_CODE[k] for k in (EventKind.AXLE, EventKind.HEAD_DAMPED, EventKind.HEAD_FREE))
-# Within one record, HeadCounter.feed makes its events in this order (the ``sub`` of an event).
-EXPIRED, ACCIDENTAL, ACTIVITY, OWN, FREE = range(5)
-
-
-def _group_starts(keys: np.ndarray) -> np.ndarray:
-    return np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]]) if len(keys) else np.zeros(0, np.int64)
 
 
 def _last(mask: np.ndarray, hstart: np.ndarray, strict: bool) -> np.ndarray:
@@ -170,7 +175,7 @@ class CounterBank:
         self, out: Collector, idx: np.ndarray, h: np.ndarray, ch: np.ndarray, t: np.ndarray, on: np.ndarray, point: bool
     ) -> None:
         """Records of heads of one mode (whole heads, in order); ``idx``: their positions in the block."""
-        starts = _group_starts(h)
+        starts = group_starts(h)
         size = np.diff(np.r_[starts, len(h)])
         hstart = np.repeat(starts, size)
         if point:
@@ -292,8 +297,6 @@ class CounterBank:
         starts: np.ndarray,
         hstart: np.ndarray,
     ) -> tuple[list[Lone], np.ndarray]:
-        from console.analysis.counting_point import pair_point_onsets
-
         m = len(h)
         op = np.flatnonzero(on)
         oh = h[op]
@@ -360,8 +363,6 @@ class CounterBank:
         return out.block(self)
 
     def _advance_head(self, out: Collector, gen: int, key: int, t: int) -> None:
-        from console.analysis.counting_holds import lone_event
-
         pend = self.pending.get(key)
         tol = int(self.tol[key])
         n = 0

@@ -28,11 +28,12 @@ if TYPE_CHECKING:
     from console.analysis.counting import CounterBank
 
 NONE = np.iinfo(np.int64).min  # no time (HeadCounter's None)
-_SINGLE, _INTERFERENCE, _ACCIDENTAL = (
+_SINGLE_KIND, _INTERFERENCE_KIND, _ACCIDENTAL_KIND = (
     KIND_CODE[k] for k in (EventKind.SINGLE_CHANNEL, EventKind.INTERFERENCE, EventKind.ACCIDENTAL)
 )
-# The steps of HeadCounter.feed (as in console.analysis.counting).
-_EXPIRED, _ACCIDENTAL_STEP, _ACTIVITY, _OWN = 0, 1, 2, 3
+# Within one record, HeadCounter.feed makes its events in this order (an event's ``sub``): waiting
+# onsets expired, holds confirmed accidental, holds ended by activity, the record's own, head free.
+EXPIRED, ACCIDENTAL, ACTIVITY, OWN, FREE = range(5)
 
 _COLS = ("gen", "sub", "tie", "time_ns", "kind", "head", "direction", "channel", "detail", "aux_ns")
 
@@ -66,7 +67,7 @@ class Lone:
     """A damping of one system alone, settled at a record of the block."""
 
     record: int  # position (in the mode's records) of the record whose feed settles it
-    sub: int  # _EXPIRED: that record's advance (point mode); _OWN: it is the release
+    sub: int  # EXPIRED: that record's advance (point mode); OWN: it is the release
     tie: int
     t_on: int
     channel: int
@@ -79,9 +80,9 @@ def lone_event(
 ) -> int | None:
     """HeadCounter._lone: the event of a lone pulse; the new hold's id, or None."""
     if before != NONE and t_on - before <= bank.iso:
-        out.add(gen, sub, tie, now, _SINGLE, key, 0, ch, Detail.TEXT, bank.texts[0])
+        out.add(gen, sub, tie, now, _SINGLE_KIND, key, 0, ch, Detail.TEXT, bank.texts[0])
         return None
-    out.add(gen, sub, tie, now, _INTERFERENCE, key, 0, ch, Detail.TEXT, bank.texts[1])
+    out.add(gen, sub, tie, now, _INTERFERENCE_KIND, key, 0, ch, Detail.TEXT, bank.texts[1])
     hid = bank.hold_ids
     bank.hold_ids += 1
     return hid
@@ -116,7 +117,7 @@ def settle(
         if hid is not None:
             # A hold begun at a release waits for the next record; one begun while time passed
             # (an onset expired) is checked in that same step, and that record's onset ends it.
-            todo.append((key, x.t_on, x.channel, hid, x.record + (1 if x.sub == _OWN else 0)))
+            todo.append((key, x.t_on, x.channel, hid, x.record + (1 if x.sub == OWN else 0)))
     for key, t_on, c, hid, start in todo:  # per hold: rare
         _, end = span(key)
         due = t_on + bank.iso
@@ -124,8 +125,8 @@ def settle(
         k = int(np.searchsorted(onsets, start, side="left"))
         j = int(onsets[k]) if k < len(onsets) and onsets[k] < end else end
         if i < end and i <= j:
-            out.add(int(idx[i]), _ACCIDENTAL_STEP, hid, due, _ACCIDENTAL, key, 0, c, Detail.TEXT, bank.texts[2])
+            out.add(int(idx[i]), ACCIDENTAL, hid, due, _ACCIDENTAL_KIND, key, 0, c, Detail.TEXT, bank.texts[2])
         elif j < end:
-            out.add(int(idx[j]), _ACTIVITY, hid, int(t[j]), _SINGLE, key, 0, c, Detail.ACTIVITY, t_on)
+            out.add(int(idx[j]), ACTIVITY, hid, int(t[j]), _SINGLE_KIND, key, 0, c, Detail.ACTIVITY, t_on)
         else:
             bank.holds.setdefault(key, []).append((t_on, c, hid))

@@ -27,14 +27,15 @@ import numpy as np
 from console.analysis.wheels import SYS1
 
 
-def _group_starts(keys: np.ndarray) -> np.ndarray:
+def group_starts(keys: np.ndarray) -> np.ndarray:
+    """Start positions of the runs of equal values in ``keys``."""
     return np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]]) if len(keys) else np.zeros(0, np.int64)
 
 
 def _rank_in_group(mask: np.ndarray, group: np.ndarray) -> np.ndarray:
     """Per position, how many ``mask`` positions of its group come before it (groups contiguous, from 0)."""
     before = np.cumsum(mask) - mask
-    return before - before[_group_starts(group)][group]
+    return before - before[group_starts(group)][group]
 
 
 def _one_by_one(
