@@ -157,6 +157,58 @@ def test_bank_gives_the_head_counters_events_for_any_split_of_the_records(
     assert got == expected
 
 
+@CASE
+@given(log=logs(), data=st.data())
+def test_settling_what_time_alone_settles_keeps_the_batch_order_and_nothing_comes_earlier_later(
+    log: tuple[list[Head], list[tuple[int, int, int, int]], CountingSettings], data: st.DataObject
+) -> None:
+    # The event stream's release: between blocks, settle_before(the next record's time or earlier).
+    # Per head, the events sorted by time (stably) are those of the records fed one by one with
+    # nothing in between (the batch path), and nothing made afterwards is earlier than that time
+    # (or than the bank's floor: a hold that falls due before its pulse ends).
+    heads, records, s = log
+    n = len(records)
+    bounds = sorted({0, n, *data.draw(st.lists(st.integers(0, n), max_size=n + 1), label="cuts")})
+    counters = [
+        HeadCounter(
+            f"WS{k}",
+            up_is_sys1_first=h.up_is_sys1_first,
+            settings=s,
+            point_mode=h.point_mode,
+            whole_second=h.whole_second,
+        )
+        for k, h in enumerate(heads)
+    ]
+    bank = _bank(heads, s)
+    expected: dict[str, list[DetectionEvent]] = {}
+    got: dict[str, list[DetectionEvent]] = {}
+    settled = -(2**63)  # the latest time settled before
+
+    def take(events: list[DetectionEvent]) -> None:
+        assert all(e.time_ns >= settled for e in events)
+        _by_head(events, got)
+
+    for lo, hi in itertools.pairwise(bounds):
+        block = records[lo:hi]
+        for k, c, t, v in block:
+            _by_head(counters[k].feed(c, t, v), expected)
+        rows = sorted(range(len(block)), key=lambda i: block[i][0])
+        a = np.array([block[i] for i in rows], np.int64).reshape(-1, 4)
+        take(bank.feed(a[:, 0], a[:, 1], a[:, 2], a[:, 3]).events())
+        if hi < n and data.draw(st.booleans(), label="settle"):
+            until = records[hi][2] - data.draw(st.sampled_from([0, 1, NS, 100 * NS]), label="short of it")
+            passed = bank.settle_before(until).events()
+            assert all(e.time_ns < until for e in passed)
+            take(passed)
+            settled = max(settled, min(until, bank.floor_ns()))
+    for hc in counters:
+        _by_head(hc.flush(), expected)
+    take(bank.flush().events())
+    assert {h: sorted(v, key=lambda e: e.time_ns) for h, v in got.items()} == {
+        h: sorted(v, key=lambda e: e.time_ns) for h, v in expected.items()
+    }
+
+
 def test_a_block_of_plain_wheels_makes_no_lone_pulse_and_no_rare_state() -> None:
     # Two heads, ten wheels each, both systems overlapping: axles only, nothing held or waiting.
     rows = []

@@ -31,8 +31,10 @@ paired first in queue order as if nothing expired; when every such pair
 is within the window that is the rule's answer, and only a cluster where
 it is not (a lone pulse amid close onsets) is paired a record at a time.
 
-Lone pulses and the holds they start are rare: they are settled in a loop
-per lone pulse (:mod:`console.analysis.counting_holds`), never per record.
+Lone pulses, the holds they start and what is carried from one block to
+the next (onsets still waiting, holds) are settled for all heads at once
+too, as flat tables (:mod:`console.analysis.counting_holds`): no loop per
+record, per head or per pulse.
 """
 
 from __future__ import annotations
@@ -42,14 +44,14 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from console.analysis.counting_holds import (
-    ACCIDENTAL,
     EXPIRED,
     FREE,
     NONE,
     OWN,
     Collector,
-    Lone,
-    lone_event,
+    Rows,
+    first_record,
+    pass_time,
     settle,
 )
 from console.analysis.counting_point import group_starts, pair_point_onsets
@@ -69,15 +71,6 @@ def _last(mask: np.ndarray, hstart: np.ndarray, strict: bool) -> np.ndarray:
     if strict:
         last = np.r_[-1, last[:-1]] if n else last
     return np.where(last >= hstart, last, -1)
-
-
-def _present(rare: Mapping[int, object], heads: np.ndarray) -> list[int]:
-    """The keys of ``rare`` among ``heads`` (sorted), in order: a lookup per rare head, not per head."""
-    if not rare:
-        return []
-    keys = np.sort(np.fromiter(rare, np.int64, len(rare)))
-    found: list[int] = keys[np.isin(keys, heads)].tolist()
-    return found
 
 
 class CounterBank:
@@ -118,10 +111,10 @@ class CounterBank:
         self.paired = np.zeros((0, 2), bool)  # that damping is part of an axle
         self.before = np.zeros((0, 2), np.int64)  # the head's previous onset when that damping began
         self.last_onset = np.zeros(0, np.int64)
-        # Rare state, per head that has any: point mode's waiting onsets (onset, channel, previous
-        # onset), all of one system, and isolated pulses held (onset, channel, hold id).
-        self.pending: dict[int, list[tuple[int, int, int]]] = {}
-        self.holds: dict[int, list[tuple[int, int, int]]] = {}
+        # Rare state, a row each: point mode's onsets waiting for a partner (all of one system per
+        # head, in queue order), and isolated pulses held (in the order they began).
+        self.pending = Rows(("head", "t_on", "channel", "before"))
+        self.holds = Rows(("head", "t_on", "channel", "hold"), order="hold")
         self.hold_ids = 0
 
     # -- heads -------------------------------------------------------------
@@ -182,9 +175,8 @@ class CounterBank:
             lones, onsets = self._point(out, idx, h, ch, t, on, starts, hstart)
         else:
             lones, onsets = self._overlap(out, idx, h, ch - 1, t, on, starts, hstart)
-        rare = _present(self.holds, h[starts])
-        if lones or rare:
-            settle(self, out, idx, h, t, onsets, starts, lones, rare)
+        if len(lones["record"]) or len(self.holds):
+            settle(self, out, idx, h, t, onsets, starts, lones)
 
     def _overlap(
         self,
@@ -196,7 +188,7 @@ class CounterBank:
         on: np.ndarray,
         starts: np.ndarray,
         hstart: np.ndarray,
-    ) -> tuple[list[Lone], np.ndarray]:
+    ) -> tuple[dict[str, np.ndarray], np.ndarray]:
         m = len(h)
         carried_open = self.open_t[h] != NONE
         was = []  # per system: damped before each record
@@ -252,14 +244,16 @@ class CounterBank:
             self.paired[rh, rc] | (axles_before[rp + 1] - axles_before[hstart[rp]] > 0),
         )
         lone_at = np.flatnonzero(~paired)
-        lones: list[Lone] = []
-        if len(lone_at):
-            lr = rp[lone_at]
-            t_on = np.where(inb[lone_at], t[s0[lone_at]], self.open_t[rh[lone_at], rc[lone_at]])
-            before = np.where(inb[lone_at], onset_before[s0[lone_at]], self.before[rh[lone_at], rc[lone_at]])
-            lc = rc[lone_at].tolist()
-            for p, ton, c, bf in zip(lr.tolist(), t_on.tolist(), lc, before.tolist(), strict=True):
-                lones.append(Lone(p, OWN, 0, ton, c + 1, int(t[p]), bf))  # per lone pulse: rare
+        lr, lh, lc = rp[lone_at], rh[lone_at], rc[lone_at]
+        lones = {
+            "record": lr,
+            "sub": np.full(len(lr), OWN, np.int64),
+            "tie": np.zeros(len(lr), np.int64),
+            "t_on": np.where(inb[lone_at], t[s0[lone_at]], self.open_t[lh, lc]),
+            "channel": lc + 1,
+            "now": t[lr],
+            "before": np.where(inb[lone_at], onset_before[s0[lone_at]], self.before[lh, lc]),
+        }
         fr = rp[~other_open[rp]]
         out.add(idx[fr], FREE, 0, t[fr], _FREE_KIND, h[fr], 0, NO_CHANNEL, Detail.NONE, 0)
 
@@ -296,7 +290,7 @@ class CounterBank:
         on: np.ndarray,
         starts: np.ndarray,
         hstart: np.ndarray,
-    ) -> tuple[list[Lone], np.ndarray]:
+    ) -> tuple[dict[str, np.ndarray], np.ndarray]:
         m = len(h)
         op = np.flatnonzero(on)
         oh = h[op]
@@ -304,17 +298,16 @@ class CounterBank:
         before = np.r_[NONE, t[op][:-1]] if len(op) else np.zeros(0, np.int64)
         before[first] = self.last_onset[oh[first]]
         # Onsets still waiting from earlier blocks come first, in their queue order.
-        waiting = [(k, w) for k in _present(self.pending, h[starts]) for w in self.pending.pop(k)]
-        vh = np.array([k for k, _ in waiting], np.int64)
-        vw = np.array([w for _, w in waiting], np.int64).reshape(-1, 3)
+        waiting = self.pending.take(np.isin(self.pending.heads(), h[starts]))
+        vh = waiting["head"]
         rows_h = np.r_[vh, oh]
         real = np.r_[np.zeros(len(vh), bool), np.ones(len(op), bool)]
         order = np.lexsort((np.r_[np.arange(len(vh)), op], real, rows_h))
         rows = {
             "head": rows_h[order],
-            "time_ns": np.r_[vw[:, 0], t[op]][order],
-            "channel": np.r_[vw[:, 1], ch[op]][order],
-            "before": np.r_[vw[:, 2], before][order],
+            "time_ns": np.r_[waiting["t_on"], t[op]][order],
+            "channel": np.r_[waiting["channel"], ch[op]][order],
+            "before": np.r_[waiting["before"], before][order],
             "record": np.r_[np.full(len(vh), -1, np.int64), op][order],
         }
         pairs_a, pairs_b, unmatched = pair_point_onsets(rows, self.tol[rows["head"]])
@@ -330,71 +323,86 @@ class CounterBank:
         out.add(idx[rows["record"][rb]], OWN, 0, np.maximum(t1, t2), _AXLE, rh, direction, NO_CHANNEL, detail, t1)
 
         # A waiting onset expires at the first record of its head more than a window after it.
-        lones: list[Lone] = []
-        if len(unmatched):
-            ends = np.r_[starts[1:], m]
-            group = np.searchsorted(h[starts], rows["head"][unmatched])
-            for u, g in zip(unmatched.tolist(), group.tolist(), strict=True):  # per lone onset: rare
-                key = int(rows["head"][u])
-                t_on, c, bf, rec = (int(rows[x][u]) for x in ("time_ns", "channel", "before", "record"))
-                expires = t_on + int(self.tol[key])
-                lo, hi = (rec + 1 if rec >= 0 else int(starts[g])), int(ends[g])
-                at = lo + int(np.searchsorted(t[lo:hi], expires, side="right"))
-                if at < hi:
-                    lones.append(Lone(at, EXPIRED, u, t_on, c, expires, bf))
-                else:
-                    self.pending.setdefault(key, []).append((t_on, c, bf))
+        u = unmatched
+        uk, ut = rows["head"][u], rows["time_ns"][u]
+        expires = ut + self.tol[uk]
+        at = first_record(h, t, uk, expires, after=True)
+        now = at < np.r_[starts[1:], m][np.searchsorted(h[starts], uk)]
+        lones = {
+            "record": at[now],
+            "sub": np.full(int(now.sum()), EXPIRED, np.int64),
+            "tie": u[now],
+            "t_on": ut[now],
+            "channel": rows["channel"][u][now],
+            "now": expires[now],
+            "before": rows["before"][u][now],
+        }
+        later = ~now
+        self.pending.add(
+            {
+                "head": uk[later],
+                "t_on": ut[later],
+                "channel": rows["channel"][u][later],
+                "before": rows["before"][u][later],
+            }
+        )
         if len(op):
             last = np.r_[np.flatnonzero(oh[1:] != oh[:-1]), len(op) - 1]
             self.last_onset[oh[last]] = t[op[last]]
         return lones, op
 
     # -- time ----------------------------------------------------------------
-    def waiting_ns(self, key: int) -> int:
-        """When the head's oldest waiting onset (point mode) settles; ALL_TIME: none waits."""
-        p = self.pending.get(key)
-        return p[0][0] + int(self.tol[key]) if p else int(ALL_TIME)
-
     def advance(self, until: Mapping[int, int]) -> EventBlock:
-        """Let time pass at these heads (key → time): expire waiting onsets, confirm quiet holds."""
-        out = Collector()
-        for n, (key, t) in enumerate(until.items()):  # per head with rare state
-            self._advance_head(out, n, key, t)
-        return out.block(self)
+        """HeadCounter.advance at these heads (key → time): expire waiting onsets, confirm quiet holds."""
+        keys = np.fromiter(until, np.int64, len(until))
+        times = np.fromiter(until.values(), np.int64, len(until))
+        order = np.argsort(keys)
+        keys, times = keys[order], times[order]
 
-    def _advance_head(self, out: Collector, gen: int, key: int, t: int) -> None:
-        pend = self.pending.get(key)
-        tol = int(self.tol[key])
-        n = 0
-        while pend and pend[0][0] + tol < t:
-            t_on, c, bf = pend.pop(0)
-            hid = lone_event(self, out, gen, EXPIRED, n, key, t_on, c, t_on + tol, bf)
-            if hid is not None:
-                self.holds.setdefault(key, []).append((t_on, c, hid))
-            n += 1
-        if pend is not None and not pend:
-            del self.pending[key]
-        holds = self.holds.get(key)
-        if holds:
-            due = [x for x in holds if x[0] + self.iso <= t]
-            accidental = KIND_CODE[EventKind.ACCIDENTAL]
-            for t_on, c, hid in due:
-                out.add(gen, ACCIDENTAL, hid, t_on + self.iso, accidental, key, 0, c, Detail.TEXT, self.texts[2])
-            rest = [x for x in holds if x[0] + self.iso > t]
-            if rest:
-                self.holds[key] = rest
-            else:
-                del self.holds[key]
+        def at(heads: np.ndarray) -> np.ndarray:
+            i = np.minimum(np.searchsorted(keys, heads), max(len(keys) - 1, 0))
+            return (
+                np.where((len(keys) > 0) & (keys[i] == heads), times[i], NONE)
+                if len(keys)
+                else np.full(len(heads), NONE)
+            )
 
-    def rare_heads(self) -> list[int]:
-        """Heads with onsets waiting or pulses held: the only ones time passing can settle."""
-        return sorted(set(self.pending) | set(self.holds))
+        return pass_time(self, at, strict=False)
+
+    def settle_before(self, t: int) -> EventBlock:
+        """Events that time alone makes before ``t``, when no record still to come is earlier than ``t``.
+
+        Onsets that expire and holds that fall due before ``t``; whatever falls
+        at ``t`` itself waits, to be made with the records at ``t`` in
+        HeadCounter's order.  After this only what :meth:`floor_ns` says can
+        make an event earlier than ``t``.
+        """
+        return pass_time(self, lambda heads: np.full(len(heads), t, np.int64), strict=True)
+
+    def floor_ns(self) -> int:
+        """After :meth:`settle_before`: the earliest time an event made later may still carry (ALL_TIME:
+        none earlier than the records to come).
+
+        A pulse ends as a lone one when it is released (or its window closes),
+        but its hold, when nothing came before it, falls due ``isolation_s``
+        after it began, which may be earlier: a damping of one system open for
+        longer than that, or (``isolation_s`` shorter than the window) an onset
+        still waiting for its partner.  The batch path sorts that confirmation
+        before what came in between, so nothing after it may be released yet.
+        """
+        iso = self.iso
+        held = (self.open_t != NONE) & ~self.paired
+        quiet = (self.before == NONE) | (self.open_t - np.where(self.before == NONE, 0, self.before) > iso)
+        p = self.pending.cols
+        p_quiet = (p["before"] == NONE) | (p["t_on"] - np.where(p["before"] == NONE, 0, p["before"]) > iso)
+        starts = np.r_[self.open_t[held & quiet], p["t_on"][p_quiet]]
+        return int(starts.min()) + iso if len(starts) else int(ALL_TIME)
 
     def flush(self) -> EventBlock:
         """End of input: settle everything still open, at each head's last onset plus the windows."""
-        until = {}
-        for key in self.rare_heads():
-            last = int(self.last_onset[key])
-            if last != NONE:
-                until[key] = last + self.iso + int(self.tol[key]) + 1
-        return self.advance(until)
+
+        def end(heads: np.ndarray) -> np.ndarray:
+            last = self.last_onset[heads]
+            return np.where(last != NONE, last + self.iso + self.tol[heads] + 1, NONE)
+
+        return pass_time(self, end, strict=False)

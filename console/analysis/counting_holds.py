@@ -1,4 +1,5 @@
-"""Lone pulses and the holds they start, for :class:`~console.analysis.counting.CounterBank`.
+"""Lone pulses, the holds they start and the onsets still waiting, for
+:class:`~console.analysis.counting.CounterBank`: all heads at once.
 
 Seed 002's soft timing, as :class:`~console.analysis.wheels.HeadCounter`
 applies it: a damping of one system alone, with another onset at the head
@@ -6,8 +7,13 @@ within ``isolation_s`` before it, is a possibly missed axle
 (SINGLE_CHANNEL); else it holds the section (INTERFERENCE) until either
 the head's next onset (SINGLE_CHANNEL then: activity after an isolated
 pulse) or ``isolation_s`` after the pulse, whichever a record of the head
-reaches first (ACCIDENTAL).  Both are rare, so this is a loop per lone
-pulse; each lookup is a binary search in the head's records.
+reaches first (ACCIDENTAL).  Each lookup is one search in the block's
+records for all pulses.
+
+What is carried from one block to the next, point mode's onsets waiting
+for a partner and the holds, is kept as flat tables with a row each
+(:class:`Rows`), and time passing (:func:`pass_time`) settles them with
+array operations too.
 
 Also the event collector the bank fills: events with the place HeadCounter
 makes them (``gen``: the record whose feed makes it; ``sub``: the step
@@ -16,7 +22,7 @@ within that feed; ``tie``: the order within the step), sorted by it once.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -62,30 +68,68 @@ class Collector:
         return EventBlock.from_columns(cols, bank.names, bank.pool.strings)
 
 
-@dataclass(frozen=True, slots=True)
-class Lone:
-    """A damping of one system alone, settled at a record of the block."""
+class Rows:
+    """A table of per-head rows (``head`` first), sorted by head, then by ``order`` (else as added)."""
 
-    record: int  # position (in the mode's records) of the record whose feed settles it
-    sub: int  # EXPIRED: that record's advance (point mode); OWN: it is the release
-    tie: int
-    t_on: int
-    channel: int
-    now: int  # the event's time
-    before: int  # the head's previous onset when the pulse began (NONE: none)
+    def __init__(self, columns: tuple[str, ...], order: str | None = None) -> None:
+        self.columns, self.order = columns, order
+        self.cols = {c: np.zeros(0, np.int64) for c in columns}
+
+    def __len__(self) -> int:
+        return len(self.cols["head"])
+
+    def heads(self) -> np.ndarray:
+        return self.cols["head"]
+
+    def take(self, mask: np.ndarray) -> dict[str, np.ndarray]:
+        """Remove the rows of ``mask`` and return them (in the table's order)."""
+        out = {c: v[mask] for c, v in self.cols.items()}
+        self.cols = {c: v[~mask] for c, v in self.cols.items()}
+        return out
+
+    def add(self, rows: dict[str, np.ndarray]) -> None:
+        if not len(rows["head"]):
+            return
+        cols = {c: np.r_[self.cols[c], np.asarray(rows[c], np.int64)] for c in self.columns}
+        keys = (cols[self.order], cols["head"]) if self.order else (cols["head"],)
+        order = np.lexsort(keys)
+        self.cols = {c: v[order] for c, v in cols.items()}
 
 
-def lone_event(
-    bank: CounterBank, out: Collector, gen: int, sub: int, tie: int, key: int, t_on: int, ch: int, now: int, before: int
-) -> int | None:
-    """HeadCounter._lone: the event of a lone pulse; the new hold's id, or None."""
-    if before != NONE and t_on - before <= bank.iso:
-        out.add(gen, sub, tie, now, _SINGLE_KIND, key, 0, ch, Detail.TEXT, bank.texts[0])
-        return None
-    out.add(gen, sub, tie, now, _INTERFERENCE_KIND, key, 0, ch, Detail.TEXT, bank.texts[1])
-    hid = bank.hold_ids
-    bank.hold_ids += 1
-    return hid
+def first_record(h: np.ndarray, t: np.ndarray, qh: np.ndarray, qt: np.ndarray, after: bool) -> np.ndarray:
+    """Per query (head, time): the position of that head's first record at (``after``: after) that
+    time, in records sorted by (head, time); the head's end when none.  One sort for all queries."""
+    n = len(h)
+    is_query = np.r_[np.zeros(n, bool), np.ones(len(qh), bool)]
+    # At equal times a query sorts after the records when they are not after it, else before them.
+    order = np.lexsort((is_query if after else ~is_query, np.r_[t, qt], np.r_[h, qh]))
+    record = ~is_query[order]
+    records_before = np.cumsum(record) - record
+    pos = np.empty(len(qh), np.int64)
+    pos[order[~record] - n] = records_before[~record]
+    return pos
+
+
+def lone_events(
+    bank: CounterBank,
+    out: Collector,
+    gen: np.ndarray,
+    sub: np.ndarray,
+    tie: np.ndarray,
+    key: np.ndarray,
+    t_on: np.ndarray,
+    ch: np.ndarray,
+    now: np.ndarray,
+    before: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """HeadCounter._lone for many pulses: their events; (which start a hold, the holds' ids)."""
+    single = (before != NONE) & (t_on - np.where(before == NONE, 0, before) <= bank.iso)
+    s, i = np.flatnonzero(single), np.flatnonzero(~single)
+    out.add(gen[s], sub[s], tie[s], now[s], _SINGLE_KIND, key[s], 0, ch[s], Detail.TEXT, bank.texts[0])
+    out.add(gen[i], sub[i], tie[i], now[i], _INTERFERENCE_KIND, key[i], 0, ch[i], Detail.TEXT, bank.texts[1])
+    hid = bank.hold_ids + np.arange(len(i), dtype=np.int64)
+    bank.hold_ids += len(i)
+    return i, hid
 
 
 def settle(
@@ -96,37 +140,71 @@ def settle(
     t: np.ndarray,
     onsets: np.ndarray,
     starts: np.ndarray,
-    lones: list[Lone],
-    held: list[int],
+    lones: dict[str, np.ndarray],
 ) -> None:
-    """Lone pulses of one block (one mode's records) and the holds carried in for heads ``held``."""
+    """The lone pulses of one block (one mode's records, ``lones``: a column each) and the holds
+    carried in for its heads: their events, and the holds left for the next block."""
     ends = np.r_[starts[1:], len(h)]
     heads = h[starts]
+    rec, sub = lones["record"], lones["sub"]
+    key = h[rec]
+    i, hid = lone_events(
+        bank, out, idx[rec], sub, lones["tie"], key, lones["t_on"], lones["channel"], lones["now"], lones["before"]
+    )
+    # Holds to settle: those carried in (from their head's first record), then the new ones.  A hold
+    # begun at a release waits for the next record; one begun while time passed (an onset expired)
+    # is checked in that same step, and that record's onset ends it.
+    old = bank.holds.take(np.isin(bank.holds.heads(), heads))
+    hk = np.r_[old["head"], key[i]]
+    ht = np.r_[old["t_on"], lones["t_on"][i]]
+    hc = np.r_[old["channel"], lones["channel"][i]]
+    hid = np.r_[old["hold"], hid]
+    group = np.asarray(np.searchsorted(heads, hk), np.int64)
+    start = np.r_[starts[group[: len(old["head"])]], rec[i] + (sub[i] == OWN)]
+    end = ends[group]
+    due = ht + bank.iso
+    first = np.maximum(start, first_record(h, t, hk, due, after=False))
+    next_onset = np.r_[onsets, np.iinfo(np.int64).max][np.searchsorted(onsets, start)]  # none: past the end
+    j = np.minimum(next_onset, end)
+    acc = (first < end) & (first <= j)
+    act = ~acc & (j < end)
+    a, b = np.flatnonzero(acc), np.flatnonzero(act)
+    out.add(idx[first[a]], ACCIDENTAL, hid[a], due[a], _ACCIDENTAL_KIND, hk[a], 0, hc[a], Detail.TEXT, bank.texts[2])
+    out.add(idx[j[b]], ACTIVITY, hid[b], t[j[b]], _SINGLE_KIND, hk[b], 0, hc[b], Detail.ACTIVITY, ht[b])
+    stay = ~acc & ~act
+    bank.holds.add({"head": hk[stay], "t_on": ht[stay], "channel": hc[stay], "hold": hid[stay]})
 
-    def span(key: int) -> tuple[int, int]:
-        g = int(np.searchsorted(heads, key))
-        return int(starts[g]), int(ends[g])
 
-    todo: list[tuple[int, int, int, int, int]] = []  # (head, onset, channel, hold id, first record after it)
-    for key in held:
-        first, _ = span(key)
-        todo += [(key, t_on, c, hid, first) for t_on, c, hid in bank.holds.pop(key)]
-    for x in sorted(lones, key=lambda x: (x.record, x.sub, x.tie)):  # per lone pulse: rare
-        key = int(h[x.record])
-        hid = lone_event(bank, out, int(idx[x.record]), x.sub, x.tie, key, x.t_on, x.channel, x.now, x.before)
-        if hid is not None:
-            # A hold begun at a release waits for the next record; one begun while time passed
-            # (an onset expired) is checked in that same step, and that record's onset ends it.
-            todo.append((key, x.t_on, x.channel, hid, x.record + (1 if x.sub == OWN else 0)))
-    for key, t_on, c, hid, start in todo:  # per hold: rare
-        _, end = span(key)
-        due = t_on + bank.iso
-        i = start + int(np.searchsorted(t[start:end], due, side="left"))
-        k = int(np.searchsorted(onsets, start, side="left"))
-        j = int(onsets[k]) if k < len(onsets) and onsets[k] < end else end
-        if i < end and i <= j:
-            out.add(int(idx[i]), ACCIDENTAL, hid, due, _ACCIDENTAL_KIND, key, 0, c, Detail.TEXT, bank.texts[2])
-        elif j < end:
-            out.add(int(idx[j]), ACTIVITY, hid, int(t[j]), _SINGLE_KIND, key, 0, c, Detail.ACTIVITY, t_on)
-        else:
-            bank.holds.setdefault(key, []).append((t_on, c, hid))
+def pass_time(bank: CounterBank, until: Callable[[np.ndarray], np.ndarray], strict: bool) -> EventBlock:
+    """HeadCounter.advance at every head with something waiting or held, to ``until(heads)`` each
+    (NONE: not this head):
+    waiting onsets more than a window old expire, holds due by then are confirmed accidental.
+    ``strict``: holds due at that very time stay (they are made with the records then)."""
+    out = Collector()
+    waiting = bank.pending
+    if len(waiting):
+        p = waiting.cols
+        expires = p["t_on"] + bank.tol[p["head"]]
+        late = expires < until(p["head"])  # a prefix of each head's queue
+        gone = np.flatnonzero(late)
+        if len(gone):
+            expires = expires[gone]
+            rows = waiting.take(late)
+            key = rows["head"]
+            sub = np.full(len(key), EXPIRED, np.int64)
+            i, hid = lone_events(bank, out, key, sub, gone, key, rows["t_on"], rows["channel"], expires, rows["before"])
+            bank.holds.add({"head": key[i], "t_on": rows["t_on"][i], "channel": rows["channel"][i], "hold": hid})
+    if len(bank.holds):
+        q = bank.holds.cols
+        due = q["t_on"] + bank.iso
+        last = until(q["head"])
+        if strict:
+            last = np.where(last == NONE, NONE, last - 1)
+        ripe = due <= last
+        if ripe.any():
+            rows = bank.holds.take(ripe)
+            key = rows["head"]
+            due = rows["t_on"] + bank.iso
+            text = bank.texts[2]
+            out.add(key, ACCIDENTAL, rows["hold"], due, _ACCIDENTAL_KIND, key, 0, rows["channel"], Detail.TEXT, text)
+    return out.block(bank)

@@ -20,11 +20,15 @@ batch result, event for event:
 * release: an event is handed to the engine only when nothing generated
   later can come before it.  Future records come at or after the
   watermark ``W`` (the earliest open run, or the log's clock less the order
-  slack); a counter's unsettled pulses (point mode: an onset waiting for its
-  partner) settle at ``onset + window``; a power loss is known only when the
-  head's next record comes, at ``last record + power gap``.  Counters are
-  advanced only to a time where no held pulse and waiting onset settle at
-  the same instant, so equal-time events keep the batch's order;
+  slack).  What time alone settles before ``W`` (a point-mode onset that
+  waited a window for its partner in vain, a held pulse that stayed quiet)
+  is settled then (:meth:`CounterBank.settle_before`); what falls at ``W``
+  itself waits to be made with the records at ``W``, so equal-time events
+  keep the batch's order.  A lone pulse's hold may fall due before it is
+  known to be lone (a damping of one system longer than ``isolation_s``):
+  nothing from that time on is released while such a pulse is open
+  (:meth:`CounterBank.floor_ns`).  A power loss is known only when the
+  head's next record comes, at ``last record + power gap``;
 * per-head facts the batch path takes from the whole log (no release
   records: point mode; any whole-second stamp) are guessed from the head's
   first closed passage and checked on every later one:
@@ -248,19 +252,8 @@ class EventStream:
     def release_block(self, watermark_ns: int) -> EventBlock:
         """Events that nothing read later can precede, given that no record still to come is
         earlier than ``watermark_ns``; in the batch path's order, as columns."""
-        bound = watermark_ns
-        bank = self.bank
-        until: dict[int, int] = {}
-        for key in bank.rare_heads():  # per head with a waiting onset or a held pulse: rare
-            waiting = bank.waiting_ns(key)
-            t = min(watermark_ns, waiting)
-            # A held pulse and a waiting onset settling at the same instant: the batch path
-            # settles both in one call (waiting first); leave both for it.
-            if any(t_on + bank.iso == t for t_on, _, _ in bank.holds.get(key, ())):
-                t -= 1
-            until[key] = t
-            bound = min(bound, waiting)
-        self._push(bank.advance(until), _COUNTING)
+        self._push(self.bank.settle_before(watermark_ns), _COUNTING)
+        bound = min(watermark_ns, self.bank.floor_ns())
         if self._power_ns is not None:
             last = self._last_activity[self._last_activity != NONE]
             if len(last):
