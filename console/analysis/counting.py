@@ -175,8 +175,7 @@ class CounterBank:
             lones, onsets = self._point(out, idx, h, ch, t, on, starts, hstart)
         else:
             lones, onsets = self._overlap(out, idx, h, ch - 1, t, on, starts, hstart)
-        if len(lones["record"]) or len(self.holds):
-            settle(self, out, idx, h, t, onsets, starts, lones)
+        settle(self, out, idx, h, t, onsets, starts, lones)
 
     def _overlap(
         self,

@@ -98,16 +98,23 @@ class Rows:
 
 def first_record(h: np.ndarray, t: np.ndarray, qh: np.ndarray, qt: np.ndarray, after: bool) -> np.ndarray:
     """Per query (head, time): the position of that head's first record at (``after``: after) that
-    time, in records sorted by (head, time); the head's end when none.  One sort for all queries."""
-    n = len(h)
+    time, in records sorted by (head, time); the head's end when none.  One sort of the queried
+    heads' records for all queries."""
+    if not len(qh):
+        return np.zeros(0, np.int64)
+    mine = np.flatnonzero(np.isin(h, qh))
+    n = len(mine)
     is_query = np.r_[np.zeros(n, bool), np.ones(len(qh), bool)]
     # At equal times a query sorts after the records when they are not after it, else before them.
-    order = np.lexsort((is_query if after else ~is_query, np.r_[t, qt], np.r_[h, qh]))
+    order = np.lexsort((is_query if after else ~is_query, np.r_[t[mine], qt], np.r_[h[mine], qh]))
     record = ~is_query[order]
     records_before = np.cumsum(record) - record
     pos = np.empty(len(qh), np.int64)
     pos[order[~record] - n] = records_before[~record]
-    return pos
+    found = pos < n
+    found[found] = h[mine[pos[found]]] == qh[found]
+    head_end = np.searchsorted(h, qh, side="right")  # h is sorted by head
+    return np.where(found, mine[np.minimum(pos, max(n - 1, 0))], head_end)
 
 
 def lone_events(
@@ -146,7 +153,10 @@ def settle(
     carried in for its heads: their events, and the holds left for the next block."""
     ends = np.r_[starts[1:], len(h)]
     heads = h[starts]
+    old = bank.holds.take(np.isin(bank.holds.heads(), heads))  # carried in
     rec, sub = lones["record"], lones["sub"]
+    if not len(rec) and not len(old["head"]):
+        return
     key = h[rec]
     i, hid = lone_events(
         bank, out, idx[rec], sub, lones["tie"], key, lones["t_on"], lones["channel"], lones["now"], lones["before"]
@@ -154,7 +164,6 @@ def settle(
     # Holds to settle: those carried in (from their head's first record), then the new ones.  A hold
     # begun at a release waits for the next record; one begun while time passed (an onset expired)
     # is checked in that same step, and that record's onset ends it.
-    old = bank.holds.take(np.isin(bank.holds.heads(), heads))
     hk = np.r_[old["head"], key[i]]
     ht = np.r_[old["t_on"], lones["t_on"][i]]
     hc = np.r_[old["channel"], lones["channel"][i]]
