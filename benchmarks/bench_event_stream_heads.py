@@ -14,7 +14,7 @@ Measured 2026-11-26 on the shared 2-core machine (load 5-7 from other jobs):
 
     heads      before (HeadCounter + _Head per head, heap)    after (flat arrays, CounterBank)
     100 000    148.4 MB (1556 B/head), 22.0 CPU s              11.2 MB (118 B/head), 0.3 CPU s
-    1 000 000  -                                               85.4 MB  (90 B/head), 3.6 CPU s
+    1 000 000  not done in 1200 s (killed)                      85.4 MB  (90 B/head), 3.6 CPU s
 """
 
 from __future__ import annotations
