@@ -33,6 +33,7 @@ import numpy as np
 
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import DiagAnalysis, PartAnalysis, SpeedSettings
+from console.analysis.event_block import KIND_CODE, EventBlock
 from console.analysis.events import DetectionEvent, EventKind, sort_events
 from console.analysis.passages import Columns
 from console.analysis.sections import LedgerEntry, ResetRecord, SectionEngine, SectionState, Transition
@@ -229,6 +230,20 @@ class _Run:
             self.engine.step(e)
         self.sink.take(self.engine)
 
+    def step_block(self, block: EventBlock) -> None:
+        """:meth:`step` for events as columns: the engine takes the block at once."""
+        if not len(block):
+            return
+        diag = np.flatnonzero(block.kind != KIND_CODE[EventKind.RESET])
+        if len(diag):
+            self.last = block.event(int(diag[-1]))
+        if self.layout is None or self.sink is None:
+            return
+        if self.engine is None:
+            self.engine = _new_engine(self.layout, self.initial, int(block.time_ns[0]))
+        self.engine.step_block(block)
+        self.sink.take(self.engine)
+
     def end(self) -> SectionEngine | None:
         if self.layout is not None and self.sink is not None and self.engine is None:
             self.engine = _new_engine(self.layout, self.initial, 0)  # no event at all: as run_sections
@@ -315,12 +330,9 @@ def _stream_once(
     reader = DiagReader(paths, on_progress=on_progress, chunk_bytes=chunk_bytes)
     stream = PassageStream(reader.registry, settings, keep_releases=True)
     health_events: list[DetectionEvent] = []
-
-    def seen(e: DetectionEvent) -> None:
-        if e.kind in HEALTH_EVENT_KINDS:
-            health_events.append(e)
-
-    events = EventStream(layout, event_settings, facts=facts, on_event=seen)
+    events = EventStream(
+        layout, event_settings, facts=facts, on_event=health_events.append, event_kinds=HEALTH_EVENT_KINDS
+    )
     for r in resets:
         events.add_reset(r)
     run = _Run(sections_layout, initial, sink)
@@ -347,9 +359,9 @@ def _stream_once(
                 kept.append(chunk.take(mask))
         if len(chunk) and stream.clock_ns > np.iinfo(np.int64).min + slack_ns:
             watermark = min(stream.open_first_ns(), stream.clock_ns - slack_ns)
-            run.step(events.release(watermark))
+            run.step_block(events.release_block(watermark))
     closed(stream.finish())
-    run.step(events.finish())
+    run.step_block(events.finish_block())
     if events.guess_failed and facts is None:
         return events.facts
     cols = concat_passages(passages)

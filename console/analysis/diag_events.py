@@ -1,11 +1,15 @@
 """A diagnostic log's wheel-sensor records → the section engine's event stream.
 
 Per counting head of the layout: two-channel heads use the overlap rule
-(:func:`console.analysis.wheels.two_channel_events`), three-element heads
-the majority rule (:func:`console.analysis.majority.majority_events`).  A
-gap in a head's records longer than ``power_gap_s`` is a power or contact
+(:class:`console.analysis.counting.CounterBank`, every head at once: the
+events :class:`~console.analysis.wheels.HeadCounter` gives), three-element
+heads the majority rule (:func:`console.analysis.majority.majority_events`).
+A gap in a head's records longer than ``power_gap_s`` is a power or contact
 loss: it only makes sense where the device writes records continuously
 (a heartbeat), so it is off unless set.
+
+The events come in the order of a list built head by head (counting
+events in time order, then power events) and sorted by time, stably.
 """
 
 from __future__ import annotations
@@ -15,11 +19,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from console.analysis.diagnostics import DiagAnalysis
-from console.analysis.events import DetectionEvent, EventKind, sort_events
+from console.analysis.event_block import KIND_CODE, NO_CHANNEL, Detail, EventBlock, StringPool
+from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.majority import MajoritySettings, majority_events
 from console.analysis.timefmt import NS
-from console.analysis.wheels import CountingSettings, two_channel_events
+from console.analysis.wheels import CountingSettings
 from console.layout import Layout
+
+NONE = np.iinfo(np.int64).min  # no time
+_COUNTING, _POWER = 0, 1  # at equal times and heads, counting events first (the list's order)
 
 
 @dataclass(frozen=True)
@@ -29,15 +37,50 @@ class DiagEventSettings:
     power_gap_s: float | None = None  # record gap that means power loss; None: off
 
 
+def power_gap_columns(
+    head: np.ndarray, first_ns: np.ndarray, last_ns: np.ndarray, before_ns: np.ndarray, power_gap_ns: int
+) -> dict[str, np.ndarray]:
+    """POWER_LOSS / POWER_RESTORED events of activity buckets sorted by head, then first record.
+
+    ``before_ns``: per bucket, the head's last record before the first bucket
+    of its head here (NONE: none; later buckets' values are not read).  A gap
+    longer than ``power_gap_ns`` between a bucket's last record and the next
+    one's first is a loss at ``last + power gap``, restored at the next
+    record; per gap the loss, then the restoration.  Columns of an
+    :class:`EventBlock` without ``source``.
+    """
+    start = np.r_[True, head[1:] != head[:-1]] if len(head) else np.zeros(0, bool)
+    prev_last = np.r_[NONE, last_ns[:-1]] if len(head) else last_ns
+    prev_last[start] = before_ns[start]
+    known = prev_last != NONE
+    gap = first_ns - np.where(known, prev_last, first_ns)
+    lost = np.flatnonzero(known & (gap > power_gap_ns))
+    n = len(lost)
+    return {
+        "time_ns": np.c_[prev_last[lost] + power_gap_ns, first_ns[lost]].ravel(),
+        "kind": np.tile([KIND_CODE[EventKind.POWER_LOSS], KIND_CODE[EventKind.POWER_RESTORED]], n),
+        "head": np.repeat(head[lost], 2),
+        "direction": np.zeros(2 * n, np.int64),
+        "channel": np.full(2 * n, NO_CHANNEL),
+        "detail": np.tile([Detail.NO_RECORDS, Detail.NONE], n),
+        "aux_ns": np.c_[gap[lost], np.zeros(n, np.int64)].ravel(),
+    }
+
+
 def diag_detection_events(
     analysis: DiagAnalysis, layout: Layout, settings: DiagEventSettings | None = None
 ) -> tuple[list[DetectionEvent], list[str]]:
     """(events in time order, warnings about log heads the layout does not know)."""
+    from console.analysis.counting import CounterBank
+    from console.analysis.event_queue import ALL_TIME, EventQueue
+
     s = settings or DiagEventSettings()
-    events: list[DetectionEvent] = []
     warnings: list[str] = []
-    wr = analysis.wheel_records
-    for key, (device_id, name) in enumerate(analysis.heads):
+    names = [name for _, name in analysis.heads]
+    counted = np.zeros(len(names), bool)
+    three: list[int] = []
+    up = np.ones(len(names), bool)
+    for key, (device_id, name) in enumerate(analysis.heads):  # per head: the layout's word on it
         if not layout.has_head(name):
             warnings.append(f"counting head {name} (device {device_id}) is in the log but not in the layout")
             continue
@@ -45,37 +88,59 @@ def diag_detection_events(
         if head.device_id is not None and head.device_id != device_id:
             warnings.append(f"counting head {name}: the log's device {device_id} is not the layout's {head.device_id}")
             continue
-        rows = wr[wr["head"] == key] if len(wr) else wr
-        if len(rows):
-            ch = rows["channel"].to_numpy(np.int64)
-            t = rows["time_ns"].to_numpy(np.int64)
-            v = rows["value"].to_numpy(np.int64)
-            whole_second = "subsecond" in rows and not bool(rows["subsecond"].all())
-            if head.channels == 3:
-                on = v == 1
-                events += majority_events(
-                    name, ch[on], t[on], up_is_s1_to_s3=head.up_is_first_channel_first, settings=s.majority
-                )
-            else:
-                events += two_channel_events(
-                    name,
-                    ch,
-                    t,
-                    v,
-                    up_is_sys1_first=head.up_is_first_channel_first,
-                    settings=s.counting,
-                    whole_second=whole_second,
-                )
-        if s.power_gap_s is not None and len(analysis.activity):
-            act = analysis.activity[analysis.activity["head"] == key].sort_values("t_first_ns")
-            first, last = act["t_first_ns"].to_numpy(), act["t_last_ns"].to_numpy()
-            gap = first[1:] - last[:-1]
-            for i in np.flatnonzero(gap > int(s.power_gap_s * NS)).tolist():
-                lost = int(last[i]) + int(s.power_gap_s * NS)
-                events.append(
-                    DetectionEvent(
-                        lost, EventKind.POWER_LOSS, name, 0, None, "diag", f"no records for {gap[i] / NS:.0f} s"
-                    )
-                )
-                events.append(DetectionEvent(int(first[i + 1]), EventKind.POWER_RESTORED, name, 0, None, "diag"))
-    return sort_events(events), warnings
+        counted[key] = True
+        up[key] = head.up_is_first_channel_first
+        if head.channels == 3:
+            three.append(key)
+    pool = StringPool()
+    queue = EventQueue(names, pool.strings)
+    wr = analysis.wheel_records
+    if len(wr):
+        hk = wr["head"].to_numpy(np.int64)
+        ch = wr["channel"].to_numpy(np.int64)
+        t = wr["time_ns"].to_numpy(np.int64)
+        v = wr["value"].to_numpy(np.int64)
+        sub = wr["subsecond"].to_numpy(bool) if "subsecond" in wr else np.ones(len(hk), bool)
+        is_two = counted.copy()
+        is_two[three] = False
+        order = np.lexsort((t, hk))  # per head by time; ties keep the log's order
+        order = order[is_two[hk[order]]]
+        if len(order):
+            keys = hk[order]
+            starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+            heads = keys[starts]
+            bank = CounterBank(s.counting, names=names, pool=pool)
+            point_mode = ~np.logical_or.reduceat(v[order] == 0, starts)
+            whole_second = ~np.logical_and.reduceat(sub[order], starts)
+            bank.configure(heads, up[heads], point_mode, whole_second)
+            counting = bank.feed(keys, ch[order], t[order], v[order])
+            flushed = bank.flush()
+            # Per head in time order, stably: the generation order breaks ties.
+            for block in (counting, flushed):
+                queue.push(block, block.head, _COUNTING)
+        for key in three:  # per three-element head
+            rows = hk == key
+            on = v[rows] == 1
+            spec = layout.head(names[key])
+            evs = majority_events(
+                names[key],
+                ch[rows][on],
+                t[rows][on],
+                up_is_s1_to_s3=spec.up_is_first_channel_first,
+                settings=s.majority,
+            )
+            queue.push(EventBlock.from_events(evs, names, pool), np.full(len(evs), key, np.int64), _COUNTING)
+    if s.power_gap_s is not None and len(analysis.activity):
+        act = analysis.activity
+        ak = act["head"].to_numpy(np.int64)
+        first = act["t_first_ns"].to_numpy(np.int64)
+        last = act["t_last_ns"].to_numpy(np.int64)
+        order = np.lexsort((first, ak))
+        order = order[counted[ak[order]]]
+        cols = power_gap_columns(
+            ak[order], first[order], last[order], np.full(len(order), NONE), int(s.power_gap_s * NS)
+        )
+        cols["source"] = np.full(len(cols["time_ns"]), pool.code("diag"))
+        block = EventBlock.from_columns(cols, names, pool.strings)
+        queue.push(block, block.head, _POWER)
+    return queue.pop_below(int(ALL_TIME)).events(), warnings

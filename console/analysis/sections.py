@@ -33,11 +33,15 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
 import pandas as pd
 
 from console.analysis.events import UNKNOWN, DetectionEvent, EventKind, sort_events
 from console.layout import Layout, Section
+
+if TYPE_CHECKING:
+    from console.analysis.event_block import EventBlock
 
 
 class SectionState(StrEnum):
@@ -184,10 +188,7 @@ class SectionEngine:
         if e.kind is EventKind.RESET:
             out.append(self._reset(e))
             return [x for x in out if x is not None]
-        secs = self._bound.get(e.head)
-        if secs is None:  # once per head: the layout is fixed
-            bound = self.layout.sections_of(e.head) if self.layout.has_head(e.head) else []
-            secs = self._bound[e.head] = [(self.sections[sec.id], sign) for sec, sign in bound]
+        secs = self.bound(e.head)
         k = e.kind
         if k is EventKind.AXLE:
             for s, sign in secs:
@@ -248,6 +249,21 @@ class SectionEngine:
                 s.held_by.discard(e.head)
                 out.append(self._settle(s, t, f"axles counted in: {s.count}"))
         return [x for x in out if x is not None]
+
+    def bound(self, head: str) -> list[tuple[_Section, int]]:
+        """The sections ``head`` bounds, with their signs (looked up once per head: the layout is fixed)."""
+        secs = self._bound.get(head)
+        if secs is None:
+            bound = self.layout.sections_of(head) if self.layout.has_head(head) else []
+            secs = self._bound[head] = [(self.sections[sec.id], sign) for sec, sign in bound]
+        return secs
+
+    def step_block(self, block: EventBlock) -> None:
+        """Apply a block of events in order: :meth:`step` on each, the quiet ones as array bookkeeping
+        (:func:`console.analysis.sections_block.step_block`)."""
+        from console.analysis.sections_block import step_block
+
+        step_block(self, block)
 
     def _reset(self, e: DetectionEvent) -> Transition | None:
         sid = e.head

@@ -4,24 +4,31 @@ The batch path (:func:`console.analysis.diag_events.diag_detection_events`
 then :func:`console.analysis.sections.run_sections`) holds every wheel record
 of the log, then every event.  Here the log is read in chunks through
 :class:`~console.analysis.stream.PassageStream`; each batch of closed
-passages hands its wheel records to one
-:class:`~console.analysis.wheels.HeadCounter` per counting head (the same
-object the batch path and the live view run), and the events go through a
-heap into one :class:`~console.analysis.sections.SectionEngine`, released
-below a *watermark* as the live engine (:mod:`console.live.diag`) does.
-So the result is the batch result, event for event:
+passages hands its wheel records, all heads at once, to one
+:class:`~console.analysis.counting.CounterBank` (the overlap rule with
+array operations, event for event what a
+:class:`~console.analysis.wheels.HeadCounter` per head gives; the batch path
+uses the same bank), and the events are held as columns and handed to one
+:class:`~console.analysis.sections.SectionEngine` below a *watermark*, as
+the live engine (:mod:`console.live.diag`) does.  So the result is the
+batch result, event for event:
 
 * order: the batch path sorts all events by time, stably, over a list built
   head by head (counting events, then power events), operator resets last.
-  The heap key is exactly that: (time, head key, group, generation order);
+  The events released are sorted (``np.lexsort``) by exactly that:
+  (time, head key, group, generation order);
 * release: an event is handed to the engine only when nothing generated
   later can come before it.  Future records come at or after the
   watermark ``W`` (the earliest open run, or the log's clock less the order
-  slack); a counter's unsettled pulses (point mode: an onset waiting for its
-  partner) settle at ``onset + window``; a power loss is known only when the
-  head's next record comes, at ``last record + power gap``.  Counters are
-  advanced only to a time where no held pulse and waiting onset settle at
-  the same instant, so equal-time events keep the batch's order;
+  slack).  What time alone settles before ``W`` (a point-mode onset that
+  waited a window for its partner in vain, a held pulse that stayed quiet)
+  is settled then (:meth:`CounterBank.settle_before`); what falls at ``W``
+  itself waits to be made with the records at ``W``, so equal-time events
+  keep the batch's order.  A lone pulse's hold may fall due before it is
+  known to be lone (a damping of one system longer than ``isolation_s``):
+  nothing from that time on is released while such a pulse is open
+  (:meth:`CounterBank.floor_ns`).  A power loss is known only when the
+  head's next record comes, at ``last record + power gap``;
 * per-head facts the batch path takes from the whole log (no release
   records: point mode; any whole-second stamp) are guessed from the head's
   first closed passage and checked on every later one:
@@ -29,29 +36,37 @@ So the result is the batch result, event for event:
   facts it now knows (:attr:`EventStream.facts`).  Real boards do not change
   their stamps or their registers mid-log, so that second read is rare.
 
+Per head the stream holds a few numbers in flat arrays (and the bank its
+state), not an object: a log of a million heads costs arrays of a million.
+
 Three-element (majority) heads and several overlapping files are not
 streamed: the caller reads those whole.
 """
 
 from __future__ import annotations
 
-import heapq
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 
 import numpy as np
 
-from console.analysis.diag_events import DiagEventSettings
+from console.analysis.counting import ALL_TIME, CounterBank
+from console.analysis.counting_holds import NONE
+from console.analysis.diag_events import DiagEventSettings, power_gap_columns
+from console.analysis.event_block import EventBlock, StringPool
+from console.analysis.event_queue import EventQueue
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.timefmt import NS
-from console.analysis.wheels import HeadCounter
 from console.layout import CountingHead, Layout
 
-ALL_TIME = np.iinfo(np.int64).max
-# Heap groups: a head's counting events come before its power events at equal times (batch order).
+__all__ = ["ALL_TIME", "EventStream", "HeadFacts"]
+
+# Held groups: a head's counting events come before its power events at equal times (batch order).
 _COUNTING, _POWER = 0, 1
 # Operator resets sort after every diagnostic event at the same time.
 _RESET_HEAD = 1 << 62
+# Per head: not seen yet, counted, not counted (the layout does not know it: warned about).
+_UNSEEN, _COUNTED, _IGNORED = 0, 1, 2
 
 
 @dataclass(frozen=True)
@@ -62,25 +77,16 @@ class HeadFacts:
     whole_second: bool  # some wheel record is stamped to the whole second
 
 
-@dataclass
-class _Head:
-    name: str
-    spec: CountingHead | None  # None: not counted (warned about)
-    counter: HeadCounter | None = None
-    facts: HeadFacts | None = None  # the facts the counter runs with
-    seen_release: bool = False
-    seen_whole: bool = False
-    last_activity_ns: int | None = None  # the last closed activity bucket's last record (power gap)
-
-
 class EventStream:
     """Wheel records of closed passages in, detection events out in batch order.
 
     ``layout`` None counts every head of the log with default facts (as
     :func:`console.layout.layout_from_heads` gives them); ``facts`` fixes the
     per-head facts (a second read), else they are guessed.  ``on_event`` sees
-    every event as it is generated (health reads the channel findings there),
-    :meth:`release` returns them in order.
+    the events as they are generated (health reads the channel findings
+    there), only those of ``event_kinds`` when given (the others are then
+    never made as objects); :meth:`release` returns them in order
+    (:meth:`release_block`: as columns).
     """
 
     def __init__(
@@ -89,34 +95,65 @@ class EventStream:
         settings: DiagEventSettings,
         facts: dict[int, HeadFacts] | None = None,
         on_event: Callable[[DetectionEvent], None] | None = None,
+        event_kinds: Collection[EventKind] | None = None,
     ) -> None:
         self.layout = layout
         self.settings = settings
         self.known_facts = facts
         self.on_event = on_event
+        self.event_kinds = frozenset(event_kinds) if event_kinds is not None else None
         self.guess_failed = False
-        self._heads: dict[int, _Head] = {}
-        self._heap: list[tuple[int, int, int, int, DetectionEvent]] = []
-        self._seq = 0
+        self.pool = StringPool()
+        self.names: list[str] = []  # head key → name
+        self.bank = CounterBank(settings.counting, names=self.names, pool=self.pool)
+        self._state = np.zeros(0, np.int8)
+        self._configured = np.zeros(0, bool)
+        self._seen_release = np.zeros(0, bool)
+        self._seen_whole = np.zeros(0, bool)
+        self._last_activity = np.zeros(0, np.int64)  # the last closed activity bucket's last record
+        self._queue = EventQueue(self.names, self.pool.strings)
         self._power_ns = int(settings.power_gap_s * NS) if settings.power_gap_s is not None else None
 
     # -- heads -------------------------------------------------------------
-    def _head(self, key: int, device_id: int, name: str) -> _Head:
-        h = self._heads.get(key)
-        if h is None:
-            spec: CountingHead | None
-            if self.layout is None:
-                spec = CountingHead(id=name, chainage_m=0.0)
-            elif not self.layout.has_head(name):
-                spec = None
-            else:
-                spec = self.layout.head(name)
-                if spec.device_id is not None and spec.device_id != device_id:
-                    spec = None
-            if spec is not None and spec.channels == 3:
-                raise ValueError(f"head {name}: three-element heads are counted from the whole log")
-            h = self._heads[key] = _Head(name, spec)
-        return h
+    def _heads(self, keys: np.ndarray, heads: list[tuple[int, str]]) -> None:
+        """Resolve the heads first seen among ``keys``: counted or not, and how (once per head)."""
+        if len(self.names) < len(heads):
+            self.names.extend(name for _, name in heads[len(self.names) :])
+        n = len(heads)
+        if len(self._state) < n:
+            grow = n - len(self._state)
+            self._state = np.r_[self._state, np.zeros(grow, np.int8)]
+            self._configured = np.r_[self._configured, np.zeros(grow, bool)]
+            self._seen_release = np.r_[self._seen_release, np.zeros(grow, bool)]
+            self._seen_whole = np.r_[self._seen_whole, np.zeros(grow, bool)]
+            self._last_activity = np.r_[self._last_activity, np.full(grow, NONE, np.int64)]
+        new = np.unique(keys[self._state[keys] == _UNSEEN])
+        if not len(new):
+            return
+        up = np.ones(len(new), bool)
+        if self.layout is None:  # every head counted, as layout_from_heads gives them
+            self._state[new] = _COUNTED
+        else:
+            for i, key in enumerate(new.tolist()):  # per head, once
+                spec = self._spec(*heads[key])
+                self._state[key] = _IGNORED if spec is None else _COUNTED
+                up[i] = spec is None or spec.up_is_first_channel_first
+        counted = new[self._state[new] == _COUNTED]
+        no = np.zeros(len(counted), bool)  # facts are set with the head's first wheel records
+        self.bank.configure(counted, up[self._state[new] == _COUNTED], no, no)
+
+    def _spec(self, device_id: int, name: str) -> CountingHead | None:
+        lay = self.layout
+        if lay is None:
+            return CountingHead(id=name, chainage_m=0.0)
+        if not lay.has_head(name):
+            return None
+        spec = lay.head(name)
+        if spec.device_id is not None and spec.device_id != device_id:
+            return None
+        if spec.channels == 3:
+            raise ValueError(f"head {name}: three-element heads are counted from the whole log")
+        return spec
 
     def warnings(self, heads: list[tuple[int, str]]) -> list[str]:
         """The batch path's warnings about log heads the layout does not count, in head order."""
@@ -134,19 +171,24 @@ class EventStream:
     @property
     def facts(self) -> dict[int, HeadFacts]:
         """Per head key, the facts seen in the records read so far."""
-        return {k: HeadFacts(not h.seen_release, h.seen_whole) for k, h in self._heads.items()}
+        seen = np.flatnonzero(self._state != _UNSEEN)
+        rel, whole = self._seen_release[seen].tolist(), self._seen_whole[seen].tolist()
+        return {k: HeadFacts(not r, w) for k, r, w in zip(seen.tolist(), rel, whole, strict=True)}
 
     # -- input ---------------------------------------------------------------
-    def _push(self, e: DetectionEvent, key: int, group: int) -> None:
-        heapq.heappush(self._heap, (e.time_ns, key, group, self._seq, e))
-        self._seq += 1
+    def _push(self, block: EventBlock, group: int) -> None:
+        if not len(block):
+            return
+        self._queue.push(block, block.head, group)
         if self.on_event is not None:
-            self.on_event(e)
+            shown = block.of_kinds(self.event_kinds) if self.event_kinds is not None else block
+            for e in shown.events():
+                self.on_event(e)
 
     def add_reset(self, e: DetectionEvent) -> None:
         """An operator reset (given up front, in the order given)."""
-        heapq.heappush(self._heap, (e.time_ns, _RESET_HEAD, 0, self._seq, e))
-        self._seq += 1
+        block = EventBlock.from_events([e], self.names, self.pool)
+        self._queue.push(block, np.full(1, _RESET_HEAD, np.int64), 0)
 
     def add(
         self, wheel: dict[str, np.ndarray] | None, activity: dict[str, np.ndarray] | None, heads: list[tuple[int, str]]
@@ -158,105 +200,80 @@ class EventStream:
             self._power(activity, heads)
 
     def _count(self, wheel: dict[str, np.ndarray], heads: list[tuple[int, str]]) -> None:
-        key_col = wheel["head"]
+        key_col = np.asarray(wheel["head"], np.int64)
+        self._heads(key_col, heads)
         order = np.lexsort((wheel["time_ns"], key_col))  # per head by time; ties keep read order
+        order = order[self._state[key_col[order]] == _COUNTED]
+        if not len(order):
+            return
         hk = key_col[order]
+        v = wheel["value"][order]
         starts = np.flatnonzero(np.r_[True, hk[1:] != hk[:-1]])
-        ends = np.r_[starts[1:], len(hk)]
-        for key, a, b in zip(hk[starts].tolist(), starts.tolist(), ends.tolist(), strict=True):  # per head
-            device_id, name = heads[key]
-            h = self._head(key, device_id, name)
-            if h.spec is None:
-                continue
-            rows = order[a:b]
-            ch = wheel["channel"][rows]
-            t = wheel["time_ns"][rows]
-            v = wheel["value"][rows]
-            h.seen_release |= bool((v == 0).any())
-            h.seen_whole |= not bool(wheel["subsecond"][rows].all())
-            if h.counter is None:
-                known = self.known_facts.get(key) if self.known_facts is not None else None
-                h.facts = known or HeadFacts(not h.seen_release, h.seen_whole)
-                h.counter = HeadCounter(
-                    name,
-                    up_is_sys1_first=h.spec.up_is_first_channel_first,
-                    settings=self.settings.counting,
-                    point_mode=h.facts.point_mode,
-                    whole_second=h.facts.whole_second,
-                )
-            assert h.facts is not None
-            if (h.seen_release and h.facts.point_mode) or (h.seen_whole and not h.facts.whole_second):
-                self.guess_failed = True
-            hc = h.counter
-            for c, tt, vv in zip(ch.tolist(), t.tolist(), v.tolist(), strict=True):  # per wheel record, as batch
-                for e in hc.feed(int(c), int(tt), int(vv)):
-                    self._push(e, key, _COUNTING)
+        keys = hk[starts]
+        self._seen_release[keys] |= np.logical_or.reduceat(v == 0, starts)
+        self._seen_whole[keys] |= ~np.logical_and.reduceat(np.asarray(wheel["subsecond"], bool)[order], starts)
+        new = keys[~self._configured[keys]]
+        if len(new):
+            point = ~self._seen_release[new]
+            whole = self._seen_whole[new].copy()
+            if self.known_facts is not None:
+                for i, key in enumerate(new.tolist()):  # per head, once
+                    known = self.known_facts.get(key)
+                    if known is not None:
+                        point[i], whole[i] = known.point_mode, known.whole_second
+            self.bank.configure(new, self.bank.up_first[new], point, whole)
+            self._configured[new] = True
+        bank = self.bank
+        wrong = (self._seen_release[keys] & bank.point_mode[keys]) | (self._seen_whole[keys] & ~bank.whole_second[keys])
+        if bool(wrong.any()):
+            self.guess_failed = True
+        self._push(bank.feed(hk, wheel["channel"][order], wheel["time_ns"][order], v), _COUNTING)
 
     def _power(self, activity: dict[str, np.ndarray], heads: list[tuple[int, str]]) -> None:
         assert self._power_ns is not None
-        order = np.lexsort((activity["t_first_ns"], activity["head"]))
-        hk = activity["head"][order]
-        first = activity["t_first_ns"][order]
-        last = activity["t_last_ns"][order]
-        starts = np.flatnonzero(np.r_[True, hk[1:] != hk[:-1]])
-        ends = np.r_[starts[1:], len(hk)]
-        for key, a, b in zip(hk[starts].tolist(), starts.tolist(), ends.tolist(), strict=True):  # per head
-            device_id, name = heads[key]
-            h = self._head(key, device_id, name)
-            if h.spec is None:
-                continue
-            f, la = first[a:b], last[a:b]
-            # Gaps between consecutive buckets, the first one after the head's previous batch.
-            if h.last_activity_ns is not None:
-                prev_last, next_first = np.r_[np.int64(h.last_activity_ns), la[:-1]], f
-            else:
-                prev_last, next_first = la[:-1], f[1:]
-            gap = next_first - prev_last
-            for i in np.flatnonzero(gap > self._power_ns).tolist():  # per power loss: rare
-                lost = int(prev_last[i]) + self._power_ns
-                detail = f"no records for {gap[i] / NS:.0f} s"
-                self._push(DetectionEvent(lost, EventKind.POWER_LOSS, name, 0, None, "diag", detail), key, _POWER)
-                restored = DetectionEvent(int(next_first[i]), EventKind.POWER_RESTORED, name, 0, None, "diag")
-                self._push(restored, key, _POWER)
-            h.last_activity_ns = int(la[-1])
+        key_col = np.asarray(activity["head"], np.int64)
+        self._heads(key_col, heads)
+        order = np.lexsort((activity["t_first_ns"], key_col))
+        order = order[self._state[key_col[order]] == _COUNTED]
+        if not len(order):
+            return
+        hk = key_col[order]
+        first = np.asarray(activity["t_first_ns"], np.int64)[order]
+        last = np.asarray(activity["t_last_ns"], np.int64)[order]
+        head_start = np.r_[True, hk[1:] != hk[:-1]]
+        # Gaps between consecutive buckets, the first one after the head's previous batch.
+        cols = power_gap_columns(hk, first, last, self._last_activity[hk], self._power_ns)
+        cols["source"] = np.full(len(cols["time_ns"]), self.bank.source)
+        self._push(EventBlock.from_columns(cols, self.names, self.pool.strings), _POWER)
+        ends = np.r_[np.flatnonzero(head_start)[1:], len(hk)] - 1
+        self._last_activity[hk[ends]] = last[ends]
 
     # -- output --------------------------------------------------------------
-    def release(self, watermark_ns: int) -> list[DetectionEvent]:
+    def release_block(self, watermark_ns: int) -> EventBlock:
         """Events that nothing read later can precede, given that no record still to come is
-        earlier than ``watermark_ns``; in the batch path's order."""
-        bound = watermark_ns
-        for key, h in self._heads.items():
-            hc = h.counter
-            if hc is not None:
-                waiting = min(p[0] for p in hc.pending) + hc.tol if hc.pending else ALL_TIME
-                t = min(watermark_ns, waiting)
-                # A held pulse and a waiting onset settling at the same instant: the batch path
-                # settles both in one call (waiting first); leave both for it.
-                if any(p[0] + hc.iso == t for p in hc.holds):
-                    t -= 1
-                for e in hc.advance(t):
-                    self._push(e, key, _COUNTING)
-                bound = min(bound, waiting)
-            if self._power_ns is not None and h.last_activity_ns is not None:
-                bound = min(bound, h.last_activity_ns + self._power_ns)
-        return self._pop_below(bound)
+        earlier than ``watermark_ns``; in the batch path's order, as columns."""
+        self._push(self.bank.settle_before(watermark_ns), _COUNTING)
+        bound = min(watermark_ns, self.bank.floor_ns())
+        if self._power_ns is not None:
+            last = self._last_activity[self._last_activity != NONE]
+            if len(last):
+                bound = min(bound, int(last.min()) + self._power_ns)
+        return self._queue.pop_below(bound)
+
+    def release(self, watermark_ns: int) -> list[DetectionEvent]:
+        """:meth:`release_block` as event objects."""
+        return self.release_block(watermark_ns).events()
+
+    def finish_block(self) -> EventBlock:
+        """End of the log: settle every counter; all events, in order, as columns."""
+        self._push(self.bank.flush(), _COUNTING)
+        return self._queue.pop_below(int(ALL_TIME))
 
     def finish(self) -> list[DetectionEvent]:
-        """End of the log: settle every counter; all events, in order."""
-        for key, h in self._heads.items():
-            if h.counter is not None:
-                for e in h.counter.flush():
-                    self._push(e, key, _COUNTING)
-        return self._pop_below(ALL_TIME)
-
-    def _pop_below(self, bound: int) -> list[DetectionEvent]:
-        out = []
-        heap = self._heap
-        while heap and (heap[0][0] < bound or bound == ALL_TIME):
-            out.append(heapq.heappop(heap)[4])
-        return out
+        """:meth:`finish_block` as event objects."""
+        return self.finish_block().events()
 
     @property
     def held(self) -> int:
         """Events waiting for the watermark."""
-        return len(self._heap)
+        return len(self._queue)

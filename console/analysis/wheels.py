@@ -271,9 +271,11 @@ class HeadCounter:
 
     Feed the head's wheel-sensor records in time order with :meth:`feed`
     (channel, time, 1 = damped / 0 = free) and let time pass with
-    :meth:`advance`; both return the detection events they settle.  The same
-    object runs over a parsed log (batch: :func:`two_channel_events`) and
-    inside the simulator (live), so both apply the same rules:
+    :meth:`advance`; both return the detection events they settle.  It runs
+    inside the simulator and the live engine, a record at a time; over a
+    parsed log the same rules run as array operations, many heads at once
+    (:class:`console.analysis.counting.CounterBank`, held to give exactly
+    this class's events by ``tests/test_counting_bank.py``):
 
     * an axle counts when one system's damping starts while the other's is
       still on (they overlap); the order of the two onsets gives the
@@ -414,22 +416,19 @@ def two_channel_events(
     source: str = "diag",
     whole_second: bool = False,
 ) -> list[DetectionEvent]:
-    """Batch: one head's records through a :class:`HeadCounter` (the rules are there).
+    """Batch: one head's records through the overlap rule (:class:`HeadCounter`'s events, made by
+    :class:`~console.analysis.counting.CounterBank` without a loop per record), in time order.
 
     Records come in the log's order; equal times keep it (a stable sort).
     """
+    from console.analysis.counting import CounterBank  # the bank builds on this module
+
     order = np.argsort(time_ns, kind="stable")
-    point_mode = not bool((value == 0).any())
-    hc = HeadCounter(
-        head,
-        up_is_sys1_first=up_is_sys1_first,
-        settings=settings,
-        point_mode=point_mode,
-        source=source,
-        whole_second=whole_second,
+    bank = CounterBank(settings, names=[head], source=source)
+    point_mode = not bool((np.asarray(value) == 0).any())
+    bank.configure(
+        np.zeros(1, np.int64), np.array([up_is_sys1_first]), np.array([point_mode]), np.array([whole_second])
     )
-    out: list[DetectionEvent] = []
-    for ch, t, v in zip(channel[order].tolist(), time_ns[order].tolist(), value[order].tolist(), strict=True):
-        out += hc.feed(int(ch), int(t), int(v))  # per wheel record: the rules are sequential
-    out += hc.flush()
-    return sorted(out, key=lambda e: e.time_ns)
+    fed = bank.feed(np.zeros(len(order), np.int64), channel[order], time_ns[order], value[order])
+    events = fed.events() + bank.flush().events()
+    return sorted(events, key=lambda e: e.time_ns)

@@ -576,15 +576,15 @@ def _stream_cross_head(
     engine: SectionEngine | None = None
     history = _HistoryWriter(root, manifest.generation) if with_sections else None
 
-    def step(events: list[Any]) -> None:
+    def step(events: Any) -> None:
+        # Events as columns (EventBlock): objects only for the health kinds, the engine takes the block.
         nonlocal engine
-        health.extend(e for e in events if e.kind in HEALTH_EVENT_KINDS)
-        if history is None or not events:
+        health.extend(events.of_kinds(HEALTH_EVENT_KINDS).events())
+        if history is None or not len(events):
             return
         if engine is None:
-            engine = SectionEngine(layout, initial=SectionState.PREPARATORY, start_ns=events[0].time_ns)
-        for e in events:
-            engine.step(e)
+            engine = SectionEngine(layout, initial=SectionState.PREPARATORY, start_ns=int(events.time_ns[0]))
+        engine.step_block(events)
         history.take(engine)
 
     # Where the records still to come start: the earliest of the days after.
@@ -606,10 +606,10 @@ def _stream_cross_head(
                     m = (t >= a) & (t < b)
                     if m.any():
                         stream.add({c: v[m] for c, v in day.items()}, None, heads)
-                    step(stream.release(min(b, watermark)))
+                    step(stream.release_block(min(b, watermark)))
             del day, t
-            step(stream.release(watermark))
-        step(stream.finish())
+            step(stream.release_block(watermark))
+        step(stream.finish_block())
         if history is not None and engine is None:
             engine = SectionEngine(layout, initial=SectionState.PREPARATORY, start_ns=0)  # no event: as run_sections
             history.take(engine)
