@@ -32,6 +32,7 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import BinaryIO
 
 from console.safe_text import show_path
 
@@ -187,19 +188,25 @@ def staged_directory(target: Path, inputs: Iterable[Path], what: str = "output")
                 target.rmdir()  # only when empty: the run failed before anything was published
 
 
-def write_output(target: OutputTarget, data: bytes) -> None:
-    """Write ``data`` to a checked target: through a device or FIFO, atomically to a file (OSError on failure)."""
+@contextmanager
+def open_output(target: OutputTarget) -> Iterator[BinaryIO]:
+    """A checked target to write in pieces: through a device or FIFO, else atomically to a file.
+
+    OSError on failure; a file target keeps its old content unless the block ends without an error.
+    """
     if target.stream:
         # No O_CREAT, no O_TRUNC: the special file stays what it is.
         fd = os.open(target.path, os.O_WRONLY | getattr(os, "O_CLOEXEC", 0))
-        try:
-            view = memoryview(data)
-            while view:
-                n = os.write(fd, view)
-                view = view[n:]
-        finally:
-            os.close(fd)
+        with os.fdopen(fd, "wb") as f:
+            yield f
         return
-    from console.report.write import write_atomic
+    from console.report.write import atomic_file
 
-    write_atomic(target.path, data)
+    with atomic_file(target.path) as f:
+        yield f
+
+
+def write_output(target: OutputTarget, data: bytes) -> None:
+    """Write ``data`` to a checked target: through a device or FIFO, atomically to a file (OSError on failure)."""
+    with open_output(target) as f:
+        f.write(data)

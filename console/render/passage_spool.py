@@ -52,12 +52,14 @@ class PassageSpool:
         self._start: list[np.ndarray] = []
         self._offset: list[np.ndarray] = []
         self._length: list[np.ndarray] = []
+        self._ordered: tuple[np.ndarray, np.ndarray] | None = None
         self.count = 0
 
     def add(self, cols: Columns, heads: list[tuple[int, str]]) -> None:
         """Take one batch (any order); only its texts' places stay in memory."""
         if not len(cols["head"]):
             return
+        assert self._ordered is None, "passages added after they were read"
         texts = [t.encode("ascii") for t in passage_texts(cols, heads)]
         lengths = np.fromiter((len(t) for t in texts), np.int64, len(texts))
         self._file.write(b"".join(texts))
@@ -74,31 +76,49 @@ class PassageSpool:
         self._file.truncate()
         self._size = self.count = 0
         self._head, self._start, self._offset, self._length = [], [], [], []
+        self._ordered = None
 
     def json_parts(self) -> JSONParts:
         """The passages as a JSON array in a whole read's order (by head, then start), written piece by piece."""
         return JSONParts(self._parts())
 
+    def _order(self) -> tuple[np.ndarray, np.ndarray]:
+        """Offsets and lengths of the texts in a whole read's order (by head, then start); made once."""
+        if self._ordered is None:
+            self._file.flush()
+            head, start = np.concatenate(self._head), np.concatenate(self._start)
+            offset, length = np.concatenate(self._offset), np.concatenate(self._length)
+            self._head = self._start = self._offset = self._length = []
+            order = np.lexsort((start, head))
+            del head, start
+            self._ordered = offset[order], length[order]
+        return self._ordered
+
+    def _blocks(self) -> Iterator[list[bytes]]:
+        """The texts in order, a list of up to ``_COPY_ROWS`` at a time."""
+        offset, length = self._order()
+        fd = self._file.fileno()
+        for lo in range(0, len(offset), _COPY_ROWS):
+            rows = slice(lo, lo + _COPY_ROWS)
+            # One pread per passage (no seek, no buffer refill): flushed in _order, so the file holds them all.
+            yield [os.pread(fd, n, off) for off, n in zip(offset[rows].tolist(), length[rows].tolist(), strict=True)]
+
     def _parts(self) -> Iterator[str]:
         if not self.count:
             yield "[]"
             return
-        self._file.flush()
-        head, start = np.concatenate(self._head), np.concatenate(self._start)
-        offset, length = np.concatenate(self._offset), np.concatenate(self._length)
-        self._head = self._start = self._offset = self._length = []
-        order = np.lexsort((start, head))
-        del head, start
-        offset, length = offset[order], length[order]
-        del order
-        fd = self._file.fileno()
         yield "["
-        for lo in range(0, len(offset), _COPY_ROWS):
-            rows = slice(lo, lo + _COPY_ROWS)
-            # One pread per passage (no seek, no buffer refill): flushed above, so the file holds them all.
-            pieces = [os.pread(fd, n, off) for off, n in zip(offset[rows].tolist(), length[rows].tolist(), strict=True)]
-            yield ("," if lo else "") + b",".join(pieces).decode("ascii")
+        for i, pieces in enumerate(self._blocks()):
+            yield ("," if i else "") + b",".join(pieces).decode("ascii")
         yield "]"
+
+    def texts(self) -> Iterator[str]:
+        """Each passage's JSON object, in a whole read's order (by head, then start); may be read again."""
+        if not self.count:
+            return
+        for pieces in self._blocks():
+            for piece in pieces:
+                yield piece.decode("ascii")
 
     def close(self) -> None:
         self._file.close()

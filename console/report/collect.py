@@ -76,6 +76,7 @@ from console.report.model import (
     ReportData,
     natural_key,
 )
+from console.report.spooled import ReportPassages, SectionHistory, report_sink
 from console.safe_text import show_path
 from console.stream_jobs import SectionsSink, stream_diag
 from parsers.frames import count_frames_only, frame_line_problem, parse_can, parse_frames
@@ -264,8 +265,22 @@ def _load(spec: str | Path) -> Layout:
         raise ReportInputError(str(exc)) from None
 
 
-def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | None = None) -> ReportData:
-    """Recognise every input, run every analysis that applies, and return what the report shows."""
+def collect(
+    inputs: Sequence[Path],
+    layout_spec: str | None,
+    *,
+    exclude: Path | None = None,
+    ledger_rows: bool = True,
+    whole: bool = False,
+) -> ReportData:
+    """Recognise every input, run every analysis that applies, and return what the report shows.
+
+    A diagnostic log's passages and section history are spooled to disk as it
+    is read (:mod:`console.report.spooled`; the count ledger's rows only with
+    ``ledger_rows``, for JSON): :meth:`ReportData.close` removes them.
+    ``whole``: hold them in memory instead, as tables (the report over an
+    archive does too; tests compare the two).
+    """
     files, warnings = expand(inputs, exclude)
     recognised = [(p, *recognise(p)) for p in files]
     layout: Layout | None = None
@@ -294,9 +309,6 @@ def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | 
         why = "; ".join(f"{r.path}: {r.note or r.format}" for r in rows[:3]) or "no files"
         raise ReportInputError(f"no input in a format trackside reads ({why})")
 
-    def of(*formats: str) -> list[Path]:
-        return [p for p, fmt, _ in recognised if fmt in formats]
-
     consist = layout.consist() if layout is not None else None
     settings = SpeedSettings(
         spacing_m=layout.heads[0].spacing_m if layout is not None and layout.heads else SpeedSettings.spacing_m,
@@ -304,26 +316,50 @@ def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | 
     )
     data = ReportData(inputs=rows, layout=layout, settings=settings, warnings=warnings)
 
+    try:
+        _analyse(data, recognised, ledger_rows, whole)
+    except BaseException:
+        data.close()
+        raise
+    return data
+
+
+def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], ledger_rows: bool, whole: bool) -> None:
+    """Every analysis that applies to the recognised inputs, into ``data``."""
+
+    def of(*formats: str) -> list[Path]:
+        return [p for p, fmt, _ in recognised if fmt in formats]
+
+    layout, settings = data.layout, data.settings
     findings: list[Finding] = []
     diag = of(DIAGNOSTIC)
     if diag:
-        # One streaming read: passages, the section engine's run and the health inputs, in bounded
-        # memory for one log (console.stream_jobs); the report's renderers still get whole tables.
+        # One streaming read: passages, the section engine's run and the health inputs, in memory
+        # bounded by the heads for one log (console.stream_jobs); the long lists go to disk.
         sections_layout = layout if layout is not None and layout.sections else None
-        sink = SectionsSink(keep_all=True) if sections_layout is not None else None
-        with byte_progress(input_bytes(diag), "parsing") as advance:
-            run = stream_diag(
-                diag,
-                settings,
-                layout=layout,
-                event_settings=DiagEventSettings(),
-                sections_layout=sections_layout,
-                initial=SectionState.PREPARATORY,
-                sink=sink,
-                keep_registers=HEALTH_REGISTERS,
-                keep_passages=True,
-                on_progress=advance,
-            )
+        sink = None
+        if sections_layout is not None:
+            sink = SectionsSink(keep_all=True) if whole else report_sink(ledger_rows)
+        data.passage_spool = None if whole else ReportPassages()
+        try:
+            with byte_progress(input_bytes(diag), "parsing") as advance:
+                run = stream_diag(
+                    diag,
+                    settings,
+                    layout=layout,
+                    event_settings=DiagEventSettings(),
+                    sections_layout=sections_layout,
+                    initial=SectionState.PREPARATORY,
+                    sink=sink,
+                    keep_registers=HEALTH_REGISTERS,
+                    keep_passages=whole,
+                    on_passages=data.passage_spool.add if data.passage_spool is not None else None,
+                    on_progress=advance,
+                )
+        except BaseException:
+            if sink is not None:
+                sink.close()
+            raise
         data.job = run.job
         data.reports["diagnostic"] = data.job.report
         # The report reads the events only for the time the data ends: the last one stands for them.
@@ -332,7 +368,10 @@ def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | 
         findings += health_findings(data.job, layout, run.health_events, None)
         if run.engine is not None and run.sink is not None:
             sk = run.sink
-            data.sections = run.engine.result(sk.timeline_all, sk.ledger_all, sk.resets)
+            if whole:
+                data.sections = run.engine.result(sk.timeline_all, sk.ledger_all, sk.resets)
+            else:
+                data.history = SectionHistory(run.engine.result([], [], []).final, sk)
             data.section_source = "diagnostic"
 
     _frames(data, of(FRAMES), of(CAN))
@@ -349,7 +388,6 @@ def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | 
 
     _sections(data)
     _crossings(data, of(*GNSS_FORMATS))
-    return data
 
 
 def _frames(data: ReportData, text_files: list[Path], can_files: list[Path]) -> None:
@@ -390,7 +428,7 @@ def _sections(data: ReportData) -> None:
     if not lay.sections:
         data.notes["sections"] = f"No section states: the layout {lay.source} has no [[sections]]."
         return
-    if data.job is not None and data.sections is not None:
+    if data.job is not None and (data.sections is not None or data.history is not None):
         return  # run while the diagnostic log was read (collect)
     if data.job is not None:
         events, data.section_source = data.events, "diagnostic"
