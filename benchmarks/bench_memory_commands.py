@@ -62,7 +62,17 @@ from pathlib import Path
 
 TARGET_MB = 256.0
 BOARDS = 40
-COMMANDS = ("sections", "sections-json", "health", "health-json", "report-md", "report-json", "report-html")
+COMMANDS = (
+    "sections",
+    "sections-json",
+    "health",
+    "health-json",
+    "analyze-json",
+    "speeds-json",
+    "report-md",
+    "report-json",
+    "report-html",
+)
 
 
 def write_layout(path: Path, boards: int = BOARDS) -> None:
@@ -86,8 +96,9 @@ def write_layout(path: Path, boards: int = BOARDS) -> None:
 def command(name: str, exe: str, log: Path, layout: Path) -> list[str]:
     if name.startswith("sections"):
         return [exe, "sections", str(log), "--layout", str(layout), *(["--json"] if name.endswith("json") else [])]
-    if name.startswith("health"):
-        return [exe, "health", str(log), *(["--json"] if name.endswith("json") else [])]
+    if name.startswith(("health", "analyze", "speeds")):
+        verb = name.split("-")[0]
+        return [exe, verb, str(log), *(["--json"] if name.endswith("json") else [])]
     fmt = name.split("-")[1]
     return [exe, "report", str(log), "--layout", str(layout), "--format", fmt]
 
@@ -98,8 +109,9 @@ def in_checkout(cmd: list[str]) -> list[str]:
     return [sys.executable, "-c", launch, *cmd[1:]]
 
 
-def run(cmd: list[str], cwd: Path | None = None) -> tuple[float, float, int]:
-    """Wall seconds, peak RSS (MB) and exit code of one child process; stdout discarded."""
+def run(cmd: list[str], cwd: Path | None = None) -> tuple[float, float, float, int]:
+    """Wall seconds, CPU seconds (user + system), peak RSS (MB) and exit code of one child process;
+    stdout discarded."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=cwd)
     _, status, usage = os.wait4(proc.pid, 0)
@@ -108,7 +120,7 @@ def run(cmd: list[str], cwd: Path | None = None) -> tuple[float, float, int]:
     code = os.waitstatus_to_exitcode(status)
     if code not in (0, 1):
         raise SystemExit(f"{' '.join(cmd)} failed ({code}): {err[-2000:]}")
-    return wall, usage.ru_maxrss / 1024, code
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024, code
 
 
 def main() -> None:
@@ -126,17 +138,17 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         layout = Path(tmp) / "layout.toml"
         write_layout(layout)
-        print(f"{'log':<28} {'command':<14} {'wall s':>8} {'peak MB':>8}  target")
+        print(f"{'log':<28} {'command':<19} {'wall s':>8} {'CPU s':>8} {'peak MB':>8}  target")
         for log in args.logs:
             for name in names:
                 cmd = command(name, exe, log.resolve(), layout.resolve())
                 for _ in range(args.repeat):
                     if args.baseline is not None:
-                        wall, rss, _code = run(in_checkout(cmd), cwd=args.baseline)
-                        print(f"{log.name:<28} {name + ' (base)':<14} {wall:8.2f} {rss:8.0f}", flush=True)
-                    wall, rss, _code = run(cmd)
+                        wall, cpu, rss, _code = run(in_checkout(cmd), cwd=args.baseline)
+                        print(f"{log.name:<28} {name + ' (base)':<19} {wall:8.2f} {cpu:8.2f} {rss:8.0f}", flush=True)
+                    wall, cpu, rss, _code = run(cmd)
                     verdict = "ok" if rss <= TARGET_MB else "OVER"
-                    print(f"{log.name:<28} {name:<14} {wall:8.2f} {rss:8.0f}  {verdict}", flush=True)
+                    print(f"{log.name:<28} {name:<19} {wall:8.2f} {cpu:8.2f} {rss:8.0f}  {verdict}", flush=True)
 
 
 if __name__ == "__main__":

@@ -12,8 +12,9 @@ what the whole-file path (:func:`console.jobs.analyze_files` +
 The engine's history (state timeline, count ledger) grows with the traffic,
 not the heads: a :class:`SectionsSink` takes it as it is made, keeps the
 first rows and per-(section, head) totals for the tables, and, for
-``--json``, spills each row's JSON text to a temporary file that the document
-copies in at the end.
+``--json`` and the report, spills each row's JSON text to a temporary file
+that the document copies in at the end.  Closed passages go to the caller as
+they close (``on_passages``: the report spools them).
 
 Several files (their overlap is found record by record) and layouts with
 three-element heads are read whole, as before.
@@ -50,6 +51,7 @@ from parsers.sources import DEFAULT_CHUNK_BYTES
 # The events health reads (channel_fault_findings): everything else only drives sections.
 HEALTH_EVENT_KINDS = frozenset({EventKind.CHANNEL_FAULT, EventKind.CHANNEL_OK, EventKind.SINGLE_CHANNEL})
 TIMELINE_ROWS_KEPT = 201  # the text table shows 200 and says whether there are more
+SPILL_BLOCK_BYTES = 1 << 20  # spilled rows copied out at a time
 
 
 def _row_json(row: dict[str, Any] | str) -> str:
@@ -139,11 +141,11 @@ class _Spill:
         out.write("]")
 
     def blocks(self) -> Iterator[str]:
-        """The items as written (comma-separated, no brackets), in pieces of a megabyte."""
+        """The items as written (comma-separated, no brackets), in pieces of ``SPILL_BLOCK_BYTES``."""
         self.file.flush()
-        fd = self.file.fileno()
-        for offset in range(0, self.size, 1 << 20):
-            yield os.pread(fd, min(1 << 20, self.size - offset), offset).decode("ascii")
+        fd, step = self.file.fileno(), SPILL_BLOCK_BYTES
+        for offset in range(0, self.size, step):
+            yield os.pread(fd, min(step, self.size - offset), offset).decode("ascii")
 
     def items(self, rows: Iterable[int] | None = None) -> Iterator[str]:
         """Items one by one (``rows``: these, in this order; needs ``track``)."""
@@ -169,7 +171,7 @@ class SectionsSink:
     """
 
     spill: bool = False
-    keep_all: bool = False  # the whole history in memory as well (tests compare it with a whole-file run)
+    keep_all: bool = False  # the whole history in memory as well (report's collect(whole=True), tests)
     spill_ledger: bool = True
     timeline_text: Callable[[Transition], str] = transition_json
     ledger_text: Callable[[LedgerEntry], str] = field(default_factory=_LedgerText)

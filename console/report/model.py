@@ -1,7 +1,8 @@
 """What a report holds (:class:`ReportData`) and its JSON form (schema ``trackside.report/1``).
 
-:func:`document` turns the analyses into plain JSON values, in the order
-the report presents them (docs/report-schema.md);
+:func:`document` turns the analyses into JSON values, in the order
+the report presents them (docs/report-schema.md), a long list read from its
+spool as it is written (:class:`~console.report.jsonwrite.Rows`);
 :mod:`console.report.outline` turns that document into the blocks the
 Markdown and HTML faces render, so the three formats cannot disagree.  Nothing
 here computes what the analysis modules compute: it selects, groups and
