@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -84,10 +86,10 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[list[Pat
 
 
 def _streamed_and_whole(
-    given: tuple[list[Path], str | None], ledger_rows: bool = True
+    given: tuple[list[Path], str | None], fmt: str | None = None
 ) -> Iterator[tuple[ReportData, ReportData]]:
     paths, layout = given
-    streamed = collect(paths, layout, ledger_rows=ledger_rows)
+    streamed = collect(paths, layout, for_format=fmt)
     whole = collect(paths, layout, whole=True)
     try:
         yield streamed, whole
@@ -111,7 +113,7 @@ def _streamed_and_whole(
 def test_the_streamed_report_is_the_whole_document_report(
     inputs: dict[str, tuple[list[Path], str | None]], case: str, fmt: str
 ) -> None:
-    for streamed, whole in _streamed_and_whole(inputs[case], ledger_rows=fmt == "json"):
+    for streamed, whole in _streamed_and_whole(inputs[case], fmt):
         text = render(streamed, fmt)
         assert text == render(whole, fmt)
         if fmt == "json":
@@ -124,7 +126,7 @@ def test_the_markdown_timeline_shows_its_first_rows_of_the_spool(
     inputs: dict[str, tuple[list[Path], str | None]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setattr(outline, "TIMELINE_ROWS_SHOWN", 7)
-    for streamed, whole in _streamed_and_whole(inputs["simulated run"], ledger_rows=False):
+    for streamed, whole in _streamed_and_whole(inputs["simulated run"], "md"):
         text = render(streamed, "md")
         assert text == render(whole, "md")
         assert f"First 7 of {len(whole.sections.timeline):,} changes" in text  # type: ignore[union-attr]
@@ -281,3 +283,16 @@ def test_spool_files_are_gone_once_the_report_is_written(tmp_path: Path, monkeyp
     assert run_report(SAMPLES, "example", "md", tmp_path / "r.md", None) == 0
     assert closed == ["closed"]
     assert os.path.getsize(tmp_path / "r.md") > 1000
+
+
+def test_a_report_on_diagnostic_logs_loads_no_frame_can_or_gnss_parser(tmp_path: Path) -> None:
+    # Those parsers and the libraries under them (python-can, shapely) cost ~20 MB of the 256 MB budget.
+    code = (
+        "import sys; from pathlib import Path; from console.report import run_report; "
+        f"run_report([Path({str(SAMPLES[0])!r})], 'example', 'md', Path({str(tmp_path / 'r.md')!r}), None); "
+        "print(sorted(m for m in ('can', 'shapely', 'parsers.frames', 'parsers.gnss') if m in sys.modules))"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "[]"
+    assert (tmp_path / "r.md").read_text().startswith("# trackside report")

@@ -3,7 +3,7 @@
 A stream closes passages in time order; the JSON document lists them as a
 whole-file read does, by counting head, then start.  Each passage is encoded
 once, as it closes, and appended to an unnamed temporary file; only its
-place (head key, start, offset, length: 32 bytes) stays in memory.  At the
+place (head key, start, offset, length: 24 bytes) stays in memory.  At the
 end the document copies the texts out in the document's order, piece by
 piece, so neither the passages table nor its JSON is ever held whole.
 """
@@ -64,8 +64,8 @@ class PassageSpool:
         lengths = np.fromiter((len(t) for t in texts), np.int64, len(texts))
         self._file.write(b"".join(texts))
         self._offset.append(self._size + np.cumsum(lengths) - lengths)
-        self._length.append(lengths)
-        self._head.append(np.asarray(cols["head"], np.int64))
+        self._length.append(lengths.astype(np.int32))
+        self._head.append(np.asarray(cols["head"], np.int32))
         self._start.append(np.asarray(cols["start_ns"], np.int64))
         self._size += int(lengths.sum())
         self.count += len(texts)
@@ -86,12 +86,12 @@ class PassageSpool:
         """Offsets and lengths of the texts in a whole read's order (by head, then start); made once."""
         if self._ordered is None:
             self._file.flush()
-            head, start = np.concatenate(self._head), np.concatenate(self._start)
-            offset, length = np.concatenate(self._offset), np.concatenate(self._length)
-            self._head = self._start = self._offset = self._length = []
+            # Each column joined and its parts let go in turn: few copies at once.
+            head = _joined(self._head)
+            start = _joined(self._start)
             order = np.lexsort((start, head))
             del head, start
-            self._ordered = offset[order], length[order]
+            self._ordered = _joined(self._offset)[order], _joined(self._length)[order]
         return self._ordered
 
     def _blocks(self) -> Iterator[list[bytes]]:
@@ -122,3 +122,10 @@ class PassageSpool:
 
     def close(self) -> None:
         self._file.close()
+
+
+def _joined(parts: list[np.ndarray]) -> np.ndarray:
+    """The parts as one array; the list is emptied (its arrays freed as soon as nothing else holds them)."""
+    out = np.concatenate(parts)
+    parts.clear()
+    return out

@@ -46,11 +46,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from console.analysis.crossing_batch import run_crossings
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.events import DetectionEvent, sort_events
-from console.analysis.frame_events import frames_to_events
 from console.analysis.health import Finding, sort_findings, voltage_margin_findings
 from console.analysis.sections import SectionState, run_sections
 from console.jobs import HEALTH_REGISTERS, health_findings, input_bytes
@@ -79,11 +77,8 @@ from console.report.model import (
 from console.report.spooled import ReportPassages, SectionHistory, report_sink
 from console.safe_text import show_path
 from console.stream_jobs import SectionsSink, stream_diag
-from parsers.frames import count_frames_only, frame_line_problem, parse_can, parse_frames
-from parsers.gnss import parse_gnss, recognise_format
 from parsers.report import escape_text
 from parsers.sources import InputError, open_input
-from parsers.voltages import parse_header, read_voltages
 
 PEEK_BYTES = 64 * 1024
 STDIN_NAME = "-"  # an input that means standard input
@@ -114,6 +109,8 @@ def _first_line(head: bytes) -> bytes | None:
 
 
 def _is_voltage_header(text: str) -> bool:
+    from parsers.voltages import parse_header
+
     delimiter = "\t" if "\t" in text else ";" if ";" in text else ","
     cells = next(csv.reader([text], delimiter=delimiter, skipinitialspace=True), [])
     try:
@@ -145,6 +142,10 @@ def recognise(path: Path) -> tuple[str, str]:
         return DIAGNOSTIC, ""
     if suffix in (".asc", ".blf", ".trc") or (suffix == ".log" and first.startswith(b"(")):
         return CAN, ""
+    # Imported here: a report on diagnostic logs never loads the frame, CAN and GNSS parsers (memory).
+    from parsers.frames import frame_line_problem
+    from parsers.gnss import recognise_format
+
     text = first.decode("utf-8", errors="replace")
     if len(text.split()) in (3, 4) and frame_line_problem(text) is None:
         return FRAMES, ""
@@ -270,16 +271,18 @@ def collect(
     layout_spec: str | None,
     *,
     exclude: Path | None = None,
-    ledger_rows: bool = True,
+    for_format: str | None = None,
     whole: bool = False,
 ) -> ReportData:
     """Recognise every input, run every analysis that applies, and return what the report shows.
 
     A diagnostic log's passages and section history are spooled to disk as it
-    is read (:mod:`console.report.spooled`; the count ledger's rows only with
-    ``ledger_rows``, for JSON): :meth:`ReportData.close` removes them.
-    ``whole``: hold them in memory instead, as tables (the report over an
-    archive does too; tests compare the two).
+    is read (:mod:`console.report.spooled`): :meth:`ReportData.close` removes
+    them.  ``for_format``: the one format it is for; what that format does not show
+    is not kept (the count ledger's rows but for ``json``, the speed plot's
+    numbers but for ``html``).  ``whole``: hold passages and section history in
+    memory instead, as tables (the report over an archive does too; tests
+    compare the two).
     """
     files, warnings = expand(inputs, exclude)
     recognised = [(p, *recognise(p)) for p in files]
@@ -317,14 +320,14 @@ def collect(
     data = ReportData(inputs=rows, layout=layout, settings=settings, warnings=warnings)
 
     try:
-        _analyse(data, recognised, ledger_rows, whole)
+        _analyse(data, recognised, for_format, whole)
     except BaseException:
         data.close()
         raise
     return data
 
 
-def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], ledger_rows: bool, whole: bool) -> None:
+def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], for_format: str | None, whole: bool) -> None:
     """Every analysis that applies to the recognised inputs, into ``data``."""
 
     def of(*formats: str) -> list[Path]:
@@ -339,8 +342,8 @@ def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], ledger_r
         sections_layout = layout if layout is not None and layout.sections else None
         sink = None
         if sections_layout is not None:
-            sink = SectionsSink(keep_all=True) if whole else report_sink(ledger_rows)
-        data.passage_spool = None if whole else ReportPassages()
+            sink = SectionsSink(keep_all=True) if whole else report_sink(ledger_rows=for_format in (None, "json"))
+        data.passage_spool = None if whole else ReportPassages(plot=for_format in (None, "html"))
         try:
             with byte_progress(input_bytes(diag), "parsing") as advance:
                 run = stream_diag(
@@ -378,6 +381,8 @@ def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], ledger_r
 
     voltages = of(VOLTAGES)
     if voltages:
+        from parsers.voltages import read_voltages
+
         try:
             table, vreport = read_voltages(voltages)
         except OSError as exc:
@@ -391,6 +396,10 @@ def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], ledger_r
 
 
 def _frames(data: ReportData, text_files: list[Path], can_files: list[Path]) -> None:
+    if not text_files and not can_files:
+        return
+    from parsers.frames import count_frames_only, parse_can, parse_frames
+
     tables: list[pd.DataFrame] = []
     if text_files:
         table, report = parse_frames(text_files)
@@ -407,6 +416,8 @@ def frames_from_tables(data: ReportData, tables: list[pd.DataFrame]) -> None:
     """Frame tables (already parsed: from files, or from the archive) → frame events and the frames table."""
     if not tables:
         return
+    from console.analysis.frame_events import frames_to_events
+
     lay = data.layout
     up: dict[str, bool] | bool = {h.id: h.up_is_first_channel_first for h in lay.heads} if lay is not None else True
     events: list[DetectionEvent] = []
@@ -444,6 +455,8 @@ def _crossings(data: ReportData, gnss: list[Path]) -> None:
     if not gnss:
         data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."
         return
+    from parsers.gnss import parse_gnss
+
     fixes, report, _states = parse_gnss(gnss)
     data.reports["gnss"] = report
     crossings_from_fixes(data, fixes)
@@ -465,6 +478,8 @@ def crossings_from_fixes(data: ReportData, fixes: pd.DataFrame) -> None:
     if own.any() and not own.all():
         note = "crossings use the NMEA and device streams (each unit's own fixes), not the centre's copy"
         data.inputs = [replace(i, note=note) if i.format == CENTRE else i for i in data.inputs]
+    from console.analysis.crossing_batch import run_crossings
+
     run = run_crossings(fixes[own] if own.any() else fixes, lay)
     data.crossing = run
     if run.off_track:

@@ -148,12 +148,8 @@ def run_report(
     try:
         if output is not None:
             target = check_output_file(output, inputs, what="report")
-        # The archive's faces (report --archive) bring their own collector.
-        if collector is not None:
-            data = collector()
-        else:
-            # Markdown and HTML show the count ledger's totals only: its rows are spilled for JSON alone.
-            data = collect(inputs, layout, exclude=output, ledger_rows=fmt == "json")
+        # The archive's faces (report --archive) bring their own collector; files keep what this format shows.
+        data = collector() if collector is not None else collect(inputs, layout, exclude=output, for_format=fmt)
         if output is not None:
             # Again against every file read (those found in directories too).
             target = check_output_file(output, [Path(i.path) for i in data.inputs], what="report")

@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Iterator
+from functools import partial
 from typing import Any
 
 import numpy as np
 
+from console.analysis.passages import Columns
 from console.analysis.sections import SectionState
 from console.analysis.timefmt import display
 from console.report import svg, trends
@@ -127,23 +129,34 @@ def _table(t: Table, write: Write) -> None:
 # ----------------------------------------------------------------------------- plots
 
 
-def _trains(data: ReportData) -> dict[str, np.ndarray] | None:
-    """The train passages' head name, start, speeds and axles, in the passages table's order (head, then start)."""
+def _trains(data: ReportData) -> tuple[Columns, dict[str, Callable[[], np.ndarray]]] | None:
+    """The train passages' plotted columns, and per head name its rows in the passages table's order
+    (head, then start)."""
     if data.passage_spool is not None:
-        cols = data.passage_spool.train_columns()
-        names = np.array([name for _, name in data.passage_spool.heads], dtype=object)
-        return {"head": names[cols["head"]], **{c: cols[c] for c in _PLOTTED}}
+        cols = data.passage_spool.trains()
+        keys: dict[str, list[int]] = {}
+        for k in np.unique(cols["head"]).tolist():
+            keys.setdefault(data.passage_spool.heads[k][1], []).append(k)
+
+        def of_keys(ks: list[int]) -> np.ndarray:
+            rows = np.flatnonzero(np.isin(cols["head"], ks))
+            return rows[np.lexsort((cols["start_ns"][rows], cols["head"][rows]))]
+
+        return cols, {name: partial(of_keys, ks) for name, ks in keys.items()}
     if data.job is None:
         return None
     p = data.job.analysis.passages
     trains = p[p["kind"] == "train"] if len(p) else p
-    return {"head": trains["counting_head"].astype(str).to_numpy(object), **{c: trains[c].to_numpy() for c in _PLOTTED}}
+    names = trains["counting_head"].astype(str).to_numpy(object)
+    cols = {c: trains[c].to_numpy() for c in _PLOTTED}
+    return cols, {name: partial(np.flatnonzero, names == name) for name in set(names.tolist())}
 
 
 def _speed_points(
-    head: str, t_ns: list[int], whole: list[float], axle: list[float], n: list[int]
+    head: str, t_ns: list[int], whole: list[float], axle: list[float], axles: list[int]
 ) -> Iterator[svg.Point]:
-    for t, w, a, k in zip(t_ns, whole, axle, n, strict=True):
+    """A head's points in passage order: each passage's whole-train speed, then its per-axle mean."""
+    for t, w, a, k in zip(t_ns, whole, axle, axles, strict=True):
         when = display(t)
         if np.isfinite(w):
             yield svg.Point(t, w, f"{head} {when}: whole train {w:.1f} km/h")
@@ -151,26 +164,29 @@ def _speed_points(
             yield svg.Point(t, a, f"{head} {when}: per-axle mean {a:.1f} km/h ({k} axles)", filled=False)
 
 
+def _head_points(head: str, cols: Columns, rows: Callable[[], np.ndarray]) -> Iterator[svg.Point]:
+    """A head's points, its rows found when the plot reaches it (one head's numbers in memory at a time)."""
+    r = rows()
+    t, whole, axle = cols["start_ns"][r], cols["speed_kmh_whole_train"][r], cols["speed_kmh_per_axle_mean"][r]
+    yield from _speed_points(head, t.tolist(), whole.tolist(), axle.tolist(), cols["axles"][r].tolist())
+
+
 def _speeds(data: ReportData) -> Iterator[str] | None:
     """The speed plot's SVG in pieces, a point per train passage and speed (None: nothing to draw)."""
-    cols = _trains(data)
-    if cols is None or not len(cols["head"]):
+    found = _trains(data)
+    if found is None:
         return None
-    t = cols["start_ns"].astype(np.int64)
+    cols, heads = found
     whole = cols["speed_kmh_whole_train"].astype(np.float64)
     axle = cols["speed_kmh_per_axle_mean"].astype(np.float64)
-    drawn = np.isfinite(whole) | np.isfinite(axle)
+    has_whole, has_axle = np.isfinite(whole), np.isfinite(axle)
+    drawn = has_whole | has_axle
     if not drawn.any():
         return None
-    top = float(np.concatenate([whole[np.isfinite(whole)], axle[np.isfinite(axle)]]).max())
-    series = []
-    for head in sorted(set(cols["head"].tolist()), key=natural_key):
-        rows = np.flatnonzero(cols["head"] == head)
-        n = cols["axles"][rows].tolist()
-        series.append(
-            svg.Series(head, _speed_points(head, t[rows].tolist(), whole[rows].tolist(), axle[rows].tolist(), n))
-        )
-    span = (int(t[drawn].min()), int(t[drawn].max()))
+    top = max(float(whole[has_whole].max(initial=-np.inf)), float(axle[has_axle].max(initial=-np.inf)))
+    t = cols["start_ns"][drawn]
+    span = (int(t.min()), int(t.max()))
+    series = [svg.Series(head, _head_points(head, cols, heads[head])) for head in sorted(heads, key=natural_key)]
     title, note = "Speed per passage", "filled: whole train · ring: per-axle mean"
     return svg.scatter_over_time(series, span, top, title, "km/h", note)
 

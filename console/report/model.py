@@ -31,14 +31,12 @@ import re
 from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import pandas as pd
 
 from console import __version__
-from console.analysis.crossing_batch import CrossingRun
-from console.analysis.crossing_timeline import TimelineRow
 from console.analysis.diagnostics import SpeedSettings, passages_json_text
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.health import Finding, Severity
@@ -50,6 +48,10 @@ from console.render.section_tables import sections_json
 from console.report.jsonwrite import Rows
 from console.report.spooled import ReportPassages, SectionHistory
 from parsers.report import ParseReport
+
+if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read (collect)
+    from console.analysis.crossing_batch import CrossingRun
+    from console.analysis.crossing_timeline import TimelineRow
 
 SCHEMA = "trackside.report/1"
 

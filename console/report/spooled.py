@@ -36,18 +36,26 @@ from console.stream_jobs import SectionsSink, _LedgerText
 TRAIN_KIND = 0  # diagnostics._KINDS.index("train")
 # Where the document holds the section history's rows: doc → "sections" → "timeline" / "ledger" → a row.
 ROW_DEPTH = 3
-_PLOTTED = ("head", "start_ns", "speed_kmh_whole_train", "speed_kmh_per_axle_mean", "axles")
+# What the speed plot reads of a train passage, and how it is kept (32 bytes a passage).
+_PLOTTED = {
+    "head": np.int32,
+    "start_ns": np.int64,
+    "speed_kmh_whole_train": np.float64,
+    "speed_kmh_per_axle_mean": np.float64,
+    "axles": np.int32,
+}
 
 
 class ReportPassages:
     """The passages a report lists, spooled as they close (status-only ones counted, not listed),
-    and what the speed plot needs of each train passage: head, start, two speeds, axles."""
+    and (``plot``) what the speed plot needs of each train passage: head, start, two speeds, axles."""
 
-    def __init__(self) -> None:
+    def __init__(self, plot: bool = True) -> None:
         self.spool = PassageSpool()
         self.status = 0
         self.heads: list[tuple[int, str]] = []
-        self._plot: list[Columns] = []
+        self.plot = plot
+        self._plot: dict[str, list[np.ndarray]] = {c: [] for c in _PLOTTED}
 
     def add(self, cols: Columns, heads: list[tuple[int, str]]) -> None:
         """One batch of closed passages (``heads``: the log's heads so far, by key)."""
@@ -55,8 +63,10 @@ class ReportPassages:
         self.status += int(status.sum())
         listed = take_passages(cols, np.flatnonzero(~status)) if status.any() else cols
         self.spool.add(listed, heads)
-        train = listed["kind"] == TRAIN_KIND
-        self._plot.append({c: listed[c][train] for c in _PLOTTED})
+        if self.plot:
+            train = listed["kind"] == TRAIN_KIND
+            for c, dtype in _PLOTTED.items():
+                self._plot[c].append(listed[c][train].astype(dtype))
         self.heads = heads  # the stream's own list: it grows as heads appear, keys stay
 
     def __len__(self) -> int:
@@ -66,14 +76,16 @@ class ReportPassages:
         """The listed passages as the document's JSON objects, by head then start (as ``analyze --json``)."""
         return Rows(self.spool.count, lambda: (json.loads(t) for t in self.spool.texts()))
 
-    def train_columns(self) -> Columns:
-        """The train passages' plotted columns in the passages' order (by head key, then start)."""
-        if not self._plot:
-            return {c: np.zeros(0) for c in _PLOTTED}
-        cols = {c: np.concatenate([p[c] for p in self._plot]) for c in _PLOTTED}
-        self._plot = [cols]
-        order = np.lexsort((cols["start_ns"], cols["head"]))
-        return {c: v[order] for c, v in cols.items()}
+    def trains(self) -> Columns:
+        """The train passages' plotted columns (``head``: its key), in the order they closed."""
+        if not self.plot:
+            raise RuntimeError("the speed plot's numbers were not kept (collected for a format without plots)")
+        for c, dtype in _PLOTTED.items():
+            parts = self._plot[c]
+            if len(parts) != 1:
+                joined = np.concatenate(parts) if parts else np.zeros(0, dtype)
+                parts[:] = [joined]
+        return {c: parts[0] for c, parts in self._plot.items()}
 
     def close(self) -> None:
         self.spool.close()
@@ -117,7 +129,7 @@ class _NotKept(Rows):
         self.what = what
 
     def _missing(self) -> Iterator[Any]:
-        raise RuntimeError(f"the {self.what} rows were not kept (collect with ledger_rows=True)")
+        raise RuntimeError(f"the {self.what} rows were not kept (collected for a format that does not list them)")
 
 
 @dataclass
