@@ -22,12 +22,14 @@ three-element heads are read whole, as before.
 
 from __future__ import annotations
 
+import ctypes
 import json
 import os
 import shutil
 import tempfile
 from array import array
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -312,6 +314,37 @@ class _Run:
         return self.engine
 
 
+@contextmanager
+def read_memory() -> Iterator[None]:
+    """Memory kept bounded around a log's read: Arrow on the system allocator, freed pages returned after.
+
+    Arrow's default pool (mimalloc) keeps the pages the decoder's threads
+    freed in those threads' heaps, where ``release_unused`` does not reach
+    them; and the C heap keeps what the read freed.  The faces write their
+    output after the read, so that output would stack on top of both.  On a
+    12 M-record report the peak RSS was 17 MB (the pool) and 5 MB (the heap)
+    lower, at the same CPU.
+    """
+    import pyarrow as pa
+
+    before = pa.default_memory_pool()
+    pa.set_memory_pool(pa.system_memory_pool())
+    try:
+        yield
+    finally:
+        pa.set_memory_pool(before)
+        _trim_heap()
+
+
+def _trim_heap() -> None:
+    """Give the C heap's free pages back to the system (glibc's malloc_trim; elsewhere nothing)."""
+    try:
+        trim = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):
+        return
+    trim(0)
+
+
 def _streamable(paths: Sequence[Path], layout: Layout | None) -> bool:
     return len(paths) == 1 and not (layout is not None and any(h.channels == 3 for h in layout.heads))
 
@@ -340,38 +373,48 @@ def stream_diag(
     ``keep_passages``: the passages table kept, else only counted.
     ``on_passages``: each batch of closed passages (by start), once (the report spools them).
     """
-    if not _streamable(paths, layout):
-        whole = _whole(
-            paths, settings, layout, event_settings, sections_layout, resets, initial, sink, keep_registers, on_progress
-        )
-        cols = whole.job.analysis.passage_columns
-        if on_passages is not None and cols is not None and len(cols["head"]):
-            on_passages(take_passages(cols, by_start(cols)), whole.job.analysis.heads)
-        return whole
-    facts: dict[int, HeadFacts] | None = None
-    for attempt in (1, 2):
-        out = _stream_once(
-            paths,
-            settings,
-            layout,
-            event_settings,
-            sections_layout,
-            resets,
-            initial,
-            sink if attempt == 1 else _fresh(sink),
-            keep_registers,
-            keep_passages,
-            # A second read closes the same passages (the facts change events only): taken once.
-            on_passages if attempt == 1 else None,
-            on_progress,
-            chunk_bytes,
-            facts,
-        )
-        if isinstance(out, StreamOutcome):
-            out.reads = attempt
-            return out
-        facts = out
-    raise AssertionError("the second read runs with the facts of the first")
+    with read_memory():
+        if not _streamable(paths, layout):
+            whole = _whole(
+                paths,
+                settings,
+                layout,
+                event_settings,
+                sections_layout,
+                resets,
+                initial,
+                sink,
+                keep_registers,
+                on_progress,
+            )
+            cols = whole.job.analysis.passage_columns
+            if on_passages is not None and cols is not None and len(cols["head"]):
+                on_passages(take_passages(cols, by_start(cols)), whole.job.analysis.heads)
+            return whole
+        facts: dict[int, HeadFacts] | None = None
+        for attempt in (1, 2):
+            out = _stream_once(
+                paths,
+                settings,
+                layout,
+                event_settings,
+                sections_layout,
+                resets,
+                initial,
+                sink if attempt == 1 else _fresh(sink),
+                keep_registers,
+                keep_passages,
+                # A second read closes the same passages (the facts change events only): taken once.
+                on_passages if attempt == 1 else None,
+                on_progress,
+                chunk_bytes,
+                facts,
+            )
+            if isinstance(out, StreamOutcome):
+                out.reads = attempt
+                return out
+            facts = out
+        raise AssertionError("the second read runs with the facts of the first")
 
 
 def _fresh(sink: SectionsSink | None) -> SectionsSink | None:

@@ -132,6 +132,16 @@ def test_the_markdown_timeline_shows_its_first_rows_of_the_spool(
         assert f"First 7 of {len(whole.sections.timeline):,} changes" in text  # type: ignore[union-attr]
 
 
+def test_passage_places_and_plot_numbers_read_back_in_blocks_give_the_same_page(
+    inputs: dict[str, tuple[list[Path], str | None]], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The spool's records on disk read back a few at a time (blocks cut anywhere, trains picked from each).
+    monkeypatch.setattr("console.render.passage_spool._INDEX_ROWS", 37)
+    for streamed, whole in _streamed_and_whole(inputs["realistic log"], "html"):
+        assert len(streamed.passage_spool or []) > 37 * 10
+        assert render(streamed, "html") == render(whole, "html")
+
+
 def test_spilled_rows_read_back_are_the_whole_history(
     inputs: dict[str, tuple[list[Path], str | None]], monkeypatch: pytest.MonkeyPatch
 ) -> None:

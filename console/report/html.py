@@ -177,8 +177,8 @@ def _speeds(data: ReportData) -> Iterator[str] | None:
     if found is None:
         return None
     cols, heads = found
-    whole = cols["speed_kmh_whole_train"].astype(np.float64)
-    axle = cols["speed_kmh_per_axle_mean"].astype(np.float64)
+    whole = np.asarray(cols["speed_kmh_whole_train"], np.float64)
+    axle = np.asarray(cols["speed_kmh_per_axle_mean"], np.float64)
     has_whole, has_axle = np.isfinite(whole), np.isfinite(axle)
     drawn = has_whole | has_axle
     if not drawn.any():

@@ -36,37 +36,30 @@ from console.stream_jobs import SectionsSink, _LedgerText
 TRAIN_KIND = 0  # diagnostics._KINDS.index("train")
 # Where the document holds the section history's rows: doc → "sections" → "timeline" / "ledger" → a row.
 ROW_DEPTH = 3
-# What the speed plot reads of a train passage, and how it is kept (32 bytes a passage).
-_PLOTTED = {
-    "head": np.int32,
-    "start_ns": np.int64,
-    "speed_kmh_whole_train": np.float64,
-    "speed_kmh_per_axle_mean": np.float64,
-    "axles": np.int32,
-}
+# What the speed plot reads of a passage besides its head and start, as the spool keeps it.
+_PLOTTED = (
+    ("speed_kmh_whole_train", "<f8"),
+    ("speed_kmh_per_axle_mean", "<f8"),
+    ("axles", "<i4"),
+    ("kind", "i1"),
+)
 
 
 class ReportPassages:
-    """The passages a report lists, spooled as they close (status-only ones counted, not listed),
-    and (``plot``) what the speed plot needs of each train passage: head, start, two speeds, axles."""
+    """The passages a report lists, spooled as they close (status-only ones counted, not listed);
+    with ``plot``, the spool keeps what the speed plot reads of each one too (on disk, 21 bytes)."""
 
     def __init__(self, plot: bool = True) -> None:
-        self.spool = PassageSpool()
+        self.spool = PassageSpool(columns=_PLOTTED if plot else ())
+        self.plot = plot
         self.status = 0
         self.heads: list[tuple[int, str]] = []
-        self.plot = plot
-        self._plot: dict[str, list[np.ndarray]] = {c: [] for c in _PLOTTED}
 
     def add(self, cols: Columns, heads: list[tuple[int, str]]) -> None:
         """One batch of closed passages (``heads``: the log's heads so far, by key)."""
         status = cols["kind"] == STATUS_KIND
         self.status += int(status.sum())
-        listed = take_passages(cols, np.flatnonzero(~status)) if status.any() else cols
-        self.spool.add(listed, heads)
-        if self.plot:
-            train = listed["kind"] == TRAIN_KIND
-            for c, dtype in _PLOTTED.items():
-                self._plot[c].append(listed[c][train].astype(dtype))
+        self.spool.add(take_passages(cols, np.flatnonzero(~status)) if status.any() else cols, heads)
         self.heads = heads  # the stream's own list: it grows as heads appear, keys stay
 
     def __len__(self) -> int:
@@ -77,15 +70,11 @@ class ReportPassages:
         return Rows(self.spool.count, lambda: (json.loads(t) for t in self.spool.texts()))
 
     def trains(self) -> Columns:
-        """The train passages' plotted columns (``head``: its key), in the order they closed."""
+        """The train passages' head key, start, speeds and axles, in the order they closed (read from disk)."""
         if not self.plot:
             raise RuntimeError("the speed plot's numbers were not kept (collected for a format without plots)")
-        for c, dtype in _PLOTTED.items():
-            parts = self._plot[c]
-            if len(parts) != 1:
-                joined = np.concatenate(parts) if parts else np.zeros(0, dtype)
-                parts[:] = [joined]
-        return {c: parts[0] for c, parts in self._plot.items()}
+        train = np.flatnonzero(self.spool.columns(("kind",))["kind"] == TRAIN_KIND)
+        return self.spool.columns(("head", "start_ns", *(name for name, _ in _PLOTTED if name != "kind")), train)
 
     def close(self) -> None:
         self.spool.close()
