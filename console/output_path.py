@@ -14,8 +14,9 @@ Every command that writes files (``report -o``, ``simulate -o``, the future
 * a parent directory that is missing or not writable: refused before any
   work is done.
 
-A regular file is written atomically (:func:`console.report.write.write_atomic`):
-a reader, or an interrupted run, leaves the old file or the new one,
+A regular file is written atomically, in pieces into a temporary file
+(:func:`open_output`, :func:`console.report.write.atomic_file`): a reader,
+or an interrupted run, sees the old file or the new one,
 never half of one.  A symlink to a regular file keeps being a link: the
 file it points to is replaced.
 """
@@ -204,9 +205,3 @@ def open_output(target: OutputTarget) -> Iterator[BinaryIO]:
 
     with atomic_file(target.path) as f:
         yield f
-
-
-def write_output(target: OutputTarget, data: bytes) -> None:
-    """Write ``data`` to a checked target: through a device or FIFO, atomically to a file (OSError on failure)."""
-    with open_output(target) as f:
-        f.write(data)

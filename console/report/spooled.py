@@ -6,8 +6,9 @@ They are not held.  Passages go into the :class:`~console.render.passage_spool.P
 that ``analyze --json`` uses (:class:`ReportPassages`), the section history
 into the :class:`~console.stream_jobs.SectionsSink` spill that ``sections --json``
 uses, its rows already in the report's JSON form (:func:`report_sink`,
-:class:`SectionHistory`).  What stays in memory is a few numbers per train
-passage (the speed plot) and per state change (the state plot), and totals.
+:class:`SectionHistory`).  What stays in memory is a few numbers per state
+change (the state plot) and totals; the numbers the speed plot reads of each
+passage go into the spool's records on disk with its place.
 
 The document (:func:`console.report.model.document`) refers to these
 through :class:`~console.report.jsonwrite.Rows`; the renderers read them
@@ -175,7 +176,7 @@ class SectionHistory:
 
     def span_ns(self) -> tuple[int, int] | None:
         """The first and last state change's time (None: no state change)."""
-        t = np.frombuffer(self.sink.timeline_time_ns, np.int64)
+        t = np.asarray(self.sink.timeline_time_ns)
         return (int(t.min()), int(t.max())) if len(t) else None
 
     def changes(self, section: str) -> Iterator[tuple[int, str, int, str]]:
@@ -184,8 +185,8 @@ class SectionHistory:
         n = sink.section_number.get(section)
         if n is None:
             return
-        rows = np.flatnonzero(np.frombuffer(sink.timeline_section, np.int32) == n)
-        times = np.frombuffer(sink.timeline_time_ns, np.int64)[rows].tolist()
+        rows = np.flatnonzero(np.asarray(sink.timeline_section) == n)
+        times = np.asarray(sink.timeline_time_ns)[rows].tolist()
         for t, text in zip(times, sink.timeline_items(rows.tolist()), strict=True):
             row = json.loads(text)
             yield t, row["state"], row["count"], row["reason"]
