@@ -1,11 +1,11 @@
-"""Peak RSS and wall time of `trackside sections`, `health` and `report` on big diagnostic logs.
+"""Peak RSS, wall and CPU time of `trackside sections`, `health`, `analyze`, `speeds` and `report` on big logs.
 
-Each command runs as a fresh process (stdout to /dev/null); wall time and
-peak RSS come from ``os.wait4`` (``ru_maxrss``).  The logs are the realistic
-multi-board exports of ``gen_realistic_diag.py`` (40 boards, 80 heads WS1 …
-WS80, device ids 5001 …).  No shipped layout names those heads, so the
-benchmark writes one (:func:`write_layout`): each board's two heads bound one
-section (WS1 in, WS2 out, …).  The generator's trains are independent per
+Each command runs as a fresh process (stdout to /dev/null); wall time, CPU
+time (user + system) and peak RSS come from ``os.wait4`` (``ru_maxrss``).
+The logs are the realistic multi-board exports of ``gen_realistic_diag.py``
+(40 boards, 80 heads WS1 … WS80, device ids 5001 …).  No shipped layout
+names those heads, so the benchmark writes one (:func:`write_layout`): each
+board's two heads bound one section (WS1 in, WS2 out, …).  The generator's trains are independent per
 head, so most sections end disturbed (count underflow): that is fine for a
 memory benchmark, every axle still goes through the section engine and into
 the ledger.
@@ -41,12 +41,43 @@ alternating, one run each, heavier load):
 `health` 105.3 s / 873 MB → 88.3 s / 194 MB (0.84×); `report --format md`
 205.9 s / 891 MB → 124.6 s / 539 MB (0.60×).
 
-`report` stays over the target: the analysis streams now, but the report
-document (console/report/model.py ``document``) is built whole before it
-is rendered: every passage, every state change and every ledger row as a
+`report` stayed over the target: the analysis streamed, but the report
+document (console/report/model.py ``document``) was built whole before it
+was rendered: every passage, every state change and every ledger row as a
 dict (332 k ledger rows and 41 k passages at 3 M), then the Markdown, HTML
-or JSON text in one string.  Bounding it needs the renderers to write those
-lists as they are made (as ``sections --json`` now copies its spilled rows).
+or JSON text in one string.
+
+Report in bounded memory, measured 2026-11-26 on the same shared 2-core
+machine (3–5 other jobs running; wall times inflated and noisy, CPU = user +
+system seconds is the figure to compare).  Before: main at cb3d35c
+(``git archive cb3d35c | tar -x -C DIR``); after: the branch that spools
+passages and the section history to disk and writes the report as it is
+rendered (console/report/spooled.py, jsonwrite.py).  One run each, before
+and after alternately, with ``/usr/bin/time``; the outputs compared with
+``cmp``: the same bytes in every row.  A process that imports the CLI and
+the report now peaks at ~115 MB (the frame, CAN and GNSS parsers load only
+when such inputs are given).
+
+| log | command | before: peak, wall, CPU | after: peak, wall, CPU |
+| --- | --- | --- | --- |
+| 3 M | `report --format md` | 542 MB, 33.0 s, 18.9 s | 183 MB, 22.2 s, 13.8 s |
+| 3 M | `report --format json` | 1046 MB, 33.7 s, 22.6 s | 192 MB, 25.5 s, 17.3 s |
+| 3 M | `report --format html` | 600 MB, 34.0 s, 22.0 s | 183 MB, 22.7 s, 17.4 s |
+| 12 M | `report --format md` | 1617 MB, 119.5 s, 80.0 s | 194 MB, 81.5 s, 54.1 s |
+| 12 M | `report --format json` | 3574 MB, 130.4 s, 82.1 s | 204 MB, 75.8 s, 57.0 s |
+| 12 M | `report --format html` | 1852 MB, 119.1 s, 83.0 s | 198 MB, 98.1 s, 63.5 s |
+| 30 M | `report --format md` | not run (the old path needs GBs) | 220 MB, 206.4 s, 145.1 s |
+| 30 M | `report --format json` | not run | 230 MB, 193.1 s, 152.3 s |
+| 30 M | `report --format html` | not run | 226 MB, 196.4 s, 136.1 s |
+
+The other commands after the change, 12 M, one run each (this script):
+`sections` 191 MB (45.3 s CPU), `sections --json` 202 MB (51.6 s),
+`health` 194 MB (33.7 s), `health --json` 193 MB (33.0 s), `analyze --json`
+186 MB (13.9 s), `speeds --json` 187 MB (12.5 s).  `sections --json` at
+30 M: 231 MB (137.0 s), one run earlier that day, before the heap trim after
+the read.  The read itself now runs with Arrow on the system allocator
+(console/stream_jobs.py ``read_memory``): the report's read peak at 12 M was
+17 MB lower with it, at the same CPU.
 """
 
 from __future__ import annotations
@@ -62,7 +93,17 @@ from pathlib import Path
 
 TARGET_MB = 256.0
 BOARDS = 40
-COMMANDS = ("sections", "sections-json", "health", "health-json", "report-md", "report-json", "report-html")
+COMMANDS = (
+    "sections",
+    "sections-json",
+    "health",
+    "health-json",
+    "analyze-json",
+    "speeds-json",
+    "report-md",
+    "report-json",
+    "report-html",
+)
 
 
 def write_layout(path: Path, boards: int = BOARDS) -> None:
@@ -86,8 +127,9 @@ def write_layout(path: Path, boards: int = BOARDS) -> None:
 def command(name: str, exe: str, log: Path, layout: Path) -> list[str]:
     if name.startswith("sections"):
         return [exe, "sections", str(log), "--layout", str(layout), *(["--json"] if name.endswith("json") else [])]
-    if name.startswith("health"):
-        return [exe, "health", str(log), *(["--json"] if name.endswith("json") else [])]
+    if name.startswith(("health", "analyze", "speeds")):
+        verb = name.split("-")[0]
+        return [exe, verb, str(log), *(["--json"] if name.endswith("json") else [])]
     fmt = name.split("-")[1]
     return [exe, "report", str(log), "--layout", str(layout), "--format", fmt]
 
@@ -98,8 +140,9 @@ def in_checkout(cmd: list[str]) -> list[str]:
     return [sys.executable, "-c", launch, *cmd[1:]]
 
 
-def run(cmd: list[str], cwd: Path | None = None) -> tuple[float, float, int]:
-    """Wall seconds, peak RSS (MB) and exit code of one child process; stdout discarded."""
+def run(cmd: list[str], cwd: Path | None = None) -> tuple[float, float, float, int]:
+    """Wall seconds, CPU seconds (user + system), peak RSS (MB) and exit code of one child process;
+    stdout discarded."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=cwd)
     _, status, usage = os.wait4(proc.pid, 0)
@@ -108,7 +151,7 @@ def run(cmd: list[str], cwd: Path | None = None) -> tuple[float, float, int]:
     code = os.waitstatus_to_exitcode(status)
     if code not in (0, 1):
         raise SystemExit(f"{' '.join(cmd)} failed ({code}): {err[-2000:]}")
-    return wall, usage.ru_maxrss / 1024, code
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024, code
 
 
 def main() -> None:
@@ -126,17 +169,17 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         layout = Path(tmp) / "layout.toml"
         write_layout(layout)
-        print(f"{'log':<28} {'command':<14} {'wall s':>8} {'peak MB':>8}  target")
+        print(f"{'log':<28} {'command':<19} {'wall s':>8} {'CPU s':>8} {'peak MB':>8}  target")
         for log in args.logs:
             for name in names:
                 cmd = command(name, exe, log.resolve(), layout.resolve())
                 for _ in range(args.repeat):
                     if args.baseline is not None:
-                        wall, rss, _code = run(in_checkout(cmd), cwd=args.baseline)
-                        print(f"{log.name:<28} {name + ' (base)':<14} {wall:8.2f} {rss:8.0f}", flush=True)
-                    wall, rss, _code = run(cmd)
+                        wall, cpu, rss, _code = run(in_checkout(cmd), cwd=args.baseline)
+                        print(f"{log.name:<28} {name + ' (base)':<19} {wall:8.2f} {cpu:8.2f} {rss:8.0f}", flush=True)
+                    wall, cpu, rss, _code = run(cmd)
                     verdict = "ok" if rss <= TARGET_MB else "OVER"
-                    print(f"{log.name:<28} {name:<14} {wall:8.2f} {rss:8.0f}  {verdict}", flush=True)
+                    print(f"{log.name:<28} {name:<19} {wall:8.2f} {cpu:8.2f} {rss:8.0f}  {verdict}", flush=True)
 
 
 if __name__ == "__main__":

@@ -14,8 +14,9 @@ Every command that writes files (``report -o``, ``simulate -o``, the future
 * a parent directory that is missing or not writable: refused before any
   work is done.
 
-A regular file is written atomically (:func:`console.report.write.write_atomic`):
-a reader, or an interrupted run, leaves the old file or the new one,
+A regular file is written atomically, in pieces into a temporary file
+(:func:`open_output`, :func:`console.report.write.atomic_file`): a reader,
+or an interrupted run, sees the old file or the new one,
 never half of one.  A symlink to a regular file keeps being a link: the
 file it points to is replaced.
 """
@@ -32,6 +33,7 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import BinaryIO
 
 from console.safe_text import show_path
 
@@ -187,19 +189,19 @@ def staged_directory(target: Path, inputs: Iterable[Path], what: str = "output")
                 target.rmdir()  # only when empty: the run failed before anything was published
 
 
-def write_output(target: OutputTarget, data: bytes) -> None:
-    """Write ``data`` to a checked target: through a device or FIFO, atomically to a file (OSError on failure)."""
+@contextmanager
+def open_output(target: OutputTarget) -> Iterator[BinaryIO]:
+    """A checked target to write in pieces: through a device or FIFO, else atomically to a file.
+
+    OSError on failure; a file target keeps its old content unless the block ends without an error.
+    """
     if target.stream:
         # No O_CREAT, no O_TRUNC: the special file stays what it is.
         fd = os.open(target.path, os.O_WRONLY | getattr(os, "O_CLOEXEC", 0))
-        try:
-            view = memoryview(data)
-            while view:
-                n = os.write(fd, view)
-                view = view[n:]
-        finally:
-            os.close(fd)
+        with os.fdopen(fd, "wb") as f:
+            yield f
         return
-    from console.report.write import write_atomic
+    from console.report.write import atomic_file
 
-    write_atomic(target.path, data)
+    with atomic_file(target.path) as f:
+        yield f

@@ -12,8 +12,9 @@ what the whole-file path (:func:`console.jobs.analyze_files` +
 The engine's history (state timeline, count ledger) grows with the traffic,
 not the heads: a :class:`SectionsSink` takes it as it is made, keeps the
 first rows and per-(section, head) totals for the tables, and, for
-``--json``, spills each row's JSON text to a temporary file that the document
-copies in at the end.
+``--json`` and the report, spills each row's JSON text to a temporary file
+that the document copies in at the end.  Closed passages go to the caller as
+they close (``on_passages``: the report spools them).
 
 Several files (their overlap is found record by record) and layouts with
 three-element heads are read whole, as before.
@@ -21,10 +22,14 @@ three-element heads are read whole, as before.
 
 from __future__ import annotations
 
+import ctypes
 import json
+import os
 import shutil
 import tempfile
-from collections.abc import Callable, Collection, Sequence
+from array import array
+from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -40,7 +45,7 @@ from console.analysis.sections import LedgerEntry, ResetRecord, SectionEngine, S
 from console.analysis.stream import PassageStream, by_head_and_start, by_start, concat_passages, take_passages
 from console.analysis.stream_sections import EventStream, HeadFacts
 from console.analysis.timefmt import NS, _fraction, iso
-from console.jobs import DiagJob, analyze_files, detection_events
+from console.jobs import DiagJob, OnPassages, analyze_files, detection_events
 from console.jsonout import valid_unicode
 from console.layout import Layout
 from parsers.diag import DiagChunk, DiagReader, chunks_to_frame
@@ -49,6 +54,7 @@ from parsers.sources import DEFAULT_CHUNK_BYTES
 # The events health reads (channel_fault_findings): everything else only drives sections.
 HEALTH_EVENT_KINDS = frozenset({EventKind.CHANNEL_FAULT, EventKind.CHANNEL_OK, EventKind.SINGLE_CHANNEL})
 TIMELINE_ROWS_KEPT = 201  # the text table shows 200 and says whether there are more
+SPILL_BLOCK_BYTES = 1 << 20  # spilled rows copied out at a time
 
 
 def _row_json(row: dict[str, Any] | str) -> str:
@@ -69,24 +75,38 @@ def ledger_json(x: LedgerEntry) -> str:
 
 class _LedgerText:
     """:func:`ledger_json` for a row per counted axle: the JSON of each (section, head) and of each
-    second's time text made once (``tests/test_stream_sections.py`` holds them equal)."""
+    second's time text made once (``tests/test_stream_sections.py`` holds them equal).
 
-    def __init__(self) -> None:
+    ``depth`` None: compact, as ``sections --json`` writes a row; else the row as
+    ``json.dumps(indent=1)`` writes an array item at that depth, its newline and
+    indent first (the report's JSON: ``console.report.jsonwrite``).
+    """
+
+    def __init__(self, depth: int | None = None) -> None:
         self._prefix: dict[tuple[str, str], str] = {}
         self._second: dict[int, str] = {}
+        if depth is None:
+            self._open, self._sep, self._colon, self._close = "{", ",", ":", "}"
+        else:
+            member = "\n" + " " * (depth + 1)
+            self._open, self._sep, self._colon = "\n" + " " * depth + "{" + member, "," + member, ": "
+            self._close = "\n" + " " * depth + "}"
 
     def __call__(self, x: LedgerEntry) -> str:
         prefix = self._prefix.get((x.section, x.head))
+        sep, colon = self._sep, self._colon
         if prefix is None:
-            text = '{"section":' + _row_json(x.section) + ',"head":' + _row_json(x.head) + ',"delta":'
-            prefix = self._prefix[(x.section, x.head)] = text
+            text = f'{self._open}"section"{colon}{_row_json(x.section)}{sep}"head"{colon}{_row_json(x.head)}'
+            prefix = self._prefix[(x.section, x.head)] = f'{text}{sep}"delta"{colon}'
         whole, frac = divmod(x.time_ns, NS)
         second = self._second.get(whole)
         if second is None:
             if len(self._second) > 1 << 16:
                 self._second.clear()
             second = self._second[whole] = str(iso(whole * NS))[:-5]  # without ".000Z"
-        return f'{prefix}{x.delta},"count":{x.count},"time":"{second}{_fraction(frac)}Z"}}'
+        return (
+            f'{prefix}{x.delta}{sep}"count"{colon}{x.count}{sep}"time"{colon}"{second}{_fraction(frac)}Z"{self._close}'
+        )
 
 
 def reset_json(r: ResetRecord) -> str:
@@ -94,14 +114,20 @@ def reset_json(r: ResetRecord) -> str:
 
 
 class _Spill:
-    """JSON array items written to a temporary file as they come."""
+    """JSON array items written to a temporary file as they come (``track``: where each one starts, to read it back)."""
 
-    def __init__(self) -> None:
+    def __init__(self, track: bool = False) -> None:
         self.file: IO[bytes] = tempfile.TemporaryFile()  # noqa: SIM115 (closed by close())
         self.n = 0
+        self.size = 0
+        self.starts: array[int] | None = array("q") if track else None
 
     def add(self, text: str) -> None:
-        self.file.write((b"," if self.n else b"") + text.encode("ascii"))
+        data = (b"," if self.n else b"") + text.encode("ascii")
+        if self.starts is not None:
+            self.starts.append(self.size + (1 if self.n else 0))
+        self.file.write(data)
+        self.size += len(data)
         self.n += 1
 
     def copy_to(self, out: IO[str]) -> None:
@@ -117,16 +143,41 @@ class _Spill:
                 out.write(block.decode("ascii"))
         out.write("]")
 
+    def blocks(self) -> Iterator[str]:
+        """The items as written (comma-separated, no brackets), in pieces of ``SPILL_BLOCK_BYTES``."""
+        self.file.flush()
+        fd, step = self.file.fileno(), SPILL_BLOCK_BYTES
+        for offset in range(0, self.size, step):
+            yield os.pread(fd, min(step, self.size - offset), offset).decode("ascii")
+
+    def items(self, rows: Iterable[int] | None = None) -> Iterator[str]:
+        """Items one by one (``rows``: these, in this order; needs ``track``)."""
+        assert self.starts is not None
+        self.file.flush()
+        fd, starts, n = self.file.fileno(), self.starts, self.n
+        for i in range(n) if rows is None else rows:
+            end = starts[i + 1] - 1 if i + 1 < n else self.size  # the next item's comma
+            yield os.pread(fd, end - starts[i], starts[i]).decode("ascii")
+
     def close(self) -> None:
         self.file.close()
 
 
 @dataclass
 class SectionsSink:
-    """The section engine's history as it is made: first rows, totals, and (``spill``) every row as JSON."""
+    """The section engine's history as it is made: first rows, totals, and (``spill``) every row as JSON.
+
+    ``spill`` writes each state change with ``timeline_text`` (where each
+    starts is kept, to read rows back) and, with ``spill_ledger``, each
+    counted axle with ``ledger_text``: by default as ``sections --json``
+    writes them; the report gives its own form (``console.report.spooled``).
+    """
 
     spill: bool = False
-    keep_all: bool = False  # the report: the whole history in memory (its renderers need it)
+    keep_all: bool = False  # the whole history in memory as well (report's collect(whole=True), tests)
+    spill_ledger: bool = True
+    timeline_text: Callable[[Transition], str] = transition_json
+    ledger_text: Callable[[LedgerEntry], str] = field(default_factory=_LedgerText)
     timeline_rows: int = 0
     timeline_first: list[Transition] = field(default_factory=list)
     ledger_rows: int = 0
@@ -135,13 +186,19 @@ class SectionsSink:
     resets: list[ResetRecord] = field(default_factory=list)
     timeline_all: list[Transition] = field(default_factory=list)
     ledger_all: list[LedgerEntry] = field(default_factory=list)
+    # Per state change: its section (numbered as first seen: `section_number`) and time, for plots.
+    section_number: dict[str, int] = field(default_factory=dict)
+    timeline_section: array[int] = field(default_factory=lambda: array("i"))
+    timeline_time_ns: array[int] = field(default_factory=lambda: array("q"))
+    # (section, state) → when the section last entered that state.
+    entered_ns: dict[tuple[str, str], int] = field(default_factory=dict)
     _timeline: _Spill | None = None
     _ledger: _Spill | None = None
-    _ledger_text: _LedgerText = field(default_factory=_LedgerText)
 
     def __post_init__(self) -> None:
         if self.spill:
-            self._timeline, self._ledger = _Spill(), _Spill()
+            self._timeline = _Spill(track=True)
+            self._ledger = _Spill() if self.spill_ledger else None
 
     def take(self, engine: SectionEngine) -> None:
         """Move the engine's new history out of it."""
@@ -153,13 +210,19 @@ class SectionsSink:
                 self.timeline_first += trs[:room]
             if self.keep_all:
                 self.timeline_all += trs
-            if self._timeline is not None:
-                for t in trs:
-                    self._timeline.add(transition_json(t))
+            numbers, entered = self.section_number, self.entered_ns
+            for t in trs:  # per state change: a few per train and section
+                n = numbers.setdefault(t.section, len(numbers))
+                self.timeline_section.append(n)
+                self.timeline_time_ns.append(t.time_ns)
+                entered[(t.section, str(t.state))] = t.time_ns
+                if self._timeline is not None:
+                    self._timeline.add(self.timeline_text(t))
         if engine.ledger:
             led, engine.ledger = engine.ledger, []
             self.ledger_rows += len(led)
             totals = self.ledger_totals
+            text = self.ledger_text
             for x in led:  # per counted axle: a dict update
                 tot = totals.get((x.section, x.head))
                 if tot is None:
@@ -168,12 +231,27 @@ class SectionsSink:
                 tot[2] = min(tot[2], x.time_ns)
                 tot[3] = max(tot[3], x.time_ns)
                 if self._ledger is not None:
-                    self._ledger.add(self._ledger_text(x))
+                    self._ledger.add(text(x))
             if self.keep_all:
                 self.ledger_all += led
         if engine.resets:
             self.resets += engine.resets
             engine.resets = []
+
+    def timeline_items(self, rows: Iterable[int] | None = None) -> Iterator[str]:
+        """The spilled state changes' texts, one by one (``rows``: these, in this order)."""
+        assert self._timeline is not None
+        return self._timeline.items(rows)
+
+    def spilled_blocks(self, what: str) -> Iterator[str]:
+        """The spilled ``timeline`` or ``ledger`` rows' texts, comma-separated, in pieces."""
+        spill = self._timeline if what == "timeline" else self._ledger
+        assert spill is not None, f"the {what} was not spilled"
+        return spill.blocks()
+
+    @property
+    def ledger_spilled(self) -> bool:
+        return self._ledger is not None
 
     def write_json_arrays(self, out: IO[str]) -> None:
         """``"timeline":[…],"ledger":[…],"resets":[…]`` (spilled rows copied in)."""
@@ -251,6 +329,37 @@ class _Run:
         return self.engine
 
 
+@contextmanager
+def read_memory() -> Iterator[None]:
+    """Memory kept bounded around a log's read: Arrow on the system allocator, freed pages returned after.
+
+    Arrow's default pool (mimalloc) keeps the pages the decoder's threads
+    freed in those threads' heaps, where ``release_unused`` does not reach
+    them; and the C heap keeps what the read freed.  The faces write their
+    output after the read, so that output would stack on top of both.  On a
+    12 M-record report the peak RSS was 17 MB (the pool) and 5 MB (the heap)
+    lower, at the same CPU.
+    """
+    import pyarrow as pa
+
+    before = pa.default_memory_pool()
+    pa.set_memory_pool(pa.system_memory_pool())
+    try:
+        yield
+    finally:
+        pa.set_memory_pool(before)
+        _trim_heap()
+
+
+def _trim_heap() -> None:
+    """Give the C heap's free pages back to the system (glibc's malloc_trim; elsewhere nothing)."""
+    try:
+        trim = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):
+        return
+    trim(0)
+
+
 def _streamable(paths: Sequence[Path], layout: Layout | None) -> bool:
     return len(paths) == 1 and not (layout is not None and any(h.channels == 3 for h in layout.heads))
 
@@ -267,6 +376,7 @@ def stream_diag(
     sink: SectionsSink | None = None,
     keep_registers: Collection[str] = (),
     keep_passages: bool = False,
+    on_passages: OnPassages | None = None,
     on_progress: Callable[[int], None] | None = None,
     chunk_bytes: int = DEFAULT_CHUNK_BYTES,
 ) -> StreamOutcome:
@@ -275,41 +385,64 @@ def stream_diag(
     ``layout`` None: events on the log's own heads (health without a layout).
     ``sections_layout`` (with ``sink``): run the section engine on it.
     ``keep_registers``: those registers' records kept as the job's record table (health).
-    ``keep_passages``: the passages table kept (the report lists them), else only counted.
+    ``keep_passages``: the passages table kept, else only counted.
+    ``on_passages``: each batch of closed passages (by start), once (the report spools them).
     """
-    if not _streamable(paths, layout):
-        return _whole(
-            paths, settings, layout, event_settings, sections_layout, resets, initial, sink, keep_registers, on_progress
-        )
-    facts: dict[int, HeadFacts] | None = None
-    for attempt in (1, 2):
-        out = _stream_once(
-            paths,
-            settings,
-            layout,
-            event_settings,
-            sections_layout,
-            resets,
-            initial,
-            sink if attempt == 1 else _fresh(sink),
-            keep_registers,
-            keep_passages,
-            on_progress,
-            chunk_bytes,
-            facts,
-        )
-        if isinstance(out, StreamOutcome):
-            out.reads = attempt
-            return out
-        facts = out
-    raise AssertionError("the second read runs with the facts of the first")
+    with read_memory():
+        if not _streamable(paths, layout):
+            whole = _whole(
+                paths,
+                settings,
+                layout,
+                event_settings,
+                sections_layout,
+                resets,
+                initial,
+                sink,
+                keep_registers,
+                on_progress,
+            )
+            cols = whole.job.analysis.passage_columns
+            if on_passages is not None and cols is not None and len(cols["head"]):
+                on_passages(take_passages(cols, by_start(cols)), whole.job.analysis.heads)
+            return whole
+        facts: dict[int, HeadFacts] | None = None
+        for attempt in (1, 2):
+            out = _stream_once(
+                paths,
+                settings,
+                layout,
+                event_settings,
+                sections_layout,
+                resets,
+                initial,
+                sink if attempt == 1 else _fresh(sink),
+                keep_registers,
+                keep_passages,
+                # A second read closes the same passages (the facts change events only): taken once.
+                on_passages if attempt == 1 else None,
+                on_progress,
+                chunk_bytes,
+                facts,
+            )
+            if isinstance(out, StreamOutcome):
+                out.reads = attempt
+                return out
+            facts = out
+        raise AssertionError("the second read runs with the facts of the first")
 
 
 def _fresh(sink: SectionsSink | None) -> SectionsSink | None:
     if sink is None:
         return None
     sink.close()
-    return SectionsSink(spill=sink.spill, keep_all=sink.keep_all)
+    return SectionsSink(
+        spill=sink.spill,
+        keep_all=sink.keep_all,
+        spill_ledger=sink.spill_ledger,
+        timeline_text=sink.timeline_text,
+        ledger_text=sink.ledger_text,
+    )
 
 
 def _stream_once(
@@ -323,6 +456,7 @@ def _stream_once(
     sink: SectionsSink | None,
     keep_registers: Collection[str],
     keep_passages: bool,
+    on_passages: OnPassages | None,
     on_progress: Callable[[int], None] | None,
     chunk_bytes: int,
     facts: dict[int, HeadFacts] | None,
@@ -344,8 +478,12 @@ def _stream_once(
         if part is None:
             return
         events.add(part.wheel, part.activity, stream.heads)
-        if keep_passages and part.passages is not None and len(part.passages["head"]):
-            passages.append(take_passages(part.passages, by_start(part.passages)))
+        if part.passages is not None and len(part.passages["head"]):
+            cols = take_passages(part.passages, by_start(part.passages))
+            if keep_passages:
+                passages.append(cols)
+            if on_passages is not None:
+                on_passages(cols, stream.heads)
 
     wanted = np.zeros(0, bool)
     for chunk in reader.chunks():

@@ -46,7 +46,7 @@ def _batch_tables() -> dict[str, pd.DataFrame]:
     (The report reads a log streaming since 3bcc3b8 and keeps no axle table: its job's analysis is
     not the whole batch analysis, so passages and axles come from ``analyze_files``.)
     """
-    data = collect([STATION], "example")
+    data = collect([STATION], "example", whole=True)  # the section history as tables, not spooled
     assert data.job is not None
     data.job = analyze_files([STATION], data.job.analysis.settings, keep_releases=True)
     return tables_from(data)

@@ -2,10 +2,12 @@
 
 A stream closes passages in time order; the JSON document lists them as a
 whole-file read does, by counting head, then start.  Each passage is encoded
-once, as it closes, and appended to an unnamed temporary file; only its
-place (head key, start, offset, length: 32 bytes) stays in memory.  At the
-end the document copies the texts out in the document's order, piece by
-piece, so neither the passages table nor its JSON is ever held whole.
+once, as it closes, and appended to an unnamed temporary file; its place
+(head key, start, offset, length) and any numeric ``columns`` the caller
+asks for go to a second one, a fixed-size record each, so nothing stays in
+memory per passage.  At the end the places are read back to find the
+document's order and the texts are copied out in it, piece by piece, so
+neither the passages table nor its JSON is ever held whole.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import IO
 
 import numpy as np
@@ -25,6 +27,9 @@ _LINE_TYPE = "p"
 _PREFIX = '{"type":"' + _LINE_TYPE + '",'
 # Texts copied out per read of the spool (bounded memory, few calls).
 _COPY_ROWS = 4096
+# A passage's place in the texts' file: 24 bytes on disk.
+_PLACE = [("head", "<i4"), ("length", "<i4"), ("start_ns", "<i8"), ("offset", "<i8")]
+_INDEX_ROWS = 1 << 16  # places read back at a time
 
 
 def passage_texts(cols: Columns, heads: list[tuple[int, str]]) -> list[str]:
@@ -42,63 +47,109 @@ def passage_texts(cols: Columns, heads: list[tuple[int, str]]) -> list[str]:
 
 
 class PassageSpool:
-    """Collects batches of closed passages; :meth:`json_parts` gives them back as one JSON array."""
+    """Collects batches of closed passages; :meth:`json_parts` gives them back as one JSON array.
 
-    def __init__(self) -> None:
+    ``columns``: passage columns (name, NumPy type) kept too, read back with :meth:`columns`.
+    """
+
+    def __init__(self, columns: Sequence[tuple[str, str]] = ()) -> None:
         # Deleted when closed (or when the process ends): no name to clean up.
         self._file: IO[bytes] = tempfile.TemporaryFile(prefix="trackside-passages-")  # noqa: SIM115
+        self._index: IO[bytes] = tempfile.TemporaryFile(prefix="trackside-passages-")  # noqa: SIM115
+        self._record = np.dtype([*_PLACE, *columns])
+        self._extra = [name for name, _ in columns]
         self._size = 0
-        self._head: list[np.ndarray] = []
-        self._start: list[np.ndarray] = []
-        self._offset: list[np.ndarray] = []
-        self._length: list[np.ndarray] = []
+        self._ordered: tuple[np.ndarray, np.ndarray] | None = None
         self.count = 0
 
     def add(self, cols: Columns, heads: list[tuple[int, str]]) -> None:
-        """Take one batch (any order); only its texts' places stay in memory."""
-        if not len(cols["head"]):
+        """Take one batch (any order); its texts and places go to disk."""
+        n = len(cols["head"])
+        if not n:
             return
+        assert self._ordered is None, "passages added after they were read"
         texts = [t.encode("ascii") for t in passage_texts(cols, heads)]
-        lengths = np.fromiter((len(t) for t in texts), np.int64, len(texts))
+        rec = np.empty(n, self._record)
+        rec["length"] = np.fromiter((len(t) for t in texts), np.int64, n)
+        rec["offset"] = self._size + np.cumsum(rec["length"], dtype=np.int64) - rec["length"]
+        rec["head"] = cols["head"]
+        rec["start_ns"] = cols["start_ns"]
+        for name in self._extra:
+            rec[name] = cols[name]
         self._file.write(b"".join(texts))
-        self._offset.append(self._size + np.cumsum(lengths) - lengths)
-        self._length.append(lengths)
-        self._head.append(np.asarray(cols["head"], np.int64))
-        self._start.append(np.asarray(cols["start_ns"], np.int64))
-        self._size += int(lengths.sum())
-        self.count += len(texts)
+        self._index.write(rec.tobytes())
+        self._size += int(rec["length"].sum(dtype=np.int64))
+        self.count += n
 
     def clear(self) -> None:
         """Forget every passage taken so far (the log is read again)."""
-        self._file.seek(0)
-        self._file.truncate()
+        for f in (self._file, self._index):
+            f.seek(0)
+            f.truncate()
         self._size = self.count = 0
-        self._head, self._start, self._offset, self._length = [], [], [], []
+        self._ordered = None
+
+    def columns(self, names: Sequence[str], rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """These columns of every passage taken (``rows``: of these, ascending), in the order they were taken.
+
+        Read back from disk a block at a time: only the result is held whole.
+        """
+        picked = None if rows is None else np.asarray(rows, np.int64)
+        out = {name: np.empty(self.count if picked is None else len(picked), self._record[name]) for name in names}
+        self._index.flush()
+        fd, size = self._index.fileno(), self._record.itemsize
+        for lo in range(0, self.count, _INDEX_ROWS):
+            n = min(_INDEX_ROWS, self.count - lo)
+            a, b = (lo, lo + n) if picked is None else np.searchsorted(picked, [lo, lo + n]).tolist()
+            if a == b:
+                continue
+            part = np.frombuffer(os.pread(fd, n * size, lo * size), self._record)
+            if picked is not None:
+                part = part[picked[a:b] - lo]
+            for name in names:
+                out[name][a:b] = part[name]
+        return out
 
     def json_parts(self) -> JSONParts:
         """The passages as a JSON array in a whole read's order (by head, then start), written piece by piece."""
         return JSONParts(self._parts())
 
+    def _order(self) -> tuple[np.ndarray, np.ndarray]:
+        """Offsets and lengths of the texts in a whole read's order (by head, then start); made once."""
+        if self._ordered is None:
+            self._file.flush()
+            keys = self.columns(("head", "start_ns"))
+            order = np.lexsort((keys.pop("start_ns"), keys.pop("head")))
+            places = self.columns(("offset", "length"))
+            self._ordered = places["offset"][order], places["length"][order]
+        return self._ordered
+
+    def _blocks(self) -> Iterator[list[bytes]]:
+        """The texts in order, a list of up to ``_COPY_ROWS`` at a time."""
+        offset, length = self._order()
+        fd = self._file.fileno()
+        for lo in range(0, len(offset), _COPY_ROWS):
+            rows = slice(lo, lo + _COPY_ROWS)
+            # One pread per passage (no seek, no buffer refill): flushed in _order, so the file holds them all.
+            yield [os.pread(fd, n, off) for off, n in zip(offset[rows].tolist(), length[rows].tolist(), strict=True)]
+
     def _parts(self) -> Iterator[str]:
         if not self.count:
             yield "[]"
             return
-        self._file.flush()
-        head, start = np.concatenate(self._head), np.concatenate(self._start)
-        offset, length = np.concatenate(self._offset), np.concatenate(self._length)
-        self._head = self._start = self._offset = self._length = []
-        order = np.lexsort((start, head))
-        del head, start
-        offset, length = offset[order], length[order]
-        del order
-        fd = self._file.fileno()
         yield "["
-        for lo in range(0, len(offset), _COPY_ROWS):
-            rows = slice(lo, lo + _COPY_ROWS)
-            # One pread per passage (no seek, no buffer refill): flushed above, so the file holds them all.
-            pieces = [os.pread(fd, n, off) for off, n in zip(offset[rows].tolist(), length[rows].tolist(), strict=True)]
-            yield ("," if lo else "") + b",".join(pieces).decode("ascii")
+        for i, pieces in enumerate(self._blocks()):
+            yield ("," if i else "") + b",".join(pieces).decode("ascii")
         yield "]"
+
+    def texts(self) -> Iterator[str]:
+        """Each passage's JSON object, in a whole read's order (by head, then start); may be read again."""
+        if not self.count:
+            return
+        for pieces in self._blocks():
+            for piece in pieces:
+                yield piece.decode("ascii")
 
     def close(self) -> None:
         self._file.close()
+        self._index.close()

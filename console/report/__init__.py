@@ -1,8 +1,9 @@
 """`trackside report`: every analysis of a set of inputs in one document (Markdown, HTML or JSON).
 
 * :mod:`.collect` — inputs (files, directories) → :class:`.model.ReportData`;
+* :mod:`.spooled` — a diagnostic log's passages and section history, kept on disk as it is read;
 * :mod:`.model` — the JSON document (schema ``trackside.report/1``) and the outline;
-* :mod:`.markdown`, :mod:`.html` (with :mod:`.svg`) — the faces;
+* :mod:`.markdown`, :mod:`.html` (with :mod:`.svg`), :mod:`.jsonwrite` — the faces, written piece by piece;
 * :mod:`.write` — atomic writes; :mod:`.command` — :func:`run_report`, exit codes.
 """
 

@@ -46,11 +46,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from console.analysis.crossing_batch import run_crossings
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.events import DetectionEvent, sort_events
-from console.analysis.frame_events import frames_to_events
 from console.analysis.health import Finding, sort_findings, voltage_margin_findings
 from console.analysis.sections import SectionState, run_sections
 from console.jobs import HEALTH_REGISTERS, health_findings, input_bytes
@@ -76,13 +74,11 @@ from console.report.model import (
     ReportData,
     natural_key,
 )
+from console.report.spooled import ReportPassages, SectionHistory, report_sink
 from console.safe_text import show_path
 from console.stream_jobs import SectionsSink, stream_diag
-from parsers.frames import count_frames_only, frame_line_problem, parse_can, parse_frames
-from parsers.gnss import parse_gnss, recognise_format
 from parsers.report import escape_text
 from parsers.sources import InputError, open_input
-from parsers.voltages import parse_header, read_voltages
 
 PEEK_BYTES = 64 * 1024
 STDIN_NAME = "-"  # an input that means standard input
@@ -113,6 +109,8 @@ def _first_line(head: bytes) -> bytes | None:
 
 
 def _is_voltage_header(text: str) -> bool:
+    from parsers.voltages import parse_header
+
     delimiter = "\t" if "\t" in text else ";" if ";" in text else ","
     cells = next(csv.reader([text], delimiter=delimiter, skipinitialspace=True), [])
     try:
@@ -144,6 +142,10 @@ def recognise(path: Path) -> tuple[str, str]:
         return DIAGNOSTIC, ""
     if suffix in (".asc", ".blf", ".trc") or (suffix == ".log" and first.startswith(b"(")):
         return CAN, ""
+    # Imported here: a report on diagnostic logs never loads the frame, CAN and GNSS parsers (memory).
+    from parsers.frames import frame_line_problem
+    from parsers.gnss import recognise_format
+
     text = first.decode("utf-8", errors="replace")
     if len(text.split()) in (3, 4) and frame_line_problem(text) is None:
         return FRAMES, ""
@@ -264,8 +266,24 @@ def _load(spec: str | Path) -> Layout:
         raise ReportInputError(str(exc)) from None
 
 
-def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | None = None) -> ReportData:
-    """Recognise every input, run every analysis that applies, and return what the report shows."""
+def collect(
+    inputs: Sequence[Path],
+    layout_spec: str | None,
+    *,
+    exclude: Path | None = None,
+    for_format: str | None = None,
+    whole: bool = False,
+) -> ReportData:
+    """Recognise every input, run every analysis that applies, and return what the report shows.
+
+    A diagnostic log's passages and section history are spooled to disk as it
+    is read (:mod:`console.report.spooled`): :meth:`ReportData.close` removes
+    them.  ``for_format``: the one format it is for; what that format does not show
+    is not kept (the count ledger's rows but for ``json``, the speed plot's
+    numbers but for ``html``).  ``whole``: hold passages and section history in
+    memory instead, as tables (the report over an archive does too; tests
+    compare the two).
+    """
     files, warnings = expand(inputs, exclude)
     recognised = [(p, *recognise(p)) for p in files]
     layout: Layout | None = None
@@ -294,9 +312,6 @@ def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | 
         why = "; ".join(f"{r.path}: {r.note or r.format}" for r in rows[:3]) or "no files"
         raise ReportInputError(f"no input in a format trackside reads ({why})")
 
-    def of(*formats: str) -> list[Path]:
-        return [p for p, fmt, _ in recognised if fmt in formats]
-
     consist = layout.consist() if layout is not None else None
     settings = SpeedSettings(
         spacing_m=layout.heads[0].spacing_m if layout is not None and layout.heads else SpeedSettings.spacing_m,
@@ -304,26 +319,50 @@ def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | 
     )
     data = ReportData(inputs=rows, layout=layout, settings=settings, warnings=warnings)
 
+    try:
+        _analyse(data, recognised, for_format, whole)
+    except BaseException:
+        data.close()
+        raise
+    return data
+
+
+def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], for_format: str | None, whole: bool) -> None:
+    """Every analysis that applies to the recognised inputs, into ``data``."""
+
+    def of(*formats: str) -> list[Path]:
+        return [p for p, fmt, _ in recognised if fmt in formats]
+
+    layout, settings = data.layout, data.settings
     findings: list[Finding] = []
     diag = of(DIAGNOSTIC)
     if diag:
-        # One streaming read: passages, the section engine's run and the health inputs, in bounded
-        # memory for one log (console.stream_jobs); the report's renderers still get whole tables.
+        # One streaming read: passages, the section engine's run and the health inputs, in memory
+        # bounded by the heads for one log (console.stream_jobs); the long lists go to disk.
         sections_layout = layout if layout is not None and layout.sections else None
-        sink = SectionsSink(keep_all=True) if sections_layout is not None else None
-        with byte_progress(input_bytes(diag), "parsing") as advance:
-            run = stream_diag(
-                diag,
-                settings,
-                layout=layout,
-                event_settings=DiagEventSettings(),
-                sections_layout=sections_layout,
-                initial=SectionState.PREPARATORY,
-                sink=sink,
-                keep_registers=HEALTH_REGISTERS,
-                keep_passages=True,
-                on_progress=advance,
-            )
+        sink = None
+        if sections_layout is not None:
+            sink = SectionsSink(keep_all=True) if whole else report_sink(ledger_rows=for_format in (None, "json"))
+        data.passage_spool = None if whole else ReportPassages(plot=for_format in (None, "html"))
+        try:
+            with byte_progress(input_bytes(diag), "parsing") as advance:
+                run = stream_diag(
+                    diag,
+                    settings,
+                    layout=layout,
+                    event_settings=DiagEventSettings(),
+                    sections_layout=sections_layout,
+                    initial=SectionState.PREPARATORY,
+                    sink=sink,
+                    keep_registers=HEALTH_REGISTERS,
+                    keep_passages=whole,
+                    on_passages=data.passage_spool.add if data.passage_spool is not None else None,
+                    on_progress=advance,
+                )
+        except BaseException:
+            if sink is not None:
+                sink.close()
+            raise
         data.job = run.job
         data.reports["diagnostic"] = data.job.report
         # The report reads the events only for the time the data ends: the last one stands for them.
@@ -332,13 +371,18 @@ def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | 
         findings += health_findings(data.job, layout, run.health_events, None)
         if run.engine is not None and run.sink is not None:
             sk = run.sink
-            data.sections = run.engine.result(sk.timeline_all, sk.ledger_all, sk.resets)
+            if whole:
+                data.sections = run.engine.result(sk.timeline_all, sk.ledger_all, sk.resets)
+            else:
+                data.history = SectionHistory(run.engine.result([], [], []).final, sk)
             data.section_source = "diagnostic"
 
     _frames(data, of(FRAMES), of(CAN))
 
     voltages = of(VOLTAGES)
     if voltages:
+        from parsers.voltages import read_voltages
+
         try:
             table, vreport = read_voltages(voltages)
         except OSError as exc:
@@ -349,10 +393,13 @@ def collect(inputs: Sequence[Path], layout_spec: str | None, *, exclude: Path | 
 
     _sections(data)
     _crossings(data, of(*GNSS_FORMATS))
-    return data
 
 
 def _frames(data: ReportData, text_files: list[Path], can_files: list[Path]) -> None:
+    if not text_files and not can_files:
+        return
+    from parsers.frames import count_frames_only, parse_can, parse_frames
+
     tables: list[pd.DataFrame] = []
     if text_files:
         table, report = parse_frames(text_files)
@@ -369,6 +416,8 @@ def frames_from_tables(data: ReportData, tables: list[pd.DataFrame]) -> None:
     """Frame tables (already parsed: from files, or from the archive) → frame events and the frames table."""
     if not tables:
         return
+    from console.analysis.frame_events import frames_to_events
+
     lay = data.layout
     up: dict[str, bool] | bool = {h.id: h.up_is_first_channel_first for h in lay.heads} if lay is not None else True
     events: list[DetectionEvent] = []
@@ -390,7 +439,7 @@ def _sections(data: ReportData) -> None:
     if not lay.sections:
         data.notes["sections"] = f"No section states: the layout {lay.source} has no [[sections]]."
         return
-    if data.job is not None and data.sections is not None:
+    if data.job is not None and (data.sections is not None or data.history is not None):
         return  # run while the diagnostic log was read (collect)
     if data.job is not None:
         events, data.section_source = data.events, "diagnostic"
@@ -406,6 +455,8 @@ def _crossings(data: ReportData, gnss: list[Path]) -> None:
     if not gnss:
         data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."
         return
+    from parsers.gnss import parse_gnss
+
     fixes, report, _states = parse_gnss(gnss)
     data.reports["gnss"] = report
     crossings_from_fixes(data, fixes)
@@ -427,6 +478,8 @@ def crossings_from_fixes(data: ReportData, fixes: pd.DataFrame) -> None:
     if own.any() and not own.all():
         note = "crossings use the NMEA and device streams (each unit's own fixes), not the centre's copy"
         data.inputs = [replace(i, note=note) if i.format == CENTRE else i for i in data.inputs]
+    from console.analysis.crossing_batch import run_crossings
+
     run = run_crossings(fixes[own] if own.any() else fixes, lay)
     data.crossing = run
     if run.off_track:

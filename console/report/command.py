@@ -6,6 +6,10 @@ on stderr, ``trackside: error: …`` (a failed write to standard output is
 raised, for the command's guard).  Without ``-o`` the report itself is
 the only thing on stdout; with ``-o`` nothing is printed at all.  Progress
 goes to stderr only on a terminal, for big inputs.
+
+The report is written as it is rendered, a megabyte at a time: with ``-o``
+into a temporary file that replaces the target only once it is whole
+(:func:`console.output_path.open_output`).
 """
 
 from __future__ import annotations
@@ -17,17 +21,18 @@ from pathlib import Path
 
 from console import exit_codes
 from console.analysis.health import Severity
-from console.jsonout import valid_unicode
 from console.layout import LayoutError
-from console.output_path import STDOUT, OutputError, check_output_file, write_output
+from console.output_path import STDOUT, OutputError, OutputTarget, check_output_file, open_output
 from console.report.collect import ReportInputError, collect
 from console.report.html import render_html
+from console.report.jsonwrite import Write, write_json
 from console.report.markdown import render_markdown
-from console.report.model import ReportData, document, json_text
+from console.report.model import ReportData, document
 from console.safe_text import clean, show_path
 from parsers.sources import InputError
 
 FORMATS = ("md", "html", "json")
+CHUNK_CHARS = 1 << 20  # written out at a time
 
 
 def _error(message: str) -> int:
@@ -36,14 +41,71 @@ def _error(message: str) -> int:
     return exit_codes.USAGE
 
 
-def render(data: ReportData, fmt: str) -> str:
-    """The report in one format (md, html or json)."""
+class _WriteFailed(Exception):
+    """Writing the report out failed (``error``): told apart from a failure to render it."""
+
+    def __init__(self, error: OSError) -> None:
+        super().__init__(str(error))
+        self.error = error
+
+
+class _Pieces:
+    """Text written in pieces, handed on (``put``) a megabyte at a time."""
+
+    def __init__(self, put: Callable[[str], object]) -> None:
+        self._put = put
+        self._parts: list[str] = []
+        self._size = 0
+
+    def write(self, text: str) -> None:
+        self._parts.append(text)
+        self._size += len(text)
+        if self._size >= CHUNK_CHARS:
+            self.flush()
+
+    def flush(self) -> None:
+        text = "".join(self._parts)
+        self._parts, self._size = [], 0
+        try:
+            self._put(text)
+        except OSError as exc:
+            raise _WriteFailed(exc) from exc
+
+
+def render_to(data: ReportData, fmt: str, write: Write) -> None:
+    """The report in one format (md, html or json), handed to ``write`` piece by piece."""
     doc = document(data)
     if fmt == "json":
-        return valid_unicode(json_text(doc))
-    if fmt == "md":
-        return render_markdown(doc)
-    return render_html(data, doc)
+        write_json(doc, write)
+    elif fmt == "md":
+        render_markdown(doc, write)
+    else:
+        render_html(data, doc, write)
+
+
+def render(data: ReportData, fmt: str) -> str:
+    """The report in one format (md, html or json), as one string."""
+    parts: list[str] = []
+    render_to(data, fmt, parts.append)
+    return "".join(parts)
+
+
+def _write(data: ReportData, fmt: str, target: OutputTarget | None) -> None:
+    """Render into the target (stdout when None); _WriteFailed when writing fails."""
+    if target is not None:
+        with open_output(target) as f:
+            out = _Pieces(lambda text: f.write(text.encode("utf-8")))
+            render_to(data, fmt, out.write)
+            out.flush()
+        return
+    buf = getattr(sys.stdout, "buffer", None)
+    out = _Pieces((lambda text: buf.write(text.encode("utf-8"))) if buf is not None else sys.stdout.write)
+    render_to(data, fmt, out.write)
+    out.flush()
+    try:
+        sys.stdout.flush()
+    except OSError as exc:
+        raise _WriteFailed(exc) from exc
 
 
 def exit_code(data: ReportData, threshold: Severity | None) -> int:
@@ -82,33 +144,44 @@ def run_report(
     if output is not None and os.fsdecode(output) == STDOUT:
         output = None
     target = None
+    data: ReportData | None = None
     try:
         if output is not None:
             target = check_output_file(output, inputs, what="report")
-        # The archive's faces (report --archive) bring their own collector.
-        data = collector() if collector is not None else collect(inputs, layout, exclude=output)
+        # The archive's faces (report --archive) bring their own collector; files keep what this format shows.
+        data = collector() if collector is not None else collect(inputs, layout, exclude=output, for_format=fmt)
         if output is not None:
             # Again against every file read (those found in directories too).
             target = check_output_file(output, [Path(i.path) for i in data.inputs], what="report")
-        text = render(data, fmt)
+        code = exit_code(data, threshold)
+        _write(data, fmt, target)
     except (ReportInputError, InputError, LayoutError, OutputError) as exc:
         return _error(str(exc))
+    except _WriteFailed as exc:
+        if target is None:
+            raise exc.error from None  # the command's guard: "cannot write output", or quiet for `| head`
+        return _cannot_write(output or target.path, exc.error)
+    except OSError as exc:
+        if data is not None and target is not None:
+            return _cannot_write(output or target.path, exc)  # the temporary file's flush, fsync or rename
+        if data is not None:
+            raise  # standard output: the command's guard
+        return _internal(exc)
     except MemoryError:
         return _error("out of memory")
     except Exception as exc:
-        if os.environ.get("TRACKSIDE_DEBUG"):
-            raise
-        return _error(f"internal error: {type(exc).__name__}: {exc} (set TRACKSIDE_DEBUG=1 for details)")
-    payload = text.encode("utf-8")
-    if target is None:
-        if hasattr(sys.stdout, "buffer"):
-            sys.stdout.buffer.write(payload)
-        else:
-            sys.stdout.write(text)
-        sys.stdout.flush()
-    else:
-        try:
-            write_output(target, payload)
-        except OSError as exc:
-            return _error(f"{show_path(output or target.path)}: cannot write the report ({exc.strerror or exc})")
-    return exit_code(data, threshold)
+        return _internal(exc)
+    finally:
+        if data is not None:
+            data.close()
+    return code
+
+
+def _internal(exc: Exception) -> int:
+    if os.environ.get("TRACKSIDE_DEBUG"):
+        raise exc
+    return _error(f"internal error: {type(exc).__name__}: {exc} (set TRACKSIDE_DEBUG=1 for details)")
+
+
+def _cannot_write(path: Path, exc: OSError) -> int:
+    return _error(f"{show_path(path)}: cannot write the report ({exc.strerror or exc})")

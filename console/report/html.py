@@ -14,13 +14,17 @@ overrides and isolates as ``\\u202e``, then entity-escaped.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable, Iterator
+from functools import partial
 from typing import Any
 
 import numpy as np
 
+from console.analysis.passages import Columns
 from console.analysis.sections import SectionState
 from console.analysis.timefmt import display
 from console.report import svg, trends
+from console.report.jsonwrite import Write
 from console.report.model import ReportData, analog_series, natural_key, timeline_order
 from console.report.outline import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table, outline
 from console.report.svg import esc
@@ -92,6 +96,8 @@ STATE_STYLES = {
 }
 _TAGGED = re.compile(r"^(state|sev)-")
 LONG_CELL_CHARS = 60
+# What the speed plot reads of each train passage (besides its head).
+_PLOTTED = ("start_ns", "speed_kmh_whole_train", "speed_kmh_per_axle_mean", "axles")
 
 
 def _cell(c: Cell) -> str:
@@ -103,7 +109,7 @@ def _cell(c: Cell) -> str:
     return esc(c)
 
 
-def _table(t: Table) -> str:
+def _table(t: Table, write: Write) -> None:
     def cls(i: int, cell: Cell | None = None) -> str:
         if t.numeric[i]:
             return ' class="num"'
@@ -112,69 +118,123 @@ def _table(t: Table) -> str:
         return ' class="long"' if text is not None and len(text) > LONG_CELL_CHARS else ""
 
     head = "".join(f"<th{cls(i)}>{esc(c)}</th>" for i, c in enumerate(t.columns))
-    body = "".join(
-        "<tr>" + "".join(f"<td{cls(i, c)}>{_cell(c)}</td>" for i, c in enumerate(row)) + "</tr>" for row in t.rows
-    )
-    out = f'<div class="scroll"><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>'
-    return out + (f'<p class="note">{esc(t.note)}</p>' if t.note else "")
+    write(f'<div class="scroll"><table><thead><tr>{head}</tr></thead><tbody>')
+    for row in t.rows:
+        write("<tr>" + "".join(f"<td{cls(i, c)}>{_cell(c)}</td>" for i, c in enumerate(row)) + "</tr>")
+    write("</tbody></table></div>")
+    if t.note:
+        write(f'<p class="note">{esc(t.note)}</p>')
 
 
 # ----------------------------------------------------------------------------- plots
 
 
-def _speeds(data: ReportData) -> str:
+def _trains(data: ReportData) -> tuple[Columns, dict[str, Callable[[], np.ndarray]]] | None:
+    """The train passages' plotted columns, and per head name its rows in the passages table's order
+    (head, then start)."""
+    if data.passage_spool is not None:
+        cols = data.passage_spool.trains()
+        keys: dict[str, list[int]] = {}
+        for k in np.unique(cols["head"]).tolist():
+            keys.setdefault(data.passage_spool.heads[k][1], []).append(k)
+
+        def of_keys(ks: list[int]) -> np.ndarray:
+            rows = np.flatnonzero(np.isin(cols["head"], ks))
+            return rows[np.lexsort((cols["start_ns"][rows], cols["head"][rows]))]
+
+        return cols, {name: partial(of_keys, ks) for name, ks in keys.items()}
     if data.job is None:
-        return ""
+        return None
     p = data.job.analysis.passages
     trains = p[p["kind"] == "train"] if len(p) else p
-    if trains.empty:
-        return ""
-    series = []
-    heads = sorted({str(h) for h in trains["counting_head"]}, key=natural_key)
-    for head in heads:
-        s = svg.Series(head)
-        rows = trains[trains["counting_head"].astype(str) == head]
-        for t, whole, axle, n in zip(
-            rows["start_ns"].tolist(),
-            rows["speed_kmh_whole_train"].tolist(),
-            rows["speed_kmh_per_axle_mean"].tolist(),
-            rows["axles"].tolist(),
-            strict=True,
-        ):
-            when = display(int(t))
-            if np.isfinite(whole):
-                s.points.append(svg.Point(int(t), float(whole), f"{head} {when}: whole train {whole:.1f} km/h"))
-            if np.isfinite(axle):
-                tip = f"{head} {when}: per-axle mean {axle:.1f} km/h ({n} axles)"
-                s.points.append(svg.Point(int(t), float(axle), tip, filled=False))
-        series.append(s)
-    if not any(s.points for s in series):
-        return ""
-    return svg.scatter_over_time(series, "Speed per passage", "km/h", "filled: whole train · ring: per-axle mean")
+    names = trains["counting_head"].astype(str).to_numpy(object)
+    cols = {c: trains[c].to_numpy() for c in _PLOTTED}
+    return cols, {name: partial(np.flatnonzero, names == name) for name in set(names.tolist())}
 
 
-def _sections(data: ReportData) -> str:
-    res = data.sections
-    if res is None or res.timeline.empty:
-        return ""
-    tl = res.timeline
-    t0 = int(tl["time_ns"].min())
-    t1 = max(data.data_end_ns() or t0, int(tl["time_ns"].max()))
-    rows = []
-    for sid in res.final:
+def _speed_points(
+    head: str, t_ns: list[int], whole: list[float], axle: list[float], axles: list[int]
+) -> Iterator[svg.Point]:
+    """A head's points in passage order: each passage's whole-train speed, then its per-axle mean."""
+    for t, w, a, k in zip(t_ns, whole, axle, axles, strict=True):
+        when = display(t)
+        if np.isfinite(w):
+            yield svg.Point(t, w, f"{head} {when}: whole train {w:.1f} km/h")
+        if np.isfinite(a):
+            yield svg.Point(t, a, f"{head} {when}: per-axle mean {a:.1f} km/h ({k} axles)", filled=False)
+
+
+def _head_points(head: str, cols: Columns, rows: Callable[[], np.ndarray]) -> Iterator[svg.Point]:
+    """A head's points, its rows found when the plot reaches it (one head's numbers in memory at a time)."""
+    r = rows()
+    t, whole, axle = cols["start_ns"][r], cols["speed_kmh_whole_train"][r], cols["speed_kmh_per_axle_mean"][r]
+    yield from _speed_points(head, t.tolist(), whole.tolist(), axle.tolist(), cols["axles"][r].tolist())
+
+
+def _speeds(data: ReportData) -> Iterator[str] | None:
+    """The speed plot's SVG in pieces, a point per train passage and speed (None: nothing to draw)."""
+    found = _trains(data)
+    if found is None:
+        return None
+    cols, heads = found
+    whole = np.asarray(cols["speed_kmh_whole_train"], np.float64)
+    axle = np.asarray(cols["speed_kmh_per_axle_mean"], np.float64)
+    has_whole, has_axle = np.isfinite(whole), np.isfinite(axle)
+    drawn = has_whole | has_axle
+    if not drawn.any():
+        return None
+    top = max(float(whole[has_whole].max(initial=-np.inf)), float(axle[has_axle].max(initial=-np.inf)))
+    t = cols["start_ns"][drawn]
+    span = (int(t.min()), int(t.max()))
+    series = [svg.Series(head, _head_points(head, cols, heads[head])) for head in sorted(heads, key=natural_key)]
+    title, note = "Speed per passage", "filled: whole train · ring: per-axle mean"
+    return svg.scatter_over_time(series, span, top, title, "km/h", note)
+
+
+def _section_changes(data: ReportData) -> tuple[list[str], Callable[[str], Iterator[tuple[int, str, int, str]]]]:
+    """The sections, and a section's state changes in order (time, state, count, reason)."""
+    if data.history is not None:
+        return list(data.history.final), data.history.changes
+    assert data.sections is not None
+    tl = data.sections.timeline
+
+    def changes(sid: str) -> Iterator[tuple[int, str, int, str]]:
         part = tl[tl["section"] == sid]
         times = part["time_ns"].astype("int64").tolist()
-        states = part["state"].astype(str).tolist()
-        reasons = part["reason"].astype(str).tolist()
-        counts = part["count"].tolist()
-        row = svg.BandRow(sid)
-        for i, (t, st) in enumerate(zip(times, states, strict=True)):
-            end = times[i + 1] if i + 1 < len(times) else t1
-            if end <= t and i + 1 < len(times):
-                continue  # replaced at the same instant
-            tip = f"{sid} {st} from {display(t)} to {display(end)} (count {counts[i]}): {reasons[i]}"
-            row.segments.append(svg.Segment(t, max(end, t), st, tip))
-        rows.append(row)
+        states, reasons = part["state"].astype(str).tolist(), part["reason"].astype(str).tolist()
+        return zip(times, states, part["count"].tolist(), reasons, strict=True)
+
+    return list(data.sections.final), changes
+
+
+def _segments(sid: str, changes: Iterator[tuple[int, str, int, str]], t1: int) -> Iterator[svg.Segment]:
+    """A section's band: each state from its change to the next (the last one to ``t1``)."""
+    prev = next(changes, None)
+    while prev is not None:
+        nxt = next(changes, None)
+        t, st, count, reason = prev
+        end = nxt[0] if nxt is not None else t1
+        if not (end <= t and nxt is not None):  # else replaced at the same instant
+            tip = f"{sid} {st} from {display(t)} to {display(end)} (count {count}): {reason}"
+            yield svg.Segment(t, max(end, t), st, tip)
+        prev = nxt
+
+
+def _sections(data: ReportData) -> Iterator[str] | None:
+    """The state plot's SVG in pieces, a band per section (None: no state change to draw)."""
+    if data.history is not None:
+        span = data.history.span_ns()
+    elif data.sections is not None and not data.sections.timeline.empty:
+        times = data.sections.timeline["time_ns"]
+        span = (int(times.min()), int(times.max()))
+    else:
+        span = None
+    if span is None:
+        return None
+    t0 = span[0]
+    t1 = max(data.data_end_ns() or t0, span[1])
+    sections, changes = _section_changes(data)
+    rows = [svg.BandRow(sid, _segments(sid, iter(changes(sid)), t1)) for sid in sections]
     return svg.state_bands(rows, t0, t1, STATE_STYLES, "Section states over time", prefix="ts-state")
 
 
@@ -239,79 +299,91 @@ def _analog(data: ReportData) -> list[str]:
     return out
 
 
-def _figure(plot: str, data: ReportData) -> str:
-    if plot == "speeds":
-        body = _speeds(data)
-        caption = "Speed per passage over time: one shape and colour per counting head."
-        return f"<figure>{body}<figcaption>{esc(caption)}</figcaption></figure>" if body else ""
-    if plot == "sections":
-        body = _sections(data)
+def _figure(plot: str, data: ReportData, write: Write) -> None:
+    if plot in ("speeds", "sections"):
+        body = _speeds(data) if plot == "speeds" else _sections(data)
         caption = (
-            "Section states over time (hover a band for the reason); "
+            "Speed per passage over time: one shape and colour per counting head."
+            if plot == "speeds"
+            else "Section states over time (hover a band for the reason); "
             "marks: · clear, # occupied, ! disturbed, ? preparatory."
         )
-        return f"<figure>{body}<figcaption>{esc(caption)}</figcaption></figure>" if body else ""
+        if body is not None:
+            write("<figure>")
+            for piece in body:
+                write(piece)
+            write(f"<figcaption>{esc(caption)}</figcaption></figure>")
+        return
     if plot == "crossings":
-        body, skipped = _crossings(data)
+        svg_text, skipped = _crossings(data)
         caption = (
             "Per crossing and train: the warning from on to off, relative to the head's arrival (0 s); "
             "the dashed tick is the warning time the crossing needs."
         )
         if skipped:
             caption += f" {skipped} timeline(s) without a head arrival time are not drawn."
-        return f"<figure>{body}<figcaption>{esc(caption)}</figcaption></figure>" if body else ""
+        if svg_text:
+            write(f"<figure>{svg_text}<figcaption>{esc(caption)}</figcaption></figure>")
+        return
     if plot == "analog":
-        bodies = _analog(data)
         caption = "Analog receiver values per channel; the shaded band is the layout's, where it gives one."
-        return "".join(f"<figure>{b}<figcaption>{esc(caption)}</figcaption></figure>" for b in bodies)
+        write("".join(f"<figure>{b}<figcaption>{esc(caption)}</figcaption></figure>" for b in _analog(data)))
+        return
     if plot.startswith("trend-"):
         caption = trends.caption(plot)
-        return "".join(
-            f"<figure>{b}<figcaption>{esc(caption)}</figcaption></figure>"
-            for b in trends.trend_plots(plot, data.trends)
+        write(
+            "".join(
+                f"<figure>{b}<figcaption>{esc(caption)}</figcaption></figure>"
+                for b in trends.trend_plots(plot, data.trends)
+            )
         )
-    return ""
 
 
 # ----------------------------------------------------------------------------- page
 
 
-def render_blocks(blocks: list[Block], data: ReportData) -> str:
-    parts: list[str] = []
-    nav: list[str] = []
-    for b in blocks:
+def write_blocks(blocks: list[Block], data: ReportData, write: Write) -> None:
+    """The blocks as HTML, a line each; the navigation after the title and the two summary lines."""
+    nav = [
+        f'<a href="#{esc(b.anchor)}">{esc(b.text)}</a>'
+        for b in blocks
+        if isinstance(b, Heading) and b.level == 2 and b.anchor
+    ]
+    at = min(3, len(blocks))
+    for i, b in enumerate(blocks):
+        if i:
+            write("\n")
+        if i == at and nav:
+            write("<nav>" + "".join(nav) + "</nav>\n")
         if isinstance(b, Heading):
             anchor = f' id="{esc(b.anchor)}"' if b.anchor else ""
-            parts.append(f"<h{b.level}{anchor}>{esc(b.text)}</h{b.level}>")
-            if b.level == 2 and b.anchor:
-                nav.append(f'<a href="#{esc(b.anchor)}">{esc(b.text)}</a>')
+            write(f"<h{b.level}{anchor}>{esc(b.text)}</h{b.level}>")
         elif isinstance(b, Para):
-            parts.append("<p>" + "".join(_cell(c) for c in b.parts) + "</p>")
+            write("<p>" + "".join(_cell(c) for c in b.parts) + "</p>")
         elif isinstance(b, Table):
-            parts.append(_table(b))
+            _table(b, write)
         elif isinstance(b, Bullets):
-            parts.append("<ul>" + "".join(f"<li>{esc(item)}</li>" for item in b.items) + "</ul>")
+            write("<ul>" + "".join(f"<li>{esc(item)}</li>" for item in b.items) + "</ul>")
         elif isinstance(b, Figure):
-            parts.append(_figure(b.plot, data))
-    # The navigation goes after the title and the two summary lines.
-    if nav:
-        parts.insert(min(3, len(parts)), "<nav>" + "".join(nav) + "</nav>")
-    return "\n".join(parts)
+            _figure(b.plot, data, write)
+    if nav and at == len(blocks):
+        write(("\n" if blocks else "") + "<nav>" + "".join(nav) + "</nav>")
 
 
-def render_html(data: ReportData, doc: dict[str, Any]) -> str:
-    """The whole page: the report document's outline, with its plots drawn from ``data``."""
-    body = render_blocks(outline(doc), data)
+def render_html(data: ReportData, doc: dict[str, Any], write: Write) -> None:
+    """The whole page, piece by piece: the report document's outline, with its plots drawn from ``data``."""
     footer = (
         f"trackside {esc(doc['trackside_version'])}, schema {esc(doc['schema'])}. No clock time is recorded: "
         "the same inputs give the same report."
     )
-    return (
+    write(
         "<!DOCTYPE html>\n"
         '<html lang="en">\n<head>\n<meta charset="utf-8">\n'
         '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
         # Defence in depth: even a text that escaped escaping could run no script and fetch nothing.
         f'<meta http-equiv="Content-Security-Policy" content="{CSP}">\n'
         "<title>trackside report</title>\n"
-        f"<style>{STYLE}</style>\n</head>\n<body>\n<main>\n{body}\n<footer>{footer}</footer>\n</main>\n</body>\n</html>\n"
+        f"<style>{STYLE}</style>\n</head>\n<body>\n<main>\n"
     )
+    write_blocks(outline(doc), data, write)
+    write(f"\n<footer>{footer}</footer>\n</main>\n</body>\n</html>\n")

@@ -16,6 +16,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from console.report.jsonwrite import Write
 from console.report.outline import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table, outline
 from console.safe_text import clean
 
@@ -43,33 +44,36 @@ def _cell(c: Cell, line_start: bool = False) -> str:
     return md_escape(c, line_start)
 
 
-def _table(t: Table) -> list[str]:
-    out = [
-        "| " + " | ".join(md_escape(c) for c in t.columns) + " |",
-        "|" + "|".join("---:" if n else "---" for n in t.numeric) + "|",
-    ]
+def _table(t: Table, write: Write) -> None:
+    """The table, then its note as a paragraph of its own; rows written as they are made."""
+    write("| " + " | ".join(md_escape(c) for c in t.columns) + " |\n")
+    write("|" + "|".join("---:" if n else "---" for n in t.numeric) + "|")
     for row in t.rows:
-        out.append("| " + " | ".join(_cell(c) or " " for c in row) + " |")
-    text = "\n".join(out)
-    return [text, f"_{md_escape(t.note)}_"] if t.note else [text]
+        write("\n| " + " | ".join(_cell(c) or " " for c in row) + " |")
+    if t.note:
+        write(f"\n\n_{md_escape(t.note)}_")
 
 
-def render_blocks(blocks: list[Block]) -> str:
-    parts: list[str] = []
+def write_blocks(blocks: list[Block], write: Write) -> None:
+    """The blocks as Markdown, a blank line between them (figures are the HTML face's)."""
+    first = True
     for b in blocks:
-        if isinstance(b, Heading):
-            parts.append("#" * b.level + " " + md_escape(b.text))
-        elif isinstance(b, Para):
-            parts.append("".join(_cell(c, line_start=i == 0) for i, c in enumerate(b.parts)))
-        elif isinstance(b, Table):
-            parts += _table(b)
-        elif isinstance(b, Bullets):
-            parts.append("\n".join(f"- {md_escape(item, line_start=True)}" for item in b.items))
-        elif isinstance(b, Figure):
+        if isinstance(b, Figure):
             continue  # plots are drawn in the HTML report; the tables hold their data
-    return "\n\n".join(parts) + "\n"
+        if not first:
+            write("\n\n")
+        first = False
+        if isinstance(b, Heading):
+            write("#" * b.level + " " + md_escape(b.text))
+        elif isinstance(b, Para):
+            write("".join(_cell(c, line_start=i == 0) for i, c in enumerate(b.parts)))
+        elif isinstance(b, Table):
+            _table(b, write)
+        elif isinstance(b, Bullets):
+            write("\n".join(f"- {md_escape(item, line_start=True)}" for item in b.items))
+    write("\n")
 
 
-def render_markdown(doc: dict[str, Any]) -> str:
-    """The report document (:func:`console.report.model.document`) as Markdown."""
-    return render_blocks(outline(doc))
+def render_markdown(doc: dict[str, Any], write: Write) -> None:
+    """The report document (:func:`console.report.model.document`) as Markdown, piece by piece."""
+    write_blocks(outline(doc), write)

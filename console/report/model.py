@@ -1,7 +1,8 @@
 """What a report holds (:class:`ReportData`) and its JSON form (schema ``trackside.report/1``).
 
-:func:`document` turns the analyses into plain JSON values, in the order
-the report presents them (docs/report-schema.md);
+:func:`document` turns the analyses into JSON values, in the order
+the report presents them (docs/report-schema.md), a long list read from its
+spool as it is written (:class:`~console.report.jsonwrite.Rows`);
 :mod:`console.report.outline` turns that document into the blocks the
 Markdown and HTML faces render, so the three formats cannot disagree.  Nothing
 here computes what the analysis modules compute: it selects, groups and
@@ -28,15 +29,14 @@ import json
 import math
 import re
 from collections import Counter
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import pandas as pd
 
 from console import __version__
-from console.analysis.crossing_batch import CrossingRun
-from console.analysis.crossing_timeline import TimelineRow
 from console.analysis.diagnostics import SpeedSettings, passages_json_text
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.health import Finding, Severity
@@ -45,7 +45,13 @@ from console.analysis.timefmt import iso
 from console.jobs import DiagJob
 from console.layout import Layout
 from console.render.section_tables import sections_json
+from console.report.jsonwrite import Rows
+from console.report.spooled import ReportPassages, SectionHistory
 from parsers.report import ParseReport
+
+if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read (collect)
+    from console.analysis.crossing_batch import CrossingRun
+    from console.analysis.crossing_timeline import TimelineRow
 
 SCHEMA = "trackside.report/1"
 
@@ -126,6 +132,10 @@ class ReportData:
     notes: dict[str, str] = field(default_factory=dict)  # part → why it is empty
     # Daily trends (console.archive.trends): only a report from the archive has history.
     trends: dict[str, Any] | None = None
+    # A diagnostic log read as a stream (console.report.spooled): its passages and section history
+    # kept on disk, not in ``job`` and ``sections``.
+    passage_spool: ReportPassages | None = None
+    history: SectionHistory | None = None
 
     def attention(self) -> list[Attention]:
         """Unsafe items first, then failing ones; each in time order."""
@@ -148,35 +158,7 @@ class ReportData:
         for f in self.findings:
             if f.severity is Severity.CRITICAL:
                 items.append(Attention(f.severity, UNSAFE, "health", _where(f), f.time_ns, f.message))
-        if self.sections is not None:
-            tl = self.sections.timeline
-            for sid, (state, count, _in, _out, reason) in self.sections.final.items():
-                if state == SectionState.DISTURBED:
-                    rows = tl[(tl["section"] == sid) & (tl["state"] == state)]
-                    since = int(rows["time_ns"].iloc[-1]) if len(rows) else None
-                    items.append(
-                        Attention(
-                            Severity.WARNING,
-                            FAILING,
-                            "section",
-                            f"section {sid}",
-                            since,
-                            f"ended the log disturbed (count {count}): {reason}; needs a reset and a sweep train",
-                        )
-                    )
-            r: Any
-            for r in self.sections.resets.itertuples(index=False):
-                if not r.accepted:
-                    items.append(
-                        Attention(
-                            Severity.WARNING,
-                            FAILING,
-                            "reset",
-                            f"section {r.section}",
-                            int(r.time_ns),
-                            f"reset refused: {r.reason}",
-                        )
-                    )
+        items += self._section_items()
         if self.crossing is not None:
             for row in self.crossing.timelines:
                 # A train still approaching when the data ends is not a fault; one that reached the
@@ -201,6 +183,40 @@ class ReportData:
             items, key=lambda a: (order[a.safety], -1 if a.time_ns is None else a.time_ns, a.topic, a.subject)
         )
 
+    def _section_items(self) -> list[Attention]:
+        """Sections that ended disturbed (since they last became so) and refused resets."""
+        resets: Iterable[Any]
+        since: Callable[[str, str], int | None]
+        if self.history is not None:
+            final, resets, since = self.history.final, self.history.resets(), self.history.since_ns
+        elif self.sections is not None:
+            tl = self.sections.timeline
+            final, resets = self.sections.final, self.sections.resets.itertuples(index=False)
+
+            def since(sid: str, state: str) -> int | None:
+                rows = tl[(tl["section"] == sid) & (tl["state"] == state)]
+                return int(rows["time_ns"].iloc[-1]) if len(rows) else None
+        else:
+            return []
+        items = [
+            Attention(
+                Severity.WARNING,
+                FAILING,
+                "section",
+                f"section {sid}",
+                since(sid, state),
+                f"ended the log disturbed (count {count}): {reason}; needs a reset and a sweep train",
+            )
+            for sid, (state, count, _in, _out, reason) in final.items()
+            if state == SectionState.DISTURBED
+        ]
+        r: Any
+        for r in resets:
+            if not r.accepted:
+                why = f"reset refused: {r.reason}"
+                items.append(Attention(Severity.WARNING, FAILING, "reset", f"section {r.section}", int(r.time_ns), why))
+        return items
+
     def worst(self) -> Severity | None:
         """The highest severity among health findings and attention items (None: nothing at all)."""
         sev = [f.severity for f in self.findings] + [a.severity for a in self.attention()]
@@ -214,9 +230,19 @@ class ReportData:
         if self.frames is not None and len(self.frames):
             ends.append(int(self.frames["time"].max().value))
         ends += [e.time_ns for e in self.events[-1:] + self.frame_events[-1:]]
+        span = self.history.span_ns() if self.history is not None else None
+        if span is not None:
+            ends.append(span[1])
         if self.sections is not None and len(self.sections.timeline):
             ends.append(int(self.sections.timeline["time_ns"].max()))
         return max(ends) if ends else None
+
+    def close(self) -> None:
+        """Remove the spool files (a streamed report: once it is written)."""
+        if self.passage_spool is not None:
+            self.passage_spool.close()
+        if self.history is not None:
+            self.history.close()
 
 
 _NUMBER_PARTS = re.compile(r"(\d+)")
@@ -369,7 +395,9 @@ def _gnss_units(data: ReportData) -> list[dict[str, Any]]:
     return out
 
 
-def _passages(data: ReportData) -> tuple[list[dict[str, Any]], int]:
+def _passages(data: ReportData) -> tuple[list[dict[str, Any]] | Rows, int]:
+    if data.passage_spool is not None:
+        return data.passage_spool.rows(), data.passage_spool.status
     if data.job is None:
         return [], 0
     p = data.job.analysis.passages
@@ -394,6 +422,23 @@ def _ledger_summary(result: SectionsResult) -> list[dict[str, Any]]:
 
 
 def _sections(data: ReportData) -> dict[str, Any] | None:
+    h = data.history
+    if h is not None:
+        return {
+            "initial": SECTION_INITIAL,
+            "events_from": data.section_source,
+            "final": [
+                {"section": sid, "state": st, "count": c, "count_in": i, "count_out": o, "reason": why}
+                for sid, (st, c, i, o, why) in h.final.items()
+            ],
+            "timeline": h.timeline(),
+            "ledger_summary": h.ledger_summary(),
+            "ledger": h.ledger(),
+            "resets": [
+                {"section": r.section, "accepted": r.accepted, "reason": r.reason, "time": iso(r.time_ns)}
+                for r in h.resets()
+            ],
+        }
     if data.sections is None:
         return None
     body = sections_json(data.sections)
@@ -476,7 +521,12 @@ def _crossings(data: ReportData) -> dict[str, Any] | None:
 
 
 def document(data: ReportData) -> dict[str, Any]:
-    """The report as plain JSON values (schema ``trackside.report/1``), in presentation order."""
+    """The report as JSON values (schema ``trackside.report/1``), in presentation order.
+
+    A streamed log's long lists (passages, the section timeline and ledger) are
+    :class:`~console.report.jsonwrite.Rows`, read from their spools as they are
+    written; otherwise every value is a plain JSON value.
+    """
     attention = data.attention()
     unsafe = sum(1 for a in attention if a.safety == UNSAFE)
     failing = len(attention) - unsafe
@@ -521,5 +571,9 @@ def document(data: ReportData) -> dict[str, Any]:
 
 
 def json_text(doc: dict[str, Any]) -> str:
-    """Indented, ASCII-only, key order as built: the same document gives the same bytes."""
+    """Indented, ASCII-only, key order as built: the same document gives the same bytes.
+
+    For a document of plain values; :func:`console.report.jsonwrite.write_json` writes the
+    same bytes piece by piece, and also a document with :class:`~console.report.jsonwrite.Rows`.
+    """
     return json.dumps(doc, ensure_ascii=True, indent=1, allow_nan=False) + "\n"

@@ -8,7 +8,9 @@ renderers escape all of it for their format.
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,8 +44,18 @@ class Para:
 class Table:
     columns: tuple[str, ...]
     numeric: tuple[bool, ...]  # right-aligned columns
-    rows: list[list[Cell]]
+    rows: Iterable[list[Cell]]  # a long table's rows are made as they are written (:class:`Lazy`)
     note: str = ""
+
+
+class Lazy:
+    """Rows made each time they are read, from the document's :class:`~console.report.jsonwrite.Rows`."""
+
+    def __init__(self, make: Callable[[], Iterator[list[Cell]]]) -> None:
+        self._make = make
+
+    def __iter__(self) -> Iterator[list[Cell]]:
+        return self._make()
 
 
 @dataclass(frozen=True)
@@ -98,7 +110,7 @@ def _severity(sev: str) -> Styled:
     return Styled(f"{SEVERITY_MARKS.get(sev, '')} {sev}".strip(), f"sev-{sev}")
 
 
-def _table(columns: list[tuple[str, bool]], rows: list[list[Cell]], note: str = "") -> Table:
+def _table(columns: list[tuple[str, bool]], rows: Iterable[list[Cell]], note: str = "") -> Table:
     return Table(tuple(c for c, _ in columns), tuple(n for _, n in columns), rows, note)
 
 
@@ -275,27 +287,10 @@ def _passages_part(doc: dict[str, Any]) -> list[Block]:
         out.append(Para(("No passages: no wheel detection in the diagnostic logs.",)))
     else:
         out.append(Figure("speeds"))
-        rows: list[list[Cell]] = []
-        for p in doc["passages"]:
-            per_sec = _n(p["speed_kmh_per_second_method"])
-            if p["records_in_detection_second"] is not None:
-                per_sec += f" ({p['records_in_detection_second']})"
-            rows.append(
-                [
-                    p["counting_head"],
-                    show_time(p["start"]),
-                    _n(p["duration_s"], "{:.2f}"),
-                    str(p["axles"]),
-                    _ARROWS.get(p["direction"] or "", "–"),
-                    per_sec,
-                    _n(p["speed_kmh_whole_train"], "{:.2f}"),
-                    _n(p["speed_kmh_per_axle_mean"]),
-                    Styled(p["kind"], "muted" if p["kind"] != "train" else ""),
-                ]
-            )
+        passages = doc["passages"]
         cols = [("Head", False), ("Start", False), ("Dur s", True), ("Axles", True), ("Dir", False)]
         cols += [("Per-second", True), ("Whole train", True), ("Per-axle mean", True), ("Kind", False)]
-        out.append(_table(cols, rows))
+        out.append(_table(cols, Lazy(lambda: (_passage_row(p) for p in passages))))
     notes = []
     if doc["status_bursts"]:
         notes.append(f"{doc['status_bursts']:,} status-only record bursts (no wheel) are counted, not listed.")
@@ -306,6 +301,23 @@ def _passages_part(doc: dict[str, Any]) -> list[Block]:
     if notes:
         out.append(Para((" ".join(notes),)))
     return out
+
+
+def _passage_row(p: dict[str, Any]) -> list[Cell]:
+    per_sec = _n(p["speed_kmh_per_second_method"])
+    if p["records_in_detection_second"] is not None:
+        per_sec += f" ({p['records_in_detection_second']})"
+    return [
+        p["counting_head"],
+        show_time(p["start"]),
+        _n(p["duration_s"], "{:.2f}"),
+        str(p["axles"]),
+        _ARROWS.get(p["direction"] or "", "–"),
+        per_sec,
+        _n(p["speed_kmh_whole_train"], "{:.2f}"),
+        _n(p["speed_kmh_per_axle_mean"]),
+        Styled(p["kind"], "muted" if p["kind"] != "train" else ""),
+    ]
 
 
 def _sections_part(doc: dict[str, Any]) -> list[Block]:
@@ -335,7 +347,7 @@ def _sections_part(doc: dict[str, Any]) -> list[Block]:
     cols = [("Section", False), ("State", False), ("Count", True), ("In", True), ("Out", True), ("Why", False)]
     out.append(_table(cols, rows))
     tl = sec["timeline"]
-    shown = tl[:TIMELINE_ROWS_SHOWN]
+    shown = list(itertools.islice(tl, TIMELINE_ROWS_SHOWN))
     out.append(Heading(3, f"State timeline ({len(tl):,} changes)", "section-timeline"))
     rows = [[show_time(r["time"]), r["section"], _state(r["state"]), str(r["count"]), r["reason"]] for r in shown]
     note = f"First {len(shown)} of {len(tl):,} changes; the JSON report lists all." if len(tl) > len(shown) else ""

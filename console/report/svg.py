@@ -15,7 +15,7 @@ import datetime as dt
 import html
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -196,40 +196,47 @@ class Point:
 @dataclass
 class Series:
     label: str
-    points: list[Point] = field(default_factory=list)
+    points: Iterable[Point] = field(default_factory=list)  # drawn in this order; may be read once only
 
 
 def scatter_over_time(
-    series: Sequence[Series], title: str, y_caption: str, legend_note: str = "", height: float = 340
-) -> str:
-    """Points over time, one shape and colour per series; filled and hollow points for two measures."""
-    pts = [p for s in series for p in s.points if math.isfinite(p.value)]
-    t0 = min((p.t_ns for p in pts), default=0)
-    t1 = max((p.t_ns for p in pts), default=1)
+    series: Sequence[Series],
+    span_ns: tuple[int, int],
+    top_value: float,
+    title: str,
+    y_caption: str,
+    legend_note: str = "",
+    height: float = 340,
+) -> Iterator[str]:
+    """Points over time, one shape and colour per series; filled and hollow points for two measures.
+
+    ``span_ns`` and ``top_value``: the first and last time and the largest value
+    of the finite points, known before the points are read (they are drawn as they come).
+    """
+    t0, t1 = span_ns
     if t1 <= t0:
         t0, t1 = t0 - 60 * _NS, t1 + 60 * _NS
     pad = (t1 - t0) * 0.03
-    lo, hi = nice_range(0.0, max((p.value for p in pts), default=1.0) * 1.08, pad=0.0)
+    lo, hi = nice_range(0.0, top_value * 1.08, pad=0.0)
     f = Frame(height, 62, 20, 34, 52, t0 - pad, t1 + pad, lo, hi)
-    out = [open_svg(height, title)]
-    out += _x_axis(f, time_ticks(f.x0, f.x1), f"time of day, {_clock(t0):%Y-%m-%d}")
-    out += _y_axis(f, value_ticks(lo, hi), y_caption)
+    yield open_svg(height, title)
+    yield from _x_axis(f, time_ticks(f.x0, f.x1), f"time of day, {_clock(t0):%Y-%m-%d}")
+    yield from _y_axis(f, value_ticks(lo, hi), y_caption)
     for i, s in enumerate(series):
         colour, shape = PALETTE[i % len(PALETTE)], SHAPES[i % len(SHAPES)]
         for p in s.points:
             if math.isfinite(p.value):
-                out.append(marker(shape, f.x(p.t_ns), f.y(p.value), colour, p.filled, p.tip))
+                yield marker(shape, f.x(p.t_ns), f.y(p.value), colour, p.filled, p.tip)
     # Legend, above the plot area.
     x = f.left
     for i, s in enumerate(series):
         colour, shape = PALETTE[i % len(PALETTE)], SHAPES[i % len(SHAPES)]
-        out.append(marker(shape, x + 6, 16, colour, True))
-        out.append(f'<text x="{_fmt(x + 16)}" y="20" fill="#222">{esc(s.label)}</text>')
+        yield marker(shape, x + 6, 16, colour, True)
+        yield f'<text x="{_fmt(x + 16)}" y="20" fill="#222">{esc(s.label)}</text>'
         x += 28 + 7.2 * len(clean(s.label))
     if legend_note:
-        out.append(f'<text x="{WIDTH - f.right}" y="20" text-anchor="end" fill="#444">{esc(legend_note)}</text>')
-    out.append("</svg>")
-    return "".join(out)
+        yield f'<text x="{WIDTH - f.right}" y="20" text-anchor="end" fill="#444">{esc(legend_note)}</text>'
+    yield "</svg>"
 
 
 # ----------------------------------------------------------------------------- lines over time
@@ -336,7 +343,7 @@ class Segment:
 @dataclass
 class BandRow:
     label: str
-    segments: list[Segment] = field(default_factory=list)
+    segments: Iterable[Segment] = field(default_factory=list)  # may be read once only
 
 
 def _patterns(prefix: str, styles: dict[str, StateStyle]) -> str:
@@ -360,19 +367,23 @@ def _patterns(prefix: str, styles: dict[str, StateStyle]) -> str:
 
 def state_bands(
     rows: Sequence[BandRow], t0_ns: int, t1_ns: int, styles: dict[str, StateStyle], title: str, prefix: str = "st"
-) -> str:
-    """One band per row (a section): segments filled by state, with the state's mark and name where they fit."""
+) -> Iterator[str]:
+    """One band per row (a section): segments filled by state, with the state's mark and name where they fit.
+
+    The SVG comes in pieces, each segment as it is read: a long history is never one string.
+    """
     if t1_ns <= t0_ns:
         t1_ns = t0_ns + 60 * _NS
     row_h, gap = 30, 10
     top, bottom = 40, 52
     height = top + bottom + len(rows) * (row_h + gap)
     f = Frame(height, 110, 20, top, bottom, t0_ns, t1_ns)
-    out = [open_svg(height, title), _patterns(prefix, styles)]
-    out += _x_axis(f, time_ticks(t0_ns, t1_ns), f"time of day, {_clock(t0_ns):%Y-%m-%d}")
+    yield open_svg(height, title)
+    yield _patterns(prefix, styles)
+    yield from _x_axis(f, time_ticks(t0_ns, t1_ns), f"time of day, {_clock(t0_ns):%Y-%m-%d}")
     for i, row in enumerate(rows):
         y = top + i * (row_h + gap)
-        out.append(
+        yield (
             f'<text x="{_fmt(f.left - 8)}" y="{_fmt(y + row_h / 2 + 4)}" text-anchor="end" fill="#222" '
             f'font-weight="bold">{esc(row.label)}</text>'
         )
@@ -381,27 +392,26 @@ def state_bands(
             x0, x1 = f.x(max(seg.t0_ns, t0_ns)), f.x(min(seg.t1_ns, t1_ns))
             w = max(x1 - x0, 1.2)
             tip = f"<title>{esc(seg.tip)}</title>" if seg.tip else ""
-            out.append(
+            yield (
                 f'<rect x="{_fmt(x0)}" y="{y}" width="{_fmt(w)}" height="{row_h}" fill="url(#{prefix}-{seg.state})" '
                 f'stroke="{st.ink}" stroke-width="0.4">{tip}</rect>'
             )
             text = f"{st.mark} {seg.state}" if w >= 9 + 7 * len(seg.state) else st.mark if w >= 10 else ""
             if text:
-                out.append(
+                yield (
                     f'<text x="{_fmt(x0 + w / 2)}" y="{_fmt(y + row_h / 2 + 4)}" text-anchor="middle" '
                     f'fill="{st.ink}" font-weight="bold">{esc(text)}</text>'
                 )
     # Legend: swatch, mark and name, so the plot reads without colour.
     x = f.left
     for name, st in styles.items():
-        out.append(
+        yield (
             f'<rect x="{_fmt(x)}" y="8" width="22" height="14" fill="url(#{prefix}-{name})" '
             f'stroke="{st.ink}" stroke-width="0.6"/>'
         )
-        out.append(f'<text x="{_fmt(x + 28)}" y="20" fill="#222">{esc(f"{st.mark} {name}")}</text>')
+        yield f'<text x="{_fmt(x + 28)}" y="20" fill="#222">{esc(f"{st.mark} {name}")}</text>'
         x += 48 + 7.5 * len(name)
-    out.append("</svg>")
-    return "".join(out)
+    yield "</svg>"
 
 
 # ----------------------------------------------------------------------------- warning bars

@@ -1,11 +1,12 @@
 """Atomic file writes: a reader sees the old report or the new one, never half of one.
 
 The bytes go to a temporary file in the target's own directory (so the
-final rename never crosses a file system), are flushed and fsynced, and the
-temporary file is renamed over the target with :func:`os.replace`, which is
-atomic on POSIX and on Windows.  The directory is fsynced too, so the rename
-survives a power cut.  On any failure the temporary file is removed and the
-old target is left untouched.
+final rename never crosses a file system), written as they are made
+(:func:`atomic_file`), then flushed and fsynced, and the temporary file is
+renamed over the target with :func:`os.replace`, which is atomic on POSIX
+and on Windows.  The directory is fsynced too, so the rename survives a
+power cut.  On any failure (an error, Ctrl-C, SIGTERM) the temporary file is
+removed and the old target is left untouched.
 """
 
 from __future__ import annotations
@@ -14,7 +15,10 @@ import contextlib
 import os
 import stat
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import BinaryIO
 
 
 def _new_file_mode(target: Path) -> int:
@@ -43,15 +47,19 @@ def _fsync_directory(directory: Path) -> None:
         os.close(fd)
 
 
-def write_atomic(target: Path, data: bytes) -> None:
-    """Replace ``target`` with ``data`` atomically (OSError on failure, target untouched)."""
+@contextmanager
+def atomic_file(target: Path) -> Iterator[BinaryIO]:
+    """A new file to write in pieces; it replaces ``target`` when the block ends without an error.
+
+    OSError on failure; on any exception the temporary file is removed and ``target`` is untouched.
+    """
     directory = target.parent if str(target.parent) else Path(".")
     mode = _new_file_mode(target)
     fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
     tmp = Path(tmp_name)
     try:
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            yield f
             f.flush()
             os.fsync(f.fileno())
         os.chmod(tmp, mode)
@@ -61,3 +69,9 @@ def write_atomic(target: Path, data: bytes) -> None:
             tmp.unlink()
         raise
     _fsync_directory(directory)
+
+
+def write_atomic(target: Path, data: bytes) -> None:
+    """Replace ``target`` with ``data`` atomically (OSError on failure, target untouched)."""
+    with atomic_file(target) as f:
+        f.write(data)
