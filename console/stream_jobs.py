@@ -22,14 +22,12 @@ three-element heads are read whole, as before.
 
 from __future__ import annotations
 
-import ctypes
 import json
 import os
 import shutil
 import tempfile
 from array import array
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -48,6 +46,7 @@ from console.analysis.timefmt import NS, _fraction, iso
 from console.jobs import DiagJob, OnPassages, analyze_files, detection_events
 from console.jsonout import valid_unicode
 from console.layout import Layout
+from console.memory import read_memory
 from parsers.diag import DiagChunk, DiagReader, chunks_to_frame
 from parsers.sources import DEFAULT_CHUNK_BYTES
 
@@ -327,37 +326,6 @@ class _Run:
             self.engine = _new_engine(self.layout, self.initial, 0)  # no event at all: as run_sections
             self.sink.take(self.engine)
         return self.engine
-
-
-@contextmanager
-def read_memory() -> Iterator[None]:
-    """Memory kept bounded around a log's read: Arrow on the system allocator, freed pages returned after.
-
-    Arrow's default pool (mimalloc) keeps the pages the decoder's threads
-    freed in those threads' heaps, where ``release_unused`` does not reach
-    them; and the C heap keeps what the read freed.  The faces write their
-    output after the read, so that output would stack on top of both.  On a
-    12 M-record report the peak RSS was 17 MB (the pool) and 5 MB (the heap)
-    lower, at the same CPU.
-    """
-    import pyarrow as pa
-
-    before = pa.default_memory_pool()
-    pa.set_memory_pool(pa.system_memory_pool())
-    try:
-        yield
-    finally:
-        pa.set_memory_pool(before)
-        _trim_heap()
-
-
-def _trim_heap() -> None:
-    """Give the C heap's free pages back to the system (glibc's malloc_trim; elsewhere nothing)."""
-    try:
-        trim = ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):
-        return
-    trim(0)
 
 
 def _streamable(paths: Sequence[Path], layout: Layout | None) -> bool:

@@ -55,6 +55,7 @@ from console.archive.partition import (
 )
 from console.archive.parts import write_part, write_small
 from console.archive.store import DATA, Manifest
+from console.memory import trim_heap
 
 if TYPE_CHECKING:
     from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
@@ -328,6 +329,8 @@ def derive_tables(
                 "tables": sorted(stored),  # its parts: partition_parts
                 "overlap": one.overlap.get(key.name, 0),  # records set aside as another file's overlap
             }
+        del rows
+        trim_heap()  # a task's working memory given back before the next one's (RSS would keep the highest)
     manifest.derived = {
         "layout": spec,
         "tables": list(DERIVED),

@@ -33,7 +33,6 @@ from console.archive.parts import (
     compact,
     part_rows,
     read_part,
-    return_freed_memory,
     write_part,
     write_small,
 )
@@ -461,11 +460,12 @@ def run_ingest(
     """Ingest ``paths`` into the archive at ``root``; the summary of what was added, skipped and rejected."""
     from console.archive.derive import derive_tables
     from console.fleet import fleet_mapper
+    from console.memory import read_memory, trim_heap
 
     t0 = time.perf_counter()
-    return_freed_memory()  # an ingest's phases each need their memory, one after the other
     ensure_layout(root)
-    with writer_lock(root, wait=wait, on_wait=on_wait):
+    # An ingest's phases (read, derive, publish) each need their memory, one after the other.
+    with read_memory(), writer_lock(root, wait=wait, on_wait=on_wait):
         current = read_current(root)
         collect_garbage(root, current)
         job = _Ingest(root, current, on_bytes)
@@ -479,6 +479,7 @@ def run_ingest(
                 summary.files.append(job.add_file(path, shown))
             clock.lap("read")
             job.finish_records()
+            trim_heap()  # what the read freed, given back before the derivation needs its own
             clock.lap("records")
             relayout = layout is not None and layout != current.derived.get("layout")
             if summary.added or relayout:

@@ -51,20 +51,6 @@ DELTA_COLUMNS = frozenset({"line", "time_ns", "start_ns", "end_ns", "t_sys1_ns",
 COMPACT_MAX_ROWS = 1_500_000
 
 
-def return_freed_memory() -> None:
-    """Arrow's memory given back to the system as it is freed, not kept for reuse.
-
-    Arrow's default pool (mimalloc) keeps what a phase freed: after an ingest's read the next phase
-    starts ~40 MB higher (3 M records).  jemalloc with no decay delay returns it at once, at no
-    measurable cost here; where the wheel was built without jemalloc, the system allocator.
-    """
-    try:
-        pa.set_memory_pool(pa.jemalloc_memory_pool())
-        pa.jemalloc_set_decay_ms(0)
-    except (NotImplementedError, pa.ArrowNotImplementedError):
-        pa.set_memory_pool(pa.system_memory_pool())
-
-
 def day_text(day_index: int) -> str:
     return str(np.datetime64(int(day_index), "D"))
 
