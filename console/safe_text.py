@@ -34,6 +34,11 @@ def _escape(match: re.Match[str]) -> str:
     return f"\\u{code:04x}"
 
 
+# Text that no escaper changes (Markdown, HTML, terminal): letters, digits and a few signs, no control
+# character.  Most cells of a report's long tables are like this (times, speeds, head names).
+PLAIN = re.compile(r"[A-Za-z0-9 .:,/%()+=-]*")
+
+
 def clean(value: object) -> str:
     """The string with control, bidi and undecodable characters escaped (``\\x1b``, ``\\u202e``, ``\\xff``)."""
     text = "" if value is None else os.fsdecode(value) if isinstance(value, bytes) else str(value)

@@ -18,7 +18,7 @@ from typing import Any
 
 from console.report.jsonwrite import Write
 from console.report.outline import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table, outline
-from console.safe_text import clean
+from console.safe_text import PLAIN, clean
 
 _SPECIAL = re.compile(r"([\\`*_\[\]|#~])")
 _LEADING = re.compile(r"^(\s*)([-+*]|\d+[.)])(?=\s|$)")
@@ -31,6 +31,8 @@ def md_escape(value: object, line_start: bool = False) -> str:
     ``line_start``: the text begins a line (a paragraph, a list item), where
     ``- ``, ``+ ``, ``1. `` would start a list: escape that marker too.
     """
+    if type(value) is str and not line_start and PLAIN.fullmatch(value):
+        return value  # nothing to escape (most table cells): the escapes below would change nothing
     text = clean(value)
     text = text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
     text = _SPECIAL.sub(r"\\\1", text)

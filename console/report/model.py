@@ -30,7 +30,7 @@ import math
 import re
 from collections import Counter
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
@@ -46,7 +46,7 @@ from console.jobs import DiagJob
 from console.layout import Layout
 from console.render.section_tables import sections_json
 from console.report.jsonwrite import Rows
-from console.report.spooled import ReportPassages, SectionHistory
+from console.report.spooled import LedgerFrameRows, ReportPassages, SectionHistory
 from parsers.report import ParseReport
 
 if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read (collect)
@@ -441,14 +441,15 @@ def _sections(data: ReportData) -> dict[str, Any] | None:
         }
     if data.sections is None:
         return None
-    body = sections_json(data.sections)
+    # The ledger (a row per counted axle) is written from its table, not made a dict per row.
+    body = sections_json(replace(data.sections, ledger=data.sections.ledger.iloc[:0]))
     return {
         "initial": SECTION_INITIAL,
         "events_from": data.section_source,
         "final": body["sections"],
         "timeline": body["timeline"],
         "ledger_summary": _ledger_summary(data.sections),
-        "ledger": body["ledger"],
+        "ledger": LedgerFrameRows(data.sections.ledger),
         "resets": body["resets"],
     }
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from console.analysis.passages import Columns
 from console.analysis.sections import ResetRecord, Transition
@@ -108,6 +109,39 @@ class SpilledRows(Rows):
         write("[")
         for block in self._blocks():
             write(block)
+        write("\n" + " " * depth + "]")
+
+
+class LedgerFrameRows(Rows):
+    """A count ledger held as a table (the archive's, a whole read's): its JSON written row by row in the
+    form the spill holds (:class:`~console.stream_jobs._LedgerText`), not a dict per axle through json."""
+
+    COLUMNS = ("time_ns", "section", "head", "delta", "count")
+
+    def __init__(self, ledger: pd.DataFrame) -> None:
+        super().__init__(len(ledger), self._items)
+        self.ledger = ledger
+
+    def _entries(self) -> Iterator[Any]:
+        from console.analysis.sections import LedgerEntry
+
+        columns = [self.ledger[c].tolist() for c in self.COLUMNS]
+        return (LedgerEntry(t, s, h, d, c) for t, s, h, d, c in zip(*columns, strict=True))
+
+    def _items(self) -> Iterator[Any]:
+        for x in self._entries():
+            yield {"section": x.section, "head": x.head, "delta": x.delta, "count": x.count, "time": iso(x.time_ns)}
+
+    def write_json(self, write: Write, depth: int) -> None:
+        if depth != ROW_DEPTH - 1 or not self.count:
+            super().write_json(write, depth)
+            return
+        text = _LedgerText(ROW_DEPTH)
+        write("[")
+        first = True
+        for x in self._entries():
+            write(("" if first else ",") + text(x))
+            first = False
         write("\n" + " " * depth + "]")
 
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from console.analysis.timefmt import NS as _NS
-from console.safe_text import clean
+from console.safe_text import PLAIN, clean
 
 WIDTH = 1000
 FONT = 'font-family="sans-serif" font-size="12"'
@@ -35,6 +35,8 @@ _TIME_STEPS_S = (1, 2, 5, 10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200, 
 
 def esc(value: object) -> str:
     """Log text made inert for HTML and SVG: control characters as \\xNN, then entity-escaped."""
+    if type(value) is str and PLAIN.fullmatch(value):
+        return value  # nothing to escape (most table cells)
     return html.escape(clean(value), quote=True)
 
 
