@@ -431,24 +431,10 @@ class DiagReader:
         n_lines = len(tok.starts)
         fr.lines_read += n_lines
 
-        reg_lut = np.full(len(tok.reg_dict), -1, np.int32)
-        reg_err: dict[int, FieldError] = {}
-        for i, span in enumerate(tok.reg_dict):
-            got = reg.register_id(span)
-            if isinstance(got, FieldError):
-                reg_err[i] = got
-            else:
-                reg_lut[i] = got
-        val_cols = np.zeros((4, len(tok.val_dict)), np.int64)
+        reg_lut, reg_err = reg.register_ids(tok.reg_dict)
+        val_cols, val_err = reg.values(tok.val_dict)
         val_ok = np.ones(len(tok.val_dict), bool)
-        val_err: dict[int, FieldError] = {}
-        for i, span in enumerate(tok.val_dict):
-            got_v = reg.value(span)
-            if isinstance(got_v, FieldError):
-                val_err[i] = got_v
-                val_ok[i] = False
-            else:
-                val_cols[:, i] = got_v
+        val_ok[list(val_err)] = False
 
         rid = reg_lut[tok.reg_idx]
         good = (rid >= 0) & val_ok[tok.val_idx] & tok.time_ok
@@ -594,7 +580,7 @@ def chunks_to_frame(chunks: list[DiagChunk], registry: DiagRegistry) -> pd.DataF
     def cat(name: str) -> np.ndarray:
         return np.concatenate([getattr(c, name) for c in chunks]) if chunks else np.zeros(0)
 
-    arrays = registry.arrays() if registry.registers else None
+    arrays = registry.arrays() if registry.n_registers else None
 
     def reg(name: str, dtype: str) -> np.ndarray:
         if arrays is None:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from console.analysis.head_table import Heads, HeadTable, heads_at
 from console.analysis.inventory import DeviceInventory
 from console.analysis.overlap import fingerprints, overlap_mask
 from console.analysis.passages import (
@@ -72,14 +73,18 @@ class DiagAnalysis:
     axle_columns: Columns
     overlap_records: int
     unpaired_detections: int
-    head_names: list[str]
     # Per input file (in read order): its records set aside as another file's overlap.
     overlap_by_file: list[int] = field(default_factory=list)
     # For the section engine: heads as (device id, name), every wheel-sensor
     # record (head key, channel, time, 1/0), and per head the seconds with records.
-    heads: list[tuple[int, str]] = field(default_factory=list)
+    heads: Heads = field(default_factory=list)
     wheel_columns: Columns | None = None
     activity_columns: Columns | None = None
+
+    @property
+    def head_names(self) -> list[str]:
+        """Every head's name, by head key."""
+        return self.heads.names() if isinstance(self.heads, HeadTable) else [name for _, name in self.heads]
 
     @cached_property
     def passages(self) -> pd.DataFrame:
@@ -232,7 +237,6 @@ class DiagAccumulator:
             axle_columns=part.axles,
             overlap_records=sum(overlap_by_file),
             unpaired_detections=part.unpaired,
-            head_names=[name for _, name in luts.heads],
             overlap_by_file=overlap_by_file,
             heads=luts.heads,
             # Only the section engine reads these: not kept for speeds alone.
@@ -503,21 +507,24 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     }
 
 
-def _passages_frame(cols: Columns | None, heads: list[tuple[int, str]]) -> pd.DataFrame:
+def _passages_frame(cols: Columns | None, heads: Heads) -> pd.DataFrame:
     """The passages table (:data:`PASSAGE_COLUMNS`) from :func:`_passages`' columns."""
     import pandas as pd
 
     if cols is None:
         return pd.DataFrame(columns=list(PASSAGE_COLUMNS))
-    head_dev = np.array([h[0] for h in heads], dtype=np.int64)
-    head_name = np.array([h[1] for h in heads], dtype=object)
+    # Only the heads of these passages are looked up: a log may have a million heads.
+    used, inverse = np.unique(cols["head"], return_inverse=True)
+    used_dev, used_names = heads_at(heads, used)
+    head_name = np.empty(len(used), dtype=object)
+    head_name[:] = used_names
     text = {
-        "counting_head": head_name[cols["head"]],
+        "counting_head": head_name[inverse.reshape(-1)],
         "direction": np.array([None, DIRECTION_12, DIRECTION_21, "mixed"], dtype=object)[cols["direction"]],
         "whole_train_basis": np.array(_BASIS, dtype=object)[cols["whole_train_basis"]],
         "kind": np.array(_KINDS, dtype=object)[cols["kind"]],
     }
-    data = {"device_id": head_dev[cols["head"]], **{c: text.get(c, cols.get(c)) for c in PASSAGE_COLUMNS[1:]}}
+    data = {"device_id": used_dev[inverse.reshape(-1)], **{c: text.get(c, cols.get(c)) for c in PASSAGE_COLUMNS[1:]}}
     out = pd.DataFrame(data)
     out.attrs["axle_speeds_kmh"] = cols["axle_speeds_kmh"]
     return out

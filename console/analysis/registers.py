@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from console.analysis.head_table import HeadTable
 from console.analysis.inventory import IDENTITY_LABELS, DeviceInventory, IdentityValue, apply_identity
 from console.analysis.wheels import WHEEL_SENSOR_ADDRESS
 from parsers.diag import DATA_KINDS, DiagRegistry
@@ -41,7 +42,6 @@ class RegisterTables:
     head_name_code: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _sorted_keys: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _sorted_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    _heads: list[tuple[int, str]] = field(default_factory=list)
 
     def update(self) -> RegisterTables:
         """Extend the tables to registers added since the last call."""
@@ -88,14 +88,9 @@ class RegisterTables:
         return self
 
     @property
-    def heads(self) -> list[tuple[int, str]]:
-        """(device id, counting head name) per head key; built once per head, copied (C speed) per call."""
-        if len(self._heads) < len(self.head_device):
-            names = self.registry.heads.values
-            done = len(self._heads)
-            codes = self.head_name_code[done:].tolist()
-            self._heads += zip(self.head_device[done:].tolist(), [names[c] for c in codes], strict=True)
-        return list(self._heads)
+    def heads(self) -> HeadTable:
+        """(device id, counting head name) per head key, as columns (nothing copied)."""
+        return HeadTable(self.head_device, self.head_name_code, self.registry.heads)
 
 
 def _unique_in_order(group: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -143,11 +138,11 @@ def inventory(
     for r, (_, value, kind, data_code) in identity.items():  # a few dozen identity registers
         ident.setdefault(int(arr["device_id"][r]), []).append(
             IdentityValue(
-                reg.canonicals.values[arr["label_canonical"][r]],
+                reg.canonicals.value(int(arr["label_canonical"][r])),
                 int(arr["address"][r]),
                 value,
                 DATA_KINDS[kind],
-                reg.data.values[data_code],
+                reg.data.value(data_code),
             )
         )
     # The pairs are sorted by device: each device's values are one run, cut once.
@@ -163,12 +158,12 @@ def inventory(
     # Lists, not arrays, per device: one tolist per column, then list slices.
     diag_ids = _runs(np.lexsort((v_diag, d_diag)), v_diag, at_diag)
     channels = _runs(np.lexsort((v_chan, d_chan)), v_chan, at_chan)
-    head_names = np.asarray(reg.heads.values, dtype=object)[tables.head_name_code[v_head]].tolist()
+    head_names = reg.heads.take(tables.head_name_code[v_head])
     head_cuts = [*at_head.tolist(), len(v_head)]
     r0 = rid[first_rid]
-    device_names = _texts(reg.devices.values, arr["device"][r0])
-    type_names = _texts(reg.types.values, arr["type"][r0])
-    gs_names = _texts(reg.gs.values, arr["gs"][r0])
+    device_names = reg.devices.take(arr["device"][r0])
+    type_names = reg.types.take(arr["type"][r0])
+    gs_names = reg.gs.take(arr["gs"][r0])
     out = []
     for i, (d, n, f, la) in enumerate(
         zip(devices.tolist(), records.tolist(), first.tolist(), last.tolist(), strict=True)
@@ -190,11 +185,6 @@ def inventory(
             apply_identity(inv, values)
         out.append(inv)
     return out
-
-
-def _texts(values: list[str], codes: np.ndarray) -> list[str]:
-    """Interned strings by code, as a list."""
-    return np.asarray(values, dtype=object)[codes].tolist() if len(codes) else []
 
 
 def _runs(order: np.ndarray, values: np.ndarray, at: np.ndarray) -> list[list[int]]:

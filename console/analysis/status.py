@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from console.analysis.head_table import Heads
 from console.analysis.passages import Columns
 
 STATUS_KIND = 2  # diagnostics._KINDS.index("status")
@@ -41,7 +42,7 @@ class StatusSummary:
         np.add.at(self.records, head, cols["records"][status])
         return take_passages(cols, np.flatnonzero(~status))
 
-    def to_dict(self, heads: list[tuple[int, str]]) -> dict[str, Any]:
+    def to_dict(self, heads: Heads) -> dict[str, Any]:
         rows = np.flatnonzero(self.passages)
         return {
             "passages": int(self.passages.sum()),

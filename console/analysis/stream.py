@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, analyse_parts
+from console.analysis.head_table import HeadTable
 from console.analysis.passages import Columns, merge_buckets
 from console.analysis.timefmt import NS
 from parsers.diag import DiagChunk, DiagRegistry
@@ -78,7 +79,7 @@ class PassageStream:
         self._slack_ns = int(self.order_slack_s * NS)
 
     @property
-    def heads(self) -> list[tuple[int, str]]:
+    def heads(self) -> HeadTable:
         return self.acc._lookup().heads
 
     def open_first_ns(self) -> int:

@@ -36,7 +36,7 @@ streamed: the caller reads those whole.
 from __future__ import annotations
 
 import heapq
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -118,7 +118,7 @@ class EventStream:
             h = self._heads[key] = _Head(name, spec)
         return h
 
-    def warnings(self, heads: list[tuple[int, str]]) -> list[str]:
+    def warnings(self, heads: Sequence[tuple[int, str]]) -> list[str]:
         """The batch path's warnings about log heads the layout does not count, in head order."""
         out: list[str] = []
         lay = self.layout
@@ -149,7 +149,10 @@ class EventStream:
         self._seq += 1
 
     def add(
-        self, wheel: dict[str, np.ndarray] | None, activity: dict[str, np.ndarray] | None, heads: list[tuple[int, str]]
+        self,
+        wheel: dict[str, np.ndarray] | None,
+        activity: dict[str, np.ndarray] | None,
+        heads: Sequence[tuple[int, str]],
     ) -> None:
         """One batch of closed passages: their wheel records (read order) and activity buckets."""
         if wheel is not None and len(wheel["head"]):
@@ -157,7 +160,7 @@ class EventStream:
         if self._power_ns is not None and activity is not None and len(activity["head"]):
             self._power(activity, heads)
 
-    def _count(self, wheel: dict[str, np.ndarray], heads: list[tuple[int, str]]) -> None:
+    def _count(self, wheel: dict[str, np.ndarray], heads: Sequence[tuple[int, str]]) -> None:
         key_col = wheel["head"]
         order = np.lexsort((wheel["time_ns"], key_col))  # per head by time; ties keep read order
         hk = key_col[order]
@@ -192,7 +195,7 @@ class EventStream:
                 for e in hc.feed(int(c), int(tt), int(vv)):
                     self._push(e, key, _COUNTING)
 
-    def _power(self, activity: dict[str, np.ndarray], heads: list[tuple[int, str]]) -> None:
+    def _power(self, activity: dict[str, np.ndarray], heads: Sequence[tuple[int, str]]) -> None:
         assert self._power_ns is not None
         order = np.lexsort((activity["t_first_ns"], activity["head"]))
         hk = activity["head"][order]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 from typing import Any, TextIO
 
+from console.analysis.head_table import Heads
 from console.analysis.passages import Columns
 from console.jsonout import valid_unicode
 from parsers.report import Rejection
@@ -37,7 +38,7 @@ class JsonLinesOut:
         self.out.write(line({"type": "rejected", **r.to_dict()}))
         self.out.flush()
 
-    def passages(self, cols: Columns, heads: list[tuple[int, str]]) -> None:
+    def passages(self, cols: Columns, heads: Heads) -> None:
         from console.analysis.passages_json import encode_passages
 
         text = encode_passages(cols, heads, workers=1, lines_of_type="passage")

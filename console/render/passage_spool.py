@@ -18,6 +18,7 @@ from typing import IO
 
 import numpy as np
 
+from console.analysis.head_table import Heads
 from console.analysis.passages import Columns
 from console.jsonout import JSONParts
 
@@ -27,7 +28,7 @@ _PREFIX = '{"type":"' + _LINE_TYPE + '",'
 _COPY_ROWS = 4096
 
 
-def passage_texts(cols: Columns, heads: list[tuple[int, str]]) -> list[str]:
+def passage_texts(cols: Columns, heads: Heads) -> list[str]:
     """Each passage of ``cols`` as one JSON object (the ``--json`` fields, ASCII)."""
     from console.analysis.passages_json import encode_passages
 
@@ -54,7 +55,7 @@ class PassageSpool:
         self._length: list[np.ndarray] = []
         self.count = 0
 
-    def add(self, cols: Columns, heads: list[tuple[int, str]]) -> None:
+    def add(self, cols: Columns, heads: Heads) -> None:
         """Take one batch (any order); only its texts' places stay in memory."""
         if not len(cols["head"]):
             return

@@ -1,0 +1,218 @@
+"""Distinct strings → dense ids, held flat: no Python object per entry.
+
+A log of a million counting heads has a million distinct register spans and
+head names.  A ``dict`` keyed by them costs some 250 bytes an entry (the
+key object, its hash slot, the id's int), more than the log line the entry
+came from.  Here each entry is a 128-bit BLAKE2b digest of its bytes in
+sorted numpy runs (16 bytes, plus 4 for its id), and a :class:`StringDictionary`
+keeps its strings as one UTF-8 buffer with offsets, as Arrow does.
+
+The digest stands for the bytes: two different strings share one with
+probability 2^-128 per pair, and a cryptographic hash cannot be steered to a
+collision by a crafted log.  Lookups are vectorized (``np.searchsorted``
+per run); a new run is merged into the one before it once that is no more
+than twice its size, so there are O(log n) runs and each entry is merged
+O(log n) times.  A small, bounded ``dict`` in front answers the few thousand
+strings a realistic log repeats in every chunk without hashing them again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Sequence
+
+import numpy as np
+import pyarrow as pa
+
+# The front cache's size: a realistic log's distinct spans fit (a few thousand); an
+# adversarial one's do not, and the cache is cleared when full (bounded: a cache, not a store).
+FRONT_CACHE_MAX = 32_768
+_DIGEST_BYTES = 16
+
+
+def digests(keys: Sequence[bytes]) -> tuple[np.ndarray, np.ndarray]:
+    """(high, low) 64-bit halves of each key's 128-bit BLAKE2b digest."""
+    if not keys:
+        return np.zeros(0, np.uint64), np.zeros(0, np.uint64)
+    blake = hashlib.blake2b
+    raw = b"".join([blake(k, digest_size=_DIGEST_BYTES).digest() for k in keys])
+    both = np.frombuffer(raw, "<u8").reshape(-1, 2)
+    return both[:, 0].copy(), both[:, 1].copy()
+
+
+class _Run:
+    """Digests sorted by (high, low) with their ids."""
+
+    __slots__ = ("hi", "ids", "lo")
+
+    def __init__(self, hi: np.ndarray, lo: np.ndarray, ids: np.ndarray) -> None:
+        order = np.lexsort((lo, hi))
+        self.hi, self.lo, self.ids = hi[order], lo[order], ids[order]
+
+    def find(self, hi: np.ndarray, lo: np.ndarray, out: np.ndarray) -> None:
+        """Write the id of each digest found here into ``out``."""
+        if not len(self.hi) or not len(hi):
+            return
+        left = np.searchsorted(self.hi, hi, "left")
+        right = np.searchsorted(self.hi, hi, "right")
+        one = (right - left) == 1
+        at = np.minimum(left, len(self.hi) - 1)
+        hit = one & (self.lo[at] == lo)
+        out[hit] = self.ids[at[hit]]
+        # Two entries sharing a high half (about one pair in 10^7 at a million entries): by hand.
+        for q in np.flatnonzero((right - left) > 1).tolist():
+            for k in range(int(left[q]), int(right[q])):
+                if self.lo[k] == lo[q]:
+                    out[q] = self.ids[k]
+
+
+class DigestIndex:
+    """128-bit digests → int32 ids, in sorted runs (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self._runs: list[_Run] = []
+        self._n = 0
+
+    def __len__(self) -> int:
+        return self._n
+
+    def get(self, hi: np.ndarray, lo: np.ndarray) -> np.ndarray:
+        """The id of each digest, -1 where absent."""
+        out = np.full(len(hi), -1, np.int32)
+        for run in self._runs:
+            run.find(hi, lo, out)
+        return out
+
+    def add(self, hi: np.ndarray, lo: np.ndarray, ids: np.ndarray) -> None:
+        """Add digests (absent so far, distinct) with their ids."""
+        if not len(hi):
+            return
+        self._runs.append(_Run(hi, lo, ids.astype(np.int32, copy=False)))
+        self._n += len(hi)
+        while len(self._runs) > 1 and len(self._runs[-2].hi) <= 2 * len(self._runs[-1].hi):
+            b, a = self._runs.pop(), self._runs.pop()
+            self._runs.append(
+                _Run(np.concatenate([a.hi, b.hi]), np.concatenate([a.lo, b.lo]), np.concatenate([a.ids, b.ids]))
+            )
+
+
+class Growable:
+    """A numpy column appended to in place (capacity doubles); ``view()`` is its filled part."""
+
+    __slots__ = ("data", "n")
+
+    def __init__(self, dtype: type | str) -> None:
+        self.data = np.zeros(16, dtype)
+        self.n = 0
+
+    def extend(self, values: np.ndarray) -> None:
+        need = self.n + len(values)
+        if need > len(self.data):
+            # Views handed out keep the old buffer, whose filled part never changes.
+            grown = np.zeros(max(need, 2 * len(self.data)), self.data.dtype)
+            grown[: self.n] = self.data[: self.n]
+            self.data = grown
+        self.data[self.n : need] = values
+        self.n = need
+
+    def view(self) -> np.ndarray:
+        return self.data[: self.n]
+
+
+class StringDictionary:
+    """Strings → dense codes in order of first sight, with the strings kept as one UTF-8 buffer.
+
+    ``code``/``codes`` intern; :attr:`values` (a list, built on demand) and
+    :meth:`arrow` give them back.  Strings that are not valid Unicode (lone
+    surrogates from undecodable file names) are stored with ``surrogatepass``
+    and come back unchanged.
+    """
+
+    def __init__(self) -> None:
+        self._index = DigestIndex()
+        self._front: dict[str, int] = {}
+        self._text = bytearray()
+        self._offsets = Growable(np.int64)
+        self._offsets.extend(np.zeros(1, np.int64))
+        self._values: list[str] = []  # decoded on demand, for the few callers that want a list
+
+    def __len__(self) -> int:
+        return self._offsets.n - 1
+
+    def code(self, value: str) -> int:
+        """The code of one string (a new code for a new string)."""
+        found = self._front.get(value)
+        if found is not None:
+            return found
+        return int(self.codes([value])[0])
+
+    def codes(self, values: Sequence[str]) -> np.ndarray:
+        """Codes of many strings at once (int32), new strings numbered in order of first sight."""
+        out = np.empty(len(values), np.int32)
+        miss: list[int] = []
+        front = self._front
+        for i, v in enumerate(values):
+            found = front.get(v)
+            if found is None:
+                miss.append(i)
+            else:
+                out[i] = found
+        if not miss:
+            return out
+        # Distinct missed strings, in order of first sight.
+        firsts: dict[str, int] = {}
+        for i in miss:
+            firsts.setdefault(values[i], len(firsts))
+        distinct = list(firsts)
+        encoded = [v.encode("utf-8", "surrogatepass") for v in distinct]
+        hi, lo = digests(encoded)
+        ids = self._index.get(hi, lo)
+        new = np.flatnonzero(ids < 0)
+        if len(new):
+            ids[new] = len(self) + np.arange(len(new), dtype=np.int32)
+            self._index.add(hi[new], lo[new], ids[new])
+            new_bytes = [encoded[k] for k in new.tolist()]
+            lengths = np.fromiter(map(len, new_bytes), np.int64, len(new_bytes))
+            self._offsets.extend(len(self._text) + np.cumsum(lengths))
+            self._text += b"".join(new_bytes)
+        if len(front) + len(distinct) > FRONT_CACHE_MAX:
+            front.clear()
+        front.update(zip(distinct, ids.tolist(), strict=True))
+        out[miss] = ids[[firsts[values[i]] for i in miss]]
+        return out
+
+    def value(self, code: int) -> str:
+        """The string of one code."""
+        at = self._offsets.data
+        return self._text[at[code] : at[code + 1]].decode("utf-8", "surrogatepass")
+
+    @property
+    def values(self) -> list[str]:
+        """All strings, by code: a list kept and extended, for the small dictionaries read often
+        (a large one is better read with :meth:`take`)."""
+        if len(self._values) < len(self):
+            self._values += self.take(np.arange(len(self._values), len(self)))
+        return self._values
+
+    def take(self, codes: np.ndarray) -> list[str]:
+        """The strings of ``codes``, as a new list."""
+        codes = np.asarray(codes, np.int64)
+        at = self._offsets.data
+        starts, ends = at[codes].tolist(), at[codes + 1].tolist()
+        if 16 * len(codes) >= len(self._text) and self._text.isascii():
+            # Many: decode the buffer once (ASCII: byte offsets are character offsets), then slice.
+            text = self._text.decode("ascii")
+            return [text[a:b] for a, b in zip(starts, ends, strict=True)]
+        buf = self._text
+        return [buf[a:b].decode("utf-8", "surrogatepass") for a, b in zip(starts, ends, strict=True)]
+
+    def arrow(self) -> pa.Array:
+        """All strings, by code, as an Arrow large_string array over one copy of the buffer.
+
+        Strings that are not valid UTF-8 (surrogates) make Arrow's validation fail: callers
+        needing those shown use :attr:`values`."""
+        n = len(self)
+        offsets = self._offsets.data[: n + 1]
+        return pa.Array.from_buffers(
+            pa.large_utf8(), n, [None, pa.py_buffer(offsets.copy()), pa.py_buffer(bytes(self._text))]
+        )
