@@ -199,6 +199,13 @@ def stream_files(
     )
 
 
+def status_json(status: StatusSummary, heads: Heads) -> dict[str, object]:
+    """``status_passages`` of a JSON document: the rows per head encoded as they are written."""
+    from console.jsonout import array_parts
+
+    return {**status.totals(), "by_head": array_parts(status.by_head(heads))}
+
+
 def summarise_status(job: DiagJob) -> None:
     """Count a whole read's status-only passages per head instead of listing them."""
     job.status = StatusSummary()
@@ -227,7 +234,7 @@ def summary_doc(job: DiagJob, schema: str) -> dict[str, object]:
             "pair_window_s": s.pair_window_s,
         },
         "passages": job.passage_count if job.passage_count is not None else (len(cols["head"]) if cols else 0),
-        **({"status_passages": job.status.to_dict(a.heads)} if job.status is not None else {}),
+        **({"status_passages": status_json(job.status, a.heads)} if job.status is not None else {}),
         "overlap_records": a.overlap_records,
         "unpaired_detections": a.unpaired_detections,
         "parse_report": report,

@@ -97,7 +97,7 @@ class DigestIndex:
 
 
 class Growable:
-    """A numpy column appended to in place (capacity doubles); ``view()`` is its filled part."""
+    """A numpy column appended to in place (capacity grows by half); ``view()`` is its filled part."""
 
     __slots__ = ("data", "n")
 
@@ -109,7 +109,7 @@ class Growable:
         need = self.n + len(values)
         if need > len(self.data):
             # Views handed out keep the old buffer, whose filled part never changes.
-            grown = np.zeros(max(need, 2 * len(self.data)), self.data.dtype)
+            grown = np.zeros(max(need, len(self.data) * 3 // 2), self.data.dtype)
             grown[: self.n] = self.data[: self.n]
             self.data = grown
         self.data[self.n : need] = values

@@ -8,12 +8,14 @@ record counts), so a multi-GB log is analysed in bounded memory.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from console.analysis.device_table import DeviceTable
 from console.analysis.head_table import Heads, HeadTable, heads_at
 from console.analysis.inventory import DeviceInventory
 from console.analysis.overlap import fingerprints, overlap_mask
@@ -68,7 +70,7 @@ class DiagAnalysis:
     """
 
     settings: SpeedSettings
-    devices: list[DeviceInventory]
+    devices: Sequence[DeviceInventory]
     passage_columns: Columns | None  # see _passages; None: no passages
     axle_columns: Columns
     overlap_records: int
@@ -120,8 +122,8 @@ class DiagAnalysis:
 
         return list(json.loads(self.passages_json_text()))
 
-    def to_dict(self, passages: Any = None) -> dict[str, Any]:
-        """The JSON document's analysis part; ``passages`` may be pre-encoded text."""
+    def to_dict(self, passages: Any = None, devices: Any = None) -> dict[str, Any]:
+        """The JSON document's analysis part; ``passages`` and ``devices`` may be pre-encoded text."""
         s = self.settings
         return {
             "settings": {
@@ -130,7 +132,7 @@ class DiagAnalysis:
                 "idle_gap_s": s.idle_gap_s,
                 "pair_window_s": s.pair_window_s,
             },
-            "devices": [d.to_dict() for d in self.devices],
+            "devices": [d.to_dict() for d in self.devices] if devices is None else devices,
             "passages": self.passages_json() if passages is None else passages,
             "overlap_records": self.overlap_records,
             "unpaired_detections": self.unpaired_detections,
@@ -166,9 +168,10 @@ class DiagAccumulator:
     def _track_spans(self, buckets: Columns) -> None:
         n = len(self._lookup().head_device)
         if len(self.head_first_ns) < n:
-            grow = n - len(self.head_first_ns)
-            self.head_first_ns = np.r_[self.head_first_ns, np.full(grow, _BIG, np.int64)]
-            self.head_last_ns = np.r_[self.head_last_ns, np.full(grow, _SMALL, np.int64)]
+            # Room for half as many heads again: a log adding heads in every chunk copies them rarely.
+            size = max(n, len(self.head_first_ns) * 3 // 2)
+            self.head_first_ns = np.r_[self.head_first_ns, np.full(size - len(self.head_first_ns), _BIG, np.int64)]
+            self.head_last_ns = np.r_[self.head_last_ns, np.full(size - len(self.head_last_ns), _SMALL, np.int64)]
         np.minimum.at(self.head_first_ns, buckets["head"], buckets["t_first_ns"])
         np.maximum.at(self.head_last_ns, buckets["head"], buckets["t_last_ns"])
 
@@ -177,8 +180,8 @@ class DiagAccumulator:
             return
         luts = self._lookup()
         rid = chunk.register_id
-        head = luts.head[rid]
-        channel = luts.channel[rid]
+        head = luts.head_of(rid)
+        channel = luts.channel_of(rid)
         buckets = chunk_buckets(head, channel, chunk.time_ns, chunk.subsecond)
         self._buckets.append(buckets)
         self._track_spans(buckets)
@@ -244,7 +247,7 @@ class DiagAccumulator:
             activity_columns=part.activity if self.keep_releases else None,
         )
 
-    def devices(self) -> list[DeviceInventory]:
+    def devices(self) -> DeviceTable:
         return inventory(self._lookup(), self.head_first_ns, self.head_last_ns, self._identity)
 
     def _overlap(self, luts: RegisterTables, buckets: Columns) -> tuple[np.ndarray | None, list[int]]:
@@ -255,11 +258,11 @@ class DiagAccumulator:
             return None, [0] * n_files
         cols = {c: np.concatenate([p[c] for p in prints]) for c in ("fp", "rid", "time_ns", "file")}
         del prints
-        head = luts.head[cols["rid"]]
+        head = luts.head_of(cols["rid"])
         mask = overlap_mask(cols["file"], head, cols["fp"])
         if not mask.any():
             return None, [0] * n_files
-        remove_records(buckets, head[mask], luts.channel[cols["rid"][mask]], cols["time_ns"][mask])
+        remove_records(buckets, head[mask], luts.channel_of(cols["rid"][mask]), cols["time_ns"][mask])
         per_file = np.bincount(cols["file"][mask].astype(np.int64), minlength=n_files)
         return mask, [int(x) for x in per_file]
 

@@ -9,14 +9,16 @@ head (how many, how many records) and listed only on request.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from console.analysis.head_table import Heads
+from console.analysis.head_table import Heads, heads_at
 from console.analysis.passages import Columns
 
+_BLOCK = 4096
 STATUS_KIND = 2  # diagnostics._KINDS.index("status")
 
 
@@ -42,18 +44,22 @@ class StatusSummary:
         np.add.at(self.records, head, cols["records"][status])
         return take_passages(cols, np.flatnonzero(~status))
 
-    def to_dict(self, heads: Heads) -> dict[str, Any]:
+    def totals(self) -> dict[str, int]:
+        return {"passages": int(self.passages.sum()), "records": int(self.records.sum())}
+
+    def by_head(self, heads: Heads) -> Iterator[dict[str, Any]]:
+        """Per head with status passages, in head order: made a block at a time (a log may have a
+        status burst at each of a million heads)."""
         rows = np.flatnonzero(self.passages)
-        return {
-            "passages": int(self.passages.sum()),
-            "records": int(self.records.sum()),
-            "by_head": [
-                {
-                    "device_id": heads[h][0],
-                    "counting_head": heads[h][1],
-                    "passages": int(self.passages[h]),
-                    "records": int(self.records[h]),
-                }
-                for h in rows.tolist()  # per head with status passages
-            ],
-        }
+        for lo in range(0, len(rows), _BLOCK):
+            keys = rows[lo : lo + _BLOCK]
+            dev, names = heads_at(heads, keys)
+            yield from (
+                {"device_id": d, "counting_head": name, "passages": p, "records": r}
+                for d, name, p, r in zip(
+                    dev.tolist(), names, self.passages[keys].tolist(), self.records[keys].tolist(), strict=True
+                )
+            )
+
+    def to_dict(self, heads: Heads) -> dict[str, Any]:
+        return {**self.totals(), "by_head": list(self.by_head(heads))}

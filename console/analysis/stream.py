@@ -46,9 +46,13 @@ _MERGE_PARTS = 16
 
 
 def _grown(values: np.ndarray, n: int, fill: int) -> np.ndarray:
+    """At least ``n`` entries; room for half as many again, so a log adding heads in every chunk
+    does not copy every head's state per chunk (the spare entries hold ``fill``: nothing open)."""
     if len(values) >= n:
         return values
-    return np.r_[values, np.full(n - len(values), fill, np.int64)]
+    grown = np.full(max(n, len(values) * 3 // 2), fill, np.int64)
+    grown[: len(values)] = values
+    return grown
 
 
 @dataclass
@@ -98,7 +102,7 @@ class PassageStream:
         self._open_last = _grown(self._open_last, n, NO_TIME)
         self._cut = _grown(self._cut, n, NO_TIME)
         self._closed_upto = _grown(self._closed_upto, n, NO_TIME)
-        heads = tables.head[chunk.register_id]
+        heads = tables.head_of(chunk.register_id)
         self.late_records += int(np.count_nonzero(chunk.time_ns <= self._closed_upto[heads] + self._gap_ns))
         self._advance(heads, chunk.time_ns)
         return self._close(final=False)

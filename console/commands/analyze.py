@@ -78,20 +78,22 @@ def analyze(
         else:
             job = run_diag_stream(files, spacing_m, length_m, idle_gap, include_status, rejected_all, lines, spool)
         if lines is not None:
-            lines.finish([d.to_dict() for d in job.analysis.devices], summary_doc(job, JSON_SCHEMA_ANALYZE))
+            lines.finish((d.to_dict() for d in job.analysis.devices), summary_doc(job, JSON_SCHEMA_ANALYZE))
         elif json_out:
-            from console.jsonout import RawJSON
+            from console.jobs import status_json
+            from console.jsonout import RawJSON, array_parts
 
             passages = spool.json_parts() if spool is not None else RawJSON(job.analysis.passages_json_text())
+            devices = array_parts(d.to_dict() for d in job.analysis.devices)  # encoded as written
             doc = {
                 "schema": JSON_SCHEMA_ANALYZE,
                 "trackside_version": __version__,
                 "files": job.files,
                 "parse_report": job.report.to_dict(),
-                **job.analysis.to_dict(passages=passages),
+                **job.analysis.to_dict(passages=passages, devices=devices),
             }
             if job.status is not None:
-                doc["status_passages"] = job.status.to_dict(job.analysis.heads)
+                doc["status_passages"] = status_json(job.status, job.analysis.heads)
             if summary:
                 from console.render.section_tables import sections_json
 

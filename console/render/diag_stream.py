@@ -10,6 +10,7 @@ report counts, status-passage counts).  A 30 M-record log can be piped into
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from typing import Any, TextIO
 
 from console.analysis.head_table import Heads
@@ -50,9 +51,11 @@ class JsonLinesOut:
         self.out.write(text)
         self.out.flush()
 
-    def finish(self, devices: list[dict[str, Any]], summary: dict[str, Any]) -> None:
+    def finish(self, devices: Iterable[dict[str, Any]], summary: dict[str, Any]) -> None:
+        from console.jsonout import write
+
         for d in devices:
             # "type" names the line; the board's own type is "device_type" here.
             self.out.write(line({"type": "device", **{("device_type" if k == "type" else k): v for k, v in d.items()}}))
-        self.out.write(line({"type": "summary", **summary}))
+        write({"type": "summary", **summary}, self.out)  # as line(): its larger parts may be streamed
         self.out.flush()
