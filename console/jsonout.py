@@ -55,8 +55,8 @@ def encode(value: Any) -> str:
 
 
 def dumps(doc: dict[str, Any]) -> str:
-    """Compact, ASCII-only JSON; top-level :class:`RawJSON` values go in verbatim."""
-    return "{" + ",".join(f"{valid_unicode(json.dumps(k))}:{_encode(v)}" for k, v in doc.items()) + "}"
+    """Compact, ASCII-only JSON; :class:`RawJSON` and :class:`JSONParts` values go in verbatim."""
+    return "{" + ",".join(f"{valid_unicode(json.dumps(k))}:{''.join(_parts(v))}" for k, v in doc.items()) + "}"
 
 
 def array_parts(items: Iterable[Any], block: int = 4096) -> JSONParts:

@@ -35,6 +35,7 @@ import numpy as np
 from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, analyse_parts
 from console.analysis.head_table import HeadTable
 from console.analysis.passages import Columns, merge_buckets
+from console.analysis.status import STATUS_KIND
 from console.analysis.timefmt import NS
 from parsers.diag import DiagChunk, DiagRegistry
 
@@ -214,3 +215,34 @@ def by_head_and_start(cols: Columns) -> np.ndarray:
 def by_start(cols: Columns) -> np.ndarray:
     """Row order of a stream: by start time, then head key."""
     return np.lexsort((cols["head"], cols["start_ns"]))
+
+
+@dataclass
+class FirstPassages:
+    """The first ``limit`` listed passages of a whole read's order (by head key, then start) and how many
+    passages there are, from batches of closed passages: what a table of the first rows needs, in memory
+    bounded by ``limit`` (a log may close a passage at each of a million heads).
+
+    Status-only passages are counted, not listed.  Ties keep the order the batches came in, as the
+    whole table's stable sort does.
+    """
+
+    limit: int
+    cols: Columns | None = None
+    listed: int = 0
+    status: int = 0
+
+    def add(self, cols: Columns, heads: object = None) -> None:
+        """One batch of closed passages (``heads``: unused, for the passage sinks' signature)."""
+        status = cols["kind"] == STATUS_KIND
+        self.status += int(status.sum())
+        keep = np.flatnonzero(~status)
+        self.listed += len(keep)
+        part = take_passages(cols, keep)
+        merged = concat_passages([self.cols, part]) if self.cols is not None else part
+        assert merged is not None
+        self.cols = take_passages(merged, by_head_and_start(merged)[: self.limit])
+
+    def clear(self) -> None:
+        """Forget every passage taken so far (the log is read again)."""
+        self.cols, self.listed, self.status = None, 0, 0
