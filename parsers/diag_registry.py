@@ -125,13 +125,20 @@ class DiagRegistry:
         )
 
     def count_records(self, register_id: np.ndarray) -> None:
-        """Add parsed records to the per-register totals."""
-        counts = np.bincount(register_id, minlength=self.n_registers)
-        if len(self.record_counts) < len(counts):
-            grown = np.zeros(len(counts), np.int64)
+        """Add parsed records to the per-register totals (kept for every register, perhaps with room beyond)."""
+        if len(self.record_counts) < self.n_registers:
+            # Room for half as many again: a log adding registers in every chunk copies the totals rarely.
+            grown = np.zeros(max(self.n_registers, len(self.record_counts) * 3 // 2), np.int64)
             grown[: len(self.record_counts)] = self.record_counts
             self.record_counts = grown
-        self.record_counts[: len(counts)] += counts
+        if not len(register_id):
+            return
+        # Counted over the chunk's span of ids only: a chunk of new registers is no pass over all of them.
+        lo, hi = int(register_id.min()), int(register_id.max())
+        if hi - lo <= 4 * len(register_id) + 4096:
+            self.record_counts[lo : hi + 1] += np.bincount(register_id - lo, minlength=hi - lo + 1)
+        else:
+            np.add.at(self.record_counts, register_id, 1)
 
     def unknown_labels(self) -> dict[str, int]:
         """Records per label that maps to no known register (kept verbatim), labels in register order."""

@@ -4,7 +4,7 @@ A log of a million counting heads has a million distinct register spans and
 head names.  A ``dict`` keyed by them costs some 250 bytes an entry (the
 key object, its hash slot, the id's int), more than the log line the entry
 came from.  Here each entry is a 128-bit BLAKE2b digest of its bytes in
-sorted numpy runs (16 bytes, plus 4 for its id), and a :class:`StringDictionary`
+numpy runs sorted by the digest (16 bytes, plus 4 for its id), and a :class:`StringDictionary`
 keeps its strings as one UTF-8 buffer with offsets, as Arrow does.
 
 The digest stands for the bytes: two different strings share one with
@@ -41,13 +41,32 @@ def digests(keys: Sequence[bytes]) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _Run:
-    """Digests sorted by (high, low) with their ids."""
+    """Digests sorted by their high half (entries sharing one are told apart by the low half) with their ids."""
 
     __slots__ = ("hi", "ids", "lo")
 
     def __init__(self, hi: np.ndarray, lo: np.ndarray, ids: np.ndarray) -> None:
-        order = np.lexsort((lo, hi))
-        self.hi, self.lo, self.ids = hi[order], lo[order], ids[order]
+        self.hi, self.lo, self.ids = hi, lo, ids
+
+    @classmethod
+    def sorted(cls, hi: np.ndarray, lo: np.ndarray, ids: np.ndarray) -> _Run:
+        order = np.argsort(hi, kind="stable")
+        return cls(hi[order], lo[order], ids[order])
+
+    @classmethod
+    def merged(cls, a: _Run, b: _Run) -> _Run:
+        """Two runs as one, merged in place of a sort: each entry of ``b`` goes after the entries of ``a``
+        not above it; the new arrays are the only copies made."""
+        at_b = np.searchsorted(a.hi, b.hi, "right") + np.arange(len(b.hi))
+        from_b = np.zeros(len(a.hi) + len(b.hi), bool)
+        from_b[at_b] = True
+        out = []
+        for x, y in ((a.hi, b.hi), (a.lo, b.lo), (a.ids, b.ids)):
+            col = np.empty(len(from_b), x.dtype)
+            col[at_b] = y
+            col[~from_b] = x
+            out.append(col)
+        return cls(*out)
 
     def find(self, hi: np.ndarray, lo: np.ndarray, out: np.ndarray) -> None:
         """Write the id of each digest found here into ``out``."""
@@ -87,13 +106,11 @@ class DigestIndex:
         """Add digests (absent so far, distinct) with their ids."""
         if not len(hi):
             return
-        self._runs.append(_Run(hi, lo, ids.astype(np.int32, copy=False)))
+        self._runs.append(_Run.sorted(hi, lo, ids.astype(np.int32, copy=False)))
         self._n += len(hi)
         while len(self._runs) > 1 and len(self._runs[-2].hi) <= 2 * len(self._runs[-1].hi):
             b, a = self._runs.pop(), self._runs.pop()
-            self._runs.append(
-                _Run(np.concatenate([a.hi, b.hi]), np.concatenate([a.lo, b.lo]), np.concatenate([a.ids, b.ids]))
-            )
+            self._runs.append(_Run.merged(a, b))
 
 
 class Growable:

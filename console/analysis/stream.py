@@ -136,18 +136,21 @@ class PassageStream:
         self._open_last[h] = np.where(prev == NO_TIME, last, np.maximum(prev, last))
 
     def _close(self, final: bool) -> PartAnalysis | None:
+        # Per head state is updated in place, and temporaries are only the heads closing (a log
+        # may have a million heads and close a few hundred per chunk).
         idle = self._open_last != NO_TIME
         if not final:
             idle &= self._open_last < self.clock_ns - self._gap_ns - self._slack_ns
-        closing = np.where(idle, self._open_last, self._cut)
-        self._closed_upto = np.maximum(self._closed_upto, closing)
+        closing = np.flatnonzero(idle | (self._cut != NO_TIME))
+        if not len(closing):
+            return None
+        upto = np.where(idle[closing], self._open_last[closing], self._cut[closing])
+        self._closed_upto[closing] = np.maximum(self._closed_upto[closing], upto)
         self._cut[idle] = ALL_TIME
         self._open_last[idle] = NO_TIME
-        if not (self._cut != NO_TIME).any():
-            return None
-        cut, self._cut = self._cut, np.full(len(self._cut), NO_TIME, np.int64)
-        buckets, self.acc._buckets = _split(self.acc._buckets, cut, "t_first_ns")
-        detections, self.acc._detections = _split(self.acc._detections, cut, "time_ns")
+        buckets, self.acc._buckets = _split(self.acc._buckets, self._cut, "t_first_ns")
+        detections, self.acc._detections = _split(self.acc._detections, self._cut, "time_ns")
+        self._cut[closing] = NO_TIME
         if len(self.acc._buckets) > _MERGE_PARTS:
             self.acc._buckets = [merge_buckets(self.acc._buckets)]
         if len(self.acc._detections) > _MERGE_PARTS:
