@@ -121,16 +121,25 @@ class RegisterTables:
 
 
 def _unique_in_order(group: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distinct (group, value) pairs, per group in order of first appearance."""
+    """Distinct (group, value) pairs, per group in order of first appearance (int64)."""
     if not len(group):
-        return group, value
-    # Sorted by (group, value), stably: each pair's run starts at its first appearance.
-    order = np.lexsort((value, group))
-    g, v = group[order], value[order]
-    starts = np.flatnonzero(np.r_[True, (g[1:] != g[:-1]) | (v[1:] != v[:-1])])
-    first = np.sort(order[starts])
-    by_group = np.lexsort((first, group[first]))
-    return group[first][by_group], value[first][by_group]
+        return group.astype(np.int64), value.astype(np.int64)
+    g64, v64 = group.astype(np.int64), value.astype(np.int64)
+    if g64.min() >= 0 and v64.min() >= 0 and g64.max() < 2**31 and v64.max() < 2**32:
+        # One int64 key per pair (ids, channels and head keys are small and not negative): one sort,
+        # stable, so each pair's run starts at its first appearance.
+        key = (g64 << 32) | v64
+        del g64, v64
+        _, first = np.unique(key, return_index=True)
+        del key
+    else:
+        order = np.lexsort((v64, g64))
+        g, v = g64[order], v64[order]
+        first = order[np.flatnonzero(np.r_[True, (g[1:] != g[:-1]) | (v[1:] != v[:-1])])]
+        del g, v, order
+    first = np.sort(first)
+    by_group = first[np.lexsort((first, group[first]))]
+    return group[by_group].astype(np.int64), value[by_group].astype(np.int64)
 
 
 def inventory(
@@ -146,24 +155,27 @@ def inventory(
     """
     reg = tables.registry
     arr = reg.arrays()
-    counts = np.zeros(len(arr["device_id"]), np.int64)
-    counts[: len(reg.record_counts)] = reg.record_counts[: len(counts)]
+    counts = reg.record_counts[: reg.n_registers]
+    if len(counts) < reg.n_registers:  # registers of no record yet
+        counts = np.r_[counts, np.zeros(reg.n_registers - len(counts), np.int64)]
     rid = np.flatnonzero(counts)
     if not len(rid):
         return DeviceTable.empty()
-    dev = arr["device_id"][rid].astype(np.int64)
+    dev = arr["device_id"][rid]
     devices, first_rid, dev_index = np.unique(dev, return_index=True, return_inverse=True)
+    devices = devices.astype(np.int64)
     records = np.zeros(len(devices), np.int64)
     np.add.at(records, dev_index.reshape(-1), counts[rid])
-    d_diag, v_diag = _unique_in_order(dev, arr["diag_id"][rid].astype(np.int64))
-    d_chan, v_chan = _unique_in_order(dev, arr["channel"][rid].astype(np.int64))
+    del dev_index
+    d_diag, v_diag = _unique_in_order(dev, arr["diag_id"][rid])
+    d_chan, v_chan = _unique_in_order(dev, arr["channel"][rid])
     d_head, v_head = _unique_in_order(dev, tables.head_of(rid))
     # Each device's span: over its heads' first and last record times.
     n_heads = len(tables.head_device)
-    hf = np.full(n_heads, _NONE, np.int64)
-    hl = np.full(n_heads, -_NONE, np.int64)
-    hf[: len(head_first_ns)] = head_first_ns[:n_heads]
-    hl[: len(head_last_ns)] = head_last_ns[:n_heads]
+    hf, hl = head_first_ns[:n_heads], head_last_ns[:n_heads]
+    if len(hf) < n_heads:  # heads without records yet
+        hf = np.r_[hf, np.full(n_heads - len(hf), _NONE, np.int64)]
+        hl = np.r_[hl, np.full(n_heads - len(hl), -_NONE, np.int64)]
     ident: dict[int, list[IdentityValue]] = {}
     for r, (_, value, kind, data_code) in identity.items():  # a few dozen identity registers
         ident.setdefault(int(arr["device_id"][r]), []).append(
