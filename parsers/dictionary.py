@@ -152,6 +152,7 @@ class StringDictionary:
         self._offsets = Growable(np.int64)
         self._offsets.extend(np.zeros(1, np.int64))
         self._values: list[str] = []  # decoded on demand, for the few callers that want a list
+        self._surrogates = False  # some string is not valid Unicode: not one for Arrow
 
     def __len__(self) -> int:
         return self._offsets.n - 1
@@ -181,7 +182,11 @@ class StringDictionary:
         for i in miss:
             firsts.setdefault(values[i], len(firsts))
         distinct = list(firsts)
-        encoded = [v.encode("utf-8", "surrogatepass") for v in distinct]
+        try:
+            encoded = [v.encode("utf-8") for v in distinct]
+        except UnicodeEncodeError:  # a lone surrogate (an undecodable byte of a file name)
+            encoded = [v.encode("utf-8", "surrogatepass") for v in distinct]
+            self._surrogates = True
         hi, lo = digests(encoded)
         ids = self._index.get(hi, lo)
         new = np.flatnonzero(ids < 0)
@@ -214,20 +219,21 @@ class StringDictionary:
     def take(self, codes: np.ndarray) -> list[str]:
         """The strings of ``codes``, as a new list."""
         codes = np.asarray(codes, np.int64)
+        if 8 * len(codes) >= len(self._text) and len(codes) > 64 and not self._surrogates:
+            # Many: Arrow makes the strings in C (no Python int per offset).
+            return list(self.arrow().take(pa.array(codes)).to_numpy(zero_copy_only=False).tolist())
         at = self._offsets.data
-        starts, ends = at[codes].tolist(), at[codes + 1].tolist()
-        if 16 * len(codes) >= len(self._text) and self._text.isascii():
-            # Many: decode the buffer once (ASCII: byte offsets are character offsets), then slice.
-            text = self._text.decode("ascii")
-            return [text[a:b] for a, b in zip(starts, ends, strict=True)]
         buf = self._text
-        return [buf[a:b].decode("utf-8", "surrogatepass") for a, b in zip(starts, ends, strict=True)]
+        return [
+            buf[a:b].decode("utf-8", "surrogatepass")
+            for a, b in zip(at[codes].tolist(), at[codes + 1].tolist(), strict=True)
+        ]
 
     def arrow(self) -> pa.Array:
         """All strings, by code, as an Arrow large_string array over one copy of the buffer.
 
-        Strings that are not valid UTF-8 (surrogates) make Arrow's validation fail: callers
-        needing those shown use :attr:`values`."""
+        A string that is not valid Unicode (a lone surrogate) is not valid UTF-8 there: callers
+        needing those use :meth:`take`."""
         n = len(self)
         offsets = self._offsets.data[: n + 1]
         return pa.Array.from_buffers(

@@ -119,4 +119,7 @@ def test_string_dictionary_take_reads_many_or_few_the_same() -> None:
     d.codes(names)
     codes = np.array([101, 0, 100, 5, 5])
     assert d.take(codes) == [names[c] for c in codes]
-    assert d.take(np.arange(len(names))) == names  # many: the whole buffer decoded once
+    assert d.take(np.arange(len(names))) == names  # many: made by Arrow
+    odd = StringDictionary()
+    odd.codes([*names, "file\udcff"])  # not valid Unicode: never through Arrow
+    assert odd.take(np.arange(len(names) + 1)) == [*names, "file\udcff"]
