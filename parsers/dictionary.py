@@ -19,6 +19,7 @@ strings a realistic log repeats in every chunk without hashing them again.
 from __future__ import annotations
 
 import hashlib
+import sys
 from collections.abc import Sequence
 
 import numpy as np
@@ -219,9 +220,15 @@ class StringDictionary:
     def take(self, codes: np.ndarray) -> list[str]:
         """The strings of ``codes``, as a new list."""
         codes = np.asarray(codes, np.int64)
-        if 8 * len(codes) >= len(self._text) and len(codes) > 64 and not self._surrogates:
-            # Many: Arrow makes the strings in C (no Python int per offset).
-            return list(self.arrow().take(pa.array(codes)).to_numpy(zero_copy_only=False).tolist())
+        if len(codes) >= 4096 and 8 * len(codes) >= len(self._text) and not self._surrogates:
+            # Many: Arrow makes the strings (no Python int per offset).  Its numpy conversion is the
+            # faster but imports pandas, which a JSON-only command never loads: only if it is loaded
+            # (and the indices are handed over as a buffer: pa.array would look for pandas too).
+            indices = pa.Array.from_buffers(pa.int64(), len(codes), [None, pa.py_buffer(codes)])
+            taken = self.arrow().take(indices)
+            if "pandas" in sys.modules:
+                return list(taken.to_numpy(zero_copy_only=False).tolist())
+            return list(taken.to_pylist())
         at = self._offsets.data
         buf = self._text
         return [

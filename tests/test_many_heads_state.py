@@ -115,11 +115,28 @@ def test_array_parts_of_nothing_and_of_one_block() -> None:
 
 def test_string_dictionary_take_reads_many_or_few_the_same() -> None:
     d = StringDictionary()
-    names = [f"H{i}" for i in range(100)] + ["Zähler", "Ω"]
+    names = [f"H{i}" for i in range(5000)] + ["Zähler", "Ω"]
     d.codes(names)
-    codes = np.array([101, 0, 100, 5, 5])
+    codes = np.array([5001, 0, 5000, 5, 5])
     assert d.take(codes) == [names[c] for c in codes]
     assert d.take(np.arange(len(names))) == names  # many: made by Arrow
     odd = StringDictionary()
     odd.codes([*names, "file\udcff"])  # not valid Unicode: never through Arrow
     assert odd.take(np.arange(len(names) + 1)) == [*names, "file\udcff"]
+
+
+def test_analyze_json_of_many_heads_never_loads_pandas(tmp_path: Path) -> None:
+    """The JSON faces are pandas-free (it costs some 40 MB): many heads take the Arrow path for names,
+    which must not pull pandas in either."""
+    import subprocess
+    import sys
+
+    log = _heads_log(tmp_path / "heads.log", 9000)
+    code = (
+        "import contextlib, os, sys; from console.cli import app\n"
+        "with open(os.devnull, 'w') as f, contextlib.redirect_stdout(f), contextlib.suppress(SystemExit):\n"
+        f"    app(['analyze', {str(log)!r}, '--json'], standalone_mode=False)\n"
+        "print('pandas' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False", out.stderr[-2000:]
