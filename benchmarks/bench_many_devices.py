@@ -244,6 +244,7 @@ def main() -> int:
 
     print(f"{'command':<16} {'input':>28} {'MB in':>7} {'wall s':>7} {'peak RSS MB':>12} {'RSS/in':>7}  exit  code")
     wanted = {w.strip() for w in args.only.split(",") if w.strip()}
+    profiled = []
     for name, argv, path in jobs:
         if wanted and name.replace(" (text)", "-text") not in wanted:
             continue
@@ -259,7 +260,11 @@ def main() -> int:
                 flush=True,
             )
         if args.profile:
-            profile(argv)
+            profiled.append(argv)
+    # Profiled last: a child forked from a parent grown by a profile reports the parent's RSS as its peak.
+    for argv in profiled:
+        print(f"profile: trackside {' '.join(argv)}")
+        profile(argv)
     return 0
 
 

@@ -599,7 +599,10 @@ def chunks_to_frame(chunks: list[DiagChunk], registry: DiagRegistry) -> pd.DataF
             "device": _categorical(reg("device", "int32"), registry.devices.values),
             "type": _categorical(reg("type", "int32"), registry.types.values),
             "gs": _categorical(reg("gs", "int32"), registry.gs.values),
-            "counting_head": _categorical(reg("counting_head", "int32"), registry.heads.values),
+            # All head names, not kept as a list by the registry (a log may name a million heads).
+            "counting_head": _categorical(
+                reg("counting_head", "int32"), registry.heads.take(np.arange(len(registry.heads)))
+            ),
             "channel": reg("channel", "int8"),
             "address": reg("address", "int32").astype(np.int16),
             "label": _categorical(reg("label", "int32"), registry.labels.values),
