@@ -4,8 +4,9 @@ A log of a million counting heads has a million distinct register spans and
 head names.  A ``dict`` keyed by them costs some 250 bytes an entry (the
 key object, its hash slot, the id's int), more than the log line the entry
 came from.  Here each entry is a 128-bit BLAKE2b digest of its bytes in
-numpy runs sorted by the digest (16 bytes, plus 4 for its id), and a :class:`StringDictionary`
-keeps its strings as one UTF-8 buffer with offsets, as Arrow does.
+numpy runs sorted by the digest's high half (16 bytes, plus 4 for its id),
+and a :class:`StringDictionary` keeps its strings as one UTF-8 buffer with
+offsets, as Arrow does.
 
 The digest stands for the bytes: two different strings share one with
 probability 2^-128 per pair, and a cryptographic hash cannot be steered to a
@@ -44,10 +45,12 @@ def digests(keys: Sequence[bytes]) -> tuple[np.ndarray, np.ndarray]:
 class _Run:
     """Digests sorted by their high half (entries sharing one are told apart by the low half) with their ids."""
 
-    __slots__ = ("hi", "ids", "lo")
+    __slots__ = ("hi", "ids", "lo", "shared_hi")
 
     def __init__(self, hi: np.ndarray, lo: np.ndarray, ids: np.ndarray) -> None:
         self.hi, self.lo, self.ids = hi, lo, ids
+        # Entries sharing a high half: about one pair in 10^7 at a million entries (none for exact keys).
+        self.shared_hi = bool(len(hi) > 1 and (hi[1:] == hi[:-1]).any())
 
     @classmethod
     def sorted(cls, hi: np.ndarray, lo: np.ndarray, ids: np.ndarray) -> _Run:
@@ -74,20 +77,21 @@ class _Run:
         if not len(self.hi) or not len(hi):
             return
         left = np.searchsorted(self.hi, hi, "left")
-        right = np.searchsorted(self.hi, hi, "right")
-        one = (right - left) == 1
         at = np.minimum(left, len(self.hi) - 1)
-        hit = one & (self.lo[at] == lo)
+        hit = (self.hi[at] == hi) & (self.lo[at] == lo)
         out[hit] = self.ids[at[hit]]
-        # Two entries sharing a high half (about one pair in 10^7 at a million entries): by hand.
-        for q in np.flatnonzero((right - left) > 1).tolist():
-            for k in range(int(left[q]), int(right[q])):
-                if self.lo[k] == lo[q]:
-                    out[q] = self.ids[k]
+        if self.shared_hi:
+            # The first entry of a shared high half may not be the one: look at the others by hand.
+            right = np.searchsorted(self.hi, hi, "right")
+            for q in np.flatnonzero(((right - left) > 1) & ~hit).tolist():
+                for k in range(int(left[q]) + 1, int(right[q])):
+                    if self.lo[k] == lo[q]:
+                        out[q] = self.ids[k]
 
 
 class DigestIndex:
-    """128-bit digests → int32 ids, in sorted runs (see the module docstring)."""
+    """128-bit digests (or any distinct 128-bit keys, as two uint64 halves) → int32 ids, in sorted runs
+    (see the module docstring)."""
 
     def __init__(self) -> None:
         self._runs: list[_Run] = []
@@ -167,22 +171,12 @@ class StringDictionary:
 
     def codes(self, values: Sequence[str]) -> np.ndarray:
         """Codes of many strings at once (int32), new strings numbered in order of first sight."""
-        out = np.empty(len(values), np.int32)
-        miss: list[int] = []
         front = self._front
-        for i, v in enumerate(values):
-            found = front.get(v)
-            if found is None:
-                miss.append(i)
-            else:
-                out[i] = found
-        if not miss:
-            return out
+        got = [front.get(v) for v in values]
+        if None not in got:
+            return np.array(got, np.int32)
         # Distinct missed strings, in order of first sight.
-        firsts: dict[str, int] = {}
-        for i in miss:
-            firsts.setdefault(values[i], len(firsts))
-        distinct = list(firsts)
+        distinct = list(dict.fromkeys([v for v, g in zip(values, got, strict=True) if g is None]))
         try:
             encoded = [v.encode("utf-8") for v in distinct]
         except UnicodeEncodeError:  # a lone surrogate (an undecodable byte of a file name)
@@ -198,11 +192,12 @@ class StringDictionary:
             lengths = np.fromiter(map(len, new_bytes), np.int64, len(new_bytes))
             self._offsets.extend(len(self._text) + np.cumsum(lengths))
             self._text += b"".join(new_bytes)
-        if len(front) + len(distinct) > FRONT_CACHE_MAX:
+        found = dict(zip(distinct, ids.tolist(), strict=True))
+        if len(front) + len(found) > FRONT_CACHE_MAX:
             front.clear()
-        front.update(zip(distinct, ids.tolist(), strict=True))
-        out[miss] = ids[[firsts[values[i]] for i in miss]]
-        return out
+        if len(found) <= FRONT_CACHE_MAX:  # more at once: new strings, not the ones a log repeats
+            front.update(found)
+        return np.array([found[v] if g is None else g for v, g in zip(values, got, strict=True)], np.int32)
 
     def value(self, code: int) -> str:
         """The string of one code."""
