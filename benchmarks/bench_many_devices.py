@@ -137,8 +137,9 @@ def write_devices_csv(path: Path, devices: int) -> None:
 
 def run(
     cmd: list[str], limit_mb: int, timeout_s: float, env: dict[str, str] | None = None
-) -> tuple[float, float, int, str]:
-    """(wall s, peak RSS MB, exit code, stderr tail) of one child; stdout discarded."""
+) -> tuple[float, float, float, int, str]:
+    """(wall s, CPU s (user + system), peak RSS MB, exit code, stderr tail) of one child; stdout discarded.
+    CPU time is what to compare on a machine shared with other jobs."""
 
     def limit() -> None:
         limit_bytes = limit_mb << 20
@@ -162,7 +163,7 @@ def run(
     code = os.waitstatus_to_exitcode(status)
     if wall > timeout_s:
         err = f"killed after {timeout_s:.0f} s; " + err
-    return wall, usage.ru_maxrss / 1024, code, err.strip()[-300:]
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024, code, err.strip()[-300:]
 
 
 def profile(argv: list[str], top: int = 12) -> None:
@@ -246,8 +247,12 @@ def main() -> int:
             ("report", ["report", str(csv), "--format", "json"], csv),
         ]
 
-    print(f"{'command':<16} {'input':>28} {'MB in':>7} {'wall s':>7} {'peak RSS MB':>12} {'RSS/in':>7}  exit  code")
+    print(
+        f"{'command':<16} {'input':>28} {'MB in':>7} {'wall s':>7} {'CPU s':>7} {'peak RSS MB':>12} {'RSS/in':>7}"
+        "  exit  code"
+    )
     wanted = {w.strip() for w in args.only.split(",") if w.strip()}
+    profiled = []
     for name, argv, path in jobs:
         if wanted and name.replace(" (text)", "-text") not in wanted:
             continue
@@ -255,15 +260,20 @@ def main() -> int:
         for code in codes:
             cmd = [exe, *argv] if code is None else [sys.executable, "-P", "-c", runner, *argv]  # -P: not the cwd first
             env = None if code is None else {**os.environ, "PYTHONPATH": str(code)}
-            wall, rss_mb, rc, err = run(cmd, args.limit_mb, args.timeout, env)
+            wall, cpu, rss_mb, rc, err = run(cmd, args.limit_mb, args.timeout, env)
             print(
-                f"{name:<16} {path.name:>28} {size_mb:7.1f} {wall:7.1f} {rss_mb:12.0f} {rss_mb / size_mb:7.1f}  {rc:4d}"
+                f"{name:<16} {path.name:>28} {size_mb:7.1f} {wall:7.1f} {cpu:7.1f} {rss_mb:12.0f}"
+                f" {rss_mb / size_mb:7.1f}  {rc:4d}"
                 + f"  {code or 'installed'}"
                 + (f"  {err}" if rc not in (0, 1) else ""),
                 flush=True,
             )
         if args.profile:
-            profile(argv)
+            profiled.append(argv)
+    # Profiled last: a child forked from a parent grown by a profile reports the parent's RSS as its peak.
+    for argv in profiled:
+        print(f"profile: trackside {' '.join(argv)}")
+        profile(argv)
     return 0
 
 

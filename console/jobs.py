@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from console.analysis.diagnostics import DiagAccumulator, DiagAnalysis, PartAnalysis, SpeedSettings
+from console.analysis.head_table import Heads
 from console.analysis.passages import Columns
 from console.analysis.status import StatusSummary
 from console.analysis.stream import PassageStream, by_head_and_start, by_start, concat_passages, take_passages
@@ -91,9 +92,7 @@ def _read_whole(
         if on_records is not None:
             on_records(len(chunk))
         if keep_registers:
-            regs = reader.registry.registers
-            wanted = np.fromiter((r.label_canonical in keep_registers for r in regs), bool, len(regs))
-            mask = wanted[chunk.register_id]
+            mask = reader.registry.canonical_in(keep_registers)[chunk.register_id]
             if mask.any():
                 kept.append(chunk.take(mask))
     analysis = acc.result(settings)
@@ -104,7 +103,7 @@ def _read_whole(
 
 
 # A batch of closed passages (columns of diagnostics._passages, by start time) and the head list.
-OnPassages = Callable[[Columns, list[tuple[int, str]]], None]
+OnPassages = Callable[[Columns, Heads], None]
 
 
 def stream_files(
@@ -187,7 +186,6 @@ def stream_files(
         axle_columns=axle_cols,
         overlap_records=0,
         unpaired_detections=stream.unpaired_detections,
-        head_names=[name for _, name in stream.heads],
         overlap_by_file=[0] * len(reader.report.files),
         heads=stream.heads,
     )
@@ -199,6 +197,13 @@ def stream_files(
         passage_count=count,
         late_records=stream.late_records,
     )
+
+
+def status_json(status: StatusSummary, heads: Heads) -> dict[str, object]:
+    """``status_passages`` of a JSON document: the rows per head encoded as they are written."""
+    from console.jsonout import array_parts
+
+    return {**status.totals(), "by_head": array_parts(status.by_head(heads))}
 
 
 def summarise_status(job: DiagJob) -> None:
@@ -229,7 +234,7 @@ def summary_doc(job: DiagJob, schema: str) -> dict[str, object]:
             "pair_window_s": s.pair_window_s,
         },
         "passages": job.passage_count if job.passage_count is not None else (len(cols["head"]) if cols else 0),
-        **({"status_passages": job.status.to_dict(a.heads)} if job.status is not None else {}),
+        **({"status_passages": status_json(job.status, a.heads)} if job.status is not None else {}),
         "overlap_records": a.overlap_records,
         "unpaired_detections": a.unpaired_detections,
         "parse_report": report,

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from typing import Any, TextIO
 
 # In JSON text from json.dumps(ensure_ascii=True): an escaped backslash, a
@@ -54,8 +55,36 @@ def encode(value: Any) -> str:
 
 
 def dumps(doc: dict[str, Any]) -> str:
-    """Compact, ASCII-only JSON; top-level :class:`RawJSON` values go in verbatim."""
-    return "{" + ",".join(f"{valid_unicode(json.dumps(k))}:{_encode(v)}" for k, v in doc.items()) + "}"
+    """Compact, ASCII-only JSON; :class:`RawJSON` and :class:`JSONParts` values go in verbatim."""
+    return "{" + ",".join(f"{valid_unicode(json.dumps(k))}:{''.join(_parts(v))}" for k, v in doc.items()) + "}"
+
+
+def array_parts(items: Iterable[Any], block: int = 4096) -> JSONParts:
+    """A JSON array of ``items`` (e.g. a generator), encoded ``block`` items at a time: the items
+    need never be all in memory, nor their text."""
+
+    def parts() -> Iterator[str]:
+        it = iter(items)
+        sep = "["
+        while batch := list(itertools.islice(it, block)):
+            yield sep + _encode(batch)[1:-1]
+            sep = ","
+        yield "[]" if sep == "[" else "]"
+
+    return JSONParts(parts())
+
+
+def _parts(value: Any) -> Iterator[str]:
+    """The JSON text of a value whose parts may be :class:`JSONParts` (also inside a dict), piece by piece."""
+    if isinstance(value, JSONParts):
+        yield from value.parts
+    elif isinstance(value, dict) and any(isinstance(v, JSONParts) for v in value.values()):
+        for i, (key, item) in enumerate(value.items()):
+            yield ("{" if i == 0 else ",") + valid_unicode(json.dumps(key)) + ":"
+            yield from _parts(item)
+        yield "}"
+    else:
+        yield _encode(value)
 
 
 def write(doc: dict[str, Any], out: TextIO) -> None:
@@ -63,9 +92,6 @@ def write(doc: dict[str, Any], out: TextIO) -> None:
     out.write("{")
     for i, (key, value) in enumerate(doc.items()):
         out.write(("," if i else "") + valid_unicode(json.dumps(key)) + ":")
-        if isinstance(value, JSONParts):
-            for part in value.parts:
-                out.write(part)
-        else:
-            out.write(_encode(value))
+        for part in _parts(value):
+            out.write(part)
     out.write("}\n")

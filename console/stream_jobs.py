@@ -457,9 +457,8 @@ def _stream_once(
     for chunk in reader.chunks():
         closed(stream.add(chunk))
         if keep_registers:
-            regs = reader.registry.registers
-            if len(wanted) < len(regs):
-                wanted = np.fromiter((r.label_canonical in keep_registers for r in regs), bool, len(regs))
+            if len(wanted) < reader.registry.n_registers:
+                wanted = reader.registry.canonical_in(keep_registers)
             mask = wanted[chunk.register_id]
             if mask.any():
                 kept.append(chunk.take(mask))
@@ -479,7 +478,6 @@ def _stream_once(
         axle_columns=_no_axles(),
         overlap_records=0,
         unpaired_detections=stream.unpaired_detections,
-        head_names=[name for _, name in stream.heads],
         overlap_by_file=[0] * len(reader.report.files),
         heads=stream.heads,
     )

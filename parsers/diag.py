@@ -26,21 +26,29 @@ line number and reason (``parsers.report``).
 
 from __future__ import annotations
 
-import datetime as dt
-import re
-import sys
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow as pa
 
-from parsers.labels import canonical_label, decode_label
-from parsers.report import FileReport, ParseReport, escape_name, escape_text
+from parsers.diag_fields import (
+    DATA_KINDS,
+    FIELD_KEYS,
+    REGISTER_FIELDS,
+    FieldError,
+    RegisterKey,
+    decode_data,
+    decode_date,
+    parse_register_span,
+    parse_time,
+)
+from parsers.diag_registry import DiagRegistry
+from parsers.report import FileReport, ParseReport, escape_name
 from parsers.sources import (
     DEFAULT_CHUNK_BYTES,
     DEFAULT_MAX_LINE_BYTES,
@@ -54,21 +62,23 @@ from parsers.sources import (
 if TYPE_CHECKING:
     import pandas as pd
 
-FIELD_KEYS = (
-    "Diag_id",
-    "ID",
-    "Device",
-    "Type",
-    "GS",
-    "Trackinfo",
-    "ch",
-    "Adr",
-    "Label",
-    "Data",
-    "Date",
-    "Time",
-)
-REGISTER_FIELDS = FIELD_KEYS[:9]
+# Re-exported: the record's fields and the registry are part of this module's interface.
+__all__ = [
+    "DATA_KINDS",
+    "FIELD_KEYS",
+    "REGISTER_FIELDS",
+    "DiagChunk",
+    "DiagReader",
+    "DiagRegistry",
+    "FieldError",
+    "RegisterKey",
+    "chunks_to_frame",
+    "decode_data",
+    "decode_date",
+    "parse_register_span",
+    "parse_time",
+    "read_diag",
+]
 
 # Arrow's binary-view layout stores spans of up to 12 bytes inline; every
 # valid span here is longer, so shorter ones are rejected before viewing.
@@ -77,341 +87,6 @@ _VIEW = np.dtype([("len", "<i4"), ("prefix", "<u4"), ("buf", "<i4"), ("off", "<i
 _TIME_KEY = int.from_bytes(b"Time:", "little")
 _NS = 1_000_000_000
 _POW10 = np.array([10**k for k in range(10)], dtype=np.int64)
-_ERROR_CACHE_MAX = 20_000
-_VALUE_CACHE_MAX = 200_000
-
-_INT_RE = re.compile(r"-?\d+")
-_HEX_RE = re.compile(r"0[xX][0-9A-Fa-f]{1,16}")
-_ISO_DATE_RE = re.compile(r"(\d{4})-(\d{2})-(\d{2})")
-_DE_DATE_RE = re.compile(r"(\d{2})\.(\d{2})\.(\d{4})")
-_CONTROL_RE = re.compile(r"[\x00-\x1f\x7f-\x9f]")
-
-DATA_KINDS = ("decimal", "hex", "char")
-
-
-class FieldError(Exception):
-    """A field that does not hold what its key promises."""
-
-    def __init__(self, category: str, reason: str) -> None:
-        super().__init__(reason)
-        self.category = category
-        self.reason = reason
-
-
-@dataclass(frozen=True, slots=True)  # slots: a log of a million heads holds a million keys
-class RegisterKey:
-    """Fields 1–9 of a record: who wrote it, on which channel, which register."""
-
-    diag_id: int
-    device_id: int
-    device: str
-    type: str
-    gs: str
-    counting_head: str
-    channel: int
-    address: int
-    label: str
-    label_canonical: str | None
-    label_encoding: str
-
-
-class _Interner:
-    """Strings → dense codes, for categorical columns shared across chunks."""
-
-    def __init__(self) -> None:
-        self.values: list[str] = []
-        self._codes: dict[str, int] = {}
-
-    def code(self, value: str) -> int:
-        found = self._codes.get(value)
-        if found is None:
-            found = self._codes[value] = len(self.values)
-            self.values.append(value)
-        return found
-
-
-def _text(raw: bytes, key: str) -> str:
-    text, _ = decode_label(raw)
-    text = text.strip()
-    if _CONTROL_RE.search(text):
-        raise FieldError(key, f"{key}: control characters in '{escape_text(raw, 40)}'")
-    return text
-
-
-def _digits(raw: bytes, key: str, what: str) -> int:
-    text = raw.strip()
-    if not text.isdigit() or len(text) > 9:
-        raise FieldError(key, f"{key}: expected {what}, found '{escape_text(raw, 40)}'")
-    return int(text)
-
-
-def _split_fields(span: bytes, keys: tuple[str, ...], first_index: int) -> list[bytes]:
-    parts = span.split(b"\t")
-    values = []
-    for i, (key, part) in enumerate(zip(keys, parts, strict=True)):
-        name, sep, value = part.partition(b":")
-        if not sep or name.strip() != key.encode():
-            raise FieldError(
-                "fields",
-                f"field {first_index + i}: expected '{key}:…', found '{escape_text(part, 40)}'",
-            )
-        values.append(value)
-    return values
-
-
-def parse_register_span(span: bytes) -> RegisterKey:
-    """Validate and decode fields 1–9 of a record (once per distinct span)."""
-    diag, dev_id, device, typ, gs, head, ch, adr, label = _split_fields(span, REGISTER_FIELDS, 1)
-    channel = _digits(ch, "ch", "a channel number (1 = Sys1, 2 = Sys2)")
-    if channel > 15:
-        raise FieldError("ch", f"ch: expected a channel number 0-15, found {channel}")
-    counting_head = _text(head, "Trackinfo")
-    if not counting_head:
-        raise FieldError("Trackinfo", "Trackinfo: empty counting head name")
-    device_name = _text(device, "Device")
-    label_text, label_encoding = decode_label(label)
-    if _CONTROL_RE.search(label_text):
-        raise FieldError("Label", f"Label: control characters in '{escape_text(label, 40)}'")
-    label_text = label_text.strip()
-    # Names shared by many registers are one string each (sys.intern), not one per register.
-    return RegisterKey(
-        diag_id=_digits(diag, "Diag_id", "digits"),
-        device_id=_digits(dev_id, "ID", "a numeric device id"),
-        device=sys.intern(device_name),
-        type=sys.intern(_text(typ, "Type")),
-        gs=sys.intern(_text(gs, "GS")),
-        counting_head=counting_head,
-        channel=channel,
-        address=_digits(adr, "Adr", "a numeric register address"),
-        label=sys.intern(label_text),
-        label_canonical=canonical_label(label_text) if label_text else None,
-        label_encoding=label_encoding,
-    )
-
-
-def decode_data(raw: bytes) -> tuple[str, int, str]:
-    """``18`` → 18, ``0xD8`` → 216, ``'T'`` → ord('T'); returns (text, value, kind)."""
-    text, _ = decode_label(raw)
-    bare = text.strip()
-    if _INT_RE.fullmatch(bare):
-        if len(bare.lstrip("-")) > 18:
-            raise FieldError("Data", f"Data: number too large '{escape_text(raw, 40)}'")
-        return bare, int(bare), "decimal"
-    if _HEX_RE.fullmatch(bare):
-        value = int(bare, 16)
-        if value >= 1 << 63:
-            raise FieldError("Data", f"Data: number too large '{escape_text(raw, 40)}'")
-        return bare, value, "hex"
-    if len(bare) == 3 and bare[0] == bare[2] == "'" and not _CONTROL_RE.match(bare[1]):
-        return bare, ord(bare[1]), "char"
-    raise FieldError(
-        "Data",
-        f"Data: expected a number, a hex byte (0xD8) or a quoted character ('T'), found '{escape_text(raw, 40)}'",
-    )
-
-
-_EPOCH = dt.date(1970, 1, 1)
-# Whole days whose every time of day fits in int64 ns since the epoch
-# (1677-09-21 00:12:43 to 2262-04-11 23:47:16).
-_FIRST_DAY = dt.date(1677, 9, 22)
-_LAST_DAY = dt.date(2262, 4, 10)
-
-
-def decode_date(raw: bytes) -> int:
-    """``2015-10-31`` (or German ``31.10.2015``) → ns since the epoch at midnight."""
-    text = raw.decode("ascii", errors="replace").strip()
-    iso = _ISO_DATE_RE.fullmatch(text)
-    de = _DE_DATE_RE.fullmatch(text)
-    if iso:
-        y, m, d = (int(g) for g in iso.groups())
-    elif de:
-        d, m, y = (int(g) for g in de.groups())
-    else:
-        raise FieldError("Date", f"Date: expected YYYY-MM-DD, found '{escape_text(raw, 40)}'")
-    try:
-        day = dt.date(y, m, d)
-    except ValueError:
-        raise FieldError("Date", f"Date: impossible date '{text}'") from None
-    if not _FIRST_DAY <= day <= _LAST_DAY:
-        # Times are int64 ns (pandas' range): a year 0001 or 9999, or a bit
-        # flipped in the year, would overflow the whole read.
-        raise FieldError("Date", f"Date: date out of range '{text}' (times hold {_FIRST_DAY} to {_LAST_DAY})")
-    return (day - _EPOCH).days * 86400 * _NS
-
-
-_TIME_RE = re.compile(r"(\d{2}):(\d{2}):(\d{2})(?:\.(\d{1,9}))?")
-
-
-def parse_time(raw: bytes) -> tuple[int, bool]:
-    """``Time:09:32:24[.125]`` → (ns since midnight, has a fraction).
-
-    The per-line reference for the vectorized time parse in :func:`_tokenize`
-    (same rules), used for lines off the fast path.
-    """
-    name, sep, value = raw.partition(b":")
-    if not sep or name.strip() != b"Time":
-        raise FieldError("fields", f"field 12: expected 'Time:…', found '{escape_text(raw, 40)}'")
-    text = value.decode("utf-8", errors="replace").strip()
-    m = _TIME_RE.fullmatch(text)
-    if not m:
-        raise FieldError("Time", f"Time: expected HH:MM:SS or HH:MM:SS.fff, found '{escape_text(value, 40)}'")
-    hh, mm, ss = int(m[1]), int(m[2]), int(m[3])
-    if hh > 23 or mm > 59 or ss > 59:
-        raise FieldError("Time", f"Time: impossible time '{text}'")
-    frac = m[4] or ""
-    return ((hh * 60 + mm) * 60 + ss) * _NS + (int(frac.ljust(9, "0")) if frac else 0), bool(frac)
-
-
-@dataclass
-class DiagRegistry:
-    """Dimension tables shared by all chunks of one read.
-
-    Records carry a ``register_id`` into :attr:`registers`; categorical string
-    columns carry codes into the interners.  Both only ever grow, so codes in
-    an early chunk stay valid for the final table.
-    """
-
-    registers: list[RegisterKey] = field(default_factory=list)
-    files: list[str] = field(default_factory=list)
-    devices: _Interner = field(default_factory=_Interner)
-    types: _Interner = field(default_factory=_Interner)
-    gs: _Interner = field(default_factory=_Interner)
-    heads: _Interner = field(default_factory=_Interner)
-    labels: _Interner = field(default_factory=_Interner)
-    canonicals: _Interner = field(default_factory=_Interner)
-    data: _Interner = field(default_factory=_Interner)
-    _register_ids: dict[bytes, int] = field(default_factory=dict)
-    _register_errors: dict[bytes, FieldError] = field(default_factory=dict)
-    _values: dict[bytes, tuple[int, int, int, int] | FieldError] = field(default_factory=dict)
-    _data: dict[bytes, tuple[int, int, int] | FieldError] = field(default_factory=dict)
-    _days: dict[bytes, int | FieldError] = field(default_factory=dict)
-    _arrays: dict[str, np.ndarray] = field(default_factory=dict)
-    _arrays_len: int = -1
-    record_counts: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-
-    def count_records(self, register_id: np.ndarray) -> None:
-        """Add parsed records to the per-register totals."""
-        counts = np.bincount(register_id, minlength=len(self.registers))
-        if len(self.record_counts) < len(counts):
-            grown = np.zeros(len(counts), np.int64)
-            grown[: len(self.record_counts)] = self.record_counts
-            self.record_counts = grown
-        self.record_counts[: len(counts)] += counts
-
-    def unknown_labels(self) -> dict[str, int]:
-        """Records per label that maps to no known register (kept verbatim)."""
-        out: dict[str, int] = {}
-        for rid, r in enumerate(self.registers):
-            if r.label and r.label_canonical is None and rid < len(self.record_counts):
-                out[r.label] = out.get(r.label, 0) + int(self.record_counts[rid])
-        return {k: v for k, v in out.items() if v}
-
-    def register_id(self, span: bytes) -> int | FieldError:
-        found = self._register_ids.get(span)
-        if found is not None:
-            return found
-        err = self._register_errors.get(span)
-        if err is not None:
-            return err
-        try:
-            key = parse_register_span(span)
-        except FieldError as exc:
-            if len(self._register_errors) < _ERROR_CACHE_MAX:
-                self._register_errors[span] = exc
-            return exc
-        except ValueError:  # wrong number of parts: only for malformed spans
-            return FieldError("fields", "expected 12 tab-separated Key:Value fields")
-        rid = self._register_ids[span] = self.add_register(key)
-        return rid
-
-    def add_register(self, key: RegisterKey) -> int:
-        """Append a register and intern its strings; its id.  (Also used by readers
-        that rebuild a registry from stored records, such as the archive.)"""
-        rid = len(self.registers)
-        self.registers.append(key)
-        for interner, value in (
-            (self.devices, key.device),
-            (self.types, key.type),
-            (self.gs, key.gs),
-            (self.heads, key.counting_head),
-            (self.labels, key.label),
-            (self.canonicals, key.label_canonical or key.label),
-        ):
-            interner.code(value)
-        return rid
-
-    def value(self, span: bytes) -> tuple[int, int, int, int] | FieldError:
-        """(data code, value, kind code, day ns) for a value span ``Data:…\tDate:…``.
-
-        The data and date halves have caches of their own: a long log meets
-        every (value, day) pair anew, but few values and few days.
-        """
-        found = self._values.get(span)
-        if found is not None:
-            return found
-        parts = span.split(b"\t")
-        result: tuple[int, int, int, int] | FieldError
-        if len(parts) != 2:
-            result = FieldError("fields", "expected 12 tab-separated Key:Value fields")
-        else:
-            data = self._data.get(parts[0])
-            if data is None:
-                data = self._data[parts[0]] = self._parse_data(parts[0])
-            day = self._days.get(parts[1])
-            if day is None:
-                day = self._days[parts[1]] = self._parse_day(parts[1])
-            if isinstance(data, FieldError):
-                result = data
-            elif isinstance(day, FieldError):
-                result = day
-            else:
-                result = (*data, day)
-        if len(self._values) >= _VALUE_CACHE_MAX:
-            self._values.clear()  # bounded: a cache, not a store
-            self._data.clear()
-            self._days.clear()
-        self._values[span] = result
-        return result
-
-    def _parse_data(self, field_bytes: bytes) -> tuple[int, int, int] | FieldError:
-        try:
-            (raw,) = _split_fields(field_bytes, ("Data",), 10)
-            text, value, kind = decode_data(raw)
-        except FieldError as exc:
-            return exc
-        return self.data.code(text), value, DATA_KINDS.index(kind)
-
-    @staticmethod
-    def _parse_day(field_bytes: bytes) -> int | FieldError:
-        try:
-            (raw,) = _split_fields(field_bytes, ("Date",), 11)
-            return decode_date(raw)
-        except FieldError as exc:
-            return exc
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        """Per-register lookup arrays (indexed by register_id), extended for new registers only."""
-        done = max(self._arrays_len, 0)
-        if done != len(self.registers) or not self._arrays:  # not self._arrays: none built yet (no register)
-            regs = self.registers[done:]
-            new: dict[str, np.ndarray] = {
-                "diag_id": np.array([r.diag_id for r in regs], dtype=np.int32),
-                "device_id": np.array([r.device_id for r in regs], dtype=np.int32),
-                "device": np.array([self.devices.code(r.device) for r in regs], dtype=np.int32),
-                "type": np.array([self.types.code(r.type) for r in regs], dtype=np.int32),
-                "gs": np.array([self.gs.code(r.gs) for r in regs], dtype=np.int32),
-                "counting_head": np.array([self.heads.code(r.counting_head) for r in regs], dtype=np.int32),
-                "channel": np.array([r.channel for r in regs], dtype=np.int8),
-                "address": np.array([r.address for r in regs], dtype=np.int32),
-                "label": np.array([self.labels.code(r.label) for r in regs], dtype=np.int32),
-                "label_canonical": np.array(
-                    [self.canonicals.code(r.label_canonical or r.label) for r in regs], dtype=np.int32
-                ),
-            }
-            # A log of a million heads adds registers in every chunk: never rebuild the old ones.
-            self._arrays = {k: np.concatenate([self._arrays[k], v]) for k, v in new.items()} if done else new
-            self._arrays_len = len(self.registers)
-        return self._arrays
 
 
 @dataclass
@@ -756,24 +431,10 @@ class DiagReader:
         n_lines = len(tok.starts)
         fr.lines_read += n_lines
 
-        reg_lut = np.full(len(tok.reg_dict), -1, np.int32)
-        reg_err: dict[int, FieldError] = {}
-        for i, span in enumerate(tok.reg_dict):
-            got = reg.register_id(span)
-            if isinstance(got, FieldError):
-                reg_err[i] = got
-            else:
-                reg_lut[i] = got
-        val_cols = np.zeros((4, len(tok.val_dict)), np.int64)
+        reg_lut, reg_err = reg.register_ids(tok.reg_dict)
+        val_cols, val_err = reg.values(tok.val_dict)
         val_ok = np.ones(len(tok.val_dict), bool)
-        val_err: dict[int, FieldError] = {}
-        for i, span in enumerate(tok.val_dict):
-            got_v = reg.value(span)
-            if isinstance(got_v, FieldError):
-                val_err[i] = got_v
-                val_ok[i] = False
-            else:
-                val_cols[:, i] = got_v
+        val_ok[list(val_err)] = False
 
         rid = reg_lut[tok.reg_idx]
         good = (rid >= 0) & val_ok[tok.val_idx] & tok.time_ok
@@ -919,7 +580,7 @@ def chunks_to_frame(chunks: list[DiagChunk], registry: DiagRegistry) -> pd.DataF
     def cat(name: str) -> np.ndarray:
         return np.concatenate([getattr(c, name) for c in chunks]) if chunks else np.zeros(0)
 
-    arrays = registry.arrays() if registry.registers else None
+    arrays = registry.arrays() if registry.n_registers else None
 
     def reg(name: str, dtype: str) -> np.ndarray:
         if arrays is None:
@@ -938,7 +599,10 @@ def chunks_to_frame(chunks: list[DiagChunk], registry: DiagRegistry) -> pd.DataF
             "device": _categorical(reg("device", "int32"), registry.devices.values),
             "type": _categorical(reg("type", "int32"), registry.types.values),
             "gs": _categorical(reg("gs", "int32"), registry.gs.values),
-            "counting_head": _categorical(reg("counting_head", "int32"), registry.heads.values),
+            # All head names, not kept as a list by the registry (a log may name a million heads).
+            "counting_head": _categorical(
+                reg("counting_head", "int32"), registry.heads.take(np.arange(len(registry.heads)))
+            ),
             "channel": reg("channel", "int8"),
             "address": reg("address", "int32").astype(np.int16),
             "label": _categorical(reg("label", "int32"), registry.labels.values),

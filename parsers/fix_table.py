@@ -37,6 +37,8 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
+from parsers.dictionary import StringDictionary
+
 FIX_COLUMNS = (
     "time",
     "device",
@@ -80,32 +82,38 @@ def merged_sentence(a: str, b: str) -> str:
 
 
 class _Codes:
-    """Strings interned as small integer codes, in order of first sight."""
+    """Strings interned as small integer codes, in order of first sight.
+
+    The strings are kept flat while rows are collected (:class:`~parsers.dictionary.StringDictionary`,
+    no ``dict`` entry per device); they become Python strings once, as the categorical's categories.
+    """
 
     def __init__(self) -> None:
-        self.index: dict[str, int] = {}
+        self.names = StringDictionary()
         self.codes = array("i")
 
     def code_of(self, value: str) -> int:
-        code = self.index.get(value)
-        if code is None:
-            code = self.index[value] = len(self.index)
-        return code
+        return self.names.code(value)
+
+    def codes_of(self, values: list[str]) -> np.ndarray:
+        """Codes of many strings at once (int32)."""
+        return self.names.codes(values)
 
     def append(self, value: str) -> None:
         self.codes.append(self.code_of(value))
 
-    def categorical(self) -> pd.Categorical:
-        """The codes as a Categorical whose categories are the values used, in order of first appearance
-        (whatever order they were interned in: rows may be read in batches and put back in line order)."""
-        names = list(self.index)
+    def categorical(self, order: np.ndarray | None = None) -> pd.Categorical:
+        """The codes (taken at ``order``, if given) as a Categorical whose categories are the values used,
+        in order of first appearance in the rows as collected (whatever order they were interned in: rows
+        may be read in batches and put back in line order)."""
         codes = np.frombuffer(self.codes, dtype=np.int32) if len(self.codes) else np.zeros(0, np.int32)
         used, first = np.unique(codes, return_index=True)
-        order = used[np.argsort(first, kind="stable")]
-        renumber = np.zeros(len(names), np.int32)
-        renumber[order] = np.arange(len(order), dtype=np.int32)
-        categories = pd.Index([names[i] for i in order], dtype=object)
-        return pd.Categorical.from_codes(renumber[codes], categories=categories)
+        in_order = used[np.argsort(first, kind="stable")]
+        renumber = np.zeros(len(self.names), np.int32)
+        renumber[in_order] = np.arange(len(in_order), dtype=np.int32)
+        out = renumber[codes] if order is None else renumber[codes[order]]
+        # Python strings (object): pandas would make them for Arrow strings anyway, to check them unique.
+        return pd.Categorical.from_codes(out, categories=pd.Index(self.names.take(in_order), dtype=object))
 
 
 class FixRows:
@@ -184,7 +192,7 @@ class FixRows:
         n = len(line)
         if n == 0:
             return
-        global_codes = np.array([self.device.code_of(d) for d in device_names], dtype=np.int32)
+        global_codes = self.device.codes_of(device_names)
         self.device.codes.frombytes(global_codes[np.asarray(device_code)].astype(np.int32).tobytes())
         self.file.codes.frombytes(np.full(n, self.file.code_of(file), np.int32).tobytes())
 
@@ -237,7 +245,7 @@ class FixRows:
     def subset(self, rows: np.ndarray) -> FixRows:
         """The rows at ``rows`` (indices, in the order given) as new FixRows sharing the string tables."""
         out = FixRows()
-        out.device.index, out.file.index = self.device.index, self.file.index
+        out.device.names, out.file.names = self.device.names, self.file.names
         idx = np.asarray(rows, np.int64)
         for name in (
             "time",
@@ -275,32 +283,58 @@ class FixRows:
     def __len__(self) -> int:
         return len(self.line)
 
-    def frame(self) -> pd.DataFrame:
-        """The rows as a fix table with the documented dtypes."""
+    def frame(self, time_order: bool = False, release: bool = False) -> pd.DataFrame:
+        """The rows as a fix table with the documented dtypes; with ``time_order``, sorted by time, stably,
+        unknown times last (each column taken in that order once: no second table is made to sort).
 
-        def codes(a: array[int]) -> np.ndarray:
-            return np.frombuffer(a, dtype=np.int8) if len(a) else np.zeros(0, np.int8)
+        With ``release`` the rows are handed over: each column collected is dropped once converted, so
+        the rows and the table are not both held whole (the collector is empty afterwards).
+        """
+        n = len(self)
+        order = None
+        if time_order and n:
+            t = np.frombuffer(self.time, dtype=np.int64)
+            order = np.lexsort((t, t == NAT_NS))
+            del t
+            if (order == np.arange(n)).all():
+                order = None
 
-        def floats(a: array[float]) -> np.ndarray:
-            return np.frombuffer(a, dtype=np.float64).copy() if len(a) else np.zeros(0)
+        def col(name: str, dtype: type) -> np.ndarray:
+            a = getattr(self, name)
+            if not len(a):
+                return np.zeros(0, dtype)
+            values: np.ndarray = np.frombuffer(a, dtype=dtype)
+            out = values.copy() if order is None else values[order]
+            if release:
+                del values
+                setattr(self, name, array(a.typecode))
+            return out
 
+        def categorical(codes: _Codes) -> pd.Categorical:
+            out = codes.categorical(order)
+            if release:
+                codes.codes = array("i")
+            return out
+
+        # copy=False: the columns are new arrays, each its own block (no second copy to consolidate them).
         return pd.DataFrame(
             {
-                "time": utc_times(np.frombuffer(self.time, dtype=np.int64) if len(self.time) else []),
-                "device": self.device.categorical(),
-                "role": pd.Categorical.from_codes(codes(self.role), dtype=ROLE_DTYPE),
-                "lat": floats(self.lat),
-                "lon": floats(self.lon),
-                "speed_mps": floats(self.speed_mps),
-                "course_deg": floats(self.course_deg),
-                "valid": codes(self.valid).astype(bool),
-                "source": pd.Categorical.from_codes(codes(self.source), dtype=SOURCE_DTYPE),
-                "sentence": pd.Categorical.from_codes(codes(self.sentence), dtype=SENTENCE_DTYPE),
-                "file": self.file.categorical(),
-                "line": np.frombuffer(self.line, dtype=np.int64).copy() if len(self.line) else np.zeros(0, np.int64),
-                "fix_quality": pd.Categorical.from_codes(codes(self.fix_quality), dtype=FIX_QUALITY_DTYPE),
+                "time": utc_times(col("time", np.int64)),
+                "device": categorical(self.device),
+                "role": pd.Categorical.from_codes(col("role", np.int8), dtype=ROLE_DTYPE),
+                "lat": col("lat", np.float64),
+                "lon": col("lon", np.float64),
+                "speed_mps": col("speed_mps", np.float64),
+                "course_deg": col("course_deg", np.float64),
+                "valid": col("valid", np.int8).astype(bool),
+                "source": pd.Categorical.from_codes(col("source", np.int8), dtype=SOURCE_DTYPE),
+                "sentence": pd.Categorical.from_codes(col("sentence", np.int8), dtype=SENTENCE_DTYPE),
+                "file": categorical(self.file),
+                "line": col("line", np.int64),
+                "fix_quality": pd.Categorical.from_codes(col("fix_quality", np.int8), dtype=FIX_QUALITY_DTYPE),
             },
             columns=list(FIX_COLUMNS),
+            copy=False,
         )
 
 

@@ -323,7 +323,7 @@ def parse_centre_table(
     for path in paths:
         _parse_centre_file(Path(path), report, fixes, crossings, utc_offset_h)
     report.check()
-    return _in_time_order(fixes.frame()), _in_time_order(crossings.frame()), report
+    return fixes.frame(time_order=True, release=True), _in_time_order(crossings.frame()), report
 
 
 # -------------------------------------------------------------- recognition
@@ -386,7 +386,7 @@ def parse_gnss(
         else:
             _reject_all(path, report)
     report.check()
-    return _in_time_order(rows.frame()), report, _in_time_order(crossings.frame())
+    return rows.frame(time_order=True, release=True), report, _in_time_order(crossings.frame())
 
 
 def nothing_read(report: ParseReport) -> list[str]:

@@ -544,4 +544,4 @@ def parse_device_stream(
     for path in map(Path, paths):
         parse_device_file(path, report, rows, "jsonl" if _is_jsonl(path) else "csv", role_map)
     report.check()
-    return rows.frame(), report
+    return rows.frame(release=True), report

@@ -436,7 +436,7 @@ def parse_stream_files(
     for path in paths:
         parser.parse_file(Path(path))
     report.check()
-    return parser.rows.frame(), report
+    return parser.rows.frame(release=True), report
 
 
 parse_nmea = parse_stream_files  # the name the NMEA-only reader had

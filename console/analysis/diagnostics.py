@@ -8,12 +8,15 @@ record counts), so a multi-GB log is analysed in bounded memory.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from console.analysis.device_table import DeviceTable
+from console.analysis.head_table import Heads, HeadTable, heads_at
 from console.analysis.inventory import DeviceInventory
 from console.analysis.overlap import fingerprints, overlap_mask
 from console.analysis.passages import (
@@ -67,21 +70,25 @@ class DiagAnalysis:
     """
 
     settings: SpeedSettings
-    devices: list[DeviceInventory]
+    devices: Sequence[DeviceInventory]
     passage_columns: Columns | None  # see _passages; None: no passages
     axle_columns: Columns
     overlap_records: int
     unpaired_detections: int
-    head_names: list[str]
     # Per input file (in read order): its records set aside as another file's overlap.
     overlap_by_file: list[int] = field(default_factory=list)
     # For the section engine: heads as (device id, name), every wheel-sensor
     # record (head key, channel, time, 1/0), and per head the seconds with records.
-    heads: list[tuple[int, str]] = field(default_factory=list)
+    heads: Heads = field(default_factory=list)
     wheel_columns: Columns | None = None
     activity_columns: Columns | None = None
     # The times of the records set aside as overlap (the archive counts them per day).
     overlap_times_ns: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    @property
+    def head_names(self) -> list[str]:
+        """Every head's name, by head key."""
+        return self.heads.names() if isinstance(self.heads, HeadTable) else [name for _, name in self.heads]
 
     @cached_property
     def passages(self) -> pd.DataFrame:
@@ -117,8 +124,8 @@ class DiagAnalysis:
 
         return list(json.loads(self.passages_json_text()))
 
-    def to_dict(self, passages: Any = None) -> dict[str, Any]:
-        """The JSON document's analysis part; ``passages`` may be pre-encoded text."""
+    def to_dict(self, passages: Any = None, devices: Any = None) -> dict[str, Any]:
+        """The JSON document's analysis part; ``passages`` and ``devices`` may be pre-encoded text."""
         s = self.settings
         return {
             "settings": {
@@ -127,7 +134,7 @@ class DiagAnalysis:
                 "idle_gap_s": s.idle_gap_s,
                 "pair_window_s": s.pair_window_s,
             },
-            "devices": [d.to_dict() for d in self.devices],
+            "devices": [d.to_dict() for d in self.devices] if devices is None else devices,
             "passages": self.passages_json() if passages is None else passages,
             "overlap_records": self.overlap_records,
             "unpaired_detections": self.unpaired_detections,
@@ -163,9 +170,10 @@ class DiagAccumulator:
     def _track_spans(self, buckets: Columns) -> None:
         n = len(self._lookup().head_device)
         if len(self.head_first_ns) < n:
-            grow = n - len(self.head_first_ns)
-            self.head_first_ns = np.r_[self.head_first_ns, np.full(grow, _BIG, np.int64)]
-            self.head_last_ns = np.r_[self.head_last_ns, np.full(grow, _SMALL, np.int64)]
+            # Room for half as many heads again: a log adding heads in every chunk copies them rarely.
+            size = max(n, len(self.head_first_ns) * 3 // 2)
+            self.head_first_ns = np.r_[self.head_first_ns, np.full(size - len(self.head_first_ns), _BIG, np.int64)]
+            self.head_last_ns = np.r_[self.head_last_ns, np.full(size - len(self.head_last_ns), _SMALL, np.int64)]
         np.minimum.at(self.head_first_ns, buckets["head"], buckets["t_first_ns"])
         np.maximum.at(self.head_last_ns, buckets["head"], buckets["t_last_ns"])
 
@@ -174,8 +182,8 @@ class DiagAccumulator:
             return
         luts = self._lookup()
         rid = chunk.register_id
-        head = luts.head[rid]
-        channel = luts.channel[rid]
+        head = luts.head_of(rid)
+        channel = luts.channel_of(rid)
         buckets = chunk_buckets(head, channel, chunk.time_ns, chunk.subsecond)
         self._buckets.append(buckets)
         self._track_spans(buckets)
@@ -234,7 +242,6 @@ class DiagAccumulator:
             axle_columns=part.axles,
             overlap_records=sum(overlap_by_file),
             unpaired_detections=part.unpaired,
-            head_names=[name for _, name in luts.heads],
             overlap_by_file=overlap_by_file,
             heads=luts.heads,
             # Only the section engine reads these: not kept for speeds alone.
@@ -243,7 +250,7 @@ class DiagAccumulator:
             overlap_times_ns=overlap_times,
         )
 
-    def devices(self) -> list[DeviceInventory]:
+    def devices(self) -> DeviceTable:
         return inventory(self._lookup(), self.head_first_ns, self.head_last_ns, self._identity)
 
     def _overlap(self, luts: RegisterTables, buckets: Columns) -> tuple[np.ndarray | None, list[int], np.ndarray]:
@@ -256,11 +263,11 @@ class DiagAccumulator:
             return None, [0] * n_files, none
         cols = {c: np.concatenate([p[c] for p in prints]) for c in ("fp", "rid", "time_ns", "file")}
         del prints
-        head = luts.head[cols["rid"]]
+        head = luts.head_of(cols["rid"])
         mask = overlap_mask(cols["file"], head, cols["fp"])
         if not mask.any():
             return None, [0] * n_files, none
-        remove_records(buckets, head[mask], luts.channel[cols["rid"][mask]], cols["time_ns"][mask])
+        remove_records(buckets, head[mask], luts.channel_of(cols["rid"][mask]), cols["time_ns"][mask])
         per_file = np.bincount(cols["file"][mask].astype(np.int64), minlength=n_files)
         return mask, [int(x) for x in per_file], cols["time_ns"][mask].astype(np.int64)
 
@@ -508,21 +515,24 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     }
 
 
-def _passages_frame(cols: Columns | None, heads: list[tuple[int, str]]) -> pd.DataFrame:
+def _passages_frame(cols: Columns | None, heads: Heads) -> pd.DataFrame:
     """The passages table (:data:`PASSAGE_COLUMNS`) from :func:`_passages`' columns."""
     import pandas as pd
 
     if cols is None:
         return pd.DataFrame(columns=list(PASSAGE_COLUMNS))
-    head_dev = np.array([h[0] for h in heads], dtype=np.int64)
-    head_name = np.array([h[1] for h in heads], dtype=object)
+    # Only the heads of these passages are looked up: a log may have a million heads.
+    used, inverse = np.unique(cols["head"], return_inverse=True)
+    used_dev, used_names = heads_at(heads, used)
+    head_name = np.empty(len(used), dtype=object)
+    head_name[:] = used_names
     text = {
-        "counting_head": head_name[cols["head"]],
+        "counting_head": head_name[inverse.reshape(-1)],
         "direction": np.array([None, DIRECTION_12, DIRECTION_21, "mixed"], dtype=object)[cols["direction"]],
         "whole_train_basis": np.array(_BASIS, dtype=object)[cols["whole_train_basis"]],
         "kind": np.array(_KINDS, dtype=object)[cols["kind"]],
     }
-    data = {"device_id": head_dev[cols["head"]], **{c: text.get(c, cols.get(c)) for c in PASSAGE_COLUMNS[1:]}}
+    data = {"device_id": used_dev[inverse.reshape(-1)], **{c: text.get(c, cols.get(c)) for c in PASSAGE_COLUMNS[1:]}}
     out = pd.DataFrame(data)
     out.attrs["axle_speeds_kmh"] = cols["axle_speeds_kmh"]
     return out

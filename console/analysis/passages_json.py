@@ -21,6 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from console.analysis.head_table import Heads, heads_at
 from console.analysis.passages import Columns
 from console.analysis.timefmt import exact_ns
 
@@ -206,7 +207,7 @@ def _axle_lists(speeds: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.n
 
 
 def _batch(
-    cols: Columns, heads: list[tuple[int, str]], lo: int, hi: int, first: bool, opening: str = "{", sep: str = ","
+    cols: Columns, heads: Heads, lo: int, hi: int, first: bool, opening: str = "{", sep: str = ","
 ) -> bytes | None:
     from console.analysis.wheels import DIRECTION_12, DIRECTION_21
 
@@ -214,11 +215,11 @@ def _batch(
     n = hi - lo
     # Only this batch's heads: a log may have a million heads and many batches.
     used, head_code = np.unique(c["head"], return_inverse=True)
-    head_dev = np.array([heads[h][0] for h in used.tolist()], dtype=np.int64)
+    head_dev, head_names = heads_at(heads, used)
     n_det = np.asarray(c["records_in_detection_second"], float)
     parts: list[tuple[str, np.ndarray | None]] = [
         (opening + '"device_id":', _ints(head_dev[head_code])),
-        (',"counting_head":', _texts(head_code, [heads[h][1] for h in used.tolist()])),
+        (',"counting_head":', _texts(head_code, head_names)),
         (',"start":', _iso(c["start_ns"])),
         (',"end":', _iso(c["end_ns"])),
         (',"duration_s":', _floats(np.round(np.asarray(c["duration_s"], float), 6))),
@@ -257,9 +258,7 @@ def _batch(
     return flat[flat != 0].tobytes()
 
 
-def encode_passages(
-    cols: Columns, heads: list[tuple[int, str]], workers: int = 2, lines_of_type: str | None = None
-) -> str | None:
+def encode_passages(cols: Columns, heads: Heads, workers: int = 2, lines_of_type: str | None = None) -> str | None:
     """The passages (``diagnostics._passages`` columns) as a JSON array, or None if not covered.
 
     With ``lines_of_type``, JSON lines instead: one object per passage, each

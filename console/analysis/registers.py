@@ -8,13 +8,14 @@ which grow only at the end, and are extended as new registers appear.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
-from console.analysis.inventory import IDENTITY_LABELS, DeviceInventory, IdentityValue, apply_identity
+from console.analysis.device_table import DeviceNames, DeviceTable, Runs
+from console.analysis.head_table import HeadTable
+from console.analysis.inventory import IDENTITY_LABELS, IdentityValue
 from console.analysis.wheels import WHEEL_SENSOR_ADDRESS
 from parsers.diag import DATA_KINDS, DiagRegistry
+from parsers.dictionary import DigestIndex, Growable
 
 _NONE = np.iinfo(np.int64).max
 
@@ -24,89 +25,121 @@ def _text_flags(values: list[str], wanted: frozenset[str]) -> np.ndarray:
     return np.fromiter((v in wanted for v in values), bool, len(values))
 
 
-@dataclass
 class RegisterTables:
     """Per register id: its counting-head key, channel, and whether it is a wheel sensor or identity register.
 
     Head keys number the (device id, counting head) pairs in the order their
-    first register appeared, as the batch analysis always has.
+    first register appeared, as the batch analysis always has.  Columns grow
+    in place (:class:`~parsers.dictionary.Growable`), in the narrowest type
+    that holds them; the lookups (:meth:`head_of`, :meth:`channel_of`) give
+    int64, as the analysis has always computed with.
     """
 
-    registry: DiagRegistry
-    head: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    channel: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    is_wheel: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
-    is_identity: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
-    head_device: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    head_name_code: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    _sorted_keys: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    _sorted_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    _heads: list[tuple[int, str]] = field(default_factory=list)
+    def __init__(self, registry: DiagRegistry) -> None:
+        self.registry = registry
+        self._head = Growable(np.int32)
+        self._channel = Growable(np.int8)
+        self._is_wheel = Growable(np.bool_)
+        self._is_identity = Growable(np.bool_)
+        self._head_device = Growable(np.int32)
+        self._head_name_code = Growable(np.int32)
+        self._head_keys = DigestIndex()  # (device id << 32 | name code) → head key
+
+    @property
+    def head(self) -> np.ndarray:
+        return self._head.view()
+
+    @property
+    def channel(self) -> np.ndarray:
+        return self._channel.view()
+
+    @property
+    def is_wheel(self) -> np.ndarray:
+        return self._is_wheel.view()
+
+    @property
+    def is_identity(self) -> np.ndarray:
+        return self._is_identity.view()
+
+    @property
+    def head_device(self) -> np.ndarray:
+        return self._head_device.view()
+
+    @property
+    def head_name_code(self) -> np.ndarray:
+        return self._head_name_code.view()
+
+    def head_of(self, register_id: np.ndarray) -> np.ndarray:
+        """Head keys (int64) of registers."""
+        return self._head.view()[register_id].astype(np.int64)
+
+    def channel_of(self, register_id: np.ndarray) -> np.ndarray:
+        """Channels (int64) of registers."""
+        return self._channel.view()[register_id].astype(np.int64)
 
     def update(self) -> RegisterTables:
         """Extend the tables to registers added since the last call."""
         arr = self.registry.arrays()
-        n, done = len(arr["device_id"]), len(self.head)
+        n, done = len(arr["device_id"]), self._head.n
         if n == done:
             return self
-        dev = arr["device_id"][done:].astype(np.int64)
-        name = arr["counting_head"][done:].astype(np.int64)
-        key = (dev << 32) | name
-        # Keys already numbered, then new keys in order of first appearance.
-        pos = np.searchsorted(self._sorted_keys, key)
-        pos_ok = np.minimum(pos, max(len(self._sorted_keys) - 1, 0))
-        known = (
-            (pos < len(self._sorted_keys)) & (self._sorted_keys[pos_ok] == key)
-            if len(self._sorted_keys)
-            else (np.zeros(len(key), bool))
+        key = (arr["device_id"][done:].astype(np.uint64) << np.uint64(32)) | arr["counting_head"][done:].astype(
+            np.uint64
         )
-        head = np.where(known, self._sorted_ids[pos_ok] if len(self._sorted_ids) else 0, -1)
-        if not known.all():
-            new_keys, first, inverse = np.unique(key[~known], return_index=True, return_inverse=True)
-            rank = np.empty(len(new_keys), np.int64)
-            rank[np.argsort(first, kind="stable")] = np.arange(len(new_keys))
-            base = len(self.head_device)
-            head[~known] = base + rank[inverse]
-            by_rank = np.argsort(rank)
-            self.head_device = np.concatenate([self.head_device, new_keys[by_rank] >> 32])
-            self.head_name_code = np.concatenate([self.head_name_code, new_keys[by_rank] & 0xFFFFFFFF])
-            all_keys = np.concatenate([self._sorted_keys, new_keys])
-            all_ids = np.concatenate([self._sorted_ids, base + rank])
-            order = np.argsort(all_keys, kind="stable")
-            self._sorted_keys, self._sorted_ids = all_keys[order], all_ids[order]
+        # Keys already numbered, then new keys in order of first appearance.
+        zero = np.zeros(len(key), np.uint64)
+        head = self._head_keys.get(key, zero)
+        new = head < 0
+        if new.any():
+            new_keys, first, inverse = np.unique(key[new], return_index=True, return_inverse=True)
+            rank = np.empty(len(new_keys), np.int32)
+            rank[np.argsort(first, kind="stable")] = np.arange(len(new_keys), dtype=np.int32)
+            base = self._head_device.n
+            head[new] = base + rank[inverse.reshape(-1)]
+            self._head_keys.add(new_keys, zero[: len(new_keys)], base + rank)
+            by_rank = new_keys[np.argsort(rank)]
+            self._head_device.extend((by_rank >> np.uint64(32)).astype(np.int32))
+            self._head_name_code.extend((by_rank & np.uint64(0xFFFFFFFF)).astype(np.int32))
         canon = arr["label_canonical"][done:]
         label = arr["label"][done:]
         canonicals, labels = self.registry.canonicals.values, self.registry.labels.values
         wheel_code = _text_flags(canonicals, frozenset({"wheel_sensor"}))
         ident_code = _text_flags(canonicals, frozenset(IDENTITY_LABELS))
         blank_label = _text_flags(labels, frozenset({""}))
-        is_wheel = wheel_code[canon] | (blank_label[label] & (arr["address"][done:] == WHEEL_SENSOR_ADDRESS))
-        self.head = np.concatenate([self.head, head])
-        self.channel = np.concatenate([self.channel, arr["channel"][done:].astype(np.int64)])
-        self.is_wheel = np.concatenate([self.is_wheel, is_wheel])
-        self.is_identity = np.concatenate([self.is_identity, ident_code[canon]])
+        self._head.extend(head)
+        self._channel.extend(arr["channel"][done:])
+        self._is_wheel.extend(
+            wheel_code[canon] | (blank_label[label] & (arr["address"][done:] == WHEEL_SENSOR_ADDRESS))
+        )
+        self._is_identity.extend(ident_code[canon])
         return self
 
     @property
-    def heads(self) -> list[tuple[int, str]]:
-        """(device id, counting head name) per head key; built once per head, copied (C speed) per call."""
-        if len(self._heads) < len(self.head_device):
-            names = self.registry.heads.values
-            done = len(self._heads)
-            codes = self.head_name_code[done:].tolist()
-            self._heads += zip(self.head_device[done:].tolist(), [names[c] for c in codes], strict=True)
-        return list(self._heads)
+    def heads(self) -> HeadTable:
+        """(device id, counting head name) per head key, as columns (nothing copied)."""
+        return HeadTable(self.head_device, self.head_name_code, self.registry.heads)
 
 
 def _unique_in_order(group: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distinct (group, value) pairs, per group in order of first appearance."""
+    """Distinct (group, value) pairs, per group in order of first appearance (int64)."""
     if not len(group):
-        return group, value
-    key = np.stack([group, value])
-    _, first = np.unique(key, axis=1, return_index=True)
+        return group.astype(np.int64), value.astype(np.int64)
+    g64, v64 = group.astype(np.int64), value.astype(np.int64)
+    if g64.min() >= 0 and v64.min() >= 0 and g64.max() < 2**31 and v64.max() < 2**32:
+        # One int64 key per pair (ids, channels and head keys are small and not negative): one sort,
+        # stable, so each pair's run starts at its first appearance.
+        key = (g64 << 32) | v64
+        del g64, v64
+        _, first = np.unique(key, return_index=True)
+        del key
+    else:
+        order = np.lexsort((v64, g64))
+        g, v = g64[order], v64[order]
+        first = order[np.flatnonzero(np.r_[True, (g[1:] != g[:-1]) | (v[1:] != v[:-1])])]
+        del g, v, order
     first = np.sort(first)
-    order = np.lexsort((first, group[first]))
-    return group[first][order], value[first][order]
+    by_group = first[np.lexsort((first, group[first]))]
+    return group[by_group].astype(np.int64), value[by_group].astype(np.int64)
 
 
 def inventory(
@@ -114,7 +147,7 @@ def inventory(
     head_first_ns: np.ndarray,
     head_last_ns: np.ndarray,
     identity: dict[int, tuple[int, int, int, int]],
-) -> list[DeviceInventory]:
+) -> DeviceTable:
     """One entry per device with records, grouped by device with numpy (not per register).
 
     ``head_first_ns``/``head_last_ns`` are per head key (int64 max/min: none);
@@ -122,32 +155,36 @@ def inventory(
     """
     reg = tables.registry
     arr = reg.arrays()
-    counts = np.zeros(len(arr["device_id"]), np.int64)
-    counts[: len(reg.record_counts)] = reg.record_counts[: len(counts)]
+    counts = reg.record_counts[: reg.n_registers]
+    if len(counts) < reg.n_registers:  # registers of no record yet
+        counts = np.r_[counts, np.zeros(reg.n_registers - len(counts), np.int64)]
     rid = np.flatnonzero(counts)
     if not len(rid):
-        return []
-    dev = arr["device_id"][rid].astype(np.int64)
-    devices, first_rid = np.unique(dev, return_index=True)
-    records = np.bincount(np.searchsorted(devices, dev), weights=counts[rid], minlength=len(devices))
-    d_diag, v_diag = _unique_in_order(dev, arr["diag_id"][rid].astype(np.int64))
-    d_chan, v_chan = _unique_in_order(dev, arr["channel"][rid].astype(np.int64))
-    d_head, v_head = _unique_in_order(dev, tables.head[rid])
+        return DeviceTable.empty()
+    dev = arr["device_id"][rid]
+    devices, first_rid, dev_index = np.unique(dev, return_index=True, return_inverse=True)
+    devices = devices.astype(np.int64)
+    records = np.zeros(len(devices), np.int64)
+    np.add.at(records, dev_index.reshape(-1), counts[rid])
+    del dev_index
+    d_diag, v_diag = _unique_in_order(dev, arr["diag_id"][rid])
+    d_chan, v_chan = _unique_in_order(dev, arr["channel"][rid])
+    d_head, v_head = _unique_in_order(dev, tables.head_of(rid))
     # Each device's span: over its heads' first and last record times.
     n_heads = len(tables.head_device)
-    hf = np.full(n_heads, _NONE, np.int64)
-    hl = np.full(n_heads, -_NONE, np.int64)
-    hf[: len(head_first_ns)] = head_first_ns[:n_heads]
-    hl[: len(head_last_ns)] = head_last_ns[:n_heads]
+    hf, hl = head_first_ns[:n_heads], head_last_ns[:n_heads]
+    if len(hf) < n_heads:  # heads without records yet
+        hf = np.r_[hf, np.full(n_heads - len(hf), _NONE, np.int64)]
+        hl = np.r_[hl, np.full(n_heads - len(hl), -_NONE, np.int64)]
     ident: dict[int, list[IdentityValue]] = {}
     for r, (_, value, kind, data_code) in identity.items():  # a few dozen identity registers
         ident.setdefault(int(arr["device_id"][r]), []).append(
             IdentityValue(
-                reg.canonicals.values[arr["label_canonical"][r]],
+                reg.canonicals.value(int(arr["label_canonical"][r])),
                 int(arr["address"][r]),
                 value,
                 DATA_KINDS[kind],
-                reg.data.values[data_code],
+                reg.data.value(data_code),
             )
         )
     # The pairs are sorted by device: each device's values are one run, cut once.
@@ -160,45 +197,16 @@ def inventory(
     last = np.maximum.reduceat(hl[v_head], at_head)
     first[first == _NONE] = 0
     last[last == -_NONE] = 0
-    # Lists, not arrays, per device: one tolist per column, then list slices.
-    diag_ids = _runs(np.lexsort((v_diag, d_diag)), v_diag, at_diag)
-    channels = _runs(np.lexsort((v_chan, d_chan)), v_chan, at_chan)
-    head_names = np.asarray(reg.heads.values, dtype=object)[tables.head_name_code[v_head]].tolist()
-    head_cuts = [*at_head.tolist(), len(v_head)]
     r0 = rid[first_rid]
-    device_names = _texts(reg.devices.values, arr["device"][r0])
-    type_names = _texts(reg.types.values, arr["type"][r0])
-    gs_names = _texts(reg.gs.values, arr["gs"][r0])
-    out = []
-    for i, (d, n, f, la) in enumerate(
-        zip(devices.tolist(), records.tolist(), first.tolist(), last.tolist(), strict=True)
-    ):  # per device: only the object the faces read
-        inv = DeviceInventory(
-            device_id=d,
-            device=device_names[i],
-            type=type_names[i],
-            gs=gs_names[i],
-            diag_ids=diag_ids[i],
-            counting_heads=head_names[head_cuts[i] : head_cuts[i + 1]],
-            channels=channels[i],
-            records=int(n),
-            first_ns=f,
-            last_ns=la,
-        )
-        values = ident.get(d)
-        if values:
-            apply_identity(inv, values)
-        out.append(inv)
-    return out
-
-
-def _texts(values: list[str], codes: np.ndarray) -> list[str]:
-    """Interned strings by code, as a list."""
-    return np.asarray(values, dtype=object)[codes].tolist() if len(codes) else []
-
-
-def _runs(order: np.ndarray, values: np.ndarray, at: np.ndarray) -> list[list[int]]:
-    """Per group (starting at ``at`` in group-sorted pairs), its values in ascending order."""
-    flat = values[order].tolist()
-    cuts = [*at.tolist(), len(flat)]
-    return [flat[cuts[i] : cuts[i + 1]] for i in range(len(at))]
+    return DeviceTable(
+        device_id=devices,
+        codes=np.stack([arr["device"][r0], arr["type"][r0], arr["gs"][r0]]),
+        records=records,
+        span_ns=np.stack([first, last]),
+        # Diag ids and channels ascending per device; heads in order of first appearance.
+        diag_ids=Runs(v_diag[np.lexsort((v_diag, d_diag))], np.r_[at_diag, len(v_diag)]),
+        channels=Runs(v_chan[np.lexsort((v_chan, d_chan))], np.r_[at_chan, len(v_chan)]),
+        head_name_codes=Runs(tables.head_name_code[v_head], np.r_[at_head, len(v_head)]),
+        identity=ident,
+        names=DeviceNames(reg.devices, reg.types, reg.gs, reg.heads),
+    )

@@ -33,7 +33,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, analyse_parts
+from console.analysis.head_table import HeadTable
 from console.analysis.passages import Columns, merge_buckets
+from console.analysis.status import STATUS_KIND
 from console.analysis.timefmt import NS
 from parsers.diag import DiagChunk, DiagRegistry
 
@@ -45,9 +47,13 @@ _MERGE_PARTS = 16
 
 
 def _grown(values: np.ndarray, n: int, fill: int) -> np.ndarray:
+    """At least ``n`` entries; room for half as many again, so a log adding heads in every chunk
+    does not copy every head's state per chunk (the spare entries hold ``fill``: nothing open)."""
     if len(values) >= n:
         return values
-    return np.r_[values, np.full(n - len(values), fill, np.int64)]
+    grown = np.full(max(n, len(values) * 3 // 2), fill, np.int64)
+    grown[: len(values)] = values
+    return grown
 
 
 @dataclass
@@ -78,7 +84,7 @@ class PassageStream:
         self._slack_ns = int(self.order_slack_s * NS)
 
     @property
-    def heads(self) -> list[tuple[int, str]]:
+    def heads(self) -> HeadTable:
         return self.acc._lookup().heads
 
     def open_first_ns(self) -> int:
@@ -97,7 +103,7 @@ class PassageStream:
         self._open_last = _grown(self._open_last, n, NO_TIME)
         self._cut = _grown(self._cut, n, NO_TIME)
         self._closed_upto = _grown(self._closed_upto, n, NO_TIME)
-        heads = tables.head[chunk.register_id]
+        heads = tables.head_of(chunk.register_id)
         self.late_records += int(np.count_nonzero(chunk.time_ns <= self._closed_upto[heads] + self._gap_ns))
         self._advance(heads, chunk.time_ns)
         return self._close(final=False)
@@ -130,18 +136,21 @@ class PassageStream:
         self._open_last[h] = np.where(prev == NO_TIME, last, np.maximum(prev, last))
 
     def _close(self, final: bool) -> PartAnalysis | None:
+        # Per head state is updated in place, and temporaries are only the heads closing (a log
+        # may have a million heads and close a few hundred per chunk).
         idle = self._open_last != NO_TIME
         if not final:
             idle &= self._open_last < self.clock_ns - self._gap_ns - self._slack_ns
-        closing = np.where(idle, self._open_last, self._cut)
-        self._closed_upto = np.maximum(self._closed_upto, closing)
+        closing = np.flatnonzero(idle | (self._cut != NO_TIME))
+        if not len(closing):
+            return None
+        upto = np.where(idle[closing], self._open_last[closing], self._cut[closing])
+        self._closed_upto[closing] = np.maximum(self._closed_upto[closing], upto)
         self._cut[idle] = ALL_TIME
         self._open_last[idle] = NO_TIME
-        if not (self._cut != NO_TIME).any():
-            return None
-        cut, self._cut = self._cut, np.full(len(self._cut), NO_TIME, np.int64)
-        buckets, self.acc._buckets = _split(self.acc._buckets, cut, "t_first_ns")
-        detections, self.acc._detections = _split(self.acc._detections, cut, "time_ns")
+        buckets, self.acc._buckets = _split(self.acc._buckets, self._cut, "t_first_ns")
+        detections, self.acc._detections = _split(self.acc._detections, self._cut, "time_ns")
+        self._cut[closing] = NO_TIME
         if len(self.acc._buckets) > _MERGE_PARTS:
             self.acc._buckets = [merge_buckets(self.acc._buckets)]
         if len(self.acc._detections) > _MERGE_PARTS:
@@ -209,3 +218,34 @@ def by_head_and_start(cols: Columns) -> np.ndarray:
 def by_start(cols: Columns) -> np.ndarray:
     """Row order of a stream: by start time, then head key."""
     return np.lexsort((cols["head"], cols["start_ns"]))
+
+
+@dataclass
+class FirstPassages:
+    """The first ``limit`` listed passages of a whole read's order (by head key, then start) and how many
+    passages there are, from batches of closed passages: what a table of the first rows needs, in memory
+    bounded by ``limit`` (a log may close a passage at each of a million heads).
+
+    Status-only passages are counted, not listed.  Ties keep the order the batches came in, as the
+    whole table's stable sort does.
+    """
+
+    limit: int
+    cols: Columns | None = None
+    listed: int = 0
+    status: int = 0
+
+    def add(self, cols: Columns, heads: object = None) -> None:
+        """One batch of closed passages (``heads``: unused, for the passage sinks' signature)."""
+        status = cols["kind"] == STATUS_KIND
+        self.status += int(status.sum())
+        keep = np.flatnonzero(~status)
+        self.listed += len(keep)
+        part = take_passages(cols, keep)
+        merged = concat_passages([self.cols, part]) if self.cols is not None else part
+        assert merged is not None
+        self.cols = take_passages(merged, by_head_and_start(merged)[: self.limit])
+
+    def clear(self) -> None:
+        """Forget every passage taken so far (the log is read again)."""
+        self.cols, self.listed, self.status = None, 0, 0

@@ -45,7 +45,7 @@ streamed: the caller reads those whole.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -115,7 +115,7 @@ class EventStream:
         self._power_ns = int(settings.power_gap_s * NS) if settings.power_gap_s is not None else None
 
     # -- heads -------------------------------------------------------------
-    def _heads(self, keys: np.ndarray, heads: list[tuple[int, str]]) -> None:
+    def _heads(self, keys: np.ndarray, heads: Sequence[tuple[int, str]]) -> None:
         """Resolve the heads first seen among ``keys``: counted or not, and how (once per head)."""
         if len(self.names) < len(heads):
             self.names.extend(name for _, name in heads[len(self.names) :])
@@ -155,7 +155,7 @@ class EventStream:
             raise ValueError(f"head {name}: three-element heads are counted from the whole log")
         return spec
 
-    def warnings(self, heads: list[tuple[int, str]]) -> list[str]:
+    def warnings(self, heads: Sequence[tuple[int, str]]) -> list[str]:
         """The batch path's warnings about log heads the layout does not count, in head order."""
         out: list[str] = []
         lay = self.layout
@@ -191,7 +191,10 @@ class EventStream:
         self._queue.push(block, np.full(1, _RESET_HEAD, np.int64), 0)
 
     def add(
-        self, wheel: dict[str, np.ndarray] | None, activity: dict[str, np.ndarray] | None, heads: list[tuple[int, str]]
+        self,
+        wheel: dict[str, np.ndarray] | None,
+        activity: dict[str, np.ndarray] | None,
+        heads: Sequence[tuple[int, str]],
     ) -> None:
         """One batch of closed passages: their wheel records (read order) and activity buckets."""
         if wheel is not None and len(wheel["head"]):
@@ -199,7 +202,7 @@ class EventStream:
         if self._power_ns is not None and activity is not None and len(activity["head"]):
             self._power(activity, heads)
 
-    def _count(self, wheel: dict[str, np.ndarray], heads: list[tuple[int, str]]) -> None:
+    def _count(self, wheel: dict[str, np.ndarray], heads: Sequence[tuple[int, str]]) -> None:
         key_col = np.asarray(wheel["head"], np.int64)
         self._heads(key_col, heads)
         order = np.lexsort((wheel["time_ns"], key_col))  # per head by time; ties keep read order
@@ -229,7 +232,7 @@ class EventStream:
             self.guess_failed = True
         self._push(bank.feed(hk, wheel["channel"][order], wheel["time_ns"][order], v), _COUNTING)
 
-    def _power(self, activity: dict[str, np.ndarray], heads: list[tuple[int, str]]) -> None:
+    def _power(self, activity: dict[str, np.ndarray], heads: Sequence[tuple[int, str]]) -> None:
         assert self._power_ns is not None
         key_col = np.asarray(activity["head"], np.int64)
         self._heads(key_col, heads)

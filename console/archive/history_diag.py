@@ -98,7 +98,6 @@ def history_diag(
             if len(passages)
             else 0
         ),
-        head_names=[name for _, name in heads],
         heads=heads,
     )
     analysis.__dict__["passages"] = passages  # the cached table, as DiagAnalysis.passages builds it

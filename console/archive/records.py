@@ -70,15 +70,20 @@ class RecordEncoder:
 
     def _refresh(self) -> dict[str, np.ndarray]:
         arrays = self.registry.arrays()
-        regs = self.registry.registers
-        if self._n != len(regs):
-            canon: dict[str | None, int] = {}
-            enc: dict[str, int] = {}
-            self._canon_codes = np.array([canon.setdefault(r.label_canonical, len(canon)) for r in regs], np.int32)
-            self._canon_values = list(canon)
-            self._enc_codes = np.array([enc.setdefault(r.label_encoding, len(enc)) for r in regs], np.int32)
-            self._enc_values = list(enc)
-            self._n = len(regs)
+        if self._n != self.registry.n_registers:
+            # Canonical labels (None for an unknown label) numbered in order of first register, from the columns.
+            key = np.where(arrays["label_known"], arrays["label_canonical"], -1)
+            distinct, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+            rank = np.empty(len(distinct), np.int32)
+            rank[np.argsort(first, kind="stable")] = np.arange(len(distinct), dtype=np.int32)
+            self._canon_codes = rank[inverse.reshape(-1)]
+            in_order = distinct[np.argsort(first, kind="stable")].tolist()
+            canonicals = self.registry.canonicals
+            self._canon_values = [canonicals.value(c) if c >= 0 else None for c in in_order]
+            # Encodings are interned in order of first register already.
+            self._enc_codes = arrays["label_encoding"]
+            self._enc_values = list(self.registry.encodings.values)
+            self._n = self.registry.n_registers
         return arrays
 
     def encode(self, chunk: DiagChunk, file_name: str, file_seq: int, line_offset: int) -> tuple[pa.Table, np.ndarray]:

@@ -28,6 +28,8 @@ from console.commands.common import (
 )
 from console.safe_text import clean
 
+PASSAGES_SHOWN = 200  # rows of the text table; --json has all
+
 
 def analyze(
     files: FilesArg,
@@ -55,6 +57,7 @@ def analyze(
     """Inventory, passages with speeds, and the parse report of diagnostic logs."""
 
     def body() -> int:
+        from console.analysis.stream import FirstPassages
         from console.jobs import summarise_status, summary_doc
         from console.render.diag_stream import JsonLinesOut
         from console.render.passage_spool import PassageSpool
@@ -70,28 +73,34 @@ def analyze(
         length_m = train_length if train_length is not None else (consist.length_m if consist else 28.6)
         summary = layout_summary(files, lay, spacing_m, length_m, idle_gap) if layout else None
         lines = JsonLinesOut(sys.stdout, None if rejected_all else REJECTIONS_LISTED) if jsonl else None
+        # Passages go to a spool for --json, and only the first rows shown are kept for the text tables.
+        first = FirstPassages(PASSAGES_SHOWN) if not (json_out or jsonl or summary) else None
         spool = PassageSpool() if json_out and not summary else None
         if summary:
             job = summary[0]
             if not include_status:
                 summarise_status(job)
         else:
-            job = run_diag_stream(files, spacing_m, length_m, idle_gap, include_status, rejected_all, lines, spool)
+            job = run_diag_stream(
+                files, spacing_m, length_m, idle_gap, include_status, rejected_all, lines, spool or first
+            )
         if lines is not None:
-            lines.finish([d.to_dict() for d in job.analysis.devices], summary_doc(job, JSON_SCHEMA_ANALYZE))
+            lines.finish((d.to_dict() for d in job.analysis.devices), summary_doc(job, JSON_SCHEMA_ANALYZE))
         elif json_out:
-            from console.jsonout import RawJSON
+            from console.jobs import status_json
+            from console.jsonout import RawJSON, array_parts
 
             passages = spool.json_parts() if spool is not None else RawJSON(job.analysis.passages_json_text())
+            devices = array_parts(d.to_dict() for d in job.analysis.devices)  # encoded as written
             doc = {
                 "schema": JSON_SCHEMA_ANALYZE,
                 "trackside_version": __version__,
                 "files": job.files,
                 "parse_report": job.report.to_dict(),
-                **job.analysis.to_dict(passages=passages),
+                **job.analysis.to_dict(passages=passages, devices=devices),
             }
             if job.status is not None:
-                doc["status_passages"] = job.status.to_dict(job.analysis.heads)
+                doc["status_passages"] = status_json(job.status, job.analysis.heads)
             if summary:
                 from console.render.section_tables import sections_json
 
@@ -112,7 +121,7 @@ def analyze(
 
             out = Console(highlight=False)
             out.print(inventory_table(job.analysis))
-            out.print(passages_table(job.analysis, limit=200))
+            out.print(passages_table(job.analysis, limit=PASSAGES_SHOWN, first=first))
             out.print(parse_report_table(job.report))
             rej = rejections_table(job.report)
             if rej is not None:

@@ -360,7 +360,8 @@ def run_diag_stream(
 ) -> Any:
     """The diagnostic job in bounded memory (:func:`console.jobs.stream_files`); with ``jsonl``
     (a :class:`~console.render.diag_stream.JsonLinesOut`), passages and rejections are written as found;
-    with ``spool`` (a :class:`~console.render.passage_spool.PassageSpool`), passages are encoded into it
+    with ``spool`` (a :class:`~console.render.passage_spool.PassageSpool`, or any sink with ``add`` and
+    ``clear`` such as :class:`~console.analysis.stream.FirstPassages`), passages are encoded into it
     as they close.  Either way the job then holds no passages, only their count."""
     import sys as _sys
 

@@ -38,7 +38,7 @@ def speeds(
     """The passages table alone: per-second, whole-train and per-axle speeds."""
 
     def body() -> int:
-        from console.jobs import summary_doc
+        from console.jobs import status_json, summary_doc
         from console.render.diag_stream import JsonLinesOut
         from console.render.passage_spool import PassageSpool
 
@@ -53,7 +53,7 @@ def speeds(
             assert spool is not None
             doc = {"schema": "trackside.speeds/1", "passages": spool.json_parts()}
             if job.status is not None:
-                doc["status_passages"] = job.status.to_dict(job.analysis.heads)
+                doc["status_passages"] = status_json(job.status, job.analysis.heads)
             print_json(doc)
             if spool is not None:
                 spool.close()

@@ -127,11 +127,16 @@ class DiagFollow:
         self.stats.rejections_shown = len(rej)
 
     def _heads_of(self, register_id: np.ndarray) -> np.ndarray:
-        regs = self.reader.registry.registers
-        if len(self._head_of_reg) < len(regs):
+        reg = self.reader.registry
+        if len(self._head_of_reg) < reg.n_registers:
+            a = reg.arrays()
+            done = len(self._head_of_reg)
             extra = []
-            for r in regs[len(self._head_of_reg) :]:  # once per distinct register: a few hundred
-                key = (r.device_id, r.counting_head)
+            heads = reg.heads
+            for dev, code in zip(  # once per distinct register: a few hundred
+                a["device_id"][done:].tolist(), a["counting_head"][done:].tolist(), strict=True
+            ):
+                key = (dev, heads.value(code))
                 if key not in self._head_keys:
                     self._head_keys[key] = len(self._heads)
                     self._heads.append(key)
@@ -297,8 +302,7 @@ class DiagFollow:
         )
 
     def _health(self, chunks: list[DiagChunk], events: list[DetectionEvent]) -> None:
-        regs = self.reader.registry.registers
-        wanted = np.fromiter((r.label_canonical in HEALTH_REGISTERS for r in regs), bool, len(regs))
+        wanted = self.reader.registry.canonical_in(HEALTH_REGISTERS)
         kept = [c.take(wanted[c.register_id]) for c in chunks]
         kept = [c for c in kept if len(c)]
         if not kept and not events:

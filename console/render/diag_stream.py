@@ -10,8 +10,10 @@ report counts, status-passage counts).  A 30 M-record log can be piped into
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from typing import Any, TextIO
 
+from console.analysis.head_table import Heads
 from console.analysis.passages import Columns
 from console.jsonout import valid_unicode
 from parsers.report import Rejection
@@ -37,7 +39,7 @@ class JsonLinesOut:
         self.out.write(line({"type": "rejected", **r.to_dict()}))
         self.out.flush()
 
-    def passages(self, cols: Columns, heads: list[tuple[int, str]]) -> None:
+    def passages(self, cols: Columns, heads: Heads) -> None:
         from console.analysis.passages_json import encode_passages
 
         text = encode_passages(cols, heads, workers=1, lines_of_type="passage")
@@ -49,9 +51,11 @@ class JsonLinesOut:
         self.out.write(text)
         self.out.flush()
 
-    def finish(self, devices: list[dict[str, Any]], summary: dict[str, Any]) -> None:
+    def finish(self, devices: Iterable[dict[str, Any]], summary: dict[str, Any]) -> None:
+        from console.jsonout import write
+
         for d in devices:
             # "type" names the line; the board's own type is "device_type" here.
             self.out.write(line({"type": "device", **{("device_type" if k == "type" else k): v for k, v in d.items()}}))
-        self.out.write(line({"type": "summary", **summary}))
+        write({"type": "summary", **summary}, self.out)  # as line(): its larger parts may be streamed
         self.out.flush()

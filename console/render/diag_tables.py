@@ -14,6 +14,7 @@ from rich.text import Text
 
 from console.analysis.diagnostics import DiagAnalysis
 from console.analysis.inventory import DeviceInventory
+from console.analysis.stream import FirstPassages
 from console.analysis.timefmt import display, iso
 from console.safe_text import inert
 from parsers.report import ParseReport
@@ -67,8 +68,9 @@ def inventory_table(analysis: DiagAnalysis, limit: int = DEVICES_SHOWN) -> Table
     return t
 
 
-def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
-    p, status, total = _listed_passages(analysis, limit)
+def passages_table(analysis: DiagAnalysis, limit: int | None = None, first: FirstPassages | None = None) -> Table:
+    """The passages (the first ``limit``), from the analysis or, when it holds none, from ``first``."""
+    p, status, total = _listed_passages(analysis, limit, first)
     t = _table(f"Passages ({total}); speeds in km/h: per-second method (records), whole train, per-axle mean")
     t.add_column("Head", no_wrap=True, min_width=4)
     t.collapse_padding = True  # whole-second bounds widen a column: still 80 columns
@@ -110,18 +112,23 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None) -> Table:
     return t
 
 
-def _listed_passages(analysis: DiagAnalysis, limit: int | None) -> tuple[pd.DataFrame, int, int]:
+def _listed_passages(
+    analysis: DiagAnalysis, limit: int | None, first: FirstPassages | None = None
+) -> tuple[pd.DataFrame, int, int]:
     """The passages to list (no status-only ones), how many status-only, and how many listed in all.
 
     With a limit, only the rows shown become a table: a log of a million heads
     has a passage per head.
     """
+    from console.analysis.diagnostics import _KINDS, _passages_frame
+
     cols = analysis.passage_columns
+    if first is not None and cols is None:  # the job kept only the first rows (analyze's text face)
+        return _passages_frame(first.cols, analysis.heads), first.status, first.listed
     if limit is None or cols is None:
         p = analysis.passages
         status = int((p["kind"] == "status").sum()) if len(p) else 0
         return (p[p["kind"] != "status"] if status else p), status, len(p) - status
-    from console.analysis.diagnostics import _KINDS, _passages_frame
     from console.analysis.stream import take_passages
 
     listed = np.flatnonzero(cols["kind"] != _KINDS.index("status"))

@@ -228,17 +228,22 @@ def devices_table(fixes: pd.DataFrame, limit: int = DEVICES_SHOWN) -> Table:
     t.caption_justify = "left"
     if fixes.empty:
         return t
-    # One grouped reduction per figure: no table per device (a file may hold a million devices).
-    by = fixes.groupby("device", observed=True, sort=True)
+    # Devices in the grouping's order (the categories'), counted on the codes; the figures are grouped
+    # reductions over the rows of the devices shown only (a file may hold a million devices).
+    codes = fixes["device"].cat.codes.to_numpy()
+    per_device = np.bincount(codes[codes >= 0], minlength=len(fixes["device"].cat.categories))
+    observed = np.flatnonzero(per_device)
+    in_shown = np.isin(codes, observed[:limit])
+    rows = fixes[in_shown]
+    by = rows.groupby("device", observed=True, sort=True)
     count = by.size()
-    shown = count.index[:limit]
-    valid = fixes["valid"].astype(bool)
-    n_valid = valid.groupby(fixes["device"], observed=True, sort=True).sum()
+    shown = count.index
+    valid = rows["valid"].astype(bool)
+    n_valid = valid.groupby(rows["device"], observed=True, sort=True).sum()
     first, last = by["time"].min(), by["time"].max()
-    speed = fixes["speed_mps"].where(valid).groupby(fixes["device"], observed=True, sort=True).mean()
-    in_shown = fixes["device"].isin(shown).to_numpy()
+    speed = rows["speed_mps"].where(valid).groupby(rows["device"], observed=True, sort=True).mean()
     pairs = pd.DataFrame(
-        {"device": fixes["device"].to_numpy()[in_shown], "role": [str(x) for x in fixes["role"].to_numpy()[in_shown]]}
+        {"device": rows["device"].to_numpy(), "role": [str(x) for x in rows["role"].to_numpy()]}
     ).drop_duplicates()
     roles_of: dict[Any, set[str]] = {}
     for device, role in zip(pairs["device"].tolist(), pairs["role"].tolist(), strict=True):
@@ -255,8 +260,10 @@ def devices_table(fixes: pd.DataFrame, limit: int = DEVICES_SHOWN) -> Table:
             clock.text(last[device], seconds=True),
             _num(speed[device], "{:.1f}", _MPS_TO_KMH),
         )
-    if len(count) > limit:
-        t.caption = Text(f"first {limit:,} of {len(count):,} devices; km/h: mean speed of the valid fixes", style="dim")
+    if len(observed) > limit:
+        t.caption = Text(
+            f"first {limit:,} of {len(observed):,} devices; km/h: mean speed of the valid fixes", style="dim"
+        )
     return t
 
 

@@ -20,6 +20,7 @@ from typing import IO
 
 import numpy as np
 
+from console.analysis.head_table import Heads
 from console.analysis.passages import Columns
 from console.jsonout import JSONParts
 
@@ -32,7 +33,7 @@ _PLACE = [("head", "<i4"), ("length", "<i4"), ("start_ns", "<i8"), ("offset", "<
 _INDEX_ROWS = 1 << 16  # places read back at a time
 
 
-def passage_texts(cols: Columns, heads: list[tuple[int, str]]) -> list[str]:
+def passage_texts(cols: Columns, heads: Heads) -> list[str]:
     """Each passage of ``cols`` as one JSON object (the ``--json`` fields, ASCII)."""
     from console.analysis.passages_json import encode_passages
 
@@ -62,7 +63,7 @@ class PassageSpool:
         self._ordered: tuple[np.ndarray, np.ndarray] | None = None
         self.count = 0
 
-    def add(self, cols: Columns, heads: list[tuple[int, str]]) -> None:
+    def add(self, cols: Columns, heads: Heads) -> None:
         """Take one batch (any order); its texts and places go to disk."""
         n = len(cols["head"])
         if not n:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from console.analysis.head_table import Heads
 from console.analysis.passages import Columns
 from console.analysis.sections import ResetRecord, Transition
 from console.analysis.status import STATUS_KIND
@@ -55,14 +56,14 @@ class ReportPassages:
         self.spool = PassageSpool(columns=_PLOTTED if plot else ())
         self.plot = plot
         self.status = 0
-        self.heads: list[tuple[int, str]] = []
+        self.heads: Heads = []
 
-    def add(self, cols: Columns, heads: list[tuple[int, str]]) -> None:
+    def add(self, cols: Columns, heads: Heads) -> None:
         """One batch of closed passages (``heads``: the log's heads so far, by key)."""
         status = cols["kind"] == STATUS_KIND
         self.status += int(status.sum())
         self.spool.add(take_passages(cols, np.flatnonzero(~status)) if status.any() else cols, heads)
-        self.heads = heads  # the stream's own list: it grows as heads appear, keys stay
+        self.heads = heads  # the latest heads: they grow as heads appear, keys stay
 
     def __len__(self) -> int:
         return self.spool.count
