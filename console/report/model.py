@@ -29,7 +29,7 @@ import json
 import math
 import re
 from collections import Counter
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, cast
 
@@ -360,39 +360,74 @@ def _sensors(data: ReportData) -> list[dict[str, Any]]:
     return out
 
 
-def _gnss_units(data: ReportData) -> list[dict[str, Any]]:
+def _natural_order(names: pd.Index) -> np.ndarray:
+    """Positions of ``names`` in :func:`natural_key` order (ties keep their order), one sort key
+    string per name: runs of digits length-prefixed, so that plain string order is the natural one."""
+    keys = [_NUMBER_PARTS.sub(_padded_number, str(x).casefold()) for x in names]
+    return np.argsort(np.array(keys, dtype=object), kind="stable")
+
+
+def _padded_number(m: re.Match[str]) -> str:
+    digits = m.group().lstrip("0") or "0"
+    # "\x00" sorts the number before any letter, as natural_key's int part before a text part.
+    return f"\x00{len(digits):06d}{digits}"
+
+
+def _value_sets(code: np.ndarray, values: pd.Series, n: int) -> tuple[np.ndarray, list[str]]:
+    """Per device, the set of ``values`` it has, as a bit mask over the distinct values (few: roles,
+    sources), and those values: flat, not a set object per device."""
+    vcode, vnames = pd.factorize(values.astype(str), sort=True)
+    mask = np.zeros(n, np.uint64)
+    if len(vnames) > 64:  # never for roles or sources; keep the first 64 rather than fail
+        vcode = np.where(vcode < 64, vcode, 63)
+    np.bitwise_or.at(mask, code, np.left_shift(np.uint64(1), vcode.astype(np.uint64)))
+    return mask, [str(v) for v in vnames[:64]]
+
+
+def _gnss_units(data: ReportData) -> list[dict[str, Any]] | Rows:
     fixes = data.fixes
     if fixes is None or fixes.empty:
         return []
-    # Grouped reductions, not a table per device: a file may hold a million devices.
+    # Grouped reductions into flat columns, and one row made at a time as the report is written:
+    # a file may hold a million devices.
     code, names = pd.factorize(fixes["device"].astype(str), sort=True)
     n = len(names)
     count = np.bincount(code, minlength=n)
-    n_valid = np.bincount(code, weights=fixes["valid"].astype(bool).to_numpy(), minlength=n)
+    n_valid = np.bincount(code, weights=fixes["valid"].astype(bool).to_numpy(), minlength=n).astype(np.int64)
     by = fixes["time"].groupby(code, sort=True)
-    first, last = by.min(), by.max()
-    roles: list[set[str]] = [set() for _ in range(n)]
-    sources: list[set[str]] = [set() for _ in range(n)]
-    for sets, column in ((roles, "role"), (sources, "source")):
-        pairs = pd.DataFrame({"d": code, "v": [str(x) for x in fixes[column].to_numpy()]}).drop_duplicates()
-        for d, v in zip(pairs["d"].tolist(), pairs["v"].tolist(), strict=True):
-            sets[d].add(v)
-    out = []
-    for i in sorted(range(n), key=lambda i: natural_key(str(names[i]))):
-        role = sorted(roles[i] - {""})
-        t0, t1 = first.get(i), last.get(i)
-        out.append(
-            {
+    first = np.full(n, np.iinfo(np.int64).min, np.int64)
+    last = first.copy()
+    t0, t1 = by.min(), by.max()
+    first[t0.index.to_numpy()] = t0.to_numpy("datetime64[ns]").view(np.int64)
+    last[t1.index.to_numpy()] = t1.to_numpy("datetime64[ns]").view(np.int64)
+    roles, role_names = _value_sets(code, fixes["role"], n)
+    sources, source_names = _value_sets(code, fixes["source"], n)
+    order = _natural_order(names)
+
+    def members(mask: int, values: list[str], cache: dict[int, list[str]]) -> list[str]:
+        got = cache.get(mask)
+        if got is None:
+            got = cache[mask] = [v for b, v in enumerate(values) if mask >> b & 1]
+        return got
+
+    def rows() -> Iterator[dict[str, Any]]:
+        role_cache: dict[int, list[str]] = {}
+        source_cache: dict[int, list[str]] = {}
+        nat = np.iinfo(np.int64).min
+        for i in order.tolist():
+            role = [r for r in members(int(roles[i]), role_names, role_cache) if r]
+            t_first, t_last = int(first[i]), int(last[i])
+            yield {
                 "device": str(names[i]),
                 "role": "/".join(role) or None,
-                "sources": sorted(sources[i]),
+                "sources": list(members(int(sources[i]), source_names, source_cache)),
                 "fixes": int(count[i]),
                 "valid": int(n_valid[i]),
-                "first": None if t0 is None or pd.isna(t0) else iso(int(t0.value)),
-                "last": None if t1 is None or pd.isna(t1) else iso(int(t1.value)),
+                "first": None if t_first == nat else iso(t_first),
+                "last": None if t_last == nat else iso(t_last),
             }
-        )
-    return out
+
+    return Rows(n, rows)
 
 
 def _passages(data: ReportData) -> tuple[list[dict[str, Any]] | Rows, int]:
