@@ -48,6 +48,7 @@ import numpy as np
 import pyarrow as pa
 
 from console.archive.store import Manifest
+from console.memory import read_memory, trim_heap
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -55,6 +56,10 @@ if TYPE_CHECKING:
     from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
 
 NS_PER_DAY = 86_400 * 1_000_000_000
+# Records a partition task analyses at most (but for one busy day alone): a task's memory grows with
+# its records, about 0.5 kB each at the peak (an 8-day window of a device writing 75 k records a day
+# peaked at 484 MB; 4 days, 322 MB), and a Dask worker is bounded to 512 MB.
+TASK_RECORDS = 300_000
 _KEY_IN_PATH = re.compile(r"day=(\d{4}-\d{2}-\d{2})/device_id=(-?\d+)/")
 WHEEL_COLUMNS = ("device_id", "counting_head", "channel", "time_ns", "value", "subsecond")
 HEAD_COLUMNS = ("device_id", "counting_head", "first_file_seq", "first_line")
@@ -229,7 +234,10 @@ class PartitionTask:
 def run_task(task: PartitionTask) -> DerivedRows:
     """The rows of a task's days (module-level: a mapper may pickle it to a worker)."""
     m = Manifest(tables={"records": list(task.records)})
-    return derive_run(Path(task.root), m, task.device_id, task.days, task.carried, task.settings)
+    # Arrow on the system allocator, its freed pages trimmed (a worker runs task after task: each
+    # task's peak would otherwise stay as the worker's RSS).
+    with read_memory():
+        return derive_run(Path(task.root), m, task.device_id, task.days, task.carried, task.settings)
 
 
 def make_tasks(
@@ -239,8 +247,13 @@ def make_tasks(
     carried: dict[PartitionKey, Carried],
     settings: SpeedSettings,
     max_days: int = 8,
+    max_records: int | None = None,
 ) -> list[PartitionTask]:
-    """The wanted keys as tasks: runs of at most ``max_days`` consecutive days of one device, in key order."""
+    """The wanted keys as tasks, in key order: runs of consecutive days of one device, at most
+    ``max_days`` of them and (but for a run of one day) at most ``max_records`` records in all
+    (default :data:`TASK_RECORDS`)."""
+    if max_records is None:
+        max_records = TASK_RECORDS
     parts_of: dict[PartitionKey, list[str]] = {}
     for rel in manifest.parts("records"):
         k = key_of_part(rel)
@@ -248,12 +261,22 @@ def make_tasks(
             parts_of.setdefault(k, []).append(rel)
     one = dt.timedelta(days=1)
     runs: list[list[PartitionKey]] = []
+    held = 0  # records in the last run
     for k in sorted(set(wanted)):
+        n = _records_in(root, parts_of.get(k, []))
         last = runs[-1][-1] if runs else None
-        if last is not None and last.device_id == k.device_id and last.day + one == k.day and len(runs[-1]) < max_days:
+        if (
+            last is not None
+            and last.device_id == k.device_id
+            and last.day + one == k.day
+            and len(runs[-1]) < max_days
+            and held + n <= max_records
+        ):
             runs[-1].append(k)
+            held += n
         else:
             runs.append([k])
+            held = n
     tasks = []
     for run in runs:
         c = Carried(carried[run[0]].day_before, carried[run[-1]].days_after)
@@ -262,6 +285,19 @@ def make_tasks(
         records = tuple(rel for d in days for rel in sorted(parts_of.get(PartitionKey(dev, d), [])))
         tasks.append(PartitionTask(str(root), records, dev, tuple(k.day for k in run), c, settings))
     return tasks
+
+
+def _records_in(root: Path, parts: Iterable[str]) -> int:
+    """Records in the parts, from their Parquet footers (no data read; a part gone counts none)."""
+    import pyarrow.parquet as pq
+
+    n = 0
+    for rel in parts:
+        try:
+            n += pq.read_metadata(root / rel).num_rows
+        except (OSError, pa.ArrowInvalid):
+            continue
+    return n
 
 
 def _window_manifest(manifest: Manifest, device_id: int, lo: dt.date, hi: dt.date) -> Manifest:
@@ -291,15 +327,19 @@ def _window_records(root: Path, manifest: Manifest, device_id: int, lo: dt.date,
         tables.append(t.append_column("device_id", pa.array(np.full(t.num_rows, device_id, np.int32))))
     if not tables:
         return pa.table({})
+    # The Parquet decoder's freed buffers given back before the table is copied into read order:
+    # otherwise they stay in the C heap under the copies (an 8-day window: 259 -> 200 MB peak).
+    trim_heap()
     # Text columns stay dictionary-coded (a few bytes a record, where plain strings take tens): the
     # parts' dictionaries unified into one per column, which ChunkRebuilder reads as codes.
     table = pa.concat_tables(tables, promote_options="permissive").unify_dictionaries().select(list(RECORD_COLUMNS))
     seq = table.column("file_seq").to_numpy().astype(np.int64)
     line = table.column("line").to_numpy().astype(np.int64)
     order = np.lexsort((line, seq))
+    table = table.combine_chunks()
     if not (order[1:] > order[:-1]).all():
         table = table.take(pa.array(order))
-    return table.combine_chunks()
+    return table
 
 
 def _analyse_window(
