@@ -96,8 +96,11 @@ def latency_file(n: int, gap_s: float) -> None:
                 if k:
                     sent[time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(T0 + (k - 1) * 13.5))] = now
                     line = proc.stdout.readline()
-                    arrived = time.perf_counter()
                     ev = json.loads(line)
+                    while ev.get("type") == "source":  # the follower's note on what the file is read as
+                        line = proc.stdout.readline()
+                        ev = json.loads(line)
+                    arrived = time.perf_counter()
                     if ev.get("type") != "passage":
                         raise SystemExit(f"expected a passage, got {line!r}")
                     got.append(arrived - sent[ev["start"][:19]])
