@@ -45,6 +45,31 @@ analyze`` of a tiny log peaks at 142 MB, imports included).  "before" is
     gnss --json      devices_1000000.csv    59.4     33.4           526      8.8
     gnss (text)      devices_1000000.csv    59.4     18.2           522      8.8
 
+1 M heads / 1 M devices on an idle machine (2026-11-26, load average < 1),
+at bd9337f: flat registers (``parsers/diag_registry.py``, columns per
+register, names in a flat ``StringDictionary``), heads and devices as
+column tables (``HeadTable``, ``DeviceTable``), GNSS devices interned flat;
+the last row after a975886 (the report's GNSS unit table as flat columns,
+rows made as written)::
+
+    command          input                 MB in   wall s   CPU s  peak RSS MB  RSS/in
+    analyze --json   heads_1000000.log     132.5     25.6    26.5          486     3.7
+    analyze (text)   heads_1000000.log     132.5     17.5    18.3          470     3.5
+    report (json)    heads_1000000.log     132.5     39.2    40.0          792     6.0
+    gnss --json      devices_1000000.csv    59.4     11.6    11.8          416     7.0
+    gnss (text)      devices_1000000.csv    59.4      6.6     6.7          412     6.9
+    report (json)    devices_1000000.csv    59.4     57.6    57.6         1726    29.0
+    report (json)    devices_1000000.csv    59.4     34.6       -          540     9.1   (after a975886)
+
+The imports alone are 107-142 MB of each figure.  ``analyze`` is within
+the <= ~4x target; ``gnss`` and ``report`` are not: the GNSS parse builds
+the whole fix table before anything is derived (414 MB peak for the 1 M
+device CSV in ``parse_gnss`` alone, of which the table is 124 MB: the
+device categorical holds a Python string per device), and ``report`` on
+the head log holds the per-head inventory and findings for its document.
+Streaming the GNSS fixes (they are sorted for the crossing controller)
+would be the next step.
+
 Before, ``analyze --json`` on the 1 M-head log was killed after 400 s at
 1568 MB; with only the pairing and inventory fixed it finished in 664 s at
 2327 MB (the passages JSON then encoded every head's name per batch).
