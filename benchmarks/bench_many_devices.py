@@ -84,7 +84,7 @@ file); the GNSS device table, the report's GNSS units and the analyze text
 tables from grouped reductions or only the rows shown (were a DataFrame per
 device, or a column per device).
 
-Still over the target (so not met): at 1 M heads most of the memory is the
+Then (2026-11-23), still over the target: at 1 M heads most of the memory was the
 diagnostic registry's Python objects per register (a ``RegisterKey``, its
 head name, the span bytes that key the register cache: ~0.5 kB a
 register, against ~139 bytes of log line); flat, columnar registers in
