@@ -22,6 +22,8 @@ from console.safe_text import PLAIN, clean
 
 _SPECIAL = re.compile(r"([\\`*_\[\]|#~])")
 _LEADING = re.compile(r"^(\s*)([-+*]|\d+[.)])(?=\s|$)")
+# Text md_escape returns unchanged (PLAIN, and the arrows and dash the tables show): checked once per row.
+_ROW_INERT = re.compile(r"[A-Za-z0-9 .:,/%()+=\-\u2190\u2192\u2194\u2013]*")
 _STRONG = ("strong", "verdict-unsafe", "verdict-failing", "verdict-ok", "unsafe")
 
 
@@ -51,7 +53,19 @@ def _table(t: Table, write: Write) -> None:
     write("| " + " | ".join(md_escape(c) for c in t.columns) + " |\n")
     write("|" + "|".join("---:" if n else "---" for n in t.numeric) + "|")
     for row in t.rows:
-        write("\n| " + " | ".join(_cell(c) or " " for c in row) + " |")
+        texts = [c.text if isinstance(c, Styled) else c for c in row]
+        try:
+            inert = _ROW_INERT.fullmatch("".join(texts)) is not None
+        except TypeError:  # a cell that is not text: the escaping path says what it is
+            inert = False
+        if inert:  # no cell has anything to escape (most rows): one check per row, not per cell
+            cells = [
+                f"**{x}**" if x and isinstance(c, Styled) and c.style in _STRONG else x or " "
+                for c, x in zip(row, texts, strict=True)
+            ]
+        else:
+            cells = [_cell(c) or " " for c in row]
+        write("\n| " + " | ".join(cells) + " |")
     if t.note:
         write(f"\n\n_{md_escape(t.note)}_")
 
