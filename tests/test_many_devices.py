@@ -247,7 +247,7 @@ def test_report_gnss_units_many_devices_in_natural_order(tmp_path: Path) -> None
     fixes = parse_gnss([csv])[0]
     data = ReportData.__new__(ReportData)
     data.fixes = fixes
-    units = _gnss_units(data)
+    units = list(_gnss_units(data))
     assert [u["device"] for u in units[:12]] == [f"U{i}" for i in range(12)]  # U2 before U10
     assert len(units) == 3000
     u7 = units[7]
