@@ -207,8 +207,11 @@ def _inventory(con: duckdb.DuckDBPyConnection, window: Window) -> list[DeviceInv
 
     where, params = window.where()
     rows = con.execute(
-        "SELECT device_id, first(device ORDER BY file_seq, line), first(type ORDER BY file_seq, line), "
-        "first(gs ORDER BY file_seq, line), list(DISTINCT diag_id ORDER BY diag_id), "
+        # The first record's names: arg_min over the read position (a line is one record: no ties),
+        # cheaper than an ordered first().
+        "SELECT device_id, arg_min(device, file_seq::BIGINT * 4294967296 + line), "
+        "arg_min(type, file_seq::BIGINT * 4294967296 + line), "
+        "arg_min(gs, file_seq::BIGINT * 4294967296 + line), list(DISTINCT diag_id ORDER BY diag_id), "
         "list(DISTINCT channel ORDER BY channel), count(*), min(time), max(time) "
         f"FROM records{where} GROUP BY device_id ORDER BY device_id",
         params,
