@@ -413,6 +413,13 @@ class CrossingController:
                 out += self._check_on(other, fix.t_ns) + self._alarms(other, fix.t_ns)
         return out
 
+    def settled_ns(self) -> int | None:
+        """When every device's last fix has gone stale (None: no fix yet). After that, until the
+        next fix, no estimate of a head exists (no warning by extrapolation), a head-unit alarm
+        needs a fresh EOT, and a stale-EOT alarm fires at the first tick: later ticks do nothing."""
+        last = [r.t_fix_ns for tr in self.tracks.values() for r in (tr.head, tr.eot) if r is not None]
+        return max(last) + int(self.s.stale_after_s * NS) if last else None
+
     def tick(self, t_ns: int) -> list[CrossingEvent]:
         """The passing of time: activation by extrapolation, stale-device alarms."""
         out: list[CrossingEvent] = []
@@ -434,16 +441,29 @@ def run_controller(
     if not ordered:
         return ctl
     t = ordered[0].t_ns
-    step = int(tick_s * NS)
+    step = max(1, int(tick_s * NS))
     for f in ordered:
-        while t + step < f.t_ns:
-            t += step
-            ctl.tick(t)
+        if f.t_ns > t:
+            _tick(ctl, t, (f.t_ns - t - 1) // step, step)  # every tick before the fix
         ctl.step(f)
         t = f.t_ns
     # A live unit keeps its clock running: let pending stale-device alarms fire.
     end = t + int((ctl.s.stale_after_s + tick_s) * NS)
-    while t < end:
-        t += step
-        ctl.tick(t)
+    _tick(ctl, t, -(-(end - t) // step), step)
     return ctl
+
+
+def _tick(ctl: CrossingController, t0_ns: int, n: int, step_ns: int) -> None:
+    """``ctl.tick`` at ``t0 + k·step`` for k = 1..n, as a walk over every tick would give it.
+
+    Ticks stop one tick after every device has gone stale (:meth:`CrossingController.settled_ns`):
+    from then on a tick emits nothing and changes nothing until the next fix. So a fix dated
+    years after the one before it (a damaged year) costs the stale time's ticks, not one tick
+    per second of the years.
+    """
+    settled = ctl.settled_ns()
+    for k in range(1, n + 1):
+        t = t0_ns + k * step_ns
+        if settled is None or t > settled + 2 * step_ns:  # two ticks past it: the stale time is a float
+            return
+        ctl.tick(t)
