@@ -101,8 +101,12 @@ def _has_packet(head: bytes) -> bool:
 
 
 def _cells(text: str) -> list[str]:
+    """The first line's cells; none for a line the csv module refuses (a stray CR, a NUL): no header."""
     delimiter = "\t" if "\t" in text else ";" if ";" in text else ","
-    return next(csv.reader([text], delimiter=delimiter, skipinitialspace=True), [])
+    try:
+        return next(csv.reader([text], delimiter=delimiter, skipinitialspace=True), [])
+    except csv.Error:
+        return []
 
 
 def classify_head(head: bytes) -> KindGuess:

@@ -112,10 +112,10 @@ def _is_voltage_header(text: str) -> bool:
     from parsers.voltages import parse_header
 
     delimiter = "\t" if "\t" in text else ";" if ";" in text else ","
-    cells = next(csv.reader([text], delimiter=delimiter, skipinitialspace=True), [])
     try:
+        cells = next(csv.reader([text], delimiter=delimiter, skipinitialspace=True), [])
         parse_header(cells)
-    except ValueError:
+    except (ValueError, csv.Error):  # csv.Error: a line the csv module refuses is no header
         return False
     return True
 
