@@ -235,6 +235,16 @@ def test_a_nul_or_stray_cr_in_a_gnss_header_is_never_an_internal_error(
     assert code in (0, 2)  # read without that column, or no header recognised: never an internal error
 
 
+@pytest.mark.parametrize("char", ["\x7f", "\u202e", "\x1b[31m"], ids=["del", "bidi", "escape"])
+def test_a_device_name_in_the_crossing_warnings_is_shown_escaped(tmp_path: Path, char: str) -> None:
+    # Found by the long fuzz run: "devices in no train: A-e\x7ft" reached the terminal as it was.
+    data = (SAMPLES / "crossing_example.csv").read_text(encoding="utf-8")
+    path = tmp_path / "gnss.csv"
+    path.write_text(data.replace(",A-eot,", f",A-e{char}ot,", 1), encoding="utf-8")
+    code, stdout = check_run(_argv("crossing", path, False, tmp_path / "r.md"), [path], json_out=False)
+    assert code in (0, 1) and "devices in no train" in stdout
+
+
 @pytest.mark.parametrize("command", ["gnss", "crossing"])
 @pytest.mark.parametrize("damage", ["truncated", "junk"])
 def test_a_truncated_or_junk_tailed_gzip_keeps_the_lines_before_it(tmp_path: Path, command: str, damage: str) -> None:

@@ -18,6 +18,7 @@ from console.commands.common import (
     print_json,
     refuse_wrong_kind,
 )
+from console.safe_text import clean
 
 
 def crossing(
@@ -102,7 +103,7 @@ def crossing(
             out.print(timeline_table(run.timelines))
             out.print(reasons_view(run.timelines, run.events))
             for w in warnings:
-                out.print(f"warning: {w}", markup=False)
+                out.print(f"warning: {clean(w)}", markup=False)  # names from the input: escaped
             if report.rejected:
                 out.print(f"{report.rejected} input lines rejected (trackside gnss lists them)", markup=False)
         return exit_codes.FINDINGS if strict and (violations or report.rejected) else exit_codes.OK

@@ -19,6 +19,7 @@ from console.commands.common import (
     print_json,
     refuse_wrong_kind,
 )
+from console.safe_text import clean
 
 
 def _worst(findings: list[Any]) -> Any:
@@ -108,7 +109,7 @@ def health(
             out = Console(highlight=False)
             out.print(findings_view(findings))
             for w in warnings:
-                out.print(f"warning: {w}", markup=False)
+                out.print(f"warning: {clean(w)}", markup=False)  # names from the input: escaped
             if rejected:
                 out.print(f"{rejected} input lines rejected (--json lists them)", markup=False)
         failing = threshold is not None and any(f.severity >= threshold for f in findings)
