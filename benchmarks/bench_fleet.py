@@ -55,6 +55,18 @@ def _cpu_s() -> float:
     return r.ru_utime + r.ru_stime
 
 
+def _worker_figures(client: Any, cpu_at_start: dict[str, float]) -> dict[str, Any]:
+    """Each Dask worker's peak RSS and the CPU seconds it spent since ``cpu_at_start`` (none: local)."""
+    if client is None:
+        return {}
+    rss = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+    cpu = client.run(_cpu_s)
+    return {
+        "worker_peak_rss_mb": sorted(round(v, 1) for v in rss.values()),
+        "worker_cpu_s": sorted(round(v - cpu_at_start.get(k, 0.0), 1) for k, v in cpu.items()),
+    }
+
+
 def one(archive: Path, engine: str) -> dict[str, Any]:
     """One configuration, in this process: ``local`` or ``dask:N``."""
     from console.archive.fleet_derive import derive_partitions
@@ -77,11 +89,7 @@ def one(archive: Path, engine: str) -> dict[str, Any]:
         tables = derive_partitions(archive, m)
         done = time.perf_counter()
         out["client_cpu_s"] = round(_cpu_s() - cpu0, 1)
-        if client is not None:
-            rss = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
-            out["worker_peak_rss_mb"] = sorted(round(v, 1) for v in rss.values())
-            cpu = client.run(_cpu_s)
-            out["worker_cpu_s"] = sorted(round(v - cpu_at_start.get(k, 0.0), 1) for k, v in cpu.items())
+        out |= _worker_figures(client, cpu_at_start)
     out["start_s"] = round(started - t0, 2)
     out["derive_s"] = round(done - started, 2)
     out["rows"] = {k: len(v) for k, v in tables.items()}
@@ -145,11 +153,7 @@ def one_derive_tables(archive: Path, engine: str) -> dict[str, Any]:
                 (archive / rel).unlink(missing_ok=True)
             shutil.rmtree(archive / "tmp", ignore_errors=True)
         out["client_cpu_s"] = round(_cpu_s() - cpu0, 1)
-        if client is not None:
-            rss = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
-            out["worker_peak_rss_mb"] = sorted(round(v, 1) for v in rss.values())
-            cpu = client.run(_cpu_s)
-            out["worker_cpu_s"] = sorted(round(v - cpu_at_start.get(k, 0.0), 1) for k, v in cpu.items())
+        out |= _worker_figures(client, cpu_at_start)
     out["start_s"] = round(started - t0, 2)
     out["derive_s"] = round(done - started, 2)
     out["map_s"] = round(done - started - crossed["s"], 2)

@@ -54,6 +54,15 @@ FIX_COLUMNS = (
     "line",
     "fix_quality",
 )
+# FixRows' columns held as numbers (device and file are string codes of their own).
+_NUMERIC_COLUMNS = tuple(c for c in FIX_COLUMNS if c not in ("device", "file"))
+
+
+def _as_numpy(column: array) -> np.ndarray:
+    """A column's values as a numpy view (array's "b" is numpy's int8)."""
+    return np.frombuffer(column, dtype=np.dtype(column.typecode if column.typecode != "b" else "i1"))
+
+
 ROLES = ("head", "eot", "")
 SOURCES = ("nmea", "csv", "jsonl", "centre", "gpsd", "gpx", "ubx")
 SENTENCE_KINDS = ("RMC", "GGA", "GLL", "GNS", "VTG", "TPV", "PVT")
@@ -222,21 +231,9 @@ class FixRows:
         order = np.argsort(lines, kind="stable")
         if (order == np.arange(len(order))).all():
             return
-        for name in (
-            "time",
-            "role",
-            "lat",
-            "lon",
-            "speed_mps",
-            "course_deg",
-            "valid",
-            "source",
-            "sentence",
-            "line",
-            "fix_quality",
-        ):
+        for name in _NUMERIC_COLUMNS:
             column = getattr(self, name)
-            values = np.frombuffer(column[start:], dtype=np.dtype(column.typecode if column.typecode != "b" else "i1"))
+            values = _as_numpy(column[start:])
             column[start:] = array(column.typecode, values[order].tobytes())
         for codes in (self.device.codes, self.file.codes):
             values = np.frombuffer(codes[start:], dtype=np.int32)
@@ -247,21 +244,9 @@ class FixRows:
         out = FixRows()
         out.device.names, out.file.names = self.device.names, self.file.names
         idx = np.asarray(rows, np.int64)
-        for name in (
-            "time",
-            "role",
-            "lat",
-            "lon",
-            "speed_mps",
-            "course_deg",
-            "valid",
-            "source",
-            "sentence",
-            "line",
-            "fix_quality",
-        ):
+        for name in _NUMERIC_COLUMNS:
             column = getattr(self, name)
-            values = np.frombuffer(column, dtype=np.dtype(column.typecode if column.typecode != "b" else "i1"))
+            values = _as_numpy(column)
             getattr(out, name).frombytes(values[idx].tobytes() if len(column) else b"")
         for mine, theirs in ((self.device, out.device), (self.file, out.file)):
             values = np.frombuffer(mine.codes, dtype=np.int32) if len(mine.codes) else np.zeros(0, np.int32)
