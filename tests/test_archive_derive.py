@@ -1,8 +1,10 @@
-"""Derived passages and axles per (device, day) partition equal analyze's on the whole log, whatever the split.
+"""Derived passages and axles equal analyze's on the whole log, however the log was split into ingests.
 
 Simulator logs run over midnight (several heads, passages crossing 00:00);
-the partitions are derived one by one and in runs of consecutive days, and
-compared with ``analyze`` of the whole file.  More examples with
+the log is cut at random points (midnight among them) and each piece
+ingested on its own: every later ingest resumes from the pipeline state the
+one before saved.  The stored passages and axles are compared with
+``analyze`` of the whole file.  More examples with
 ``TRACKSIDE_ARCHIVE_EXAMPLES=50``.
 """
 
@@ -13,26 +15,13 @@ import os
 from pathlib import Path
 
 import pandas as pd
-import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from console.analysis.timefmt import NS
-from console.archive.history import speed_settings
 from console.archive.ingest import run_ingest
-from console.archive.partition import (
-    NS_PER_DAY,
-    Carried,
-    PartitionKey,
-    axles_table,
-    carried_state,
-    combine,
-    derive_partition,
-    derive_run,
-    partitions,
-    passages_table,
-)
-from console.archive.store import read_current
+from console.archive.parts import NS_PER_DAY
+from console.archive.views import run_query
 from console.layout import load_layout
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_diagnostic
@@ -58,30 +47,56 @@ def simulate_over_midnight(path: Path, seed: int, before_s: int, minutes: int, d
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
-def _sorted(df: pd.DataFrame, by: list[str]) -> pd.DataFrame:
-    return df.sort_values(by, kind="stable").reset_index(drop=True)
+PASSAGE_COLUMNS = ["device_id", "counting_head", "start_ns", "end_ns", "records", "axles", "kind"]
+AXLE_COLUMNS = ["device_id", "counting_head", "time_ns", "t_sys1_ns", "t_sys2_ns", "direction"]
 
 
-def _assert_equal_to_analyze(log: Path, got: dict[str, pd.DataFrame], s: object) -> None:
-    job = whole_job([log], s, keep_releases=True)  # type: ignore[arg-type]
-    by_p = ["device_id", "counting_head", "start_ns"]
-    by_a = ["device_id", "counting_head", "time_ns", "direction"]
-    pd.testing.assert_frame_equal(
-        _sorted(got["passages"], by_p), _sorted(passages_table(job.analysis), by_p), check_dtype=False
-    )
-    pd.testing.assert_frame_equal(
-        _sorted(got["axles"], by_a), _sorted(axles_table(job.analysis), by_a), check_dtype=False
-    )
-    wr = job.analysis.wheel_records
-    assert len(got["wheel"]) == len(wr)
-    # Per head, the wheel records in the batch's order (the section engine's input).
-    names = {i: h for i, h in enumerate(job.analysis.heads)}
-    for i, (dev, name) in names.items():
-        mine = got["wheel"][(got["wheel"]["device_id"] == dev) & (got["wheel"]["counting_head"] == name)]
-        theirs = wr[wr["head"] == i]
-        assert mine["time_ns"].tolist() == theirs["time_ns"].tolist()
-        assert mine["channel"].tolist() == theirs["channel"].tolist()
-        assert mine["value"].tolist() == theirs["value"].tolist()
+def _stored(archive: Path, table: str, columns: list[str]) -> pd.DataFrame:
+    names, rows = run_query(archive, f"SELECT {', '.join(columns)} FROM {table} ORDER BY {', '.join(columns[:3])}")
+    return pd.DataFrame(rows, columns=names)
+
+
+def _analyzed(log: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
+    job = whole_job([log])
+    p = job.analysis.passages[PASSAGE_COLUMNS].sort_values(PASSAGE_COLUMNS[:3]).reset_index(drop=True)
+    ax = job.analysis.axles
+    heads = job.analysis.heads
+    ax = ax.assign(device_id=[heads[h][0] for h in ax["head"]], counting_head=[heads[h][1] for h in ax["head"]])[
+        AXLE_COLUMNS
+    ]
+    return p, ax.sort_values(AXLE_COLUMNS[:3]).reset_index(drop=True)
+
+
+def _ingest_in_pieces(log: Path, archive: Path, cuts: list[int]) -> int:
+    """The log written to a growing file piece by piece, an ingest after each; the number of ingests."""
+    data = log.read_bytes()
+    grown = log.with_name("grown.log")
+    grown.write_bytes(b"")
+    start = 0
+    n = 0
+    for cut in [*sorted(set(cuts)), len(data)]:
+        with grown.open("ab") as f:
+            f.write(data[start:cut])
+        start = cut
+        run_ingest([grown], archive, layout="example")
+        n += 1
+    return n
+
+
+def _assert_equal_to_analyze(log: Path, archive: Path) -> None:
+    passages, axles = _analyzed(log)
+    pd.testing.assert_frame_equal(_stored(archive, "passages", PASSAGE_COLUMNS), passages, check_dtype=False)
+    if len(axles):
+        pd.testing.assert_frame_equal(_stored(archive, "axles", AXLE_COLUMNS), axles, check_dtype=False)
+    else:
+        assert run_query(archive, "SELECT count(*) FROM axles")[1] == [(0,)]
+
+
+def _midnight_offset(log: Path) -> int:
+    """The byte offset of the first line stamped on 2026-03-03 (the cut at midnight)."""
+    data = log.read_bytes()
+    at = data.find(b"Date:2026-03-03")
+    return data.rfind(b"\n", 0, at) + 1 if at > 0 else len(data) // 2
 
 
 @settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -89,47 +104,24 @@ def _assert_equal_to_analyze(log: Path, got: dict[str, pd.DataFrame], s: object)
     seed=st.integers(1, 1000),
     before_s=st.integers(30, 900),
     nights=st.integers(1, 2),
-    run_days=st.integers(1, 3),
+    fractions=st.lists(st.floats(0.01, 0.99), max_size=3),
 )
-def test_partitions_equal_analyze_over_midnight(
-    tmp_path_factory: pytest.TempPathFactory, seed: int, before_s: int, nights: int, run_days: int
+def test_ingests_split_anywhere_equal_analyze_over_midnight(
+    tmp_path_factory: object, seed: int, before_s: int, nights: int, fractions: list[float]
 ) -> None:
-    tmp = tmp_path_factory.mktemp("part")
+    tmp = tmp_path_factory.mktemp("part")  # type: ignore[attr-defined]
     log = tmp / "sim.log"
     simulate_over_midnight(log, seed, before_s, minutes=25, days=nights)
-    run_ingest([log], tmp / "arc", layout="example")
-    m = read_current(tmp / "arc")
-    s = speed_settings(m)
-    keys = partitions(m)
-    assert {k.day for k in keys} >= {dt.date(2026, 3, 3)}  # the log runs over midnight
-    carried = carried_state(keys)
-    # One partition at a time (the Dask unit)...
-    one_by_one = combine([derive_partition(tmp / "arc", m, k, carried[k], s) for k in keys])
-    _assert_equal_to_analyze(log, one_by_one, s)
-    # ... and runs of `run_days` consecutive days (the local engine's batches): the same rows.
-    runs = []
-    for dev in sorted({k.device_id for k in keys}):
-        days = sorted(k.day for k in keys if k.device_id == dev)
-        for i in range(0, len(days), run_days):
-            chunk = days[i : i + run_days]
-            first, last = PartitionKey(dev, chunk[0]), PartitionKey(dev, chunk[-1])
-            runs.append(
-                derive_run(
-                    tmp / "arc",
-                    m,
-                    dev,
-                    chunk,
-                    Carried(carried[first].day_before, carried[last].days_after),
-                    s,
-                )
-            )
-    in_runs = combine(runs)
-    for name in ("passages", "axles", "wheel"):
-        pd.testing.assert_frame_equal(in_runs[name], one_by_one[name], obj=name)
+    size = log.stat().st_size
+    cuts = [_midnight_offset(log), *(int(f * size) for f in fractions)]
+    _ingest_in_pieces(log, tmp / "arc", cuts)
+    days = {r[0] for r in run_query(tmp / "arc", "SELECT DISTINCT day FROM passages")[1]}
+    assert dt.date(2026, 3, 2) in days or dt.date(2026, 3, 3) in days
+    _assert_equal_to_analyze(log, tmp / "arc")
 
 
 def test_passage_longer_than_a_day_is_one_passage(tmp_path: Path) -> None:
-    """A head writing every 5 s for 40 hours: one passage from the first day to the third, derived by the first."""
+    """A head writing every 5 s for 40 hours, ingested a day at a time: one passage, on its first day."""
     start = (MIDNIGHT_S - 3600) * NS
     times = start + 5 * NS * pd.RangeIndex(40 * 720).to_numpy()
     stamp = pd.to_datetime(times, unit="ns")
@@ -140,17 +132,10 @@ def test_passage_longer_than_a_day_is_one_passage(tmp_path: Path) -> None:
     ]
     log = tmp_path / "long.log"
     log.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    run_ingest([log], tmp_path / "arc")
-    m = read_current(tmp_path / "arc")
-    s = speed_settings(m)
-    keys = partitions(m)
-    assert [k.day.isoformat() for k in keys] == ["2026-03-02", "2026-03-03", "2026-03-04"]
-    carried = carried_state(keys)
-    rows = [derive_partition(tmp_path / "arc", m, k, carried[k], s) for k in keys]
-    assert [len(r.passages) for r in rows] == [1, 0, 0]
-    assert rows[0].last_end_day == {"4081/2026-03-02": "2026-03-04"}
-    got = combine(rows)
-    assert int(got["passages"]["end_ns"].iloc[0]) == int(times[-1])
-    assert int(got["passages"]["records"].iloc[0]) == len(lines)
+    text = log.read_bytes()
+    cuts = [text.find(b"Date:2026-03-03"), text.find(b"Date:2026-03-04")]
+    assert _ingest_in_pieces(log, tmp_path / "arc", [text.rfind(b"\n", 0, c) + 1 for c in cuts]) == 3
+    _names, rows = run_query(tmp_path / "arc", "SELECT day, start_ns, end_ns, records FROM passages")
+    assert rows == [(dt.date(2026, 3, 2), int(times[0]), int(times[-1]), len(lines))]
     assert (int(times[-1]) // NS_PER_DAY) - (start // NS_PER_DAY) == 2
-    _assert_equal_to_analyze(log, got, s)
+    _assert_equal_to_analyze(log, tmp_path / "arc")

@@ -14,14 +14,36 @@ import pandas as pd
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from console.archive.derive import tables_from
-from console.archive.history import diag_job, report_data
+from console.archive.history import ArchivedRecords, cross_head_tables, report_data
 from console.archive.ingest import run_ingest
 from console.archive.store import read_current
 from console.archive.views import run_query
+from console.drivers.batch import ReadOptions, read_diag
+from console.engine.pipeline import PipelineSettings
 from console.report.collect import collect
 from tests.conftest import SAMPLES
 from tests.reads import whole_job
+
+
+def tables_from(data: object) -> dict[str, pd.DataFrame]:
+    """The derived tables of one ReportData: its job's passages and axles, and the cross-head tables."""
+    import numpy as np
+
+    job = data.job  # type: ignore[attr-defined]
+    out: dict[str, pd.DataFrame] = {}
+    if job is not None:
+        p = job.analysis.passages.copy()
+        p["start"] = pd.to_datetime(p["start_ns"], unit="ns")
+        out["passages"] = p
+        ax = job.analysis.axles.copy()
+        heads = job.analysis.heads
+        ax["device_id"] = np.array([h[0] for h in heads], np.int64)[ax["head"].to_numpy()]
+        ax["counting_head"] = np.array([h[1] for h in heads], object)[ax["head"].to_numpy()]
+        ax["time"] = pd.to_datetime(ax["time_ns"], unit="ns")
+        out["axles"] = ax.drop(columns=["head"])
+    out.update(cross_head_tables(data))  # type: ignore[arg-type]
+    return out
+
 
 EXAMPLES = int(os.environ.get("TRACKSIDE_ARCHIVE_EXAMPLES", 4))
 STATION = SAMPLES / "example_station.log"
@@ -87,8 +109,8 @@ def test_piece_by_piece_equals_one_ingest_and_batch_analysis(tmp_path_factory: o
         pd.testing.assert_frame_equal(_stored(pieces, table), _stored(whole / "arc", table), obj=table)
     # The archive's analysis == the report's and analyze's on the file.
     _assert_same(tables_from(report_data(pieces)), BATCH)
-    job = diag_job(pieces, read_current(pieces))
-    assert job is not None
+    m = read_current(pieces)
+    job = read_diag(ArchivedRecords(pieces, m), PipelineSettings(), opts=ReadOptions(hold_passages=True))
     batch_job = whole_job([STATION], job.analysis.settings, keep_releases=True)
     assert job.analysis.passages_json_text() == batch_job.analysis.passages_json_text()
     assert job.analysis.unpaired_detections == batch_job.analysis.unpaired_detections

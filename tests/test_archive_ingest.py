@@ -277,7 +277,8 @@ def test_a_full_disk_is_one_line_exit_2_and_the_archive_stays_as_it_was(
 def test_a_full_disk_in_the_derivation_leaves_no_part_of_the_failed_ingest(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The records parts are written when the derivation runs out of space: they are removed at once."""
+    """The records parts, the derived parts and the pipeline's state are written when the derivation's last
+    step runs out of space: they are removed at once."""
     import errno
 
     import console.archive.derive as derive
@@ -289,7 +290,7 @@ def test_a_full_disk_in_the_derivation_leaves_no_part_of_the_failed_ingest(
     def full(*_a: object, **_k: object) -> list[str]:
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(derive, "derive_tables", full)
+    monkeypatch.setattr(derive.Derivation, "_at_end", full)
     res = _ingest(arc, STATION)
     monkeypatch.undo()
     assert res.exit_code == 2, res.output

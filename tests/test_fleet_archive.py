@@ -18,24 +18,19 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from console.archive.fleet_derive import derive_partitions
-from console.archive.partition import partitions
 from console.archive.store import read_current
 from console.cli import app
-from console.fleet import engine_spec, run_with_engine
 from console.sim.station import Fault
 from tests.fleet_fixtures import (
     archive_snapshot,
     kill_a_busy_worker,
     local_cluster,
     simulate_over_midnight,
-    worker_pids,
 )
 
 pytestmark = pytest.mark.timeout(600)
@@ -83,12 +78,6 @@ def _derived(archive: Path) -> dict[str, Any]:
     return out
 
 
-def _assert_same_frames(got: dict[str, pd.DataFrame], want: dict[str, pd.DataFrame], engine: str) -> None:
-    assert set(got) == set(want)
-    for name in want:
-        pd.testing.assert_frame_equal(got[name], want[name], check_exact=True, obj=f"{name} on {engine}")
-
-
 @settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     seed=st.integers(1, 1000),
@@ -112,44 +101,33 @@ def test_the_same_rows_and_report_bytes_on_every_engine(
     tmp = tmp_path_factory.mktemp("fleet")
     log = tmp / "sim.log"
     simulate_over_midnight(log, seed, before_s, MINUTES, nights, _fault(fault, fault_head, fault_at_s))
+    # The log in two pieces, ingested one after the other: the second ingest resumes from the state saved.
+    lines = log.read_bytes().splitlines(keepends=True)
+    first, second = tmp / "first.log", tmp / "second.log"
+    first.write_bytes(b"".join(lines[: len(lines) // 2]))
+    second.write_bytes(b"".join(lines[len(lines) // 2 :]))
 
-    # The partitions (device × day, the day before and the days after carried), on each engine.
     local_arc = tmp / "local"
-    _invoke(["ingest", str(log), "--archive", str(local_arc), "--layout", "example"])
-    m = read_current(local_arc)
-    keys = partitions(m)
-    assert len({k.day for k in keys}) >= 2  # the log runs over midnight: the work is split there
-    want = derive_partitions(local_arc, m)
-    assert len(want["passages"]) > 0
-    for name, (cluster, _client) in (("1 worker", cluster1), ("3 workers", cluster3)):
-        spec = engine_spec("dask", scheduler=cluster.scheduler_address)
-        got = run_with_engine(spec, lambda: derive_partitions(local_arc, m), progress=False)
-        _assert_same_frames(got, want, name)
-
-    # Through the commands: ingest and report --archive on Dask give the bytes the local engine gives.
-    dask_arc = tmp / "dask"
-    address = cluster3[0].scheduler_address
-    _invoke(
-        [
-            "ingest",
-            str(log),
-            "--archive",
-            str(dask_arc),
-            "--layout",
-            "example",
-            "--engine",
-            "dask",
-            "--scheduler",
-            address,
-        ]
-    )
-    assert _derived(dask_arc) == _derived(local_arc)
+    for piece in (first, second):
+        _invoke(["ingest", str(piece), "--archive", str(local_arc), "--layout", "example"])
+    want = _derived(local_arc)
+    assert want["passages"]
     local_json = _invoke(["report", "--archive", str(local_arc), "--format", "json"]).stdout
-    dask_json = _invoke(
-        ["report", "--archive", str(dask_arc), "--format", "json", "--engine", "dask", "--scheduler", address]
-    ).stdout
     assert json.loads(local_json)["passages"]  # a report with something in it
-    assert dask_json == local_json
+    # Through the commands on Dask, 1 and 3 workers: each group of heads a task, its state carried from
+    # the first ingest to the second; the rows and the report's bytes are those of the local engine.
+    for name, (cluster, _client) in (("1 worker", cluster1), ("3 workers", cluster3)):
+        dask_arc = tmp / f"dask-{name[0]}"
+        address = cluster.scheduler_address
+        for piece in (first, second):
+            args = ["ingest", str(piece), "--archive", str(dask_arc), "--layout", "example"]
+            _invoke([*args, "--engine", "dask", "--scheduler", address])
+        assert "*" not in read_current(dask_arc).derived["states"], name  # each group its own state
+        assert _derived(dask_arc) == want, name
+        dask_json = _invoke(
+            ["report", "--archive", str(dask_arc), "--format", "json", "--engine", "dask", "--scheduler", address]
+        ).stdout
+        assert dask_json == local_json, name
 
 
 def test_a_local_cluster_started_by_the_command_gives_the_same_report(tmp_path: Path) -> None:
@@ -172,29 +150,6 @@ def test_a_local_cluster_started_by_the_command_gives_the_same_report(tmp_path: 
         ["report", "--archive", str(dask_arc), "--format", "json", "--engine", "dask", "--workers", "1"]
     ).stdout
     assert dask_json == local_json
-
-
-def test_a_worker_killed_during_derivation_costs_a_retry_not_the_answer(
-    tmp_path: Path, cluster3: tuple[Any, Any]
-) -> None:
-    cluster, client = cluster3
-    log = tmp_path / "sim.log"
-    simulate_over_midnight(log, 11, 600, MINUTES, 2)
-    arc = tmp_path / "arc"
-    _invoke(["ingest", str(log), "--archive", str(arc), "--layout", "example"])
-    m = read_current(arc)
-    want = derive_partitions(arc, m)
-    before = set(worker_pids(client).values())
-    killed: list[int | None] = []
-    killer = threading.Thread(target=lambda: killed.append(kill_a_busy_worker(client, "trackside-derive-")))
-    killer.start()
-    try:
-        spec = engine_spec("dask", scheduler=cluster.scheduler_address)
-        got = run_with_engine(spec, lambda: derive_partitions(arc, m), progress=False)
-    finally:
-        killer.join()
-    assert killed[0] in before  # a worker died while it ran a partition
-    _assert_same_frames(got, want, "3 workers, one killed")
 
 
 def _ingest_with_a_worker_killed(tmp_path: Path, cluster: Any, client: Any) -> tuple[Any, Path, Path, dict[str, bytes]]:
@@ -248,7 +203,7 @@ def test_a_run_the_cluster_gives_up_is_one_line_and_the_archive_as_before(
     note, error = res.stderr.splitlines()  # the cluster it used, then the one-line error
     assert note.startswith("dask scheduler tcp://127.0.0.1:")
     assert re.fullmatch(
-        r"trackside: error: partition \d+/\d{4}-\d\d-\d\d(\.\.\d{4}-\d\d-\d\d)?: the workers running it died"
+        r"trackside: error: partition (sections:\S+|device:\d+): the workers running it died"
         r" repeatedly \(out of memory or killed\); archive unchanged",
         error,
     ), error

@@ -289,6 +289,7 @@ def analyse_parts(
     settings: SpeedSettings,
     keep_releases: bool = False,
     repeated: np.ndarray | None = None,
+    head_step_s: np.ndarray | None = None,
 ) -> PartAnalysis:
     """Merged buckets and wheel detections of whole passages → their passages and axles.
 
@@ -299,7 +300,8 @@ def analyse_parts(
     wheel = _wheel_records(detections, buckets, repeated)
     # Without releases every wheel record is an onset: no copy needed.
     onsets = {c: v[wheel["value"] == 1] for c, v in wheel.items()} if keep_releases else wheel
-    axles, n_unpaired = pair_axle_arrays(onsets, PairingSettings(settings.spacing_m, settings.pair_window_s))
+    pairing = PairingSettings(settings.spacing_m, settings.pair_window_s)
+    axles, n_unpaired = pair_axle_arrays(onsets, pairing, head_step_s)
     return PartAnalysis(
         passages=_passages(buckets, onsets, axles, settings),
         axles=axles,

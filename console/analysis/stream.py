@@ -65,6 +65,8 @@ class PassageStream:
     settings: SpeedSettings
     keep_releases: bool = False
     order_slack_s: float = ORDER_SLACK_S
+    # Per head key, its stamps' resolution over the whole log when known up front (see pair_axle_arrays).
+    head_step_s: np.ndarray | None = None
     unpaired_detections: int = 0
     passages_closed: int = 0
     # Records that came after their head's passage was closed, near enough to have joined it
@@ -167,7 +169,9 @@ class PassageStream:
             self.acc._detections = [{c: np.concatenate([d[c] for d in held]) for c in held[0]}]
         if not buckets:
             return None
-        part = analyse_parts(merge_buckets(buckets), detections, self.settings, self.keep_releases)
+        part = analyse_parts(
+            merge_buckets(buckets), detections, self.settings, self.keep_releases, head_step_s=self.head_step_s
+        )
         self.unpaired_detections += part.unpaired
         self.passages_closed += len(part.passages["head"]) if part.passages is not None else 0
         return part

@@ -121,8 +121,13 @@ def _coarse_pairs(gh: np.ndarray, ch: np.ndarray, t: np.ndarray, window_ns: int)
     return np.flatnonzero(link & (offset % 2 == 0))
 
 
-def pair_axle_arrays(onsets: Mapping[str, Any], settings: PairingSettings) -> tuple[dict[str, np.ndarray], int]:
+def pair_axle_arrays(
+    onsets: Mapping[str, Any], settings: PairingSettings, head_step_s: np.ndarray | None = None
+) -> tuple[dict[str, np.ndarray], int]:
     """:func:`pair_axles` as columns of arrays, ``direction`` as a code into :data:`DIRECTIONS`.
+
+    ``head_step_s``: per head key, its stamps' resolution over the whole log (1.0: whole seconds), when the
+    caller knows it (a part of a log then pairs as the whole log does); else judged from these onsets.
 
     The onsets' order is evidence: equal times keep the order they come in
     (file order), never re-sorted.  Per head, sub-second onsets pair with the
@@ -153,6 +158,11 @@ def pair_axle_arrays(onsets: Mapping[str, Any], settings: PairingSettings) -> tu
     us = np.repeat(np.logical_and.reduceat(t % 1_000 == 0, starts), size) if len(order) else fine
     step_s = np.ones(len(head))  # per onset: its head's stamp resolution
     step_s[order[fine]] = np.where(ms, 1e-3, np.where(us, 1e-6, 1e-9))[fine]
+    if head_step_s is not None and len(order):
+        known = gh < len(head_step_s)
+        given = np.where(known, head_step_s[np.minimum(gh, len(head_step_s) - 1)], np.nan)
+        fine = np.where(known, given < 1.0, fine)
+        step_s[order[known]] = given[known]
 
     ch = channel[order]
     fa, fb = _fine_pairs(order, gh, t, fine & (ch == SYS1), fine & (ch == SYS2), fine_window_ns)

@@ -1,679 +1,619 @@
-"""Derived tables: what the batch analyses compute on the archive's inputs read together.
+"""Derived tables: the pipeline's results, written as the records are ingested.
 
-Two steps, at each ingest that adds something:
+An ingest parses each new file once.  Every chunk of records goes to the
+``records`` table and, in the same pass, into the one
+:class:`~console.engine.pipeline.Pipeline` that the batch commands drive; its
+results are written as they are made (:class:`ArchiveSink`): passages and
+axles (partitioned by day and device, a passage and its axles on the day the
+passage starts), section states, the count ledger and the channel events
+health reads.
 
-1. **Per partition** (device, day), through :mod:`console.archive.partition`:
-   passages, axles and the wheel-sensor records the section engine needs,
-   with the state over midnight carried.  Only the partitions the ingest
-   touched are derived again — those whose records parts changed, the day
-   after each (it reads the changed day as its "day before") and the earlier
-   days whose passages may run into a changed day (their last passage ends
-   within an idle gap of its midnight) — the others are kept as they are.
-   Each partition's rows are stored in ``data/<table>/day=…/device_id=…/``
-   parts; ``manifest.derived["partitions"]`` records, per partition, the
-   records parts it was derived from (a hash), the generation that derived it
-   (its parts' names follow: :func:`partition_parts`), the tables it has rows
-   in, its heads' first records and how far its passages reach.
-2. **Across heads** (section states, the count ledger, health findings,
-   crossing timelines): computed over the whole archive from the combined
-   per-partition rows — the wheel records become detection events, as
-   :func:`console.jobs.detection_events` does on a batch analysis — and the
-   health registers' records (read alone, by label), by
-   :func:`console.archive.history.report_data`, never re-reading every record.
+**Resuming.**  At the end of an ingest the pipeline's state is saved
+(pickled, as a part of the archive): the open passages, the counters, the
+events held below the watermark, the section engine.  The rows it would
+still give if the data ended there (the *tail*: the open passages closed,
+the held events released) are written from a copy of that state and
+replaced at the next ingest, which restores the state and feeds only the
+new records.  So two ingests give what one ingest of both gives, and a
+later ingest never reads the archived records again.
 
-The equality with the batch analysis of all files read together is the
-property tested in tests/test_archive_equality.py and
-tests/test_archive_incremental.py.
+**Rebuilding.**  When the new records do not continue the history (a file
+replaced, records older than what the state already closed, another
+layout, another version of trackside), the derived tables are made again
+from every archived record, read back in ingest order through a fresh
+pipeline: the same rows as the ingests that would have given them.
+
+At the end of every ingest, what needs the whole archive is computed from
+tables, not records: health findings (the health registers' records and
+the channel events), crossing timelines (the fixes), and sections from
+sensor frames where there is no diagnostic log.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-import datetime as dt
-import hashlib
+import io
 import itertools
 import os
-from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field
+import pickle
+from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 import pyarrow as pa
-import pyarrow.compute as pc
 
-from console.archive.partition import (
-    NS_PER_DAY,
-    DerivedRows,
-    PartitionKey,
-    carried_state,
-    key_of_part,
-    make_tasks,
-    partitions,
-    run_task,
-)
-from console.archive.parts import write_part, write_small
+from console.analysis.diag_events import DiagEventSettings
+from console.analysis.diagnostics import SpeedSettings
+from console.archive.derive_sink import ArchiveSink, _arrow, _days
+from console.archive.parts import NS_PER_DAY, write_part, write_small
 from console.archive.store import DATA, Manifest
-from console.memory import trim_heap
+from console.engine.pipeline import Pipeline, PipelineSettings
+from console.engine.sinks import Sink
 
 if TYPE_CHECKING:
-    from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
-    from console.drivers.batch import DiagJob
+    from console.layout import Layout
+    from parsers.diag import DiagChunk, DiagRegistry
 
-DERIVED = ("passages", "axles", "section_states", "count_ledger", "crossing_timelines", "health_findings")
-# Stored per (day, device) partition; wheel_records is the section engine's input (not a query view).
-PER_PARTITION = ("passages", "axles", "wheel_records")
-CROSS_HEAD = ("section_states", "count_ledger", "crossing_timelines", "health_findings", "channel_events")
-# Bump when the per-partition rows change meaning: every partition is then derived again.
-# 3: passages carry their per-axle speeds; channel events and the sections' final state kept (report --archive).
-DERIVE_VERSION = 3
-
-# mapper(fn, items) → the results in the order of items (a list, or an iterator giving them as they come).
-Mapper = Callable[[Callable[..., Any], list[Any]], Iterable[Any]]
-
-
-def _arrow(df: pd.DataFrame) -> pa.Table:
-    df = df.copy()
-    df.attrs = {}  # per-axle speed lists of passages: not a column, not archived
-    for c in df.columns:
-        if df[c].dtype != object:
-            continue
-        if df[c].isna().all():
-            # No value at all: the column still gets its type (numbers for units, text otherwise).
-            df[c] = df[c].astype("float64" if c.endswith(("_s", "_ns", "_m", "_kmh")) else "string")
-            continue
-        try:
-            pa.array(df[c], from_pandas=True)  # plain values (text, numbers, dates): as they are
-        except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):
-            df[c] = df[c].map(
-                lambda v: None if v is None else v if isinstance(v, str | int | float | bool | dt.date) else str(v)
-            )
-    return pa.Table.from_pandas(df, preserve_index=False)
+# Written by the pipeline as records are fed (committed, or the tail of the last ingest).
+STREAMED = ("passages", "axles", "section_states", "count_ledger", "channel_events")
+# Computed over the archive's tables at the end of each ingest.
+AT_END = ("health_findings", "crossing_timelines")
+DERIVED = (*STREAMED, *AT_END)
+STATE_TABLE = "pipeline_state"
+# Bump when derived rows change meaning: an archive derived by another version is rebuilt.
+# 4: derived by the pipeline in the ingest's one pass, its state kept between ingests.
+DERIVE_VERSION = 4
 
 
-def tables_from(data: Any) -> dict[str, pd.DataFrame]:
-    """The derived tables of one ReportData, as DataFrames (times as ns integers and timestamps)."""
-    out: dict[str, pd.DataFrame] = {}
-    job = data.job
-    if job is not None:
-        p = job.analysis.passages.copy()
-        p["start"] = pd.to_datetime(p["start_ns"], unit="ns")
-        out["passages"] = p
-        ax = job.analysis.axles.copy()
-        heads = job.analysis.heads
-        if len(ax):
-            ax["device_id"] = np.array([h[0] for h in heads], np.int64)[ax["head"].to_numpy()]
-            ax["counting_head"] = np.array([h[1] for h in heads], object)[ax["head"].to_numpy()]
+def derive_settings(manifest: Manifest, layout: Layout | None) -> PipelineSettings:
+    """What the archive's pipeline computes: passages and axles; events and sections on the layout."""
+    from console.archive.history import speed_settings
+
+    speed: SpeedSettings = speed_settings(manifest, layout)
+    return PipelineSettings(
+        speed=speed,
+        events=DiagEventSettings(),
+        layout=layout,
+        sections=layout if layout is not None and layout.sections else None,
+        axles=True,
+    )
+
+
+def fingerprint(settings: PipelineSettings, layout_spec: str | None) -> dict[str, Any]:
+    return {"version": DERIVE_VERSION, "settings": dataclasses.asdict(settings.speed), "layout": layout_spec}
+
+
+# -- one ingest's derivation ------------------------------------------------------------------------------
+
+
+@dataclass
+class GroupResult:
+    """What one group's derivation wrote and knows at the end of an ingest."""
+
+    key: str
+    state: str
+    committed: dict[str, list[str]]
+    tail: dict[str, list[str]]
+    final: dict[str, tuple[str, int, int, int, str]]
+    heads: list[tuple[int, Any]]
+    overlap_by_day: dict[str, int]
+    written: list[str]
+    rebuilt: bool  # made again from every record: the group's rows of earlier ingests are gone
+
+
+@dataclass
+class _State:
+    """What is pickled between ingests: the pipeline, and the rebuilder that numbers its registers when
+    records come back from the archive (the Dask engine's groups)."""
+
+    pipeline: Pipeline
+    rebuilder: Any = None
+
+
+class GroupRun:
+    """One group's pipeline through one ingest: restored from the last ingest's state, or started afresh.
+
+    ``key`` names the group: ``*`` is the whole line (the local engine, fed as the files are parsed);
+    the Dask engine runs one group per set of sections that share heads, and one per device for the
+    heads no section uses (:func:`plan_groups`), each fed its new records back from their parts.
+    """
+
+    def __init__(
+        self,
+        root: Path,
+        manifest: Manifest,
+        settings: PipelineSettings,
+        key: str,
+        heads: frozenset[tuple[int, Any]] | None = None,
+    ) -> None:
+        self.root, self.manifest, self.settings, self.key, self.heads = root, manifest, settings, key, heads
+        self.generation = manifest.generation
+        self.tag = "" if key == LINE else f"-{_tag(key)}"
+        self.sink = ArchiveSink(root, self.generation, "d" + self.tag)
+        self.written: list[str] = []  # every part written, removed if the ingest fails
+        self.tail_sink: ArchiveSink | None = None
+        old = manifest.derived
+        state = old.get("states", {}).get(key) if old.get("fingerprint") == fingerprint_of(settings, old) else None
+        self.resumed = state is not None
+        if state is not None:
+            import pyarrow.parquet as pq
+
+            payload = pq.read_table(root / state).column("pipeline")[0].as_py()
+            self.state: _State = pickle.loads(payload)  # the archive's own state, written by us
+            self.state.pipeline.sink = self.sink
         else:
-            ax["device_id"] = pd.Series(dtype="int64")
-            ax["counting_head"] = pd.Series(dtype=object)
-        ax["time"] = pd.to_datetime(ax["time_ns"], unit="ns")
-        out["axles"] = ax.drop(columns=["head"])
-    out.update(cross_head_tables(data))
-    return out
+            from parsers.diag import DiagRegistry
 
+            self.state = _State(Pipeline(DiagRegistry(), settings, self.sink))
+        self.late_before = self.pipeline.late_records
+        self._before = np.zeros(0, np.int64)
+        self.overlap_by_day: dict[str, int] = dict(old.get("overlap_by_day", {}).get(key, {})) if self.resumed else {}
+        # No state to continue (a new archive, another layout or version): the records already archived are
+        # read back with the new ones.
+        self.rebuild = not self.resumed and bool(manifest.parts("records"))
+        self.rebuilt = False
 
-def cross_head_tables(data: Any) -> dict[str, pd.DataFrame]:
-    """Section states, count ledger, health findings and crossing timelines of one ReportData."""
-    out: dict[str, pd.DataFrame] = {}
-    if data.sections is not None:
-        tl = data.sections.timeline.copy()
-        tl["time"] = pd.to_datetime(tl["time_ns"], unit="ns")
-        out["section_states"] = tl
-        led = data.sections.ledger.copy()
-        led["time"] = pd.to_datetime(led["time_ns"], unit="ns")
-        out["count_ledger"] = led
-    if data.findings:
-        out["health_findings"] = pd.DataFrame([f.to_dict() for f in data.findings])
-    if data.crossing is not None and data.crossing.timelines:
-        rows = []
-        for r in data.crossing.timelines:
-            d = dict(r.__dict__)
-            d["alarms"] = "; ".join(r.alarms)
-            d["violations"] = "; ".join(r.violations)
-            late_by = d.get("late_by_s")
-            d["late"] = bool(r.violations) or (late_by is not None and late_by > 0)
-            rows.append(d)
-        ct = pd.DataFrame(rows)
-        for c in ("t_on_ns", "t_head_arrival_ns", "t_tail_clear_ns", "t_off_ns", "baseline_off_ns"):
-            ct[c] = ct[c].astype("Int64")
-            ct[c.replace("_ns", "")] = pd.to_datetime(ct[c], unit="ns")
-        out["crossing_timelines"] = ct
-    return out
+    @property
+    def pipeline(self) -> Pipeline:
+        return self.state.pipeline
 
+    @property
+    def registry(self) -> DiagRegistry:
+        return self.pipeline.registry
 
-@dataclass
-class _WheelAnalysis:
-    """What :func:`console.jobs.detection_events` reads of a DiagAnalysis: the heads (in the batch's order,
-    first record first) and each head's wheel-sensor records (in the batch's order)."""
+    def begin_file(self) -> None:
+        """A new file's records come next: its heads' latest times so far are what it must not go back to."""
+        self._before = self.pipeline.acc.head_last_ns.copy()
 
-    heads: list[tuple[int, str]]
-    wheel_records: pd.DataFrame
-    activity: pd.DataFrame = field(default_factory=pd.DataFrame)
+    def feed(self, chunk: DiagChunk) -> None:
+        if self.rebuild or not len(chunk):
+            return
+        # A file going back into the time an earlier file covered for a head may repeat its records (an
+        # overlapping export) or interleave with them: the history is then made again from every record.
+        heads = self.pipeline.acc._lookup().head_of(chunk.register_id)
+        seen = heads < len(self._before)
+        if seen.any() and bool((chunk.time_ns[seen] <= self._before[heads[seen]]).any()):
+            self.rebuild = True
+            return
+        self.pipeline.feed(chunk)
 
+    def feed_archived(self, file_seqs: list[int]) -> None:
+        """This ingest's new records of the group's heads, read back from their parts (file by file)."""
+        from console.archive.history import record_batches
+        from console.archive.records import ChunkRebuilder
 
-def _signature(parts: Iterable[str]) -> str:
-    return hashlib.sha256("\n".join(sorted(parts)).encode()).hexdigest()[:20]
+        if self.rebuild:
+            return
+        if self.state.rebuilder is None:
+            self.state.rebuilder = ChunkRebuilder(self.registry)
+        rebuild = self.state.rebuilder
+        for seq in file_seqs:
+            self.begin_file()
+            for batch in record_batches(self.root, self.manifest, where=_group_where(self.heads, [seq])):
+                for chunk in rebuild.chunks(batch):
+                    self.feed(chunk)
 
+    def must_rebuild(self) -> None:
+        """The new records do not continue the history (a file replaced or dropped): made again from all."""
+        self.rebuild = True
 
-def _fingerprint(settings: SpeedSettings) -> dict[str, Any]:
-    return {"version": DERIVE_VERSION, "settings": dataclasses.asdict(settings)}
-
-
-def affected_partitions(
-    keys: Iterable[PartitionKey],
-    changed: Iterable[PartitionKey],
-    info: dict[str, dict[str, Any]],
-    idle_gap_s: float,
-) -> set[PartitionKey]:
-    """The partitions to derive again when ``changed`` (records added, removed, or new) changed.
-
-    A partition's rows depend on its own records, the whole day before (is
-    its first passage a continuation?) and the days after as far as its
-    passages run.  So: each changed partition that still exists, the day
-    after it, and the earlier days of its device (consecutive) whose
-    passages, as last derived (``info[..]["reach_ns"]``: the latest end of a
-    passage starting there), end within an idle gap of its midnight.
-    """
-    have = set(keys)
-    one = dt.timedelta(days=1)
-    idle_ns = int(idle_gap_s * 1e9)
-    by_device: dict[int, list[dt.date]] = {}
-    for k in have:
-        by_device.setdefault(k.device_id, []).append(k.day)
-    # Per key, the latest reach of its day and the consecutive days before it (a running maximum).
-    reach_upto: dict[PartitionKey, int] = {}
-    for dev, days in by_device.items():
-        running: int | None = None
-        prev: dt.date | None = None
-        for d in sorted(days):
-            k = PartitionKey(dev, d)
-            r = info.get(k.name, {}).get("reach_ns")
-            if prev is None or prev + one != d:
-                running = None
-            if r is not None:
-                running = int(r) if running is None else max(running, int(r))
-            if running is not None:
-                reach_upto[k] = running
-            prev = d
-    out: set[PartitionKey] = set()
-    for k in changed:
-        if k in have:
-            out.add(k)
-        after = PartitionKey(k.device_id, k.day + one)
-        if after in have:
-            out.add(after)
-        midnight = (k.day - dt.date(1970, 1, 1)).days * NS_PER_DAY
-        e = PartitionKey(k.device_id, k.day - one)
-        while e in have and reach_upto.get(e, -(1 << 62)) + idle_ns >= midnight:
-            if int(info.get(e.name, {}).get("reach_ns") or -(1 << 62)) + idle_ns >= midnight:
-                out.add(e)
-            e = PartitionKey(e.device_id, e.day - one)
-    return out
-
-
-def _part_path(table: str, key: PartitionKey, generation: int) -> str:
-    return os.path.join(
-        DATA, table, f"day={key.day.isoformat()}", f"device_id={key.device_id}", f"g{generation:06d}-d.parquet"
-    )
-
-
-def _store_partition(root: Path, key: PartitionKey, rows: DerivedRows, generation: int) -> dict[str, str]:
-    """Write one partition's passages, axles and wheel records; the parts written per table."""
-    frames: dict[str, pd.DataFrame] = {}
-    p = rows.passages.drop(columns=["_key_day"], errors="ignore")
-    if len(p):
-        p = p.sort_values("start_ns", kind="stable").reset_index(drop=True)
-        p["day"] = key.day
-        frames["passages"] = p
-    ax = rows.axles.drop(columns=["_key_day"], errors="ignore")
-    if len(ax):
-        ax = ax.sort_values("time_ns", kind="stable").reset_index(drop=True)
-        ax["day"] = key.day
-        frames["axles"] = ax
-    wheel = rows.wheel.drop(columns=["_key_day"], errors="ignore")
-    if len(wheel):
-        frames["wheel_records"] = wheel.reset_index(drop=True)  # the batch's order: kept
-    out: dict[str, str] = {}
-    for table, df in frames.items():
-        rel = _part_path(table, key, generation)
-        (root / rel).parent.mkdir(parents=True, exist_ok=True)
-        out[table] = write_part(root, rel, _arrow(df))
-    return out
-
-
-def partition_parts(name: str, info: dict[str, Any]) -> dict[str, str]:
-    """A derived partition's parts per table, from its ``manifest.derived["partitions"]`` entry."""
-    key = PartitionKey.parse(name)
-    return {table: _part_path(table, key, int(info["generation"])) for table in info.get("tables", ())}
-
-
-def _heads_of(rows: DerivedRows) -> list[list[Any]]:
-    h = rows.heads
-    return [
-        [None if name is None or name != name else str(name), int(seq), int(line)]
-        for name, seq, line in zip(h["counting_head"], h["first_file_seq"], h["first_line"], strict=True)
-    ]
-
-
-def _reach(rows: DerivedRows) -> int | None:
-    return int(rows.passages["end_ns"].max()) if len(rows.passages) else None
-
-
-def _results(mapper: Mapper | None, tasks: list[Any]) -> Iterator[DerivedRows]:
-    """The tasks' rows in task order, as the mapper gives them (fleet_mapper: one at a time)."""
-    if mapper is None:
-        yield from (run_task(t) for t in tasks)
-        return
-    yield from mapper(run_task, tasks)
-
-
-def derive_tables(
-    root: Path,
-    manifest: Manifest,
-    layout: str | None,
-    *,
-    mapper: Mapper | None = None,
-) -> list[str]:
-    """Derive the tables into new parts of ``manifest`` (not yet published); the parts written.
-
-    Passages, axles and wheel records are derived again only for the
-    partitions the records changed (see :func:`affected_partitions`); the
-    cross-head tables are computed from all partitions' rows.  ``mapper``:
-    how the partition tasks run, ``mapper(run_task, tasks)`` returning the
-    results in task order (the Dask engine); else one after the other here.
-    """
-    from console.archive.history import _layout, speed_settings
-
-    spec = layout if layout is not None else manifest.derived.get("layout")
-    settings = speed_settings(manifest, _layout(spec))
-    fingerprint = _fingerprint(settings)
-    old = manifest.derived
-    info: dict[str, dict[str, Any]] = dict(old.get("partitions", {})) if old.get("fingerprint") == fingerprint else {}
-    gen = manifest.generation
-    written: list[str] = []
-
-    parts_of: dict[str, list[str]] = {}
-    for rel in manifest.parts("records"):
-        k = key_of_part(rel)
-        if k is not None:
-            parts_of.setdefault(k.name, []).append(rel)
-    keys = partitions(manifest)
-    signature = {k.name: _signature(parts_of[k.name]) for k in keys}
-    changed = [k for k in keys if info.get(k.name, {}).get("records") != signature[k.name]]
-    changed += [PartitionKey.parse(n) for n in info if n not in signature]
-    redo = affected_partitions(keys, changed, info, settings.idle_gap_s)
-
-    # Parts of partitions derived again, or gone, leave the manifest; so does anything not per partition
-    # (an archive derived whole by an older trackside, or with other settings).
-    keep = {n: i for n, i in info.items() if n in signature and PartitionKey.parse(n) not in redo}
-    kept_parts = {rel for n, i in keep.items() for rel in partition_parts(n, i).values()}
-    for table in PER_PARTITION:
-        manifest.tables[table] = [rel for rel in manifest.parts(table) if rel in kept_parts]
-
-    carried = carried_state(keys)
-    tasks = make_tasks(root, manifest, redo, carried, settings)
-    # One task's rows at a time (stored, then dropped): the cross-head step reads them back from their parts.
-    for _task, rows in zip(tasks, _results(mapper, tasks), strict=True):  # strict: one result per task
-        for key, one in rows.split().items():
-            stored = _store_partition(root, key, one, gen)
-            for table, rel in stored.items():
-                manifest.tables[table].append(rel)
-                written.append(rel)
-            keep[key.name] = {
-                "records": signature[key.name],
-                "generation": gen,
-                "reach_ns": _reach(one),
-                "heads": _heads_of(one),
-                "tables": sorted(stored),  # its parts: partition_parts
-                "overlap": one.overlap.get(key.name, 0),  # records set aside as another file's overlap
-            }
-        del rows
-        trim_heap()  # a task's working memory given back before the next one's (RSS would keep the highest)
-    manifest.derived = {
-        "layout": spec,
-        "tables": list(DERIVED),
-        "fingerprint": fingerprint,
-        "partitions": {k: keep[k] for k in sorted(keep)},
-    }
-
-    written += _derive_cross_head(root, manifest, spec, keys)
-    return written
-
-
-def _head_order(manifest: Manifest, keys: list[PartitionKey]) -> list[tuple[int, Any]]:
-    """The heads in the batch's order (first record first), from the partitions' entries."""
-    info = manifest.derived["partitions"]
-    first: dict[tuple[int, Any], tuple[int, int]] = {}
-    for k in keys:
-        for name, seq, line in info[k.name]["heads"]:
-            h = (k.device_id, name)
-            first[h] = min(first.get(h, (seq, line)), (seq, line))
-    return sorted(first, key=lambda h: first[h])
-
-
-def _wheel_of(root: Path, manifest: Manifest, key: PartitionKey, columns: list[str] | None = None) -> pd.DataFrame:
-    """A partition's stored wheel records (in the batch's order), empty when it has none."""
-    import pyarrow.parquet as pq
-
-    rel = partition_parts(key.name, manifest.derived["partitions"][key.name]).get("wheel_records")
-    if rel is None:
-        return pd.DataFrame(columns=columns or ["device_id", "counting_head"])
-    return pq.read_table(root / rel, columns=columns).to_pandas()
-
-
-def _head_index(wheel: pd.DataFrame, index: dict[tuple[int, Any], int]) -> np.ndarray:
-    """Each row's head index: factorized (device, head) pairs, then one lookup per distinct head."""
-    if not len(wheel):
-        return np.zeros(0, np.int64)
-    pairs = pd.MultiIndex.from_arrays(
-        [wheel["device_id"].to_numpy(np.int64), wheel["counting_head"].astype(object).to_numpy()]
-    )
-    codes, distinct = pd.factorize(pairs)
-    lut = np.array([index[(int(d), None if n != n else n)] for d, n in distinct], np.int64)
-    return cast("np.ndarray", lut[codes])
-
-
-def _combined_job(root: Path, manifest: Manifest, keys: list[PartitionKey]) -> DiagJob | None:
-    """A DiagJob holding what the cross-head analyses read: heads, wheel records, health-register records."""
-    from console.archive.history import health_records
-    from console.drivers.batch import DiagJob
-    from parsers.report import ParseReport
-
-    if not keys:
-        return None
-    heads = _head_order(manifest, keys)
-    index = {h: i for i, h in enumerate(heads)}
-    frames = [w for k in keys if len(w := _wheel_of(root, manifest, k))]  # per head, day after day
-    wheel = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["device_id", "counting_head"])
-    records = pd.DataFrame(
-        {
-            "head": _head_index(wheel, index),
-            "channel": wheel.get("channel", pd.Series(dtype="int64")).to_numpy(),
-            "time_ns": wheel.get("time_ns", pd.Series(dtype="int64")).to_numpy(np.int64),
-            "value": wheel.get("value", pd.Series(dtype="int64")).to_numpy(),
-            "subsecond": wheel.get("subsecond", pd.Series(dtype=bool)).to_numpy(),
-        }
-    )
-    view = _WheelAnalysis(heads=heads, wheel_records=records)
-    return DiagJob(
-        files=[], report=ParseReport(), analysis=cast("DiagAnalysis", view), kept_records=health_records(root, manifest)
-    )
-
-
-def _health_job(root: Path, manifest: Manifest, heads: list[tuple[int, Any]]) -> DiagJob:
-    """A DiagJob with the heads and the health registers' records, no wheel record (they were streamed)."""
-    from console.archive.history import health_records
-    from console.drivers.batch import DiagJob
-    from parsers.report import ParseReport
-
-    empty = pd.DataFrame(
-        {c: pd.Series(dtype=t) for c, t in (("head", "int64"), ("channel", "int64"), ("time_ns", "int64"))}
-        | {"value": pd.Series(dtype="int64"), "subsecond": pd.Series(dtype=bool)}
-    )
-    view = _WheelAnalysis(heads=heads, wheel_records=empty)
-    return DiagJob(
-        files=[], report=ParseReport(), analysis=cast("DiagAnalysis", view), kept_records=health_records(root, manifest)
-    )
-
-
-@dataclass
-class _Plan:
-    """The streamed cross-head step's read plan: the days' partitions, where each day's wheel records
-    start, and the per-head facts the batch path takes from all of a head's records."""
-
-    days: list[list[PartitionKey]]
-    starts: list[int]  # per day, its earliest wheel record (ALL_TIME: none)
-    facts: dict[int, Any]  # head index → HeadFacts
-
-
-def _plan(root: Path, manifest: Manifest, keys: list[PartitionKey], index: dict[tuple[int, Any], int]) -> _Plan | None:
-    """One read of the wheel records' keys and times; None when a head's records go back in time from one
-    day's partition to a later one's (the batch path's per-head time sort would interleave them)."""
-    from console.analysis.stream_sections import ALL_TIME, HeadFacts
-
-    by_day: dict[dt.date, list[PartitionKey]] = {}
-    for k in keys:
-        by_day.setdefault(k.day, []).append(k)
-    days = [sorted(by_day[d]) for d in sorted(by_day)]
-    latest: dict[int, int] = {}  # head → its latest record so far
-    release: set[int] = set()
-    whole: set[int] = set()
-    starts: list[int] = []
-    for group in days:
-        start = ALL_TIME
-        ends: dict[int, int] = {}
-        for k in group:
-            w = _day_arrays(root, manifest, [k], index)
-            if not len(w["head"]):
-                continue
-            hi, t, v, sub = w["head"], w["time_ns"], w["value"], w["subsecond"]
-            for h in np.unique(hi).tolist():
-                m = hi == h
-                th = t[m]
-                lo, hi_t = int(th.min()), int(th.max())
-                if h in latest and lo < latest[h]:
-                    return None
-                ends[h] = max(ends.get(h, hi_t), hi_t)
-                start = min(start, lo)
-                if (v[m] == 0).any():
-                    release.add(h)
-                if not sub[m].all():
-                    whole.add(h)
-        latest.update(ends)
-        starts.append(start)
-    facts = {h: HeadFacts(point_mode=h not in release, whole_second=h in whole) for h in range(len(index))}
-    return _Plan(days, starts, facts)
-
-
-# Wheel records fed to the event stream between two releases (about: a day is cut in equal times).
-SLICE_ROWS = 100_000
-
-
-def _day_arrays(
-    root: Path, manifest: Manifest, group: list[PartitionKey], index: dict[tuple[int, Any], int]
-) -> dict[str, np.ndarray]:
-    """One day's wheel records (its partitions in key order, each in the batch's order) as compact arrays."""
-    import pyarrow.parquet as pq
-
-    cols: dict[str, list[np.ndarray]] = {c: [] for c in ("head", "channel", "time_ns", "value", "subsecond")}
-    info = manifest.derived["partitions"]
-    for k in group:
-        rel = partition_parts(k.name, info[k.name]).get("wheel_records")
-        if rel is None:
-            continue
-        t = pq.read_table(root / rel, columns=["counting_head", "channel", "time_ns", "value", "subsecond"])
-        if not t.num_rows:
-            continue
-        # Every row is of the partition's device: the head from the name's dictionary code.
-        names = pc.dictionary_encode(t["counting_head"]).combine_chunks()
-        lut = np.array([index[(k.device_id, n)] for n in names.dictionary.to_pylist()] or [0], np.int32)
-        codes = names.indices.to_numpy(zero_copy_only=False)
-        if names.null_count:
-            codes = np.where(names.is_null().to_numpy(zero_copy_only=False), len(lut), codes)
-            lut = np.r_[lut, np.int32(index[(k.device_id, None)])]
-        cols["head"].append(lut[codes.astype(np.int64)])
-        cols["channel"].append(t["channel"].to_numpy().astype(np.int16))
-        cols["time_ns"].append(t["time_ns"].to_numpy().astype(np.int64))
-        cols["value"].append(t["value"].to_numpy().astype(np.int8))
-        cols["subsecond"].append(t["subsecond"].to_numpy().astype(bool))
-        del t, names
-    if not cols["head"]:
-        return {"head": np.zeros(0, np.int32), "time_ns": np.zeros(0, np.int64)}
-    return {c: np.concatenate(v) for c, v in cols.items()}
-
-
-class _HistoryWriter:
-    """The section engine's history (state timeline, count ledger) written out as it is made."""
-
-    def __init__(self, root: Path, generation: int) -> None:
-        from console.archive.parts import PartWriter
-
-        self.writers = {
-            name: PartWriter(root, name, generation, "d", by_device=False, by_day=False)
-            for name in ("section_states", "count_ledger")
-        }
-
-    @staticmethod
-    def _timed(df: pd.DataFrame) -> pa.Table:
-        df["time"] = pd.to_datetime(df["time_ns"], unit="ns")
-        df["day"] = df["time"].dt.date
-        return _arrow(df)
-
-    def take(self, engine: Any) -> None:
-        if engine.transitions:
-            trs, engine.transitions = engine.transitions, []
-            df = pd.DataFrame(
-                [(t.time_ns, t.section, str(t.state), t.count, t.reason) for t in trs],
-                columns=["time_ns", "section", "state", "count", "reason"],
-            )
-            self.writers["section_states"].add(self._timed(df))
-        if engine.ledger:
-            led, engine.ledger = engine.ledger, []
-            df = pd.DataFrame(
-                [(x.time_ns, x.section, x.head, x.delta, x.count) for x in led],
-                columns=["time_ns", "section", "head", "delta", "count"],
-            )
-            self.writers["count_ledger"].add(self._timed(df))
-        engine.resets = []  # no operator reset in an archive: nothing to keep
-
-    def close(self) -> dict[str, list[str]]:
-        return {name: w.close() for name, w in self.writers.items()}
+    def finish(self) -> GroupResult:
+        """After the records are written: rebuild if needed, save the state, write the tail."""
+        if self.pipeline.late_records > self.late_before or self.pipeline.facts_wrong:
+            self.rebuild = True  # records older than the state had closed, or a head's facts guessed wrong
+        if self.rebuild:
+            self._rebuild()
+        state_rel = f"{DATA}/{STATE_TABLE}/g{self.generation:06d}-s{self.tag}.parquet"
+        payload = self._snapshot()
+        (self.root / state_rel).parent.mkdir(parents=True, exist_ok=True)
+        self.written.append(state_rel)
+        # A part like any other (a fresh name, published with the manifest): one row, the pickled pipeline.
+        write_part(self.root, state_rel, pa.table({"pipeline": pa.array([payload], pa.large_binary())}))
+        committed = self.sink.close()
+        self.written += [rel for rels in committed.values() for rel in rels]
+        self.tail_sink = tail_sink = ArchiveSink(self.root, self.generation, "t" + self.tag)
+        tail: _State = pickle.loads(payload)  # just made
+        tail.pipeline.sink = tail_sink
+        outcome = tail.pipeline.finish()
+        tail_parts = tail_sink.close()
+        self.written += [rel for rels in tail_parts.values() for rel in rels]
+        final = outcome.sections.final_states() if outcome.sections is not None else {}
+        heads = [(int(d), n) for d, n in tail.pipeline.heads]
+        return GroupResult(
+            self.key,
+            state_rel,
+            committed,
+            tail_parts,
+            final,
+            heads,
+            self.overlap_by_day,
+            list(self.written),
+            self.rebuilt,
+        )
 
     def abort(self) -> None:
-        for w in self.writers.values():
-            w.abort()
+        """A failed ingest: every part this group wrote is removed (no manifest names them)."""
+        self.sink.abort()
+        if self.tail_sink is not None:
+            self.tail_sink.abort()
+        for rel in self.written:
+            with contextlib.suppress(OSError):
+                (self.root / rel).unlink()
+
+    def _snapshot(self) -> bytes:
+        pipeline = self.pipeline
+        sink, pipeline.sink = pipeline.sink, Sink()
+        try:
+            buf = io.BytesIO()
+            pickle.dump(self.state, buf, protocol=pickle.HIGHEST_PROTOCOL)
+            return buf.getvalue()
+        finally:
+            pipeline.sink = sink
+
+    def _rebuild(self) -> None:
+        """Every derived row of the group made again from its archived records, merged as a read of all the
+        files together orders them (files whose times interleave give each head's records in time order);
+        records a file repeats from another at their seam (overlapping exports) are set aside, as a batch
+        read of all the files does (:mod:`console.analysis.overlap`)."""
+        from console.archive.history import record_batches
+        from console.archive.records import ChunkRebuilder
+
+        self.sink.abort()
+        self.sink = ArchiveSink(self.root, self.generation, "d" + self.tag)
+        where = _group_where(self.heads, None)
+        repeated = repeated_records(self.root, self.manifest, where)
+        self.overlap_by_day = _per_day(repeated)
+        rebuild = ChunkRebuilder()
+        batches = record_batches(self.root, self.manifest, merged=True, on_registers=rebuild.seed, where=where)
+        first = next(batches, None)  # the registers are numbered (seeded) before the first batch comes
+        facts, steps = head_facts(self.root, self.manifest, rebuild.registry, where)
+        pipeline = Pipeline(rebuild.registry, self.settings, self.sink, facts=facts, head_step_s=steps)
+        self.state = _State(pipeline, rebuild if self.key != LINE else None)
+        for batch in itertools.chain([first] if first is not None else [], batches):
+            for chunk in rebuild.chunks(batch):
+                if len(repeated["key"]):
+                    seq = rebuild.file_seq_of(chunk.file_id)
+                    keep = ~np.isin((np.int64(seq) << 32) | chunk.line, repeated["key"])
+                    if not keep.all():
+                        chunk = chunk.take(keep)
+                pipeline.feed(chunk)
+        self.rebuild = False
+        self.rebuilt = True
 
 
-def _stream_cross_head(
-    root: Path, manifest: Manifest, layout: Any, keys: list[PartitionKey]
-) -> tuple[DiagJob, tuple[list[Any], list[str], Any], dict[str, list[str]]] | None:
-    """Detection events and section states in memory bounded by heads and one day's wheel records.
+LINE = "*"  # the local engine's one group: the whole line
+# A head as one text in SQL (device id and counting head), and the same made here.
+HEAD_KEY = "concat(device_id, '/', coalesce(counting_head, ''))"
 
-    The wheel records are read a day at a time (every device's partitions of
-    that day) into :class:`console.analysis.stream_sections.EventStream`,
-    events released below the next day's earliest record into the section
-    engine, whose history is written out as it is made.  The events are the
-    batch path's, in its order (``tests/test_stream_sections.py``); only the
-    channel events health reads are kept.  None: not streamable (no
-    diagnostic partition, three-element heads, a head whose records go back
-    in time from one day to the next): the caller reads it whole.
-    Returns (the job for health, (health events, warnings, sections result), parts per table).
+
+def head_key(device_id: int, name: Any) -> str:
+    return f"{int(device_id)}/{name if isinstance(name, str) else ''}"
+
+
+def _tag(key: str) -> str:
+    """A group's key as a short file-name tag."""
+    import hashlib
+
+    return hashlib.sha1(key.encode()).hexdigest()[:8]
+
+
+def _group_where(heads: frozenset[tuple[int, Any]] | None, file_seqs: list[int] | None) -> tuple[str, list[Any]]:
+    """A WHERE over ``records`` for a group's heads (None: every head) and some files (None: every file)."""
+    conds: list[str] = []
+    params: list[Any] = []
+    if heads is not None:
+        conds.append(f"{HEAD_KEY} IN (SELECT unnest(?))")
+        params.append(sorted({head_key(d, h) for d, h in heads}))
+    if file_seqs is not None:
+        conds.append("file_seq IN (SELECT unnest(?))")
+        params.append(list(file_seqs))
+    return " AND ".join(conds), params
+
+
+def fingerprint_of(settings: PipelineSettings, derived: dict[str, Any]) -> dict[str, Any]:
+    return {"version": DERIVE_VERSION, "settings": dataclasses.asdict(settings.speed), "layout": derived.get("layout")}
+
+
+def plan_groups(layout: Layout | None, heads: Iterable[tuple[int, Any]]) -> dict[str, frozenset[tuple[int, Any]]]:
+    """The independent groups of heads: the heads of sections that share heads (one section engine each),
+    and per device the heads no section uses.  Each runs a pipeline of its own, in parallel."""
+    component: dict[str, str] = {}
+    if layout is not None:
+        parent: dict[str, str] = {}
+
+        def find(x: str) -> str:
+            while parent.setdefault(x, x) != x:
+                x = parent[x]
+            return x
+
+        for sec in layout.sections:
+            names = [b.head for b in sec.bounds]
+            for other in names[1:]:
+                parent[find(other)] = find(names[0])
+            find(names[0])
+        members: dict[str, list[str]] = {}
+        for name in parent:
+            members.setdefault(find(name), []).append(name)
+        for names in members.values():
+            key = "sections:" + "+".join(sorted(names))
+            component.update(dict.fromkeys(names, key))
+    groups: dict[str, set[tuple[int, Any]]] = {}
+    for dev, name in heads:
+        group = component.get(name) if isinstance(name, str) else None
+        groups.setdefault(group or f"device:{int(dev)}", set()).add((int(dev), name))
+    return {k: frozenset(v) for k, v in groups.items()}
+
+
+class Derivation:
+    """One ingest's derivation: the pipelines of its groups, and what is computed over the archive at the end.
+
+    Local (the default): one group, the whole line, fed as the files are parsed.  Dask (``mapper``): after
+    the records are written, one task per group of heads (:func:`plan_groups`), each reading its new records
+    back and carrying its own state; the results come back in group order, so the archive does not depend
+    on the engine or the number of workers.
     """
-    from console.analysis.diag_events import DiagEventSettings
-    from console.analysis.sections import SectionEngine, SectionState
-    from console.analysis.stream_sections import EventStream
-    from console.engine.pipeline import HEALTH_EVENT_KINDS
 
-    if not keys or (layout is not None and any(h.channels == 3 for h in layout.heads)):
-        return None
-    heads = _head_order(manifest, keys)
-    index = {h: i for i, h in enumerate(heads)}
-    plan = _plan(root, manifest, keys, index)
-    if plan is None:
-        return None
-    with_sections = layout is not None and bool(layout.sections)
-    stream = EventStream(layout, DiagEventSettings(), facts=plan.facts)
-    health: list[Any] = []
-    engine: SectionEngine | None = None
-    history = _HistoryWriter(root, manifest.generation) if with_sections else None
+    def __init__(self, root: Path, manifest: Manifest, layout_spec: str | None, grouped: bool = False) -> None:
+        from console.archive.history import _layout
 
-    def step(events: Any) -> None:
-        # Events as columns (EventBlock): objects only for the health kinds, the engine takes the block.
-        nonlocal engine
-        health.extend(events.of_kinds(HEALTH_EVENT_KINDS).events())
-        if history is None or not len(events):
-            return
-        if engine is None:
-            engine = SectionEngine(layout, initial=SectionState.PREPARATORY, start_ns=int(events.time_ns[0]))
-        engine.step_block(events)
-        history.take(engine)
+        self.root = root
+        self.manifest = manifest
+        self.spec = layout_spec if layout_spec is not None else manifest.derived.get("layout")
+        self.layout = _layout(self.spec)
+        self.settings = derive_settings(manifest, self.layout)
+        self.fingerprint = fingerprint(self.settings, self.spec)
+        self.grouped = grouped
+        self.generation = manifest.generation
+        old = manifest.derived
+        self.same = old.get("fingerprint") == self.fingerprint and (LINE in old.get("states", {})) != grouped
+        if not self.same:  # another version, layout or engine: every group made again from the records
+            self._drop_parts({t: manifest.parts(t) for t in DERIVED})
+            manifest.derived = {"layout": self.spec, "fingerprint": self.fingerprint}
+        else:
+            for rels in old.get("tails", {}).values():  # the last ingest's tails are made again
+                self._drop_parts(rels)
+        self.line = None if grouped else GroupRun(root, manifest, self.settings, LINE)
+        self.rebuild_all = False
+        self.results: list[GroupResult] = []
 
-    # Where the records still to come start: the earliest of the days after.
-    after = np.minimum.accumulate(np.array([*plan.starts[1:], np.iinfo(np.int64).max][::-1], np.int64))[::-1]
+    def _drop_parts(self, tables: dict[str, list[str]]) -> None:
+        for table, rels in tables.items():
+            gone = set(rels)
+            self.manifest.tables[table] = [r for r in self.manifest.parts(table) if r not in gone]
+
+    @property
+    def registry(self) -> DiagRegistry | None:
+        """The registry the files are parsed into (the local engine's pipeline's own), else None."""
+        return self.line.registry if self.line is not None else None
+
+    def begin_file(self) -> None:
+        if self.line is not None:
+            self.line.begin_file()
+
+    def feed(self, chunk: DiagChunk) -> None:
+        if self.line is not None:
+            self.line.feed(chunk)
+
+    def must_rebuild(self) -> None:
+        self.rebuild_all = True
+        if self.line is not None:
+            self.line.must_rebuild()
+
+    def finish(self, new_seqs: list[int], mapper: Any = None) -> list[str]:
+        """After the records are written: every group's pipeline finished, its state and tail saved, and the
+        tables computed over the archive at the end; the parts written (the manifest updated, not published)."""
+        if self.line is not None:
+            self.results = [self.line.finish()]
+        else:
+            self.results = self._run_groups(new_seqs, mapper)
+        parts: list[str] = []
+        derived = self.manifest.derived
+        states: dict[str, str] = {}
+        tails: dict[str, dict[str, list[str]]] = {}
+        overlap: dict[str, dict[str, int]] = {}
+        finals: dict[str, tuple[str, int, int, int, str]] = {}
+        for r in self.results:
+            if r.rebuilt:  # the group's rows of earlier ingests are replaced
+                mine = f"-{_tag(r.key)}" if r.key != LINE else ""
+                for table in STREAMED:
+                    self.manifest.tables[table] = [
+                        rel for rel in self.manifest.parts(table) if mine not in os.path.basename(rel)
+                    ]
+        for r in self.results:
+            parts += r.written
+            states[r.key] = r.state
+            tails[r.key] = r.tail
+            overlap[r.key] = r.overlap_by_day
+            finals.update(r.final)
+            for table in STREAMED:
+                self.manifest.tables[table] = (
+                    self.manifest.parts(table) + r.committed.get(table, []) + r.tail.get(table, [])
+                )
+        self.manifest.tables[STATE_TABLE] = sorted(states.values())
+        heads = self._head_order()
+        order = {s.id: i for i, s in enumerate(self.layout.sections)} if self.layout is not None else {}
+        derived.update(
+            {
+                "layout": self.spec,
+                "tables": list(DERIVED),
+                "fingerprint": self.fingerprint,
+                "states": states,
+                "tails": tails,
+                "heads": [[int(d), n] for d, n in heads],
+                # The report of the whole archive shows each section's final state (report --archive reads it).
+                "sections_final": {sid: list(finals[sid]) for sid in sorted(finals, key=lambda s: order.get(s, 0))},
+                # Records set aside as another file's overlap, per group and day (a report counts its window's).
+                "overlap_by_day": overlap,
+            }
+        )
+        parts += self._at_end(heads)
+        return parts
+
+    def _run_groups(self, new_seqs: list[int], mapper: Any) -> list[GroupResult]:
+        from console.archive.history import heads_in
+
+        old = self.manifest.derived
+        known = [(int(d), n) for d, n in old.get("heads", [])] if self.same else []
+        groups = plan_groups(self.layout, dict.fromkeys([*known, *heads_in(self.root, self.manifest, new_seqs)]))
+        tasks: list[dict[str, Any]] = [
+            {"key": key, "heads": heads, "new_seqs": new_seqs, "rebuild": self.rebuild_all}
+            for key, heads in sorted(groups.items())
+        ]
+        common: dict[str, Any] = {"root": self.root, "manifest": self.manifest, "settings": self.settings}
+        if mapper is None:
+            return [derive_group(**common, **t) for t in tasks]
+        return list(mapper(derive_group, tasks, common))
+
+    def _head_order(self) -> list[tuple[int, Any]]:
+        if self.line is not None:
+            return self.results[0].heads
+        from console.archive.history import heads_in
+
+        # Several groups: the heads in the order a read of every file meets them.
+        return heads_in(self.root, self.manifest, None)
+
+    def abort(self) -> None:
+        if self.line is not None:
+            self.line.abort()
+        for rel in [rel for r in self.results for rel in r.written]:
+            with contextlib.suppress(OSError):
+                (self.root / rel).unlink()
+
+    def _at_end(self, heads: list[tuple[int, Any]]) -> list[str]:
+        """Health findings, crossing timelines and the sections of sensor frames: over the archive's tables."""
+        from console.analysis.stream_sections import EventStream
+        from console.archive.history import at_end_tables
+
+        warnings = EventStream(self.layout, DiagEventSettings()).warnings(heads)
+        self.manifest.derived["warnings"] = warnings
+        written: list[str] = []
+        frames = at_end_tables(self.root, self.manifest, self.spec, warnings)
+        for name in AT_END:
+            self.manifest.tables[name] = []
+        for name, df in frames.items():
+            if df is None or df.empty:
+                continue
+            table = _arrow(df)
+            if name in ("section_states", "count_ledger"):  # the sections of sensor frames
+                df = df.sort_values("time_ns", kind="stable")
+                table = _arrow(df).append_column("day", _days(df["time_ns"].to_numpy(np.int64) // NS_PER_DAY))
+            rel = write_small(self.root, name, self.generation, "e", table)
+            if rel:
+                written.append(rel)
+                # Frame sections (no diagnostic log) are made again whole at each ingest.
+                self.manifest.tables[name] = [rel]
+        return written
+
+
+def derive_group(
+    root: Path,
+    manifest: Manifest,
+    settings: PipelineSettings,
+    key: str,
+    heads: frozenset[tuple[int, Any]],
+    new_seqs: list[int],
+    rebuild: bool,
+) -> GroupResult:
+    """One group's derivation (a Dask task): its new records read back and fed, the state saved."""
+    run = GroupRun(root, manifest, settings, key, heads)
     try:
-        for group, watermark in zip(plan.days, after.tolist(), strict=True):
-            day = _day_arrays(root, manifest, group, index)
-            # The day in time slices (each slice's rows in the batch's order), released slice by slice:
-            # the events held wait for one slice, not the day.
-            t = day["time_ns"]
-            n = len(t)
-            slices = max(1, n // SLICE_ROWS)
-            if n:
-                lo, hi = int(t.min()), int(t.max()) + 1
-                cuts = [lo + (hi - lo) * i // slices for i in range(slices + 1)]
-                for a, b in itertools.pairwise(cuts):
-                    if a == b:
-                        continue
-                    m = (t >= a) & (t < b)
-                    if m.any():
-                        stream.add({c: v[m] for c, v in day.items()}, None, heads)
-                    step(stream.release_block(min(b, watermark)))
-            del day, t
-            step(stream.release_block(watermark))
-        step(stream.finish_block())
-        if history is not None and engine is None:
-            engine = SectionEngine(layout, initial=SectionState.PREPARATORY, start_ns=0)  # no event: as run_sections
-            history.take(engine)
+        if rebuild:
+            run.must_rebuild()
+        run.feed_archived(new_seqs)
+        return run.finish()
     except BaseException:
-        if history is not None:
-            history.abort()
+        run.abort()
         raise
-    parts = history.close() if history is not None else {}
-    result = engine.result([], [], []) if engine is not None else None
-    return _health_job(root, manifest, heads), (health, stream.warnings(heads), result), parts
 
 
-def _channel_events(events: Iterable[Any]) -> pd.DataFrame:
-    """The events health judges (channel faults and recoveries, single-channel pulses), as a table."""
-    from console.analysis.events import EVENT_COLUMNS
-    from console.engine.pipeline import HEALTH_EVENT_KINDS
+def repeated_records(root: Path, manifest: Manifest, where: tuple[str, list[Any]]) -> dict[str, np.ndarray]:
+    """The archived records that repeat another file's at a seam: ``key`` (file_seq << 32 | line), sorted,
+    and their ``time_ns``.  Only heads whose files' time ranges intersect are compared record by record."""
+    from console.analysis.overlap import overlap_mask
+    from console.archive.views import connect
 
-    rows = [
-        (e.time_ns, str(e.kind), e.head, e.direction, e.channel, e.source, e.detail)
-        for e in events
-        if e.kind in HEALTH_EVENT_KINDS
-    ]
-    df = pd.DataFrame(rows, columns=list(EVENT_COLUMNS))
-    df["channel"] = df["channel"].astype("Int64")
-    return df
+    none = {"key": np.zeros(0, np.int64), "time_ns": np.zeros(0, np.int64)}
+    con, _ = connect(root, manifest, tables=("records",))
+    try:
+        cond, params = where
+        w = f" WHERE {cond}" if cond else ""
+        spans = con.sql(
+            f"SELECT device_id, counting_head, file_seq, min(time) AS lo, max(time) AS hi FROM records{w} "
+            "GROUP BY ALL ORDER BY device_id, counting_head, file_seq",
+            params=params,
+        ).fetchall()
+        suspects: set[tuple[int, str]] = set()
+        latest: dict[tuple[int, str], Any] = {}
+        for dev, head, _seq, lo, hi in spans:  # per head and file: a few hundred rows
+            k = (dev, head)
+            if k in latest and lo <= latest[k]:
+                suspects.add(k)
+            latest[k] = max(latest.get(k, hi), hi)
+        if not suspects:
+            return none
+        rows = con.sql(
+            "SELECT file_seq, line, device_id, counting_head, epoch_ns(time) AS t, "
+            "hash(time, diag_id, device_id, counting_head, channel, address, label, value) AS fp "
+            f"FROM records WHERE {HEAD_KEY} IN (SELECT unnest(?)) ORDER BY file_seq, line",
+            params=[sorted(head_key(d, h) for d, h in suspects)],
+        ).fetchnumpy()
+    finally:
+        con.close()
+    import pandas as pd
+
+    head = pd.factorize(pd.MultiIndex.from_arrays([rows["device_id"], rows["counting_head"]]))[0]
+    mask = overlap_mask(rows["file_seq"].astype(np.int64), head.astype(np.int64), rows["fp"].astype(np.uint64))
+    key = (rows["file_seq"].astype(np.int64)[mask] << 32) | rows["line"].astype(np.int64)[mask]
+    order = np.argsort(key)
+    return {"key": key[order], "time_ns": rows["t"].astype(np.int64)[mask][order]}
 
 
-def _derive_cross_head(root: Path, manifest: Manifest, spec: str | None, keys: list[PartitionKey]) -> list[str]:
-    from console.archive.history import _layout, report_data
+def head_facts(
+    root: Path, manifest: Manifest, registry: DiagRegistry, where: tuple[str, list[Any]]
+) -> tuple[dict[int, Any], np.ndarray]:
+    """Per head key of ``registry`` (its registers numbered), what a read of every record knows of it: the
+    facts detection events count by, and its stamps' resolution (axles pair by it)."""
+    from console.analysis.registers import RegisterTables
+    from console.analysis.stream_sections import HeadFacts
+    from console.analysis.wheels import SYS1, SYS2, WHEEL_SENSOR_ADDRESS
+    from console.archive.views import connect
 
-    for name in CROSS_HEAD:
-        manifest.tables[name] = []
-    streamed = _stream_cross_head(root, manifest, _layout(spec), keys)
-    written: list[str] = []
-    if streamed is not None:
-        job, events, history = streamed
-        data = report_data(root, spec, manifest=manifest, job=job, streamed=events)
-        for name, rels in history.items():
-            manifest.tables[name] = list(rels)
-            written += rels
-        frames = {k: v for k, v in cross_head_tables(data).items() if k not in history}
-        channel = events[0]
-    else:
-        data = report_data(root, spec, manifest=manifest, job=_combined_job(root, manifest, keys))
-        frames = cross_head_tables(data)
-        channel = data.events
-    frames["channel_events"] = _channel_events(channel)
-    # The report of the whole archive shows each section's final state (report --archive reads it here).
-    final = data.sections.final if data.sections is not None else {}
-    manifest.derived["sections_final"] = {sid: list(v) for sid, v in final.items()}
-    time_col = {"section_states": "time_ns", "count_ledger": "time_ns", "channel_events": "time_ns"}
-    for name in CROSS_HEAD:
-        df = frames.get(name)
-        if df is None or df.empty:
+    con, _ = connect(root, manifest, tables=("records",))
+    try:
+        rows = con.sql(
+            "SELECT device_id, counting_head, bool_or(value = 0) AS releases, "
+            "bool_and(subsecond) FILTER (WHERE value = 1) AS fine, "
+            "bool_and(epoch_ns(time) % 1000000 = 0) FILTER (WHERE value = 1) AS ms, "
+            "bool_and(epoch_ns(time) % 1000 = 0) FILTER (WHERE value = 1) AS us, "
+            "bool_or(NOT subsecond) AS whole FROM records "
+            "WHERE (label_canonical = 'wheel_sensor' OR (label = '' AND address = ?)) AND channel IN (?, ?) "
+            + (f"AND {where[0]} " if where[0] else "")
+            + "GROUP BY ALL",
+            params=[WHEEL_SENSOR_ADDRESS, SYS1, SYS2, *where[1]],
+        ).fetchall()
+    finally:
+        con.close()
+    heads = RegisterTables(registry).update().heads
+    key_of = {(int(d), n): k for k, (d, n) in enumerate(heads)}
+    steps = np.full(len(heads), np.nan)
+    facts: dict[int, Any] = {}
+    for dev, name, releases, fine, ms, us, whole in rows:  # per head
+        k = key_of.get((int(dev), name))
+        if k is None:
             continue
-        if name in time_col:
-            # One part per table, in time order with a day column: cross-head tables are rewritten whole.
-            df = df.sort_values(time_col[name], kind="stable")
-            df["day"] = pd.to_datetime(df[time_col[name]], unit="ns").dt.date
-        rel = write_small(root, name, manifest.generation, "d", _arrow(df))
-        if rel:
-            manifest.tables[name] = [rel]
-            written.append(rel)
-    return written
+        facts[k] = HeadFacts(point_mode=not releases, whole_second=bool(whole))
+        if fine is not None:
+            steps[k] = (1e-3 if ms else 1e-6 if us else 1e-9) if fine else 1.0
+    return facts, steps
+
+
+def _per_day(repeated: dict[str, np.ndarray]) -> dict[str, int]:
+    days, counts = np.unique(repeated["time_ns"] // NS_PER_DAY, return_counts=True)
+    return {str(np.datetime64(int(d), "D")): int(n) for d, n in zip(days.tolist(), counts.tolist(), strict=True)}
+
+
+def _head_list(heads: Any) -> list[tuple[int, Any]]:
+    return [(int(d), n) for d, n in heads]

@@ -24,14 +24,16 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from console.archive.records import REGISTER_COLUMNS, ChunkRebuilder
 from console.archive.store import Manifest, read_current
 from console.archive.views import connect
+from console.drivers.batch import ChunkSource, ReadOptions
+from parsers.diag import DiagChunk, DiagRegistry
 
 if TYPE_CHECKING:
     import pandas as pd
     import pyarrow as pa
 
-    from console.analysis.events import DetectionEvent
     from console.drivers.batch import DiagJob
     from console.layout import Layout
     from console.report.model import ReportData
@@ -112,6 +114,21 @@ RECORD_COLUMNS = (
 _RECORD_COLUMNS = ", ".join(RECORD_COLUMNS)
 
 
+def heads_in(root: Path, manifest: Manifest, file_seqs: list[int] | None) -> list[tuple[int, Any]]:
+    """The heads of these files' records (None: every file), in the order a read of the files meets them."""
+    con, _ = connect(root, manifest, tables=("records",))
+    try:
+        cond = " WHERE file_seq IN (SELECT unnest(?))" if file_seqs is not None else ""
+        rows = con.sql(
+            f"SELECT device_id, counting_head, min(file_seq::BIGINT * 4294967296 + line) AS pos FROM records{cond} "
+            "GROUP BY ALL ORDER BY pos",
+            params=[list(file_seqs)] if file_seqs is not None else [],
+        ).fetchall()
+    finally:
+        con.close()
+    return [(int(d), h) for d, h, _ in rows]
+
+
 def record_batches(
     root: Path,
     manifest: Manifest,
@@ -119,11 +136,19 @@ def record_batches(
     tables: Collection[str] | None = None,
     *,
     labels: Collection[str] | None = None,
+    merged: bool = False,
+    on_registers: Callable[[pa.RecordBatch], None] | None = None,
+    where: tuple[str, list[Any]] = ("", []),
 ) -> Iterator[pa.RecordBatch]:
     """The records (in file, line order: the order a batch read sees them), in Arrow batches.
 
-    ``tables``: only these views are built (a partition's derivation needs only ``records``).
+    ``tables``: only these views are built.
     ``labels``: only the records of these canonical labels (the health registers).
+    ``merged``: in the order a batch read of all the files together gives each head's records instead
+    (by time; equal times by file, the file whose records of that head begin earlier first, each file
+    in its own order: :func:`console.analysis.diagnostics._merged_order`), for files whose time ranges
+    interleave.  ``on_registers`` is then first given every register, in the order the files meet them.
+    ``where``: a further condition (SQL, parameters), e.g. a group's heads.
     """
     if not manifest.parts("records"):
         return
@@ -136,51 +161,58 @@ def record_batches(
     spill = Path(tempfile.mkdtemp(prefix="duckdb-", dir=root / TMP))
     con, _ = connect(root, manifest, spill_dir=spill, tables=tables)
     try:
-        where, params = window.where()
+        where_sql, params = window.where()
         if labels is not None:
-            where += (" AND " if where else " WHERE ") + "label_canonical IN (SELECT unnest(?))"
+            where_sql += (" AND " if where_sql else " WHERE ") + "label_canonical IN (SELECT unnest(?))"
             params.append(sorted(labels))
-        rel = con.sql(f"SELECT {_RECORD_COLUMNS} FROM records{where} ORDER BY file_seq, line", params=params)
+        if where[0]:
+            where_sql += (" AND " if where_sql else " WHERE ") + where[0]
+            params += where[1]
+        where = where_sql  # type: ignore[assignment]
+        if not merged:
+            rel = con.sql(f"SELECT {_RECORD_COLUMNS} FROM records{where} ORDER BY file_seq, line", params=params)
+            yield from rel.to_arrow_reader(BATCH_ROWS)
+            return
+        if on_registers is not None:
+            registers = ", ".join(REGISTER_COLUMNS)
+            first = con.sql(
+                f"SELECT {registers}, min(file_seq::BIGINT * 4294967296 + line) AS pos FROM records{where} "
+                f"GROUP BY ALL ORDER BY pos",
+                params=params,
+            ).to_arrow_table()
+            on_registers(first.combine_chunks().to_batches()[0] if first.num_rows else None)
+        rel = con.sql(
+            f"SELECT {_RECORD_COLUMNS} FROM (SELECT *, min(time) OVER (PARTITION BY device_id, counting_head, "
+            f"file_seq) AS file_first FROM records{where}) ORDER BY time, file_first, file_seq, line",
+            params=params,
+        )
         yield from rel.to_arrow_reader(BATCH_ROWS)
     finally:
         con.close()
         shutil.rmtree(spill, ignore_errors=True)
 
 
-def diag_job(root: Path, manifest: Manifest, window: Window = Window()) -> DiagJob | None:
-    """What ``analyze_files`` returns for the archive's diagnostic records (None: there are none)."""
-    from console.analysis.diagnostics import DiagAccumulator
-    from console.archive.records import ChunkRebuilder
-    from console.drivers.batch import DiagJob
-    from console.engine.pipeline import HEALTH_REGISTERS
-    from parsers.diag import DiagChunk, chunks_to_frame
+class ArchivedRecords(ChunkSource):
+    """The archive's diagnostic records (a window of them) as a source of chunks, in ingest order."""
 
-    settings = speed_settings(manifest)
-    rebuild = ChunkRebuilder()
-    acc = DiagAccumulator(rebuild.registry, keep_releases=True)
-    kept: list[DiagChunk] = []
-    n = 0
-    for batch in record_batches(root, manifest, window):
-        for chunk in rebuild.chunks(batch):
-            n += len(chunk)
-            acc.add(chunk)
-            regs = rebuild.registry.registers
-            wanted = np.fromiter((r.label_canonical in HEALTH_REGISTERS for r in regs), bool, len(regs))
-            mask = wanted[chunk.register_id]
-            if mask.any():
-                kept.append(chunk.take(mask))
-    if n == 0:
-        return None
-    analysis = acc.result(settings)
-    records = chunks_to_frame(kept, rebuild.registry)
-    report = parse_reports(root, manifest)["diagnostic"]
-    report.unknown_labels.update(rebuild.registry.unknown_labels())
-    files = [f.file for f in report.files]
-    return DiagJob(files=files, report=report, analysis=analysis, kept_records=records)
+    def __init__(self, root: Path, manifest: Manifest, window: Window = Window()) -> None:
+        self.root, self.manifest, self.window = root, manifest, window
+        self.report = parse_reports(root, manifest)["diagnostic"]
+        self.files = [f.file for f in self.report.files]
+
+    def open(self, opts: ReadOptions) -> tuple[DiagRegistry, Iterator[DiagChunk], ParseReport]:
+        rebuild = ChunkRebuilder()
+        return rebuild.registry, self._chunks(rebuild), self.report
+
+    def _chunks(self, rebuild: ChunkRebuilder) -> Iterator[DiagChunk]:
+        for batch in record_batches(self.root, self.manifest, self.window):
+            yield from rebuild.chunks(batch)
+        self.report.unknown_labels.update(rebuild.registry.unknown_labels())
 
 
 def health_records(root: Path, manifest: Manifest, window: Window = Window()) -> pd.DataFrame:
-    """The records of the health registers, as ``diag_job`` keeps them (without reading the other records).
+    """The records of the health registers, as a read through the pipeline keeps them (without reading the
+    other records).
 
     Read with pyarrow, part by part, filtered by label as each part is read: a DuckDB connection
     costs ~50 MB of memory to open, more than these few records.
@@ -189,10 +221,9 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
     import pyarrow.compute as pc
     import pyarrow.parquet as pq
 
-    from console.archive.partition import key_of_part
-    from console.archive.records import ChunkRebuilder
+    from console.archive.parts import key_of_part
     from console.engine.pipeline import HEALTH_REGISTERS
-    from parsers.diag import DiagChunk, chunks_to_frame
+    from parsers.diag import chunks_to_frame
 
     wanted = pc.field("label_canonical").isin(sorted(HEALTH_REGISTERS))
     if window.start is not None:
@@ -204,10 +235,10 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
     tables = []
     for rel in manifest.parts("records"):
         key = key_of_part(rel)
-        if key is None or (window.device_id is not None and key.device_id != window.device_id):
+        if key is None or (window.device_id is not None and key[1] != window.device_id):
             continue
-        if (window.start is not None and key.day < window.start.date()) or (
-            window.end is not None and key.day > window.end.date()
+        if (window.start is not None and key[0] < window.start.date()) or (
+            window.end is not None and key[0] > window.end.date()
         ):
             continue
         t = pq.read_table(root / rel, filters=wanted, partitioning=None)
@@ -217,7 +248,7 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
                     [pa.field(f.name, f.type.value_type) if pa.types.is_dictionary(f.type) else f for f in t.schema]
                 )
             )
-            tables.append(t.append_column("device_id", pa.array(np.full(t.num_rows, key.device_id, np.int32))))
+            tables.append(t.append_column("device_id", pa.array(np.full(t.num_rows, key[1], np.int32))))
     rebuild = ChunkRebuilder()
     kept: list[DiagChunk] = []
     if tables:
@@ -307,7 +338,12 @@ def report_data(
         if found is not None:
             streamed = (found.channel_events, found.warnings, found.sections)
     elif job == "read":
-        job = diag_job(root, m, window)
+        # The records again through the pipeline, as the files were (another layout than the derived one).
+        job = None
+        if m.parts("records"):
+            from console.report.collect import diag_into_report
+
+            findings += diag_into_report(data, ArchivedRecords(root, m, window), True, None, ReadOptions())
     if job is not None:
         data.job = job
         data.reports["diagnostic"] = job.report
@@ -315,9 +351,6 @@ def report_data(
             health_events, ev_warnings, sections = streamed
             if sections is not None:
                 data.sections, data.section_source = sections, "diagnostic"
-        else:
-            data.events, ev_warnings = _detection_events(job, layout)
-            health_events = data.events
         data.warnings += ev_warnings
         findings += health_findings(job, layout, health_events, None)
 
@@ -488,14 +521,19 @@ def archive_collector(
 def replay_inputs(root: Path, layout: Layout, window: Window = Window()) -> tuple[list[Any], pd.DataFrame | None]:
     """For ``station --replay --archive``: (detection events in time order, GNSS fixes in time order) of a window.
 
-    The same events and fixes the station view's ReplaySource builds from files
-    (``detection_events`` over the records, the archived fixes).
+    The same events and fixes the station view's ReplaySource builds from files: the records through
+    the pipeline, the archived fixes.
     """
+    from console.analysis.diag_events import DiagEventSettings
     from console.archive.views import require_archive
+    from console.drivers.batch import read_diag
+    from console.engine.pipeline import PipelineSettings
+    from console.engine.sinks import EventList
 
     m = require_archive(root)
-    job = diag_job(root, m, window)
-    events = _detection_events(job, layout)[0] if job is not None else []
+    kept = EventList()
+    if m.parts("records"):
+        read_diag(ArchivedRecords(root, m, window), PipelineSettings(events=DiagEventSettings(), layout=layout), kept)
     fixes = None
     parts = _per_file_tables(root, m, "fixes")
     if parts:
@@ -504,13 +542,60 @@ def replay_inputs(root: Path, layout: Layout, window: Window = Window()) -> tupl
         fixes = pd.concat([p for _, p in parts], ignore_index=True)
         fixes = fixes.sort_values("time", kind="stable", na_position="last").reset_index(drop=True)
         fixes = _cut_fixes(fixes, window)
-    return sorted(events, key=lambda e: e.time_ns), fixes
+    return sorted(kept.events, key=lambda e: e.time_ns), fixes
 
 
-def _detection_events(job: DiagJob, layout: Layout | None) -> tuple[list[DetectionEvent], list[str]]:
-    """The stored wheel records' detection events on the layout, or on their own heads when none is given."""
-    from console.analysis.diag_events import DiagEventSettings, diag_detection_events
-    from console.layout import layout_from_heads
+def at_end_tables(
+    root: Path, manifest: Manifest, layout_spec: str | None, warnings: list[str]
+) -> dict[str, pd.DataFrame]:
+    """The derived tables an ingest computes over the whole archive at its end: health findings (the health
+    registers' records and the channel events the pipeline wrote), crossing timelines (the fixes), and the
+    sections of sensor frames where there is no diagnostic log."""
+    from console.analysis.diagnostics import DiagAnalysis
+    from console.archive.history_diag import _channel_events
+    from console.drivers.batch import DiagJob, no_axles
 
-    lay = layout or layout_from_heads(sorted({name for _, name in job.analysis.heads}))
-    return diag_detection_events(job.analysis, lay, DiagEventSettings())
+    job = None
+    diag = bool(manifest.parts("records"))
+    if diag:
+        report = parse_reports(root, manifest)["diagnostic"]
+        analysis = DiagAnalysis(speed_settings(manifest), [], None, no_axles(), 0, 0)
+        job = DiagJob([f.file for f in report.files], report, analysis, kept_records=health_records(root, manifest))
+    channel = _channel_events(root, manifest, Window()) if diag else []
+    data = report_data(root, layout_spec, manifest=manifest, job=job, streamed=(channel, warnings, None))
+    tables = cross_head_tables(data)
+    if diag:  # the pipeline wrote the sections of the diagnostic records as they were ingested
+        tables.pop("section_states", None)
+        tables.pop("count_ledger", None)
+    return tables
+
+
+def cross_head_tables(data: ReportData) -> dict[str, pd.DataFrame]:
+    """Section states, count ledger, health findings and crossing timelines of one ReportData."""
+    import pandas as pd
+
+    out: dict[str, pd.DataFrame] = {}
+    if data.sections is not None:
+        tl = data.sections.timeline.copy()
+        tl["time"] = pd.to_datetime(tl["time_ns"], unit="ns")
+        out["section_states"] = tl
+        led = data.sections.ledger.copy()
+        led["time"] = pd.to_datetime(led["time_ns"], unit="ns")
+        out["count_ledger"] = led
+    if data.findings:
+        out["health_findings"] = pd.DataFrame([f.to_dict() for f in data.findings])
+    if data.crossing is not None and data.crossing.timelines:
+        rows = []
+        for r in data.crossing.timelines:
+            d = dict(r.__dict__)
+            d["alarms"] = "; ".join(r.alarms)
+            d["violations"] = "; ".join(r.violations)
+            late_by = d.get("late_by_s")
+            d["late"] = bool(r.violations) or (late_by is not None and late_by > 0)
+            rows.append(d)
+        ct = pd.DataFrame(rows)
+        for c in ("t_on_ns", "t_head_arrival_ns", "t_tail_clear_ns", "t_off_ns", "baseline_off_ns"):
+            ct[c] = ct[c].astype("Int64")
+            ct[c.replace("_ns", "")] = pd.to_datetime(ct[c], unit="ns")
+        out["crossing_timelines"] = ct
+    return out

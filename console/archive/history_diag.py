@@ -60,7 +60,7 @@ def derived_for(manifest: Manifest, layout_spec: str | None) -> bool:
     fingerprint = d.get("fingerprint") or {}
     return (
         bool(manifest.parts("records"))
-        and "partitions" in d
+        and "states" in d
         and "sections_final" in d
         and fingerprint.get("version") == DERIVE_VERSION
         and (layout_spec is None or layout_spec == d.get("layout"))
@@ -118,27 +118,22 @@ def history_diag(
 
 
 def _heads(manifest: Manifest) -> list[tuple[int, Any]]:
-    from console.archive.derive import _head_order
-    from console.archive.partition import PartitionKey
-
-    keys = [PartitionKey.parse(name) for name in manifest.derived["partitions"]]
-    return _head_order(manifest, keys)
+    """The heads in the order a read of every archived file meets them (the pipeline kept it)."""
+    return [(int(d), n) for d, n in manifest.derived.get("heads", [])]
 
 
 def _overlap(manifest: Manifest, window: Window) -> int:
-    """Records set aside as another file's overlap, in the window's days (counted per partition)."""
-    from console.archive.partition import PartitionKey
+    """Records set aside as another file's overlap, in the window's days."""
+    import datetime as dt
 
     lo = window.start.date() if window.start is not None else None
     hi = window.end.date() if window.end is not None else None
     total = 0
-    for name, info in manifest.derived["partitions"].items():
-        k = PartitionKey.parse(name)
-        if (lo is not None and k.day < lo) or (hi is not None and k.day > hi):
-            continue
-        if window.device_id is not None and k.device_id != window.device_id:
-            continue
-        total += int(info.get("overlap", 0))
+    for per_day in manifest.derived.get("overlap_by_day", {}).values():  # per group of heads
+        for day, n in per_day.items():
+            d = dt.date.fromisoformat(day)
+            if (lo is None or d >= lo) and (hi is None or d <= hi):
+                total += int(n)
     return total
 
 
@@ -365,4 +360,5 @@ def _channel_events(root: Path, manifest: Manifest, window: Window) -> list[Dete
                     r["detail"],
                 )
             )
+    out.sort(key=lambda e: e.time_ns)  # parts per day and ingest; within one, in the pipeline's order
     return out

@@ -26,6 +26,7 @@ import pyarrow as pa
 
 from console import __version__
 from console.archive import ledger
+from console.archive.derive import Derivation
 from console.archive.parts import (
     COMPACT_MAX_ROWS,
     NS_PER_DAY,
@@ -47,6 +48,7 @@ from console.archive.store import (
     read_current,
     writer_lock,
 )
+from parsers.report import ParseReport
 
 # Kinds the archive stores, by the report's recognition (console.report.collect.recognise).
 DIAGNOSTIC = "diagnostic"
@@ -119,8 +121,11 @@ def _kind(path: Path) -> tuple[str, str]:
 
 
 class _Ingest:
-    def __init__(self, root: Path, manifest: Manifest, on_bytes: Callable[[int], None] | None) -> None:
+    def __init__(
+        self, root: Path, manifest: Manifest, on_bytes: Callable[[int], None] | None, derivation: Derivation | None
+    ) -> None:
         self.root = root
+        self.derivation = derivation
         self.old = manifest
         self.new = copy.deepcopy(manifest)
         self.new.generation = manifest.generation + 1
@@ -136,6 +141,9 @@ class _Ingest:
         self.started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
         self._tmp_count = 0
         self.dropped_seqs: set[int] = set()  # diagnostic files replaced: their records leave
+        self.new_diag_seqs: list[int] = []  # diagnostic files (or their new bytes) read by this ingest
+        self.on_cluster = False  # diagnostic files are parsed on the cluster's workers (Dask engine)
+        self.queued: list[tuple[Path, Path, dict[str, Any], ledger.Plan, FileOutcome]] = []
 
     def _reject(self, row: dict[str, Any]) -> None:
         self._rejected_rows.append(row)
@@ -197,7 +205,10 @@ class _Ingest:
         # Fixes and frames are parsed from the file itself (GNSS names a device after its file).
         source = self._range_file(path, p.start, p.end, s.size) if kind == DIAGNOSTIC else path
         outcome = FileOutcome(shown, kind, p.action, p.note)
-        if kind == DIAGNOSTIC:
+        if kind == DIAGNOSTIC and self.on_cluster:
+            # Parsed on a worker, with the other files (parse_diag_file): what it says is taken in later.
+            self.queued.append((source, path, e, p, outcome))
+        elif kind == DIAGNOSTIC:
             self._diag(source, e, p, outcome)
         else:
             self._other(source, kind, e, outcome)
@@ -207,9 +218,32 @@ class _Ingest:
         e["complete_sha256"] = s.complete_sha256
         e["size_seen"] = s.size
         self._ledger_row(shown, kind, p.action, p.note, s, p.start, p.end, e)
-        if source != path:
+        if source != path and not (kind == DIAGNOSTIC and self.on_cluster):
             source.unlink()
         return outcome
+
+    def parse_queued(self) -> None:
+        """The diagnostic files queued for the cluster: one task each, their parts and accounting taken in
+        in file order."""
+        from console.fleet.engine import map_partitions
+
+        if not self.queued:
+            return
+        items = [
+            {"source": str(src), "shown": e["path"], "file_seq": int(e["file_seq"]), "first_line": p.first_line}
+            for src, _path, e, p, _out in self.queued
+        ]
+        common = {"root": self.root, "generation": self.gen}
+        results = map_partitions(parse_diag_file, items, common=common, label="parse")
+        for (src, path, e, p, out), res in zip(self.queued, results, strict=True):
+            self.new_parts += res.records + res.rejected
+            self.new.tables.setdefault("records", []).extend(res.records)
+            self.new.tables.setdefault("rejected", []).extend(res.rejected)
+            self.new_diag_seqs.append(int(e["file_seq"]))
+            self._take_report(e, p, out, res.report)
+            if src != path:
+                src.unlink()
+        self.queued = []
 
     def _drop_entry(self, entry: dict[str, Any]) -> None:
         """A replaced file: its parts leave the manifest (the records of a diagnostic log too)."""
@@ -221,6 +255,8 @@ class _Ingest:
                 self.touched.add(table)
         if entry["kind"] == DIAGNOSTIC:
             self.dropped_seqs.add(int(entry["file_seq"]))
+            if self.derivation is not None:
+                self.derivation.must_rebuild()  # its records leave the history: made again without them
 
     def _diag(self, source: Path, e: dict[str, Any], p: ledger.Plan, out: FileOutcome) -> None:
         from parsers.diag import DiagReader
@@ -238,12 +274,23 @@ class _Ingest:
                 "generation": gen,
             }
         )
+        derive = self.derivation
+        if derive is not None and derive.registry is not None:
+            # One registry for the pipeline's whole history: the chunks go to it as they are stored.
+            reader.registry = derive.registry
+            derive.begin_file()
+        self.new_diag_seqs.append(seq)
         enc = RecordEncoder(reader.registry)
         for chunk in reader.chunks():
             table, device_id = enc.encode(chunk, e["path"], int(e["file_seq"]), p.first_line)
             day = chunk.time_ns // NS_PER_DAY
             self.records.add(table, day, device_id)
-        fr = reader.report.files[0]
+            if derive is not None:
+                derive.feed(chunk)
+        self._take_report(e, p, out, reader.report)
+
+    def _take_report(self, e: dict[str, Any], p: ledger.Plan, out: FileOutcome, report: ParseReport) -> None:
+        fr = report.files[0]
         e["lines"] = int(e["lines"]) + fr.lines_read
         e["records"] = int(e["records"]) + fr.records
         e["blank"] = int(e["blank"]) + fr.blank
@@ -252,12 +299,11 @@ class _Ingest:
             e["encoding"] = fr.encoding
             e["compressed"] = fr.compressed
         e["ends_without_newline"] = fr.ends_without_newline
-        ledger.merge_report(e, reader.report, grown=p.action == "grown")
+        ledger.merge_report(e, report, grown=p.action == "grown")
         out.records, out.rejected = fr.records, fr.rejected
         self.touched.add("records")
 
     def _other(self, source: Path, kind: str, e: dict[str, Any], out: FileOutcome) -> None:
-        from parsers.report import ParseReport
 
         report: ParseReport
         if kind in STORED_ELSEWHERE:
@@ -409,6 +455,49 @@ class _Ingest:
             self.new_parts += written
 
 
+@dataclass
+class ParsedFile:
+    """A diagnostic file parsed on a worker: the parts it wrote and its parse report."""
+
+    records: list[str]
+    rejected: list[str]
+    report: ParseReport
+
+
+def parse_diag_file(root: Path, generation: int, source: str, shown: str, file_seq: int, first_line: int) -> ParsedFile:
+    """One file's records and rejected lines into parts of their own (a Dask task: it reads one file and
+    writes parts no other task names; the client lists them in the manifest it publishes)."""
+    from parsers.diag import DiagReader
+
+    reader = DiagReader([Path(source)])
+    records = PartWriter(root, "records", generation, f"r{file_seq}-", sort_by=RECORD_ORDER)
+    rejected = PartWriter(root, "rejected", generation, f"l{file_seq}-", by_device=False, by_day=False)
+    rows: list[dict[str, Any]] = []
+
+    def reject(r: Any) -> None:
+        rows.append(
+            {"file": shown, "file_seq": file_seq, "line": r.line + first_line, "reason": r.reason, "text": r.text}
+            | {"generation": generation}
+        )
+        if len(rows) >= REJECTED_BATCH_ROWS:
+            rejected.add(pa.Table.from_pylist(rows))
+            rows.clear()
+
+    reader.report.on_reject = reject
+    enc = RecordEncoder(reader.registry)
+    try:
+        for chunk in reader.chunks():
+            table, device_id = enc.encode(chunk, shown, file_seq, first_line)
+            records.add(table, chunk.time_ns // NS_PER_DAY, device_id)
+        if rows:
+            rejected.add(pa.Table.from_pylist(rows))
+        return ParsedFile(records.close(), rejected.close(), reader.report)
+    except BaseException:
+        records.abort()
+        rejected.abort()
+        raise
+
+
 class _PhaseClock:
     """Wall seconds of consecutive steps, into ``phases`` (the summary's, also in ``ingest --json``)."""
 
@@ -458,8 +547,7 @@ def run_ingest(
     on_file: Callable[[str], None] | None = None,
 ) -> IngestSummary:
     """Ingest ``paths`` into the archive at ``root``; the summary of what was added, skipped and rejected."""
-    from console.archive.derive import derive_tables
-    from console.fleet import fleet_mapper
+    from console.fleet.engine import map_partitions, on_cluster
     from console.memory import read_memory, trim_heap
 
     t0 = time.perf_counter()
@@ -468,22 +556,32 @@ def run_ingest(
     with read_memory(), writer_lock(root, wait=wait, on_wait=on_wait):
         current = read_current(root)
         collect_garbage(root, current)
-        job = _Ingest(root, current, on_bytes)
+        job = _Ingest(root, current, on_bytes, None)
         summary = IngestSummary(root, current.generation)
         try:
+            # The derivation writes into the new manifest, as the records do; on a cluster, per group of heads.
+            job.derivation = Derivation(root, job.new, layout, grouped=on_cluster())
+            job.on_cluster = on_cluster()
             clock = _PhaseClock(summary.phases)
             inputs = expand_inputs(paths, root)
             for path, shown in inputs:
                 if on_file is not None:
                     on_file(shown)
                 summary.files.append(job.add_file(path, shown))
+            job.parse_queued()
             clock.lap("read")
             job.finish_records()
             trim_heap()  # what the read freed, given back before the derivation needs its own
             clock.lap("records")
             relayout = layout is not None and layout != current.derived.get("layout")
             if summary.added or relayout:
-                job.new_parts += derive_tables(root, job.new, layout, mapper=fleet_mapper)  # on the command's --engine
+                mapper = None
+                if on_cluster():
+
+                    def mapper(fn: Any, items: list[Any], common: dict[str, Any]) -> list[Any]:
+                        return map_partitions(fn, items, common=common, label="derive")
+
+                job.new_parts += job.derivation.finish(job.new_diag_seqs, mapper)
             clock.lap("derive")
             job.finish_ledger()
             # Nothing new (every file already ingested): no new generation at all.
@@ -495,6 +593,8 @@ def run_ingest(
         except BaseException:
             job.records.abort()
             job.rejected.abort()
+            if job.derivation is not None:
+                job.derivation.abort()
             # No manifest names them: remove this run's parts now (a full disk wants its space
             # back); what a kill leaves behind, the next ingest's collect_garbage removes.
             for rel in job.new_parts:

@@ -22,7 +22,9 @@ archive) for the manifest; :func:`compact` merges a partition's small parts.
 from __future__ import annotations
 
 import contextlib
+import datetime as dt
 import os
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -319,3 +321,12 @@ def write_small(root: Path, table_name: str, generation: int, tag: str, table: p
     w.add(table)
     written = w.close()
     return written[0] if written else None
+
+
+_KEY_IN_PATH = re.compile(r"day=(\d{4}-\d{2}-\d{2})/device_id=(-?\d+)/")
+
+
+def key_of_part(rel: str) -> tuple[dt.date, int] | None:
+    """(day, device id) of a part partitioned by both (its path says), else None."""
+    m = _KEY_IN_PATH.search(rel)
+    return (dt.date.fromisoformat(m[1]), int(m[2])) if m else None

@@ -126,8 +126,8 @@ class RecordEncoder:
 class ChunkRebuilder:
     """Arrow record batches (from the archive, in file order) → DiagChunks of one registry."""
 
-    def __init__(self) -> None:
-        self.registry = DiagRegistry()
+    def __init__(self, registry: DiagRegistry | None = None) -> None:
+        self.registry = registry if registry is not None else DiagRegistry()
         self._rids: dict[RegisterKey, int] = {}
         self._files: dict[int, int] = {}  # file_seq → file_id
 
@@ -142,6 +142,19 @@ class ChunkRebuilder:
                 shown = f"{name} ({n})"
             self.registry.files.append(shown)
         return found
+
+    def seed(self, registers: pa.RecordBatch | None) -> None:
+        """Number these registers first, in this order (the order the files meet them), whatever order
+        the records then come in."""
+        if registers is not None and registers.num_rows:
+            self._register_ids(registers)
+
+    def file_seq_of(self, file_id: int) -> int:
+        """The archive's file number of a chunk's file id."""
+        for seq, fid in self._files.items():  # a few files
+            if fid == file_id:
+                return seq
+        raise KeyError(file_id)
 
     def _register_ids(self, batch: pa.RecordBatch) -> np.ndarray:
         codes = []
@@ -243,3 +256,53 @@ class ChunkRebuilder:
             self.registry.count_records(ch.register_id)
             out.append(ch)
         return out
+
+
+class ChunkTranslator:
+    """Chunks keyed into one registry (a reader's) as chunks keyed into another (a pipeline's own).
+
+    Registers, data values and files are mapped by what they are, once each: a pipeline that lives across
+    ingests keeps its registry while every file is parsed with a fresh one.
+    """
+
+    def __init__(self, src: DiagRegistry, dst: DiagRegistry, rids: dict[RegisterKey, int]) -> None:
+        self.src, self.dst = src, dst
+        self._rids = rids  # the destination's registers by key (shared by every translator into it)
+        self._rid_map = np.zeros(0, np.int32)
+        self._data_map = np.zeros(0, np.int32)
+        self._file_map: dict[int, int] = {}
+
+    def translate(self, chunk: DiagChunk) -> DiagChunk:
+        src, dst = self.src, self.dst
+        if len(self._rid_map) < src.n_registers:
+            self._rid_map = np.r_[self._rid_map, np.full(src.n_registers - len(self._rid_map), -1, np.int32)]
+        # Only the registers the chunk holds, in the source's order (first seen first): the destination
+        # numbers them as a read of these records alone would.
+        used = np.unique(chunk.register_id)
+        for rid in used[self._rid_map[used] < 0].tolist():  # once per register
+            key = src.register(rid)
+            found = self._rids.get(key)
+            if found is None:
+                found = self._rids[key] = dst.add_register(key)
+            self._rid_map[rid] = found
+        n_data = len(src.data)
+        if len(self._data_map) < n_data:
+            values = [src.data.value(i) for i in range(len(self._data_map), n_data)]
+            self._data_map = np.r_[self._data_map, dst.data.codes(values).astype(np.int32)]
+        fid = self._file_map.get(chunk.file_id)
+        if fid is None:
+            name = src.files[chunk.file_id] if chunk.file_id < len(src.files) else str(chunk.file_id)
+            fid = self._file_map[chunk.file_id] = len(dst.files)
+            dst.files.append(name)
+        rid = self._rid_map[chunk.register_id]
+        dst.count_records(rid)
+        return DiagChunk(
+            file_id=fid,
+            register_id=rid,
+            time_ns=chunk.time_ns,
+            subsecond=chunk.subsecond,
+            value=chunk.value,
+            data_code=self._data_map[chunk.data_code],
+            data_kind=chunk.data_kind,
+            line=chunk.line,
+        )

@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -35,7 +35,7 @@ from console.analysis.stream import ORDER_SLACK_S, by_head_and_start, concat_pas
 from console.engine.pipeline import DiagOutcome, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks
 from console.memory import read_memory
-from parsers.diag import DiagReader, DiagRegistry, chunks_to_frame
+from parsers.diag import DiagChunk, DiagReader, DiagRegistry, chunks_to_frame
 from parsers.report import ParseReport
 from parsers.sources import DEFAULT_CHUNK_BYTES
 
@@ -161,7 +161,7 @@ def input_bytes(paths: Sequence[Path]) -> int:
 
 @dataclass
 class ReadOptions:
-    """How the files are read (not what is computed)."""
+    """How the input is read (not what is computed)."""
 
     on_progress: Callable[[int], None] | None = None
     on_records: Callable[[int], None] | None = None
@@ -172,24 +172,56 @@ class ReadOptions:
     # Sinks that wrote passages where they cannot be taken back (stdout): no whole re-read then.
     passages_final: bool = False
     hold_passages: bool = False  # the job's analysis holds the passages table (PassageTable)
-    extra: list[Sink] = field(default_factory=list)
+
+
+class ChunkSource:
+    """Where a batch read's chunks come from; :meth:`open` starts a read (again) from the beginning."""
+
+    files: list[str]
+    several: bool = False  # several files read together: their overlap is found (whole mode)
+    rereadable: bool = True
+
+    def open(self, opts: ReadOptions) -> tuple[DiagRegistry, Iterator[DiagChunk], ParseReport]:
+        raise NotImplementedError
+
+
+class LogFiles(ChunkSource):
+    """Diagnostic log files, parsed as they are read."""
+
+    def __init__(self, paths: Sequence[Path]) -> None:
+        self.paths = list(paths)
+        self.files = [str(p) for p in paths]
+        self.several = len(paths) > 1
+        self.rereadable = all(os.fsdecode(p) != STDIN and os.path.isfile(p) for p in paths)
+
+    def open(self, opts: ReadOptions) -> tuple[DiagRegistry, Iterator[DiagChunk], ParseReport]:
+        reader = DiagReader(self.paths, on_progress=opts.on_progress, chunk_bytes=opts.chunk_bytes)
+        if opts.max_rejections_kept is not None:
+            reader.report.max_rejections_kept = opts.max_rejections_kept
+        reader.report.on_reject = opts.on_reject
+        return reader.registry, reader.chunks(), reader.report
 
 
 def read_diag(
-    paths: Sequence[Path], settings: PipelineSettings, sink: Sink | None = None, opts: ReadOptions | None = None
+    paths: Sequence[Path] | ChunkSource,
+    settings: PipelineSettings,
+    sink: Sink | None = None,
+    opts: ReadOptions | None = None,
 ) -> DiagJob:
-    """Read diagnostic logs through the pipeline; results to ``sink`` as they are made."""
+    """Read diagnostic records (log files, or another source) through the pipeline; results to ``sink``
+    as they are made."""
+    source = paths if isinstance(paths, ChunkSource) else LogFiles(paths)
     o = opts or ReadOptions()
     table = PassageTable() if o.hold_passages else None
     sinks = Sinks(sink, table) if table is not None else (sink or Sink())
     with read_memory():
-        whole = o.whole or len(paths) > 1
-        job = _read(paths, settings, sinks, o, whole, None, passages=True)
-        if not whole and job.late_records and not o.passages_final and _rereadable(paths):
+        whole = o.whole or source.several
+        job = _read(source, settings, sinks, o, whole, None, passages=True)
+        if not whole and job.late_records and not o.passages_final and source.rereadable:
             # Nothing written that cannot be taken back: read the file again, whole, as several files are.
             sinks.restart(passages=True)
             late = job.late_records
-            job = _read(paths, settings, sinks, o, True, None, passages=True)
+            job = _read(source, settings, sinks, o, True, None, passages=True)
             job.reads, job.late_first = 2, late
         elif not whole and job.late_records:
             sys.stderr.write(
@@ -203,12 +235,8 @@ def read_diag(
     return job
 
 
-def _rereadable(paths: Sequence[Path]) -> bool:
-    return all(os.fsdecode(p) != STDIN and os.path.isfile(p) for p in paths)
-
-
 def _read(
-    paths: Sequence[Path],
+    source: ChunkSource,
     settings: PipelineSettings,
     sink: Sink,
     o: ReadOptions,
@@ -216,30 +244,29 @@ def _read(
     facts: dict | None,
     passages: bool,
 ) -> DiagJob:
-    reader = DiagReader(paths, on_progress=o.on_progress, chunk_bytes=o.chunk_bytes)
-    if o.max_rejections_kept is not None:
-        reader.report.max_rejections_kept = o.max_rejections_kept
-    reader.report.on_reject = o.on_reject
-    pipeline = Pipeline(reader.registry, settings, sink if passages else _HistoryOnly(sink), whole=whole, facts=facts)
-    for chunk in reader.chunks():
+    registry, chunks, report = source.open(o)
+    pipeline = Pipeline(registry, settings, sink if passages else _HistoryOnly(sink), whole=whole, facts=facts)
+    for chunk in chunks:
         if o.on_records is not None:
             o.on_records(len(chunk))
         pipeline.feed(chunk)
     outcome = pipeline.finish()
-    if pipeline.facts_wrong:
+    if pipeline.facts_wrong and source.rereadable:
         # The passages are those of the first read (facts change events only): the history is taken again.
         sink.restart(passages=False)
         again = ReadOptions(chunk_bytes=o.chunk_bytes, max_rejections_kept=o.max_rejections_kept)
-        job = _read(paths, settings, sink, again, whole, pipeline.facts, passages=False)
+        job = _read(source, settings, sink, again, whole, pipeline.facts, passages=False)
         job.reads = 2
         return job
-    return _job(paths, reader, settings.speed, outcome)
+    return _job(source.files, report, registry, settings.speed, outcome)
 
 
-def _job(paths: Sequence[Path], reader: DiagReader, speed: SpeedSettings, outcome: DiagOutcome) -> DiagJob:
-    for file_report, overlap in zip(reader.report.files, outcome.overlap_by_file, strict=False):
+def _job(
+    files: list[str], report: ParseReport, registry: DiagRegistry, speed: SpeedSettings, outcome: DiagOutcome
+) -> DiagJob:
+    for file_report, overlap in zip(report.files, outcome.overlap_by_file, strict=False):
         file_report.overlap_records = overlap
-    by_file = outcome.overlap_by_file or [0] * len(reader.report.files)
+    by_file = outcome.overlap_by_file or [0] * len(report.files)
     analysis = DiagAnalysis(
         settings=speed,
         devices=outcome.devices,
@@ -251,7 +278,7 @@ def _job(paths: Sequence[Path], reader: DiagReader, speed: SpeedSettings, outcom
         heads=outcome.heads,
         overlap_times_ns=outcome.overlap_times_ns,
     )
-    return DiagJob([str(p) for p in paths], reader.report, analysis, outcome=outcome, registry=reader.registry)
+    return DiagJob(files, report, analysis, outcome=outcome, registry=registry)
 
 
 class _HistoryOnly(Sinks):

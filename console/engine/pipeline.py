@@ -31,6 +31,9 @@ The results are the same objects, handed to the same sink.
 whole-second stamp) are guessed from its first closed passage and checked
 on every later one; :attr:`Pipeline.facts_wrong` says a guess failed, and a
 driver that can read its input again does so with :attr:`Pipeline.facts`.
+A driver that knows each head's stamp resolution over the whole input up
+front (the archive, from its records) gives it as ``head_step_s``: axles
+then pair in every passage as in a read of everything at once.
 """
 
 from __future__ import annotations
@@ -120,6 +123,7 @@ class Pipeline:
         *,
         whole: bool = False,
         facts: dict[int, HeadFacts] | None = None,
+        head_step_s: np.ndarray | None = None,
     ) -> None:
         self.registry = registry
         self.settings = s = settings
@@ -142,7 +146,7 @@ class Pipeline:
             self.stream: PassageStream | None = None
             self.events: EventStream | None = None
         else:
-            self.stream = PassageStream(registry, s.speed, keep_releases=keep_releases)
+            self.stream = PassageStream(registry, s.speed, keep_releases=keep_releases, head_step_s=head_step_s)
             self.acc = self.stream.acc
             self.events = None
             if s.events is not None:

@@ -154,6 +154,11 @@ class _DaskEngine(_Engine):
             client.cancel([*submitted, *shared.values()])
 
 
+def on_cluster() -> bool:
+    """The current engine is a Dask cluster (work is split into tasks that run elsewhere)."""
+    return getattr(_current.get(), "client", None) is not None
+
+
 def in_flight() -> int:
     """How many partition tasks to have running at once on the current engine: two per worker thread on a
     cluster (one running, one queued behind it), one here."""

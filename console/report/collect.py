@@ -51,7 +51,7 @@ from console.analysis.diagnostics import SpeedSettings
 from console.analysis.events import DetectionEvent, sort_events
 from console.analysis.health import Finding, sort_findings, voltage_margin_findings
 from console.analysis.sections import SectionState, run_sections
-from console.drivers.batch import ReadOptions, input_bytes, read_diag
+from console.drivers.batch import ChunkSource, LogFiles, ReadOptions, input_bytes, read_diag
 from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
 from console.engine.sinks import Sinks
 from console.layout import Layout, LayoutError, load_layout
@@ -335,51 +335,11 @@ def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], for_form
     def of(*formats: str) -> list[Path]:
         return [p for p, fmt, _ in recognised if fmt in formats]
 
-    layout, settings = data.layout, data.settings
     findings: list[Finding] = []
     diag = of(DIAGNOSTIC)
     if diag:
-        # One streaming read: passages, the section engine's run and the health inputs, in memory
-        # bounded by the heads for one log (console.stream_jobs); the long lists go to disk.
-        sections_layout = layout if layout is not None and layout.sections else None
-        history = None
-        if sections_layout is not None:
-            history = SectionsSink(keep_all=True) if whole else report_sink(ledger_rows=for_format in (None, "json"))
-        data.passage_spool = None if whole else ReportPassages(plot=for_format in (None, "html"))
-        pipe = PipelineSettings(
-            speed=settings,
-            events=DiagEventSettings(),
-            layout=layout,
-            sections=sections_layout,
-            keep_registers=HEALTH_REGISTERS,
-            health="end",
-        )
-        try:
-            with byte_progress(input_bytes(diag), "parsing") as advance:
-                job = read_diag(
-                    diag,
-                    pipe,
-                    Sinks(history, data.passage_spool),
-                    ReadOptions(on_progress=advance, hold_passages=whole),
-                )
-        except BaseException:
-            if history is not None:
-                history.close()
-            raise
-        data.job = job
-        data.reports["diagnostic"] = job.report
-        # The report reads the events only for the time the data ends: the last one stands for them.
-        last = job.last_event
-        data.events = [last] if last is not None else []
-        data.warnings += job.warnings
-        findings += job.findings
-        engine = job.sections
-        if engine is not None and history is not None:
-            if whole:
-                data.sections = engine.result(history.timeline_all, history.ledger_all, history.reset_rows)
-            else:
-                data.history = SectionHistory(engine.final_states(), history)
-            data.section_source = "diagnostic"
+        with byte_progress(input_bytes(diag), "parsing") as advance:
+            findings += diag_into_report(data, LogFiles(diag), whole, for_format, ReadOptions(on_progress=advance))
 
     _frames(data, of(FRAMES), of(CAN))
 
@@ -397,6 +357,52 @@ def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], for_form
 
     _sections(data)
     _crossings(data, of(*GNSS_FORMATS))
+
+
+def diag_into_report(
+    data: ReportData, source: ChunkSource, whole: bool, for_format: str | None, opts: ReadOptions
+) -> list[Finding]:
+    """A diagnostic source through the pipeline into the report's data: passages, sections, health findings.
+
+    In memory bounded by the heads for one log: passages and the section history go to disk as they
+    come (``whole``: held, for callers that compare tables).  Returns the health findings.
+    """
+    layout = data.layout
+    sections_layout = layout if layout is not None and layout.sections else None
+    history = None
+    if sections_layout is not None:
+        history = SectionsSink(keep_all=True) if whole else report_sink(ledger_rows=for_format in (None, "json"))
+    data.passage_spool = None if whole else ReportPassages(plot=for_format in (None, "html"))
+    pipe = PipelineSettings(
+        speed=data.settings,
+        events=DiagEventSettings(),
+        layout=layout,
+        sections=sections_layout,
+        keep_registers=HEALTH_REGISTERS,
+        health="end",
+        axles=whole,  # held with the passages, for callers that compare tables
+    )
+    opts.hold_passages = whole
+    try:
+        job = read_diag(source, pipe, Sinks(history, data.passage_spool), opts)
+    except BaseException:
+        if history is not None:
+            history.close()
+        raise
+    data.job = job
+    data.reports["diagnostic"] = job.report
+    # The report reads the events only for the time the data ends: the last one stands for them.
+    last = job.last_event
+    data.events = [last] if last is not None else []
+    data.warnings += job.warnings
+    engine = job.sections
+    if engine is not None and history is not None:
+        if whole:
+            data.sections = engine.result(history.timeline_all, history.ledger_all, history.reset_rows)
+        else:
+            data.history = SectionHistory(engine.final_states(), history)
+        data.section_source = "diagnostic"
+    return job.findings
 
 
 def _frames(data: ReportData, text_files: list[Path], can_files: list[Path]) -> None:

@@ -1,0 +1,170 @@
+"""The archive's derived rows as the pipeline makes them: one sink writing Parquet parts.
+
+Passages and axles are partitioned by day and device (a passage and its
+axles on the day the passage starts), section states, the count ledger and
+the channel events health reads by day.  Every part gets the generation
+and a tag in its name, so sinks of several groups of one ingest (the Dask
+engine's tasks) never write the same file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pyarrow as pa
+
+from console.archive.parts import NS_PER_DAY, PartWriter
+from console.engine.pipeline import HEALTH_EVENT_KINDS
+from console.engine.sinks import Sink
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from console.analysis.event_block import EventBlock
+    from console.analysis.head_table import Heads
+    from console.analysis.passages import Columns
+    from console.analysis.sections import LedgerEntry, Transition
+
+
+class ArchiveSink(Sink):
+    """The pipeline's rows, written into parts of this generation (``tag``: committed or tail)."""
+
+    def __init__(self, root: Path, generation: int, tag: str) -> None:
+        self.writers = {
+            "passages": PartWriter(root, "passages", generation, tag),
+            "axles": PartWriter(root, "axles", generation, tag),
+            "section_states": PartWriter(root, "section_states", generation, tag, by_device=False),
+            "count_ledger": PartWriter(root, "count_ledger", generation, tag, by_device=False),
+            "channel_events": PartWriter(root, "channel_events", generation, tag, by_device=False),
+        }
+        self._axles: list[tuple[Columns, Heads]] = []
+
+    def axles(self, cols: Columns, heads: Heads) -> None:
+        self._axles.append((cols, heads))  # written with their passages: an axle's day is its passage's
+
+    def passages(self, cols: Columns, heads: Heads) -> None:
+        from console.analysis.diagnostics import _passages_frame
+
+        p = _passages_frame(cols, heads)
+        flat = np.asarray(p.attrs.get("axle_speeds_kmh", np.zeros(0)), np.float64).tolist()
+        bounds = zip(p["axle_speeds_start"].tolist(), p["axle_speeds_stop"].tolist(), strict=True)
+        speeds = [flat[a:b] for a, b in bounds]
+        p.attrs = {}
+        p = p.drop(columns=["axle_speeds_start", "axle_speeds_stop"])
+        start_ns = p["start_ns"].to_numpy(np.int64)
+        p["start"] = start_ns.astype("datetime64[ns]")
+        day = start_ns // NS_PER_DAY
+        table = _arrow(p).append_column("axle_speeds_kmh", pa.array(speeds, pa.list_(pa.float64())))
+        table = table.append_column("day", _days(day))
+        self.writers["passages"].add(table, day, p["device_id"].to_numpy(np.int64))
+        for axle_cols, axle_heads in self._axles:
+            self._write_axles(axle_cols, axle_heads, cols)
+        self._axles = []
+
+    def _write_axles(self, axles: Columns, heads: Heads, passages: Columns) -> None:
+        from console.analysis.head_table import heads_at
+        from console.analysis.wheels import axles_frame
+
+        if not len(axles["head"]):
+            return
+        # Each axle lies in the passage of its head that starts at or before it.
+        head, t = np.asarray(axles["head"], np.int64), np.asarray(axles["time_ns"], np.int64)
+        ph, ps = np.asarray(passages["head"], np.int64), np.asarray(passages["start_ns"], np.int64)
+        order = np.lexsort((ps, ph))
+        ph, ps = ph[order], ps[order]
+        # Rank each (head, time) among the passages' (head, start) pairs: one sort of both.
+        keys = np.r_[ph, head]
+        times = np.r_[ps, t]
+        is_axle = np.r_[np.zeros(len(ph), bool), np.ones(len(head), bool)]
+        merged = np.lexsort((~is_axle, times, keys))  # a passage sorts before an axle at its start
+        pos = np.cumsum(~is_axle[merged]) - 1  # the last passage at or before each row
+        owner = np.empty(len(keys), np.int64)
+        owner[merged] = pos
+        owner = owner[len(ph) :]
+        start_day = ps[np.maximum(owner, 0)] // NS_PER_DAY
+        frame = axles_frame(axles)
+        dev, names = heads_at(heads, head)
+        frame["device_id"] = dev
+        frame["counting_head"] = np.asarray(names, dtype=object)
+        frame["time"] = t.astype("datetime64[ns]")
+        frame = frame.drop(columns=["head"])
+        table = _arrow(frame).append_column("day", _days(start_day))
+        self.writers["axles"].add(table, start_day, frame["device_id"].to_numpy(np.int64))
+
+    def transitions(self, rows: Iterable[Transition]) -> None:
+        import pandas as pd
+
+        df = pd.DataFrame(
+            [(r.time_ns, r.section, str(r.state), r.count, r.reason) for r in rows],
+            columns=["time_ns", "section", "state", "count", "reason"],
+        )
+        self._timed("section_states", df)
+
+    def ledger(self, rows: Iterable[LedgerEntry]) -> None:
+        import pandas as pd
+
+        df = pd.DataFrame(
+            [(x.time_ns, x.section, x.head, x.delta, x.count) for x in rows],
+            columns=["time_ns", "section", "head", "delta", "count"],
+        )
+        self._timed("count_ledger", df)
+
+    def detections(self, block: EventBlock) -> None:
+        health = block.of_kinds(HEALTH_EVENT_KINDS)
+        if len(health):
+            self._timed("channel_events", channel_events_frame(health.events()))
+
+    def _timed(self, table: str, df: pd.DataFrame) -> None:
+        if not len(df):
+            return
+        t = df["time_ns"].to_numpy(np.int64)
+        df["time"] = t.astype("datetime64[ns]")
+        day = t // NS_PER_DAY
+        self.writers[table].add(_arrow(df).append_column("day", _days(day)), day)
+
+    def close(self) -> dict[str, list[str]]:
+        return {name: w.close() for name, w in self.writers.items()}
+
+    def abort(self) -> None:
+        for w in self.writers.values():
+            w.abort()
+
+
+def _days(day_index: np.ndarray) -> pa.Array:
+    """Days since 1970 as the archive's ``day`` column (DATE)."""
+    return pa.array(np.asarray(day_index, np.int64).astype(np.int32), pa.date32())
+
+
+def channel_events_frame(events: Iterable[Any]) -> pd.DataFrame:
+    """The events health judges (channel faults and recoveries, single-channel pulses), as a table."""
+    import pandas as pd
+
+    from console.analysis.events import EVENT_COLUMNS
+
+    rows = [(e.time_ns, str(e.kind), e.head, e.direction, e.channel, e.source, e.detail) for e in events]
+    df = pd.DataFrame(rows, columns=list(EVENT_COLUMNS))
+    df["channel"] = df["channel"].astype("Int64")
+    return df
+
+
+def _arrow(df: pd.DataFrame) -> pa.Table:
+    """A derived frame as Arrow: text columns as strings (None kept), the rest as pandas gives them."""
+    import datetime as dt
+
+    for c in df.columns:
+        if df[c].dtype != object:
+            continue
+        if df[c].isna().all():
+            # No value at all: the column still gets its type (numbers for units, text otherwise).
+            df[c] = df[c].astype("float64" if c.endswith(("_s", "_ns", "_m", "_kmh")) else "string")
+            continue
+        try:
+            pa.array(df[c], from_pandas=True)
+        except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):
+            df[c] = df[c].map(
+                lambda v: None if v is None else v if isinstance(v, str | int | float | bool | dt.date) else str(v)
+            )
+    return pa.Table.from_pandas(df, preserve_index=False)
