@@ -272,6 +272,22 @@ class DiagAccumulator:
         return mask, [int(x) for x in per_file], cols["time_ns"][mask].astype(np.int64)
 
 
+def wheel_columns(luts: RegisterTables, chunk: DiagChunk) -> dict[str, np.ndarray] | None:
+    """A chunk's wheel-sensor records (onsets and releases) as the counting reads them, in read order."""
+    rid = chunk.register_id
+    wheel = luts.is_wheel[rid] & ((chunk.value == 1) | (chunk.value == 0))
+    if not wheel.any():
+        return None
+    r = rid[wheel]
+    return {
+        "head": luts.head_of(r),
+        "channel": luts.channel_of(r),
+        "time_ns": chunk.time_ns[wheel],
+        "value": chunk.value[wheel].astype(np.int8),
+        "subsecond": chunk.subsecond[wheel],
+    }
+
+
 @dataclass
 class PartAnalysis:
     """Passages, axles and unpaired onsets of a set of whole passages' reductions."""

@@ -98,6 +98,15 @@ class PassageStream:
         open_ = self._open_last != NO_TIME
         return int(self._open_first[open_].min()) if open_.any() else ALL_TIME
 
+    def lagging_clock_ns(self) -> int:
+        """The clock to release events by: the log's latest record, but no later than the clock of any file
+        a head is open in (followed files are read at their own pace: one that runs ahead must not release
+        events the other's records still to come would precede)."""
+        open_ = np.flatnonzero(self._open_last[: len(self._head_file)] != NO_TIME)
+        if not len(open_):
+            return self.clock_ns
+        return min(self.clock_ns, int(self._file_clock[self._head_file[open_]].min()))
+
     def add(self, chunk: DiagChunk) -> PartAnalysis | None:
         """Take in a chunk; the passages it completed, if any."""
         if len(chunk) == 0:

@@ -112,6 +112,9 @@ class EventStream:
         self._seen_whole = np.zeros(0, bool)
         self._last_activity = np.zeros(0, np.int64)  # the last closed activity bucket's last record
         self._queue = EventQueue(self.names, self.pool.strings)
+        # Wheel records of heads whose facts are not settled yet (no passage of theirs closed), in read order.
+        self._held: list[dict[str, np.ndarray]] = []
+        self._last_heads: Sequence[tuple[int, str]] = []
         self._power_ns = int(settings.power_gap_s * NS) if settings.power_gap_s is not None else None
 
     # -- heads -------------------------------------------------------------
@@ -202,6 +205,41 @@ class EventStream:
         if self._power_ns is not None and activity is not None and len(activity["head"]):
             self._power(activity, heads)
 
+    def add_records(self, wheel: dict[str, np.ndarray], heads: Sequence[tuple[int, str]]) -> None:
+        """Wheel records as they are read (any heads, read order): counted at once for heads whose facts
+        are settled, held for the others until :meth:`settle` (their first passage has closed)."""
+        if not len(wheel["head"]):
+            return
+        self._last_heads = heads
+        key_col = np.asarray(wheel["head"], np.int64)
+        self._heads(key_col, heads)
+        ready = self._configured[key_col] | (self._state[key_col] != _COUNTED)
+        if self.known_facts is not None:
+            ready |= np.isin(key_col, np.fromiter(self.known_facts, np.int64, len(self.known_facts)))
+        if not ready.all():
+            self._held.append({c: np.asarray(v)[~ready] for c, v in wheel.items()})
+        if ready.any():
+            self._count({c: np.asarray(v)[ready] for c, v in wheel.items()}, heads)
+
+    def settle(self, keys: np.ndarray, heads: Sequence[tuple[int, str]]) -> None:
+        """Heads whose first passage has closed: their facts are guessed from what was held, and it is counted."""
+        if not self._held:
+            return
+        keys = np.unique(np.asarray(keys, np.int64))
+        held = {c: np.concatenate([h[c] for h in self._held]) for c in self._held[0]}
+        now = np.isin(held["head"], keys)
+        if not now.any():
+            return
+        rest = {c: v[~now] for c, v in held.items()}
+        self._held = [rest] if len(rest["head"]) else []
+        self._count({c: v[now] for c, v in held.items()}, heads)
+
+    def held_from_ns(self) -> int:
+        """The earliest wheel record held (int64 max: none): no event of its head is made before it."""
+        if not self._held:
+            return int(ALL_TIME)
+        return int(min(int(h["time_ns"].min()) for h in self._held if len(h["time_ns"])))
+
     def _count(self, wheel: dict[str, np.ndarray], heads: Sequence[tuple[int, str]]) -> None:
         key_col = np.asarray(wheel["head"], np.int64)
         self._heads(key_col, heads)
@@ -255,6 +293,7 @@ class EventStream:
     def release_block(self, watermark_ns: int) -> EventBlock:
         """Events that nothing read later can precede, given that no record still to come is
         earlier than ``watermark_ns``; in the batch path's order, as columns."""
+        watermark_ns = min(watermark_ns, self.held_from_ns())
         self._push(self.bank.settle_before(watermark_ns), _COUNTING)
         bound = min(watermark_ns, self.bank.floor_ns())
         if self._power_ns is not None:
@@ -269,6 +308,9 @@ class EventStream:
 
     def finish_block(self) -> EventBlock:
         """End of the log: settle every counter; all events, in order, as columns."""
+        if self._held:
+            held = np.concatenate([h["head"] for h in self._held])
+            self.settle(held, self._last_heads)
         self._push(self.bank.flush(), _COUNTING)
         return self._queue.pop_below(int(ALL_TIME))
 

@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from console.analysis.diag_events import DiagEventSettings
-from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings
+from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, wheel_columns
 from console.analysis.event_block import KIND_CODE, EventBlock, StringPool
 from console.analysis.events import DetectionEvent, EventKind, sort_events
 from console.analysis.sections import SectionEngine, SectionState
@@ -146,7 +146,10 @@ class Pipeline:
             self.stream: PassageStream | None = None
             self.events: EventStream | None = None
         else:
-            self.stream = PassageStream(registry, s.speed, keep_releases=keep_releases, head_step_s=head_step_s)
+            # Wheel records reach the counting as they are read; closed passages give it only their activity
+            # (for power-loss events, when asked for), which the stream keeps with the releases.
+            power = s.events is not None and s.events.power_gap_s is not None
+            self.stream = PassageStream(registry, s.speed, keep_releases=power, head_step_s=head_step_s)
             self.acc = self.stream.acc
             self.events = None
             if s.events is not None:
@@ -172,12 +175,18 @@ class Pipeline:
         if self.stream is None:
             self.acc.add(chunk)
             return
+        if self.events is not None:
+            # Counted as they are read (the heads whose facts are settled): events wait for the order slack,
+            # not for their passage to close.
+            wheel = wheel_columns(self.acc._lookup(), chunk)
+            if wheel is not None:
+                self.events.add_records(wheel, self.heads)
         self._closed(self.stream.add(chunk))
         if self.events is not None:
             slack_ns = self.stream._slack_ns
-            if self.stream.clock_ns > NO_TIME + slack_ns:
-                watermark = min(self.stream.open_first_ns(), self.stream.clock_ns - slack_ns)
-                self._step(self.events.release_block(watermark))
+            clock = self.stream.lagging_clock_ns()
+            if clock > NO_TIME + slack_ns:
+                self._step(self.events.release_block(clock - slack_ns))
 
     def finish(self, start_sections: bool = True) -> DiagOutcome:
         """The input has ended: every open passage is whole; every held event is released.
@@ -249,7 +258,9 @@ class Pipeline:
             self._unpaired = self.stream.unpaired_detections
         heads = self.heads
         if self.events is not None:
-            self.events.add(part.wheel, part.activity, heads)
+            self.events.add(None, part.activity, heads)
+            if part.passages is not None:
+                self.events.settle(part.passages["head"], heads)  # their first passage closed: facts settled
         if self.settings.axles and len(part.axles["head"]):
             self.sink.axles(part.axles, heads)
         if self.settings.health == "closed":
