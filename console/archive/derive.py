@@ -152,7 +152,7 @@ class GroupRun:
         self._before = np.zeros(0, np.int64)
         self.overlap_by_day: dict[str, int] = dict(old.get("overlap_by_day", {}).get(key, {})) if self.resumed else {}
         # No state to continue (a new archive, another layout or version): the records already archived are
-        # read back with the new ones.
+        # read back with the new ones (the caller says which records are new: see older_records).
         self.rebuild = not self.resumed and bool(manifest.parts("records"))
         self.rebuilt = False
 
@@ -520,13 +520,31 @@ def derive_group(
     """One group's derivation (a Dask task): its new records read back and fed, the state saved."""
     run = GroupRun(root, manifest, settings, key, heads)
     try:
-        if rebuild:
+        if rebuild or (not run.resumed and older_records(root, manifest, heads, new_seqs)):
             run.must_rebuild()
+        elif not run.resumed:
+            run.rebuild = False  # a group seen first now: its new records are all it has, read as they came
         run.feed_archived(new_seqs)
         return run.finish()
     except BaseException:
         run.abort()
         raise
+
+
+def older_records(root: Path, manifest: Manifest, heads: frozenset[tuple[int, Any]], new_seqs: list[int]) -> bool:
+    """Whether the group's heads have records in files other than this ingest's new ones."""
+    from console.archive.views import connect
+
+    cond, params = _group_where(heads, None)
+    con, _ = connect(root, manifest, tables=("records",))
+    try:
+        row = con.sql(
+            f"SELECT count(*) FROM records WHERE {cond} AND file_seq NOT IN (SELECT unnest(?))",
+            params=[*params, list(new_seqs)],
+        ).fetchone()
+    finally:
+        con.close()
+    return bool(row and row[0])
 
 
 def repeated_records(root: Path, manifest: Manifest, where: tuple[str, list[Any]]) -> dict[str, np.ndarray]:
