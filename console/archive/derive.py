@@ -538,13 +538,13 @@ def older_records(root: Path, manifest: Manifest, heads: frozenset[tuple[int, An
     cond, params = _group_where(heads, None)
     con, _ = connect(root, manifest, tables=("records",))
     try:
-        row = con.sql(
+        rows = con.sql(
             f"SELECT count(*) FROM records WHERE {cond} AND file_seq NOT IN (SELECT unnest(?))",
             params=[*params, list(new_seqs)],
-        ).fetchone()
+        ).fetchall()
     finally:
         con.close()
-    return bool(row and row[0])
+    return bool(rows and rows[0][0])
 
 
 def repeated_records(root: Path, manifest: Manifest, where: tuple[str, list[Any]]) -> dict[str, np.ndarray]:
