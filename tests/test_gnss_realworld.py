@@ -103,20 +103,24 @@ def test_binary_of_no_known_kind_alone_on_a_line_is_rejected_with_the_byte(tmp_p
     assert rejection.line == 2 and "byte 0x10 at column 1" in rejection.reason
 
 
-def _nav_pvt(*, fix_type: int = 3, fix_ok: bool = True, nano: int = -100_231, lat_e7: int = 481173000) -> bytes:
+def _nav_pvt(
+    *, fix_type: int = 3, fix_ok: bool = True, nano: int = -100_231, lat_e7: int = 481173000, second: int = 1
+) -> bytes:
     payload = bytearray(92)
-    # iTOW, 2026-01-19 10:05:01 UTC, valid date+time, tAcc, nano, fixType, flags, flags2, numSV, lon, lat
+    # iTOW, 2026-01-19 10:05:0x UTC, valid date+time, tAcc, nano, fixType, flags, flags2, numSV, lon, lat.
+    # iTOW: GPS time of week, 18 s ahead of UTC; Monday 10:05:19 is 122 719 s into the week.
+    itow_ms = (122_718 + second) * 1000 + round(nano / 1e6)
     struct.pack_into(
         "<IHBBBBBBIiBBBBii",
         payload,
         0,
-        0,
+        itow_ms,
         2026,
         1,
         19,
         10,
         5,
-        1,
+        second,
         0x07,
         30,
         nano,
@@ -132,14 +136,15 @@ def _nav_pvt(*, fix_type: int = 3, fix_ok: bool = True, nano: int = -100_231, la
 
 
 def test_a_ubx_nav_pvt_is_a_fix(tmp_path: Path) -> None:
-    data = _nav_pvt() + UBX + b"\n" + _nav_pvt(fix_type=5, nano=200_000_000) + b"\n" + _nav_pvt(fix_type=1) + b"\n"
+    pvts = _nav_pvt(), _nav_pvt(fix_type=5, nano=200_000_000), _nav_pvt(fix_type=1, second=2)
+    data = pvts[0] + UBX + b"\n" + pvts[1] + b"\n" + pvts[2] + b"\n"
     fixes, report = stream(tmp_path, data)
     assert list(fixes["source"].astype(str)) == ["ubx", "ubx", "ubx"]
     first = fixes.iloc[0]
     # 10:05:01 - 100 231 ns: the epoch's nominal time is the millisecond it rounds to (as gpsd reports it).
     assert fixes["time"].iloc[0] == pd.Timestamp("2026-01-19T10:05:01Z")
     assert first["lat"] == pytest.approx(48.1173, abs=1e-9) and first["speed_mps"] == 15.25
-    assert first["course_deg"] == pytest.approx(20.5) and first["sentence"] == "PVT"
+    assert first["course_deg"] == pytest.approx(20.5) and first["sentence"] == "NAV-PVT"
     assert not fixes["valid"].iloc[1]  # fix type 5: time only
     assert fixes["valid"].iloc[2] and fixes["fix_quality"].iloc[2] == "dead_reckoning"  # fix type 1
     assert report.skipped == {"UBX packets": 1} and report.records == 3
