@@ -87,6 +87,7 @@ class ByteWindow:
         self._limit = limit
         self._extra = bytearray()
         self._chunks = 0
+        self._chunk_ends: list[int] = []  # where each chunk taken ends, counted from data[at]
         self._pos = 0  # bytes read so far
         self.ran_out = False
 
@@ -105,6 +106,7 @@ class ByteWindow:
                 break
             self._chunks += 1
             self._extra += chunk
+            self._chunk_ends.append(in_data + len(self._extra))
         end = self._pos + want
         if end <= in_data:
             out = self._data[start : start + want]
@@ -116,6 +118,19 @@ class ByteWindow:
 
     def readline(self) -> bytes:
         return b""  # sentences are read by the line scanner, never through a packet reader
+
+    def end_of(self, size: int) -> tuple[int, int]:
+        """Where the first ``size`` bytes read end: (-1, offset in ``data``) when inside it, else (k, offset
+        in the k-th later chunk, which may be its length: the chunks before it lie wholly inside)."""
+        in_data = len(self._data) - self._at
+        if size <= in_data:
+            return -1, self._at + size
+        start = in_data
+        for k, end in enumerate(self._chunk_ends):
+            if size <= end:
+                return k, size - start
+            start = end
+        raise ValueError(f"{size} bytes were not read")
 
 
 def _read_ubx_or_rtcm3(window: ByteWindow) -> bytes | None:

@@ -93,33 +93,6 @@ class _Feed:
         return self.ahead[k]
 
 
-def _span(data: bytes, at: int, size: int, feed: _Feed) -> tuple[bytes, int, int] | None:
-    """``size`` bytes from ``data[at:]`` on, continuing into the following lines.
-
-    Returns (bytes, look-ahead lines wholly used, offset in the line where the
-    span ends) — the line count is 0 and the offset is in ``data`` when it
-    fits — or None if the file ends first.
-    """
-    piece = data[at : at + size]
-    if len(piece) == size:
-        return piece, -1, at + size
-    parts = [piece]
-    have = len(piece)
-    k = 0
-    while True:
-        item = feed.peek(k)
-        if item is None:
-            return None
-        raw = item[1]
-        need = size - have
-        if len(raw) >= need:
-            parts.append(raw[:need])
-            return b"".join(parts), k, need
-        parts.append(raw)
-        have += len(raw)
-        k += 1
-
-
 class StreamParser:
     """Parse receiver streams into fix rows, keeping each device's date and epoch across files."""
 
@@ -272,12 +245,12 @@ class StreamParser:
             item = feed.peek(k)
             return None if item is None else item[1]
 
-        packet = packets.read_packet(kind, packets.ByteWindow(data, at, more))
+        window = packets.ByteWindow(data, at, more)
+        packet = packets.read_packet(kind, window)
         if packet is None:
             return None
-        whole = _span(data, at, len(packet), feed)
-        assert whole is not None  # the window read these very bytes
-        return whole[1], whole[2], packet
+        lines_used, end = window.end_of(len(packet))
+        return lines_used, end, packet
 
     def _packet(self, fr: FileReport, number: int, device: str, kind: str, packet: bytes) -> bool:
         """A valid packet's content: True if it gave or joined a row (else the caller counts it)."""
