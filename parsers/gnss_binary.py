@@ -21,8 +21,9 @@ UBX messages read (their names are kept in the row's ``sentence``):
 * ``LOG-BATCH``, ``LOG-RETRIEVEPOS``: fixes the receiver logged and hands
   out later: each is a row of its own, never merged into a live epoch.
 
-SBF blocks read: ``PVTGeodetic``, ``PVTCartesian`` (a fix), ``ReceiverTime``
-(UTC and the leap-second count), ``GPSUtc`` (the leap-second count).
+SBF blocks read: ``PVTGeodetic``, ``PVTCartesian`` (a fix; SBF time stamps
+are GPS week and time of week), ``ReceiverTime`` and ``GPSUtc`` (the
+leap-second count).
 
 Units and conventions:
 
@@ -298,9 +299,8 @@ def _sbf_part(msg: Any, kind: str) -> Part:
                 part.ecef_velocity = (msg.Vx, msg.Vy, msg.Vz)
         part.status = (msg.Error == 0 and mode in _SBF_FIX_MODES, False)
     elif kind == "ReceiverTime":
+        # Its UTC fields are whole seconds (the block's time stamp has the milliseconds): only GPS - UTC is read.
         part.leap_s = plausible_leap(msg.DeltaLS)  # -128: not known
-        if msg.UTCYear != -128 and part.leap_s is not None:
-            part.utc_ns = _utc_ns(2000 + msg.UTCYear, msg.UTCMonth, msg.UTCDay, msg.UTCHour, msg.UTCMin, msg.UTCSec, 0)
     elif kind == "GPSUtc":
         part.leap_s = plausible_leap(msg.DEL_t_LS)
     return part

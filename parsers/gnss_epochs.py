@@ -21,7 +21,8 @@ kept for the epoch's row and counted as a packet).  Within an epoch:
   count for that date (pynmeagps's table of IERS Bulletin C), replaced by
   the receiver's as soon as it gives one, in the epochs still open.  A
   message with a time of week but no week takes the week the receiver last
-  gave (the week turns when the time of week wraps);
+  gave, or that its last UTC time was in (the week turns when the time of
+  week wraps);
 * valid: every part of the epoch that gives a fix status says fix, and the
   row has a position; without any fix status the row is no fix with an
   unknown quality (``""``): doubtful evidence is no fix;
@@ -152,6 +153,12 @@ class BinaryEpochs:
             return True
         if part.gps_week is not None and part.itow_ms is not None:
             bc.week, bc.week_itow_ms = part.gps_week, part.itow_ms
+        elif part.utc_ns is not None and part.itow_ms is not None:
+            # A UTC time and a time of week: the week they are in (to time the epochs that give only the latter).
+            leap = part.leap_s if part.leap_s is not None else bc.leap_s
+            gps_ns = part.utc_ns + (leap if leap is not None else _published_leap_s(part.utc_ns)) * _S_NS
+            bc.week = round((gps_ns - GPS_EPOCH_NS - part.itow_ms * _MS_NS) / WEEK_NS)
+            bc.week_itow_ms = part.itow_ms
         if part.leap_s is not None and part.leap_s != bc.leap_s:
             bc.leap_s = part.leap_s
             self._redate(rows, bc)
