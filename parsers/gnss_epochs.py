@@ -156,14 +156,14 @@ class BinaryEpochs:
         elif part.utc_ns is not None and part.itow_ms is not None:
             # A UTC time and a time of week: the week they are in (to time the epochs that give only the latter).
             leap = part.leap_s if part.leap_s is not None else bc.leap_s
-            gps_ns = part.utc_ns + (leap if leap is not None else _published_leap_s(part.utc_ns)) * _S_NS
-            bc.week = round((gps_ns - GPS_EPOCH_NS - part.itow_ms * _MS_NS) / WEEK_NS)
+            utc_as_gps_ns = part.utc_ns + (leap if leap is not None else _published_leap_s(part.utc_ns)) * _S_NS
+            bc.week = round((utc_as_gps_ns - GPS_EPOCH_NS - part.itow_ms * _MS_NS) / WEEK_NS)
             bc.week_itow_ms = part.itow_ms
-        if part.leap_s is not None and part.leap_s != bc.leap_s:
+        if part.leap_s is not None:
+            changed = part.leap_s != bc.leap_s
             bc.leap_s = part.leap_s
-            self._redate(rows, bc)
-        elif part.leap_s is not None:
-            bc.leap_s = part.leap_s
+            if changed:
+                self._redate(rows, bc)
         if part.itow_ms is None:
             return False
         ep = self._epoch(rows, clock, bc, part)
