@@ -94,6 +94,7 @@ BINARY_KINDS = (
     "GPSUtc",
 )
 SENTENCE_KINDS = (*_NMEA_KINDS, *BINARY_KINDS)
+assert len(SENTENCE_KINDS) <= 31, "a row's sentence is an int32 bit mask"
 # Every combination of the NMEA kinds (a fixed list: the column's first categories).
 SENTENCES = (
     *("+".join(c) for n in range(1, len(_NMEA_KINDS) + 1) for c in itertools.combinations(_NMEA_KINDS, n)),
@@ -196,7 +197,7 @@ class FixRows:
         self.course_deg = array("d")
         self.valid = array("b")
         self.source = array("b")
-        self.sentence = array("q")  # bit masks (sentence_mask)
+        self.sentence = array("i")  # bit masks (sentence_mask): 25 kinds fit in 31 bits
         self.file = _Codes()
         self.line = array("q")
         self.fix_quality = array("b")
@@ -275,7 +276,7 @@ class FixRows:
             target.frombytes(np.asarray(values, np.float64).tobytes())
         self.valid.frombytes(np.asarray(valid, bool).astype(np.int8).tobytes())
         self.source.frombytes(np.full(n, _SOURCE_CODE[source], np.int8).tobytes())
-        self.sentence.frombytes(np.zeros(n, np.int64).tobytes())
+        self.sentence.frombytes(np.zeros(n, np.int32).tobytes())
         self.line.frombytes(np.asarray(line, np.int64).tobytes())
         self.fix_quality.frombytes(small(fix_quality, FIX_QUALITIES))
 
@@ -374,7 +375,7 @@ class FixRows:
                 "course_deg": col("course_deg", np.float64),
                 "valid": col("valid", np.int8).astype(bool),
                 "source": pd.Categorical.from_codes(col("source", np.int8), dtype=SOURCE_DTYPE),
-                "sentence": _sentence_categorical(col("sentence", np.int64)),
+                "sentence": _sentence_categorical(col("sentence", np.int32)),
                 "file": categorical(self.file),
                 "line": col("line", np.int64),
                 "fix_quality": pd.Categorical.from_codes(col("fix_quality", np.int8), dtype=FIX_QUALITY_DTYPE),
