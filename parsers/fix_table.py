@@ -12,10 +12,14 @@ Columns (:data:`FIX_COLUMNS`)
 ``course_deg``  float64 degrees true; NaN when the source gives none.
 ``valid``       bool: a real position fix (see ``fix_quality``).
 ``source``      category ``"nmea"``, ``"csv"``, ``"jsonl"``, ``"centre"``,
-                ``"gpsd"`` (gpsd JSON TPV), ``"gpx"`` or ``"ubx"`` (UBX-NAV-PVT).
-``sentence``    category: the NMEA sentences (and gpsd TPV, UBX NAV-PVT) merged
-                into the row, in the order RMC, GGA, GLL, GNS, VTG, TPV, PVT joined by ``+``
-                (``"RMC+GGA"``); ``""`` for sources that are not NMEA/gpsd.
+                ``"gpsd"`` (gpsd JSON TPV), ``"gpx"``, ``"ubx"`` (u-blox UBX
+                messages) or ``"sbf"`` (Septentrio SBF blocks).
+``sentence``    category: the NMEA sentences, gpsd TPV, UBX messages and SBF
+                blocks merged into the row, in the order of
+                :data:`SENTENCE_KINDS`, joined by ``+`` (``"RMC+GGA"``,
+                ``"NAV-SOL+NAV-TIMEGPS"``); ``""`` for sources that are none of these.
+                The categories are :data:`SENTENCES` (every NMEA/TPV combination),
+                then the other combinations the rows use.
 ``file, line``  category and int64: where the row (its first sentence) came from.
 ``fix_quality`` category: ``"gnss"`` a satellite fix (any augmentation),
                 ``"dead_reckoning"`` dead-reckoned / propagated / estimated
@@ -33,6 +37,7 @@ from __future__ import annotations
 import itertools
 from array import array
 from collections.abc import Mapping
+from typing import cast
 
 import numpy as np
 import pandas as pd
@@ -64,30 +69,80 @@ def _as_numpy(column: array) -> np.ndarray:
 
 
 ROLES = ("head", "eot", "")
-SOURCES = ("nmea", "csv", "jsonl", "centre", "gpsd", "gpx", "ubx")
-SENTENCE_KINDS = ("RMC", "GGA", "GLL", "GNS", "VTG", "TPV", "PVT")
+SOURCES = ("nmea", "csv", "jsonl", "centre", "gpsd", "gpx", "ubx", "sbf")
+_NMEA_KINDS = ("RMC", "GGA", "GLL", "GNS", "VTG", "TPV")
+# Binary messages that give a row its position, velocity, time or fix status (parsers.gnss_binary).
+BINARY_KINDS = (
+    "NAV-PVT",
+    "HNR-PVT",
+    "NAV-PVAT",
+    "NAV-SOL",
+    "NAV-POSLLH",
+    "NAV-HPPOSLLH",
+    "NAV-POSECEF",
+    "NAV-VELNED",
+    "NAV-VELECEF",
+    "NAV-STATUS",
+    "NAV-TIMEGPS",
+    "NAV-TIMEUTC",
+    "NAV-TIMELS",
+    "LOG-BATCH",
+    "LOG-RETRIEVEPOS",
+    "PVTGeodetic",
+    "PVTCartesian",
+    "ReceiverTime",
+    "GPSUtc",
+)
+SENTENCE_KINDS = (*_NMEA_KINDS, *BINARY_KINDS)
+assert len(SENTENCE_KINDS) <= 31, "a row's sentence is an int32 bit mask"
+# Every combination of the NMEA kinds (a fixed list: the column's first categories).
 SENTENCES = (
-    *("+".join(c) for n in range(1, len(SENTENCE_KINDS) + 1) for c in itertools.combinations(SENTENCE_KINDS, n)),
+    *("+".join(c) for n in range(1, len(_NMEA_KINDS) + 1) for c in itertools.combinations(_NMEA_KINDS, n)),
     "",
 )
 FIX_QUALITIES = ("gnss", "dead_reckoning", "no_fix", "")
 ROLE_DTYPE = pd.CategoricalDtype(list(ROLES))
 SOURCE_DTYPE = pd.CategoricalDtype(list(SOURCES))
-SENTENCE_DTYPE = pd.CategoricalDtype(list(SENTENCES))
 FIX_QUALITY_DTYPE = pd.CategoricalDtype(list(FIX_QUALITIES))
 
 NAT_NS = int(np.iinfo(np.int64).min)  # the int64 value of NaT
 
 _ROLE_CODE = {r: i for i, r in enumerate(ROLES)}
 _SOURCE_CODE = {s: i for i, s in enumerate(SOURCES)}
-_SENTENCE_CODE = {s: i for i, s in enumerate(SENTENCES)}
 _QUALITY_CODE = {q: i for i, q in enumerate(FIX_QUALITIES)}
+# A row's sentence is held as a bit mask over SENTENCE_KINDS (there are too many combinations to list).
+_KIND_BIT = {k: 1 << i for i, k in enumerate(SENTENCE_KINDS)}
+
+
+def sentence_mask(sentence: str) -> int:
+    """``"RMC+GGA"`` → its bits (KeyError for a kind not in :data:`SENTENCE_KINDS`)."""
+    mask = 0
+    for kind in sentence.split("+") if sentence else ():
+        mask |= _KIND_BIT[kind]
+    return mask
+
+
+def sentence_name(mask: int) -> str:
+    """Bits → ``"RMC+GGA"`` (canonical order)."""
+    return "+".join(k for k in SENTENCE_KINDS if mask & _KIND_BIT[k])
 
 
 def merged_sentence(a: str, b: str) -> str:
     """``"GGA"`` + ``"RMC"`` → ``"RMC+GGA"`` (canonical order, no repeats)."""
-    parts = set(a.split("+")) | set(b.split("+"))
-    return "+".join(k for k in SENTENCE_KINDS if k in parts)
+    return sentence_name(sentence_mask(a) | sentence_mask(b))
+
+
+def _sentence_categorical(masks: np.ndarray) -> pd.Categorical:
+    """Sentence masks → the column: :data:`SENTENCES` first, then any other combination used, in mask order."""
+    used, codes = np.unique(masks, return_inverse=True)
+    names = [sentence_name(int(m)) for m in used]
+    fixed = {s: i for i, s in enumerate(SENTENCES)}
+    extra = [n for n in names if n not in fixed]
+    categories = [*SENTENCES, *extra]
+    index = {s: i for i, s in enumerate(categories)}
+    lookup = np.array([index[n] for n in names], dtype=np.int32)
+    out = lookup[codes.reshape(-1)] if len(masks) else np.zeros(0, np.int32)
+    return cast(pd.Categorical, pd.Categorical.from_codes(out, dtype=pd.CategoricalDtype(categories)))
 
 
 class _Codes:
@@ -142,7 +197,7 @@ class FixRows:
         self.course_deg = array("d")
         self.valid = array("b")
         self.source = array("b")
-        self.sentence = array("b")
+        self.sentence = array("i")  # bit masks (sentence_mask): 25 kinds fit in 31 bits
         self.file = _Codes()
         self.line = array("q")
         self.fix_quality = array("b")
@@ -174,7 +229,7 @@ class FixRows:
         self.course_deg.append(course_deg)
         self.valid.append(valid)
         self.source.append(_SOURCE_CODE[source])
-        self.sentence.append(_SENTENCE_CODE[sentence])
+        self.sentence.append(sentence_mask(sentence))
         self.file.append(file)
         self.line.append(line)
         self.fix_quality.append(_QUALITY_CODE[fix_quality])
@@ -221,7 +276,7 @@ class FixRows:
             target.frombytes(np.asarray(values, np.float64).tobytes())
         self.valid.frombytes(np.asarray(valid, bool).astype(np.int8).tobytes())
         self.source.frombytes(np.full(n, _SOURCE_CODE[source], np.int8).tobytes())
-        self.sentence.frombytes(np.full(n, _SENTENCE_CODE[""], np.int8).tobytes())
+        self.sentence.frombytes(np.zeros(n, np.int32).tobytes())
         self.line.frombytes(np.asarray(line, np.int64).tobytes())
         self.fix_quality.frombytes(small(fix_quality, FIX_QUALITIES))
 
@@ -254,7 +309,14 @@ class FixRows:
         return out
 
     def sentence_at(self, i: int) -> str:
-        return SENTENCES[self.sentence[i]]
+        return sentence_name(self.sentence[i])
+
+    def add_sentence(self, i: int, kind: str) -> None:
+        """Join ``kind`` (one of :data:`SENTENCE_KINDS`) to row ``i``'s sentence."""
+        self.sentence[i] |= _KIND_BIT[kind]
+
+    def source_at(self, i: int) -> str:
+        return SOURCES[self.source[i]]
 
     def quality_at(self, i: int) -> str:
         return FIX_QUALITIES[self.fix_quality[i]]
@@ -263,7 +325,7 @@ class FixRows:
         self.fix_quality[i] = _QUALITY_CODE[quality]
 
     def set_sentence(self, i: int, sentence: str) -> None:
-        self.sentence[i] = _SENTENCE_CODE[sentence]
+        self.sentence[i] = sentence_mask(sentence)
 
     def __len__(self) -> int:
         return len(self.line)
@@ -313,7 +375,7 @@ class FixRows:
                 "course_deg": col("course_deg", np.float64),
                 "valid": col("valid", np.int8).astype(bool),
                 "source": pd.Categorical.from_codes(col("source", np.int8), dtype=SOURCE_DTYPE),
-                "sentence": pd.Categorical.from_codes(col("sentence", np.int8), dtype=SENTENCE_DTYPE),
+                "sentence": _sentence_categorical(col("sentence", np.int32)),
                 "file": categorical(self.file),
                 "line": col("line", np.int64),
                 "fix_quality": pd.Categorical.from_codes(col("fix_quality", np.int8), dtype=FIX_QUALITY_DTYPE),

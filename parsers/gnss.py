@@ -40,7 +40,7 @@ km/h, ``valid`` True (the centre gives no fix quality), no course.
 
 Other GNSS sources (each its own module)
 ----------------------------------------
-* receiver streams — NMEA, gpsd JSON, binary UBX/RTCM3/SiRF packets, mixed
+* receiver streams — NMEA, gpsd JSON, binary UBX/RTCM3/SBF/SiRF packets, mixed
   line by line: ``parsers.gnss_stream``;
 * device exports, CSV and JSON lines: ``parsers.gnss_csv``;
 * GPX 1.0/1.1 tracks: ``parsers.gpx``.

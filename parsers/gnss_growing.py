@@ -12,7 +12,8 @@ whole file are waited for instead:
   at the end of the file it is read as the batch reader reads a file's end;
 * a row stays *open* while a later line may still change it: it is its
   device's current epoch (the GGA of the same second merges into the RMC's
-  row), or it waits for a date (a GGA before the device's first RMC).
+  row), it waits for a date (a GGA before the device's first RMC), or it
+  is a binary epoch still open for late messages (``parsers.gnss_epochs``).
   :meth:`GrowingStream.settle` hands out the rows that are no longer open,
   and forgets them: memory holds the open rows (one or two per device), not
   the file.  So the fixes come out one epoch late (the next epoch's first
@@ -37,33 +38,26 @@ from parsers.sources import DEFAULT_MAX_LINE_BYTES
 
 
 def _waits_for_more(ahead: deque[tuple[int, bytes, int]]) -> bool:
-    """Whether a packet starting in the first line at hand may run past the lines at hand."""
+    """Whether a packet starting in the first line at hand may run past the lines at hand.
+
+    Each sync in the line is read as the batch reader reads it, over the
+    lines at hand: a read that wanted more bytes than there are waits (a
+    packet is at most MAX_PACKET_BYTES, so the wait is bounded).
+    """
     _, line, start = ahead[0]
-    syncs = []
+
+    def more(k: int) -> bytes | None:
+        return ahead[k + 1][1] if k + 1 < len(ahead) else None
+
     at = start
     while (m := packets.SYNC_RE.search(line, at)) is not None:  # '$'/'!' start sentences, no look-ahead
         at = m.start()
         kind = packets.packet_kind(line[at : at + 2])
         if kind is not None:
-            syncs.append((at, kind))
+            window = packets.ByteWindow(line, at, more)
+            if packets.read_packet(kind, window) is None and window.ran_out:
+                return True
         at += 1
-    if not syncs:
-        return False
-    # A packet is at most MAX_PACKET_BYTES: that much past the line's end is all it can need.
-    parts, have = [line], len(line)
-    for k in range(1, len(ahead)):
-        if have >= len(line) + packets.MAX_PACKET_BYTES:
-            return False
-        parts.append(ahead[k][1])
-        have += len(ahead[k][1])
-    whole = b"".join(parts)
-    for at, kind in syncs:
-        size = packets.header_bytes(kind)
-        if at + size > have:
-            return True
-        total = packets.packet_length(kind, whole[at : at + size])
-        if total is not None and at + total > have:
-            return True
     return False
 
 
@@ -124,20 +118,11 @@ class GrowingStream:
         n = len(rows)
         ids = np.concatenate([self._open_ids, np.arange(self._next_id, self._next_id + n - len(self._open_ids))])
         self._next_id += n - len(self._open_ids)
-        open_rows: set[int] = set()
-        if not final:
-            for clock in self.parser.clocks.values():  # per device: a handful
-                if clock.row >= 0:
-                    open_rows.add(clock.row)
-                open_rows.update(r for r, _ in clock.undated or ())
+        open_rows = set() if final else self.parser.open_rows()
         keep = np.array(sorted(open_rows), np.int64)
         done = np.setdiff1d(np.arange(n), keep)
         settled = rows.subset(done).frame()
         self.parser.rows = rows.subset(keep)
         self._open_ids = ids[keep]
-        renumber = {int(old): new for new, old in enumerate(keep.tolist())}
-        for clock in self.parser.clocks.values():
-            clock.row = renumber.get(clock.row, -1)
-            if clock.undated:
-                clock.undated = [(renumber[r], tod) for r, tod in clock.undated]
+        self.parser.renumber_rows({int(old): new for new, old in enumerate(keep.tolist())})
         return settled, ids[done]

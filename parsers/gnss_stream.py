@@ -8,10 +8,13 @@ reports.  Each line (and each packet inside it) is classified on its own:
 * NMEA sentences (``$…``/``!…``, optionally after a device tag) are taken
   wherever they appear, also after binary bytes on the same line; decoding
   is :func:`parsers.nmea.decode_sentence`;
-* binary packets (:mod:`parsers.gnss_packets`) are framed by their length
-  and checksum, across line ends (0x0A is just a byte inside a packet), and
-  counted by kind in ``report.skipped``; a line wholly inside a packet is
-  blank;
+* binary packets (:mod:`parsers.gnss_packets`: UBX, RTCM3, SBF, SiRF) are
+  framed by their libraries, across line ends (0x0A is just a byte inside a
+  packet); the UBX and SBF messages that carry a position, a velocity, a
+  time or a fix status are decoded (:mod:`parsers.gnss_binary`) and merged
+  into one row per epoch (:mod:`parsers.gnss_epochs`), every other packet
+  is counted by kind in ``report.skipped``; a line wholly inside a packet
+  is blank;
 * gpsd JSON objects (``{"class":"TPV",…}``): a TPV is a fix (source
   ``gpsd``), other classes are counted in ``report.skipped``;
 * binary bytes that are none of these: if a line holds nothing else it is
@@ -27,8 +30,10 @@ first date keeps its time of day and is dated when a date arrives (the next
 RMC or ZDA of that device, in the file or a later one).
 
 Line accounting: a line is ``rejected`` if any sentence or JSON object on it
-is (the reason names which), else a ``record`` if it gave or joined a row,
-else ``blank``.
+is (the reason names which), else a ``record`` if it gave or joined a row
+(a packet's row counts on the line where the packet starts), else
+``blank``.  Every byte is a fix's, a counted packet's, a counted
+unrecognised byte beside them, or a rejected line's.
 """
 
 from __future__ import annotations
@@ -41,8 +46,10 @@ from pathlib import Path
 
 import pandas as pd
 
+from parsers import gnss_binary as binary
 from parsers import gnss_packets as packets
 from parsers.fix_table import NAT_NS, FixRows, check_roles, merged_sentence
+from parsers.gnss_epochs import BinaryEpochs
 from parsers.gnss_lines import open_lines, text_of
 from parsers.gnss_time import parse_time_ns
 from parsers.gpsd_json import JsonRowError, gpsd_class, load_object, tpv_fix
@@ -56,7 +63,8 @@ _EMBEDDED_SENTENCE_RE = re.compile(rb"[$!][^$!*\x00-\x1f\x7f-\xff]*(?:\*[0-9A-Fa
 _ADDRESS_START_RE = re.compile(rb"[$!][A-Z][A-Z0-9]{4},")
 _DEVICE_TAG_HELP = "'$' or '!' (optionally after a device tag: 'DEVICE,$…' or 'DEVICE $…'), or a gpsd JSON object"
 _WHITESPACE = frozenset(b" \t\r\n")
-_POSITION_KINDS = ("RMC", "GGA", "GLL", "GNS", "TPV", "PVT")
+_POSITION_KINDS = ("RMC", "GGA", "GLL", "GNS", "TPV")
+_SOURCES = {packets.UBX: "ubx", packets.SBF: "sbf"}
 UNKNOWN_BINARY = "unrecognised binary bytes"
 
 
@@ -85,33 +93,6 @@ class _Feed:
         return self.ahead[k]
 
 
-def _span(data: bytes, at: int, size: int, feed: _Feed) -> tuple[bytes, int, int] | None:
-    """``size`` bytes from ``data[at:]`` on, continuing into the following lines.
-
-    Returns (bytes, look-ahead lines wholly used, offset in the line where the
-    span ends) — the line count is 0 and the offset is in ``data`` when it
-    fits — or None if the file ends first.
-    """
-    piece = data[at : at + size]
-    if len(piece) == size:
-        return piece, -1, at + size
-    parts = [piece]
-    have = len(piece)
-    k = 0
-    while True:
-        item = feed.peek(k)
-        if item is None:
-            return None
-        raw = item[1]
-        need = size - have
-        if len(raw) >= need:
-            parts.append(raw[:need])
-            return b"".join(parts), k, need
-        parts.append(raw)
-        have += len(raw)
-        k += 1
-
-
 class StreamParser:
     """Parse receiver streams into fix rows, keeping each device's date and epoch across files."""
 
@@ -122,7 +103,25 @@ class StreamParser:
         self.roles = check_roles(roles)
         self.clocks: dict[str, DeviceClock] = {}
         self.rows = rows if rows is not None else FixRows()
+        self.binary = BinaryEpochs()
         self._gpsd_devices: dict[str, str] = {}
+
+    def open_rows(self) -> set[int]:
+        """Rows a later line may still change: each device's current epoch, its undated and open binary epochs."""
+        out = self.binary.open_rows()
+        for clock in self.clocks.values():  # per device: a handful
+            if clock.row >= 0:
+                out.add(clock.row)
+            out.update(r for r, _ in clock.undated or ())
+        return out
+
+    def renumber_rows(self, mapping: dict[int, int]) -> None:
+        """The rows were renumbered (``mapping``: old → new index); a row not in it has left."""
+        for clock in self.clocks.values():
+            clock.row = mapping.get(clock.row, -1)
+            if clock.undated:
+                clock.undated = [(mapping[r], tod) for r, tod in clock.undated if r in mapping] or None
+        self.binary.renumber(mapping)
 
     # ------------------------------------------------------------ files
 
@@ -190,7 +189,8 @@ class StreamParser:
             if m is None:
                 break
             at = m.start()
-            if data[at] in b"$!":
+            kind = packets.packet_kind(data[at : at + 2])
+            if kind is None:
                 if not _ADDRESS_START_RE.match(data, at):
                     # Inside binary data a '$' that opens no sentence address is just a byte.
                     junk_bytes += 1
@@ -203,8 +203,6 @@ class StreamParser:
                 sentences.append(sentence.group())
                 pos = sentence.end()
                 continue
-            kind = packets.packet_kind(data[at : at + 2])
-            assert kind is not None
             framed = self._frame(kind, data, at, feed)
             if framed is None:  # a sync byte that starts no valid packet: junk
                 junk_bytes += 1
@@ -214,12 +212,10 @@ class StreamParser:
                 continue
             known = True
             lines_used, end, packet = framed
-            pvt = packets.nav_pvt(packet) if kind == packets.UBX else None
-            if pvt is None:
-                self.report.skipped[f"{kind} packets"] += 1
-            else:
-                self._emit(fr, number, stem, _pvt_fix(pvt), "ubx")
+            if self._packet(fr, number, stem, kind, packet):
                 packet_rows += 1
+            else:
+                self.report.skipped[f"{kind} packets"] += 1
             if lines_used < 0:
                 pos = end
                 continue
@@ -236,7 +232,7 @@ class StreamParser:
         if not sentences and not known and junk_at >= 0:
             reason = (
                 f"binary data: byte 0x{data[junk_at]:02x} at column {junk_at + 1}, "
-                "and no NMEA sentence or UBX/RTCM3/SiRF packet on the line"
+                "and no NMEA sentence or UBX/RTCM3/SBF/SiRF packet on the line"
             )
             self.report.reject(fr, number, "binary", reason, text_of(raw))
             return
@@ -244,16 +240,39 @@ class StreamParser:
 
     def _frame(self, kind: str, data: bytes, at: int, feed: _Feed) -> tuple[int, int, bytes] | None:
         """A valid packet at ``data[at]``: (look-ahead lines wholly inside it, end offset, the packet), else None."""
-        head = _span(data, at, packets.header_bytes(kind), feed)
-        if head is None:
+
+        def more(k: int) -> bytes | None:
+            item = feed.peek(k)
+            return None if item is None else item[1]
+
+        window = packets.ByteWindow(data, at, more)
+        packet = packets.read_packet(kind, window)
+        if packet is None:
             return None
-        total = packets.packet_length(kind, head[0])
-        if total is None:
-            return None
-        whole = _span(data, at, total, feed)
-        if whole is None or not packets.packet_is_valid(kind, whole[0]):
-            return None
-        return whole[1], whole[2], whole[0]
+        lines_used, end = window.end_of(len(packet))
+        return lines_used, end, packet
+
+    def _packet(self, fr: FileReport, number: int, device: str, kind: str, packet: bytes) -> bool:
+        """A valid packet's content: True if it gave or joined a row (else the caller counts it)."""
+        try:
+            part = binary.decode(kind, packet)
+        except binary.Unreadable:
+            return False
+        if part is None:
+            return False
+        clock = self.clocks.get(device)
+        if clock is None:
+            clock = self.clocks[device] = DeviceClock()
+        return self.binary.add(
+            self.rows,
+            clock,
+            part,
+            device=device,
+            role=self.roles.get(device, ""),
+            source=_SOURCES[kind],
+            file=fr.file,
+            line=number,
+        )
 
     def _json_line(self, fr: FileReport, number: int, text: bytes, stem: str) -> None:
         try:
@@ -412,14 +431,6 @@ class StreamParser:
                 quality = "gnss"
             rows.set_quality(row, quality)
         rows.set_sentence(row, merged_sentence(rows.sentence_at(row), fix.sentence))
-
-
-def _pvt_fix(pvt: packets.NavPvt) -> Fix:
-    """A UBX-NAV-PVT as a fix: valid when gnssFixOK and the fix type is a position (1-4)."""
-    valid = pvt.fix_ok and 1 <= pvt.fix_type <= 4
-    quality = "no_fix" if not valid else "dead_reckoning" if pvt.fix_type == 1 else "gnss"
-    time_ns = NAT_NS if pvt.time_ns is None else pvt.time_ns
-    return Fix("PVT", time_ns, pvt.lat, pvt.lon, pvt.speed_mps, pvt.course_deg, valid, None, quality)
 
 
 def parse_stream_files(

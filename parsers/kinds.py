@@ -88,14 +88,7 @@ def _record_lines(head: bytes) -> list[bytes]:
 def _has_packet(head: bytes) -> bool:
     for m in packets.SYNC_RE.finditer(head):
         kind = packets.packet_kind(head[m.start() : m.start() + 2])
-        if kind is None:
-            continue
-        at = m.start()
-        size = packets.header_bytes(kind)
-        if at + size > len(head):
-            continue
-        total = packets.packet_length(kind, head[at : at + size])
-        if total is not None and at + total <= len(head) and packets.packet_is_valid(kind, head[at : at + total]):
+        if kind is not None and packets.read_packet(kind, packets.ByteWindow(head, m.start())) is not None:
             return True
     return False
 

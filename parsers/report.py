@@ -116,7 +116,7 @@ class ParseReport:
     rejected_by_reason: Counter[str] = field(default_factory=Counter)
     unknown_labels: Counter[str] = field(default_factory=Counter)
     # Input that is not ours to read but was recognised and passed over on
-    # purpose (binary UBX/RTCM3/SiRF packets in a GNSS stream, extra CSV
+    # purpose (binary UBX/RTCM3/SBF/SiRF packets in a GNSS stream, extra CSV
     # columns), counted by kind: nothing vanishes unseen.
     skipped: Counter[str] = field(default_factory=Counter)
     max_rejections_kept: int = MAX_REJECTIONS_KEPT

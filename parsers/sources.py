@@ -17,7 +17,8 @@ One reader for every parser, whatever the input is:
   the NUL bytes in every other position of the head), transcoded to UTF-8 on
   the fly; other 8-bit encodings are passed through for the parser to decode;
 * LF, CRLF (the parser drops the CR) and CR-only line ends (old Mac exports,
-  told by a head with CRs and no LF: each CR becomes a line end);
+  told by a head with CRs, no LF and no NUL: each CR becomes a line end;
+  binary receiver data, which has NULs, keeps its CRs);
 * lines of any length: a line longer than ``max_line_bytes`` is cut off and
   reported as an :class:`OverlongLine` instead of growing a buffer without
   bound.
@@ -520,7 +521,9 @@ def open_input(path: Path | str) -> tuple[IO[bytes], IO[bytes], SourceInfo]:
         info.encoding = "utf-8-sig"
         stream.read(len(UTF8_BOM))
         head = head[len(UTF8_BOM) :]
-    if b"\r" in head and b"\n" not in head and not head.startswith(BLF_MAGIC):
+    # CR-only line ends (classic Mac exports): text, never binary (a receiver's UBX stream may hold CRs and
+    # no LF in its first bytes; its zero bytes tell it from text, and CRs inside its packets must stay CRs).
+    if b"\r" in head and b"\n" not in head and b"\0" not in head and not head.startswith(BLF_MAGIC):
         info.line_ends = "cr"
         stream = _CrToLf(stream)
         transformed = True

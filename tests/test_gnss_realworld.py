@@ -4,9 +4,10 @@ Inputs are built in the world's shapes: NMEA with binary UBX / RTCM3 / SiRF
 packets between and before sentences on one line, ``#`` headers, gpsd JSON
 followed by NMEA, device CSV exports (tests/data/gnss), GPX 1.0 / 1.1,
 UTF-16 with and without BOM, CR-only line ends, NULs and stray CRs inside
-fields, hostile JSON.  The gpsd regression corpus, when present at
-/tmp/gpsd_corpus (gpsd's test/daemon captures with their .chk decoding; not
-shipped with this repository), is compared capture by capture; without it
+fields, hostile JSON.  The gpsd regression corpus, when present (gpsd's
+test/daemon captures with their .chk decoding, in the directory
+TRACKSIDE_GPSD_CAPTURES names, else /tmp/gpsd_corpus; not shipped with this
+repository), is compared capture by capture; without it
 that test skips and the eight captures in ../shared/data/nmea are compared
 in test_gnss_parsers.py.
 """
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import struct
 from pathlib import Path
 
@@ -36,7 +38,7 @@ from tests.gpsd_truth import compare_with_gpsd
 
 DATA = Path(__file__).resolve().parent / "data" / "gnss"
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
-CORPUS = Path("/tmp/gpsd_corpus")
+CORPUS = Path(os.environ.get("TRACKSIDE_GPSD_CAPTURES", "/tmp/gpsd_corpus"))
 runner = CliRunner()
 
 
@@ -103,20 +105,24 @@ def test_binary_of_no_known_kind_alone_on_a_line_is_rejected_with_the_byte(tmp_p
     assert rejection.line == 2 and "byte 0x10 at column 1" in rejection.reason
 
 
-def _nav_pvt(*, fix_type: int = 3, fix_ok: bool = True, nano: int = -100_231, lat_e7: int = 481173000) -> bytes:
+def _nav_pvt(
+    *, fix_type: int = 3, fix_ok: bool = True, nano: int = -100_231, lat_e7: int = 481173000, second: int = 1
+) -> bytes:
     payload = bytearray(92)
-    # iTOW, 2026-01-19 10:05:01 UTC, valid date+time, tAcc, nano, fixType, flags, flags2, numSV, lon, lat
+    # iTOW, 2026-01-19 10:05:0x UTC, valid date+time, tAcc, nano, fixType, flags, flags2, numSV, lon, lat.
+    # iTOW: GPS time of week, 18 s ahead of UTC; Monday 10:05:19 is 122 719 s into the week.
+    itow_ms = (122_718 + second) * 1000 + round(nano / 1e6)
     struct.pack_into(
         "<IHBBBBBBIiBBBBii",
         payload,
         0,
-        0,
+        itow_ms,
         2026,
         1,
         19,
         10,
         5,
-        1,
+        second,
         0x07,
         30,
         nano,
@@ -132,14 +138,15 @@ def _nav_pvt(*, fix_type: int = 3, fix_ok: bool = True, nano: int = -100_231, la
 
 
 def test_a_ubx_nav_pvt_is_a_fix(tmp_path: Path) -> None:
-    data = _nav_pvt() + UBX + b"\n" + _nav_pvt(fix_type=5, nano=200_000_000) + b"\n" + _nav_pvt(fix_type=1) + b"\n"
+    pvts = _nav_pvt(), _nav_pvt(fix_type=5, nano=200_000_000), _nav_pvt(fix_type=1, second=2)
+    data = pvts[0] + UBX + b"\n" + pvts[1] + b"\n" + pvts[2] + b"\n"
     fixes, report = stream(tmp_path, data)
     assert list(fixes["source"].astype(str)) == ["ubx", "ubx", "ubx"]
     first = fixes.iloc[0]
     # 10:05:01 - 100 231 ns: the epoch's nominal time is the millisecond it rounds to (as gpsd reports it).
     assert fixes["time"].iloc[0] == pd.Timestamp("2026-01-19T10:05:01Z")
     assert first["lat"] == pytest.approx(48.1173, abs=1e-9) and first["speed_mps"] == 15.25
-    assert first["course_deg"] == pytest.approx(20.5) and first["sentence"] == "PVT"
+    assert first["course_deg"] == pytest.approx(20.5) and first["sentence"] == "NAV-PVT"
     assert not fixes["valid"].iloc[1]  # fix type 5: time only
     assert fixes["valid"].iloc[2] and fixes["fix_quality"].iloc[2] == "dead_reckoning"  # fix type 1
     assert report.skipped == {"UBX packets": 1} and report.records == 3
@@ -563,18 +570,25 @@ def test_many_distinct_devices_cost_a_small_multiple_of_their_input(tmp_path: Pa
 # bundg_zeus_9 is a boat's NMEA multiplexer whose RMC, GGA and GLL of one
 # second carry different positions, and gpsd's reports lag a second behind.
 KNOWN_NMEA_MISSES = {"bundg_zeus_9.log": 49, "humminbird-M37.log": 1}
-# Epochs gpsd decoded from UBX-NAV-PVT that we read too (measured).  The
-# rest of the binary epochs come from protocols we skip (SiRF, TSIP, GREIS,
-# Oncore, NAV-SOL/POSLLH …) or are NAV-PVTs we call no fix on purpose
-# (gnssFixOK clear, fix type 5 "time only"), where gpsd reports a fix.
+# Epochs gpsd decoded from UBX that we read too, as valid fixes (measured).
+# The rest of the binary epochs come from protocols we skip (SiRF, TSIP,
+# GREIS, Oncore …), are epochs we call no fix on purpose (gnssFixOK clear,
+# fix type 5 "time only"), where gpsd reports a fix, or (aek-4t, lea-4t)
+# the first epoch, which gpsd dated with its own leap-second count
+# (tests/test_gnss_ubx.py matches the u-blox ones epoch by epoch).
 BINARY_MATCHED = {
     "navisys-gr8013.log": 35,
+    "ublox-8-time.log": 89,
+    "ublox-aek-4t.log": 3,
     "ublox-f9p-rtcm.log": 1,
     "ublox-glo.log": 16,
+    "ublox-lea-4t.log": 1,
     "ublox-neo-f9v.log": 3,
-    "ublox-neo-m8l.log": 17,
+    "ublox-neo-m8l.log": 189,
     "ublox-neo-m8n.log": 22,
     "ublox-neo-m8p.log": 58,
+    "ublox-neo-m8t.log": 39,
+    "ublox-neo-m8u-hnr.log": 12,
     "ublox-neo-m8u.log": 2,
     "ublox-zed-f9p-hp.log": 28,
     "ublox-zed-f9p-rtk.log": 9,
