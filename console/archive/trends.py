@@ -61,25 +61,30 @@ def axles_per_day(con: duckdb.DuckDBPyConnection, window: Window) -> list[dict[s
     return [{**r, "day": str(r["day"])} for r in rows]
 
 
-def disturbances_per_day(con: duckdb.DuckDBPyConnection, window: Window) -> list[dict[str, Any]]:
+def disturbances_per_day(
+    con: duckdb.DuckDBPyConnection, window: Window, *, by_channel: bool = False
+) -> list[dict[str, Any]]:
+    """Per (day, device, head), or per channel too with ``by_channel`` (as the health rule judges a rate)."""
     where, params = window.where()
+    channel = "channel, " if by_channel else ""
+    then_channel = ", channel" if by_channel else ""
     cond = f"{where} AND label_canonical = 'counter_1_edge'" if where else " WHERE label_canonical = 'counter_1_edge'"
     # Growth since the series' previous reading (file and line break ties, as the batch read orders them).
     rows = _rows(
         con,
         f"""
         WITH c AS (
-            SELECT day, device_id, counting_head, time, value,
+            SELECT day, device_id, counting_head, {channel}time, value,
                    value - lag(value) OVER (
                        PARTITION BY device_id, counting_head, channel, address ORDER BY time, file_seq, line
                    ) AS step
             FROM records{cond}
         )
-        SELECT day, device_id, counting_head,
+        SELECT day, device_id, counting_head, {channel}
                sum(CASE WHEN step IS NULL THEN 0 WHEN step < 0 THEN value ELSE step END)::BIGINT AS disturbances,
                count(*) AS readings,
                epoch_ns(max(time)) - epoch_ns(min(time)) AS span_ns
-        FROM c GROUP BY ALL ORDER BY day, device_id, counting_head
+        FROM c GROUP BY ALL ORDER BY day, device_id, counting_head{then_channel}
         """,
         params,
     )
@@ -94,7 +99,8 @@ def disturbances_per_day(con: duckdb.DuckDBPyConnection, window: Window) -> list
 def analog_margins_per_day(
     con: duckdb.DuckDBPyConnection, window: Window, layout: Layout | None
 ) -> list[dict[str, Any]]:
-    """Per (head, channel, day): values, min, max, the band, and the margin (least distance inside it)."""
+    """Per (head, channel, day): values, min, max, the band, the margin (least distance inside it), the
+    median and its distance inside the band."""
     import pandas as pd
 
     from console.analysis.health import learn_band
@@ -139,6 +145,7 @@ def analog_margins_per_day(
             "band": g["band"].first(),
             "margin": g["margin"].min(),
             "out_of_band": g["out_of_band"].sum(),
+            "median": g["value"].median(),
         }
     ).reset_index()
     out: list[dict[str, Any]] = []
@@ -153,6 +160,10 @@ def analog_margins_per_day(
                 "band": str(r["band"]),
                 "margin": _round(r["margin"]),
                 "out_of_band": int(r["out_of_band"]),
+                "median": _round(r["median"]),
+                # The day's typical value inside the band: the figure the forecast follows (noise moves the
+                # least distance with the number of readings; the median drifts as the sensor does).
+                "median_margin": _round(min(r["median"] - r["band_low"], r["band_high"] - r["median"])),
             }
         )
     return out
