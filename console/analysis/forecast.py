@@ -144,36 +144,45 @@ def _crossing(pivot_x: float, pivot_y: float, slope: float, threshold: float, ri
     return pivot_x + (threshold - pivot_y) / slope
 
 
-def forecast(series: Series, settings: ForecastSettings = ForecastSettings()) -> Forecast:
-    """The series' trend and the date it crosses its threshold (see the module's doc)."""
+def forecast(series: Series, settings: ForecastSettings = ForecastSettings(), now_ns: int | None = None) -> Forecast:
+    """The series' trend and the date it crosses its threshold (see the module's doc).
+
+    ``now_ns``: where the horizon starts (the end of the last day of the archive: a unit silent for a week
+    counts from the same day as the others); default the end of the series' own last day."""
     day, value = series.day, series.value
     last_day = int(day[-1])
     last_ns = (last_day + 1) * DAY_NS
-    last_value = float(value[-1])
     recent = day > last_day - settings.fit_days
     x = day[recent].astype(np.float64) + 0.5  # a day's figure stands for its middle
     y = value[recent]
-    base = {"figure": series.figure, "target": series.target, "channel": series.channel}
-    base |= {"threshold": series.threshold, "days": int(recent.sum()), "last_ns": last_ns, "last_value": last_value}
-    if series.beyond(last_value):
+
+    def made(status: str, fit: _Fit | None, crossing: int | None, early: int | None, late: int | None) -> Forecast:
+        slope, low, high, px, py = fit if fit is not None else (None, None, None, None, None)
+        return Forecast(
+            series.figure,
+            series.target,
+            series.channel,
+            status,
+            series.threshold,
+            int(recent.sum()),
+            last_ns,
+            float(value[-1]),
+            slope,
+            low,
+            high,
+            None if fit is None else py - slope * px,  # type: ignore[operator]
+            crossing,
+            early,
+            late,
+        )
+
+    if series.beyond(float(value[-1])):
         # Already past: the date is when this run of days beyond the threshold began.
         inside = np.flatnonzero(~np.array([series.beyond(float(v)) for v in value]))
-        first = int(day[inside[-1] + 1]) if len(inside) else int(day[0])
-        at = first * DAY_NS
-        fit = _fit(x, y, settings) if len(x) >= 2 else None
-        return Forecast(**base, status="past", **_fields(fit), crossing_ns=at, earliest_ns=at, latest_ns=at)
-    if len(x) < settings.min_days:
-        return Forecast(
-            **base,
-            status="unknown",
-            slope_per_day=None,
-            slope_low=None,
-            slope_high=None,
-            intercept=None,
-            crossing_ns=None,
-            earliest_ns=None,
-            latest_ns=None,
-        )
+        at = int(day[inside[-1] + 1] if len(inside) else day[0]) * DAY_NS
+        return made("past", _fit(x, y, settings) if len(x) >= 2 else None, at, at, at)
+    if len(x) < min(settings.min_days, settings.fit_days):
+        return made("unknown", None, None, None, None)
     fit = _fit(x, y, settings)
     slope, low, high, px, py = fit
     rising = series.rising
@@ -182,7 +191,7 @@ def forecast(series: Series, settings: ForecastSettings = ForecastSettings()) ->
     steep, mild = (high, low) if rising else (low, high)
     early = _crossing(px, py, steep, series.threshold, rising)
     late = _crossing(px, py, mild, series.threshold, rising)
-    horizon_ns = last_ns + _days_ns(settings.horizon_days)
+    horizon_ns = (last_ns if now_ns is None else max(now_ns, last_ns)) + _days_ns(settings.horizon_days)
     early_ns = None if early is None else _days_ns(early)
     if early_ns is not None and early_ns <= horizon_ns:
         status = "due"
@@ -190,17 +199,19 @@ def forecast(series: Series, settings: ForecastSettings = ForecastSettings()) ->
         status = "watch"
     else:
         status = "ok"
-    return Forecast(
-        **base,
-        status=status,
-        **_fields(fit),
-        crossing_ns=None if point is None else _days_ns(point),
-        earliest_ns=early_ns,
-        latest_ns=None if late is None or point is None else _days_ns(late),
+    return made(
+        status,
+        fit,
+        None if point is None else _days_ns(point),
+        early_ns,
+        None if late is None or point is None else _days_ns(late),
     )
 
 
-def _fit(x: np.ndarray, y: np.ndarray, settings: ForecastSettings) -> tuple[float, float, float, float, float]:
+_Fit = tuple[float, float, float, float, float]
+
+
+def _fit(x: np.ndarray, y: np.ndarray, settings: ForecastSettings) -> _Fit:
     """Sen's slope, its confidence bounds, and the pivot (median day, median figure) the line passes."""
     from scipy.stats import theilslopes
 
@@ -208,18 +219,13 @@ def _fit(x: np.ndarray, y: np.ndarray, settings: ForecastSettings) -> tuple[floa
     return float(res[0]), float(res[2]), float(res[3]), float(np.median(x)), float(np.median(y))
 
 
-def _fields(fit: tuple[float, float, float, float, float] | None) -> dict[str, float | None]:
-    if fit is None:
-        return {"slope_per_day": None, "slope_low": None, "slope_high": None, "intercept": None}
-    slope, low, high, px, py = fit
-    return {"slope_per_day": slope, "slope_low": low, "slope_high": high, "intercept": py - slope * px}
-
-
 def forecasts(series: Iterable[Series], settings: ForecastSettings = ForecastSettings()) -> list[Forecast]:
     """Every series' forecast: the due ones first by date, then the others by target."""
     from console.analysis.health import _natural
 
-    out = [forecast(s, settings) for s in series if len(s.day)]
+    given = [s for s in series if len(s.day)]
+    now_ns = (max(int(s.day[-1]) for s in given) + 1) * DAY_NS if given else None
+    out = [forecast(s, settings, now_ns) for s in given]
     far = 2**62
 
     def key(f: Forecast) -> tuple[Any, ...]:

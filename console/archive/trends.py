@@ -100,7 +100,7 @@ def analog_margins_per_day(
     con: duckdb.DuckDBPyConnection, window: Window, layout: Layout | None
 ) -> list[dict[str, Any]]:
     """Per (head, channel, day): values, min, max, the band, the margin (least distance inside it), the
-    median and its distance inside the band."""
+    median (of each register, averaged over the channel's registers) and its distance inside the band."""
     import pandas as pd
 
     from console.analysis.health import learn_band
@@ -108,7 +108,8 @@ def analog_margins_per_day(
     where, params = window.where()
     cond = f"{where} AND label_canonical = 'analog_value'" if where else " WHERE label_canonical = 'analog_value'"
     df = con.execute(
-        f"SELECT strftime(day, '%Y-%m-%d') AS day, counting_head, channel, value::DOUBLE AS value FROM records{cond} "
+        f"SELECT strftime(day, '%Y-%m-%d') AS day, counting_head, channel, address, value::DOUBLE AS value "
+        f"FROM records{cond} "
         "ORDER BY counting_head, channel, time, file_seq, line",
         params,
     ).df()
@@ -145,7 +146,12 @@ def analog_margins_per_day(
             "band": g["band"].first(),
             "margin": g["margin"].min(),
             "out_of_band": g["out_of_band"].sum(),
-            "median": g["value"].median(),
+            # A channel's registers (Adr 134, 136) read a few counts apart: the median of each, averaged
+            # (the median of both together would jump between the two clusters from day to day).
+            "median": df.groupby(["day", "counting_head", "channel", "address"])["value"]
+            .median()
+            .groupby(["day", "counting_head", "channel"])
+            .mean(),
         }
     ).reset_index()
     out: list[dict[str, Any]] = []
