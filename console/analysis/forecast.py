@@ -103,6 +103,8 @@ class Forecast:
     crossing_ns: int | None
     earliest_ns: int | None
     latest_ns: int | None  # None with a crossing: the interval has no late end (the trend may stop)
+    pivot_day: float | None = None  # the fitted lines pass through (median day, median figure)
+    pivot_value: float | None = None
 
     @property
     def due(self) -> bool:
@@ -129,6 +131,8 @@ class Forecast:
             "earliest": iso(self.earliest_ns),
             "latest": iso(self.latest_ns),
             "days_left": None if self.crossing_ns is None else r((self.crossing_ns - self.last_ns) / DAY_NS, 2),
+            "pivot_day": r(self.pivot_day),
+            "pivot_value": r(self.pivot_value),
         }
 
 
@@ -174,6 +178,8 @@ def forecast(series: Series, settings: ForecastSettings = ForecastSettings(), no
             crossing,
             early,
             late,
+            px,
+            py,
         )
 
     if series.beyond(float(value[-1])):

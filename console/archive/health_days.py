@@ -207,3 +207,22 @@ def forecast_table(items: Iterable[Forecast]) -> pa.Table:
         else:
             cols[name] = pa.array([r[name] for r in rows], pa.float64())
     return pa.table(cols)
+
+
+def query_forecasts(root: Path, manifest: Manifest) -> pa.Table:
+    """The ``forecasts`` view of ``trackside query``: every series' forecast, default settings (30-day
+    horizon, 14-day trend), the bands of the layout the archive was ingested with."""
+    from console.archive.views import QueryError
+    from console.layout import LayoutError, load_layout
+
+    try:
+        import scipy.stats  # noqa: F401 - the trend's library, an optional extra
+    except ImportError:
+        raise QueryError("the forecasts view needs scipy: pip install 'trackside[forecast]'") from None
+    spec = manifest.derived.get("layout")
+    try:
+        layout = load_layout(spec) if spec else None
+    except LayoutError:
+        layout = None  # the layout file is gone: the bands are learned, as without one
+    items, _ = archive_forecasts(root, manifest, Window(), layout)
+    return forecast_table(items)
