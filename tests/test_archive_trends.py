@@ -82,11 +82,14 @@ def _records(data: ReportData, label: str) -> pd.DataFrame:
 
 def test_disturbances_are_the_counter_growth_with_resets(trends: dict[str, Any], data: ReportData) -> None:
     r = _records(data, "counter_1_edge").sort_values("time_ns", kind="stable")  # ties: file, line order
-    step = r.groupby(["device_id", "counting_head", "channel", "address"])["value"].diff()
+    series = r.groupby(["device_id", "counting_head", "channel", "address"])
+    step = series["value"].diff()
     r["growth"] = np.where(step < 0, r["value"], step.fillna(0))
+    # The day's growth took from the reading before its first (the first day: from its first) to its last.
+    r["since_ns"] = series["time_ns"].shift().fillna(r["time_ns"]).astype("int64")
     g = r.groupby(["day", "device_id", "counting_head"])
     direct = {k: (int(v), int(n)) for (k, v), n in zip(g["growth"].sum().items(), g.size(), strict=True)}
-    span = g["time_ns"].max() - g["time_ns"].min()
+    span = g["time_ns"].max() - g["since_ns"].min()
     got = trends["disturbances_per_head_per_day"]
     assert {(x["day"], x["device_id"], x["counting_head"]): (x["disturbances"], x["readings"]) for x in got} == direct
     for x in got:
@@ -174,7 +177,7 @@ def test_markdown_has_trend_tables_and_html_has_plots_with_log_text_escaped(arch
     md = runner.invoke(app, ["report", "--archive", str(archive)]).stdout
     assert "## 8. Trends per day" in md and "| 2015-11-03 | WS4 | Sys1 |" in md
     html = runner.invoke(app, ["report", "--archive", str(archive), "--format", "html"]).stdout
-    part = html[html.index('id="trends"') :]
+    part = html[html.index('id="trends"') : html.index('id="forecast"')]  # the forecast part comes next
     assert part.count("<svg") == 4  # axles, disturbances, analog margin, late warnings
     assert "WS4 Sys1" in part and "<script" not in html
     files = runner.invoke(app, ["report", str(archive.parent / "in"), "--layout", "example", "--format", "html"]).stdout

@@ -46,6 +46,7 @@ ANALOG_MARGIN_LIMIT = 0.0
 FIT_DAYS = 14
 MIN_DAYS = 7
 CONFIDENCE = 0.90
+FAR_DAYS = 36_500.0
 DAY_NS = 86_400 * NS
 STATUSES = ("past", "due", "watch", "unknown", "ok")
 FIGURES = {
@@ -145,7 +146,9 @@ def _crossing(pivot_x: float, pivot_y: float, slope: float, threshold: float, ri
     worsening = slope > 0 if rising else slope < 0
     if not worsening:
         return None
-    return pivot_x + (threshold - pivot_y) / slope
+    day = pivot_x + (threshold - pivot_y) / slope
+    # A trend so slight it reaches the threshold only in centuries: no crossing to speak of.
+    return day if math.isfinite(day) and abs(day - pivot_x) <= FAR_DAYS else None
 
 
 def forecast(series: Series, settings: ForecastSettings = ForecastSettings(), now_ns: int | None = None) -> Forecast:

@@ -9,8 +9,9 @@ registers), cut to the report's window (``--from/--to/--head/--device``):
   1-edge counters (``counter_1_edge``) summed over the head's channels and
   addresses, a decrease counted as a reset (the new reading is the
   growth), as :func:`console.analysis.health.disturbance_rate_findings`
-  takes it; ``per_hour`` divides by the span of that day's readings (none
-  under 10 minutes, the health rule's shortest span);
+  takes it; ``per_hour`` divides by the time that growth took: from the
+  reading before the day's first (the day's first step is growth since then)
+  to the day's last (none under 10 minutes, the health rule's shortest span);
 * **analog margin** per counting head, channel and day: how far the day's
   analog values (``analog_value``) stayed inside the channel's band, in
   counts (negative: out of band).  The band is the layout's for the head,
@@ -75,15 +76,14 @@ def disturbances_per_day(
         f"""
         WITH c AS (
             SELECT day, device_id, counting_head, {channel}time, value,
-                   value - lag(value) OVER (
-                       PARTITION BY device_id, counting_head, channel, address ORDER BY time, file_seq, line
-                   ) AS step
+                   value - lag(value) OVER w AS step, lag(time) OVER w AS prev_time
             FROM records{cond}
+            WINDOW w AS (PARTITION BY device_id, counting_head, channel, address ORDER BY time, file_seq, line)
         )
         SELECT day, device_id, counting_head, {channel}
                sum(CASE WHEN step IS NULL THEN 0 WHEN step < 0 THEN value ELSE step END)::BIGINT AS disturbances,
                count(*) AS readings,
-               epoch_ns(max(time)) - epoch_ns(min(time)) AS span_ns
+               epoch_ns(max(time)) - epoch_ns(min(coalesce(prev_time, time))) AS span_ns
         FROM c GROUP BY ALL ORDER BY day, device_id, counting_head{then_channel}
         """,
         params,
