@@ -237,3 +237,20 @@ def test_forecast_errors_are_one_line(tmp_path: Path) -> None:
     assert res.returncode == 2 and res.stderr.count("\n") == 1 and "no archive here" in res.stderr
     res = runner.invoke(app, ["forecast", "--horizon", "soon", "--archive", str(tmp_path)])
     assert res.exit_code == 2 and "--horizon" in res.output
+
+
+def test_the_forecast_as_a_textfile_for_prometheus(
+    wearing: tuple[Path, Path, Plan], forecast_json: dict[str, Any], tmp_path: Path
+) -> None:
+    from prometheus_client.parser import text_string_to_metric_families
+
+    _, arc, _ = wearing
+    prom = tmp_path / "trackside.prom"
+    res = runner.invoke(app, ["forecast", "--archive", str(arc), "--textfile", str(prom), "--json"])
+    assert res.exit_code == 0, res.output
+    due = set()
+    for fam in text_string_to_metric_families(prom.read_text(encoding="utf-8")):
+        for x in fam.samples:
+            if x.name == "trackside_forecast_due" and x.value == 1:
+                due.add((x.labels["target"], x.labels["channel"], x.labels["figure"]))
+    assert due == {(f["target"], str(f["channel"] or ""), f["figure"]) for f in forecast_json["due"]}

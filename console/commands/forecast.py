@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -32,6 +33,14 @@ def forecast(
     ] = 14,
     show_all: Annotated[bool, typer.Option("--all", help="Also list every series, not only the due ones.")] = False,
     fail_on_due: Annotated[bool, typer.Option("--fail-on-due", help="Exit 1 when anything is due (for cron).")] = False,
+    textfile: Annotated[
+        Path | None,
+        typer.Option(
+            "--textfile",
+            help="Also write the forecasts as Prometheus metrics to this file (node_exporter's textfile collector).",
+            show_default=False,
+        ),
+    ] = None,
     json_out: JsonOpt = False,
 ) -> None:
     """Forecast, from the archive's daily health figures, when each head, channel and GNSS unit will cross
@@ -45,6 +54,8 @@ def forecast(
         trackside forecast --horizon 6w --head WS3 --all
 
         trackside forecast --json | jq '.due[] | [.target, .channel, .figure, .crossing]'
+
+        trackside forecast --textfile /var/lib/prometheus/node-exporter/trackside.prom   (from cron)
     """
     from console.archive.store import ArchiveError, archive_dir
 
@@ -77,6 +88,13 @@ def forecast(
         except ArchiveError as exc:
             raise fail(str(exc)) from None
         due = due_list(items)
+        if textfile is not None:
+            from console.sinks.metrics import write_forecast_textfile
+
+            try:
+                write_forecast_textfile(str(textfile), items)
+            except OSError as exc:
+                raise fail(f"--textfile {textfile}: cannot write ({exc.strerror or exc})") from None
         if json_out:
             print_json(
                 {

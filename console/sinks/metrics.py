@@ -236,3 +236,33 @@ class MetricsSink:
         if self._thread is not None:
             self._thread.join(5)
             self._thread = None
+
+
+def write_forecast_textfile(path: str, items: Sequence[Any]) -> None:
+    """``forecast --textfile``: the forecasts in the exposition format, for node_exporter's textfile collector
+    (a cron job's metrics): per series whether it is due and the days left; written atomically."""
+    from prometheus_client import write_to_textfile
+
+    disable_created_metrics()
+    r = CollectorRegistry()
+    labels = ["target", "channel", "figure"]
+    due = Gauge("trackside_forecast_due", "1 when the series is due for maintenance (or past).", labels, registry=r)
+    left = Gauge(
+        "trackside_forecast_days_left",
+        "Days from the archive's last day to the forecast crossing (negative: past).",
+        labels,
+        registry=r,
+    )
+    status = Gauge("trackside_forecast_series", "Series forecast, by status.", ["status"], registry=r)
+    counts: dict[str, int] = {s: 0 for s in ("past", "due", "watch", "unknown", "ok")}
+    for f in items:
+        key = (f.target, "" if f.channel is None else str(f.channel), f.figure)
+        due.labels(*key).set(1.0 if f.due else 0.0)
+        d = f.to_dict()["days_left"]
+        if d is not None:
+            left.labels(*key).set(float(d))
+        counts[f.status] = counts.get(f.status, 0) + 1
+    for s, n in counts.items():
+        status.labels(s).set(n)
+    Gauge("trackside_forecast_last_run_timestamp_seconds", "When the forecast ran.", registry=r).set_to_current_time()
+    write_to_textfile(path, r)
