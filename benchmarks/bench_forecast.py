@@ -5,7 +5,7 @@ the forecast crossing date within ±3 days of the truth for ≥ 90 % of the drif
 healthy heads called due within the horizon (30 days); a head already past its threshold never called
 healthy.  Every step is the real command (subprocess), timed::
 
-    python benchmarks/bench_forecast.py /tmp/forecast-bench --drift 200 --healthy 200 --days 35
+    python -m benchmarks.bench_forecast /tmp/forecast-bench --drift 200 --healthy 200 --days 35
 """
 
 from __future__ import annotations
