@@ -12,7 +12,7 @@ Three figures per day (console.analysis.forecast says what each means and its th
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -110,14 +110,19 @@ def _day_number(day: str) -> int:
 
 
 def daily_figures(
-    con: duckdb.DuckDBPyConnection, window: Window, layout: Layout | None
+    con: duckdb.DuckDBPyConnection,
+    window: Window,
+    layout: Layout | None,
+    say: Callable[[str], None] | None = None,
 ) -> dict[str, list[dict[str, Any]]]:
-    """The three daily figures of the window, as rows (see the module's doc)."""
-    return {
-        "analog_margin": analog_margins_per_day(con, window, layout),
-        "disturbance_rate": disturbances_per_day(con, window, by_channel=True),
-        "gnss_loss": gnss_loss_per_day(con, window),
-    }
+    """The three daily figures of the window, as rows (see the module's doc); ``say`` hears each step."""
+    tell = say or (lambda _: None)
+    tell("daily analog values per head and channel")
+    analog = analog_margins_per_day(con, window, layout)
+    tell("daily disturbance rates per head and channel")
+    dist = disturbances_per_day(con, window, by_channel=True)
+    tell("daily report losses per GNSS unit")
+    return {"analog_margin": analog, "disturbance_rate": dist, "gnss_loss": gnss_loss_per_day(con, window)}
 
 
 def series_of(figures: dict[str, list[dict[str, Any]]]) -> list[Series]:
@@ -155,15 +160,18 @@ def archive_forecasts(
     window: Window,
     layout: Layout | None,
     settings: ForecastSettings | None = None,
+    say: Callable[[str], None] | None = None,
 ) -> tuple[list[Forecast], list[Series]]:
     """Every head's, channel's and unit's forecast over the window (and the series they were fitted on)."""
     from console.archive.views import connect
 
     con, _ = connect(root, manifest, tables={"records", "fixes"})
     try:
-        series = series_of(daily_figures(con, window, layout))
+        series = series_of(daily_figures(con, window, layout, say))
     finally:
         con.close()
+    if say is not None:
+        say(f"fitting the trends of {len(series):,} series")
     return forecasts(series, settings or ForecastSettings()), series
 
 

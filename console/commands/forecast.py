@@ -84,7 +84,14 @@ def forecast(
             spec = layout if layout is not None else manifest.derived.get("layout")
             lay = load_layout(spec) if spec else None
             settings = ForecastSettings(horizon_days=horizon_days, fit_days=trend_days)
-            items, _ = archive_forecasts(root, manifest, Window(head=head), lay, settings)
+            err = Console(stderr=True, highlight=False)
+            if err.is_terminal:  # what it is reading, on a terminal (a big archive takes a while)
+                with err.status("reading the archive") as status:
+                    items, _ = archive_forecasts(
+                        root, manifest, Window(head=head), lay, settings, say=lambda text: status.update(text)
+                    )
+            else:
+                items, _ = archive_forecasts(root, manifest, Window(head=head), lay, settings)
         except ArchiveError as exc:
             raise fail(str(exc)) from None
         due = due_list(items)

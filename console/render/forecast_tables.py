@@ -4,20 +4,25 @@ from __future__ import annotations
 
 from collections import Counter
 
+from rich import box
 from rich.console import Group, RenderableType
 from rich.table import Table
 from rich.text import Text
 
-from console.analysis.forecast import FIGURES, STATUSES, Forecast
+from console.analysis.forecast import (
+    ANALOG_MARGIN_LIMIT,
+    DAY_NS,
+    DISTURBANCE_LIMIT_PER_H,
+    GNSS_LOSS_LIMIT,
+    STATUSES,
+    Forecast,
+)
 from console.analysis.health import channel_name
 from console.safe_text import inert
 
 STATUS_STYLE = {"past": "bold red", "due": "yellow", "watch": "cyan", "unknown": "dim", "ok": "green"}
-FIGURE_NAMES = {
-    "analog_margin": "analog margin",
-    "disturbance_rate": "disturbances",
-    "gnss_loss": "GNSS loss",
-}
+FIGURE_NAMES = {"analog_margin": "analog", "disturbance_rate": "1-edge/h", "gnss_loss": "GNSS loss"}
+FIGURE_LONG = {"analog_margin": "analog margin", "disturbance_rate": "disturbance rate", "gnss_loss": "GNSS loss"}
 
 
 def number(x: float | None, figure: str) -> str:
@@ -31,43 +36,50 @@ def number(x: float | None, figure: str) -> str:
 def _trend(f: Forecast) -> str:
     if f.slope_per_day is None:
         return "–"
-    unit = "pt/day" if f.figure == "gnss_loss" else "/day"
-    k = 100.0 if f.figure == "gnss_loss" else 1.0
-    return f"{f.slope_per_day * k:+.2f} {unit}"
+    if f.figure == "gnss_loss":
+        return f"{f.slope_per_day * 100:+.2f}pt"
+    return f"{f.slope_per_day:+.2f}"
 
 
-def _day(iso_text: str | None) -> str:
-    return "–" if iso_text is None else iso_text[:10]
+def _days_left(f: Forecast) -> str:
+    """Days from the archive's last day to the crossing, with the interval's ends: ``3.2 (2.1–5.0)``."""
+    if f.crossing_ns is None and f.earliest_ns is None:
+        return "–"
+    if f.status == "past" and f.crossing_ns is not None:  # since when: a whole day
+        return f"{(f.crossing_ns - f.last_ns) / DAY_NS:.0f}"
+
+    def d(ns: int | None) -> str:
+        return "open" if ns is None else f"{(ns - f.last_ns) / DAY_NS:.1f}"
+
+    point = "–" if f.crossing_ns is None else d(f.crossing_ns)
+    return f"{point} ({d(f.earliest_ns)}…{d(f.latest_ns)})"
 
 
 def forecast_table(items: list[Forecast], title: str) -> Table:
-    table = Table(title=title, title_justify="left", title_style="bold")
+    table = Table(title=title, title_justify="left", title_style="bold", box=box.SIMPLE_HEAD, pad_edge=False)
     for name, right in (
         ("Status", False),
-        ("Head / unit", False),
+        ("Head/unit", False),
         ("Figure", False),
         ("Last", True),
-        ("Threshold", True),
-        ("Trend", True),
+        ("Trend/d", True),
         ("Crossing", False),
-        ("Interval", False),
         ("Days left", True),
     ):
-        table.add_column(name, justify="right" if right else "left")
+        table.add_column(
+            name, justify="right" if right else "left", no_wrap=True, min_width=9 if name == "Figure" else len(name)
+        )
     for f in items:
         d = f.to_dict()
         where = f.target if f.channel is None else f"{f.target} {channel_name(f.channel)}"
-        interval = f"{_day(d['earliest'])} … {_day(d['latest']) if d['latest'] else 'open'}"
         table.add_row(
             Text(f.status, style=STATUS_STYLE[f.status]),
             inert(where),
             FIGURE_NAMES[f.figure],
             number(f.last_value, f.figure),
-            number(f.threshold, f.figure),
             _trend(f),
-            _day(d["crossing"]),
-            interval if d["earliest"] else "–",
-            "–" if d["days_left"] is None else f"{d['days_left']:.1f}",
+            (d["crossing"] or "–")[:10],
+            _days_left(f),
         )
     return table
 
@@ -75,9 +87,11 @@ def forecast_table(items: list[Forecast], title: str) -> Table:
 def forecast_view(items: list[Forecast], due: list[Forecast], horizon_days: float, show_all: bool) -> Group:
     counts = Counter(f.status for f in items)
     summary = ", ".join(f"{counts[s]} {s}" for s in STATUSES)
-    parts: list[RenderableType] = [
-        Text(f"{len(items)} series ({', '.join(FIGURE_NAMES[k] for k in FIGURES)}): {summary}", style="bold")
-    ]
+    limits = (
+        f"analog margin {ANALOG_MARGIN_LIMIT:g} (the band edge), disturbance rate {DISTURBANCE_LIMIT_PER_H:g}/h,"
+        f" GNSS loss {GNSS_LOSS_LIMIT:.0%}"
+    )
+    parts: list[RenderableType] = [Text(f"{len(items)} series: {summary}. Thresholds: {limits}.", style="bold")]
     if due:
         parts.append(forecast_table(due, f"Due for maintenance within {horizon_days:g} days, by date"))
     else:

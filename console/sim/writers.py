@@ -179,11 +179,12 @@ def health_lines(sim: StationSim, ids: dict[str, int]) -> tuple[list[int], list[
     return t.tolist(), lines
 
 
-def health_rows(sim: StationSim) -> list[tuple[int, str, int, str, str, str]]:
-    """The heads' health registers the run wrote (console.sim.slow_faults), as diagnostic rows."""
+def health_rows(sim: StationSim, since: int = 0) -> list[tuple[int, str, int, str, str, str]]:
+    """The heads' health registers the run wrote (console.sim.slow_faults), as diagnostic rows;
+    ``since``: from that batch on (a live run writes them as they come)."""
     from console.sim.slow_faults import REGISTERS, HealthRows
 
-    h = HealthRows.concat(sim.health_rows)
+    h = HealthRows.concat(sim.health_rows[since:])
     heads = [x.id for x in sim.layout.heads]
     return [
         (t, heads[i], ch, REGISTERS[r][0], REGISTERS[r][1], str(v))
