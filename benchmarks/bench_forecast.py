@@ -41,11 +41,12 @@ def main() -> None:
     ap.add_argument("--days", type=float, default=35.0)
     ap.add_argument("--health-every", default="30m")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--learned-bands", action="store_true", help="no analog bands in the layout: learned from the log")
     args = ap.parse_args()
     print("command:", " ".join(sys.argv))
     shutil.rmtree(args.work, ignore_errors=True)
     args.work.mkdir(parents=True)
-    p = plan(args.drift, args.healthy, args.days, args.seed)
+    p = plan(args.drift, args.healthy, args.days, args.seed, bands=not args.learned_bands)
     layout = args.work / "heads.toml"
     layout.write_text(p.layout_toml, encoding="utf-8")
     run, arc = args.work / "run", args.work / "archive"
@@ -63,6 +64,8 @@ def main() -> None:
         "heads": {"drifting": len(p.drifting), "healthy": len(p.healthy)},
         "days": args.days,
         "health_every": args.health_every,
+        "bands": "learned" if args.learned_bands else "layout",
+        "seed": args.seed,
         "records": records,
         "seconds": {"simulate": round(t_sim, 1), "ingest": round(t_ingest, 1), "forecast": round(t_fc, 1)},
         "counts": forecast["counts"],

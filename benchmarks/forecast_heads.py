@@ -36,7 +36,8 @@ def head_name(i: int) -> str:
     return f"H{i + 1:03d}"
 
 
-def layout_toml(n_heads: int, seed: int) -> str:
+def layout_toml(n_heads: int, seed: int, bands: bool = True, heads_per_device: int = HEADS_PER_DEVICE) -> str:
+    """``bands``: each head's analog band in the layout (else the forecast learns it, as the health rule does)."""
     rng = np.random.default_rng([seed, 1])
     levels = np.round(2400 + rng.normal(0, 15, n_heads))
     length = (n_heads + 1) * SPACING_M
@@ -57,16 +58,23 @@ def layout_toml(n_heads: int, seed: int) -> str:
         lines += [
             "[[heads]]",
             f'id = "{head_name(i)}"',
-            f"device_id = {5001 + i // HEADS_PER_DEVICE}",
+            f"device_id = {5001 + i // heads_per_device}",
             f"chainage_m = {(i + 1) * SPACING_M:.0f}",
             "spacing_m = 0.13",
-            f"analog_band = [{lo:.0f}, {hi:.0f}]",
+            *([f"analog_band = [{lo:.0f}, {hi:.0f}]"] if bands else []),
             "",
         ]
     return "\n".join(lines)
 
 
-def plan(n_drift: int, n_healthy: int, days: float, seed: int = 1) -> Plan:
+def plan(
+    n_drift: int,
+    n_healthy: int,
+    days: float,
+    seed: int = 1,
+    bands: bool = True,
+    heads_per_device: int = HEADS_PER_DEVICE,
+) -> Plan:
     """The layout and the faults (see the module's doc)."""
     rng = np.random.default_rng([seed, 2])
     n = n_drift + n_healthy
@@ -81,7 +89,7 @@ def plan(n_drift: int, n_healthy: int, days: float, seed: int = 1) -> Plan:
         start_s = round((days - history) * 86_400.0)
         channel = int(rng.integers(1, 3))
         faults.append(f"{kind}:{head}:{start_s}s::{channel}:{rate:.4f}")
-    return Plan(layout_toml(n, seed), faults, drifting, healthy, days)
+    return Plan(layout_toml(n, seed, bands, heads_per_device), faults, drifting, healthy, days)
 
 
 def _t(text: str | None) -> float | None:

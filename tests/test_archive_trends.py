@@ -191,3 +191,20 @@ def test_log_text_in_a_trend_plot_is_inert() -> None:
     rows = [{"day": "2026-03-02", "crossing": evil, "warnings": 1, "late": 1}]
     (plot,) = trend_plots("trend-late", {"late_warnings_per_crossing_per_day": rows})
     assert "<script" not in plot and "\u202e" not in plot and "&lt;script&gt;" in plot
+
+
+def test_the_report_has_the_forecast_of_the_archive_with_a_plot_per_due_series(archive: Path) -> None:
+    """Part 9: the due list `forecast` gives (WS4's analog values drift out of their band, DRIFT_PER_DAY;
+    WS5 Sys2's disturbances grow as ws4_health.log's failing sensor's do), in its order, each plotted."""
+    fc = runner.invoke(app, ["forecast", "--archive", str(archive), "--json"])
+    assert fc.exit_code == 0, fc.output
+    due = json.loads(fc.stdout)["due"]
+    got = {(f["target"], f["channel"], f["figure"], f["status"]) for f in due}
+    assert {("WS4", 1, "analog_margin", "past"), ("WS5", 2, "disturbance_rate", "past")} <= got
+    doc = json.loads(runner.invoke(app, ["report", "--archive", str(archive), "--format", "json"]).stdout)
+    assert doc["forecast"]["due"] == due
+    html = runner.invoke(app, ["report", "--archive", str(archive), "--format", "html"]).stdout
+    part = html[html.index('id="forecast"') :]
+    assert part.count("<svg") == min(12, len(due)) and "WS5 Sys2: disturbance rate (past)" in part
+    cells = [part.index(f"<td>{f['target']}</td>") for f in due[:1]]
+    assert cells and "<script" not in part
