@@ -15,7 +15,7 @@ from console.commands.ingest import ArchiveOpt
 def forecast(
     archive: ArchiveOpt = None,
     horizon: Annotated[
-        str, typer.Option("--horizon", help="Due: crossing within this time of the archive's last day (30d, 6w…).")
+        str, typer.Option("--horizon", help="Due: crossing within this time of the archive's last day (30d, 45d…).")
     ] = "30d",
     head: Annotated[
         str | None, typer.Option("--head", help="Only this counting head (or GNSS unit).", show_default=False)
@@ -51,7 +51,7 @@ def forecast(
 
         trackside forecast --archive /srv/trackside/archive
 
-        trackside forecast --horizon 6w --head WS3 --all
+        trackside forecast --horizon 45d --head WS3 --all
 
         trackside forecast --json | jq '.due[] | [.target, .channel, .figure, .crossing]'
 
