@@ -21,6 +21,7 @@ from console.commands import (
     ato,
     crossing,
     follow,
+    forecast,
     frames,
     gnss,
     health,
@@ -87,6 +88,7 @@ for _module in (
     follow,
     ingest,
     query,
+    forecast,
 ):
     _name = _module.__name__.rsplit(".", 1)[1]
     app.command(name=_name)(getattr(_module, _name))

@@ -31,8 +31,10 @@ def test_json_report_from_the_archive_equals_the_report_on_the_files(archive: Pa
     assert from_files.exit_code == from_archive.exit_code == 0, from_archive.output
     a, b = json.loads(from_archive.stdout), json.loads(from_files.stdout)
     a_inputs, b_inputs = a.pop("inputs"), b.pop("inputs")
-    # Only the archive has history: its report adds the daily trends (tests/test_archive_trends.py).
+    # Only the archive has history: its report adds the daily trends (tests/test_archive_trends.py) and the
+    # forecast from them (tests/test_forecast.py).
     assert "trends" not in b and a.pop("trends")["axles_per_head_per_day"]
+    assert "forecast" not in b and sum(a.pop("forecast")["counts"].values()) > 0
     assert a == b
     # The inputs list names the archived files (absolute), every one the files' report read.
     read = {Path(f["file"]).name for f in b_inputs["files"] if f["read"]}

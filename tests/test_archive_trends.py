@@ -82,11 +82,14 @@ def _records(data: ReportData, label: str) -> pd.DataFrame:
 
 def test_disturbances_are_the_counter_growth_with_resets(trends: dict[str, Any], data: ReportData) -> None:
     r = _records(data, "counter_1_edge").sort_values("time_ns", kind="stable")  # ties: file, line order
-    step = r.groupby(["device_id", "counting_head", "channel", "address"])["value"].diff()
+    series = r.groupby(["device_id", "counting_head", "channel", "address"])
+    step = series["value"].diff()
     r["growth"] = np.where(step < 0, r["value"], step.fillna(0))
+    # The day's growth took from the reading before its first (the first day: from its first) to its last.
+    r["since_ns"] = series["time_ns"].shift().fillna(r["time_ns"]).astype("int64")
     g = r.groupby(["day", "device_id", "counting_head"])
     direct = {k: (int(v), int(n)) for (k, v), n in zip(g["growth"].sum().items(), g.size(), strict=True)}
-    span = g["time_ns"].max() - g["time_ns"].min()
+    span = g["time_ns"].max() - g["since_ns"].min()
     got = trends["disturbances_per_head_per_day"]
     assert {(x["day"], x["device_id"], x["counting_head"]): (x["disturbances"], x["readings"]) for x in got} == direct
     for x in got:
@@ -174,7 +177,7 @@ def test_markdown_has_trend_tables_and_html_has_plots_with_log_text_escaped(arch
     md = runner.invoke(app, ["report", "--archive", str(archive)]).stdout
     assert "## 8. Trends per day" in md and "| 2015-11-03 | WS4 | Sys1 |" in md
     html = runner.invoke(app, ["report", "--archive", str(archive), "--format", "html"]).stdout
-    part = html[html.index('id="trends"') :]
+    part = html[html.index('id="trends"') : html.index('id="forecast"')]  # the forecast part comes next
     assert part.count("<svg") == 4  # axles, disturbances, analog margin, late warnings
     assert "WS4 Sys1" in part and "<script" not in html
     files = runner.invoke(app, ["report", str(archive.parent / "in"), "--layout", "example", "--format", "html"]).stdout
@@ -188,3 +191,20 @@ def test_log_text_in_a_trend_plot_is_inert() -> None:
     rows = [{"day": "2026-03-02", "crossing": evil, "warnings": 1, "late": 1}]
     (plot,) = trend_plots("trend-late", {"late_warnings_per_crossing_per_day": rows})
     assert "<script" not in plot and "\u202e" not in plot and "&lt;script&gt;" in plot
+
+
+def test_the_report_has_the_forecast_of_the_archive_with_a_plot_per_due_series(archive: Path) -> None:
+    """Part 9: the due list `forecast` gives (WS4's analog values drift out of their band, DRIFT_PER_DAY;
+    WS5 Sys2's disturbances grow as ws4_health.log's failing sensor's do), in its order, each plotted."""
+    fc = runner.invoke(app, ["forecast", "--archive", str(archive), "--json"])
+    assert fc.exit_code == 0, fc.output
+    due = json.loads(fc.stdout)["due"]
+    got = {(f["target"], f["channel"], f["figure"], f["status"]) for f in due}
+    assert {("WS4", 1, "analog_margin", "past"), ("WS5", 2, "disturbance_rate", "past")} <= got
+    doc = json.loads(runner.invoke(app, ["report", "--archive", str(archive), "--format", "json"]).stdout)
+    assert doc["forecast"]["due"] == due
+    html = runner.invoke(app, ["report", "--archive", str(archive), "--format", "html"]).stdout
+    part = html[html.index('id="forecast"') :]
+    assert part.count("<svg") == min(12, len(due)) and "WS5 Sys2: disturbance rate (past)" in part
+    cells = [part.index(f"<td>{f['target']}</td>") for f in due[:1]]
+    assert cells and "<script" not in part

@@ -93,6 +93,18 @@ def test_a_train_passing_turns_the_warning_on_in_time_and_off_after_its_tail() -
     assert off_s >= tail_past_s  # never off before the tail is past
 
 
+def test_the_warning_going_off_carries_its_lead_as_the_batch_timeline_computes_it() -> None:
+    events, engine = run()
+    off = events[1]
+    # The head reaches the road's near edge (crossing half-width before the centre) this long after T0;
+    # its fixes are measured 0.2 s before they arrive, and every 2 s: the interpolation is exact here.
+    half = engine.crossings.settings.crossing_half_width_m  # type: ignore[union-attr]
+    arrival_s = (CROSSING_M - half - START_M) / 15.0 - 0.2
+    lead = arrival_s - (events[0]["time_ns"] - T0) / NS
+    assert off["kind"] == "off" and off["lead_s"] == pytest.approx(lead, abs=0.01)
+    assert off["late"] is False and off["warning_time_s"] <= off["lead_s"]
+
+
 def test_a_silent_end_of_train_unit_keeps_the_warning_on() -> None:
     # The EOT falls silent well before the crossing: nothing proves the tail has passed.
     events, engine = run(silent_eot_after_s=40.0)

@@ -35,6 +35,7 @@ from console.analysis.timefmt import iso
 
 _NS_PER_H = 3600 * _NS_PER_S
 _SEVERITY_ORDER = ("info", "warning", "critical")
+DISTURBANCE_WARN_PER_H = 12.0  # the disturbance rule's warning level (see disturbance_rate_findings)
 
 
 class Severity(StrEnum):
@@ -370,7 +371,7 @@ def voltage_margin_findings(
 
 def disturbance_rate_findings(
     records: pd.DataFrame,
-    warn_per_hour: float = 12.0,
+    warn_per_hour: float = DISTURBANCE_WARN_PER_H,
     critical_per_hour: float = 60.0,
     *,
     window_s: float = 3600.0,

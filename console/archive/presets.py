@@ -37,4 +37,12 @@ PRESETS: dict[str, Preset] = {
         ORDER BY severity = 'critical' DESC, findings DESC, counting_head, channel
         """,
     ),
+    "due-for-maintenance": Preset(
+        "heads, channels and GNSS units whose health figure crosses its threshold within 30 days (or has), by date",
+        """
+        SELECT target AS head_or_unit, channel, figure, status, crossing, earliest, latest, days_left,
+               last_value, threshold, unit
+        FROM forecasts WHERE due ORDER BY coalesce(crossing, earliest), earliest, target, figure
+        """,
+    ),
 }

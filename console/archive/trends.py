@@ -9,8 +9,9 @@ registers), cut to the report's window (``--from/--to/--head/--device``):
   1-edge counters (``counter_1_edge``) summed over the head's channels and
   addresses, a decrease counted as a reset (the new reading is the
   growth), as :func:`console.analysis.health.disturbance_rate_findings`
-  takes it; ``per_hour`` divides by the span of that day's readings (none
-  under 10 minutes, the health rule's shortest span);
+  takes it; ``per_hour`` divides by the time that growth took: from the
+  reading before the day's first (the day's first step is growth since then)
+  to the day's last (none under 10 minutes, the health rule's shortest span);
 * **analog margin** per counting head, channel and day: how far the day's
   analog values (``analog_value``) stayed inside the channel's band, in
   counts (negative: out of band).  The band is the layout's for the head,
@@ -61,25 +62,29 @@ def axles_per_day(con: duckdb.DuckDBPyConnection, window: Window) -> list[dict[s
     return [{**r, "day": str(r["day"])} for r in rows]
 
 
-def disturbances_per_day(con: duckdb.DuckDBPyConnection, window: Window) -> list[dict[str, Any]]:
+def disturbances_per_day(
+    con: duckdb.DuckDBPyConnection, window: Window, *, by_channel: bool = False
+) -> list[dict[str, Any]]:
+    """Per (day, device, head), or per channel too with ``by_channel`` (as the health rule judges a rate)."""
     where, params = window.where()
+    channel = "channel, " if by_channel else ""
+    then_channel = ", channel" if by_channel else ""
     cond = f"{where} AND label_canonical = 'counter_1_edge'" if where else " WHERE label_canonical = 'counter_1_edge'"
     # Growth since the series' previous reading (file and line break ties, as the batch read orders them).
     rows = _rows(
         con,
         f"""
         WITH c AS (
-            SELECT day, device_id, counting_head, time, value,
-                   value - lag(value) OVER (
-                       PARTITION BY device_id, counting_head, channel, address ORDER BY time, file_seq, line
-                   ) AS step
+            SELECT day, device_id, counting_head, {channel}time, value,
+                   value - lag(value) OVER w AS step, lag(time) OVER w AS prev_time
             FROM records{cond}
+            WINDOW w AS (PARTITION BY device_id, counting_head, channel, address ORDER BY time, file_seq, line)
         )
-        SELECT day, device_id, counting_head,
+        SELECT day, device_id, counting_head, {channel}
                sum(CASE WHEN step IS NULL THEN 0 WHEN step < 0 THEN value ELSE step END)::BIGINT AS disturbances,
                count(*) AS readings,
-               epoch_ns(max(time)) - epoch_ns(min(time)) AS span_ns
-        FROM c GROUP BY ALL ORDER BY day, device_id, counting_head
+               epoch_ns(max(time)) - epoch_ns(min(coalesce(prev_time, time))) AS span_ns
+        FROM c GROUP BY ALL ORDER BY day, device_id, counting_head{then_channel}
         """,
         params,
     )
@@ -94,7 +99,8 @@ def disturbances_per_day(con: duckdb.DuckDBPyConnection, window: Window) -> list
 def analog_margins_per_day(
     con: duckdb.DuckDBPyConnection, window: Window, layout: Layout | None
 ) -> list[dict[str, Any]]:
-    """Per (head, channel, day): values, min, max, the band, and the margin (least distance inside it)."""
+    """Per (head, channel, day): values, min, max, the band, the margin (least distance inside it), the
+    median (of each register, averaged over the channel's registers) and its distance inside the band."""
     import pandas as pd
 
     from console.analysis.health import learn_band
@@ -102,7 +108,8 @@ def analog_margins_per_day(
     where, params = window.where()
     cond = f"{where} AND label_canonical = 'analog_value'" if where else " WHERE label_canonical = 'analog_value'"
     df = con.execute(
-        f"SELECT strftime(day, '%Y-%m-%d') AS day, counting_head, channel, value::DOUBLE AS value FROM records{cond} "
+        f"SELECT strftime(day, '%Y-%m-%d') AS day, counting_head, channel, address, value::DOUBLE AS value "
+        f"FROM records{cond} "
         "ORDER BY counting_head, channel, time, file_seq, line",
         params,
     ).df()
@@ -139,6 +146,12 @@ def analog_margins_per_day(
             "band": g["band"].first(),
             "margin": g["margin"].min(),
             "out_of_band": g["out_of_band"].sum(),
+            # A channel's registers (Adr 134, 136) read a few counts apart: the median of each, averaged
+            # (the median of both together would jump between the two clusters from day to day).
+            "median": df.groupby(["day", "counting_head", "channel", "address"])["value"]
+            .median()
+            .groupby(["day", "counting_head", "channel"])
+            .mean(),
         }
     ).reset_index()
     out: list[dict[str, Any]] = []
@@ -153,6 +166,10 @@ def analog_margins_per_day(
                 "band": str(r["band"]),
                 "margin": _round(r["margin"]),
                 "out_of_band": int(r["out_of_band"]),
+                "median": _round(r["median"]),
+                # The day's typical value inside the band: the figure the forecast follows (noise moves the
+                # least distance with the number of readings; the median drifts as the sensor does).
+                "median_margin": _round(min(r["median"] - r["band_low"], r["band_high"] - r["median"])),
             }
         )
     return out

@@ -123,6 +123,7 @@ def connect(
     spill_dir: Path | None = None,
     tables: Collection[str] | None = None,
     sql: str | None = None,
+    computed: dict[str, pa.Table] | None = None,
 ) -> tuple[duckdb.DuckDBPyConnection, Manifest]:
     """An in-memory DuckDB connection with a view per archive table, locked read-only.
 
@@ -162,6 +163,8 @@ def connect(
             cols = EMPTY_COLUMNS.get(table, (("file", "VARCHAR"), ("line", "BIGINT")))
             select = ", ".join(f"NULL::{typ} AS {name}" for name, typ in cols)
             con.execute(f"CREATE VIEW {table} AS SELECT {select} WHERE false")
+    for name, table in (computed or {}).items():  # views computed in Python (the forecasts), before the lock
+        con.register(name, table)
     # Reading stays inside data/ (a list of thousands of allowed paths costs a quarter second to set); writing
     # anywhere is excluded by the statement check (only SELECT-like statements run).
     con.execute(f"SET allowed_directories = [{_quote(str(base / DATA) + '/')}]")
@@ -327,7 +330,12 @@ def run_query_result(root: Path, sql: str, manifest: Manifest | None = None) -> 
 def _query_connection(root: Path, sql: str, manifest: Manifest | None = None) -> duckdb.DuckDBPyConnection:
     """A connection with views for the tables ``sql`` names, the statement checked read-only."""
     named = {t for t in TABLES if re.search(rf"\b{t}\b", sql, re.IGNORECASE)}
-    con, _ = connect(root, manifest, tables=named, sql=sql)
+    computed = None
+    if re.search(r"\bforecasts\b", sql, re.IGNORECASE):
+        from console.archive.health_days import query_forecasts
+
+        computed = {"forecasts": query_forecasts(root, manifest if manifest is not None else read_current(root))}
+    con, _ = connect(root, manifest, tables=named, sql=sql, computed=computed)
     try:
         check_read_only(con, sql)
     except BaseException:

@@ -13,6 +13,15 @@ import typer
 from console import exit_codes
 from console.commands.common import IdleGapOpt, IncludeStatusOpt, fail, guard, load_layout
 
+MetricsOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--metrics",
+        help="Serve Prometheus metrics on HOST:PORT (that address only), e.g. 127.0.0.1:9108 (docs/monitoring.md).",
+        show_default=False,
+    ),
+]
+
 SourcesArg = Annotated[
     list[str],
     typer.Argument(
@@ -107,8 +116,18 @@ def follow(
         bool, typer.Option("--strict", help="Exit 1 if any line of a followed file was rejected.")
     ] = False,
     include_status: IncludeStatusOpt = False,
+    metrics: MetricsOpt = None,
 ) -> None:
-    """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary."""
+    """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary.
+
+    Examples:
+
+        trackside follow file:/var/log/ac/diagnostic.log --layout line.toml
+
+        trackside follow mqtt://127.0.0.1:1883/application/+/device/+/event/up --jsonl
+
+        trackside follow file:diag.log --layout line.toml --metrics 127.0.0.1:9108
+    """
 
     def body() -> int:
         from console.analysis.diagnostics import SpeedSettings
@@ -124,8 +143,11 @@ def follow(
         except SourceError as exc:
             raise fail(str(exc)) from None
         out = sys.stdout
+        sink = _metrics_sink(metrics, lay, srcs)
 
         def emit(ev: dict[str, Any]) -> None:
+            if sink is not None:
+                sink(ev)
             if jsonl:
                 out.write(json.dumps(ev, ensure_ascii=False, default=str) + "\n")
             else:
@@ -157,7 +179,11 @@ def follow(
         # stopping) too, with the summary, then 143.
         import signal
 
-        terminated = run_sources(engine, srcs, until=idle, duration_s=duration) == signal.SIGTERM
+        try:
+            terminated = run_sources(engine, srcs, until=idle, duration_s=duration) == signal.SIGTERM
+        finally:
+            if sink is not None:
+                sink.close()
         summary = engine.summary(srcs)
         if jsonl:
             emit(summary)
@@ -169,3 +195,20 @@ def follow(
         return exit_codes.FINDINGS if strict and rejected else exit_codes.OK
 
     raise typer.Exit(guard(body))
+
+
+def _metrics_sink(address: str | None, layout: Any, sources: list[Any]) -> Any:
+    """The Prometheus sink serving on ``address`` (None: no metrics); the serving address on stderr."""
+    if address is None:
+        return None
+    from console.sinks.metrics import MetricsError, MetricsSink
+
+    sink = MetricsSink(layout, lambda: [s.status() for s in sources])
+    try:
+        host, port = sink.serve(address)
+    except MetricsError as exc:
+        raise fail(str(exc)) from None
+    where = f"[{host}]" if ":" in host else host
+    sys.stderr.write(f"metrics on http://{where}:{port}/metrics\n")
+    sys.stderr.flush()
+    return sink

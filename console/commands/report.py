@@ -71,10 +71,12 @@ def report(
             from console.archive.trends import with_trends
             from console.commands.common import Console
             from console.fleet import FleetError, engine_scope
+            from console.report.forecast import with_forecast
 
             collector = with_trends(
                 archive_collector(archive, layout, start, end, head, device), archive, start, end, head, device
             )
+            collector = with_forecast(collector, archive, start, end, head)
             err = Console(stderr=True, highlight=False)
             try:
                 # The archive's partitions the report computes run on the engine (a LocalCluster lives as long).

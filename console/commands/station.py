@@ -16,6 +16,7 @@ from console.commands.common import (
     guard,
     load_layout,
 )
+from console.commands.follow import MetricsOpt
 
 
 def station(
@@ -49,17 +50,20 @@ def station(
     serve: Annotated[bool, typer.Option("--serve", help="Serve the view to a browser (textual-serve).")] = False,
     host: Annotated[str, typer.Option("--host", help="With --serve: address to listen on.")] = "127.0.0.1",
     port: Annotated[int, typer.Option("--port", help="With --serve: port to listen on.", min=1, max=65535)] = 8000,
+    metrics: MetricsOpt = None,
 ) -> None:
     """The live station view: sections, trains, crossings and events, simulated, replayed or live."""
 
     files = [Path(a) for a in args or []]
 
     def body() -> int:
+        if metrics is not None and (serve or not live):
+            raise fail("--metrics goes with --live (with --serve each browser runs its own view: use follow --metrics)")
         if serve or live:
             from console.commands.station_live import live_uris, run_live_station
 
             uris = live_uris(live or [], args or [], replay)
-            return run_live_station(layout, uris, serve, host, port, seed, speed, replay, files)
+            return run_live_station(layout, uris, serve, host, port, seed, speed, replay, files, metrics)
         from console.tui.app import StationApp
         from console.tui.model import SPEEDS, StationModel
         from console.tui.sources import ReplaySource, SimSource

@@ -45,6 +45,7 @@ def run_live_station(
     speed: float,
     replay: bool,
     files: list[Path],
+    metrics: str | None = None,
 ) -> int:
     from console.sources import SourceError, open_source
 
@@ -63,8 +64,14 @@ def run_live_station(
         return exit_codes.OK
     if not (sys.stdin.isatty() and sys.stdout.isatty()) and WEB_DRIVER_ENV not in os.environ:
         raise fail("the station view needs a terminal: run it without pipes or redirection (or use --serve)")
+    from console.commands.follow import _metrics_sink
     from console.tui.live_app import LiveStationApp
     from console.tui.live_source import LiveSource
 
-    LiveStationApp(LiveSource(lay, sources)).run()
+    sink = _metrics_sink(metrics, lay, sources)
+    try:
+        LiveStationApp(LiveSource(lay, sources, sink=sink)).run()
+    finally:
+        if sink is not None:
+            sink.close()
     return exit_codes.OK

@@ -16,11 +16,13 @@ clock runs ahead cannot make old positions look fresh.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
 from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, CrossingEvent, Fix, TrainSpec
 from console.analysis.crossing_batch import OFF_TRACK_M
+from console.analysis.crossing_timeline import timeline
 from console.analysis.geo import TrackProjector
 from console.analysis.timefmt import NS, iso
 from console.layout import Layout
@@ -28,6 +30,7 @@ from console.sources.base import GnssFix
 
 Emit = Callable[[dict[str, Any]], None]
 SKEW_TOLERANCE_S = 2.0  # offsets below this are radio and processing delay, not a wrong clock
+RECENT_FIXES = 512  # per train: enough to find its head's arrival when the warning goes off
 
 
 class CrossingFollow:
@@ -41,6 +44,7 @@ class CrossingFollow:
         self.default_length_m = consist.length_m if consist else 100.0
         self.skew_ns: dict[str, int] = {}
         self.last: dict[tuple[str, str], Fix] = {}
+        self.recent: dict[str, deque[Fix]] = {}  # each train's last fixes, for the lead of its warnings
         self.off_track = 0
         self.fixes = 0
         self.events = 0
@@ -76,28 +80,42 @@ class CrossingFollow:
         fix = Fix(now_ns, t_fix, train, role, chainage, f.speed_mps, hint)
         self.fixes += 1
         self.last[(train, role)] = fix
+        self.recent.setdefault(train, deque(maxlen=RECENT_FIXES)).append(fix)
         for ctl in self.controllers.values():
             ctl.add_train(TrainSpec(train, self.default_length_m))
-            self._out(ctl.step(fix))
+            self._out(ctl, ctl.step(fix))
 
     def tick(self, now_ns: int) -> None:
         for ctl in self.controllers.values():
-            self._out(ctl.tick(now_ns))
+            self._out(ctl, ctl.tick(now_ns))
 
-    def _out(self, events: list[CrossingEvent]) -> None:
+    def _out(self, ctl: CrossingController, events: list[CrossingEvent]) -> None:
         for e in events:
             self.events += 1
-            self.emit(
-                {
-                    "type": "crossing",
-                    "crossing": e.crossing,
-                    "train": e.train,
-                    "kind": e.kind,
-                    "reason": e.reason,
-                    "time_ns": e.t_ns,
-                    "time": iso(e.t_ns),
-                }
-            )
+            ev: dict[str, Any] = {
+                "type": "crossing",
+                "crossing": e.crossing,
+                "train": e.train,
+                "kind": e.kind,
+                "reason": e.reason,
+                "time_ns": e.t_ns,
+                "time": iso(e.t_ns),
+            }
+            if e.kind == "off":
+                ev |= self._lead(ctl, e.train)
+            self.emit(ev)
+
+    def _lead(self, ctl: CrossingController, train: str) -> dict[str, Any]:
+        """The warning that just went off: its lead (head arrival − on), as the batch timeline computes it."""
+        rows = [r for r in timeline(ctl, list(self.recent.get(train, ()))) if r.train == train]
+        lead = rows[0].lead_s if rows else None
+        if lead is None:
+            return {"lead_s": None, "warning_time_s": ctl.crossing.warning_time_s, "late": None}
+        return {
+            "lead_s": round(lead, 3),
+            "warning_time_s": rows[0].warning_time_s,
+            "late": rows[0].late_by_s is not None,
+        }
 
     def warnings_on(self) -> dict[str, bool]:
         return {code: ctl.warning_on for code, ctl in self.controllers.items()}

@@ -329,6 +329,19 @@ def _figure(plot: str, data: ReportData, write: Write) -> None:
         caption = "Analog receiver values per channel; the shaded band is the layout's, where it gives one."
         write("".join(f"<figure>{b}<figcaption>{esc(caption)}</figcaption></figure>" for b in _analog(data)))
         return
+    if plot == "forecast":
+        from console.report.forecast import forecast_plots
+
+        caption = (
+            "The daily figure (dots), its trend over the last days with the 90 % band of its slope, the threshold "
+            "(dashed) and the crossing date (line) with its interval (shaded)."
+        )
+        write(
+            "".join(
+                f"<figure>{b}<figcaption>{esc(caption)}</figcaption></figure>" for b in forecast_plots(data.forecast)
+            )
+        )
+        return
     if plot.startswith("trend-"):
         caption = trends.caption(plot)
         write(

@@ -132,6 +132,8 @@ class ReportData:
     notes: dict[str, str] = field(default_factory=dict)  # part → why it is empty
     # Daily trends (console.archive.trends): only a report from the archive has history.
     trends: dict[str, Any] | None = None
+    # Condition forecasts (console.report.forecast): from the archive's daily figures too.
+    forecast: dict[str, Any] | None = None
     # A diagnostic log read as a stream (console.report.spooled): its passages and section history
     # kept on disk, not in ``job`` and ``sections``.
     passage_spool: ReportPassages | None = None
@@ -601,6 +603,7 @@ def document(data: ReportData) -> dict[str, Any]:
         },
         "crossings": _crossings(data),
         **({"trends": data.trends} if data.trends is not None else {}),
+        **({"forecast": data.forecast} if data.forecast is not None else {}),
         "warnings": list(data.warnings),
         "notes": dict(sorted(data.notes.items())),
     }

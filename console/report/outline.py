@@ -521,4 +521,7 @@ def outline(doc: dict[str, Any]) -> list[Block]:
     from console.report.trends import trends_part  # it builds on this module's helpers
 
     blocks += trends_part(doc)  # only a report from the archive has them
+    from console.report.forecast import forecast_part
+
+    blocks += forecast_part(doc)
     return blocks

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from console.sim.station import SentFix, StationSim
-from console.sim.writers import IDENTITY, _diag_line, device_ids, nmea_sentences, truth
+from console.sim.writers import IDENTITY, _diag_line, device_ids, health_rows, nmea_sentences, truth
 from parsers.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
 
 STEP_WALL_S = 0.1  # a line appears within this of its (scaled) time
@@ -108,6 +108,7 @@ class LiveWriter:
     fixes: int = 0
     _records_done: int = 0
     _beats_done: int = 0
+    _health_done: int = 0
 
     def open(self) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
@@ -135,6 +136,9 @@ class LiveWriter:
         new_beats = self.sim.heartbeats[self._beats_done :]
         self._beats_done = len(self.sim.heartbeats)
         rows += [(t, h, 1, "000", "Diagnose I", "2") for t, h in new_beats]
+        if len(self.sim.health_rows) > self._health_done:  # the heads' health registers (slow faults)
+            rows += health_rows(self.sim, self._health_done)
+            self._health_done = len(self.sim.health_rows)
         rows.sort(key=lambda r: r[0])  # stable: a board's records stay in the order it saw them
         self._write([_diag_line(ids[h], h, ch, adr, lab, d, t) for t, h, ch, adr, lab, d in rows])
         for f in fixes:

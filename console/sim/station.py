@@ -39,6 +39,7 @@ from console.analysis.timefmt import NS
 from console.analysis.wheels import SYS1, SYS2, CountingSettings, HeadCounter
 from console.layout import Consist, Layout
 from console.sim.radio import LoRaLink
+from console.sim.slow_faults import SLOW_FAULT_KINDS, HeadHealth, HealthRows, HealthSettings, unit_loss
 
 DETECTION_ZONE_M = 0.25  # a wheel damps a coil over this length of travel
 ENTRY_ROOM_M = 400.0  # a new train enters only this far behind the tail of the one before it
@@ -50,12 +51,14 @@ FAULT_KINDS = (
     "missed_detections",
     "eot_loss",
     "head_loss",
+    *SLOW_FAULT_KINDS,
 )
 
 
 @dataclass(frozen=True)
 class Fault:
-    """A fault on demand.  ``target``: a head id (sensor faults) or a train id (GNSS unit losses)."""
+    """A fault on demand.  ``target``: a head id (sensor faults), a train id (GNSS unit losses) or a
+    unit (``gnss_decay``: ``T3-eot``).  Slow faults (console.sim.slow_faults) grow at ``rate``."""
 
     kind: str
     target: str
@@ -63,6 +66,7 @@ class Fault:
     end_s: float = math.inf
     channel: int = SYS2
     probability: float = 0.2  # missed_detections: the share of one system's wheels missed
+    rate: float | None = None  # slow faults: growth per day (None: the kind's default)
 
     def active(self, t_s: float) -> bool:
         return self.start_s <= t_s < self.end_s
@@ -82,6 +86,10 @@ class SimConfig:
     heartbeat_s: float = 20.0  # each head's device writes a status record this often
     faults: tuple[Fault, ...] = ()
     start_ns: int = 1_772_438_400 * NS  # 2026-03-02 08:00 UTC
+    # Each head's health registers (1-edge counters, analog values) every this often; None: not written,
+    # unless a slow fault on a head needs them (then every HealthSettings.period_s).
+    health_period_s: float | None = None
+    fleet: int = 0  # > 0: trains are this many trainsets, T1..Tn, each with its own units, making trip after trip
 
 
 @dataclass
@@ -207,6 +215,14 @@ class StationSim:
         self.all_fixes: list[SentFix] = []
         self.axle_events: list[DetectionEvent] = []  # the console's counted axles (for the frame writer)
         self.injected: list[tuple[int, Fault]] = [(self.cfg.start_ns + int(f.start_s * NS), f) for f in self.faults]
+        period = self.cfg.health_period_s
+        if period is None and any(f.kind in ("analog_drift", "disturbance_growth") for f in self.faults):
+            period = HealthSettings().period_s
+        self.health = (
+            None if period is None else HeadHealth(layout, self.faults, self.cfg.seed, HealthSettings(period_s=period))
+        )
+        self.health_rows: list[HealthRows] = []  # the health registers written, for the writers
+        self._unit_rng = np.random.default_rng([self.cfg.seed, 27, 3])  # gnss_decay's losses: their own stream
 
     # -- public API --------------------------------------------------------
     @property
@@ -263,6 +279,8 @@ class StationSim:
         records.sort(key=lambda r: (r.t_ns, r.head, r.channel))
         self.all_records += records
         self._heartbeat(t1)
+        if self.health is not None and self.health.next_s < t1:
+            self.health_rows.append(self.health.until(t1, self.cfg.start_ns))
         events = self._console_records(records, t1)
         self.axle_events += [e for e in events if e.kind is EventKind.AXLE]
         transitions = []
@@ -283,6 +301,17 @@ class StationSim:
             if on_step is not None:
                 on_step(self.t_s)
         self.finish()
+
+    def run_health_only(self, duration_s: float, on_step: Callable[[float], None] | None = None) -> None:
+        """Only the heads' health registers, no trains (``simulate --health-only``): the same rounds a full
+        run writes, for runs of weeks over hundreds of heads.  ``on_step`` after each simulated hour."""
+        if self.health is None:
+            self.health = HeadHealth(self.layout, self.faults, self.cfg.seed, HealthSettings())
+        while self.t_s < duration_s:
+            self.t_s = min(duration_s, self.t_s + 3600.0)
+            self.health_rows.append(self.health.until(self.t_s, self.cfg.start_ns))
+            if on_step is not None:
+                on_step(self.t_s)
 
     def finish(self) -> None:
         """Settle the console's pending timers (end of a run)."""
@@ -306,10 +335,19 @@ class StationSim:
         if not self.entry_clear(d):
             self._next_spawn_s = self.t_s + 30.0
             return None
+        name = f"T{k + 1}"
+        if self.cfg.fleet > 0:
+            name_or_none = self._trainset(k)
+            if name_or_none is None:  # every trainset is on the line: the next that comes back goes
+                self._next_spawn_s = self.t_s + 30.0
+                return None
+            name = name_or_none
+            if consist_id is None:  # a trainset keeps its consist
+                consist = consists[(int(name[1:]) - 1) % len(consists)]
         self._spawned += 1
         start = self.line_start - 300.0 if d > 0 else self.line_end + 300.0
         stops = sorted(((p.to_m - 15.0) if d > 0 else (p.from_m + 15.0) for p in self.layout.platforms), reverse=d < 0)
-        tr = SimTrain(f"T{k + 1}", consist, d, start, 0.0, self.t_s, stops=stops)
+        tr = SimTrain(name, consist, d, start, 0.0, self.t_s, stops=stops)
         tr.controller = CONTROLLERS[k % len(CONTROLLERS)]
         tr.v_mps = min(self.layout.line_speed_mps, self._limit(tr, start))
         tr.next_head_fix_s = self.t_s + float(self.rng.uniform(0, self.period_s))
@@ -319,6 +357,18 @@ class StationSim:
         for ctl in self.crossings.values():
             ctl.add_train(TrainSpec(tr.id, consist.length_m))
         return tr
+
+    def _trainset(self, k: int) -> str | None:
+        """The trainset for the k-th trip: the k-th in rotation, else the next one not on the line."""
+        busy = {t.id for t in self.active}
+        n = self.cfg.fleet
+        for j in range(n):
+            name = f"T{(k + j) % n + 1}"
+            if name not in busy:
+                for c in self.layout.crossings:  # a new trip: its truth at each crossing starts again
+                    self._crossing_seen.pop((c.code, name), None)
+                return name
+        return None
 
     def entry_clear(self, direction: int) -> bool:
         """May a train enter now in this direction (no opposing train, room behind the last one)?"""
@@ -469,6 +519,9 @@ class StationSim:
                 )
                 if lost or t < t0:
                     continue
+                p_lost = unit_loss(self.faults, f"{tr.id}-{role}", t)
+                if p_lost > 0 and self._unit_rng.random() < p_lost:
+                    continue  # a wearing unit (gnss_decay): the report is never sent
                 frac = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
                 head_x = x0 + frac * (tr.x_m - x0)
                 x = head_x if role == HEAD else head_x - tr.direction * tr.consist.length_m

@@ -27,6 +27,7 @@ Into one directory:
 from __future__ import annotations
 
 import datetime as dt
+import heapq
 import json
 from importlib import resources
 from pathlib import Path
@@ -97,21 +98,33 @@ def device_ids(layout: Layout) -> dict[str, int]:
 
 
 def write_diagnostic(
-    sim: StationSim, path: Path, resolution: str | dict[str, str] = "us", interleave_seed: int | None = None
+    sim: StationSim,
+    path: Path,
+    resolution: str | dict[str, str] = "us",
+    interleave_seed: int | None = None,
+    *,
+    identity: bool = True,
+    append: bool = False,
 ) -> int:
     """The diagnostic log; ``resolution`` ("us", "ms", "s", or per head id) stamps the times.
 
     ``interleave_seed``: boards whose records print the same time interleave
     at random (each board keeping its own order); None: in true time order.
+    ``identity``: each device's identity dump at the run's start; ``append``: add to the log (a multi-day
+    run writes a day at a time).
     """
     ids = device_ids(sim.layout)
     res = {h.id: resolution if isinstance(resolution, str) else resolution.get(h.id, "us") for h in sim.layout.heads}
     rows: list[tuple[int, str, int, str, str, str]] = []  # time, head, channel, address, label, data
     start = sim.cfg.start_ns
-    for h in sim.layout.heads:
-        rows += [(start, h.id, 1, a, lab, d) for a, lab, d in IDENTITY]
+    if identity:
+        for h in sim.layout.heads:
+            rows += [(start, h.id, 1, a, lab, d) for a, lab, d in IDENTITY]
     rows += [(t, h, 1, "000", "Diagnose I", "2") for t, h in sim.heartbeats]
     rows += [(r.t_ns, r.head, r.channel, "026", "Radsensor", str(r.value)) for r in sim.all_records]
+    fast = interleave_seed is None and all(r == "us" for r in res.values())
+    if not fast:
+        rows += health_rows(sim)
     rows.sort(key=lambda x: x[0])  # stable: a board's records stay in the order it saw them
     t_ns = np.array([r[0] for r in rows], np.int64)
     step = np.array([TIME_RESOLUTIONS[res[r[1]]] for r in rows], np.int64)
@@ -122,8 +135,63 @@ def write_diagnostic(
     for i in order.tolist():
         t, head, ch, adr, label, data = rows[i]
         lines.append(_diag_line(ids[head], head, ch, adr, label, data, t, res[head]))
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    if fast and sim.health_rows:
+        # Weeks of hundreds of heads: the health registers formatted as columns, merged in by time
+        # (a stable merge: at equal times the other records first, as the sort above puts them).
+        times, health = health_lines(sim, ids)
+        ours = zip(t_ns[order].tolist(), lines, strict=True)
+        merged = heapq.merge(ours, zip(times, health, strict=True), key=lambda x: x[0])
+        lines = [line for _, line in merged]
+    with path.open("a" if append else "w", encoding="utf-8") as out:
+        if lines or not append:
+            out.write("\n".join(lines) + "\n")
     return len(lines)
+
+
+def health_lines(sim: StationSim, ids: dict[str, int]) -> tuple[list[int], list[str]]:
+    """The health registers as diagnostic lines with microsecond times (as :func:`_diag_line` writes
+    them), in time order: one prefix per head, channel and register, the times formatted by numpy."""
+    from console.sim.slow_faults import REGISTERS, HealthRows
+
+    h = HealthRows.concat(sim.health_rows)
+    order = np.argsort(h.t_ns, kind="stable")
+    heads = [x.id for x in sim.layout.heads]
+    prefix = {
+        (i, ch, r): f"Diag_id:00002\tID:{ids[head]}\tDevice:IM\tType:013\tGS:GS03\tTrackinfo:{head}\tch:{ch}\t"
+        f"Adr:{adr}\tLabel:{label}\tData:"
+        for i, head in enumerate(heads)
+        for ch in (1, 2)
+        for r, (adr, label) in enumerate(REGISTERS)
+    }
+    t = h.t_ns[order]
+    stamps = np.datetime_as_string((t // 1000).astype("datetime64[us]"), unit="us").tolist()
+    lines = [
+        f"{prefix[(i, ch, r)]}{v}\tDate:{d[:10]}\tTime:{d[11:]}"
+        for i, ch, r, v, d in zip(
+            h.head[order].tolist(),
+            h.channel[order].tolist(),
+            h.register[order].tolist(),
+            h.value[order].tolist(),
+            stamps,
+            strict=True,
+        )
+    ]
+    return t.tolist(), lines
+
+
+def health_rows(sim: StationSim, since: int = 0) -> list[tuple[int, str, int, str, str, str]]:
+    """The heads' health registers the run wrote (console.sim.slow_faults), as diagnostic rows;
+    ``since``: from that batch on (a live run writes them as they come)."""
+    from console.sim.slow_faults import REGISTERS, HealthRows
+
+    h = HealthRows.concat(sim.health_rows[since:])
+    heads = [x.id for x in sim.layout.heads]
+    return [
+        (t, heads[i], ch, REGISTERS[r][0], REGISTERS[r][1], str(v))
+        for t, i, ch, r, v in zip(
+            h.t_ns.tolist(), h.head.tolist(), h.channel.tolist(), h.register.tolist(), h.value.tolist(), strict=True
+        )
+    ]
 
 
 def _nmea(body: str) -> str:
@@ -153,19 +221,23 @@ def nmea_sentences(t_ns: int, lat: float, lon: float, speed_mps: float, course_d
     return [rmc, gga]
 
 
-def write_gnss(sim: StationSim, directory: Path) -> dict[str, int]:
+def write_gnss(sim: StationSim, directory: Path, append: bool = False) -> dict[str, int]:
     nmea_dir = directory / "nmea"
     nmea_dir.mkdir(exist_ok=True)
     per_device: dict[str, list[str]] = {}
-    csv = ["time,device,role,lat,lon,speed,course"]
+    csv_path = directory / "gnss_devices.csv"
+    csv = [] if append and csv_path.exists() else ["time,device,role,lat,lon,speed,course"]
     for f in sorted(sim.all_fixes, key=lambda f: (f.t_ns, f.train, f.role)):
         device = f"{f.train}-{f.role}"
         per_device.setdefault(device, []).extend(nmea_sentences(f.t_ns, f.lat, f.lon, f.speed_mps, f.course_deg))
         t = iso(f.t_ns) or ""  # UTC with its Z
         csv.append(f"{t},{device},{f.role},{f.lat:.7f},{f.lon:.7f},{f.speed_mps:.2f},{f.course_deg:.1f}")
     for device, lines in per_device.items():
-        (nmea_dir / f"{device}.nmea").write_text("\r\n".join(lines) + "\r\n", encoding="ascii")
-    (directory / "gnss_devices.csv").write_text("\n".join(csv) + "\n", encoding="utf-8")
+        with (nmea_dir / f"{device}.nmea").open("a" if append else "w", encoding="ascii", newline="") as out:
+            out.write("\r\n".join(lines) + "\r\n")
+    if csv:
+        with csv_path.open("a" if append else "w", encoding="utf-8") as out:
+            out.write("\n".join(csv) + "\n")
     return {d: len(v) // 2 for d, v in per_device.items()}
 
 
@@ -173,8 +245,10 @@ def _comma(x: float, digits: int) -> str:
     return f"{x:.{digits}f}".replace(".", ",")
 
 
-def write_centre_table(sim: StationSim, path: Path) -> int:
-    """Seed 004's monitoring-centre table: one row per train every 10 s while it is on the line."""
+def write_centre_table(sim: StationSim, path: Path, append: bool = False) -> int:
+    """Seed 004's monitoring-centre table: one row per train every 10 s while it is on the line.
+
+    ``append``: a multi-day run's next day, its rows (newest first) after the days before."""
     codes = [c.code for c in sim.layout.crossings]
     header = ["TIMESTAMP", "Mã tàu", "Vĩ độ", "Kinh độ", "Vận tốc (km/h)"]
     for k in range(1, len(codes) + 1):
@@ -206,12 +280,18 @@ def write_centre_table(sim: StationSim, path: Path) -> int:
             cells += [code, "Cảnh báo" if warned(code, f.t_ns) else "Bình thường"]
         rows.append("\t".join(cells))
     rows.reverse()  # newest first, as the centre shows it
-    path.write_text("\t".join(header) + "\n" + "\n".join(rows) + ("\n" if rows else ""), encoding="utf-8")
+    head = "" if append and path.exists() else "\t".join(header) + "\n"
+    with path.open("a" if append else "w", encoding="utf-8") as out:
+        out.write(head + "\n".join(rows) + ("\n" if rows else ""))
     return len(rows)
 
 
-def write_frames(sim: StationSim, path: Path, idle_every_s: float = 5.0) -> int:
-    """Each head as an intelligent sensor: a frame per axle while counting, the check byte while idle."""
+def write_frames(
+    sim: StationSim, path: Path, idle_every_s: float = 5.0, *, since_ns: int | None = None, append: bool = False
+) -> int:
+    """Each head as an intelligent sensor: a frame per axle while counting, the check byte while idle.
+
+    ``since_ns``: from then on (a multi-day run writes a day at a time, ``append``)."""
     lines: list[tuple[int, str]] = []
     by_head: dict[str, list[tuple[int, int]]] = {}
     for e in sim.axle_events:
@@ -220,7 +300,7 @@ def write_frames(sim: StationSim, path: Path, idle_every_s: float = 5.0) -> int:
     for h in sim.layout.heads:
         axles = sorted(by_head.get(h.id, []))
         count, last_axle = 0, None
-        t = sim.cfg.start_ns
+        t = sim.cfg.start_ns if since_ns is None else since_ns
         k = 0
         while t < end:
             nxt = axles[k][0] if k < len(axles) else None
@@ -245,12 +325,10 @@ def write_frames(sim: StationSim, path: Path, idle_every_s: float = 5.0) -> int:
                         (t, f"{_naive(t).isoformat(timespec='milliseconds')} {h.id} {status:02X} {CHECK_BYTE:02X}")
                     )
     lines.sort(key=lambda x: x[0])
-    path.write_text(
-        "# trackside simulated intelligent-sensor frames: time sensor status count\n"
-        + "\n".join(line for _, line in lines)
-        + "\n",
-        encoding="utf-8",
-    )
+    title = "# trackside simulated intelligent-sensor frames: time sensor status count\n"
+    head = "" if append and path.exists() else title
+    with path.open("a" if append else "w", encoding="utf-8") as out:
+        out.write(head + "\n".join(line for _, line in lines) + ("\n" if lines else ""))
     return len(lines)
 
 
@@ -322,20 +400,64 @@ def truth(sim: StationSim) -> dict[str, Any]:
             for _, f in sim.injected
         ],
         "console_final": {s: str(sim.engine.state(s)) for s in sim.engine.sections},
+        **_slow_truth(sim),
     }
+
+
+def _slow_truth(sim: StationSim) -> dict[str, Any]:
+    """With slow faults or health registers: each threshold's crossing, and the bands the heads were set in."""
+    from console.sim.slow_faults import SLOW_FAULT_KINDS, threshold_crossings
+
+    if sim.health is None and not any(f.kind in SLOW_FAULT_KINDS for f in sim.faults):
+        return {}
+    out: dict[str, Any] = {
+        "threshold_crossings": threshold_crossings(sim.health, sim.faults, sim.cfg.start_ns, sim.t_s),
+    }
+    if sim.health is not None:
+        out["health_registers"] = {
+            "period_s": sim.health.s.period_s,
+            "heads": {
+                head: {
+                    f"Sys{c + 1}": {
+                        "level": float(sim.health.base[i, c]),
+                        "band": [float(sim.health.band_low[i, c]), float(sim.health.band_high[i, c])],
+                    }
+                    for c in (0, 1)
+                }
+                for i, head in enumerate(sim.health.heads)
+            },
+        }
+    return out
 
 
 def write_run(sim: StationSim, directory: Path) -> dict[str, Any]:
     """Everything, into ``directory`` (created); returns counts of what was written."""
-    directory.mkdir(parents=True, exist_ok=True)
-    counts: dict[str, Any] = {
-        "diagnostic.log": write_diagnostic(sim, directory / "diagnostic.log"),
-        "nmea": write_gnss(sim, directory),
-        "centre.tsv": write_centre_table(sim, directory / "centre.tsv"),
-        "sensor_frames.txt": write_frames(sim, directory / "sensor_frames.txt"),
-    }
+    counts = write_logs(sim, directory)
     (directory / "layout.toml").write_text(layout_text(sim.layout), encoding="utf-8")
-    doc = truth(sim)
-    (directory / "truth.json").write_text(json.dumps(doc, ensure_ascii=False, indent=1) + "\n", encoding="utf-8")
-    counts["truth.json"] = {"axles": len(doc["axles"]), "crossings": len(doc["crossings"])}
+    counts["truth.json"] = write_truth(sim, directory / "truth.json")
     return counts
+
+
+def write_logs(
+    sim: StationSim, directory: Path, *, since_ns: int | None = None, append: bool = False, health_only: bool = False
+) -> dict[str, Any]:
+    """The logs of what the simulator holds, into ``directory`` (created).  A multi-day run writes a day at a
+    time: ``since_ns`` the day's start, ``append`` to the days before; ``health_only``: the diagnostic log alone."""
+    directory.mkdir(parents=True, exist_ok=True)
+    first = since_ns is None or since_ns <= sim.cfg.start_ns
+    counts: dict[str, Any] = {
+        "diagnostic.log": write_diagnostic(sim, directory / "diagnostic.log", identity=first, append=append)
+    }
+    if not health_only:
+        counts["nmea"] = write_gnss(sim, directory, append=append)
+        counts["centre.tsv"] = write_centre_table(sim, directory / "centre.tsv", append=append)
+        counts["sensor_frames.txt"] = write_frames(
+            sim, directory / "sensor_frames.txt", since_ns=since_ns, append=append
+        )
+    return counts
+
+
+def write_truth(sim: StationSim, path: Path) -> dict[str, int]:
+    doc = truth(sim)
+    path.write_text(json.dumps(doc, ensure_ascii=False, indent=1) + "\n", encoding="utf-8")
+    return {"axles": len(doc["axles"]), "crossings": len(doc["crossings"])}

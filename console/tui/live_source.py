@@ -55,11 +55,14 @@ class LiveSource:
 
     mode = "live"
 
-    def __init__(self, layout: Layout, sources: Sequence[Source]) -> None:
+    def __init__(
+        self, layout: Layout, sources: Sequence[Source], sink: Callable[[dict[str, Any]], None] | None = None
+    ) -> None:
         self.layout = layout
         self.sources = list(sources)
         self._events: list[dict[str, Any]] = []
-        self.live = LiveEngine(layout, self._events.append)
+        self.sink = sink  # another consumer of the engine's events (the Prometheus metrics)
+        self.live = LiveEngine(layout, self._emit)
         self._queue: queue.SimpleQueue[Item] = queue.SimpleQueue()
         self._placeholder = SectionEngine(layout, initial=SectionState.PREPARATORY, start_ns=time.time_ns())
         self._counts: Counter[str] = Counter()
@@ -71,6 +74,11 @@ class LiveSource:
         self.crossings: dict[str, CrossingController] = (
             self.live.crossings.controllers if self.live.crossings is not None else {}
         )
+
+    def _emit(self, ev: dict[str, Any]) -> None:
+        self._events.append(ev)
+        if self.sink is not None:
+            self.sink(ev)
 
     def start(self) -> None:
         for s in self.sources:

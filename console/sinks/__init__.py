@@ -1,0 +1,1 @@
+"""Sinks: what the live engine's events go to besides the screen (metrics for Prometheus)."""
