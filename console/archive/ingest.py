@@ -136,6 +136,9 @@ class _Ingest:
         self.started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
         self._tmp_count = 0
         self.dropped_seqs: set[int] = set()  # diagnostic files replaced: their records leave
+        # The layout file among the inputs that the derivation uses (report's rule), and --layout.
+        self.layout_file: Path | None = None
+        self.layout_spec: str | None = None
 
     def _reject(self, row: dict[str, Any]) -> None:
         self._rejected_rows.append(row)
@@ -172,6 +175,10 @@ class _Ingest:
 
     def add_file(self, path: Path, shown: str) -> FileOutcome:
         kind, note = _kind(path)
+        if kind == "layout":
+            from console.report.collect import layout_note
+
+            note = layout_note(path, self.layout_file, self.layout_spec)
         if kind not in (DIAGNOSTIC, *STORED_ELSEWHERE, "frames", "can", "voltages"):
             why = note or f"{kind}: not archived"
             self._ledger_row(shown, kind, "not-read", why, None, 0, 0, None)
@@ -447,6 +454,22 @@ def expand_inputs(paths: Sequence[Path], root: Path) -> list[tuple[Path, str]]:
     return out
 
 
+def _inputs_layout(job: _Ingest, inputs: list[tuple[Path, str]], layout: str | None) -> str | None:
+    """The layout the derivation uses: ``--layout``, else a layout file among the inputs, by ``report``'s rule."""
+    from console.layout import LayoutError, load_layout
+    from console.report.collect import chosen_layout_file
+
+    job.layout_spec = layout
+    job.layout_file = chosen_layout_file([p for p, _ in inputs], layout)
+    if job.layout_file is None:
+        return layout
+    try:
+        load_layout(job.layout_file)  # a bad layout fails before anything is read
+    except LayoutError as exc:
+        raise ArchiveError(str(exc)) from None
+    return str(job.layout_file.resolve())
+
+
 def run_ingest(
     paths: Sequence[Path],
     root: Path,
@@ -473,6 +496,7 @@ def run_ingest(
         try:
             clock = _PhaseClock(summary.phases)
             inputs = expand_inputs(paths, root)
+            layout = _inputs_layout(job, inputs, layout)
             for path, shown in inputs:
                 if on_file is not None:
                     on_file(shown)
