@@ -67,7 +67,8 @@ PER_PARTITION = ("passages", "axles", "wheel_records")
 CROSS_HEAD = ("section_states", "count_ledger", "crossing_timelines", "health_findings", "channel_events")
 # Bump when the per-partition rows change meaning: every partition is then derived again.
 # 3: passages carry their per-axle speeds; channel events and the sections' final state kept (report --archive).
-DERIVE_VERSION = 3
+# 4: integers stored as integers (passages' detection second), finding times as TIMESTAMP_NS.
+DERIVE_VERSION = 4
 
 # mapper(fn, items) → the results in the order of items (a list, or an iterator giving them as they come).
 Mapper = Callable[[Callable[..., Any], list[Any]], Iterable[Any]]
@@ -92,6 +93,13 @@ def _arrow(df: pd.DataFrame) -> pa.Table:
     return pa.Table.from_pandas(df, preserve_index=False)
 
 
+def _integer_columns(passages: pd.DataFrame) -> None:
+    """Passages' counts and times that the analysis holds as floats (NaN: none) as the integers they are."""
+    for c in ("detection_second_ns", "records_in_detection_second"):
+        if c in passages.columns:
+            passages[c] = passages[c].astype("Int64")
+
+
 def tables_from(data: Any) -> dict[str, pd.DataFrame]:
     """The derived tables of one ReportData, as DataFrames (times as ns integers and timestamps)."""
     out: dict[str, pd.DataFrame] = {}
@@ -99,6 +107,7 @@ def tables_from(data: Any) -> dict[str, pd.DataFrame]:
     if job is not None:
         p = job.analysis.passages.copy()
         p["start"] = pd.to_datetime(p["start_ns"], unit="ns")
+        _integer_columns(p)
         out["passages"] = p
         ax = job.analysis.axles.copy()
         heads = job.analysis.heads
@@ -125,7 +134,12 @@ def cross_head_tables(data: Any) -> dict[str, pd.DataFrame]:
         led["time"] = pd.to_datetime(led["time_ns"], unit="ns")
         out["count_ledger"] = led
     if data.findings:
-        out["health_findings"] = pd.DataFrame([f.to_dict() for f in data.findings])
+        hf = pd.DataFrame([f.to_dict() for f in data.findings])
+        # Integers as integers (a finding of all channels has none), the time as the other tables' times.
+        hf["channel"] = hf["channel"].astype("Int8")
+        hf["time_ns"] = hf["time_ns"].astype("Int64")
+        hf["time"] = pd.to_datetime(hf["time_ns"], unit="ns")
+        out["health_findings"] = hf
     if data.crossing is not None and data.crossing.timelines:
         rows = []
         for r in data.crossing.timelines:
@@ -226,6 +240,7 @@ def _store_partition(root: Path, key: PartitionKey, rows: DerivedRows, generatio
     if len(p):
         p = p.sort_values("start_ns", kind="stable").reset_index(drop=True)
         p["day"] = key.day
+        _integer_columns(p)
         frames["passages"] = p
     ax = rows.axles.drop(columns=["_key_day"], errors="ignore")
     if len(ax):

@@ -288,6 +288,9 @@ class _Ingest:
             table, report = parse_can([source])
             name = "frames"
         table = table.copy()
+        if name == "fixes":
+            # The archive's one time type: naive UTC, nanoseconds (TIMESTAMP_NS), as every other table's times.
+            table["time"] = _naive_utc(table["time"])
         if "file" in table.columns:
             table["file"] = e["path"]
         table["file_seq"] = np.int32(e["file_seq"])
@@ -414,6 +417,13 @@ class _Ingest:
         if written:
             self.new.tables.setdefault("rejected", []).extend(written)
             self.new_parts += written
+
+
+def _naive_utc(times: Any) -> Any:
+    """Zone-aware times (the GNSS parser's, UTC) as naive UTC; naive ones as they are."""
+    if getattr(times.dt, "tz", None) is None:
+        return times
+    return times.dt.tz_convert("UTC").dt.tz_localize(None)
 
 
 class _PhaseClock:
