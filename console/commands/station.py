@@ -46,7 +46,14 @@ def station(
     ] = None,
     start: Annotated[str | None, typer.Option("--from", help="With --replay --archive: from this time (ISO).")] = None,
     end: Annotated[str | None, typer.Option("--to", help="With --replay --archive: up to this time (ISO).")] = None,
-    serve: Annotated[bool, typer.Option("--serve", help="Serve the view to a browser (textual-serve).")] = False,
+    serve: Annotated[
+        bool,
+        typer.Option(
+            "--serve",
+            help="Serve the view to a browser (textual-serve): each tab starts its own view, behind textual-serve's"
+            " splash for a few seconds; it ends when its tab closes or the server stops.",
+        ),
+    ] = False,
     host: Annotated[str, typer.Option("--host", help="With --serve: address to listen on.")] = "127.0.0.1",
     port: Annotated[int, typer.Option("--port", help="With --serve: port to listen on.", min=1, max=65535)] = 8000,
 ) -> None:
@@ -55,6 +62,10 @@ def station(
     files = [Path(a) for a in args or []]
 
     def body() -> int:
+        if not serve:
+            from console.tui.serve_guard import guard_served_app
+
+            guard_served_app()  # an app started by station --serve: it goes with its tab and its server
         if serve or live:
             from console.commands.station_live import live_uris, run_live_station
 
