@@ -129,11 +129,16 @@ def to_svg(fig: Figure, title: str, prefix: str) -> str:
     return text.rstrip("\n")
 
 
-def _legend(fig: Figure, handles: list[Any], labels: list[str], note: str = "") -> None:
-    """The legend in one row above the plot; a note (how to read it) on a line of its own below it."""
+def _legend(fig: Figure, handles: list[Any], labels: list[str], note: str = "", heading: str = "") -> None:
+    """The legend in one row above the plot (under a heading, if any); a note on a line of its own below it."""
+    height_in = fig.get_size_inches()[1]
+    top = 1.0
+    if heading:
+        fig.text(0.07, 1 - 0.08 / height_in, label(heading), ha="left", va="top", fontsize=11, fontweight="bold")
+        top = 1 - 0.26 / height_in
     if handles:
         fig.legend(
-            handles, labels, loc="upper left", bbox_to_anchor=(0.07, 1.0), ncol=min(len(handles), 8), frameon=False
+            handles, labels, loc="upper left", bbox_to_anchor=(0.07, top), ncol=min(len(handles), 8), frameon=False
         )
     if note:
         height_in = fig.get_size_inches()[1]
@@ -340,7 +345,7 @@ def lines_plot(lines: Sequence[Line], title: str, y_caption: str, band: tuple[fl
 
     fig = figure(3.4)
     panels = spread_of(*(ln.t_ns for ln in lines)).panels()
-    axes = time_axes(fig, panels, (0.07, 0.16, 0.91, 0.66))
+    axes = time_axes(fig, panels, (0.07, 0.16, 0.91, 0.6))
     axes[0].set_ylabel(y_caption)
     handles = []
     for i, ln in enumerate(lines):
@@ -353,8 +358,7 @@ def lines_plot(lines: Sequence[Line], title: str, y_caption: str, band: tuple[fl
     if band is not None:
         for ax in axes:
             ax.axhspan(band[0], band[1], color="#2e7d32", alpha=0.10, linestyle="--", edgecolor="#2e7d32")
-    _legend(fig, handles, [label(ln.label) for ln in lines])
-    axes[0].set_title(label(title), loc="left", fontsize=11, fontweight="bold", pad=22)
+    _legend(fig, handles, [label(ln.label) for ln in lines], heading=title)
     fig.supxlabel("time (the logs' own)", fontsize=9, y=0.01)
     return to_svg(fig, title, prefix)
 
@@ -578,7 +582,7 @@ def day_plot(series: Sequence[DaySeries], title: str, y_caption: str, prefix: st
     fig = figure(3.4)
     spread = spread_of(*(p.day * NS_PER_DAY for p in parsed))
     panels = [(lo - NS_PER_DAY // 2, hi + NS_PER_DAY // 2) for lo, hi in spread.panels()]
-    axes = time_axes(fig, panels, (0.07, 0.16, 0.91, 0.66))
+    axes = time_axes(fig, panels, (0.07, 0.16, 0.91, 0.6))
     axes[0].set_ylabel(y_caption)
     handles = []
     for i, (s, p) in enumerate(zip(series, parsed, strict=True)):
@@ -597,7 +601,6 @@ def day_plot(series: Sequence[DaySeries], title: str, y_caption: str, prefix: st
     if zero_line:
         for ax in axes:
             ax.axhline(0.0, color="#b71c1c", linestyle="--", linewidth=1.0)
-    _legend(fig, handles, [label(s.label) for s in series])
-    axes[0].set_title(label(title), loc="left", fontsize=11, fontweight="bold", pad=22)
+    _legend(fig, handles, [label(s.label) for s in series], heading=title)
     fig.supxlabel("day", fontsize=9, y=0.01)
     return to_svg(fig, title, prefix)
