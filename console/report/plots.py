@@ -189,8 +189,10 @@ def spread_of(*times: np.ndarray) -> TimeSpread:
 
 
 def _padded(lo: int, hi: int) -> tuple[int, int]:
-    if hi <= lo:
-        return lo - 60 * NS, hi + 60 * NS
+    """A panel's time range: the data and a margin, two minutes at least (a date axis needs ticks to place)."""
+    if hi - lo < 120 * NS:
+        mid = (lo + hi) // 2
+        return mid - 60 * NS, mid + 60 * NS
     pad = (hi - lo) // 30
     return lo - pad, hi + pad
 
@@ -216,8 +218,11 @@ def time_axes(fig: Figure, panels: Sequence[tuple[int, int]], rect: tuple[float,
         ax = fig.add_axes((left + i * (w + gap), bottom, w, height), sharey=axes[0] if axes else None)
         a, b = _padded(lo, hi)
         ax.set_xlim(float(_dates(np.array([a]))[0]), float(_dates(np.array([b]))[0]))
-        # minticks 3: two years read in months, not as two year labels.
-        locator = mdates.AutoDateLocator(minticks=3, maxticks=max(4, 9 // n))
+        # One panel: minticks 3 (two years read in months, not as two year labels), maxticks 9; narrower
+        # panels fewer labels.  Either way every span finds an interval (no "unable to pick" fallback).
+        locator = (
+            mdates.AutoDateLocator(minticks=3, maxticks=9) if n == 1 else mdates.AutoDateLocator(minticks=2, maxticks=5)
+        )
         ax.xaxis.set_major_locator(locator)
         ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
         if i:
