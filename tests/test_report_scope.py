@@ -93,3 +93,11 @@ def test_the_markdown_says_what_the_report_is_about(archive: Path) -> None:
     assert "About: counting head WS5" in res.stdout
     assert "Verdict: OK" in res.stdout
     assert "WS3" not in res.stdout.split("## 2.")[0]
+
+
+def test_a_scope_with_nothing_in_the_archive_is_an_error_not_an_ok(archive: Path) -> None:
+    for scope in (["--device", "999"], ["--head", "WS9"]):
+        res = runner.invoke(app, ["report", "--archive", str(archive), *scope])
+        assert res.exit_code == 2, res.output
+        assert res.stderr.startswith("trackside: error: ") and res.stderr.count("\n") == 1
+        assert "no record, frame or voltage of it" in res.stderr

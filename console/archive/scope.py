@@ -118,6 +118,13 @@ def _cut_inputs(root: Path, manifest: Manifest, data: ReportData, window: Window
         t = pq.read_table(root / rel, columns=["sensor", "file_seq"])
         if heads & {str(s) for s in t.column("sensor").to_pylist()}:
             seqs |= {int(s) for s in t.column("file_seq").to_pylist()}
+    if not seqs:
+        from console.report.collect import ReportInputError
+        from console.safe_text import clean
+
+        what = f"--head {clean(window.head)}" if window.head is not None else f"--device {window.device_id}"
+        # A report about nothing would say OK: say instead that nothing is known of it.
+        raise ReportInputError(f"{what}: no record, frame or voltage of it in the archive (in the window asked)")
     others = sum(1 for i in data.inputs if by_path.get(i.path) not in seqs)
     data.inputs = [i for i in data.inputs if by_path.get(i.path) in seqs]
     if others:
