@@ -64,8 +64,9 @@ AT_END = ("health_findings", "crossing_timelines")
 DERIVED = (*STREAMED, *AT_END)
 STATE_TABLE = "pipeline_state"
 # Bump when derived rows change meaning: an archive derived by another version is rebuilt.
-# 4: derived by the pipeline in the ingest's one pass, its state kept between ingests.
-DERIVE_VERSION = 4
+# 4: integers stored as integers (passages' detection second), finding times as TIMESTAMP_NS.
+# 5: derived by the pipeline in the ingest's one pass, its state kept between ingests.
+DERIVE_VERSION = 5
 
 
 def derive_settings(manifest: Manifest, layout: Layout | None) -> PipelineSettings:

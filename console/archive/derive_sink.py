@@ -54,6 +54,8 @@ class ArchiveSink(Sink):
         speeds = [flat[a:b] for a, b in bounds]
         p.attrs = {}
         p = p.drop(columns=["axle_speeds_start", "axle_speeds_stop"])
+        for c in ("detection_second_ns", "records_in_detection_second"):  # integers (NaN: none) as integers
+            p[c] = p[c].astype("Int64")
         start_ns = p["start_ns"].to_numpy(np.int64)
         p["start"] = start_ns.astype("datetime64[ns]")
         day = start_ns // NS_PER_DAY

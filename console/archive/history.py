@@ -284,6 +284,8 @@ def _per_file_tables(root: Path, manifest: Manifest, table: str) -> list[tuple[i
         t = pq.read_table(root / rel)
         df = t.to_pandas()
         seq = int(df["file_seq"].iloc[0]) if len(df) else -1
+        if table == "fixes" and getattr(df["time"].dt, "tz", None) is None:
+            df["time"] = df["time"].dt.tz_localize("UTC")  # stored naive UTC; the parser's fixes are zone-aware
         out.append((seq, df.drop(columns=["file_seq"])))
     return sorted(out, key=lambda x: x[0])
 
@@ -407,7 +409,7 @@ REPORT_KINDS = {
 }
 
 
-def parse_reports(root: Path, manifest: Manifest) -> dict[str, ParseReport]:
+def parse_reports(root: Path, manifest: Manifest, only: set[int] | None = None) -> dict[str, ParseReport]:
     """Per report section (diagnostic, frames, can, voltages, gnss): the parse report of the archived files.
 
     Rebuilt from each file's accounting in the ledger and its rejected lines,
@@ -423,6 +425,8 @@ def parse_reports(root: Path, manifest: Manifest) -> dict[str, ParseReport]:
         section = REPORT_KINDS.get(str(e["kind"]))
         if section is None or not e.get("active", True) or "report" not in e:
             continue
+        if only is not None and int(e["file_seq"]) not in only:
+            continue  # a report scoped to a head: the files that hold it (console.archive.scope)
         section_of[int(e["file_seq"])] = section
         rep = out[section]
         known = set(FileReport.__dataclass_fields__)
@@ -511,7 +515,14 @@ def archive_collector(
             m = require_archive(root)
             # The derived tables when they hold this report (the layout they were derived with), else the records.
             how: Literal["read", "history"] = "history" if derived_for(m, layout) else "read"
-            return report_data(root, layout, window, manifest=m, job=how)
+            data = report_data(root, layout, window, manifest=m, job=how)
+        except ArchiveError as exc:
+            raise ReportInputError(str(exc)) from None
+        try:
+            from console.archive.scope import scope_report
+
+            scope_report(root, m, data, window)  # --head / --device: a report about it
+            return data
         except ArchiveError as exc:
             raise ReportInputError(str(exc)) from None
 
@@ -583,7 +594,12 @@ def cross_head_tables(data: ReportData) -> dict[str, pd.DataFrame]:
         led["time"] = pd.to_datetime(led["time_ns"], unit="ns")
         out["count_ledger"] = led
     if data.findings:
-        out["health_findings"] = pd.DataFrame([f.to_dict() for f in data.findings])
+        hf = pd.DataFrame([f.to_dict() for f in data.findings])
+        # Integers as integers (a finding of all channels has none), the time as the other tables' times.
+        hf["channel"] = hf["channel"].astype("Int8")
+        hf["time_ns"] = hf["time_ns"].astype("Int64")
+        hf["time"] = pd.to_datetime(hf["time_ns"], unit="ns")
+        out["health_findings"] = hf
     if data.crossing is not None and data.crossing.timelines:
         rows = []
         for r in data.crossing.timelines:

@@ -178,7 +178,9 @@ def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[
     names = con.sql("SELECT * FROM passages LIMIT 0").columns
     if "axle_speeds_kmh" not in names:  # no passage at all: the view has the empty table's columns
         return pd.DataFrame(columns=list(PASSAGE_COLUMNS))
-    select = ", ".join(f'"{c}"' for c in [*columns, "axle_speeds_kmh"])
+    # The analysis' passages hold floats (NaN where there is none) where the archive stores integers.
+    as_float = {"detection_second_ns", "records_in_detection_second"}
+    select = ", ".join(f'"{c}"::DOUBLE AS "{c}"' if c in as_float else f'"{c}"' for c in [*columns, "axle_speeds_kmh"])
     df = con.execute(f"SELECT {select} FROM passages{where} ORDER BY start_ns", params).df()
     # The batch lists passages head by head (heads in the order they first appear), each in time order.
     index = {h: i for i, h in enumerate(heads)}

@@ -144,6 +144,9 @@ class _Ingest:
         self.new_diag_seqs: list[int] = []  # diagnostic files (or their new bytes) read by this ingest
         self.on_cluster = False  # diagnostic files are parsed on the cluster's workers (Dask engine)
         self.queued: list[tuple[Path, Path, dict[str, Any], ledger.Plan, FileOutcome]] = []
+        # The layout file among the inputs that the derivation uses (report's rule), and --layout.
+        self.layout_file: Path | None = None
+        self.layout_spec: str | None = None
 
     def _reject(self, row: dict[str, Any]) -> None:
         self._rejected_rows.append(row)
@@ -180,6 +183,10 @@ class _Ingest:
 
     def add_file(self, path: Path, shown: str) -> FileOutcome:
         kind, note = _kind(path)
+        if kind == "layout":
+            from console.report.collect import layout_note
+
+            note = layout_note(path, self.layout_file, self.layout_spec)
         if kind not in (DIAGNOSTIC, *STORED_ELSEWHERE, "frames", "can", "voltages"):
             why = note or f"{kind}: not archived"
             self._ledger_row(shown, kind, "not-read", why, None, 0, 0, None)
@@ -327,6 +334,9 @@ class _Ingest:
             table, report = parse_can([source])
             name = "frames"
         table = table.copy()
+        if name == "fixes":
+            # The archive's one time type: naive UTC, nanoseconds (TIMESTAMP_NS), as every other table's times.
+            table["time"] = _naive_utc(table["time"])
         if "file" in table.columns:
             table["file"] = e["path"]
         table["file_seq"] = np.int32(e["file_seq"])
@@ -498,6 +508,13 @@ def parse_diag_file(root: Path, generation: int, source: str, shown: str, file_s
         raise
 
 
+def _naive_utc(times: Any) -> Any:
+    """Zone-aware times (the GNSS parser's, UTC) as naive UTC; naive ones as they are."""
+    if getattr(times.dt, "tz", None) is None:
+        return times
+    return times.dt.tz_convert("UTC").dt.tz_localize(None)
+
+
 class _PhaseClock:
     """Wall seconds of consecutive steps, into ``phases`` (the summary's, also in ``ingest --json``)."""
 
@@ -536,6 +553,22 @@ def expand_inputs(paths: Sequence[Path], root: Path) -> list[tuple[Path, str]]:
     return out
 
 
+def _inputs_layout(job: _Ingest, inputs: list[tuple[Path, str]], layout: str | None) -> str | None:
+    """The layout the derivation uses: ``--layout``, else a layout file among the inputs, by ``report``'s rule."""
+    from console.layout import LayoutError, load_layout
+    from console.report.collect import chosen_layout_file
+
+    job.layout_spec = layout
+    job.layout_file = chosen_layout_file([p for p, _ in inputs], layout)
+    if job.layout_file is None:
+        return layout
+    try:
+        load_layout(job.layout_file)  # a bad layout fails before anything is read
+    except LayoutError as exc:
+        raise ArchiveError(str(exc)) from None
+    return str(job.layout_file.resolve())
+
+
 def run_ingest(
     paths: Sequence[Path],
     root: Path,
@@ -559,11 +592,12 @@ def run_ingest(
         job = _Ingest(root, current, on_bytes, None)
         summary = IngestSummary(root, current.generation)
         try:
+            clock = _PhaseClock(summary.phases)
+            inputs = expand_inputs(paths, root)
+            layout = _inputs_layout(job, inputs, layout)
             # The derivation writes into the new manifest, as the records do; on a cluster, per group of heads.
             job.derivation = Derivation(root, job.new, layout, grouped=on_cluster())
             job.on_cluster = on_cluster()
-            clock = _PhaseClock(summary.phases)
-            inputs = expand_inputs(paths, root)
             for path, shown in inputs:
                 if on_file is not None:
                     on_file(shown)

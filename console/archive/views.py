@@ -88,8 +88,10 @@ EMPTY_COLUMNS: dict[str, tuple[tuple[str, str], ...]] = {
         ("severity", "VARCHAR"),
         ("rule", "VARCHAR"),
         ("counting_head", "VARCHAR"),
-        ("channel", "BIGINT"),
+        ("channel", "TINYINT"),
         ("message", "VARCHAR"),
+        ("time_ns", "BIGINT"),
+        ("time", _T),
     ),
     "section_states": (("time", _T), ("day", "DATE"), ("section", "VARCHAR"), ("state", "VARCHAR")),
     "count_ledger": (("time", _T), ("day", "DATE"), ("section", "VARCHAR"), ("head", "VARCHAR"), ("delta", "BIGINT")),
@@ -101,6 +103,16 @@ EMPTY_COLUMNS: dict[str, tuple[tuple[str, str], ...]] = {
         ("text", "VARCHAR"),
     ),
     "ingests": (("generation", "BIGINT"), ("path", "VARCHAR"), ("action", "VARCHAR"), ("note", "VARCHAR")),
+}
+
+
+# The one type of each kind of value, whatever the parts hold: times are TIMESTAMP_NS (the logs' times, UTC),
+# integers are integers.  Parts written before trackside 0.1 held zone-aware fix times, finding times as text
+# and nullable integers as floats; the views cast them (and every new part is written with these types).
+COLUMN_TYPES: dict[str, dict[str, str]] = {
+    "fixes": {"time": _T},
+    "health_findings": {"time": _T, "time_ns": "BIGINT", "channel": "TINYINT"},
+    "passages": {"detection_second_ns": "BIGINT", "records_in_detection_second": "BIGINT"},
 }
 
 
@@ -140,6 +152,8 @@ def connect(
     if spill_dir is not None:
         config.update(memory_limit=INTERNAL_MEMORY_LIMIT, temp_directory=str(spill_dir), threads=2)
     con = duckdb.connect(":memory:", config=config)
+    # Zone-aware values (old fix parts, a user's now()) in UTC, the archive's one zone, whatever the machine's.
+    con.execute("SET TimeZone = 'UTC'")
     base = root.resolve()
     only = partition_filter(con, sql) if sql is not None else {}
     for table, keys in TABLES.items():
@@ -158,7 +172,9 @@ def connect(
                 hive = ", hive_partitioning = false"
             # Partitioned tables share one schema: binding reads one footer, not thousands.
             union = "" if keys else ", union_by_name = true"
-            con.execute(f"CREATE VIEW {table} AS SELECT * FROM read_parquet({files}{union}{hive})")
+            casts = ", ".join(f"CAST({c} AS {t}) AS {c}" for c, t in COLUMN_TYPES.get(table, {}).items())
+            star = f"* REPLACE ({casts})" if casts else "*"
+            con.execute(f"CREATE VIEW {table} AS SELECT {star} FROM read_parquet({files}{union}{hive})")
         else:
             cols = EMPTY_COLUMNS.get(table, (("file", "VARCHAR"), ("line", "BIGINT")))
             select = ", ".join(f"NULL::{typ} AS {name}" for name, typ in cols)
@@ -321,6 +337,25 @@ def run_query_result(root: Path, sql: str, manifest: Manifest | None = None) -> 
             if any(word in str(t).upper() for t in rel.types for word in _ARROW_TYPE_WORDS):
                 return QueryResult(names, arrow=rel.to_arrow_table())
             return QueryResult(names, rows=rel.fetchall())
+        except duckdb.Error as exc:
+            raise QueryError(one_line(exc)) from None
+    finally:
+        con.close()
+
+
+def show_query(root: Path, sql: str, manifest: Manifest | None = None, width: int | None = None) -> str:
+    """One read-only query's result in DuckDB's box, fitted to ``width`` (the terminal's) (console.archive.box)."""
+    import duckdb
+
+    from console.archive.box import render
+
+    con = _query_connection(root, sql, manifest)
+    try:
+        try:
+            rel = con.sql(sql)
+            if rel is None:  # a statement without a result (none passes check_read_only today)
+                raise QueryError("the statement returns no rows")
+            return render(rel, width)
         except duckdb.Error as exc:
             raise QueryError(one_line(exc)) from None
     finally:

@@ -161,6 +161,8 @@ def _print_summary(summary: object) -> None:
     for f in summary.files:
         if f.action in ("new", "grown", "replace"):
             lines.append(f"added    {clean(f.path)}: {f.records} records, {f.rejected} rejected ({clean(f.note)})")
+        elif f.kind == "layout":
+            lines.append(f"layout   {clean(f.path)}: {clean(f.note)}")
         else:
             lines.append(f"skipped  {clean(f.path)}: {clean(f.note)}")
     state = f"generation {summary.generation}" if summary.published else "nothing new: archive unchanged"

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from console import exit_codes
-from console.commands.common import Console, fail, guard
+from console.commands.common import fail, guard
 from console.commands.ingest import ArchiveOpt
 
 if TYPE_CHECKING:
@@ -23,17 +23,26 @@ FORMATS = ("table", "csv", "json", "jsonl")
 def query(
     sql: Annotated[str | None, typer.Argument(help="One SELECT (or WITH, DESCRIBE, SHOW, EXPLAIN) statement.")] = None,
     archive: ArchiveOpt = None,
-    fmt: Annotated[str, typer.Option("--format", help="table, csv, json or jsonl.")] = "table",
+    fmt: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            help="table (DuckDB's box fitted to the terminal: long values cut with …, the first and last 20 of"
+            " more than 40 rows), or csv, json, jsonl (every row, every value whole).",
+        ),
+    ] = "table",
     show_schema: Annotated[bool, typer.Option("--schema", help="List the tables and their columns.")] = False,
     preset: Annotated[
         str | None, typer.Option("--preset", help="A named query (see --list-presets).", show_default=False)
     ] = None,
-    list_presets: Annotated[bool, typer.Option("--list-presets", help="List the named queries.")] = False,
+    list_presets: Annotated[
+        bool, typer.Option("--list-presets", help="List the named queries (--preset NAME) and what each shows.")
+    ] = False,
 ) -> None:
     """SQL (DuckDB) over the archive, read-only: one view per table."""
     from console.archive.presets import PRESETS
     from console.archive.store import ArchiveError, archive_dir
-    from console.archive.views import QueryError, require_archive, run_query_result, schema
+    from console.archive.views import QueryError, require_archive, run_query_result, schema, show_query
 
     root = archive_dir(archive)
 
@@ -57,6 +66,10 @@ def query(
                     raise fail(f"--preset: unknown {preset!r}; known: {', '.join(PRESETS)}")
                 text = PRESETS[preset].sql
             assert text is not None
+            if fmt == "table":
+                sys.stdout.write(show_query(root, text, manifest))
+                sys.stdout.flush()
+                return exit_codes.OK
             result = run_query_result(root, text, manifest)
         except (ArchiveError, QueryError) as exc:
             raise fail(str(exc)) from None
@@ -155,14 +168,7 @@ def _emit(names: list[str], rows: list[tuple[Any, ...]] | list[tuple[str, str, s
         for r in rows:
             out.write(json.dumps(dict(zip(names, r, strict=True)), ensure_ascii=False, default=str) + "\n")
     else:
-        from rich.table import Column, Table
+        from console.archive.box import render_rows
 
-        from console.safe_text import inert
-
-        table = Table(*[Column(inert(n)) for n in names], show_lines=False)
-        for r in rows:
-            table.add_row(*[inert("" if v is None else v) for v in r])
-        con = Console(highlight=False)
-        con.print(table)
-        con.print(f"{len(rows)} rows", markup=False)
+        out.write(render_rows(names, rows))
     out.flush()

@@ -47,7 +47,14 @@ def station(
     ] = None,
     start: Annotated[str | None, typer.Option("--from", help="With --replay --archive: from this time (ISO).")] = None,
     end: Annotated[str | None, typer.Option("--to", help="With --replay --archive: up to this time (ISO).")] = None,
-    serve: Annotated[bool, typer.Option("--serve", help="Serve the view to a browser (textual-serve).")] = False,
+    serve: Annotated[
+        bool,
+        typer.Option(
+            "--serve",
+            help="Serve the view to a browser (textual-serve): each tab starts its own view, behind textual-serve's"
+            " splash for a few seconds; it ends when its tab closes or the server stops.",
+        ),
+    ] = False,
     host: Annotated[str, typer.Option("--host", help="With --serve: address to listen on.")] = "127.0.0.1",
     port: Annotated[int, typer.Option("--port", help="With --serve: port to listen on.", min=1, max=65535)] = 8000,
     metrics: MetricsOpt = None,
@@ -59,6 +66,10 @@ def station(
     def body() -> int:
         if metrics is not None and (serve or not live):
             raise fail("--metrics goes with --live (with --serve each browser runs its own view: use follow --metrics)")
+        if not serve:
+            from console.tui.serve_guard import guard_served_app
+
+            guard_served_app()  # an app started by station --serve: it goes with its tab and its server
         if serve or live:
             from console.commands.station_live import live_uris, run_live_station
 

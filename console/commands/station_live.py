@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import shlex
 import sys
 from pathlib import Path
 
@@ -57,10 +56,10 @@ def run_live_station(
     except SourceError as exc:
         raise fail(str(exc)) from None
     if serve:
-        from textual_serve.server import Server
+        from console.tui.served import StationServer
 
-        command = shlex.join(served_command(layout, live, seed, speed, replay, files))
-        Server(command, host=host, port=port, title="trackside station").serve()
+        argv = served_command(layout, live, seed, speed, replay, files)
+        StationServer(argv, host=host, port=port, title="trackside station").serve()
         return exit_codes.OK
     if not (sys.stdin.isatty() and sys.stdout.isatty()) and WEB_DRIVER_ENV not in os.environ:
         raise fail("the station view needs a terminal: run it without pipes or redirection (or use --serve)")

@@ -124,7 +124,7 @@ def _is_voltage_header(text: str) -> bool:
 
 def recognise(path: Path) -> tuple[str, str]:
     """(format, note) of one file; InputError when it cannot be opened at all."""
-    if path.suffix.lower() == ".toml":
+    if is_layout_file(path):
         return LAYOUT, ""
     head = _peek(path)
     if head.startswith(b"LOGG"):
@@ -261,6 +261,29 @@ def expand(inputs: Sequence[Path], exclude: Path | None = None) -> tuple[list[Pa
     return files, warnings
 
 
+def is_layout_file(path: Path) -> bool:
+    return path.suffix.lower() == ".toml"
+
+
+def chosen_layout_file(files: Sequence[Path], layout_spec: str | None) -> Path | None:
+    """The layout file among the inputs that a run over them uses: none when ``--layout`` is given, else the first.
+
+    The one rule for ``report`` and ``ingest`` (a ``trackside simulate`` output carries its ``layout.toml``).
+    """
+    if layout_spec is not None:
+        return None
+    return next((p for p in files if is_layout_file(p)), None)
+
+
+def layout_note(path: Path, chosen: Path | None, layout_spec: str | None) -> str:
+    """What became of one layout file among the inputs (the inputs table, ingest's summary)."""
+    if path == chosen:
+        return "the layout used"
+    if layout_spec is not None:
+        return "not used: --layout given"
+    return f"not used: the layout {show_path(chosen) if chosen is not None else '?'} is used"
+
+
 def _load(spec: str | Path) -> Layout:
     try:
         return load_layout(spec)
@@ -288,27 +311,19 @@ def collect(
     """
     files, warnings = expand(inputs, exclude)
     recognised = [(p, *recognise(p)) for p in files]
+    layout_file = chosen_layout_file(files, layout_spec)
     layout: Layout | None = None
-    layout_file: Path | None = None
     if layout_spec is not None:
         layout = _load(layout_spec)
-    else:
-        layout_file = next((p for p, fmt, _ in recognised if fmt == LAYOUT), None)
-        if layout_file is not None:
-            layout = _load(layout_file)
+    elif layout_file is not None:
+        layout = _load(layout_file)
 
     rows: list[InputFile] = []
     for p, fmt, note in recognised:
         read = fmt not in (LAYOUT, TRUTH, EMPTY, UNKNOWN)
         if fmt == LAYOUT:
             read = p == layout_file
-            note = (
-                "the layout used"
-                if read
-                else "not used: --layout given"
-                if layout_spec is not None
-                else f"not used: the layout {layout_file} is used"
-            )
+            note = layout_note(p, layout_file, layout_spec)
         rows.append(InputFile(str(p), fmt, read, note))
     if not any(r.read and r.format != LAYOUT for r in rows):
         why = "; ".join(f"{r.path}: {r.note or r.format}" for r in rows[:3]) or "no files"

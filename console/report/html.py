@@ -3,16 +3,19 @@
 The page renders the same outline as the Markdown face (tables, in the
 same order) and draws the plots where the outline has a figure: speed per
 passage, section states over time, crossing warnings against the head's
-arrival and the tail clearing, and the analog values per channel.  It
+arrival and the tail clearing, and the analog values per channel
+(matplotlib's SVG backend, inlined: :mod:`console.report.plots`).  It
 reads at 1024 px and prints on A4 (``@media print``: no navigation, no
 scroll boxes, colours kept, rows and plots not split across pages).
-Every log-derived text, in tables and inside SVG, goes through
-:func:`console.report.svg.esc`: control characters as ``\\xNN``, bidi
-overrides and isolates as ``\\u202e``, then entity-escaped.
+Every log-derived text goes through :func:`esc` (tables) or
+:func:`console.report.plots.label` (plots): control characters as
+``\\xNN``, bidi overrides and isolates as ``\\u202e``, then entity-escaped.
 """
 
 from __future__ import annotations
 
+import html
+import itertools
 import re
 from collections.abc import Callable, Iterator
 from functools import partial
@@ -23,11 +26,11 @@ import numpy as np
 from console.analysis.passages import Columns
 from console.analysis.sections import SectionState
 from console.analysis.timefmt import display
-from console.report import svg, trends
+from console.report import plots, trends
 from console.report.jsonwrite import Write
 from console.report.model import ReportData, analog_series, natural_key, timeline_order
 from console.report.outline import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table, outline
-from console.report.svg import esc
+from console.safe_text import PLAIN, clean
 
 STYLE = """
 *{box-sizing:border-box}
@@ -89,15 +92,22 @@ footer{margin-top:28px;font-size:12px;color:#57606a}
 CSP = "default-src 'none'; style-src 'unsafe-inline'; img-src data:"
 
 STATE_STYLES = {
-    str(SectionState.CLEAR): svg.StateStyle("#e3f2e1", "#1b5e20", "·", ""),
-    str(SectionState.OCCUPIED): svg.StateStyle("#f6c343", "#5d4300", "#", "hatch"),
-    str(SectionState.DISTURBED): svg.StateStyle("#c62828", "#ffffff", "!", "cross"),
-    str(SectionState.PREPARATORY): svg.StateStyle("#d1c4e9", "#311b92", "?", "dots"),
+    str(SectionState.CLEAR): plots.StateStyle("#e3f2e1", "#1b5e20", "·", "", 0),
+    str(SectionState.OCCUPIED): plots.StateStyle("#f6c343", "#5d4300", "#", "//", 2),
+    str(SectionState.DISTURBED): plots.StateStyle("#c62828", "#ffffff", "!", "xx", 3),
+    str(SectionState.PREPARATORY): plots.StateStyle("#d1c4e9", "#311b92", "?", "..", 1),
 }
 _TAGGED = re.compile(r"^(state|sev)-")
 LONG_CELL_CHARS = 60
 # What the speed plot reads of each train passage (besides its head).
 _PLOTTED = ("start_ns", "speed_kmh_whole_train", "speed_kmh_per_axle_mean", "axles")
+
+
+def esc(value: object) -> str:
+    """Log text made inert for HTML: control characters as \\xNN, then entity-escaped."""
+    if type(value) is str and PLAIN.fullmatch(value):
+        return value  # nothing to escape (most table cells)
+    return html.escape(clean(value), quote=True)
 
 
 def _cell(c: Cell) -> str:
@@ -152,27 +162,8 @@ def _trains(data: ReportData) -> tuple[Columns, dict[str, Callable[[], np.ndarra
     return cols, {name: partial(np.flatnonzero, names == name) for name in set(names.tolist())}
 
 
-def _speed_points(
-    head: str, t_ns: list[int], whole: list[float], axle: list[float], axles: list[int]
-) -> Iterator[svg.Point]:
-    """A head's points in passage order: each passage's whole-train speed, then its per-axle mean."""
-    for t, w, a, k in zip(t_ns, whole, axle, axles, strict=True):
-        when = display(t)
-        if np.isfinite(w):
-            yield svg.Point(t, w, f"{head} {when}: whole train {w:.1f} km/h")
-        if np.isfinite(a):
-            yield svg.Point(t, a, f"{head} {when}: per-axle mean {a:.1f} km/h ({k} axles)", filled=False)
-
-
-def _head_points(head: str, cols: Columns, rows: Callable[[], np.ndarray]) -> Iterator[svg.Point]:
-    """A head's points, its rows found when the plot reaches it (one head's numbers in memory at a time)."""
-    r = rows()
-    t, whole, axle = cols["start_ns"][r], cols["speed_kmh_whole_train"][r], cols["speed_kmh_per_axle_mean"][r]
-    yield from _speed_points(head, t.tolist(), whole.tolist(), axle.tolist(), cols["axles"][r].tolist())
-
-
-def _speeds(data: ReportData) -> Iterator[str] | None:
-    """The speed plot's SVG in pieces, a point per train passage and speed (None: nothing to draw)."""
+def _speeds(data: ReportData) -> str | None:
+    """The speed plot, a point per train passage and speed (None: nothing to draw)."""
     found = _trains(data)
     if found is None:
         return None
@@ -184,11 +175,14 @@ def _speeds(data: ReportData) -> Iterator[str] | None:
     if not drawn.any():
         return None
     top = max(float(whole[has_whole].max(initial=-np.inf)), float(axle[has_axle].max(initial=-np.inf)))
-    t = cols["start_ns"][drawn]
-    span = (int(t.min()), int(t.max()))
-    series = [svg.Series(head, _head_points(head, cols, heads[head])) for head in sorted(heads, key=natural_key)]
-    title, note = "Speed per passage", "filled: whole train · ring: per-axle mean"
-    return svg.scatter_over_time(series, span, top, title, "km/h", note)
+    spread = plots.spread_of(np.asarray(cols["start_ns"], np.int64)[drawn])
+
+    def load(rows: Callable[[], np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        r = rows()  # one head's numbers in memory at a time
+        return cols["start_ns"][r], whole[r], axle[r]
+
+    series = [plots.SpeedSeries(h, partial(load, heads[h])) for h in sorted(heads, key=natural_key)]
+    return plots.speed_plot(series, spread, top, "Speed per passage")
 
 
 def _section_changes(data: ReportData) -> tuple[list[str], Callable[[str], Iterator[tuple[int, str, int, str]]]]:
@@ -207,21 +201,20 @@ def _section_changes(data: ReportData) -> tuple[list[str], Callable[[str], Itera
     return list(data.sections.final), changes
 
 
-def _segments(sid: str, changes: Iterator[tuple[int, str, int, str]], t1: int) -> Iterator[svg.Segment]:
+def _segments(changes: Iterator[tuple[int, str, int, str]], t1: int) -> Iterator[plots.Segment]:
     """A section's band: each state from its change to the next (the last one to ``t1``)."""
     prev = next(changes, None)
     while prev is not None:
         nxt = next(changes, None)
-        t, st, count, reason = prev
+        t, st, _count, _reason = prev
         end = nxt[0] if nxt is not None else t1
         if not (end <= t and nxt is not None):  # else replaced at the same instant
-            tip = f"{sid} {st} from {display(t)} to {display(end)} (count {count}): {reason}"
-            yield svg.Segment(t, max(end, t), st, tip)
+            yield plots.Segment(t, max(end, t), st)
         prev = nxt
 
 
-def _sections(data: ReportData) -> Iterator[str] | None:
-    """The state plot's SVG in pieces, a band per section (None: no state change to draw)."""
+def _sections(data: ReportData) -> str | None:
+    """The state plot, a band per section (None: no state change to draw)."""
     if data.history is not None:
         span = data.history.span_ns()
     elif data.sections is not None and not data.sections.timeline.empty:
@@ -234,8 +227,14 @@ def _sections(data: ReportData) -> Iterator[str] | None:
     t0 = span[0]
     t1 = max(data.data_end_ns() or t0, span[1])
     sections, changes = _section_changes(data)
-    rows = [svg.BandRow(sid, _segments(sid, iter(changes(sid)), t1)) for sid in sections]
-    return svg.state_bands(rows, t0, t1, STATE_STYLES, "Section states over time", prefix="ts-state")
+    # Where the changes lie in time (for the panels), read once in chunks: memory bounded by the hours they span.
+    spread = plots.TimeSpread()
+    for sid in sections:
+        it = changes(sid)
+        while chunk := [c[0] for c in itertools.islice(it, 50_000)]:
+            spread.add(np.array(chunk, np.int64))
+    rows = [plots.BandRow(sid, partial(lambda sid: _segments(iter(changes(sid)), t1), sid)) for sid in sections]
+    return plots.state_plot(rows, spread, t1, STATE_STYLES, "Section states over time")
 
 
 def _crossings(data: ReportData) -> tuple[str, int]:
@@ -255,13 +254,8 @@ def _crossings(data: ReportData) -> tuple[str, int]:
             return None if t is None else (t - h) / 1e9
 
         when = display(h)[11:19]
-        tip = (
-            f"{r.crossing} train {r.train}: on {display(r.t_on_ns)}, head {display(h)}, "
-            f"tail clear {display(r.t_tail_clear_ns)}, off {display(r.t_off_ns)}"
-            + (f"; {'; '.join(r.violations)}" if r.violations else "")
-        )
         bars.append(
-            svg.WarningBar(
+            plots.WarningBar(
                 f"{r.crossing} {r.train} {when}",
                 rel(r.t_on_ns),
                 rel(r.t_off_ns),
@@ -269,12 +263,11 @@ def _crossings(data: ReportData) -> tuple[str, int]:
                 rel(r.baseline_off_ns),
                 required.get(r.crossing, 0.0),
                 bool(r.violations),
-                tip,
             )
         )
     if not bars:
         return "", skipped
-    return svg.warning_bars(bars, "Crossing warnings against head and tail arrival"), skipped
+    return plots.warning_plot(bars, "Crossing warnings against head and tail arrival"), skipped
 
 
 def _analog(data: ReportData) -> list[str]:
@@ -283,19 +276,17 @@ def _analog(data: ReportData) -> list[str]:
         return []
     bands = {h.id: h.analog_band for h in data.layout.heads if h.analog_band} if data.layout is not None else {}
     out = []
-    for head in sorted(set(series["head"].tolist()), key=natural_key):
+    for n, head in enumerate(sorted(set(series["head"].tolist()), key=natural_key)):
         part = series[series["head"] == head]
         lines = [
-            svg.Line(
+            plots.Line(
                 f"Sys{ch} Adr {adr:03d}",
                 g["time_ns"].to_numpy(np.int64),
                 g["value"].to_numpy(np.float64),
             )
             for (ch, adr), g in part.groupby(["channel", "address"], sort=True)
         ]
-        out.append(
-            svg.lines_over_time(lines, f"Analog values at {head}", "analog value", bands.get(head), heading=head)
-        )
+        out.append(plots.lines_plot(lines, f"Analog values at {head}", "analog value", bands.get(head), f"analog{n}"))
     return out
 
 
@@ -305,14 +296,11 @@ def _figure(plot: str, data: ReportData, write: Write) -> None:
         caption = (
             "Speed per passage over time: one shape and colour per counting head."
             if plot == "speeds"
-            else "Section states over time (hover a band for the reason); "
+            else "Section states over time (the reasons are in the state timeline below); "
             "marks: · clear, # occupied, ! disturbed, ? preparatory."
         )
         if body is not None:
-            write("<figure>")
-            for piece in body:
-                write(piece)
-            write(f"<figcaption>{esc(caption)}</figcaption></figure>")
+            write(f"<figure>{body}<figcaption>{esc(caption)}</figcaption></figure>")
         return
     if plot == "crossings":
         svg_text, skipped = _crossings(data)

@@ -138,6 +138,8 @@ class ReportData:
     # kept on disk, not in ``job`` and ``sections``.
     passage_spool: ReportPassages | None = None
     history: SectionHistory | None = None
+    # What a report scoped to a head or device is about (console.archive.scope); None: everything read.
+    scope: str | None = None
 
     def attention(self) -> list[Attention]:
         """Unsafe items first, then failing ones; each in time order."""
@@ -584,6 +586,7 @@ def document(data: ReportData) -> dict[str, Any]:
             "pair_window_s": round(s.pair_window_s, 6),
             "section_initial": SECTION_INITIAL,
         },
+        **({"scope": data.scope} if data.scope is not None else {}),
         "verdict": UNSAFE if unsafe else FAILING if failing else "ok",
         "worst_severity": None if worst is None else str(worst),
         "safety": {"unsafe": unsafe, "failing": failing, "items": [a.to_dict() for a in attention]},

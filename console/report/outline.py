@@ -513,6 +513,7 @@ def outline(doc: dict[str, Any]) -> list[Block]:
                 f"trackside {doc['trackside_version']}, schema {doc['schema']}.",
             )
         ),
+        *([Para((f"About: {doc['scope']}.",))] if doc.get("scope") else []),
         Para((Styled(f"Verdict: {verdict.upper()}", f"verdict-{verdict}"), f" ({summary}).")),
     ]
     for part in (_safety_part, _inputs_part, _devices_part, _passages_part, _sections_part, _health_part):

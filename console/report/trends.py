@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections import defaultdict
 from typing import Any
 
-from console.report import svg
+from console.report import plots
 from console.report.outline import Block, Cell, Figure, Heading, Para, _n, _table
 
 SERIES_PER_PLOT = 8
@@ -58,14 +58,15 @@ def trend_plots(plot: str, trends: dict[str, Any] | None) -> list[str]:
         grouped[_series_name(plot, row)].append((str(row["day"]), row[field]))
     names = sorted(grouped, key=_natural)
     series = [
-        svg.DaySeries(n, tuple(d for d, _ in grouped[n]), tuple(v for _, v in grouped[n]))
+        plots.DaySeries(n, tuple(d for d, _ in grouped[n]), tuple(v for _, v in grouped[n]))
         for n in names
         if any(v is not None for _, v in grouped[n])
     ]
     out = []
     for i in range(0, len(series), SERIES_PER_PLOT):
         part = series[i : i + SERIES_PER_PLOT]
-        body = svg.lines_per_day(part, title, Y_CAPTIONS[plot], zero_line=plot == "trend-analog")
+        prefix = f"{plot}{i // SERIES_PER_PLOT}"
+        body = plots.day_plot(part, title, Y_CAPTIONS[plot], prefix, zero_line=plot == "trend-analog")
         if body:
             out.append(body)
     return out
