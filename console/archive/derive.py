@@ -103,6 +103,7 @@ class GroupResult:
     overlap_by_day: dict[str, int]
     written: list[str]
     rebuilt: bool  # made again from every record: the group's rows of earlier ingests are gone
+    first_event_ns: int | None  # the group's first detection event (a line's sections start at the earliest)
 
 
 @dataclass
@@ -233,6 +234,7 @@ class GroupRun:
             self.overlap_by_day,
             list(self.written),
             self.rebuilt,
+            tail.pipeline.first_event_ns,
         )
 
     def abort(self) -> None:
@@ -434,6 +436,8 @@ class Derivation:
                     self.manifest.parts(table) + r.committed.get(table, []) + r.tail.get(table, [])
                 )
         self.manifest.tables[STATE_TABLE] = sorted(states.values())
+        if self.line is None:
+            parts += self._start_rows()
         heads = self._head_order()
         order = {s.id: i for i, s in enumerate(self.layout.sections)} if self.layout is not None else {}
         derived.update(
@@ -467,6 +471,32 @@ class Derivation:
         if mapper is None:
             return [derive_group(**common, **t) for t in tasks]
         return list(mapper(derive_group, tasks, common))
+
+    def _start_rows(self) -> list[str]:
+        """The sections' start rows, at the line's first event (the groups' pipelines give none): one small part,
+        made again at each ingest (an older record may move the start)."""
+        lay = self.settings.sections
+        derived = self.manifest.derived
+        firsts = [r.first_event_ns for r in self.results if r.first_event_ns is not None]
+        old = derived.get("sections_start_ns")
+        if old is not None:
+            firsts.append(int(old))
+        for rel in derived.get("start_parts", []):
+            self._drop_parts({"section_states": [rel]})
+        derived["start_parts"] = []
+        if lay is None or not firsts:
+            return []
+        from console.analysis.sections import SectionEngine
+
+        start = min(firsts)
+        derived["sections_start_ns"] = start
+        sink = ArchiveSink(self.root, self.generation, "d-start")
+        sink.transitions(SectionEngine(lay, initial=self.settings.initial, start_ns=start).take_history()[0])
+        written = sink.close()
+        rels = written.get("section_states", [])
+        self.manifest.tables["section_states"] = self.manifest.parts("section_states") + rels
+        derived["start_parts"] = rels
+        return rels
 
     def _head_order(self) -> list[tuple[int, Any]]:
         if self.line is not None:
@@ -518,7 +548,17 @@ def derive_group(
     new_seqs: list[int],
     rebuild: bool,
 ) -> GroupResult:
-    """One group's derivation (a Dask task): its new records read back and fed, the state saved."""
+    """One group's derivation (a Dask task): its new records read back and fed, the state saved.
+
+    Its section engine holds the sections its heads bound, and gives no start rows (the caller writes them,
+    at the line's first event)."""
+    lay = settings.sections
+    if lay is not None:
+        names = {name for _, name in heads}
+        mine = tuple(sec for sec in lay.sections if all(b.head in names for b in sec.bounds))
+        settings = dataclasses.replace(
+            settings, sections=dataclasses.replace(lay, sections=mine) if mine else None, start_rows=False
+        )
     run = GroupRun(root, manifest, settings, key, heads)
     try:
         if rebuild or (not run.resumed and older_records(root, manifest, heads, new_seqs)):

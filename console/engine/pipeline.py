@@ -90,6 +90,9 @@ class PipelineSettings:
     include_status: bool = True
     # Each closed batch's axles handed on (Sink.axles).
     axles: bool = False
+    # The sections' start rows (each section's first state, at the first event) handed on; off where several
+    # pipelines share a line (the archive's groups on Dask: the start is the line's first event, not theirs).
+    start_rows: bool = True
 
 
 @dataclass
@@ -205,6 +208,7 @@ class Pipeline:
         s = self.settings
         if start_sections and s.sections is not None and s.events is not None and self.section_engine is None:
             self._engine(0)  # no event at all: every section keeps its start state
+            self.first_event_ns = None
             self._drain()
         if self.settings.health is not None:
             self._judge()
@@ -259,8 +263,11 @@ class Pipeline:
         heads = self.heads
         if self.events is not None:
             self.events.add(None, part.activity, heads)
-            if part.passages is not None:
-                self.events.settle(part.passages["head"], heads)  # their first passage closed: facts settled
+            p = part.passages
+            if p is not None:
+                # A head's facts are guessed once a passage of its wheel records has closed (as from all of them).
+                wheels = (p["detections_sys1"] + p["detections_sys2"]) > 0
+                self.events.settle(p["head"][wheels], heads)
         if self.settings.axles and len(part.axles["head"]):
             self.sink.axles(part.axles, heads)
         if self.settings.health == "closed":
@@ -352,11 +359,15 @@ class Pipeline:
 
     def _engine(self, start_ns: int) -> SectionEngine:
         if self.section_engine is None:
-            assert self.settings.sections is not None
-            self.section_engine = SectionEngine(
-                self.settings.sections, initial=self.settings.initial, start_ns=start_ns
-            )
+            s = self.settings
+            assert s.sections is not None
+            self.section_engine = SectionEngine(s.sections, initial=s.initial, start_ns=start_ns)
+            self.first_event_ns = start_ns
+            if not s.start_rows:
+                self.section_engine.transitions = []
         return self.section_engine
+
+    first_event_ns: int | None = None  # when the section engine started (its first event)
 
     def _drain(self) -> None:
         """The section engine's new history, handed on (the engine keeps none of it)."""

@@ -1,0 +1,288 @@
+"""One engine: the same inputs through every mode give the same passages, axles, section timeline, ledger and
+health findings.
+
+Routes, each a driver of the one pipeline (:class:`console.engine.pipeline.Pipeline`):
+
+(a) batch: the log read by the batch driver (what ``analyze``, ``sections``, ``health`` and ``report`` run);
+(b) follow: the log's lines handed to the live engine in random pieces, rotated at a random line (the
+    second part a new file of the same source), as ``follow file:`` hands them on;
+(c) archive: the log written in random pieces to a growing file, an ingest after each (each resuming from
+    the state the last one saved), then read back as ``report --archive`` reads the derived tables;
+(d) fleet: the same ingests on Dask, with 1 and 3 workers;
+(e) the station's console: the live station view's source (what ``station --live`` shows) fed the same
+    pieces.
+
+Inputs: simulated runs over midnight with sensor faults (the example line: sections, health), and
+realistic multi-board exports at µs, ms and whole-second resolution with damaged lines.  CI runs a few
+of each; ``TRACKSIDE_ONE_ENGINE_RUNS=N`` runs N of each kind.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import time
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pytest
+
+from benchmarks.bench_memory_commands import write_layout
+from benchmarks.gen_realistic_diag import generate
+from console.analysis.diag_events import DiagEventSettings
+from console.archive.history import report_data
+from console.archive.ingest import run_ingest
+from console.drivers.batch import ReadOptions, read_diag
+from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
+from console.engine.sinks import Sink, Sinks
+from console.layout import Layout, load_layout
+from console.live.engine import LiveEngine
+from console.sim.station import Fault
+from console.sources.base import LineBlock
+from tests.fleet_fixtures import local_cluster, simulate_over_midnight
+
+RUNS = int(os.environ.get("TRACKSIDE_ONE_ENGINE_RUNS", 2))
+SENSOR_FAULTS = ("dead_channel", "isolated_pulse", "damped_head", "power_loss", "missed_detections")
+pytestmark = pytest.mark.timeout(900)
+
+
+# -- what every route is compared on ---------------------------------------------------------------------
+
+
+def _passage_rows(rows: Sequence[dict[str, Any]]) -> list[tuple[Any, ...]]:
+    keys = ("device_id", "counting_head", "start", "end", "records", "axles", "kind")
+    # The speed as the JSON gives it (rounded to the 3 decimals it prints); the archive keeps the float.
+    return sorted(
+        (*(p[k] for k in keys), None if p["speed_kmh_whole_train"] is None else round(p["speed_kmh_whole_train"], 3))
+        for p in rows
+    )
+
+
+class _History(Sink):
+    """The section engine's history and the health findings, as a route hands them on."""
+
+    def __init__(self) -> None:
+        self.timeline: list[tuple[Any, ...]] = []
+        self.ledger_rows: list[tuple[Any, ...]] = []
+        self.found: list[tuple[Any, ...]] = []
+
+    def transitions(self, rows: Sequence[Any]) -> None:
+        self.timeline += [(t.time_ns, t.section, str(t.state), t.count, t.reason) for t in rows]
+
+    def ledger(self, rows: Sequence[Any]) -> None:
+        self.ledger_rows += [(x.time_ns, x.section, x.head, x.delta, x.count) for x in rows]
+
+    def findings(self, rows: Sequence[Any]) -> None:
+        self.found += [(f.rule, f.counting_head, f.channel, str(f.severity)) for f in rows]
+
+    def restart(self, passages: bool) -> None:
+        self.timeline, self.ledger_rows, self.found = [], [], []
+
+
+def _settings(layout: Layout) -> PipelineSettings:
+    return PipelineSettings(
+        events=DiagEventSettings(),
+        layout=layout,
+        sections=layout,
+        keep_registers=HEALTH_REGISTERS,
+        health="end",
+        include_status=True,
+    )
+
+
+def batch(log: Path, layout: Layout) -> dict[str, Any]:
+    history = _History()
+    passages: list[dict[str, Any]] = []
+
+    class Passages(Sink):
+        def passages(self, cols: Any, heads: Any) -> None:
+            import json
+
+            from console.render.passage_spool import passage_texts
+
+            passages.extend(json.loads(t) for t in passage_texts(cols, heads))
+
+    read_diag([log], _settings(layout), Sinks(history, Passages()), ReadOptions())
+    warnings = {f for f in history.found if f[3] != "info"}
+    return {"passages": _passage_rows(passages), "timeline": history.timeline, "ledger": history.ledger_rows} | {
+        "health": warnings
+    }
+
+
+def _pieces(data: bytes, rng: random.Random, n: int) -> list[bytes]:
+    """``data`` cut at ``n`` random line ends."""
+    ends = sorted({data.find(b"\n", rng.randrange(len(data))) + 1 for _ in range(n)} - {0, len(data)})
+    return [data[a:b] for a, b in zip([0, *ends], [*ends, len(data)], strict=True) if b > a]
+
+
+def follow(log: Path, layout: Layout, rng: random.Random) -> dict[str, Any]:
+    data = log.read_bytes()
+    events: list[dict[str, Any]] = []
+    engine = LiveEngine(layout, events.append, include_status=True)
+    history = _History()
+    pipeline = engine.diag.pipeline
+    pipeline.sink = Sinks(pipeline.sink, history)
+    lines = data.count(b"\n")
+    rotate_at = rng.randrange(1, max(2, lines))
+    label, first = "station.log", 1
+    for piece in _pieces(data, rng, rng.randint(2, 40)):
+        n = piece.count(b"\n")
+        if first <= rotate_at < first + n and label == "station.log":
+            # Rotated here: the rest of the log continues in a new file of the same source.
+            cut = 0
+            for _ in range(rotate_at - first + 1):
+                cut = piece.index(b"\n", cut) + 1
+            engine.handle(LineBlock("file:station.log", label, first, piece[:cut], time.monotonic()))
+            label, first, piece = "station.log (rotated)", 1, piece[cut:]
+            n = piece.count(b"\n")
+        if piece:
+            engine.handle(LineBlock("file:station.log", label, first, piece, time.monotonic()))
+            first += n
+    engine.finish()
+    return {
+        "passages": _passage_rows([e for e in events if e["type"] == "passage"]),
+        "timeline": history.timeline,
+        "ledger": history.ledger_rows,
+        "sections_shown": [
+            (e["time_ns"], e["section"], e["state"], e["count"]) for e in events if e["type"] == "section"
+        ],
+    }
+
+
+def station(log: Path, layout: Layout, rng: random.Random) -> dict[str, Any]:
+    """The station view's live source, fed the log in pieces as a followed file would deliver them."""
+    from console.tui.live_source import LiveSource
+
+    src = LiveSource(layout, [])
+    src.started = True
+    transitions = []
+    line = 1
+    for piece in _pieces(log.read_bytes(), rng, rng.randint(2, 30)):
+        src._queue.put(LineBlock("file:station.log", "station.log", line, piece, time.monotonic()))
+        line += piece.count(b"\n")
+        shown, _entries = src.advance(0.1)
+        transitions += shown
+    src.live.finish()
+    return {"sections_shown": [(t.time_ns, t.section, str(t.state), t.count) for t in transitions]}
+
+
+def _ingest_pieces(log: Path, archive: Path, rng: random.Random, cluster: Any = None) -> None:
+    grown = archive.parent / f"{archive.name}-station.log"
+    grown.write_bytes(b"")
+    for piece in _pieces(log.read_bytes(), rng, rng.randint(1, 3)):
+        with grown.open("ab") as f:
+            f.write(piece)
+        if cluster is None:
+            run_ingest([grown], archive, layout=str(archive.parent / "layout.toml"))
+        else:
+            from console.fleet import engine_spec, run_with_engine
+
+            spec = engine_spec("dask", scheduler=cluster.scheduler_address)
+            run_with_engine(
+                spec,
+                lambda: run_ingest([grown], archive, layout=str(archive.parent / "layout.toml")),
+                progress=False,
+            )
+
+
+def archived(archive: Path) -> dict[str, Any]:
+    data = report_data(archive, job="history")
+    assert data.job is not None and data.sections is not None
+    p = data.job.analysis.passages
+    rows = [
+        {
+            "device_id": int(r.device_id),
+            "counting_head": r.counting_head,
+            "start": _iso(int(r.start_ns)),
+            "end": _iso(int(r.end_ns)),
+            "records": int(r.records),
+            "axles": int(r.axles),
+            "kind": r.kind,
+            "speed_kmh_whole_train": None if pd.isna(r.speed_kmh_whole_train) else float(r.speed_kmh_whole_train),
+        }
+        for r in p.itertuples(index=False)
+    ]
+    tl = data.sections.timeline
+    led = data.sections.ledger
+    return {
+        "passages": _passage_rows(rows),
+        "timeline": [tuple(r) for r in tl[["time_ns", "section", "state", "count", "reason"]].itertuples(index=False)],
+        "ledger": [tuple(r) for r in led[["time_ns", "section", "head", "delta", "count"]].itertuples(index=False)],
+        "health": {
+            (f.rule, f.counting_head, f.channel, str(f.severity)) for f in data.findings if str(f.severity) != "info"
+        },
+    }
+
+
+def _iso(ns: int) -> str:
+    from console.analysis.timefmt import iso
+
+    return str(iso(ns))
+
+
+# -- inputs -------------------------------------------------------------------------------------------------
+
+
+def _simulated(tmp: Path, seed: int) -> tuple[Path, Layout]:
+    rng = random.Random(seed)
+    kind = rng.choice((None, *SENSOR_FAULTS))
+    faults = () if kind is None else (Fault(kind, f"WS{rng.randint(1, 5)}", float(rng.randint(0, 600)), 900.0),)
+    log = tmp / "station.log"
+    simulate_over_midnight(log, seed, rng.randint(60, 600), 15, 1, faults)
+    shipped = Path(__file__).resolve().parent.parent / "console" / "layouts" / "example_station.toml"
+    (tmp / "layout.toml").write_text(shipped.read_text(encoding="utf-8"), encoding="utf-8")
+    return log, load_layout(str(tmp / "layout.toml"))
+
+
+def _realistic(tmp: Path, seed: int) -> tuple[Path, Layout]:
+    log = tmp / "station.log"
+    generate(4000, log, boards=3, seed=seed, resolution="mixed", corrupt_every=200, block_s=60)
+    write_layout(tmp / "layout.toml", boards=3)
+    return log, load_layout(str(tmp / "layout.toml"))
+
+
+def _cases() -> Iterator[tuple[str, int]]:
+    for k in range(RUNS):
+        yield "simulated", 100 + k
+        yield "realistic", 200 + k
+
+
+@pytest.fixture(scope="module")
+def clusters() -> Iterator[dict[str, Any]]:
+    with local_cluster(1) as one, local_cluster(3) as three:
+        yield {"1 worker": one[0], "3 workers": three[0]}
+
+
+@pytest.mark.parametrize(("kind", "seed"), list(_cases()))
+def test_every_mode_gives_the_batch_result(tmp_path: Path, clusters: dict[str, Any], kind: str, seed: int) -> None:
+    log, layout = (_simulated if kind == "simulated" else _realistic)(tmp_path, seed)
+    rng = random.Random(seed)
+    want = batch(log, layout)
+    assert want["passages"], "an input with passages"
+
+    live = follow(log, layout, rng)
+    assert live["passages"] == want["passages"], "follow: passages"
+    assert live["timeline"] == want["timeline"], "follow: section timeline"
+    assert live["ledger"] == want["ledger"], "follow: ledger"
+    # What follow shows (its section events) is the timeline's state changes but the first (the start states).
+    shown = [(t, s, st, c) for t, s, st, c, _ in want["timeline"]]
+    assert live["sections_shown"] == shown
+
+    assert station(log, layout, rng)["sections_shown"] == shown, "the station's console"
+
+    routes = {"archive": tmp_path / "local" / "arc"}
+    routes["archive"].parent.mkdir()
+    (routes["archive"].parent / "layout.toml").write_text((tmp_path / "layout.toml").read_text())
+    _ingest_pieces(log, routes["archive"], rng)
+    for name, cluster in clusters.items():
+        arc = tmp_path / name.replace(" ", "-") / "arc"
+        arc.parent.mkdir()
+        (arc.parent / "layout.toml").write_text((tmp_path / "layout.toml").read_text())
+        _ingest_pieces(log, arc, rng, cluster)
+        routes[f"dask, {name}"] = arc
+    for route, arc in routes.items():
+        got = archived(arc)
+        for what in ("passages", "timeline", "ledger", "health"):
+            assert got[what] == want[what], f"{route}: {what}"
