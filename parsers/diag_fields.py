@@ -51,6 +51,10 @@ class FieldError(Exception):
         self.category = category
         self.reason = reason
 
+    def __reduce__(self) -> tuple[type[FieldError], tuple[str, str]]:
+        # Kept in a registry's caches, which the archive saves with the pipeline's state.
+        return (FieldError, (self.category, self.reason))
+
 
 @dataclass(frozen=True, slots=True)  # slots: a log of a million heads holds a million keys
 class RegisterKey:

@@ -59,7 +59,8 @@ SORT = {
 
 def _stored(archive: Path, table: str) -> pd.DataFrame:
     names, rows = run_query(archive, f"SELECT * FROM {table} ORDER BY {SORT[table]}")
-    return pd.DataFrame(rows, columns=names)
+    # seq orders the section history's rows that share an instant: it numbers rows per ingest.
+    return pd.DataFrame(rows, columns=names).drop(columns=["seq"], errors="ignore")
 
 
 def _batch_tables() -> dict[str, pd.DataFrame]:

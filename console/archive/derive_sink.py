@@ -41,6 +41,8 @@ class ArchiveSink(Sink):
             "channel_events": PartWriter(root, "channel_events", generation, tag, by_device=False),
         }
         self._axles: list[tuple[Columns, Heads]] = []
+        # The order of the section history's rows (ties in time are broken by it): by generation, then as made.
+        self._seq = generation << 32
 
     def axles(self, cols: Columns, heads: Heads) -> None:
         self._axles.append((cols, heads))  # written with their passages: an axle's day is its passage's
@@ -122,6 +124,9 @@ class ArchiveSink(Sink):
     def _timed(self, table: str, df: pd.DataFrame) -> None:
         if not len(df):
             return
+        if table in ("section_states", "count_ledger"):
+            df["seq"] = np.arange(self._seq, self._seq + len(df), dtype=np.int64)
+            self._seq += len(df)
         t = df["time_ns"].to_numpy(np.int64)
         df["time"] = t.astype("datetime64[ns]")
         day = t // NS_PER_DAY

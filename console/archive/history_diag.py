@@ -271,8 +271,9 @@ def _sections(
     if layout is None or not layout.sections:
         return None
     where, params = _where(window, "time_ns", heads=False)
-    timeline = _rows(con, "section_states", ["time_ns", "section", "state", "count", "reason"], where, params)
-    ledger = _rows(con, "count_ledger", ["time_ns", "section", "head", "delta", "count"], where, params)
+    order = [s.id for s in layout.sections] if layout is not None else []
+    timeline = _rows(con, "section_states", ["time_ns", "section", "state", "count", "reason"], where, params, order)
+    ledger = _rows(con, "count_ledger", ["time_ns", "section", "head", "delta", "count"], where, params, order)
     resets = pd.DataFrame(columns=["time_ns", "section", "accepted", "reason"])
     if window.start is None and window.end is None:
         stored = manifest.derived["sections_final"]
@@ -313,10 +314,11 @@ def _last_rows(
     if not latest:
         return []
     last_ns = dict(latest)
-    # Rows at those instants, in stored order (DuckDB keeps a scan's order): the last per section wins.
+    # Rows at those instants, in the engine's order (the rows' sequence): the last per section wins.
+    seq = "seq" if "seq" in con.sql(f"SELECT * FROM {table} LIMIT 0").columns else "0"
     out: dict[Any, tuple[Any, ...]] = {}
     for row in con.execute(
-        f"SELECT section, time_ns, {columns} FROM {table} WHERE time_ns IN (SELECT unnest(?))",
+        f"SELECT section, time_ns, {columns} FROM {table} WHERE time_ns IN (SELECT unnest(?)) ORDER BY {seq}",
         [sorted(set(last_ns.values()))],
     ).fetchall():
         if last_ns.get(row[0]) == row[1]:
@@ -325,14 +327,19 @@ def _last_rows(
 
 
 def _rows(
-    con: duckdb.DuckDBPyConnection, table: str, columns: list[str], where: str, params: list[Any]
+    con: duckdb.DuckDBPyConnection, table: str, columns: list[str], where: str, params: list[Any], order: list[str]
 ) -> pd.DataFrame:
     """A derived table's rows in time order (an empty table when it has none: no rows were ever derived)."""
     import pandas as pd
 
-    if not set(columns) <= set(con.sql(f"SELECT * FROM {table} LIMIT 0").columns):
+    have = set(con.sql(f"SELECT * FROM {table} LIMIT 0").columns)
+    if not set(columns) <= have:
         return pd.DataFrame(columns=columns)
-    return con.execute(f"SELECT {', '.join(columns)} FROM {table}{where} ORDER BY time_ns", params).df()
+    # By time; at one instant the sections in the layout's order, each section's rows in the engine's.
+    rank = "CASE section " + " ".join(f"WHEN ? THEN {i}" for i in range(len(order))) + " END" if order else "0"
+    seq = "seq" if "seq" in have else "0"
+    sql = f"SELECT {', '.join(columns)} FROM {table}{where} ORDER BY time_ns, {rank}, {seq}"
+    return con.execute(sql, [*params, *order]).df()
 
 
 def _channel_events(root: Path, manifest: Manifest, window: Window) -> list[DetectionEvent]:
