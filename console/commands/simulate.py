@@ -53,7 +53,10 @@ def simulate(
     ] = 7,
     fault: Annotated[
         list[str] | None,
-        typer.Option("--fault", help="KIND:TARGET:START[:END[:CHANNEL]], e.g. dead_channel:WS3:20m (repeatable)."),
+        typer.Option(
+            "--fault",
+            help="KIND:TARGET:START[:END[:CHANNEL]], e.g. dead_channel:WS3:20m or train_parting:T2:14m (repeatable).",
+        ),
     ] = None,
     json_out: JsonOpt = False,
     live: Annotated[
@@ -75,7 +78,7 @@ def simulate(
         from console.progress import byte_progress
         from console.safe_text import show_path
         from console.sim.radio import LoRaLink
-        from console.sim.station import SimConfig, StationSim
+        from console.sim.station import TRAIN_FAULTS, SimConfig, StationSim
         from console.sim.writers import write_run
 
         try:
@@ -85,7 +88,7 @@ def simulate(
         lay = load_layout(layout)
         faults = tuple(_parse_fault(f) for f in (fault or []))
         for f in faults:
-            known = {h.id for h in lay.heads} if f.kind not in ("eot_loss", "head_loss") else None
+            known = {h.id for h in lay.heads} if f.kind not in TRAIN_FAULTS else None
             if known is not None and f.target not in known:
                 raise fail(f"--fault {f.kind}: {f.target} is not a counting head of {lay.source}")
         layout_file = Path(layout)

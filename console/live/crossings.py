@@ -54,9 +54,10 @@ class CrossingFollow:
                 return f.device[: -len(role) - 1], role
         return f.device, HEAD
 
-    def fix(self, f: GnssFix, now_ns: int) -> None:
+    def fix(self, f: GnssFix, now_ns: int) -> Fix | None:
+        """Place a fix on the track and run the crossing units on it; the placed fix (None: not placeable)."""
         if self.proj is None or math.isnan(f.lat_deg) or math.isnan(f.lon_deg):
-            return
+            return None
         delay = now_ns - f.t_fix_ns
         best = self.skew_ns.get(f.device)
         self.skew_ns[f.device] = delay if best is None else min(best, delay)
@@ -66,7 +67,7 @@ class CrossingFollow:
         p = self.proj.project(f.lat_deg, f.lon_deg)
         if float(p.offset_m[0]) > OFF_TRACK_M:
             self.off_track += 1
-            return
+            return None
         train, role = self.owner(f)
         chainage = float(p.chainage_m[0])
         hint = 0
@@ -79,6 +80,12 @@ class CrossingFollow:
         for ctl in self.controllers.values():
             ctl.add_train(TrainSpec(train, self.default_length_m))
             self._out(ctl.step(fix))
+        return fix
+
+    def parted(self, train: str, t_ns: int, evidence: str) -> None:
+        """The integrity monitor saw ``train`` parted: every unit holds its warning for the rear part."""
+        for ctl in self.controllers.values():
+            self._out(ctl.train_parted(train, t_ns, evidence))
 
     def tick(self, now_ns: int) -> None:
         for ctl in self.controllers.values():

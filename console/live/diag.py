@@ -35,7 +35,7 @@ from console.analysis.timefmt import NS
 from console.analysis.wheels import CountingSettings, HeadCounter
 from console.jobs import HEALTH_REGISTERS
 from console.layout import Layout
-from console.live.frames import drain_history
+from console.live.frames import CountsListener, drain_history
 from parsers.diag import DiagChunk, DiagReader, chunks_to_frame
 from parsers.report import FileReport
 
@@ -100,6 +100,7 @@ class DiagFollow:
         self._seq = 0
         self.sections: SectionEngine | None = None
         self._seen_findings: set[tuple[str, str | None, int | None]] = set()
+        self.listener: CountsListener | None = None  # also gets every event and section change
 
     # -- input -----------------------------------------------------------
     def add(self, source: str, file_label: str, first_line: int, data: bytes) -> None:
@@ -278,6 +279,8 @@ class DiagFollow:
                     self._seq += 1
         while self._pending and self._pending[0][0] < watermark:
             _, _, e = heapq.heappop(self._pending)
+            if self.listener is not None:
+                self.listener.detection(e)
             if self.sections is None:
                 self.sections = SectionEngine(self.layout, initial=SectionState.PREPARATORY, start_ns=e.time_ns)
             for tr in self.sections.step(e):
@@ -287,6 +290,8 @@ class DiagFollow:
 
     def _section(self, tr: Transition) -> None:
         self.stats.section_changes += 1
+        if self.listener is not None:
+            self.listener.transition(tr)
         from console.analysis.timefmt import iso
 
         self.emit(

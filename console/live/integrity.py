@@ -1,0 +1,54 @@
+"""Train integrity, live: the fixes the crossing units get, the axles and section changes the
+counting heads give → :class:`~console.analysis.integrity.IntegrityMonitor` → ``type: integrity``.
+
+The fixes arrive placed on the track and with their units' clocks corrected
+(:class:`~console.live.crossings.CrossingFollow`); axles and the counters'
+doubt come from the diagnostic logs and the sensor and CAN frames in the
+order the section engine gets them.  A train's length is the layout's first
+consist's (as the crossing units assume); its axle count only where the
+layout names a single consist, so the counters' check never compares a train
+with another train's consist.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from console.analysis.crossing import Fix
+from console.analysis.events import DetectionEvent
+from console.analysis.integrity import ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
+from console.analysis.sections import Transition
+from console.layout import Layout
+
+Emit = Callable[[dict[str, Any]], None]
+
+
+class IntegrityFollow:
+    def __init__(self, layout: Layout, emit: Emit, settings: IntegritySettings | None = None) -> None:
+        self.monitor = IntegrityMonitor(settings, layout)
+        self.emit = emit
+        consist = layout.consist()
+        self.length_m = consist.length_m if consist else 100.0
+        self.axles = len(consist.axles_m) if consist is not None and len(layout.consists) == 1 else None
+        self.events = 0
+
+    def fix(self, f: Fix) -> None:
+        if f.train not in self.monitor.trains:
+            # The layout's consist is a guess for any one train: its length is learnt from its fixes.
+            self.monitor.add_train(ConsistSpec(f.train, self.length_m, self.axles, length_known=False))
+        self._out(self.monitor.fix(f.t_ns, f.t_fix_ns, f.train, f.role, f.chainage_m, f.speed_mps))
+
+    def detection(self, e: DetectionEvent) -> None:
+        self._out(self.monitor.detection(e))
+
+    def transition(self, tr: Transition) -> None:
+        self._out(self.monitor.transition(tr))
+
+    def tick(self, now_ns: int) -> None:
+        self._out(self.monitor.tick(now_ns))
+
+    def _out(self, events: list[IntegrityEvent]) -> None:
+        for e in events:
+            self.events += 1
+            self.emit({"type": "integrity", **e.to_dict()})
