@@ -48,7 +48,11 @@ class CrossingFollow:
     def owner(self, f: GnssFix) -> tuple[str, str]:
         """(train, role): the unit says so (LoRa payload), or its name does (<train>-head / -eot)."""
         if f.role in (HEAD, EOT):
-            return (f.train or f.device), f.role
+            if f.train:
+                return f.train, f.role
+            # A device export with a role column and no train one: the name still says whose it is.
+            suffix = f"-{f.role}"
+            return (f.device[: -len(suffix)] if f.device.endswith(suffix) else f.device), f.role
         for role in (HEAD, EOT):
             if f.device.endswith(f"-{role}"):
                 return f.device[: -len(role) - 1], role

@@ -67,7 +67,7 @@ class LiveEngine:
             if self.crossings is not None:
                 placed = self.crossings.fix(item, self.now_ns())
                 if placed is not None and self.integrity is not None:
-                    self.integrity.fix(placed)
+                    self.integrity.fix(placed, item.t_fix_ns)
         elif isinstance(item, CanFrame):
             self.can_frames += 1
             self.frames.add(item)
@@ -92,7 +92,7 @@ class LiveEngine:
         if self.crossings is not None:
             self.crossings.tick(self.now_ns())
         if self.integrity is not None:
-            self.integrity.tick(self.now_ns())
+            self.integrity.tick()
         if self.archiver is not None:
             self.archiver.tick()
 
