@@ -281,7 +281,13 @@ class IntegrityMonitor:
         tr.gnss = tr.counters = NONE
         tr.checks.clear()
         tr.rear_m = None
-        return self._settle(tr, t_ns)
+        if tr.state is None:
+            return []
+        # Doubtful until the witnesses judge it afresh.
+        ev = IntegrityEvent(t_ns, tr.spec.train, DOUBTFUL, tr.state, (), ("reset by the operator: judged afresh",))
+        tr.state = DOUBTFUL
+        tr.events.append(ev)
+        return [ev]
 
     def state(self, train: str) -> str | None:
         tr = self.trains.get(train)
@@ -344,7 +350,9 @@ class IntegrityMonitor:
         return self._evaluate(now)
 
     def _direction(self, tr: _Train) -> None:
-        d = tr.head.ev.direction() or tr.eot.ev.direction()
+        # The head unit's movement says it; the EOT's only while nothing else has (a rear part
+        # falling behind must not turn the train round).
+        d = tr.head.ev.direction() or (0 if tr.direction else tr.eot.ev.direction())
         if d and d != tr.direction:
             if tr.direction:
                 tr.checks.clear()  # the train reversed: the counts so far were another run
