@@ -260,7 +260,7 @@ def test_a_whole_train_counted_whole_at_every_head() -> None:
 
 def test_a_rear_part_left_in_a_section_parts_the_train_on_counts_alone() -> None:
     # The EOT unit is silent (lost before): the counters and the section still see the parting.
-    mon, events = counted_run(2500.0, eot_alive=False)
+    _, events = counted_run(2500.0, eot_alive=False)
     parted = [e for e in events if e.state == PARTED]
     assert parted and set(parted[0].witnesses) == {AXLES, SECTIONS}
     assert "B counted 5 of 9 axles" in parted[0].evidence[0]
@@ -275,7 +275,7 @@ def test_a_short_count_with_the_counter_in_doubt_is_doubt() -> None:
 
 
 def test_the_eot_unit_and_the_counters_together() -> None:
-    mon, events = counted_run(2500.0, eot_alive=True)
+    _, events = counted_run(2500.0, eot_alive=True)
     parted = [e for e in events if e.state == PARTED]
     assert parted and GNSS in parted[0].witnesses  # the EOT saw it first, well before head B
     assert parted[0].t_ns < T0 + int(3000 / 20.0 * NS)

@@ -377,7 +377,10 @@ class CrossingController:
             and not self._cleared(tr)
         ):
             tr.alarms.add("head")
-            out.append(self._emit(t_ns, tr, "alarm", "head unit stale: using EOT position + train length"))
+            fallback = (
+                "the train parted: its head is not placed" if tr.parted_ns else "using EOT position + train length"
+            )
+            out.append(self._emit(t_ns, tr, "alarm", f"head unit stale: {fallback}"))
         if self._fresh(tr.eot, t_ns):
             tr.alarms.discard("eot")
         if self._fresh(tr.head, t_ns):

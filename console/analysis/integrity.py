@@ -391,28 +391,36 @@ class IntegrityMonitor:
 
     def _gnss_opinion(self, tr: _Train) -> _Opinion:
         # The run of consecutive judged EOT fixes up to the latest judged one.
-        run: list[Verdict] = []
+        run: list[_Judged] = []
         for j in reversed(tr.judged):
             if j.verdict is None:
                 if run:
                     break
                 continue
-            run.append(j.verdict)
+            run.append(j)
         if not run:
             return NONE
         run.reverse()
-        v = run[-1]
-        t = next(j.t_fix_ns for j in reversed(tr.judged) if j.verdict is v)
+        kinds = [j.verdict.kind for j in run if j.verdict is not None]
+        last = run[-1]
+        v = last.verdict
+        assert v is not None
+        t = last.t_fix_ns
         length = tr.length_m
         if v.kind == STRONG:
             return _Opinion(PARTED, (GNSS,), (v.describe(length),), t)
-        if len(run) >= 2 and run[-2].kind in SEPARATION and v.kind in SEPARATION and SLOWER in (v.kind, run[-2].kind):
-            why = (f"{run[-2].describe(length)}, then {v.describe(length)} (two fixes in a row)",)
+        prev = run[-2].verdict if len(run) >= 2 else None
+        if prev is not None and prev.kind in SEPARATION and v.kind in SEPARATION and SLOWER in (v.kind, prev.kind):
+            why = (f"{prev.describe(length)}, then {v.describe(length)} (two fixes in a row)",)
+            return _Opinion(PARTED, (GNSS,), why, t)
+        if prev is not None and self._standing_rear(run[-2], last):
+            why = (f"{v.describe(length)}, the EOT standing while the gap grew by {v.lag_m - prev.lag_m:.0f} m",)
             return _Opinion(PARTED, (GNSS,), why, t)
         # Behind only (the head standing or crawling, or no speed reported): three fixes in a row,
         # each judged between head fixes on both sides, so one displaced head fix cannot do it.
-        three = run[-3:]
-        if len(three) == 3 and all(x.kind == BEHIND and x.bracketed for x in three):
+        if len(kinds) >= 3 and all(
+            j.verdict is not None and j.verdict.kind == BEHIND and j.verdict.bracketed for j in run[-3:]
+        ):
             why = (f"{v.describe(length)}, three fixes in a row",)
             return _Opinion(PARTED, (GNSS,), why, t)
         if v.kind in SEPARATION:
@@ -420,6 +428,21 @@ class IntegrityMonitor:
         if v.kind == INCONSISTENT:
             return _Opinion("doubt", (GNSS,), ("fixes inconsistent: " + v.describe(length),), t)
         return _Opinion("ok", (GNSS,), (v.describe(length),), t)
+
+    def _standing_rear(self, a: _Judged, b: _Judged) -> bool:
+        """Two fixes in a row behind, the EOT standing at both (its Doppler speed nil, its place the
+        same) while the gap to the head grew by more than the noise: a rear part left standing.
+
+        A displaced fix keeps its Doppler speed, so a moving train's jumps never read as standing;
+        a whole train standing does not open the gap."""
+        va, vb = a.verdict, b.verdict
+        if va is None or vb is None or va.kind != BEHIND or vb.kind != BEHIND or not (va.bracketed and vb.bracketed):
+            return False
+        still = self.lim.speed_allow_mps
+        if math.isnan(a.speed_mps) or math.isnan(b.speed_mps) or max(a.speed_mps, b.speed_mps) > still:
+            return False
+        noise = 2 * self.lim.pos_allow_m
+        return abs(b.s_m - a.s_m) <= noise and vb.lag_m - va.lag_m > noise
 
     # -- counters and sections ---------------------------------------------
     def detection(self, e: DetectionEvent) -> list[IntegrityEvent]:

@@ -248,7 +248,9 @@ def simulate(layout: Layout, cond: Conditions) -> RunResult:
     if cond.kind == "parted":
         # Couplings part under drawbar pull (running or accelerating), not while braking in buff.
         pulling = plan.accel_at(t_grid) >= 0
-        moving = np.flatnonzero((v_head > 2.0) & pulling & (t_grid >= cond.parting_after_s))
+        # ... early enough to watch what follows: 20 report periods, and two minutes at least.
+        latest = cond.duration_s - max(120.0, 20 * cond.period_s)
+        moving = np.flatnonzero((v_head > 2.0) & pulling & (t_grid >= cond.parting_after_s) & (t_grid <= latest))
         if len(moving):
             part_k = int(moving[rng.integers(0, min(len(moving), int(600 / DT_S)))])
     if part_k is not None:
@@ -357,7 +359,8 @@ class Verdict:
     period_s: float
     detected_s: float | None  # parted: parting → the monitor's "parted"
     doubt_s: float | None  # parted: parting → the first state other than whole
-    within_target: bool | None  # parted: ≤ 2 report periods + latency
+    within_target: bool | None  # parted: "parted" ≤ 2 report periods + latency after the parting
+    doubt_within_target: bool | None  # parted: doubt (or parted) ≤ 2 report periods + latency
     missed: bool
     false_parted: bool  # a "parted" on a whole train (or before the parting)
     eot_loss_doubt: bool | None  # eot_loss: the loss reported as doubt
@@ -383,6 +386,10 @@ def judge(res: RunResult) -> Verdict:
             missed = True
         first = [e for e in res.events if e.t_ns >= tp and e.state != "whole"]
         doubt = (first[0].t_ns - tp) / NS if first else None
+        # Doubtful already when it parted (a unit stale, say): doubt from the start.
+        before = [e for e in res.events if e.t_ns < tp]
+        if before and before[-1].state != "whole":
+            doubt = 0.0
     eot_doubt = None
     if c.kind == "eot_loss":
         eot_doubt = any(
@@ -409,6 +416,7 @@ def judge(res: RunResult) -> Verdict:
         detected,
         doubt,
         within,
+        None if doubt is None else doubt <= 2 * c.period_s + c.latency_s,
         missed,
         bool(early),
         eot_doubt,
@@ -455,9 +463,12 @@ def summary(verdicts: list[Verdict]) -> dict[str, object]:
     for hz in RATES_HZ:
         sel = [v for v in parted if abs(v.period_s - 1 / hz) < 1e-9]
         d = [v.detected_s for v in sel if v.detected_s is not None]
+        dd = [v.doubt_s for v in sel if v.doubt_s is not None]
         by_rate[f"{hz:g} Hz"] = {
             "runs": len(sel),
             "within_target": float(np.mean([bool(v.within_target) for v in sel])) if sel else math.nan,
+            "doubt_within_target": float(np.mean([bool(v.doubt_within_target) for v in sel])) if sel else math.nan,
+            "doubt_median_s": float(np.median(dd)) if dd else math.nan,
             "median_s": float(np.median(d)) if d else math.nan,
             "p95_s": float(np.percentile(d, 95)) if d else math.nan,
             "max_s": float(max(d)) if d else math.nan,
@@ -476,5 +487,10 @@ def summary(verdicts: list[Verdict]) -> dict[str, object]:
         "false_parted_per_1000_h": 1000.0 * false / whole_hours if whole_hours else math.nan,
         "eot_loss_runs": sum(v.kind == "eot_loss" for v in verdicts),
         "eot_loss_as_doubt": sum(bool(v.eot_loss_doubt) for v in verdicts),
-        "doubt_share_whole": sum(v.doubt_hours for v in verdicts) / whole_hours if whole_hours else math.nan,
+        "doubt_share_whole": (
+            sum(v.doubt_hours for v in verdicts if v.kind != "eot_loss")
+            / sum(v.hours for v in verdicts if v.kind != "eot_loss")
+        )
+        if any(v.kind != "eot_loss" for v in verdicts)
+        else math.nan,
     }
