@@ -34,19 +34,23 @@ class LiveEngine:
         emit: Emit,
         settings: SpeedSettings | None = None,
         archiver: LiveArchiver | None = None,
+        include_status: bool = False,
     ) -> None:
         self.layout = layout
         self.emit = emit
-        self.diag = DiagFollow(layout, settings or SpeedSettings(), emit)
-        placed = layout is not None and (bool(layout.crossings) or len(layout.track) >= 2)
-        self.crossings = CrossingFollow(layout, emit) if layout is not None and placed else None
-        self.frames = FrameFollow(layout, emit)
+        self.include_status = include_status
         # Train integrity needs the fixes placed on the track: a layout with a [[track]].
         self.integrity = (
             IntegrityFollow(layout, self._integrity_event) if layout is not None and len(layout.track) >= 2 else None
         )
+        self.diag = DiagFollow(
+            layout, settings or SpeedSettings(), emit, include_status=include_status, also=self.integrity
+        )
+        placed = layout is not None and (bool(layout.crossings) or len(layout.track) >= 2)
+        self.crossings = CrossingFollow(layout, emit) if layout is not None and placed else None
+        self.frames = FrameFollow(layout, emit)
         if self.integrity is not None:
-            self.diag.listener = self.frames.listener = self.integrity
+            self.frames.listener = self.integrity
         self.archiver = archiver
         self.can_frames = 0
         self.file_frames = 0  # count frames read from followed CAN and frame logs
@@ -130,6 +134,8 @@ class LiveEngine:
             "files": files,
             "sections": {k: {"state": s, "count": c} for k, (s, c) in self.section_states().items()},
             "sources": [s.status().to_dict() for s in sources],
+            # A board's status dumps make a passage each, train or not: counted, listed on request (as analyze).
+            **({} if self.include_status else {"status_only_passages": self.diag.status_passages}),
         }
 
     def section_states(self) -> dict[str, tuple[str, int]]:

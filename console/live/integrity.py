@@ -15,25 +15,32 @@ with another train's consist.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 from console.analysis.crossing import Fix
 from console.analysis.events import DetectionEvent
 from console.analysis.integrity import ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
 from console.analysis.sections import Transition
+from console.engine.sinks import Sink
 from console.layout import Layout
+
+if TYPE_CHECKING:
+    from console.analysis.event_block import EventBlock
 
 Emit = Callable[[dict[str, Any]], None]
 
 
-class IntegrityFollow:
+class IntegrityFollow(Sink):
+    """The monitor, live: a sink of the pipeline's detections and section changes (and the frame
+    follower's), fed the placed fixes by the engine."""
+
     def __init__(self, layout: Layout, emit: Emit, settings: IntegritySettings | None = None) -> None:
         self.monitor = IntegrityMonitor(settings, layout)
         self.emit = emit
         consist = layout.consist()
         self.length_m = consist.length_m if consist else 100.0
-        self.axles = len(consist.axles_m) if consist is not None and len(layout.consists) == 1 else None
+        self.axle_count = len(consist.axles_m) if consist is not None and len(layout.consists) == 1 else None
         self.events = 0
         self.clock_ns: int | None = None  # the data's clock: the latest unit time seen
 
@@ -42,7 +49,7 @@ class IntegrityFollow:
         self.clock_ns = t_unit_ns if self.clock_ns is None else max(self.clock_ns, t_unit_ns)
         if f.train not in self.monitor.trains:
             # The layout's consist is a guess for any one train: its length is learnt from its fixes.
-            self.monitor.add_train(ConsistSpec(f.train, self.length_m, self.axles, length_known=False))
+            self.monitor.add_train(ConsistSpec(f.train, self.length_m, self.axle_count, length_known=False))
         self._out(self.monitor.fix(self.clock_ns, t_unit_ns, f.train, f.role, f.chainage_m, f.speed_mps))
 
     def detection(self, e: DetectionEvent) -> None:
@@ -50,6 +57,15 @@ class IntegrityFollow:
 
     def transition(self, tr: Transition) -> None:
         self._out(self.monitor.transition(tr))
+
+    # -- as the pipeline's sink
+    def detections(self, block: EventBlock) -> None:
+        for e in block.events():  # per event: the monitor is a state machine
+            self.detection(e)
+
+    def transitions(self, rows: Sequence[Transition]) -> None:
+        for tr in rows:
+            self.transition(tr)
 
     def tick(self) -> None:
         if self.clock_ns is not None:

@@ -121,8 +121,9 @@ def _safety_part(doc: dict[str, Any]) -> list[Block]:
         Para(
             (
                 "Unsafe: a level-crossing safety violation (the road open with the train on it), a train seen "
-                "parted, or a critical health finding (a head that may stop detecting). Failing: a section that ended disturbed "
-                "(fail-safe, but trains wait for a reset), a refused reset, a crossing warning held on after the "
+                "parted, or a critical health finding (a head that may stop detecting). Failing: a section that "
+                "ended disturbed (fail-safe, but trains wait for a reset), a refused reset, a crossing warning held "
+                "on after the "
                 "train arrived, "
                 "a warning-level health finding.",
             )
