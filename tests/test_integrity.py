@@ -236,6 +236,8 @@ def counted_run(
             items.append((t + 0.3, 1, (h.id, t)))
         if doubt_at == h.id:
             items.append(((h.chainage_m + 30) / v + 0.3, 2, (h.id, (h.chainage_m + 30) / v)))
+    # The counters speak again later (another train far away): they have reported past this one.
+    items.append((399.0, 3, ("A", 398.0)))
     out: list[IntegrityEvent] = []
     for rx, kind, item in sorted(items, key=lambda i: (i[0], i[1])):
         if kind == 0:
@@ -243,11 +245,12 @@ def counted_run(
             out += mon.fix(T0 + int(rx * NS), T0 + int(t * NS), "T1", role, x, speed)
         else:
             head, t = item  # type: ignore[misc]
-            what = EventKind.AXLE if kind == 1 else EventKind.SINGLE_CHANNEL
+            what = {1: EventKind.AXLE, 2: EventKind.SINGLE_CHANNEL, 3: EventKind.CHANNEL_OK}[kind]
             e = DetectionEvent(T0 + int(t * NS), what, head, 1 if kind == 1 else 0, channel=2 if kind == 2 else None)
             out += mon.detection(e)
             for change in engine.step(e):
                 out += mon.transition(change)
+    out += mon.tick(T0 + 400 * NS)
     return mon, out
 
 
@@ -267,11 +270,14 @@ def test_a_rear_part_left_in_a_section_parts_the_train_on_counts_alone() -> None
     assert "section AB still occupied" in parted[0].evidence[1]
 
 
-def test_a_short_count_with_the_counter_in_doubt_is_doubt() -> None:
-    # Head B reported a single-system damping: its count is no evidence of a parting.
+def test_a_short_count_with_the_counter_in_doubt_is_no_evidence() -> None:
+    # Head B reported a single-system damping: its count is no evidence of a parting (nor of a
+    # whole train); the train is doubtful for its silent EOT unit alone.
     mon, events = counted_run(2500.0, eot_alive=False, doubt_at="B")
     assert PARTED not in states(events) and mon.state("T1") == DOUBTFUL
+    assert mon.trains["T1"].counters.level == "unfit"
     assert "counts unfit" in mon.trains["T1"].counters.evidence[0]
+    assert all("EOT" in e.evidence[0] for e in events if e.state == DOUBTFUL)
 
 
 def test_the_eot_unit_and_the_counters_together() -> None:

@@ -33,7 +33,9 @@ The monitor is pure (no I/O): feed it with :meth:`~IntegrityMonitor.fix`,
 :meth:`~IntegrityMonitor.passage` (a head's axle count at once),
 :meth:`~IntegrityMonitor.transition` (section states) and
 :meth:`~IntegrityMonitor.tick`; each returns the state changes it caused,
-each carrying its evidence.
+each carrying its evidence.  The counters' evidence is weighed at the next
+fix or tick: by then the section changes that go with a block of axles have
+arrived too (the pipeline hands the axles first, then the changes).
 """
 
 from __future__ import annotations
@@ -198,7 +200,9 @@ class _HeadCheck:
 
 @dataclass(frozen=True)
 class _Opinion:
-    level: str  # ok | doubt | separation (a doubt that points to a parting) | parted | none
+    # ok | doubt | separation (a doubt that points to a parting) | parted | none | unfit (the witness
+    # cannot tell: its evidence is kept, it weighs nothing)
+    level: str
     witnesses: tuple[str, ...] = ()
     evidence: tuple[str, ...] = ()
     t_ns: int = 0  # when it was formed (fix time for GNSS, check time for counters)
@@ -236,12 +240,18 @@ class IntegrityMonitor:
         self.lim = self.s.gnss_limits()
         self.layout = layout
         self.trains: dict[str, _Train] = {}
-        self.now_ns: int | None = None
+        self.now_ns: int | None = None  # the units' clock: the latest fix reception or tick
+        # The counters' clock: the latest axle, counter event or section change seen. A check runs only
+        # once the counters have reported past the time the train should have cleared the head, so
+        # a log read after the telemetry (a file followed from its start) is never judged incomplete.
+        self.counters_ns: int | None = None  # (on a quiet line a check waits for the counters' next word)
         self.late_fixes = 0  # fixes older than their unit's last one: set aside
         # Per counting head: (time, direction) of counted axles, and (time, why) of the counter's doubt.
         self.axles: dict[str, deque[tuple[int, int]]] = {}
         self.counter_doubt: dict[str, deque[tuple[int, str]]] = {}
-        self.section_state: dict[str, tuple[SectionState, int]] = {}
+        # Per section, its state changes (time, state), oldest first: a check reads the state at its
+        # own time, not whatever later changes a log read in one block has brought already.
+        self.section_states: dict[str, deque[tuple[int, SectionState]]] = {}
         heads = layout.heads if layout is not None else ()
         self.head_m = {h.id: h.chainage_m for h in heads}
         self._heads_sorted = sorted((h.chainage_m, h.id) for h in heads)
@@ -304,6 +314,10 @@ class IntegrityMonitor:
     def _clock(self, t_ns: int) -> int:
         self.now_ns = t_ns if self.now_ns is None else max(self.now_ns, t_ns)
         return self.now_ns
+
+    def _counters_clock(self, t_ns: int) -> None:
+        """Advance the counters' clock; the units' clock stays (GNSS staleness is the units' business)."""
+        self.counters_ns = t_ns if self.counters_ns is None else max(self.counters_ns, t_ns)
 
     # -- GNSS --------------------------------------------------------------
     def fix(
@@ -447,27 +461,27 @@ class IntegrityMonitor:
     # -- counters and sections ---------------------------------------------
     def detection(self, e: DetectionEvent) -> list[IntegrityEvent]:
         """A counting head's event: an axle (counted for the train passing), or the counter's own doubt."""
-        now = self._clock(e.time_ns)
+        self._counters_clock(e.time_ns)
         if e.kind is EventKind.AXLE and e.direction:
             self._keep(self.axles, e.head, (e.time_ns, e.direction))
         elif e.kind in COUNTER_DOUBT:
             self._keep(self.counter_doubt, e.head, (e.time_ns, COUNTER_DOUBT[e.kind]))
-        return self._evaluate(now)
+        return []
 
     def passage(self, head: str, t_first_ns: int, t_last_ns: int, axles: int, direction: int) -> list[IntegrityEvent]:
         """A head's passage at once: ``axles`` counted from ``t_first_ns`` to ``t_last_ns``."""
-        now = self._clock(t_last_ns)
+        self._counters_clock(t_last_ns)
         if direction and axles > 0:
             step = (t_last_ns - t_first_ns) // max(1, axles - 1)
             for k in range(axles):
                 self._keep(self.axles, head, (t_first_ns + k * step, direction))
-        return self._evaluate(now)
+        return []
 
     def transition(self, tr: Transition) -> list[IntegrityEvent]:
         """A section's state change (from the section engine)."""
-        now = self._clock(tr.time_ns)
-        self.section_state[tr.section] = (tr.state, tr.count)
-        return self._evaluate(now)
+        self._counters_clock(tr.time_ns)
+        self._keep(self.section_states, tr.section, (tr.time_ns, tr.state))
+        return []
 
     def _keep(self, store: dict[str, deque[Any]], head: str, item: tuple[int, Any]) -> None:
         q = store.setdefault(head, deque())
@@ -516,9 +530,12 @@ class IntegrityMonitor:
 
     def _run_checks(self, tr: _Train, now: int) -> None:
         lag = int(self.s.counter_lag_s * NS)
+        counted_to = self.counters_ns
         for c in tr.checks.values():  # at most one per counting head: done ones are kept, not redone
-            if c.done or c.due_ns is None or now < c.due_ns + lag:
+            if c.done or c.due_ns is None or c.until_ns is None or now < c.due_ns + lag:
                 continue
+            if counted_to is None or counted_to < c.until_ns + lag:
+                continue  # the counters have not reported past the time the train should have cleared
             c.done = True
             op = self._check(tr, c)
             if op is not None:
@@ -533,16 +550,18 @@ class IntegrityMonitor:
         doubts = sorted({why for t, why in self.counter_doubt.get(c.head, ()) if t0 <= t <= t1 + lag})
         n = tr.spec.axles
         sec = self._section_behind(c.head, d)
-        sec_state = self.section_state.get(sec) if sec is not None else None
-        others_in = sec is not None and self._other_train_in(tr, sec)
-        occupied = sec_state is not None and sec_state[0] is SectionState.OCCUPIED and not others_in
-        disturbed = sec_state is not None and sec_state[0] is SectionState.DISTURBED
+        at = c.until_ns + lag
+        sec_state = self._state_at(sec, at) if sec is not None else None
+        others_in = sec is not None and self._other_train_in(tr, sec, at)
+        occupied = sec_state is SectionState.OCCUPIED and not others_in
+        disturbed = sec_state is SectionState.DISTURBED
         where = f"the head {tr.length_m or 0:.0f} m + allowances past {c.head}"
         if doubts or disturbed:
             why = [f"{c.head} reported {', '.join(doubts)}"] if doubts else []
             why += [f"section {sec} disturbed"] if disturbed else []
             what = f"{counted} of {n} axles at {c.head}" if n else f"{counted} axles at {c.head}"
-            return _Opinion("doubt", (AXLES,), (f"{what}, counts unfit: " + "; ".join(why),), c.until_ns)
+            # No witness here, not a doubt about the train: the counters cannot tell either way.
+            return _Opinion("unfit", (AXLES,), (f"{what}, counts unfit: " + "; ".join(why),), c.until_ns)
         if n is None:
             if occupied:
                 return _Opinion(
@@ -565,7 +584,7 @@ class IntegrityMonitor:
                 (short, f"section {sec} still occupied behind the train"),
                 c.until_ns,
             )
-        if sec is not None and sec_state is not None and sec_state[0] is SectionState.CLEAR:
+        if sec is not None and sec_state is SectionState.CLEAR:
             return _Opinion("doubt", (AXLES,), (f"{short}, yet section {sec} behind is clear",), c.until_ns)
         return _Opinion("separation", (AXLES,), (short,), c.until_ns)
 
@@ -578,16 +597,31 @@ class IntegrityMonitor:
                 return sec.id
         return None
 
-    def _other_train_in(self, tr: _Train, section: str) -> bool:
+    def _state_at(self, section: str, t_ns: int) -> SectionState | None:
+        hist = self.section_states.get(section)
+        if not hist:
+            return None
+        k = bisect_left(hist, (t_ns + 1,)) - 1  # the last change at or before t_ns
+        return hist[k][1] if k >= 0 else None
+
+    def _other_train_in(self, tr: _Train, section: str, t_ns: int) -> bool:
+        """Another followed train had a unit in (or a body across) the section around ``t_ns``."""
         lo, hi = self._section_extent.get(section, (math.inf, -math.inf))
+        lo, hi = lo - self.lim.pos_allow_m, hi + self.lim.pos_allow_m
         for other in self.trains.values():
-            if other is tr or not other.head.chainage:
+            if other is tr:
                 continue
-            d = other.direction or 1
-            head = other.head.chainage[-1]
-            tail = other.eot.chainage[-1] if other.eot.chainage else head - d * (other.length_m or other.spec.length_m)
-            a, b = sorted((head, tail))
-            if b >= lo - self.lim.pos_allow_m and a <= hi + self.lim.pos_allow_m:
+            ends = []
+            for unit in (other.head, other.eot):
+                i = bisect_left(unit.times, t_ns)
+                near = [unit.chainage[k] for k in (i - 1, i) if 0 <= k < len(unit.times)]
+                ends += near
+            if not ends:
+                continue
+            if other.head.times and not other.eot.times:  # no EOT: the body a train length behind
+                d = other.direction or 1
+                ends += [x - d * (other.length_m or other.spec.length_m) for x in ends]
+            if max(ends) >= lo and min(ends) <= hi:
                 return True
         return False
 
