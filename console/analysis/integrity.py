@@ -42,13 +42,16 @@ from __future__ import annotations
 
 import math
 import statistics
-from bisect import bisect_left, insort
+from bisect import bisect_left
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
 from console.analysis.crossing_evidence import DeviceEvidence, EvidenceLimits
-from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.events import DetectionEvent
+from console.analysis.integrity_counts import AXLES as AXLES  # the witnesses' names, re-exported
+from console.analysis.integrity_counts import NONE, CountsWitness, HeadCheck, Opinion
+from console.analysis.integrity_counts import SECTIONS as SECTIONS
 from console.analysis.integrity_gnss import (
     BEHIND,
     CONSISTENT,
@@ -61,23 +64,15 @@ from console.analysis.integrity_gnss import (
     head_bounds,
     judge_eot,
 )
-from console.analysis.sections import SectionState, Transition
+from console.analysis.sections import Transition
 from console.analysis.timefmt import NS, iso
 from console.layout import Layout
 
 WHOLE, DOUBTFUL, PARTED = "whole", "doubtful", "parted"
 HEAD, EOT = "head", "eot"
-GNSS, AXLES, SECTIONS = "gnss", "axles", "sections"
+GNSS = "gnss"
 SEPARATION = (BEHIND, SLOWER, STRONG)
 AROUND = 2  # head fixes each side of an EOT fix's time that bound the head there
-# What a counting head reports that makes its count unfit as evidence of a parting.
-COUNTER_DOUBT = {
-    EventKind.SINGLE_CHANNEL: "a single system damped (possibly a missed axle)",
-    EventKind.COUNT_ERROR: "a count error",
-    EventKind.CHANNEL_FAULT: "a channel fault",
-    EventKind.POWER_LOSS: "a power or contact loss",
-    EventKind.INTERFERENCE: "an isolated pulse",
-}
 
 
 @dataclass(frozen=True)
@@ -185,32 +180,6 @@ class _Judged:
     verdict: Verdict | None  # None: no head fix to judge it by yet
 
 
-@dataclass
-class _HeadCheck:
-    """The counters' check of one train at one counting head."""
-
-    head: str
-    chainage_m: float
-    since_ns: int  # fix time of the last head fix before the counting head: its axles come after
-    due_fixes: int = 0  # head fixes so far placing the whole train past the counting head
-    due_ns: int | None = None  # when the second of them arrived (console time)
-    until_ns: int | None = None  # its fix time: axles after this are late
-    done: bool = False
-
-
-@dataclass(frozen=True)
-class _Opinion:
-    # ok | doubt | separation (a doubt that points to a parting) | parted | none | unfit (the witness
-    # cannot tell: its evidence is kept, it weighs nothing)
-    level: str
-    witnesses: tuple[str, ...] = ()
-    evidence: tuple[str, ...] = ()
-    t_ns: int = 0  # when it was formed (fix time for GNSS, check time for counters)
-
-
-NONE = _Opinion("none")
-
-
 LEARN_SAMPLES = 5  # head–EOT distances that make a learnt length (their median)
 
 
@@ -224,10 +193,10 @@ class _Train:
     direction: int = 0
     state: str | None = None
     judged: deque[_Judged] = field(default_factory=lambda: deque(maxlen=4))
-    gnss: _Opinion = NONE
-    counters: _Opinion = NONE
-    checks: dict[str, _HeadCheck] = field(default_factory=dict)
-    parted_by: _Opinion | None = None
+    gnss: Opinion = NONE
+    counters: Opinion = NONE
+    checks: dict[str, HeadCheck] = field(default_factory=dict)
+    parted_by: Opinion | None = None
     rear_m: float | None = None
     events: list[IntegrityEvent] = field(default_factory=list)
 
@@ -241,25 +210,10 @@ class IntegrityMonitor:
         self.layout = layout
         self.trains: dict[str, _Train] = {}
         self.now_ns: int | None = None  # the units' clock: the latest fix reception or tick
-        # The counters' clock: the latest axle, counter event or section change seen. A check runs only
-        # once the counters have reported past the time the train should have cleared the head, so
-        # a log read after the telemetry (a file followed from its start) is never judged incomplete.
-        self.counters_ns: int | None = None  # (on a quiet line a check waits for the counters' next word)
+        self.counts = CountsWitness(
+            layout, self.lim.pos_allow_m, self.lim.coupling_slack_m, self.s.counter_lag_s, self.s.history_s
+        )
         self.late_fixes = 0  # fixes older than their unit's last one: set aside
-        # Per counting head: (time, direction) of counted axles, and (time, why) of the counter's doubt.
-        self.axles: dict[str, deque[tuple[int, int]]] = {}
-        self.counter_doubt: dict[str, deque[tuple[int, str]]] = {}
-        # Per section, its state changes (time, state), oldest first: a check reads the state at its
-        # own time, not whatever later changes a log read in one block has brought already.
-        self.section_states: dict[str, deque[tuple[int, SectionState]]] = {}
-        heads = layout.heads if layout is not None else ()
-        self.head_m = {h.id: h.chainage_m for h in heads}
-        self._heads_sorted = sorted((h.chainage_m, h.id) for h in heads)
-        self._section_extent: dict[str, tuple[float, float]] = {}
-        if layout is not None:
-            for sec in layout.sections:
-                ch = [self.head_m[h] for h in sec.heads]
-                self._section_extent[sec.id] = (min(ch), max(ch))
 
     # -- trains ------------------------------------------------------------
     def _unit(self) -> _Unit:
@@ -315,10 +269,6 @@ class IntegrityMonitor:
         self.now_ns = t_ns if self.now_ns is None else max(self.now_ns, t_ns)
         return self.now_ns
 
-    def _counters_clock(self, t_ns: int) -> None:
-        """Advance the counters' clock; the units' clock stays (GNSS staleness is the units' business)."""
-        self.counters_ns = t_ns if self.counters_ns is None else max(self.counters_ns, t_ns)
-
     # -- GNSS --------------------------------------------------------------
     def fix(
         self, t_ns: int, t_fix_ns: int, train: str, role: str, chainage_m: float, speed_mps: float = math.nan
@@ -360,7 +310,7 @@ class IntegrityMonitor:
             self._judge(tr)
         else:
             self._judge(tr)  # a new head fix brackets the EOT fixes before it
-            self._head_moved(tr, chainage_m, t_fix_ns, now)
+            self.counts.open_checks(tr.checks, tr.head.times, tr.head.chainage, tr.direction, tr.length_m, now)
         return self._evaluate(now)
 
     def _direction(self, tr: _Train) -> None:
@@ -403,7 +353,7 @@ class IntegrityMonitor:
             for j in tr.judged:
                 j.verdict = None
 
-    def _gnss_opinion(self, tr: _Train) -> _Opinion:
+    def _gnss_opinion(self, tr: _Train) -> Opinion:
         # The run of consecutive judged EOT fixes up to the latest judged one.
         run: list[_Judged] = []
         for j in reversed(tr.judged):
@@ -422,26 +372,26 @@ class IntegrityMonitor:
         t = last.t_fix_ns
         length = tr.length_m
         if v.kind == STRONG:
-            return _Opinion(PARTED, (GNSS,), (v.describe(length),), t)
+            return Opinion(PARTED, (GNSS,), (v.describe(length),), t)
         prev = run[-2].verdict if len(run) >= 2 else None
         if prev is not None and prev.kind in SEPARATION and v.kind in SEPARATION and SLOWER in (v.kind, prev.kind):
             why = (f"{prev.describe(length)}, then {v.describe(length)} (two fixes in a row)",)
-            return _Opinion(PARTED, (GNSS,), why, t)
+            return Opinion(PARTED, (GNSS,), why, t)
         if prev is not None and self._standing_rear(run[-2], last):
             why = (f"{v.describe(length)}, the EOT standing while the gap grew by {v.lag_m - prev.lag_m:.0f} m",)
-            return _Opinion(PARTED, (GNSS,), why, t)
+            return Opinion(PARTED, (GNSS,), why, t)
         # Behind only (the head standing or crawling, or no speed reported): three fixes in a row,
         # each judged between head fixes on both sides, so one displaced head fix cannot do it.
         if len(kinds) >= 3 and all(
             j.verdict is not None and j.verdict.kind == BEHIND and j.verdict.bracketed for j in run[-3:]
         ):
             why = (f"{v.describe(length)}, three fixes in a row",)
-            return _Opinion(PARTED, (GNSS,), why, t)
+            return Opinion(PARTED, (GNSS,), why, t)
         if v.kind in SEPARATION:
-            return _Opinion("separation", (GNSS,), (v.describe(length) + " (one fix)",), t)
+            return Opinion("separation", (GNSS,), (v.describe(length) + " (one fix)",), t)
         if v.kind == INCONSISTENT:
-            return _Opinion("doubt", (GNSS,), ("fixes inconsistent: " + v.describe(length),), t)
-        return _Opinion("ok", (GNSS,), (v.describe(length),), t)
+            return Opinion("doubt", (GNSS,), ("fixes inconsistent: " + v.describe(length),), t)
+        return Opinion("ok", (GNSS,), (v.describe(length),), t)
 
     def _standing_rear(self, a: _Judged, b: _Judged) -> bool:
         """Two fixes in a row behind, the EOT standing at both (its Doppler speed nil, its place the
@@ -459,154 +409,37 @@ class IntegrityMonitor:
         return abs(b.s_m - a.s_m) <= noise and vb.lag_m - va.lag_m > noise
 
     # -- counters and sections ---------------------------------------------
+    # -- counters and sections ---------------------------------------------
     def detection(self, e: DetectionEvent) -> list[IntegrityEvent]:
         """A counting head's event: an axle (counted for the train passing), or the counter's own doubt."""
-        self._counters_clock(e.time_ns)
-        if e.kind is EventKind.AXLE and e.direction:
-            self._keep(self.axles, e.head, (e.time_ns, e.direction))
-        elif e.kind in COUNTER_DOUBT:
-            self._keep(self.counter_doubt, e.head, (e.time_ns, COUNTER_DOUBT[e.kind]))
+        self.counts.detection(e)
         return []
 
     def passage(self, head: str, t_first_ns: int, t_last_ns: int, axles: int, direction: int) -> list[IntegrityEvent]:
         """A head's passage at once: ``axles`` counted from ``t_first_ns`` to ``t_last_ns``."""
-        self._counters_clock(t_last_ns)
-        if direction and axles > 0:
-            step = (t_last_ns - t_first_ns) // max(1, axles - 1)
-            for k in range(axles):
-                self._keep(self.axles, head, (t_first_ns + k * step, direction))
+        self.counts.passage(head, t_first_ns, t_last_ns, axles, direction)
         return []
 
     def transition(self, tr: Transition) -> list[IntegrityEvent]:
         """A section's state change (from the section engine)."""
-        self._counters_clock(tr.time_ns)
-        self._keep(self.section_states, tr.section, (tr.time_ns, tr.state))
+        self.counts.transition(tr)
         return []
 
-    def _keep(self, store: dict[str, deque[Any]], head: str, item: tuple[int, Any]) -> None:
-        q = store.setdefault(head, deque())
-        if q and item[0] < q[-1][0]:
-            items = list(q)
-            insort(items, item)
-            q.clear()
-            q.extend(items)
-        else:
-            q.append(item)
-        horizon = item[0] - int(self.s.history_s * NS)
-        while q and q[0][0] < horizon:
-            q.popleft()
-
-    def _head_moved(self, tr: _Train, new_m: float, t_fix_ns: int, now: int) -> None:
-        """Open a check at each counting head the head unit has surely passed; count the due ones."""
-        d = tr.direction
-        if not d or not self._heads_sorted:
-            return
-        allow = self.lim.pos_allow_m
-        times, chainage = tr.head.times, tr.head.chainage
-        first = chainage[0]
-        lo, hi = sorted((first, new_m))
-        i = bisect_left(self._heads_sorted, (lo, ""))
-        for ch, hid in self._heads_sorted[i:]:
-            if ch > hi:
-                break
-            if hid in tr.checks or d * (new_m - ch) <= allow:
-                continue
-            # The last fix surely before it: the train's axles at that head all come after it.
-            before = [t for t, x in zip(times, chainage, strict=True) if d * (ch - x) > allow]
-            if before:
-                tr.checks[hid] = _HeadCheck(hid, ch, before[-1])
-        if tr.length_m is None:
-            return  # not before the train's length is known: the check would come due too soon
-        past = tr.length_m + allow + self.lim.coupling_slack_m
-        for c in tr.checks.values():
-            if c.done or c.due_ns is not None:
-                continue
-            if d * (new_m - c.chainage_m) >= past:
-                c.due_fixes += 1
-                if c.due_fixes >= 2:  # two fixes, so that one jump cannot make it due early
-                    c.due_ns, c.until_ns = now, t_fix_ns
-            else:
-                c.due_fixes = 0
-
     def _run_checks(self, tr: _Train, now: int) -> None:
-        lag = int(self.s.counter_lag_s * NS)
-        counted_to = self.counters_ns
         for c in tr.checks.values():  # at most one per counting head: done ones are kept, not redone
-            if c.done or c.due_ns is None or c.until_ns is None or now < c.due_ns + lag:
+            if not self.counts.ready(c, now):
                 continue
-            if counted_to is None or counted_to < c.until_ns + lag:
-                continue  # the counters have not reported past the time the train should have cleared
             c.done = True
-            op = self._check(tr, c)
+
+            def others_in(_section: str, lo: float, hi: float, t_ns: int) -> bool:
+                return self._other_train_in(tr, lo, hi, t_ns)
+
+            op = self.counts.judge(c, tr.direction, tr.spec.axles, tr.length_m, others_in)
             if op is not None:
                 tr.counters = op
 
-    def _check(self, tr: _Train, c: _HeadCheck) -> _Opinion | None:
-        d = tr.direction
-        assert c.until_ns is not None
-        lag = int(self.s.counter_lag_s * NS)
-        t0, t1 = c.since_ns - lag, c.until_ns
-        counted = sum(1 for t, dd in self.axles.get(c.head, ()) if t0 <= t <= t1 and dd == d)
-        doubts = sorted({why for t, why in self.counter_doubt.get(c.head, ()) if t0 <= t <= t1 + lag})
-        n = tr.spec.axles
-        sec = self._section_behind(c.head, d)
-        at = c.until_ns + lag
-        sec_state = self._state_at(sec, at) if sec is not None else None
-        others_in = sec is not None and self._other_train_in(tr, sec, at)
-        occupied = sec_state is SectionState.OCCUPIED and not others_in
-        disturbed = sec_state is SectionState.DISTURBED
-        where = f"the head {tr.length_m or 0:.0f} m + allowances past {c.head}"
-        if doubts or disturbed:
-            why = [f"{c.head} reported {', '.join(doubts)}"] if doubts else []
-            why += [f"section {sec} disturbed"] if disturbed else []
-            what = f"{counted} of {n} axles at {c.head}" if n else f"{counted} axles at {c.head}"
-            # No witness here, not a doubt about the train: the counters cannot tell either way.
-            return _Opinion("unfit", (AXLES,), (f"{what}, counts unfit: " + "; ".join(why),), c.until_ns)
-        if n is None:
-            if occupied:
-                return _Opinion(
-                    "separation", (SECTIONS,), (f"section {sec} still occupied behind the train ({where})",), c.until_ns
-                )
-            return None
-        if counted == n:
-            if occupied:
-                return None  # something else is in that section: not this train's business
-            return _Opinion("ok", (AXLES,), (f"{n} of {n} axles counted at {c.head}",), c.until_ns)
-        if counted > n:
-            return _Opinion(
-                "doubt", (AXLES,), (f"{counted} axles at {c.head}, more than the consist's {n}",), c.until_ns
-            )
-        short = f"{c.head} counted {counted} of {n} axles ({where})"
-        if occupied:
-            return _Opinion(
-                PARTED,
-                (AXLES, SECTIONS),
-                (short, f"section {sec} still occupied behind the train"),
-                c.until_ns,
-            )
-        if sec is not None and sec_state is SectionState.CLEAR:
-            return _Opinion("doubt", (AXLES,), (f"{short}, yet section {sec} behind is clear",), c.until_ns)
-        return _Opinion("separation", (AXLES,), (short,), c.until_ns)
-
-    def _section_behind(self, head: str, d: int) -> str | None:
-        """The section a train running in direction ``d`` leaves at ``head``."""
-        if self.layout is None:
-            return None
-        for sec, sign in self.layout.sections_of(head):
-            if sign * d < 0:
-                return sec.id
-        return None
-
-    def _state_at(self, section: str, t_ns: int) -> SectionState | None:
-        hist = self.section_states.get(section)
-        if not hist:
-            return None
-        k = bisect_left(hist, (t_ns + 1,)) - 1  # the last change at or before t_ns
-        return hist[k][1] if k >= 0 else None
-
-    def _other_train_in(self, tr: _Train, section: str, t_ns: int) -> bool:
-        """Another followed train had a unit in (or a body across) the section around ``t_ns``."""
-        lo, hi = self._section_extent.get(section, (math.inf, -math.inf))
+    def _other_train_in(self, tr: _Train, lo: float, hi: float, t_ns: int) -> bool:
+        """Another followed train had a unit in (or a body across) ``lo``–``hi`` around ``t_ns``."""
         lo, hi = lo - self.lim.pos_allow_m, hi + self.lim.pos_allow_m
         for other in self.trains.values():
             if other is tr:
@@ -637,19 +470,19 @@ class IntegrityMonitor:
             out += self._settle(tr, now)
         return out
 
-    def _stale(self, tr: _Train, now: int) -> _Opinion:
+    def _stale(self, tr: _Train, now: int) -> Opinion:
         stale = self.s.stale_s * NS
         head, eot = tr.head, tr.eot
         if eot.last_fix_ns is None:
             if head.first_rx_ns is not None and now - head.first_rx_ns > stale:
-                return _Opinion("doubt", (GNSS,), ("no EOT fix received",), now)
+                return Opinion("doubt", (GNSS,), ("no EOT fix received",), now)
             return NONE
         head_stale = head.last_fix_ns is None or now - head.last_fix_ns > stale
         if now - eot.last_fix_ns > stale:
-            return _Opinion("doubt", (GNSS,), (f"EOT stale for {(now - eot.last_fix_ns) / NS:.0f} s",), now)
+            return Opinion("doubt", (GNSS,), (f"EOT stale for {(now - eot.last_fix_ns) / NS:.0f} s",), now)
         if head.last_fix_ns is not None and head_stale:
             why = f"head unit stale for {(now - head.last_fix_ns) / NS:.0f} s: the EOT cannot be checked"
-            return _Opinion("doubt", (GNSS,), (why,), now)
+            return Opinion("doubt", (GNSS,), (why,), now)
         return NONE
 
     def _silent(self, tr: _Train, now: int) -> bool:
@@ -657,7 +490,7 @@ class IntegrityMonitor:
         last = [u.last_fix_ns for u in (tr.head, tr.eot) if u.last_fix_ns is not None]
         return bool(last) and now - max(last) > stale
 
-    def _fuse(self, tr: _Train, now: int) -> tuple[str | None, _Opinion]:
+    def _fuse(self, tr: _Train, now: int) -> tuple[str | None, Opinion]:
         g, c = tr.gnss, tr.counters
         stale = self._stale(tr, now)
         if self._silent(tr, now):
@@ -672,13 +505,13 @@ class IntegrityMonitor:
             # A consistent EOT fix measured after the counters' check: the unit riding on the
             # last vehicle says the train is whole there; the counters disagree (doubt).
             if g.level == "ok" and g.t_ns > c.t_ns:
-                return DOUBTFUL, _Opinion("doubt", (*c.witnesses, GNSS), (*c.evidence, "the EOT says whole"), now)
+                return DOUBTFUL, Opinion("doubt", (*c.witnesses, GNSS), (*c.evidence, "the EOT says whole"), now)
             return PARTED, c
         if g.level == "separation" and c.level == "separation":
-            return PARTED, _Opinion(PARTED, (*g.witnesses, *c.witnesses), (*g.evidence, *c.evidence), now)
+            return PARTED, Opinion(PARTED, (*g.witnesses, *c.witnesses), (*g.evidence, *c.evidence), now)
         doubts = [o for o in (stale, g, c) if o.level in ("doubt", "separation")]
         if doubts:
-            return DOUBTFUL, _Opinion(
+            return DOUBTFUL, Opinion(
                 "doubt",
                 tuple(w for o in doubts for w in o.witnesses),
                 tuple(e for o in doubts for e in o.evidence),
@@ -686,7 +519,7 @@ class IntegrityMonitor:
             )
         oks = [o for o in (g, c) if o.level == "ok"]
         if oks:
-            return WHOLE, _Opinion(
+            return WHOLE, Opinion(
                 "ok", tuple(w for o in oks for w in o.witnesses), tuple(e for o in oks for e in o.evidence)
             )
         return None, NONE
