@@ -8,6 +8,7 @@ detection and doubt times by fix rate, false partings per 1,000 whole
 train-hours, EOT losses reported as doubt.
 
     python benchmarks/integrity_sweep.py 6000 --seed 2026
+    python benchmarks/integrity_sweep.py 1000 --seed 2027 --kind whole   # more whole train-hours
 """
 
 from __future__ import annotations
@@ -26,12 +27,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("runs", type=int)
     ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--kind", choices=("parted", "whole", "eot_loss"), help="only runs of this kind")
     args = ap.parse_args()
     print("$ python " + " ".join(sys.argv), file=sys.stderr)
     t0 = time.perf_counter()
     with Progress(transient=True) as bar:
         task = bar.add_task("runs", total=args.runs)
-        verdicts = many_runs(args.runs, args.seed, progress=lambda k: bar.update(task, completed=k))
+        verdicts = many_runs(args.runs, args.seed, progress=lambda k: bar.update(task, completed=k), kind=args.kind)
     s = summary(verdicts)
     s["seed"] = args.seed
     s["elapsed_s"] = round(time.perf_counter() - t0, 1)

@@ -392,10 +392,11 @@ def judge(res: RunResult) -> Verdict:
         if before and before[-1].state != "whole":
             doubt = 0.0
     eot_doubt = None
-    if c.kind == "eot_loss":
-        eot_doubt = any(
-            e.state == DOUBTFUL and tr.eot_fails_ns is not None and e.t_ns >= tr.eot_fails_ns for e in res.events
-        )
+    if c.kind == "eot_loss" and tr.eot_fails_ns is not None:
+        # Doubtful once the unit has had time to go stale (it may have been doubtful already), and
+        # doubtful still at the end: never whole again, never parted, while it stays silent.
+        stale_ns = int((max(30.0, 4 * c.period_s) + c.latency_s + c.period_s) * NS)
+        eot_doubt = _state_at(res.events, tr.eot_fails_ns + stale_ns) == DOUBTFUL and res.events[-1].state == DOUBTFUL
     # Time spent doubtful before any parting (the whole train's share of doubt).
     end = tp if tp is not None else START_NS + int(c.duration_s * NS)
     doubt_ns = 0
@@ -427,6 +428,12 @@ def judge(res: RunResult) -> Verdict:
     )
 
 
+def _state_at(events: list[IntegrityEvent], t_ns: int) -> str | None:
+    """The monitor's state at ``t_ns``: its last change at or before then."""
+    before = [e.state for e in events if e.t_ns <= t_ns]
+    return before[-1] if before else None
+
+
 def random_conditions(rng: np.random.Generator, seed: int, kind: str | None = None) -> Conditions:
     """Across the issue's ranges: fixes at 0.1–2.5 Hz, noise ≤ 5 m, loss ≤ 30 %, jumps in half the runs."""
     kind = kind or str(rng.choice(KINDS, p=[0.5, 0.35, 0.15]))
@@ -451,14 +458,18 @@ def random_conditions(rng: np.random.Generator, seed: int, kind: str | None = No
 
 
 def many_runs(
-    n: int, seed: int, layout: Layout | None = None, progress: Callable[[int], None] | None = None
+    n: int,
+    seed: int,
+    layout: Layout | None = None,
+    progress: Callable[[int], None] | None = None,
+    kind: str | None = None,
 ) -> list[Verdict]:
-    """``n`` runs of random conditions from ``seed`` (the same seed, the same runs)."""
+    """``n`` runs of random conditions from ``seed`` (the same seed, the same runs); ``kind``: only that kind."""
     lay = layout or line_layout()
     rng = np.random.default_rng(seed)
     out = []
     for k in range(n):
-        out.append(judge(simulate(lay, random_conditions(rng, seed * 1_000_003 + k))))
+        out.append(judge(simulate(lay, random_conditions(rng, seed * 1_000_003 + k, kind))))
         if progress is not None:
             progress(k + 1)
     return out
