@@ -364,10 +364,11 @@ class Verdict:
     doubt_within_target: bool | None  # parted: doubt (or parted) ≤ 2 report periods + latency
     missed: bool
     false_parted: bool  # a "parted" on a whole train (or before the parting)
-    eot_loss_doubt: bool | None  # eot_loss: the loss reported as doubt
+    eot_loss_doubt: bool | None  # eot_loss: the loss reported as doubt (and nothing else after)
     fixes_in_window: int
     hours: float
     doubt_hours: float  # time spent doubtful on a whole train
+    eot_doubt_s: float | None = None  # eot_loss: the loss → doubt
 
 
 def judge(res: RunResult) -> Verdict:
@@ -392,11 +393,17 @@ def judge(res: RunResult) -> Verdict:
         if before and before[-1].state != "whole":
             doubt = 0.0
     eot_doubt = None
+    eot_doubt_s = None
     if c.kind == "eot_loss" and tr.eot_fails_ns is not None:
-        # Doubtful once the unit has had time to go stale (it may have been doubtful already), and
-        # doubtful still at the end: never whole again, never parted, while it stays silent.
-        stale_ns = int((max(30.0, 4 * c.period_s) + c.latency_s + c.period_s) * NS)
-        eot_doubt = _state_at(res.events, tr.eot_fails_ns + stale_ns) == DOUBTFUL and res.events[-1].state == DOUBTFUL
+        # Doubtful from some moment after the loss (or already at it), and nothing else from then
+        # to the end. Before that a verdict on its last fixes may still come (whole: it was heard,
+        # and was where it should be); how long the doubt took is kept.
+        fail = tr.eot_fails_ns
+        t_doubt = fail if _state_at(res.events, fail) == DOUBTFUL else None
+        if t_doubt is None:
+            t_doubt = next((e.t_ns for e in res.events if e.t_ns >= fail and e.state == DOUBTFUL), None)
+        eot_doubt = t_doubt is not None and all(e.state == DOUBTFUL for e in res.events if e.t_ns >= t_doubt)
+        eot_doubt_s = None if t_doubt is None else (t_doubt - fail) / NS
     # Time spent doubtful before any parting (the whole train's share of doubt).
     end = tp if tp is not None else START_NS + int(c.duration_s * NS)
     doubt_ns = 0
@@ -425,6 +432,7 @@ def judge(res: RunResult) -> Verdict:
         tr.fixes_in_window,
         hours,
         doubt_ns / NS / 3600.0,
+        eot_doubt_s,
     )
 
 
@@ -499,6 +507,7 @@ def summary(verdicts: list[Verdict]) -> dict[str, object]:
             "no_eot_fix_in_window": sum(v.fixes_in_window == 0 for v in sel),
         }
     false = sum(v.false_parted for v in verdicts)
+    eot = [v.eot_doubt_s for v in verdicts if v.eot_doubt_s is not None]
     return {
         "runs": len(verdicts),
         "parted_runs": len(parted),
@@ -511,6 +520,8 @@ def summary(verdicts: list[Verdict]) -> dict[str, object]:
         "false_parted_per_1000_h": 1000.0 * false / whole_hours if whole_hours else math.nan,
         "eot_loss_runs": sum(v.kind == "eot_loss" for v in verdicts),
         "eot_loss_as_doubt": sum(bool(v.eot_loss_doubt) for v in verdicts),
+        "eot_loss_doubt_median_s": float(np.median(eot)) if eot else math.nan,
+        "eot_loss_doubt_max_s": float(max(eot)) if eot else math.nan,
         "doubt_share_whole": (
             sum(v.doubt_hours for v in verdicts if v.kind != "eot_loss")
             / sum(v.hours for v in verdicts if v.kind != "eot_loss")
