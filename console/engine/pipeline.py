@@ -175,8 +175,12 @@ class Pipeline:
                 watermark = min(self.stream.open_first_ns(), self.stream.clock_ns - slack_ns)
                 self._step(self.events.release_block(watermark))
 
-    def finish(self) -> DiagOutcome:
-        """The input has ended: every open passage is whole; every held event is released."""
+    def finish(self, start_sections: bool = True) -> DiagOutcome:
+        """The input has ended: every open passage is whole; every held event is released.
+
+        ``start_sections``: with no event at all, the section engine is still made (every section in its
+        start state), as a batch read reports it; a live source that gave no record makes none.
+        """
         warnings: list[str] = []
         if self.stream is None:
             warnings = self._finish_whole()
@@ -185,7 +189,8 @@ class Pipeline:
             if self.events is not None:
                 self._step(self.events.finish_block())
                 warnings = self.events.warnings(self.stream.heads)
-        if self.settings.sections is not None and self.settings.events is not None and self.section_engine is None:
+        s = self.settings
+        if start_sections and s.sections is not None and s.events is not None and self.section_engine is None:
             self._engine(0)  # no event at all: every section keeps its start state
             self._drain()
         if self.settings.health is not None:

@@ -139,7 +139,7 @@ class DiagFollow:
 
     def finish(self) -> None:
         """End of following: every open run is closed and analysed (as the batch reader ends a file)."""
-        self.pipeline.finish()
+        self.pipeline.finish(start_sections=False)
 
     @property
     def sections(self) -> Any:
