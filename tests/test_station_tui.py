@@ -205,6 +205,42 @@ def test_eot_loss_keeps_the_crossing_warning_on() -> None:
     run(go())
 
 
+def test_eot_loss_is_doubt_and_a_parting_is_parted_in_the_train_row() -> None:
+    """Key 4 silences the EOT unit: the train row says doubt, never parted. Key 6 parts a
+    train: its row says PARTED and the event log carries the evidence, as critical."""
+
+    async def go() -> None:
+        app = make_app()
+        async with app.run_test(size=SIZE) as pilot:
+            app.advance(40)
+            await pilot.pause()
+            assert app.model.snapshot().trains[0].integrity == "whole"
+            await pilot.press("4")
+            app.advance(200)
+            await pilot.pause()
+            snap = app.model.snapshot()
+            assert snap.trains[0].integrity == "doubtful"
+            assert str(app.query_one(TrainsTable).get_row(snap.trains[0].id)[4]) == "doubt"
+            assert not any("parted" in t for t in log_texts(app))
+
+        app = make_app(seed=2)
+        async with app.run_test(size=SIZE) as pilot:
+            app.advance(40)
+            await pilot.pause()
+            await pilot.press("6")
+            assert any("fault injected: train parting" in t for t in log_texts(app))
+            app.advance(60)
+            await pilot.pause()
+            snap = app.model.snapshot()
+            train = snap.trains[0]
+            assert train.integrity == "parted"
+            assert str(app.query_one(TrainsTable).get_row(train.id)[4]) == "PARTED"
+            parted = [e for e in app.model.log if f"train {train.id} parted" in e.text]
+            assert parted and parted[0].severity == "critical" and "EOT" in parted[0].text
+
+    run(go())
+
+
 def test_truth_view_shows_the_truth_and_marks_differences() -> None:
     async def go() -> None:
         app = make_app()

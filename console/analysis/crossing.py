@@ -41,6 +41,11 @@ travel.
   A lost head unit falls back to the EOT position plus the train length.
   A train with no EOT keeps the warning on (alarm).  Direction unknown:
   treated as approaching.
+* **A parted train** (:meth:`CrossingController.train_parted`, from the
+  integrity monitor, :mod:`console.analysis.integrity`): its warning is
+  held until the rear part is accounted for, that is, by the off rule's own
+  evidence, two EOT fixes past the crossing (the EOT rides on the rear
+  part); the EOT position plus the train length no longer places its head.
 
 A fixed-time **baseline** (off at head arrival + train length / speed +
 margin) is computed beside it in the timeline, to show what the EOT saves
@@ -152,6 +157,7 @@ class _Track:
     reason_off: str = ""
     alarms: set[str] = field(default_factory=set)
     episodes: list[tuple[int, int | None, str, str]] = field(default_factory=list)
+    parted_ns: int | None = None  # when the integrity monitor saw the train parted
 
 
 class CrossingController:
@@ -227,8 +233,8 @@ class CrossingController:
         d = tr.direction
         v = self._speed(tr, t_ns)
         for role, r, extra in ((HEAD, tr.head, 0.0), (EOT, tr.eot, tr.spec.length_m)):
-            if not self._fresh(r, t_ns) or (role == EOT and d == 0):
-                continue
+            if not self._fresh(r, t_ns) or (role == EOT and (d == 0 or tr.parted_ns is not None)):
+                continue  # a parted train's EOT rides on the rear part: it says nothing of the head
             assert r is not None
             far = r.chainage_m
             if d:
@@ -371,7 +377,10 @@ class CrossingController:
             and not self._cleared(tr)
         ):
             tr.alarms.add("head")
-            out.append(self._emit(t_ns, tr, "alarm", "head unit stale: using EOT position + train length"))
+            fallback = (
+                "the train parted: its head is not placed" if tr.parted_ns else "using EOT position + train length"
+            )
+            out.append(self._emit(t_ns, tr, "alarm", f"head unit stale: {fallback}"))
         if self._fresh(tr.eot, t_ns):
             tr.alarms.discard("eot")
         if self._fresh(tr.head, t_ns):
@@ -413,6 +422,20 @@ class CrossingController:
                 out += self._check_on(other, fix.t_ns) + self._alarms(other, fix.t_ns)
         return out
 
+    def train_parted(self, train: str, t_ns: int, evidence: str) -> list[CrossingEvent]:
+        """The integrity monitor saw ``train`` parted.  A warning on for it is held until the rear
+        part is accounted for: the off rule's two EOT fixes past the crossing (the EOT rides on the
+        rear part).  An alarm says so, once."""
+        tr = self.tracks.get(train)
+        if tr is None or tr.parted_ns is not None:
+            return []
+        tr.parted_ns = t_ns
+        if self._cleared(tr):
+            return []  # its rear part is past this crossing already
+        what = "warning held until the rear part is accounted for" if tr.warned else "its rear part is short of here"
+        tr.alarms.add("parted")
+        return [self._emit(t_ns, tr, "alarm", f"train parted ({evidence}): {what}")]
+
     def settled_ns(self) -> int | None:
         """When every device's last fix has gone stale (None: no fix yet). After that, until the
         next fix, no estimate of a head exists (no warning by extrapolation), a head-unit alarm
@@ -434,17 +457,23 @@ def run_controller(
     fixes: Sequence[Fix],
     settings: ControllerSettings | None = None,
     tick_s: float = 1.0,
+    partings: Sequence[tuple[int, str, str]] = (),
 ) -> CrossingController:
-    """Batch: feed fixes in reception order, ticking every ``tick_s`` between them."""
+    """Batch: feed fixes in reception order, ticking every ``tick_s`` between them; ``partings``
+    (time, train, evidence) from the integrity monitor are told to the unit as they come."""
     ctl = CrossingController(crossing, trains, settings)
     ordered = sorted(fixes, key=lambda f: f.t_ns)
     if not ordered:
         return ctl
     t = ordered[0].t_ns
     step = max(1, int(tick_s * NS))
+    told = sorted(partings)
     for f in ordered:
         if f.t_ns > t:
             _tick(ctl, t, (f.t_ns - t - 1) // step, step)  # every tick before the fix
+        while told and told[0][0] <= f.t_ns:
+            ctl.train_parted(told[0][1], told[0][0], told[0][2])
+            told.pop(0)
         ctl.step(f)
         t = f.t_ns
     # A live unit keeps its clock running: let pending stale-device alarms fire.

@@ -28,6 +28,7 @@ from console.analysis.crossing import (
 )
 from console.analysis.crossing_timeline import TimelineRow, timeline
 from console.analysis.geo import TrackProjector
+from console.analysis.integrity import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
 from console.layout import Layout
 
 OFF_TRACK_M = 100.0
@@ -39,6 +40,7 @@ class TrainDevices:
     head: tuple[str, ...]
     eot: tuple[str, ...]
     length_m: float
+    length_given: bool = False  # False: the layout's default, not this train's own
 
 
 @dataclass
@@ -49,6 +51,7 @@ class CrossingRun:
     off_track: int = 0
     unassigned_devices: list[str] = field(default_factory=list)
     position_jumps: int = 0  # fixes set aside as implausible for a train (counted once, not per crossing)
+    integrity: list[IntegrityEvent] = field(default_factory=list)  # every train's integrity changes, in time order
 
     @property
     def late_warnings(self) -> int:
@@ -166,16 +169,34 @@ def run_crossings(
         stale = max(s.stale_after_s, 4 * report_period_s)
         s = ControllerSettings(**{**s.__dict__, "report_period_s": report_period_s, "stale_after_s": stale})
     specs = [TrainSpec(t.train, t.length_m) for t in chosen]
+    integrity = run_integrity(ctl_fixes, chosen, layout, s)
+    partings = [(e.t_ns, e.train, "; ".join(e.evidence)) for e in integrity if e.state == PARTED]
     rows: list[TimelineRow] = []
     events: list[CrossingEvent] = []
     jumps = 0
     for crossing in layout.crossings:
-        ctl: CrossingController = run_controller(crossing, specs, ctl_fixes, s)
+        ctl: CrossingController = run_controller(crossing, specs, ctl_fixes, s, partings=partings)
         rows += timeline(ctl, ctl_fixes, s)
         events += ctl.events
         jumps = ctl.position_jumps  # every controller sees the same fixes and sets aside the same ones
     events.sort(key=lambda e: e.t_ns)
-    return CrossingRun(rows, events, list(chosen), off, unassigned, jumps)
+    return CrossingRun(rows, events, list(chosen), off, unassigned, jumps, integrity)
+
+
+def run_integrity(
+    fixes: Sequence[Fix], trains: Sequence[TrainDevices], layout: Layout, s: ControllerSettings
+) -> list[IntegrityEvent]:
+    """Each train's integrity from its head and EOT fixes (GNSS only: the telemetry has no axle counts)."""
+    settings = IntegritySettings(
+        report_period_s=s.report_period_s, latency_s=s.latency_s, stale_after_s=s.stale_after_s
+    )
+    mon = IntegrityMonitor(settings, layout)
+    for t in trains:
+        mon.add_train(ConsistSpec(t.train, t.length_m, length_known=t.length_given))
+    out: list[IntegrityEvent] = []
+    for f in sorted(fixes, key=lambda f: f.t_ns):  # per fix: the monitor is a state machine
+        out += mon.fix(f.t_ns, f.t_fix_ns, f.train, f.role, f.chainage_m, f.speed_mps)
+    return out
 
 
 def parse_train_option(text: str, default_length_m: float) -> TrainDevices:
@@ -190,4 +211,4 @@ def parse_train_option(text: str, default_length_m: float) -> TrainDevices:
             length = float(parts[2])
         except ValueError:
             raise ValueError(f"--train {text!r}: length {parts[2]!r} is not a number") from None
-    return TrainDevices(name.strip(), (parts[0],), (parts[1],), length)
+    return TrainDevices(name.strip(), (parts[0],), (parts[1],), length, len(parts) == 3)

@@ -37,8 +37,10 @@ def crossing(
 
     def body() -> int:
         from console.analysis.crossing_batch import parse_train_option, run_crossings
+        from console.analysis.integrity import timelines
         from console.analysis.timefmt import iso
         from console.render.crossing_tables import reasons_view, timeline_table, violations_view
+        from console.render.integrity_tables import integrity_table
         from parsers.gnss import parse_gnss
 
         check_inputs(files)
@@ -91,6 +93,7 @@ def crossing(
                         {"train": t.train, "head": list(t.head), "eot": list(t.eot), "length_m": t.length_m}
                         for t in run.trains
                     ],
+                    "integrity": timelines(run.integrity),
                     "warnings": warnings,
                     "parse_report": report.to_dict(),
                 }
@@ -102,6 +105,8 @@ def crossing(
                 out.print(v)
             out.print(timeline_table(run.timelines))
             out.print(reasons_view(run.timelines, run.events))
+            if run.integrity:
+                out.print(integrity_table(timelines(run.integrity)))
             for w in warnings:
                 out.print(f"warning: {clean(w)}", markup=False)  # names from the input: escaped
             if report.rejected:

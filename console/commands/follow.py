@@ -46,6 +46,9 @@ def _line(ev: dict[str, Any]) -> str:
         text = f"section  {ev['section']}  {ev['state']}  count {ev['count']}  {ev['time']}  {ev['reason']}"
     elif kind == "crossing":
         text = f"crossing {ev['crossing']}  {ev['kind']}  train {ev['train']}  {ev['time']}  {ev['reason']}"
+    elif kind == "integrity":
+        why = "; ".join(ev["evidence"])
+        text = f"integrity train {ev['train']}  {ev['state']}  {ev['time']}  {why}"
     elif kind == "health":
         text = f"health   {ev['severity']}  {ev['rule']}  {ev['counting_head']}  {ev['message']}"
     elif kind == "source":
@@ -63,7 +66,8 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
 
     out = [
         f"followed: {summary['passages']} passages, {summary['section_changes']} section changes, "
-        f"{summary['crossing_events']} crossing events, {summary['health_findings']} health findings"
+        f"{summary['crossing_events']} crossing events, {summary.get('integrity_events', 0)} integrity changes, "
+        f"{summary['health_findings']} health findings"
     ]
     if summary.get("status_only_passages"):
         n = summary["status_only_passages"]

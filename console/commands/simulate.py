@@ -48,6 +48,8 @@ def _parse_fault(text: str) -> Any:
 
 
 def _check_targets(faults: tuple[Any, ...], lay: Any, fleet: int, health_only: bool) -> None:
+    from console.sim.station import TRAIN_FAULTS
+
     heads = {h.id for h in lay.heads}
     for f in faults:
         if f.kind == "gnss_decay":
@@ -58,7 +60,7 @@ def _check_targets(faults: tuple[Any, ...], lay: Any, fleet: int, health_only: b
                 raise fail(f"--fault gnss_decay: {f.target}: the fleet's trainsets are T1 to T{fleet}")
             if health_only:
                 raise fail("--fault gnss_decay: --health-only runs no trains, so no GNSS unit reports")
-        elif f.kind not in ("eot_loss", "head_loss") and f.target not in heads:
+        elif f.kind not in TRAIN_FAULTS and f.target not in heads:
             raise fail(f"--fault {f.kind}: {f.target} is not a counting head of {lay.source}")
 
 
@@ -80,7 +82,8 @@ def simulate(
         list[str] | None,
         typer.Option(
             "--fault",
-            help="KIND:TARGET:START[:END[:CHANNEL[:RATE]]], e.g. dead_channel:WS3:20m, analog_drift:WS3:2d::1,"
+            help="KIND:TARGET:START[:END[:CHANNEL[:RATE]]], e.g. dead_channel:WS3:20m, train_parting:T2:14m,"
+            " analog_drift:WS3:2d::1,"
             " gnss_decay:T2-eot:0s::2:0.02 (repeatable).",
         ),
     ] = None,

@@ -52,15 +52,20 @@ class CrossingFollow:
     def owner(self, f: GnssFix) -> tuple[str, str]:
         """(train, role): the unit says so (LoRa payload), or its name does (<train>-head / -eot)."""
         if f.role in (HEAD, EOT):
-            return (f.train or f.device), f.role
+            if f.train:
+                return f.train, f.role
+            # A device export with a role column and no train one: the name still says whose it is.
+            suffix = f"-{f.role}"
+            return (f.device[: -len(suffix)] if f.device.endswith(suffix) else f.device), f.role
         for role in (HEAD, EOT):
             if f.device.endswith(f"-{role}"):
                 return f.device[: -len(role) - 1], role
         return f.device, HEAD
 
-    def fix(self, f: GnssFix, now_ns: int) -> None:
+    def fix(self, f: GnssFix, now_ns: int) -> Fix | None:
+        """Place a fix on the track and run the crossing units on it; the placed fix (None: not placeable)."""
         if self.proj is None or math.isnan(f.lat_deg) or math.isnan(f.lon_deg):
-            return
+            return None
         delay = now_ns - f.t_fix_ns
         best = self.skew_ns.get(f.device)
         self.skew_ns[f.device] = delay if best is None else min(best, delay)
@@ -70,7 +75,7 @@ class CrossingFollow:
         p = self.proj.project(f.lat_deg, f.lon_deg)
         if float(p.offset_m[0]) > OFF_TRACK_M:
             self.off_track += 1
-            return
+            return None
         train, role = self.owner(f)
         chainage = float(p.chainage_m[0])
         hint = 0
@@ -84,6 +89,12 @@ class CrossingFollow:
         for ctl in self.controllers.values():
             ctl.add_train(TrainSpec(train, self.default_length_m))
             self._out(ctl, ctl.step(fix))
+        return fix
+
+    def parted(self, train: str, t_ns: int, evidence: str) -> None:
+        """The integrity monitor saw ``train`` parted: every unit holds its warning for the rear part."""
+        for ctl in self.controllers.values():
+            self._out(ctl, ctl.train_parted(train, t_ns, evidence))
 
     def tick(self, now_ns: int) -> None:
         for ctl in self.controllers.values():

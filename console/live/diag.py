@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
 from console.engine.pipeline import HEALTH_REGISTERS, Pipeline, PipelineSettings
-from console.engine.sinks import Sink
+from console.engine.sinks import Sink, Sinks
 from console.layout import Layout
 from console.render.event_lines import health_event, section_event
 from console.render.passage_spool import passage_texts
@@ -93,14 +93,26 @@ def live_settings(layout: Layout | None, speed: SpeedSettings, include_status: b
 class DiagFollow:
     """The diagnostic half of the live engine: feed line blocks, get events through ``emit``."""
 
-    def __init__(self, layout: Layout | None, settings: SpeedSettings, emit: Emit, include_status: bool = False):
+    def __init__(
+        self,
+        layout: Layout | None,
+        settings: SpeedSettings,
+        emit: Emit,
+        include_status: bool = False,
+        also: Sink | None = None,
+    ):
+        """``also``: another sink of the pipeline's results (the integrity monitor takes its axles and
+        section changes)."""
         self.layout = layout
         self.emit = emit
         self.reader = DiagReader([])
         self.stats = DiagFollowStats()
         self._file_ids: dict[str, int] = {}
+        sink = LiveEvents(emit, self.stats)
         self.pipeline = Pipeline(
-            self.reader.registry, live_settings(layout, settings, include_status), LiveEvents(emit, self.stats)
+            self.reader.registry,
+            live_settings(layout, settings, include_status),
+            Sinks(sink, also) if also is not None else sink,
         )
 
     def add(self, source: str, file_label: str, first_line: int, data: bytes) -> None:

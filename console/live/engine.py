@@ -1,8 +1,8 @@
 """The live engine: items from any source → the analysis core → events.
 
 Events are plain dicts with a ``type`` (``passage``, ``section``,
-``crossing``, ``health``, ``source``), the JSON lines of ``trackside follow
---jsonl``.  The engine runs on one thread (the caller's); sources only queue
+``crossing``, ``integrity``, ``health``, ``source``), the JSON lines of
+``trackside follow --jsonl``.  The engine runs on one thread (the caller's); sources only queue
 items, so the analysis state needs no locks.
 """
 
@@ -20,6 +20,7 @@ from console.live.archive import LiveArchiver
 from console.live.crossings import CrossingFollow
 from console.live.diag import DiagFollow
 from console.live.frames import FrameFollow
+from console.live.integrity import IntegrityFollow
 from console.sources.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote
 
 Emit = Callable[[dict[str, Any]], None]
@@ -38,9 +39,18 @@ class LiveEngine:
         self.layout = layout
         self.emit = emit
         self.include_status = include_status
-        self.diag = DiagFollow(layout, settings or SpeedSettings(), emit, include_status=include_status)
-        self.crossings = CrossingFollow(layout, emit) if layout is not None and layout.crossings else None
+        # Train integrity needs the fixes placed on the track: a layout with a [[track]].
+        self.integrity = (
+            IntegrityFollow(layout, self._integrity_event) if layout is not None and len(layout.track) >= 2 else None
+        )
+        self.diag = DiagFollow(
+            layout, settings or SpeedSettings(), emit, include_status=include_status, also=self.integrity
+        )
+        placed = layout is not None and (bool(layout.crossings) or len(layout.track) >= 2)
+        self.crossings = CrossingFollow(layout, emit) if layout is not None and placed else None
         self.frames = FrameFollow(layout, emit)
+        if self.integrity is not None:
+            self.frames.listener = self.integrity
         self.archiver = archiver
         self.can_frames = 0
         self.file_frames = 0  # count frames read from followed CAN and frame logs
@@ -59,7 +69,9 @@ class LiveEngine:
             self.diag.add(item.source, item.file, item.first_line, item.data)
         elif isinstance(item, GnssFix):
             if self.crossings is not None:
-                self.crossings.fix(item, self.now_ns())
+                placed = self.crossings.fix(item, self.now_ns())
+                if placed is not None and self.integrity is not None:
+                    self.integrity.fix(placed, item.t_fix_ns)
         elif isinstance(item, CanFrame):
             self.can_frames += 1
             self.frames.add(item)
@@ -74,10 +86,17 @@ class LiveEngine:
         """Nothing more is queued: analyse what is buffered (CAN frames come one by one, are analysed in blocks)."""
         self.frames.flush()
 
+    def _integrity_event(self, ev: dict[str, Any]) -> None:
+        self.emit(ev)
+        if ev["state"] == "parted" and self.crossings is not None:
+            self.crossings.parted(ev["train"], ev["time_ns"], "; ".join(ev["evidence"]))
+
     def tick(self) -> None:
         self.frames.flush()
         if self.crossings is not None:
             self.crossings.tick(self.now_ns())
+        if self.integrity is not None:
+            self.integrity.tick()
         if self.archiver is not None:
             self.archiver.tick()
 
@@ -108,6 +127,7 @@ class LiveEngine:
             "section_changes": self.diag.stats.section_changes + self.frames.stats.section_changes,
             "health_findings": self.diag.stats.health_findings + self.frames.stats.health_findings,
             "crossing_events": self.crossings.events if self.crossings else 0,
+            "integrity_events": self.integrity.events if self.integrity else 0,
             "gnss_fixes": self.crossings.fixes if self.crossings else 0,
             "can_frames": self.can_frames,
             "file_frames": self.file_frames,

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
@@ -57,6 +57,14 @@ Emit = Callable[[dict[str, Any]], None]
 MAX_BUFFERED = 4096  # frames held between flushes (a burst is analysed in blocks of this size)
 _STATUS_CHANNELS = (("sys", None), ("ses1", 1), ("ses2", 2), ("ses3", 3))
 _MAJORITY = "majority not unanimous"  # frames_to_events' COUNT_ERROR for ERR turning 1
+
+
+class CountsListener(Protocol):
+    """What else follows the counting heads (the integrity monitor): events in the section engine's order."""
+
+    def detection(self, e: DetectionEvent) -> None: ...
+
+    def transition(self, tr: Transition) -> None: ...
 
 
 @dataclass
@@ -109,6 +117,7 @@ class FrameFollow:
         self._buffer: list[CanFrame] = []
         self._numbers: list[int] = []
         self._seen_findings: set[tuple[str, str | None, int | None]] = set()
+        self.listener: CountsListener | None = None  # also gets every event and section change
 
     # -- input -----------------------------------------------------------
     def add(self, frame: CanFrame) -> None:
@@ -293,6 +302,8 @@ class FrameFollow:
         self.stats.events += len(events)
         for e in events:  # per event: the section rules are sequential
             self._passage(e)
+            if self.listener is not None:
+                self.listener.detection(e)
             if self.layout is not None and self.layout.sections:
                 if self.sections is None:
                     self.sections = SectionEngine(self.layout, initial=SectionState.PREPARATORY, start_ns=e.time_ns)
@@ -342,6 +353,8 @@ class FrameFollow:
 
     def _section(self, tr: Transition) -> None:
         self.stats.section_changes += 1
+        if self.listener is not None:
+            self.listener.transition(tr)
         self.emit(
             {
                 "type": "section",

@@ -95,7 +95,7 @@ class Attention:
 
     severity: Severity  # CRITICAL for unsafe, WARNING (or a finding's own) for failing
     safety: str  # UNSAFE | FAILING
-    topic: str  # crossing | health | section | reset
+    topic: str  # crossing | integrity | health | section | reset
     subject: str
     time_ns: int | None
     message: str
@@ -159,6 +159,11 @@ class ReportData:
                             v,
                         )
                     )
+        if self.crossing is not None:
+            for ev in self.crossing.integrity:
+                if ev.state == "parted":
+                    why = "train parted: " + "; ".join(ev.evidence)
+                    items.append(Attention(Severity.CRITICAL, UNSAFE, "integrity", f"train {ev.train}", ev.t_ns, why))
         for f in self.findings:
             if f.severity is Severity.CRITICAL:
                 items.append(Attention(f.severity, UNSAFE, "health", _where(f), f.time_ns, f.message))
@@ -542,6 +547,8 @@ def _crossings(data: ReportData) -> dict[str, Any] | None:
     run = data.crossing
     if run is None:
         return None
+    from console.analysis.integrity import timelines as integrity_timelines
+
     return {
         "violations": run.violations,
         "late_warnings": run.late_warnings,
@@ -557,6 +564,7 @@ def _crossings(data: ReportData) -> dict[str, Any] | None:
         ],
         "off_track_fixes": run.off_track,
         "unassigned_devices": list(run.unassigned_devices),
+        "integrity": integrity_timelines(run.integrity),
     }
 
 

@@ -120,9 +120,10 @@ def _safety_part(doc: dict[str, Any]) -> list[Block]:
         Heading(2, "1. Safety violations and failing items", "safety"),
         Para(
             (
-                "Unsafe: a level-crossing safety violation (the road open with the train on it) or a critical "
-                "health finding (a head that may stop detecting). Failing: a section that ended disturbed "
-                "(fail-safe, but trains wait for a reset), a refused reset, a crossing warning held on after the "
+                "Unsafe: a level-crossing safety violation (the road open with the train on it), a train seen "
+                "parted, or a critical health finding (a head that may stop detecting). Failing: a section that "
+                "ended disturbed (fail-safe, but trains wait for a reset), a refused reset, a crossing warning held "
+                "on after the "
                 "train arrived, "
                 "a warning-level health finding.",
             )
@@ -492,6 +493,34 @@ def _crossings_part(doc: dict[str, Any]) -> list[Block]:
         out.append(Heading(3, "Trains followed", "crossing-trains"))
         rows = [[t["train"], ", ".join(t["head"]), ", ".join(t["eot"]), _n(t["length_m"])] for t in cr["trains"]]
         out.append(_table([("Train", False), ("Head units", False), ("EOT units", False), ("Length m", True)], rows))
+    out += _integrity_part(cr.get("integrity") or [], day)
+    return out
+
+
+def _integrity_part(timelines: list[dict[str, Any]], day: str | None) -> list[Block]:
+    out: list[Block] = [Heading(3, "Train integrity", "crossing-integrity")]
+    out.append(
+        Para(
+            (
+                "Whole: the EOT unit rides a train length behind the head at the head's speed. Doubtful: a unit "
+                "stale, or one fix out of line. Parted: the EOT fell behind and slowed (two fixes in a row, or one "
+                "both behind and slower), or a counting head short of the consist's axles with the section behind "
+                "it left occupied. Every change with its evidence.",
+            )
+        )
+    )
+    if not timelines:
+        out.append(Para(("No train could be judged: no train had both a head and an EOT unit reporting.",)))
+        return out
+    rows: list[list[Cell]] = []
+    for tl in timelines:
+        for ch in tl["changes"]:
+            state: Cell = Styled(ch["state"], "unsafe") if ch["state"] == "parted" else ch["state"]
+            rows.append(
+                [tl["train"], _clock(ch["time"], day), state, ", ".join(ch["witnesses"]), "; ".join(ch["evidence"])]
+            )
+    cols = [("Train", False), ("Time", False), ("State", False), ("Witness", False), ("Evidence", False)]
+    out.append(_table(cols, rows))
     return out
 
 

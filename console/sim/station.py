@@ -34,10 +34,12 @@ import numpy as np
 from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, CrossingEvent, Fix, TrainSpec
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.geo import TrackProjector
+from console.analysis.integrity import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
 from console.analysis.sections import SectionEngine, SectionState, Transition
 from console.analysis.timefmt import NS
 from console.analysis.wheels import SYS1, SYS2, CountingSettings, HeadCounter
 from console.layout import Consist, Layout
+from console.sim.parting import PartingTruth, braking_step, part_consist, split_axles
 from console.sim.radio import LoRaLink
 from console.sim.slow_faults import SLOW_FAULT_KINDS, HeadHealth, HealthRows, HealthSettings, unit_loss
 
@@ -52,13 +54,17 @@ FAULT_KINDS = (
     "eot_loss",
     "head_loss",
     *SLOW_FAULT_KINDS,
+    "train_parting",
 )
+TRAIN_FAULTS = ("eot_loss", "head_loss", "train_parting")  # their target is a train, the others' a head
 
 
 @dataclass(frozen=True)
 class Fault:
-    """A fault on demand.  ``target``: a head id (sensor faults), a train id (GNSS unit losses) or a
-    unit (``gnss_decay``: ``T3-eot``).  Slow faults (console.sim.slow_faults) grow at ``rate``."""
+    """A fault on demand.  ``target``: a head id (sensor faults), a train id (GNSS unit losses,
+    ``train_parting``: from ``start_s``, or the first moment after it the train runs, its rear half
+    separates with the EOT unit and brakes to a stop) or a unit (``gnss_decay``: ``T3-eot``).  Slow faults
+    (console.sim.slow_faults) grow at ``rate``."""
 
     kind: str
     target: str
@@ -108,6 +114,9 @@ class SimTrain:
     controller: str = "pid"
     driver: Any = None  # the ATO driver (console.sim.ato.Driver) when the force model runs the train
     travelled_m: float = 0.0
+    units: tuple[str, ...] = ("head", "eot")  # the GNSS units riding on it
+    axle_offset: int = 0  # a rear part's first axle, in the whole consist's numbering
+    rear: SimTrain | None = None  # the rear part, once the train has parted
 
     @property
     def tail_m(self) -> float:
@@ -155,6 +164,7 @@ class StepResult:
     transitions: list[Transition]
     crossing_events: list[CrossingEvent]
     fixes: list[SentFix]
+    integrity_events: list[IntegrityEvent] = field(default_factory=list)
 
 
 class StationSim:
@@ -177,6 +187,7 @@ class StationSim:
         self.line_start, self.line_end = min(ch), max(ch)
         self.trains: list[SimTrain] = []  # every train so far
         self.active: list[SimTrain] = []  # those still on the line
+        self.rears: list[SimTrain] = []  # rear parts of parted trains (they stay where they stopped)
         self._spawned = 0
         self._next_spawn_s = self.cfg.first_train_s
         self.faults: list[Fault] = list(self.cfg.faults)
@@ -198,6 +209,15 @@ class StationSim:
             stale_after_s=max(30.0, 4 * self.period_s),
         )
         self.crossings = {c.code: CrossingController(c, [], self.ctl_settings) for c in layout.crossings}
+        self.integrity = IntegrityMonitor(
+            IntegritySettings(
+                noise_m=max(self.cfg.gnss_noise_m, 1.0),
+                report_period_s=self.period_s,
+                latency_s=self.latency_s + 0.5,
+                stale_after_s=max(30.0, 4 * self.period_s),
+            ),
+            layout,
+        )
         self._inbox: list[tuple[int, Fix]] = []  # fixes in flight to the crossing units
         self.delivered: dict[tuple[str, str], Fix] = {}  # the console's latest fix per (train, role)
         self._next_heartbeat_s = 0.0
@@ -208,6 +228,7 @@ class StationSim:
             s.id: [(self.cfg.start_ns, 0)] for s in layout.sections
         }
         self.truth_crossings: list[dict[str, object]] = []
+        self.truth_partings: list[PartingTruth] = []
         self._crossing_seen: dict[tuple[str, str], dict[str, object]] = {}
         # Everything reported, for the writers.
         self.all_records: list[WheelRecord] = []
@@ -258,6 +279,8 @@ class StationSim:
         fixes: list[SentFix] = []
         for tr in self.active:
             x0, v0 = tr.x_m, tr.v_mps
+            if tr.rear is None and tr.v_mps > 1.0:
+                self._parting(tr, t0)
             target = self._target_speed(tr, t0)
             tr.x_m, tr.v_mps = self.motion(tr, target, dt_s, self.cfg)
             if tr.dwell_until_s is not None and t1 >= tr.dwell_until_s:
@@ -269,10 +292,22 @@ class StationSim:
                 tr.direction < 0 and tr.tail_m < self.line_start - 50
             ):
                 tr.done = True
+        for rear in self.rears:
+            x0, v0 = rear.x_m, rear.v_mps
+            if v0 > 0.0:
+                before = rear.travelled_m
+                rear.travelled_m, rear.v_mps = braking_step(rear.consist, before, v0, dt_s)
+                rear.x_m = x0 + rear.direction * (rear.travelled_m - before)
+                if rear.v_mps == 0.0:
+                    self._rear_stopped(rear, t1)
+            records += self._wheels(rear, x0, rear.x_m, t0, t1, v0)
+            fixes += self._gnss(rear, t0, t1, x0)
         for t in self.active:
             if t.done:
                 for ctl in self.crossings.values():
                     ctl.forget_train(t.id)
+                if t.rear is None:
+                    self.integrity.forget(t.id)  # a parted train stays followed: its rear part is on the line
         self.active = [t for t in self.active if not t.done]
         records += self._sensor_faults(t0, t1)
         records = self._reported(records, t0)
@@ -284,12 +319,18 @@ class StationSim:
         events = self._console_records(records, t1)
         self.axle_events += [e for e in events if e.kind is EventKind.AXLE]
         transitions = []
+        integrity: list[IntegrityEvent] = []
         for e in events:
-            transitions += self.engine.step(e)
-        crossing_events = self._console_fixes(fixes, t1)
+            integrity += self.integrity.detection(e)
+            for change in self.engine.step(e):
+                transitions.append(change)
+                integrity += self.integrity.transition(change)
+        crossing_events, from_fixes = self._console_fixes(fixes, t1)
+        integrity += from_fixes
+        crossing_events += self._hold_for_partings(integrity)
         self.all_fixes += fixes
         self.t_s = t1
-        return StepResult(records, events, transitions, crossing_events, fixes)
+        return StepResult(records, events, transitions, crossing_events, fixes, integrity)
 
     def run(self, duration_s: float, dt_s: float = 0.5, on_step: Callable[[float], None] | None = None) -> None:
         """Headless: step until ``duration_s``, with larger steps while the line is empty."""
@@ -321,6 +362,7 @@ class StationSim:
                 self.engine.step(e)
         for ctl in self.crossings.values():
             ctl.tick(end)
+        self._hold_for_partings(self.integrity.tick(end))
 
     # -- trains --------------------------------------------------------------
     def _spawn(self, consist_id: str | None, direction: int | None) -> SimTrain | None:
@@ -356,6 +398,7 @@ class StationSim:
         self.active.append(tr)
         for ctl in self.crossings.values():
             ctl.add_train(TrainSpec(tr.id, consist.length_m))
+        self.integrity.add_train(ConsistSpec(tr.id, consist.length_m, len(consist.axles_m)))
         return tr
 
     def _trainset(self, k: int) -> str | None:
@@ -373,7 +416,10 @@ class StationSim:
     def entry_clear(self, direction: int) -> bool:
         """May a train enter now in this direction (no opposing train, room behind the last one)?"""
         start = self.line_start - 300.0 if direction > 0 else self.line_end + 300.0
-        return all(t.direction == direction and direction * (t.tail_m - start) >= ENTRY_ROOM_M for t in self.active)
+        return all(
+            t.direction == direction and direction * (t.tail_m - start) >= ENTRY_ROOM_M
+            for t in [*self.active, *self.rears]
+        )
 
     def next_direction(self) -> int:
         """The direction the next train would take: with the trains on the line, else alternating."""
@@ -404,8 +450,8 @@ class StationSim:
         if tr.stops:
             dist = tr.direction * (tr.stops[0] - tr.x_m)
             v = min(v, math.sqrt(max(0.0, 2 * b * max(dist - 1.0, 0.0))))
-        # Protection: stay 80 m behind the train ahead.
-        for other in self.active:
+        # Protection: stay 80 m behind the train ahead (or a parted train's rear part, standing).
+        for other in [*self.active, *self.rears]:
             if other is tr or other.direction != tr.direction:
                 continue
             gap = tr.direction * (other.tail_m - tr.x_m) - 80.0
@@ -420,6 +466,38 @@ class StationSim:
                 tr.v_mps = 0.0
                 tr.dwell_until_s = t_s + self.cfg.dwell_s
                 tr.stops.pop(0)
+
+    # -- partings ------------------------------------------------------------
+    def _parting(self, tr: SimTrain, t_s: float) -> None:
+        """Part ``tr`` now if a ``train_parting`` fault says so (it parts while running, under pull)."""
+        if not any(f.kind == "train_parting" and f.target == tr.id and f.start_s <= t_s for f in self.faults):
+            return
+        k = split_axles(tr.consist)
+        front, rear_consist = part_consist(tr.consist, k)
+        rear_front_m = tr.x_m - tr.direction * tr.consist.axles_m[k]
+        rear = SimTrain(
+            tr.id,
+            rear_consist,
+            tr.direction,
+            rear_front_m,
+            tr.v_mps,
+            t_s,
+            controller="parted",
+            units=(EOT,),
+            axle_offset=k,
+            next_eot_fix_s=tr.next_eot_fix_s,
+        )
+        tr.consist, tr.units, tr.rear = front, (HEAD,), rear
+        self.rears.append(rear)
+        self.truth_partings.append(
+            PartingTruth(tr.id, self.cfg.start_ns + round(t_s * NS), tr.v_mps, tr.x_m, k, len(rear_consist.axles_m))
+        )
+
+    def _rear_stopped(self, rear: SimTrain, t_s: float) -> None:
+        for rec in self.truth_partings:
+            if rec.train == rear.id and rec.t_rear_stopped_ns is None:
+                rec.t_rear_stopped_ns = self.cfg.start_ns + round(t_s * NS)
+                rec.rear_stop_front_m, rec.rear_stop_tail_m = rear.x_m, rear.tail_m
 
     # -- counting heads -------------------------------------------------------
     def _wheels(self, tr: SimTrain, x0: float, x1: float, t0: float, t1: float, v0: float) -> list[WheelRecord]:
@@ -444,7 +522,8 @@ class StationSim:
             passed = (d * (p0 - head.chainage_m) < 0) & (d * (p1 - head.chainage_m) >= 0)
             for k in np.flatnonzero(passed):
                 frac = (head.chainage_m - p0[k]) / (p1[k] - p0[k])
-                self._truth_axle(tr, head.id, int(k), t0 + frac * (t1 - t0), v0 + (tr.v_mps - v0) * frac)
+                axle = tr.axle_offset + int(k)
+                self._truth_axle(tr, head.id, axle, t0 + frac * (t1 - t0), v0 + (tr.v_mps - v0) * frac)
         return out
 
     def _truth_axle(self, tr: SimTrain, head: str, axle: int, t_s: float, v: float) -> None:
@@ -508,7 +587,7 @@ class StationSim:
     # -- GNSS units -------------------------------------------------------------
     def _gnss(self, tr: SimTrain, t0: float, t1: float, x0: float) -> list[SentFix]:
         out = []
-        for role in (HEAD, EOT):
+        for role in tr.units:
             attr = "next_head_fix_s" if role == HEAD else "next_eot_fix_s"
             while getattr(tr, attr) < t1:
                 t = getattr(tr, attr)
@@ -533,8 +612,9 @@ class StationSim:
                 out.append(SentFix(self.cfg.start_ns + int(t * NS), tr.id, role, lat, lon, speed, course, True))
         return out
 
-    def _console_fixes(self, sent: list[SentFix], t1: float) -> list[CrossingEvent]:
-        """Deliver fixes after the radio latency (losing some), then run the crossing units."""
+    def _console_fixes(self, sent: list[SentFix], t1: float) -> tuple[list[CrossingEvent], list[IntegrityEvent]]:
+        """Deliver fixes after the radio latency (losing some), then run the crossing units and the
+        integrity monitor."""
         for f in sent:
             if self.rng.random() < self.cfg.gnss_loss:
                 continue
@@ -553,21 +633,35 @@ class StationSim:
         self._inbox.sort(key=lambda x: x[0])
         now = self.cfg.start_ns + int(t1 * NS)
         out: list[CrossingEvent] = []
+        integrity: list[IntegrityEvent] = []
         while self._inbox and self._inbox[0][0] <= now:
             _, fix = self._inbox.pop(0)
             self.delivered[(fix.train, fix.role)] = fix
             for ctl in self.crossings.values():
                 out += ctl.step(fix)
+            integrity += self.integrity.fix(fix.t_ns, fix.t_fix_ns, fix.train, fix.role, fix.chainage_m, fix.speed_mps)
         for ctl in self.crossings.values():
             out += ctl.tick(now)
+        integrity += self.integrity.tick(now)
         self._truth_crossings()
+        return out, integrity
+
+    def _hold_for_partings(self, events: list[IntegrityEvent]) -> list[CrossingEvent]:
+        """A train seen parted: every crossing unit holds its warning until the rear part is accounted for."""
+        out: list[CrossingEvent] = []
+        for e in events:
+            if e.state == PARTED:
+                for ctl in self.crossings.values():
+                    out += ctl.train_parted(e.train, e.t_ns, "; ".join(e.evidence))
         return out
 
     def _truth_crossings(self) -> None:
         half = self.ctl_settings.crossing_half_width_m
         now = self.now_ns
+        on_line = [*self.active, *(t for t in self.trains if t.rear is not None and t not in self.active)]
         for c in self.layout.crossings:
-            for tr in self.active:
+            for tr in on_line:
+                tail_m = tr.rear.tail_m if tr.rear is not None else tr.tail_m
                 key = (c.code, tr.id)
                 rec = self._crossing_seen.get(key)
                 if rec is None:
@@ -580,7 +674,7 @@ class StationSim:
                     self.truth_crossings.append(rec)
                 if rec["t_head_arrival_ns"] is None and tr.direction * (tr.x_m - c.chainage_m) >= -half:
                     rec["t_head_arrival_ns"] = now
-                if rec["t_tail_clear_ns"] is None and tr.direction * (tr.tail_m - c.chainage_m) >= half:
+                if rec["t_tail_clear_ns"] is None and tr.direction * (tail_m - c.chainage_m) >= half:
                     rec["t_tail_clear_ns"] = now
 
     # -- the console ---------------------------------------------------------

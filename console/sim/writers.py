@@ -21,7 +21,8 @@ Into one directory:
 * ``layout.toml`` — the layout the run used;
 * ``truth.json`` — every axle's time and speed at every head, every
   section's true occupancy, every crossing's true head and tail times, the
-  trains, the faults injected, and the console's final section states.
+  trains, the partings (when, the rear part's axles, where it stopped), the
+  faults injected, and the console's final section states.
 """
 
 from __future__ import annotations
@@ -389,6 +390,7 @@ def truth(sim: StationSim) -> dict[str, Any]:
             for c in sim.truth_crossings
             if c["t_head_arrival_ns"] is not None
         ],
+        "partings": [p.to_dict() for p in sim.truth_partings],
         "faults": [
             {
                 "kind": f.kind,

@@ -59,6 +59,7 @@ class StationApp(App[None]):
         Binding("3", "fault('power_loss')", "Power", show=False),
         Binding("4", "fault('eot_loss')", "EOT loss", show=False),
         Binding("5", "fault('head_loss')", "Head loss", show=False),
+        Binding("6", "fault('train_parting')", "Parting", show=False),
         Binding("a", "add_train", "Add train"),
         Binding("v", "truth", "Truth"),
         Binding("f", "log_filter", "Filter"),
@@ -199,7 +200,7 @@ class StationApp(App[None]):
         if not isinstance(src, SimSource):
             self.notify("faults are injected into the simulated line", severity="warning")
             return
-        if kind in ("eot_loss", "head_loss"):
+        if kind in ("eot_loss", "head_loss", "train_parting"):
             target = self.model.train_id()
             if target is None:
                 self.notify("no train to fail", severity="warning")

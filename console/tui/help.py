@@ -30,6 +30,7 @@ KEYS: tuple[tuple[str, str], ...] = (
     ("3", "fault: power loss at that head for 5 minutes"),
     ("4", "fault: the selected train's end-of-train unit lost"),
     ("5", "fault: the selected train's head unit lost"),
+    ("6", "fault: the selected train parts; its rear half, with the EOT unit, brakes to a stop"),
     ("a", "add a train (it enters behind the others once the entry is clear)"),
     ("v", "show the simulator's truth beside the console (differences underlined)"),
     ("f", "event log: cycle the least severity shown"),

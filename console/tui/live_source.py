@@ -21,7 +21,7 @@ from console.layout import Layout
 from console.live.engine import LiveEngine
 from console.sources.base import Item, Source, SourceStatus
 from console.tui.model import LogEntry, TrainView
-from console.tui.sources import reported_train
+from console.tui.sources import integrity_entry, reported_train
 
 MAX_ITEMS_PER_ADVANCE = 20_000  # a burst is taken over several redraws, the view stays responsive
 
@@ -35,6 +35,8 @@ def _entry(ev: dict[str, Any], now_ns: int) -> tuple[Transition | None, LogEntry
         verb = {"on": "warning ON", "off": "road given back", "alarm": "ALARM"}.get(ev["kind"], ev["kind"])
         sev = "warning" if ev["kind"] == "alarm" else "info"
         return None, LogEntry(t, sev, f"crossing {ev['crossing']} {verb} (train {ev['train']}): {ev['reason']}")
+    if kind == "integrity":
+        return None, integrity_entry(t, ev["train"], ev["state"], ev["evidence"])
     if kind == "passage":
         speed = ev.get("speed_kmh_whole_train")
         sp = f", {speed:.1f} km/h" if isinstance(speed, int | float) else ""
@@ -135,8 +137,14 @@ class LiveSource:
         now = self.now_ns
         out = []
         for train in sorted({t for t, _ in cf.last}):
+            integrity = self.live.integrity.monitor.state(train) if self.live.integrity is not None else None
             view = reported_train(
-                train, cf.default_length_m, cf.last.get((train, "head")), cf.last.get((train, "eot")), now
+                train,
+                cf.default_length_m,
+                cf.last.get((train, "head")),
+                cf.last.get((train, "eot")),
+                now,
+                integrity=integrity,
             )
             if view is not None and (view.head_age_s is None or view.head_age_s < 300):
                 out.append(view)

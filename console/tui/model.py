@@ -61,6 +61,7 @@ class TrainView:
     head_age_s: float | None = None  # since the head unit's last fix reached the console
     eot_age_s: float | None = None  # likewise for the end-of-train unit; None: never heard
     true_head_m: float | None = None  # the simulator's truth (truth view only)
+    integrity: str | None = None  # whole | doubtful | parted (the integrity monitor); None: not yet known
 
 
 @dataclass(frozen=True)

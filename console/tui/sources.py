@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 from console.analysis.crossing import ControllerSettings, CrossingController, CrossingEvent, Fix, TrainSpec
 from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.integrity import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor
 from console.analysis.sections import SectionEngine, SectionState, Transition
 from console.layout import Layout
 from console.sim.station import Fault, SimConfig, StationSim
@@ -35,6 +36,18 @@ def _crossing_entries(events: Sequence[CrossingEvent]) -> list[LogEntry]:
         verb = {"on": "warning ON", "off": "road given back", "alarm": "ALARM"}.get(e.kind, e.kind)
         out.append(LogEntry(e.t_ns, sev, f"crossing {e.crossing} {verb} (train {e.train}): {e.reason}"))
     return out
+
+
+INTEGRITY_SEVERITY = {"whole": "info", "doubtful": "warning", PARTED: "critical"}
+
+
+def integrity_entry(t_ns: int, train: str, state: str, evidence: Sequence[str]) -> LogEntry:
+    """A train's integrity change as the event log shows it, with its evidence."""
+    return LogEntry(t_ns, INTEGRITY_SEVERITY.get(state, "warning"), f"train {train} {state}: {'; '.join(evidence)}")
+
+
+def _integrity_entries(events: Sequence[IntegrityEvent]) -> list[LogEntry]:
+    return [integrity_entry(e.t_ns, e.train, e.state, e.evidence) for e in events]
 
 
 def _detection_entries(events: Sequence[DetectionEvent]) -> list[LogEntry]:
@@ -73,6 +86,7 @@ def reported_train(
     next_stop: str = "–",
     controller: str = "–",
     true_head_m: float | None = None,
+    integrity: str | None = None,
 ) -> TrainView | None:
     """A train as the console knows it: from the last head and EOT fixes that reached it.
 
@@ -104,6 +118,7 @@ def reported_train(
         head_age_s=(now_ns - head.t_fix_ns) / NS if head else None,
         eot_age_s=(now_ns - eot.t_fix_ns) / NS if eot else None,
         true_head_m=true_head_m,
+        integrity=integrity,
     )
 
 
@@ -136,6 +151,7 @@ class SimSource:
             entries += self._release_pending()
             transitions += r.transitions
             entries += _detection_entries(r.detection_events) + _crossing_entries(r.crossing_events)
+            entries += _integrity_entries(r.integrity_events)
             self._counts.update(e.head for e in r.detection_events if e.kind is EventKind.AXLE)
         return transitions, entries
 
@@ -158,6 +174,7 @@ class SimSource:
                 nxt,
                 t.controller,
                 t.x_m if truth else None,
+                self.sim.integrity.state(t.id),
             )
             if view is not None:
                 out.append(view)
@@ -241,6 +258,8 @@ class ReplaySource:
         self.events = sorted(events, key=lambda e: e.time_ns)
         self.fixes: list[Fix] = []
         self.train_specs: list[TrainSpec] = []
+        # The axle count is known only where the layout names a single consist.
+        self._axles = len(layout.consists[0].axles_m) if len(layout.consists) == 1 else None
         if frame is not None and len(frame) and len(layout.track) >= 2:
             consist = layout.consist()
             trains, _ = pair_trains(frame, (), consist.length_m if consist else 100.0)
@@ -257,6 +276,9 @@ class ReplaySource:
         self._now = t_ns
         self.engine = SectionEngine(self.layout, initial=SectionState.PREPARATORY, start_ns=t_ns)
         self.crossings = {c.code: CrossingController(c, self.train_specs) for c in self.layout.crossings}
+        self.integrity = IntegrityMonitor(layout=self.layout)
+        for spec in self.train_specs:
+            self.integrity.add_train(ConsistSpec(spec.train, spec.length_m, self._axles, length_known=False))
         self._i_event = self._i_fix = 0
         self._counts: Counter[str] = Counter()
         self._last: dict[tuple[str, str], Fix] = {}
@@ -272,8 +294,12 @@ class ReplaySource:
         while self._i_event < len(self.events) and self.events[self._i_event].time_ns <= target:
             e = self.events[self._i_event]
             self._i_event += 1
-            transitions += self.engine.step(e)
+            changes = self.engine.step(e)
+            transitions += changes
             entries += _detection_entries([e])
+            entries += _integrity_entries(self.integrity.detection(e))
+            for change in changes:
+                entries += _integrity_entries(self.integrity.transition(change))
             if e.kind is EventKind.AXLE:
                 self._counts[e.head] += 1
         while self._i_fix < len(self.fixes) and self.fixes[self._i_fix].t_ns <= target:
@@ -282,10 +308,23 @@ class ReplaySource:
             self._last[(f.train, f.role)] = f
             for ctl in self.crossings.values():
                 entries += _crossing_entries(ctl.step(f))
+            entries += self._integrity(
+                self.integrity.fix(f.t_ns, f.t_fix_ns, f.train, f.role, f.chainage_m, f.speed_mps)
+            )
         for ctl in self.crossings.values():
             entries += _crossing_entries(ctl.tick(target))
+        entries += self._integrity(self.integrity.tick(target))
         self._now = target
         return transitions, entries
+
+    def _integrity(self, events: list[IntegrityEvent]) -> list[LogEntry]:
+        """Integrity changes into the log; a parted train's warnings held at every crossing."""
+        entries = _integrity_entries(events)
+        for e in events:
+            if e.state == PARTED:
+                for ctl in self.crossings.values():
+                    entries += _crossing_entries(ctl.train_parted(e.train, e.t_ns, "; ".join(e.evidence)))
+        return entries
 
     def _skip_quiet(self) -> list[LogEntry]:
         """Logs from different days leave hours of nothing between them: with no
@@ -316,7 +355,9 @@ class ReplaySource:
             ref = head or eot
             if ref is None or self._now - ref.t_fix_ns > GONE_S * NS:
                 continue  # not heard for two minutes: off the line
-            view = reported_train(spec.train, spec.length_m, head, eot, self._now)
+            view = reported_train(
+                spec.train, spec.length_m, head, eot, self._now, integrity=self.integrity.state(spec.train)
+            )
             if view is not None:
                 out.append(view)
         return out

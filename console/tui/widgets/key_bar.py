@@ -15,7 +15,7 @@ KEY_BAR: tuple[tuple[str, str], ...] = (
     ("s/S", "section"),
     ("w/W", "train"),
     ("r", "reset"),
-    ("1-5", "faults"),
+    ("1-6", "faults"),
     ("a", "add train"),
     ("v", "truth"),
     ("f", "filter"),

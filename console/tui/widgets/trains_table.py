@@ -17,7 +17,8 @@ class TrainsTable(PickableTable):
     def render_snapshot(self, snap: Snapshot, selected: str | None, differences: set[str] | None = None) -> None:
         diffs = differences or set()
         truth = any(t.true_head_m is not None for t in snap.trains)
-        cols = ["Train", "km/h", "Head m", *(["True head"] if truth else []), "Units", "Next stop", "Tail m", "Ctrl"]
+        cols = ["Train", "km/h", "Head m", *(["True head"] if truth else []), "Units", "Whole?", "Next stop", "Tail m"]
+        cols.append("Ctrl")
         rows = []
         for t in snap.trains:
             units, bad = unit_health(t.head_age_s, t.eot_age_s)
@@ -30,6 +31,7 @@ class TrainsTable(PickableTable):
                 row.append(Text(f"{t.true_head_m:.0f}", style="bold red" if t.id in diffs else "dim"))
             row += [
                 Text(units, style="bold red" if bad else "green"),
+                integrity_cell(t.integrity),
                 inert(t.next_stop),
                 Text(f"{t.tail_m:.0f}"),
                 inert(t.controller),
@@ -42,7 +44,8 @@ class TrainsTable(PickableTable):
             if self.cursor_row != ids.index(selected):
                 self.move_cursor(row=ids.index(selected), animate=False)
             t = snap.trains[ids.index(selected)]
-            subtitle = inert(f"{t.id}: {unit_health(t.head_age_s, t.eot_age_s)[0]}, {t.controller}")
+            whole = f", {t.integrity}" if t.integrity else ""
+            subtitle = inert(f"{t.id}: {unit_health(t.head_age_s, t.eot_age_s)[0]}{whole}, {t.controller}")
         retitle(self, title=f"Trains ({len(snap.trains)})", subtitle=subtitle)
 
 
@@ -55,3 +58,12 @@ def unit_health(head_age_s: float | None, eot_age_s: float | None) -> tuple[str,
         elif age > STALE_S:
             problems.append(f"{name} {age:.0f}s old")
     return (", ".join(problems), True) if problems else ("ok", False)
+
+
+INTEGRITY_CELL = {"whole": ("whole", "green"), "doubtful": ("doubt", "bold yellow"), "parted": ("PARTED", "bold red")}
+
+
+def integrity_cell(state: str | None) -> Text:
+    """The train's integrity in a word: whole, doubt, PARTED; a dash before anything is known."""
+    word, style = INTEGRITY_CELL.get(state or "", ("–", "dim"))
+    return Text(word, style=style)
