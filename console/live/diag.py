@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
+from console.analysis.stream import NO_TIME
 from console.engine.pipeline import HEALTH_REGISTERS, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks
 from console.layout import Layout
@@ -140,6 +141,12 @@ class DiagFollow:
     def finish(self) -> None:
         """End of following: every open run is closed and analysed (as the batch reader ends a file)."""
         self.pipeline.finish(start_sections=False)
+
+    @property
+    def clock_ns(self) -> int | None:
+        """The latest record time read (None: none yet)."""
+        stream = self.pipeline.stream
+        return stream.clock_ns if stream is not None and stream.clock_ns != NO_TIME else None
 
     @property
     def sections(self) -> Any:

@@ -61,6 +61,39 @@ class LiveEngine:
     def now_ns() -> int:
         return time.time_ns()
 
+    # A recorded file's fixes are judged by its own clock (it may be read far faster or slower than it was
+    # written: a replay, `simulate --live --speed 30`); a live unit's by the console's, which ticks on too.
+    _data_ns: int | None = None
+    _live_fixes = False
+
+    def _fix_clock(self, item: GnssFix) -> int:
+        if item.recorded:
+            self._data_ns = item.t_fix_ns if self._data_ns is None else max(self._data_ns, item.t_fix_ns)
+            return item.t_fix_ns
+        self._live_fixes = True
+        return self.now_ns()
+
+    def crossing_clock_ns(self) -> int:
+        """The crossing units' clock: the console's, or the recordings' own when every fix comes from files."""
+        if self._live_fixes or self._data_ns is None:
+            return self.now_ns()
+        return self._data_ns
+
+    @property
+    def recordings_only(self) -> bool:
+        """Everything followed so far comes from files (the view runs on their clock)."""
+        return not (self._live_fixes or self._live_bus)
+
+    def view_clock_ns(self) -> int:
+        """The clock a view shows: the recordings' own (the latest time they hold) when everything comes from
+        files, as every event they give is stamped; the console's when a live unit or bus is followed."""
+        if self._live_fixes or self._live_bus:
+            return self.now_ns()
+        clocks = [c for c in (self._data_ns, self.diag.clock_ns) if c is not None]
+        return max(clocks) if clocks else self.now_ns()
+
+    _live_bus = False
+
     def handle(self, item: Item) -> None:
         self.items += 1
         if self.archiver is not None:
@@ -69,10 +102,11 @@ class LiveEngine:
             self.diag.add(item.source, item.file, item.first_line, item.data)
         elif isinstance(item, GnssFix):
             if self.crossings is not None:
-                placed = self.crossings.fix(item, self.now_ns())
+                placed = self.crossings.fix(item, self._fix_clock(item))
                 if placed is not None and self.integrity is not None:
                     self.integrity.fix(placed, item.t_fix_ns)
         elif isinstance(item, CanFrame):
+            self._live_bus = True
             self.can_frames += 1
             self.frames.add(item)
         elif isinstance(item, FrameRows):
@@ -94,7 +128,7 @@ class LiveEngine:
     def tick(self) -> None:
         self.frames.flush()
         if self.crossings is not None:
-            self.crossings.tick(self.now_ns())
+            self.crossings.tick(self.crossing_clock_ns())
         if self.integrity is not None:
             self.integrity.tick()
         if self.archiver is not None:
@@ -104,7 +138,7 @@ class LiveEngine:
         self.diag.finish()
         self.frames.finish()
         if self.crossings is not None:
-            self.crossings.tick(self.now_ns())
+            self.crossings.tick(self.crossing_clock_ns())
         if self.archiver is not None:
             self.archiver.finish()
 

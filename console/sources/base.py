@@ -50,6 +50,7 @@ class GnssFix:
     train: str = ""  # train the unit rides on, when known
     battery_pct: float | None = None
     meta: dict[str, Any] = field(default_factory=dict)  # fCnt, rssi, snr, gateways…
+    recorded: bool = False  # read from a file: its own clock, not the console's, says when it happened
 
 
 @dataclass(frozen=True, slots=True)

@@ -124,6 +124,7 @@ class GnssLines:
                     now,
                     role=role,
                     meta=meta,
+                    recorded=True,
                 )
             )
         return out

@@ -23,7 +23,7 @@ from console.tui.help import HelpScreen
 from console.tui.model import Snapshot, StationModel
 from console.tui.sources import ReplaySource, SimSource
 from console.tui.widgets.event_log import EventLog
-from console.tui.widgets.key_bar import KeyBar
+from console.tui.widgets.key_bar import KeyBar, acts
 from console.tui.widgets.pickable_table import PickableTable
 from console.tui.widgets.sections_table import SectionsTable
 from console.tui.widgets.speed_plot import SpeedPlot
@@ -85,7 +85,7 @@ class StationApp(App[None]):
         with Horizontal(id="bottom"):
             yield EventLog(id="log")
             yield SpeedPlot(id="speed")
-        yield KeyBar()
+        yield KeyBar(self.model.source.mode)
 
     def on_mount(self) -> None:
         self.refresh_views()
@@ -180,6 +180,11 @@ class StationApp(App[None]):
                 self.model.selected_train = ids.index(event.key)
         self.refresh_views()
 
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """Keys that do nothing in this mode (faults in a replay, speed in a live view) are off, and not shown."""
+        model = getattr(self, "model", None)
+        return True if model is None else acts(action, model.source.mode)
+
     def action_reset_section(self) -> None:
         sid = self.model.section_id()
         src = self.model.source
@@ -239,8 +244,9 @@ class StationApp(App[None]):
     def action_jump(self, seconds: int) -> None:
         src = self.model.source
         if isinstance(src, ReplaySource):
-            src.jump(seconds)
+            # What the jump passed over reaches the log (section changes, crossings), a note first.
             self.model.note("info", f"jumped {'forward' if seconds > 0 else 'back'} {abs(seconds) // 60} min")
+            self.model.record(*src.jump(seconds))
         else:
             self.model.step(max(0, seconds))
         self.refresh_views()

@@ -35,7 +35,7 @@ class DataArrived(Message):
 class LiveStationApp(StationApp):
     """:class:`StationApp` over a :class:`LiveSource`: wall-clock time, a source panel, redrawn on data."""
 
-    TITLE = "trackside station · live"
+    TITLE = "trackside station"
     CSS = (
         StationApp.CSS
         + """
@@ -109,7 +109,8 @@ class LiveStationApp(StationApp):
     # -- drawing -------------------------------------------------------------------
     def subtitle(self, snap: Snapshot) -> str:
         # Steady: the clock ticks in the sources panel, which is redrawn without a new layout.
-        return f"live · {len(self.live_source.sources)} source(s)"
+        n = len(self.live_source.sources)
+        return f"live · {n} source{'' if n == 1 else 's'}"
 
     def refresh_views(self) -> None:
         try:
@@ -118,7 +119,8 @@ class LiveStationApp(StationApp):
             return  # a redraw that lands after the screen has gone (the app is closing)
         src = self.live_source
         paused = " · paused" if self.model.paused else ""
-        lines = [f"{display(src.now_ns)[:19]}{paused}", *(status_line(s) for s in src.statuses())]
+        clock = "log time" if src.live.recordings_only else "time"
+        lines = [f"{clock} {display(src.now_ns)[:19]}{paused}", *(status_line(s) for s in src.statuses())]
         panel = self.query_one("#sources", Static)
         # The ages in these lines change at every redraw; the panel's height only when a line is
         # added or starts or stops wrapping: re-lay out the screen only then (a layout costs a full repaint).

@@ -26,9 +26,23 @@ from console.tui.sources import integrity_entry, reported_train
 MAX_ITEMS_PER_ADVANCE = 20_000  # a burst is taken over several redraws, the view stays responsive
 
 
+def _iso_ns(text: Any) -> int | None:
+    """An event's ISO time (``…Z``) in ns since the epoch (None: not one)."""
+    import datetime as dt
+
+    if not isinstance(text, str):
+        return None
+    try:
+        t = dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except ValueError:
+        return None
+    return (t - dt.datetime(1970, 1, 1, tzinfo=dt.UTC)) // dt.timedelta(microseconds=1) * 1000
+
+
 def _entry(ev: dict[str, Any], now_ns: int) -> tuple[Transition | None, LogEntry | None]:
+    """An event as the view shows it, at the time it happened in the log (``now_ns``: when it says none)."""
     kind = ev.get("type")
-    t = int(ev.get("time_ns") or now_ns)
+    t = int(ev.get("time_ns") or _iso_ns(ev.get("end")) or _iso_ns(ev.get("time")) or now_ns)
     if kind == "section":
         return Transition(t, ev["section"], SectionState(ev["state"]), int(ev["count"]), ev["reason"]), None
     if kind == "crossing":
@@ -40,10 +54,10 @@ def _entry(ev: dict[str, Any], now_ns: int) -> tuple[Transition | None, LogEntry
     if kind == "passage":
         speed = ev.get("speed_kmh_whole_train")
         sp = f", {speed:.1f} km/h" if isinstance(speed, int | float) else ""
-        return None, LogEntry(now_ns, "info", f"passage at {ev['counting_head']}: {ev['axles']} axles{sp}")
+        return None, LogEntry(t, "info", f"passage at {ev['counting_head']}: {ev['axles']} axles{sp}")
     if kind == "health":
         sev = "critical" if ev.get("severity") == "critical" else "warning"
-        return None, LogEntry(now_ns, sev, f"health {ev['rule']} {ev.get('counting_head') or ''}: {ev['message']}")
+        return None, LogEntry(t, sev, f"health {ev['rule']} {ev.get('counting_head') or ''}: {ev['message']}")
     if kind == "source":
         if ev.get("kind") == "rejected":
             return None, LogEntry(now_ns, "warning", f"rejected {ev['file']}:{ev['line']}: {ev['reason']}")
@@ -103,7 +117,9 @@ class LiveSource:
 
     @property
     def now_ns(self) -> int:
-        return time.time_ns()
+        """The view's clock: the logs' own time when every source is a recorded file (the events it shows are
+        stamped so), else the console's."""
+        return self.live.view_clock_ns()
 
     def advance(self, seconds: float) -> tuple[list[Transition], list[LogEntry]]:
         """Take what arrived (``seconds`` is the playback step: live runs on the wall clock)."""

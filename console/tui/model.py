@@ -142,7 +142,10 @@ class StationModel:
 
     def step(self, sim_s: float) -> None:
         """Advance the source by ``sim_s`` simulated seconds, whatever the pause state."""
-        transitions, entries = self.source.advance(sim_s)
+        self.record(*self.source.advance(sim_s))
+
+    def record(self, transitions: list[Transition], entries: list[LogEntry]) -> None:
+        """What the source says happened: section changes and entries into the log, trains' speeds noted."""
         for tr in transitions:
             sev = (
                 "critical"

@@ -340,12 +340,15 @@ class ReplaySource:
         self._now = to
         return [LogEntry(to, "info", f"nothing in the logs for {_span(gap_s)}: skipped to the next record")]
 
-    def jump(self, seconds: float) -> None:
-        """Jump in time; backwards replays from the start (quietly) up to the target."""
+    def jump(self, seconds: float) -> tuple[list[Transition], list[LogEntry]]:
+        """Jump in time: forward, what happened on the way (for the log); backwards, replayed from the start
+        quietly up to the target (nothing new happened)."""
         target = min(self.end_ns, max(self.start_ns, self._now + int(seconds * NS)))
-        if target < self._now:
+        back = target < self._now
+        if back:
             self._rebuild(self.start_ns)
-        self.advance((target - self._now) / NS, skip_quiet=False)
+        passed = self.advance((target - self._now) / NS, skip_quiet=False)
+        return ([], []) if back else passed
 
     def trains(self, truth: bool = False) -> list[TrainView]:
         out = []
