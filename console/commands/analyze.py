@@ -26,6 +26,7 @@ from console.commands.common import (
     print_json,
     run_diag_stream,
 )
+from console.plural import count
 from console.safe_text import clean
 
 PASSAGES_SHOWN = 200  # rows of the text table; --json has all
@@ -128,20 +129,24 @@ def analyze(
                 out.print(rej)
             notes = []
             if job.analysis.overlap_records:
+                n = job.analysis.overlap_records
                 notes.append(
-                    f"{job.analysis.overlap_records} records repeat another file's records"
+                    f"{count(n, 'record')} {'repeats' if n == 1 else 'repeat'} another file's records"
                     " (overlapping exports) and were counted once; per file in the parse report"
                 )
             if job.analysis.unpaired_detections:
-                notes.append(f"{job.analysis.unpaired_detections} wheel detections on one system only (not axles)")
+                notes.append(
+                    f"{count(job.analysis.unpaired_detections, 'wheel detection')} on one system only (not axles)"
+                )
             if job.report.unknown_labels:
                 notes.append(
-                    f"{sum(job.report.unknown_labels.values())} records with unknown labels: "
+                    f"{count(sum(job.report.unknown_labels.values()), 'record')} with unknown labels: "
                     + ", ".join(sorted(job.report.unknown_labels))
                 )
             if job.status is not None and job.status.passages.sum():
                 notes.append(
-                    f"{int(job.status.passages.sum())} passages of status records only (no wheel onset) not listed;"
+                    f"{count(int(job.status.passages.sum()), 'passage of status records only')} (no wheel onset)"
+                    " not listed;"
                     " --include-status lists them"
                 )
             for n in notes:

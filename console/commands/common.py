@@ -392,8 +392,9 @@ def run_diag_stream(
     job = read(whole=False)
     if job.late_records:
         from console.analysis.stream import ORDER_SLACK_S
+        from console.plural import count
 
-        order = f"{job.late_records} records came after their passage had closed (the log is out of time order"
+        order = f"{count(job.late_records, 'record')} came after their passage had closed (the log is out of time order"
         if jsonl is not None or any(os.fsdecode(f) == STDIN or not os.path.isfile(f) for f in files):
             # Passages already written, or a stream that cannot be read again: say so.
             sys.stderr.write(

@@ -12,6 +12,7 @@ import typer
 
 from console import exit_codes
 from console.commands.common import IdleGapOpt, IncludeStatusOpt, fail, guard, load_layout
+from console.plural import count
 
 SourcesArg = Annotated[
     list[str],
@@ -53,8 +54,8 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
     from console.safe_text import clean
 
     out = [
-        f"followed: {summary['passages']} passages, {summary['section_changes']} section changes, "
-        f"{summary['crossing_events']} crossing events, {summary['health_findings']} health findings"
+        f"followed: {count(summary['passages'], 'passage')}, {count(summary['section_changes'], 'section change')}, "
+        f"{count(summary['crossing_events'], 'crossing event')}, {count(summary['health_findings'], 'health finding')}"
     ]
     if summary.get("status_only_passages"):
         n = summary["status_only_passages"]
@@ -62,15 +63,16 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
     for f in summary["files"]:
         out.append(
             clean(
-                f"  {f['file']}: {f['lines_read']} lines = {f['records']} records + {f['blank']} blank"
+                f"  {f['file']}: {count(f['lines_read'], 'line')} = {count(f['records'], 'record')}"
+                f" + {f['blank']} blank"
                 f" + {f['rejected']} rejected"
             )
         )
     for s in summary["sources"]:
         out.append(
             clean(
-                f"  {s['uri']}: {s['messages']} messages, {s['lost']} lost, {s['malformed']} malformed,"
-                f" {s['duplicates']} duplicates ({s['detail']})"
+                f"  {s['uri']}: {count(s['messages'], 'message')}, {s['lost']} lost, {s['malformed']} malformed,"
+                f" {count(s['duplicates'], 'duplicate')} ({s['detail']})"
             )
         )
     for sid, st in summary["sections"].items():

@@ -154,19 +154,23 @@ def _print_summary(summary: object) -> None:
     from console.archive.ingest import IngestSummary
 
     assert isinstance(summary, IngestSummary)
+    from console.plural import count
     from console.safe_text import clean
 
     lines: list[str] = []
     rate = summary.records / summary.seconds if summary.seconds > 0 else 0.0
     for f in summary.files:
         if f.action in ("new", "grown", "replace"):
-            lines.append(f"added    {clean(f.path)}: {f.records} records, {f.rejected} rejected ({clean(f.note)})")
+            lines.append(
+                f"added    {clean(f.path)}: {count(f.records, 'record')}, {f.rejected} rejected ({clean(f.note)})"
+            )
         else:
             lines.append(f"skipped  {clean(f.path)}: {clean(f.note)}")
     state = f"generation {summary.generation}" if summary.published else "nothing new: archive unchanged"
     lines.append(
-        f"{len(summary.added)} files added, {len(summary.skipped)} skipped; {summary.records} records, "
-        f"{summary.rejected} rejected lines, {summary.seconds:.1f} s ({rate:,.0f} records/s); {state}"
+        f"{count(len(summary.added), 'file')} added, {len(summary.skipped)} skipped;"
+        f" {count(summary.records, 'record')}, "
+        f"{count(summary.rejected, 'rejected line')}, {summary.seconds:.1f} s ({rate:,.0f} records/s); {state}"
     )
     if summary.rejected:
         lines.append('rejected lines: trackside query "SELECT * FROM rejected"')

@@ -18,6 +18,7 @@ from console.commands.common import (
     load_layout,
     refuse_wrong_kind,
 )
+from console.plural import count
 from console.safe_text import clean
 
 
@@ -76,7 +77,7 @@ def _print_tables(run: Any, final: dict[str, Any], sink: Any) -> None:
     timeline = st.timeline_table(result)
     # The table shows the first rows kept; title and caption count them all.
     limit, n = 200, sink.timeline_rows
-    timeline.title = f"State timeline ({n} changes)"
+    timeline.title = f"State timeline ({count(n, 'change')})"
     timeline.caption = f"first {limit} of {n}; --json has all" if n > limit else None
     out.print(timeline)
     out.print(st.ledger_summary_table(result))

@@ -16,6 +16,7 @@ from console.commands.common import (
     load_layout,
     print_json,
 )
+from console.plural import count
 
 
 def _parse_fault(text: str) -> Any:
@@ -148,8 +149,9 @@ def simulate(
         else:
             out = Console(highlight=False)
             out.print(
-                f"simulated {duration} on {lay.name} (seed {seed}): {len(sim.trains)} trains, "
-                f"{len(sim.truth_axles)} axle passages; GNSS every {sim.period_s:.1f} s (LoRa SF{spreading_factor})",
+                f"simulated {duration} on {lay.name} (seed {seed}): {count(len(sim.trains), 'train')}, "
+                f"{count(len(sim.truth_axles), 'axle passage')};"
+                f" GNSS every {sim.period_s:.1f} s (LoRa SF{spreading_factor})",
                 markup=False,
             )
             for name, n in counts.items():

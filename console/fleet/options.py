@@ -14,6 +14,8 @@ from typing import Annotated, Literal
 
 import typer
 
+from console.plural import count
+
 ENGINES = ("local", "dask")
 # A worker's memory is bounded: the nanny restarts a worker that goes over
 # (the partition is then retried elsewhere).  One partition (a counting head
@@ -70,7 +72,7 @@ class EngineSpec:
             return "local engine (this process)"
         if self.scheduler is not None:
             return f"dask scheduler {self.scheduler}"
-        return f"dask local cluster, {self.workers} workers of {self.memory_limit_bytes >> 20} MB"
+        return f"dask local cluster, {count(self.workers, 'worker')} of {self.memory_limit_bytes >> 20} MB"
 
 
 def engine_spec(engine: str = "local", workers: int | None = None, scheduler: str | None = None) -> EngineSpec:
