@@ -17,7 +17,7 @@ DIAG = SAMPLES / "example_station.log"
 WRONG_FOR_DIAG = {
     "gnss device CSV": (SAMPLES / "gnss_devices.csv", "GNSS device CSV"),
     "gnss JSON lines": (SAMPLES / "gnss_devices.jsonl", "JSON lines"),
-    "monitoring-centre table": (SAMPLES / "seed004_table1.tsv", "monitoring-centre table"),
+    "monitoring-centre table": (SAMPLES / "co_nhu_van_2026_centre_table.tsv", "monitoring-centre table"),
     "sensor frames": (SAMPLES / "sensor_frames.txt", "frame log"),
     "voltages": (SAMPLES / "am_thuong_2021-06-06_voltages.csv", "voltage table"),
 }
