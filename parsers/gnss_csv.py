@@ -73,7 +73,7 @@ from parsers.gnss_fields import (
 )
 from parsers.gnss_lines import open_lines
 from parsers.gpsd_json import JsonRowError, load_object, plain
-from parsers.report import FileReport, ParseReport
+from parsers.report import FileReport, ParseReport, device_of_file
 
 KNOT_MPS = 1852 / 3600
 
@@ -522,7 +522,7 @@ class DeviceLines:
 def parse_device_file(path: Path, report: ParseReport, rows: FixRows, fmt: str, roles: Mapping[str, str]) -> None:
     """One device export (``fmt`` ``"csv"`` or ``"jsonl"``); rows appended, every line counted."""
     fr, lines = open_lines(path, report)
-    DeviceLines(fr, report, rows, fmt, path.stem, roles).add(lines)
+    DeviceLines(fr, report, rows, fmt, device_of_file(path), roles).add(lines)
 
 
 def _is_jsonl(path: Path) -> bool:

@@ -47,7 +47,7 @@ from parsers.gnss_lines import open_lines, text_of
 from parsers.gnss_time import parse_time_ns
 from parsers.gpsd_json import JsonRowError, gpsd_class, load_object, tpv_fix
 from parsers.nmea import DEVICE_TAG_RE, DeviceClock, Fix, SentenceError, decode_sentence
-from parsers.report import FileReport, ParseReport
+from parsers.report import FileReport, ParseReport, device_of_file
 
 _UNPRINTABLE_RE = re.compile(rb"[^\t\x20-\x7e]")  # a tab may follow a device tag
 _SENTENCE_START_RE = re.compile(rb"(?=[$!])")
@@ -132,7 +132,7 @@ class StreamParser:
         self._gpsd_devices = {}
         feed = _Feed(lines)
         while (item := feed.next()) is not None:
-            self._line(fr, item, path.stem, feed)
+            self._line(fr, item, device_of_file(path), feed)
 
     def _line(self, fr: FileReport, item: tuple[int, bytes, int], stem: str, feed: _Feed) -> None:
         """One line (with its end; ``start`` > 0: the rest of it after a packet that ended there)."""
