@@ -110,7 +110,7 @@ def follow(
     ] = False,
     include_status: IncludeStatusOpt = False,
 ) -> None:
-    """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary."""
+    """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary (exit 130)."""
 
     def body() -> int:
         from console.analysis.diagnostics import SpeedSettings
@@ -160,11 +160,11 @@ def follow(
                 return False
             return data_items[0] > 0 and time.monotonic() - last[0] >= idle_exit
 
-        # Ctrl-C ends it cleanly (exit 0, it is how following ends); SIGTERM (a service
-        # stopping) too, with the summary, then 143.
+        # Ctrl-C and SIGTERM (a service stopping) end it cleanly: the summary, then 130 or 143, as for
+        # every command, so a script can tell an interrupted follow from one that ran its --duration.
         import signal
 
-        terminated = run_sources(engine, srcs, until=idle, duration_s=duration) == signal.SIGTERM
+        stopped_by = run_sources(engine, srcs, until=idle, duration_s=duration)
         summary = engine.summary(srcs)
         if not include_status:
             summary["status_only_passages"] = status_only[0]
@@ -173,8 +173,10 @@ def follow(
         else:
             sys.stderr.write("\n".join(_summary_lines(summary)) + "\n")
         rejected = sum(f["rejected"] for f in summary["files"])  # diagnostic, GNSS, CAN and frame logs
-        if terminated:
+        if stopped_by == signal.SIGTERM:
             return exit_codes.TERMINATED
+        if stopped_by == signal.SIGINT:
+            return exit_codes.INTERRUPTED
         return exit_codes.FINDINGS if strict and rejected else exit_codes.OK
 
     raise typer.Exit(guard(body))
