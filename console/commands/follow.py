@@ -135,6 +135,11 @@ def follow(
                 return
             if jsonl:
                 out.write(json.dumps(ev, ensure_ascii=False, default=str) + "\n")
+            elif ev.get("type") == "source" and ev.get("kind") == "disconnected":
+                # A source that cannot open or lost its feed is a problem, not an event: told on stderr.
+                sys.stderr.write(_line(ev) + "\n")
+                sys.stderr.flush()
+                return
             else:
                 out.write(_line(ev) + "\n")
             out.flush()  # a reader downstream sees each event at once
