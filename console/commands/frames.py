@@ -16,6 +16,8 @@ from console.commands.common import (
     guard,
     load_layout,
     print_json,
+    refuse_unread,
+    refuse_wrong_kind,
 )
 
 
@@ -106,6 +108,7 @@ def frames(
         from parsers.frames import count_frames_only, parse_can, parse_frames
 
         check_inputs(files)
+        refuse_wrong_kind(files, "frames")
         lay = load_layout(layout) if layout else None
         can_files = [p for p in files if _is_can_log(p)]
         text_files = [p for p in files if p not in can_files]
@@ -119,6 +122,7 @@ def frames(
             can_frames, can_report = parse_can(can_files)
             tables.append(can_frames)
             reports.append(can_report)
+        refuse_unread(reports, "frames")
         up: dict[str, bool] | bool = True
         if lay is not None:
             up = {h.id: h.up_is_first_channel_first for h in lay.heads}

@@ -17,6 +17,7 @@ from console.commands.common import (
     guard,
     load_layout,
     print_json,
+    refuse_unread,
     refuse_wrong_kind,
 )
 from console.safe_text import clean
@@ -85,11 +86,14 @@ def health(
                     on_progress=advance,
                 )
             job, warnings = run.job, run.warnings
+            refuse_unread(job.report, "diag")
             findings += health_findings(job, lay, run.health_events, None)
             reports.append(job.report)
         if voltages:
             check_inputs(voltages)
+            refuse_wrong_kind(voltages, "voltages")
             table, vreport = read_voltages(voltages)
+            refuse_unread(vreport, "voltages")
             findings += voltage_margin_findings(table)
             reports.append(vreport)
         findings = sort_findings(findings)

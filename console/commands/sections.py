@@ -16,6 +16,7 @@ from console.commands.common import (
     fail,
     guard,
     load_layout,
+    refuse_unread,
     refuse_wrong_kind,
 )
 from console.plural import count
@@ -160,6 +161,7 @@ def sections(
                     sink=sink,
                     on_progress=advance,
                 )
+            refuse_unread(run.job.report, "diag")
             sink = run.sink or sink
             assert run.engine is not None
             final = run.engine.result().final
