@@ -122,7 +122,12 @@ def analyze(
 
             out = Console(highlight=False)
             out.print(inventory_table(job.analysis))
-            out.print(passages_table(job.analysis, limit=PASSAGES_SHOWN, first=first))
+            # Its caption says why axles are "–" and counts the wheel detections on one system only.
+            out.print(
+                passages_table(
+                    job.analysis, limit=PASSAGES_SHOWN, first=first, unpaired=job.analysis.unpaired_detections
+                )
+            )
             out.print(parse_report_table(job.report))
             rej = rejections_table(job.report)
             if rej is not None:
@@ -133,10 +138,6 @@ def analyze(
                 notes.append(
                     f"{count(n, 'record')} {'repeats' if n == 1 else 'repeat'} another file's records"
                     " (overlapping exports) and were counted once; per file in the parse report"
-                )
-            if job.analysis.unpaired_detections:
-                notes.append(
-                    f"{count(job.analysis.unpaired_detections, 'wheel detection')} on one system only (not axles)"
                 )
             if job.report.unknown_labels:
                 notes.append(

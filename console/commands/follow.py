@@ -33,7 +33,8 @@ def _line(ev: dict[str, Any]) -> str:
     if kind == "passage":
         speed = ev.get("speed_kmh_whole_train")
         sp = f"{speed:.1f} km/h" if isinstance(speed, int | float) else "no speed"
-        text = f"passage  {ev['counting_head']}  {ev['start']} → {ev['end']}  {ev['axles']} axles  {sp}"
+        axles = "– axles" if ev.get("axles_unknown_reason") else count(ev["axles"], "axle")
+        text = f"passage  {ev['counting_head']}  {ev['start']} → {ev['end']}  {axles}  {sp}"
     elif kind == "section":
         text = f"section  {ev['section']}  {ev['state']}  count {ev['count']}  {ev['time']}  {ev['reason']}"
     elif kind == "crossing":

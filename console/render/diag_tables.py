@@ -68,8 +68,16 @@ def inventory_table(analysis: DiagAnalysis, limit: int = DEVICES_SHOWN) -> Table
     return t
 
 
-def passages_table(analysis: DiagAnalysis, limit: int | None = None, first: FirstPassages | None = None) -> Table:
-    """The passages (the first ``limit``), from the analysis or, when it holds none, from ``first``."""
+def passages_table(
+    analysis: DiagAnalysis, limit: int | None = None, first: FirstPassages | None = None, unpaired: int = 0
+) -> Table:
+    """The passages (the first ``limit``), from the analysis or, when it holds none, from ``first``.
+
+    Axles no onset pair could give are "–", and the caption says why; ``unpaired`` (the log's wheel
+    detections on one system only) is told there too, beyond those of the "–" passages.
+    """
+    from console.analysis.diagnostics import axles_unknown_codes
+
     p, status, total = _listed_passages(analysis, limit, first)
     t = _table(f"Passages ({total}); speeds in km/h: per-second method (records), whole train, per-axle mean")
     t.add_column("Head", no_wrap=True, min_width=4)
@@ -82,12 +90,13 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None, first: Firs
     t.add_column("Whole", justify="right", no_wrap=True)
     t.add_column("Axle", justify="right", no_wrap=True)
     rows = p if limit is None else p.head(limit)
+    unknown = axles_unknown_codes(rows["detections_sys1"], rows["detections_sys2"]) if len(rows) else []
     r: Any
-    for r in rows.itertuples(index=False):
+    for r, no_count in zip(rows.itertuples(index=False), unknown, strict=True):
         per_sec = _num(r.speed_kmh_per_second_method)
         if not pd.isna(r.records_in_detection_second):
             per_sec.append(f"({int(r.records_in_detection_second)})", style="dim")
-        axles = Text(str(r.axles))
+        axles = Text("–" if no_count else str(r.axles))
         if not pd.isna(r.direction):
             axles.append(" " + _ARROWS.get(r.direction, str(r.direction)), style="cyan")
         t.add_row(
@@ -107,8 +116,19 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None, first: Firs
         notes.append(f"first {limit} of {total} passages; --json has all")
     if status:
         notes.append(f"{status} status-only record bursts (no wheel) not shown; --json has them (kind: status)")
+    n_unknown = int(np.count_nonzero(unknown))
+    if n_unknown:
+        notes.append("Axles –: wheel onsets on one system only, or none: no axle can be paired")
+    shown_unpaired = int(rows["detections_sys1"].to_numpy()[unknown > 0].sum()) if n_unknown else 0
+    shown_unpaired += int(rows["detections_sys2"].to_numpy()[unknown > 0].sum()) if n_unknown else 0
+    if unpaired > shown_unpaired:
+        more = unpaired - shown_unpaired
+        other = "other " if n_unknown else ""
+        notes.append(
+            f"{more} {other}{'wheel detection' if more == 1 else 'wheel detections'} on one system only (not axles)"
+        )
     if notes:
-        t.caption = Text("; ".join(notes))  # Text: brackets in a note are not markup
+        t.caption = Text("\n".join(notes))  # one note a line; Text: brackets in a note are not markup
     return t
 
 

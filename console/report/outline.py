@@ -322,7 +322,7 @@ def _passage_row(p: dict[str, Any]) -> list[Cell]:
         p["counting_head"],
         show_time(p["start"]),
         _n(p["duration_s"], "{:.2f}"),
-        str(p["axles"]),
+        "–" if p["axles_unknown_reason"] else str(p["axles"]),  # no onset pair possible: the reason says why
         _ARROWS.get(p["direction"] or "", "–"),
         per_sec,
         _n(p["speed_kmh_whole_train"], "{:.2f}"),
