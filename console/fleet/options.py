@@ -72,7 +72,7 @@ class EngineSpec:
             return "local engine (this process)"
         if self.scheduler is not None:
             return f"dask scheduler {self.scheduler}"
-        return f"dask local cluster, {count(self.workers, 'worker')} of {self.memory_limit_bytes >> 20} MB"
+        return f"dask local cluster, {count(self.workers or 0, 'worker')} of {self.memory_limit_bytes >> 20} MB"
 
 
 def engine_spec(engine: str = "local", workers: int | None = None, scheduler: str | None = None) -> EngineSpec:
