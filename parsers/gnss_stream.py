@@ -38,8 +38,7 @@ import re
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from parsers import gnss_packets as packets
 from parsers.fix_table import NAT_NS, FixRows, check_roles, merged_sentence
@@ -57,6 +56,9 @@ from parsers.nmea import (
     split_sentences,
 )
 from parsers.report import FileReport, ParseReport, device_of_file
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 _UNPRINTABLE_RE = re.compile(rb"[^\t\x20-\x7e]")  # a tab may follow a device tag
 # Inside binary data a sentence ends at its checksum, at the next '$'/'!', or at a control byte.
