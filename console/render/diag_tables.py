@@ -4,19 +4,21 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from rich import box
 from rich.table import Table
 from rich.text import Text
 
-from console.analysis.diagnostics import DiagAnalysis
-from console.analysis.inventory import DeviceInventory
-from console.analysis.stream import FirstPassages
 from console.analysis.timefmt import display, iso
 from console.safe_text import inert
 from parsers.report import ParseReport
+
+if TYPE_CHECKING:  # the parse report tables (gnss) need neither the analysis nor Arrow behind it
+    from console.analysis.diagnostics import DiagAnalysis
+    from console.analysis.inventory import DeviceInventory
+    from console.analysis.stream import FirstPassages
 
 REJECTIONS_SHOWN = 20
 DEVICES_SHOWN = 6  # devices are columns: more do not fit in 80
