@@ -8,6 +8,7 @@ load), and the median and minimum wall time and the peak RSS (wait4's
 (`python -c pass`) as the floor.
 
     python benchmarks/bench_startup.py --rounds 15
+    python benchmarks/bench_startup.py --rounds 15 --against /path/to/older/venv/bin/trackside
 
 CPU time (user + system, median) is printed too: under load it moves less
 than wall time.
@@ -65,31 +66,37 @@ def run(cmd: list[str]) -> tuple[float, float, float]:
     return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024
 
 
-def commands(work: Path) -> dict[str, list[str]]:
-    trackside = str(Path(sys.executable).with_name("trackside"))
-    log, nmea, archive = work / "tiny.log", work / "tiny.nmea", work / "archive"
+def commands(work: Path, trackside: str, label: str = "") -> dict[str, list[str]]:
+    log, nmea, archive = work / "tiny.log", work / "tiny.nmea", work / f"archive{len(label)}"
     log.write_bytes(TWO_RECORDS)
     nmea.write_bytes(NMEA)
-    if not archive.exists():
+    if not archive.exists():  # each install its own archive: the archive format may differ between versions
         subprocess.run(
             [trackside, "ingest", str(log), "--archive", str(archive)], check=True, capture_output=True, env=_ENV
         )
     return {
-        "python -c pass": [sys.executable, "-c", "pass"],
-        "--help": [trackside, "--help"],
-        "analyze": [trackside, "analyze", str(log)],
-        "analyze --json": [trackside, "analyze", str(log), "--json"],
-        "gnss": [trackside, "gnss", str(nmea)],
-        "query": [trackside, "query", "--archive", str(archive), "SELECT count(*) FROM records"],
+        f"--help{label}": [trackside, "--help"],
+        f"analyze{label}": [trackside, "analyze", str(log)],
+        f"analyze --json{label}": [trackside, "analyze", str(log), "--json"],
+        f"gnss{label}": [trackside, "gnss", str(nmea)],
+        f"query{label}": [trackside, "query", "--archive", str(archive), "SELECT count(*) FROM records"],
     }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rounds", type=int, default=15, help="runs of each command, alternating")
+    parser.add_argument(
+        "--against",
+        metavar="TRACKSIDE",
+        help="another install's trackside executable (an older version, say), run alternately with this one",
+    )
     args = parser.parse_args()
+    here = str(Path(sys.executable).with_name("trackside"))
     with tempfile.TemporaryDirectory() as tmp:
-        cmds = commands(Path(tmp))
+        cmds = {"python -c pass": [sys.executable, "-c", "pass"], **commands(Path(tmp), here)}
+        if args.against:
+            cmds.update(commands(Path(tmp), args.against, " (against)"))
         for cmd in cmds.values():  # warm the page cache and write the byte code once, untimed
             run(cmd)
         walls: dict[str, list[float]] = {k: [] for k in cmds}
@@ -101,15 +108,17 @@ def main() -> None:
                 walls[name].append(wall)
                 cpus[name].append(cpu)
                 rss[name] = max(rss[name], peak)
-    print(f"{sys.executable}, {args.rounds} rounds, load average {os.getloadavg()[0]:.1f}")
-    print(f"{'command':<16} {'median s':>9} {'min s':>7} {'CPU s':>7} {'peak RSS MB':>12}")
+    print(f"{here}, {args.rounds} rounds, load average {os.getloadavg()[0]:.1f}")
+    if args.against:
+        print(f"against: {args.against}")
+    print(f"{'command':<26} {'median s':>9} {'min s':>7} {'CPU s':>7} {'peak RSS MB':>12}")
     for name in cmds:
         median = statistics.median(walls[name])
         verdict = ""
         if name in TARGETED:
             verdict = "  PASS" if median <= TARGET_S else f"  MISS (target ≤ {TARGET_S} s)"
         cpu = statistics.median(cpus[name])
-        print(f"{name:<16} {median:9.3f} {min(walls[name]):7.3f} {cpu:7.3f} {rss[name]:12.0f}{verdict}")
+        print(f"{name:<26} {median:9.3f} {min(walls[name]):7.3f} {cpu:7.3f} {rss[name]:12.0f}{verdict}")
 
 
 if __name__ == "__main__":

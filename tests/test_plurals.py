@@ -57,3 +57,11 @@ def test_ingest_summary_of_one_file(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     assert ": 1 record, 0 rejected" in result.output
     assert "1 file added, 0 skipped; 1 record, 0 rejected lines" in result.output
+
+
+def test_one_hidden_info_finding_is_singular() -> None:
+    # analyze --layout on the example morning hides one info finding (the health command lists it).
+    log = SAMPLES / "example_station.log"
+    result = runner.invoke(app, ["analyze", str(log), "--layout", "example"], env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    assert "1 info finding not shown" in result.output

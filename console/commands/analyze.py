@@ -36,18 +36,25 @@ def analyze(
     files: FilesArg,
     spacing: Annotated[
         float | None,
-        typer.Option("--spacing", help="Coil spacing Sys1–Sys2, m [default: the layout's, 0.13]", min=0.001),
+        typer.Option(
+            "--spacing", metavar="M", help="Coil spacing Sys1–Sys2, m [default: the layout's, 0.13]", min=0.001
+        ),
     ] = None,
     train_length: Annotated[
         float | None,
         typer.Option(
-            "--train-length", help="First-to-last wheel, m [default: the layout's first consist, 28.6]", min=0.1
+            "--train-length",
+            metavar="M",
+            help="First-to-last wheel, m [default: the layout's first consist, 28.6]",
+            min=0.1,
         ),
     ] = None,
     idle_gap: IdleGapOpt = 10.0,
     layout: Annotated[
         str | None,
-        typer.Option("--layout", help="Layout (file or osong, example): adds section and health summaries."),
+        typer.Option(
+            "--layout", metavar="LAYOUT", help="Layout (file or osong, example): adds section and health summaries."
+        ),
     ] = None,
     json_out: JsonOpt = False,
     jsonl: JsonlOpt = False,

@@ -24,10 +24,16 @@ from console.safe_text import clean
 
 def crossing(
     files: GnssFilesArg,
-    layout: Annotated[str, typer.Option("--layout", help="Layout with [[crossings]] and a [[track]] polyline.")],
+    layout: Annotated[
+        str, typer.Option("--layout", metavar="LAYOUT", help="Layout with [[crossings]] and a [[track]] polyline.")
+    ],
     train: Annotated[
         list[str] | None,
-        typer.Option("--train", help="TRAIN=HEAD_DEVICE,EOT_DEVICE[,LENGTH_M] (repeatable; default: by role or name)."),
+        typer.Option(
+            "--train",
+            metavar="TRAIN=HEAD,EOT[,LENGTH_M]",
+            help="TRAIN=HEAD_DEVICE,EOT_DEVICE[,LENGTH_M] (repeatable; default: by role or name).",
+        ),
     ] = None,
     json_out: JsonOpt = False,
     strict: Annotated[

@@ -17,6 +17,7 @@ from console.plural import count
 SourcesArg = Annotated[
     list[str],
     typer.Argument(
+        metavar="SOURCE...",
         help="Sources: file:PATH (or a path: a diagnostic, NMEA, gpsd JSON, GNSS device CSV/JSON lines, CAN or"
         " sensor frame log, told by its content), gpsd://HOST:PORT[/DEVICE], mqtt[s]://HOST:PORT/TOPIC,"
         " can:IFACE[:CHANNEL].",
@@ -85,7 +86,11 @@ def follow(
     sources: SourcesArg,
     layout: Annotated[
         str | None,
-        typer.Option("--layout", help="Layout (file or osong, example): adds section states and crossing warnings."),
+        typer.Option(
+            "--layout",
+            metavar="LAYOUT",
+            help="Layout (file or osong, example): adds section states and crossing warnings.",
+        ),
     ] = None,
     jsonl: Annotated[bool, typer.Option("--jsonl", help="One JSON object per line, with a `type` field.")] = False,
     from_start: Annotated[
@@ -95,15 +100,21 @@ def follow(
     idle_gap: IdleGapOpt = 10.0,
     archive: Annotated[
         Path | None,
-        typer.Option("--archive", help="Also ingest what is followed into this archive (spooled in DIR.live)."),
+        typer.Option(
+            "--archive", metavar="DIR", help="Also ingest what is followed into this archive (spooled in DIR.live)."
+        ),
     ] = None,
     duration: Annotated[
-        float | None, typer.Option("--duration", help="Stop after this many seconds (default: until Ctrl-C).", min=0)
+        float | None,
+        typer.Option("--duration", metavar="S", help="Stop after this many seconds (default: until Ctrl-C).", min=0),
     ] = None,
     idle_exit: Annotated[
         float | None,
         typer.Option(
-            "--idle-exit", help="Stop when nothing has arrived for this many seconds (after the first record).", min=0.1
+            "--idle-exit",
+            metavar="S",
+            help="Stop when nothing has arrived for this many seconds (after the first record).",
+            min=0.1,
         ),
     ] = None,
     strict: Annotated[

@@ -79,14 +79,20 @@ def _frame_rows(all_frames: Any) -> list[dict[str, Any]]:
 
 def frames(
     files: Annotated[
-        list[Path], typer.Argument(help="Sensor frame files (text) or CAN logs (candump .log, .asc, .blf).")
+        list[Path],
+        typer.Argument(metavar="FILE...", help="Sensor frame files (text) or CAN logs (candump .log, .asc, .blf)."),
     ],
     layout: Annotated[
-        str | None, typer.Option("--layout", help="Layout: which travel is up for each sensor (3-element heads).")
+        str | None,
+        typer.Option(
+            "--layout", metavar="LAYOUT", help="Layout: which travel is up for each sensor (3-element heads)."
+        ),
     ] = None,
     comm_timeout: Annotated[
         float,
-        typer.Option("--comm-timeout", help="Seconds without frames from a sensor that mean contact lost.", min=0.1),
+        typer.Option(
+            "--comm-timeout", metavar="S", help="Seconds without frames from a sensor that mean contact lost.", min=0.1
+        ),
     ] = 10.0,
     json_out: JsonOpt = False,
     strict: StrictOpt = False,

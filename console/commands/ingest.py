@@ -18,6 +18,7 @@ ArchiveOpt = Annotated[
     Path | None,
     typer.Option(
         "--archive",
+        metavar="DIR",
         help="Archive directory [default: $TRACKSIDE_ARCHIVE, else $XDG_DATA_HOME/trackside/archive].",
         show_default=False,
     ),
@@ -27,12 +28,20 @@ ArchiveOpt = Annotated[
 def ingest(
     paths: Annotated[
         list[Path],
-        typer.Argument(help="Files, directories (a `trackside simulate` output reads whole), .gz, or - for stdin."),
+        typer.Argument(
+            metavar="PATH...",
+            help="Files, directories (a `trackside simulate` output reads whole), .gz, or - for stdin.",
+        ),
     ],
     archive: ArchiveOpt = None,
     layout: Annotated[
         str | None,
-        typer.Option("--layout", help="Layout for the derived tables (file, or osong / example).", show_default=False),
+        typer.Option(
+            "--layout",
+            metavar="LAYOUT",
+            help="Layout for the derived tables (file, or osong / example).",
+            show_default=False,
+        ),
     ] = None,
     no_wait: Annotated[
         bool, typer.Option("--no-wait", help="Fail at once when another ingest holds the archive.")

@@ -97,22 +97,36 @@ def sections(
     reset: Annotated[
         list[str] | None,
         typer.Option(
-            "--reset", help="Ask to reset a section at a time: SECTION@TIME (repeatable).", show_default=False
+            "--reset",
+            metavar="SECTION@TIME",
+            help="Ask to reset a section at a time: SECTION@TIME (repeatable).",
+            show_default=False,
         ),
     ] = None,
     power_gap: Annotated[
         float | None,
         typer.Option(
-            "--power-gap", help="Seconds without records from a head that mean power loss (off unless set).", min=1.0
+            "--power-gap",
+            metavar="S",
+            help="Seconds without records from a head that mean power loss (off unless set).",
+            min=1.0,
         ),
     ] = None,
     initial: Annotated[
-        str, typer.Option("--initial", help="Section state at the start of the log: unknown (until a sweep) or clear.")
+        str,
+        typer.Option(
+            "--initial",
+            metavar="unknown|clear",
+            help="Section state at the start of the log: unknown (until a sweep) or clear.",
+        ),
     ] = "unknown",
     isolation: Annotated[
         float,
         typer.Option(
-            "--isolation", help="Seconds of quiet before and after a lone pulse that make it accidental.", min=1.0
+            "--isolation",
+            metavar="S",
+            help="Seconds of quiet before and after a lone pulse that make it accidental.",
+            min=1.0,
         ),
     ] = 60.0,
     json_out: JsonOpt = False,

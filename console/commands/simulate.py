@@ -40,32 +40,57 @@ def _parse_fault(text: str) -> Any:
 
 def simulate(
     output: Annotated[
-        Path, typer.Option("-o", "--output", help="Directory to write the run into (created; never over an input).")
+        Path,
+        typer.Option(
+            "-o", "--output", metavar="DIR", help="Directory to write the run into (created; never over an input)."
+        ),
     ],
-    layout: Annotated[str, typer.Option("--layout", help="Layout file, or osong / example.")] = "example",
-    duration: Annotated[str, typer.Option("--duration", help="Simulated time: 90s, 30m, 2h, 1h30m.")] = "2h",
-    seed: Annotated[int, typer.Option("--seed", help="Random seed: the same seed gives the same run.")] = 1,
-    trains_per_hour: Annotated[float, typer.Option("--trains-per-hour", min=0.1, max=60)] = 6.0,
+    layout: Annotated[
+        str, typer.Option("--layout", metavar="LAYOUT", help="Layout file, or osong / example.")
+    ] = "example",
+    duration: Annotated[
+        str, typer.Option("--duration", metavar="DURATION", help="Simulated time: 90s, 30m, 2h, 1h30m.")
+    ] = "2h",
+    seed: Annotated[
+        int, typer.Option("--seed", metavar="N", help="Random seed: the same seed gives the same run.")
+    ] = 1,
+    trains_per_hour: Annotated[float, typer.Option("--trains-per-hour", metavar="N", min=0.1, max=60)] = 6.0,
     spreading_factor: Annotated[
         int,
         typer.Option(
-            "--sf", help="LoRa spreading factor of the GNSS units (7-12): sets their report period.", min=7, max=12
+            "--sf",
+            metavar="7-12",
+            help="LoRa spreading factor of the GNSS units (7-12): sets their report period.",
+            min=7,
+            max=12,
         ),
     ] = 7,
     fault: Annotated[
         list[str] | None,
-        typer.Option("--fault", help="KIND:TARGET:START[:END[:CHANNEL]], e.g. dead_channel:WS3:20m (repeatable)."),
+        typer.Option(
+            "--fault",
+            metavar="KIND:TARGET:START[:END[:CH]]",
+            help="KIND:TARGET:START[:END[:CHANNEL]], e.g. dead_channel:WS3:20m (repeatable).",
+        ),
     ] = None,
     json_out: JsonOpt = False,
     live: Annotated[
-        bool, typer.Option("--live", help="Write the logs as growing files in (scaled) real time, for `follow`.")
+        bool,
+        typer.Option(
+            "--live", metavar="SOURCE", help="Write the logs as growing files in (scaled) real time, for `follow`."
+        ),
     ] = False,
     live_speed: Annotated[
-        float, typer.Option("--speed", help="With --live/--mqtt: simulated seconds per real second.", min=0.1, max=1000)
+        float,
+        typer.Option(
+            "--speed", metavar="X", help="With --live/--mqtt: simulated seconds per real second.", min=0.1, max=1000
+        ),
     ] = 1.0,
     mqtt: Annotated[
         str | None,
-        typer.Option("--mqtt", help="Publish the GNSS units' uplinks (ChirpStack v4 JSON) to mqtt://HOST:PORT."),
+        typer.Option(
+            "--mqtt", metavar="URL", help="Publish the GNSS units' uplinks (ChirpStack v4 JSON) to mqtt://HOST:PORT."
+        ),
     ] = None,
 ) -> None:
     """Simulate a line: trains, counting heads, GNSS units and faults, written as real logs with a truth."""

@@ -29,6 +29,7 @@ EngineOpt = Annotated[
     str,
     typer.Option(
         "--engine",
+        metavar="local|dask",
         help="Where the archive's partitions (counting head × day) run: local (this process) or dask.",
     ),
 ]
@@ -36,6 +37,7 @@ WorkersOpt = Annotated[
     int | None,
     typer.Option(
         "--workers",
+        metavar="N",
         help="With --engine dask: start a local cluster of N worker processes (512 MB each) [default: 2].",
         show_default=False,
     ),
@@ -44,6 +46,7 @@ SchedulerOpt = Annotated[
     str | None,
     typer.Option(
         "--scheduler",
+        metavar="tcp://HOST:PORT",
         help="With --engine dask: an existing distributed scheduler, tcp://HOST:PORT (workers must see the archive).",
         show_default=False,
     ),

@@ -11,6 +11,7 @@ from rich import box
 from rich.table import Table
 from rich.text import Text
 
+from console import plural
 from console.analysis.timefmt import display, iso
 from console.safe_text import inert
 from parsers.report import ParseReport
@@ -119,7 +120,9 @@ def passages_table(
     if limit is not None and total > limit:
         notes.append(f"first {limit} of {total} passages; --json has all")
     if status:
-        notes.append(f"{status} status-only record bursts (no wheel) not shown; --json has them (kind: status)")
+        notes.append(
+            f"{plural.count(status, 'status-only record burst')} (no wheel) not shown; --json has them (kind: status)"
+        )
     blind = unknown > 0
     if blind.any():
         notes.append("Axles –: wheel onsets on one system only, or none: no axle can be paired")
