@@ -149,7 +149,8 @@ def analyze(
                 n = job.analysis.overlap_records
                 notes.append(
                     f"{count(n, 'record')} {'repeats' if n == 1 else 'repeat'} another file's records"
-                    " (overlapping exports) and were counted once; per file in the parse report"
+                    f" (overlapping exports) and {'was' if n == 1 else 'were'} counted once;"
+                    " per file in the parse report"
                 )
             if job.report.unknown_labels:
                 notes.append(
