@@ -35,6 +35,7 @@ from console.commands import (
 )
 from console.commands.common import OUTPUT_ERRNOS, install_process_guards, output_failed
 from console.commands.common import load_layout as _load_layout
+from console.commands.examples import APP_EXAMPLES, EXAMPLES, epilog
 
 __all__ = ["_load_layout", "app"]
 
@@ -66,9 +67,10 @@ app = _Trackside(
     pretty_exceptions_enable=False,
     # Help is plain text: Rich markup would eat examples such as `[[crossings]]`.
     rich_markup_mode=None,
-    epilog=(
-        "Exit codes: 0 ok; 1 findings (--strict, --fail-on); 2 bad input or usage. "
-        "A file argument '-' reads standard input."
+    epilog=epilog(
+        APP_EXAMPLES,
+        "Exit codes: 0 ok; 1 findings (--strict, --fail-on); 2 bad input or usage; 130 Ctrl-C; 143 SIGTERM."
+        " A file argument '-' reads standard input. Walk-throughs and tables: the README and docs/.",
     ),
 )
 
@@ -91,7 +93,9 @@ for _module in (
     forecast,
 ):
     _name = _module.__name__.rsplit(".", 1)[1]
-    app.command(name=_name)(getattr(_module, _name))
+    # A command without examples still works; tests/test_examples.py asks for them.
+    _examples = EXAMPLES.get(_name)
+    app.command(name=_name, epilog=epilog(_examples) if _examples else None)(getattr(_module, _name))
 
 
 def _version(value: bool) -> None:

@@ -4,33 +4,31 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    DownloadColumn,
-    Progress,
-    ProgressColumn,
-    Task,
-    TaskID,
-    TextColumn,
-    TimeRemainingColumn,
-    TransferSpeedColumn,
-)
-from rich.text import Text
+
+if TYPE_CHECKING:
+    from rich.progress import Progress, TaskID
 
 MIN_BYTES_FOR_PROGRESS = 4 << 20
 
 
-class RecordRateColumn(ProgressColumn):
-    """Records per second so far (shown once a reader reports records)."""
+def _record_rate_column() -> Any:
+    """Records per second so far (shown once a reader reports records).  Rich's progress module is
+    loaded only when a bar is shown: a small input's start-up does not pay for it."""
+    from rich.progress import ProgressColumn, Task
+    from rich.text import Text
 
-    def render(self, task: Task) -> Text:
-        records = int(task.fields.get("records", 0))
-        elapsed = task.elapsed or 0.0
-        if not records or elapsed <= 0:
-            return Text("")
-        return Text(f"{records / elapsed:,.0f} records/s", style="progress.data.speed")
+    class RecordRateColumn(ProgressColumn):
+        def render(self, task: Task) -> Text:
+            records = int(task.fields.get("records", 0))
+            elapsed = task.elapsed or 0.0
+            if not records or elapsed <= 0:
+                return Text("")
+            return Text(f"{records / elapsed:,.0f} records/s", style="progress.data.speed")
+
+    return RecordRateColumn()
 
 
 class ByteProgress:
@@ -59,12 +57,21 @@ def byte_progress(total_bytes: int, label: str, console: Console | None = None) 
     if not console.is_terminal or total_bytes < MIN_BYTES_FOR_PROGRESS:
         yield None
         return
+    from rich.progress import (
+        BarColumn,
+        DownloadColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+        TransferSpeedColumn,
+    )
+
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
         DownloadColumn(),
         TransferSpeedColumn(),
-        RecordRateColumn(),
+        _record_rate_column(),
         TimeRemainingColumn(),
         console=console,
         transient=True,

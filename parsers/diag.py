@@ -31,7 +31,7 @@ from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
@@ -151,12 +151,23 @@ def _views(view_buf: pa.Buffer, u4: np.ndarray, starts: np.ndarray, lens: np.nda
     return pa.Array.from_buffers(pa.binary_view(), len(starts), [None, pa.py_buffer(v), view_buf])
 
 
+def _call_function(name: str, args: list[pa.Array]) -> Any:
+    """An Arrow compute function by name.  ``Array.dictionary_encode()`` would import ``pyarrow.compute``
+    (its Python wrappers and their docstrings: about a tenth of a second at every start); the function
+    registry itself is in the compiled ``pyarrow._compute``."""
+    try:
+        from pyarrow._compute import call_function
+    except ImportError:  # a pyarrow that moved it: the public module
+        from pyarrow.compute import call_function
+    return call_function(name, args)
+
+
 def _encode(
     view_buf: pa.Buffer, u4: np.ndarray, starts: np.ndarray, lens: np.ndarray
 ) -> tuple[np.ndarray, list[bytes]]:
     if len(starts) == 0:
         return np.zeros(0, np.int32), []
-    enc = _views(view_buf, u4, starts, lens).dictionary_encode()
+    enc = _call_function("dictionary_encode", [_views(view_buf, u4, starts, lens)])
     # The indices (no nulls) read straight from their buffer: Arrow's to_numpy
     # would import pandas.  intp: the main thread's lookups need no conversion.
     idx = enc.indices

@@ -22,9 +22,12 @@ from __future__ import annotations
 import hashlib
 import sys
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pyarrow as pa
+
+if TYPE_CHECKING:
+    import pyarrow as pa
 
 # The front cache's size: a realistic log's distinct spans fit (a few thousand); an
 # adversarial one's do not, and the cache is cleared when full (bounded: a cache, not a store).
@@ -219,6 +222,8 @@ class StringDictionary:
             # Many: Arrow makes the strings (no Python int per offset).  Its numpy conversion is the
             # faster but imports pandas, which a JSON-only command never loads: only if it is loaded
             # (and the indices are handed over as a buffer: pa.array would look for pandas too).
+            import pyarrow as pa
+
             indices = pa.Array.from_buffers(pa.int64(), len(codes), [None, pa.py_buffer(codes)])
             taken = self.arrow().take(indices)
             if "pandas" in sys.modules:
@@ -236,6 +241,8 @@ class StringDictionary:
 
         A string that is not valid Unicode (a lone surrogate) is not valid UTF-8 there: callers
         needing those use :meth:`take`."""
+        import pyarrow as pa  # loaded by the callers that want Arrow (a small GNSS read needs none)
+
         n = len(self)
         offsets = self._offsets.data[: n + 1]
         return pa.Array.from_buffers(

@@ -37,12 +37,15 @@ from __future__ import annotations
 import itertools
 from array import array
 from collections.abc import Mapping
-from typing import cast
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
-import pandas as pd
 
 from parsers.dictionary import StringDictionary
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 FIX_COLUMNS = (
     "time",
@@ -101,9 +104,6 @@ SENTENCES = (
     "",
 )
 FIX_QUALITIES = ("gnss", "dead_reckoning", "no_fix", "")
-ROLE_DTYPE = pd.CategoricalDtype(list(ROLES))
-SOURCE_DTYPE = pd.CategoricalDtype(list(SOURCES))
-FIX_QUALITY_DTYPE = pd.CategoricalDtype(list(FIX_QUALITIES))
 
 NAT_NS = int(np.iinfo(np.int64).min)  # the int64 value of NaT
 
@@ -122,6 +122,13 @@ def sentence_mask(sentence: str) -> int:
     return mask
 
 
+def _masks(sentences: pd.Series) -> np.ndarray:
+    """A table's sentence column (names) as bit masks: one lookup per category."""
+    column = sentences.astype("category")
+    mapping = np.array([sentence_mask(str(c)) for c in column.cat.categories], np.int32)
+    return mapping[column.cat.codes.to_numpy()] if len(mapping) else np.zeros(len(column), np.int32)
+
+
 def sentence_name(mask: int) -> str:
     """Bits → ``"RMC+GGA"`` (canonical order)."""
     return "+".join(k for k in SENTENCE_KINDS if mask & _KIND_BIT[k])
@@ -134,6 +141,8 @@ def merged_sentence(a: str, b: str) -> str:
 
 def _sentence_categorical(masks: np.ndarray) -> pd.Categorical:
     """Sentence masks → the column: :data:`SENTENCES` first, then any other combination used, in mask order."""
+    import pandas as pd
+
     used, codes = np.unique(masks, return_inverse=True)
     names = [sentence_name(int(m)) for m in used]
     fixed = {s: i for i, s in enumerate(SENTENCES)}
@@ -166,8 +175,8 @@ class _Codes:
     def append(self, value: str) -> None:
         self.codes.append(self.code_of(value))
 
-    def categorical(self, order: np.ndarray | None = None) -> pd.Categorical:
-        """The codes (taken at ``order``, if given) as a Categorical whose categories are the values used,
+    def used(self, order: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
+        """The codes (taken at ``order``, if given) renumbered over the values used, and those values,
         in order of first appearance in the rows as collected (whatever order they were interned in: rows
         may be read in batches and put back in line order)."""
         codes = np.frombuffer(self.codes, dtype=np.int32) if len(self.codes) else np.zeros(0, np.int32)
@@ -176,8 +185,7 @@ class _Codes:
         renumber = np.zeros(len(self.names), np.int32)
         renumber[in_order] = np.arange(len(in_order), dtype=np.int32)
         out = renumber[codes] if order is None else renumber[codes[order]]
-        # Python strings (object): pandas would make them for Arrow strings anyway, to check them unique.
-        return pd.Categorical.from_codes(out, categories=pd.Index(self.names.take(in_order), dtype=object))
+        return out, list(self.names.take(in_order))
 
 
 class FixRows:
@@ -261,9 +269,10 @@ class FixRows:
         self.file.codes.frombytes(np.full(n, self.file.code_of(file), np.int32).tobytes())
 
         def small(values: np.ndarray, categories: tuple[str, ...]) -> bytes:
-            codes = pd.Categorical(values, categories=list(categories)).codes
-            assert (codes >= 0).all(), "a value outside its categories"
-            return codes.astype(np.int8).tobytes()
+            distinct, inverse = np.unique(np.asarray(values, dtype=object).astype(str), return_inverse=True)
+            at = {c: i for i, c in enumerate(categories)}
+            assert all(d in at for d in distinct), "a value outside its categories"
+            return np.array([at[d] for d in distinct], np.int8)[inverse.reshape(-1)].tobytes()
 
         self.time.frombytes(np.asarray(time_ns, np.int64).tobytes())
         self.role.frombytes(small(role, ROLES))
@@ -330,12 +339,12 @@ class FixRows:
     def __len__(self) -> int:
         return len(self.line)
 
-    def frame(self, time_order: bool = False, release: bool = False) -> pd.DataFrame:
-        """The rows as a fix table with the documented dtypes; with ``time_order``, sorted by time, stably,
+    def columns(self, time_order: bool = False, release: bool = False) -> FixColumns:
+        """The rows as numpy columns (:class:`FixColumns`); with ``time_order``, sorted by time, stably,
         unknown times last (each column taken in that order once: no second table is made to sort).
 
         With ``release`` the rows are handed over: each column collected is dropped once converted, so
-        the rows and the table are not both held whole (the collector is empty afterwards).
+        the rows and the columns are not both held whole (the collector is empty afterwards).
         """
         n = len(self)
         order = None
@@ -357,36 +366,146 @@ class FixRows:
                 setattr(self, name, array(a.typecode))
             return out
 
-        def categorical(codes: _Codes) -> pd.Categorical:
-            out = codes.categorical(order)
+        def strings(codes: _Codes) -> tuple[np.ndarray, list[str]]:
+            out = codes.used(order)
             if release:
                 codes.codes = array("i")
             return out
 
+        device_codes, device_names = strings(self.device)
+        file_codes, file_names = strings(self.file)
+        return FixColumns(
+            time_ns=col("time", np.int64),
+            device_codes=device_codes,
+            device_names=device_names,
+            role=col("role", np.int8),
+            lat=col("lat", np.float64),
+            lon=col("lon", np.float64),
+            speed_mps=col("speed_mps", np.float64),
+            course_deg=col("course_deg", np.float64),
+            valid=col("valid", np.int8).astype(bool),
+            source=col("source", np.int8),
+            sentence=col("sentence", np.int32),
+            file_codes=file_codes,
+            file_names=file_names,
+            line=col("line", np.int64),
+            fix_quality=col("fix_quality", np.int8),
+        )
+
+    def frame(self, time_order: bool = False, release: bool = False) -> pd.DataFrame:
+        """The rows as a fix table with the documented dtypes (see :meth:`columns`)."""
+        return self.columns(time_order, release).frame()
+
+
+@dataclass
+class FixColumns:
+    """The fix table as numpy columns, without pandas (a small input's start-up does not pay for it).
+
+    ``device_codes`` and ``file_codes`` index ``device_names`` and ``file_names`` (in order of first
+    appearance); ``role``, ``source`` and ``fix_quality`` are codes into :data:`ROLES`, :data:`SOURCES` and
+    :data:`FIX_QUALITIES`, ``sentence`` bit masks over :data:`SENTENCE_KINDS` (:func:`sentence_name`);
+    ``time_ns`` holds NaT as :data:`NAT_NS`.
+    :meth:`frame` gives the documented table.
+    """
+
+    time_ns: np.ndarray
+    device_codes: np.ndarray
+    device_names: list[str]
+    role: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    speed_mps: np.ndarray
+    course_deg: np.ndarray
+    valid: np.ndarray
+    source: np.ndarray
+    sentence: np.ndarray
+    file_codes: np.ndarray
+    file_names: list[str]
+    line: np.ndarray
+    fix_quality: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.line)
+
+    def head(self, n: int) -> FixColumns:
+        """The first ``n`` rows (the string tables shared)."""
+        return FixColumns(**{k: v if k.endswith("_names") else v[:n] for k, v in vars(self).items()})
+
+    def frame(self) -> pd.DataFrame:
+        """The fix table (:data:`FIX_COLUMNS`, the documented dtypes)."""
+        import pandas as pd
+
+        def categorical(codes: np.ndarray, names: list[str]) -> pd.Categorical[Any]:
+            # Python strings (object): pandas would make them for Arrow strings anyway, to check them unique.
+            return pd.Categorical.from_codes(codes, categories=pd.Index(names, dtype=object))
+
+        def coded(codes: np.ndarray, values: tuple[str, ...]) -> pd.Categorical[Any]:
+            return pd.Categorical.from_codes(codes, dtype=pd.CategoricalDtype(list(values)))
+
         # copy=False: the columns are new arrays, each its own block (no second copy to consolidate them).
         return pd.DataFrame(
             {
-                "time": utc_times(col("time", np.int64)),
-                "device": categorical(self.device),
-                "role": pd.Categorical.from_codes(col("role", np.int8), dtype=ROLE_DTYPE),
-                "lat": col("lat", np.float64),
-                "lon": col("lon", np.float64),
-                "speed_mps": col("speed_mps", np.float64),
-                "course_deg": col("course_deg", np.float64),
-                "valid": col("valid", np.int8).astype(bool),
-                "source": pd.Categorical.from_codes(col("source", np.int8), dtype=SOURCE_DTYPE),
-                "sentence": _sentence_categorical(col("sentence", np.int32)),
-                "file": categorical(self.file),
-                "line": col("line", np.int64),
-                "fix_quality": pd.Categorical.from_codes(col("fix_quality", np.int8), dtype=FIX_QUALITY_DTYPE),
+                "time": utc_times(self.time_ns),
+                "device": categorical(self.device_codes, self.device_names),
+                "role": coded(self.role, ROLES),
+                "lat": self.lat,
+                "lon": self.lon,
+                "speed_mps": self.speed_mps,
+                "course_deg": self.course_deg,
+                "valid": self.valid,
+                "source": coded(self.source, SOURCES),
+                "sentence": _sentence_categorical(self.sentence),
+                "file": categorical(self.file_codes, self.file_names),
+                "line": self.line,
+                "fix_quality": coded(self.fix_quality, FIX_QUALITIES),
             },
             columns=list(FIX_COLUMNS),
             copy=False,
         )
 
+    @classmethod
+    def from_frame(cls, fixes: pd.DataFrame) -> FixColumns:
+        """The columns of a fix table (as :meth:`frame` or any GNSS reader gives it)."""
+
+        def strings(name: str) -> tuple[np.ndarray, list[str]]:
+            values = fixes[name].astype("category") if len(fixes) else fixes[name].astype(object).astype("category")
+            return values.cat.codes.to_numpy(np.int32), [str(x) for x in values.cat.categories]
+
+        def coded(name: str, values: tuple[str, ...]) -> np.ndarray:
+            column = fixes[name].astype("category")
+            at = {v: i for i, v in enumerate(values)}
+            # One lookup per category, then a take over the codes: no Python per row.
+            mapping = np.array([at[str(c)] for c in column.cat.categories], np.int8)
+            return mapping[column.cat.codes.to_numpy()] if len(mapping) else np.zeros(len(column), np.int8)
+
+        times = fixes["time"]
+        if getattr(times.dt, "tz", None) is not None:
+            times = times.dt.tz_convert(None)
+        device_codes, device_names = strings("device")
+        file_codes, file_names = strings("file")
+        return cls(
+            time_ns=np.asarray(times.to_numpy(dtype="datetime64[ns]")).view(np.int64),
+            device_codes=device_codes,
+            device_names=device_names,
+            role=coded("role", ROLES),
+            lat=fixes["lat"].to_numpy(np.float64),
+            lon=fixes["lon"].to_numpy(np.float64),
+            speed_mps=fixes["speed_mps"].to_numpy(np.float64),
+            course_deg=fixes["course_deg"].to_numpy(np.float64),
+            valid=fixes["valid"].to_numpy(bool),
+            source=coded("source", SOURCES),
+            sentence=_masks(fixes["sentence"]),
+            file_codes=file_codes,
+            file_names=file_names,
+            line=fixes["line"].to_numpy(np.int64),
+            fix_quality=coded("fix_quality", FIX_QUALITIES),
+        )
+
 
 def utc_times(ns: list[int] | np.ndarray) -> pd.DatetimeIndex:
     """int64 ns since the epoch (NaT as :data:`NAT_NS`) → datetime64[ns, UTC]."""
+    import pandas as pd
+
     return pd.DatetimeIndex(np.asarray(ns, dtype="int64").view("datetime64[ns]")).tz_localize("UTC")
 
 

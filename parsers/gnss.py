@@ -65,12 +65,11 @@ import unicodedata
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-import pandas as pd
 
-from parsers.fix_table import FIX_COLUMNS, FixRows, check_roles, utc_times
+from parsers.fix_table import FIX_COLUMNS, FixColumns, FixRows, check_roles, utc_times
 from parsers.gnss_csv import parse_device_file, parse_device_stream
 from parsers.gnss_fields import RowError, header_key
 from parsers.gnss_fields import cells_of as _cells
@@ -86,6 +85,9 @@ from parsers.gpx import parse_gpx_file
 from parsers.kinds import classify_file
 from parsers.nmea import KMH_MPS
 from parsers.report import ParseReport
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
     "CROSSING_COLUMNS",
@@ -187,6 +189,8 @@ def parse_centre_header(cells: list[str]) -> CentreHeader:
 
 def _file_categorical(files: list[str]) -> pd.Categorical:
     """File names with object categories: a name that is not UTF-8 cannot be an Arrow string."""
+    import pandas as pd
+
     names = list(dict.fromkeys(files))
     index = {name: i for i, name in enumerate(names)}
     codes = np.fromiter((index[f] for f in files), dtype=np.int32, count=len(files))
@@ -207,6 +211,8 @@ class CrossingRows:
     line: list[int] = field(default_factory=list)
 
     def frame(self) -> pd.DataFrame:
+        import pandas as pd
+
         return pd.DataFrame(
             {
                 "time": utc_times(self.time),
@@ -369,6 +375,21 @@ def parse_gnss(
     head/eot) applies to NMEA devices and to stream rows that give no role;
     ``utc_offset_h`` to the zone-less times of centre tables.
     """
+    rows, report, crossings = _read_gnss(paths, roles, utc_offset_h)
+    return rows.frame(time_order=True, release=True), report, _in_time_order(crossings.frame())
+
+
+def parse_gnss_columns(
+    paths: Iterable[Path | str], *, roles: Mapping[str, str] | None = None, utc_offset_h: float = 0.0
+) -> tuple[FixColumns, ParseReport]:
+    """:func:`parse_gnss`'s fixes as numpy columns (no pandas: what `trackside gnss` shows), and the report."""
+    rows, report, _ = _read_gnss(paths, roles, utc_offset_h)
+    return rows.columns(time_order=True, release=True), report
+
+
+def _read_gnss(
+    paths: Iterable[Path | str], roles: Mapping[str, str] | None, utc_offset_h: float
+) -> tuple[FixRows, ParseReport, CrossingRows]:
     report = ParseReport()
     role_map = check_roles(roles)
     rows, crossings = FixRows(), CrossingRows()  # one table, in file order, before the sort
@@ -386,7 +407,7 @@ def parse_gnss(
         else:
             _reject_all(path, report)
     report.check()
-    return rows.frame(time_order=True, release=True), report, _in_time_order(crossings.frame())
+    return rows, report, crossings
 
 
 def nothing_read(report: ParseReport) -> list[str]:

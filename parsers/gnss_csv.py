@@ -53,13 +53,11 @@ import unicodedata
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from parsers.fix_table import FixRows, check_roles
-from parsers.gnss_csv_fast import fast_batch
 from parsers.gnss_fields import (
     FALSE_WORDS,
     ROLE_ALIASES,
@@ -73,7 +71,10 @@ from parsers.gnss_fields import (
 )
 from parsers.gnss_lines import open_lines
 from parsers.gpsd_json import JsonRowError, load_object, plain
-from parsers.report import FileReport, ParseReport
+from parsers.report import FileReport, ParseReport, device_of_file
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 KNOT_MPS = 1852 / 3600
 
@@ -457,6 +458,8 @@ class DeviceLines:
         fast = None
         header, fr = self.header, self.fr
         if FAST_PATH and header is not None and len(batch) >= FAST_MIN_ROWS:
+            from parsers.gnss_csv_fast import fast_batch  # pyarrow: loaded by the first device CSV batch
+
             fast = fast_batch(
                 [raw for _, raw in batch], header, self.delimiter, self.stem, self.roles, fix_quality, _flag
             )
@@ -522,7 +525,7 @@ class DeviceLines:
 def parse_device_file(path: Path, report: ParseReport, rows: FixRows, fmt: str, roles: Mapping[str, str]) -> None:
     """One device export (``fmt`` ``"csv"`` or ``"jsonl"``); rows appended, every line counted."""
     fr, lines = open_lines(path, report)
-    DeviceLines(fr, report, rows, fmt, path.stem, roles).add(lines)
+    DeviceLines(fr, report, rows, fmt, device_of_file(path), roles).add(lines)
 
 
 def _is_jsonl(path: Path) -> bool:

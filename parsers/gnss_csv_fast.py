@@ -20,7 +20,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 import pyarrow as pa
 import pyarrow.compute as pc
 
@@ -126,6 +125,8 @@ def fast_batch(
     years = pc.cast(pc.if_else(pa.array(ok), pc.utf8_slice_codeunits(time_text, 0, 4), pa.scalar("1970")), pa.int32())
     year = years.to_numpy(zero_copy_only=False)
     ok &= (year >= _FIRST_YEAR) & (year <= _LAST_YEAR)
+    import pandas as pd
+
     times = pd.to_datetime(
         pc.if_else(pa.array(ok), time_text, pa.scalar("1970-01-01T00:00:00Z")).to_pandas(),
         format="ISO8601",

@@ -26,15 +26,18 @@ Device exports (CSV, JSON lines) are row by row: :class:`DeviceLines` in
 from __future__ import annotations
 
 from collections import deque
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from parsers import gnss_packets as packets
 from parsers.gnss_lines import _split_lf, text_of
 from parsers.gnss_stream import _UNPRINTABLE_RE, StreamParser, _Feed
 from parsers.report import FileReport, ParseReport
 from parsers.sources import DEFAULT_MAX_LINE_BYTES
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 def _waits_for_more(ahead: deque[tuple[int, bytes, int]]) -> bool:

@@ -43,8 +43,7 @@ import re
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from parsers import gnss_binary as binary
 from parsers import gnss_packets as packets
@@ -53,11 +52,22 @@ from parsers.gnss_epochs import BinaryEpochs
 from parsers.gnss_lines import open_lines, text_of
 from parsers.gnss_time import parse_time_ns
 from parsers.gpsd_json import JsonRowError, gpsd_class, load_object, tpv_fix
-from parsers.nmea import DEVICE_TAG_RE, DeviceClock, Fix, SentenceError, decode_sentence
-from parsers.report import FileReport, ParseReport
+from parsers.nmea import (
+    DEVICE_TAG_RE,
+    NOISE_SKIPPED,
+    DeviceClock,
+    Fix,
+    SentenceError,
+    decode_sentence,
+    sentence_after_noise,
+    split_sentences,
+)
+from parsers.report import FileReport, ParseReport, device_of_file
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 _UNPRINTABLE_RE = re.compile(rb"[^\t\x20-\x7e]")  # a tab may follow a device tag
-_SENTENCE_START_RE = re.compile(rb"(?=[$!])")
 # Inside binary data a sentence ends at its checksum, at the next '$'/'!', or at a control byte.
 _EMBEDDED_SENTENCE_RE = re.compile(rb"[$!][^$!*\x00-\x1f\x7f-\xff]*(?:\*[0-9A-Fa-f]{2})?")
 _ADDRESS_START_RE = re.compile(rb"[$!][A-Z][A-Z0-9]{4},")
@@ -131,7 +141,7 @@ class StreamParser:
         self._gpsd_devices = {}
         feed = _Feed(lines)
         while (item := feed.next()) is not None:
-            self._line(fr, item, path.stem, feed)
+            self._line(fr, item, device_of_file(path), feed)
 
     def _line(self, fr: FileReport, item: tuple[int, bytes, int], stem: str, feed: _Feed) -> None:
         """One line (with its end; ``start`` > 0: the rest of it after a packet that ended there)."""
@@ -157,16 +167,22 @@ class StreamParser:
         device = stem
         if text[:1] not in (b"$", b"!"):
             tag = DEVICE_TAG_RE.match(text)
-            if tag is None:
+            at = sentence_after_noise(text) if tag is None else tag.end()
+            if at < 0:
                 self.report.reject(fr, number, "not nmea", f"not an NMEA sentence: expected {_DEVICE_TAG_HELP}", raw)
                 return
-            device = tag.group(1).decode("ascii")
-            text = text[tag.end() :]
+            if tag is not None:
+                device = tag.group(1).decode("ascii")
+            else:
+                self.report.skipped[NOISE_SKIPPED] += at
+            text = text[at:]
         if b"\t" in text:
             reason = "a tab inside a sentence (a tab may only separate a device tag from its sentence)"
             self.report.reject(fr, number, "binary", reason, raw)
             return
-        sentences = [s for s in _SENTENCE_START_RE.split(text) if s]
+        sentences, noise = split_sentences(text)
+        if noise:
+            self.report.skipped[NOISE_SKIPPED] += noise
         self._finish_line(fr, number, raw, device, sentences, known=False)
 
     def _binary_line(self, fr: FileReport, number: int, raw: bytes, start: int, stem: str, feed: _Feed) -> None:

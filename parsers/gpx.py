@@ -38,7 +38,7 @@ from xml.parsers import expat
 from parsers.fix_table import NAT_NS, FixRows
 from parsers.gnss_lines import open_gnss_stream
 from parsers.gnss_time import parse_time_ns
-from parsers.report import FileReport, ParseReport
+from parsers.report import FileReport, ParseReport, device_of_file
 
 _READ_BYTES = 1 << 20
 _TEXT_ELEMENTS = frozenset({"time", "speed", "course", "fix"})
@@ -156,7 +156,8 @@ def parse_gpx_file(path: Path, report: ParseReport, rows: FixRows, roles: Mappin
     stream, raw, encoding, compressed = open_gnss_stream(path)
     fr = FileReport(file=str(path), encoding=encoding, compressed=compressed)
     report.files.append(fr)
-    reader = _GpxReader(fr, report, rows, path.stem, roles.get(path.stem, ""))
+    device = device_of_file(path)
+    reader = _GpxReader(fr, report, rows, device, roles.get(device, ""))
     lines = 0
     ends_with_newline = True
     failed: tuple[int, str] | None = None

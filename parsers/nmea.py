@@ -113,6 +113,8 @@ __all__ = [
     "check_roles",
     "decode_sentence",
     "nmea_checksum",
+    "sentence_after_noise",
+    "split_sentences",
     "utc_times",
 ]
 
@@ -135,10 +137,37 @@ _DEAD_RECKONING = 6
 DEVICE_TAG_RE = re.compile(rb"([A-Za-z0-9][A-Za-z0-9_.-]{0,63})(?:,|[ \t]+)(?=[$!])")
 _UNPRINTABLE_RE = re.compile(rb"[^\t\x20-\x7e]")  # a tab may follow a device tag
 _SENTENCE_START_RE = re.compile(rb"(?=[$!])")
+# A sentence's start in a line that begins with noise: a marker, an address (talker and type, or a
+# proprietary P…) and its first comma.
+_SENTENCE_AFTER_NOISE_RE = re.compile(rb"[$!][A-Z][A-Z0-9]{4,},")
+NOISE_SKIPPED = "bytes of noise before a sentence"
 _CHECKSUM_RE = re.compile(rb"\*([0-9A-Fa-f]{2})")
 _ADDRESS_RE = re.compile(r"[A-Z][A-Z0-9][A-Z0-9]{3}")
 _NUMBER_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 _DEVICE_TAG_HELP = "'$' or '!' (optionally after a device tag: 'DEVICE,$…' or 'DEVICE $…')"
+
+
+def split_sentences(text: bytes) -> tuple[list[bytes], int]:
+    """A printable line from its first '$' or '!' → its sentences, and the bytes of noise among them.
+
+    A start marker that another follows opens no sentence: gpsd's ST Teseo LIV4F capture writes every
+    sentence as ``$$GNRMC,…``, and gpsd reads them.  Such a lone marker is one byte of noise, unless the
+    line has nothing else (then it is the line's one sentence, rejected with its reason).
+    """
+    pieces = [s for s in _SENTENCE_START_RE.split(text) if s]
+    kept = [p for p in pieces if len(p) > 1]
+    if not kept:
+        return pieces, 0
+    return kept, len(pieces) - len(kept)
+
+
+def sentence_after_noise(text: bytes) -> int:
+    """Where a sentence starts in a line of printable text that begins with something else, or -1.
+
+    gpsd reads a valid sentence after junk; so do we (the junk is counted as skipped noise).
+    """
+    m = _SENTENCE_AFTER_NOISE_RE.search(text)
+    return -1 if m is None else m.start()
 
 
 class SentenceError(Exception):

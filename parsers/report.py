@@ -8,10 +8,12 @@ is counted, by file and by reason.
 
 from __future__ import annotations
 
+import os
 import re
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import PurePath
 from typing import Any
 
 MAX_REJECTIONS_KEPT = 1000
@@ -55,6 +57,12 @@ def escape_text(raw: bytes | str, limit: int = TEXT_CUT_CHARS) -> str:
 def escape_name(name: str) -> str:
     """A file name as shown: a byte that is not UTF-8 as ``\\xff`` (as ``ls`` does), controls and bidi escaped."""
     return _CONTROL.sub(_escape, name.translate(_WHITESPACE_ESCAPES))
+
+
+def device_of_file(path: str | os.PathLike[str]) -> str:
+    """The device name a file gives its records when they carry none: its stem, escaped as file names are
+    shown (``T\\xff\\xfe-head`` for ``T\\xff\\xfe-head.nmea``), so it can reach Arrow and JSON."""
+    return escape_name(PurePath(os.fsdecode(path)).stem)
 
 
 def escape_reason(reason: str) -> str:

@@ -1,6 +1,6 @@
 """Write sensor_frames.txt, can_counts.log and can_counts.asc: one frame sequence, three formats.
 
-Two intelligent axle-counting sensors (seed 002), AC07 and AC08 (CAN nodes
+Two intelligent axle-counting sensors (*Design of intelligent axle counting sensor*), AC07 and AC08 (CAN nodes
 7 and 8: count ids 0x187 and 0x188), bound a section.  The same frames are
 written as the text frame format and, with foreign bus traffic around them,
 through python-can's own candump and ASC writers; docs/frames.md describes
@@ -74,7 +74,7 @@ def stamp(seconds: float) -> dt.datetime:
 
 def write_text(path: Path, rows: list[tuple[float, str, int, int]]) -> None:
     lines = [
-        "# Intelligent axle-counting sensor frames (seed 002), see docs/frames.md",
+        "# Intelligent axle-counting sensor frames (Design of intelligent axle counting sensor), see docs/frames.md",
         "# <time> <sensor> <byte 1: SYS SES1 SES2 SES3 DER ERR T1 T2><byte 2: count or check byte A5>",
         "",
     ]

@@ -2,7 +2,7 @@
 
 Train VN0001 runs along a straight line from 20.6° N, 105.9° E on a true
 course of 20°, on 2026-01-19 from 10:05:00 UTC (17:05 in Vietnam, the hour of
-seed 004's Table 1).  Its head unit ``head1`` reports at even seconds, its
+Co Nhu Van's Table 1, TCSJ 2026).  Its head unit ``head1`` reports at even seconds, its
 end-of-train unit ``eot1``, 400 m behind along the line, at odd seconds:
 every 2 s each, for 3 minutes (91 fixes each).  The train runs at 15.5 m/s
 (55.8 km/h) for 90 s, then 15.0 m/s (54.0 km/h); speeds chosen so that m/s

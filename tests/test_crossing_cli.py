@@ -97,7 +97,7 @@ def test_timeline_reports_a_late_switch_off_as_a_violation() -> None:
     assert "warning off before the tail cleared the crossing" in row.violations
 
 
-@pytest.mark.parametrize("name", ["seed004_table1.tsv", "gnss_devices.csv", "gnss_devices.jsonl"])
+@pytest.mark.parametrize("name", ["co_nhu_van_2026_centre_table.tsv", "gnss_devices.csv", "gnss_devices.jsonl"])
 def test_gnss_command_decodes_the_samples(samples: Path, name: str) -> None:
     res = runner.invoke(app, ["gnss", str(samples / name), "--json"])
     assert res.exit_code == 0, res.output
@@ -105,7 +105,7 @@ def test_gnss_command_decodes_the_samples(samples: Path, name: str) -> None:
     assert doc["fixes"] and doc["parse_report"]["rejected"] == 0
     for key in ("time", "lat", "lon", "speed_mps", "course_deg", "valid", "device", "file", "line"):
         assert key in doc["fixes"][0]
-    if name == "seed004_table1.tsv":
+    if name == "co_nhu_van_2026_centre_table.tsv":
         assert [round(f["speed_mps"] * 3.6, 1) for f in doc["fixes"]][:2] == [55.6, 55.6]
         assert doc["fixes"][0]["time"].startswith("2026-01-19T17:05:21")
 

@@ -102,7 +102,10 @@ PARSERS: dict[str, tuple[Callable[[list[Path]], ParseReport], list[Path]]] = {
         _samples("osong_ws4_0932_detection.log", "osong_ws4_0932_passage.log", "ws4_subsecond.log", "ws4_health.log"),
     ),
     "nmea": (_nmea, _NMEA_CAPTURES[:6]),
-    "gnss": (_gnss, _samples("gnss_devices.csv", "gnss_devices.jsonl", "crossing_example.csv", "seed004_table1.tsv")),
+    "gnss": (
+        _gnss,
+        _samples("gnss_devices.csv", "gnss_devices.jsonl", "crossing_example.csv", "co_nhu_van_2026_centre_table.tsv"),
+    ),
     "frames": (_frames, _samples("sensor_frames.txt")),
     "can": (_can, _samples("can_counts.log", "can_counts.asc", "can_counts.trc")),
     "voltages": (_voltages, _samples("am_thuong_2021-06-06_voltages.csv")),

@@ -420,7 +420,7 @@ def test_the_fix_table_has_the_documented_columns_and_types(tmp_path: Path) -> N
 
 # -------------------------------------------------- monitoring centre table
 
-TABLE1 = SAMPLES / "seed004_table1.tsv"
+TABLE1 = SAMPLES / "co_nhu_van_2026_centre_table.tsv"
 
 
 def test_table1_parses_to_the_nine_paper_rows_in_time_order() -> None:

@@ -305,7 +305,7 @@ def test_follow_of_an_impossible_source_is_a_one_line_error(tmp_path: Path) -> N
     assert "Traceback" not in out.stderr
 
 
-@pytest.mark.parametrize(("sig", "code"), [(signal.SIGINT, 0), (signal.SIGTERM, 143)])
+@pytest.mark.parametrize(("sig", "code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_ctrl_c_or_sigterm_end_follow_cleanly_with_a_summary(tmp_path: Path, sig: int, code: int) -> None:
     log = tmp_path / "x.log"
     log.write_bytes(b"".join(SAMPLE.read_bytes().splitlines(keepends=True)[:50]))

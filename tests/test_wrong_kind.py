@@ -17,7 +17,7 @@ DIAG = SAMPLES / "example_station.log"
 WRONG_FOR_DIAG = {
     "gnss device CSV": (SAMPLES / "gnss_devices.csv", "GNSS device CSV"),
     "gnss JSON lines": (SAMPLES / "gnss_devices.jsonl", "JSON lines"),
-    "monitoring-centre table": (SAMPLES / "seed004_table1.tsv", "monitoring-centre table"),
+    "monitoring-centre table": (SAMPLES / "co_nhu_van_2026_centre_table.tsv", "monitoring-centre table"),
     "sensor frames": (SAMPLES / "sensor_frames.txt", "frame log"),
     "voltages": (SAMPLES / "am_thuong_2021-06-06_voltages.csv", "voltage table"),
 }
@@ -59,3 +59,64 @@ def test_a_damaged_diagnostic_log_is_still_read_line_by_line(tmp_path: Path) -> 
     result = runner.invoke(app, ["analyze", str(damaged), "--json"])
     assert result.exit_code == 0, result.output
     assert '"rejected":1' in result.output.replace(" ", "")
+
+
+# A file with nothing in it readable as what the command reads (an image, a README, notes): one line,
+# exit 2, as gnss does; never an empty table with hundreds of rejected "lines".
+def _png(path: Path) -> Path:
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    rows = b"".join(b"\x00" + bytes((x * 7 + y * 3) % 256 for x in range(64)) for y in range(64))
+    header = struct.pack(">IIBBBBB", 64, 64, 8, 0, 0, 0, 0)
+    path.write_bytes(
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b"")
+    )
+    return path
+
+
+def _readme(path: Path) -> Path:
+    # The project's own README: prose that quotes a Diag_id: record and NMEA, lines of no format.
+    path.write_bytes((SAMPLES.parent / "README.md").read_bytes())
+    return path
+
+
+def _notes(path: Path) -> Path:
+    path.write_text("shift notes\nWS4 cleaned at 09:00\nno fault found\n")
+    return path
+
+
+NOT_READABLE = {"png": _png, "readme": _readme, "notes": _notes}
+DIAG_LOG = "an axle-counter diagnostic log"
+ONE_KIND_COMMANDS = {
+    **{c: (DIAG_COMMANDS[c], DIAG_LOG) for c in DIAG_COMMANDS},
+    "analyze --jsonl": ([], DIAG_LOG),
+    "frames": ([], "sensor frames or a CAN log"),
+    "health --voltages": ([], "a receiver-voltage table"),
+    "gnss": ([], "GNSS"),
+    "crossing": (["--layout", "example"], "GNSS"),
+}
+
+
+@pytest.mark.parametrize("command", list(ONE_KIND_COMMANDS))
+@pytest.mark.parametrize("kind", list(NOT_READABLE))
+def test_a_file_with_nothing_readable_is_refused_in_one_line(tmp_path: Path, command: str, kind: str) -> None:
+    path = NOT_READABLE[kind](tmp_path / f"input.{kind}")
+    extra, what = ONE_KIND_COMMANDS[command]
+    result = runner.invoke(app, [*command.split(), str(path), *extra])
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert lines[-1].startswith("trackside: error: ") and path.name in lines[-1]
+    assert f"nothing readable as {what}" in lines[-1], lines[-1]
+    if command != "analyze --jsonl":  # --jsonl may have streamed rejected lines before the end
+        assert len(lines) == 1, result.output
+
+
+def test_an_empty_log_is_still_zero_records_not_an_error(tmp_path: Path) -> None:
+    empty = tmp_path / "empty.log"
+    empty.write_bytes(b"")
+    result = runner.invoke(app, ["analyze", str(empty), "--json"])
+    assert result.exit_code == 0, result.output

@@ -396,6 +396,17 @@ def _or_nan(values: np.ndarray, sentinel: int) -> np.ndarray:
 
 _BASIS = (None, "detections", "records")
 _KINDS = ("train", "damping", "status")
+# Why a passage's axles cannot be counted ("–" in tables, ``axles_unknown_reason`` in JSON), by code: an axle
+# is a Sys1 and a Sys2 onset of one wheel, so none can be paired where a system has no onset.  JSON keeps
+# ``axles`` the number of pairs found (0), as version 1 documents always have.  Code: 2·(no Sys1) + (no Sys2).
+AXLES_UNKNOWN_REASONS = (None, "wheel onsets on Sys1 only", "wheel onsets on Sys2 only", "no wheel onset")
+
+
+def axles_unknown_codes(detections_sys1: Any, detections_sys2: Any) -> np.ndarray:
+    """Per passage, 0 where its axles were counted, else the index of its reason in AXLES_UNKNOWN_REASONS."""
+    no1 = np.asarray(detections_sys1, np.int64) == 0
+    no2 = np.asarray(detections_sys2, np.int64) == 0
+    return (2 * no1 + no2).astype(np.int8)
 
 
 def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings) -> Columns | None:
@@ -607,6 +618,7 @@ def passages_json_text(p: pd.DataFrame) -> str:
     if p.empty:
         return "[]"
     n_det = p["records_in_detection_second"].to_numpy(dtype=float)
+    unknown = axles_unknown_codes(p["detections_sys1"], p["detections_sys2"])
     frame = pd.DataFrame(
         {
             "device_id": p["device_id"].to_numpy(np.int64),
@@ -616,6 +628,7 @@ def passages_json_text(p: pd.DataFrame) -> str:
             "duration_s": p["duration_s"].to_numpy(dtype=float).round(6),
             "records": p["records"].to_numpy(np.int64),
             "axles": p["axles"].to_numpy(np.int64),
+            "axles_unknown_reason": np.array(AXLES_UNKNOWN_REASONS, dtype=object)[unknown],
             "detections_sys1": p["detections_sys1"].to_numpy(np.int64),
             "detections_sys2": p["detections_sys2"].to_numpy(np.int64),
             "direction": _objects(p["direction"]),

@@ -209,6 +209,7 @@ def _axle_lists(speeds: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.n
 def _batch(
     cols: Columns, heads: Heads, lo: int, hi: int, first: bool, opening: str = "{", sep: str = ","
 ) -> bytes | None:
+    from console.analysis.diagnostics import AXLES_UNKNOWN_REASONS, axles_unknown_codes
     from console.analysis.wheels import DIRECTION_12, DIRECTION_21
 
     c = {k: v[lo:hi] for k, v in cols.items() if k != "axle_speeds_kmh"}
@@ -217,6 +218,7 @@ def _batch(
     used, head_code = np.unique(c["head"], return_inverse=True)
     head_dev, head_names = heads_at(heads, used)
     n_det = np.asarray(c["records_in_detection_second"], float)
+    unknown = axles_unknown_codes(c["detections_sys1"], c["detections_sys2"])
     parts: list[tuple[str, np.ndarray | None]] = [
         (opening + '"device_id":', _ints(head_dev[head_code])),
         (',"counting_head":', _texts(head_code, head_names)),
@@ -225,6 +227,7 @@ def _batch(
         (',"duration_s":', _floats(np.round(np.asarray(c["duration_s"], float), 6))),
         (',"records":', _ints(c["records"])),
         (',"axles":', _ints(c["axles"])),
+        (',"axles_unknown_reason":', _texts(unknown, AXLES_UNKNOWN_REASONS)),
         (',"detections_sys1":', _ints(c["detections_sys1"])),
         (',"detections_sys2":', _ints(c["detections_sys2"])),
         (',"direction":', _texts(c["direction"], [None, DIRECTION_12, DIRECTION_21, "mixed"])),

@@ -26,6 +26,7 @@ from console.commands.common import (
     print_json,
     read_logs,
 )
+from console.plural import count
 from console.safe_text import clean
 
 PASSAGES_SHOWN = 200  # rows of the text table; --json has all
@@ -35,18 +36,25 @@ def analyze(
     files: FilesArg,
     spacing: Annotated[
         float | None,
-        typer.Option("--spacing", help="Coil spacing Sys1–Sys2, m [default: the layout's, 0.13]", min=0.001),
+        typer.Option(
+            "--spacing", metavar="M", help="Coil spacing Sys1–Sys2, m [default: the layout's, 0.13]", min=0.001
+        ),
     ] = None,
     train_length: Annotated[
         float | None,
         typer.Option(
-            "--train-length", help="First-to-last wheel, m [default: the layout's first consist, 28.6]", min=0.1
+            "--train-length",
+            metavar="M",
+            help="First-to-last wheel, m [default: the layout's first consist, 28.6]",
+            min=0.1,
         ),
     ] = None,
     idle_gap: IdleGapOpt = 10.0,
     layout: Annotated[
         str | None,
-        typer.Option("--layout", help="Layout (file or osong, example): adds section and health summaries."),
+        typer.Option(
+            "--layout", metavar="LAYOUT", help="Layout (file or osong, example): adds section and health summaries."
+        ),
     ] = None,
     json_out: JsonOpt = False,
     jsonl: JsonlOpt = False,
@@ -126,27 +134,33 @@ def analyze(
 
             out = Console(highlight=False)
             out.print(inventory_table(job.analysis))
-            out.print(passages_table(job.analysis, limit=PASSAGES_SHOWN, first=first))
+            # Its caption says why axles are "–" and counts the wheel detections on one system only.
+            out.print(
+                passages_table(
+                    job.analysis, limit=PASSAGES_SHOWN, first=first, unpaired=job.analysis.unpaired_detections
+                )
+            )
             out.print(parse_report_table(job.report))
             rej = rejections_table(job.report)
             if rej is not None:
                 out.print(rej)
             notes = []
             if job.analysis.overlap_records:
+                n = job.analysis.overlap_records
                 notes.append(
-                    f"{job.analysis.overlap_records} records repeat another file's records"
-                    " (overlapping exports) and were counted once; per file in the parse report"
+                    f"{count(n, 'record')} {'repeats' if n == 1 else 'repeat'} another file's records"
+                    f" (overlapping exports) and {'was' if n == 1 else 'were'} counted once;"
+                    " per file in the parse report"
                 )
-            if job.analysis.unpaired_detections:
-                notes.append(f"{job.analysis.unpaired_detections} wheel detections on one system only (not axles)")
             if job.report.unknown_labels:
                 notes.append(
-                    f"{sum(job.report.unknown_labels.values())} records with unknown labels: "
+                    f"{count(sum(job.report.unknown_labels.values()), 'record')} with unknown labels: "
                     + ", ".join(sorted(job.report.unknown_labels))
                 )
             if job.status is not None and job.status.passages.sum():
                 notes.append(
-                    f"{int(job.status.passages.sum())} passages of status records only (no wheel onset) not listed;"
+                    f"{count(int(job.status.passages.sum()), 'passage of status records only')} (no wheel onset)"
+                    " not listed;"
                     " --include-status lists them"
                 )
             for n in notes:

@@ -23,14 +23,17 @@ from console.commands.common import (
 def approach(
     files: FilesArg,
     layout: Annotated[
-        str, typer.Option("--layout", help="Layout with [[work_sites]] (file or osong, example).")
+        str, typer.Option("--layout", metavar="LAYOUT", help="Layout with [[work_sites]] (file or osong, example).")
     ] = "osong",
-    head: Annotated[str | None, typer.Option("--head", help="Approach counting head of an ad-hoc site.")] = None,
+    head: Annotated[
+        str | None, typer.Option("--head", metavar="HEAD", help="Approach counting head of an ad-hoc site.")
+    ] = None,
     distance: Annotated[
-        float | None, typer.Option("--distance", help="Metres from the head to the site: + up the line, − down.")
+        float | None,
+        typer.Option("--distance", metavar="M", help="Metres from the head to the site: + up the line, − down."),
     ] = None,
     warning_time: Annotated[
-        float, typer.Option("--warning-time", help="Seconds of warning the workers need.", min=1)
+        float, typer.Option("--warning-time", metavar="S", help="Seconds of warning the workers need.", min=1)
     ] = 30.0,
     json_out: JsonOpt = False,
     strict: StrictOpt = False,

@@ -17,14 +17,20 @@ from console.commands.common import (
 
 
 def ato(
-    controller: Annotated[str, typer.Option("--controller", help="pid, fuzzy, fuzzy-d or all.")] = "all",
+    controller: Annotated[
+        str, typer.Option("--controller", metavar="pid|fuzzy|fuzzy-d|all", help="pid, fuzzy, fuzzy-d or all.")
+    ] = "all",
     plant: Annotated[
-        str, typer.Option("--plant", help="force (our train model), linear (the paper's G(s)) or both.")
+        str,
+        typer.Option(
+            "--plant", metavar="force|linear|both", help="force (our train model), linear (the paper's G(s)) or both."
+        ),
     ] = "force",
     fuzzy_d_reading: Annotated[
         str,
         typer.Option(
             "--fuzzy-d-reading",
+            metavar="output-gain|normalised|both",
             help="Fuzzy-D's eq. 6: output-gain (K multiplies SpeedT-scale output, as printed), normalised "
             "(K only rescales a [-1, 1] output and cancels) or both.",
         ),

@@ -25,16 +25,18 @@ STDIN = "-"  # a file argument that means standard input
 
 FilesArg = Annotated[
     list[Path],
-    typer.Argument(help="Diagnostic log files (plain or .gz; - reads standard input).", show_default=False),
+    typer.Argument(
+        metavar="FILE...", help="Diagnostic log files (plain or .gz; - reads standard input).", show_default=False
+    ),
 ]
 SpacingOpt = Annotated[
-    float, typer.Option("--spacing", help="Coil spacing Sys1–Sys2 of the counting head, m.", min=0.001)
+    float, typer.Option("--spacing", metavar="M", help="Coil spacing Sys1–Sys2 of the counting head, m.", min=0.001)
 ]
 TrainLengthOpt = Annotated[
-    float, typer.Option("--train-length", help="First-to-last wheel distance of the train, m.", min=0.1)
+    float, typer.Option("--train-length", metavar="M", help="First-to-last wheel distance of the train, m.", min=0.1)
 ]
 IdleGapOpt = Annotated[
-    float, typer.Option("--idle-gap", help="Seconds without records that end a passage (≥ 1).", min=1.0)
+    float, typer.Option("--idle-gap", metavar="S", help="Seconds without records that end a passage (≥ 1).", min=1.0)
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON document on stdout instead of tables.")]
 StrictOpt = Annotated[bool, typer.Option("--strict", help="Exit 1 if any input line was rejected.")]
@@ -55,12 +57,15 @@ REJECTIONS_LISTED = 100
 
 LayoutOpt = Annotated[
     str,
-    typer.Option("--layout", help="Layout TOML file, or a shipped one: osong, example.", show_default=False),
+    typer.Option(
+        "--layout", metavar="LAYOUT", help="Layout TOML file, or a shipped one: osong, example.", show_default=False
+    ),
 ]
 
 GnssFilesArg = Annotated[
     list[Path],
     typer.Argument(
+        metavar="FILE...",
         help="GNSS telemetry: NMEA, device streams (CSV, JSON lines), monitoring-centre tables; - reads stdin.",
         show_default=False,
     ),
@@ -288,17 +293,27 @@ def print_json(doc: dict[str, Any]) -> None:
     sys.stdout.flush()
 
 
-# Kinds a diagnostic-log command refuses outright: files it could only reject line by line.
+# Kinds a command refuses outright: files it could only reject line by line.
 _NOT_DIAG_KINDS = frozenset({"nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre", "frames", "can", "voltages"})
+_NOT_FRAME_KINDS = frozenset({"diag", "nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre", "voltages"})
+_NOT_VOLTAGE_KINDS = frozenset({"diag", "nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre", "frames", "can"})
+# What each command reads, as its refusals name it.
+READS = {
+    "diag": "an axle-counter diagnostic log",
+    "gnss": "GNSS",
+    "frames": "sensor frames or a CAN log",
+    "voltages": "a receiver-voltage table",
+}
 
 
 def refuse_wrong_kind(paths: list[Path], expected: str) -> None:
-    """A file that plainly holds another kind of data: one line naming it and what it looks like, exit 2.
+    """A file that plainly holds something else: one line naming it and what it looks like, exit 2.
 
-    ``expected`` is "diag" or "gnss".  Damaged or unrecognised files are not refused
-    here: they are read and their lines rejected with reasons, as any other input.
+    ``expected`` is a key of :data:`READS`.  Damaged files are not refused here: they are read and
+    their lines rejected with reasons, as any other input; a file of which nothing at all was read
+    is refused after reading (:func:`refuse_unread`).  An empty file is zero records, not an error.
     """
-    from parsers.kinds import classify_file, not_gnss_reason
+    from parsers.kinds import classify_head, not_gnss_reason, read_head
 
     for p in paths:
         if expected == "gnss":
@@ -306,9 +321,47 @@ def refuse_wrong_kind(paths: list[Path], expected: str) -> None:
             if wrong is not None:
                 raise fail(f"{show_path(p)}: nothing readable as GNSS: {wrong}")
             continue
-        guess = classify_file(p)
-        if guess.kind in _NOT_DIAG_KINDS:
-            raise fail(f"{show_path(p)}: not an axle-counter diagnostic log: looks like {guess.description}")
+        head = read_head(p)
+        guess = classify_head(head)
+        if expected == "diag":
+            if guess.kind in _NOT_DIAG_KINDS:
+                raise fail(f"{show_path(p)}: not an axle-counter diagnostic log: looks like {guess.description}")
+            if guess.kind == "unknown" and b"Diag_id:" not in head:
+                # Not one record in the head (64 KiB): an image, a document, notes.
+                what = "binary data" if guess.why == "binary data" else _first_line(head)
+                raise fail(f"{show_path(p)}: nothing readable as {READS['diag']}: no Diag_id: record ({what})")
+        elif expected in ("frames", "voltages"):
+            refused = _NOT_FRAME_KINDS if expected == "frames" else _NOT_VOLTAGE_KINDS
+            if guess.kind in refused:
+                raise fail(f"{show_path(p)}: nothing readable as {READS[expected]}: looks like {guess.description}")
+            if guess.why == "binary data":
+                raise fail(f"{show_path(p)}: nothing readable as {READS[expected]}: binary data")
+
+
+def _first_line(head: bytes) -> str:
+    from parsers.report import escape_text
+
+    line = next((s for s in (x.strip() for x in head.split(b"\n")) if s), b"")
+    return f"first line '{escape_text(line, 40)}'"
+
+
+def refuse_unread(reports: Any, expected: str) -> None:
+    """Exit 2 with one line for the first file of which no line was read (no record, some rejected).
+
+    ``reports`` is a :class:`~parsers.report.ParseReport` or several; ``expected`` a key of :data:`READS`.
+    """
+    from console.plural import count
+
+    for report in reports if isinstance(reports, list | tuple) else [reports]:
+        for fr in report.files:
+            if fr.records or not fr.rejected:
+                continue
+            first = next((r for r in report.rejections if r.file == fr.file), None)
+            example = f"; line {first.line}: {first.reason}" if first is not None else ""
+            raise fail(
+                f"{show_path(fr.file)}: nothing readable as {READS[expected]}:"
+                f" {count(fr.rejected, 'line')} rejected, none read{example}"
+            )
 
 
 def read_logs(
@@ -338,7 +391,9 @@ def read_logs(
             passages_final=jsonl is not None,
             hold_passages=hold_passages,
         )
-        return read_diag(files, settings, Sinks(jsonl, sink), opts)
+        job = read_diag(files, settings, Sinks(jsonl, sink), opts)
+    refuse_unread(job.report, "diag")
+    return job
 
 
 def load_layout(spec: str) -> Any:

@@ -18,15 +18,22 @@ from console.commands.common import (
     print_json,
     refuse_wrong_kind,
 )
+from console.plural import count
 from console.safe_text import clean
 
 
 def crossing(
     files: GnssFilesArg,
-    layout: Annotated[str, typer.Option("--layout", help="Layout with [[crossings]] and a [[track]] polyline.")],
+    layout: Annotated[
+        str, typer.Option("--layout", metavar="LAYOUT", help="Layout with [[crossings]] and a [[track]] polyline.")
+    ],
     train: Annotated[
         list[str] | None,
-        typer.Option("--train", help="TRAIN=HEAD_DEVICE,EOT_DEVICE[,LENGTH_M] (repeatable; default: by role or name)."),
+        typer.Option(
+            "--train",
+            metavar="TRAIN=HEAD,EOT[,LENGTH_M]",
+            help="TRAIN=HEAD_DEVICE,EOT_DEVICE[,LENGTH_M] (repeatable; default: by role or name).",
+        ),
     ] = None,
     json_out: JsonOpt = False,
     strict: Annotated[
@@ -61,9 +68,9 @@ def crossing(
         violations = run.violations
         warnings = []
         if run.off_track:
-            warnings.append(f"{run.off_track} fixes more than 100 m from the track were set aside")
+            warnings.append(f"{count(run.off_track, 'fix')} more than 100 m from the track set aside")
         if run.position_jumps:
-            warnings.append(f"{run.position_jumps} fixes set aside as position jumps (implausible for a train)")
+            warnings.append(f"{count(run.position_jumps, 'fix')} set aside as position jumps (implausible for a train)")
         if run.unassigned_devices:
             warnings.append("devices in no train: " + ", ".join(run.unassigned_devices))
         if not run.trains:

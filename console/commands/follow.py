@@ -12,11 +12,13 @@ import typer
 
 from console import exit_codes
 from console.commands.common import IdleGapOpt, IncludeStatusOpt, fail, guard, load_layout
+from console.plural import count
 
 MetricsOpt = Annotated[
     str | None,
     typer.Option(
         "--metrics",
+        metavar="HOST:PORT",
         help="Serve Prometheus metrics on HOST:PORT (that address only), e.g. 127.0.0.1:9108 (docs/monitoring.md).",
         show_default=False,
     ),
@@ -25,6 +27,7 @@ MetricsOpt = Annotated[
 SourcesArg = Annotated[
     list[str],
     typer.Argument(
+        metavar="SOURCE...",
         help="Sources: file:PATH (or a path: a diagnostic, NMEA, gpsd JSON, GNSS device CSV/JSON lines, CAN or"
         " sensor frame log, told by its content), gpsd://HOST:PORT[/DEVICE], mqtt[s]://HOST:PORT/TOPIC,"
         " can:IFACE[:CHANNEL].",
@@ -41,7 +44,8 @@ def _line(ev: dict[str, Any]) -> str:
     if kind == "passage":
         speed = ev.get("speed_kmh_whole_train")
         sp = f"{speed:.1f} km/h" if isinstance(speed, int | float) else "no speed"
-        text = f"passage  {ev['counting_head']}  {ev['start']} → {ev['end']}  {ev['axles']} axles  {sp}"
+        axles = "– axles" if ev.get("axles_unknown_reason") else count(ev["axles"], "axle")
+        text = f"passage  {ev['counting_head']}  {ev['start']} → {ev['end']}  {axles}  {sp}"
     elif kind == "section":
         text = f"section  {ev['section']}  {ev['state']}  count {ev['count']}  {ev['time']}  {ev['reason']}"
     elif kind == "crossing":
@@ -65,25 +69,28 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
     from console.safe_text import clean
 
     out = [
-        f"followed: {summary['passages']} passages, {summary['section_changes']} section changes, "
-        f"{summary['crossing_events']} crossing events, {summary.get('integrity_events', 0)} integrity changes, "
-        f"{summary['health_findings']} health findings"
+        f"followed: {count(summary['passages'], 'passage')}, {count(summary['section_changes'], 'section change')}, "
+        f"{count(summary['crossing_events'], 'crossing event')}, "
+        f"{count(summary.get('integrity_events', 0), 'integrity change')}, "
+        f"{count(summary['health_findings'], 'health finding')}"
     ]
     if summary.get("status_only_passages"):
         n = summary["status_only_passages"]
-        out[0] += f" ({n} of them of status records only, not listed: --include-status lists them)"
+        # Not "of them": the passages counted above exclude these.
+        out[0] += f"; {count(n, 'passage of status records only')} not listed (--include-status lists them)"
     for f in summary["files"]:
         out.append(
             clean(
-                f"  {f['file']}: {f['lines_read']} lines = {f['records']} records + {f['blank']} blank"
+                f"  {f['file']}: {count(f['lines_read'], 'line')} = {count(f['records'], 'record')}"
+                f" + {f['blank']} blank"
                 f" + {f['rejected']} rejected"
             )
         )
     for s in summary["sources"]:
         out.append(
             clean(
-                f"  {s['uri']}: {s['messages']} messages, {s['lost']} lost, {s['malformed']} malformed,"
-                f" {s['duplicates']} duplicates ({s['detail']})"
+                f"  {s['uri']}: {count(s['messages'], 'message')}, {s['lost']} lost, {s['malformed']} malformed,"
+                f" {count(s['duplicates'], 'duplicate')} ({s['detail']})"
             )
         )
     for sid, st in summary["sections"].items():
@@ -95,7 +102,11 @@ def follow(
     sources: SourcesArg,
     layout: Annotated[
         str | None,
-        typer.Option("--layout", help="Layout (file or osong, example): adds section states and crossing warnings."),
+        typer.Option(
+            "--layout",
+            metavar="LAYOUT",
+            help="Layout (file or osong, example): adds section states and crossing warnings.",
+        ),
     ] = None,
     jsonl: Annotated[bool, typer.Option("--jsonl", help="One JSON object per line, with a `type` field.")] = False,
     from_start: Annotated[
@@ -105,15 +116,21 @@ def follow(
     idle_gap: IdleGapOpt = 10.0,
     archive: Annotated[
         Path | None,
-        typer.Option("--archive", help="Also ingest what is followed into this archive (spooled in DIR.live)."),
+        typer.Option(
+            "--archive", metavar="DIR", help="Also ingest what is followed into this archive (spooled in DIR.live)."
+        ),
     ] = None,
     duration: Annotated[
-        float | None, typer.Option("--duration", help="Stop after this many seconds (default: until Ctrl-C).", min=0)
+        float | None,
+        typer.Option("--duration", metavar="S", help="Stop after this many seconds (default: until Ctrl-C).", min=0),
     ] = None,
     idle_exit: Annotated[
         float | None,
         typer.Option(
-            "--idle-exit", help="Stop when nothing has arrived for this many seconds (after the first record).", min=0.1
+            "--idle-exit",
+            metavar="S",
+            help="Stop when nothing has arrived for this many seconds (after the first record).",
+            min=0.1,
         ),
     ] = None,
     strict: Annotated[
@@ -122,16 +139,7 @@ def follow(
     include_status: IncludeStatusOpt = False,
     metrics: MetricsOpt = None,
 ) -> None:
-    """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary.
-
-    Examples:
-
-        trackside follow file:/var/log/ac/diagnostic.log --layout line.toml
-
-        trackside follow mqtt://127.0.0.1:1883/application/+/device/+/event/up --jsonl
-
-        trackside follow file:diag.log --layout line.toml --metrics 127.0.0.1:9108
-    """
+    """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary (exit 130)."""
 
     def body() -> int:
         from console.analysis.diagnostics import SpeedSettings
@@ -154,6 +162,11 @@ def follow(
                 sink(ev)
             if jsonl:
                 out.write(json.dumps(ev, ensure_ascii=False, default=str) + "\n")
+            elif ev.get("type") == "source" and ev.get("kind") == "disconnected":
+                # A source that cannot open or lost its feed is a problem, not an event: told on stderr.
+                sys.stderr.write(_line(ev) + "\n")
+                sys.stderr.flush()
+                return
             else:
                 out.write(_line(ev) + "\n")
             out.flush()  # a reader downstream sees each event at once
@@ -179,12 +192,12 @@ def follow(
                 return False
             return data_items[0] > 0 and time.monotonic() - last[0] >= idle_exit
 
-        # Ctrl-C ends it cleanly (exit 0, it is how following ends); SIGTERM (a service
-        # stopping) too, with the summary, then 143.
+        # Ctrl-C and SIGTERM (a service stopping) end it cleanly: the summary, then 130 or 143, as for
+        # every command, so a script can tell an interrupted follow from one that ran its --duration.
         import signal
 
         try:
-            terminated = run_sources(engine, srcs, until=idle, duration_s=duration) == signal.SIGTERM
+            stopped_by = run_sources(engine, srcs, until=idle, duration_s=duration)
         finally:
             if sink is not None:
                 sink.close()
@@ -194,8 +207,10 @@ def follow(
         else:
             sys.stderr.write("\n".join(_summary_lines(summary)) + "\n")
         rejected = sum(f["rejected"] for f in summary["files"])  # diagnostic, GNSS, CAN and frame logs
-        if terminated:
+        if stopped_by == signal.SIGTERM:
             return exit_codes.TERMINATED
+        if stopped_by == signal.SIGINT:
+            return exit_codes.INTERRUPTED
         return exit_codes.FINDINGS if strict and rejected else exit_codes.OK
 
     raise typer.Exit(guard(body))

@@ -15,21 +15,31 @@ from console.commands.ingest import ArchiveOpt
 def forecast(
     archive: ArchiveOpt = None,
     horizon: Annotated[
-        str, typer.Option("--horizon", help="Due: crossing within this time of the archive's last day (30d, 45d…).")
+        str,
+        typer.Option(
+            "--horizon",
+            metavar="DURATION",
+            help="Due: crossing within this time of the archive's last day (30d, 45d…).",
+        ),
     ] = "30d",
     head: Annotated[
-        str | None, typer.Option("--head", help="Only this counting head (or GNSS unit).", show_default=False)
+        str | None,
+        typer.Option("--head", metavar="HEAD", help="Only this counting head (or GNSS unit).", show_default=False),
     ] = None,
     layout: Annotated[
         str | None,
         typer.Option(
             "--layout",
+            metavar="LAYOUT",
             help="Layout for the analog bands [default: the one the archive was ingested with].",
             show_default=False,
         ),
     ] = None,
     trend_days: Annotated[
-        int, typer.Option("--trend-days", help="Fit the trend on this many last days of figures.", min=3, max=3650)
+        int,
+        typer.Option(
+            "--trend-days", metavar="N", help="Fit the trend on this many last days of figures.", min=3, max=3650
+        ),
     ] = 14,
     show_all: Annotated[bool, typer.Option("--all", help="Also list every series, not only the due ones.")] = False,
     fail_on_due: Annotated[bool, typer.Option("--fail-on-due", help="Exit 1 when anything is due (for cron).")] = False,
@@ -37,6 +47,7 @@ def forecast(
         Path | None,
         typer.Option(
             "--textfile",
+            metavar="FILE",
             help="Also write the forecasts as Prometheus metrics to this file (node_exporter's textfile collector).",
             show_default=False,
         ),
@@ -46,16 +57,6 @@ def forecast(
     """Forecast, from the archive's daily health figures, when each head, channel and GNSS unit will cross
     its threshold: analog values leaving their band, disturbance rates reaching the warning level, units
     losing a quarter of their reports.  Lists what is due for maintenance, by date.
-
-    Examples:
-
-        trackside forecast --archive /srv/trackside/archive
-
-        trackside forecast --horizon 45d --head WS3 --all
-
-        trackside forecast --json | jq '.due[] | [.target, .channel, .figure, .crossing]'
-
-        trackside forecast --textfile /var/lib/prometheus/node-exporter/trackside.prom   (from cron)
     """
     from console.archive.store import ArchiveError, archive_dir
 

@@ -16,6 +16,8 @@ from console.commands.common import (
     guard,
     load_layout,
     print_json,
+    refuse_unread,
+    refuse_wrong_kind,
 )
 
 
@@ -77,14 +79,20 @@ def _frame_rows(all_frames: Any) -> list[dict[str, Any]]:
 
 def frames(
     files: Annotated[
-        list[Path], typer.Argument(help="Sensor frame files (text) or CAN logs (candump .log, .asc, .blf).")
+        list[Path],
+        typer.Argument(metavar="FILE...", help="Sensor frame files (text) or CAN logs (candump .log, .asc, .blf)."),
     ],
     layout: Annotated[
-        str | None, typer.Option("--layout", help="Layout: which travel is up for each sensor (3-element heads).")
+        str | None,
+        typer.Option(
+            "--layout", metavar="LAYOUT", help="Layout: which travel is up for each sensor (3-element heads)."
+        ),
     ] = None,
     comm_timeout: Annotated[
         float,
-        typer.Option("--comm-timeout", help="Seconds without frames from a sensor that mean contact lost.", min=0.1),
+        typer.Option(
+            "--comm-timeout", metavar="S", help="Seconds without frames from a sensor that mean contact lost.", min=0.1
+        ),
     ] = 10.0,
     json_out: JsonOpt = False,
     strict: StrictOpt = False,
@@ -106,6 +114,7 @@ def frames(
         from parsers.frames import count_frames_only, parse_can, parse_frames
 
         check_inputs(files)
+        refuse_wrong_kind(files, "frames")
         lay = load_layout(layout) if layout else None
         can_files = [p for p in files if _is_can_log(p)]
         text_files = [p for p in files if p not in can_files]
@@ -119,6 +128,7 @@ def frames(
             can_frames, can_report = parse_can(can_files)
             tables.append(can_frames)
             reports.append(can_report)
+        refuse_unread(reports, "frames")
         up: dict[str, bool] | bool = True
         if lay is not None:
             up = {h.id: h.up_is_first_channel_first for h in lay.heads}

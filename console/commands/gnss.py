@@ -23,7 +23,7 @@ def gnss(files: GnssFilesArg, json_out: JsonOpt = False, strict: StrictOpt = Fal
     def body() -> int:
         from console.render.diag_tables import parse_report_table, rejections_table
         from console.render.gnss_tables import devices_table, fixes_table, gnss_json_parts, skipped_table
-        from parsers.gnss import nothing_read, parse_gnss
+        from parsers.gnss import nothing_read, parse_gnss_columns
         from parsers.kinds import not_gnss_reason
 
         check_inputs(files)
@@ -31,7 +31,7 @@ def gnss(files: GnssFilesArg, json_out: JsonOpt = False, strict: StrictOpt = Fal
             wrong = not_gnss_reason(path)
             if wrong is not None:
                 raise fail(f"{path}: nothing readable as GNSS: {wrong}")
-        fixes, report, _states = parse_gnss(files)
+        fixes, report = parse_gnss_columns(files)  # numpy columns: no pandas for the tables
         unread = nothing_read(report)
         if unread:
             raise fail(unread[0])

@@ -18,6 +18,8 @@ from console.commands.common import (
     load_layout,
     print_json,
     read_logs,
+    refuse_unread,
+    refuse_wrong_kind,
 )
 from console.safe_text import clean
 
@@ -30,18 +32,28 @@ def _worst(findings: list[Any]) -> Any:
 
 def health(
     files: Annotated[
-        list[Path] | None, typer.Argument(help="Diagnostic log files (plain or .gz).", show_default=False)
+        list[Path] | None,
+        typer.Argument(metavar="FILE...", help="Diagnostic log files (plain or .gz).", show_default=False),
     ] = None,
     layout: Annotated[
-        str | None, typer.Option("--layout", help="Layout (analog bands per head): a file or osong, example.")
+        str | None,
+        typer.Option("--layout", metavar="LAYOUT", help="Layout (analog bands per head): a file or osong, example."),
     ] = None,
     voltages: Annotated[
         list[Path] | None,
-        typer.Option("--voltages", help="Receiver voltage table(s): sensor, in-phase mV, anti-phase mV (repeatable)."),
+        typer.Option(
+            "--voltages",
+            metavar="CSV",
+            help="Receiver voltage table(s): sensor, in-phase mV, anti-phase mV (repeatable).",
+        ),
     ] = None,
     fail_on: Annotated[
         str | None,
-        typer.Option("--fail-on", help="Exit 1 when a finding reaches this severity: info, warning, critical."),
+        typer.Option(
+            "--fail-on",
+            metavar="info|warning|critical",
+            help="Exit 1 when a finding reaches this severity: info, warning, critical.",
+        ),
     ] = None,
     json_out: JsonOpt = False,
     strict: StrictOpt = False,
@@ -79,7 +91,9 @@ def health(
             reports.append(job.report)
         if voltages:
             check_inputs(voltages)
+            refuse_wrong_kind(voltages, "voltages")
             table, vreport = read_voltages(voltages)
+            refuse_unread(vreport, "voltages")
             findings += voltage_margin_findings(table)
             reports.append(vreport)
         findings = sort_findings(findings)

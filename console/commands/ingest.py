@@ -18,6 +18,7 @@ ArchiveOpt = Annotated[
     Path | None,
     typer.Option(
         "--archive",
+        metavar="DIR",
         help="Archive directory [default: $TRACKSIDE_ARCHIVE, else $XDG_DATA_HOME/trackside/archive].",
         show_default=False,
     ),
@@ -27,12 +28,20 @@ ArchiveOpt = Annotated[
 def ingest(
     paths: Annotated[
         list[Path],
-        typer.Argument(help="Files, directories (a `trackside simulate` output reads whole), .gz, or - for stdin."),
+        typer.Argument(
+            metavar="PATH...",
+            help="Files, directories (a `trackside simulate` output reads whole), .gz, or - for stdin.",
+        ),
     ],
     archive: ArchiveOpt = None,
     layout: Annotated[
         str | None,
-        typer.Option("--layout", help="Layout for the derived tables (file, or osong / example).", show_default=False),
+        typer.Option(
+            "--layout",
+            metavar="LAYOUT",
+            help="Layout for the derived tables (file, or osong / example).",
+            show_default=False,
+        ),
     ] = None,
     no_wait: Annotated[
         bool, typer.Option("--no-wait", help="Fail at once when another ingest holds the archive.")
@@ -154,21 +163,25 @@ def _print_summary(summary: object) -> None:
     from console.archive.ingest import IngestSummary
 
     assert isinstance(summary, IngestSummary)
+    from console.plural import count
     from console.safe_text import clean
 
     lines: list[str] = []
     rate = summary.records / summary.seconds if summary.seconds > 0 else 0.0
     for f in summary.files:
         if f.action in ("new", "grown", "replace"):
-            lines.append(f"added    {clean(f.path)}: {f.records} records, {f.rejected} rejected ({clean(f.note)})")
+            lines.append(
+                f"added    {clean(f.path)}: {count(f.records, 'record')}, {f.rejected} rejected ({clean(f.note)})"
+            )
         elif f.kind == "layout":
             lines.append(f"layout   {clean(f.path)}: {clean(f.note)}")
         else:
             lines.append(f"skipped  {clean(f.path)}: {clean(f.note)}")
     state = f"generation {summary.generation}" if summary.published else "nothing new: archive unchanged"
     lines.append(
-        f"{len(summary.added)} files added, {len(summary.skipped)} skipped; {summary.records} records, "
-        f"{summary.rejected} rejected lines, {summary.seconds:.1f} s ({rate:,.0f} records/s); {state}"
+        f"{count(len(summary.added), 'file')} added, {len(summary.skipped)} skipped;"
+        f" {count(summary.records, 'record')}, "
+        f"{count(summary.rejected, 'rejected line')}, {summary.seconds:.1f} s ({rate:,.0f} records/s); {state}"
     )
     if summary.rejected:
         lines.append('rejected lines: trackside query "SELECT * FROM rejected"')

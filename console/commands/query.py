@@ -21,19 +21,23 @@ FORMATS = ("table", "csv", "json", "jsonl")
 
 
 def query(
-    sql: Annotated[str | None, typer.Argument(help="One SELECT (or WITH, DESCRIBE, SHOW, EXPLAIN) statement.")] = None,
+    sql: Annotated[
+        str | None, typer.Argument(metavar="SQL", help="One SELECT (or WITH, DESCRIBE, SHOW, EXPLAIN) statement.")
+    ] = None,
     archive: ArchiveOpt = None,
     fmt: Annotated[
         str,
         typer.Option(
             "--format",
+            metavar="table|csv|json|jsonl",
             help="table (DuckDB's box fitted to the terminal: long values cut with …, the first and last 20 of"
             " more than 40 rows), or csv, json, jsonl (every row, every value whole).",
         ),
     ] = "table",
     show_schema: Annotated[bool, typer.Option("--schema", help="List the tables and their columns.")] = False,
     preset: Annotated[
-        str | None, typer.Option("--preset", help="A named query (see --list-presets).", show_default=False)
+        str | None,
+        typer.Option("--preset", metavar="NAME", help="A named query (see --list-presets).", show_default=False),
     ] = None,
     list_presets: Annotated[
         bool, typer.Option("--list-presets", help="List the named queries (--preset NAME) and what each shows.")

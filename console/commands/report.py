@@ -15,33 +15,53 @@ from console.fleet.options import EngineOpt, SchedulerOpt, WorkersOpt
 def report(
     inputs: Annotated[
         list[Path] | None,
-        typer.Argument(help="Log files or directories (a `trackside simulate` output reads whole); - reads stdin."),
+        typer.Argument(
+            metavar="INPUT...",
+            help="Log files or directories (a `trackside simulate` output reads whole); - reads stdin.",
+        ),
     ] = None,
     layout: Annotated[
         str | None,
-        typer.Option("--layout", help="Layout file, or osong / example (default: a layout.toml among the inputs)."),
+        typer.Option(
+            "--layout",
+            metavar="LAYOUT",
+            help="Layout file, or osong / example (default: a layout.toml among the inputs).",
+        ),
     ] = None,
-    fmt: Annotated[str, typer.Option("--format", help="md, html or json.")] = "md",
+    fmt: Annotated[str, typer.Option("--format", metavar="md|html|json", help="md, html or json.")] = "md",
     output: Annotated[
         Path | None,
         typer.Option(
             "-o",
             "--output",
+            metavar="FILE",
             help="Write here (atomically; never over an input; a device or FIFO written through) instead of stdout.",
         ),
     ] = None,
     fail_on: Annotated[
         str | None,
-        typer.Option("--fail-on", help="Exit 1 when a finding reaches this severity (info, warning, critical)."),
+        typer.Option(
+            "--fail-on",
+            metavar="info|warning|critical",
+            help="Exit 1 when a finding reaches this severity (info, warning, critical).",
+        ),
     ] = None,
     archive: Annotated[
         Path | None,
-        typer.Option("--archive", help="Report from this archive instead of files (see trackside ingest)."),
+        typer.Option(
+            "--archive", metavar="DIR", help="Report from this archive instead of files (see trackside ingest)."
+        ),
     ] = None,
-    start: Annotated[str | None, typer.Option("--from", help="With --archive: from this time (ISO).")] = None,
-    end: Annotated[str | None, typer.Option("--to", help="With --archive: up to this time (ISO, excluded).")] = None,
-    head: Annotated[str | None, typer.Option("--head", help="With --archive: one counting head.")] = None,
-    device: Annotated[int | None, typer.Option("--device", help="With --archive: one device id.")] = None,
+    start: Annotated[
+        str | None, typer.Option("--from", metavar="TIME", help="With --archive: from this time (ISO).")
+    ] = None,
+    end: Annotated[
+        str | None, typer.Option("--to", metavar="TIME", help="With --archive: up to this time (ISO, excluded).")
+    ] = None,
+    head: Annotated[
+        str | None, typer.Option("--head", metavar="HEAD", help="With --archive: one counting head.")
+    ] = None,
+    device: Annotated[int | None, typer.Option("--device", metavar="ID", help="With --archive: one device id.")] = None,
     engine: EngineOpt = "local",
     workers: WorkersOpt = None,
     scheduler: SchedulerOpt = None,

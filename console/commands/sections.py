@@ -17,6 +17,7 @@ from console.commands.common import (
     load_layout,
     read_logs,
 )
+from console.plural import count
 from console.safe_text import clean
 
 
@@ -73,7 +74,7 @@ def _print_tables(job: Any, final: dict[str, Any], sink: Any) -> None:
     timeline = st.timeline_table(result)
     # The table shows the first rows kept; title and caption count them all.
     limit, n = 200, sink.timeline_rows
-    timeline.title = f"State timeline ({n} changes)"
+    timeline.title = f"State timeline ({count(n, 'change')})"
     timeline.caption = f"first {limit} of {n}; --json has all" if n > limit else None
     out.print(timeline)
     out.print(st.ledger_summary_table(result))
@@ -92,22 +93,36 @@ def sections(
     reset: Annotated[
         list[str] | None,
         typer.Option(
-            "--reset", help="Ask to reset a section at a time: SECTION@TIME (repeatable).", show_default=False
+            "--reset",
+            metavar="SECTION@TIME",
+            help="Ask to reset a section at a time: SECTION@TIME (repeatable).",
+            show_default=False,
         ),
     ] = None,
     power_gap: Annotated[
         float | None,
         typer.Option(
-            "--power-gap", help="Seconds without records from a head that mean power loss (off unless set).", min=1.0
+            "--power-gap",
+            metavar="S",
+            help="Seconds without records from a head that mean power loss (off unless set).",
+            min=1.0,
         ),
     ] = None,
     initial: Annotated[
-        str, typer.Option("--initial", help="Section state at the start of the log: unknown (until a sweep) or clear.")
+        str,
+        typer.Option(
+            "--initial",
+            metavar="unknown|clear",
+            help="Section state at the start of the log: unknown (until a sweep) or clear.",
+        ),
     ] = "unknown",
     isolation: Annotated[
         float,
         typer.Option(
-            "--isolation", help="Seconds of quiet before and after a lone pulse that make it accidental.", min=1.0
+            "--isolation",
+            metavar="S",
+            help="Seconds of quiet before and after a lone pulse that make it accidental.",
+            min=1.0,
         ),
     ] = 60.0,
     json_out: JsonOpt = False,

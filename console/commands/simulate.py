@@ -16,6 +16,7 @@ from console.commands.common import (
     load_layout,
     print_json,
 )
+from console.plural import count
 
 
 def _parse_fault(text: str) -> Any:
@@ -66,22 +67,36 @@ def _check_targets(faults: tuple[Any, ...], lay: Any, fleet: int, health_only: b
 
 def simulate(
     output: Annotated[
-        Path, typer.Option("-o", "--output", help="Directory to write the run into (created; never over an input).")
+        Path,
+        typer.Option(
+            "-o", "--output", metavar="DIR", help="Directory to write the run into (created; never over an input)."
+        ),
     ],
-    layout: Annotated[str, typer.Option("--layout", help="Layout file, or osong / example.")] = "example",
-    duration: Annotated[str, typer.Option("--duration", help="Simulated time: 90s, 30m, 2h, 1h30m.")] = "2h",
-    seed: Annotated[int, typer.Option("--seed", help="Random seed: the same seed gives the same run.")] = 1,
-    trains_per_hour: Annotated[float, typer.Option("--trains-per-hour", min=0.1, max=60)] = 6.0,
+    layout: Annotated[
+        str, typer.Option("--layout", metavar="LAYOUT", help="Layout file, or osong / example.")
+    ] = "example",
+    duration: Annotated[
+        str, typer.Option("--duration", metavar="DURATION", help="Simulated time: 90s, 30m, 2h, 1h30m.")
+    ] = "2h",
+    seed: Annotated[
+        int, typer.Option("--seed", metavar="N", help="Random seed: the same seed gives the same run.")
+    ] = 1,
+    trains_per_hour: Annotated[float, typer.Option("--trains-per-hour", metavar="N", min=0.1, max=60)] = 6.0,
     spreading_factor: Annotated[
         int,
         typer.Option(
-            "--sf", help="LoRa spreading factor of the GNSS units (7-12): sets their report period.", min=7, max=12
+            "--sf",
+            metavar="7-12",
+            help="LoRa spreading factor of the GNSS units (7-12): sets their report period.",
+            min=7,
+            max=12,
         ),
     ] = 7,
     fault: Annotated[
         list[str] | None,
         typer.Option(
             "--fault",
+            metavar="KIND:TARGET:START[:END[:CH[:RATE]]]",
             help="KIND:TARGET:START[:END[:CHANNEL[:RATE]]], e.g. dead_channel:WS3:20m, train_parting:T2:14m,"
             " analog_drift:WS3:2d::1,"
             " gnss_decay:T2-eot:0s::2:0.02 (repeatable).",
@@ -91,6 +106,7 @@ def simulate(
         float | None,
         typer.Option(
             "--days",
+            metavar="N",
             help="Simulate this many days (instead of --duration), from midnight: a directory of logs per day.",
             min=0.01,
             max=3650,
@@ -110,37 +126,40 @@ def simulate(
         str | None,
         typer.Option(
             "--health-every",
+            metavar="DURATION",
             help="Write each head's health registers this often (default 15m with --days or a slow fault).",
         ),
     ] = None,
     fleet: Annotated[
         int | None,
         typer.Option(
-            "--fleet", help="Trains are N trainsets T1..TN making trip after trip (default 3 with --days).", min=1
+            "--fleet",
+            metavar="N",
+            help="Trains are N trainsets T1..TN making trip after trip (default 3 with --days).",
+            min=1,
         ),
     ] = None,
     json_out: JsonOpt = False,
     live: Annotated[
-        bool, typer.Option("--live", help="Write the logs as growing files in (scaled) real time, for `follow`.")
+        bool,
+        typer.Option(
+            "--live", metavar="SOURCE", help="Write the logs as growing files in (scaled) real time, for `follow`."
+        ),
     ] = False,
     live_speed: Annotated[
-        float, typer.Option("--speed", help="With --live/--mqtt: simulated seconds per real second.", min=0.1, max=1000)
+        float,
+        typer.Option(
+            "--speed", metavar="X", help="With --live/--mqtt: simulated seconds per real second.", min=0.1, max=1000
+        ),
     ] = 1.0,
     mqtt: Annotated[
         str | None,
-        typer.Option("--mqtt", help="Publish the GNSS units' uplinks (ChirpStack v4 JSON) to mqtt://HOST:PORT."),
+        typer.Option(
+            "--mqtt", metavar="URL", help="Publish the GNSS units' uplinks (ChirpStack v4 JSON) to mqtt://HOST:PORT."
+        ),
     ] = None,
 ) -> None:
-    """Simulate a line: trains, counting heads, GNSS units and faults, written as real logs with a truth.
-
-    Examples:
-
-        trackside simulate -o run --duration 2h --fault dead_channel:WS3:20m
-
-        trackside simulate -o weeks --days 28 --fault analog_drift:WS3:2d::1 --fault gnss_decay:T2-eot:0s
-
-        trackside simulate -o heads --days 28 --health-only --layout many_heads.toml --fault disturbance_growth:H7:0s
-    """
+    """Simulate a line: trains, counting heads, GNSS units and faults, written as real logs with a truth."""
 
     def body() -> int:
         from console.analysis.timefmt import parse_duration
@@ -239,8 +258,9 @@ def simulate(
         else:
             out = Console(highlight=False)
             out.print(
-                f"simulated {duration} on {lay.name} (seed {seed}): {len(sim.trains)} trains, "
-                f"{len(sim.truth_axles)} axle passages; GNSS every {sim.period_s:.1f} s (LoRa SF{spreading_factor})",
+                f"simulated {duration} on {lay.name} (seed {seed}): {count(len(sim.trains), 'train')}, "
+                f"{count(len(sim.truth_axles), 'axle passage')};"
+                f" GNSS every {sim.period_s:.1f} s (LoRa SF{spreading_factor})",
                 markup=False,
             )
             for name, n in counts.items():

@@ -7,6 +7,7 @@ from typing import Any
 
 from console import exit_codes
 from console.commands.common import Console, fail, print_json
+from console.plural import count
 
 
 def run_live_command(
@@ -41,8 +42,9 @@ def run_live_command(
         print_json({"schema": "trackside.simulate-live/1", **summary})
     else:
         out.print(
-            f"simulated {summary['simulated_s']:.0f} s in {summary['wall_s']:.0f} s: {summary['diagnostic_lines']}"
-            f" diagnostic lines, {summary['fixes']} fixes, {summary['uplinks']} uplinks",
+            f"simulated {summary['simulated_s']:.0f} s in {summary['wall_s']:.0f} s:"
+            f" {count(summary['diagnostic_lines'], 'diagnostic line')}, {count(summary['fixes'], 'fix')},"
+            f" {count(summary['uplinks'], 'uplink')}",
             markup=False,
         )
     return exit_codes.OK

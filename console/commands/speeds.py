@@ -64,7 +64,7 @@ def speeds(
         else:
             from console.render.diag_tables import passages_table
 
-            Console(highlight=False).print(passages_table(job.analysis))
+            Console(highlight=False).print(passages_table(job.analysis, unpaired=job.analysis.unpaired_detections))
         return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
 
     raise typer.Exit(guard(body))

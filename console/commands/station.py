@@ -20,10 +20,12 @@ from console.commands.follow import MetricsOpt
 
 
 def station(
-    layout: Annotated[str, typer.Option("--layout", help="Layout file, or osong / example.")] = "example",
-    seed: Annotated[int, typer.Option("--seed", help="Simulation seed.")] = 1,
+    layout: Annotated[
+        str, typer.Option("--layout", metavar="LAYOUT", help="Layout file, or osong / example.")
+    ] = "example",
+    seed: Annotated[int, typer.Option("--seed", metavar="N", help="Simulation seed.")] = 1,
     speed: Annotated[
-        float, typer.Option("--speed", help="Playback speed, 1 to 1000 × real time.", min=1, max=1000)
+        float, typer.Option("--speed", metavar="X", help="Playback speed, 1 to 1000 × real time.", min=1, max=1000)
     ] = 5,
     replay: Annotated[
         bool,
@@ -38,15 +40,22 @@ def station(
         list[str] | None,
         typer.Option(
             "--live",
+            metavar="SOURCE",
             help="Follow live sources (file:PATH, gpsd://…, mqtt[s]://…/TOPIC, can:…): --live A --live B, --live A B.",
         ),
     ] = None,
     archive: Annotated[
         Path | None,
-        typer.Option("--archive", help="With --replay: replay history from this archive (see trackside ingest)."),
+        typer.Option(
+            "--archive", metavar="DIR", help="With --replay: replay history from this archive (see trackside ingest)."
+        ),
     ] = None,
-    start: Annotated[str | None, typer.Option("--from", help="With --replay --archive: from this time (ISO).")] = None,
-    end: Annotated[str | None, typer.Option("--to", help="With --replay --archive: up to this time (ISO).")] = None,
+    start: Annotated[
+        str | None, typer.Option("--from", metavar="TIME", help="With --replay --archive: from this time (ISO).")
+    ] = None,
+    end: Annotated[
+        str | None, typer.Option("--to", metavar="TIME", help="With --replay --archive: up to this time (ISO).")
+    ] = None,
     serve: Annotated[
         bool,
         typer.Option(
@@ -55,8 +64,12 @@ def station(
             " splash for a few seconds; it ends when its tab closes or the server stops.",
         ),
     ] = False,
-    host: Annotated[str, typer.Option("--host", help="With --serve: address to listen on.")] = "127.0.0.1",
-    port: Annotated[int, typer.Option("--port", help="With --serve: port to listen on.", min=1, max=65535)] = 8000,
+    host: Annotated[
+        str, typer.Option("--host", metavar="HOST", help="With --serve: address to listen on.")
+    ] = "127.0.0.1",
+    port: Annotated[
+        int, typer.Option("--port", metavar="PORT", help="With --serve: port to listen on.", min=1, max=65535)
+    ] = 8000,
     metrics: MetricsOpt = None,
 ) -> None:
     """The live station view: sections, trains, crossings and events, simulated, replayed or live."""

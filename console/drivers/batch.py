@@ -35,6 +35,7 @@ from console.analysis.stream import ORDER_SLACK_S, by_head_and_start, concat_pas
 from console.engine.pipeline import DiagOutcome, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks
 from console.memory import read_memory
+from console.plural import count
 from parsers.diag import DiagChunk, DiagReader, DiagRegistry, chunks_to_frame
 from parsers.report import ParseReport
 from parsers.sources import DEFAULT_CHUNK_BYTES
@@ -225,7 +226,7 @@ def read_diag(
             job.reads, job.late_first = 2, late
         elif not whole and job.late_records:
             sys.stderr.write(
-                f"trackside: warning: {job.late_records} records came after their passage had closed"
+                f"trackside: warning: {count(job.late_records, 'record')} came after their passage had closed"
                 f" (the log is out of time order by more than {ORDER_SLACK_S:g} s); passages near them may be split"
                 " or differ from a whole read: --json on the file reads it whole\n"
             )

@@ -15,8 +15,24 @@ publishes them through the archive's manifest (:func:`console.archive.store.publ
 so a worker killed mid-run can never leave half a result behind.
 """
 
-from console.fleet.engine import FleetError, engine_scope, fleet_mapper, map_partitions, run_with_engine
+from __future__ import annotations
+
+from typing import Any
+
 from console.fleet.options import EngineOpt, EngineSpec, SchedulerOpt, WorkersOpt, engine_spec
+
+_ENGINE_NAMES = frozenset({"FleetError", "engine_scope", "fleet_mapper", "map_partitions", "run_with_engine"})
+
+
+def __getattr__(name: str) -> Any:
+    # The engine (Rich progress, the partition runner) loads when used, not when a command's options
+    # are declared: every command's start-up would pay for it.
+    if name in _ENGINE_NAMES:
+        from console.fleet import engine
+
+        return getattr(engine, name)
+    raise AttributeError(f"module 'console.fleet' has no attribute {name!r}")
+
 
 __all__ = [
     "EngineOpt",

@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING
 
 from console.fleet.options import EngineSpec, EngineUsageError
+from console.plural import count
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -78,7 +79,7 @@ def open_client(spec: EngineSpec, say: Callable[[str], None] | None = None) -> I
                     raise FleetError(
                         f"the dask scheduler {spec.scheduler} has no worker (waited {WORKERS_TIMEOUT_S} s)"
                     ) from None
-                tell(f"dask scheduler {spec.scheduler}: {len(client.scheduler_info()['workers'])} workers")
+                tell(f"dask scheduler {spec.scheduler}: {count(len(client.scheduler_info()['workers']), 'worker')}")
                 yield client
             finally:
                 client.close()

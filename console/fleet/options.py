@@ -14,6 +14,8 @@ from typing import Annotated, Literal
 
 import typer
 
+from console.plural import count
+
 ENGINES = ("local", "dask")
 # A worker's memory is bounded: the nanny restarts a worker that goes over
 # (the partition is then retried elsewhere).  One partition (a counting head
@@ -27,6 +29,7 @@ EngineOpt = Annotated[
     str,
     typer.Option(
         "--engine",
+        metavar="local|dask",
         help="Where the archive's partitions (counting head × day) run: local (this process) or dask.",
     ),
 ]
@@ -34,6 +37,7 @@ WorkersOpt = Annotated[
     int | None,
     typer.Option(
         "--workers",
+        metavar="N",
         help="With --engine dask: start a local cluster of N worker processes (512 MB each) [default: 2].",
         show_default=False,
     ),
@@ -42,6 +46,7 @@ SchedulerOpt = Annotated[
     str | None,
     typer.Option(
         "--scheduler",
+        metavar="tcp://HOST:PORT",
         help="With --engine dask: an existing distributed scheduler, tcp://HOST:PORT (workers must see the archive).",
         show_default=False,
     ),
@@ -70,7 +75,7 @@ class EngineSpec:
             return "local engine (this process)"
         if self.scheduler is not None:
             return f"dask scheduler {self.scheduler}"
-        return f"dask local cluster, {self.workers} workers of {self.memory_limit_bytes >> 20} MB"
+        return f"dask local cluster, {count(self.workers or 0, 'worker')} of {self.memory_limit_bytes >> 20} MB"
 
 
 def engine_spec(engine: str = "local", workers: int | None = None, scheduler: str | None = None) -> EngineSpec:

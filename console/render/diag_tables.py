@@ -4,21 +4,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from rich import box
 from rich.table import Table
 from rich.text import Text
 
-from console.analysis.diagnostics import DiagAnalysis
-from console.analysis.inventory import DeviceInventory
-from console.analysis.stream import take_passages
+from console import plural
 from console.analysis.timefmt import display, iso
-from console.render.passage_spool import FirstPassages
 from console.safe_text import inert
 from parsers.report import ParseReport
+
+if TYPE_CHECKING:  # the parse report tables (gnss) need neither the analysis nor Arrow behind it
+    from console.analysis.diagnostics import DiagAnalysis
+    from console.analysis.inventory import DeviceInventory
+    from console.render.passage_spool import FirstPassages
 
 REJECTIONS_SHOWN = 20
 DEVICES_SHOWN = 6  # devices are columns: more do not fit in 80
@@ -32,7 +33,7 @@ def _num(value: object, fmt: str = "{:.1f}") -> Text:
 
 
 def _time(ns: Any) -> Text:
-    if ns is None or pd.isna(ns):
+    if ns is None or (isinstance(ns, float) and math.isnan(ns)):
         return Text("–", style="dim")
     return Text(display(int(ns)))
 
@@ -69,8 +70,17 @@ def inventory_table(analysis: DiagAnalysis, limit: int = DEVICES_SHOWN) -> Table
     return t
 
 
-def passages_table(analysis: DiagAnalysis, limit: int | None = None, first: FirstPassages | None = None) -> Table:
-    """The passages (the first ``limit``), from the analysis or, when it holds none, from ``first``."""
+def passages_table(
+    analysis: DiagAnalysis, limit: int | None = None, first: FirstPassages | None = None, unpaired: int = 0
+) -> Table:
+    """The passages (the first ``limit``), from the analysis or, when it holds none, from ``first``.
+
+    Axles no onset pair could give are "–", and the caption says why; ``unpaired`` (the log's wheel
+    detections on one system only) is told there too, beyond those of the "–" passages.  Rows are read
+    from numpy columns: a small log's table needs no pandas (start-up time).
+    """
+    from console.analysis.diagnostics import axles_unknown_codes
+
     p, status, total = _listed_passages(analysis, limit, first)
     t = _table(f"Passages ({total}); speeds in km/h: per-second method (records), whole train, per-axle mean")
     t.add_column("Head", no_wrap=True, min_width=4)
@@ -82,68 +92,132 @@ def passages_table(analysis: DiagAnalysis, limit: int | None = None, first: Firs
     t.add_column("Per-sec", justify="right", no_wrap=True)
     t.add_column("Whole", justify="right", no_wrap=True)
     t.add_column("Axle", justify="right", no_wrap=True)
-    rows = p if limit is None else p.head(limit)
-    r: Any
-    for r in rows.itertuples(index=False):
-        per_sec = _num(r.speed_kmh_per_second_method)
-        if not pd.isna(r.records_in_detection_second):
-            per_sec.append(f"({int(r.records_in_detection_second)})", style="dim")
-        axles = Text(str(r.axles))
-        if not pd.isna(r.direction):
-            axles.append(" " + _ARROWS.get(r.direction, str(r.direction)), style="cyan")
+    n = len(p["start_ns"]) if limit is None else min(limit, len(p["start_ns"]))
+    p = {k: v[:n] for k, v in p.items()}
+    unknown = axles_unknown_codes(p["detections_sys1"], p["detections_sys2"])
+    for i in range(n):
+        per_sec = _num(_at(p, "speed_kmh_per_second_method", i))
+        in_second = _at(p, "records_in_detection_second", i)
+        if in_second is not None:
+            per_sec.append(f"({int(in_second)})", style="dim")
+        axles = Text("–" if unknown[i] else str(int(p["axles"][i])))
+        direction = p["direction"][i]
+        if direction is not None:
+            axles.append(" " + _ARROWS.get(direction, str(direction)), style="cyan")
         t.add_row(
-            inert(r.counting_head),
-            _time(r.start_ns),
-            _num(r.duration_s, "{:.2f}"),
-            Text(f"{r.records:,}"),
+            inert(p["counting_head"][i]),
+            _time(p["start_ns"][i]),
+            _num(_at(p, "duration_s", i), "{:.2f}"),
+            Text(f"{int(p['records'][i]):,}"),
             axles,
             per_sec,
-            _whole_train(r),
-            _num(r.speed_kmh_per_axle_mean),
+            _whole_train(p, i),
+            _num(_at(p, "speed_kmh_per_axle_mean", i)),
         )
     notes = []
-    if len(p) and (p["time_resolution_s"] >= 1).any():
+    if n and (p["time_resolution_s"] >= 1).any():
         notes.append("whole train from whole-second times: figure, then its bounds (min–max)")
     if limit is not None and total > limit:
         notes.append(f"first {limit} of {total} passages; --json has all")
     if status:
-        notes.append(f"{status} status-only record bursts (no wheel) not shown; --json has them (kind: status)")
+        notes.append(
+            f"{plural.count(status, 'status-only record burst')} (no wheel) not shown; --json has them (kind: status)"
+        )
+    blind = unknown > 0
+    if blind.any():
+        notes.append("Axles –: wheel onsets on one system only, or none: no axle can be paired")
+    shown_unpaired = int(p["detections_sys1"][blind].sum() + p["detections_sys2"][blind].sum())
+    if unpaired > shown_unpaired:
+        more = unpaired - shown_unpaired
+        other = "other " if blind.any() else ""
+        notes.append(
+            f"{more} {other}{'wheel detection' if more == 1 else 'wheel detections'} on one system only (not axles)"
+        )
     if notes:
-        t.caption = Text("; ".join(notes))  # Text: brackets in a note are not markup
+        t.caption = Text("\n".join(notes))  # one note a line; Text: brackets in a note are not markup
     return t
+
+
+# The passage columns a table row shows.
+_SHOWN = (
+    "counting_head",
+    "start_ns",
+    "duration_s",
+    "records",
+    "axles",
+    "direction",
+    "detections_sys1",
+    "detections_sys2",
+    "records_in_detection_second",
+    "speed_kmh_per_second_method",
+    "speed_kmh_whole_train",
+    "speed_kmh_whole_train_min",
+    "speed_kmh_whole_train_max",
+    "speed_kmh_per_axle_mean",
+    "time_resolution_s",
+)
+
+
+def _at(p: dict[str, np.ndarray], column: str, i: int) -> float | None:
+    """A number of row ``i``; None where it is missing (NaN)."""
+    value = float(p[column][i])
+    return None if math.isnan(value) else value
 
 
 def _listed_passages(
     analysis: DiagAnalysis, limit: int | None, first: FirstPassages | None = None
-) -> tuple[pd.DataFrame, int, int]:
-    """The passages to list (no status-only ones), how many status-only, and how many listed in all.
+) -> tuple[dict[str, np.ndarray], int, int]:
+    """The passages to list (no status-only ones) as columns, how many status-only, and how many listed in all.
 
-    With a limit, only the rows shown become a table: a log of a million heads
-    has a passage per head.
+    With a limit, only the rows shown are looked up: a log of a million heads has a passage per head.
     """
-    from console.analysis.diagnostics import _KINDS, _passages_frame
+    from console.analysis.diagnostics import _KINDS
 
     cols = analysis.passage_columns
     if first is not None and cols is None:  # the job kept only the first rows (analyze's text face)
-        return _passages_frame(first.cols, analysis.heads), first.status, first.listed
+        return _shown_columns(first.cols, analysis), first.status, first.listed
     if limit is None or cols is None:
         p = analysis.passages
         status = int((p["kind"] == "status").sum()) if len(p) else 0
-        return (p[p["kind"] != "status"] if status else p), status, len(p) - status
+        listed = p[p["kind"] != "status"] if status else p
+        out = {c: listed[c].to_numpy() for c in _SHOWN}
+        # A missing direction may read as NaN in pandas' string dtype: None, as the columns give it.
+        out["direction"] = np.array([d if isinstance(d, str) else None for d in out["direction"]], dtype=object)
+        return out, status, len(p) - status
+    from console.analysis.stream import take_passages
 
-    listed = np.flatnonzero(cols["kind"] != _KINDS.index("status"))
-    rows = take_passages(cols, listed[:limit])
-    return _passages_frame(rows, analysis.heads), len(cols["kind"]) - len(listed), len(listed)
+    keep = np.flatnonzero(cols["kind"] != _KINDS.index("status"))
+    rows = take_passages(cols, keep[:limit])
+    return _shown_columns(rows, analysis), len(cols["kind"]) - len(keep), len(keep)
 
 
-def _whole_train(r: Any) -> Text:
+def _shown_columns(cols: Any, analysis: DiagAnalysis) -> dict[str, np.ndarray]:
+    """The shown columns from ``diagnostics._passages`` columns (codes turned into names), without pandas."""
+    from console.analysis.head_table import heads_at
+    from console.analysis.wheels import DIRECTION_12, DIRECTION_21
+
+    if cols is None or len(cols["head"]) == 0:
+        return {c: np.zeros(0, object if c in ("counting_head", "direction") else np.float64) for c in _SHOWN}
+    used, inverse = np.unique(cols["head"], return_inverse=True)
+    _, names = heads_at(analysis.heads, used)
+    head_names = np.empty(len(used), dtype=object)
+    head_names[:] = names
+    out = {c: np.asarray(cols[c]) for c in _SHOWN if c not in ("counting_head", "direction")}
+    out["counting_head"] = head_names[inverse.reshape(-1)]
+    out["direction"] = np.array([None, DIRECTION_12, DIRECTION_21, "mixed"], dtype=object)[cols["direction"]]
+    return out
+
+
+def _whole_train(p: dict[str, np.ndarray], i: int) -> Text:
     """Whole-train speed; from whole-second times with the bounds they allow."""
-    if r.time_resolution_s < 1 or pd.isna(r.speed_kmh_whole_train):
-        return _num(r.speed_kmh_whole_train, "{:.2f}")
+    whole = _at(p, "speed_kmh_whole_train", i)
+    text = _num(whole, "{:.2f}")
+    if float(p["time_resolution_s"][i]) < 1 or whole is None:
+        return text
     # The figure (as the paper prints it), then the bounds that make it honest.
-    text = _num(r.speed_kmh_whole_train, "{:.2f}")
-    hi = "∞" if pd.isna(r.speed_kmh_whole_train_max) else f"{r.speed_kmh_whole_train_max:.0f}"
-    text.append(f" {r.speed_kmh_whole_train_min:.0f}–{hi}", style="dim")
+    high = _at(p, "speed_kmh_whole_train_max", i)
+    low = _at(p, "speed_kmh_whole_train_min", i)
+    text.append(f" {low:.0f}–{'∞' if high is None else f'{high:.0f}'}", style="dim")
     return text
 
 

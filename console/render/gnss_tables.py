@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from rich import box
 from rich.table import Table
 from rich.text import Text
@@ -20,7 +19,11 @@ from rich.text import Text
 from console.analysis.timefmt import display, iso, iso_array
 from console.jsonout import JSONParts, encode
 from console.safe_text import inert
+from parsers.fix_table import FIX_QUALITIES, NAT_NS, ROLES, SOURCES, FixColumns, sentence_name
 from parsers.report import ParseReport
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 FIXES_SHOWN = 200
 DEVICES_SHOWN = 200
@@ -41,8 +44,20 @@ def _table(title: str) -> Table:
     )
 
 
+def _columns(fixes: pd.DataFrame | FixColumns) -> FixColumns:
+    """The fixes as numpy columns: the tables and the JSON read those (no pandas on a small input)."""
+    return fixes if isinstance(fixes, FixColumns) else FixColumns.from_frame(fixes)
+
+
 def _ns(value: Any) -> int | None:
-    return None if value is None or pd.isna(value) else int(pd.Timestamp(value).value)
+    """A time as int ns (numpy int64 ns with NaT as NAT_NS, or a pandas Timestamp); None when unknown."""
+    if value is None:
+        return None
+    if isinstance(value, int | np.integer):
+        return None if int(value) == NAT_NS else int(value)
+    import pandas as pd
+
+    return None if pd.isna(value) else int(pd.Timestamp(value).value)
 
 
 def iso_utc(value: Any) -> str | None:
@@ -58,7 +73,10 @@ def _utc_ns(times: pd.Series) -> np.ndarray:
 
 
 def _float(value: Any) -> float | None:
-    return None if value is None or pd.isna(value) else float(value)
+    if value is None:
+        return None
+    f = float(value)
+    return None if math.isnan(f) else f
 
 
 _FIX_KEYS = (
@@ -79,44 +97,61 @@ _FIX_KEYS = (
 FIX_BLOCK = 10_000
 
 
-def _floats(values: pd.Series) -> list[float | None]:
-    out = values.to_numpy(dtype=float).astype(object)
-    out[pd.isna(values).to_numpy()] = None
+def _floats(values: np.ndarray) -> list[float | None]:
+    out = np.asarray(values, np.float64).astype(object)
+    out[np.isnan(np.asarray(values, np.float64))] = None
     return list(out.tolist())
 
 
-def _fix_rows(fixes: pd.DataFrame) -> list[dict[str, Any]]:
+def _names(codes: np.ndarray, names: list[str] | tuple[str, ...]) -> list[str]:
+    table = np.empty(len(names), dtype=object)
+    table[:] = [str(n) for n in names]
+    return list(table[codes].tolist()) if len(codes) else []
+
+
+def _sentence_names(masks: np.ndarray) -> list[str]:
+    """Sentence bit masks as their names ("RMC+GGA"): one name per distinct mask."""
+    used, inverse = np.unique(masks, return_inverse=True)
+    return _names(inverse.reshape(-1), [sentence_name(int(m)) for m in used]) if len(masks) else []
+
+
+def _fix_rows(fixes: FixColumns) -> list[dict[str, Any]]:
     """The fixes as JSON rows (NaN and NaT → null), column by column."""
-    times = fixes["time"]
-    ns = _utc_ns(times) if len(fixes) else np.zeros(0, np.int64)
-    iso_times = iso_array(ns)
-    iso_times[pd.isna(times).to_numpy()] = None
+    iso_times = iso_array(fixes.time_ns)
+    iso_times[fixes.time_ns == NAT_NS] = None
     columns = (
         iso_times.tolist(),
-        _floats(fixes["lat"]),
-        _floats(fixes["lon"]),
-        _floats(fixes["speed_mps"]),
-        _floats(fixes["course_deg"]),
-        fixes["valid"].to_numpy(dtype=bool).tolist(),
-        *([str(v) for v in fixes[c].tolist()] for c in ("device", "role", "sentence", "file")),
-        fixes["line"].to_numpy(dtype=np.int64).tolist(),
-        [str(v) for v in fixes["fix_quality"].tolist()],
+        _floats(fixes.lat),
+        _floats(fixes.lon),
+        _floats(fixes.speed_mps),
+        _floats(fixes.course_deg),
+        fixes.valid.astype(bool).tolist(),
+        _names(fixes.device_codes, fixes.device_names),
+        _names(fixes.role, ROLES),
+        _sentence_names(fixes.sentence),
+        _names(fixes.file_codes, fixes.file_names),
+        fixes.line.astype(np.int64).tolist(),
+        _names(fixes.fix_quality, FIX_QUALITIES),
     )
     return [dict(zip(_FIX_KEYS, row, strict=True)) for row in zip(*columns, strict=True)]
 
 
-def gnss_json(fixes: pd.DataFrame, report: ParseReport) -> dict[str, Any]:
+def gnss_json(fixes: pd.DataFrame | FixColumns, report: ParseReport) -> dict[str, Any]:
     """The fixes and the parse report as plain JSON values (NaN and NaT → null)."""
-    return {"fixes": _fix_rows(fixes), "parse_report": report.to_dict()}
+    return {"fixes": _fix_rows(_columns(fixes)), "parse_report": report.to_dict()}
 
 
-def gnss_json_parts(fixes: pd.DataFrame, report: ParseReport) -> dict[str, Any]:
+def gnss_json_parts(fixes: pd.DataFrame | FixColumns, report: ParseReport) -> dict[str, Any]:
     """:func:`gnss_json` for :func:`console.jsonout.write`: the fixes as JSON text, block by block."""
+    cols = _columns(fixes)
 
     def blocks() -> Iterator[str]:
         yield "["
-        for start in range(0, len(fixes), FIX_BLOCK):
-            text = encode(_fix_rows(fixes.iloc[start : start + FIX_BLOCK]))
+        for start in range(0, len(cols), FIX_BLOCK):
+            block = FixColumns(
+                **{k: v if k.endswith("_names") else v[start : start + FIX_BLOCK] for k, v in vars(cols).items()}
+            )
+            text = encode(_fix_rows(block))
             yield ("," if start else "") + text[1:-1]
         yield "]"
 
@@ -126,10 +161,10 @@ def gnss_json_parts(fixes: pd.DataFrame, report: ParseReport) -> dict[str, Any]:
 class _Clock:
     """Times for a table: the date goes in the title when every time shares it."""
 
-    def __init__(self, times: pd.Series) -> None:
+    def __init__(self, times: Any) -> None:
         # Days from the ns, formatted once per distinct day (not per fix).
-        known = times[times.notna()]
-        ns = _utc_ns(known) if len(known) else np.zeros(0, np.int64)
+        ns = np.asarray(times, np.int64) if isinstance(times, np.ndarray) else _utc_ns(times)
+        ns = ns[ns != NAT_NS]
         days = [display(int(d) * _DAY_NS)[:10] for d in np.unique(ns // _DAY_NS)]
         self.one_day = len(days) == 1
         self.note = f"{days[0]}, UTC" if self.one_day else "UTC" if days else ""
@@ -152,12 +187,13 @@ class _Clock:
 
 
 def _num(value: Any, fmt: str, scale: float = 1.0) -> Text:
-    if value is None or pd.isna(value) or not math.isfinite(float(value)):
+    f = _float(value)
+    if f is None or not math.isfinite(f):
         return Text("–", style="dim")
-    return Text(fmt.format(float(value) * scale))
+    return Text(fmt.format(f * scale))
 
 
-def fixes_table(fixes: pd.DataFrame, limit: int = FIXES_SHOWN) -> Table:
+def fixes_table(fixes: pd.DataFrame | FixColumns, limit: int = FIXES_SHOWN) -> Table:
     """One row per fix: time, device, position, speed (km/h), fix or not, what it came from.
 
     Course is left to the JSON (``gnss_json``) to keep the table within 80
@@ -167,11 +203,14 @@ def fixes_table(fixes: pd.DataFrame, limit: int = FIXES_SHOWN) -> Table:
     several.  Lines are ``file number:line`` when there are several files
     (the caption names them).
     """
-    clock = _Clock(fixes["time"])
-    # Object, not Arrow, strings: a file name that is not UTF-8 cannot become an Arrow string.
-    files = [str(f) for f in pd.unique(fixes["file"].to_numpy(dtype=object))] if len(fixes) else []
-    title = f"GNSS fixes ({len(fixes):,}"
-    title += f", {int(fixes['valid'].sum()):,} valid" if len(fixes) else ""
+    cols = _columns(fixes)
+    clock = _Clock(cols.time_ns)
+    # Files in order of appearance in the rows (as shown), numbered from 1.
+    used, first = np.unique(cols.file_codes, return_index=True)
+    files = [cols.file_names[int(c)] for c in used[np.argsort(first, kind="stable")]]
+    n = len(cols)
+    title = f"GNSS fixes ({n:,}"
+    title += f", {int(np.count_nonzero(cols.valid)):,} valid" if n else ""
     t = _table(title + (f"; {clock.note})" if clock.note else ")"))
     t.add_column("Time", no_wrap=True)
     t.add_column("Device", no_wrap=True, max_width=14)
@@ -183,26 +222,27 @@ def fixes_table(fixes: pd.DataFrame, limit: int = FIXES_SHOWN) -> Table:
     t.add_column("Line", justify="right", no_wrap=True)
     file_no = {name: i for i, name in enumerate(files, start=1)}
     last_day: str | None = None
-    r: Any
-    for r in fixes.head(limit).itertuples(index=False):
-        day = clock.day(r.time)
+    for i in range(min(limit, n)):
+        time_ns = cols.time_ns[i]
+        day = clock.day(time_ns)
         if not clock.one_day and day is not None and day != last_day:
             t.add_row(Text(day, style="bold"))
             last_day = day
-        line = f"{file_no[str(r.file)]}:{r.line}" if len(files) > 1 else str(r.line)
+        file = cols.file_names[int(cols.file_codes[i])]
+        line = f"{file_no[file]}:{int(cols.line[i])}" if len(files) > 1 else str(int(cols.line[i]))
         t.add_row(
-            clock.text(r.time, with_day=False),
-            inert(r.device),
-            _num(r.lat, "{:.5f}"),
-            _num(r.lon, "{:.5f}"),
-            _num(r.speed_mps, "{:.1f}", _MPS_TO_KMH),
-            _fix_text(bool(r.valid), str(getattr(r, "fix_quality", ""))),
-            inert(r.sentence or r.source),
+            clock.text(time_ns, with_day=False),
+            inert(cols.device_names[int(cols.device_codes[i])]),
+            _num(cols.lat[i], "{:.5f}"),
+            _num(cols.lon[i], "{:.5f}"),
+            _num(cols.speed_mps[i], "{:.1f}", _MPS_TO_KMH),
+            _fix_text(bool(cols.valid[i]), FIX_QUALITIES[int(cols.fix_quality[i])]),
+            inert(sentence_name(int(cols.sentence[i])) or SOURCES[int(cols.source[i])]),
             Text(line),
         )
     notes = []
-    if len(fixes) > limit:
-        notes.append(f"first {limit:,} of {len(fixes):,} fixes; --json has all")
+    if n > limit:
+        notes.append(f"first {limit:,} of {n:,} fixes; --json has all")
     if len(files) == 1:
         notes.append(f"file {files[0]}")
     elif files:
@@ -213,9 +253,10 @@ def fixes_table(fixes: pd.DataFrame, limit: int = FIXES_SHOWN) -> Table:
     return t
 
 
-def devices_table(fixes: pd.DataFrame, limit: int = DEVICES_SHOWN) -> Table:
+def devices_table(fixes: pd.DataFrame | FixColumns, limit: int = DEVICES_SHOWN) -> Table:
     """Per device: role, fixes, valid fixes, first and last time (UTC, to the second), mean speed of valid fixes."""
-    clock = _Clock(fixes["time"])
+    cols = _columns(fixes)
+    clock = _Clock(cols.time_ns)
     t = _table("GNSS devices" + (f" ({clock.note})" if clock.note else ""))
     t.add_column("Device", no_wrap=True, min_width=6, max_width=12)
     t.add_column("Role", no_wrap=True)
@@ -226,39 +267,38 @@ def devices_table(fixes: pd.DataFrame, limit: int = DEVICES_SHOWN) -> Table:
     t.add_column("km/h", justify="right", no_wrap=True)
     t.caption = Text("km/h: mean speed of the valid fixes", style="dim")
     t.caption_justify = "left"
-    if fixes.empty:
+    if not len(cols):
         return t
-    # Devices in the grouping's order (the categories'), counted on the codes; the figures are grouped
-    # reductions over the rows of the devices shown only (a file may hold a million devices).
-    codes = fixes["device"].cat.codes.to_numpy()
-    per_device = np.bincount(codes[codes >= 0], minlength=len(fixes["device"].cat.categories))
+    # Devices in the order of their names (first appearance), each figure one reduction over the codes:
+    # no Python per fix, and only the devices shown are looked at (a file may hold a million devices).
+    codes = cols.device_codes.astype(np.int64)
+    n_names = len(cols.device_names)
+    per_device = np.bincount(codes, minlength=n_names)
     observed = np.flatnonzero(per_device)
-    in_shown = np.isin(codes, observed[:limit])
-    rows = fixes[in_shown]
-    by = rows.groupby("device", observed=True, sort=True)
-    count = by.size()
-    shown = count.index
-    valid = rows["valid"].astype(bool)
-    n_valid = valid.groupby(rows["device"], observed=True, sort=True).sum()
-    first, last = by["time"].min(), by["time"].max()
-    speed = rows["speed_mps"].where(valid).groupby(rows["device"], observed=True, sort=True).mean()
-    pairs = pd.DataFrame(
-        {"device": rows["device"].to_numpy(), "role": [str(x) for x in rows["role"].to_numpy()]}
-    ).drop_duplicates()
-    roles_of: dict[Any, set[str]] = {}
-    for device, role in zip(pairs["device"].tolist(), pairs["role"].tolist(), strict=True):
-        roles_of.setdefault(device, set()).add(role)
-    for device in shown:
-        roles = sorted(roles_of.get(device, set()) - {""})
-        nv = int(n_valid[device])
+    shown = observed[:limit]
+    valid = cols.valid.astype(bool)
+    n_valid = np.bincount(codes, weights=valid, minlength=n_names)
+    timed = cols.time_ns != NAT_NS
+    first = np.full(n_names, np.iinfo(np.int64).max)
+    last = np.full(n_names, NAT_NS)
+    np.minimum.at(first, codes[timed], cols.time_ns[timed])
+    np.maximum.at(last, codes[timed], cols.time_ns[timed])
+    moving = valid & ~np.isnan(cols.speed_mps)
+    speed_sum = np.bincount(codes[moving], weights=cols.speed_mps[moving], minlength=n_names)
+    speed_n = np.bincount(codes[moving], minlength=n_names)
+    has_role = np.zeros((n_names, len(ROLES)), bool)
+    has_role[codes, cols.role.astype(np.int64)] = True
+    for d in shown.tolist():
+        roles = sorted(ROLES[r] for r in np.flatnonzero(has_role[d]) if ROLES[r])
+        nv = int(n_valid[d])
         t.add_row(
-            inert(device),
+            inert(cols.device_names[d]),
             inert("/".join(roles) or "–", style="" if roles else "dim"),
-            Text(f"{int(count[device]):,}"),
+            Text(f"{int(per_device[d]):,}"),
             Text(f"{nv:,}", style="" if nv else "yellow"),
-            clock.text(first[device], seconds=True),
-            clock.text(last[device], seconds=True),
-            _num(speed[device], "{:.1f}", _MPS_TO_KMH),
+            clock.text(first[d] if last[d] != NAT_NS else NAT_NS, seconds=True),
+            clock.text(last[d], seconds=True),
+            _num(speed_sum[d] / speed_n[d] if speed_n[d] else math.nan, "{:.1f}", _MPS_TO_KMH),
         )
     if len(observed) > limit:
         t.caption = Text(

@@ -10,6 +10,7 @@ from rich.text import Text
 
 from console.analysis.health import Finding, Severity, channel_name
 from console.analysis.timefmt import display
+from console.plural import count
 from console.safe_text import inert
 
 # A mark each, so severities read without colour.
@@ -47,5 +48,5 @@ def findings_view(findings: list[Finding], *, show_info: bool = True, title: str
         parts.append(head)
         parts.append(Padding(inert(f.message), (0, 0, 0, 4)))
     if hidden:
-        parts.append(Text(f"{hidden} info findings not shown (trackside health lists them)", style="dim"))
+        parts.append(Text(f"{count(hidden, 'info finding')} not shown (trackside health lists them)", style="dim"))
     return Group(*parts)

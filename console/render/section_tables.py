@@ -9,6 +9,7 @@ from rich import box
 from rich.table import Table
 from rich.text import Text
 
+from console import plural
 from console.analysis.sections import STATE_MARK, SectionsResult, SectionState
 from console.analysis.timefmt import display, iso
 from console.safe_text import inert
@@ -51,7 +52,7 @@ def final_states_view(final: dict[str, tuple[str, int, int, int, str]]) -> Table
 
 def timeline_table(result: SectionsResult, limit: int = 200) -> Table:
     tl = result.timeline
-    t = _table(f"State timeline ({len(tl)} changes)")
+    t = _table(f"State timeline ({plural.count(len(tl), 'change')})")
     for c in ("Time", "Section", "State", "Count", "Why"):
         t.add_column(c, no_wrap=c == "Time")
     r: Any

@@ -155,6 +155,8 @@ def run_report(
             target = check_output_file(output, [Path(i.path) for i in data.inputs], what="report")
         code = exit_code(data, threshold)
         _write(data, fmt, target)
+        if target is not None and not target.stream:
+            _say_where(target.path)
     except (ReportInputError, InputError, LayoutError, OutputError) as exc:
         return _error(str(exc))
     except _WriteFailed as exc:
@@ -175,6 +177,20 @@ def run_report(
         if data is not None:
             data.close()
     return code
+
+
+def _say_where(path: Path) -> None:
+    """Tell a person where the report went (nothing else is printed); scripts and cron, not on a terminal, get
+    nothing on stderr."""
+    stderr = sys.stderr
+    try:
+        if stderr is None or not stderr.isatty():
+            return
+        size = os.stat(path).st_size
+        stderr.write(f"trackside: wrote {show_path(path)} ({size:,} bytes)\n")
+        stderr.flush()
+    except (OSError, ValueError):
+        return  # a closed or broken terminal: the report is written, which is what matters
 
 
 def _internal(exc: Exception) -> int:

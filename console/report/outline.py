@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from console.plural import count
 from console.report.model import FAILING, UNSAFE
 
 
@@ -294,11 +295,21 @@ def _passages_part(doc: dict[str, Any]) -> list[Block]:
         out.append(_table(cols, Lazy(lambda: (_passage_row(p) for p in passages))))
     notes = []
     if doc["status_bursts"]:
-        notes.append(f"{doc['status_bursts']:,} status-only record bursts (no wheel) are counted, not listed.")
+        n = doc["status_bursts"]
+        notes.append(
+            f"{count(n, 'status-only record burst', sep=True)} (no wheel)"
+            f" {'is' if n == 1 else 'are'} counted, not listed."
+        )
     if doc["overlap_records"]:
-        notes.append(f"{doc['overlap_records']:,} records repeat another file's second and were counted once.")
+        n = doc["overlap_records"]
+        notes.append(
+            f"{count(n, 'record', sep=True)} {'repeats' if n == 1 else 'repeat'} another file's second"
+            f" and {'was' if n == 1 else 'were'} counted once."
+        )
     if doc["unpaired_detections"]:
-        notes.append(f"{doc['unpaired_detections']:,} wheel detections on one system only (not axles).")
+        notes.append(
+            f"{count(doc['unpaired_detections'], 'wheel detection', sep=True)} on one system only (not axles)."
+        )
     if notes:
         out.append(Para((" ".join(notes),)))
     return out
@@ -312,7 +323,7 @@ def _passage_row(p: dict[str, Any]) -> list[Cell]:
         p["counting_head"],
         show_time(p["start"]),
         _n(p["duration_s"], "{:.2f}"),
-        str(p["axles"]),
+        "–" if p["axles_unknown_reason"] else str(p["axles"]),  # no onset pair possible: the reason says why
         _ARROWS.get(p["direction"] or "", "–"),
         per_sec,
         _n(p["speed_kmh_whole_train"], "{:.2f}"),
@@ -349,12 +360,12 @@ def _sections_part(doc: dict[str, Any]) -> list[Block]:
     out.append(_table(cols, rows))
     tl = sec["timeline"]
     shown = list(itertools.islice(tl, TIMELINE_ROWS_SHOWN))
-    out.append(Heading(3, f"State timeline ({len(tl):,} changes)", "section-timeline"))
+    out.append(Heading(3, f"State timeline ({count(len(tl), 'change', sep=True)})", "section-timeline"))
     rows = [[show_time(r["time"]), r["section"], _state(r["state"]), str(r["count"]), r["reason"]] for r in shown]
     note = f"First {len(shown)} of {len(tl):,} changes; the JSON report lists all." if len(tl) > len(shown) else ""
     cols = [("Time", False), ("Section", False), ("State", False), ("Count", True), ("Why", False)]
     out.append(_table(cols, rows, note))
-    out.append(Heading(3, f"Count ledger ({len(sec['ledger']):,} axles counted)", "ledger"))
+    out.append(Heading(3, f"Count ledger ({count(len(sec['ledger']), 'axle', sep=True)} counted)", "ledger"))
     if sec["ledger_summary"]:
         rows = [
             [
@@ -538,7 +549,7 @@ def outline(doc: dict[str, Any]) -> list[Block]:
         Heading(1, "trackside report", "top"),
         Para(
             (
-                f"Layout: {doc['layout'] or 'none'}. Inputs: {t['files']} files, {t['read']} read. "
+                f"Layout: {doc['layout'] or 'none'}. Inputs: {count(t['files'], 'file')}, {t['read']} read. "
                 f"trackside {doc['trackside_version']}, schema {doc['schema']}.",
             )
         ),

@@ -151,6 +151,7 @@ class Source(ABC):
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
         self._connected = False
+        self._told = False  # the first state is always told: a source that cannot open says so at once
         self._detail = "starting"
         self._last_mono: float | None = None
         self._messages = 0
@@ -233,8 +234,8 @@ class Source(ABC):
 
     def set_connected(self, connected: bool, detail: str) -> None:
         with self._lock:
-            changed = connected != self._connected
-            self._connected = connected
+            changed = connected != self._connected or not self._told
+            self._connected, self._told = connected, True
             self._detail = detail
         if changed:
             self.note("connected" if connected else "disconnected", detail)

@@ -37,7 +37,7 @@ from console.sources.file_frames import CanLines, SensorFrameLines, can_format
 from console.sources.file_gnss import DEVICE_KINDS, STREAM_KINDS, GnssLines
 from parsers.can_logs import CanFileReport
 from parsers.kinds import DESCRIPTIONS, HEAD_BYTES, classify_head
-from parsers.report import FileReport, ParseReport, Rejection
+from parsers.report import FileReport, ParseReport, Rejection, device_of_file
 
 FOLLOWED = frozenset({"diag", *STREAM_KINDS, *DEVICE_KINDS, "can", "frames"})
 DECIDE_LINES = 16  # record lines after which a head that is still no known format is taken as none
@@ -178,7 +178,7 @@ class FileLines:
         return out
 
     def _open_reader(self, kind: str) -> None:
-        label, stem = self.label, self.path.stem
+        label, stem = self.label, device_of_file(self.path)
         if kind in STREAM_KINDS or kind in DEVICE_KINDS:
             fr = FileReport(file=label)
             self.report.files.append(fr)

@@ -24,6 +24,7 @@ from collections import OrderedDict, deque
 from dataclasses import dataclass, field
 from typing import Any
 
+from console.plural import count
 from console.sources.base import GnssFix, Source, SourceError
 from parsers.lora import PayloadError, decode_payload, parse_uplink
 
@@ -186,7 +187,7 @@ class MqttSource(Source):
         if lost_delta:
             self.count_lost(lost_delta)
             if lost_delta > 0:
-                self.note("lost", f"{up.dev_eui}: {lost_delta} uplinks lost before fCnt {up.f_cnt}")
+                self.note("lost", f"{up.dev_eui}: {count(lost_delta, 'uplink')} lost before fCnt {up.f_cnt}")
         best = max(up.rx, key=lambda r: r.rssi_dbm if r.rssi_dbm is not None else -math.inf, default=None)
         self.emit(
             GnssFix(

@@ -1,0 +1,70 @@
+"""A first run on a small file pays for start-up, not for libraries it does not use: what `analyze`,
+`gnss` and `query` import on tiny inputs.  Times are measured by benchmarks/bench_startup.py (not here:
+no timed unit tests); this checks the imports that decide them."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"
+# Heavy modules, and the one command face that may need each.
+HEAVY = ("pandas", "pydantic", "duckdb", "rich.progress", "console.fleet.engine", "distributed", "shapely", "textual")
+PROBE = """
+import json, sys
+from console.cli import app
+sys.argv = ["trackside", *sys.argv[1:]]
+try:
+    app()
+except SystemExit as exc:
+    code = exc.code
+sys.stdout = sys.__stdout__
+print(json.dumps({"code": code, "loaded": sorted(m for m in %r if m in sys.modules)}))
+"""
+
+
+def _loaded(*args: str) -> tuple[int, list[str]]:
+    out = subprocess.run(
+        [sys.executable, "-c", PROBE % (HEAVY,), *args], capture_output=True, text=True, timeout=120, check=False
+    )
+    last = out.stdout.strip().splitlines()[-1]
+    doc = json.loads(last)
+    return doc["code"], doc["loaded"]
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("tiny")
+    log = d / "tiny.log"
+    log.write_bytes((SAMPLES / "osong_ws4_0932_passage.log").read_bytes())
+    nmea = d / "tiny.nmea"
+    nmea.write_bytes(b"$GPRMC,123519.00,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W*44\n")
+    archive = d / "archive"
+    subprocess.run(
+        [str(Path(sys.executable).with_name("trackside")), "ingest", str(log), "--archive", str(archive)],
+        check=True,
+        capture_output=True,
+        timeout=120,
+    )
+    return {"log": log, "nmea": nmea, "archive": archive}
+
+
+def test_help_imports_nothing_heavy() -> None:
+    assert _loaded("--help") == (0, [])
+
+
+def test_analyze_of_a_small_log_imports_no_pandas(tiny: dict[str, Path]) -> None:
+    assert _loaded("analyze", str(tiny["log"])) == (0, [])
+
+
+def test_gnss_of_a_small_capture_imports_no_pandas(tiny: dict[str, Path]) -> None:
+    assert _loaded("gnss", str(tiny["nmea"])) == (0, [])
+
+
+def test_query_imports_duckdb_and_nothing_else_heavy(tiny: dict[str, Path]) -> None:
+    args = ("query", "--archive", str(tiny["archive"]), "SELECT count(*) FROM records")
+    assert _loaded(*args) == (0, ["duckdb"])
