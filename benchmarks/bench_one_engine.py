@@ -1,0 +1,80 @@
+"""Issue 22's targets: `ingest` against `analyze --json` on the same log, and `report --format json`'s peak.
+
+Each command runs as a fresh process (wall, CPU and peak RSS from ``os.wait4``, as
+bench_memory_commands.py); the commands alternate within each round, so a change of load hits them
+alike.  ``ingest`` writes a fresh archive each time (no layout: records, passages and axles), and the
+archive is removed after the round.  ``--baseline DIR`` runs ``analyze --json`` from another checkout
+too (``git archive a140356 | tar -x -C DIR``), for "no slower than today".
+
+    python benchmarks/gen_realistic_diag.py 3000000 /work/bench_data/r3m.log
+    python benchmarks/gen_realistic_diag.py 12000000 /work/bench_data/r12m.log
+    python -m benchmarks.bench_one_engine /work/bench_data/r3m.log /work/bench_data/r12m.log --repeat 2
+
+Targets: ingest wall ≤ 1.3 × analyze --json wall and peak ≤ 256 MB at both sizes; report --format json
+≤ 256 MB at 12 M records.  Figures: benchmarks/README.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import statistics
+import sys
+import tempfile
+from pathlib import Path
+
+from benchmarks.bench_memory_commands import TARGET_MB, in_checkout, run, write_layout
+
+INGEST_RATIO = 1.3
+COMMANDS = ("analyze-json", "ingest", "report-json", "report-json-layout")
+
+
+def command(name: str, exe: str, log: Path, layout: Path, archive: Path) -> list[str]:
+    if name == "analyze-json":
+        return [exe, "analyze", str(log), "--json"]
+    if name == "ingest":
+        return [exe, "ingest", str(log), "--archive", str(archive)]
+    if name == "report-json":
+        return [exe, "report", str(log), "--format", "json", "-o", str(archive.parent / "report.json")]
+    return [exe, "report", str(log), "--layout", str(layout), "--format", "json", "-o", str(archive.parent / "r.json")]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("logs", type=Path, nargs="+")
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--commands", default=",".join(COMMANDS), help=f"comma-separated, of {', '.join(COMMANDS)}")
+    ap.add_argument("--baseline", type=Path, help="also run analyze --json from this checkout, alternately")
+    args = ap.parse_args()
+    exe = shutil.which("trackside") or sys.exit("trackside is not installed (pip install .)")
+    names = [c.strip() for c in args.commands.split(",") if c.strip()]
+    if bad := [c for c in names if c not in COMMANDS]:
+        sys.exit(f"--commands: unknown {', '.join(bad)}")
+    print("command:", " ".join(sys.argv), flush=True)
+    with tempfile.TemporaryDirectory(dir="/work/bench_data" if Path("/work/bench_data").is_dir() else None) as tmp:
+        layout = Path(tmp) / "layout.toml"
+        write_layout(layout)
+        print(f"{'log':<12} {'command':<24} {'wall s':>8} {'CPU s':>8} {'peak MB':>8}  target", flush=True)
+        for log in args.logs:
+            walls: dict[str, list[float]] = {}
+            for _ in range(args.repeat):
+                archive = Path(tmp) / "arc"
+                for name in names:
+                    cmd = command(name, exe, log.resolve(), layout, archive)
+                    if args.baseline is not None and name == "analyze-json":
+                        wall, cpu, rss, _code = run(in_checkout(cmd), cwd=args.baseline)
+                        walls.setdefault("analyze-json (base)", []).append(wall)
+                        print(f"{log.name:<12} {'analyze-json (base)':<24} {wall:8.2f} {cpu:8.2f} {rss:8.0f}")
+                    wall, cpu, rss, _code = run(cmd)
+                    walls.setdefault(name, []).append(wall)
+                    verdict = "ok" if rss <= TARGET_MB else "OVER"
+                    print(f"{log.name:<12} {name:<24} {wall:8.2f} {cpu:8.2f} {rss:8.0f}  {verdict}", flush=True)
+                shutil.rmtree(archive, ignore_errors=True)
+            if "ingest" in walls and "analyze-json" in walls:
+                ratio = statistics.median(walls["ingest"]) / statistics.median(walls["analyze-json"])
+                verdict = "ok" if ratio <= INGEST_RATIO else "OVER"
+                print(f"{log.name:<12} ingest / analyze --json, median wall: {ratio:.2f}×  {verdict}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
