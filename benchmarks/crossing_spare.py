@@ -28,7 +28,7 @@ from rich.progress import track
 from rich.table import Table
 
 from console.layout import load_layout
-from console.sim.crossing_runs import one_run, random_conditions, spare_table, summary
+from console.sim.crossing_runs import TUNE, one_run, random_conditions, spare_table, summary
 
 
 def _f(x: float | None) -> str:
@@ -39,8 +39,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=600)
     ap.add_argument("--seed", type=int, default=11, help="the harness seed (runs k use seed·100000 + k)")
+    ap.add_argument("--set", action="append", default=[], help="NAME=VALUE: a controller setting under trial")
     args = ap.parse_args()
-    out = Console(highlight=False, width=160)
+    for kv in args.set:
+        name, _, value = kv.partition("=")
+        TUNE[name] = int(value) if value.isdigit() else float(value)
+    out = Console(highlight=False, width=220)
     out.print(f"$ python {' '.join(sys.argv)}", markup=False)
     layout = load_layout("example")
     t0 = time.perf_counter()
@@ -54,15 +58,20 @@ def main() -> None:
     wall = time.perf_counter() - t0
     rows = spare_table(results)
     t = Table(box=box.MARKDOWN, title=None)
-    for c in ("case", "runs", "avoidable median s", "avoidable p95 s", "physics median s", "paper rule median s"):
+    cols = ("case", "runs", "avoidable median", "avoidable p95", "sparse median", "sparse p95")
+    cols += ("estimate median", "estimate p95", "physics median", "paper rule median", "paper rule late")
+    for c in cols:
         t.add_column(c, justify="left" if c == "case" else "right")
-    t.add_column("paper rule late", justify="right")
     for r in rows:
         t.add_row(
             r.case,
             str(r.runs),
             _f(r.median_s),
             _f(r.p95_s),
+            _f(r.sparse_median_s),
+            _f(r.sparse_p95_s),
+            _f(r.estimation_median_s),
+            _f(r.estimation_p95_s),
             _f(r.physics_median_s),
             _f(r.paper_median_s),
             str(r.paper_late),

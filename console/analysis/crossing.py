@@ -15,18 +15,34 @@ approaching would end it too early.  And an unsigned distance cannot tell
 projected onto the layout's polyline), signed in the train's direction of
 travel.
 
-* **On** (per train, at each fix): the estimated head position, moved on by
-  its speed to the current time (the most advanced of its last few fixes,
-  so one fix that jumped back cannot delay the warning), is within
-  ``v × (warning time + report period + latency)`` of the crossing, or
-  within the guard distance whatever the speed (a slow or stopped train near
-  the crossing), or already at or past it while the tail is not.  Adding
-  one report period and the latency means the warning is on a full warning
-  time before arrival even when the next fix comes late.
-* **Speed** (:mod:`console.analysis.crossing_evidence`): the device's
-  reported speed, or, when the export has none, an upper bound estimated
-  from successive fixes; a single fix without speed is the worst case (the
-  most a train can run), never a standstill.  Position jumps are set aside
+* **On** (per train, at each fix and each tick of the unit's clock): the
+  earliest the head can reach the road's near edge
+  (:mod:`console.analysis.crossing_arrival`) is within the warning time (plus
+  one tick of the clock and a small margin), or the head is within the guard
+  distance whatever the speed (a slow or stopped train near the crossing), or
+  already at or past it while the tail is not.  The earliest arrival is
+  anchored at a fix: where the head was at most, how fast it ran at most,
+  accelerating at the line's acceleration to the line speed from then on.  It
+  stays valid however late the next fix comes, so no allowance for the report
+  period or the latency is needed; a unit that falls silent ends up warning.
+* **Estimate** (:mod:`console.analysis.crossing_estimate`): per device, a
+  Kalman filter on chainage, speed and acceleration gives the estimate and
+  its σ; the bound is estimate + k·σ.  Until the filter is settled (its first
+  fixes, fixes set aside lately), the model-free bounds below count too, the
+  earlier wins.
+* **Release** (per train, at a head fix, before the head arrives): a warning
+  that came on early (a first fix without speed counts as the fastest train;
+  a train then stops out of reach) goes off when a settled estimate of a
+  fresh head unit proves the head cannot arrive within the warning time for a
+  while yet (one report period, the latency and ``release_hold_s`` beyond
+  it: the next fix is in before it could come on again, no flicker), with no
+  jump set aside lately, no head-unit alarm and the direction known: a train
+  proven standing 2 km out does not hold the road closed.  It comes on again by the same rule as any warning: from a
+  standstill the head cannot arrive sooner than √(2d/a).
+* **Model-free bounds** (:mod:`console.analysis.crossing_evidence`): the
+  device's reported speed, or, when the export has none, an upper bound
+  estimated from successive fixes; a single fix without speed is the worst
+  case (the most a train can run), never a standstill.  Position jumps are set aside
   and counted; they do not refresh the device.
 * **Off** (per train): on positive evidence only: two consecutive accepted
   EOT fixes past the crossing by ``d_off`` in the direction of travel, the
@@ -36,7 +52,8 @@ travel.
   not, cannot open the road.  This is the paper's "d ≤ d_off, then
   increasing" in signed form: past the crossing by the margin and moving
   away.
-* **Fail-safe.**  Nothing ever ends a warning by timeout.  A stale EOT
+* **Fail-safe.**  Nothing ever ends a warning by timeout; a release needs a
+  fresh, settled head estimate.  A stale EOT
   (no fix for ``stale_after_s``) raises an alarm and keeps the warning on.
   A lost head unit falls back to the EOT position plus the train length.
   A train with no EOT keeps the warning on (alarm).  Direction unknown:
@@ -57,11 +74,14 @@ from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
+from console.analysis.crossing_arrival import ArrivalBound, Motion, device_bound, earliest_s
+from console.analysis.crossing_estimate import FilterLimits, MotionFilter
 from console.analysis.crossing_evidence import ESTIMATED, REPORTED, DeviceEvidence, EvidenceLimits, Report
 from console.analysis.timefmt import NS
 from console.layout import LevelCrossing
 
 HEAD, EOT = "head", "eot"
+TRAIN = "train"  # the head's motion from both units: the EOT a second witness, its fixes moved on by the length
 
 
 @dataclass(frozen=True)
@@ -99,26 +119,29 @@ class ControllerSettings:
     max_speed_mps: float = 45.0  # no train runs faster (plausibility; the speed assumed when none is known)
     jump_accel_mps2: float = 1.5  # no train changes speed faster (a fix implying more is a position jump)
     speed_window_s: float = 45.0  # how far back the speed bound from positions looks
-    noise_m: float = 15.0  # GNSS noise allowance in the plausibility check
+    noise_m: float = 15.0  # GNSS noise allowance in the plausibility check (≈ 3 σ)
     crossing_half_width_m: float = 5.0  # the road's half width along the track
     baseline_margin_s: float = 10.0  # the fixed-time method's safety margin
     # Lights flash first; the barriers come down this much later (road users clear
     # the crossing) and rise with the lights going out.
     barrier_delay_s: float = 8.0
+    tick_s: float = 1.0  # the unit's clock: between fixes it looks again this often
+    onset_margin_s: float = 1.0  # on this much beyond the warning time and one tick
+    # The estimate (crossing_estimate): speed σ of a reported (Doppler) speed; how fast the
+    # acceleration may change (white jerk, m²/s⁵); bounds at estimate + k·σ.
+    speed_sigma_mps: float = 0.2
+    jerk_psd: float = 0.003
+    k_sigma: float = 3.3
+    settle_fixes: int = 2  # fixes in a row inside the filter's prediction before its estimate alone counts
+    # A warning is released only if, by the bound, it would not come on again before the next
+    # fix is in (one report period and the latency) and for this long after: no flicker.
+    release_hold_s: float = 5.0
+    length_sigma_m: float = 5.0  # how well the train's length is known (the EOT as a witness of the head)
 
 
 def earliest_arrival_s(distance_m: float, speed_mps: float, accel_mps2: float, max_speed_mps: float) -> float:
     """Shortest time to run ``distance_m`` from ``speed_mps``, accelerating up to ``max_speed_mps``."""
-    if distance_m <= 0:
-        return 0.0
-    v, a, vmax = max(0.0, speed_mps), accel_mps2, max(max_speed_mps, speed_mps, 1e-3)
-    if a <= 0:
-        return distance_m / max(v, 1e-3)
-    t1 = (vmax - v) / a
-    d1 = v * t1 + 0.5 * a * t1 * t1
-    if distance_m <= d1:
-        return (-v + math.sqrt(v * v + 2 * a * distance_m)) / a
-    return t1 + (distance_m - d1) / vmax
+    return earliest_s(distance_m, speed_mps, accel_mps2, max(max_speed_mps, speed_mps))
 
 
 @dataclass(frozen=True)
@@ -130,7 +153,20 @@ class CrossingEvent:
     reason: str
 
 
-RECENT_FIXES = 3  # the head estimate is the most advanced of this many last fixes
+RECENT_FIXES = 3  # the model-free bound takes each of this many last fixes on its own
+
+# Why a warning came on earlier than the evidence alone required: the causes a timeline names.
+NO_SPEED, SPARSE, STALE, JUMPS = "no speed", "sparse fixes", "stale units", "jumps"
+
+
+@dataclass(frozen=True)
+class Onset:
+    """What the unit knew when it turned a warning on: the bound and its parts (s of ETA)."""
+
+    t_ns: int
+    eta_s: float  # the earliest arrival then, as the unit bounded it
+    nominal_eta_s: float | None  # the same from the best estimate, without margins (None: no estimate)
+    doubt_s: dict[str, float]  # how far each doubt brought the bound forward (ETA s)
 
 
 @dataclass
@@ -138,11 +174,16 @@ class _Track:
     spec: TrainSpec
     head_ev: DeviceEvidence
     eot_ev: DeviceEvidence
+    kf: dict[str, MotionFilter]
     head: Report | None = None
     eot: Report | None = None
     recent: dict[str, deque[Report]] = field(
         default_factory=lambda: {HEAD: deque(maxlen=RECENT_FIXES), EOT: deque(maxlen=RECENT_FIXES)}
     )
+    bounds: dict[str, ArrivalBound | None] = field(default_factory=lambda: {HEAD: None, EOT: None, TRAIN: None})
+    kf_ok: dict[str, bool] = field(default_factory=lambda: {HEAD: False, EOT: False})  # last fix taken by the filter
+    doubt_ns: dict[str, int | None] = field(default_factory=lambda: {HEAD: None, EOT: None})  # last jump / set aside
+    eot_kept: Report | None = None  # the last EOT fix the filter took (the tail-past test runs on it)
     direction: int = 0
     direction_set_ns: int = 0  # fix time of the last change of direction
     warned: bool = False
@@ -150,6 +191,8 @@ class _Track:
     reason_on: str = ""
     t_off: int | None = None
     reason_off: str = ""
+    onset: Onset | None = None
+    releases: list[tuple[int, int, str]] = field(default_factory=list)  # (on, off, why) of released warnings
     alarms: set[str] = field(default_factory=set)
     episodes: list[tuple[int, int | None, str, str]] = field(default_factory=list)
 
@@ -162,6 +205,8 @@ class CrossingController:
     ) -> None:
         self.crossing = crossing
         self.s = settings or ControllerSettings()
+        s = self.s
+        self.motion = Motion(crossing.chainage_m, s.crossing_half_width_m, s.accel_mps2, s.line_speed_mps, s.noise_m)
         self.tracks = {t.train: self._new_track(t) for t in trains}
         self.events: list[CrossingEvent] = []
         # Fixes set aside as position jumps, per (train, role): their fix times.
@@ -170,7 +215,16 @@ class CrossingController:
     def _new_track(self, spec: TrainSpec) -> _Track:
         s = self.s
         lim = EvidenceLimits(s.noise_m, s.accel_mps2, s.jump_accel_mps2, s.max_speed_mps, s.speed_window_s)
-        return _Track(spec, DeviceEvidence(lim), DeviceEvidence(lim))
+        flim = FilterLimits(
+            s.noise_m / 3.0,
+            s.speed_sigma_mps,
+            s.jerk_psd,
+            s.max_speed_mps,
+            k_sigma=s.k_sigma,
+            settle_fixes=s.settle_fixes,
+        )
+        kf = {HEAD: MotionFilter(flim), EOT: MotionFilter(flim), TRAIN: MotionFilter(flim)}
+        return _Track(spec, DeviceEvidence(lim), DeviceEvidence(lim), kf)
 
     @property
     def position_jumps(self) -> int:
@@ -200,8 +254,9 @@ class CrossingController:
         return r is not None and (t_ns - r.t_fix_ns) <= self.s.stale_after_s * NS
 
     def _speed(self, tr: _Track, t_ns: int) -> float:
-        """The fastest the train may be running now (m/s): reported speeds where the devices
-        give them, else the tightest bound the positions prove; unknown is the worst case."""
+        """The fastest the train may be running now (m/s) by the model-free bounds: reported speeds
+        where the devices give them, else the tightest bound the positions prove; unknown is the
+        worst case."""
         reps = [r for r in (tr.head, tr.eot) if r is not None]
         fresh = [r for r in reps if self._fresh(r, t_ns)] or reps
         reported = [r.speed_hi_mps for r in fresh if r.speed_basis == REPORTED]
@@ -217,31 +272,44 @@ class CrossingController:
                 return text
         return "unknown: the most a train runs"
 
-    def _head_estimate(self, tr: _Track, t_ns: int) -> tuple[float, float, str] | None:
-        """Head chainage now: (furthest it can be, where it surely is at least, basis).
-
-        The furthest moves each of the device's last few fixes on at the speed bound and
-        keeps the most advanced (the earliest arrival); the nearest moves the last fix on
-        only by a reported speed (the tail-past test must not run ahead of the evidence).
-        Without a fresh head fix: the EOT plus the train length."""
-        d = tr.direction
-        v = self._speed(tr, t_ns)
-        for role, r, extra in ((HEAD, tr.head, 0.0), (EOT, tr.eot, tr.spec.length_m)):
-            if not self._fresh(r, t_ns) or (role == EOT and d == 0):
+    def _update_bounds(self, tr: _Track) -> None:
+        """Each device's earliest arrival of the head, from its evidence (on every fix of the train:
+        the direction and the other device's speed bound take part)."""
+        for role, extra in ((HEAD, 0.0), (EOT, tr.spec.length_m)):
+            last = tr.head if role == HEAD else tr.eot
+            if last is None:
+                tr.bounds[role] = None
                 continue
-            assert r is not None
-            far = r.chainage_m
-            if d:
-                far = d * max(d * q.chainage_m + v * (t_ns - q.t_fix_ns) / NS for q in tr.recent[role])
-            v_sure = r.speed_mps if r.speed_basis == REPORTED else 0.0
-            near = r.chainage_m + d * v_sure * (t_ns - r.t_fix_ns) / NS
-            return far + d * extra, near + d * extra, "head" if role == HEAD else "eot+length"
-        return None
+            est = tr.kf[role].estimate
+            cap = self._speed(tr, last.t_fix_ns)
+            tr.bounds[role] = device_bound(self.motion, est, tr.recent[role], tr.direction, extra, cap)
+        if tr.head is not None:
+            est = tr.kf[TRAIN].estimate
+            cap = self._speed(tr, tr.head.t_fix_ns)
+            tr.bounds[TRAIN] = device_bound(self.motion, est, tr.recent[HEAD], tr.direction, 0.0, cap)
+
+    def _bound(self, tr: _Track, t_ns: int) -> tuple[ArrivalBound, str] | None:
+        """The bound that counts now: the head unit's while it is fresh, else the EOT's plus the
+        train's length, else (every unit stale) the one heard last: the train is not forgotten."""
+        if self._fresh(tr.head, t_ns) and tr.bounds[HEAD] is not None:
+            tb = tr.bounds[TRAIN]
+            if tb is not None and tb.settled:
+                return tb, "head"
+            return tr.bounds[HEAD], "head"  # type: ignore[return-value]
+        if self._fresh(tr.eot, t_ns) and tr.bounds[EOT] is not None:
+            return tr.bounds[EOT], "eot+length"  # type: ignore[return-value]
+        heard = [(r.t_fix_ns, role) for role, r in ((HEAD, tr.head), (EOT, tr.eot)) if r is not None]
+        if not heard:
+            return None
+        role = max(heard)[1]
+        b = tr.bounds[role]
+        return (b, "stale " + ("head" if role == HEAD else "eot+length")) if b is not None else None
 
     def _update_direction(self, tr: _Track, fix: Fix, ev: DeviceEvidence) -> None:
         """Direction of travel from the best evidence at hand; kept when there is none.
 
-        1. the same device moved by more than the noise over its recent fixes (medians);
+        1. the same device moved by more than the noise over its recent fixes (medians; a
+           known direction is reversed on the medians of three and three fixes only);
         2. the fix's course against the track's bearing;
         3. the head ahead of the EOT, only when both fixes are recent together
            (a stale head report must not set the direction), and only while the
@@ -251,6 +319,10 @@ class CrossingController:
         """
         before = tr.direction
         moved = ev.direction()
+        if moved and before and moved != before:
+            # Reversing a known direction takes the medians of several fixes: two fixes, one of
+            # them a jump that looked plausible after a long gap, must not turn the train round.
+            moved = ev.direction(medians_only=True)
         if moved:
             tr.direction = moved
         elif fix.direction_hint:
@@ -269,25 +341,30 @@ class CrossingController:
         self.events.append(ev)
         return ev
 
-    def _approach(self, tr: _Track, t_ns: int) -> tuple[float, float, str] | None:
-        """The head's distance to the crossing (m, < 0 once past), its earliest
-        arrival (s) and the estimate's basis; None without an estimate or once the tail is past."""
-        est = self._head_estimate(tr, t_ns)
-        if est is None:
+    def _tail_past(self, tr: _Track) -> bool:
+        """The tail is past the crossing by d_off in the direction of travel, by the last EOT fix the
+        filter took (one fix that jumped back does not put the tail on the road again)."""
+        if not tr.direction:
+            return False
+        eot = tr.eot_kept or tr.eot
+        if eot is not None:
+            return tr.direction * (eot.chainage_m - self.crossing.chainage_m) >= self.crossing.d_off_m
+        if tr.head is None or tr.head.speed_basis != REPORTED:
+            return False
+        # No EOT at all: only the head's own position (moved on by a reported speed) can tell.
+        past_m = tr.direction * (tr.head.chainage_m - self.crossing.chainage_m)
+        return past_m > tr.spec.length_m + self.crossing.d_off_m + 2 * self.s.noise_m
+
+    def _approach(self, tr: _Track, t_ns: int) -> tuple[float, float, str, ArrivalBound] | None:
+        """The head's distance from the road (m, the nearest it may be; < 0 once past), its earliest
+        arrival from now (s), the bound's basis and the bound; None without one or once the tail is past."""
+        if self._tail_past(tr):
             return None
-        head_ch, head_near, basis = est
-        c = self.crossing.chainage_m
-        ahead = tr.direction * (c - head_ch) if tr.direction else abs(c - head_ch)
-        tail_past = False
-        if tr.eot is not None and tr.direction:
-            tail_past = tr.direction * (tr.eot.chainage_m - c) >= self.crossing.d_off_m
-        elif tr.direction:
-            past_m = tr.direction * (head_near - c)
-            tail_past = past_m > tr.spec.length_m + self.crossing.d_off_m + 2 * self.s.noise_m
-        if tail_past:
+        got = self._bound(tr, t_ns)
+        if got is None:
             return None
-        v = self._speed(tr, t_ns)
-        return ahead, earliest_arrival_s(ahead, v, self.s.accel_mps2, max(v, self.s.line_speed_mps)), basis
+        b, basis = got
+        return b.ahead_m, max(0.0, (b.t_arrival_ns - t_ns) / NS), basis, b
 
     def arrival_s(self, t_ns: int) -> float | None:
         """Earliest arrival of the nearest head still approaching, as this unit estimates it (s)."""
@@ -303,14 +380,45 @@ class CrossingController:
     def alarm(self) -> bool:
         return any(t.alarms for t in self.tracks.values())
 
+    @property
+    def horizon_s(self) -> float:
+        """A warning comes on when the earliest arrival is this near (s)."""
+        return self.crossing.warning_time_s + self.s.tick_s + self.s.onset_margin_s
+
+    def _onset(self, tr: _Track, t_ns: int, b: ArrivalBound, basis: str) -> Onset:
+        """The bound's parts when the warning came on: what each doubt cost (ETA s)."""
+        eta = (b.t_arrival_ns - t_ns) / NS
+        doubt: dict[str, float] = {}
+
+        def add(cause: str, s: float) -> None:
+            if s > 0.05:
+                doubt[cause] = doubt.get(cause, 0.0) + s
+
+        role = HEAD if basis.endswith("head") else EOT
+        last = tr.head if role == HEAD else tr.eot
+        no_speed = last is not None and last.speed_basis != REPORTED
+        nominal = None
+        if b.t_nominal_ns is not None and b.t_position_ns is not None and b.t_filter_ns is not None:
+            nominal = (b.t_nominal_ns - t_ns) / NS
+            add(SPARSE, (b.t_nominal_ns - b.t_position_ns) / NS)  # the position's σ
+            add(NO_SPEED if no_speed else SPARSE, (b.t_position_ns - b.t_filter_ns) / NS)  # the speed's σ
+            fallback = (b.t_filter_ns - b.t_arrival_ns) / NS  # the model-free bound came first
+            jumped = tr.doubt_ns[role] is not None
+            add(JUMPS if jumped else NO_SPEED if no_speed else SPARSE, fallback)
+        if basis != "head":
+            # The head unit lost: all of it, or what the EOT's length and its age added, is the stale units'.
+            head_b = tr.bounds[HEAD]
+            add(STALE, (head_b.t_arrival_ns - b.t_arrival_ns) / NS if head_b is not None else 0.0)
+        return Onset(t_ns, eta, nominal, doubt)
+
     def _check_on(self, tr: _Track, t_ns: int) -> list[CrossingEvent]:
         if tr.warned:
             return []
         approach = self._approach(tr, t_ns)
         if approach is None:
             return []
-        ahead, eta, basis = approach
-        horizon_s = self.crossing.warning_time_s + self.s.report_period_s + self.s.latency_s
+        ahead, eta, basis, b = approach
+        horizon_s = self.horizon_s
         reason = ""
         if ahead <= 0:
             reason = "head at or past the crossing"
@@ -319,13 +427,46 @@ class CrossingController:
         elif eta <= horizon_s:
             extra = horizon_s - self.crossing.warning_time_s
             reason = f"ETA {eta:.0f} s ≤ {self.crossing.warning_time_s:g} s + {extra:.0f} s"
-            reason += f" (speed ≤ {self._speed(tr, t_ns):.1f} m/s, {self._speed_basis(tr)})"
+            how = self._speed_basis(tr) if not b.settled else "estimated from the fixes"
+            if b.settled and (tr.head if basis.endswith("head") else tr.eot) is not None:
+                last = tr.head if basis.endswith("head") else tr.eot
+                how = "reported" if last is not None and last.speed_basis == REPORTED else how
+            reason += f" (speed ≤ {b.speed_hi_mps:.1f} m/s, {how}; {b.ahead_m:.0f} m out)"
         if not reason:
             return []
         if basis != "head":
-            reason += " (head unit lost: EOT + train length)"
+            reason += " (head unit lost: EOT + train length)" if basis == "eot+length" else f" ({basis}: no fresh unit)"
         tr.warned, tr.t_on, tr.reason_on, tr.t_off, tr.reason_off = True, t_ns, reason, None, ""
+        tr.onset = self._onset(tr, t_ns, b, basis)
         return [self._emit(t_ns, tr, "on", reason)]
+
+    def _check_release(self, tr: _Track, fix: Fix) -> list[CrossingEvent]:
+        """Off before the head arrives, on a fresh head fix whose settled estimate proves the train
+        cannot arrive for a while yet (a train standing out of reach, or slower than first feared)."""
+        s = self.s
+        # A stale EOT does not hold a release back: whatever it would show is behind the head.
+        if not tr.warned or fix.role != HEAD or tr.direction == 0 or "head" in tr.alarms or not tr.kf_ok[HEAD]:
+            return []
+        b = tr.bounds[TRAIN] if tr.bounds[TRAIN] is not None and tr.bounds[TRAIN].settled else tr.bounds[HEAD]
+        if b is None or not b.settled or b.ahead_m <= s.guard_distance_m:
+            return []
+        clean_s = max(s.speed_window_s, 3 * s.report_period_s)
+        for role in (HEAD, EOT):
+            last_doubt = tr.doubt_ns[role]
+            if last_doubt is not None and fix.t_fix_ns - last_doubt < clean_s * NS:
+                return []  # a jump set aside lately is doubt
+        if tr.head_ev.rejected_since_last or tr.eot_ev.rejected_since_last:
+            return []
+        eta = (b.t_arrival_ns - fix.t_ns) / NS
+        if eta <= self.horizon_s + s.report_period_s + s.latency_s + s.release_hold_s:
+            return []
+        what = "train standing" if b.standing else "head"
+        reason = f"released: {what} {b.ahead_m:.0f} m out cannot arrive within {eta:.0f} s"
+        assert tr.t_on is not None
+        tr.releases.append((tr.t_on, fix.t_ns, reason))
+        tr.episodes.append((tr.t_on, fix.t_ns, tr.reason_on, reason))
+        tr.warned, tr.t_off, tr.reason_off = False, fix.t_ns, reason
+        return [self._emit(fix.t_ns, tr, "off", reason)]
 
     def _check_off(self, tr: _Track, fix: Fix, prev_eot: Report | None, rep: Report) -> list[CrossingEvent]:
         if not tr.warned or fix.role != EOT or tr.direction == 0:
@@ -378,6 +519,31 @@ class CrossingController:
             tr.alarms.discard("head")
         return out
 
+    def _filter(self, tr: _Track, fix: Fix, rep: Report, ev: DeviceEvidence) -> None:
+        """Feed the device's filter; a fix it sets aside (or a track started over) is doubt."""
+        kf = tr.kf[fix.role]
+        if rep.restarted:
+            kf.reset()
+            tr.doubt_ns[fix.role] = fix.t_fix_ns
+            if len(ev.history) > 1:  # the set-aside fix the new track began with
+                t0, ch0 = ev.history[0]
+                kf.offer(t0, ch0, math.nan, tr.direction)
+        ok = kf.offer(fix.t_fix_ns, fix.chainage_m, fix.speed_mps, tr.direction)
+        tr.kf_ok[fix.role] = ok
+        train = tr.kf[TRAIN]
+        if rep.restarted:
+            train.reset()
+        if fix.role == HEAD:
+            train.offer(fix.t_fix_ns, fix.chainage_m, fix.speed_mps, tr.direction)
+        elif tr.direction:
+            # The EOT rides a train's length behind the head: its fix is a head fix with the length's doubt.
+            at = fix.chainage_m + tr.direction * tr.spec.length_m
+            train.offer(fix.t_fix_ns, at, fix.speed_mps, tr.direction, self.s.length_sigma_m**2)
+        if not ok:
+            tr.doubt_ns[fix.role] = fix.t_fix_ns
+        elif fix.role == EOT:
+            tr.eot_kept = rep
+
     def step(self, fix: Fix) -> list[CrossingEvent]:
         """Process one received fix."""
         tr = self.tracks.get(fix.train)
@@ -388,10 +554,12 @@ class CrossingController:
             return self.tick(fix.t_ns)  # late or repeated packet: older than what we know
         ev = tr.head_ev if fix.role == HEAD else tr.eot_ev
         jumped_before = ev.rejected_since_last
+        prev_kept = tr.kf_ok[fix.role]
         rep = ev.offer(fix.t_fix_ns, fix.chainage_m, fix.speed_mps)
         aside = self.set_aside.setdefault((fix.train, fix.role), [])
         if rep is None:
             aside.append(fix.t_fix_ns)  # a position jump: the device is not refreshed by it
+            tr.doubt_ns[fix.role] = fix.t_fix_ns
             return self.tick(fix.t_ns)
         if rep.restarted and aside:
             aside.pop()  # the fix set aside before this one started the new track with it
@@ -403,9 +571,14 @@ class CrossingController:
         else:
             tr.eot = rep
         self._update_direction(tr, fix, ev)
-        # A jump set aside since the previous fix is doubt: that pair is no evidence for off.
-        prev_eot = prev if fix.role == EOT and not jumped_before else None
+        self._filter(tr, fix, rep, ev)
+        self._update_bounds(tr)
+        # A jump set aside since the previous fix is doubt: that pair is no evidence for off;
+        # nor is a fix the filter set aside, or one after such a fix.
+        kept = prev_kept and tr.kf_ok[fix.role]
+        prev_eot = prev if fix.role == EOT and not jumped_before and kept else None
         out = self._check_off(tr, fix, prev_eot, rep)
+        out += self._check_release(tr, fix)
         out += self._check_on(tr, fix.t_ns)
         out += self._alarms(tr, fix.t_ns)
         for other in self.tracks.values():
@@ -413,12 +586,27 @@ class CrossingController:
                 out += self._check_on(other, fix.t_ns) + self._alarms(other, fix.t_ns)
         return out
 
-    def settled_ns(self) -> int | None:
-        """When every device's last fix has gone stale (None: no fix yet). After that, until the
-        next fix, no estimate of a head exists (no warning by extrapolation), a head-unit alarm
-        needs a fresh EOT, and a stale-EOT alarm fires at the first tick: later ticks do nothing."""
+    def next_change_ns(self) -> int | None:
+        """After this time (until the next fix) no tick changes anything (None: no fix yet).
+
+        Ticks matter until every device's last fix has gone stale (alarms) and until every
+        train not warned has had its warning due (the earliest arrival, less the horizon):
+        after that no estimate can warn by extrapolation alone, a head-unit alarm needs a fresh
+        EOT, and a stale-EOT alarm fires at the first tick."""
         last = [r.t_fix_ns for tr in self.tracks.values() for r in (tr.head, tr.eot) if r is not None]
-        return max(last) + int(self.s.stale_after_s * NS) if last else None
+        if not last:
+            return None
+        t = max(last) + int(self.s.stale_after_s * NS)
+        horizon_ns = int(self.horizon_s * NS)
+        for tr in self.tracks.values():
+            if not tr.warned and not self._tail_past(tr):
+                due = [b.t_arrival_ns - horizon_ns for b in tr.bounds.values() if b is not None]
+                t = max(t, max(due, default=t))
+        return t
+
+    def settled_ns(self) -> int | None:
+        """When ticks stop mattering (:meth:`next_change_ns`); kept for callers that ask it so."""
+        return self.next_change_ns()
 
     def tick(self, t_ns: int) -> list[CrossingEvent]:
         """The passing of time: activation by extrapolation, stale-device alarms."""
@@ -433,13 +621,14 @@ def run_controller(
     trains: Sequence[TrainSpec],
     fixes: Sequence[Fix],
     settings: ControllerSettings | None = None,
-    tick_s: float = 1.0,
+    tick_s: float | None = None,
 ) -> CrossingController:
-    """Batch: feed fixes in reception order, ticking every ``tick_s`` between them."""
+    """Batch: feed fixes in reception order, ticking every ``tick_s`` (default: the settings') between them."""
     ctl = CrossingController(crossing, trains, settings)
     ordered = sorted(fixes, key=lambda f: f.t_ns)
     if not ordered:
         return ctl
+    tick_s = ctl.s.tick_s if tick_s is None else tick_s
     t = ordered[0].t_ns
     step = max(1, int(tick_s * NS))
     for f in ordered:
@@ -456,12 +645,12 @@ def run_controller(
 def _tick(ctl: CrossingController, t0_ns: int, n: int, step_ns: int) -> None:
     """``ctl.tick`` at ``t0 + k·step`` for k = 1..n, as a walk over every tick would give it.
 
-    Ticks stop one tick after every device has gone stale (:meth:`CrossingController.settled_ns`):
-    from then on a tick emits nothing and changes nothing until the next fix. So a fix dated
-    years after the one before it (a damaged year) costs the stale time's ticks, not one tick
-    per second of the years.
+    Ticks stop one tick after nothing a tick does can change until the next fix
+    (:meth:`CrossingController.next_change_ns`): every device gone stale and every
+    warning due.  So a fix dated years after the one before it (a damaged year) costs
+    the stale time's ticks, not one tick per second of the years.
     """
-    settled = ctl.settled_ns()
+    settled = ctl.next_change_ns()
     for k in range(1, n + 1):
         t = t0_ns + k * step_ns
         if settled is None or t > settled + 2 * step_ns:  # two ticks past it: the stale time is a float

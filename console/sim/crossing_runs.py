@@ -34,7 +34,7 @@ from console.analysis.crossing import (
     TrainSpec,
     run_controller,
 )
-from console.analysis.crossing_oracle import oracle_onset_ns
+from console.analysis.crossing_oracle import earliest_arrival_vec, oracle_onset_ns
 from console.analysis.geo import TrackProjector
 from console.layout import Layout, LevelCrossing
 
@@ -221,10 +221,25 @@ class Verdict:
     # The oracle (:mod:`console.analysis.crossing_oracle`): the unit's bounds on the true motion.
     oracle_lead_s: float | None = None  # truth head arrival − the oracle's onset (≥ the warning time)
     avoidable_s: float | None = None  # the oracle's onset − the controller's: warned this much early from doubt
+    fix_oracle_lead_s: float | None = None  # the same for an oracle that knows the truth at the fixes only
     paper_avoidable_s: float | None = None  # the same for the paper's rule d/v ≤ T at each head fix
     paper_late_by_s: float | None = None  # > 0: the paper's rule came this much short of the warning time
     released: int = 0  # warnings switched off before the head arrived (a train proven out of reach)
     released_on_s: float = 0.0  # how long those warnings had been on, in all
+
+    @property
+    def sparse_s(self) -> float | None:
+        """What the sparse fixes cost a perfect estimator: the fix-time oracle's lead − the oracle's."""
+        if self.fix_oracle_lead_s is None or self.oracle_lead_s is None:
+            return None
+        return self.fix_oracle_lead_s - self.oracle_lead_s
+
+    @property
+    def estimation_s(self) -> float | None:
+        """What the unit's estimate cost beyond that: its lead − the fix-time oracle's."""
+        if self.fix_oracle_lead_s is None or self.lead_s is None:
+            return None
+        return self.lead_s - self.fix_oracle_lead_s
 
     @property
     def physics_s(self) -> float | None:
@@ -249,6 +264,47 @@ def oracle_onset(truth: Truth, crossing: LevelCrossing, settings: ControllerSett
         settings.accel_mps2,
         settings.line_speed_mps,
     )
+
+
+def fix_oracle_onset(
+    truth: Truth, crossing: LevelCrossing, settings: ControllerSettings, fixes: list[Fix]
+) -> int | None:
+    """The best any unit could do with the fixes this run's unit received: it knows the true state
+    (position, speed) at each received fix's measurement time, exactly, and nothing between fixes.
+
+    Every fix bounds the arrival (measured at t_fix: t_fix + earliest arrival from the true state);
+    the unit's bound is the latest of those received so far, and the warning is on while that is
+    within the warning time.  The onset of the stretch that covers the head's arrival; None: the
+    head never arrived.  Beside the oracle's onset it separates what sparse fixes cost (they hide
+    an acceleration between two of them) from what the estimate costs.  It releases a warning as
+    the unit does, only when it cannot come on again before the next fix and a few seconds more."""
+    th = truth.t_head_arrival_ns
+    if th is None or truth.speed_mps is None:
+        return None
+    got = sorted((f for f in fixes if f.t_ns < th and f.train == "T1"), key=lambda f: f.t_ns)
+    if not got:
+        return None
+    ts = (truth.t_ns - truth.t_ns[0]) / NS
+    t_fix = np.array([(f.t_fix_ns - truth.t_ns[0]) / NS for f in got])
+    head = np.interp(t_fix, ts, truth.head_m)
+    speed = np.interp(t_fix, ts, truth.speed_mps)
+    near_edge = crossing.chainage_m - truth.direction * settings.crossing_half_width_m
+    eta = earliest_arrival_vec(
+        truth.direction * (near_edge - head), speed, settings.accel_mps2, settings.line_speed_mps
+    )
+    bound = np.maximum.accumulate(np.array([f.t_fix_ns for f in got]) + (eta * NS).astype(np.int64))
+    wt_ns = int(crossing.warning_time_s * NS)
+    # Released as the unit releases: only when it would not come on again before the next fix is in.
+    hold_ns = int((settings.release_hold_s + settings.report_period_s + settings.latency_s) * NS)
+    onset: int | None = None
+    for k, f in enumerate(got):  # per received fix of one run
+        end = got[k + 1].t_ns if k + 1 < len(got) else th
+        due = int(bound[k]) - wt_ns
+        if onset is not None and due > f.t_ns + hold_ns:
+            onset = None  # this fix proves the warning is not needed for a while yet: released
+        if onset is None and due < end:
+            onset = max(due, f.t_ns)
+    return onset
 
 
 def paper_onset(fixes: list[Fix], crossing: LevelCrossing, direction: int, t_arrival_ns: int) -> int | None:
@@ -310,7 +366,10 @@ def judge(
         (off - on) / NS for on, off in zip(ons, offs, strict=False) if th is not None and off <= th and on < off
     ]
     t_oracle = oracle_onset(truth, ctl.crossing, settings)
-    oracle_lead = avoidable = paper_avoidable = paper_late = None
+    oracle_lead = avoidable = paper_avoidable = paper_late = fix_lead = None
+    t_fix_oracle = fix_oracle_onset(truth, ctl.crossing, settings, fixes)
+    if th is not None and t_fix_oracle is not None:
+        fix_lead = (th - t_fix_oracle) / NS
     if th is not None and t_oracle is not None:
         oracle_lead = (th - t_oracle) / NS
         if t_on is not None:
@@ -333,6 +392,7 @@ def judge(
         ctl.position_jumps,
         oracle_lead,
         avoidable,
+        fix_lead,
         paper_avoidable,
         paper_late,
         len(released_on),
@@ -368,9 +428,13 @@ def random_conditions(rng: np.random.Generator, seed: int) -> RunConditions:
     )
 
 
+TUNE: dict[str, float] = {}  # settings under trial (benchmarks only)
+
+
 def one_run(layout: Layout, crossing: LevelCrossing, cond: RunConditions) -> Verdict:
     # The crossing unit knows the line (its speed, the trains' acceleration) and the radio's report period.
     settings = ControllerSettings(
+        **TUNE,  # type: ignore[arg-type]
         report_period_s=cond.period_s,
         latency_s=2 * cond.latency_s + 0.5,
         line_speed_mps=LINE_SPEED_MPS,
@@ -456,6 +520,10 @@ class SpareRow:
     median_s: float | None
     p95_s: float | None
     physics_median_s: float | None  # the oracle's own spare: what the bounds cost
+    sparse_median_s: float | None  # what sparse fixes cost an estimator that knew the truth at each fix
+    sparse_p95_s: float | None
+    estimation_median_s: float | None  # the rest: what the unit's estimate cost (avoidable − sparse)
+    estimation_p95_s: float | None
     paper_median_s: float | None  # the paper's rule d/v ≤ T, against the same oracle
     paper_late: int  # runs where the paper's rule warned short of the warning time
 
@@ -488,6 +556,8 @@ def spare_table(results: list[tuple[RunConditions, Verdict]]) -> list[SpareRow]:
     for case, vs in groups:
         xs = [r.avoidable_s for r in vs if r.avoidable_s is not None]
         ph = [p for r in vs if (p := r.physics_s) is not None]
+        sp = [p for r in vs if (p := r.sparse_s) is not None]
+        es = [p for r in vs if (p := r.estimation_s) is not None]
         pa = [r.paper_avoidable_s for r in vs if r.paper_avoidable_s is not None]
         rows.append(
             SpareRow(
@@ -496,6 +566,10 @@ def spare_table(results: list[tuple[RunConditions, Verdict]]) -> list[SpareRow]:
                 float(np.median(xs)) if xs else None,
                 float(np.percentile(xs, 95)) if xs else None,
                 float(np.median(ph)) if ph else None,
+                float(np.median(sp)) if sp else None,
+                float(np.percentile(sp, 95)) if sp else None,
+                float(np.median(es)) if es else None,
+                float(np.percentile(es, 95)) if es else None,
                 float(np.median(pa)) if pa else None,
                 sum(r.paper_late_by_s is not None for r in vs),
             )
