@@ -447,7 +447,9 @@ class CrossingController:
         # A stale EOT does not hold a release back: whatever it would show is behind the head.
         if not tr.warned or fix.role != HEAD or tr.direction == 0 or "head" in tr.alarms or not tr.kf_ok[HEAD]:
             return []
-        b = tr.bounds[TRAIN] if tr.bounds[TRAIN] is not None and tr.bounds[TRAIN].settled else tr.bounds[HEAD]
+        b = tr.bounds[TRAIN]
+        if b is None or not b.settled:
+            b = tr.bounds[HEAD]
         if b is None or not b.settled or b.ahead_m <= s.guard_distance_m:
             return []
         clean_s = max(s.speed_window_s, 3 * s.report_period_s)

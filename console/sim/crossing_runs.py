@@ -540,16 +540,23 @@ def spare_table(results: list[tuple[RunConditions, Verdict]]) -> list[SpareRow]:
 
     add("speed reported", lambda c: c.speed_reported)
     add("no speed", lambda c: not c.speed_reported)
+
+    def rate_is(rate: str, speed: bool | None = None) -> Callable[[RunConditions], bool]:
+        return lambda c: fix_rate(c) == rate and (speed is None or c.speed_reported == speed)
+
+    def scenario_is(sc: str, speed: bool | None = None) -> Callable[[RunConditions], bool]:
+        return lambda c: c.scenario == sc and (speed is None or c.speed_reported == speed)
+
     for rate in FIX_RATES:
-        add(f"fixes {rate}", lambda c, rate=rate: fix_rate(c) == rate)
+        add(f"fixes {rate}", rate_is(rate))
     for rate in FIX_RATES:
-        add(f"speed reported, fixes {rate}", lambda c, rate=rate: c.speed_reported and fix_rate(c) == rate)
+        add(f"speed reported, fixes {rate}", rate_is(rate, True))
     for rate in FIX_RATES:
-        add(f"no speed, fixes {rate}", lambda c, rate=rate: not c.speed_reported and fix_rate(c) == rate)
+        add(f"no speed, fixes {rate}", rate_is(rate, False))
     for sc in SCENARIOS:
-        add(f"scenario {sc}", lambda c, sc=sc: c.scenario == sc)
+        add(f"scenario {sc}", scenario_is(sc))
     for sc in SCENARIOS:
-        add(f"no speed, {sc}", lambda c, sc=sc: not c.speed_reported and c.scenario == sc)
+        add(f"no speed, {sc}", scenario_is(sc, False))
     add("with position jumps", lambda c: c.jump_rate > 0)
     add("a unit failed", lambda c: c.head_fails_at_s is not None or c.eot_fails_at_s is not None)
     rows = []
