@@ -180,7 +180,7 @@ class _Track:
     recent: dict[str, deque[Report]] = field(
         default_factory=lambda: {HEAD: deque(maxlen=RECENT_FIXES), EOT: deque(maxlen=RECENT_FIXES)}
     )
-    bounds: dict[str, ArrivalBound | None] = field(default_factory=lambda: {HEAD: None, EOT: None, TRAIN: None})
+    bounds: dict[str, ArrivalBound | None] = field(default_factory=dict)  # per source, since the last fix
     kf_ok: dict[str, bool] = field(default_factory=lambda: {HEAD: False, EOT: False})  # last fix taken by the filter
     doubt_ns: dict[str, int | None] = field(default_factory=lambda: {HEAD: None, EOT: None})  # last jump / set aside
     eot_kept: Report | None = None  # the last EOT fix the filter took (the tail-past test runs on it)
@@ -272,37 +272,39 @@ class CrossingController:
                 return text
         return "unknown: the most a train runs"
 
-    def _update_bounds(self, tr: _Track) -> None:
-        """Each device's earliest arrival of the head, from its evidence (on every fix of the train:
-        the direction and the other device's speed bound take part)."""
-        for role, extra in ((HEAD, 0.0), (EOT, tr.spec.length_m)):
-            last = tr.head if role == HEAD else tr.eot
-            if last is None:
-                tr.bounds[role] = None
-                continue
+    def _device_bound(self, tr: _Track, role: str) -> ArrivalBound | None:
+        """The head's earliest arrival from one source's evidence (head, EOT + length, the train's
+        filter); computed once after each fix of the train (the direction and the other device's
+        speed bound take part), then kept."""
+        if role in tr.bounds:
+            return tr.bounds[role]
+        last = tr.eot if role == EOT else tr.head
+        b = None
+        if last is not None:
             est = tr.kf[role].estimate
             cap = self._speed(tr, last.t_fix_ns)
-            tr.bounds[role] = device_bound(self.motion, est, tr.recent[role], tr.direction, extra, cap)
-        if tr.head is not None:
-            est = tr.kf[TRAIN].estimate
-            cap = self._speed(tr, tr.head.t_fix_ns)
-            tr.bounds[TRAIN] = device_bound(self.motion, est, tr.recent[HEAD], tr.direction, 0.0, cap)
+            extra = tr.spec.length_m if role == EOT else 0.0
+            b = device_bound(self.motion, est, tr.recent[EOT if role == EOT else HEAD], tr.direction, extra, cap)
+        tr.bounds[role] = b
+        return b
 
     def _bound(self, tr: _Track, t_ns: int) -> tuple[ArrivalBound, str] | None:
         """The bound that counts now: the head unit's while it is fresh, else the EOT's plus the
         train's length, else (every unit stale) the one heard last: the train is not forgotten."""
-        if self._fresh(tr.head, t_ns) and tr.bounds[HEAD] is not None:
-            tb = tr.bounds[TRAIN]
+        if self._fresh(tr.head, t_ns):
+            tb = self._device_bound(tr, TRAIN)
             if tb is not None and tb.settled:
                 return tb, "head"
-            return tr.bounds[HEAD], "head"  # type: ignore[return-value]
-        if self._fresh(tr.eot, t_ns) and tr.bounds[EOT] is not None:
-            return tr.bounds[EOT], "eot+length"  # type: ignore[return-value]
+            hb = self._device_bound(tr, HEAD)
+            if hb is not None:
+                return hb, "head"
+        if self._fresh(tr.eot, t_ns) and (eb := self._device_bound(tr, EOT)) is not None:
+            return eb, "eot+length"
         heard = [(r.t_fix_ns, role) for role, r in ((HEAD, tr.head), (EOT, tr.eot)) if r is not None]
         if not heard:
             return None
         role = max(heard)[1]
-        b = tr.bounds[role]
+        b = self._device_bound(tr, role)
         return (b, "stale " + ("head" if role == HEAD else "eot+length")) if b is not None else None
 
     def _update_direction(self, tr: _Track, fix: Fix, ev: DeviceEvidence) -> None:
@@ -407,7 +409,7 @@ class CrossingController:
             add(JUMPS if jumped else NO_SPEED if no_speed else SPARSE, fallback)
         if basis != "head":
             # The head unit lost: all of it, or what the EOT's length and its age added, is the stale units'.
-            head_b = tr.bounds[HEAD]
+            head_b = self._device_bound(tr, HEAD)
             add(STALE, (head_b.t_arrival_ns - b.t_arrival_ns) / NS if head_b is not None else 0.0)
         return Onset(t_ns, eta, nominal, doubt)
 
@@ -447,9 +449,9 @@ class CrossingController:
         # A stale EOT does not hold a release back: whatever it would show is behind the head.
         if not tr.warned or fix.role != HEAD or tr.direction == 0 or "head" in tr.alarms or not tr.kf_ok[HEAD]:
             return []
-        b = tr.bounds[TRAIN]
+        b = self._device_bound(tr, TRAIN)
         if b is None or not b.settled:
-            b = tr.bounds[HEAD]
+            b = self._device_bound(tr, HEAD)
         if b is None or not b.settled or b.ahead_m <= s.guard_distance_m:
             return []
         clean_s = max(s.speed_window_s, 3 * s.report_period_s)
@@ -574,7 +576,7 @@ class CrossingController:
             tr.eot = rep
         self._update_direction(tr, fix, ev)
         self._filter(tr, fix, rep, ev)
-        self._update_bounds(tr)
+        tr.bounds.clear()  # recomputed as they are asked for
         # A jump set aside since the previous fix is doubt: that pair is no evidence for off;
         # nor is a fix the filter set aside, or one after such a fix.
         kept = prev_kept and tr.kf_ok[fix.role]
@@ -602,7 +604,9 @@ class CrossingController:
         horizon_ns = int(self.horizon_s * NS)
         for tr in self.tracks.values():
             if not tr.warned and not self._tail_past(tr):
-                due = [b.t_arrival_ns - horizon_ns for b in tr.bounds.values() if b is not None]
+                due = [
+                    b.t_arrival_ns - horizon_ns for role in (HEAD, EOT, TRAIN) if (b := self._device_bound(tr, role))
+                ]
                 t = max(t, max(due, default=t))
         return t
 
@@ -652,6 +656,8 @@ def _tick(ctl: CrossingController, t0_ns: int, n: int, step_ns: int) -> None:
     warning due.  So a fix dated years after the one before it (a damaged year) costs
     the stale time's ticks, not one tick per second of the years.
     """
+    if n < 1:
+        return
     settled = ctl.next_change_ns()
     for k in range(1, n + 1):
         t = t0_ns + k * step_ns
