@@ -307,33 +307,41 @@ class CrossingController:
         b = self._device_bound(tr, role)
         return (b, "stale " + ("head" if role == HEAD else "eot+length")) if b is not None else None
 
-    def _update_direction(self, tr: _Track, fix: Fix, ev: DeviceEvidence) -> None:
-        """Direction of travel from the best evidence at hand; kept when there is none.
+    def _update_direction(self, tr: _Track, fix: Fix) -> None:
+        """Direction of travel from evidence one wild fix cannot fake; kept when there is none.
 
-        1. the same device moved by more than the noise over its recent fixes (medians; a
-           known direction is reversed on the medians of three and three fixes only);
-        2. the fix's course against the track's bearing;
-        3. the head ahead of the EOT, only when both fixes are recent together
-           (a stale head report must not set the direction), and only while the
-           direction is unknown: a short train's head fix some seconds older than
-           its EOT fix can lie behind it, and a reversed direction reads an EOT
-           still on the road as past it.
+        The witnesses, each +1, −1 or silent:
+
+        * the fix's course against the track's bearing (a receiver's course over ground at
+          speed: a measurement of the direction, it counts twice);
+        * each device's filter, settled, its speed clear of zero by k·σ and 2 m/s (its gate
+          sets jumps aside; the model overshoots a little below zero when a train stops dead);
+        * each device's own fixes: the median of the three oldest in the window against the
+          median of the three newest.
+
+        An unknown direction is set by any witness no other contradicts; a known one is
+        reversed by two that agree with none against.  Witnesses that disagree make the
+        direction unknown: a wrong direction reads a train approaching as one whose tail is
+        past the crossing (ignored, or its warning ended), an unknown one is treated as
+        approaching from the nearer side.  Two fixes alone, or the head ahead of the EOT, are
+        no witness: fixes some seconds apart on a fast train put the EOT ahead of an older
+        head fix.
         """
+        votes = [fix.direction_hint, fix.direction_hint] if fix.direction_hint else []
+        for role, ev in ((HEAD, tr.head_ev), (EOT, tr.eot_ev)):
+            est = tr.kf[role].estimate
+            if est is not None and est.settled and abs(est.speed_mps) > est.k_sigma * est.sigma_speed_mps + 2.0:
+                votes.append(1 if est.speed_mps > 0 else -1)
+            if moved := ev.direction(medians_only=True):
+                votes.append(moved)
+        up, down = votes.count(1), votes.count(-1)
         before = tr.direction
-        moved = ev.direction()
-        if moved and before and moved != before:
-            # Reversing a known direction takes the medians of several fixes: two fixes, one of
-            # them a jump that looked plausible after a long gap, must not turn the train round.
-            moved = ev.direction(medians_only=True)
-        if moved:
-            tr.direction = moved
-        elif fix.direction_hint:
-            tr.direction = fix.direction_hint
-        elif tr.head is not None and tr.eot is not None and not tr.direction:
-            together = abs(tr.head.t_fix_ns - tr.eot.t_fix_ns) <= 2 * self.s.report_period_s * NS
-            apart = abs(tr.head.chainage_m - tr.eot.chainage_m) > 0.5 * tr.spec.length_m
-            if together and apart:
-                tr.direction = 1 if tr.head.chainage_m > tr.eot.chainage_m else -1
+        if up and down:
+            tr.direction = 0
+        elif up or down:
+            d, w = (1, up) if up else (-1, down)
+            if not before or (d != before and w >= 2):
+                tr.direction = d
         if tr.direction != before:
             tr.direction_set_ns = fix.t_fix_ns
 
@@ -534,19 +542,22 @@ class CrossingController:
                 kf.offer(t0, ch0, math.nan, tr.direction)
         ok = kf.offer(fix.t_fix_ns, fix.chainage_m, fix.speed_mps, tr.direction)
         tr.kf_ok[fix.role] = ok
+        if not ok:
+            tr.doubt_ns[fix.role] = fix.t_fix_ns
+        elif fix.role == EOT:
+            tr.eot_kept = rep
+
+    def _filter_train(self, tr: _Track, fix: Fix, rep: Report) -> None:
+        """The head's motion from both units: the EOT rides a train's length behind the head, so its
+        fix is a head fix with the length's doubt added (only with the direction known)."""
         train = tr.kf[TRAIN]
         if rep.restarted:
             train.reset()
         if fix.role == HEAD:
             train.offer(fix.t_fix_ns, fix.chainage_m, fix.speed_mps, tr.direction)
         elif tr.direction:
-            # The EOT rides a train's length behind the head: its fix is a head fix with the length's doubt.
             at = fix.chainage_m + tr.direction * tr.spec.length_m
             train.offer(fix.t_fix_ns, at, fix.speed_mps, tr.direction, self.s.length_sigma_m**2)
-        if not ok:
-            tr.doubt_ns[fix.role] = fix.t_fix_ns
-        elif fix.role == EOT:
-            tr.eot_kept = rep
 
     def step(self, fix: Fix) -> list[CrossingEvent]:
         """Process one received fix."""
@@ -574,8 +585,9 @@ class CrossingController:
             tr.head = rep
         else:
             tr.eot = rep
-        self._update_direction(tr, fix, ev)
         self._filter(tr, fix, rep, ev)
+        self._update_direction(tr, fix)
+        self._filter_train(tr, fix, rep)
         tr.bounds.clear()  # recomputed as they are asked for
         # A jump set aside since the previous fix is doubt: that pair is no evidence for off;
         # nor is a fix the filter set aside, or one after such a fix.

@@ -198,8 +198,9 @@ class MotionFilter:
         if direction and not math.isnan(speed_mps):
             rv = lim.speed_sigma_mps**2
             nu_v = direction * speed_mps - x[1]
-            # A speed far from what the positions say (a frozen 0.0 on a moving train) is not used.
-            if nu_v * nu_v <= lim.gate_sigma**2 * (P[3] + rv):
+            # A speed far from what the positions say (a frozen 0.0 on a moving train) is not used;
+            # 2 m/s of slack: the model overshoots when a braking train stops dead.
+            if abs(nu_v) <= lim.gate_sigma * math.sqrt(P[3] + rv) + 2.0:
                 x, P = update_speed(x, P, direction * speed_mps, rv)
         self.x, self.P, self.t_ns = x, P, t_ns
         self.fixes += 1
