@@ -36,8 +36,8 @@ travel.
   fresh head unit proves the head cannot arrive within the warning time for a
   while yet (one report period, the latency and ``release_hold_s`` beyond
   it: the next fix is in before it could come on again, no flicker), with no
-  jump set aside lately, no head-unit alarm and the direction known: a train
-  proven standing 2 km out does not hold the road closed.  It comes on again by the same rule as any warning: from a
+  jump set aside lately and no head-unit alarm: a train proven standing 2 km
+  out does not hold the road closed.  It comes on again by the same rule as any warning: from a
   standstill the head cannot arrive sooner than √(2d/a).
 * **Model-free bounds** (:mod:`console.analysis.crossing_evidence`): the
   device's reported speed, or, when the export has none, an upper bound
@@ -376,6 +376,14 @@ class CrossingController:
         b, basis = got
         return b.ahead_m, max(0.0, (b.t_arrival_ns - t_ns) / NS), basis, b
 
+    def arrival_bound(self, train: str, t_ns: int) -> tuple[ArrivalBound, str] | None:
+        """The bound on a train's arrival the unit acts on at ``t_ns``, and its basis (head,
+        eot+length, stale …); None: no fix of the train yet, or its tail is past the crossing."""
+        tr = self.tracks.get(train)
+        if tr is None or self._tail_past(tr):
+            return None
+        return self._bound(tr, t_ns)
+
     def arrival_s(self, t_ns: int) -> float | None:
         """Earliest arrival of the nearest head still approaching, as this unit estimates it (s)."""
         etas = [a[1] for tr in self.tracks.values() if (a := self._approach(tr, t_ns)) is not None and a[0] > 0]
@@ -455,7 +463,8 @@ class CrossingController:
         cannot arrive for a while yet (a train standing out of reach, or slower than first feared)."""
         s = self.s
         # A stale EOT does not hold a release back: whatever it would show is behind the head.
-        if not tr.warned or fix.role != HEAD or tr.direction == 0 or "head" in tr.alarms or not tr.kf_ok[HEAD]:
+        # Direction unknown, the bound is the nearer way round (it holds whichever way the train goes).
+        if not tr.warned or fix.role != HEAD or "head" in tr.alarms or not tr.kf_ok[HEAD]:
             return []
         b = self._device_bound(tr, TRAIN)
         if b is None or not b.settled:
@@ -472,7 +481,7 @@ class CrossingController:
         eta = (b.t_arrival_ns - fix.t_ns) / NS
         if eta <= self.horizon_s + s.report_period_s + s.latency_s + s.release_hold_s:
             return []
-        what = "train standing" if b.standing else "head"
+        what = "train standing" if b.standing else f"head at most {b.speed_hi_mps:.1f} m/s"
         reason = f"released: {what} {b.ahead_m:.0f} m out cannot arrive within {eta:.0f} s"
         assert tr.t_on is not None
         tr.releases.append((tr.t_on, fix.t_ns, reason))
@@ -654,8 +663,9 @@ def run_controller(
             _tick(ctl, t, (f.t_ns - t - 1) // step, step)  # every tick before the fix
         ctl.step(f)
         t = f.t_ns
-    # A live unit keeps its clock running: let pending stale-device alarms fire.
-    end = t + int((ctl.s.stale_after_s + tick_s) * NS)
+    # A live unit keeps its clock running: let pending stale-device alarms fire, and the warning
+    # for a train last heard approaching come on when it could be near (it is not forgotten).
+    end = max(t + int((ctl.s.stale_after_s + tick_s) * NS), (ctl.next_change_ns() or t) + 2 * step)
     _tick(ctl, t, -(-(end - t) // step), step)
     return ctl
 
