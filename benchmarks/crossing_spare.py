@@ -88,6 +88,7 @@ def main() -> None:
         "median_avoidable_spare_s",
         "p95_avoidable_spare_s",
         "median_physics_spare_s",
+        "median_abs_error_hindsight_physics_s",
         "runs_released",
         "median_released_on_s",
         "median_excess_s",

@@ -38,7 +38,7 @@ def crossing(
     def body() -> int:
         from console.analysis.crossing_batch import parse_train_option, run_crossings
         from console.analysis.timefmt import iso
-        from console.render.crossing_tables import reasons_view, timeline_table, violations_view
+        from console.render.crossing_tables import reasons_view, spare_view, timeline_table, violations_view
         from parsers.gnss import parse_gnss
 
         check_inputs(files)
@@ -102,6 +102,8 @@ def crossing(
                 out.print(v)
             out.print(timeline_table(run.timelines))
             out.print(reasons_view(run.timelines, run.events))
+            if (sv := spare_view(run.timelines)) is not None:
+                out.print(sv)
             for w in warnings:
                 out.print(f"warning: {clean(w)}", markup=False)  # names from the input: escaped
             if report.rejected:

@@ -35,6 +35,7 @@ from console.analysis.crossing import (
     run_controller,
 )
 from console.analysis.crossing_oracle import earliest_arrival_vec, oracle_onset_ns
+from console.analysis.crossing_timeline import timeline
 from console.analysis.geo import TrackProjector
 from console.layout import Layout, LevelCrossing
 
@@ -226,6 +227,9 @@ class Verdict:
     paper_late_by_s: float | None = None  # > 0: the paper's rule came this much short of the warning time
     released: int = 0  # warnings switched off before the head arrived (a train proven out of reach)
     released_on_s: float = 0.0  # how long those warnings had been on, in all
+    # What `trackside crossing` shows for this warning, judged from the fixes alone (no truth):
+    hindsight_physics_s: float | None = None
+    hindsight_doubt_s: dict[str, float] | None = None
 
     @property
     def sparse_s(self) -> float | None:
@@ -379,6 +383,8 @@ def judge(
             paper_avoidable = (t_oracle - t_paper) / NS
         paper_lead = (th - t_paper) / NS if t_paper is not None else 0.0
         paper_late = wt - paper_lead if paper_lead < wt else None
+    row = next(iter(timeline(ctl, fixes, settings)), None)
+    hind = row.spare if row is not None else None
     return Verdict(
         violation,
         lead,
@@ -397,6 +403,8 @@ def judge(
         paper_late,
         len(released_on),
         float(sum(released_on)),
+        hind.physics_s if hind is not None else None,
+        dict(hind.doubt_s) if hind is not None else None,
     )
 
 
@@ -465,6 +473,7 @@ def summary(results: list[tuple[RunConditions, Verdict]]) -> dict[str, float | i
     periods = [c.period_s for c, r in results if r.excess_s is not None]
     early = [r.baseline_early_s for r in v if r.baseline_early_s is not None]
     within = [e <= p + 5 for e, p in zip(excess, periods, strict=True)]
+    err = [abs(h - t) for r in v if (h := r.hindsight_physics_s) is not None and (t := r.physics_s) is not None]
     return {
         "runs": len(v),
         "runs_without_speed": sum(not c.speed_reported for c in conds),
@@ -492,6 +501,7 @@ def summary(results: list[tuple[RunConditions, Verdict]]) -> dict[str, float | i
         **_spare_stats([r.physics_s for r in v], "physics"),
         "runs_released": sum(r.released > 0 for r in v),
         "median_released_on_s": float(np.median(rel)) if (rel := [r.released_on_s for r in v if r.released]) else None,
+        "median_abs_error_hindsight_physics_s": float(np.median(err)) if err else None,
         "min_oracle_lead_minus_warning_time_s": min(p, default=None)
         if (p := [x for r in v if (x := r.physics_s) is not None])
         else None,
