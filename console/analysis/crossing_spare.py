@@ -26,8 +26,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.common import Q_continuous_white_noise
-from filterpy.kalman import rts_smoother
 
 from console.analysis.crossing_estimate import Cov, State, predict_ca, update_position, update_speed
 from console.analysis.crossing_oracle import oracle_onset_ns
@@ -63,6 +61,10 @@ def smoothed_motion(
     """(chainage, speed along ``direction``) at ``times_ns`` (ascending, the fixes' own), smoothed
     with every fix before and after: forward filter, then the RTS smoother.  Reported speeds
     (not NaN) are used with the direction known.  None for fewer than two fixes."""
+    # filterpy pulls in scipy: deferred, so the live units start fast (they never smooth).
+    from filterpy.common import Q_continuous_white_noise
+    from filterpy.kalman import rts_smoother
+
     n = len(times_ns)
     if n < 2:
         return None
