@@ -135,7 +135,7 @@ class ControllerSettings:
     settle_fixes: int = 2  # fixes in a row inside the filter's prediction before its estimate alone counts
     # A warning is released only if, by the bound, it would not come on again before the next
     # fix is in (one report period and the latency) and for this long after: no flicker.
-    release_hold_s: float = 5.0
+    release_hold_s: float = 10.0
     length_sigma_m: float = 5.0  # how well the train's length is known (the EOT as a witness of the head)
 
 
@@ -214,7 +214,14 @@ class CrossingController:
 
     def _new_track(self, spec: TrainSpec) -> _Track:
         s = self.s
-        lim = EvidenceLimits(s.noise_m, s.accel_mps2, s.jump_accel_mps2, s.max_speed_mps, s.speed_window_s)
+        lim = EvidenceLimits(
+            s.noise_m,
+            s.accel_mps2,
+            s.jump_accel_mps2,
+            s.max_speed_mps,
+            s.speed_window_s,
+            speed_error_mps=s.k_sigma * s.speed_sigma_mps,  # the same bound on a reported speed as the filter's
+        )
         flim = FilterLimits(
             s.noise_m / 3.0,
             s.speed_sigma_mps,
@@ -254,16 +261,39 @@ class CrossingController:
         return r is not None and (t_ns - r.t_fix_ns) <= self.s.stale_after_s * NS
 
     def _speed(self, tr: _Track, t_ns: int) -> float:
-        """The fastest the train may be running now (m/s) by the model-free bounds: reported speeds
-        where the devices give them, else the tightest bound the positions prove; unknown is the
-        worst case."""
-        reps = [r for r in (tr.head, tr.eot) if r is not None]
-        fresh = [r for r in reps if self._fresh(r, t_ns)] or reps
-        reported = [r.speed_hi_mps for r in fresh if r.speed_basis == REPORTED]
+        """The fastest the train may be running at ``t_ns`` (m/s) by the model-free bounds: reported
+        speeds where the devices give them, else the tightest bound the positions prove; unknown is
+        the worst case.  Per device the largest of its last few fixes' bounds, each moved on to
+        ``t_ns`` (it may have accelerated since): one fix that jumped back and seemed to prove a
+        slow train cannot lower it."""
+        s = self.s
+        per_device = []
+        for role, r in ((HEAD, tr.head), (EOT, tr.eot)):
+            if r is None or not (self._fresh(r, t_ns) or not any(self._fresh(q, t_ns) for q in (tr.head, tr.eot))):
+                continue
+            hi = max(q.speed_hi_mps + s.accel_mps2 * max(0.0, (t_ns - q.t_fix_ns) / NS) for q in tr.recent[role])
+            per_device.append((r.speed_basis == REPORTED, hi))
+        reported = [hi for rep, hi in per_device if rep]
         if reported:
             return max(reported)
         # Head and EOT ride one train: each bound holds for both, the smaller is the better.
-        return min((r.speed_hi_mps for r in fresh), default=self.s.max_speed_mps)
+        best = min((hi for _rep, hi in per_device), default=s.max_speed_mps)
+        return min(best, self._witness_speed(tr))
+
+    def _witness_speed(self, tr: _Track) -> float:
+        """The EOT as a second witness of the head: a head fix and an EOT fix taken at different
+        times are two positions of the head (the EOT one a length behind it, the length known to
+        ``3 · length_sigma_m``), so they bound the speed as two fixes of one device do, before
+        either device has a second fix.  Direction unknown: the head could be a length either way.
+        Holds at either fix's time (it may have braked since the first or accelerated since)."""
+        h, e, s = tr.head, tr.eot, self.s
+        if h is None or e is None or h.t_fix_ns == e.t_fix_ns:
+            return math.inf
+        dt = abs(h.t_fix_ns - e.t_fix_ns) / NS
+        d, length = tr.direction, tr.spec.length_m
+        gap = abs(h.chainage_m - e.chainage_m - d * length) if d else abs(h.chainage_m - e.chainage_m) + length
+        run_m = gap + s.noise_m * 2 + 3 * s.length_sigma_m
+        return run_m / dt + max(s.accel_mps2, s.jump_accel_mps2) * dt / 2
 
     def _speed_basis(self, tr: _Track) -> str:
         bases = {r.speed_basis for r in (tr.head, tr.eot) if r is not None}
@@ -479,7 +509,11 @@ class CrossingController:
         if tr.head_ev.rejected_since_last or tr.eot_ev.rejected_since_last:
             return []
         eta = (b.t_arrival_ns - fix.t_ns) / NS
-        if eta <= self.horizon_s + s.report_period_s + s.latency_s + s.release_hold_s:
+        # The next fix of either unit is due one report period after its last, plus the latency:
+        # until then nothing can renew the bound, so it must not come due before that.
+        fresh = [r.t_fix_ns for r in (tr.head, tr.eot) if r is not None and self._fresh(r, fix.t_ns)]
+        next_fix_s = (min(fresh) - fix.t_ns) / NS + s.report_period_s + s.latency_s
+        if eta <= self.horizon_s + max(0.0, next_fix_s) + s.release_hold_s:
             return []
         what = "train standing" if b.standing else f"head at most {b.speed_hi_mps:.1f} m/s"
         reason = f"released: {what} {b.ahead_m:.0f} m out cannot arrive within {eta:.0f} s"

@@ -227,6 +227,7 @@ class Verdict:
     paper_late_by_s: float | None = None  # > 0: the paper's rule came this much short of the warning time
     released: int = 0  # warnings switched off before the head arrived (a train proven out of reach)
     released_on_s: float = 0.0  # how long those warnings had been on, in all
+    min_open_s: float | None = None  # the shortest a released road stayed open before the warning came back
     # What `trackside crossing` shows for this warning, judged from the fixes alone (no truth):
     hindsight_physics_s: float | None = None
     hindsight_doubt_s: dict[str, float] | None = None
@@ -369,6 +370,9 @@ def judge(
     released_on = [
         (off - on) / NS for on, off in zip(ons, offs, strict=False) if th is not None and off <= th and on < off
     ]
+    gaps = [
+        (min((on for on in ons if on > off), default=th) - off) / NS for off in offs if th is not None and off <= th
+    ]
     t_oracle = oracle_onset(truth, ctl.crossing, settings)
     oracle_lead = avoidable = paper_avoidable = paper_late = fix_lead = None
     t_fix_oracle = fix_oracle_onset(truth, ctl.crossing, settings, fixes)
@@ -403,6 +407,7 @@ def judge(
         paper_late,
         len(released_on),
         float(sum(released_on)),
+        float(min(gaps)) if gaps else None,
         hind.physics_s if hind is not None else None,
         dict(hind.doubt_s) if hind is not None else None,
     )
@@ -500,6 +505,7 @@ def summary(results: list[tuple[RunConditions, Verdict]]) -> dict[str, float | i
         **_spare_stats([r.avoidable_s for r in v], "avoidable"),
         **_spare_stats([r.physics_s for r in v], "physics"),
         "runs_released": sum(r.released > 0 for r in v),
+        "runs_reopened_under_15s": sum(r.min_open_s is not None and r.min_open_s < 15 for r in v),
         "median_released_on_s": float(np.median(rel)) if (rel := [r.released_on_s for r in v if r.released]) else None,
         "median_abs_error_hindsight_physics_s": float(np.median(err)) if err else None,
         "min_oracle_lead_minus_warning_time_s": min(p, default=None)
