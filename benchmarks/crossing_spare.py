@@ -91,7 +91,7 @@ def main() -> None:
         "median_abs_error_hindsight_physics_s",
         "runs_released",
         "median_released_on_s",
-        "runs_reopened_under_15s",
+        "runs_reopened_under_10s",
         "median_excess_s",
         "p95_excess_s",
         "baseline_early_runs",

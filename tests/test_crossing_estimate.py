@@ -4,7 +4,7 @@
 * Over randomized runs of the harness (console/sim/crossing_runs.py), the bound the unit acts on
   after each fix is not below the true speed, and does not put the head further from the road
   than it is, on ≥ 99.9 % of fixes.  CI runs a quarter of ``TRACKSIDE_CROSSING_RUNS`` (default
-  400); the full sweep: ``TRACKSIDE_CROSSING_RUNS=3000 python -m pytest tests/test_crossing_estimate.py``.
+  300); the full sweep: ``TRACKSIDE_CROSSING_RUNS=3000 python -m pytest tests/test_crossing_estimate.py``.
 * Standstill: a train proven standing beyond reach releases the road, comes back in time when it
   leaves; one standing within reach keeps it closed; a unit that falls silent warns again by the
   time a train standing there could arrive (√(2d/a) from a standstill).
@@ -33,7 +33,7 @@ NS = 10**9
 LAYOUT = load_layout("example")
 CROSSING = LAYOUT.crossings[0]  # 11+850, 70 s
 C = CROSSING.chainage_m
-RUNS = max(40, int(os.environ.get("TRACKSIDE_CROSSING_RUNS", "400")) // 4)
+RUNS = max(40, int(os.environ.get("TRACKSIDE_CROSSING_RUNS", "300")) // 4)
 
 
 def _cov(p: tuple[float, ...]) -> np.ndarray:

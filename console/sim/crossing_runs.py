@@ -505,7 +505,7 @@ def summary(results: list[tuple[RunConditions, Verdict]]) -> dict[str, float | i
         **_spare_stats([r.avoidable_s for r in v], "avoidable"),
         **_spare_stats([r.physics_s for r in v], "physics"),
         "runs_released": sum(r.released > 0 for r in v),
-        "runs_reopened_under_15s": sum(r.min_open_s is not None and r.min_open_s < 15 for r in v),
+        "runs_reopened_under_10s": sum(r.min_open_s is not None and r.min_open_s < 10 for r in v),
         "median_released_on_s": float(np.median(rel)) if (rel := [r.released_on_s for r in v if r.released]) else None,
         "median_abs_error_hindsight_physics_s": float(np.median(err)) if err else None,
         "min_oracle_lead_minus_warning_time_s": min(p, default=None)
