@@ -17,8 +17,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from console.analysis.diagnostics import SpeedSettings  # noqa: E402
-from console.jobs import analyze_files  # noqa: E402
+from console.drivers.batch import ReadOptions, read_diag  # noqa: E402
+from console.engine.pipeline import PipelineSettings  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -29,7 +29,7 @@ def main(argv: list[str] | None = None) -> int:
     truth = json.loads(a.truth.read_text(encoding="utf-8"))
     res_of = {h: b["resolution"] for b in truth["boards"] for h in b["heads"]}
     t0 = time.perf_counter()
-    job = analyze_files(a.logs, SpeedSettings())
+    job = read_diag(a.logs, PipelineSettings(), opts=ReadOptions(hold_passages=True))
     elapsed = time.perf_counter() - t0
     counted: Counter[str] = Counter()
     trains: Counter[str] = Counter()

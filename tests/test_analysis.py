@@ -11,14 +11,14 @@ from benchmarks.gen_diag_log import generate
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.speed import axle_kmh, per_second_method_kmh, whole_train_kmh
 from console.analysis.wheels import PairingSettings, pair_axles
-from console.jobs import analyze_files
 from tests.conftest import record
+from tests.reads import whole_job
 
 
 def _analyze(tmp_path: Path, lines: list[str], **settings: float) -> list[dict]:
     p = tmp_path / "log.txt"
     p.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return analyze_files([p], SpeedSettings(**settings)).analysis.passages_json()  # type: ignore[arg-type]
+    return whole_job([p], SpeedSettings(**settings)).analysis.passages_json()  # type: ignore[arg-type]
 
 
 def test_speed_formulas() -> None:
@@ -119,7 +119,7 @@ def test_overlapping_exports_count_once(tmp_path: Path) -> None:
     a, b = tmp_path / "a.log", tmp_path / "b.log"
     a.write_text("\n".join(record(time=f"09:00:0{i}") for i in range(4)) + "\n", encoding="utf-8")
     b.write_text("\n".join(record(time=f"09:00:0{i}") for i in range(2, 6)) + "\n", encoding="utf-8")
-    job = analyze_files([a, b], SpeedSettings())
+    job = whole_job([a, b], SpeedSettings())
     (p,) = job.analysis.passages_json()
     assert p["records"] == 6 and job.analysis.overlap_records == 2
     assert job.report.records == 8  # the parser still accounts for every line
@@ -129,7 +129,7 @@ def test_generated_log_round_trip(tmp_path: Path) -> None:
     """benchmarks/gen_diag_log.py: every record parses; each train is found at every head."""
     path = tmp_path / "gen.log"
     n = generate(5000, path, seed=7)
-    job = analyze_files([path], SpeedSettings())
+    job = whole_job([path], SpeedSettings())
     assert job.report.records == n and job.report.rejected == 0
     ps = job.analysis.passages_json()
     assert len(ps) % 4 == 0 and len(ps) >= 4

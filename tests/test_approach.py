@@ -12,8 +12,8 @@ from console.analysis.approach import approach_timeline
 from console.analysis.crossing import earliest_arrival_s
 from console.analysis.diagnostics import SpeedSettings
 from console.cli import app
-from console.jobs import analyze_files
 from console.layout import WorkSite, load_layout
+from tests.reads import whole_job
 
 
 def test_earliest_arrival_with_and_without_acceleration() -> None:
@@ -26,7 +26,7 @@ def test_earliest_arrival_with_and_without_acceleration() -> None:
 
 def test_speed_based_alarm_gives_the_warning_time_and_saves_the_rest(samples: Path) -> None:
     lay = load_layout("osong")  # switch works 150 m up the line from WS4, 20 s warning, 20 km/h limit
-    job = analyze_files([samples / "ws4_subsecond.log"], SpeedSettings())
+    job = whole_job([samples / "ws4_subsecond.log"], SpeedSettings())
     (row,) = approach_timeline(job.analysis.passages, lay, lay.work_sites[0])
     # The up tram, 8 axles at 16.1-18.0 km/h (mean 17.05): 150 m at 4.74 m/s is 31.7 s.
     assert row.speed_kmh == pytest.approx(17.05, abs=0.01) and row.lead_fixed_s == pytest.approx(31.68, abs=0.05)
@@ -37,7 +37,7 @@ def test_speed_based_alarm_gives_the_warning_time_and_saves_the_rest(samples: Pa
 
 def test_trains_running_away_from_the_site_do_not_alarm(samples: Path) -> None:
     lay = load_layout("osong")
-    job = analyze_files([samples / "ws4_subsecond.log"], SpeedSettings())
+    job = whole_job([samples / "ws4_subsecond.log"], SpeedSettings())
     down_site = WorkSite("behind", "WS4", -150.0, 20.0)
     rows = approach_timeline(job.analysis.passages, lay, down_site)
     assert [r.t_detect_ns for r in rows] == [int(job.analysis.passages.iloc[2]["start_ns"])]  # the down tram only
@@ -45,7 +45,7 @@ def test_trains_running_away_from_the_site_do_not_alarm(samples: Path) -> None:
 
 def test_a_site_too_close_for_the_warning_time_is_flagged(samples: Path) -> None:
     lay = load_layout("osong")
-    job = analyze_files([samples / "ws4_subsecond.log"], SpeedSettings())
+    job = whole_job([samples / "ws4_subsecond.log"], SpeedSettings())
     (row,) = approach_timeline(job.analysis.passages, lay, WorkSite("close", "WS4", 60.0, 30.0))
     assert row.saved_s == 0.0 and "move the warning point further out" in row.note
 

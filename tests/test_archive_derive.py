@@ -33,10 +33,10 @@ from console.archive.partition import (
     passages_table,
 )
 from console.archive.store import read_current
-from console.jobs import analyze_files
 from console.layout import load_layout
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_diagnostic
+from tests.reads import whole_job
 
 EXAMPLES = int(os.environ.get("TRACKSIDE_ARCHIVE_EXAMPLES", 3))
 MIDNIGHT_S = int(dt.datetime(2026, 3, 2, tzinfo=dt.UTC).timestamp()) + 86_400  # 2026-03-03 00:00 UTC
@@ -63,7 +63,7 @@ def _sorted(df: pd.DataFrame, by: list[str]) -> pd.DataFrame:
 
 
 def _assert_equal_to_analyze(log: Path, got: dict[str, pd.DataFrame], s: object) -> None:
-    job = analyze_files([log], s, keep_releases=True)  # type: ignore[arg-type]
+    job = whole_job([log], s, keep_releases=True)  # type: ignore[arg-type]
     by_p = ["device_id", "counting_head", "start_ns"]
     by_a = ["device_id", "counting_head", "time_ns", "direction"]
     pd.testing.assert_frame_equal(

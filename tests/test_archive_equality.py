@@ -19,9 +19,9 @@ from console.archive.history import diag_job, report_data
 from console.archive.ingest import run_ingest
 from console.archive.store import read_current
 from console.archive.views import run_query
-from console.jobs import analyze_files
 from console.report.collect import collect
 from tests.conftest import SAMPLES
+from tests.reads import whole_job
 
 EXAMPLES = int(os.environ.get("TRACKSIDE_ARCHIVE_EXAMPLES", 4))
 STATION = SAMPLES / "example_station.log"
@@ -48,7 +48,7 @@ def _batch_tables() -> dict[str, pd.DataFrame]:
     """
     data = collect([STATION], "example", whole=True)  # the section history as tables, not spooled
     assert data.job is not None
-    data.job = analyze_files([STATION], data.job.analysis.settings, keep_releases=True)
+    data.job = whole_job([STATION], data.job.analysis.settings, keep_releases=True)
     return tables_from(data)
 
 
@@ -89,7 +89,7 @@ def test_piece_by_piece_equals_one_ingest_and_batch_analysis(tmp_path_factory: o
     _assert_same(tables_from(report_data(pieces)), BATCH)
     job = diag_job(pieces, read_current(pieces))
     assert job is not None
-    batch_job = analyze_files([STATION], job.analysis.settings, keep_releases=True)
+    batch_job = whole_job([STATION], job.analysis.settings, keep_releases=True)
     assert job.analysis.passages_json_text() == batch_job.analysis.passages_json_text()
     assert job.analysis.unpaired_detections == batch_job.analysis.unpaired_detections
     assert [d.to_dict() for d in job.analysis.devices] == [d.to_dict() for d in batch_job.analysis.devices]

@@ -23,7 +23,7 @@ from console.archive.ingest import run_ingest
 from console.archive.partition import PartitionKey, axles_table, passages_table
 from console.archive.store import Manifest, read_current
 from console.archive.views import run_query
-from console.jobs import analyze_files
+from tests.reads import whole_job
 from tests.test_archive_derive import MIDNIGHT_S, simulate_over_midnight
 
 # A WS4 passage runs from 23:59:58.99 to 00:00:01.7 with these settings (asserted below, not assumed).
@@ -52,7 +52,7 @@ def _stored(root: Path, table: str, by: list[str]) -> pd.DataFrame:
 def _assert_equals_analyze(root: Path, logs: list[Path]) -> None:
     """Stored passages and axles == analyze's on the files; stored cross-head tables == the report's path."""
     m = read_current(root)
-    job = analyze_files(logs, speed_settings(m), keep_releases=True)
+    job = whole_job(logs, speed_settings(m), keep_releases=True)
     by_p = ["device_id", "counting_head", "start_ns"]
     by_a = ["device_id", "counting_head", "time_ns", "direction"]
     want_p = passages_table(job.analysis).sort_values(by_p, kind="stable").reset_index(drop=True)
@@ -117,7 +117,7 @@ def test_a_passage_over_midnight_split_across_two_ingests_is_one_passage(tmp_pat
     log = tmp_path / "whole.log"
     simulate_over_midnight(log, SEED, BEFORE_S, minutes=6)
     midnight = MIDNIGHT_S * NS
-    whole = analyze_files([log], speed_settings(Manifest()), keep_releases=True).analysis.passages
+    whole = whole_job([log], speed_settings(Manifest()), keep_releases=True).analysis.passages
     crossing = whole[(whole["start_ns"] < midnight) & (whole["end_ns"] > midnight)]
     assert len(crossing) == 1  # the premise: one passage runs over midnight
     head = crossing["counting_head"].iloc[0]

@@ -32,10 +32,10 @@ from console.analysis.diag_events import DiagEventSettings, diag_detection_event
 from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
 from console.analysis.events import DetectionEvent, EventKind, sort_events
 from console.analysis.wheels import CountingSettings, HeadCounter
-from console.jobs import analyze_files
 from console.layout import Layout, load_layout
 from console.sim.station import Fault, SimConfig, StationSim
 from console.sim.writers import write_diagnostic
+from tests.reads import whole_job
 
 NS = 1_000_000_000
 MS = 1_000_000
@@ -285,7 +285,7 @@ def test_the_batch_path_gives_the_per_head_loops_events(
 ) -> None:
     path, layout = faulty_log
     s = DiagEventSettings(counting=CountingSettings(isolation_s=isolation), power_gap_s=power_gap)
-    job = analyze_files([path], SpeedSettings(), keep_releases=True)
+    job = whole_job([path], SpeedSettings(), keep_releases=True)
     events, _ = diag_detection_events(job.analysis, layout, s)
     assert events == _per_head_reference(job.analysis, layout, s)
     assert {e.kind for e in events} >= {EventKind.AXLE, EventKind.SINGLE_CHANNEL, EventKind.INTERFERENCE}

@@ -23,50 +23,28 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
-from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.stream import PassageStream
-from console.analysis.stream_sections import EventStream
+from console.analysis.events import EventKind
 from console.analysis.wheels import CountingSettings
-from console.jobs import analyze_files, detection_events
+from console.engine.sinks import EventList
 from console.layout import Layout, load_layout
-from parsers.diag import DiagReader
+from tests.reads import detection_events, pipeline_sections, whole_job
 
 LONG = bool(os.environ.get("TRACKSIDE_LONG"))
 SPEED = SpeedSettings(spacing_m=0.13, train_length_m=28.6, idle_gap_s=10.0)
 
 
-def _streamed(path: Path, layout: Layout | None, es: DiagEventSettings, chunk_bytes: int, blocks: bool) -> list:
-    """The events as stream_jobs releases them (objects, or columns made objects at the end); read
-    again with the facts learnt when the first read guessed a head's facts wrong, as stream_jobs does."""
-    facts = None
-    for _ in range(2):
-        reader = DiagReader([path], chunk_bytes=chunk_bytes)
-        stream = PassageStream(reader.registry, SPEED, keep_releases=True)
-        events = EventStream(layout, es, facts=facts)
-        out: list[DetectionEvent] = []
-
-        def take(part: object, events: EventStream = events, stream: PassageStream = stream) -> None:
-            if part is not None:
-                events.add(part.wheel, part.activity, stream.heads)  # type: ignore[attr-defined]
-
-        for chunk in reader.chunks():
-            take(stream.add(chunk))
-            if len(chunk) and stream.clock_ns > np.iinfo(np.int64).min + stream._slack_ns:
-                watermark = min(stream.open_first_ns(), stream.clock_ns - stream._slack_ns)
-                out += events.release_block(watermark).events() if blocks else events.release(watermark)
-        take(stream.finish())
-        out += events.finish_block().events() if blocks else events.finish()
-        if not events.guess_failed or facts is not None:
-            return out
-        facts = events.facts
-    raise AssertionError("the second read runs with the facts of the first")
+def _streamed(path: Path, layout: Layout | None, es: DiagEventSettings, chunk_bytes: int) -> list:
+    """The events as the pipeline releases them to its sinks (read again with the facts learnt when
+    the first read guessed a head's facts wrong)."""
+    kept = EventList()
+    pipeline_sections([path], SPEED, layout=layout, event_settings=es, sink=kept, chunk_bytes=chunk_bytes)
+    return kept.events
 
 
 @settings(
@@ -82,7 +60,6 @@ def _streamed(path: Path, layout: Layout | None, es: DiagEventSettings, chunk_by
     chunk_bytes=st.integers(64, 50_000),
     power_gap=st.sampled_from([None, 5.0, 45.0]),
     isolation=st.sampled_from([5.0, 60.0]),
-    blocks=st.booleans(),
 )
 def test_a_realistic_log_streamed_in_any_chunks_releases_the_batch_events_in_order(
     tmp_path: Path,
@@ -93,14 +70,13 @@ def test_a_realistic_log_streamed_in_any_chunks_releases_the_batch_events_in_ord
     chunk_bytes: int,
     power_gap: float | None,
     isolation: float,
-    blocks: bool,
 ) -> None:
     path = tmp_path / "real.log"
     generate(records, path, boards=boards, seed=seed, interleave_seed=interleave)
     es = DiagEventSettings(counting=CountingSettings(isolation_s=isolation), power_gap_s=power_gap)
-    whole, _ = detection_events(analyze_files([path], SPEED, keep_releases=True), None, es)
+    whole, _ = detection_events(whole_job([path], SPEED, keep_releases=True), None, es)
     assert whole
-    assert _streamed(path, None, es, chunk_bytes, blocks) == whole
+    assert _streamed(path, None, es, chunk_bytes) == whole
 
 
 def _line(head: str, ch: int, value: int, when: str, device: int) -> str:
@@ -127,8 +103,8 @@ def test_a_single_system_damped_longer_than_the_isolation_time_keeps_the_batch_o
     path.write_text("".join(lines), encoding="utf-8")
     layout = load_layout("example")
     es = DiagEventSettings()
-    whole, _ = detection_events(analyze_files([path], SPEED, keep_releases=True), layout, es)
+    whole, _ = detection_events(whole_job([path], SPEED, keep_releases=True), layout, es)
     accidental = next(i for i, e in enumerate(whole) if e.kind is EventKind.ACCIDENTAL)
     assert whole[accidental + 1].head == "WS2"  # confirmed before WS2's wheels of the next minute
     for chunk_bytes in (200, 1000, 100_000):
-        assert _streamed(path, layout, es, chunk_bytes, blocks=True) == whole
+        assert _streamed(path, layout, es, chunk_bytes) == whole

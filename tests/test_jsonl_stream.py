@@ -183,10 +183,9 @@ def test_a_log_out_of_time_order_is_read_whole_for_json_and_warned_about_for_jso
     out = run("analyze", "--json", str(swapped))
     assert "warning" not in out.stderr
     from console.analysis.diagnostics import SpeedSettings
-    from console.jobs import analyze_files, summarise_status
+    from tests.reads import stream_job
 
-    job = analyze_files([swapped], SpeedSettings())
-    summarise_status(job)
+    job = stream_job([swapped], SpeedSettings(), whole=True, include_status=False)
     assert json.loads(out.stdout)["passages"] == json.loads(job.analysis.passages_json_text())
     streamed = run("analyze", "--jsonl", str(swapped))
     assert "out of time order" in streamed.stderr and len(streamed.stderr.splitlines()) == 1

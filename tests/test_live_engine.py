@@ -178,9 +178,9 @@ def test_followed_input_is_ingested_into_the_archive_once(tmp_path: Path) -> Non
 @pytest.fixture(scope="module")
 def batch_passages() -> list[dict[str, Any]]:
     from console.analysis.diagnostics import SpeedSettings
-    from console.jobs import analyze_files
+    from tests.reads import whole_job
 
-    job = analyze_files([REPO / "sample_logs" / "example_station.log"], SpeedSettings())
+    job = whole_job([REPO / "sample_logs" / "example_station.log"], SpeedSettings())
     return sorted(job.analysis.passages_json(), key=lambda p: (p["start"], p["counting_head"]))
 
 
@@ -194,7 +194,7 @@ def test_passages_do_not_depend_on_how_the_lines_arrive(
     # Block ends at line ends, as the file source hands them over.
     bounds = sorted({0, len(data)} | {data.find(b"\n", int(c * len(data))) + 1 or len(data) for c in cuts})
     events: list[dict[str, Any]] = []
-    engine = LiveEngine(None, events.append)
+    engine = LiveEngine(None, events.append, include_status=True)
     line = 1
     for a, b in itertools.pairwise(bounds):
         if b > a:
@@ -225,7 +225,7 @@ def test_two_logs_with_skewed_clocks_give_each_logs_own_passages(skew_s: float, 
     each log's passages are what ``analyze`` finds in it alone (a log running ahead does not cut
     the other's trains into pieces), and the sections are those of both logs read together."""
     from console.analysis.diagnostics import SpeedSettings
-    from console.jobs import analyze_files
+    from tests.reads import whole_job
 
     lines = (REPO / "sample_logs" / "example_station.log").read_bytes().splitlines(keepends=True)
     arrival = [
@@ -236,12 +236,12 @@ def test_two_logs_with_skewed_clocks_give_each_logs_own_passages(skew_s: float, 
     expected = []
     for s, data in logs.items():
         (tmp_path / f"{s}.log").write_bytes(data)
-        job = analyze_files([tmp_path / f"{s}.log"], SpeedSettings())
+        job = whole_job([tmp_path / f"{s}.log"], SpeedSettings())
         expected += [(p["counting_head"], p["start"], p["axles"]) for p in job.analysis.passages_json()]
 
     def follow(blocks: list[tuple[str, bytes]]) -> list[dict[str, Any]]:
         events: list[dict[str, Any]] = []
-        engine = LiveEngine(load_layout("example"), events.append)
+        engine = LiveEngine(load_layout("example"), events.append, include_status=True)
         line = dict.fromkeys("abx", 1)
         for src, data in blocks:
             engine.handle(LineBlock(f"file:{src}", src, line[src], data, time.monotonic()))

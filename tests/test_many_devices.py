@@ -141,7 +141,7 @@ _HEADS, _DEVICES = 20_000, 500
 def many_heads_job(tmp_path_factory: pytest.TempPathFactory) -> Any:
     """20 k heads on 500 devices, each head a wheel on Sys1 then Sys2 4 ms later, read in 256 KB chunks."""
     from console.analysis.diagnostics import SpeedSettings
-    from console.jobs import stream_files
+    from tests.reads import stream_job
 
     heads, devices = _HEADS, _DEVICES
     lines = []
@@ -153,7 +153,7 @@ def many_heads_job(tmp_path_factory: pytest.TempPathFactory) -> Any:
     lines += [_SERIAL.format(dev=1000 + d, head=d, serial=700000 + d) for d in range(0, devices, 7)]
     log = tmp_path_factory.mktemp("many") / "heads.log"
     log.write_text("".join(lines), encoding="utf-8")
-    return stream_files([log], SpeedSettings(), chunk_bytes=256 << 10)
+    return stream_job([log], SpeedSettings(), chunk_bytes=256 << 10)
 
 
 def test_twenty_thousand_heads_inventory_per_device(many_heads_job: Any) -> None:

@@ -21,10 +21,12 @@ from benchmarks.gen_realistic_diag import generate
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.head_table import HeadTable, heads_at
 from console.analysis.status import STATUS_KIND
-from console.analysis.stream import FirstPassages, take_passages
-from console.jobs import status_json, stream_files
+from console.analysis.stream import take_passages
 from console.jsonout import array_parts, dumps
+from console.render.diag_stream import status_json
+from console.render.passage_spool import FirstPassages
 from parsers.dictionary import StringDictionary
+from tests.reads import stream_job
 
 CASE = settings(
     max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow]
@@ -58,7 +60,7 @@ def test_first_passages_are_the_first_rows_of_the_whole_table(
     log = tmp_path / "real.log"
     generate(records, log, boards=4, seed=seed, corrupt_every=50, block_s=60)
     first = FirstPassages(limit)
-    job = stream_files([log], SpeedSettings(), chunk_bytes=chunk_bytes, on_passages=first.add)
+    job = stream_job([log], SpeedSettings(), chunk_bytes=chunk_bytes, sink=first)
     cols = job.analysis.passage_columns  # the whole table, by head and start
     assert cols is not None
     status = cols["kind"] == STATUS_KIND
@@ -75,7 +77,7 @@ def test_heads_devices_and_status_json_as_lists_gave_them(tmp_path: Path) -> Non
     """A log of 3,000 heads read in small chunks: the columnar heads, inventory and streamed JSON
     equal the list forms (what the code built before they were held as columns)."""
     log = _heads_log(tmp_path / "heads.log", 3000)
-    job = stream_files([log], SpeedSettings(), chunk_bytes=16 << 10, include_status=False)
+    job = stream_job([log], SpeedSettings(), chunk_bytes=16 << 10, include_status=False)
     heads = job.analysis.heads
     assert isinstance(heads, HeadTable) and len(heads) == 3000
     as_list = list(heads)

@@ -11,11 +11,11 @@ from pathlib import Path
 import pytest
 
 from console.analysis.diagnostics import SpeedSettings
-from console.jobs import analyze_files
+from tests.reads import whole_job
 
 
 def _passages(*files: Path) -> list[dict]:
-    return analyze_files(list(files), SpeedSettings()).analysis.passages_json()
+    return whole_job(list(files), SpeedSettings()).analysis.passages_json()
 
 
 def test_per_second_method_0932_is_15_9_kmh(samples: Path) -> None:
@@ -59,7 +59,7 @@ def test_methods_differ_by_about_12_percent(samples: Path) -> None:
 
 
 def test_excerpts_together_give_one_passage_with_both_figures(samples: Path) -> None:
-    job = analyze_files(sorted(samples.glob("osong_*.log")), SpeedSettings())
+    job = whole_job(sorted(samples.glob("osong_*.log")), SpeedSettings())
     ps = job.analysis.passages_json()
     assert [p["start"] for p in ps] == [
         "2015-10-31T09:32:24.000Z",
@@ -75,7 +75,7 @@ def test_excerpts_together_give_one_passage_with_both_figures(samples: Path) -> 
 
 
 def test_inventory_from_identity_registers(samples: Path) -> None:
-    job = analyze_files(
+    job = whole_job(
         [samples / "osong_ws4_0932_detection.log", samples / "osong_ws4_1032_detection.log"], SpeedSettings()
     )
     (dev,) = job.analysis.devices

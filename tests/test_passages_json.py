@@ -10,7 +10,7 @@ import pytest
 
 from console.analysis import passages_json as pj
 from console.analysis.diagnostics import SpeedSettings, iso_strings, passages_json_text
-from console.jobs import analyze_files
+from tests.reads import whole_job
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"
 
@@ -65,7 +65,7 @@ def test_text_needing_escapes_is_left_to_pandas() -> None:
 
 @pytest.mark.parametrize("log", sorted(p.name for p in SAMPLES.glob("*.log")))
 def test_passages_same_as_pandas(log: str) -> None:
-    analysis = analyze_files([SAMPLES / log], SpeedSettings()).analysis
+    analysis = whole_job([SAMPLES / log], SpeedSettings()).analysis
     expected = passages_json_text(analysis.passages)
     if analysis.passage_columns is None:
         assert expected == "[]"
@@ -74,7 +74,7 @@ def test_passages_same_as_pandas(log: str) -> None:
 
 
 def test_small_batches_same_as_one(monkeypatch: pytest.MonkeyPatch) -> None:
-    analysis = analyze_files([SAMPLES / "example_station.log"], SpeedSettings()).analysis
+    analysis = whole_job([SAMPLES / "example_station.log"], SpeedSettings()).analysis
     assert analysis.passage_columns is not None
     whole = pj.encode_passages(analysis.passage_columns, analysis.heads)
     monkeypatch.setattr(pj, "_BATCH_ROWS", 7)

@@ -30,6 +30,7 @@ from benchmarks.gen_realistic_diag import generate
 from console.analysis.sections import LedgerEntry, SectionState, Transition
 from console.jsonout import valid_unicode
 from console.layout import load_layout
+from console.render.section_history import SPILL_BLOCK_BYTES, _LedgerText
 from console.render.section_tables import sections_json
 from console.report import command, outline
 from console.report.collect import collect
@@ -39,7 +40,6 @@ from console.report.model import ReportData, document, json_text
 from console.report.spooled import ROW_DEPTH, _transition_text
 from console.sim.station import Fault, SimConfig, StationSim
 from console.sim.writers import write_run
-from console.stream_jobs import SPILL_BLOCK_BYTES, _LedgerText
 from tests.conftest import ROOT
 
 FORMATS = ("md", "html", "json")
@@ -157,7 +157,7 @@ def test_spilled_rows_read_back_are_the_whole_history(
     inputs: dict[str, tuple[list[Path], str | None]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # Rows cut across the spill's blocks are read back whole.
-    monkeypatch.setattr("console.stream_jobs.SPILL_BLOCK_BYTES", 97)
+    monkeypatch.setattr("console.render.section_history.SPILL_BLOCK_BYTES", 97)
     for streamed, whole in _streamed_and_whole(inputs["realistic log"]):
         assert streamed.history is not None and whole.sections is not None
         expected = sections_json(whole.sections)

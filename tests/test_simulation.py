@@ -13,11 +13,11 @@ from typer.testing import CliRunner
 
 from console.analysis.diagnostics import SpeedSettings
 from console.cli import app
-from console.jobs import analyze_files
 from console.layout import load_layout
 from console.sim.radio import LoRaLink
 from console.sim.station import Fault, SimConfig, StationSim
 from console.sim.writers import write_run
+from tests.reads import whole_job
 
 runner = CliRunner()
 LAYOUT = load_layout("example")
@@ -71,7 +71,7 @@ def test_same_seed_same_bytes(tmp_path: Path) -> None:
 
 def test_axle_counts_are_exact_without_faults(clean: tuple[StationSim, Path]) -> None:
     sim, out = clean
-    job = analyze_files([out / "diagnostic.log"], SpeedSettings())
+    job = whole_job([out / "diagnostic.log"], SpeedSettings())
     assert job.report.rejected == 0
     p = job.analysis.passages
     counted = p[p["kind"] == "train"].groupby("counting_head")["axles"].sum().to_dict()
@@ -81,7 +81,7 @@ def test_axle_counts_are_exact_without_faults(clean: tuple[StationSim, Path]) ->
 
 def test_per_axle_and_whole_train_speeds(clean: tuple[StationSim, Path]) -> None:
     sim, out = clean
-    job = analyze_files([out / "diagnostic.log"], SpeedSettings())
+    job = whole_job([out / "diagnostic.log"], SpeedSettings())
     passages = job.analysis.passages_json()
     by = {}
     for a in sim.truth_axles:

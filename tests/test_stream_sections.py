@@ -34,13 +34,15 @@ from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.sections import SectionState, ledger_summary_frame, run_sections
 from console.analysis.wheels import CountingSettings
 from console.cli import app
-from console.jobs import HEALTH_REGISTERS, analyze_files, detection_events, health_findings
+from console.drivers.batch import health_findings
+from console.engine.pipeline import HEALTH_REGISTERS
 from console.jsonout import dumps
 from console.layout import Layout, load_layout
+from console.render.section_history import SectionsSink, _LedgerText, ledger_json
 from console.render.section_tables import sections_json
 from console.sim.station import Fault, SimConfig, StationSim
 from console.sim.writers import write_diagnostic
-from console.stream_jobs import SectionsSink, _LedgerText, ledger_json, stream_diag
+from tests.reads import detection_events, pipeline_sections, whole_job
 
 LONG = bool(os.environ.get("TRACKSIDE_LONG"))
 EXAMPLES = 150 if LONG else 4
@@ -67,11 +69,11 @@ def assert_streamed_equals_whole(
     initial: SectionState = SectionState.PREPARATORY,
 ) -> int:
     """Both paths over one log; returns the number of events the whole path found."""
-    job = analyze_files([path], SPEED, keep_registers=HEALTH_REGISTERS, keep_releases=True)
+    job = whole_job([path], SPEED, keep_registers=HEALTH_REGISTERS, keep_releases=True)
     events, warnings = detection_events(job, layout, es)
     sections_lay = layout if layout is not None and layout.sections else None
     sink = SectionsSink(keep_all=True) if sections_lay is not None else None
-    run = stream_diag(
+    run = pipeline_sections(
         [path],
         SPEED,
         layout=layout,
@@ -84,15 +86,15 @@ def assert_streamed_equals_whole(
         chunk_bytes=chunk_bytes,
     )
     assert run.warnings == warnings
-    assert run.job.report.to_dict() == job.report.to_dict()
-    whole_findings = [f.to_dict() for f in health_findings(job, layout, events, None)]
-    assert [f.to_dict() for f in health_findings(run.job, layout, run.health_events, None)] == whole_findings
+    assert run.report.to_dict() == job.report.to_dict()
+    whole_findings = [f.to_dict() for f in health_findings(job, layout, events)]
+    assert [f.to_dict() for f in health_findings(run, layout)] == whole_findings
     assert (run.last_event.time_ns if run.last_event else None) == (events[-1].time_ns if events else None)
     if sections_lay is not None:
-        assert run.engine is not None and run.sink is not None
+        assert run.sections is not None and sink is not None
         whole = run_sections(sections_lay, [*events, *resets], initial=initial)
-        sk = run.sink
-        streamed = run.engine.result(sk.timeline_all, sk.ledger_all, sk.resets)
+        sk = sink
+        streamed = run.sections.result(sk.timeline_all, sk.ledger_all, sk.reset_rows)
         assert sections_json(streamed) == sections_json(whole)
         assert ledger_summary_frame(sk.ledger_totals).values.tolist() == whole.ledger_summary().values.tolist()
         assert (sk.timeline_rows, sk.ledger_rows) == (len(whole.timeline), len(whole.ledger))
@@ -229,7 +231,7 @@ def test_a_head_that_changes_its_facts_mid_log_is_read_again_with_the_whole_log_
     path = tmp_path / "changing.log"
     path.write_text("".join(lines), encoding="utf-8")
     layout = load_layout("example")
-    run = stream_diag([path], SPEED, layout=layout, event_settings=DiagEventSettings(), chunk_bytes=200)
+    run = pipeline_sections([path], SPEED, layout=layout, event_settings=DiagEventSettings(), chunk_bytes=200)
     assert run.reads == 2
     assert assert_streamed_equals_whole(path, layout, 200, DiagEventSettings()) > 0
 
@@ -240,7 +242,7 @@ def test_sections_json_from_the_cli_is_the_whole_file_document(tmp_path: Path, f
     layout = load_layout("example")
     res = CliRunner().invoke(app, ["sections", str(path), "--layout", "example", "--json", "--power-gap", "45"])
     assert res.exit_code in (0, 1), res.output
-    job = analyze_files([path], SPEED, keep_releases=True)
+    job = whole_job([path], SPEED, keep_releases=True)
     events, warnings = detection_events(job, layout, DiagEventSettings(power_gap_s=45.0))
     whole = run_sections(layout, events)
     doc = {
@@ -261,7 +263,7 @@ def test_sections_table_counts_every_change_though_it_keeps_only_the_first(tmp_p
     layout_path = tmp_path / "layout.toml"
     write_layout(layout_path, boards=2)
     layout = load_layout(str(layout_path))
-    job = analyze_files([path], SPEED, keep_releases=True)
+    job = whole_job([path], SPEED, keep_releases=True)
     events, _ = detection_events(job, layout, DiagEventSettings(counting=CountingSettings(isolation_s=5.0)))
     whole = run_sections(layout, events, initial=SectionState.CLEAR)
     res = CliRunner().invoke(

@@ -25,10 +25,10 @@ from hypothesis import strategies as st
 from benchmarks.gen_realistic_diag import generate
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.status import STATUS_KIND
-from console.jobs import DiagJob, analyze_files, stream_files
 from console.layout import load_layout
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_diagnostic
+from tests.reads import DiagJob, stream_job, whole_job
 
 LONG = bool(os.environ.get("TRACKSIDE_LONG"))
 EXAMPLES = 200 if LONG else 6
@@ -85,11 +85,11 @@ def assert_status_adds_up(with_status: DiagJob, summarised: DiagJob) -> None:
 
 def check_log(path: Path, chunk_bytes: int, idle_gap_s: float) -> DiagJob:
     s = SpeedSettings(idle_gap_s=idle_gap_s)
-    whole = analyze_files([path], s)
-    streamed = stream_files([path], s, chunk_bytes=chunk_bytes)
+    whole = whole_job([path], s)
+    streamed = stream_job([path], s, chunk_bytes=chunk_bytes)
     assert streamed.late_records == 0  # exports in time order: nothing came after its passage closed
     assert_same_as_whole(whole, streamed)
-    assert_status_adds_up(streamed, stream_files([path], s, chunk_bytes=chunk_bytes, include_status=False))
+    assert_status_adds_up(streamed, stream_job([path], s, chunk_bytes=chunk_bytes, include_status=False))
     return whole
 
 
@@ -170,11 +170,9 @@ def test_a_log_out_of_time_order_is_counted_as_late(tmp_path: Path) -> None:
     lines = path.read_bytes().splitlines(keepends=True)
     swapped = tmp_path / "swapped.log"
     swapped.write_bytes(b"".join(lines[len(lines) // 2 :] + lines[: len(lines) // 2]))
-    assert stream_files([path], SpeedSettings(), chunk_bytes=20_000).late_records == 0
-    late = stream_files([swapped], SpeedSettings(), chunk_bytes=20_000)
+    assert stream_job([path], SpeedSettings(), chunk_bytes=20_000).late_records == 0
+    late = stream_job([swapped], SpeedSettings(), chunk_bytes=20_000)
     assert late.late_records > 0
     # Read whole, as the commands then do, it is the whole read.
-    whole = stream_files([swapped], SpeedSettings(), chunk_bytes=20_000, whole=True)
-    assert (
-        whole.analysis.passages_json_text() == analyze_files([swapped], SpeedSettings()).analysis.passages_json_text()
-    )
+    whole = stream_job([swapped], SpeedSettings(), chunk_bytes=20_000, whole=True)
+    assert whole.analysis.passages_json_text() == whole_job([swapped], SpeedSettings()).analysis.passages_json_text()

@@ -7,12 +7,12 @@ from pathlib import Path
 import pytest
 
 from console.analysis.diagnostics import SpeedSettings
-from console.jobs import analyze_files
+from tests.reads import whole_job
 
 
 @pytest.fixture
 def passages(samples: Path) -> list[dict]:
-    job = analyze_files([samples / "ws4_subsecond.log"], SpeedSettings())
+    job = whole_job([samples / "ws4_subsecond.log"], SpeedSettings())
     assert job.report.rejected == 0
     return job.analysis.passages_json()
 

@@ -25,11 +25,11 @@ from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate as generate_realistic
 from console.analysis.diagnostics import SpeedSettings
-from console.jobs import analyze_files
 from console.layout import load_layout
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_diagnostic
 from tests.conftest import record
+from tests.reads import whole_job
 
 LONG = bool(os.environ.get("TRACKSIDE_LONG"))
 RUN_S = 6 * 3600 if LONG else 3600
@@ -57,7 +57,7 @@ def _truth(sim: StationSim) -> tuple[Counter[str], list[tuple[str, int, str]]]:
 
 
 def _found(path: Path, length_m: float = 28.6) -> tuple[Counter[str], list[tuple[str, int, str]], list[dict]]:
-    job = analyze_files([path], SpeedSettings(train_length_m=length_m))
+    job = whole_job([path], SpeedSettings(train_length_m=length_m))
     assert job.report.rejected == 0
     trains = [p for p in job.analysis.passages_json() if p["kind"] == "train"]
     per_head: Counter[str] = Counter()
@@ -120,7 +120,7 @@ def test_realistic_multi_board_export_counts_every_head_exactly(tmp_path: Path) 
     """benchmarks/gen_realistic_diag.py: 40 boards, us/ms/s boards mixed, damaged lines among them."""
     path = tmp_path / "export.log"
     truth = generate_realistic(20_000, path, seed=3, interleave_seed=4)
-    job = analyze_files([path], SpeedSettings())
+    job = whole_job([path], SpeedSettings())
     rep = job.report
     assert rep.lines_read == truth["lines"] == rep.records + rep.rejected
     assert rep.rejected == truth["corrupt_lines"] > 0
@@ -145,7 +145,7 @@ def export(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, tuple[
 
 
 def _per_head_axles(paths: list[Path]) -> tuple[Counter[str], list[int], str]:
-    job = analyze_files(paths, SpeedSettings())
+    job = whole_job(paths, SpeedSettings())
     counted: Counter[str] = Counter()
     for p in job.analysis.passages_json():
         counted[p["counting_head"]] += p["axles"]
@@ -198,7 +198,7 @@ def test_identical_lines_in_one_file_are_two_events(tmp_path: Path) -> None:
     wheel = [record(ch=1, data="1", **rad), record(ch=2, data="1", **rad)]
     path = tmp_path / "log.txt"
     path.write_text("\n".join(wheel * 2) + "\n", encoding="utf-8")
-    job = analyze_files([path], SpeedSettings())
+    job = whole_job([path], SpeedSettings())
     (p,) = job.analysis.passages_json()
     assert (p["axles"], p["direction"], p["records"]) == (2, "sys1_to_sys2", 4)
     assert job.analysis.overlap_records == 0
@@ -209,7 +209,7 @@ def test_a_repeated_line_inside_a_second_file_is_not_overlap_unless_at_the_seam(
     a.write_text(record(time="09:00:00") + "\n" + record(time="09:00:01") + "\n", encoding="utf-8")
     # b starts with a record a does not have: its copy of a's 09:00:01 line is not at a seam.
     b.write_text(record(time="08:59:59") + "\n" + record(time="09:00:01") + "\n", encoding="utf-8")
-    job = analyze_files([a, b], SpeedSettings())
+    job = whole_job([a, b], SpeedSettings())
     assert [f.overlap_records for f in job.report.files] == [0, 0]
 
 
@@ -225,7 +225,7 @@ def test_an_identical_line_inside_the_seam_second_is_not_overlap(tmp_path: Path)
         encoding="utf-8",
     )
     for files in ([a, b], [b, a]):
-        job = analyze_files(files, SpeedSettings())
+        job = whole_job(files, SpeedSettings())
         assert [f.overlap_records for f in job.report.files] == [0, 0]
         (p,) = job.analysis.passages_json()
         assert p["axles"] == 2
@@ -235,7 +235,7 @@ def test_passage_without_a_measurable_speed_is_shown_not_dropped(tmp_path: Path)
     # One system only, one second: no axle, no duration, still a passage with nulls.
     path = tmp_path / "log.txt"
     path.write_text(record(ch=1, adr="026", label="Radsensor", data="1") + "\n", encoding="utf-8")
-    (p,) = analyze_files([path], SpeedSettings()).analysis.passages_json()
+    (p,) = whole_job([path], SpeedSettings()).analysis.passages_json()
     assert p["kind"] == "damping" and p["speed_kmh_whole_train"] is None
     assert p["speed_kmh_whole_train_min"] is None and p["speed_kmh_whole_train_max"] is None
     assert p["time_resolution_s"] == 1.0

@@ -35,12 +35,12 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import TYPE_CHECKING
 
-import pandas as pd
-
 from console.analysis.events import UNKNOWN, DetectionEvent, EventKind, sort_events
 from console.layout import Layout, Section
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from console.analysis.event_block import EventBlock
 
 
@@ -280,6 +280,12 @@ class SectionEngine:
         self.resets.append(ResetRecord(e.time_ns, sid, True, "preconditions hold: waiting for a sweep train"))
         return self._set(s, SectionState.PREPARATORY, e.time_ns, "reset accepted: waiting for a sweep train")
 
+    def take_history(self) -> tuple[list[Transition], list[LedgerEntry], list[ResetRecord]]:
+        """The state changes, ledger rows and reset records made since the last call, moved out of the engine."""
+        out = (self.transitions, self.ledger, self.resets)
+        self.transitions, self.ledger, self.resets = [], [], []
+        return out
+
     def run(self, events: Iterable[DetectionEvent]) -> SectionsResult:
         for e in sort_events(events):
             self.step(e)
@@ -292,6 +298,8 @@ class SectionEngine:
         resets: list[ResetRecord] | None = None,
     ) -> SectionsResult:
         """The run so far; the history given (drained out of the engine as it ran) or the engine's own."""
+        import pandas as pd
+
         trs = self.transitions if transitions is None else transitions
         led = self.ledger if ledger is None else ledger
         rst = self.resets if resets is None else resets
@@ -308,8 +316,12 @@ class SectionEngine:
                 [(r.time_ns, r.section, r.accepted, r.reason) for r in rst],
                 columns=["time_ns", "section", "accepted", "reason"],
             ),
-            final={sid: (str(s.state), s.count, s.count_in, s.count_out, s.reason) for sid, s in self.sections.items()},
+            final=self.final_states(),
         )
+
+    def final_states(self) -> dict[str, tuple[str, int, int, int, str]]:
+        """Each section's state now: section → (state, count, counted in, counted out, reason)."""
+        return {sid: (str(s.state), s.count, s.count_in, s.count_out, s.reason) for sid, s in self.sections.items()}
 
 
 @dataclass
@@ -323,6 +335,8 @@ class SectionsResult:
 
     def ledger_summary(self) -> pd.DataFrame:
         """Per section and head: axles counted in and out, first and last (section, head order)."""
+        import pandas as pd
+
         cols = ["section", "head", "count_in", "count_out", "first_ns", "last_ns"]
         if self.summary is not None:
             return self.summary
@@ -348,6 +362,8 @@ class SectionsResult:
 
 def ledger_summary_frame(totals: dict[tuple[str, str], list[int]]) -> pd.DataFrame:
     """:meth:`SectionsResult.ledger_summary` from running totals: (section, head) → [in, out, first, last]."""
+    import pandas as pd
+
     cols = ["section", "head", "count_in", "count_out", "first_ns", "last_ns"]
     rows = [(s, h, *v) for (s, h), v in sorted(totals.items())]
     frame = pd.DataFrame(rows, columns=cols)

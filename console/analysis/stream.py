@@ -8,9 +8,11 @@ and dropped.  What stays in memory is, per head, the reductions of its
 open run (activity buckets, wheel onsets) and a few numbers: memory grows
 with the heads and the open passages, not with the log.
 
-A head's run also closes once the log's clock (the latest record time
-read) is more than the idle gap plus :data:`ORDER_SLACK_S` past its last
-record: logs interleave boards whose clocks step differently, so a record
+A head's run also closes once the clock of the file its records come from
+(the latest record time read from that file) is more than the idle gap
+plus :data:`ORDER_SLACK_S` past its last record (files followed live are
+read at their own pace: one that runs ahead does not cut another's runs):
+logs interleave boards whose clocks step differently, so a record
 may come up to that slack after a later-stamped one of another board, but
 never more.  Within one head records come in time order, so a pause inside
 a head's own records closes the run before it at once.
@@ -35,7 +37,6 @@ import numpy as np
 from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, analyse_parts
 from console.analysis.head_table import HeadTable
 from console.analysis.passages import Columns, merge_buckets
-from console.analysis.status import STATUS_KIND
 from console.analysis.timefmt import NS
 from parsers.diag import DiagChunk, DiagRegistry
 
@@ -72,6 +73,9 @@ class PassageStream:
     late_records: int = 0
     clock_ns: int = NO_TIME
     acc: DiagAccumulator = field(init=False)
+    # Per file id, its latest record; per head key, the file its latest records came from.
+    _file_clock: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    _head_file: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _open_first: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _open_last: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _cut: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -103,7 +107,11 @@ class PassageStream:
         self._open_last = _grown(self._open_last, n, NO_TIME)
         self._cut = _grown(self._cut, n, NO_TIME)
         self._closed_upto = _grown(self._closed_upto, n, NO_TIME)
+        self._head_file = _grown(self._head_file, len(self._open_last), 0)
+        self._file_clock = _grown(self._file_clock, chunk.file_id + 1, NO_TIME)
+        self._file_clock[chunk.file_id] = max(int(self._file_clock[chunk.file_id]), int(chunk.time_ns.max()))
         heads = tables.head_of(chunk.register_id)
+        self._head_file[heads] = chunk.file_id
         self.late_records += int(np.count_nonzero(chunk.time_ns <= self._closed_upto[heads] + self._gap_ns))
         self._advance(heads, chunk.time_ns)
         return self._close(final=False)
@@ -140,7 +148,8 @@ class PassageStream:
         # may have a million heads and close a few hundred per chunk).
         idle = self._open_last != NO_TIME
         if not final:
-            idle &= self._open_last < self.clock_ns - self._gap_ns - self._slack_ns
+            clock = self._file_clock[self._head_file[: len(idle)]]
+            idle &= self._open_last < clock - self._gap_ns - self._slack_ns
         closing = np.flatnonzero(idle | (self._cut != NO_TIME))
         if not len(closing):
             return None
@@ -218,34 +227,3 @@ def by_head_and_start(cols: Columns) -> np.ndarray:
 def by_start(cols: Columns) -> np.ndarray:
     """Row order of a stream: by start time, then head key."""
     return np.lexsort((cols["head"], cols["start_ns"]))
-
-
-@dataclass
-class FirstPassages:
-    """The first ``limit`` listed passages of a whole read's order (by head key, then start) and how many
-    passages there are, from batches of closed passages: what a table of the first rows needs, in memory
-    bounded by ``limit`` (a log may close a passage at each of a million heads).
-
-    Status-only passages are counted, not listed.  Ties keep the order the batches came in, as the
-    whole table's stable sort does.
-    """
-
-    limit: int
-    cols: Columns | None = None
-    listed: int = 0
-    status: int = 0
-
-    def add(self, cols: Columns, heads: object = None) -> None:
-        """One batch of closed passages (``heads``: unused, for the passage sinks' signature)."""
-        status = cols["kind"] == STATUS_KIND
-        self.status += int(status.sum())
-        keep = np.flatnonzero(~status)
-        self.listed += len(keep)
-        part = take_passages(cols, keep)
-        merged = concat_passages([self.cols, part]) if self.cols is not None else part
-        assert merged is not None
-        self.cols = take_passages(merged, by_head_and_start(merged)[: self.limit])
-
-    def clear(self) -> None:
-        """Forget every passage taken so far (the log is read again)."""
-        self.cols, self.listed, self.status = None, 0, 0

@@ -59,7 +59,7 @@ from console.memory import trim_heap
 
 if TYPE_CHECKING:
     from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
-    from console.jobs import DiagJob
+    from console.drivers.batch import DiagJob
 
 DERIVED = ("passages", "axles", "section_states", "count_ledger", "crossing_timelines", "health_findings")
 # Stored per (day, device) partition; wheel_records is the section engine's input (not a query view).
@@ -378,7 +378,7 @@ def _head_index(wheel: pd.DataFrame, index: dict[tuple[int, Any], int]) -> np.nd
 def _combined_job(root: Path, manifest: Manifest, keys: list[PartitionKey]) -> DiagJob | None:
     """A DiagJob holding what the cross-head analyses read: heads, wheel records, health-register records."""
     from console.archive.history import health_records
-    from console.jobs import DiagJob
+    from console.drivers.batch import DiagJob
     from parsers.report import ParseReport
 
     if not keys:
@@ -405,7 +405,7 @@ def _combined_job(root: Path, manifest: Manifest, keys: list[PartitionKey]) -> D
 def _health_job(root: Path, manifest: Manifest, heads: list[tuple[int, Any]]) -> DiagJob:
     """A DiagJob with the heads and the health registers' records, no wheel record (they were streamed)."""
     from console.archive.history import health_records
-    from console.jobs import DiagJob
+    from console.drivers.batch import DiagJob
     from parsers.report import ParseReport
 
     empty = pd.DataFrame(
@@ -564,7 +564,7 @@ def _stream_cross_head(
     from console.analysis.diag_events import DiagEventSettings
     from console.analysis.sections import SectionEngine, SectionState
     from console.analysis.stream_sections import EventStream
-    from console.stream_jobs import HEALTH_EVENT_KINDS
+    from console.engine.pipeline import HEALTH_EVENT_KINDS
 
     if not keys or (layout is not None and any(h.channels == 3 for h in layout.heads)):
         return None
@@ -628,7 +628,7 @@ def _stream_cross_head(
 def _channel_events(events: Iterable[Any]) -> pd.DataFrame:
     """The events health judges (channel faults and recoveries, single-channel pulses), as a table."""
     from console.analysis.events import EVENT_COLUMNS
-    from console.stream_jobs import HEALTH_EVENT_KINDS
+    from console.engine.pipeline import HEALTH_EVENT_KINDS
 
     rows = [
         (e.time_ns, str(e.kind), e.head, e.direction, e.channel, e.source, e.detail)

@@ -31,7 +31,8 @@ if TYPE_CHECKING:
     import pandas as pd
     import pyarrow as pa
 
-    from console.jobs import DiagJob
+    from console.analysis.events import DetectionEvent
+    from console.drivers.batch import DiagJob
     from console.layout import Layout
     from console.report.model import ReportData
     from parsers.report import ParseReport
@@ -150,7 +151,8 @@ def diag_job(root: Path, manifest: Manifest, window: Window = Window()) -> DiagJ
     """What ``analyze_files`` returns for the archive's diagnostic records (None: there are none)."""
     from console.analysis.diagnostics import DiagAccumulator
     from console.archive.records import ChunkRebuilder
-    from console.jobs import HEALTH_REGISTERS, DiagJob
+    from console.drivers.batch import DiagJob
+    from console.engine.pipeline import HEALTH_REGISTERS
     from parsers.diag import DiagChunk, chunks_to_frame
 
     settings = speed_settings(manifest)
@@ -189,7 +191,7 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
 
     from console.archive.partition import key_of_part
     from console.archive.records import ChunkRebuilder
-    from console.jobs import HEALTH_REGISTERS
+    from console.engine.pipeline import HEALTH_REGISTERS
     from parsers.diag import DiagChunk, chunks_to_frame
 
     wanted = pc.field("label_canonical").isin(sorted(HEALTH_REGISTERS))
@@ -279,9 +281,8 @@ def report_data(
     """
     import pandas as pd
 
-    from console.analysis.diag_events import DiagEventSettings
     from console.analysis.health import Finding, sort_findings, voltage_margin_findings
-    from console.jobs import detection_events, health_findings
+    from console.drivers.batch import health_findings
     from console.report.collect import _sections, crossings_from_fixes, frames_from_tables
     from console.report.model import InputFile, ReportData
     from parsers.can_logs import count_frames_only
@@ -315,7 +316,7 @@ def report_data(
             if sections is not None:
                 data.sections, data.section_source = sections, "diagnostic"
         else:
-            data.events, ev_warnings = detection_events(job, layout, DiagEventSettings())
+            data.events, ev_warnings = _detection_events(job, layout)
             health_events = data.events
         data.warnings += ev_warnings
         findings += health_findings(job, layout, health_events, None)
@@ -490,13 +491,11 @@ def replay_inputs(root: Path, layout: Layout, window: Window = Window()) -> tupl
     The same events and fixes the station view's ReplaySource builds from files
     (``detection_events`` over the records, the archived fixes).
     """
-    from console.analysis.diag_events import DiagEventSettings
     from console.archive.views import require_archive
-    from console.jobs import detection_events
 
     m = require_archive(root)
     job = diag_job(root, m, window)
-    events = detection_events(job, layout, DiagEventSettings())[0] if job is not None else []
+    events = _detection_events(job, layout)[0] if job is not None else []
     fixes = None
     parts = _per_file_tables(root, m, "fixes")
     if parts:
@@ -506,3 +505,12 @@ def replay_inputs(root: Path, layout: Layout, window: Window = Window()) -> tupl
         fixes = fixes.sort_values("time", kind="stable", na_position="last").reset_index(drop=True)
         fixes = _cut_fixes(fixes, window)
     return sorted(events, key=lambda e: e.time_ns), fixes
+
+
+def _detection_events(job: DiagJob, layout: Layout | None) -> tuple[list[DetectionEvent], list[str]]:
+    """The stored wheel records' detection events on the layout, or on their own heads when none is given."""
+    from console.analysis.diag_events import DiagEventSettings, diag_detection_events
+    from console.layout import layout_from_heads
+
+    lay = layout or layout_from_heads(sorted({name for _, name in job.analysis.heads}))
+    return diag_detection_events(job.analysis, lay, DiagEventSettings())

@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     from console.analysis.inventory import DeviceInventory
     from console.analysis.sections import SectionsResult
     from console.archive.history import Window
-    from console.jobs import DiagJob
+    from console.drivers.batch import DiagJob
     from console.layout import Layout
 
 
@@ -74,7 +74,7 @@ def history_diag(
     from console.analysis.diagnostics import DiagAnalysis
     from console.archive.history import health_records, parse_reports
     from console.archive.views import connect
-    from console.jobs import DiagJob
+    from console.drivers.batch import DiagJob
 
     # The health registers' records are read by pyarrow on a thread while DuckDB answers the rest:
     # both release the GIL for their reads (a 3 M-record day: 0.7 s and 1.0 s, now overlapped).

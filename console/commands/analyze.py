@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 from typing import Annotated
 
 import typer
@@ -21,10 +22,9 @@ from console.commands.common import (
     StrictOpt,
     fail,
     guard,
-    layout_summary,
     load_layout,
     print_json,
-    run_diag_stream,
+    read_logs,
 )
 from console.safe_text import clean
 
@@ -57,60 +57,65 @@ def analyze(
     """Inventory, passages with speeds, and the parse report of diagnostic logs."""
 
     def body() -> int:
-        from console.analysis.stream import FirstPassages
-        from console.jobs import summarise_status, summary_doc
-        from console.render.diag_stream import JsonLinesOut
-        from console.render.passage_spool import PassageSpool
+        from console.drivers.batch import speed_settings
+        from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
+        from console.render.diag_stream import JsonLinesOut, status_json, summary_doc
+        from console.render.passage_spool import FirstPassages, PassageSpool
 
         if json_out and jsonl:
             raise fail("--json and --jsonl: choose one")
-        if jsonl and layout:
-            raise fail("--jsonl is not available with --layout yet; use --json")
         # Line facts come from the layout; the Osong test line when none is given.
         lay = load_layout(layout or "osong")
-        consist = lay.consist()
-        spacing_m = spacing if spacing is not None else lay.heads[0].spacing_m
-        length_m = train_length if train_length is not None else (consist.length_m if consist else 28.6)
-        summary = layout_summary(files, lay, spacing_m, length_m, idle_gap) if layout else None
+        settings = PipelineSettings(
+            speed=speed_settings(lay, spacing, train_length, idle_gap), include_status=include_status
+        )
+        if layout:
+            from console.analysis.diag_events import DiagEventSettings
+            from console.render.section_tables import sections_summary
+
+            # With a layout: the section states and the health findings too, from the same read.
+            settings = replace(
+                settings,
+                events=DiagEventSettings(),
+                layout=lay,
+                sections=lay if lay.sections else None,
+                keep_registers=HEALTH_REGISTERS,
+                health="end",
+            )
         lines = JsonLinesOut(sys.stdout, None if rejected_all else REJECTIONS_LISTED) if jsonl else None
         # Passages go to a spool for --json, and only the first rows shown are kept for the text tables.
-        first = FirstPassages(PASSAGES_SHOWN) if not (json_out or jsonl or summary) else None
-        spool = PassageSpool() if json_out and not summary else None
-        if summary:
-            job = summary[0]
-            if not include_status:
-                summarise_status(job)
-        else:
-            job = run_diag_stream(
-                files, spacing_m, length_m, idle_gap, include_status, rejected_all, lines, spool or first
-            )
+        first = FirstPassages(PASSAGES_SHOWN) if not (json_out or jsonl) else None
+        spool = PassageSpool() if json_out else None
+        job = read_logs(files, settings, spool or first, jsonl=lines, rejected_all=rejected_all)
+        findings = job.findings
+        engine = job.sections
+        final = engine.final_states() if engine is not None else {}
         if lines is not None:
-            lines.finish((d.to_dict() for d in job.analysis.devices), summary_doc(job, JSON_SCHEMA_ANALYZE))
+            summary = summary_doc(job, JSON_SCHEMA_ANALYZE)
+            if layout:
+                summary.update(layout=lay.source, **sections_summary(final), warnings=job.warnings)
+            lines.finish((d.to_dict() for d in job.analysis.devices), summary, findings)
         elif json_out:
-            from console.jobs import status_json
-            from console.jsonout import RawJSON, array_parts
+            from console.jsonout import array_parts
 
-            passages = spool.json_parts() if spool is not None else RawJSON(job.analysis.passages_json_text())
+            assert spool is not None
             devices = array_parts(d.to_dict() for d in job.analysis.devices)  # encoded as written
             doc = {
                 "schema": JSON_SCHEMA_ANALYZE,
                 "trackside_version": __version__,
                 "files": job.files,
                 "parse_report": job.report.to_dict(),
-                **job.analysis.to_dict(passages=passages, devices=devices),
+                **job.analysis.to_dict(passages=spool.json_parts(), devices=devices),
             }
             if job.status is not None:
                 doc["status_passages"] = status_json(job.status, job.analysis.heads)
-            if summary:
-                from console.render.section_tables import sections_json
-
+            if layout:
                 doc["layout"] = lay.source
-                doc["sections"] = sections_json(summary[1])["sections"]
-                doc["health"] = [f.to_dict() for f in summary[2]]
-                doc["warnings"] = summary[3]
+                doc.update(sections_summary(final))
+                doc["health"] = [f.to_dict() for f in findings]
+                doc["warnings"] = job.warnings
             print_json(doc)
-            if spool is not None:
-                spool.close()
+            spool.close()
         else:
             from console.render.diag_tables import (
                 inventory_table,
@@ -146,13 +151,13 @@ def analyze(
                 )
             for n in notes:
                 out.print(clean(n), markup=False)
-            if summary:
+            if layout:
                 from console.render.health_tables import findings_view
-                from console.render.section_tables import final_states_table
+                from console.render.section_tables import final_states_view
 
-                out.print(final_states_table(summary[1]))
-                out.print(findings_view(summary[2], show_info=False, title="Health"))
-                for w in summary[3]:
+                out.print(final_states_view(final))
+                out.print(findings_view(findings, show_info=False, title="Health"))
+                for w in job.warnings:
                     out.print(clean(f"warning: {w}"), markup=False)
         return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
 

@@ -16,7 +16,7 @@ from console.commands.common import (
     guard,
     load_layout,
     print_json,
-    run_diag,
+    read_logs,
 )
 
 
@@ -52,9 +52,10 @@ def approach(
             sites = [WorkSite("site", head, distance, warning_time)]
         if not sites:
             raise fail(f"{lay.source} has no [[work_sites]]: give --head and --distance")
-        spacing = lay.heads[0].spacing_m
-        consist = lay.consist()
-        job = run_diag(files, spacing, consist.length_m if consist else 28.6, 10.0)
+        from console.drivers.batch import speed_settings
+        from console.engine.pipeline import PipelineSettings
+
+        job = read_logs(files, PipelineSettings(speed=speed_settings(lay)), hold_passages=True)
         rows = [r for site in sites for r in approach_timeline(job.analysis.passages, lay, site)]
         if json_out:
             print_json(

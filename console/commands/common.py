@@ -311,101 +311,34 @@ def refuse_wrong_kind(paths: list[Path], expected: str) -> None:
             raise fail(f"{show_path(p)}: not an axle-counter diagnostic log: looks like {guess.description}")
 
 
-def layout_summary(files: list[Path], lay: Any, spacing: float, length: float, idle_gap: float) -> Any:
-    """One pass for `analyze --layout`: the job, section states and health findings."""
-    from console.analysis.diag_events import DiagEventSettings
-    from console.analysis.diagnostics import SpeedSettings
-    from console.analysis.sections import run_sections
-    from console.jobs import HEALTH_REGISTERS, analyze_files, detection_events, health_findings, input_bytes
-    from console.progress import byte_progress
-
-    check_inputs(files)
-    refuse_wrong_kind(files, "diag")
-    with byte_progress(input_bytes(files), "parsing") as advance:
-        job = analyze_files(
-            files,
-            SpeedSettings(spacing, length, idle_gap),
-            on_progress=advance,
-            keep_registers=HEALTH_REGISTERS,
-            keep_releases=True,
-        )
-    events, warnings = detection_events(job, lay, DiagEventSettings())
-    result = run_sections(lay, events)
-    return job, result, health_findings(job, lay, events, None), warnings
-
-
-def run_diag(
-    files: list[Path], spacing: float, train_length: float, idle_gap: float, keep_releases: bool = False
-) -> Any:
-    from console.analysis.diagnostics import SpeedSettings
-    from console.jobs import analyze_files, input_bytes
-    from console.progress import byte_progress
-
-    check_inputs(files)
-    refuse_wrong_kind(files, "diag")
-    settings = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
-    with byte_progress(input_bytes(files), "parsing") as advance:
-        return analyze_files(files, settings, on_progress=advance, keep_releases=keep_releases)
-
-
-def run_diag_stream(
+def read_logs(
     files: list[Path],
-    spacing: float,
-    train_length: float,
-    idle_gap: float,
-    include_status: bool,
-    rejected_all: bool,
+    settings: Any,
+    sink: Any = None,
+    *,
     jsonl: Any = None,
-    spool: Any = None,
+    rejected_all: bool = False,
+    hold_passages: bool = False,
 ) -> Any:
-    """The diagnostic job in bounded memory (:func:`console.jobs.stream_files`); with ``jsonl``
-    (a :class:`~console.render.diag_stream.JsonLinesOut`), passages and rejections are written as found;
-    with ``spool`` (a :class:`~console.render.passage_spool.PassageSpool`, or any sink with ``add`` and
-    ``clear`` such as :class:`~console.analysis.stream.FirstPassages`), passages are encoded into it
-    as they close.  Either way the job then holds no passages, only their count."""
-    import sys as _sys
-
-    from console.analysis.diagnostics import SpeedSettings
-    from console.jobs import input_bytes, stream_files
+    """Read diagnostic logs through the pipeline (:func:`console.drivers.batch.read_diag`), with the
+    checks every command makes first and a progress bar; ``jsonl`` (a
+    :class:`~console.render.diag_stream.JsonLinesOut`) also gets the rejected lines as they are met."""
+    from console.drivers.batch import ReadOptions, input_bytes, read_diag
+    from console.engine.sinks import Sinks
     from console.progress import byte_progress
 
     check_inputs(files)
     refuse_wrong_kind(files, "diag")
-    settings = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
-
-    def read(whole: bool) -> Any:
-        with byte_progress(input_bytes(files), "parsing") as advance:
-            return stream_files(
-                files,
-                settings,
-                on_progress=advance,
-                on_passages=jsonl.passages if jsonl is not None else spool.add if spool is not None else None,
-                include_status=include_status,
-                max_rejections_kept=_sys.maxsize if rejected_all else REJECTIONS_LISTED,
-                on_reject=jsonl.rejected if jsonl is not None else None,
-                on_records=advance.records if advance is not None else None,
-                hold_passages=jsonl is None and spool is None,
-                keep_axles=False,  # no face of analyze or speeds shows the axles table
-                whole=whole,
-            )
-
-    job = read(whole=False)
-    if job.late_records:
-        from console.analysis.stream import ORDER_SLACK_S
-
-        order = f"{job.late_records} records came after their passage had closed (the log is out of time order"
-        if jsonl is not None or any(os.fsdecode(f) == STDIN or not os.path.isfile(f) for f in files):
-            # Passages already written, or a stream that cannot be read again: say so.
-            sys.stderr.write(
-                f"trackside: warning: {order} by more than {ORDER_SLACK_S:g} s); passages near them may be split"
-                " or differ from a whole read: --json on the file reads it whole\n"
-            )
-        else:
-            # Nothing written yet: read the file again, whole, as several files are.
-            if spool is not None:
-                spool.clear()
-            job = read(whole=True)
-    return job
+    with byte_progress(input_bytes(files), "parsing") as advance:
+        opts = ReadOptions(
+            on_progress=advance,
+            on_records=advance.records if advance is not None else None,
+            max_rejections_kept=sys.maxsize if rejected_all else REJECTIONS_LISTED,
+            on_reject=jsonl.rejected if jsonl is not None else None,
+            passages_final=jsonl is not None,
+            hold_passages=hold_passages,
+        )
+        return read_diag(files, settings, Sinks(jsonl, sink), opts)
 
 
 def load_layout(spec: str) -> Any:

@@ -124,13 +124,8 @@ def follow(
         except SourceError as exc:
             raise fail(str(exc)) from None
         out = sys.stdout
-        status_only = [0]
 
         def emit(ev: dict[str, Any]) -> None:
-            # A board's status dumps make a passage each, train or not: counted, listed on request (as analyze).
-            if not include_status and ev.get("type") == "passage" and ev.get("kind") == "status":
-                status_only[0] += 1
-                return
             if jsonl:
                 out.write(json.dumps(ev, ensure_ascii=False, default=str) + "\n")
             else:
@@ -141,7 +136,7 @@ def follow(
         consist = lay.consist() if lay else None
         settings = SpeedSettings(spacing, consist.length_m if consist else 28.6, idle_gap)
         archiver = LiveArchiver(archive, layout) if archive is not None else None
-        engine = LiveEngine(lay, emit, settings, archiver=archiver)
+        engine = LiveEngine(lay, emit, settings, archiver=archiver, include_status=include_status)
         last = [time.monotonic(), engine.items]
         data_items = [0]
 
@@ -164,8 +159,6 @@ def follow(
 
         terminated = run_sources(engine, srcs, until=idle, duration_s=duration) == signal.SIGTERM
         summary = engine.summary(srcs)
-        if not include_status:
-            summary["status_only_passages"] = status_only[0]
         if jsonl:
             emit(summary)
         else:

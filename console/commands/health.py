@@ -17,7 +17,7 @@ from console.commands.common import (
     guard,
     load_layout,
     print_json,
-    refuse_wrong_kind,
+    read_logs,
 )
 from console.safe_text import clean
 
@@ -51,8 +51,6 @@ def health(
     def body() -> int:
         from console.analysis.diag_events import DiagEventSettings
         from console.analysis.health import Severity, sort_findings, voltage_margin_findings
-        from console.jobs import HEALTH_REGISTERS, health_findings, input_bytes
-        from console.progress import byte_progress
         from console.render.health_tables import findings_view
         from parsers.voltages import read_voltages
 
@@ -69,23 +67,15 @@ def health(
         reports: list[Any] = []
         warnings: list[str] = []
         if files:
-            check_inputs(files)
-            refuse_wrong_kind(files, "diag")
-            from console.analysis.diagnostics import SpeedSettings
-            from console.stream_jobs import stream_diag
+            from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
 
             # In bounded memory: only the channel-fault events and the health registers' records are kept.
-            with byte_progress(input_bytes(files), "parsing") as advance:
-                run = stream_diag(
-                    files,
-                    SpeedSettings(),
-                    layout=lay,
-                    event_settings=DiagEventSettings(),
-                    keep_registers=HEALTH_REGISTERS,
-                    on_progress=advance,
-                )
-            job, warnings = run.job, run.warnings
-            findings += health_findings(job, lay, run.health_events, None)
+            settings = PipelineSettings(
+                events=DiagEventSettings(), layout=lay, keep_registers=HEALTH_REGISTERS, health="end"
+            )
+            job = read_logs(files, settings)
+            warnings = job.warnings
+            findings += job.findings
             reports.append(job.report)
         if voltages:
             check_inputs(voltages)

@@ -12,11 +12,10 @@ from console.commands.common import (
     FilesArg,
     JsonOpt,
     LayoutOpt,
-    check_inputs,
     fail,
     guard,
     load_layout,
-    refuse_wrong_kind,
+    read_logs,
 )
 from console.safe_text import clean
 
@@ -39,23 +38,21 @@ def _parse_resets(values: list[str]) -> list[Any]:
     return out
 
 
-def _write_json(run: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
+def _write_json(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
     """The document of ``sections_json``, its timeline and ledger copied in from the sink's spill files."""
     import sys
 
     from console.jsonout import dumps
+    from console.render.section_tables import sections_summary
 
     head = dumps(
         {
             "schema": "trackside.sections/1",
-            "files": run.job.files,
+            "files": job.files,
             "layout": lay.source,
-            "parse_report": run.job.report.to_dict(),
-            "warnings": run.warnings,
-            "sections": [
-                {"section": sid, "state": st_, "count": c, "count_in": i, "count_out": o, "reason": why}
-                for sid, (st_, c, i, o, why) in final.items()
-            ],
+            "parse_report": job.report.to_dict(),
+            "warnings": job.warnings,
+            **sections_summary(final),
         }
     )
     out = sys.stdout
@@ -65,11 +62,11 @@ def _write_json(run: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
     out.flush()
 
 
-def _print_tables(run: Any, final: dict[str, Any], sink: Any) -> None:
+def _print_tables(job: Any, final: dict[str, Any], sink: Any) -> None:
     from console.analysis.sections import SectionsResult, ledger_summary_frame
     from console.render import section_tables as st
 
-    head = run.engine.result(sink.timeline_first, [], sink.resets)
+    head = job.sections.result(sink.timeline_first, [], sink.reset_rows)
     result = SectionsResult(head.timeline, head.ledger, head.resets, final, ledger_summary_frame(sink.ledger_totals))
     out = Console(highlight=False)
     out.print(st.final_states_table(result))
@@ -83,10 +80,10 @@ def _print_tables(run: Any, final: dict[str, Any], sink: Any) -> None:
     rt = st.resets_table(result)
     if rt is not None:
         out.print(rt)
-    for w in run.warnings:
+    for w in job.warnings:
         out.print(clean(f"warning: {w}"), markup=False)
-    if run.job.report.rejected:
-        out.print(f"{run.job.report.rejected} input lines rejected (trackside analyze lists them)", markup=False)
+    if job.report.rejected:
+        out.print(f"{job.report.rejected} input lines rejected (trackside analyze lists them)", markup=False)
 
 
 def sections(
@@ -126,9 +123,8 @@ def sections(
         from console.analysis.majority import MajoritySettings
         from console.analysis.sections import SectionState
         from console.analysis.wheels import CountingSettings
-        from console.jobs import input_bytes
-        from console.progress import byte_progress
-        from console.stream_jobs import SectionsSink, stream_diag
+        from console.engine.pipeline import PipelineSettings
+        from console.render.section_history import SectionsSink
 
         if initial not in ("unknown", "clear"):
             raise fail(f"--initial: expected unknown or clear, found {initial!r}")
@@ -136,40 +132,31 @@ def sections(
         if not lay.sections:
             raise fail(f"{lay.source}: the layout has no [[sections]]")
         resets = _parse_resets(reset or [])
-        check_inputs(files)
-        refuse_wrong_kind(files, "diag")
-        settings = DiagEventSettings(
+        events = DiagEventSettings(
             counting=CountingSettings(isolation_s=isolation),
             majority=MajoritySettings(isolation_s=isolation),
             power_gap_s=power_gap,
         )
-        start = SectionState.CLEAR if initial == "clear" else SectionState.PREPARATORY
-        speed = SpeedSettings(spacing_m=lay.heads[0].spacing_m, train_length_m=28.6, idle_gap_s=10.0)
+        settings = PipelineSettings(
+            speed=SpeedSettings(spacing_m=lay.heads[0].spacing_m, train_length_m=28.6, idle_gap_s=10.0),
+            events=events,
+            layout=lay,
+            sections=lay,
+            initial=SectionState.CLEAR if initial == "clear" else SectionState.PREPARATORY,
+            resets=tuple(resets),
+        )
         sink = SectionsSink(spill=json_out)
         try:
-            with byte_progress(input_bytes(files), "parsing") as advance:
-                run = stream_diag(
-                    files,
-                    speed,
-                    layout=lay,
-                    event_settings=settings,
-                    sections_layout=lay,
-                    resets=resets,
-                    initial=start,
-                    sink=sink,
-                    on_progress=advance,
-                )
-            sink = run.sink or sink
-            assert run.engine is not None
-            final = run.engine.result().final
+            job = read_logs(files, settings, sink)
+            assert job.sections is not None
+            final = job.sections.final_states()
             disturbed = [sid for sid, f in final.items() if f[0] == SectionState.DISTURBED]
             if json_out:
-                _write_json(run, lay, final, sink)
+                _write_json(job, lay, final, sink)
             else:
-                _print_tables(run, final, sink)
+                _print_tables(job, final, sink)
         finally:
             sink.close()
-        job = run.job
         return exit_codes.FINDINGS if strict and (job.report.rejected or disturbed) else exit_codes.OK
 
     raise typer.Exit(guard(body))

@@ -21,7 +21,7 @@ from console.commands.common import (
     fail,
     guard,
     print_json,
-    run_diag_stream,
+    read_logs,
 )
 
 
@@ -38,15 +38,19 @@ def speeds(
     """The passages table alone: per-second, whole-train and per-axle speeds."""
 
     def body() -> int:
-        from console.jobs import status_json, summary_doc
-        from console.render.diag_stream import JsonLinesOut
+        from console.analysis.diagnostics import SpeedSettings
+        from console.engine.pipeline import PipelineSettings
+        from console.render.diag_stream import JsonLinesOut, status_json, summary_doc
         from console.render.passage_spool import PassageSpool
 
         if json_out and jsonl:
             raise fail("--json and --jsonl: choose one")
         lines = JsonLinesOut(sys.stdout, REJECTIONS_LISTED) if jsonl else None
         spool = PassageSpool() if json_out else None
-        job = run_diag_stream(files, spacing, train_length, idle_gap, include_status, False, lines, spool)
+        speed = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
+        settings = PipelineSettings(speed=speed, include_status=include_status)
+        # The text table lists every passage: held as one table.
+        job = read_logs(files, settings, spool, jsonl=lines, hold_passages=not (json_out or jsonl))
         if lines is not None:
             lines.finish([], summary_doc(job, "trackside.speeds/1"))
         elif json_out:

@@ -33,10 +33,12 @@ class LiveEngine:
         emit: Emit,
         settings: SpeedSettings | None = None,
         archiver: LiveArchiver | None = None,
+        include_status: bool = False,
     ) -> None:
         self.layout = layout
         self.emit = emit
-        self.diag = DiagFollow(layout, settings or SpeedSettings(), emit)
+        self.include_status = include_status
+        self.diag = DiagFollow(layout, settings or SpeedSettings(), emit, include_status=include_status)
         self.crossings = CrossingFollow(layout, emit) if layout is not None and layout.crossings else None
         self.frames = FrameFollow(layout, emit)
         self.archiver = archiver
@@ -112,6 +114,8 @@ class LiveEngine:
             "files": files,
             "sections": {k: {"state": s, "count": c} for k, (s, c) in self.section_states().items()},
             "sources": [s.status().to_dict() for s in sources],
+            # A board's status dumps make a passage each, train or not: counted, listed on request (as analyze).
+            **({} if self.include_status else {"status_only_passages": self.diag.status_passages}),
         }
 
     def section_states(self) -> dict[str, tuple[str, int]]:

@@ -10,13 +10,21 @@ report counts, status-passage counts).  A 30 M-record log can be piped into
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable
-from typing import Any, TextIO
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, Any, TextIO
 
 from console.analysis.head_table import Heads
 from console.analysis.passages import Columns
+from console.analysis.status import StatusSummary
+from console.engine.sinks import Sink
 from console.jsonout import valid_unicode
+from console.render.event_lines import health_event, section_event
 from parsers.report import Rejection
+
+if TYPE_CHECKING:
+    from console.analysis.health import Finding
+    from console.analysis.sections import Transition
+    from console.drivers.batch import DiagJob
 
 
 def line(obj: dict[str, Any]) -> str:
@@ -24,7 +32,7 @@ def line(obj: dict[str, Any]) -> str:
     return valid_unicode(json.dumps(obj, ensure_ascii=True, separators=(",", ":"), allow_nan=False)) + "\n"
 
 
-class JsonLinesOut:
+class JsonLinesOut(Sink):
     """Writes the lines of one ``--jsonl`` run to ``out``."""
 
     def __init__(self, out: TextIO, rejections_shown: int | None) -> None:
@@ -51,11 +59,53 @@ class JsonLinesOut:
         self.out.write(text)
         self.out.flush()
 
-    def finish(self, devices: Iterable[dict[str, Any]], summary: dict[str, Any]) -> None:
+    def transitions(self, rows: Sequence[Transition]) -> None:
+        self.out.write("".join(line(section_event(t)) for t in rows))
+        self.out.flush()
+
+    def finish(
+        self, devices: Iterable[dict[str, Any]], summary: dict[str, Any], findings: Sequence[Finding] = ()
+    ) -> None:
         from console.jsonout import write
 
+        for f in findings:
+            self.out.write(line(health_event(f)))
         for d in devices:
             # "type" names the line; the board's own type is "device_type" here.
             self.out.write(line({"type": "device", **{("device_type" if k == "type" else k): v for k, v in d.items()}}))
         write({"type": "summary", **summary}, self.out)  # as line(): its larger parts may be streamed
         self.out.flush()
+
+
+def status_json(status: StatusSummary, heads: Heads) -> dict[str, object]:
+    """``status_passages`` of a JSON document: the rows per head encoded as they are written."""
+    from console.jsonout import array_parts
+
+    return {**status.totals(), "by_head": array_parts(status.by_head(heads))}
+
+
+def summary_doc(job: DiagJob, schema: str) -> dict[str, object]:
+    """The ``summary`` line of ``--jsonl``: what the JSON document holds besides passages and devices."""
+    from console import __version__
+
+    a, s = job.analysis, job.analysis.settings
+    report = job.report.to_dict()
+    report.pop("rejections")  # listed as lines of their own
+    return {
+        "schema": schema,
+        "trackside_version": __version__,
+        "files": job.files,
+        "settings": {
+            "spacing_m": s.spacing_m,
+            "train_length_m": s.train_length_m,
+            "idle_gap_s": s.idle_gap_s,
+            "pair_window_s": s.pair_window_s,
+        },
+        "passages": job.passage_count,
+        **({"status_passages": status_json(job.status, a.heads)} if job.status is not None else {}),
+        "overlap_records": a.overlap_records,
+        "unpaired_detections": a.unpaired_detections,
+        "parse_report": report,
+        # Records that came after their passage closed, when the passages written are those of that read.
+        **({"late_records": job.late_records} if job.late_records and job.reads == 1 else {}),
+    }

@@ -14,8 +14,9 @@ from rich.text import Text
 
 from console.analysis.diagnostics import DiagAnalysis
 from console.analysis.inventory import DeviceInventory
-from console.analysis.stream import FirstPassages
+from console.analysis.stream import take_passages
 from console.analysis.timefmt import display, iso
+from console.render.passage_spool import FirstPassages
 from console.safe_text import inert
 from parsers.report import ParseReport
 
@@ -129,7 +130,6 @@ def _listed_passages(
         p = analysis.passages
         status = int((p["kind"] == "status").sum()) if len(p) else 0
         return (p[p["kind"] != "status"] if status else p), status, len(p) - status
-    from console.analysis.stream import take_passages
 
     listed = np.flatnonzero(cols["kind"] != _KINDS.index("status"))
     rows = take_passages(cols, listed[:limit])

@@ -16,12 +16,16 @@ import json
 import os
 import tempfile
 from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from typing import IO
 
 import numpy as np
 
 from console.analysis.head_table import Heads
 from console.analysis.passages import Columns
+from console.analysis.status import STATUS_KIND
+from console.analysis.stream import by_head_and_start, concat_passages, take_passages
+from console.engine.sinks import Sink
 from console.jsonout import JSONParts
 
 _LINE_TYPE = "p"
@@ -47,7 +51,7 @@ def passage_texts(cols: Columns, heads: Heads) -> list[str]:
     return [encode(p) for p in json.loads(passages_json_text(_passages_frame(cols, heads)))]
 
 
-class PassageSpool:
+class PassageSpool(Sink):
     """Collects batches of closed passages; :meth:`json_parts` gives them back as one JSON array.
 
     ``columns``: passage columns (name, NumPy type) kept too, read back with :meth:`columns`.
@@ -63,7 +67,7 @@ class PassageSpool:
         self._ordered: tuple[np.ndarray, np.ndarray] | None = None
         self.count = 0
 
-    def add(self, cols: Columns, heads: Heads) -> None:
+    def passages(self, cols: Columns, heads: Heads) -> None:
         """Take one batch (any order); its texts and places go to disk."""
         n = len(cols["head"])
         if not n:
@@ -82,8 +86,10 @@ class PassageSpool:
         self._size += int(rec["length"].sum(dtype=np.int64))
         self.count += n
 
-    def clear(self) -> None:
-        """Forget every passage taken so far (the log is read again)."""
+    def restart(self, passages: bool) -> None:
+        """The log is read again: forget every passage taken so far, when they will be handed again."""
+        if not passages:
+            return
         for f in (self._file, self._index):
             f.seek(0)
             f.truncate()
@@ -154,3 +160,35 @@ class PassageSpool:
     def close(self) -> None:
         self._file.close()
         self._index.close()
+
+
+@dataclass
+class FirstPassages(Sink):
+    """The first ``limit`` listed passages of a whole read's order (by head key, then start) and how many
+    passages there are, from batches of closed passages: what a table of the first rows needs, in memory
+    bounded by ``limit`` (a log may close a passage at each of a million heads).
+
+    Status-only passages are counted, not listed.  Ties keep the order the batches came in, as the
+    whole table's stable sort does.
+    """
+
+    limit: int
+    cols: Columns | None = None
+    listed: int = 0
+    status: int = 0
+
+    def passages(self, cols: Columns, heads: object = None) -> None:
+        """One batch of closed passages (``heads``: unused)."""
+        status = cols["kind"] == STATUS_KIND
+        self.status += int(status.sum())
+        keep = np.flatnonzero(~status)
+        self.listed += len(keep)
+        part = take_passages(cols, keep)
+        merged = concat_passages([self.cols, part]) if self.cols is not None else part
+        assert merged is not None
+        self.cols = take_passages(merged, by_head_and_start(merged)[: self.limit])
+
+    def restart(self, passages: bool) -> None:
+        """The log is read again: forget every passage taken so far, when they will be handed again."""
+        if passages:
+            self.cols, self.listed, self.status = None, 0, 0

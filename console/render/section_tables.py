@@ -36,10 +36,15 @@ def _t(ns: Any) -> str:
 
 
 def final_states_table(result: SectionsResult) -> Table:
+    return final_states_view(result.final)
+
+
+def final_states_view(final: dict[str, tuple[str, int, int, int, str]]) -> Table:
+    """Each section's state at the end: section → (state, count, in, out, reason)."""
     t = _table("Sections now (· clear  # occupied  ! disturbed  ? preparatory)")
     for c in ("Section", "State", "Count", "In", "Out", "Why"):
         t.add_column(c, justify="right" if c in ("Count", "In", "Out") else "left")
-    for sid, (state, count, n_in, n_out, reason) in result.final.items():
+    for sid, (state, count, n_in, n_out, reason) in final.items():
         t.add_row(inert(sid), state_text(state), Text(str(count)), Text(str(n_in)), Text(str(n_out)), inert(reason))
     return t
 
@@ -100,11 +105,18 @@ def sections_json(result: SectionsResult) -> dict[str, Any]:
         return out
 
     return {
-        "sections": [
-            {"section": sid, "state": st, "count": c, "count_in": i, "count_out": o, "reason": why}
-            for sid, (st, c, i, o, why) in result.final.items()
-        ],
+        **sections_summary(result.final),
         "timeline": rows(result.timeline),
         "ledger": rows(result.ledger),
         "resets": rows(result.resets),
+    }
+
+
+def sections_summary(final: dict[str, tuple[str, int, int, int, str]]) -> dict[str, Any]:
+    """``{"sections": [...]}``: each section's state at the end, as every JSON document gives it."""
+    return {
+        "sections": [
+            {"section": sid, "state": st, "count": c, "count_in": i, "count_out": o, "reason": why}
+            for sid, (st, c, i, o, why) in final.items()
+        ]
     }

@@ -22,8 +22,8 @@ name starts with a dot are skipped (and counted in a warning).  A file
 that cannot be opened at all is an error (:class:`ReportInputError`).
 
 The analyses are the ones the other commands run, called the same way:
-``analyze_files`` + ``detection_events`` + ``run_sections`` (each section
-starting preparatory) + ``health_findings`` for diagnostic logs,
+the pipeline (:func:`console.drivers.batch.read_diag`: passages, sections, each
+starting preparatory, and ``health_findings``) for diagnostic logs,
 ``frames_to_events`` per frame file, ``voltage_margin_findings`` for
 voltage tables, ``parse_gnss`` + ``run_crossings`` for GNSS telemetry.
 Section events come from the diagnostic logs, or from frames only when no
@@ -51,10 +51,13 @@ from console.analysis.diagnostics import SpeedSettings
 from console.analysis.events import DetectionEvent, sort_events
 from console.analysis.health import Finding, sort_findings, voltage_margin_findings
 from console.analysis.sections import SectionState, run_sections
-from console.jobs import HEALTH_REGISTERS, health_findings, input_bytes
+from console.drivers.batch import ReadOptions, input_bytes, read_diag
+from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
+from console.engine.sinks import Sinks
 from console.layout import Layout, LayoutError, load_layout
 from console.output_path import file_identity
 from console.progress import byte_progress
+from console.render.section_history import SectionsSink
 from console.report.model import (
     CAN,
     CENTRE,
@@ -76,7 +79,6 @@ from console.report.model import (
 )
 from console.report.spooled import ReportPassages, SectionHistory, report_sink
 from console.safe_text import show_path
-from console.stream_jobs import SectionsSink, stream_diag
 from parsers.report import escape_text
 from parsers.sources import InputError, open_input
 
@@ -340,41 +342,43 @@ def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], for_form
         # One streaming read: passages, the section engine's run and the health inputs, in memory
         # bounded by the heads for one log (console.stream_jobs); the long lists go to disk.
         sections_layout = layout if layout is not None and layout.sections else None
-        sink = None
+        history = None
         if sections_layout is not None:
-            sink = SectionsSink(keep_all=True) if whole else report_sink(ledger_rows=for_format in (None, "json"))
+            history = SectionsSink(keep_all=True) if whole else report_sink(ledger_rows=for_format in (None, "json"))
         data.passage_spool = None if whole else ReportPassages(plot=for_format in (None, "html"))
+        pipe = PipelineSettings(
+            speed=settings,
+            events=DiagEventSettings(),
+            layout=layout,
+            sections=sections_layout,
+            keep_registers=HEALTH_REGISTERS,
+            health="end",
+        )
         try:
             with byte_progress(input_bytes(diag), "parsing") as advance:
-                run = stream_diag(
+                job = read_diag(
                     diag,
-                    settings,
-                    layout=layout,
-                    event_settings=DiagEventSettings(),
-                    sections_layout=sections_layout,
-                    initial=SectionState.PREPARATORY,
-                    sink=sink,
-                    keep_registers=HEALTH_REGISTERS,
-                    keep_passages=whole,
-                    on_passages=data.passage_spool.add if data.passage_spool is not None else None,
-                    on_progress=advance,
+                    pipe,
+                    Sinks(history, data.passage_spool),
+                    ReadOptions(on_progress=advance, hold_passages=whole),
                 )
         except BaseException:
-            if sink is not None:
-                sink.close()
+            if history is not None:
+                history.close()
             raise
-        data.job = run.job
-        data.reports["diagnostic"] = data.job.report
+        data.job = job
+        data.reports["diagnostic"] = job.report
         # The report reads the events only for the time the data ends: the last one stands for them.
-        data.events = [run.last_event] if run.last_event is not None else []
-        data.warnings += run.warnings
-        findings += health_findings(data.job, layout, run.health_events, None)
-        if run.engine is not None and run.sink is not None:
-            sk = run.sink
+        last = job.last_event
+        data.events = [last] if last is not None else []
+        data.warnings += job.warnings
+        findings += job.findings
+        engine = job.sections
+        if engine is not None and history is not None:
             if whole:
-                data.sections = run.engine.result(sk.timeline_all, sk.ledger_all, sk.resets)
+                data.sections = engine.result(history.timeline_all, history.ledger_all, history.reset_rows)
             else:
-                data.history = SectionHistory(run.engine.result([], [], []).final, sk)
+                data.history = SectionHistory(engine.final_states(), history)
             data.section_source = "diagnostic"
 
     _frames(data, of(FRAMES), of(CAN))

@@ -42,7 +42,7 @@ from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.health import Finding, Severity
 from console.analysis.sections import SectionsResult, SectionState
 from console.analysis.timefmt import iso
-from console.jobs import DiagJob
+from console.drivers.batch import DiagJob
 from console.layout import Layout
 from console.render.section_tables import sections_json
 from console.report.jsonwrite import Rows

@@ -4,7 +4,7 @@ A report on a diagnostic log lists every passage and, in JSON, every state
 change and every counted axle: ten times more at 30 M records than at 3 M.
 They are not held.  Passages go into the :class:`~console.render.passage_spool.PassageSpool`
 that ``analyze --json`` uses (:class:`ReportPassages`), the section history
-into the :class:`~console.stream_jobs.SectionsSink` spill that ``sections --json``
+into the :class:`~console.render.section_history.SectionsSink` spill that ``sections --json``
 uses, its rows already in the report's JSON form (:func:`report_sink`,
 :class:`SectionHistory`).  What stays in memory is a few numbers per state
 change (the state plot) and totals; the numbers the speed plot reads of each
@@ -31,10 +31,11 @@ from console.analysis.sections import ResetRecord, Transition
 from console.analysis.status import STATUS_KIND
 from console.analysis.stream import take_passages
 from console.analysis.timefmt import iso
+from console.engine.sinks import Sink
 from console.jsonout import valid_unicode
 from console.render.passage_spool import PassageSpool
+from console.render.section_history import SectionsSink, _LedgerText
 from console.report.jsonwrite import Rows, Write, indented
-from console.stream_jobs import SectionsSink, _LedgerText
 
 TRAIN_KIND = 0  # diagnostics._KINDS.index("train")
 # Where the document holds the section history's rows: doc → "sections" → "timeline" / "ledger" → a row.
@@ -48,7 +49,7 @@ _PLOTTED = (
 )
 
 
-class ReportPassages:
+class ReportPassages(Sink):
     """The passages a report lists, spooled as they close (status-only ones counted, not listed);
     with ``plot``, the spool keeps what the speed plot reads of each one too (on disk, 21 bytes)."""
 
@@ -58,12 +59,17 @@ class ReportPassages:
         self.status = 0
         self.heads: Heads = []
 
-    def add(self, cols: Columns, heads: Heads) -> None:
+    def passages(self, cols: Columns, heads: Heads) -> None:
         """One batch of closed passages (``heads``: the log's heads so far, by key)."""
         status = cols["kind"] == STATUS_KIND
         self.status += int(status.sum())
-        self.spool.add(take_passages(cols, np.flatnonzero(~status)) if status.any() else cols, heads)
+        self.spool.passages(take_passages(cols, np.flatnonzero(~status)) if status.any() else cols, heads)
         self.heads = heads  # the latest heads: they grow as heads appear, keys stay
+
+    def restart(self, passages: bool) -> None:
+        if passages:
+            self.spool.restart(passages)
+            self.status = 0
 
     def __len__(self) -> int:
         return self.spool.count
@@ -203,7 +209,7 @@ class SectionHistory:
         ]
 
     def resets(self) -> list[ResetRecord]:
-        return self.sink.resets
+        return self.sink.reset_rows
 
     def since_ns(self, section: str, state: str) -> int | None:
         """When ``section`` last entered ``state`` (None: never)."""

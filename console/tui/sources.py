@@ -210,15 +210,16 @@ class ReplaySource:
 
     def __init__(self, paths: Sequence[Path], layout: Layout) -> None:
         from console.analysis.diag_events import DiagEventSettings
-        from console.analysis.diagnostics import SpeedSettings
-        from console.jobs import analyze_files, detection_events
+        from console.drivers.batch import read_diag
+        from console.engine.pipeline import PipelineSettings
+        from console.engine.sinks import EventList
 
         diag = [p for p in paths if _is_diag(p)]
         other = [p for p in paths if p not in diag]
-        events: list[DetectionEvent] = []
+        kept = EventList()
         if diag:
-            job = analyze_files(diag, SpeedSettings(), keep_releases=True)
-            events, _ = detection_events(job, layout, DiagEventSettings())
+            read_diag(diag, PipelineSettings(events=DiagEventSettings(), layout=layout), kept)
+        events = kept.events
         frame = None
         if other and len(layout.track) >= 2:
             from parsers.gnss import parse_gnss

@@ -1,0 +1,1 @@
+"""The modes: thin drivers that feed the pipeline and choose its sinks."""

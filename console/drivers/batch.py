@@ -1,0 +1,292 @@
+"""Batch: read log files → the pipeline → sinks, in memory bounded by the heads and open passages.
+
+Every batch command (``analyze``, ``speeds``, ``sections``, ``health``,
+``approach``, ``report``) reads diagnostic logs through :func:`read_diag`;
+what differs is what the pipeline is asked to compute
+(:class:`~console.engine.pipeline.PipelineSettings`) and which sinks take
+the results.
+
+A read is repeated, from the start, in two rare cases a file allows (a
+stream such as standard input does not: a warning says so):
+
+* a head fact the pipeline guessed from a head's first passage was wrong
+  (:attr:`Pipeline.facts_wrong`): read again with the facts now known; the
+  passages are the same, so only the section history is taken again;
+* records came later than their passage's close (a log out of time order
+  by more than the pipeline's slack): read again whole, so passages are
+  those of the files read together.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
+from console.analysis.passages import Columns
+from console.analysis.status import StatusSummary
+from console.analysis.stream import ORDER_SLACK_S, by_head_and_start, concat_passages, take_passages
+from console.engine.pipeline import DiagOutcome, Pipeline, PipelineSettings
+from console.engine.sinks import Sink, Sinks
+from console.memory import read_memory
+from parsers.diag import DiagReader, DiagRegistry, chunks_to_frame
+from parsers.report import ParseReport
+from parsers.sources import DEFAULT_CHUNK_BYTES
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from console.analysis.events import DetectionEvent
+    from console.analysis.head_table import Heads
+    from console.analysis.health import Finding
+    from console.analysis.sections import SectionEngine
+    from console.layout import Layout
+
+STDIN = "-"
+
+
+@dataclass
+class DiagJob:
+    """One batch read of diagnostic logs: what the faces show besides what the sinks took."""
+
+    files: list[str]
+    report: ParseReport
+    analysis: DiagAnalysis
+    kept_records: pd.DataFrame | None = None
+    # What the pipeline knew at the end (None: a job made of stored rows, the archive's history).
+    outcome: DiagOutcome | None = None
+    reads: int = 1  # 2: read again (a guessed head fact was wrong, or the log is out of time order)
+    registry: DiagRegistry | None = None
+
+    @property
+    def status(self) -> StatusSummary | None:
+        return self.outcome.status if self.outcome is not None else None
+
+    @property
+    def passage_count(self) -> int:
+        if self.outcome is not None:
+            return self.outcome.passages
+        cols = self.analysis.passage_columns
+        return len(cols["head"]) if cols is not None else 0
+
+    @property
+    def late_records(self) -> int:
+        """Records that came after their passage had closed, in the first (streamed) read."""
+        return self.late_first if self.late_first is not None else self.outcome.late_records if self.outcome else 0
+
+    late_first: int | None = None
+
+    @property
+    def warnings(self) -> list[str]:
+        return self.outcome.warnings if self.outcome is not None else []
+
+    @property
+    def sections(self) -> SectionEngine | None:
+        """The section engine at the end (its final states), when the read ran one."""
+        return self.outcome.sections if self.outcome is not None else None
+
+    @property
+    def last_event(self) -> DetectionEvent | None:
+        """The last detection event but operator resets (where the data ends)."""
+        return self.outcome.last_event if self.outcome is not None else None
+
+    @property
+    def findings(self) -> list[Finding]:
+        """The health findings the pipeline judged (settings.health)."""
+        return self.outcome.findings if self.outcome is not None else []
+
+    @property
+    def health_events(self) -> list[DetectionEvent]:
+        return self.outcome.health_events if self.outcome is not None else []
+
+    @property
+    def records(self) -> pd.DataFrame:
+        """The kept registers' records (an empty table when none were kept)."""
+        if self.kept_records is None:
+            import pandas as pd
+
+            kept = self.outcome.kept if self.outcome is not None else []
+            self.kept_records = chunks_to_frame(kept, self.registry) if self.registry else pd.DataFrame()
+        return self.kept_records
+
+
+class PassageTable(Sink):
+    """Every passage held, as the whole table (by head, then start): for faces that need it all."""
+
+    def __init__(self) -> None:
+        self.parts: list[Columns] = []
+        self.axle_parts: list[Columns] = []
+
+    def passages(self, cols: Columns, heads: Heads) -> None:
+        self.parts.append(cols)
+
+    def axles(self, cols: Columns, heads: Heads) -> None:
+        self.axle_parts.append(cols)
+
+    def restart(self, passages: bool) -> None:
+        if passages:
+            self.parts, self.axle_parts = [], []
+
+    def columns(self) -> Columns | None:
+        cols = concat_passages(self.parts)
+        return take_passages(cols, by_head_and_start(cols)) if cols is not None else None
+
+    def axle_columns(self) -> Columns:
+        if not self.axle_parts:
+            return no_axles()
+        out = {c: np.concatenate([a[c] for a in self.axle_parts]) for c in self.axle_parts[0]}
+        return {c: v[np.lexsort((out["time_ns"], out["head"]))] for c, v in out.items()} if len(out["head"]) else out
+
+
+def no_axles() -> Columns:
+    from console.analysis.wheels import PairingSettings, pair_axle_arrays
+
+    empty = np.zeros(0, np.int64)
+    axles, _ = pair_axle_arrays(
+        {"head": empty, "channel": empty, "time_ns": empty, "subsecond": np.zeros(0, bool)}, PairingSettings()
+    )
+    return axles
+
+
+def input_bytes(paths: Sequence[Path]) -> int:
+    """Total on-disk size, for the progress bar (missing files count 0)."""
+    return sum(p.stat().st_size for p in paths if p.is_file())
+
+
+@dataclass
+class ReadOptions:
+    """How the files are read (not what is computed)."""
+
+    on_progress: Callable[[int], None] | None = None
+    on_records: Callable[[int], None] | None = None
+    chunk_bytes: int = DEFAULT_CHUNK_BYTES
+    max_rejections_kept: int | None = None
+    on_reject: Callable[..., None] | None = None
+    whole: bool = False  # read every file together (passages close at the end)
+    # Sinks that wrote passages where they cannot be taken back (stdout): no whole re-read then.
+    passages_final: bool = False
+    hold_passages: bool = False  # the job's analysis holds the passages table (PassageTable)
+    extra: list[Sink] = field(default_factory=list)
+
+
+def read_diag(
+    paths: Sequence[Path], settings: PipelineSettings, sink: Sink | None = None, opts: ReadOptions | None = None
+) -> DiagJob:
+    """Read diagnostic logs through the pipeline; results to ``sink`` as they are made."""
+    o = opts or ReadOptions()
+    table = PassageTable() if o.hold_passages else None
+    sinks = Sinks(sink, table) if table is not None else (sink or Sink())
+    with read_memory():
+        whole = o.whole or len(paths) > 1
+        job = _read(paths, settings, sinks, o, whole, None, passages=True)
+        if not whole and job.late_records and not o.passages_final and _rereadable(paths):
+            # Nothing written that cannot be taken back: read the file again, whole, as several files are.
+            sinks.restart(passages=True)
+            late = job.late_records
+            job = _read(paths, settings, sinks, o, True, None, passages=True)
+            job.reads, job.late_first = 2, late
+        elif not whole and job.late_records:
+            sys.stderr.write(
+                f"trackside: warning: {job.late_records} records came after their passage had closed"
+                f" (the log is out of time order by more than {ORDER_SLACK_S:g} s); passages near them may be split"
+                " or differ from a whole read: --json on the file reads it whole\n"
+            )
+    if table is not None:
+        job.analysis.passage_columns = table.columns()
+        job.analysis.axle_columns = table.axle_columns()
+    return job
+
+
+def _rereadable(paths: Sequence[Path]) -> bool:
+    return all(os.fsdecode(p) != STDIN and os.path.isfile(p) for p in paths)
+
+
+def _read(
+    paths: Sequence[Path],
+    settings: PipelineSettings,
+    sink: Sink,
+    o: ReadOptions,
+    whole: bool,
+    facts: dict | None,
+    passages: bool,
+) -> DiagJob:
+    reader = DiagReader(paths, on_progress=o.on_progress, chunk_bytes=o.chunk_bytes)
+    if o.max_rejections_kept is not None:
+        reader.report.max_rejections_kept = o.max_rejections_kept
+    reader.report.on_reject = o.on_reject
+    pipeline = Pipeline(reader.registry, settings, sink if passages else _HistoryOnly(sink), whole=whole, facts=facts)
+    for chunk in reader.chunks():
+        if o.on_records is not None:
+            o.on_records(len(chunk))
+        pipeline.feed(chunk)
+    outcome = pipeline.finish()
+    if pipeline.facts_wrong:
+        # The passages are those of the first read (facts change events only): the history is taken again.
+        sink.restart(passages=False)
+        again = ReadOptions(chunk_bytes=o.chunk_bytes, max_rejections_kept=o.max_rejections_kept)
+        job = _read(paths, settings, sink, again, whole, pipeline.facts, passages=False)
+        job.reads = 2
+        return job
+    return _job(paths, reader, settings.speed, outcome)
+
+
+def _job(paths: Sequence[Path], reader: DiagReader, speed: SpeedSettings, outcome: DiagOutcome) -> DiagJob:
+    for file_report, overlap in zip(reader.report.files, outcome.overlap_by_file, strict=False):
+        file_report.overlap_records = overlap
+    by_file = outcome.overlap_by_file or [0] * len(reader.report.files)
+    analysis = DiagAnalysis(
+        settings=speed,
+        devices=outcome.devices,
+        passage_columns=None,
+        axle_columns=no_axles(),
+        overlap_records=sum(by_file),
+        unpaired_detections=outcome.unpaired_detections,
+        overlap_by_file=list(by_file),
+        heads=outcome.heads,
+        overlap_times_ns=outcome.overlap_times_ns,
+    )
+    return DiagJob([str(p) for p in paths], reader.report, analysis, outcome=outcome, registry=reader.registry)
+
+
+class _HistoryOnly(Sinks):
+    """A second read's results, but for the passages and axles the first read already handed on."""
+
+    def passages(self, cols: Columns, heads: Heads) -> None:
+        return None
+
+    def axles(self, cols: Columns, heads: Heads) -> None:
+        return None
+
+
+def health_findings(
+    job: DiagJob,
+    layout: Layout | None,
+    events: list[DetectionEvent] | None = None,
+    voltages: pd.DataFrame | None = None,
+) -> list[Finding]:
+    """Health findings of a read that kept the health registers and channel events (``events``: these)."""
+    from console.analysis.health import health_report
+
+    bands = {h.id: h.analog_band for h in layout.heads if h.analog_band} if layout else None
+    evs = job.health_events if events is None else events
+    return health_report(job.records, bands=bands or None, events=evs, voltages=voltages)
+
+
+def speed_settings(
+    layout: Layout, spacing_m: float | None = None, train_length_m: float | None = None, idle_gap_s: float = 10.0
+) -> SpeedSettings:
+    """Line facts from the layout unless given: the first head's spacing, the first consist's length."""
+    consist = layout.consist()
+    return SpeedSettings(
+        spacing_m=spacing_m
+        if spacing_m is not None
+        else (layout.heads[0].spacing_m if layout.heads else SpeedSettings.spacing_m),
+        train_length_m=train_length_m if train_length_m is not None else (consist.length_m if consist else 28.6),
+        idle_gap_s=idle_gap_s,
+    )

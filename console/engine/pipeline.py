@@ -1,0 +1,359 @@
+"""The one pipeline: parsed items in, passages, section history, health and crossing events out.
+
+Every mode drives this class: a batch read feeds a log's chunks and ends
+with :meth:`Pipeline.finish`; ``follow`` and the station's live view feed
+the chunks of a growing file as they come; the archive's ingest feeds the
+chunks it stores; a Dask task feeds one partition's records.  The
+pipeline owns, for diagnostic records:
+
+* the per-head passage stream (:class:`~console.analysis.stream.PassageStream`):
+  a head's records up to an idle gap are *closed* once nothing read later
+  can join them, analysed by the batch analysis itself, and handed on;
+* the counting of their wheel records into detection events
+  (:class:`~console.analysis.stream_sections.EventStream`), released in
+  the whole-log order below a *watermark* (nothing still to come is
+  earlier);
+* the section engine (:class:`~console.analysis.sections.SectionEngine`),
+  stepped on the released events, whose history (state changes, ledger,
+  resets) is handed on as it is made;
+* the health inputs (the health registers' records and channel events),
+  judged when the input ends.
+
+Results go to one :class:`~console.engine.sinks.Sink`.
+
+**Whole mode.**  Several files read together may repeat each other's
+records at their seams (overlapping exports); that is found by comparing
+all records, so passages close only at :meth:`finish` (``whole=True``).
+Three-element (majority) heads are counted from all their records too.
+The results are the same objects, handed to the same sink.
+
+**Facts.**  Two facts about a head (point mode: no release records; any
+whole-second stamp) are guessed from its first closed passage and checked
+on every later one; :attr:`Pipeline.facts_wrong` says a guess failed, and a
+driver that can read its input again does so with :attr:`Pipeline.facts`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from console.analysis.diag_events import DiagEventSettings
+from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings
+from console.analysis.event_block import KIND_CODE, EventBlock, StringPool
+from console.analysis.events import DetectionEvent, EventKind, sort_events
+from console.analysis.sections import SectionEngine, SectionState
+from console.analysis.status import StatusSummary
+from console.analysis.stream import NO_TIME, PassageStream, by_start, take_passages
+from console.analysis.stream_sections import EventStream, HeadFacts
+from console.engine.sinks import Sink
+from parsers.diag import DiagChunk, DiagRegistry
+
+if TYPE_CHECKING:
+    from console.analysis.head_table import Heads
+    from console.analysis.health import Finding
+    from console.analysis.inventory import DeviceInventory
+    from console.layout import Layout
+
+# The events health reads (channel_fault_findings): everything else only drives sections.
+HEALTH_EVENT_KINDS = frozenset({EventKind.CHANNEL_FAULT, EventKind.CHANNEL_OK, EventKind.SINGLE_CHANNEL})
+# The registers health judges (analog values against their band, 1-edge counter growth).
+HEALTH_REGISTERS = frozenset({"analog_value", "counter_1_edge"})
+
+
+@dataclass(frozen=True)
+class PipelineSettings:
+    """What the pipeline computes, and on which line."""
+
+    speed: SpeedSettings = field(default_factory=SpeedSettings)
+    # Detection events from the wheel records (None: passages only, as analyze and speeds need).
+    events: DiagEventSettings | None = None
+    # The heads the events count (None: every head of the log, with default facts).
+    layout: Layout | None = None
+    # Run the section engine on this layout (needs events).
+    sections: Layout | None = None
+    initial: SectionState = SectionState.PREPARATORY
+    resets: tuple[DetectionEvent, ...] = ()
+    # These registers' records are kept (health reads them).
+    keep_registers: frozenset[str] = frozenset()
+    # Health findings (needs events and the health registers kept): judged on everything at the end
+    # ("end", a batch read), or on what came since the last judgement each time passages close ("closed",
+    # live: the records are dropped once judged, memory stays bounded); None: not judged here.
+    health: str | None = None
+    # Status-only passages handed on (False: counted per head in :attr:`Pipeline.status`).
+    include_status: bool = True
+    # Each closed batch's axles handed on (Sink.axles).
+    axles: bool = False
+
+
+@dataclass
+class DiagOutcome:
+    """What the pipeline knows when the input has ended, besides what it handed to the sink."""
+
+    devices: Sequence[DeviceInventory]
+    heads: Heads
+    passages: int  # passages handed on
+    unpaired_detections: int
+    overlap_by_file: list[int]
+    overlap_times_ns: np.ndarray
+    late_records: int
+    status: StatusSummary | None
+    warnings: list[str]
+    health_events: list[DetectionEvent]
+    kept: list[DiagChunk]
+    sections: SectionEngine | None
+    last_event: DetectionEvent | None
+    findings: list[Finding]
+
+
+class Pipeline:
+    """Feed diagnostic chunks in read order with :meth:`feed`; end with :meth:`finish`."""
+
+    def __init__(
+        self,
+        registry: DiagRegistry,
+        settings: PipelineSettings,
+        sink: Sink | None = None,
+        *,
+        whole: bool = False,
+        facts: dict[int, HeadFacts] | None = None,
+    ) -> None:
+        self.registry = registry
+        self.settings = s = settings
+        self.sink = sink if sink is not None else Sink()
+        self.whole = whole or (s.layout is not None and s.events is not None and _has_majority(s.layout))
+        keep_releases = s.events is not None
+        self.status = None if s.include_status else StatusSummary()
+        self.passages = 0
+        self.kept: list[DiagChunk] = []
+        self._wanted = np.zeros(0, bool)
+        self.health_events: list[DetectionEvent] = []
+        self.last_event: DetectionEvent | None = None
+        self.findings: list[Finding] = []
+        self.section_engine: SectionEngine | None = None
+        if s.health is not None and not (s.events is not None and s.keep_registers >= HEALTH_REGISTERS):
+            raise ValueError("health needs the detection events and the health registers kept")
+        self._resets_pending = list(s.resets)
+        if self.whole:
+            self.acc = DiagAccumulator(registry, keep_releases=keep_releases, track_overlap=True)
+            self.stream: PassageStream | None = None
+            self.events: EventStream | None = None
+        else:
+            self.stream = PassageStream(registry, s.speed, keep_releases=keep_releases)
+            self.acc = self.stream.acc
+            self.events = None
+            if s.events is not None:
+                self.events = EventStream(
+                    s.layout, s.events, facts=facts, on_event=self.health_events.append, event_kinds=HEALTH_EVENT_KINDS
+                )
+                for r in s.resets:
+                    self.events.add_reset(r)
+                self._resets_pending = []
+
+    # -- input -----------------------------------------------------------------
+    def feed(self, chunk: DiagChunk) -> None:
+        """One chunk of parsed records, in read order."""
+        if not len(chunk):
+            return
+        s = self.settings
+        if s.keep_registers:
+            if len(self._wanted) < self.registry.n_registers:
+                self._wanted = self.registry.canonical_in(s.keep_registers)
+            mask = self._wanted[chunk.register_id]
+            if mask.any():
+                self.kept.append(chunk.take(mask))
+        if self.stream is None:
+            self.acc.add(chunk)
+            return
+        self._closed(self.stream.add(chunk))
+        if self.events is not None:
+            slack_ns = self.stream._slack_ns
+            if self.stream.clock_ns > NO_TIME + slack_ns:
+                watermark = min(self.stream.open_first_ns(), self.stream.clock_ns - slack_ns)
+                self._step(self.events.release_block(watermark))
+
+    def finish(self, start_sections: bool = True) -> DiagOutcome:
+        """The input has ended: every open passage is whole; every held event is released.
+
+        ``start_sections``: with no event at all, the section engine is still made (every section in its
+        start state), as a batch read reports it; a live source that gave no record makes none.
+        """
+        warnings: list[str] = []
+        if self.stream is None:
+            warnings = self._finish_whole()
+        else:
+            self._closed(self.stream.finish())
+            if self.events is not None:
+                self._step(self.events.finish_block())
+                warnings = self.events.warnings(self.stream.heads)
+        s = self.settings
+        if start_sections and s.sections is not None and s.events is not None and self.section_engine is None:
+            self._engine(0)  # no event at all: every section keeps its start state
+            self._drain()
+        if self.settings.health is not None:
+            self._judge()
+        heads = self.heads
+        by_file = self._overlap_by_file
+        return DiagOutcome(
+            devices=self.acc.devices(),
+            heads=heads,
+            passages=self.passages,
+            unpaired_detections=self._unpaired,
+            overlap_by_file=by_file,
+            overlap_times_ns=self._overlap_times,
+            late_records=self.stream.late_records if self.stream is not None else 0,
+            status=self.status,
+            warnings=warnings,
+            health_events=self.health_events,
+            kept=self.kept,
+            sections=self.section_engine,
+            last_event=self.last_event,
+            findings=self.findings,
+        )
+
+    # -- state ---------------------------------------------------------------
+    @property
+    def heads(self) -> Heads:
+        return self.acc._lookup().heads
+
+    @property
+    def facts(self) -> dict[int, HeadFacts]:
+        """Per head key, the facts seen in the records read so far."""
+        return self.events.facts if self.events is not None else {}
+
+    @property
+    def facts_wrong(self) -> bool:
+        """A guessed head fact was contradicted by a later passage: read again with :attr:`facts`."""
+        return self.events is not None and self.events.guess_failed and self.events.known_facts is None
+
+    @property
+    def late_records(self) -> int:
+        return self.stream.late_records if self.stream is not None else 0
+
+    # -- passages ----------------------------------------------------------------
+    _unpaired = 0
+    _overlap_by_file: list[int] = []  # noqa: RUF012 (replaced, never mutated)
+    _overlap_times = np.zeros(0, np.int64)
+
+    def _closed(self, part: PartAnalysis | None) -> None:
+        if part is None:
+            return
+        if self.stream is not None:
+            self._unpaired = self.stream.unpaired_detections
+        heads = self.heads
+        if self.events is not None:
+            self.events.add(part.wheel, part.activity, heads)
+        if self.settings.axles and len(part.axles["head"]):
+            self.sink.axles(part.axles, heads)
+        if self.settings.health == "closed":
+            self._judge()
+        if part.passages is None or not len(part.passages["head"]):
+            return
+        cols = take_passages(part.passages, by_start(part.passages))
+        if self.status is not None:
+            cols = self.status.take(cols)
+        if len(cols["head"]):
+            self.passages += len(cols["head"])
+            self.sink.passages(cols, heads)
+
+    def _finish_whole(self) -> list[str]:
+        """Whole mode: every record is in; analyse them together, as one read of every file."""
+        from console.analysis.diag_events import diag_detection_events
+        from console.layout import layout_from_heads
+
+        s = self.settings
+        analysis = self.acc.result(s.speed)
+        self._unpaired = analysis.unpaired_detections
+        self._overlap_by_file = analysis.overlap_by_file
+        self._overlap_times = analysis.overlap_times_ns
+        heads = analysis.heads
+        if s.axles and len(analysis.axle_columns["head"]):
+            self.sink.axles(analysis.axle_columns, heads)
+        cols = analysis.passage_columns
+        if cols is not None and len(cols["head"]):
+            cols = take_passages(cols, by_start(cols))
+            if self.status is not None:
+                cols = self.status.take(cols)
+            if len(cols["head"]):
+                self.passages += len(cols["head"])
+                self.sink.passages(cols, heads)
+        if s.events is None:
+            return []
+        lay = s.layout or layout_from_heads(sorted({name for _, name in heads}))
+        events, warnings = diag_detection_events(analysis, lay, s.events)
+        self.health_events += [e for e in events if e.kind in HEALTH_EVENT_KINDS]
+        if events:
+            self.last_event = events[-1]
+        ordered = sort_events([*events, *self._resets_pending])
+        if ordered:
+            block = EventBlock.from_events(ordered, (), StringPool())
+            self.sink.detections(block)
+            if s.sections is not None:
+                engine = self._engine(ordered[0].time_ns)
+                for e in ordered:
+                    engine.step(e)
+                self._drain()
+        return warnings
+
+    # -- health -----------------------------------------------------------------------
+    def _judge(self) -> None:
+        """Health findings on the records kept and the channel events so far, handed on.
+
+        Live ("closed"), what was judged is dropped: each finding is judged on what came since the last.
+        """
+        from console.analysis.health import health_report
+        from parsers.diag import chunks_to_frame
+
+        s = self.settings
+        if s.health == "closed" and not self.kept and not self.health_events:
+            return
+        lay = s.layout or s.sections
+        bands = {h.id: h.analog_band for h in lay.heads if h.analog_band} if lay is not None else None
+        records = chunks_to_frame(self.kept, self.registry)
+        findings = health_report(records, bands=bands or None, events=self.health_events)
+        if s.health == "closed":
+            del self.kept[:], self.health_events[:]  # in place: the event stream appends to this list
+        else:
+            self.findings += findings
+        if findings:
+            self.sink.findings(findings)
+
+    # -- events and sections ---------------------------------------------------------
+    def _step(self, block: EventBlock) -> None:
+        if not len(block):
+            return
+        # The last diagnostic event (a report's data end): operator resets do not count.
+        diag = np.flatnonzero(block.kind != KIND_CODE[EventKind.RESET])
+        if len(diag):
+            self.last_event = block.event(int(diag[-1]))
+        self.sink.detections(block)
+        if self.settings.sections is None:
+            return
+        self._engine(int(block.time_ns[0])).step_block(block)
+        self._drain()
+
+    def _engine(self, start_ns: int) -> SectionEngine:
+        if self.section_engine is None:
+            assert self.settings.sections is not None
+            self.section_engine = SectionEngine(
+                self.settings.sections, initial=self.settings.initial, start_ns=start_ns
+            )
+        return self.section_engine
+
+    def _drain(self) -> None:
+        """The section engine's new history, handed on (the engine keeps none of it)."""
+        assert self.section_engine is not None
+        transitions, ledger, resets = self.section_engine.take_history()
+        if transitions:
+            self.sink.transitions(transitions)
+        if ledger:
+            self.sink.ledger(ledger)
+        if resets:
+            self.sink.resets(resets)
+
+
+def _has_majority(layout: Layout) -> bool:
+    return any(h.channels == 3 for h in layout.heads)

@@ -1,0 +1,46 @@
+"""The pipeline's results as event objects: the lines of ``--jsonl`` and what the live views show.
+
+One function per kind of result, so ``follow --jsonl``, ``analyze --jsonl``,
+the station's event log and the metrics read the same fields.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from console.analysis.timefmt import iso
+
+if TYPE_CHECKING:
+    from console.analysis.health import Finding
+    from console.analysis.sections import Transition
+
+
+def section_event(tr: Transition) -> dict[str, Any]:
+    """A section's state change."""
+    return {
+        "type": "section",
+        "section": tr.section,
+        "state": str(tr.state),
+        "count": tr.count,
+        "reason": tr.reason,
+        "time_ns": tr.time_ns,
+        "time": iso(tr.time_ns),
+    }
+
+
+def health_event(f: Finding) -> dict[str, Any]:
+    """A health finding."""
+    return {"type": "health", **f.to_dict()}
+
+
+def crossing_event(e: Any) -> dict[str, Any]:
+    """A crossing controller's event (warning on or off, an alarm)."""
+    return {
+        "type": "crossing",
+        "crossing": e.crossing,
+        "train": e.train,
+        "kind": e.kind,
+        "reason": e.reason,
+        "time_ns": e.t_ns,
+        "time": iso(e.t_ns),
+    }
