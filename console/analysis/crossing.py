@@ -442,21 +442,23 @@ class CrossingController:
             if s > 0.05:
                 doubt[cause] = doubt.get(cause, 0.0) + s
 
-        role = HEAD if basis.endswith("head") else EOT
-        last = tr.head if role == HEAD else tr.eot
+        last = tr.eot if "eot" in basis else tr.head
         no_speed = last is not None and last.speed_basis != REPORTED
         nominal = None
         if b.t_nominal_ns is not None and b.t_position_ns is not None and b.t_filter_ns is not None:
             nominal = (b.t_nominal_ns - t_ns) / NS
+        if basis != "head":
+            # The head unit lost (or every unit silent): the bound stands on the EOT and the length,
+            # or on an old fix: all of what it cost is the stale units'.
+            add(STALE, max(1.0, (nominal or eta) - eta))
+        elif nominal is not None:
+            assert b.t_nominal_ns is not None and b.t_position_ns is not None and b.t_filter_ns is not None
             add(SPARSE, (b.t_nominal_ns - b.t_position_ns) / NS)  # the position's σ
             add(NO_SPEED if no_speed else SPARSE, (b.t_position_ns - b.t_filter_ns) / NS)  # the speed's σ
             fallback = (b.t_filter_ns - b.t_arrival_ns) / NS  # the model-free bound came first
-            jumped = tr.doubt_ns[role] is not None
+            clean_ns = int(max(self.s.speed_window_s, 3 * self.s.report_period_s) * NS)
+            jumped = any(d is not None and t_ns - d < clean_ns for d in tr.doubt_ns.values())
             add(JUMPS if jumped else NO_SPEED if no_speed else SPARSE, fallback)
-        if basis != "head":
-            # The head unit lost: all of it, or what the EOT's length and its age added, is the stale units'.
-            head_b = self._device_bound(tr, HEAD)
-            add(STALE, (head_b.t_arrival_ns - b.t_arrival_ns) / NS if head_b is not None else 0.0)
         return Onset(t_ns, eta, nominal, doubt)
 
     def _check_on(self, tr: _Track, t_ns: int) -> list[CrossingEvent]:

@@ -9,8 +9,7 @@ much better:
 * **State**: chainage, speed and acceleration along the track (a
   constant-acceleration model whose acceleration wanders as white jerk: trains
   brake, coast and accelerate in steps of a few tenths of a m/s²; Bar-Shalom,
-  Li and Kirubarajan, *Estimation with Applications to Tracking and
-  Navigation*, Wiley 2001, §6.2).  Fixes come at any interval; the filter
+  Li and Kirubarajan, Wiley 2001).  Fixes come at any interval; the filter
   predicts over each gap.
 * **Measurements**: each fix's chainage (σ: the GNSS noise), and its Doppler
   speed where the export has one and the direction is known.
