@@ -374,6 +374,11 @@ def judge(
         (min((on for on in ons if on > off), default=th) - off) / NS for off in offs if th is not None and off <= th
     ]
     t_oracle = oracle_onset(truth, ctl.crossing, settings)
+    first_rx = min((f.t_ns for f in fixes), default=None)
+    if t_oracle is not None and first_rx is not None:
+        # Nor can the oracle warn before any unit has been heard: a slow train may set off within
+        # reach, and a unit that hears it only then owes no spare for the seconds before.
+        t_oracle = max(t_oracle, first_rx)
     oracle_lead = avoidable = paper_avoidable = paper_late = fix_lead = None
     t_fix_oracle = fix_oracle_onset(truth, ctl.crossing, settings, fixes)
     if th is not None and t_fix_oracle is not None:
