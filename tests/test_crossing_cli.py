@@ -83,7 +83,7 @@ def test_timeline_reports_a_late_switch_off_as_a_violation() -> None:
     fixes = [
         Fix(0, 0, "T", "head", c - 3000, 20.0),
         Fix(10**9, 10**9, "T", "head", c - 2980, 20.0),
-        Fix(50 * 10**9, 50 * 10**9, "T", "head", c - 2000, 20.0),
+        Fix(50 * 10**9, 50 * 10**9, "T", "head", c - 1500, 20.0),  # within the warning time: on
     ]
     for f in fixes:
         ctl.step(f)

@@ -156,17 +156,18 @@ class DeviceEvidence:
         return None
 
     # -- direction ---------------------------------------------------------
-    def direction(self) -> int:
+    def direction(self, medians_only: bool = False) -> int:
         """+1 / −1 from the accepted fixes; 0 without a clear movement.
 
         The median of the last three accepted fixes against the median of the three oldest
         in the window: one plausible-looking jump moves neither median, so it cannot
         reverse the train (a reversed direction would read an EOT still before the
-        crossing as past it).  With fewer than three fixes: the first against the last."""
+        crossing as past it).  With fewer than three fixes: the first against the last,
+        unless ``medians_only`` (then 0: too little to reverse a known direction on)."""
         old = [ch for _, ch in list(self.history)[:3]]
         new = list(self.latest)
         if len(old) < 3 or len(new) < 3:
-            if self.last is None or not self.history:
+            if medians_only or self.last is None or not self.history:
                 return 0
             older, newer = self.history[0][1], self.last.chainage_m
         else:

@@ -7,7 +7,12 @@ Times estimated from the fixes themselves (a real log has no other truth):
   the head unit was lost);
 * ``t_tail_clear`` — the EOT passing the far edge of the road, interpolated
   between EOT fixes;
-* lead time = head arrival − warning on (should be ≥ the warning time);
+* lead time = head arrival − warning on (should be ≥ the warning time); the
+  warning that counts is the one on when the head arrived (one released for a
+  train proven out of reach, then on again, counts from its second onset);
+* spare = lead − warning time, split in hindsight into physics (what the
+  unit's bounds cost even knowing the motion) and doubt by cause
+  (:mod:`console.analysis.crossing_spare`);
 * excess = warning off − tail clear (road closed for nothing);
 * a **violation** is the warning off (or not yet on) while any part of the
   train is within the crossing, or a **late warning**: on less than the
@@ -31,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from console.analysis.crossing import EOT, HEAD, NS, ControllerSettings, CrossingController, Fix
+from console.analysis.crossing_spare import SpareSplit, head_motion, split_spare
 from console.analysis.timefmt import iso
 
 
@@ -54,6 +60,8 @@ class TimelineRow:
     warning_time_s: float = 0.0  # what the crossing promises road users
     late_by_s: float | None = None  # > 0: the warning came this much short of the warning time
     late_cause: str = ""  # what in the telemetry made it late, when the data show it
+    spare: SpareSplit | None = None  # the lead beyond the warning time: physics and doubt, in hindsight
+    released: int = 0  # warnings for this train switched off before it arrived (proven out of reach)
 
     def to_dict(self) -> dict[str, Any]:
         def r(x: float | None) -> float | None:
@@ -70,6 +78,8 @@ class TimelineRow:
             "warning_time_s": self.warning_time_s,
             "late_by_s": r(self.late_by_s),
             "late_cause": self.late_cause or None,
+            "spare": self.spare.to_dict() if self.spare is not None else None,
+            "released_warnings": self.released,
             "excess_warning_s": r(self.excess_s),
             "reason_on": self.reason_on,
             "reason_off": self.reason_off,
@@ -171,6 +181,21 @@ def timeline(
             if t_tail is not None:
                 base_early = max(0.0, (t_tail - base_off) / NS)
                 base_excess = (base_off - t_tail) / NS
+        lead = None if t_on is None or t_head is None else (t_head - t_on) / NS
+        spare = None
+        if lead is not None and t_head is not None and lead >= 0:
+            motion = head_motion(
+                [(f.t_fix_ns, f.role, f.chainage_m, f.speed_mps) for f in own if f.t_fix_ns <= t_head],
+                d,
+                tr.spec.length_m,
+                c,
+                half,
+                s.noise_m / 3.0,
+                s.speed_sigma_mps,
+                s.jerk_psd,
+            )
+            doubt = tr.onset.doubt_s if tr.onset is not None else {}
+            spare = split_spare(lead, wt, t_head, motion, doubt, s.guard_distance_m, s.accel_mps2, s.line_speed_mps)
         rows.append(
             TimelineRow(
                 crossing=ctl.crossing.code,
@@ -191,6 +216,8 @@ def timeline(
                 warning_time_s=wt,
                 late_by_s=late_by if late_by is not None and late_by > 0 else None,
                 late_cause=late_cause,
+                spare=spare,
+                released=len(tr.releases),
             )
         )
     return rows

@@ -40,13 +40,24 @@ def crossing(
         bool, typer.Option("--strict", help="Exit 1 on a safety violation or a rejected input line.")
     ] = False,
 ) -> None:
-    """Level-crossing warning timelines from head and end-of-train telemetry (Co Nhu Van, TCSJ 2026)."""
+    """Level-crossing warning timelines from head and end-of-train telemetry (Co Nhu Van, TCSJ 2026).
+
+    Per warning: when it came on and went off, its lead against the crossing's warning time, and
+    the spare split into physics (what the unit's bounds cost even knowing the motion, judged in
+    hindsight from all the fixes) and doubt (no speed, stale units, jumps, sparse fixes).  A
+    warning released before the train arrived (proven out of reach) is counted.
+
+    \b
+    Examples:
+      trackside crossing sample_logs/crossing_example.csv --layout example
+      trackside crossing head.nmea eot.nmea --layout line.toml --train T1=head1,eot1,120 --json
+    """
 
     def body() -> int:
         from console.analysis.crossing_batch import parse_train_option, run_crossings
         from console.analysis.integrity import timelines
         from console.analysis.timefmt import iso
-        from console.render.crossing_tables import reasons_view, timeline_table, violations_view
+        from console.render.crossing_tables import reasons_view, spare_view, timeline_table, violations_view
         from console.render.integrity_tables import integrity_table
         from parsers.gnss import parse_gnss
 
@@ -112,6 +123,8 @@ def crossing(
                 out.print(v)
             out.print(timeline_table(run.timelines))
             out.print(reasons_view(run.timelines, run.events))
+            if (sv := spare_view(run.timelines)) is not None:
+                out.print(sv)
             if run.integrity:
                 out.print(integrity_table(timelines(run.integrity)))
             for w in warnings:

@@ -99,3 +99,32 @@ def reasons_view(rows: list[TimelineRow], events: list[CrossingEvent]) -> Group:
         line.append_text(inert(f"{display(e.t_ns)} {e.crossing} train {e.train}: {e.reason}"))
         parts.append(line)
     return Group(*parts)
+
+
+def spare_text(r: TimelineRow) -> str | None:
+    """One warning's lead against the time required, and its spare split into physics and doubt."""
+    if r.lead_s is None or r.spare is None:
+        return None
+    sp = r.spare
+    text = f"lead {r.lead_s:.0f} s, {r.warning_time_s:g} s required"
+    if sp.spare_s >= 0:
+        doubt = sum(sp.doubt_s.values())
+        causes = ", ".join(f"{k} {v:.0f} s" for k, v in sorted(sp.doubt_s.items(), key=lambda kv: -kv[1]) if v >= 0.5)
+        text += f": spare {sp.spare_s:.0f} s = physics {sp.physics_s:.0f} s + doubt {doubt:.0f} s"
+        text += f" ({causes})" if causes else ""
+    if r.released:
+        text += f"; released {r.released}× before it arrived (proven out of reach)"
+    return text
+
+
+def spare_view(rows: list[TimelineRow]) -> Group | None:
+    """Per warning: the lead, the time required, and how much of the spare came from doubt."""
+    lines = [(r, t) for r in rows if (t := spare_text(r)) is not None]
+    if not lines:
+        return None
+    parts: list[RenderableType] = [
+        Text("Spare warning: physics (the bounds, knowing the motion) and doubt", style="bold")
+    ]
+    for r, t in lines:
+        parts.append(inert(f"{r.crossing} train {r.train}: {t}"))
+    return Group(*parts)

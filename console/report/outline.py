@@ -495,6 +495,39 @@ def _crossings_part(doc: dict[str, Any]) -> list[Block]:
         out.append(Heading(3, "Why the warning came on and went off", "crossing-why"))
         rows = [[r["crossing"], r["train"], r["reason_on"] or "–", r["reason_off"] or "–"] for r in tls]
         out.append(_table([("Crossing", False), ("Train", False), ("On", False), ("Off", False)], rows))
+        spared = [r for r in tls if r.get("spare")]
+        if spared:
+            out.append(Heading(3, "Spare warning: physics and doubt", "crossing-spare"))
+            out.append(
+                Para(
+                    (
+                        "Spare = lead − the crossing's warning time. Physics: what the unit's bounds (a train "
+                        "may accelerate at the line's rate to the line speed; the guard distance) cost a unit "
+                        "that knew the motion, judged in hindsight from all the fixes. Doubt: the rest, by cause "
+                        "(no speed in the export, stale units, position jumps, sparse fixes).",
+                    )
+                )
+            )
+            rows = []
+            for r in spared:
+                sp = r["spare"]
+                causes = ", ".join(f"{k} {v:.0f} s" for k, v in sp["doubt_by_cause_s"].items() if v >= 0.5)
+                rows.append(
+                    [
+                        r["crossing"],
+                        r["train"],
+                        _n(r["lead_time_s"], "{:.0f}"),
+                        _n(r["warning_time_s"], "{:.0f}"),
+                        _n(sp["spare_s"], "{:.0f}"),
+                        _n(sp["physics_s"], "{:.0f}"),
+                        _n(sp["doubt_s"], "{:.0f}"),
+                        causes or "–",
+                        str(r["released_warnings"]) if r["released_warnings"] else "–",
+                    ]
+                )
+            cols = [("Crossing", False), ("Train", False), ("Lead s", True), ("Required s", True), ("Spare s", True)]
+            cols += [("Physics s", True), ("Doubt s", True), ("Doubt by cause", False), ("Released", True)]
+            out.append(_table(cols, rows))
     alarms = [e for e in cr["events"] if e["kind"] == "alarm"]
     if alarms:
         out.append(Heading(3, f"Alarms ({len(alarms)})", "crossing-alarms"))

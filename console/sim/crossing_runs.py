@@ -19,6 +19,7 @@ compares its switching with the truth.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,10 +34,15 @@ from console.analysis.crossing import (
     TrainSpec,
     run_controller,
 )
+from console.analysis.crossing_oracle import earliest_arrival_vec, oracle_onset_ns
+from console.analysis.crossing_timeline import timeline
 from console.analysis.geo import TrackProjector
 from console.layout import Layout, LevelCrossing
 
-SCENARIOS = ("through", "stop_before", "stop_on_crossing", "crawl")
+SCENARIOS = ("through", "stop_before", "stop_on_crossing", "crawl", "stop_far")
+# A train leaving a stop runs up to the line speed at most (the line speed the crossing unit is told);
+# only trains already running faster when first seen exceed it.
+LINE_SPEED_MPS = 25.0
 
 
 @dataclass(frozen=True)
@@ -64,6 +70,8 @@ class Truth:
     t_head_arrival_ns: int | None  # head reaches the road's near edge
     t_tail_clear_ns: int | None  # tail passes the road's far edge
     jumps: int = 0  # fixes sent displaced (position jumps)
+    direction: int = 1  # +1: towards increasing chainage
+    speed_mps: np.ndarray | None = None  # the head's true speed along the track at t_ns
 
 
 def _motion(
@@ -71,16 +79,22 @@ def _motion(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(times s, head chainage m) at 0.2 s steps: cruise, brake, dwell, go."""
     d, v0, L = cond.direction, cond.speed_mps, cond.length_m
+    brake, accel, dt = 0.6, 0.5, 0.2
     approach = v0 * (cond_horizon := 100.0) + 800.0 + rng.uniform(0, 500)
-    start = c.chainage_m - d * approach
     stop_at = None  # head chainage (signed distance past the crossing) to stop at
     dwell = rng.uniform(20, 120)
     if cond.scenario == "stop_before":
         stop_at = -rng.uniform(60, 600)  # a platform before the crossing
     elif cond.scenario == "stop_on_crossing":
         stop_at = rng.uniform(half + 5, max(half + 6, L - 2 * half))  # tail still on the road
+    elif cond.scenario == "stop_far":
+        # A station or a signal 1.5-3 km out: beyond the reach of the crossing within its warning time,
+        # from a standstill.  The train is seen running before it brakes there.
+        stop_at = -rng.uniform(1500, 3000)
+        dwell = rng.uniform(30, 300)
+        approach = max(approach, -stop_at + v0 * v0 / (2 * brake) + 200.0 + rng.uniform(0, 500))
+    start = c.chainage_m - d * approach
     vmax = 3.0 if cond.scenario == "crawl" else v0
-    brake, accel, dt = 0.6, 0.5, 0.2
     t, x, v = 0.0, 0.0, vmax  # x: head distance run from start
     ts, xs = [0.0], [0.0]
     stopped_until = None
@@ -92,12 +106,13 @@ def _motion(
             to_go = stop_at - past
             if v * v / (2 * brake) >= to_go:  # time to brake
                 v = max(0.0, v - brake * dt)
-                if v == 0.0 or to_go < 0.05:
+                # Stopped at the point: a last step that would run past it ends the braking there.
+                if v == 0.0 or to_go < 0.05 or v * dt >= to_go:
                     v, stopped_until = 0.0, t + dwell
         elif stopped_until is not None and t < stopped_until:
             v = 0.0
         else:
-            v = min(vmax, v + accel * dt)
+            v = min(vmax if stopped_until is None else min(vmax, LINE_SPEED_MPS), v + accel * dt)
         x += v * dt
         t += dt
         ts.append(t)
@@ -140,11 +155,13 @@ def simulate(
         idx = np.flatnonzero(mask)
         return int(t_ns[idx[0]]) if len(idx) else None
 
-    truth = Truth(t_ns, head, first(d * (head - c) >= -half), first(d * (tail - c) >= half))
+    speed = np.gradient(head, ts) * d
+    truth = Truth(
+        t_ns, head, first(d * (head - c) >= -half), first(d * (tail - c) >= half), direction=d, speed_mps=speed
+    )
     proj = TrackProjector(layout.track)
     m_lat, m_lon = proj.m_per_deg_lat, proj.m_per_deg_lon
     fixes: list[Fix] = []
-    speed = np.gradient(head, ts) * d
     for role, pos, fails in ((HEAD, head, cond.head_fails_at_s), (EOT, tail, cond.eot_fails_at_s)):
         phase = rng.uniform(0, cond.period_s)
         times = np.arange(phase, ts[-1], cond.period_s)
@@ -193,7 +210,7 @@ def simulate(
 @dataclass(frozen=True)
 class Verdict:
     violation: str | None  # why the road was open with the train on it, if it was
-    lead_s: float | None  # truth head arrival − warning on
+    lead_s: float | None  # truth head arrival − the warning's onset (the one in effect at the arrival)
     excess_s: float | None  # warning off − truth tail clear (None: held on)
     held: bool  # the warning never ended (no evidence): safe, but the road stays closed
     alarms: int
@@ -202,31 +219,143 @@ class Verdict:
     late_by_s: float | None = None  # > 0: on this much short of the warning time (a safety violation)
     jumps_sent: int = 0
     jumps_set_aside: int = 0
+    # The oracle (:mod:`console.analysis.crossing_oracle`): the unit's bounds on the true motion.
+    oracle_lead_s: float | None = None  # truth head arrival − the oracle's onset (≥ the warning time)
+    avoidable_s: float | None = None  # the oracle's onset − the controller's: warned this much early from doubt
+    fix_oracle_lead_s: float | None = None  # the same for an oracle that knows the truth at the fixes only
+    paper_avoidable_s: float | None = None  # the same for the paper's rule d/v ≤ T at each head fix
+    paper_late_by_s: float | None = None  # > 0: the paper's rule came this much short of the warning time
+    released: int = 0  # warnings switched off before the head arrived (a train proven out of reach)
+    released_on_s: float = 0.0  # how long those warnings had been on, in all
+    min_open_s: float | None = None  # the shortest a released road stayed open before the warning came back
+    # What `trackside crossing` shows for this warning, judged from the fixes alone (no truth):
+    hindsight_physics_s: float | None = None
+    hindsight_doubt_s: dict[str, float] | None = None
+
+    @property
+    def sparse_s(self) -> float | None:
+        """What the sparse fixes cost a perfect estimator: the fix-time oracle's lead − the oracle's."""
+        if self.fix_oracle_lead_s is None or self.oracle_lead_s is None:
+            return None
+        return self.fix_oracle_lead_s - self.oracle_lead_s
+
+    @property
+    def estimation_s(self) -> float | None:
+        """What the unit's estimate cost beyond that: its lead − the fix-time oracle's."""
+        if self.fix_oracle_lead_s is None or self.lead_s is None:
+            return None
+        return self.lead_s - self.fix_oracle_lead_s
+
+    @property
+    def physics_s(self) -> float | None:
+        """The spare the bounds cost even with perfect knowledge (oracle lead − warning time)."""
+        return None if self.oracle_lead_s is None else self.oracle_lead_s - self.warning_time_s
+
+
+def oracle_onset(truth: Truth, crossing: LevelCrossing, settings: ControllerSettings) -> int | None:
+    """The oracle's onset for the head's arrival in this run (None: the head never arrived)."""
+    th = truth.t_head_arrival_ns
+    if th is None or truth.speed_mps is None:
+        return None
+    near_edge = crossing.chainage_m - truth.direction * settings.crossing_half_width_m
+    ahead = truth.direction * (near_edge - truth.head_m)
+    return oracle_onset_ns(
+        truth.t_ns,
+        ahead,
+        truth.speed_mps,
+        th,
+        crossing.warning_time_s,
+        settings.guard_distance_m,
+        settings.accel_mps2,
+        settings.line_speed_mps,
+    )
+
+
+def fix_oracle_onset(
+    truth: Truth, crossing: LevelCrossing, settings: ControllerSettings, fixes: list[Fix]
+) -> int | None:
+    """The best any unit could do with the fixes this run's unit received: it knows the true state
+    (position, speed) at each received fix's measurement time, exactly, and nothing between fixes.
+
+    Every fix bounds the arrival (measured at t_fix: t_fix + earliest arrival from the true state);
+    the unit's bound is the latest of those received so far, and the warning is on while that is
+    within the warning time.  The onset of the stretch that covers the head's arrival; None: the
+    head never arrived.  Beside the oracle's onset it separates what sparse fixes cost (they hide
+    an acceleration between two of them) from what the estimate costs.  It releases a warning as
+    the unit does, only when it cannot come on again before the next fix and a few seconds more."""
+    th = truth.t_head_arrival_ns
+    if th is None or truth.speed_mps is None:
+        return None
+    got = sorted((f for f in fixes if f.t_ns < th and f.train == "T1"), key=lambda f: f.t_ns)
+    if not got:
+        return None
+    ts = (truth.t_ns - truth.t_ns[0]) / NS
+    t_fix = np.array([(f.t_fix_ns - truth.t_ns[0]) / NS for f in got])
+    head = np.interp(t_fix, ts, truth.head_m)
+    speed = np.interp(t_fix, ts, truth.speed_mps)
+    near_edge = crossing.chainage_m - truth.direction * settings.crossing_half_width_m
+    eta = earliest_arrival_vec(
+        truth.direction * (near_edge - head), speed, settings.accel_mps2, settings.line_speed_mps
+    )
+    bound = np.maximum.accumulate(np.array([f.t_fix_ns for f in got]) + (eta * NS).astype(np.int64))
+    wt_ns = int(crossing.warning_time_s * NS)
+    # Released as the unit releases: only when it would not come on again before the next fix is in.
+    hold_ns = int((settings.release_hold_s + settings.report_period_s + settings.latency_s) * NS)
+    onset: int | None = None
+    for k, f in enumerate(got):  # per received fix of one run
+        end = got[k + 1].t_ns if k + 1 < len(got) else th
+        due = int(bound[k]) - wt_ns
+        if onset is not None and due > f.t_ns + hold_ns:
+            onset = None  # this fix proves the warning is not needed for a while yet: released
+        if onset is None and due < end:
+            onset = max(due, f.t_ns)
+    return onset
+
+
+def paper_onset(fixes: list[Fix], crossing: LevelCrossing, direction: int, t_arrival_ns: int) -> int | None:
+    """The paper's rule (Co Nhu Van, TCSJ 2026, eq. 6-8): on at the first head fix with d_L / v_L ≤ T,
+    with the reported speed, or the mean speed from the last two head fixes when the export has none;
+    the warning then holds until the EOT has passed.  None: no such fix before the arrival."""
+    prev: Fix | None = None
+    for f in sorted((f for f in fixes if f.role == HEAD), key=lambda f: f.t_ns):  # one run's head fixes
+        if f.t_ns >= t_arrival_ns:
+            return None
+        v = f.speed_mps
+        if math.isnan(v):
+            dt = (f.t_fix_ns - prev.t_fix_ns) / NS if prev is not None else 0.0
+            v = abs(f.chainage_m - prev.chainage_m) / dt if prev is not None and dt > 0 else 0.0
+        prev = f
+        ahead = direction * (crossing.chainage_m - f.chainage_m)
+        if ahead <= 0 or (v > 0 and ahead / v <= crossing.warning_time_s):
+            return f.t_ns
+    return None
 
 
 def judge(
     ctl: CrossingController, truth: Truth, train: TrainSpec, settings: ControllerSettings, fixes: list[Fix]
 ) -> Verdict:
-    """Compare the controller's switching with the truth."""
+    """Compare the controller's switching with the truth, and its onset with the oracle's."""
     ons = [e.t_ns for e in ctl.events if e.kind == "on"]
     offs = [e.t_ns for e in ctl.events if e.kind == "off"]
     th, tt = truth.t_head_arrival_ns, truth.t_tail_clear_ns
     violation = None
     wt = ctl.crossing.warning_time_s
     late_by = None
-    if th is not None and ons and (th - ons[0]) / NS < wt:
-        late_by = wt - (th - ons[0]) / NS
+    # The warning that counts is the one in effect when the head arrived (a road released for a
+    # train standing out of reach, then closed again when it moved, owes its lead to the second).
+    on_before = [t for t in ons if th is not None and t <= th]
+    t_on = on_before[-1] if on_before else (ons[0] if ons else None)
+    if th is not None and t_on is not None and (th - t_on) / NS < wt:
+        late_by = wt - (th - t_on) / NS
         violation = f"late warning: {late_by:.1f} s short of {wt:g} s"
     if th is not None and violation is None:
-        on_before = [t for t in ons if t <= th]
         if not on_before:
             violation = "warning not on when the head reached the crossing"
         else:
-            t_on = on_before[-1]
-            off_inside = [t for t in offs if t_on < t and (tt is None or t < tt)]
+            off_inside = [t for t in offs if on_before[-1] < t and (tt is None or t < tt)]
             if off_inside:
                 violation = "warning off while the train was on the crossing"
-    lead = (th - ons[0]) / NS if th is not None and ons else None
+    lead = (th - t_on) / NS if th is not None and t_on is not None else None
     off_after = [t for t in offs if tt is not None and t >= tt]
     excess = (off_after[0] - tt) / NS if off_after and tt is not None else None
     held = ctl.warning_on
@@ -238,7 +367,55 @@ def judge(
         base_off = th + (train.length_m / max(v, 0.1) + settings.baseline_margin_s) * NS
         base_early = max(0.0, (tt - base_off) / NS)
     alarms = sum(1 for e in ctl.events if e.kind == "alarm")
-    return Verdict(violation, lead, excess, held, alarms, base_early, wt, late_by, truth.jumps, ctl.position_jumps)
+    released_on = [
+        (off - on) / NS for on, off in zip(ons, offs, strict=False) if th is not None and off <= th and on < off
+    ]
+    gaps = [
+        (min((on for on in ons if on > off), default=th) - off) / NS for off in offs if th is not None and off <= th
+    ]
+    t_oracle = oracle_onset(truth, ctl.crossing, settings)
+    first_rx = min((f.t_ns for f in fixes), default=None)
+    if t_oracle is not None and first_rx is not None:
+        # Nor can the oracle warn before any unit has been heard: a slow train may set off within
+        # reach, and a unit that hears it only then owes no spare for the seconds before.
+        t_oracle = max(t_oracle, first_rx)
+    oracle_lead = avoidable = paper_avoidable = paper_late = fix_lead = None
+    t_fix_oracle = fix_oracle_onset(truth, ctl.crossing, settings, fixes)
+    if th is not None and t_fix_oracle is not None:
+        fix_lead = (th - t_fix_oracle) / NS
+    if th is not None and t_oracle is not None:
+        oracle_lead = (th - t_oracle) / NS
+        if t_on is not None:
+            avoidable = (t_oracle - t_on) / NS
+        t_paper = paper_onset(fixes, ctl.crossing, truth.direction, th)
+        if t_paper is not None:
+            paper_avoidable = (t_oracle - t_paper) / NS
+        paper_lead = (th - t_paper) / NS if t_paper is not None else 0.0
+        paper_late = wt - paper_lead if paper_lead < wt else None
+    row = next(iter(timeline(ctl, fixes, settings)), None)
+    hind = row.spare if row is not None else None
+    return Verdict(
+        violation,
+        lead,
+        excess,
+        held,
+        alarms,
+        base_early,
+        wt,
+        late_by,
+        truth.jumps,
+        ctl.position_jumps,
+        oracle_lead,
+        avoidable,
+        fix_lead,
+        paper_avoidable,
+        paper_late,
+        len(released_on),
+        float(sum(released_on)),
+        float(min(gaps)) if gaps else None,
+        hind.physics_s if hind is not None else None,
+        dict(hind.doubt_s) if hind is not None else None,
+    )
 
 
 FIX_RATES = ("2.5 Hz", "0.1 Hz", "1-10 s")
@@ -269,10 +446,17 @@ def random_conditions(rng: np.random.Generator, seed: int) -> RunConditions:
     )
 
 
+TUNE: dict[str, float] = {}  # settings under trial (benchmarks only)
+
+
 def one_run(layout: Layout, crossing: LevelCrossing, cond: RunConditions) -> Verdict:
     # The crossing unit knows the line (its speed, the trains' acceleration) and the radio's report period.
     settings = ControllerSettings(
-        report_period_s=cond.period_s, latency_s=2 * cond.latency_s + 0.5, line_speed_mps=25.0, accel_mps2=0.5
+        **TUNE,  # type: ignore[arg-type]
+        report_period_s=cond.period_s,
+        latency_s=2 * cond.latency_s + 0.5,
+        line_speed_mps=LINE_SPEED_MPS,
+        accel_mps2=0.5,
     )
     fixes, truth, train = simulate(layout, crossing, cond, settings)
     ctl = run_controller(crossing, [train], fixes, settings)
@@ -299,6 +483,7 @@ def summary(results: list[tuple[RunConditions, Verdict]]) -> dict[str, float | i
     periods = [c.period_s for c, r in results if r.excess_s is not None]
     early = [r.baseline_early_s for r in v if r.baseline_early_s is not None]
     within = [e <= p + 5 for e, p in zip(excess, periods, strict=True)]
+    err = [abs(h - t) for r in v if (h := r.hindsight_physics_s) is not None and (t := r.physics_s) is not None]
     return {
         "runs": len(v),
         "runs_without_speed": sum(not c.speed_reported for c in conds),
@@ -322,4 +507,99 @@ def summary(results: list[tuple[RunConditions, Verdict]]) -> dict[str, float | i
         "baseline_early_runs": sum(e > 0 for e in early),
         "baseline_max_early_s": float(max(early)) if early else None,
         "mean_alarms": float(np.mean([r.alarms for r in v])) if v else math.nan,
+        **_spare_stats([r.avoidable_s for r in v], "avoidable"),
+        **_spare_stats([r.physics_s for r in v], "physics"),
+        "runs_released": sum(r.released > 0 for r in v),
+        "runs_reopened_under_10s": sum(r.min_open_s is not None and r.min_open_s < 10 for r in v),
+        "median_released_on_s": float(np.median(rel)) if (rel := [r.released_on_s for r in v if r.released]) else None,
+        "median_abs_error_hindsight_physics_s": float(np.median(err)) if err else None,
+        "min_oracle_lead_minus_warning_time_s": min(p, default=None)
+        if (p := [x for r in v if (x := r.physics_s) is not None])
+        else None,
     }
+
+
+def _spare_stats(values: list[float | None], name: str) -> dict[str, float | None]:
+    xs = [x for x in values if x is not None]
+    return {
+        f"median_{name}_spare_s": float(np.median(xs)) if xs else None,
+        f"p95_{name}_spare_s": float(np.percentile(xs, 95)) if xs else None,
+    }
+
+
+def fix_rate(cond: RunConditions) -> str:
+    """The run's fix rate as :data:`FIX_RATES` names it."""
+    return "2.5 Hz" if cond.period_s == 0.4 else "0.1 Hz" if cond.period_s == 10.0 else "1-10 s"
+
+
+@dataclass(frozen=True)
+class SpareRow:
+    """The avoidable spare over one group of runs (seconds)."""
+
+    case: str
+    runs: int
+    median_s: float | None
+    p95_s: float | None
+    physics_median_s: float | None  # the oracle's own spare: what the bounds cost
+    sparse_median_s: float | None  # what sparse fixes cost an estimator that knew the truth at each fix
+    sparse_p95_s: float | None
+    estimation_median_s: float | None  # the rest: what the unit's estimate cost (avoidable − sparse)
+    estimation_p95_s: float | None
+    paper_median_s: float | None  # the paper's rule d/v ≤ T, against the same oracle
+    paper_late: int  # runs where the paper's rule warned short of the warning time
+
+
+def spare_table(results: list[tuple[RunConditions, Verdict]]) -> list[SpareRow]:
+    """Avoidable spare (the oracle's onset − the controller's) overall, by speed column, fix rate
+    and scenario, and their crossings; the paper's rule beside it."""
+    groups: list[tuple[str, list[Verdict]]] = [("all runs", [r for _, r in results])]
+
+    def add(case: str, keep: Callable[[RunConditions], bool]) -> None:
+        groups.append((case, [r for c, r in results if keep(c)]))
+
+    add("all runs but stop_far", lambda c: c.scenario != "stop_far")
+
+    add("speed reported", lambda c: c.speed_reported)
+    add("no speed", lambda c: not c.speed_reported)
+
+    def rate_is(rate: str, speed: bool | None = None) -> Callable[[RunConditions], bool]:
+        return lambda c: fix_rate(c) == rate and (speed is None or c.speed_reported == speed)
+
+    def scenario_is(sc: str, speed: bool | None = None) -> Callable[[RunConditions], bool]:
+        return lambda c: c.scenario == sc and (speed is None or c.speed_reported == speed)
+
+    for rate in FIX_RATES:
+        add(f"fixes {rate}", rate_is(rate))
+    for rate in FIX_RATES:
+        add(f"speed reported, fixes {rate}", rate_is(rate, True))
+    for rate in FIX_RATES:
+        add(f"no speed, fixes {rate}", rate_is(rate, False))
+    for sc in SCENARIOS:
+        add(f"scenario {sc}", scenario_is(sc))
+    for sc in SCENARIOS:
+        add(f"no speed, {sc}", scenario_is(sc, False))
+    add("with position jumps", lambda c: c.jump_rate > 0)
+    add("a unit failed", lambda c: c.head_fails_at_s is not None or c.eot_fails_at_s is not None)
+    rows = []
+    for case, vs in groups:
+        xs = [r.avoidable_s for r in vs if r.avoidable_s is not None]
+        ph = [p for r in vs if (p := r.physics_s) is not None]
+        sp = [p for r in vs if (p := r.sparse_s) is not None]
+        es = [p for r in vs if (p := r.estimation_s) is not None]
+        pa = [r.paper_avoidable_s for r in vs if r.paper_avoidable_s is not None]
+        rows.append(
+            SpareRow(
+                case,
+                len(xs),
+                float(np.median(xs)) if xs else None,
+                float(np.percentile(xs, 95)) if xs else None,
+                float(np.median(ph)) if ph else None,
+                float(np.median(sp)) if sp else None,
+                float(np.percentile(sp, 95)) if sp else None,
+                float(np.median(es)) if es else None,
+                float(np.percentile(es, 95)) if es else None,
+                float(np.median(pa)) if pa else None,
+                sum(r.paper_late_by_s is not None for r in vs),
+            )
+        )
+    return rows
