@@ -31,7 +31,8 @@ from benchmarks.gen_realistic_diag import generate
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.sections import SectionState, ledger_summary_frame, run_sections
+from console.analysis.section_state import SectionState
+from console.analysis.sections import ledger_summary_frame, run_sections
 from console.analysis.wheels import CountingSettings
 from console.cli import app
 from console.drivers.batch import health_findings

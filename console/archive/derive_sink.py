@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from console.analysis.event_block import EventBlock
     from console.analysis.head_table import Heads
     from console.analysis.passages import Columns
-    from console.analysis.sections import LedgerEntry, Transition
+    from console.analysis.section_state import LedgerEntry, Transition
 
 
 class ArchiveSink(Sink):

@@ -265,7 +265,8 @@ def _sections(
     """The section history cut to the window; the final state at its end (stored for the whole history)."""
     import pandas as pd
 
-    from console.analysis.sections import SectionEngine, SectionsResult, SectionState
+    from console.analysis.section_state import SectionState
+    from console.analysis.sections import SectionEngine, SectionsResult
     from console.archive.history import Window
 
     if layout is None or not layout.sections:

@@ -23,7 +23,7 @@ from parsers.report import Rejection
 
 if TYPE_CHECKING:
     from console.analysis.health import Finding
-    from console.analysis.sections import Transition
+    from console.analysis.section_state import Transition
     from console.drivers.batch import DiagJob
 
 

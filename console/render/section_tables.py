@@ -9,7 +9,8 @@ from rich import box
 from rich.table import Table
 from rich.text import Text
 
-from console.analysis.sections import STATE_MARK, SectionsResult, SectionState
+from console.analysis.section_state import STATE_MARK, SectionState
+from console.analysis.sections import SectionsResult
 from console.analysis.timefmt import display, iso
 from console.safe_text import inert
 

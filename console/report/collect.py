@@ -50,7 +50,8 @@ from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.events import DetectionEvent, sort_events
 from console.analysis.health import Finding, sort_findings, voltage_margin_findings
-from console.analysis.sections import SectionState, run_sections
+from console.analysis.section_state import SectionState
+from console.analysis.sections import run_sections
 from console.drivers.batch import ChunkSource, LogFiles, ReadOptions, input_bytes, read_diag
 from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
 from console.engine.sinks import Sinks

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from console.analysis.passages import Columns
-from console.analysis.sections import SectionState
+from console.analysis.section_state import SectionState
 from console.analysis.timefmt import display
 from console.report import plots, trends
 from console.report.jsonwrite import Write

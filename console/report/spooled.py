@@ -27,7 +27,7 @@ import pandas as pd
 
 from console.analysis.head_table import Heads
 from console.analysis.passages import Columns
-from console.analysis.sections import ResetRecord, Transition
+from console.analysis.section_state import ResetRecord, Transition
 from console.analysis.status import STATUS_KIND
 from console.analysis.stream import take_passages
 from console.analysis.timefmt import iso
@@ -130,7 +130,7 @@ class LedgerFrameRows(Rows):
         self.ledger = ledger
 
     def _entries(self) -> Iterator[Any]:
-        from console.analysis.sections import LedgerEntry
+        from console.analysis.section_state import LedgerEntry
 
         columns = [self.ledger[c].tolist() for c in self.COLUMNS]
         return (LedgerEntry(t, s, h, d, c) for t, s, h, d, c in zip(*columns, strict=True))

@@ -45,7 +45,8 @@ from console.analysis.integrity import (
     IntegrityMonitor,
     IntegritySettings,
 )
-from console.analysis.sections import SectionEngine, SectionState
+from console.analysis.section_state import SectionState
+from console.analysis.sections import SectionEngine
 from console.analysis.timefmt import NS
 from console.layout import Consist, Layout, layout_from_dict
 

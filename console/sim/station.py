@@ -35,7 +35,8 @@ from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingCon
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.geo import TrackProjector
 from console.analysis.integrity import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
-from console.analysis.sections import SectionEngine, SectionState, Transition
+from console.analysis.section_state import SectionState, Transition
+from console.analysis.sections import SectionEngine
 from console.analysis.timefmt import NS
 from console.analysis.wheels import SYS1, SYS2, CountingSettings, HeadCounter
 from console.layout import Consist, Layout
