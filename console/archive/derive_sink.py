@@ -28,6 +28,12 @@ if TYPE_CHECKING:
     from console.analysis.passages import Columns
     from console.analysis.section_state import LedgerEntry, Transition
 
+# Bump when derived rows change meaning: an archive derived by another version is rebuilt.
+# 4: integers stored as integers (passages' detection second), finding times as TIMESTAMP_NS.
+# 5: derived by the pipeline in the ingest's one pass, its state kept between ingests.
+# 6: the kept state's section records moved (console.analysis.section_state): a state pickled by 5 is not read.
+DERIVE_VERSION = 6
+
 
 class ArchiveSink(Sink):
     """The pipeline's rows, written into parts of this generation (``tag``: committed or tail)."""

@@ -19,8 +19,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from console.analysis.forecast import FIGURES, STATUSES, Forecast, ForecastSettings, Series, due_list, forecasts
-from console.archive.history import Window
+from console.archive.reader import Window, parse_time
+from console.archive.store import archive_dir, read_current
 from console.archive.trends import analog_margins_per_day, disturbances_per_day
+from console.archive.views import QueryError, connect
+from console.layout import LayoutError, load_layout
 
 # The due series whose daily points the document carries (the report plots them).
 PLOTS_SHOWN = 12
@@ -167,8 +170,6 @@ def archive_forecasts(
     say: Callable[[str], None] | None = None,
 ) -> tuple[list[Forecast], list[Series]]:
     """Every head's, channel's and unit's forecast over the window (and the series they were fitted on)."""
-    from console.archive.views import connect
-
     con, _ = connect(root, manifest, tables={"records", "fixes"})
     try:
         series = series_of(daily_figures(con, window, layout, say))
@@ -224,9 +225,6 @@ def forecast_table(items: Iterable[Forecast]) -> pa.Table:
 def query_forecasts(root: Path, manifest: Manifest) -> pa.Table:
     """The ``forecasts`` view of ``trackside query``: every series' forecast, default settings (30-day
     horizon, 14-day trend), the bands of the layout the archive was ingested with."""
-    from console.archive.views import QueryError
-    from console.layout import LayoutError, load_layout
-
     try:
         import scipy.stats  # noqa: F401 - the trend's library, an optional extra
     except ImportError:
@@ -276,8 +274,6 @@ def with_forecast(
     collector: Callable[[], ReportData], archive: Path | None, start: str | None, end: str | None, head: str | None
 ) -> Callable[[], ReportData]:
     """``report --archive``'s collector, its data completed with the window's forecast."""
-    from console.archive.history import parse_time
-    from console.archive.store import archive_dir, read_current
 
     def collect() -> ReportData:
         data = collector()  # checks the archive and the window first (one-line errors)
