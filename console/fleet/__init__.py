@@ -15,8 +15,8 @@ publishes them through the archive's manifest (:func:`console.archive.store.publ
 so a worker killed mid-run can never leave half a result behind.
 """
 
-from console.fleet.engine import FleetError, engine_scope, fleet_mapper, map_partitions, run_with_engine
-from console.fleet.options import EngineOpt, EngineSpec, SchedulerOpt, WorkersOpt, engine_spec
+from console.fleet.engine import engine_scope, fleet_mapper, map_partitions, run_with_engine
+from console.fleet.options import EngineOpt, EngineSpec, FleetError, SchedulerOpt, WorkersOpt, engine_spec
 
 __all__ = [
     "EngineOpt",
