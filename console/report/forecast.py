@@ -10,7 +10,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from console.analysis.forecast import STATUSES
-from console.report.outline import Block, Cell, Figure, Heading, Para, _n, _table
+from console.report.blocks import Block, Cell, Figure, Heading, Para, num_or_dash, table_block
 
 if TYPE_CHECKING:
     pass
@@ -59,17 +59,17 @@ def forecast_part(doc: dict[str, Any]) -> list[Block]:
             "–" if f["channel"] is None else f"Sys{f['channel']}",
             FIGURE_NAMES[f["figure"]],
             f["status"],
-            _n(f["last_value"], "{:.3g}"),
-            _n(f["threshold"], "{:g}"),
-            _n(f["slope_per_day"], "{:+.3g}"),
+            num_or_dash(f["last_value"], "{:.3g}"),
+            num_or_dash(f["threshold"], "{:g}"),
+            num_or_dash(f["slope_per_day"], "{:+.3g}"),
             (f["crossing"] or "–")[:10],
             f"{(f['earliest'] or '–')[:10]} … {(f['latest'] or 'open')[:10]}",
-            _n(f["days_left"], "{:.1f}"),
+            num_or_dash(f["days_left"], "{:.1f}"),
         ]
         for f in fc["due"]
     ]
     cols = [("Head / unit", False), ("Channel", False), ("Figure", False), ("Status", False), ("Last", True)]
     cols += [("Threshold", True), ("Trend /day", True), ("Crossing", False), ("Interval", False), ("Days left", True)]
     note = "Past: the last day's figure is beyond the threshold; the date is when it went beyond."
-    out.append(_table(cols, rows, note))
+    out.append(table_block(cols, rows, note))
     return out
