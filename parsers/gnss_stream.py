@@ -56,7 +56,7 @@ from parsers.gpsd_json import JsonRowError, gpsd_class, load_object, tpv_fix
 from parsers.nmea import DEVICE_TAG_RE, DeviceClock, Fix, SentenceError, decode_sentence
 from parsers.report import FileReport, ParseReport
 
-_UNPRINTABLE_RE = re.compile(rb"[^\t\x20-\x7e]")  # a tab may follow a device tag
+UNPRINTABLE_RE = re.compile(rb"[^\t\x20-\x7e]")  # a tab may follow a device tag
 _SENTENCE_START_RE = re.compile(rb"(?=[$!])")
 # Inside binary data a sentence ends at its checksum, at the next '$'/'!', or at a control byte.
 _EMBEDDED_SENTENCE_RE = re.compile(rb"[$!][^$!*\x00-\x1f\x7f-\xff]*(?:\*[0-9A-Fa-f]{2})?")
@@ -68,7 +68,7 @@ _SOURCES = {packets.UBX: "ubx", packets.SBF: "sbf"}
 UNKNOWN_BINARY = "unrecognised binary bytes"
 
 
-class _Feed:
+class LookaheadLines:
     """The lines of one file with look-ahead, for packets that run past a line end.
 
     Items are (line number, raw line with its end, offset to start reading at).
@@ -129,16 +129,16 @@ class StreamParser:
         """Parse one file; its rows are appended to :attr:`rows`."""
         fr, lines = open_lines(path, self.report, keep_ends=True)
         self._gpsd_devices = {}
-        feed = _Feed(lines)
+        feed = LookaheadLines(lines)
         while (item := feed.next()) is not None:
             self._line(fr, item, path.stem, feed)
 
-    def _line(self, fr: FileReport, item: tuple[int, bytes, int], stem: str, feed: _Feed) -> None:
+    def _line(self, fr: FileReport, item: tuple[int, bytes, int], stem: str, feed: LookaheadLines) -> None:
         """One line (with its end; ``start`` > 0: the rest of it after a packet that ended there)."""
         number, raw, start = item
         if start == 0 and raw.lstrip(b" \t")[:1] == b"{":
             self._json_line(fr, number, text_of(raw).strip(b" \t"), stem)
-        elif start == 0 and not _UNPRINTABLE_RE.search(text_of(raw)):
+        elif start == 0 and not UNPRINTABLE_RE.search(text_of(raw)):
             self._text_line(fr, number, text_of(raw), stem)
         else:
             self._binary_line(fr, number, raw, start, stem, feed)
@@ -169,7 +169,9 @@ class StreamParser:
         sentences = [s for s in _SENTENCE_START_RE.split(text) if s]
         self._finish_line(fr, number, raw, device, sentences, known=False)
 
-    def _binary_line(self, fr: FileReport, number: int, raw: bytes, start: int, stem: str, feed: _Feed) -> None:
+    def _binary_line(
+        self, fr: FileReport, number: int, raw: bytes, start: int, stem: str, feed: LookaheadLines
+    ) -> None:
         """A line with bytes outside printable ASCII (or the rest of a line after a packet)."""
         data = raw
         pos = start
@@ -238,7 +240,7 @@ class StreamParser:
             return
         self._finish_line(fr, number, text_of(raw), stem, sentences, known=known, packet_rows=packet_rows)
 
-    def _frame(self, kind: str, data: bytes, at: int, feed: _Feed) -> tuple[int, int, bytes] | None:
+    def _frame(self, kind: str, data: bytes, at: int, feed: LookaheadLines) -> tuple[int, int, bytes] | None:
         """A valid packet at ``data[at]``: (look-ahead lines wholly inside it, end offset, the packet), else None."""
 
         def more(k: int) -> bytes | None:

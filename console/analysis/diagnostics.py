@@ -92,7 +92,7 @@ class DiagAnalysis:
 
     @cached_property
     def passages(self) -> pd.DataFrame:
-        return _passages_frame(self.passage_columns, self.heads)
+        return passages_frame(self.passage_columns, self.heads)
 
     @cached_property
     def axles(self) -> pd.DataFrame:
@@ -395,7 +395,7 @@ def _or_nan(values: np.ndarray, sentinel: int) -> np.ndarray:
 
 
 _BASIS = (None, "detections", "records")
-_KINDS = ("train", "damping", "status")
+PASSAGE_KINDS = ("train", "damping", "status")
 
 
 def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings) -> Columns | None:
@@ -404,7 +404,7 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     The columns of :data:`PASSAGE_COLUMNS`, except that the text columns are
     codes: ``head`` (into the head list), ``direction`` (into
     ``wheels.DIRECTIONS``, 3: mixed), ``whole_train_basis`` (into ``_BASIS``)
-    and ``kind`` (into ``_KINDS``); ``axle_speeds_kmh`` holds the per-axle
+    and ``kind`` (into ``PASSAGE_KINDS``); ``axle_speeds_kmh`` holds the per-axle
     speeds that ``axle_speeds_start``/``stop`` index.
     """
     if len(buckets["head"]) == 0:
@@ -443,7 +443,7 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     n_axles = np.bincount(ax_p, minlength=n)
     n12 = np.bincount(ax_p[ax_dir == 1], minlength=n)
     n21 = np.bincount(ax_p[ax_dir == 2], minlength=n)
-    direction = np.zeros(n, np.int8)  # codes: see _passages_frame
+    direction = np.zeros(n, np.int8)  # codes: see passages_frame
     direction[n12 > n21] = 1
     direction[n21 > n12] = 2
     direction[(n12 > 0) & (n12 == n21)] = 3
@@ -533,7 +533,7 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     }
 
 
-def _passages_frame(cols: Columns | None, heads: Heads) -> pd.DataFrame:
+def passages_frame(cols: Columns | None, heads: Heads) -> pd.DataFrame:
     """The passages table (:data:`PASSAGE_COLUMNS`) from :func:`_passages`' columns."""
     import pandas as pd
 
@@ -548,7 +548,7 @@ def _passages_frame(cols: Columns | None, heads: Heads) -> pd.DataFrame:
         "counting_head": head_name[inverse.reshape(-1)],
         "direction": np.array([None, DIRECTION_12, DIRECTION_21, "mixed"], dtype=object)[cols["direction"]],
         "whole_train_basis": np.array(_BASIS, dtype=object)[cols["whole_train_basis"]],
-        "kind": np.array(_KINDS, dtype=object)[cols["kind"]],
+        "kind": np.array(PASSAGE_KINDS, dtype=object)[cols["kind"]],
     }
     data = {"device_id": used_dev[inverse.reshape(-1)], **{c: text.get(c, cols.get(c)) for c in PASSAGE_COLUMNS[1:]}}
     out = pd.DataFrame(data)

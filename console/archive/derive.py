@@ -52,7 +52,7 @@ from console.analysis.registers import RegisterTables
 from console.analysis.sections import SectionEngine
 from console.analysis.stream_sections import EventStream, HeadFacts
 from console.analysis.wheels import SYS1, SYS2, WHEEL_SENSOR_ADDRESS
-from console.archive.derive_sink import DERIVE_VERSION, ArchiveSink, _arrow, _days
+from console.archive.derive_sink import DERIVE_VERSION, ArchiveSink, arrow_table, day_column
 from console.archive.history import at_end_tables
 from console.archive.parts import NS_PER_DAY, write_part, write_small
 from console.archive.reader import heads_in, layout_of, record_batches, speed_settings
@@ -518,10 +518,10 @@ class Derivation:
         for name, df in frames.items():
             if df is None or df.empty:
                 continue
-            table = _arrow(df)
+            table = arrow_table(df)
             if name in ("section_states", "count_ledger"):  # the sections of sensor frames
                 df = df.sort_values("time_ns", kind="stable")
-                table = _arrow(df).append_column("day", _days(df["time_ns"].to_numpy(np.int64) // NS_PER_DAY))
+                table = arrow_table(df).append_column("day", day_column(df["time_ns"].to_numpy(np.int64) // NS_PER_DAY))
             rel = write_small(self.root, name, self.generation, "e", table)
             if rel:
                 written.append(rel)

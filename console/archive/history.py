@@ -76,7 +76,7 @@ def report_data(
     import pandas as pd
 
     from console.analysis.health import Finding, sort_findings, voltage_margin_findings
-    from console.report.collect import _sections, crossings_from_fixes, frames_from_tables
+    from console.report.collect import crossings_from_fixes, frames_from_tables, sections_into_report
     from console.report.model import InputFile, ReportData
     from parsers.can_logs import count_frames_only
 
@@ -131,7 +131,7 @@ def report_data(
         findings += voltage_margin_findings(pd.concat([df for _, df in volts], ignore_index=True))
     data.findings = sort_findings(findings)
 
-    _sections(data)
+    sections_into_report(data)
     fixes_parts = per_file_tables(root, m, "fixes")
     if not fixes_parts:
         data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."

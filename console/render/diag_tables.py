@@ -121,19 +121,19 @@ def _listed_passages(
     With a limit, only the rows shown become a table: a log of a million heads
     has a passage per head.
     """
-    from console.analysis.diagnostics import _KINDS, _passages_frame
+    from console.analysis.diagnostics import PASSAGE_KINDS, passages_frame
 
     cols = analysis.passage_columns
     if first is not None and cols is None:  # the job kept only the first rows (analyze's text face)
-        return _passages_frame(first.cols, analysis.heads), first.status, first.listed
+        return passages_frame(first.cols, analysis.heads), first.status, first.listed
     if limit is None or cols is None:
         p = analysis.passages
         status = int((p["kind"] == "status").sum()) if len(p) else 0
         return (p[p["kind"] != "status"] if status else p), status, len(p) - status
 
-    listed = np.flatnonzero(cols["kind"] != _KINDS.index("status"))
+    listed = np.flatnonzero(cols["kind"] != PASSAGE_KINDS.index("status"))
     rows = take_passages(cols, listed[:limit])
-    return _passages_frame(rows, analysis.heads), len(cols["kind"]) - len(listed), len(listed)
+    return passages_frame(rows, analysis.heads), len(cols["kind"]) - len(listed), len(listed)
 
 
 def _whole_train(r: Any) -> Text:

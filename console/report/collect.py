@@ -371,7 +371,7 @@ def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], for_form
         findings += voltage_margin_findings(table)
     data.findings = sort_findings(findings)
 
-    _sections(data)
+    sections_into_report(data)
     _crossings(data, of(*GNSS_FORMATS))
 
 
@@ -457,7 +457,8 @@ def frames_from_tables(data: ReportData, tables: list[pd.DataFrame]) -> None:
     data.frames = pd.concat([t[columns].astype({"file": object}) for t in tables], ignore_index=True)
 
 
-def _sections(data: ReportData) -> None:
+def sections_into_report(data: ReportData) -> None:
+    """The section states of the report's detection events (or sensor frames), or a note saying why none."""
     lay = data.layout
     if lay is None:
         data.notes["sections"] = "No section states: they need a layout (--layout, or a layout.toml among the inputs)."
