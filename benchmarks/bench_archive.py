@@ -250,8 +250,9 @@ def main() -> None:
         print(
             f"big archive: {total:,} records ({args.replicas} replicas, {n_parts} record parts), {du(big) / 1e6:.0f} MB"
         )
-        from console.archive.history import Window, report_data
+        from console.archive.history import report_data
         from console.archive.presets import PRESETS
+        from console.archive.reader import Window
         from console.archive.views import connect
 
         sql = "SELECT min(time), counting_head FROM records GROUP BY counting_head ORDER BY 2 LIMIT 1"

@@ -15,7 +15,7 @@ Every command that writes files (``report -o``, ``simulate -o``, the future
   work is done.
 
 A regular file is written atomically, in pieces into a temporary file
-(:func:`open_output`, :func:`console.report.write.atomic_file`): a reader,
+(:func:`open_output`, :func:`atomic_file`): a reader,
 or an interrupted run, sees the old file or the new one,
 never half of one.  A symlink to a regular file keeps being a link: the
 file it points to is replaced.
@@ -201,7 +201,64 @@ def open_output(target: OutputTarget) -> Iterator[BinaryIO]:
         with os.fdopen(fd, "wb") as f:
             yield f
         return
-    from console.report.write import atomic_file
-
     with atomic_file(target.path) as f:
         yield f
+
+
+# -- atomic files: a reader sees the old output or the new one, never half of one --------------------------
+
+
+def _new_file_mode(target: Path) -> int:
+    """The mode the target would get from a plain open(): kept from the old file, else 0666 & ~umask."""
+    try:
+        return stat.S_IMODE(target.stat().st_mode)
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
+
+
+def _fsync_directory(directory: Path) -> None:
+    # Best effort: not every platform or file system lets a directory be opened.
+    flags = getattr(os, "O_DIRECTORY", None)
+    if flags is None:
+        return
+    try:
+        fd = os.open(directory, os.O_RDONLY | flags)
+    except OSError:
+        return
+    try:
+        with contextlib.suppress(OSError):
+            os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+@contextmanager
+def atomic_file(target: Path) -> Iterator[BinaryIO]:
+    """A new file to write in pieces; it replaces ``target`` when the block ends without an error.
+
+    OSError on failure; on any exception the temporary file is removed and ``target`` is untouched.
+    """
+    directory = target.parent if str(target.parent) else Path(".")
+    mode = _new_file_mode(target)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+    tmp = Path(tmp_name)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            yield f
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, mode)
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    _fsync_directory(directory)
+
+
+def write_atomic(target: Path, data: bytes) -> None:
+    """Replace ``target`` with ``data`` atomically (OSError on failure, target untouched)."""
+    with atomic_file(target) as f:
+        f.write(data)

@@ -88,7 +88,9 @@ def _digits(raw: bytes, key: str, what: str) -> int:
     return int(text)
 
 
-def _split_fields(span: bytes, keys: tuple[str, ...], first_index: int) -> list[bytes]:
+def split_fields(span: bytes, keys: tuple[str, ...], first_index: int) -> list[bytes]:
+    """The values of tab-separated ``key:value`` fields named ``keys`` in order; FieldError naming the
+    field (numbered from ``first_index``) that is not the one expected."""
     parts = span.split(b"\t")
     values = []
     for i, (key, part) in enumerate(zip(keys, parts, strict=True)):
@@ -104,7 +106,7 @@ def _split_fields(span: bytes, keys: tuple[str, ...], first_index: int) -> list[
 
 def parse_register_span(span: bytes) -> RegisterKey:
     """Validate and decode fields 1–9 of a record (once per distinct span)."""
-    diag, dev_id, device, typ, gs, head, ch, adr, label = _split_fields(span, REGISTER_FIELDS, 1)
+    diag, dev_id, device, typ, gs, head, ch, adr, label = split_fields(span, REGISTER_FIELDS, 1)
     channel = _digits(ch, "ch", "a channel number (1 = Sys1, 2 = Sys2)")
     if channel > 15:
         raise FieldError("ch", f"ch: expected a channel number 0-15, found {channel}")

@@ -19,10 +19,10 @@ from parsers.diag_fields import (
     DATA_KINDS,
     FieldError,
     RegisterKey,
-    _split_fields,
     decode_data,
     decode_date,
     parse_register_span,
+    split_fields,
 )
 from parsers.dictionary import FRONT_CACHE_MAX, DigestIndex, Growable, StringDictionary, digests
 
@@ -301,7 +301,7 @@ class DiagRegistry:
     @staticmethod
     def _parse_data(field_bytes: bytes) -> tuple[str, int, int] | FieldError:
         try:
-            (raw,) = _split_fields(field_bytes, ("Data",), 10)
+            (raw,) = split_fields(field_bytes, ("Data",), 10)
             text, value, kind = decode_data(raw)
         except FieldError as exc:
             return exc
@@ -310,7 +310,7 @@ class DiagRegistry:
     @staticmethod
     def _parse_day(field_bytes: bytes) -> int | FieldError:
         try:
-            (raw,) = _split_fields(field_bytes, ("Date",), 11)
+            (raw,) = split_fields(field_bytes, ("Date",), 11)
             return decode_date(raw)
         except FieldError as exc:
             return exc

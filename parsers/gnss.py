@@ -71,13 +71,14 @@ import numpy as np
 
 from parsers.fix_table import FIX_COLUMNS, FixColumns, FixRows, check_roles, utc_times
 from parsers.gnss_csv import parse_device_file, parse_device_stream
-from parsers.gnss_fields import RowError, header_key
+from parsers.gnss_fields import RowError
 from parsers.gnss_fields import cells_of as _cells
 from parsers.gnss_fields import decode_line as _decode
 from parsers.gnss_fields import delimiter_of as _delimiter
 from parsers.gnss_fields import position as _position
 from parsers.gnss_fields import speed as _speed
 from parsers.gnss_fields import time_field as _time
+from parsers.gnss_headers import CentreHeader, parse_centre_header
 from parsers.gnss_lines import open_lines
 from parsers.gnss_stream import StreamParser
 from parsers.gnss_time import parse_time_ns
@@ -119,18 +120,6 @@ _STATE_ALIASES = {
     "mất kết nối": "disconnected",
     "disconnected": "disconnected",
 }
-_CENTRE_ALIASES: dict[str, tuple[str, ...]] = {
-    "time": ("timestamp", "time", "thời gian", "thời điểm"),
-    "train": ("mã tàu", "train code", "train", "train id"),
-    "lat": ("vĩ độ", "latitude", "lat"),
-    "lon": ("kinh độ", "longitude", "lon"),
-    "speed_kmh": ("vận tốc kmh", "vận tốc", "tốc độ kmh", "tốc độ", "speed kmh", "speed"),
-}
-_CENTRE_KEYS = {alias: column for column, aliases in _CENTRE_ALIASES.items() for alias in aliases}
-_CROSSING_CODE_RE = re.compile(r"(?:mã đường ngang|crossing) (\d+)(?: code)?|crossing code (\d+)")
-_CROSSING_STATE_RE = re.compile(
-    r"(?:trạng thái kết nối đường ngang|trạng thái đường ngang) (\d+)|crossing (\d+) (?:connection )?(?:state|status)"
-)
 _KM_POST_RE = re.compile(r"(?:km\s*)?(\d{1,4})\s*\+\s*(\d{3}(?:[.,]\d+)?)", re.IGNORECASE)
 # ------------------------------------------------------------------- fields
 
@@ -145,46 +134,6 @@ def parse_crossing_code(text: str) -> tuple[str, float]:
 
 
 # ------------------------------------------------------------- centre table
-
-
-@dataclass
-class CentreHeader:
-    """Column positions of a centre table."""
-
-    width: int
-    columns: dict[str, int]
-    crossings: list[tuple[int, int, int]]  # (N, code column, state column), by N
-
-
-def parse_centre_header(cells: list[str]) -> CentreHeader:
-    """Header cells → column positions; ValueError with the reason if not a centre table header."""
-    columns: dict[str, int] = {}
-    codes: dict[int, int] = {}
-    states: dict[int, int] = {}
-    for i, cell in enumerate(cells):
-        key = header_key(cell)
-        if (code := _CROSSING_CODE_RE.fullmatch(key)) is not None:
-            n, target = int(code.group(1) or code.group(2)), codes
-        elif (state := _CROSSING_STATE_RE.fullmatch(key)) is not None:
-            n, target = int(state.group(1) or state.group(2)), states
-        elif key in _CENTRE_KEYS:
-            column = _CENTRE_KEYS[key]
-            if column in columns:
-                raise ValueError(f"column '{cell.strip()}' given twice")
-            columns[column] = i
-            continue
-        else:
-            raise ValueError(f"unknown column '{cell.strip()}'")
-        if n in target:
-            raise ValueError(f"column '{cell.strip()}' given twice")
-        target[n] = i
-    missing = [c for c in _CENTRE_ALIASES if c not in columns]
-    if missing:
-        raise ValueError(f"missing column(s) {', '.join(missing)}")
-    unpaired = sorted(set(codes) ^ set(states))
-    if unpaired:
-        raise ValueError(f"crossing {unpaired[0]} needs both a code and a state column")
-    return CentreHeader(len(cells), columns, [(n, codes[n], states[n]) for n in sorted(codes)])
 
 
 def _file_categorical(files: list[str]) -> pd.Categorical:

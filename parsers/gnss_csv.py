@@ -48,10 +48,8 @@ with the field named; the header line and ``#`` comments are blank.
 from __future__ import annotations
 
 import math
-import re
 import unicodedata
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -69,103 +67,21 @@ from parsers.gnss_fields import (
     parse_decimal,
     time_field,
 )
+from parsers.gnss_headers import (
+    DEVICE_COLUMN_BY_NAME,
+    UNIT_FACTORS,
+    DeviceHeader,
+    normal_name,
+    parse_device_header,
+    split_unit,
+)
 from parsers.gnss_lines import open_lines
 from parsers.gpsd_json import JsonRowError, load_object, plain
+from parsers.kinds import classify_file
 from parsers.report import FileReport, ParseReport, device_of_file
 
 if TYPE_CHECKING:
     import pandas as pd
-
-KNOT_MPS = 1852 / 3600
-
-_NAMES: dict[str, tuple[str, ...]] = {
-    "time": ("time", "timestamp", "utc", "datetime", "date time", "time utc", "utc timestamp", "gps time", "ts"),
-    "date": ("date", "utc date", "gps date", "date utc"),
-    "tod": ("time of day", "utc time", "time utc of day", "tod"),
-    "device": ("device", "device id", "unit", "unit id", "imei", "device name"),
-    "role": ("role",),
-    "lat": ("lat", "latitude"),
-    "lon": ("lon", "lng", "long", "longitude"),
-    "speed": ("speed", "ground speed", "gspeed", "sog", "speed over ground", "velocity", "speed mps"),
-    "course": ("course", "heading", "track", "cog", "course over ground", "headmot", "bearing", "course deg"),
-    "valid": ("valid", "fix valid", "gnssfixok", "fix ok"),
-    "quality": (
-        "fix",
-        "fix type",
-        "fixtype",
-        "gps fix",
-        "fix quality",
-        "quality",
-        "gga quality",
-        "status",
-        "fix status",
-        "solution",
-        "solution status",
-        "pos mode",
-        "position mode",
-        "mode",
-        "fix mode",
-    ),
-}
-_BY_NAME = {alias: name for name, aliases in _NAMES.items() for alias in aliases}
-
-# Unit spelled in the header → (kind, factor to our unit: deg, m/s, deg).
-_UNIT_FACTORS: dict[str, float] = {
-    "": 1.0,
-    "deg": 1.0,
-    "degs": 1.0,
-    "degree": 1.0,
-    "degrees": 1.0,
-    "°": 1.0,
-    "dd": 1.0,
-    "e7": 1e-7,
-    "1e7": 1e-7,
-    "deg*1e7": 1e-7,
-    "deg 1e7": 1e-7,
-    "1e-7deg": 1e-7,
-    "1e 7deg": 1e-7,
-    "1e-7": 1e-7,
-    "e6": 1e-6,
-    "1e6": 1e-6,
-    "deg*1e6": 1e-6,
-    "microdeg": 1e-6,
-    "udeg": 1e-6,
-    "1e-6deg": 1e-6,
-    "e5": 1e-5,
-    "1e5": 1e-5,
-    "deg*1e5": 1e-5,
-    "1e-5deg": 1e-5,
-    "m/s": 1.0,
-    "mps": 1.0,
-    "m s": 1.0,
-    "ms": 1.0,
-    "km/h": 1 / 3.6,
-    "kmh": 1 / 3.6,
-    "kph": 1 / 3.6,
-    "km h": 1 / 3.6,
-    "mm/s": 1e-3,
-    "mm s": 1e-3,
-    "mms": 1e-3,
-    "cm/s": 1e-2,
-    "cm s": 1e-2,
-    "cms": 1e-2,
-    "kn": KNOT_MPS,
-    "kt": KNOT_MPS,
-    "kts": KNOT_MPS,
-    "knot": KNOT_MPS,
-    "knots": KNOT_MPS,
-    "mph": 0.44704,
-}
-_ANGLE_UNITS = frozenset(
-    {"", "deg", "degs", "degree", "degrees", "°", "dd"}
-    | {"e7", "1e7", "deg*1e7", "deg 1e7", "1e-7deg", "1e 7deg", "1e-7"}
-    | {"e6", "1e6", "deg*1e6", "microdeg", "udeg", "1e-6deg"}
-    | {"e5", "1e5", "deg*1e5", "1e-5deg"}
-)
-_SPEED_UNITS = frozenset(_UNIT_FACTORS) - _ANGLE_UNITS | {""}
-_BRACKET_UNIT_RE = re.compile(r"^(.*?)\s*[\(\[]\s*([^)\]]*?)\s*[\)\]]$")
-# Units written as the name's last words: lat_e7, speed_mm_s, speed_kmh, speed_knots.
-_SUFFIX_UNITS = ("mm s", "cm s", "m s", "km h", "kmh", "kph", "mps", "knots", "kn", "mph", "e7", "e6", "e5", "deg")
 
 _QUALITY_WORDS_NO_FIX = frozenset(
     {"no fix", "nofix", "none", "invalid", "not valid", "no", "n", "v", "false", "time only", "time", "0 no fix"}
@@ -207,73 +123,6 @@ _QUALITY_WORDS_FIX = frozenset(
         "gps+dr",
     }
 )
-
-
-@dataclass
-class DeviceHeader:
-    """Where each field is read from, and with what factor."""
-
-    width: int
-    at: dict[str, int] = field(default_factory=dict)
-    factor: dict[str, float] = field(default_factory=dict)
-    quality_codes: str = ""  # "ublox", "gga" or "" (numbers refused)
-    extra: list[str] = field(default_factory=list)
-
-
-def _normal(cell: str) -> str:
-    text = unicodedata.normalize("NFC", cell).casefold().replace("_", " ").replace("-", " ").replace(".", " ")
-    return " ".join(text.split())
-
-
-def split_unit(cell: str) -> tuple[str, str]:
-    """A header cell → (name, unit).
-
-    ``Latitude [deg]`` → (``latitude``, ``deg``); ``lat_e7`` → (``lat``, ``e7``);
-    ``speed_mm_s`` → (``speed``, ``mm s``).
-    """
-    raw = unicodedata.normalize("NFC", cell).strip()
-    m = _BRACKET_UNIT_RE.match(raw)
-    if m:
-        return _normal(m.group(1)), m.group(2).casefold().replace(" ", "")
-    name = _normal(raw)
-    if name in _BY_NAME:
-        return name, ""
-    for unit in _SUFFIX_UNITS:
-        if name.endswith(" " + unit) and name[: -len(unit) - 1] in _BY_NAME:
-            return name[: -len(unit) - 1], unit
-    return name, ""
-
-
-def parse_device_header(cells: list[str]) -> DeviceHeader:
-    """Header cells → a :class:`DeviceHeader`; ValueError with the reason if not a device-stream header."""
-    header = DeviceHeader(len(cells))
-    for i, cell in enumerate(cells):
-        name, unit = split_unit(cell)
-        column = _BY_NAME.get(name)
-        if column is None:
-            header.extra.append(cell.strip())
-            continue
-        if column in header.at:
-            if column == "time" and "tod" not in header.at:
-                column = "tod"  # "date, time": the second is the time of day
-            else:
-                raise ValueError(f"column '{cell.strip()}' given twice")
-        if column in ("lat", "lon", "course", "speed"):
-            factor = _UNIT_FACTORS.get(unit)
-            allowed = _SPEED_UNITS if column == "speed" else _ANGLE_UNITS
-            if factor is None or unit not in allowed:
-                raise ValueError(f"column '{cell.strip()}': unit '{unit}' is not one we know for {column}")
-            header.factor[column] = factor
-        if column == "quality":
-            header.quality_codes = "ublox" if "type" in name else "gga" if "quality" in name or name == "fix" else ""
-        header.at[column] = i
-    if "date" in header.at and "time" in header.at and "tod" not in header.at:
-        header.at["tod"] = header.at.pop("time")
-    has_time = "time" in header.at or ("date" in header.at and "tod" in header.at)
-    missing = [c for c, ok in (("time", has_time), ("lat", "lat" in header.at), ("lon", "lon" in header.at)) if not ok]
-    if missing:
-        raise ValueError(f"missing column(s) {', '.join(missing)}")
-    return header
 
 
 def _flag(value: Any) -> bool:
@@ -377,14 +226,14 @@ def _json_values(text: str) -> tuple[dict[str, Any], DeviceHeader]:
     header = DeviceHeader(0)
     for key in obj:
         name, unit = split_unit(str(key))
-        column = _BY_NAME.get(name)
-        if (name, unit) == ("speed", "kmh") or _normal(str(key)) in _JSON_KEY_UNITS:
+        column = DEVICE_COLUMN_BY_NAME.get(name)
+        if (name, unit) == ("speed", "kmh") or normal_name(str(key)) in _JSON_KEY_UNITS:
             column = "speed"
-            header.factor["speed"] = _JSON_KEY_UNITS.get(_normal(str(key)), ("speed", 1 / 3.6))[1]
+            header.factor["speed"] = _JSON_KEY_UNITS.get(normal_name(str(key)), ("speed", 1 / 3.6))[1]
         elif column in ("lat", "lon", "course", "speed") and unit:
-            if unit not in _UNIT_FACTORS:
+            if unit not in UNIT_FACTORS:
                 raise RowError("json", f"key '{key}': unit '{unit}' is not one we know")
-            header.factor[column] = _UNIT_FACTORS[unit]
+            header.factor[column] = UNIT_FACTORS[unit]
         if column is None:
             continue
         if column in values:
@@ -529,8 +378,6 @@ def parse_device_file(path: Path, report: ParseReport, rows: FixRows, fmt: str, 
 
 
 def _is_jsonl(path: Path) -> bool:
-    from parsers.kinds import classify_file
-
     return classify_file(path).kind in ("jsonl", "gpsd")
 
 

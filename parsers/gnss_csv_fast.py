@@ -26,7 +26,7 @@ import pyarrow.compute as pc
 from parsers.gnss_fields import ROLE_ALIASES, RowError
 
 if TYPE_CHECKING:
-    from parsers.gnss_csv import DeviceHeader
+    from parsers.gnss_headers import DeviceHeader
 
 # The time shapes read here; any other (DD/MM/YYYY, a decimal comma, nanoseconds, a space
 # before the zone) goes to the per-row reader, which knows them all.

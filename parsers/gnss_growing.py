@@ -31,8 +31,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from parsers import gnss_packets as packets
-from parsers.gnss_lines import _split_lf, text_of
-from parsers.gnss_stream import _UNPRINTABLE_RE, StreamParser, _Feed
+from parsers.gnss_lines import split_lf, text_of
+from parsers.gnss_stream import UNPRINTABLE_RE, LookaheadLines, StreamParser
 from parsers.report import FileReport, ParseReport
 from parsers.sources import DEFAULT_MAX_LINE_BYTES
 
@@ -71,7 +71,7 @@ class GrowingStream:
     def __init__(self, report: ParseReport) -> None:
         self.report = report
         self.parser = StreamParser(report)
-        self._feed = _Feed(iter(()))
+        self._feed = LookaheadLines(iter(()))
         self._fr: FileReport | None = None
         self._stem = ""
         # Row ids in the order the batch reader creates the rows: the open rows' ids, the next id.
@@ -82,14 +82,14 @@ class GrowingStream:
         """Start a file (a rotation's next one): the previous one ends here."""
         self.end_file()
         self._fr, self._stem = fr, stem
-        self._feed = _Feed(iter(()))
+        self._feed = LookaheadLines(iter(()))
         self.parser._gpsd_devices = {}
 
     def add(self, first_line: int, data: bytes) -> None:
         """Complete lines of the current file (each ends with a newline), from line ``first_line`` on."""
         fr = self._fr
         assert fr is not None, "open_file first"
-        for k, raw in enumerate(_split_lf(data)):
+        for k, raw in enumerate(split_lf(data)):
             fr.lines_read += 1
             if len(raw) > DEFAULT_MAX_LINE_BYTES:  # as the batch reader's line splitter refuses it
                 reason = f"line of {len(raw)} bytes is too long to be a GNSS record"
@@ -107,7 +107,7 @@ class GrowingStream:
         while feed.ahead:
             assert fr is not None
             _, raw, start = feed.ahead[0]
-            binary = start > 0 or (raw.lstrip(b" \t")[:1] != b"{" and _UNPRINTABLE_RE.search(text_of(raw)))
+            binary = start > 0 or (raw.lstrip(b" \t")[:1] != b"{" and UNPRINTABLE_RE.search(text_of(raw)))
             if binary and not final and _waits_for_more(feed.ahead):
                 return
             item = feed.next()

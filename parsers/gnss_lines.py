@@ -117,7 +117,7 @@ def open_lines(
                     continue
                 data = bytes(item.data)
                 if keep_ends:
-                    chunk = _split_lf(data)
+                    chunk = split_lf(data)
                 else:
                     chunk = data.split(b"\n")
                     if chunk[-1] == b"":
@@ -135,7 +135,7 @@ def open_lines(
     return fr, lines()
 
 
-def _split_lf(data: bytes) -> list[bytes]:
+def split_lf(data: bytes) -> list[bytes]:
     """Split after every LF only (``splitlines`` would also split at CR, VT, FF, 0x1c-0x1e…)."""
     parts = data.split(b"\n")
     out = [p + b"\n" for p in parts[:-1]]

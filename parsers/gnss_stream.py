@@ -67,7 +67,7 @@ from parsers.report import FileReport, ParseReport, device_of_file
 if TYPE_CHECKING:
     import pandas as pd
 
-_UNPRINTABLE_RE = re.compile(rb"[^\t\x20-\x7e]")  # a tab may follow a device tag
+UNPRINTABLE_RE = re.compile(rb"[^\t\x20-\x7e]")  # a tab may follow a device tag
 # Inside binary data a sentence ends at its checksum, at the next '$'/'!', or at a control byte.
 _EMBEDDED_SENTENCE_RE = re.compile(rb"[$!][^$!*\x00-\x1f\x7f-\xff]*(?:\*[0-9A-Fa-f]{2})?")
 _ADDRESS_START_RE = re.compile(rb"[$!][A-Z][A-Z0-9]{4},")
@@ -78,7 +78,7 @@ _SOURCES = {packets.UBX: "ubx", packets.SBF: "sbf"}
 UNKNOWN_BINARY = "unrecognised binary bytes"
 
 
-class _Feed:
+class LookaheadLines:
     """The lines of one file with look-ahead, for packets that run past a line end.
 
     Items are (line number, raw line with its end, offset to start reading at).
@@ -139,16 +139,16 @@ class StreamParser:
         """Parse one file; its rows are appended to :attr:`rows`."""
         fr, lines = open_lines(path, self.report, keep_ends=True)
         self._gpsd_devices = {}
-        feed = _Feed(lines)
+        feed = LookaheadLines(lines)
         while (item := feed.next()) is not None:
             self._line(fr, item, device_of_file(path), feed)
 
-    def _line(self, fr: FileReport, item: tuple[int, bytes, int], stem: str, feed: _Feed) -> None:
+    def _line(self, fr: FileReport, item: tuple[int, bytes, int], stem: str, feed: LookaheadLines) -> None:
         """One line (with its end; ``start`` > 0: the rest of it after a packet that ended there)."""
         number, raw, start = item
         if start == 0 and raw.lstrip(b" \t")[:1] == b"{":
             self._json_line(fr, number, text_of(raw).strip(b" \t"), stem)
-        elif start == 0 and not _UNPRINTABLE_RE.search(text_of(raw)):
+        elif start == 0 and not UNPRINTABLE_RE.search(text_of(raw)):
             self._text_line(fr, number, text_of(raw), stem)
         else:
             self._binary_line(fr, number, raw, start, stem, feed)
@@ -185,7 +185,9 @@ class StreamParser:
             self.report.skipped[NOISE_SKIPPED] += noise
         self._finish_line(fr, number, raw, device, sentences, known=False)
 
-    def _binary_line(self, fr: FileReport, number: int, raw: bytes, start: int, stem: str, feed: _Feed) -> None:
+    def _binary_line(
+        self, fr: FileReport, number: int, raw: bytes, start: int, stem: str, feed: LookaheadLines
+    ) -> None:
         """A line with bytes outside printable ASCII (or the rest of a line after a packet)."""
         data = raw
         pos = start
@@ -254,7 +256,7 @@ class StreamParser:
             return
         self._finish_line(fr, number, text_of(raw), stem, sentences, known=known, packet_rows=packet_rows)
 
-    def _frame(self, kind: str, data: bytes, at: int, feed: _Feed) -> tuple[int, int, bytes] | None:
+    def _frame(self, kind: str, data: bytes, at: int, feed: LookaheadLines) -> tuple[int, int, bytes] | None:
         """A valid packet at ``data[at]``: (look-ahead lines wholly inside it, end offset, the packet), else None."""
 
         def more(k: int) -> bytes | None:

@@ -28,6 +28,8 @@ from pathlib import Path
 from typing import Final, Literal
 
 from parsers import gnss_packets as packets
+from parsers.gnss_headers import parse_centre_header, parse_device_header
+from parsers.gnss_lines import open_gnss_stream
 
 Kind = Literal[
     "diag", "nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre", "frames", "can", "voltages", "empty", "unknown"
@@ -125,9 +127,7 @@ def classify_head(head: bytes) -> KindGuess:
         return KindGuess("nmea", "NMEA sentences or receiver packets")
     text = first.decode("utf-8", errors="replace")
     cells = _cells(text)
-    from parsers.gnss import parse_centre_header
-    from parsers.gnss_csv import parse_device_header
-    from parsers.voltages import parse_header as parse_voltage_header
+    from parsers.voltages import parse_header as parse_voltage_header  # pandas: not for every kind asked
 
     for kind, check in (
         ("centre", parse_centre_header),
@@ -150,8 +150,6 @@ def classify_head(head: bytes) -> KindGuess:
 
 def read_head(path: Path) -> bytes:
     """The first :data:`HEAD_BYTES` as the GNSS parsers would read them; InputError if unreadable."""
-    from parsers.gnss_lines import open_gnss_stream
-
     stream, raw, _, _ = open_gnss_stream(path)
     try:
         return stream.read(HEAD_BYTES)

@@ -14,8 +14,9 @@ import pandas as pd
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from console.archive.history import ArchivedRecords, cross_head_tables, report_data
+from console.archive.history import cross_head_tables, report_data
 from console.archive.ingest import run_ingest
+from console.archive.reader import ArchivedRecords
 from console.archive.store import read_current
 from console.archive.views import run_query
 from console.drivers.batch import ReadOptions, read_diag

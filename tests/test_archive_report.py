@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from console.archive.history import Window, replay_inputs, report_data
+from console.archive.history import replay_inputs, report_data
+from console.archive.reader import Window
 from console.cli import app
 from console.layout import load_layout
 from tests.conftest import SAMPLES

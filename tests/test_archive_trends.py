@@ -13,7 +13,8 @@ import pytest
 from typer.testing import CliRunner
 
 from console.analysis.health import learn_band
-from console.archive.history import Window, report_data
+from console.archive.history import report_data
+from console.archive.reader import Window
 from console.archive.store import read_current
 from console.archive.trends import archive_trends
 from console.cli import app

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from console.analysis.counting import two_channel_events
 from console.analysis.edge_rule import SIGNAL_A, SIGNAL_B, confirmed_axles, edge_rule_events
 from console.analysis.events import DOWN, UP, EventKind
 from console.analysis.majority import majority_events
-from console.analysis.wheels import CountingSettings, two_channel_events
+from console.analysis.wheels import CountingSettings
 
 MS = 1_000_000
 S = 1_000_000_000

@@ -26,7 +26,8 @@ from console.analysis.integrity import (
     IntegritySettings,
     timelines,
 )
-from console.analysis.sections import SectionEngine, SectionState
+from console.analysis.section_state import SectionState
+from console.analysis.sections import SectionEngine
 from console.analysis.timefmt import NS
 from console.layout import layout_from_dict
 

@@ -22,7 +22,8 @@ def run(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
 @pytest.fixture(scope="module")
 def parted_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("parted") / "run"
-    r = run("simulate", "-o", str(out), "--duration", "25m", "--fault", "train_parting:T2:12m")  # before T2 has cleared 11+850
+    # Parted at 12 min, before T2 has cleared 11+850: that warning is held for the rear part.
+    r = run("simulate", "-o", str(out), "--duration", "25m", "--fault", "train_parting:T2:12m")
     assert r.returncode == 0, r.stderr
     return out
 

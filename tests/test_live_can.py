@@ -16,7 +16,8 @@ import pytest
 
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.frame_events import frames_to_events
-from console.analysis.sections import SectionState, run_sections
+from console.analysis.section_state import SectionState
+from console.analysis.sections import run_sections
 from console.layout import Layout, layout_from_dict
 from console.live.engine import LiveEngine, run_sources
 from console.live.frames import FrameFollow

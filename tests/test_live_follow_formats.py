@@ -30,7 +30,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from console.analysis.frame_events import frames_to_events
-from console.analysis.sections import SectionState, run_sections
+from console.analysis.section_state import SectionState
+from console.analysis.sections import run_sections
 from console.layout import Layout, layout_from_dict, load_layout
 from console.live.frames import FrameFollow
 from console.sources.base import FrameRows, GnssFix, Item, LineBlock, SourceNote

@@ -34,10 +34,10 @@ from console.analysis.crossing_timeline import TimelineRow
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.health import Severity
 from console.layout import load_layout
+from console.output_path import write_atomic
 from console.report import command, run_report
 from console.report.collect import expand
 from console.report.model import ReportData, document, natural_key
-from console.report.write import write_atomic
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_run
 from tests.conftest import ROOT, record
@@ -176,7 +176,7 @@ def test_a_failed_write_leaves_no_partial_file(
     def disk_full(src: object, dst: object) -> None:
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr("console.report.write.os.replace", disk_full)
+    monkeypatch.setattr("console.output_path.os.replace", disk_full)
     code, _, err = _report(capsys, list(SAMPLE_INPUTS), "json", "example", output=target)
     assert code == 2 and "No space left on device" in err
     assert target.read_text() == "{}\n"

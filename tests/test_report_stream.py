@@ -27,10 +27,10 @@ from hypothesis import strategies as st
 
 from benchmarks.bench_memory_commands import write_layout
 from benchmarks.gen_realistic_diag import generate
-from console.analysis.sections import LedgerEntry, SectionState, Transition
+from console.analysis.section_state import LedgerEntry, SectionState, Transition
 from console.jsonout import valid_unicode
 from console.layout import load_layout
-from console.render.section_history import SPILL_BLOCK_BYTES, _LedgerText
+from console.render.section_history import SPILL_BLOCK_BYTES, LedgerText
 from console.render.section_tables import sections_json
 from console.report import command, outline
 from console.report.collect import collect
@@ -240,7 +240,7 @@ def test_spilled_rows_are_the_report_json_of_their_row(
 ) -> None:
     pad = "\n" + " " * ROW_DEPTH
     row = sections_json_row(time_ns, section=section, head=head, delta=delta, count=count)
-    assert _LedgerText(ROW_DEPTH)(LedgerEntry(time_ns, section, head, delta, count)) == pad + row
+    assert LedgerText(ROW_DEPTH)(LedgerEntry(time_ns, section, head, delta, count)) == pad + row
     tr = sections_json_row(time_ns, section=section, state=str(state), count=count, reason=reason)
     assert _transition_text(Transition(time_ns, section, state, count, reason)) == pad + tr
 

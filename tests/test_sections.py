@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from console.analysis.events import DOWN, UP, DetectionEvent, EventKind
-from console.analysis.sections import SectionEngine, SectionState, run_sections
+from console.analysis.section_state import SectionState
+from console.analysis.sections import SectionEngine, run_sections
 from console.layout import load_layout
 
 LAY = load_layout("example")  # 1G: WS1(+1) WS2(-1); B1: WS2(+1) WS3(-1); ...

@@ -21,7 +21,8 @@ from hypothesis import strategies as st
 
 from console.analysis.event_block import EventBlock, StringPool
 from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.sections import SectionEngine, SectionState
+from console.analysis.section_state import SectionState
+from console.analysis.sections import SectionEngine
 from console.layout import load_layout
 
 LAYOUT = load_layout("example")

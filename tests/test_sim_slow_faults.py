@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from console.archive.health_days import gnss_loss_per_day
-from console.archive.history import Window
+from console.archive.reader import Window
 from console.archive.views import connect
 from console.cli import app
 from console.layout import load_layout

@@ -31,14 +31,15 @@ from benchmarks.gen_realistic_diag import generate
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.sections import SectionState, ledger_summary_frame, run_sections
+from console.analysis.section_state import SectionState
+from console.analysis.sections import ledger_summary_frame, run_sections
 from console.analysis.wheels import CountingSettings
 from console.cli import app
 from console.drivers.batch import health_findings
 from console.engine.pipeline import HEALTH_REGISTERS
 from console.jsonout import dumps
 from console.layout import Layout, load_layout
-from console.render.section_history import SectionsSink, _LedgerText, ledger_json
+from console.render.section_history import LedgerText, SectionsSink, ledger_json
 from console.render.section_tables import sections_json
 from console.sim.station import Fault, SimConfig, StationSim
 from console.sim.writers import write_diagnostic
@@ -99,7 +100,7 @@ def assert_streamed_equals_whole(
         assert ledger_summary_frame(sk.ledger_totals).values.tolist() == whole.ledger_summary().values.tolist()
         assert (sk.timeline_rows, sk.ledger_rows) == (len(whole.timeline), len(whole.ledger))
         assert sk.timeline_first == sk.timeline_all[: len(sk.timeline_first)]
-        fast = _LedgerText()
+        fast = LedgerText()
         assert [fast(x) for x in sk.ledger_all] == [ledger_json(x) for x in sk.ledger_all]
     return len(events)
 

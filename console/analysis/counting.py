@@ -56,7 +56,7 @@ from console.analysis.counting_holds import (
 )
 from console.analysis.counting_point import group_starts, pair_point_onsets
 from console.analysis.event_block import KIND_CODE, NO_CHANNEL, Detail, EventBlock, StringPool
-from console.analysis.events import EventKind
+from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.timefmt import NS
 from console.analysis.wheels import SYS1, SYS2, CountingSettings
 
@@ -405,3 +405,31 @@ class CounterBank:
             return np.where(last != NONE, last + self.iso + self.tol[heads] + 1, NONE)
 
         return pass_time(self, end, strict=False)
+
+
+def two_channel_events(
+    head: str,
+    channel: np.ndarray,
+    time_ns: np.ndarray,
+    value: np.ndarray,
+    *,
+    up_is_sys1_first: bool = True,
+    settings: CountingSettings | None = None,
+    source: str = "diag",
+    whole_second: bool = False,
+) -> list[DetectionEvent]:
+    """Batch: one head's records through the overlap rule (the events of
+    :class:`~console.analysis.wheels.HeadCounter`, made by :class:`CounterBank` without a loop per record),
+    in time order.
+
+    Records come in the log's order; equal times keep it (a stable sort).
+    """
+    order = np.argsort(time_ns, kind="stable")
+    bank = CounterBank(settings, names=[head], source=source)
+    point_mode = not bool((np.asarray(value) == 0).any())
+    bank.configure(
+        np.zeros(1, np.int64), np.array([up_is_sys1_first]), np.array([point_mode]), np.array([whole_second])
+    )
+    fed = bank.feed(np.zeros(len(order), np.int64), channel[order], time_ns[order], value[order])
+    events = fed.events() + bank.flush().events()
+    return sorted(events, key=lambda e: e.time_ns)

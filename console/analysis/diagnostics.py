@@ -20,8 +20,10 @@ from console.analysis.head_table import Heads, HeadTable, heads_at
 from console.analysis.inventory import DeviceInventory
 from console.analysis.overlap import fingerprints, overlap_mask
 from console.analysis.passages import (
+    AXLES_UNKNOWN_REASONS,
     NS,
     Columns,
+    axles_unknown_codes,
     bucket_index,
     chunk_buckets,
     merge_buckets,
@@ -92,7 +94,7 @@ class DiagAnalysis:
 
     @cached_property
     def passages(self) -> pd.DataFrame:
-        return _passages_frame(self.passage_columns, self.heads)
+        return passages_frame(self.passage_columns, self.heads)
 
     @cached_property
     def axles(self) -> pd.DataFrame:
@@ -395,18 +397,7 @@ def _or_nan(values: np.ndarray, sentinel: int) -> np.ndarray:
 
 
 _BASIS = (None, "detections", "records")
-_KINDS = ("train", "damping", "status")
-# Why a passage's axles cannot be counted ("–" in tables, ``axles_unknown_reason`` in JSON), by code: an axle
-# is a Sys1 and a Sys2 onset of one wheel, so none can be paired where a system has no onset.  JSON keeps
-# ``axles`` the number of pairs found (0), as version 1 documents always have.  Code: 2·(no Sys1) + (no Sys2).
-AXLES_UNKNOWN_REASONS = (None, "wheel onsets on Sys1 only", "wheel onsets on Sys2 only", "no wheel onset")
-
-
-def axles_unknown_codes(detections_sys1: Any, detections_sys2: Any) -> np.ndarray:
-    """Per passage, 0 where its axles were counted, else the index of its reason in AXLES_UNKNOWN_REASONS."""
-    no1 = np.asarray(detections_sys1, np.int64) == 0
-    no2 = np.asarray(detections_sys2, np.int64) == 0
-    return (2 * no1 + no2).astype(np.int8)
+PASSAGE_KINDS = ("train", "damping", "status")
 
 
 def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings) -> Columns | None:
@@ -415,7 +406,7 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     The columns of :data:`PASSAGE_COLUMNS`, except that the text columns are
     codes: ``head`` (into the head list), ``direction`` (into
     ``wheels.DIRECTIONS``, 3: mixed), ``whole_train_basis`` (into ``_BASIS``)
-    and ``kind`` (into ``_KINDS``); ``axle_speeds_kmh`` holds the per-axle
+    and ``kind`` (into ``PASSAGE_KINDS``); ``axle_speeds_kmh`` holds the per-axle
     speeds that ``axle_speeds_start``/``stop`` index.
     """
     if len(buckets["head"]) == 0:
@@ -454,7 +445,7 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     n_axles = np.bincount(ax_p, minlength=n)
     n12 = np.bincount(ax_p[ax_dir == 1], minlength=n)
     n21 = np.bincount(ax_p[ax_dir == 2], minlength=n)
-    direction = np.zeros(n, np.int8)  # codes: see _passages_frame
+    direction = np.zeros(n, np.int8)  # codes: see passages_frame
     direction[n12 > n21] = 1
     direction[n21 > n12] = 2
     direction[(n12 > 0) & (n12 == n21)] = 3
@@ -544,7 +535,7 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     }
 
 
-def _passages_frame(cols: Columns | None, heads: Heads) -> pd.DataFrame:
+def passages_frame(cols: Columns | None, heads: Heads) -> pd.DataFrame:
     """The passages table (:data:`PASSAGE_COLUMNS`) from :func:`_passages`' columns."""
     import pandas as pd
 
@@ -559,7 +550,7 @@ def _passages_frame(cols: Columns | None, heads: Heads) -> pd.DataFrame:
         "counting_head": head_name[inverse.reshape(-1)],
         "direction": np.array([None, DIRECTION_12, DIRECTION_21, "mixed"], dtype=object)[cols["direction"]],
         "whole_train_basis": np.array(_BASIS, dtype=object)[cols["whole_train_basis"]],
-        "kind": np.array(_KINDS, dtype=object)[cols["kind"]],
+        "kind": np.array(PASSAGE_KINDS, dtype=object)[cols["kind"]],
     }
     data = {"device_id": used_dev[inverse.reshape(-1)], **{c: text.get(c, cols.get(c)) for c in PASSAGE_COLUMNS[1:]}}
     out = pd.DataFrame(data)

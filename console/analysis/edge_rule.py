@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from console.analysis.counting import two_channel_events
 from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.wheels import CountingSettings, two_channel_events
+from console.analysis.wheels import CountingSettings
 
 SIGNAL_A, SIGNAL_B = 0, 1
 

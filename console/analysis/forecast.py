@@ -230,7 +230,7 @@ def _fit(x: np.ndarray, y: np.ndarray, settings: ForecastSettings) -> _Fit:
 
 def forecasts(series: Iterable[Series], settings: ForecastSettings = ForecastSettings()) -> list[Forecast]:
     """Every series' forecast: the due ones first by date, then the others by target."""
-    from console.analysis.health import _natural
+    from console.analysis.health import natural_order_key
 
     given = [s for s in series if len(s.day)]
     now_ns = (max(int(s.day[-1]) for s in given) + 1) * DAY_NS if given else None
@@ -242,7 +242,7 @@ def forecasts(series: Iterable[Series], settings: ForecastSettings = ForecastSet
             0 if f.due else 1,
             _by_date(f)[0] if f.due else far,
             STATUSES.index(f.status),
-            _natural(f.target),
+            natural_order_key(f.target),
             -1 if f.channel is None else f.channel,
             f.figure,
         )

@@ -600,7 +600,7 @@ def channel_fault_findings(
 _NUMBER_RE = re.compile(r"(\d+)")
 
 
-def _natural(text: str | None) -> tuple[int, list[str | int]]:
+def natural_order_key(text: str | None) -> tuple[int, list[str | int]]:
     """``WS10`` after ``WS9``, sensor ``10`` after ``2``; None last."""
     if text is None:
         return (1, [])
@@ -614,7 +614,7 @@ def sort_findings(findings: Iterable[Finding]) -> list[Finding]:
         findings,
         key=lambda f: (
             -f.severity.rank,
-            _natural(f.counting_head),
+            natural_order_key(f.counting_head),
             (1, 0) if f.channel is None else (0, f.channel),
             f.rule,
             -1 if f.time_ns is None else f.time_ns,

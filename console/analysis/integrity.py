@@ -64,7 +64,7 @@ from console.analysis.integrity_gnss import (
     head_bounds,
     judge_eot,
 )
-from console.analysis.sections import Transition
+from console.analysis.section_state import Transition
 from console.analysis.timefmt import NS, iso
 from console.layout import Layout
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.sections import SectionState, Transition
+from console.analysis.section_state import SectionState, Transition
 from console.analysis.timefmt import NS
 from console.layout import Layout
 

@@ -19,6 +19,7 @@ whole seconds, splitting buckets is exact for any idle gap of 1 s or more.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from console.analysis.timefmt import NS
 
@@ -128,3 +129,16 @@ def bucket_index(buckets: Columns, head: np.ndarray, time_ns: np.ndarray) -> np.
     pos_ok = np.minimum(pos, max(len(key) - 1, 0))
     found = (pos < len(key)) & (key[pos_ok] == probe) if len(key) else np.zeros(len(probe), bool)
     return np.where(found, pos_ok, -1)
+
+
+# Why a passage's axles cannot be counted ("–" in tables, ``axles_unknown_reason`` in JSON), by code: an axle
+# is a Sys1 and a Sys2 onset of one wheel, so none can be paired where a system has no onset.  JSON keeps
+# ``axles`` the number of pairs found (0), as version 1 documents always have.  Code: 2·(no Sys1) + (no Sys2).
+AXLES_UNKNOWN_REASONS = (None, "wheel onsets on Sys1 only", "wheel onsets on Sys2 only", "no wheel onset")
+
+
+def axles_unknown_codes(detections_sys1: ArrayLike, detections_sys2: ArrayLike) -> np.ndarray:
+    """Per passage, 0 where its axles were counted, else the index of its reason in AXLES_UNKNOWN_REASONS."""
+    no1 = np.asarray(detections_sys1, np.int64) == 0
+    no2 = np.asarray(detections_sys2, np.int64) == 0
+    return (2 * no1 + no2).astype(np.int8)

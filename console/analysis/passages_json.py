@@ -209,7 +209,7 @@ def _axle_lists(speeds: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.n
 def _batch(
     cols: Columns, heads: Heads, lo: int, hi: int, first: bool, opening: str = "{", sep: str = ","
 ) -> bytes | None:
-    from console.analysis.diagnostics import AXLES_UNKNOWN_REASONS, axles_unknown_codes
+    from console.analysis.passages import AXLES_UNKNOWN_REASONS, axles_unknown_codes
     from console.analysis.wheels import DIRECTION_12, DIRECTION_21
 
     c = {k: v[lo:hi] for k, v in cols.items() if k != "axle_speeds_kmh"}

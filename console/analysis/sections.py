@@ -31,74 +31,18 @@ simulator and behind the live view.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field
-from enum import StrEnum
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from console.analysis.events import UNKNOWN, DetectionEvent, EventKind, sort_events
-from console.layout import Layout, Section
+from console.analysis.section_state import EngineSection, LedgerEntry, ResetRecord, SectionState, Transition
+from console.analysis.sections_block import step_block
+from console.layout import Layout
 
 if TYPE_CHECKING:
     import pandas as pd
 
     from console.analysis.event_block import EventBlock
-
-
-class SectionState(StrEnum):
-    CLEAR = "clear"
-    OCCUPIED = "occupied"
-    DISTURBED = "disturbed"
-    PREPARATORY = "preparatory"
-
-
-# One letter each, so a state reads without colour.
-STATE_MARK = {
-    SectionState.CLEAR: "·",
-    SectionState.OCCUPIED: "#",
-    SectionState.DISTURBED: "!",
-    SectionState.PREPARATORY: "?",
-}
-
-
-@dataclass
-class _Section:
-    """Mutable state of one section inside the engine."""
-
-    section: Section
-    state: SectionState
-    count: int = 0
-    count_in: int = 0
-    count_out: int = 0
-    reason: str = ""
-    since_ns: int = 0
-    held_by: set[str] = field(default_factory=set)  # heads with a suspected interference pulse
-    swept_in: bool = False  # preparatory: the sweep train has entered
-
-
-@dataclass(frozen=True)
-class Transition:
-    time_ns: int
-    section: str
-    state: SectionState
-    count: int
-    reason: str
-
-
-@dataclass(frozen=True)
-class LedgerEntry:
-    time_ns: int
-    section: str
-    head: str
-    delta: int  # +1 counted in, -1 counted out
-    count: int  # after this axle
-
-
-@dataclass(frozen=True)
-class ResetRecord:
-    time_ns: int
-    section: str
-    accepted: bool
-    reason: str
 
 
 class SectionEngine:
@@ -109,14 +53,14 @@ class SectionEngine:
             raise ValueError("a section starts clear (a known empty line) or preparatory (unknown)")
         self.layout = layout
         reason = "start: line known empty" if initial is SectionState.CLEAR else "start: state unknown until a sweep"
-        self.sections = {s.id: _Section(s, initial, reason=reason, since_ns=start_ns) for s in layout.sections}
+        self.sections = {s.id: EngineSection(s, initial, reason=reason, since_ns=start_ns) for s in layout.sections}
         self.damped: set[str] = set()  # heads with something over them now
         self.faults: dict[str, set[int | None]] = {}  # head → faulty channels (None: whole head)
         self.powerless: set[str] = set()
         self.transitions: list[Transition] = [Transition(start_ns, s.id, initial, 0, reason) for s in layout.sections]
         self.ledger: list[LedgerEntry] = []
         self.resets: list[ResetRecord] = []
-        self._bound: dict[str, list[tuple[_Section, int]]] = {}  # head → the sections it bounds, with signs
+        self._bound: dict[str, list[tuple[EngineSection, int]]] = {}  # head → the sections it bounds, with signs
 
     # -- queries --------------------------------------------------------
     def state(self, section_id: str) -> SectionState:
@@ -140,7 +84,7 @@ class SectionEngine:
         return None
 
     # -- the state machine ----------------------------------------------
-    def _set(self, s: _Section, state: SectionState, t: int, reason: str, note: bool = False) -> Transition | None:
+    def _set(self, s: EngineSection, state: SectionState, t: int, reason: str, note: bool = False) -> Transition | None:
         """Change state.  Counts go to the ledger; the timeline keeps state changes, and
         (``note``) a new reason for the same state, such as a hold beginning."""
         if state is s.state and (not note or reason == s.reason):
@@ -150,12 +94,12 @@ class SectionEngine:
         self.transitions.append(tr)
         return tr
 
-    def _disturb(self, s: _Section, t: int, reason: str) -> Transition | None:
+    def _disturb(self, s: EngineSection, t: int, reason: str) -> Transition | None:
         if s.state is SectionState.DISTURBED:
             return None  # latched: keep the first reason
         return self._set(s, SectionState.DISTURBED, t, reason)
 
-    def _settle(self, s: _Section, t: int, reason: str) -> Transition | None:
+    def _settle(self, s: EngineSection, t: int, reason: str) -> Transition | None:
         """After a count change or a lifted hold: the state the count allows."""
         if s.state is SectionState.DISTURBED:
             return None
@@ -250,7 +194,7 @@ class SectionEngine:
                 out.append(self._settle(s, t, f"axles counted in: {s.count}"))
         return [x for x in out if x is not None]
 
-    def bound(self, head: str) -> list[tuple[_Section, int]]:
+    def bound(self, head: str) -> list[tuple[EngineSection, int]]:
         """The sections ``head`` bounds, with their signs (looked up once per head: the layout is fixed)."""
         secs = self._bound.get(head)
         if secs is None:
@@ -261,8 +205,6 @@ class SectionEngine:
     def step_block(self, block: EventBlock) -> None:
         """Apply a block of events in order: :meth:`step` on each, the quiet ones as array bookkeeping
         (:func:`console.analysis.sections_block.step_block`)."""
-        from console.analysis.sections_block import step_block
-
         step_block(self, block)
 
     def _reset(self, e: DetectionEvent) -> Transition | None:

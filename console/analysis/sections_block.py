@@ -26,10 +26,10 @@ import numpy as np
 
 from console.analysis.event_block import KIND_CODE, EventBlock
 from console.analysis.events import EventKind
-from console.analysis.sections import LedgerEntry, SectionState
+from console.analysis.section_state import EngineSection, LedgerEntry, SectionState
 
 if TYPE_CHECKING:
-    from console.analysis.sections import SectionEngine, _Section
+    from console.analysis.sections import SectionEngine
 
 _AXLE, _DAMPED, _FREE, _RESET = (
     KIND_CODE[k] for k in (EventKind.AXLE, EventKind.HEAD_DAMPED, EventKind.HEAD_FREE, EventKind.RESET)
@@ -112,7 +112,7 @@ class _Context:
         engine: SectionEngine,
         block: EventBlock,
         lo: int,
-        sections: list[_Section],
+        sections: list[EngineSection],
         names: list[str],
         head: np.ndarray,
         kind: np.ndarray,

@@ -24,7 +24,7 @@ NS = 1_000_000_000  # nanoseconds per second: every time in the console is an in
 _EPOCH = dt.datetime(1970, 1, 1)
 
 
-def _fraction(frac_ns: int) -> str:
+def fraction_text(frac_ns: int) -> str:
     """Nanoseconds of a second → ``.250``, ``.250125`` or ``.250125001`` (groups of three)."""
     digits = f"{frac_ns:09d}"
     if digits[6:] != "000":
@@ -50,7 +50,7 @@ def iso(ns: int | None) -> str | None:
     if ns is None:
         return None
     whole, frac = divmod(int(ns), NS)
-    return (_EPOCH + dt.timedelta(seconds=whole)).isoformat() + _fraction(frac) + "Z"
+    return (_EPOCH + dt.timedelta(seconds=whole)).isoformat() + fraction_text(frac) + "Z"
 
 
 def iso_array(ns: np.ndarray) -> np.ndarray:

@@ -413,32 +413,3 @@ class HeadCounter:
         if self.last_onset is None:
             return []
         return self.advance(self.last_onset + self.iso + self.tol + 1)
-
-
-def two_channel_events(
-    head: str,
-    channel: np.ndarray,
-    time_ns: np.ndarray,
-    value: np.ndarray,
-    *,
-    up_is_sys1_first: bool = True,
-    settings: CountingSettings | None = None,
-    source: str = "diag",
-    whole_second: bool = False,
-) -> list[DetectionEvent]:
-    """Batch: one head's records through the overlap rule (:class:`HeadCounter`'s events, made by
-    :class:`~console.analysis.counting.CounterBank` without a loop per record), in time order.
-
-    Records come in the log's order; equal times keep it (a stable sort).
-    """
-    from console.analysis.counting import CounterBank  # the bank builds on this module
-
-    order = np.argsort(time_ns, kind="stable")
-    bank = CounterBank(settings, names=[head], source=source)
-    point_mode = not bool((np.asarray(value) == 0).any())
-    bank.configure(
-        np.zeros(1, np.int64), np.array([up_is_sys1_first]), np.array([point_mode]), np.array([whole_second])
-    )
-    fed = bank.feed(np.zeros(len(order), np.int64), channel[order], time_ns[order], value[order])
-    events = fed.events() + bank.flush().events()
-    return sorted(events, key=lambda e: e.time_ns)

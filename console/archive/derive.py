@@ -47,15 +47,25 @@ import pyarrow as pa
 
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
-from console.archive.derive_sink import ArchiveSink, _arrow, _days
+from console.analysis.overlap import overlap_mask
+from console.analysis.registers import RegisterTables
+from console.analysis.sections import SectionEngine
+from console.analysis.stream_sections import EventStream, HeadFacts
+from console.analysis.wheels import SYS1, SYS2, WHEEL_SENSOR_ADDRESS
+from console.archive.derive_sink import DERIVE_VERSION, ArchiveSink, arrow_table, day_column
+from console.archive.history import at_end_tables
 from console.archive.parts import NS_PER_DAY, write_part, write_small
+from console.archive.reader import heads_in, layout_of, record_batches, speed_settings
+from console.archive.records import ChunkRebuilder
 from console.archive.store import DATA, Manifest
+from console.archive.views import connect
 from console.engine.pipeline import Pipeline, PipelineSettings
 from console.engine.sinks import Sink
+from parsers.diag import DiagRegistry
 
 if TYPE_CHECKING:
     from console.layout import Layout
-    from parsers.diag import DiagChunk, DiagRegistry
+    from parsers.diag import DiagChunk
 
 # Written by the pipeline as records are fed (committed, or the tail of the last ingest).
 STREAMED = ("passages", "axles", "section_states", "count_ledger", "channel_events")
@@ -63,15 +73,10 @@ STREAMED = ("passages", "axles", "section_states", "count_ledger", "channel_even
 AT_END = ("health_findings", "crossing_timelines")
 DERIVED = (*STREAMED, *AT_END)
 STATE_TABLE = "pipeline_state"
-# Bump when derived rows change meaning: an archive derived by another version is rebuilt.
-# 4: integers stored as integers (passages' detection second), finding times as TIMESTAMP_NS.
-# 5: derived by the pipeline in the ingest's one pass, its state kept between ingests.
-DERIVE_VERSION = 5
 
 
 def derive_settings(manifest: Manifest, layout: Layout | None) -> PipelineSettings:
     """What the archive's pipeline computes: passages and axles; events and sections on the layout."""
-    from console.archive.history import speed_settings
 
     speed: SpeedSettings = speed_settings(manifest, layout)
     return PipelineSettings(
@@ -147,8 +152,6 @@ class GroupRun:
             self.state: _State = pickle.loads(payload)  # the archive's own state, written by us
             self.state.pipeline.sink = self.sink
         else:
-            from parsers.diag import DiagRegistry
-
             self.state = _State(Pipeline(DiagRegistry(), settings, self.sink))
         self.late_before = self.pipeline.late_records
         self._before = np.zeros(0, np.int64)
@@ -184,8 +187,6 @@ class GroupRun:
 
     def feed_archived(self, file_seqs: list[int]) -> None:
         """This ingest's new records of the group's heads, read back from their parts (file by file)."""
-        from console.archive.history import record_batches
-        from console.archive.records import ChunkRebuilder
 
         if self.rebuild:
             return
@@ -261,8 +262,6 @@ class GroupRun:
         files together orders them (files whose times interleave give each head's records in time order);
         records a file repeats from another at their seam (overlapping exports) are set aside, as a batch
         read of all the files does (:mod:`console.analysis.overlap`)."""
-        from console.archive.history import record_batches
-        from console.archive.records import ChunkRebuilder
 
         self.sink.abort()
         self.sink = ArchiveSink(self.root, self.generation, "d" + self.tag)
@@ -360,12 +359,10 @@ class Derivation:
     """
 
     def __init__(self, root: Path, manifest: Manifest, layout_spec: str | None, grouped: bool = False) -> None:
-        from console.archive.history import _layout
-
         self.root = root
         self.manifest = manifest
         self.spec = layout_spec if layout_spec is not None else manifest.derived.get("layout")
-        self.layout = _layout(self.spec)
+        self.layout = layout_of(self.spec)
         self.settings = derive_settings(manifest, self.layout)
         self.fingerprint = fingerprint(self.settings, self.spec)
         self.grouped = grouped
@@ -458,8 +455,6 @@ class Derivation:
         return parts
 
     def _run_groups(self, new_seqs: list[int], mapper: Any) -> list[GroupResult]:
-        from console.archive.history import heads_in
-
         old = self.manifest.derived
         known = [(int(d), n) for d, n in old.get("heads", [])] if self.same else []
         groups = plan_groups(self.layout, dict.fromkeys([*known, *heads_in(self.root, self.manifest, new_seqs)]))
@@ -486,7 +481,6 @@ class Derivation:
         derived["start_parts"] = []
         if lay is None or not firsts:
             return []
-        from console.analysis.sections import SectionEngine
 
         start = min(firsts)
         derived["sections_start_ns"] = start
@@ -501,7 +495,6 @@ class Derivation:
     def _head_order(self) -> list[tuple[int, Any]]:
         if self.line is not None:
             return self.results[0].heads
-        from console.archive.history import heads_in
 
         # Several groups: the heads in the order a read of every file meets them.
         return heads_in(self.root, self.manifest, None)
@@ -515,8 +508,6 @@ class Derivation:
 
     def _at_end(self, heads: list[tuple[int, Any]]) -> list[str]:
         """Health findings, crossing timelines and the sections of sensor frames: over the archive's tables."""
-        from console.analysis.stream_sections import EventStream
-        from console.archive.history import at_end_tables
 
         warnings = EventStream(self.layout, DiagEventSettings()).warnings(heads)
         self.manifest.derived["warnings"] = warnings
@@ -527,10 +518,10 @@ class Derivation:
         for name, df in frames.items():
             if df is None or df.empty:
                 continue
-            table = _arrow(df)
+            table = arrow_table(df)
             if name in ("section_states", "count_ledger"):  # the sections of sensor frames
                 df = df.sort_values("time_ns", kind="stable")
-                table = _arrow(df).append_column("day", _days(df["time_ns"].to_numpy(np.int64) // NS_PER_DAY))
+                table = arrow_table(df).append_column("day", day_column(df["time_ns"].to_numpy(np.int64) // NS_PER_DAY))
             rel = write_small(self.root, name, self.generation, "e", table)
             if rel:
                 written.append(rel)
@@ -574,7 +565,6 @@ def derive_group(
 
 def older_records(root: Path, manifest: Manifest, heads: frozenset[tuple[int, Any]], new_seqs: list[int]) -> bool:
     """Whether the group's heads have records in files other than this ingest's new ones."""
-    from console.archive.views import connect
 
     cond, params = _group_where(heads, None)
     con, _ = connect(root, manifest, tables=("records",))
@@ -591,8 +581,6 @@ def older_records(root: Path, manifest: Manifest, heads: frozenset[tuple[int, An
 def repeated_records(root: Path, manifest: Manifest, where: tuple[str, list[Any]]) -> dict[str, np.ndarray]:
     """The archived records that repeat another file's at a seam: ``key`` (file_seq << 32 | line), sorted,
     and their ``time_ns``.  Only heads whose files' time ranges intersect are compared record by record."""
-    from console.analysis.overlap import overlap_mask
-    from console.archive.views import connect
 
     none = {"key": np.zeros(0, np.int64), "time_ns": np.zeros(0, np.int64)}
     con, _ = connect(root, manifest, tables=("records",))
@@ -635,10 +623,6 @@ def head_facts(
 ) -> tuple[dict[int, Any], np.ndarray]:
     """Per head key of ``registry`` (its registers numbered), what a read of every record knows of it: the
     facts detection events count by, and its stamps' resolution (axles pair by it)."""
-    from console.analysis.registers import RegisterTables
-    from console.analysis.stream_sections import HeadFacts
-    from console.analysis.wheels import SYS1, SYS2, WHEEL_SENSOR_ADDRESS
-    from console.archive.views import connect
 
     con, _ = connect(root, manifest, tables=("records",))
     try:

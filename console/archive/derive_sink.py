@@ -26,7 +26,13 @@ if TYPE_CHECKING:
     from console.analysis.event_block import EventBlock
     from console.analysis.head_table import Heads
     from console.analysis.passages import Columns
-    from console.analysis.sections import LedgerEntry, Transition
+    from console.analysis.section_state import LedgerEntry, Transition
+
+# Bump when derived rows change meaning: an archive derived by another version is rebuilt.
+# 4: integers stored as integers (passages' detection second), finding times as TIMESTAMP_NS.
+# 5: derived by the pipeline in the ingest's one pass, its state kept between ingests.
+# 6: the kept state's section records moved (console.analysis.section_state): a state pickled by 5 is not read.
+DERIVE_VERSION = 6
 
 
 class ArchiveSink(Sink):
@@ -48,9 +54,9 @@ class ArchiveSink(Sink):
         self._axles.append((cols, heads))  # written with their passages: an axle's day is its passage's
 
     def passages(self, cols: Columns, heads: Heads) -> None:
-        from console.analysis.diagnostics import _passages_frame
+        from console.analysis.diagnostics import passages_frame
 
-        p = _passages_frame(cols, heads)
+        p = passages_frame(cols, heads)
         flat = np.asarray(p.attrs.get("axle_speeds_kmh", np.zeros(0)), np.float64).tolist()
         bounds = zip(p["axle_speeds_start"].tolist(), p["axle_speeds_stop"].tolist(), strict=True)
         speeds = [flat[a:b] for a, b in bounds]
@@ -61,8 +67,8 @@ class ArchiveSink(Sink):
         start_ns = p["start_ns"].to_numpy(np.int64)
         p["start"] = start_ns.astype("datetime64[ns]")
         day = start_ns // NS_PER_DAY
-        table = _arrow(p).append_column("axle_speeds_kmh", pa.array(speeds, pa.list_(pa.float64())))
-        table = table.append_column("day", _days(day))
+        table = arrow_table(p).append_column("axle_speeds_kmh", pa.array(speeds, pa.list_(pa.float64())))
+        table = table.append_column("day", day_column(day))
         self.writers["passages"].add(table, day, p["device_id"].to_numpy(np.int64))
         for axle_cols, axle_heads in self._axles:
             self._write_axles(axle_cols, axle_heads, cols)
@@ -95,7 +101,7 @@ class ArchiveSink(Sink):
         frame["counting_head"] = np.asarray(names, dtype=object)
         frame["time"] = t.astype("datetime64[ns]")
         frame = frame.drop(columns=["head"])
-        table = _arrow(frame).append_column("day", _days(start_day))
+        table = arrow_table(frame).append_column("day", day_column(start_day))
         self.writers["axles"].add(table, start_day, frame["device_id"].to_numpy(np.int64))
 
     def transitions(self, rows: Iterable[Transition]) -> None:
@@ -130,7 +136,7 @@ class ArchiveSink(Sink):
         t = df["time_ns"].to_numpy(np.int64)
         df["time"] = t.astype("datetime64[ns]")
         day = t // NS_PER_DAY
-        self.writers[table].add(_arrow(df).append_column("day", _days(day)), day)
+        self.writers[table].add(arrow_table(df).append_column("day", day_column(day)), day)
 
     def close(self) -> dict[str, list[str]]:
         return {name: w.close() for name, w in self.writers.items()}
@@ -140,7 +146,7 @@ class ArchiveSink(Sink):
             w.abort()
 
 
-def _days(day_index: np.ndarray) -> pa.Array:
+def day_column(day_index: np.ndarray) -> pa.Array:
     """Days since 1970 as the archive's ``day`` column (DATE)."""
     return pa.array(np.asarray(day_index, np.int64).astype(np.int32), pa.date32())
 
@@ -157,7 +163,7 @@ def channel_events_frame(events: Iterable[Any]) -> pd.DataFrame:
     return df
 
 
-def _arrow(df: pd.DataFrame) -> pa.Table:
+def arrow_table(df: pd.DataFrame) -> pa.Table:
     """A derived frame as Arrow: text columns as strings (None kept), the rest as pandas gives them."""
     import datetime as dt
 

@@ -18,9 +18,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from console.analysis.forecast import FIGURES, Forecast, ForecastSettings, Series, forecasts
-from console.archive.history import Window
+from console.analysis.forecast import FIGURES, STATUSES, Forecast, ForecastSettings, Series, due_list, forecasts
+from console.archive.reader import Window, parse_time
+from console.archive.store import archive_dir, read_current
 from console.archive.trends import analog_margins_per_day, disturbances_per_day
+from console.archive.views import QueryError, connect
+from console.layout import LayoutError, load_layout
+
+# The due series whose daily points the document carries (the report plots them).
+PLOTS_SHOWN = 12
 
 if TYPE_CHECKING:
     import duckdb
@@ -28,6 +34,7 @@ if TYPE_CHECKING:
 
     from console.archive.store import Manifest
     from console.layout import Layout
+    from console.report.model import ReportData
 
 DAY_NS = 86_400 * 10**9
 BREAK_PERIODS = 20  # a gap this many report periods long is the unit off the line (between trips), not losses
@@ -163,8 +170,6 @@ def archive_forecasts(
     say: Callable[[str], None] | None = None,
 ) -> tuple[list[Forecast], list[Series]]:
     """Every head's, channel's and unit's forecast over the window (and the series they were fitted on)."""
-    from console.archive.views import connect
-
     con, _ = connect(root, manifest, tables={"records", "fixes"})
     try:
         series = series_of(daily_figures(con, window, layout, say))
@@ -220,9 +225,6 @@ def forecast_table(items: Iterable[Forecast]) -> pa.Table:
 def query_forecasts(root: Path, manifest: Manifest) -> pa.Table:
     """The ``forecasts`` view of ``trackside query``: every series' forecast, default settings (30-day
     horizon, 14-day trend), the bands of the layout the archive was ingested with."""
-    from console.archive.views import QueryError
-    from console.layout import LayoutError, load_layout
-
     try:
         import scipy.stats  # noqa: F401 - the trend's library, an optional extra
     except ImportError:
@@ -234,3 +236,50 @@ def query_forecasts(root: Path, manifest: Manifest) -> pa.Table:
         layout = None  # the layout file is gone: the bands are learned, as without one
     items, _ = archive_forecasts(root, manifest, Window(), layout)
     return forecast_table(items)
+
+
+def forecast_doc(root: Path, manifest: Manifest, window: Window, layout: Layout | None) -> dict[str, Any] | None:
+    """The document's ``forecast``: counts, the due list, and the daily points of the plotted series.
+    None when scipy (the ``forecast`` extra) is not installed."""
+    try:
+        import scipy.stats  # noqa: F401 - the trend's library, an optional extra
+    except ImportError:
+        return None
+    settings = ForecastSettings()
+    items, series = archive_forecasts(root, manifest, window, layout, settings)
+    due = due_list(items)
+    by_key = {(s.figure, s.target, s.channel): s for s in series}
+    plotted = []
+    for f in due[:PLOTS_SHOWN]:
+        s = by_key[(f.figure, f.target, f.channel)]
+        plotted.append(
+            {
+                "figure": f.figure,
+                "target": f.target,
+                "channel": f.channel,
+                "days": [int(d) for d in s.day],
+                "values": [round(float(v), 4) for v in s.value],
+            }
+        )
+    return {
+        "horizon_days": settings.horizon_days,
+        "trend_days": settings.fit_days,
+        "counts": {st: sum(1 for f in items if f.status == st) for st in STATUSES},
+        "due": [f.to_dict() for f in due],
+        "plotted": plotted,
+    }
+
+
+def with_forecast(
+    collector: Callable[[], ReportData], archive: Path | None, start: str | None, end: str | None, head: str | None
+) -> Callable[[], ReportData]:
+    """``report --archive``'s collector, its data completed with the window's forecast."""
+
+    def collect() -> ReportData:
+        data = collector()  # checks the archive and the window first (one-line errors)
+        root = archive_dir(archive)
+        window = Window(start=parse_time(start) if start else None, end=parse_time(end) if end else None, head=head)
+        data.forecast = forecast_doc(root, read_current(root), window, data.layout)
+        return data
+
+    return collect

@@ -1,4 +1,4 @@
-"""The archive's history as the analyses' inputs: the report's data for a window, and a replay in time order.
+"""The archive's history as the analyses' inputs: the report's data for a window, the station's replay.
 
 :func:`report_data` returns the :class:`~console.report.model.ReportData`
 that ``trackside report`` builds from files, built instead from the
@@ -9,285 +9,46 @@ counting head, a device), by calling the same analyses the same way:
 start), ``frames_to_events``, ``run_crossings``.  The derived tables
 (:mod:`console.archive.derive`) are this data written down.
 
-:func:`replay` yields the archive's records in time order, in batches, for
-the station view's replay.
+:func:`replay_inputs` gives the station view's replay of a window its
+detection events and fixes.  The stored tables are read by
+:mod:`console.archive.reader`.
 """
 
 from __future__ import annotations
 
-import datetime as dt
 from collections import defaultdict
-from collections.abc import Callable, Collection, Iterator
-from dataclasses import dataclass
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-import numpy as np
-
-from console.archive.records import REGISTER_COLUMNS, ChunkRebuilder
-from console.archive.store import Manifest, read_current
-from console.archive.views import connect
-from console.drivers.batch import ChunkSource, ReadOptions
-from parsers.diag import DiagChunk, DiagRegistry
+from console.analysis.diag_events import DiagEventSettings
+from console.analysis.diagnostics import DiagAnalysis
+from console.archive.history_diag import channel_events, derived_for, history_diag
+from console.archive.reader import (
+    ArchivedRecords,
+    Window,
+    cut_fixes,
+    frame_window,
+    health_records,
+    layout_of,
+    parse_reports,
+    parse_time,
+    per_file_tables,
+    speed_settings,
+)
+from console.archive.scope import scope_report
+from console.archive.store import ArchiveError, Manifest, archive_dir, read_current
+from console.archive.views import require_archive
+from console.drivers.batch import DiagJob, ReadOptions, health_findings, no_axles, read_diag
+from console.engine.pipeline import PipelineSettings
+from console.engine.sinks import EventList
+from parsers.report import ParseReport
 
 if TYPE_CHECKING:
     import pandas as pd
-    import pyarrow as pa
 
-    from console.drivers.batch import DiagJob
     from console.layout import Layout
     from console.report.model import ReportData
-    from parsers.report import ParseReport
-
-BATCH_ROWS = 1 << 20
-
-
-@dataclass(frozen=True)
-class Window:
-    """Which history: a time range [from, to), a counting head, a device id (None: all)."""
-
-    start: dt.datetime | None = None
-    end: dt.datetime | None = None
-    head: str | None = None
-    device_id: int | None = None
-
-    def where(self) -> tuple[str, list[Any]]:
-        conds: list[str] = []
-        params: list[Any] = []
-        if self.start is not None:
-            conds.append("time >= ?")
-            params.append(self.start)
-        if self.end is not None:
-            conds.append("time < ?")
-            params.append(self.end)
-        if self.head is not None:
-            conds.append("counting_head = ?")
-            params.append(self.head)
-        if self.device_id is not None:
-            conds.append("device_id = ?")
-            params.append(self.device_id)
-        if self.start is not None or self.end is not None:
-            # Partition pruning: the day keys are in the paths.
-            if self.start is not None:
-                conds.append("day >= ?")
-                params.append(self.start.date())
-            if self.end is not None:
-                conds.append("day <= ?")
-                params.append(self.end.date())
-        return (" WHERE " + " AND ".join(conds)) if conds else "", params
-
-    @property
-    def whole(self) -> bool:
-        return self == Window()
-
-
-def parse_time(text: str) -> dt.datetime:
-    """``2026-03-02``, ``2026-03-02T10:00``, ``2026-03-02 10:00:05``: naive, as the logs write time."""
-    try:
-        t = dt.datetime.fromisoformat(text.strip())
-    except ValueError:
-        raise ValueError(f"expected an ISO date or time (2026-03-02 or 2026-03-02T10:00), found {text!r}") from None
-    return t.replace(tzinfo=None) if t.tzinfo is None else t.astimezone(dt.UTC).replace(tzinfo=None)
-
-
-RECORD_COLUMNS = (
-    "time",
-    "diag_id",
-    "device_id",
-    "device",
-    "type",
-    "gs",
-    "counting_head",
-    "channel",
-    "address",
-    "label",
-    "label_canonical",
-    "label_encoding",
-    "data",
-    "value",
-    "data_kind",
-    "subsecond",
-    "file",
-    "file_seq",
-    "line",
-)
-_RECORD_COLUMNS = ", ".join(RECORD_COLUMNS)
-
-
-def heads_in(root: Path, manifest: Manifest, file_seqs: list[int] | None) -> list[tuple[int, Any]]:
-    """The heads of these files' records (None: every file), in the order a read of the files meets them."""
-    con, _ = connect(root, manifest, tables=("records",))
-    try:
-        cond = " WHERE file_seq IN (SELECT unnest(?))" if file_seqs is not None else ""
-        rows = con.sql(
-            f"SELECT device_id, counting_head, min(file_seq::BIGINT * 4294967296 + line) AS pos FROM records{cond} "
-            "GROUP BY ALL ORDER BY pos",
-            params=[list(file_seqs)] if file_seqs is not None else [],
-        ).fetchall()
-    finally:
-        con.close()
-    return [(int(d), h) for d, h, _ in rows]
-
-
-def record_batches(
-    root: Path,
-    manifest: Manifest,
-    window: Window = Window(),
-    tables: Collection[str] | None = None,
-    *,
-    labels: Collection[str] | None = None,
-    merged: bool = False,
-    on_registers: Callable[[pa.RecordBatch], None] | None = None,
-    where: tuple[str, list[Any]] = ("", []),
-) -> Iterator[pa.RecordBatch]:
-    """The records (in file, line order: the order a batch read sees them), in Arrow batches.
-
-    ``tables``: only these views are built.
-    ``labels``: only the records of these canonical labels (the health registers).
-    ``merged``: in the order a batch read of all the files together gives each head's records instead
-    (by time; equal times by file, the file whose records of that head begin earlier first, each file
-    in its own order: :func:`console.analysis.diagnostics._merged_order`), for files whose time ranges
-    interleave.  ``on_registers`` is then first given every register, in the order the files meet them.
-    ``where``: a further condition (SQL, parameters), e.g. a group's heads.
-    """
-    if not manifest.parts("records"):
-        return
-    import shutil
-    import tempfile
-
-    from console.archive.store import TMP
-
-    (root / TMP).mkdir(parents=True, exist_ok=True)
-    spill = Path(tempfile.mkdtemp(prefix="duckdb-", dir=root / TMP))
-    con, _ = connect(root, manifest, spill_dir=spill, tables=tables)
-    try:
-        where_sql, params = window.where()
-        if labels is not None:
-            where_sql += (" AND " if where_sql else " WHERE ") + "label_canonical IN (SELECT unnest(?))"
-            params.append(sorted(labels))
-        if where[0]:
-            where_sql += (" AND " if where_sql else " WHERE ") + where[0]
-            params += where[1]
-        where = where_sql  # type: ignore[assignment]
-        if not merged:
-            rel = con.sql(f"SELECT {_RECORD_COLUMNS} FROM records{where} ORDER BY file_seq, line", params=params)
-            yield from rel.to_arrow_reader(BATCH_ROWS)
-            return
-        if on_registers is not None:
-            registers = ", ".join(REGISTER_COLUMNS)
-            first = con.sql(
-                f"SELECT {registers}, min(file_seq::BIGINT * 4294967296 + line) AS pos FROM records{where} "
-                f"GROUP BY ALL ORDER BY pos",
-                params=params,
-            ).to_arrow_table()
-            on_registers(first.combine_chunks().to_batches()[0] if first.num_rows else None)
-        rel = con.sql(
-            f"SELECT {_RECORD_COLUMNS} FROM (SELECT *, min(time) OVER (PARTITION BY device_id, counting_head, "
-            f"file_seq) AS file_first FROM records{where}) ORDER BY time, file_first, file_seq, line",
-            params=params,
-        )
-        yield from rel.to_arrow_reader(BATCH_ROWS)
-    finally:
-        con.close()
-        shutil.rmtree(spill, ignore_errors=True)
-
-
-class ArchivedRecords(ChunkSource):
-    """The archive's diagnostic records (a window of them) as a source of chunks, in ingest order."""
-
-    def __init__(self, root: Path, manifest: Manifest, window: Window = Window()) -> None:
-        self.root, self.manifest, self.window = root, manifest, window
-        self.report = parse_reports(root, manifest)["diagnostic"]
-        self.files = [f.file for f in self.report.files]
-
-    def open(self, opts: ReadOptions) -> tuple[DiagRegistry, Iterator[DiagChunk], ParseReport]:
-        rebuild = ChunkRebuilder()
-        return rebuild.registry, self._chunks(rebuild), self.report
-
-    def _chunks(self, rebuild: ChunkRebuilder) -> Iterator[DiagChunk]:
-        for batch in record_batches(self.root, self.manifest, self.window):
-            yield from rebuild.chunks(batch)
-        self.report.unknown_labels.update(rebuild.registry.unknown_labels())
-
-
-def health_records(root: Path, manifest: Manifest, window: Window = Window()) -> pd.DataFrame:
-    """The records of the health registers, as a read through the pipeline keeps them (without reading the
-    other records).
-
-    Read with pyarrow, part by part, filtered by label as each part is read: a DuckDB connection
-    costs ~50 MB of memory to open, more than these few records.
-    """
-    import pyarrow as pa
-    import pyarrow.compute as pc
-    import pyarrow.parquet as pq
-
-    from console.archive.parts import key_of_part
-    from console.engine.pipeline import HEALTH_REGISTERS
-    from parsers.diag import chunks_to_frame
-
-    wanted = pc.field("label_canonical").isin(sorted(HEALTH_REGISTERS))
-    if window.start is not None:
-        wanted &= pc.field("time") >= pa.scalar(window.start, pa.timestamp("ns"))
-    if window.end is not None:
-        wanted &= pc.field("time") < pa.scalar(window.end, pa.timestamp("ns"))
-    if window.head is not None:
-        wanted &= pc.field("counting_head") == window.head
-    tables = []
-    for rel in manifest.parts("records"):
-        key = key_of_part(rel)
-        if key is None or (window.device_id is not None and key[1] != window.device_id):
-            continue
-        if (window.start is not None and key[0] < window.start.date()) or (
-            window.end is not None and key[0] > window.end.date()
-        ):
-            continue
-        t = pq.read_table(root / rel, filters=wanted, partitioning=None)
-        if t.num_rows:
-            t = t.cast(
-                pa.schema(
-                    [pa.field(f.name, f.type.value_type) if pa.types.is_dictionary(f.type) else f for f in t.schema]
-                )
-            )
-            tables.append(t.append_column("device_id", pa.array(np.full(t.num_rows, key[1], np.int32))))
-    rebuild = ChunkRebuilder()
-    kept: list[DiagChunk] = []
-    if tables:
-        table = pa.concat_tables(tables, promote_options="permissive").select(list(RECORD_COLUMNS))
-        order = np.lexsort((table.column("line").to_numpy(), table.column("file_seq").to_numpy()))
-        for batch in table.take(pa.array(order)).to_batches(BATCH_ROWS):
-            kept += rebuild.chunks(batch)
-    return chunks_to_frame(kept, rebuild.registry)
-
-
-def speed_settings(manifest: Manifest, layout: Layout | None = None) -> Any:
-    from console.analysis.diagnostics import SpeedSettings
-
-    lay = layout if layout is not None else _layout(manifest.derived.get("layout"))
-    consist = lay.consist() if lay is not None else None
-    return SpeedSettings(
-        spacing_m=lay.heads[0].spacing_m if lay is not None and lay.heads else SpeedSettings.spacing_m,
-        train_length_m=consist.length_m if consist is not None else SpeedSettings.train_length_m,
-    )
-
-
-def _layout(spec: str | None) -> Layout | None:
-    from console.layout import load_layout
-
-    return load_layout(spec) if spec else None
-
-
-def _per_file_tables(root: Path, manifest: Manifest, table: str) -> list[tuple[int, pd.DataFrame]]:
-    import pyarrow.parquet as pq
-
-    out = []
-    for rel in manifest.parts(table):
-        t = pq.read_table(root / rel)
-        df = t.to_pandas()
-        seq = int(df["file_seq"].iloc[0]) if len(df) else -1
-        if table == "fixes" and getattr(df["time"].dt, "tz", None) is None:
-            df["time"] = df["time"].dt.tz_localize("UTC")  # stored naive UTC; the parser's fixes are zone-aware
-        out.append((seq, df.drop(columns=["file_seq"])))
-    return sorted(out, key=lambda x: x[0])
 
 
 def report_data(
@@ -315,15 +76,13 @@ def report_data(
     import pandas as pd
 
     from console.analysis.health import Finding, sort_findings, voltage_margin_findings
-    from console.drivers.batch import health_findings
-    from console.report.collect import _sections, crossings_from_fixes, frames_from_tables
+    from console.report.collect import crossings_from_fixes, frames_from_tables, sections_into_report
     from console.report.model import InputFile, ReportData
     from parsers.can_logs import count_frames_only
-    from parsers.report import ParseReport
 
     m = manifest if manifest is not None else read_current(root)
     spec = layout_spec if layout_spec is not None else m.derived.get("layout")
-    layout = _layout(spec)
+    layout = layout_of(spec)
     settings = speed_settings(m, layout)
     active = sorted((e for e in m.files if e.get("active", True)), key=lambda e: int(e["file_seq"]))
     kind_of = {int(e["file_seq"]): str(e["kind"]) for e in active}
@@ -333,8 +92,6 @@ def report_data(
 
     findings: list[Finding] = []
     if job == "history":
-        from console.archive.history_diag import history_diag
-
         found = history_diag(root, m, layout, settings, window)
         job = None if found is None else found.job
         if found is not None:
@@ -356,26 +113,26 @@ def report_data(
         data.warnings += ev_warnings
         findings += health_findings(job, layout, health_events, None)
 
-    frames = _per_file_tables(root, m, "frames")
+    frames = per_file_tables(root, m, "frames")
     text = [df for seq, df in frames if kind_of.get(seq) == "frames"]
     can = [df for seq, df in frames if kind_of.get(seq) == "can"]
     tables: list[pd.DataFrame] = []
     if text:
-        tables.append(_frame_window(pd.concat(text, ignore_index=True), window))
+        tables.append(frame_window(pd.concat(text, ignore_index=True), window))
         data.reports["frames"] = reports["frames"]
     if can:
-        tables.append(count_frames_only(_frame_window(pd.concat(can, ignore_index=True), window)))
+        tables.append(count_frames_only(frame_window(pd.concat(can, ignore_index=True), window)))
         data.reports["can"] = reports["can"]
     frames_from_tables(data, tables)
 
-    volts = _per_file_tables(root, m, "voltages")
+    volts = per_file_tables(root, m, "voltages")
     if volts:
         data.reports["voltages"] = reports["voltages"]
         findings += voltage_margin_findings(pd.concat([df for _, df in volts], ignore_index=True))
     data.findings = sort_findings(findings)
 
-    _sections(data)
-    fixes_parts = _per_file_tables(root, m, "fixes")
+    sections_into_report(data)
+    fixes_parts = per_file_tables(root, m, "fixes")
     if not fixes_parts:
         data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."
         return data
@@ -383,104 +140,8 @@ def report_data(
     # parse_gnss sorts the fixes of all its files by time, stably, unknown times last.
     fixes = fixes.sort_values("time", kind="stable", na_position="last").reset_index(drop=True)
     data.reports["gnss"] = reports["gnss"]
-    crossings_from_fixes(data, _cut_fixes(fixes, window))
+    crossings_from_fixes(data, cut_fixes(fixes, window))
     return data
-
-
-def _frame_window(frames: pd.DataFrame, window: Window) -> pd.DataFrame:
-    import pandas as pd
-
-    if window.start is not None:
-        frames = frames[frames["time"] >= pd.Timestamp(window.start)]
-    if window.end is not None:
-        frames = frames[frames["time"] < pd.Timestamp(window.end)]
-    return frames
-
-
-REPORT_KINDS = {
-    "diagnostic": "diagnostic",
-    "frames": "frames",
-    "can": "can",
-    "voltages": "voltages",
-    "nmea": "gnss",
-    "gnss-csv": "gnss",
-    "gnss-jsonl": "gnss",
-    "centre": "gnss",
-}
-
-
-def parse_reports(root: Path, manifest: Manifest, only: set[int] | None = None) -> dict[str, ParseReport]:
-    """Per report section (diagnostic, frames, can, voltages, gnss): the parse report of the archived files.
-
-    Rebuilt from each file's accounting in the ledger and its rejected lines,
-    in file order, the first MAX_REJECTIONS_KEPT kept as a read of the files would.
-    """
-    from collections import Counter
-
-    from parsers.report import FileReport, ParseReport, Rejection
-
-    out: dict[str, ParseReport] = {k: ParseReport() for k in set(REPORT_KINDS.values())}
-    section_of: dict[int, str] = {}
-    for e in sorted(manifest.files, key=lambda e: int(e["file_seq"])):
-        section = REPORT_KINDS.get(str(e["kind"]))
-        if section is None or not e.get("active", True) or "report" not in e:
-            continue
-        if only is not None and int(e["file_seq"]) not in only:
-            continue  # a report scoped to a head: the files that hold it (console.archive.scope)
-        section_of[int(e["file_seq"])] = section
-        rep = out[section]
-        known = set(FileReport.__dataclass_fields__)
-        rep.files.append(FileReport(**{k: v for k, v in e["report"].items() if k in known}))
-        rep.rejected_by_reason.update(Counter(e.get("rejected_by_reason", {})))
-        rep.skipped.update(Counter(e.get("skipped", {})))
-    if manifest.parts("rejected") and section_of:
-        con, _ = connect(root, manifest)
-        try:
-            rows = con.execute(
-                "SELECT file_seq, file, line, reason, text FROM rejected ORDER BY file_seq, line"
-            ).fetchall()
-        finally:
-            con.close()
-        for seq, f, line, reason, text in rows:
-            section = section_of.get(int(seq))
-            if section is None:
-                continue
-            rep = out[section]
-            if len(rep.rejections) < rep.max_rejections_kept:
-                rep.rejections.append(Rejection(str(f), int(line), str(reason), str(text)))
-    return out
-
-
-def _cut_fixes(fixes: pd.DataFrame, window: Window) -> pd.DataFrame:
-    """Fixes inside the window (zone-aware fix times are compared in UTC)."""
-    import pandas as pd
-
-    tz = getattr(fixes["time"].dt, "tz", None)
-
-    def stamp(t: dt.datetime) -> pd.Timestamp:
-        ts = pd.Timestamp(t)
-        return ts.tz_localize("UTC") if tz is not None else ts
-
-    if window.start is not None:
-        fixes = fixes[fixes["time"] >= stamp(window.start)]
-    if window.end is not None:
-        fixes = fixes[fixes["time"] < stamp(window.end)]
-    return fixes
-
-
-def replay(root: Path, window: Window = Window()) -> Iterator[pd.DataFrame]:
-    """The records in time order (ties in file, line order), a DataFrame per batch, for the station view."""
-    m = read_current(root)
-    if not m.parts("records"):
-        return
-    con, _ = connect(root, m)
-    try:
-        where, params = window.where()
-        rel = con.sql(f"SELECT {_RECORD_COLUMNS} FROM records{where} ORDER BY time, file_seq, line", params=params)
-        for batch in rel.to_arrow_reader(BATCH_ROWS):
-            yield batch.to_pandas()
-    finally:
-        con.close()
 
 
 def archive_collector(
@@ -492,8 +153,6 @@ def archive_collector(
     device_id: int | None,
 ) -> Callable[[], ReportData]:
     """For ``report --archive``: a collector giving the report's data from the archive, errors as one line."""
-    from console.archive.store import ArchiveError, archive_dir
-    from console.archive.views import require_archive
     from console.report.collect import ReportInputError
 
     root = archive_dir(archive)
@@ -510,8 +169,6 @@ def archive_collector(
         except ValueError as exc:
             raise ReportInputError(f"--from/--to: {exc}") from None
         try:
-            from console.archive.history_diag import derived_for
-
             m = require_archive(root)
             # The derived tables when they hold this report (the layout they were derived with), else the records.
             how: Literal["read", "history"] = "history" if derived_for(m, layout) else "read"
@@ -519,8 +176,6 @@ def archive_collector(
         except ArchiveError as exc:
             raise ReportInputError(str(exc)) from None
         try:
-            from console.archive.scope import scope_report
-
             scope_report(root, m, data, window)  # --head / --device: a report about it
             return data
         except ArchiveError as exc:
@@ -535,24 +190,18 @@ def replay_inputs(root: Path, layout: Layout, window: Window = Window()) -> tupl
     The same events and fixes the station view's ReplaySource builds from files: the records through
     the pipeline, the archived fixes.
     """
-    from console.analysis.diag_events import DiagEventSettings
-    from console.archive.views import require_archive
-    from console.drivers.batch import read_diag
-    from console.engine.pipeline import PipelineSettings
-    from console.engine.sinks import EventList
-
     m = require_archive(root)
     kept = EventList()
     if m.parts("records"):
         read_diag(ArchivedRecords(root, m, window), PipelineSettings(events=DiagEventSettings(), layout=layout), kept)
     fixes = None
-    parts = _per_file_tables(root, m, "fixes")
+    parts = per_file_tables(root, m, "fixes")
     if parts:
         import pandas as pd
 
         fixes = pd.concat([p for _, p in parts], ignore_index=True)
         fixes = fixes.sort_values("time", kind="stable", na_position="last").reset_index(drop=True)
-        fixes = _cut_fixes(fixes, window)
+        fixes = cut_fixes(fixes, window)
     return sorted(kept.events, key=lambda e: e.time_ns), fixes
 
 
@@ -562,17 +211,13 @@ def at_end_tables(
     """The derived tables an ingest computes over the whole archive at its end: health findings (the health
     registers' records and the channel events the pipeline wrote), crossing timelines (the fixes), and the
     sections of sensor frames where there is no diagnostic log."""
-    from console.analysis.diagnostics import DiagAnalysis
-    from console.archive.history_diag import _channel_events
-    from console.drivers.batch import DiagJob, no_axles
-
     job = None
     diag = bool(manifest.parts("records"))
     if diag:
         report = parse_reports(root, manifest)["diagnostic"]
         analysis = DiagAnalysis(speed_settings(manifest), [], None, no_axles(), 0, 0)
         job = DiagJob([f.file for f in report.files], report, analysis, kept_records=health_records(root, manifest))
-    channel = _channel_events(root, manifest, Window()) if diag else []
+    channel = channel_events(root, manifest, Window()) if diag else []
     data = report_data(root, layout_spec, manifest=manifest, job=job, streamed=(channel, warnings, None))
     tables = cross_head_tables(data)
     if diag:  # the pipeline wrote the sections of the diagnostic records as they were ingested

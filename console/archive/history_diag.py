@@ -27,7 +27,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from console.analysis.diagnostics import DiagAnalysis
+from console.archive.derive_sink import DERIVE_VERSION
+from console.archive.reader import Window, health_records, parse_reports
 from console.archive.store import Manifest
+from console.archive.views import connect
+from console.drivers.batch import DiagJob
 
 if TYPE_CHECKING:
     import duckdb
@@ -37,8 +42,6 @@ if TYPE_CHECKING:
     from console.analysis.events import DetectionEvent
     from console.analysis.inventory import DeviceInventory
     from console.analysis.sections import SectionsResult
-    from console.archive.history import Window
-    from console.drivers.batch import DiagJob
     from console.layout import Layout
 
 
@@ -54,8 +57,6 @@ class HistoryDiag:
 
 def derived_for(manifest: Manifest, layout_spec: str | None) -> bool:
     """Whether the derived tables hold this report: derived by this version, with this layout."""
-    from console.archive.derive import DERIVE_VERSION
-
     d = manifest.derived
     fingerprint = d.get("fingerprint") or {}
     return (
@@ -71,11 +72,6 @@ def history_diag(
     root: Path, manifest: Manifest, layout: Layout | None, settings: SpeedSettings, window: Window
 ) -> HistoryDiag | None:
     """The window's diagnostic analyses from the derived tables (None: no diagnostic records in it)."""
-    from console.analysis.diagnostics import DiagAnalysis
-    from console.archive.history import health_records, parse_reports
-    from console.archive.views import connect
-    from console.drivers.batch import DiagJob
-
     # The health registers' records are read by pyarrow on a thread while DuckDB answers the rest:
     # both release the GIL for their reads (a 3 M-record day: 0.7 s and 1.0 s, now overlapped).
     pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackside-health")
@@ -114,7 +110,7 @@ def history_diag(
         analysis=analysis,
         kept_records=kept.result(),
     )
-    return HistoryDiag(job, sections, _channel_events(root, manifest, window), _warnings(layout, heads))
+    return HistoryDiag(job, sections, channel_events(root, manifest, window), _warnings(layout, heads))
 
 
 def _heads(manifest: Manifest) -> list[tuple[int, Any]]:
@@ -265,8 +261,8 @@ def _sections(
     """The section history cut to the window; the final state at its end (stored for the whole history)."""
     import pandas as pd
 
-    from console.analysis.sections import SectionEngine, SectionsResult, SectionState
-    from console.archive.history import Window
+    from console.analysis.section_state import SectionState
+    from console.analysis.sections import SectionEngine, SectionsResult
 
     if layout is None or not layout.sections:
         return None
@@ -342,7 +338,7 @@ def _rows(
     return con.execute(sql, [*params, *order]).df()
 
 
-def _channel_events(root: Path, manifest: Manifest, window: Window) -> list[DetectionEvent]:
+def channel_events(root: Path, manifest: Manifest, window: Window) -> list[DetectionEvent]:
     """The stored channel events (the events health reads) in the window, in time order."""
     import pyarrow.parquet as pq
 

@@ -16,11 +16,13 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from console.archive.reader import Window, parse_reports
+from console.archive.store import Manifest
+from console.archive.views import connect
+
 if TYPE_CHECKING:
     import pandas as pd
 
-    from console.archive.history import Window
-    from console.archive.store import Manifest
     from console.report.model import ReportData
 
 
@@ -94,9 +96,6 @@ def _cut_sections(sections: Any, bounded: set[str], heads: set[str]) -> Any:
 
 def _cut_inputs(root: Path, manifest: Manifest, data: ReportData, window: Window, heads: set[str]) -> None:
     """Only the archived files that hold the scope's records, frames or voltages; their parse reports alone."""
-    from console.archive.history import parse_reports
-    from console.archive.views import connect
-
     seqs: set[int] = set()
     if manifest.parts("records") and heads:
         con, _ = connect(root, manifest, tables=("records",))

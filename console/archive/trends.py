@@ -32,7 +32,9 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from console.archive.history import Window
+from console.archive.reader import Window, parse_time
+from console.archive.store import archive_dir, read_current
+from console.archive.views import connect
 
 if TYPE_CHECKING:
     import duckdb
@@ -203,8 +205,6 @@ def _round(x: float | None, digits: int = 3) -> float | None:
 
 def archive_trends(root: Path, manifest: Manifest, window: Window, layout: Layout | None) -> dict[str, Any]:
     """The four daily trends of the window, as plain JSON values (the report's ``trends`` part)."""
-    from console.archive.views import connect
-
     con, _ = connect(root, manifest, tables={"records", "axles", "crossing_timelines"})
     try:
         return {
@@ -226,8 +226,6 @@ def with_trends(
     device_id: int | None,
 ) -> Callable[[], ReportData]:
     """``report --archive``'s collector, its data completed with the window's trends."""
-    from console.archive.history import parse_time
-    from console.archive.store import archive_dir, read_current
 
     def collect() -> ReportData:
         data = collector()  # checks the archive and the window first (one-line errors)

@@ -13,7 +13,7 @@ of the manifest it opened (the next ingest keeps them, see store.KEEP_MANIFESTS)
 from __future__ import annotations
 
 import re
-from collections.abc import Collection
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -23,6 +23,10 @@ from console.archive.store import DATA, ArchiveError, Manifest, read_current
 if TYPE_CHECKING:
     import duckdb
     import pyarrow as pa
+
+# A view computed in Python when a statement names it (the forecasts): (the archive, its manifest) → the table.
+# The command that offers one passes it in; the archive's views know only the stored tables.
+ComputedView = Callable[[Path, Manifest], "pa.Table"]
 
 # Every table the archive knows, with the partition keys in its part paths.
 TABLES: dict[str, tuple[str, ...]] = {
@@ -299,9 +303,11 @@ def one_line(exc: BaseException) -> str:
     return text or type(exc).__name__
 
 
-def run_query(root: Path, sql: str) -> tuple[list[str], list[tuple[object, ...]]]:
+def run_query(
+    root: Path, sql: str, computed: Mapping[str, ComputedView] | None = None
+) -> tuple[list[str], list[tuple[object, ...]]]:
     """(column names, rows) of one read-only query over the archive (Python values, as DuckDB gives them)."""
-    table = run_query_arrow(root, sql)
+    table = run_query_arrow(root, sql, computed)
     columns = [c.to_pylist() for c in table.columns]
     return list(table.column_names), list(zip(*columns, strict=True)) if columns else []
 
@@ -320,14 +326,17 @@ class QueryResult:
     arrow: pa.Table | None = None
 
 
-def run_query_result(root: Path, sql: str, manifest: Manifest | None = None) -> QueryResult:
+def run_query_result(
+    root: Path, sql: str, manifest: Manifest | None = None, computed: Mapping[str, ComputedView] | None = None
+) -> QueryResult:
     """One read-only query over the archive: Arrow only when the result holds times (see QueryResult).
 
     ``manifest``: the current one, when the caller has read it already (a year's manifest is megabytes).
+    ``computed``: views computed in Python, by name, made when the statement names them.
     """
     import duckdb
 
-    con = _query_connection(root, sql, manifest)
+    con = _query_connection(root, sql, manifest, computed)
     try:
         try:
             rel = con.sql(sql)
@@ -343,13 +352,19 @@ def run_query_result(root: Path, sql: str, manifest: Manifest | None = None) -> 
         con.close()
 
 
-def show_query(root: Path, sql: str, manifest: Manifest | None = None, width: int | None = None) -> str:
+def show_query(
+    root: Path,
+    sql: str,
+    manifest: Manifest | None = None,
+    width: int | None = None,
+    computed: Mapping[str, ComputedView] | None = None,
+) -> str:
     """One read-only query's result in DuckDB's box, fitted to ``width`` (the terminal's) (console.archive.box)."""
     import duckdb
 
     from console.archive.box import render
 
-    con = _query_connection(root, sql, manifest)
+    con = _query_connection(root, sql, manifest, computed)
     try:
         try:
             rel = con.sql(sql)
@@ -362,15 +377,18 @@ def show_query(root: Path, sql: str, manifest: Manifest | None = None, width: in
         con.close()
 
 
-def _query_connection(root: Path, sql: str, manifest: Manifest | None = None) -> duckdb.DuckDBPyConnection:
-    """A connection with views for the tables ``sql`` names, the statement checked read-only."""
+def _query_connection(
+    root: Path, sql: str, manifest: Manifest | None = None, computed: Mapping[str, ComputedView] | None = None
+) -> duckdb.DuckDBPyConnection:
+    """A connection with views for the tables ``sql`` names (and the computed views it names), the statement
+    checked read-only."""
     named = {t for t in TABLES if re.search(rf"\b{t}\b", sql, re.IGNORECASE)}
-    computed = None
-    if re.search(r"\bforecasts\b", sql, re.IGNORECASE):
-        from console.archive.health_days import query_forecasts
-
-        computed = {"forecasts": query_forecasts(root, manifest if manifest is not None else read_current(root))}
-    con, _ = connect(root, manifest, tables=named, sql=sql, computed=computed)
+    wanted = [name for name in computed or {} if re.search(rf"\b{name}\b", sql, re.IGNORECASE)]
+    tables = None
+    if computed and wanted:
+        m = manifest if manifest is not None else read_current(root)
+        manifest, tables = m, {name: computed[name](root, m) for name in wanted}
+    con, _ = connect(root, manifest, tables=named, sql=sql, computed=tables)
     try:
         check_read_only(con, sql)
     except BaseException:
@@ -379,11 +397,11 @@ def _query_connection(root: Path, sql: str, manifest: Manifest | None = None) ->
     return con
 
 
-def run_query_arrow(root: Path, sql: str) -> pa.Table:
+def run_query_arrow(root: Path, sql: str, computed: Mapping[str, ComputedView] | None = None) -> pa.Table:
     """The result of one read-only query over the archive as an Arrow table: times keep their nanoseconds."""
     import duckdb
 
-    con = _query_connection(root, sql)
+    con = _query_connection(root, sql, computed=computed)
     try:
         try:
             rel = con.sql(sql)

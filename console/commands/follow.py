@@ -155,7 +155,7 @@ def follow(
         except SourceError as exc:
             raise fail(str(exc)) from None
         out = sys.stdout
-        sink = _metrics_sink(metrics, lay, srcs)
+        sink = metrics_sink(metrics, lay, srcs)
 
         def emit(ev: dict[str, Any]) -> None:
             if sink is not None:
@@ -216,7 +216,7 @@ def follow(
     raise typer.Exit(guard(body))
 
 
-def _metrics_sink(address: str | None, layout: Any, sources: list[Any]) -> Any:
+def metrics_sink(address: str | None, layout: Any, sources: list[Any]) -> Any:
     """The Prometheus sink serving on ``address`` (None: no metrics); the serving address on stderr."""
     if address is None:
         return None

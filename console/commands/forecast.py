@@ -71,7 +71,7 @@ def forecast(
             raise fail("forecast needs scipy: pip install 'trackside[forecast]'") from None
         from console.analysis.forecast import ForecastSettings, due_list
         from console.archive.health_days import archive_forecasts
-        from console.archive.history import Window
+        from console.archive.reader import Window
         from console.archive.views import require_archive
 
         try:

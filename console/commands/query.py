@@ -15,7 +15,11 @@ from console.commands.common import fail, guard
 from console.commands.ingest import ArchiveOpt
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
     import pyarrow as pa
+
+    from console.archive.store import Manifest
 
 FORMATS = ("table", "csv", "json", "jsonl")
 
@@ -48,6 +52,8 @@ def query(
     from console.archive.store import ArchiveError, archive_dir
     from console.archive.views import QueryError, require_archive, run_query_result, schema, show_query
 
+    computed = {"forecasts": _forecasts}
+
     root = archive_dir(archive)
 
     def body() -> int:
@@ -71,10 +77,10 @@ def query(
                 text = PRESETS[preset].sql
             assert text is not None
             if fmt == "table":
-                sys.stdout.write(show_query(root, text, manifest))
+                sys.stdout.write(show_query(root, text, manifest, computed=computed))
                 sys.stdout.flush()
                 return exit_codes.OK
-            result = run_query_result(root, text, manifest)
+            result = run_query_result(root, text, manifest, computed)
         except (ArchiveError, QueryError) as exc:
             raise fail(str(exc)) from None
         if result.arrow is not None:
@@ -84,6 +90,13 @@ def query(
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
+
+
+def _forecasts(root: Path, manifest: Manifest) -> pa.Table:
+    """The ``forecasts`` view: every series' forecast (console.archive.health_days), made when a query names it."""
+    from console.archive.health_days import query_forecasts  # pandas and the fit: only for a query that needs them
+
+    return query_forecasts(root, manifest)
 
 
 def _plain(value: Any) -> Any:

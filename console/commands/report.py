@@ -88,10 +88,10 @@ def report(
                     check_outside(output, archive, what="report")  # never a file among the archive's own
                 except OutputError as exc:
                     raise fail(str(exc)) from None
+            from console.archive.health_days import with_forecast
             from console.archive.trends import with_trends
             from console.commands.common import Console
             from console.fleet import FleetError, engine_scope
-            from console.report.forecast import with_forecast
 
             collector = with_trends(
                 archive_collector(archive, layout, start, end, head, device), archive, start, end, head, device

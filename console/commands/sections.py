@@ -136,7 +136,7 @@ def sections(
         from console.analysis.diag_events import DiagEventSettings
         from console.analysis.diagnostics import SpeedSettings
         from console.analysis.majority import MajoritySettings
-        from console.analysis.sections import SectionState
+        from console.analysis.section_state import SectionState
         from console.analysis.wheels import CountingSettings
         from console.engine.pipeline import PipelineSettings
         from console.render.section_history import SectionsSink

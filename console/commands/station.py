@@ -132,7 +132,8 @@ def station(
 
 def archive_replay_source(archive: Path | None, lay: Any, start: str | None, end: str | None) -> Any:
     """The station view's replay source over the archive's history in [--from, --to): one line on any error."""
-    from console.archive.history import Window, parse_time, replay_inputs
+    from console.archive.history import replay_inputs
+    from console.archive.reader import Window, parse_time
     from console.archive.store import ArchiveError, archive_dir
     from console.tui.sources import ReplaySource
 

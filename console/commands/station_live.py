@@ -63,11 +63,11 @@ def run_live_station(
         return exit_codes.OK
     if not (sys.stdin.isatty() and sys.stdout.isatty()) and WEB_DRIVER_ENV not in os.environ:
         raise fail("the station view needs a terminal: run it without pipes or redirection (or use --serve)")
-    from console.commands.follow import _metrics_sink
+    from console.commands.follow import metrics_sink
     from console.tui.live_app import LiveStationApp
     from console.tui.live_source import LiveSource
 
-    sink = _metrics_sink(metrics, lay, sources)
+    sink = metrics_sink(metrics, lay, sources)
     try:
         LiveStationApp(LiveSource(lay, sources, sink=sink)).run()
     finally:

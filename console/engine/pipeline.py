@@ -48,7 +48,8 @@ from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, wheel_columns
 from console.analysis.event_block import KIND_CODE, EventBlock, StringPool
 from console.analysis.events import DetectionEvent, EventKind, sort_events
-from console.analysis.sections import SectionEngine, SectionState
+from console.analysis.section_state import SectionState
+from console.analysis.sections import SectionEngine
 from console.analysis.status import StatusSummary
 from console.analysis.stream import NO_TIME, PassageStream, by_start, take_passages
 from console.analysis.stream_sections import EventStream, HeadFacts

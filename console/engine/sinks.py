@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from console.analysis.head_table import Heads
     from console.analysis.health import Finding
     from console.analysis.passages import Columns
-    from console.analysis.sections import LedgerEntry, ResetRecord, Transition
+    from console.analysis.section_state import LedgerEntry, ResetRecord, Transition
 
 
 class Sink:

@@ -3,9 +3,9 @@
 ``--engine local`` (the default) runs every partition in this process;
 ``--engine dask`` ships the same partition function to a ``distributed``
 cluster — a LocalCluster started and stopped here (``--workers N``) or an
-existing scheduler (``--scheduler tcp://HOST:PORT``).  The partitions are the
-archive's own unit of work (a device's records of one day, with the
-neighbouring days it needs, see :mod:`console.archive.partition`); this
+existing scheduler (``--scheduler tcp://HOST:PORT``).  The tasks are the
+archive's own units of work (a file to parse, a group of linked sections to
+derive: :mod:`console.archive.derive`); this
 package never derives anything itself, it only decides where a partition
 runs and gives the results back in partition order, so the combined answer
 cannot depend on the engine or the number of workers.
@@ -19,9 +19,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from console.fleet.options import EngineOpt, EngineSpec, SchedulerOpt, WorkersOpt, engine_spec
+from console.fleet.options import EngineOpt, EngineSpec, FleetError, SchedulerOpt, WorkersOpt, engine_spec
 
-_ENGINE_NAMES = frozenset({"FleetError", "engine_scope", "fleet_mapper", "map_partitions", "run_with_engine"})
+_ENGINE_NAMES = frozenset({"engine_scope", "fleet_mapper", "map_partitions", "run_with_engine"})
 
 
 def __getattr__(name: str) -> Any:

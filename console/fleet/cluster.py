@@ -16,7 +16,7 @@ import logging
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING
 
-from console.fleet.options import EngineSpec, EngineUsageError
+from console.fleet.options import EngineSpec, EngineUsageError, FleetError
 from console.plural import count
 
 if TYPE_CHECKING:
@@ -60,8 +60,6 @@ def quiet_logs() -> Iterator[None]:
 @contextlib.contextmanager
 def open_client(spec: EngineSpec, say: Callable[[str], None] | None = None) -> Iterator[Client]:
     """A connected client for ``spec`` (kind dask); the LocalCluster, if one was started, is closed on exit."""
-    from console.fleet.engine import FleetError
-
     require_dask()
     from distributed import Client, LocalCluster
 

@@ -36,7 +36,8 @@ import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from console.fleet.options import EngineSpec
+from console.fleet.cluster import open_client, quiet_logs
+from console.fleet.options import EngineSpec, FleetError
 from console.fleet.progress import task_progress
 
 if TYPE_CHECKING:
@@ -46,10 +47,6 @@ if TYPE_CHECKING:
 
 R = TypeVar("R")
 T = TypeVar("T")
-
-
-class FleetError(Exception):
-    """The cluster could not finish the run: one line for the user, exit 2 (the archive is unchanged)."""
 
 
 class _Engine:
@@ -257,8 +254,6 @@ def engine_scope(
         finally:
             _current.reset(token)
         return
-    from console.fleet.cluster import open_client, quiet_logs
-
     with open_client(spec, say) as client, quiet_logs():
         token = _current.set(_DaskEngine(client, console, progress, host))
         try:

@@ -57,6 +57,10 @@ class EngineUsageError(ValueError):
     """An impossible combination of engine options: one line for the user, exit 2."""
 
 
+class FleetError(Exception):
+    """The cluster could not finish the run: one line for the user, exit 2 (the archive is unchanged)."""
+
+
 @dataclass(frozen=True)
 class EngineSpec:
     """Where the work runs: in this process, a LocalCluster of ``workers`` processes, or ``scheduler``."""

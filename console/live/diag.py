@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from console.analysis.head_table import Heads
     from console.analysis.health import Finding
     from console.analysis.passages import Columns
-    from console.analysis.sections import Transition
+    from console.analysis.section_state import Transition
 
 Emit = Callable[[dict[str, Any]], None]
 

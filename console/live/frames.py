@@ -45,7 +45,8 @@ import pandas as pd
 from console.analysis.events import DOWN, UP, DetectionEvent, EventKind, sort_events
 from console.analysis.frame_events import frames_to_events
 from console.analysis.health import channel_fault_findings
-from console.analysis.sections import SectionEngine, SectionState, Transition
+from console.analysis.section_state import SectionState, Transition
+from console.analysis.sections import SectionEngine
 from console.analysis.timefmt import NS, iso
 from console.layout import Layout
 from console.sources.base import CanFrame, FrameRows

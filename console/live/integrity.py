@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 from console.analysis.crossing import Fix
 from console.analysis.events import DetectionEvent
 from console.analysis.integrity import ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
-from console.analysis.sections import Transition
+from console.analysis.section_state import Transition
 from console.engine.sinks import Sink
 from console.layout import Layout
 

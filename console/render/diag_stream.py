@@ -23,7 +23,7 @@ from parsers.report import Rejection
 
 if TYPE_CHECKING:
     from console.analysis.health import Finding
-    from console.analysis.sections import Transition
+    from console.analysis.section_state import Transition
     from console.drivers.batch import DiagJob
 
 
@@ -52,9 +52,9 @@ class JsonLinesOut(Sink):
 
         text = encode_passages(cols, heads, workers=1, lines_of_type="passage")
         if text is None:  # text the byte encoder does not cover: pandas' encoder
-            from console.analysis.diagnostics import _passages_frame, passages_json_text
+            from console.analysis.diagnostics import passages_frame, passages_json_text
 
-            rows = json.loads(passages_json_text(_passages_frame(cols, heads)))
+            rows = json.loads(passages_json_text(passages_frame(cols, heads)))
             text = "".join(line({"type": "passage", **p}) for p in rows)
         self.out.write(text)
         self.out.flush()

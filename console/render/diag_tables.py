@@ -79,7 +79,7 @@ def passages_table(
     detections on one system only) is told there too, beyond those of the "–" passages.  Rows are read
     from numpy columns: a small log's table needs no pandas (start-up time).
     """
-    from console.analysis.diagnostics import axles_unknown_codes
+    from console.analysis.passages import axles_unknown_codes
 
     p, status, total = _listed_passages(analysis, limit, first)
     t = _table(f"Passages ({total}); speeds in km/h: per-second method (records), whole train, per-axle mean")
@@ -171,7 +171,7 @@ def _listed_passages(
 
     With a limit, only the rows shown are looked up: a log of a million heads has a passage per head.
     """
-    from console.analysis.diagnostics import _KINDS
+    from console.analysis.diagnostics import PASSAGE_KINDS
 
     cols = analysis.passage_columns
     if first is not None and cols is None:  # the job kept only the first rows (analyze's text face)
@@ -186,7 +186,7 @@ def _listed_passages(
         return out, status, len(p) - status
     from console.analysis.stream import take_passages
 
-    keep = np.flatnonzero(cols["kind"] != _KINDS.index("status"))
+    keep = np.flatnonzero(cols["kind"] != PASSAGE_KINDS.index("status"))
     rows = take_passages(cols, keep[:limit])
     return _shown_columns(rows, analysis), len(cols["kind"]) - len(keep), len(keep)
 

@@ -12,7 +12,7 @@ from console.analysis.timefmt import iso
 
 if TYPE_CHECKING:
     from console.analysis.health import Finding
-    from console.analysis.sections import Transition
+    from console.analysis.section_state import Transition
 
 
 def section_event(tr: Transition) -> dict[str, Any]:

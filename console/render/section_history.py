@@ -18,8 +18,8 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import IO, Any
 
-from console.analysis.sections import LedgerEntry, ResetRecord, Transition
-from console.analysis.timefmt import NS, _fraction, iso
+from console.analysis.section_state import LedgerEntry, ResetRecord, Transition
+from console.analysis.timefmt import NS, fraction_text, iso
 from console.engine.sinks import Sink
 from console.jsonout import valid_unicode
 
@@ -39,11 +39,11 @@ def transition_json(t: Transition) -> str:
 
 
 def ledger_json(x: LedgerEntry) -> str:
-    """One ledger row as ``sections --json`` writes it (:func:`_LedgerText` writes the same, faster)."""
+    """One ledger row as ``sections --json`` writes it (:func:`LedgerText` writes the same, faster)."""
     return _row_json({"section": x.section, "head": x.head, "delta": x.delta, "count": x.count, "time": iso(x.time_ns)})
 
 
-class _LedgerText:
+class LedgerText:
     """:func:`ledger_json` for a row per counted axle: the JSON of each (section, head) and of each
     second's time text made once (``tests/test_stream_sections.py`` holds them equal).
 
@@ -74,9 +74,8 @@ class _LedgerText:
             if len(self._second) > 1 << 16:
                 self._second.clear()
             second = self._second[whole] = str(iso(whole * NS))[:-5]  # without ".000Z"
-        return (
-            f'{prefix}{x.delta}{sep}"count"{colon}{x.count}{sep}"time"{colon}"{second}{_fraction(frac)}Z"{self._close}'
-        )
+        time_text = f"{second}{fraction_text(frac)}Z"
+        return f'{prefix}{x.delta}{sep}"count"{colon}{x.count}{sep}"time"{colon}"{time_text}"{self._close}'
 
 
 def reset_json(r: ResetRecord) -> str:
@@ -147,7 +146,7 @@ class SectionsSink(Sink):
     keep_all: bool = False  # the whole history in memory as well (report's collect(whole=True), tests)
     spill_ledger: bool = True
     timeline_text: Callable[[Transition], str] = transition_json
-    ledger_text: Callable[[LedgerEntry], str] = field(default_factory=_LedgerText)
+    ledger_text: Callable[[LedgerEntry], str] = field(default_factory=LedgerText)
     timeline_rows: int = 0
     timeline_first: list[Transition] = field(default_factory=list)
     ledger_rows: int = 0

@@ -10,7 +10,8 @@ from rich.table import Table
 from rich.text import Text
 
 from console import plural
-from console.analysis.sections import STATE_MARK, SectionsResult, SectionState
+from console.analysis.section_state import STATE_MARK, SectionState
+from console.analysis.sections import SectionsResult
 from console.analysis.timefmt import display, iso
 from console.safe_text import inert
 

@@ -50,7 +50,8 @@ from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.events import DetectionEvent, sort_events
 from console.analysis.health import Finding, sort_findings, voltage_margin_findings
-from console.analysis.sections import SectionState, run_sections
+from console.analysis.section_state import SectionState
+from console.analysis.sections import run_sections
 from console.drivers.batch import ChunkSource, LogFiles, ReadOptions, input_bytes, read_diag
 from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
 from console.engine.sinks import Sinks
@@ -370,7 +371,7 @@ def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], for_form
         findings += voltage_margin_findings(table)
     data.findings = sort_findings(findings)
 
-    _sections(data)
+    sections_into_report(data)
     _crossings(data, of(*GNSS_FORMATS))
 
 
@@ -456,7 +457,8 @@ def frames_from_tables(data: ReportData, tables: list[pd.DataFrame]) -> None:
     data.frames = pd.concat([t[columns].astype({"file": object}) for t in tables], ignore_index=True)
 
 
-def _sections(data: ReportData) -> None:
+def sections_into_report(data: ReportData) -> None:
+    """The section states of the report's detection events (or sensor frames), or a note saying why none."""
     lay = data.layout
     if lay is None:
         data.notes["sections"] = "No section states: they need a layout (--layout, or a layout.toml among the inputs)."

@@ -1,61 +1,21 @@
 """The report's Forecast part (``report --archive`` only): what is due for maintenance, with its trend.
 
-The numbers come from :func:`console.archive.health_days.archive_forecasts` over the report's window
-(the document's ``forecast``); the HTML face draws the first :data:`PLOTS_SHOWN` due series with
+The numbers come from :func:`console.archive.health_days.forecast_doc` over the report's window
+(the document's ``forecast``); the HTML face draws the due series the document carries points of with
 :func:`console.report.forecast_plot.forecast_svg`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from console.analysis.forecast import STATUSES, ForecastSettings, due_list
-from console.report.outline import Block, Cell, Figure, Heading, Para, _n, _table
+from console.analysis.forecast import STATUSES
+from console.report.blocks import Block, Cell, Figure, Heading, Para, num_or_dash, table_block
 
 if TYPE_CHECKING:
-    from console.archive.history import Window
-    from console.archive.store import Manifest
-    from console.layout import Layout
-    from console.report.model import ReportData
+    pass
 
-PLOTS_SHOWN = 12
 FIGURE_NAMES = {"analog_margin": "analog margin", "disturbance_rate": "disturbance rate", "gnss_loss": "GNSS loss"}
-
-
-def forecast_doc(root: Path, manifest: Manifest, window: Window, layout: Layout | None) -> dict[str, Any] | None:
-    """The document's ``forecast``: counts, the due list, and the daily points of the plotted series.
-    None when scipy (the ``forecast`` extra) is not installed."""
-    try:
-        import scipy.stats  # noqa: F401 - the trend's library, an optional extra
-    except ImportError:
-        return None
-    from console.archive.health_days import archive_forecasts
-
-    settings = ForecastSettings()
-    items, series = archive_forecasts(root, manifest, window, layout, settings)
-    due = due_list(items)
-    by_key = {(s.figure, s.target, s.channel): s for s in series}
-    plotted = []
-    for f in due[:PLOTS_SHOWN]:
-        s = by_key[(f.figure, f.target, f.channel)]
-        plotted.append(
-            {
-                "figure": f.figure,
-                "target": f.target,
-                "channel": f.channel,
-                "days": [int(d) for d in s.day],
-                "values": [round(float(v), 4) for v in s.value],
-            }
-        )
-    return {
-        "horizon_days": settings.horizon_days,
-        "trend_days": settings.fit_days,
-        "counts": {st: sum(1 for f in items if f.status == st) for st in STATUSES},
-        "due": [f.to_dict() for f in due],
-        "plotted": plotted,
-    }
 
 
 def forecast_plots(doc_forecast: dict[str, Any] | None) -> list[str]:
@@ -99,34 +59,17 @@ def forecast_part(doc: dict[str, Any]) -> list[Block]:
             "–" if f["channel"] is None else f"Sys{f['channel']}",
             FIGURE_NAMES[f["figure"]],
             f["status"],
-            _n(f["last_value"], "{:.3g}"),
-            _n(f["threshold"], "{:g}"),
-            _n(f["slope_per_day"], "{:+.3g}"),
+            num_or_dash(f["last_value"], "{:.3g}"),
+            num_or_dash(f["threshold"], "{:g}"),
+            num_or_dash(f["slope_per_day"], "{:+.3g}"),
             (f["crossing"] or "–")[:10],
             f"{(f['earliest'] or '–')[:10]} … {(f['latest'] or 'open')[:10]}",
-            _n(f["days_left"], "{:.1f}"),
+            num_or_dash(f["days_left"], "{:.1f}"),
         ]
         for f in fc["due"]
     ]
     cols = [("Head / unit", False), ("Channel", False), ("Figure", False), ("Status", False), ("Last", True)]
     cols += [("Threshold", True), ("Trend /day", True), ("Crossing", False), ("Interval", False), ("Days left", True)]
     note = "Past: the last day's figure is beyond the threshold; the date is when it went beyond."
-    out.append(_table(cols, rows, note))
+    out.append(table_block(cols, rows, note))
     return out
-
-
-def with_forecast(
-    collector: Callable[[], ReportData], archive: Path | None, start: str | None, end: str | None, head: str | None
-) -> Callable[[], ReportData]:
-    """``report --archive``'s collector, its data completed with the window's forecast."""
-    from console.archive.history import Window, parse_time
-    from console.archive.store import archive_dir, read_current
-
-    def collect() -> ReportData:
-        data = collector()  # checks the archive and the window first (one-line errors)
-        root = archive_dir(archive)
-        window = Window(start=parse_time(start) if start else None, end=parse_time(end) if end else None, head=head)
-        data.forecast = forecast_doc(root, read_current(root), window, data.layout)
-        return data
-
-    return collect

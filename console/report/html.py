@@ -24,12 +24,13 @@ from typing import Any
 import numpy as np
 
 from console.analysis.passages import Columns
-from console.analysis.sections import SectionState
+from console.analysis.section_state import SectionState
 from console.analysis.timefmt import display
 from console.report import plots, trends
+from console.report.blocks import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table
 from console.report.jsonwrite import Write
 from console.report.model import ReportData, analog_series, natural_key, timeline_order
-from console.report.outline import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table, outline
+from console.report.outline import outline
 from console.safe_text import PLAIN, clean
 
 STYLE = """

@@ -16,8 +16,9 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from console.report.blocks import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table
 from console.report.jsonwrite import Write
-from console.report.outline import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table, outline
+from console.report.outline import outline
 from console.safe_text import PLAIN, clean
 
 _SPECIAL = re.compile(r"([\\`*_\[\]|#~])")

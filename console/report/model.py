@@ -40,7 +40,8 @@ from console import __version__
 from console.analysis.diagnostics import SpeedSettings, passages_json_text
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.health import Finding, Severity
-from console.analysis.sections import SectionsResult, SectionState
+from console.analysis.section_state import SectionState
+from console.analysis.sections import SectionsResult
 from console.analysis.timefmt import iso
 from console.drivers.batch import DiagJob
 from console.layout import Layout

@@ -1,4 +1,5 @@
-"""The report as blocks: headings, paragraphs, tables, figures (:func:`outline`).
+"""The report as blocks: headings, paragraphs, tables, figures (:func:`outline`; the blocks are
+:mod:`console.report.blocks`).
 
 Built from the JSON document (:func:`console.report.model.document`); the
 Markdown and HTML faces both render these blocks, so the formats cannot
@@ -9,67 +10,13 @@ renderers escape all of it for their format.
 from __future__ import annotations
 
 import itertools
-import math
-from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass
 from typing import Any
 
 from console.plural import count
+from console.report.blocks import Block, Bullets, Cell, Figure, Heading, Lazy, Para, Styled, num_or_dash, table_block
+from console.report.forecast import forecast_part
 from console.report.model import FAILING, UNSAFE
-
-
-@dataclass(frozen=True)
-class Styled:
-    """Text with a style hint the HTML face shows (state, severity, verdict); Markdown shows the text."""
-
-    text: str
-    style: str = ""
-
-
-Cell = str | Styled
-
-
-@dataclass(frozen=True)
-class Heading:
-    level: int
-    text: str
-    anchor: str = ""
-
-
-@dataclass(frozen=True)
-class Para:
-    parts: tuple[Cell, ...]
-
-
-@dataclass(frozen=True)
-class Table:
-    columns: tuple[str, ...]
-    numeric: tuple[bool, ...]  # right-aligned columns
-    rows: Iterable[list[Cell]]  # a long table's rows are made as they are written (:class:`Lazy`)
-    note: str = ""
-
-
-class Lazy:
-    """Rows made each time they are read, from the document's :class:`~console.report.jsonwrite.Rows`."""
-
-    def __init__(self, make: Callable[[], Iterator[list[Cell]]]) -> None:
-        self._make = make
-
-    def __iter__(self) -> Iterator[list[Cell]]:
-        return self._make()
-
-
-@dataclass(frozen=True)
-class Bullets:
-    items: tuple[str, ...]
-
-
-@dataclass(frozen=True)
-class Figure:
-    plot: str  # speeds | sections | crossings | analog: drawn by the HTML face from ReportData
-
-
-Block = Heading | Para | Table | Bullets | Figure
+from console.report.trends import trends_part
 
 TIMELINE_ROWS_SHOWN = 400
 REJECTIONS_SHOWN = 20
@@ -99,20 +46,12 @@ def _one_day(values: list[str | None]) -> str | None:
     return days.pop() if len(days) == 1 else None
 
 
-def _n(x: Any, fmt: str = "{:.1f}") -> str:
-    return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else fmt.format(x)
-
-
 def _state(state: str) -> Styled:
     return Styled(f"{STATE_MARKS.get(state, '')} {state}".strip(), f"state-{state}")
 
 
 def _severity(sev: str) -> Styled:
     return Styled(f"{SEVERITY_MARKS.get(sev, '')} {sev}".strip(), f"sev-{sev}")
-
-
-def _table(columns: list[tuple[str, bool]], rows: Iterable[list[Cell]], note: str = "") -> Table:
-    return Table(tuple(c for c, _ in columns), tuple(n for _, n in columns), rows, note)
 
 
 def _safety_part(doc: dict[str, Any]) -> list[Block]:
@@ -145,7 +84,7 @@ def _safety_part(doc: dict[str, Any]) -> list[Block]:
         for a in s["items"]
     ]
     cols = [("Class", False), ("Severity", False), ("Topic", False), ("Subject", False), ("Time", False)]
-    out.append(_table([*cols, ("What", False)], rows))
+    out.append(table_block([*cols, ("What", False)], rows))
     return out
 
 
@@ -159,10 +98,10 @@ def _inputs_part(doc: dict[str, Any]) -> list[Block]:
                 f["file"],
                 f["format"],
                 "yes" if f["read"] else Styled("no", "muted"),
-                _n(f["lines_read"], "{:,}"),
-                _n(f["records"], "{:,}"),
-                _n(f["blank"], "{:,}"),
-                Styled(_n(f["rejected"], "{:,}"), "bad" if f["rejected"] else ""),
+                num_or_dash(f["lines_read"], "{:,}"),
+                num_or_dash(f["records"], "{:,}"),
+                num_or_dash(f["blank"], "{:,}"),
+                Styled(num_or_dash(f["rejected"], "{:,}"), "bad" if f["rejected"] else ""),
                 f["note"],
             ]
         )
@@ -180,13 +119,13 @@ def _inputs_part(doc: dict[str, Any]) -> list[Block]:
         ]
     )
     cols = [("File", False), ("Format", False), ("Read", False), ("Lines", True), ("Records", True)]
-    out.append(_table([*cols, ("Blank", True), ("Rejected", True), ("Note", False)], rows))
+    out.append(table_block([*cols, ("Blank", True), ("Rejected", True), ("Note", False)], rows))
     rej = inp["rejections"]
     if t["rejected"]:
         shown = rej[:REJECTIONS_SHOWN]
         out.append(Heading(3, f"Rejected lines (first {len(shown)} of {t['rejected']:,})", "rejections"))
         out.append(
-            _table(
+            table_block(
                 [("File", False), ("Line", True), ("Reason", False), ("Text", False)],
                 [[r["file"], str(r["line"]), r["reason"], r["text"]] for r in shown],
                 "The JSON report lists up to 1,000 rejected lines per input kind.",
@@ -230,7 +169,9 @@ def _devices_part(doc: dict[str, Any]) -> list[Block]:
                 ]
             )
         cols = [("Device", True), ("Device / Type / GS", False), ("Counting heads", False), ("Channels", False)]
-        out.append(_table([*cols, ("Identity", False), ("Records", True), ("First", False), ("Last", False)], rows))
+        out.append(
+            table_block([*cols, ("Identity", False), ("Records", True), ("First", False), ("Last", False)], rows)
+        )
     if doc["sensors"]:
         out.append(Heading(3, "Intelligent sensors (frames and CAN)", "sensors"))
         rows = [
@@ -249,7 +190,7 @@ def _devices_part(doc: dict[str, Any]) -> list[Block]:
         ]
         cols = [("Sensor", False), ("Frames", True), ("First", False), ("Last", False), ("Axles up", True)]
         cols += [("Axles down", True), ("Faults", True), ("Count errors", True), ("Contact losses", True)]
-        out.append(_table(cols, rows))
+        out.append(table_block(cols, rows))
     if doc["gnss_units"]:
         out.append(Heading(3, "GNSS units (times UTC)", "gnss-units"))
         rows = [
@@ -265,7 +206,7 @@ def _devices_part(doc: dict[str, Any]) -> list[Block]:
             for u in doc["gnss_units"]
         ]
         cols = [("Device", False), ("Role", False), ("Sources", False), ("Fixes", True), ("Valid", True)]
-        out.append(_table([*cols, ("First", False), ("Last", False)], rows))
+        out.append(table_block([*cols, ("First", False), ("Last", False)], rows))
     if not (doc["devices"] or doc["sensors"] or doc["gnss_units"]):
         out.append(Para(("No devices: no diagnostic log, frame file or GNSS telemetry was read.",)))
     return out
@@ -292,7 +233,7 @@ def _passages_part(doc: dict[str, Any]) -> list[Block]:
         passages = doc["passages"]
         cols = [("Head", False), ("Start", False), ("Dur s", True), ("Axles", True), ("Dir", False)]
         cols += [("Per-second", True), ("Whole train", True), ("Per-axle mean", True), ("Kind", False)]
-        out.append(_table(cols, Lazy(lambda: (_passage_row(p) for p in passages))))
+        out.append(table_block(cols, Lazy(lambda: (_passage_row(p) for p in passages))))
     notes = []
     if doc["status_bursts"]:
         n = doc["status_bursts"]
@@ -316,18 +257,18 @@ def _passages_part(doc: dict[str, Any]) -> list[Block]:
 
 
 def _passage_row(p: dict[str, Any]) -> list[Cell]:
-    per_sec = _n(p["speed_kmh_per_second_method"])
+    per_sec = num_or_dash(p["speed_kmh_per_second_method"])
     if p["records_in_detection_second"] is not None:
         per_sec += f" ({p['records_in_detection_second']})"
     return [
         p["counting_head"],
         show_time(p["start"]),
-        _n(p["duration_s"], "{:.2f}"),
+        num_or_dash(p["duration_s"], "{:.2f}"),
         "–" if p["axles_unknown_reason"] else str(p["axles"]),  # no onset pair possible: the reason says why
         _ARROWS.get(p["direction"] or "", "–"),
         per_sec,
-        _n(p["speed_kmh_whole_train"], "{:.2f}"),
-        _n(p["speed_kmh_per_axle_mean"]),
+        num_or_dash(p["speed_kmh_whole_train"], "{:.2f}"),
+        num_or_dash(p["speed_kmh_per_axle_mean"]),
         Styled(p["kind"], "muted" if p["kind"] != "train" else ""),
     ]
 
@@ -357,14 +298,14 @@ def _sections_part(doc: dict[str, Any]) -> list[Block]:
         for s in sec["final"]
     ]
     cols = [("Section", False), ("State", False), ("Count", True), ("In", True), ("Out", True), ("Why", False)]
-    out.append(_table(cols, rows))
+    out.append(table_block(cols, rows))
     tl = sec["timeline"]
     shown = list(itertools.islice(tl, TIMELINE_ROWS_SHOWN))
     out.append(Heading(3, f"State timeline ({count(len(tl), 'change', sep=True)})", "section-timeline"))
     rows = [[show_time(r["time"]), r["section"], _state(r["state"]), str(r["count"]), r["reason"]] for r in shown]
     note = f"First {len(shown)} of {len(tl):,} changes; the JSON report lists all." if len(tl) > len(shown) else ""
     cols = [("Time", False), ("Section", False), ("State", False), ("Count", True), ("Why", False)]
-    out.append(_table(cols, rows, note))
+    out.append(table_block(cols, rows, note))
     out.append(Heading(3, f"Count ledger ({count(len(sec['ledger']), 'axle', sep=True)} counted)", "ledger"))
     if sec["ledger_summary"]:
         rows = [
@@ -379,7 +320,9 @@ def _sections_part(doc: dict[str, Any]) -> list[Block]:
             for r in sec["ledger_summary"]
         ]
         cols = [("Section", False), ("Head", False), ("In", True), ("Out", True), ("First", False), ("Last", False)]
-        out.append(_table(cols, rows, "Axles counted in and out of each section at each head; the JSON lists each."))
+        out.append(
+            table_block(cols, rows, "Axles counted in and out of each section at each head; the JSON lists each.")
+        )
     else:
         out.append(Para(("No axle was counted into or out of a section.",)))
     out.append(Heading(3, "Reset requests", "resets"))
@@ -393,7 +336,7 @@ def _sections_part(doc: dict[str, Any]) -> list[Block]:
             ]
             for r in sec["resets"]
         ]
-        out.append(_table([("Time", False), ("Section", False), ("Result", False), ("Why", False)], rows))
+        out.append(table_block([("Time", False), ("Section", False), ("Result", False), ("Why", False)], rows))
     else:
         out.append(Para(("No reset requests in the data.",)))
     return out
@@ -419,7 +362,7 @@ def _health_part(doc: dict[str, Any]) -> list[Block]:
             for f in h["findings"]
         ]
         cols = [("Severity", False), ("Head / sensor", False), ("Channel", False), ("Rule", False)]
-        out.append(_table([*cols, ("Since", False), ("Finding", False)], rows))
+        out.append(table_block([*cols, ("Since", False), ("Finding", False)], rows))
     out.append(Heading(3, "Analog values per channel", "analog"))
     if h["analog"]:
         out.append(Figure("analog"))
@@ -429,9 +372,9 @@ def _health_part(doc: dict[str, Any]) -> list[Block]:
                 f"Sys{a['channel']}",
                 f"{a['address']:03d}",
                 f"{a['values']:,}",
-                _n(a["min"], "{:.0f}"),
-                _n(a["mean"], "{:.0f}"),
-                _n(a["max"], "{:.0f}"),
+                num_or_dash(a["min"], "{:.0f}"),
+                num_or_dash(a["mean"], "{:.0f}"),
+                num_or_dash(a["max"], "{:.0f}"),
                 show_time(a["first"]),
                 show_time(a["last"]),
             ]
@@ -439,7 +382,7 @@ def _health_part(doc: dict[str, Any]) -> list[Block]:
         ]
         cols = [("Head", False), ("Channel", False), ("Adr", False), ("Values", True), ("Min", True)]
         cols += [("Mean", True), ("Max", True), ("First", False), ("Last", False)]
-        out.append(_table(cols, rows))
+        out.append(table_block(cols, rows))
     else:
         out.append(Para(("No analog receiver values (Analogwert registers) in the diagnostic logs.",)))
     return out
@@ -483,18 +426,18 @@ def _crossings_part(doc: dict[str, Any]) -> list[Block]:
                     _clock(r["t_head_arrival"], day),
                     _clock(r["t_tail_clear"], day),
                     _clock(r["t_off"], day) if r["t_off"] else Styled("held on", "warn"),
-                    _n(r["lead_time_s"], "{:.0f}"),
-                    _n(r["excess_warning_s"], "{:.0f}"),
+                    num_or_dash(r["lead_time_s"], "{:.0f}"),
+                    num_or_dash(r["excess_warning_s"], "{:.0f}"),
                     base,
                     Styled("; ".join(r["violations"]), "unsafe") if r["violations"] else "none",
                 ]
             )
         cols = [("Crossing", False), ("Train", False), ("On", False), ("Head arrival", False)]
         cols += [("Tail clear", False), ("Off", False), ("Lead s", True), ("Excess s", True)]
-        out.append(_table([*cols, ("Baseline", False), ("Violations", False)], rows))
+        out.append(table_block([*cols, ("Baseline", False), ("Violations", False)], rows))
         out.append(Heading(3, "Why the warning came on and went off", "crossing-why"))
         rows = [[r["crossing"], r["train"], r["reason_on"] or "–", r["reason_off"] or "–"] for r in tls]
-        out.append(_table([("Crossing", False), ("Train", False), ("On", False), ("Off", False)], rows))
+        out.append(table_block([("Crossing", False), ("Train", False), ("On", False), ("Off", False)], rows))
         spared = [r for r in tls if r.get("spare")]
         if spared:
             out.append(Heading(3, "Spare warning: physics and doubt", "crossing-spare"))
@@ -516,27 +459,31 @@ def _crossings_part(doc: dict[str, Any]) -> list[Block]:
                     [
                         r["crossing"],
                         r["train"],
-                        _n(r["lead_time_s"], "{:.0f}"),
-                        _n(r["warning_time_s"], "{:.0f}"),
-                        _n(sp["spare_s"], "{:.0f}"),
-                        _n(sp["physics_s"], "{:.0f}"),
-                        _n(sp["doubt_s"], "{:.0f}"),
+                        num_or_dash(r["lead_time_s"], "{:.0f}"),
+                        num_or_dash(r["warning_time_s"], "{:.0f}"),
+                        num_or_dash(sp["spare_s"], "{:.0f}"),
+                        num_or_dash(sp["physics_s"], "{:.0f}"),
+                        num_or_dash(sp["doubt_s"], "{:.0f}"),
                         causes or "–",
                         str(r["released_warnings"]) if r["released_warnings"] else "–",
                     ]
                 )
             cols = [("Crossing", False), ("Train", False), ("Lead s", True), ("Required s", True), ("Spare s", True)]
             cols += [("Physics s", True), ("Doubt s", True), ("Doubt by cause", False), ("Released", True)]
-            out.append(_table(cols, rows))
+            out.append(table_block(cols, rows))
     alarms = [e for e in cr["events"] if e["kind"] == "alarm"]
     if alarms:
         out.append(Heading(3, f"Alarms ({len(alarms)})", "crossing-alarms"))
         rows = [[show_time(e["time"]), e["crossing"], e["train"], e["reason"]] for e in alarms]
-        out.append(_table([("Time", False), ("Crossing", False), ("Train", False), ("Alarm", False)], rows))
+        out.append(table_block([("Time", False), ("Crossing", False), ("Train", False), ("Alarm", False)], rows))
     if cr["trains"]:
         out.append(Heading(3, "Trains followed", "crossing-trains"))
-        rows = [[t["train"], ", ".join(t["head"]), ", ".join(t["eot"]), _n(t["length_m"])] for t in cr["trains"]]
-        out.append(_table([("Train", False), ("Head units", False), ("EOT units", False), ("Length m", True)], rows))
+        rows = [
+            [t["train"], ", ".join(t["head"]), ", ".join(t["eot"]), num_or_dash(t["length_m"])] for t in cr["trains"]
+        ]
+        out.append(
+            table_block([("Train", False), ("Head units", False), ("EOT units", False), ("Length m", True)], rows)
+        )
     out += _integrity_part(cr.get("integrity") or [], day)
     return out
 
@@ -564,7 +511,7 @@ def _integrity_part(timelines: list[dict[str, Any]], day: str | None) -> list[Bl
                 [tl["train"], _clock(ch["time"], day), state, ", ".join(ch["witnesses"]), "; ".join(ch["evidence"])]
             )
     cols = [("Train", False), ("Time", False), ("State", False), ("Witness", False), ("Evidence", False)]
-    out.append(_table(cols, rows))
+    out.append(table_block(cols, rows))
     return out
 
 
@@ -592,10 +539,6 @@ def outline(doc: dict[str, Any]) -> list[Block]:
     for part in (_safety_part, _inputs_part, _devices_part, _passages_part, _sections_part, _health_part):
         blocks += part(doc)
     blocks += _crossings_part(doc)
-    from console.report.trends import trends_part  # it builds on this module's helpers
-
     blocks += trends_part(doc)  # only a report from the archive has them
-    from console.report.forecast import forecast_part
-
     blocks += forecast_part(doc)
     return blocks

@@ -27,17 +27,17 @@ import pandas as pd
 
 from console.analysis.head_table import Heads
 from console.analysis.passages import Columns
-from console.analysis.sections import ResetRecord, Transition
+from console.analysis.section_state import ResetRecord, Transition
 from console.analysis.status import STATUS_KIND
 from console.analysis.stream import take_passages
 from console.analysis.timefmt import iso
 from console.engine.sinks import Sink
 from console.jsonout import valid_unicode
 from console.render.passage_spool import PassageSpool
-from console.render.section_history import SectionsSink, _LedgerText
+from console.render.section_history import LedgerText, SectionsSink
 from console.report.jsonwrite import Rows, Write, indented
 
-TRAIN_KIND = 0  # diagnostics._KINDS.index("train")
+TRAIN_KIND = 0  # diagnostics.PASSAGE_KINDS.index("train")
 # Where the document holds the section history's rows: doc → "sections" → "timeline" / "ledger" → a row.
 ROW_DEPTH = 3
 # What the speed plot reads of a passage besides its head and start, as the spool keeps it.
@@ -98,7 +98,7 @@ def _transition_text(t: Transition) -> str:
 def report_sink(ledger_rows: bool) -> SectionsSink:
     """A sink that spills the history in the report's JSON form; the ledger's rows only when they are listed."""
     return SectionsSink(
-        spill=True, spill_ledger=ledger_rows, timeline_text=_transition_text, ledger_text=_LedgerText(ROW_DEPTH)
+        spill=True, spill_ledger=ledger_rows, timeline_text=_transition_text, ledger_text=LedgerText(ROW_DEPTH)
     )
 
 
@@ -121,7 +121,7 @@ class SpilledRows(Rows):
 
 class LedgerFrameRows(Rows):
     """A count ledger held as a table (the archive's, a whole read's): its JSON written row by row in the
-    form the spill holds (:class:`~console.stream_jobs._LedgerText`), not a dict per axle through json."""
+    form the spill holds (:class:`~console.stream_jobs.LedgerText`), not a dict per axle through json."""
 
     COLUMNS = ("time_ns", "section", "head", "delta", "count")
 
@@ -130,7 +130,7 @@ class LedgerFrameRows(Rows):
         self.ledger = ledger
 
     def _entries(self) -> Iterator[Any]:
-        from console.analysis.sections import LedgerEntry
+        from console.analysis.section_state import LedgerEntry
 
         columns = [self.ledger[c].tolist() for c in self.COLUMNS]
         return (LedgerEntry(t, s, h, d, c) for t, s, h, d, c in zip(*columns, strict=True))
@@ -143,7 +143,7 @@ class LedgerFrameRows(Rows):
         if depth != ROW_DEPTH - 1 or not self.count:
             super().write_json(write, depth)
             return
-        text = _LedgerText(ROW_DEPTH)
+        text = LedgerText(ROW_DEPTH)
         write("[")
         first = True
         for x in self._entries():

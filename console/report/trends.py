@@ -12,7 +12,8 @@ from collections import defaultdict
 from typing import Any
 
 from console.report import plots
-from console.report.outline import Block, Cell, Figure, Heading, Para, _n, _table
+from console.report.blocks import Block, Cell, Figure, Heading, Para, num_or_dash, table_block
+from console.report.model import natural_key
 
 SERIES_PER_PLOT = 8
 PLOTS = {
@@ -77,8 +78,6 @@ def caption(plot: str) -> str:
 
 
 def _natural(text: str) -> tuple[Any, ...]:
-    from console.report.model import natural_key
-
     return natural_key(text)
 
 
@@ -96,7 +95,7 @@ def trends_part(doc: dict[str, Any]) -> list[Block]:
     if axles:
         out.append(Figure("trend-axles"))
         rows: list[list[Cell]] = [[a["day"], str(a["device_id"]), a["counting_head"], f"{a['axles']:,}"] for a in axles]
-        out.append(_table([("Day", False), ("Device", True), ("Head", False), ("Axles", True)], rows))
+        out.append(table_block([("Day", False), ("Device", True), ("Head", False), ("Axles", True)], rows))
     else:
         out.append(Para(("No axles in the window.",)))
     dist = t["disturbances_per_head_per_day"]
@@ -110,14 +109,14 @@ def trends_part(doc: dict[str, Any]) -> list[Block]:
                 d["counting_head"],
                 f"{d['disturbances']:,}",
                 f"{d['readings']:,}",
-                _n(d["hours"], "{:.2f}"),
-                _n(d["per_hour"], "{:.1f}"),
+                num_or_dash(d["hours"], "{:.2f}"),
+                num_or_dash(d["per_hour"], "{:.1f}"),
             ]
             for d in dist
         ]
         cols = [("Day", False), ("Device", True), ("Head", False), ("Disturbances", True), ("Readings", True)]
         note = "Per hour: over the span of the day's counter readings; none under 10 minutes."
-        out.append(_table([*cols, ("Hours", True), ("Per hour", True)], rows, note))
+        out.append(table_block([*cols, ("Hours", True), ("Per hour", True)], rows, note))
     else:
         out.append(Para(("No 1-edge counter readings (Zähler 1-Flanken) in the window.",)))
     analog = t["analog_margin_per_head_per_day"]
@@ -130,10 +129,10 @@ def trends_part(doc: dict[str, Any]) -> list[Block]:
                 a["counting_head"],
                 f"Sys{a['channel']}",
                 f"{a['values']:,}",
-                _n(a["min"], "{:.0f}"),
-                _n(a["max"], "{:.0f}"),
-                f"{_n(a['band_low'], '{:.0f}')}–{_n(a['band_high'], '{:.0f}')} ({a['band']})",
-                _n(a["margin"], "{:.0f}"),
+                num_or_dash(a["min"], "{:.0f}"),
+                num_or_dash(a["max"], "{:.0f}"),
+                f"{num_or_dash(a['band_low'], '{:.0f}')}–{num_or_dash(a['band_high'], '{:.0f}')} ({a['band']})",
+                num_or_dash(a["margin"], "{:.0f}"),
                 f"{a['out_of_band']:,}",
             ]
             for a in analog
@@ -141,7 +140,7 @@ def trends_part(doc: dict[str, Any]) -> list[Block]:
         cols = [("Day", False), ("Head", False), ("Channel", False), ("Values", True), ("Min", True)]
         cols += [("Max", True), ("Band", False), ("Margin", True), ("Out of band", True)]
         note = "Margin: the least distance inside the band that day, in counts; negative when a value left it."
-        out.append(_table(cols, rows, note))
+        out.append(table_block(cols, rows, note))
     else:
         out.append(Para(("No analog receiver values (Analogwert registers) in the window.",)))
     late = t["late_warnings_per_crossing_per_day"]
@@ -149,7 +148,7 @@ def trends_part(doc: dict[str, Any]) -> list[Block]:
     if late:
         out.append(Figure("trend-late"))
         rows = [[w["day"], w["crossing"], f"{w['warnings']:,}", f"{w['late']:,}"] for w in late]
-        out.append(_table([("Day", False), ("Crossing", False), ("Warnings", True), ("Late", True)], rows))
+        out.append(table_block([("Day", False), ("Crossing", False), ("Warnings", True), ("Late", True)], rows))
     else:
         out.append(Para(("No level-crossing warnings in the window.",)))
     return out

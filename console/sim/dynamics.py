@@ -55,7 +55,7 @@ from __future__ import annotations
 import math
 from bisect import bisect_right
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import pairwise
 from typing import Literal, NamedTuple
 
@@ -157,6 +157,20 @@ def seed_001_train() -> TrainModel:
     )
 
 
+def scaled_train(length_m: float) -> TrainModel:
+    """Seed 001's train model scaled to a train of ``length_m``: about 2 t per metre, effort in proportion
+    (the simulator's consists, and a parted train's rear part)."""
+    base = seed_001_train()
+    k = length_m / base.length_m
+    return replace(
+        base,
+        mass_kg=base.mass_kg * k,
+        length_m=length_m,
+        traction=EffortCurve(base.traction.max_force_n * k, base.traction.base_speed_mps),
+        braking=EffortCurve(base.braking.max_force_n * k, base.braking.base_speed_mps),
+    )
+
+
 @dataclass(frozen=True)
 class Segment:
     """A stretch of line with one grade (‰, + uphill in the running direction) and one radius (m)."""
@@ -242,6 +256,10 @@ class LineProfile:
         return self.mean_grade_permille(x_head_m, length_m) + CURVE_RESISTANCE_K_N_PER_KN_M * self.mean_curvature_per_m(
             x_head_m, length_m
         )
+
+
+# The simulator's line: layouts carry no grades or curves yet.
+LEVEL_LINE = LineProfile()
 
 
 class NamedForces(NamedTuple):

@@ -45,9 +45,11 @@ from console.analysis.integrity import (
     IntegrityMonitor,
     IntegritySettings,
 )
-from console.analysis.sections import SectionEngine, SectionState
+from console.analysis.section_state import SectionState
+from console.analysis.sections import SectionEngine
 from console.analysis.timefmt import NS
-from console.layout import Consist, Layout, layout_from_dict
+from console.layout import Layout, layout_from_dict
+from console.sim.dynamics import LEVEL_LINE, TrainState, scaled_train, step
 
 KINDS = ("parted", "whole", "eot_loss")
 RATES_HZ = (2.5, 1.0, 0.5, 0.2, 0.1)
@@ -186,15 +188,11 @@ def make_plan(rng: np.random.Generator, vmax: float, duration_s: float) -> Plan:
 
 def rear_braking(train_len_m: float, v0: float) -> tuple[np.ndarray, np.ndarray]:
     """(distance run, speed) of a parted rear part every DT_S from ``v0`` to a stop, on the force model."""
-    from console.sim.dynamics import LineProfile, TrainState, step
-    from console.sim.station import train_model
-
-    model = train_model(Consist("rear", max(train_len_m, 1.0), (0.0, max(train_len_m, 1.0))))
-    flat = LineProfile([])
+    model = scaled_train(max(train_len_m, 1.0))
     state = TrainState(0.0, v0)
     xs, vs = [0.0], [v0]
     while state.v_mps > 0.0 and len(xs) < 10_000:  # one RK4 step per 0.2 s: a few hundred at most
-        state = step(model, flat, state, -1.0, DT_S)
+        state = step(model, LEVEL_LINE, state, -1.0, DT_S)
         xs.append(state.x_m)
         vs.append(state.v_mps)
     return np.array(xs), np.array(vs)

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from console.sim.station import SentFix, StationSim
-from console.sim.writers import IDENTITY, _diag_line, device_ids, health_rows, nmea_sentences, truth
+from console.sim.writers import IDENTITY, device_ids, diag_line, health_rows, nmea_sentences, truth
 from parsers.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
 
 STEP_WALL_S = 0.1  # a line appears within this of its (scaled) time
@@ -117,7 +117,7 @@ class LiveWriter:
         ids = device_ids(self.sim.layout)
         start = self.sim.cfg.start_ns
         self._write(
-            [_diag_line(ids[h.id], h.id, 1, a, lab, d, start) for h in self.sim.layout.heads for a, lab, d in IDENTITY]
+            [diag_line(ids[h.id], h.id, 1, a, lab, d, start) for h in self.sim.layout.heads for a, lab, d in IDENTITY]
         )
 
     def _write(self, lines: list[str]) -> None:
@@ -140,7 +140,7 @@ class LiveWriter:
             rows += health_rows(self.sim, self._health_done)
             self._health_done = len(self.sim.health_rows)
         rows.sort(key=lambda r: r[0])  # stable: a board's records stay in the order it saw them
-        self._write([_diag_line(ids[h], h, ch, adr, lab, d, t) for t, h, ch, adr, lab, d in rows])
+        self._write([diag_line(ids[h], h, ch, adr, lab, d, t) for t, h, ch, adr, lab, d in rows])
         for f in fixes:
             device = f"{f.train}-{f.role}"
             out = self.nmea.get(device)

@@ -7,7 +7,7 @@ console must see the parting from what the units and counters report).
 
 The rear part is simulated as a train of its own on the force model
 (:mod:`console.sim.dynamics`): the seed-001 train scaled to the rear part's
-length (:func:`console.sim.station.train_model`), full braking command,
+length (:func:`console.sim.dynamics.scaled_train`), full braking command,
 level track.  Where a train parts: between the front and the rear half of
 its axles (for the shipped consists, the coupling between two cars).
 """
@@ -20,6 +20,7 @@ from typing import Any
 
 from console.analysis.timefmt import iso
 from console.layout import Consist
+from console.sim.dynamics import LEVEL_LINE, TrainModel, TrainState, scaled_train, step
 
 
 @dataclass
@@ -71,22 +72,11 @@ def part_consist(consist: Consist, k: int) -> tuple[Consist, Consist]:
 
 def braking_step(consist: Consist, travelled_m: float, v_mps: float, dt_s: float) -> tuple[float, float]:
     """(distance run so far, speed) of a parted rear part after ``dt_s`` more of full braking."""
-    from console.sim.dynamics import TrainState, step
-
-    state = step(_model(consist), _flat(), TrainState(travelled_m, v_mps), -1.0, dt_s)
+    state = step(_model(consist), LEVEL_LINE, TrainState(travelled_m, v_mps), -1.0, dt_s)
     return state.x_m, state.v_mps
 
 
 @functools.cache
-def _model(consist: Consist) -> Any:
-    from console.sim.station import train_model
-
+def _model(consist: Consist) -> TrainModel:
     # A rear part of one axle has no length; the model's mass scales with length.
-    return train_model(Consist(consist.id, max(consist.length_m, 1.0), consist.axles_m, consist.name))
-
-
-@functools.cache
-def _flat() -> Any:
-    from console.sim.dynamics import LineProfile
-
-    return LineProfile([])
+    return scaled_train(max(consist.length_m, 1.0))

@@ -22,8 +22,6 @@ hand).  Each step:
 
 from __future__ import annotations
 
-import dataclasses
-import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -35,10 +33,12 @@ from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingCon
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.geo import TrackProjector
 from console.analysis.integrity import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
-from console.analysis.sections import SectionEngine, SectionState, Transition
+from console.analysis.section_state import SectionState, Transition
+from console.analysis.sections import SectionEngine
 from console.analysis.timefmt import NS
 from console.analysis.wheels import SYS1, SYS2, CountingSettings, HeadCounter
 from console.layout import Consist, Layout
+from console.sim.dynamics import LEVEL_LINE, TrainState, scaled_train
 from console.sim.parting import PartingTruth, braking_step, part_consist, split_axles
 from console.sim.radio import LoRaLink
 from console.sim.slow_faults import SLOW_FAULT_KINDS, HeadHealth, HealthRows, HealthSettings, unit_loss
@@ -736,39 +736,16 @@ def coil_edges(
 CONTROLLERS = ("pid", "fuzzy", "fuzzy-d")
 
 
-def train_model(consist: Consist) -> Any:
-    """Seed 001's train model scaled to a consist: about 2 t per metre, effort in proportion."""
-    from console.sim.dynamics import EffortCurve, seed_001_train
-
-    base = seed_001_train()
-    k = consist.length_m / base.length_m
-    return dataclasses.replace(
-        base,
-        mass_kg=base.mass_kg * k,
-        length_m=consist.length_m,
-        traction=EffortCurve(base.traction.max_force_n * k, base.traction.base_speed_mps),
-        braking=EffortCurve(base.braking.max_force_n * k, base.braking.base_speed_mps),
-    )
-
-
 def ato_motion(tr: SimTrain, target_mps: float, dt_s: float, cfg: SimConfig) -> tuple[float, float]:
     """The train under its ATO controller on the force model (seed 001), on a level, straight line."""
     from console.sim.ato import Driver
-    from console.sim.dynamics import TrainState
 
     if tr.driver is None:
-        tr.driver = Driver(train_model(tr.consist), tr.controller)
-    state = tr.driver.step(_flat_line(), TrainState(tr.travelled_m, tr.v_mps), target_mps, dt_s)
+        tr.driver = Driver(scaled_train(tr.consist.length_m), tr.controller)
+    state = tr.driver.step(LEVEL_LINE, TrainState(tr.travelled_m, tr.v_mps), target_mps, dt_s)
     step_m = state.x_m - tr.travelled_m
     tr.travelled_m = state.x_m
     return tr.x_m + tr.direction * step_m, state.v_mps
-
-
-@functools.cache
-def _flat_line() -> Any:
-    from console.sim.dynamics import LineProfile
-
-    return LineProfile([])  # layouts carry no grades or curves yet
 
 
 def kinematic_motion(tr: SimTrain, target_mps: float, dt_s: float, cfg: SimConfig) -> tuple[float, float]:

@@ -62,7 +62,8 @@ def _naive(t_ns: int) -> dt.datetime:
 TIME_RESOLUTIONS = {"us": 1_000, "ms": 1_000_000, "s": NS}
 
 
-def _diag_line(device: int, head: str, ch: int, adr: str, label: str, data: str, t_ns: int, res: str = "us") -> str:
+def diag_line(device: int, head: str, ch: int, adr: str, label: str, data: str, t_ns: int, res: str = "us") -> str:
+    """One diagnostic record line as a board writes it, its time at resolution ``res`` (us, ms or s)."""
     t = _naive(t_ns)
     frac = {"us": f".{t:%f}", "ms": f".{t.microsecond // 1000:03d}", "s": ""}[res]
     return (
@@ -135,7 +136,7 @@ def write_diagnostic(
     lines = []
     for i in order.tolist():
         t, head, ch, adr, label, data = rows[i]
-        lines.append(_diag_line(ids[head], head, ch, adr, label, data, t, res[head]))
+        lines.append(diag_line(ids[head], head, ch, adr, label, data, t, res[head]))
     if fast and sim.health_rows:
         # Weeks of hundreds of heads: the health registers formatted as columns, merged in by time
         # (a stable merge: at equal times the other records first, as the sort above puts them).
@@ -150,7 +151,7 @@ def write_diagnostic(
 
 
 def health_lines(sim: StationSim, ids: dict[str, int]) -> tuple[list[int], list[str]]:
-    """The health registers as diagnostic lines with microsecond times (as :func:`_diag_line` writes
+    """The health registers as diagnostic lines with microsecond times (as :func:`diag_line` writes
     them), in time order: one prefix per head, channel and register, the times formatted by numpy."""
     from console.sim.slow_faults import REGISTERS, HealthRows
 

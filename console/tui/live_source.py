@@ -16,7 +16,8 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from console.analysis.crossing import CrossingController
-from console.analysis.sections import SectionEngine, SectionState, Transition
+from console.analysis.section_state import SectionState, Transition
+from console.analysis.sections import SectionEngine
 from console.layout import Layout
 from console.live.engine import LiveEngine
 from console.sources.base import Item, Source, SourceStatus

@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from console.analysis.crossing import CrossingController
-from console.analysis.sections import SectionEngine, SectionState, Transition
+from console.analysis.section_state import SectionState, Transition
+from console.analysis.sections import SectionEngine
 from console.analysis.timefmt import NS, display
 from console.layout import Layout
 

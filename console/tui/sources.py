@@ -10,7 +10,8 @@ from typing import TYPE_CHECKING
 from console.analysis.crossing import ControllerSettings, CrossingController, CrossingEvent, Fix, TrainSpec
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.integrity import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor
-from console.analysis.sections import SectionEngine, SectionState, Transition
+from console.analysis.section_state import SectionState, Transition
+from console.analysis.sections import SectionEngine
 from console.layout import Layout
 from console.sim.station import Fault, SimConfig, StationSim
 from console.tui.model import NS, LogEntry, TrainView
