@@ -27,9 +27,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Final, Literal
 
-from parsers import gnss_packets as packets
-from parsers.gnss_headers import parse_centre_header, parse_device_header
-from parsers.gnss_lines import open_gnss_stream
+from parsers.gnss import packets
+from parsers.gnss.headers import parse_centre_header, parse_device_header
+from parsers.gnss.lines import open_gnss_stream
 
 Kind = Literal[
     "diag", "nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre", "frames", "can", "voltages", "empty", "unknown"
@@ -139,7 +139,7 @@ def classify_head(head: bytes) -> KindGuess:
         except ValueError:
             continue
         return KindGuess(kind, "its header")
-    from parsers.frames import frame_line_problem
+    from parsers.frames.sensor import frame_line_problem
 
     if len(text.split()) in (3, 4) and frame_line_problem(text) is None:
         return KindGuess("frames", "frame lines")

@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 
 from benchmarks.forecast_heads import Plan, plan, score
 from console.analysis.forecast import DAY_NS, FIGURES, ForecastSettings, Series, due_list, forecast, forecasts
-from console.cli import app
+from console.cli.app import app
 
 runner = CliRunner()
 TRACKSIDE = str(Path(sys.executable).with_name("trackside"))

@@ -311,7 +311,7 @@ def test_a_report_on_diagnostic_logs_loads_no_frame_can_or_gnss_parser(tmp_path:
     code = (
         "import sys; from pathlib import Path; from console.report import run_report; "
         f"run_report([Path({str(SAMPLES[0])!r})], 'example', 'md', Path({str(tmp_path / 'r.md')!r}), None); "
-        "print(sorted(m for m in ('can', 'shapely', 'parsers.frames', 'parsers.gnss') if m in sys.modules))"
+        "print(sorted(m for m in ('can', 'shapely', 'parsers.frames.sensor', 'parsers.gnss.centre') if m in sys.modules))"
     )
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert res.returncode == 0, res.stderr

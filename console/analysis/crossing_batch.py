@@ -1,6 +1,6 @@
 """Run the crossing controllers over a table of GNSS fixes (batch).
 
-Fixes (from :mod:`parsers.gnss`) are grouped into trains — a train is a head
+Fixes (from :mod:`parsers.gnss.centre`) are grouped into trains — a train is a head
 unit and an EOT unit, paired by the caller or, with one of each, by their
 roles — projected onto the layout's track, and fed to one controller per
 level crossing in time order.  Fixes far from the track are set aside and

@@ -35,9 +35,9 @@ from typing import Any
 
 import numpy as np
 
-from console.analysis.crossing import EOT, HEAD, NS, ControllerSettings, CrossingController, Fix
+from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, Fix
 from console.analysis.crossing_spare import SpareSplit, head_motion, split_spare
-from console.analysis.timefmt import iso
+from console.analysis.timefmt import NS, iso
 
 
 @dataclass(frozen=True)

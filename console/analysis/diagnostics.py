@@ -21,7 +21,6 @@ from console.analysis.inventory import DeviceInventory
 from console.analysis.overlap import fingerprints, overlap_mask
 from console.analysis.passages import (
     AXLES_UNKNOWN_REASONS,
-    NS,
     Columns,
     axles_unknown_codes,
     bucket_index,
@@ -32,7 +31,7 @@ from console.analysis.passages import (
 )
 from console.analysis.registers import RegisterTables, inventory
 from console.analysis.speed import MPS_TO_KMH
-from console.analysis.timefmt import exact_ns, iso_array
+from console.analysis.timefmt import NS, exact_ns, iso_array
 from console.analysis.wheels import (
     DIRECTION_12,
     DIRECTION_21,
@@ -42,7 +41,8 @@ from console.analysis.wheels import (
     axles_frame,
     pair_axle_arrays,
 )
-from parsers.diag import DiagChunk, DiagRegistry
+from parsers.diag.read import DiagChunk
+from parsers.diag.registry import DiagRegistry
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -38,7 +38,8 @@ from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSet
 from console.analysis.head_table import HeadTable
 from console.analysis.passages import Columns, merge_buckets
 from console.analysis.timefmt import NS
-from parsers.diag import DiagChunk, DiagRegistry
+from parsers.diag.read import DiagChunk
+from parsers.diag.registry import DiagRegistry
 
 ORDER_SLACK_S = 2.0
 NO_TIME = np.iinfo(np.int64).min

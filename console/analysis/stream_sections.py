@@ -59,7 +59,7 @@ from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.timefmt import NS
 from console.layout import CountingHead, Layout
 
-__all__ = ["ALL_TIME", "EventStream", "HeadFacts"]
+__all__ = ["EventStream", "HeadFacts"]
 
 # Held groups: a head's counting events come before its power events at equal times (batch order).
 _COUNTING, _POWER = 0, 1

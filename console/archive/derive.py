@@ -61,11 +61,11 @@ from console.archive.store import DATA, Manifest
 from console.archive.views import connect
 from console.engine.pipeline import Pipeline, PipelineSettings
 from console.engine.sinks import Sink
-from parsers.diag import DiagRegistry
+from parsers.diag.registry import DiagRegistry
 
 if TYPE_CHECKING:
     from console.layout import Layout
-    from parsers.diag import DiagChunk
+    from parsers.diag.read import DiagChunk
 
 # Written by the pipeline as records are fed (committed, or the tail of the last ingest).
 STREAMED = ("passages", "axles", "section_states", "count_ledger", "channel_events")

@@ -26,7 +26,7 @@ from console.engine.sinks import Sink, Sinks
 from console.layout import Layout
 from console.render.event_lines import health_event, section_event
 from console.render.passage_spool import passage_texts
-from parsers.diag import DiagReader
+from parsers.diag.read import DiagReader
 from parsers.report import FileReport
 
 if TYPE_CHECKING:

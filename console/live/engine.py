@@ -15,13 +15,13 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from console.analysis.diagnostics import SpeedSettings
+from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote
 from console.layout import Layout
 from console.live.archive import LiveArchiver
 from console.live.crossings import CrossingFollow
 from console.live.diag import DiagFollow
 from console.live.frames import FrameFollow
 from console.live.integrity import IntegrityFollow
-from console.sources.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote
 
 Emit = Callable[[dict[str, Any]], None]
 TICK_S = 0.5  # crossing units' clock and the idle wake-up: two a second is nothing for the CPU

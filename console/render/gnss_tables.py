@@ -1,6 +1,6 @@
 """GNSS fixes for people and for machines: Rich tables (80 columns) and a JSON document.
 
-Times in the fix table are UTC (``parsers.nmea``); they are shown as UTC and
+Times in the fix table are UTC (``parsers.gnss.nmea``); they are shown as UTC and
 written as ISO 8601 with ``Z``.  Everything that came from a log (device
 ids, file names) goes through :func:`console.safe_text.inert`.
 """
@@ -19,7 +19,7 @@ from rich.text import Text
 from console.analysis.timefmt import display, iso, iso_array
 from console.jsonout import JSONParts, encode
 from console.safe_text import inert
-from parsers.fix_table import FIX_QUALITIES, NAT_NS, ROLES, SOURCES, FixColumns, sentence_name
+from parsers.gnss.fix_table import FIX_QUALITIES, NAT_NS, ROLES, SOURCES, FixColumns, sentence_name
 from parsers.report import ParseReport
 
 if TYPE_CHECKING:

@@ -14,7 +14,7 @@ UTF-16 are seen through), in this order:
 * ``<ISO time> <sensor> <frame>`` → intelligent-sensor frames;
 * a header naming sensor, in-phase and anti-phase voltages → a voltage table;
 * NMEA, device CSV / JSON lines, GPX tracks, or the monitoring-centre table → GNSS
-  (:func:`parsers.gnss.recognise_format`);
+  (:func:`parsers.gnss_files.recognise_format`);
 * anything else, and empty files, are listed as not read, with the reason.
 
 A directory is read whole, recursively, in sorted order; entries whose
@@ -146,8 +146,8 @@ def recognise(path: Path) -> tuple[str, str]:
     if suffix in (".asc", ".blf", ".trc") or (suffix == ".log" and first.startswith(b"(")):
         return CAN, ""
     # Imported here: a report on diagnostic logs never loads the frame, CAN and GNSS parsers (memory).
-    from parsers.frames import frame_line_problem
-    from parsers.gnss import recognise_format
+    from parsers.frames.sensor import frame_line_problem
+    from parsers.gnss_files import recognise_format
 
     text = first.decode("utf-8", errors="replace")
     if len(text.split()) in (3, 4) and frame_line_problem(text) is None:
@@ -424,7 +424,8 @@ def diag_into_report(
 def _frames(data: ReportData, text_files: list[Path], can_files: list[Path]) -> None:
     if not text_files and not can_files:
         return
-    from parsers.frames import count_frames_only, parse_can, parse_frames
+    from parsers.frames.can import count_frames_only, parse_can
+    from parsers.frames.sensor import parse_frames
 
     tables: list[pd.DataFrame] = []
     if text_files:
@@ -482,7 +483,7 @@ def _crossings(data: ReportData, gnss: list[Path]) -> None:
     if not gnss:
         data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."
         return
-    from parsers.gnss import parse_gnss
+    from parsers.gnss_files import parse_gnss
 
     fixes, report, _states = parse_gnss(gnss)
     data.reports["gnss"] = report

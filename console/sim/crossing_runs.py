@@ -27,7 +27,6 @@ import numpy as np
 from console.analysis.crossing import (
     EOT,
     HEAD,
-    NS,
     ControllerSettings,
     CrossingController,
     Fix,
@@ -37,6 +36,7 @@ from console.analysis.crossing import (
 from console.analysis.crossing_oracle import earliest_arrival_vec, oracle_onset_ns
 from console.analysis.crossing_timeline import timeline
 from console.analysis.geo import TrackProjector
+from console.analysis.timefmt import NS
 from console.layout import Layout, LevelCrossing
 
 SCENARIOS = ("through", "stop_before", "stop_on_crossing", "crawl", "stop_far")

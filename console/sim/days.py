@@ -14,7 +14,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from console.sim.station import NS, StationSim
+from console.analysis.timefmt import NS
+from console.sim.station import StationSim
 from console.sim.writers import layout_text, write_logs, write_truth
 
 DAY_S = 86_400.0

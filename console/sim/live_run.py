@@ -22,7 +22,7 @@ from typing import IO, Any
 
 from console.sim.station import SentFix, StationSim
 from console.sim.writers import IDENTITY, device_ids, diag_line, health_rows, nmea_sentences, truth
-from parsers.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
+from parsers.gnss.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
 
 STEP_WALL_S = 0.1  # a line appears within this of its (scaled) time
 

@@ -36,10 +36,10 @@ from typing import Any
 
 import numpy as np
 
-from console.analysis.timefmt import iso
+from console.analysis.timefmt import NS, iso
 from console.layout import BUILTIN, Layout
-from console.sim.station import NS, StationSim
-from parsers.frames import CHECK_BYTE, encode_status
+from console.sim.station import StationSim
+from parsers.frames.table import CHECK_BYTE, encode_status
 
 CENTRE_PERIOD_S = 10.0
 IDENTITY = [
