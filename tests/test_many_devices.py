@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from console.analysis.timefmt import NS
 from console.analysis.wheels import SYS1, SYS2, PairingSettings, pair_axle_arrays, stamp_resolution_s
+from parsers.units import NS
 
 
 def _pair_head_by_head(onsets: dict[str, np.ndarray], s: PairingSettings) -> tuple[dict[str, np.ndarray], int]:

@@ -31,7 +31,7 @@ from console.analysis.passages import (
 )
 from console.analysis.registers import RegisterTables, inventory
 from console.analysis.speed import MPS_TO_KMH
-from console.analysis.timefmt import NS, exact_ns, iso_array
+from console.analysis.timefmt import exact_ns, iso_array
 from console.analysis.wheels import (
     DIRECTION_12,
     DIRECTION_21,
@@ -43,6 +43,7 @@ from console.analysis.wheels import (
 )
 from parsers.diag.read import DiagChunk
 from parsers.diag.registry import DiagRegistry
+from parsers.units import NS
 
 if TYPE_CHECKING:
     import pandas as pd

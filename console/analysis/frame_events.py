@@ -32,8 +32,8 @@ import numpy as np
 import pandas as pd
 
 from console.analysis.events import DOWN, UNKNOWN, UP, DetectionEvent, EventKind, sort_events
-from console.analysis.timefmt import NS
 from parsers.frames.table import check_byte_mask
+from parsers.units import NS
 
 COUNT_MODULO = 256  # byte 2 is one byte: a long train's count wraps 255 → 0
 # A fall from this high to this low is the byte wrapping, not the count going back.

@@ -50,14 +50,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from console.analysis.counting import ALL_TIME, CounterBank
+from console.analysis.counting import CounterBank
 from console.analysis.counting_holds import NONE
 from console.analysis.diag_events import DiagEventSettings, power_gap_columns
 from console.analysis.event_block import EventBlock, StringPool
 from console.analysis.event_queue import EventQueue
 from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.timefmt import NS
 from console.layout import CountingHead, Layout
+from parsers.units import ALL_TIME, NS
 
 __all__ = ["EventStream", "HeadFacts"]
 

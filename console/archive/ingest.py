@@ -27,16 +27,7 @@ import pyarrow as pa
 from console import __version__
 from console.archive import ledger
 from console.archive.derive import Derivation
-from console.archive.parts import (
-    COMPACT_MAX_ROWS,
-    NS_PER_DAY,
-    PartWriter,
-    compact,
-    part_rows,
-    read_part,
-    write_part,
-    write_small,
-)
+from console.archive.parts import COMPACT_MAX_ROWS, PartWriter, compact, part_rows, read_part, write_part, write_small
 from console.archive.records import RecordEncoder
 from console.archive.store import (
     TMP,
@@ -49,6 +40,7 @@ from console.archive.store import (
     writer_lock,
 )
 from parsers.report import ParseReport
+from parsers.units import NS_PER_DAY
 
 # Kinds the archive stores, by the report's recognition (console.report.collect.recognise).
 DIAGNOSTIC = "diagnostic"

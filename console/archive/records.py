@@ -18,10 +18,12 @@ from parsers.diag.fields import DATA_KINDS, RegisterKey
 from parsers.diag.read import DiagChunk
 from parsers.diag.registry import DiagRegistry
 
-# Columns stored in the record parts; day and device_id are the partition keys (in the path).
-RECORD_FIELDS = (
+# The archive's record columns as read back: the parser's RECORD_COLUMNS with label_encoding and file_seq.
+# day and device_id are the partition keys (in the path): the parts store the others (RECORD_FIELDS).
+ARCHIVED_RECORD_COLUMNS = (
     "time",
     "diag_id",
+    "device_id",
     "device",
     "type",
     "gs",
@@ -39,6 +41,7 @@ RECORD_FIELDS = (
     "file_seq",
     "line",
 )
+RECORD_FIELDS = tuple(c for c in ARCHIVED_RECORD_COLUMNS if c != "device_id")
 REGISTER_COLUMNS = (
     "diag_id",
     "device_id",

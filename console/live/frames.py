@@ -47,12 +47,13 @@ from console.analysis.frame_events import frames_to_events
 from console.analysis.health import channel_fault_findings
 from console.analysis.section_state import SectionState, Transition
 from console.analysis.sections import SectionEngine
-from console.analysis.timefmt import NS, iso
+from console.analysis.timefmt import iso
 from console.inputs.base import CanFrame, FrameRows
 from console.layout import Layout
 from parsers.frames.can import COUNT_DLC, COUNT_ID_BASE, NODE_MAX, NODE_MIN, default_sensor_name
 from parsers.frames.table import CHECK_BYTE, DER_BIT, check_byte_mask, decode_status
 from parsers.report import escape_text
+from parsers.units import NS
 
 Emit = Callable[[dict[str, Any]], None]
 MAX_BUFFERED = 4096  # frames held between flushes (a burst is analysed in blocks of this size)

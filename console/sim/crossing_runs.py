@@ -36,8 +36,8 @@ from console.analysis.crossing import (
 from console.analysis.crossing_oracle import earliest_arrival_vec, oracle_onset_ns
 from console.analysis.crossing_timeline import timeline
 from console.analysis.geo import TrackProjector
-from console.analysis.timefmt import NS
 from console.layout import Layout, LevelCrossing
+from parsers.units import NS
 
 SCENARIOS = ("through", "stop_before", "stop_on_crossing", "crawl", "stop_far")
 # A train leaving a stop runs up to the line speed at most (the line speed the crossing unit is told);

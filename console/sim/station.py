@@ -35,13 +35,13 @@ from console.analysis.geo import TrackProjector
 from console.analysis.integrity import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
 from console.analysis.section_state import SectionState, Transition
 from console.analysis.sections import SectionEngine
-from console.analysis.timefmt import NS
 from console.analysis.wheels import SYS1, SYS2, CountingSettings, HeadCounter
 from console.layout import Consist, Layout
 from console.sim.dynamics import LEVEL_LINE, TrainState, scaled_train
 from console.sim.parting import PartingTruth, braking_step, part_consist, split_axles
 from console.sim.radio import LoRaLink
 from console.sim.slow_faults import SLOW_FAULT_KINDS, HeadHealth, HealthRows, HealthSettings, unit_loss
+from parsers.units import NS
 
 DETECTION_ZONE_M = 0.25  # a wheel damps a coil over this length of travel
 ENTRY_ROOM_M = 400.0  # a new train enters only this far behind the tail of the one before it

@@ -36,10 +36,11 @@ from typing import Any
 
 import numpy as np
 
-from console.analysis.timefmt import NS, iso
+from console.analysis.timefmt import iso
 from console.layout import BUILTIN, Layout
 from console.sim.station import StationSim
 from parsers.frames.table import CHECK_BYTE, encode_status
+from parsers.units import NS
 
 CENTRE_PERIOD_S = 10.0
 IDENTITY = [

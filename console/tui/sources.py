@@ -12,10 +12,10 @@ from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.integrity import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor
 from console.analysis.section_state import SectionState, Transition
 from console.analysis.sections import SectionEngine
-from console.analysis.timefmt import NS
 from console.layout import Layout
 from console.sim.station import Fault, SimConfig, StationSim
 from console.tui.model import LogEntry, TrainView
+from parsers.units import NS
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 from parsers.diag.labels import canonical_label, decode_label
 from parsers.report import escape_text
+from parsers.units import NS, NS_PER_DAY
 
 FIELD_KEYS = (
     "Diag_id",
@@ -32,7 +33,6 @@ FIELD_KEYS = (
 )
 REGISTER_FIELDS = FIELD_KEYS[:9]
 
-_NS = 1_000_000_000
 
 _INT_RE = re.compile(r"-?\d+")
 _HEX_RE = re.compile(r"0[xX][0-9A-Fa-f]{1,16}")
@@ -181,7 +181,7 @@ def decode_date(raw: bytes) -> int:
         # Times are int64 ns (pandas' range): a year 0001 or 9999, or a bit
         # flipped in the year, would overflow the whole read.
         raise FieldError("Date", f"Date: date out of range '{text}' (times hold {_FIRST_DAY} to {_LAST_DAY})")
-    return (day - _EPOCH).days * 86400 * _NS
+    return (day - _EPOCH).days * NS_PER_DAY
 
 
 _TIME_RE = re.compile(r"(\d{2}):(\d{2}):(\d{2})(?:\.(\d{1,9}))?")
@@ -204,4 +204,4 @@ def parse_time(raw: bytes) -> tuple[int, bool]:
     if hh > 23 or mm > 59 or ss > 59:
         raise FieldError("Time", f"Time: impossible time '{text}'")
     frac = m[4] or ""
-    return ((hh * 60 + mm) * 60 + ss) * _NS + (int(frac.ljust(9, "0")) if frac else 0), bool(frac)
+    return ((hh * 60 + mm) * 60 + ss) * NS + (int(frac.ljust(9, "0")) if frac else 0), bool(frac)

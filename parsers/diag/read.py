@@ -53,6 +53,7 @@ from parsers.sources import (
     iter_chunks,
     open_input,
 )
+from parsers.units import NS
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -65,7 +66,6 @@ __all__ = ["DiagChunk", "DiagReader", "chunks_to_frame", "read_diag"]
 _VIEW_INLINE_MAX = 12
 _VIEW = np.dtype([("len", "<i4"), ("prefix", "<u4"), ("buf", "<i4"), ("off", "<i4")])
 _TIME_KEY = int.from_bytes(b"Time:", "little")
-_NS = 1_000_000_000
 _POW10 = np.array([10**k for k in range(10)], dtype=np.int64)
 
 
@@ -259,7 +259,7 @@ def _tokenize(chunk: Chunk) -> _Tokens:
     mm = ((pairs >> np.uint64(24)) & np.uint64(0xFF)).astype(np.int64)
     ss = ((pairs >> np.uint64(48)) & np.uint64(0xFF)).astype(np.int64)
     time_ok &= (hh < 24) & (mm < 60) & (ss < 60)
-    tod = ((hh * 60 + mm) * 60 + ss) * _NS
+    tod = ((hh * 60 + mm) * 60 + ss) * NS
     n_frac = np.where((tlen >= 15) & (tlen <= 23), tlen - 14, 0)
     subsecond = n_frac > 0
     if subsecond.any():

@@ -39,6 +39,7 @@ from parsers.frames.table import CHECK_BYTE, DER_BIT, FRAME_COLUMNS, FrameColumn
 from parsers.frames.trc import ResumedTRCReader, check_trc_header, classify_unread, version_name
 from parsers.report import FileReport, ParseReport
 from parsers.sources import InputError, OverlongLine, ReadFailure, iter_chunks, open_input
+from parsers.units import NS
 
 COUNT_ID_BASE = 0x180  # standard id 0x180 + node = count frame of sensor node 1..127
 NODE_MIN, NODE_MAX = 1, 127
@@ -49,7 +50,6 @@ CAN_COLUMNS = (*FRAME_COLUMNS, "total", "seq", "can_id", "kind", "extended", "dl
 
 MAX_CAN_LINE_CHARS = 1024  # an ASC CAN FD line with 64 data bytes is about 400
 _MAX_LINE_BYTES = 64 << 10  # lines beyond this are never held whole in memory
-_NS = 1_000_000_000
 _EPOCH = dt.datetime(1970, 1, 1)
 # Frame times outside these years are not times (and would overflow 64-bit nanoseconds).
 _TIME_MIN_NS = (dt.datetime(1900, 1, 1) - _EPOCH) // dt.timedelta(microseconds=1) * 1000
@@ -116,7 +116,7 @@ _BLF_HEADER = struct.Struct("<4sLBBBBBBBBQQLL8H8H")
 
 def _wall_ns(t: dt.datetime) -> int:
     delta = t - _EPOCH
-    return (delta.days * 86400 + delta.seconds) * _NS + delta.microseconds * 1000
+    return (delta.days * 86400 + delta.seconds) * NS + delta.microseconds * 1000
 
 
 def asc_wall_clock_ns(when: str) -> int | None:

@@ -56,9 +56,10 @@ from pysbf2 import SBFReader
 from pyubx2 import UBX_MSGIDS, UBXReader
 
 from parsers.gnss import packets
+from parsers.units import NS_PER_DAY
 
 GPS_EPOCH_NS: Final = 315_964_800 * 1_000_000_000  # 1980-01-06T00:00:00Z
-WEEK_NS: Final = 7 * 86_400 * 1_000_000_000
+WEEK_NS: Final = 7 * NS_PER_DAY
 WEEK_MS: Final = 7 * 86_400 * 1000
 _MS_NS = 1_000_000
 _EPOCH = dt.datetime(1970, 1, 1)

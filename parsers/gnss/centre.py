@@ -84,7 +84,6 @@ CROSSING_STATES = ("warning", "normal", "disconnected")
 
 _PEEK_BYTES = 64 * 1024
 
-_NS = 1_000_000_000
 _EPOCH = dt.date(1970, 1, 1)
 
 _STATE_ALIASES = {

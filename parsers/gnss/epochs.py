@@ -53,11 +53,11 @@ from pynmeagps.nmeahelpers import leapsecond
 from parsers.gnss.binary import FROM_ECEF, GIVEN, GPS_EPOCH_NS, WEEK_MS, WEEK_NS, Part, ground_velocity
 from parsers.gnss.fix_table import NAT_NS, FixRows
 from parsers.gnss.nmea import DeviceClock
+from parsers.units import NS
 
 OPEN_WINDOW_MS: Final = 2000
 MAX_OPEN: Final = 64
 _MS_NS = 1_000_000
-_S_NS = 1_000_000_000
 # Ranks of what gave a row's time: none, GPS time less a leap-second count, the receiver's UTC.
 _NO_TIME, _GPS_TIME, _UTC_TIME = 0, 1, 2
 _BINARY_SOURCES = ("ubx", "sbf")
@@ -103,7 +103,7 @@ def _contradicts(ep: _Epoch, rank: int, time_ns: int, gps_ns: int | None) -> boo
     """Whether a part's time says it is not of the epoch that has its time of week."""
     if rank == _UTC_TIME and ep.time_rank == _UTC_TIME:
         return time_ns != ep.time_ns
-    return gps_ns is not None and ep.gps_ns is not None and abs(gps_ns - ep.gps_ns) > _S_NS // 2
+    return gps_ns is not None and ep.gps_ns is not None and abs(gps_ns - ep.gps_ns) > NS // 2
 
 
 def _round_ms(ns: int) -> int:
@@ -156,7 +156,7 @@ class BinaryEpochs:
         elif part.utc_ns is not None and part.itow_ms is not None:
             # A UTC time and a time of week: the week they are in (to time the epochs that give only the latter).
             leap = part.leap_s if part.leap_s is not None else bc.leap_s
-            utc_as_gps_ns = part.utc_ns + (leap if leap is not None else _published_leap_s(part.utc_ns)) * _S_NS
+            utc_as_gps_ns = part.utc_ns + (leap if leap is not None else _published_leap_s(part.utc_ns)) * NS
             bc.week = round((utc_as_gps_ns - GPS_EPOCH_NS - part.itow_ms * _MS_NS) / WEEK_NS)
             bc.week_itow_ms = part.itow_ms
         if part.leap_s is not None:
@@ -233,7 +233,7 @@ class BinaryEpochs:
     @staticmethod
     def _utc_of(bc: BinaryClock, gps_ns: int) -> int:
         leap = bc.leap_s if bc.leap_s is not None else _published_leap_s(gps_ns)
-        return _round_ms(gps_ns - leap * _S_NS)
+        return _round_ms(gps_ns - leap * NS)
 
     def _redate(self, rows: FixRows, bc: BinaryClock) -> None:
         """A (new) leap-second count: the open epochs timed by GPS time take it."""

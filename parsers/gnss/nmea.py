@@ -90,6 +90,7 @@ from pynmeagps import NMEA_MSGIDS, NMEA_TALKERS
 from pynmeagps.nmeahelpers import date2utc, dmm2ddd, time2utc
 
 from parsers.gnss.fix_table import NAT_NS
+from parsers.units import NS, NS_PER_DAY
 
 __all__ = [
     "DeviceClock",
@@ -104,8 +105,6 @@ __all__ = [
 KNOT_MPS = 1852 / 3600  # 1 international knot = 1852 m per hour, exactly
 KMH_MPS = 1000 / 3600
 
-_NS = 1_000_000_000
-_DAY_NS = 86_400 * _NS
 _EPOCH = dt.date(1970, 1, 1)
 
 # Payload fields (after the address) a complete sentence has, and the fewest
@@ -193,11 +192,11 @@ class DeviceClock:
         day = self.day
         if self.day_tod_ns is not None:
             # Past midnight since the date was given: the next day (and the reverse).
-            if tod_ns < self.day_tod_ns - _DAY_NS // 2:
+            if tod_ns < self.day_tod_ns - NS_PER_DAY // 2:
                 day += dt.timedelta(days=1)
-            elif tod_ns > self.day_tod_ns + _DAY_NS // 2:
+            elif tod_ns > self.day_tod_ns + NS_PER_DAY // 2:
                 day -= dt.timedelta(days=1)
-        return (day - _EPOCH).days * _DAY_NS + tod_ns
+        return (day - _EPOCH).days * NS_PER_DAY + tod_ns
 
 
 @dataclass
@@ -229,7 +228,7 @@ def _tod_ns(value: Any, raw: str) -> int | None:
         return None
     if not isinstance(value, dt.time):
         raise SentenceError("field", f"time field '{raw}' is not hhmmss[.ss]")
-    return ((value.hour * 60 + value.minute) * 60 + value.second) * _NS + value.microsecond * 1000
+    return ((value.hour * 60 + value.minute) * 60 + value.second) * NS + value.microsecond * 1000
 
 
 def _date(value: Any, raw: str, what: str = "date field") -> dt.date | None:

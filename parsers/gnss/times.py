@@ -5,7 +5,8 @@ from __future__ import annotations
 import datetime as dt
 import re
 
-_NS = 1_000_000_000
+from parsers.units import NS
+
 _EPOCH = dt.date(1970, 1, 1)
 # Years a datetime64[ns] holds (1677-09-21 … 2262-04-11), whole years only.
 FIRST_YEAR, LAST_YEAR = 1678, 2261
@@ -39,7 +40,7 @@ def parse_time_ns(text: str, utc_offset_h: float = 0.0) -> int:
     h, mi, sec = int(hh), int(mm), int(ss)
     if h > 23 or mi > 59 or sec > 60:
         raise ValueError(f"'{s}': no such time of day")
-    ns = ((days * 24 + h) * 60 + mi) * 60 * _NS + sec * _NS + (int(frac.ljust(9, "0")) if frac else 0)
+    ns = ((days * 24 + h) * 60 + mi) * 60 * NS + sec * NS + (int(frac.ljust(9, "0")) if frac else 0)
     if zone is None:
         offset_s = round(utc_offset_h * 3600)
     elif zone.upper() == "Z":
@@ -47,4 +48,4 @@ def parse_time_ns(text: str, utc_offset_h: float = 0.0) -> int:
     else:
         digits = zone[1:].replace(":", "")
         offset_s = (int(digits[:2]) * 3600 + int(digits[2:4] or 0) * 60) * (1 if zone[0] == "+" else -1)
-    return ns - offset_s * _NS
+    return ns - offset_s * NS
