@@ -1,8 +1,8 @@
 """The `trackside` command line: assembles the Typer app from console.cli.commands.
 
 Each command lives in its own module under ``console/cli/commands/``; what they
-share (option types, one-line errors, the guard) is in
-``console/cli/common.py``.  Exit codes: 0 ok, 1 findings (``--strict``,
+share is in ``console/cli/options.py`` (option types) and
+``console/cli/common.py`` (one-line errors, the guard).  Exit codes: 0 ok, 1 findings (``--strict``,
 ``--fail-on``), 2 usage errors and unreadable inputs (one line on stderr,
 never a traceback).
 """
