@@ -37,11 +37,6 @@ def crossing(
     the spare split into physics (what the unit's bounds cost even knowing the motion, judged in
     hindsight from all the fixes) and doubt (no speed, stale units, jumps, sparse fixes).  A
     warning released before the train arrived (proven out of reach) is counted.
-
-    \b
-    Examples:
-      trackside crossing sample_logs/crossing_example.csv --layout example
-      trackside crossing head.nmea eot.nmea --layout line.toml --train T1=head1,eot1,120 --json
     """
 
     def body() -> int:
