@@ -4,7 +4,7 @@ A :class:`PartWriter` takes Arrow tables for one archive table, splits them
 by partition (one stable sort and one take per table added, no loop per
 row), and appends each partition's rows to one open Parquet file: at most
 one part per partition per ingest, rows appended across the parser's
-chunks.  Memory is bounded by :data:`BUFFER_BYTES` of buffered rows in all:
+chunks.  Memory is bounded by :data:`BUFFER_BYTES` (or the writer's ``buffer_bytes``) of buffered rows in all:
 past it, every partition's rows are written out as a row group (so a
 partition that gets a few rows per chunk cannot pin the chunks it came
 from).  The buffered pieces share one dictionary per column
@@ -202,8 +202,10 @@ class PartWriter:
         by_device: bool = True,
         by_day: bool = True,
         sort_by: Sequence[str] = (),
+        buffer_bytes: int | None = None,
     ) -> None:
         self.root = root
+        self.buffer_bytes = buffer_bytes  # None: BUFFER_BYTES
         self.table = table
         self.generation = generation
         self.tag = tag
@@ -258,7 +260,7 @@ class PartWriter:
             cuts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1], True])
             for a, b in zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True):
                 self._pieces.setdefault(int(sorted_key[a]), []).append(grouped.slice(a, b - a))
-        if self._pending_bytes > BUFFER_BYTES:
+        if self._pending_bytes > (BUFFER_BYTES if self.buffer_bytes is None else self.buffer_bytes):
             self._write_out()
 
     def _write_out(self) -> None:
