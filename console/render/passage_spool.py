@@ -35,6 +35,7 @@ _COPY_ROWS = 4096
 # A passage's place in the texts' file: 24 bytes on disk.
 _PLACE = [("head", "<i4"), ("length", "<i4"), ("start_ns", "<i8"), ("offset", "<i8")]
 _INDEX_ROWS = 1 << 16  # places read back at a time
+_ENCODE_ROWS = 8192  # passages encoded at a time
 
 
 def passage_texts(cols: Columns, heads: Heads) -> list[str]:
@@ -65,26 +66,53 @@ class PassageSpool(Sink):
         self._extra = [name for name, _ in columns]
         self._size = 0
         self._ordered: tuple[np.ndarray, np.ndarray] | None = None
+        self._pending: list[Columns] = []
+        self._pending_rows = 0
+        self._heads: Heads | None = None
         self.count = 0
 
     def passages(self, cols: Columns, heads: Heads) -> None:
-        """Take one batch (any order); its texts and places go to disk."""
+        """Take one batch (any order); its texts and places go to disk, a few thousand passages at a time."""
         n = len(cols["head"])
         if not n:
             return
         assert self._ordered is None, "passages added after they were read"
-        texts = [t.encode("ascii") for t in passage_texts(cols, heads)]
+        # Held until there are enough to encode at once: the encoder's cost is mostly per call, and a
+        # stream closes a few hundred passages per chunk.  Head keys only ever grow: the latest table
+        # names every key of the batches held.
+        self._pending.append(cols)
+        self._pending_rows += n
+        self._heads = heads
+        self.count += n
+        if self._pending_rows >= _ENCODE_ROWS:
+            self._flush()
+
+    def _flush(self) -> None:
+        """The held batches, encoded and written."""
+        if not self._pending:
+            return
+        cols = concat_passages(self._pending) if len(self._pending) > 1 else self._pending[0]
+        assert cols is not None and self._heads is not None
+        self._pending, self._pending_rows = [], 0
+        n = len(cols["head"])
+        from console.analysis.passages_json import encode_objects
+
+        encoded = encode_objects(cols, self._heads)
         rec = np.empty(n, self._record)
-        rec["length"] = np.fromiter((len(t) for t in texts), np.int64, n)
+        if encoded is not None:
+            text, rec["length"] = encoded
+        else:
+            texts = [t.encode("ascii") for t in passage_texts(cols, self._heads)]
+            rec["length"] = np.fromiter((len(t) for t in texts), np.int64, n)
+            text = b"".join(texts)
         rec["offset"] = self._size + np.cumsum(rec["length"], dtype=np.int64) - rec["length"]
         rec["head"] = cols["head"]
         rec["start_ns"] = cols["start_ns"]
         for name in self._extra:
             rec[name] = cols[name]
-        self._file.write(b"".join(texts))
+        self._file.write(text)
         self._index.write(rec.tobytes())
-        self._size += int(rec["length"].sum(dtype=np.int64))
-        self.count += n
+        self._size += len(text)
 
     def restart(self, passages: bool) -> None:
         """The log is read again: forget every passage taken so far, when they will be handed again."""
@@ -95,12 +123,14 @@ class PassageSpool(Sink):
             f.truncate()
         self._size = self.count = 0
         self._ordered = None
+        self._pending, self._pending_rows = [], 0
 
     def columns(self, names: Sequence[str], rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """These columns of every passage taken (``rows``: of these, ascending), in the order they were taken.
 
         Read back from disk a block at a time: only the result is held whole.
         """
+        self._flush()
         picked = None if rows is None else np.asarray(rows, np.int64)
         out = {name: np.empty(self.count if picked is None else len(picked), self._record[name]) for name in names}
         self._index.flush()
@@ -124,6 +154,7 @@ class PassageSpool(Sink):
     def _order(self) -> tuple[np.ndarray, np.ndarray]:
         """Offsets and lengths of the texts in a whole read's order (by head, then start); made once."""
         if self._ordered is None:
+            self._flush()
             self._file.flush()
             keys = self.columns(("head", "start_ns"))
             order = np.lexsort((keys.pop("start_ns"), keys.pop("head")))
