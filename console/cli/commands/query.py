@@ -86,7 +86,7 @@ def query(
         if result.arrow is not None:
             _emit_table(result.arrow, fmt)
         else:
-            _emit(result.names, [tuple(_plain(v) for v in r) for r in result.rows or []], fmt)
+            _emit(result.names, _plain_rows(result.rows or [], result.ns_columns), fmt)
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
@@ -97,6 +97,27 @@ def _forecasts(root: Path, manifest: Manifest) -> pa.Table:
     from console.archive.health_days import query_forecasts  # pandas and the fit: only for a query that needs them
 
     return query_forecasts(root, manifest)
+
+
+def _plain_rows(rows: list[tuple[object, ...]], ns_columns: frozenset[int]) -> list[tuple[Any, ...]]:
+    """Rows of Python values as output values; ``ns_columns`` hold epoch ns, written as _column writes times."""
+    if not ns_columns or not rows:
+        return [tuple(_plain(v) for v in r) for r in rows]
+    import numpy as np
+
+    from console.analysis.timefmt import iso_array
+
+    columns: list[list[Any]] = [list(c) for c in zip(*rows, strict=True)]
+    for i, col in enumerate(columns):
+        if i in ns_columns:
+            present = np.array([v is not None for v in col], bool)
+            values = np.array([v if v is not None else 0 for v in col], np.int64)
+            text = iso_array(values)
+            text[~present] = None
+            columns[i] = text.tolist()
+        else:
+            columns[i] = [_plain(v) for v in col]
+    return list(zip(*columns, strict=True))
 
 
 def _plain(value: Any) -> Any:
