@@ -98,6 +98,11 @@ class PassageStream:
         open_ = self._open_last != NO_TIME
         return int(self._open_first[open_].min()) if open_.any() else ALL_TIME
 
+    def open_firsts(self) -> np.ndarray:
+        """Per head key, the first record of its open run (NO_TIME: none open)."""
+        n = len(self._open_last)
+        return np.where(self._open_last != NO_TIME, self._open_first[:n], NO_TIME)
+
     def lagging_clock_ns(self) -> int:
         """The clock to release events by: the log's latest record, but no later than the clock of any file
         a head is open in (followed files are read at their own pace: one that runs ahead must not release

@@ -190,7 +190,7 @@ class Pipeline:
             slack_ns = self.stream._slack_ns
             clock = self.stream.lagging_clock_ns()
             if clock > NO_TIME + slack_ns:
-                self._step(self.events.release_block(clock - slack_ns))
+                self._step(self.events.release_block(clock - slack_ns, self.stream.open_firsts()))
 
     def finish(self, start_sections: bool = True) -> DiagOutcome:
         """The input has ended: every open passage is whole; every held event is released.
@@ -204,7 +204,9 @@ class Pipeline:
         else:
             self._closed(self.stream.finish())
             if self.events is not None:
-                self._step(self.events.finish_block())
+                clock = self.stream.clock_ns
+                slack_ns = self.stream._slack_ns
+                self._step(self.events.finish_block(clock - slack_ns if clock > NO_TIME + slack_ns else None))
                 warnings = self.events.warnings(self.stream.heads)
         s = self.settings
         if start_sections and s.sections is not None and s.events is not None and self.section_engine is None:
