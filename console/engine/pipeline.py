@@ -192,6 +192,14 @@ class Pipeline:
             if clock > NO_TIME + slack_ns:
                 self._step(self.events.release_block(clock - slack_ns, self.stream.open_firsts()))
 
+    def reset(self, e: DetectionEvent) -> None:
+        """An operator's reset request (a live console's), decided in time order with the detections: it
+        is released with them once nothing still to come precedes it."""
+        if self.events is not None:
+            self.events.add_reset(e)
+        else:
+            self._resets_pending.append(e)
+
     def finish(self, start_sections: bool = True) -> DiagOutcome:
         """The input has ended: every open passage is whole; every held event is released.
 
