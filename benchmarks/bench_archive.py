@@ -208,7 +208,7 @@ def main() -> None:
     work = args.work or Path(tempfile.mkdtemp(prefix="bench-archive-"))
     work.mkdir(parents=True, exist_ok=True)
     arc = work / "arc"
-    exe = [sys.executable, "-c", "from console.cli import app; app()"]
+    exe = [sys.executable, "-c", "from console.cli.app import app; app()"]
     raw = args.log.stat().st_size
     try:
         if not args.skip_ingest:

@@ -74,7 +74,8 @@ def one(inputs: Path, engine: str) -> dict[str, Any]:
     """One configuration, in this process: ``local`` or ``dask:N``."""
     from console.archive.ingest import run_ingest
     from console.fleet import engine as fleet_engine
-    from console.fleet import engine_scope, engine_spec
+    from console.fleet import engine_scope
+    from console.fleet.options import engine_spec
 
     spec = engine_spec("local") if engine == "local" else engine_spec("dask", workers=int(engine.split(":")[1]))
     arc = Path(tempfile.mkdtemp(prefix="bench-fleet-"))

@@ -38,7 +38,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-CLI = "import sys; from console.cli import app; sys.argv[0] = 'trackside'; app()"
+CLI = "import sys; from console.cli.app import app; sys.argv[0] = 'trackside'; app()"
 T0 = 1_772_438_400  # 2026-03-02 08:00:00
 
 
@@ -112,7 +112,7 @@ def latency_file(n: int, gap_s: float) -> None:
 def latency_mqtt(n: int, gap_s: float) -> None:
     import paho.mqtt.client as mqtt
 
-    from parsers.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
+    from parsers.gnss.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
     from tests.live_fixtures import Mosquitto
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -157,8 +157,8 @@ def station(n: int) -> None:
     import asyncio
     import random
 
+    from console.inputs.uri import open_source
     from console.layout import load_layout
-    from console.sources import open_source
     from console.tui.live_app import LiveStationApp
     from console.tui.live_source import LiveSource
 
@@ -319,9 +319,9 @@ def rate_can(frames_per_s: int, seconds: float) -> None:
 
     import can
 
+    from console.inputs.uri import open_source
     from console.layout import layout_from_dict
     from console.live.engine import LiveEngine, run_sources
-    from console.sources import open_source
     from tests.test_live_can import LAYOUT
 
     lay = layout_from_dict(tomllib.loads(LAYOUT), "bench")
@@ -374,8 +374,8 @@ def idle_station(seconds: float) -> None:
     """The live station view (headless, in this process) on a file where nothing arrives: CPU used."""
     import asyncio
 
+    from console.inputs.uri import open_source
     from console.layout import load_layout
-    from console.sources import open_source
     from console.tui.live_app import LiveStationApp
     from console.tui.live_source import LiveSource
 
@@ -409,9 +409,9 @@ def latency_can(n: int, gap_s: float) -> None:
 
     import can
 
+    from console.inputs.uri import open_source
     from console.layout import layout_from_dict
     from console.live.engine import LiveEngine, run_sources
-    from console.sources import open_source
     from tests.test_live_can import LAYOUT
 
     passages: list[float] = []

@@ -46,7 +46,7 @@ analyze`` of a tiny log peaks at 142 MB, imports included).  "before" is
     gnss (text)      devices_1000000.csv    59.4     18.2           522      8.8
 
 1 M heads / 1 M devices on an idle machine (2026-11-26, load average < 1),
-at bd9337f: flat registers (``parsers/diag_registry.py``, columns per
+at bd9337f: flat registers (``parsers/diag/registry.py``, columns per
 register, names in a flat ``StringDictionary``), heads and devices as
 column tables (``HeadTable``, ``DeviceTable``), GNSS devices interned flat;
 the last row after a975886 (the report's GNSS unit table as flat columns,
@@ -88,7 +88,7 @@ Then (2026-11-23), still over the target: at 1 M heads most of the memory was th
 diagnostic registry's Python objects per register (a ``RegisterKey``, its
 head name, the span bytes that key the register cache: ~0.5 kB a
 register, against ~139 bytes of log line); flat, columnar registers in
-``parsers.diag`` are the next step.  The counting path's per-head state
+``parsers.diag.read`` are the next step.  The counting path's per-head state
 (``console/analysis/stream_sections.py``, ``counting.py``) is flat arrays
 since 2026-11-26, about 120 bytes a head where it held a ``HeadCounter``
 and a ``_Head`` object (1.5 kB a head; ``bench_event_stream_heads.py``):
@@ -193,7 +193,7 @@ def run(
 
 def profile(argv: list[str], top: int = 12) -> None:
     """Run one command in-process under tracemalloc; print the allocation sites at the peak."""
-    from console.cli import app
+    from console.cli.app import app
 
     tracemalloc.start(8)
     tracemalloc.reset_peak()
@@ -249,7 +249,7 @@ def main() -> int:
     args = ap.parse_args()
     args.dir.mkdir(parents=True, exist_ok=True)
     exe = str(Path(sys.executable).with_name("trackside"))
-    runner = "import sys; from console.cli import app; sys.argv[0] = 'trackside'; app()"
+    runner = "import sys; from console.cli.app import app; sys.argv[0] = 'trackside'; app()"
     codes: list[Path | None] = list(args.code) or [None]
 
     jobs = []

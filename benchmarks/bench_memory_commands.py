@@ -136,7 +136,7 @@ def command(name: str, exe: str, log: Path, layout: Path) -> list[str]:
 
 def in_checkout(cmd: list[str]) -> list[str]:
     """The command for ``python -c`` run in another checkout (its ``console`` is imported first there)."""
-    launch = "import sys; sys.argv = ['trackside'] + sys.argv[1:]; from console.cli import app; app()"
+    launch = "import sys; sys.argv = ['trackside'] + sys.argv[1:]; from console.cli.app import app; app()"
     return [sys.executable, "-c", launch, *cmd[1:]]
 
 

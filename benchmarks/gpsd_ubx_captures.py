@@ -11,7 +11,7 @@ one of its speeds within 0.01 m/s (``tests/gpsd_truth.py``).  Two columns:
 * ``valid``: by a row we call a fix (``valid``).  gpsd reports a fix where
   the receiver's gnssFixOK flag is clear or the fix is time-only; we do not.
 
-The captures are read with ``parsers.gnss.parse_gnss``, the reader of
+The captures are read with ``parsers.gnss_files.parse_gnss``, the reader of
 ``trackside gnss``, ``crossing``, ``report`` and the archive.  The
 SiRF-mode capture (``ublox-sirf1``) is left aside: it is SiRF binary.
 
@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from parsers.gnss import parse_gnss  # noqa: E402
+from parsers.gnss_files import parse_gnss  # noqa: E402
 from tests.gpsd_truth import compare_with_gpsd  # noqa: E402
 
 

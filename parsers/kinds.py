@@ -12,7 +12,8 @@ another kind up front, with one line naming the file and what it looks like
 Recognition is by content, never by the file name (exception: none), in
 this order: a BLF container (``LOGG``); GPX (``<gpx`` in an XML head);
 diagnostic records (``Diag_id:``); CAN logs (candump ``(…) can0 …``, ASC
-``date``/``base hex`` headers, PEAK TRC ``;$FILEVERSION``); gpsd JSON
+``date``/``base hex`` headers, PEAK TRC ``;$FILEVERSION`` or, version 1.0,
+``;`` comments before numbered messages); gpsd JSON
 (objects with a ``class``) and other JSON lines; NMEA or binary receiver
 packets anywhere in the head; then the first record line as a table header
 (monitoring-centre table, device-stream CSV, receiver voltages) or as a
@@ -23,13 +24,13 @@ from __future__ import annotations
 
 import csv
 import re
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final, Literal
 
-from parsers import gnss_packets as packets
-from parsers.gnss_headers import parse_centre_header, parse_device_header
-from parsers.gnss_lines import open_gnss_stream
+from parsers.gnss.headers import parse_centre_header, parse_device_header
+from parsers.sources import InputError, open_input
 
 Kind = Literal[
     "diag", "nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre", "frames", "can", "voltages", "empty", "unknown"
@@ -68,6 +69,7 @@ DESCRIPTIONS: Final = {
 HEAD_BYTES: Final = 64 * 1024
 _NMEA_RE = re.compile(rb"[$!][A-Z][A-Z0-9]{4},")
 _CANDUMP_RE = re.compile(rb"\(\d+(?:\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
+_TRC_RECORD_RE = re.compile(rb"^\d+\)\s+\d")  # a PEAK trace's message: number, time (TRC 1.0 has no $ header)
 _ASC_RE = re.compile(rb"^(?:date |base hex|base dec|internal events|Begin Triggerblock)", re.IGNORECASE)
 
 
@@ -84,10 +86,12 @@ class KindGuess:
 
 
 def _record_lines(head: bytes) -> list[bytes]:
-    return [s for s in (line.strip() for line in head.split(b"\n")[:200]) if s and not s.startswith(b"#")]
+    return [s for s in (line.strip() for line in head.split(b"\n")) if s and not s.startswith(b"#")]
 
 
 def _has_packet(head: bytes) -> bool:
+    from parsers.gnss import packets  # pyubx2, pysbf2, pyrtcm (0.2 s): only for heads that are none of the above
+
     for m in packets.SYNC_RE.finditer(head):
         kind = packets.packet_kind(head[m.start() : m.start() + 2])
         if kind is not None and packets.read_packet(kind, packets.ByteWindow(head, m.start())) is not None:
@@ -119,6 +123,8 @@ def classify_head(head: bytes) -> KindGuess:
         return KindGuess("diag", "lines of Diag_id:… records")
     if _CANDUMP_RE.match(first) or _ASC_RE.match(first) or first.startswith(b";$FILEVERSION"):
         return KindGuess("can", "CAN log lines")
+    if first.startswith(b";") and any(_TRC_RECORD_RE.match(line) for line in lines[:40]):
+        return KindGuess("can", "PEAK trace lines")
     if first.startswith(b"{"):
         if b'"class"' in first:
             return KindGuess("gpsd", "JSON objects with a gpsd class")
@@ -139,7 +145,7 @@ def classify_head(head: bytes) -> KindGuess:
         except ValueError:
             continue
         return KindGuess(kind, "its header")
-    from parsers.frames import frame_line_problem
+    from parsers.frames.sensor import frame_line_problem
 
     if len(text.split()) in (3, 4) and frame_line_problem(text) is None:
         return KindGuess("frames", "frame lines")
@@ -149,10 +155,15 @@ def classify_head(head: bytes) -> KindGuess:
 
 
 def read_head(path: Path) -> bytes:
-    """The first :data:`HEAD_BYTES` as the GNSS parsers would read them; InputError if unreadable."""
-    stream, raw, _, _ = open_gnss_stream(path)
+    """The first :data:`HEAD_BYTES` as every parser reads them (gzip, UTF-16 and CR line ends undone).
+
+    InputError if the file cannot be opened or its head read (a corrupt or truncated gzip).
+    """
+    stream, raw, _ = open_input(path)
     try:
         return stream.read(HEAD_BYTES)
+    except (OSError, EOFError, zlib.error) as exc:
+        raise InputError(f"{path}: cannot be read, corrupt or truncated ({exc})") from None
     finally:
         stream.close()
         raw.close()

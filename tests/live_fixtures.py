@@ -221,7 +221,7 @@ class GpsFake:
         self.proc = None
 
 
-_CLI = "import sys; from console.cli import app; sys.argv[0] = 'trackside'; app()"
+_CLI = "import sys; from console.cli.app import app; sys.argv[0] = 'trackside'; app()"
 
 
 def trackside(*args: str) -> list[str]:

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 from console.analysis.approach import approach_timeline
 from console.analysis.crossing import earliest_arrival_s
 from console.analysis.diagnostics import SpeedSettings
-from console.cli import app
+from console.cli.app import app
 from console.layout import WorkSite, load_layout
 from tests.reads import whole_job
 

@@ -32,7 +32,7 @@ def _cmd(archive: Path, *paths: Path) -> list[str]:
     return [
         sys.executable,
         "-c",
-        "from console.cli import app; app()",
+        "from console.cli.app import app; app()",
         "ingest",
         *map(str, paths),
         "--archive",

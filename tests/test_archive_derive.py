@@ -18,13 +18,12 @@ import pandas as pd
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from console.analysis.timefmt import NS
 from console.archive.ingest import run_ingest
-from console.archive.parts import NS_PER_DAY
 from console.archive.views import run_query
 from console.layout import load_layout
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_diagnostic
+from parsers.units import NS, NS_PER_DAY
 from tests.reads import whole_job
 
 EXAMPLES = int(os.environ.get("TRACKSIDE_ARCHIVE_EXAMPLES", 3))

@@ -13,12 +13,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from console.analysis.timefmt import NS
 from console.archive import derive, reader
 from console.archive.history import cross_head_tables, report_data
 from console.archive.ingest import run_ingest
 from console.archive.store import read_current
 from console.archive.views import run_query
+from parsers.units import NS
 from tests.reads import whole_job
 from tests.test_archive_derive import MIDNIGHT_S, simulate_over_midnight
 

@@ -12,7 +12,7 @@ import pytest
 from typer.testing import CliRunner, Result
 
 from console.archive.store import read_current
-from console.cli import app
+from console.cli.app import app
 from tests.conftest import SAMPLES
 
 runner = CliRunner()

@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from console.analysis.timefmt import iso
-from console.cli import app
+from console.cli.app import app
 from tests.conftest import SAMPLES
 
 runner = CliRunner()

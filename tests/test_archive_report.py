@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from console.archive.history import replay_inputs, report_data
 from console.archive.reader import Window
-from console.cli import app
+from console.cli.app import app
 from console.layout import load_layout
 from tests.conftest import SAMPLES
 

@@ -17,7 +17,7 @@ from console.archive.history import report_data
 from console.archive.reader import Window
 from console.archive.store import read_current
 from console.archive.trends import archive_trends
-from console.cli import app
+from console.cli.app import app
 from console.layout import load_layout
 from console.report.model import ReportData
 from tests.archive_days import DAYS, DRIFT_PER_DAY, write_days

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"
 OSONG = sorted(str(p) for p in SAMPLES.glob("osong_*.log"))

@@ -16,7 +16,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
 from tests.conftest import ROOT, record
 
 runner = CliRunner()
@@ -134,7 +134,7 @@ def test_log_content_never_becomes_markup_or_escapes(tmp_path: Path) -> None:
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
     exe = Path(sys.executable).with_name("trackside")
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli import app; app()"]
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli.app import app; app()"]
     return subprocess.run([*cmd, *args], capture_output=True, text=True, cwd=ROOT, timeout=120)
 
 
@@ -160,7 +160,7 @@ def test_help_and_version(cmd: list[str]) -> None:
 def test_a_reader_that_stops_early_is_not_an_error() -> None:
     """`trackside analyze ... | head -1`: quiet, exit 0 (Rich alone would exit 1)."""
     exe = Path(sys.executable).with_name("trackside")
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli import app; app()"]
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli.app import app; app()"]
     logs = sorted(str(p) for p in (ROOT / "sample_logs").glob("osong_*.log"))
     proc = subprocess.Popen([*cmd, "analyze", *logs], stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
     assert proc.stdout is not None and proc.stderr is not None
@@ -247,7 +247,7 @@ PIPE_CASES = STDIN_CASES if os.environ.get("TRACKSIDE_SLOW_TESTS") else STDIN_CA
 def test_dash_reads_a_real_pipe(args: list[str], sample: str, needle: str, samples: Path) -> None:
     """`zcat x.log.gz | trackside analyze -`: a pipe, not a file (no seek, no size)."""
     exe = Path(sys.executable).with_name("trackside")
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli import app; app()"]
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli.app import app; app()"]
     cat = subprocess.Popen(["cat", str(samples / sample)], stdout=subprocess.PIPE)
     res = subprocess.run([*cmd, *args], stdin=cat.stdout, capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert cat.stdout is not None

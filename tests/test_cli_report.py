@@ -10,7 +10,7 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
 from tests.conftest import record
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,7 +43,7 @@ def test_report_usage_errors_exit_2() -> None:
 
 def test_report_json_as_a_subprocess() -> None:
     exe = Path(sys.executable).with_name("trackside")
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli import app; app()"]
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli.app import app; app()"]
     proc = subprocess.run(
         [*cmd, "report", *LOGS, "--layout", "example", "--format", "json"],
         capture_output=True,

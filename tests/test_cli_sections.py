@@ -10,7 +10,7 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
 
 runner = CliRunner()
 RESETS = ["--reset", "B1@2026-03-02T09:30:00", "--reset", "B2@2026-03-02T09:30:00"]

@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from console.analysis.crossing import ControllerSettings, CrossingController, Fix, TrainSpec
 from console.analysis.crossing_timeline import timeline
-from console.cli import app
+from console.cli.app import app
 from console.layout import load_layout
 
 runner = CliRunner()

@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 from console.analysis.crossing import ControllerSettings, CrossingController, Fix, TrainSpec, run_controller
-from console.analysis.timefmt import NS
 from console.layout import LevelCrossing, load_layout
 from console.sim.crossing_runs import random_conditions, simulate
+from parsers.units import NS
 
 LAYOUT = load_layout("example")
 YEAR_NS = 365 * 86_400 * NS

@@ -1,4 +1,4 @@
-"""parsers.diag: every line parsed or rejected with file, line and reason."""
+"""parsers.diag.read: every line parsed or rejected with file, line and reason."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from parsers.diag import RECORD_COLUMNS, read_diag
+from parsers.diag.read import RECORD_COLUMNS, read_diag
 from tests.conftest import record
 
 

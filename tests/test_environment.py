@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
 from tests.conftest import ROOT, SAMPLES
 
 STATION_LOG = SAMPLES / "example_station.log"
@@ -31,7 +31,7 @@ SMALL_REPORT = ["report", str(SMALL_LOG), "--layout", "osong"]
 
 def _cmd() -> list[str]:
     exe = Path(sys.executable).with_name("trackside")
-    return [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli import app; app()"]
+    return [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli.app import app; app()"]
 
 
 def run(*args: str | Path, **kw: object) -> subprocess.CompletedProcess[bytes]:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from console.commands.examples import APP_EXAMPLES, EXAMPLES
+from console.cli.examples import APP_EXAMPLES, EXAMPLES
 
 ROOT = Path(__file__).resolve().parent.parent
 BIN = Path(sys.executable).parent
@@ -27,7 +27,7 @@ TRACKSIDE = str(BIN / "trackside")
 def _commands() -> tuple[str, ...]:
     import typer
 
-    from console.cli import app
+    from console.cli.app import app
 
     group = typer.main.get_command(app)
     return tuple(group.commands)  # type: ignore[attr-defined]

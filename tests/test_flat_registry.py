@@ -15,7 +15,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from parsers import dictionary
-from parsers.diag import DiagRegistry, FieldError, parse_register_span
+from parsers.diag.fields import FieldError, parse_register_span
+from parsers.diag.registry import DiagRegistry
 from parsers.dictionary import DigestIndex, StringDictionary
 
 # Few distinct names, so that calls repeat each other's spans as a log's chunks do.
@@ -44,7 +45,7 @@ def test_register_ids_across_chunks_equal_a_dict_in_first_seen_order(chunks: lis
     # A tiny front cache makes every lookup go through the digest index (the many-heads case).
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(dictionary, "FRONT_CACHE_MAX", front_max)
-        mp.setattr("parsers.diag_registry.FRONT_CACHE_MAX", front_max)
+        mp.setattr("parsers.dictionary.FRONT_CACHE_MAX", front_max)
         _check_register_ids(chunks)
 
 

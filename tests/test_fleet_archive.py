@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from console.archive.store import read_current
-from console.cli import app
+from console.cli.app import app
 from console.sim.station import Fault
 from tests.fleet_fixtures import (
     archive_snapshot,

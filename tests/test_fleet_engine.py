@@ -15,9 +15,9 @@ from typing import Any
 import pytest
 from rich.console import Console
 
-from console.fleet import FleetError, engine_spec, map_partitions, run_with_engine
 from console.fleet import cluster as fleet_cluster
-from console.fleet.options import EngineSpec, EngineUsageError
+from console.fleet import map_partitions, run_with_engine
+from console.fleet.options import EngineSpec, EngineUsageError, FleetError, engine_spec
 from console.fleet.progress import task_progress
 from tests.fleet_fixtures import children_pids, local_cluster, worker_pids
 

@@ -19,8 +19,9 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from benchmarks.forecast_heads import Plan, plan, score
-from console.analysis.forecast import DAY_NS, FIGURES, ForecastSettings, Series, due_list, forecast, forecasts
-from console.cli import app
+from console.analysis.forecast import FIGURES, ForecastSettings, Series, due_list, forecast, forecasts
+from console.cli.app import app
+from parsers.units import NS_PER_DAY
 
 runner = CliRunner()
 TRACKSIDE = str(Path(sys.executable).with_name("trackside"))
@@ -79,11 +80,11 @@ def test_a_straight_wear_crosses_where_the_line_meets_the_threshold(
         return  # already past: the property above
     f = forecast(_series(figure, values))
     # The figure of day k stands for its middle: it reaches the threshold at k = margin / rate + 0.5 days.
-    expected_ns = (DAY0 + margin / rate + 0.5) * DAY_NS
+    expected_ns = (DAY0 + margin / rate + 0.5) * NS_PER_DAY
     assert f.crossing_ns is not None and abs(f.crossing_ns - expected_ns) < 60 * 10**9
     assert f.earliest_ns is not None and f.latest_ns is not None
     assert f.earliest_ns <= f.crossing_ns <= f.latest_ns
-    assert f.status == ("due" if f.earliest_ns <= f.last_ns + 30 * DAY_NS else "watch")
+    assert f.status == ("due" if f.earliest_ns <= f.last_ns + 30 * NS_PER_DAY else "watch")
 
 
 @settings(max_examples=200, deadline=None)

@@ -20,18 +20,9 @@ import pytest
 
 from console.analysis.events import DOWN, UNKNOWN, UP, DetectionEvent, EventKind
 from console.analysis.frame_events import frames_to_events
-from parsers.frames import (
-    CAN_COLUMNS,
-    FRAME_COLUMNS,
-    CanFileReport,
-    check_byte_mask,
-    count_frames_only,
-    decode_status,
-    encode_status,
-    frame_line_problem,
-    parse_can,
-    parse_frames,
-)
+from parsers.frames.can import CAN_COLUMNS, CanFileReport, count_frames_only, parse_can
+from parsers.frames.sensor import frame_line_problem, parse_frames
+from parsers.frames.table import FRAME_COLUMNS, check_byte_mask, decode_status, encode_status
 from parsers.sources import InputError
 from tests.conftest import SAMPLES
 
@@ -875,7 +866,7 @@ def test_frames_command_reads_trc_and_lists_every_frame_with_its_kind() -> None:
 
     from typer.testing import CliRunner
 
-    from console.cli import app
+    from console.cli.app import app
 
     runner = CliRunner()
     res = runner.invoke(app, ["frames", str(SAMPLES / "can_counts.trc"), "--json"])

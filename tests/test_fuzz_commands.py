@@ -34,7 +34,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
 from parsers.sources import release_streams
 from tests.fuzz_mutate import TRIED, field_variants, fuzz_settings, mutate, unsafe_in, write_stats
 

@@ -52,34 +52,34 @@ LAYOUTS = ROOT / "console" / "layouts"
 
 
 def _diag(paths: list[Path]) -> ParseReport:
-    from parsers.diag import read_diag
+    from parsers.diag.read import read_diag
 
     return read_diag(paths)[1]
 
 
 def _nmea(paths: list[Path]) -> ParseReport:
     try:
-        from parsers.gnss_stream import parse_nmea
+        from parsers.gnss.stream import parse_nmea
     except ImportError:  # before the GNSS stream split
-        from parsers.nmea import parse_nmea  # type: ignore[attr-defined,no-redef]
+        from parsers.gnss.nmea import parse_nmea  # type: ignore[attr-defined,no-redef]
 
     return parse_nmea(paths)[1]
 
 
 def _gnss(paths: list[Path]) -> ParseReport:
-    from parsers.gnss import parse_gnss
+    from parsers.gnss_files import parse_gnss
 
     return parse_gnss(paths)[1]
 
 
 def _frames(paths: list[Path]) -> ParseReport:
-    from parsers.frames import parse_frames
+    from parsers.frames.sensor import parse_frames
 
     return parse_frames(paths)[1]
 
 
 def _can(paths: list[Path]) -> ParseReport:
-    from parsers.can_logs import parse_can
+    from parsers.frames.can import parse_can
 
     return parse_can(paths)[1]
 

@@ -7,10 +7,10 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from console.cli import app
-from parsers.gnss_stream import parse_stream_files
+from console.cli.app import app
+from parsers.gnss.nmea import nmea_checksum
+from parsers.gnss.stream import parse_stream_files
 from parsers.kinds import classify_file
-from parsers.nmea import nmea_checksum
 from tests.gpsd_truth import compare_with_gpsd
 
 TESEO = Path(__file__).resolve().parent / "data" / "gpsd" / "st-teseo-liv4f.log"

@@ -15,8 +15,9 @@ import pandas as pd
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from console.render.gnss_tables import DEVICES_SHOWN, _Clock, _num, _table, devices_table, inert
-from parsers.gnss import parse_gnss
+from console.render.gnss_tables import DEVICES_SHOWN, _Clock, _num, _table, devices_table
+from console.safe_text import inert
+from parsers.gnss_files import parse_gnss
 
 _MPS_TO_KMH = 3.6
 _row = st.tuples(
@@ -90,7 +91,7 @@ def test_device_table_over_the_shown_devices_equals_grouping_the_whole_table(
 def test_fix_table_in_time_order_is_the_stable_sort_of_the_rows_read(
     tmp_path: Path, rows: list[tuple[int, int | None, str, str, bool]]
 ) -> None:
-    from parsers.gnss_csv import parse_device_stream
+    from parsers.gnss_files import parse_device_stream
 
     path = _csv(tmp_path, rows)
     fixes = parse_gnss([path])[0]

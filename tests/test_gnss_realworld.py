@@ -26,13 +26,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from console.cli import app
-from parsers.gnss import parse_centre_table, parse_gnss
-from parsers.gnss_csv import parse_device_stream
-from parsers.gnss_packets import rtcm3_packet, sirf_packet, ubx_packet
-from parsers.gnss_stream import parse_stream_files
+from console.cli.app import app
+from parsers.gnss.centre import parse_centre_table
+from parsers.gnss.nmea import nmea_checksum
+from parsers.gnss.packets import rtcm3_packet, sirf_packet, ubx_packet
+from parsers.gnss.stream import parse_stream_files
+from parsers.gnss_files import parse_device_stream, parse_gnss
 from parsers.kinds import classify_file, not_gnss_reason
-from parsers.nmea import nmea_checksum
 from parsers.report import ParseReport
 from tests.gpsd_truth import compare_with_gpsd
 
@@ -396,7 +396,7 @@ _CELLS = {
     )
 )
 def test_the_vectorized_csv_path_reads_exactly_what_the_per_row_path_reads(tmp_path: Path, lines: list[str]) -> None:
-    import parsers.gnss_csv as gnss_csv
+    import parsers.gnss.csv as gnss_csv
 
     path = write(tmp_path, "d.csv", ("time,device,role,lat,lon,speed,fix quality\n" + "\n".join(lines) + "\n").encode())
     fast, fast_report = parse_device_stream([path])

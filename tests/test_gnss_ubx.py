@@ -24,11 +24,11 @@ from hypothesis import strategies as st
 from pyrtcm import RTCMMessage
 from pyubx2 import ERR_IGNORE, PARSE_NONE, RTCM3_PROTOCOL, UBX_PROTOCOL, UBXReader
 
-from parsers.gnss_binary import UBX_READ
-from parsers.gnss_growing import GrowingStream
-from parsers.gnss_packets import rtcm3_packet, ubx_packet
-from parsers.gnss_stream import parse_stream_files
-from parsers.nmea import nmea_checksum
+from parsers.gnss.binary import UBX_READ
+from parsers.gnss.growing import GrowingStream
+from parsers.gnss.nmea import nmea_checksum
+from parsers.gnss.packets import rtcm3_packet, ubx_packet
+from parsers.gnss.stream import parse_stream_files
 from parsers.report import FileReport, ParseReport
 from tests import ubx_fixtures as ubx
 from tests.gpsd_truth import compare_with_gpsd, gpsd_epochs

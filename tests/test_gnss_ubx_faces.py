@@ -22,9 +22,9 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from console.cli import app
-from parsers.gnss import parse_gnss
-from parsers.gnss_packets import rtcm3_packet
+from console.cli.app import app
+from parsers.gnss.packets import rtcm3_packet
+from parsers.gnss_files import parse_gnss
 from tests import ubx_fixtures as ubx
 from tests.live_fixtures import trackside
 

@@ -25,7 +25,7 @@ from console.analysis.health import (
     learn_band,
     voltage_margin_findings,
 )
-from parsers.diag import read_diag
+from parsers.diag.read import read_diag
 from parsers.voltages import parse_voltage_text, read_voltages
 
 NS = 1_000_000_000

@@ -8,7 +8,7 @@ from pathlib import Path
 from typer.testing import CliRunner
 
 from console.archive.store import read_current
-from console.cli import app
+from console.cli.app import app
 
 runner = CliRunner()
 

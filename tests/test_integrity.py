@@ -12,13 +12,11 @@ import pytest
 
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.integrity import (
-    AXLES,
     DOUBTFUL,
     EOT,
     GNSS,
     HEAD,
     PARTED,
-    SECTIONS,
     WHOLE,
     ConsistSpec,
     IntegrityEvent,
@@ -26,10 +24,11 @@ from console.analysis.integrity import (
     IntegritySettings,
     timelines,
 )
+from console.analysis.integrity_counts import AXLES, SECTIONS
 from console.analysis.section_state import SectionState
 from console.analysis.sections import SectionEngine
-from console.analysis.timefmt import NS
 from console.layout import layout_from_dict
+from parsers.units import NS
 
 T0 = 1_772_438_400 * NS
 LENGTH = 80.0

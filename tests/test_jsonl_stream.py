@@ -19,7 +19,7 @@ from typing import Any
 import pytest
 
 from benchmarks.gen_realistic_diag import generate
-from console.commands.common import REJECTIONS_LISTED
+from console.cli.options import REJECTIONS_LISTED
 from tests.live_fixtures import trackside
 
 TYPES = {"rejected", "passage", "device", "summary"}

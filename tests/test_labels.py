@@ -1,10 +1,10 @@
-"""parsers.labels: every spelling of a register label → one canonical name."""
+"""parsers.diag.labels: every spelling of a register label → one canonical name."""
 
 from __future__ import annotations
 
 import pytest
 
-from parsers.labels import canonical_label, decode_label, repair_encoding
+from parsers.diag.labels import canonical_label, decode_label, repair_encoding
 
 
 @pytest.mark.parametrize(

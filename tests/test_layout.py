@@ -217,7 +217,7 @@ def test_any_layout_content_gives_a_layout_or_a_layout_error(tmp_path: Path, tex
 def test_simulate_with_a_bad_layout_exits_2_with_one_line(tmp_path: Path) -> None:
     from typer.testing import CliRunner
 
-    from console.cli import app
+    from console.cli.app import app
 
     p = _write(tmp_path, WITH_EVERYTHING.replace("lat = 20.70\n", "lat = 90\n"))
     res = CliRunner().invoke(app, ["simulate", "--layout", str(p), "-o", str(tmp_path / "out"), "--duration", "1m"])

@@ -18,12 +18,12 @@ from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.frame_events import frames_to_events
 from console.analysis.section_state import SectionState
 from console.analysis.sections import run_sections
+from console.inputs.base import CanFrame, Item, SourceError
+from console.inputs.uri import open_source
 from console.layout import Layout, layout_from_dict
 from console.live.engine import LiveEngine, run_sources
 from console.live.frames import FrameFollow
-from console.sources import SourceError, open_source
-from console.sources.base import CanFrame, Item
-from parsers.can_logs import parse_can
+from parsers.frames.can import parse_can
 from tests.live_fixtures import wait_until
 
 pytestmark = pytest.mark.timeout(30)

@@ -14,9 +14,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from console.analysis.geo import TrackProjector
+from console.inputs.base import GnssFix, LineBlock
 from console.layout import load_layout
 from console.live.engine import LiveEngine
-from console.sources.base import GnssFix, LineBlock
 from tests.live_fixtures import REPO
 
 NS = 10**9

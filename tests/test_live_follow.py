@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from console.sources.base import Item, LineBlock
-from console.sources.follow import FileSource
+from console.inputs.base import Item, LineBlock
+from console.inputs.follow import FileSource
 from tests.live_fixtures import REPO, read_jsonl, trackside, wait_until
 
 pytestmark = pytest.mark.timeout(60)
@@ -282,7 +282,7 @@ def test_follow_jsonl_lines_are_flushed_one_by_one_and_rejections_are_shown(tmp_
 
 
 def test_follow_human_output_escapes_log_content() -> None:
-    from console.commands.follow import _line
+    from console.cli.commands.follow import _line
 
     ev = {
         "type": "source",

@@ -32,15 +32,15 @@ from hypothesis import strategies as st
 from console.analysis.frame_events import frames_to_events
 from console.analysis.section_state import SectionState
 from console.analysis.sections import run_sections
+from console.inputs.base import FrameRows, GnssFix, Item, LineBlock, SourceNote
+from console.inputs.follow import FileSource
 from console.layout import Layout, layout_from_dict, load_layout
 from console.live.frames import FrameFollow
-from console.sources.base import FrameRows, GnssFix, Item, LineBlock, SourceNote
-from console.sources.follow import FileSource
-from parsers.can_logs import parse_can
-from parsers.frames import parse_frames
-from parsers.gnss_csv import parse_device_stream
-from parsers.gnss_growing import GrowingStream
-from parsers.gnss_stream import parse_stream_files
+from parsers.frames.can import parse_can
+from parsers.frames.sensor import parse_frames
+from parsers.gnss.growing import GrowingStream
+from parsers.gnss.stream import parse_stream_files
+from parsers.gnss_files import parse_device_stream
 from parsers.report import FileReport, ParseReport
 from tests.gpsd_truth import compare_with_gpsd
 from tests.live_fixtures import NMEA_DIR, REPO, read_jsonl, trackside, wait_until

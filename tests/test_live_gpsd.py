@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from console.sources.base import GnssFix, Item
-from console.sources.gpsd import GpsdSource
-from parsers.lora import parse_time_rfc3339
+from console.inputs.base import GnssFix, Item
+from console.inputs.gpsd import GpsdSource
+from parsers.gnss.lora import parse_time_rfc3339
 from tests.live_fixtures import NMEA_DIR, GpsFake, wait_until
 
 pytestmark = pytest.mark.timeout(90)

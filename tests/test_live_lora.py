@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from console.sources.mqtt import UplinkLedger
-from parsers.lora import (
+from console.inputs.mqtt import UplinkLedger
+from parsers.gnss.lora import (
     PAYLOAD_BYTES,
     PayloadError,
     UnitReport,

@@ -12,9 +12,9 @@ from typing import Any
 
 import pytest
 
-from console.sources.base import GnssFix, Item
-from console.sources.mqtt import MqttSource
-from parsers.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
+from console.inputs.base import GnssFix, Item
+from console.inputs.mqtt import MqttSource
+from parsers.gnss.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
 from tests.live_fixtures import Mosquitto, mosquitto, wait_until  # noqa: F401 - the fixture
 
 pytestmark = pytest.mark.timeout(90)

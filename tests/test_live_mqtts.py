@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from console.sources import SourceError, open_source
-from console.sources.base import GnssFix, Item
-from parsers.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
+from console.inputs.base import GnssFix, Item, SourceError
+from console.inputs.uri import open_source
+from parsers.gnss.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
 from tests.live_fixtures import REPO, MosquittoTLS, self_signed_ca, trackside, wait_until
 
 pytestmark = pytest.mark.timeout(60)

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from console.inputs.uri import open_source
 from console.layout import load_layout
-from console.sources import open_source
 from console.tui.live_app import LiveStationApp
 from console.tui.live_source import LiveSource
 from tests.live_fixtures import REPO, DevToolsPage, HeadlessChromium, free_port, port_open, trackside, wait_until

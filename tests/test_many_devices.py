@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from console.analysis.timefmt import NS
 from console.analysis.wheels import SYS1, SYS2, PairingSettings, pair_axle_arrays, stamp_resolution_s
+from parsers.units import NS
 
 
 def _pair_head_by_head(onsets: dict[str, np.ndarray], s: PairingSettings) -> tuple[dict[str, np.ndarray], int]:
@@ -189,9 +189,9 @@ def test_twenty_thousand_gnss_devices_json_and_device_table(tmp_path: Path) -> N
 
     from typer.testing import CliRunner
 
-    from console.cli import app
+    from console.cli.app import app
     from console.render.gnss_tables import DEVICES_SHOWN, FIX_BLOCK, devices_table, gnss_json
-    from parsers.gnss import parse_gnss
+    from parsers.gnss_files import parse_gnss
 
     devices = 20_000
     assert devices > FIX_BLOCK  # the JSON crosses a block boundary
@@ -238,7 +238,7 @@ def test_many_devices_text_tables_show_the_first_and_say_how_many(many_heads_job
 def test_report_gnss_units_many_devices_in_natural_order(tmp_path: Path) -> None:
     """The report's GNSS units from grouped reductions: each device once, natural order, counts right."""
     from console.report.model import ReportData, _gnss_units
-    from parsers.gnss import parse_gnss
+    from parsers.gnss_files import parse_gnss
 
     rows = [f"2026-01-19T10:00:{i % 60:02d}Z,U{i},{'head' if i % 3 else 'eot'},20.6,105.9,1.0\n" for i in range(3000)]
     rows += ["2026-01-19T11:00:00Z,U7,head,,,\n"]  # a second fix for U7, no position: not valid

@@ -135,7 +135,7 @@ def test_analyze_json_of_many_heads_never_loads_pandas(tmp_path: Path) -> None:
 
     log = _heads_log(tmp_path / "heads.log", 9000)
     code = (
-        "import contextlib, os, sys; from console.cli import app\n"
+        "import contextlib, os, sys; from console.cli.app import app\n"
         "with open(os.devnull, 'w') as f, contextlib.redirect_stdout(f), contextlib.suppress(SystemExit):\n"
         f"    app(['analyze', {str(log)!r}, '--json'], standalone_mode=False)\n"
         "print('pandas' in sys.modules)"

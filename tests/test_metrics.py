@@ -19,10 +19,10 @@ import pytest
 from prometheus_client.parser import text_string_to_metric_families
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
+from console.inputs.base import SourceStatus
 from console.layout import load_layout
 from console.sinks.metrics import MetricsSink, parse_address
-from console.sources.base import SourceStatus
 from tests.live_fixtures import REPO, free_port, need, port_open, stop_process, trackside, wait_until
 
 runner = CliRunner()
@@ -123,7 +123,7 @@ def test_a_taken_port_is_one_line(tmp_path: Path) -> None:
 
 
 def test_the_station_view_feeds_the_sink(tmp_path: Path) -> None:
-    from console.sources import open_source
+    from console.inputs.uri import open_source
     from console.tui.live_source import LiveSource
 
     log = tmp_path / "d.log"

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
 
 DATA = Path(__file__).resolve().parent / "data" / "gnss"
 runner = CliRunner()

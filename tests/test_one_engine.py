@@ -37,10 +37,10 @@ from console.archive.ingest import run_ingest
 from console.drivers.batch import ReadOptions, read_diag
 from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
 from console.engine.sinks import Sink, Sinks
+from console.inputs.base import LineBlock
 from console.layout import Layout, load_layout
 from console.live.engine import LiveEngine
 from console.sim.station import Fault
-from console.sources.base import LineBlock
 from tests.fleet_fixtures import local_cluster, simulate_over_midnight
 
 RUNS = int(os.environ.get("TRACKSIDE_ONE_ENGINE_RUNS", 2))
@@ -177,7 +177,8 @@ def _ingest_pieces(log: Path, archive: Path, rng: random.Random, cluster: Any = 
         if cluster is None:
             run_ingest([grown], archive, layout=str(archive.parent / "layout.toml"))
         else:
-            from console.fleet import engine_spec, run_with_engine
+            from console.fleet import run_with_engine
+            from console.fleet.options import engine_spec
 
             spec = engine_spec("dask", scheduler=cluster.scheduler_address)
             run_with_engine(

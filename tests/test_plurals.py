@@ -6,7 +6,7 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
 from console.plural import count, plural
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"
@@ -33,7 +33,7 @@ def test_analyze_overlap_note_of_one_record_is_singular() -> None:
 
 
 def test_follow_summary_counts_are_singular_for_one() -> None:
-    from console.commands.follow import _summary_lines
+    from console.cli.commands.follow import _summary_lines
 
     summary = {
         "passages": 1,

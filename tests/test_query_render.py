@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 from console.analysis.timefmt import iso as iso_text
 from console.archive.presets import PRESETS
 from console.archive.store import read_current
-from console.cli import app
+from console.cli.app import app
 
 runner = CliRunner()
 DOCS = Path(__file__).resolve().parents[1] / "docs"

@@ -35,8 +35,9 @@ from console.analysis.diagnostics import SpeedSettings
 from console.analysis.health import Severity
 from console.layout import load_layout
 from console.output_path import write_atomic
-from console.report import command, run_report
+from console.report import command
 from console.report.collect import expand
+from console.report.command import run_report
 from console.report.model import ReportData, document, natural_key
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_run

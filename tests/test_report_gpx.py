@@ -8,7 +8,7 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
 
 GPX = Path(__file__).resolve().parent / "data" / "gnss" / "track_gpx11_garmin.gpx"
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
 
 runner = CliRunner()
 NS = 1_000_000_000

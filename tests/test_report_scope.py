@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from typer.testing import CliRunner
 
-from console.cli import app
+from console.cli.app import app
 from console.layout import load_layout
 
 runner = CliRunner()

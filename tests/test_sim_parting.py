@@ -11,9 +11,9 @@ from pathlib import Path
 
 from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, Fix, TrainSpec
 from console.analysis.integrity import PARTED, WHOLE
-from console.analysis.timefmt import NS
 from console.layout import load_layout
 from console.sim.station import Fault, SimConfig, StationSim
+from parsers.units import NS
 
 TRACKSIDE = Path(sys.executable).with_name("trackside")
 LAYOUT = load_layout("example")

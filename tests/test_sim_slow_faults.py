@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from console.archive.health_days import gnss_loss_per_day
 from console.archive.reader import Window
 from console.archive.views import connect
-from console.cli import app
+from console.cli.app import app
 from console.layout import load_layout
 from console.sim.slow_faults import DEFAULT_RATES, HealthRows, threshold_crossings
 from console.sim.station import Fault, SimConfig, StationSim

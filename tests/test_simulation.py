@@ -12,7 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from console.analysis.diagnostics import SpeedSettings
-from console.cli import app
+from console.cli.app import app
 from console.layout import load_layout
 from console.sim.radio import LoRaLink
 from console.sim.station import Fault, SimConfig, StationSim

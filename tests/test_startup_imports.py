@@ -16,7 +16,7 @@ SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"
 HEAVY = ("pandas", "pydantic", "duckdb", "rich.progress", "console.fleet.engine", "distributed", "shapely", "textual")
 PROBE = """
 import json, sys
-from console.cli import app
+from console.cli.app import app
 sys.argv = ["trackside", *sys.argv[1:]]
 try:
     app()

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from console.cli import app
-from console.commands.station import archive_replay_source
+from console.cli.app import app
+from console.cli.commands.station import archive_replay_source
 from console.layout import load_layout
 from console.tui.sources import ReplaySource
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from textual.widgets import DataTable
 
-from console.cli import _load_layout
+from console.cli.common import load_layout as _load_layout
 from console.tui.app import StationApp
 from console.tui.help import HelpScreen
 from console.tui.model import SPEEDS, StationModel
@@ -448,7 +448,7 @@ def test_snapshot_fault(snap_compare: object) -> None:
 def test_station_command_rejects_bad_input_cleanly(args: list[str], message: str) -> None:
     from typer.testing import CliRunner
 
-    from console.cli import app as cli
+    from console.cli.app import app as cli
 
     result = CliRunner().invoke(cli, ["station", *args], catch_exceptions=False)
     assert result.exit_code == 2
@@ -461,7 +461,7 @@ def test_station_command_error_as_a_subprocess() -> None:
     import sys
 
     exe = Path(sys.executable).with_name("trackside")
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli import app; app()"]
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli.app import app; app()"]
     proc = subprocess.run([*cmd, "station", "--replay"], capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert proc.returncode == 2
     assert proc.stderr.startswith("trackside: error: --replay needs the logs")

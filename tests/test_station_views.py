@@ -14,10 +14,10 @@ import asyncio
 import time
 from pathlib import Path
 
-from console.cli import _load_layout
+from console.cli.common import load_layout as _load_layout
+from console.inputs.base import GnssFix, LineBlock
 from console.layout import load_layout
 from console.live.engine import LiveEngine
-from console.sources.base import GnssFix, LineBlock
 from console.tui.app import StationApp
 from console.tui.live_app import LiveStationApp
 from console.tui.live_source import LiveSource

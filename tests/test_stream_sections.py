@@ -34,7 +34,7 @@ from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.section_state import SectionState
 from console.analysis.sections import ledger_summary_frame, run_sections
 from console.analysis.wheels import CountingSettings
-from console.cli import app
+from console.cli.app import app
 from console.drivers.batch import health_findings
 from console.engine.pipeline import HEALTH_REGISTERS
 from console.jsonout import dumps

@@ -245,7 +245,7 @@ def test_sections_on_a_whole_second_log_end_as_on_the_microsecond_log(tmp_path: 
     """Line order times the two systems within a second: no axle of unknown direction, no false disturbance."""
     from typer.testing import CliRunner
 
-    from console.cli import app
+    from console.cli.app import app
 
     sim = day
     finals = []

@@ -22,8 +22,9 @@ from typing import Any
 import pandas as pd
 
 from console.analysis.crossing import earliest_arrival_s
-from console.analysis.timefmt import NS, iso
+from console.analysis.timefmt import iso
 from console.layout import Layout, WorkSite
+from parsers.units import NS
 
 
 @dataclass(frozen=True)

@@ -57,10 +57,9 @@ from console.analysis.counting_holds import (
 from console.analysis.counting_point import group_starts, pair_point_onsets
 from console.analysis.event_block import KIND_CODE, NO_CHANNEL, Detail, EventBlock, StringPool
 from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.timefmt import NS
 from console.analysis.wheels import SYS1, SYS2, CountingSettings
+from parsers.units import ALL_TIME, NS
 
-ALL_TIME = np.iinfo(np.int64).max
 _AXLE, _DAMPED, _FREE_KIND = (KIND_CODE[k] for k in (EventKind.AXLE, EventKind.HEAD_DAMPED, EventKind.HEAD_FREE))
 
 

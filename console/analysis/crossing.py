@@ -82,8 +82,8 @@ from dataclasses import dataclass, field
 from console.analysis.crossing_arrival import ArrivalBound, Motion, device_bound, earliest_s
 from console.analysis.crossing_estimate import FilterLimits, MotionFilter
 from console.analysis.crossing_evidence import ESTIMATED, REPORTED, DeviceEvidence, EvidenceLimits, Report
-from console.analysis.timefmt import NS
 from console.layout import LevelCrossing
+from parsers.units import NS
 
 HEAD, EOT = "head", "eot"
 TRAIN = "train"  # the head's motion from both units: the EOT a second witness, its fixes moved on by the length

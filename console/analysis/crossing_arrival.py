@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 from console.analysis.crossing_estimate import MotionEstimate
 from console.analysis.crossing_evidence import Report
-from console.analysis.timefmt import NS
+from parsers.units import NS
 
 
 def earliest_s(distance_m: float, speed_mps: float, accel_mps2: float, line_speed_mps: float) -> float:

@@ -1,6 +1,6 @@
 """Run the crossing controllers over a table of GNSS fixes (batch).
 
-Fixes (from :mod:`parsers.gnss`) are grouped into trains — a train is a head
+Fixes (from :mod:`parsers.gnss.centre`) are grouped into trains — a train is a head
 unit and an EOT unit, paired by the caller or, with one of each, by their
 roles — projected onto the layout's track, and fed to one controller per
 level crossing in time order.  Fixes far from the track are set aside and
@@ -190,12 +190,11 @@ def crossing_settings(
     never after one lost packet."""
     s = base or ControllerSettings(line_speed_mps=layout.line_speed_mps)
     period = layout.gnss_report_period_s if layout.gnss_report_period_s is not None else report_period_s
-    changes: dict[str, float] = {}
     if layout.gnss_latency_s is not None:
-        changes["latency_s"] = layout.gnss_latency_s
+        s = dataclasses.replace(s, latency_s=layout.gnss_latency_s)
     if period is not None:
-        changes |= {"report_period_s": period, "stale_after_s": max(s.stale_after_s, 4 * period)}
-    return dataclasses.replace(s, **changes) if changes else s
+        s = dataclasses.replace(s, report_period_s=period, stale_after_s=max(s.stale_after_s, 4 * period))
+    return s
 
 
 def integrity_settings(s: ControllerSettings) -> IntegritySettings:

@@ -36,7 +36,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-from console.analysis.timefmt import NS
+from parsers.units import NS
 
 # (p00, p01, p02, p11, p12, p22): the symmetric 3 × 3 covariance of (chainage, speed, acceleration).
 Cov = tuple[float, float, float, float, float, float]

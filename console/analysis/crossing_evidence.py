@@ -36,7 +36,7 @@ import statistics
 from collections import deque
 from dataclasses import dataclass
 
-from console.analysis.timefmt import NS
+from parsers.units import NS
 
 REPORTED, ESTIMATED, ASSUMED = "reported", "estimated", "assumed"
 

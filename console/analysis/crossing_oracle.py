@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from console.analysis.timefmt import NS
+from parsers.units import NS
 
 
 def earliest_arrival_vec(

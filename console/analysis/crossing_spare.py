@@ -29,7 +29,7 @@ import numpy as np
 
 from console.analysis.crossing_estimate import Cov, State, predict_ca, update_position, update_speed
 from console.analysis.crossing_oracle import oracle_onset_ns
-from console.analysis.timefmt import NS
+from parsers.units import NS
 
 SPARSE = "sparse fixes"
 

@@ -35,9 +35,10 @@ from typing import Any
 
 import numpy as np
 
-from console.analysis.crossing import EOT, HEAD, NS, ControllerSettings, CrossingController, Fix
+from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, Fix
 from console.analysis.crossing_spare import SpareSplit, head_motion, split_spare
 from console.analysis.timefmt import iso
+from parsers.units import NS
 
 
 @dataclass(frozen=True)

@@ -26,9 +26,9 @@ from console.analysis.event_block import KIND_CODE, NO_CHANNEL, Detail, EventBlo
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.majority import MajoritySettings, majority_events
 from console.analysis.stream import ORDER_SLACK_S
-from console.analysis.timefmt import NS
 from console.analysis.wheels import CountingSettings
 from console.layout import Layout
+from parsers.units import NS
 
 NONE = np.iinfo(np.int64).min  # no time
 _COUNTING, _POWER = 0, 1  # at equal times and heads, counting events first (the list's order)
@@ -100,7 +100,8 @@ def diag_detection_events(
 ) -> tuple[list[DetectionEvent], list[str]]:
     """(events in time order, warnings about log heads the layout does not know)."""
     from console.analysis.counting import CounterBank
-    from console.analysis.event_queue import ALL_TIME, EventQueue
+    from console.analysis.event_queue import EventQueue
+    from parsers.units import ALL_TIME
 
     s = settings or DiagEventSettings()
     warnings: list[str] = []

@@ -21,7 +21,6 @@ from console.analysis.inventory import DeviceInventory
 from console.analysis.overlap import fingerprints, overlap_mask
 from console.analysis.passages import (
     AXLES_UNKNOWN_REASONS,
-    NS,
     Columns,
     axles_unknown_codes,
     bucket_index,
@@ -42,7 +41,9 @@ from console.analysis.wheels import (
     axles_frame,
     pair_axle_arrays,
 )
-from parsers.diag import DiagChunk, DiagRegistry
+from parsers.diag.read import DiagChunk
+from parsers.diag.registry import DiagRegistry
+from parsers.units import NS
 
 if TYPE_CHECKING:
     import pandas as pd

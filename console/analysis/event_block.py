@@ -22,7 +22,7 @@ from enum import IntEnum
 import numpy as np
 
 from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.timefmt import NS
+from parsers.units import NS
 
 KINDS: tuple[EventKind, ...] = tuple(EventKind)
 KIND_CODE: dict[EventKind, int] = {k: i for i, k in enumerate(KINDS)}

@@ -18,8 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from console.analysis.event_block import EventBlock
-
-ALL_TIME = np.iinfo(np.int64).max
+from parsers.units import ALL_TIME
 
 
 @dataclass

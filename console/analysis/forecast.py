@@ -38,7 +38,8 @@ from typing import Any
 import numpy as np
 
 from console.analysis.health import DISTURBANCE_WARN_PER_H
-from console.analysis.timefmt import NS, iso
+from console.analysis.timefmt import iso
+from parsers.units import NS_PER_DAY
 
 DISTURBANCE_LIMIT_PER_H = DISTURBANCE_WARN_PER_H
 GNSS_LOSS_LIMIT = 0.25
@@ -47,7 +48,6 @@ FIT_DAYS = 14
 MIN_DAYS = 7
 CONFIDENCE = 0.90
 FAR_DAYS = 36_500.0
-DAY_NS = 86_400 * NS
 STATUSES = ("past", "due", "watch", "unknown", "ok")
 FIGURES = {
     # figure: (threshold, worse upwards, unit)
@@ -131,14 +131,14 @@ class Forecast:
             "crossing": iso(self.crossing_ns),
             "earliest": iso(self.earliest_ns),
             "latest": iso(self.latest_ns),
-            "days_left": None if self.crossing_ns is None else r((self.crossing_ns - self.last_ns) / DAY_NS, 2),
+            "days_left": None if self.crossing_ns is None else r((self.crossing_ns - self.last_ns) / NS_PER_DAY, 2),
             "pivot_day": r(self.pivot_day),
             "pivot_value": r(self.pivot_value),
         }
 
 
 def _days_ns(day: float) -> int:
-    return round(day * DAY_NS)
+    return round(day * NS_PER_DAY)
 
 
 def _crossing(pivot_x: float, pivot_y: float, slope: float, threshold: float, rising: bool) -> float | None:
@@ -158,7 +158,7 @@ def forecast(series: Series, settings: ForecastSettings = ForecastSettings(), no
     counts from the same day as the others); default the end of the series' own last day."""
     day, value = series.day, series.value
     last_day = int(day[-1])
-    last_ns = (last_day + 1) * DAY_NS
+    last_ns = (last_day + 1) * NS_PER_DAY
     recent = day > last_day - settings.fit_days
     x = day[recent].astype(np.float64) + 0.5  # a day's figure stands for its middle
     y = value[recent]
@@ -188,7 +188,7 @@ def forecast(series: Series, settings: ForecastSettings = ForecastSettings(), no
     if series.beyond(float(value[-1])):
         # Already past: the date is when this run of days beyond the threshold began.
         inside = np.flatnonzero(~np.array([series.beyond(float(v)) for v in value]))
-        at = int(day[inside[-1] + 1] if len(inside) else day[0]) * DAY_NS
+        at = int(day[inside[-1] + 1] if len(inside) else day[0]) * NS_PER_DAY
         return made("past", _fit(x, y, settings) if len(x) >= 2 else None, at, at, at)
     if len(x) < min(settings.min_days, settings.fit_days):
         return made("unknown", None, None, None, None)
@@ -233,7 +233,7 @@ def forecasts(series: Iterable[Series], settings: ForecastSettings = ForecastSet
     from console.analysis.health import natural_order_key
 
     given = [s for s in series if len(s.day)]
-    now_ns = (max(int(s.day[-1]) for s in given) + 1) * DAY_NS if given else None
+    now_ns = (max(int(s.day[-1]) for s in given) + 1) * NS_PER_DAY if given else None
     out = [forecast(s, settings, now_ns) for s in given]
     far = 2**62
 

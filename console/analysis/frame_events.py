@@ -32,8 +32,8 @@ import numpy as np
 import pandas as pd
 
 from console.analysis.events import DOWN, UNKNOWN, UP, DetectionEvent, EventKind, sort_events
-from console.analysis.timefmt import NS
-from parsers.frames import check_byte_mask
+from parsers.frames.table import check_byte_mask
+from parsers.units import NS
 
 COUNT_MODULO = 256  # byte 2 is one byte: a long train's count wraps 255 → 0
 # A fall from this high to this low is the byte wrapping, not the count going back.
@@ -60,7 +60,7 @@ def frames_to_events(
     comm_timeout_s: float = 10.0,
     source: str | None = None,
 ) -> list[DetectionEvent]:
-    """Detection events from a frame table (:func:`parsers.frames.parse_frames` or ``parse_can``).
+    """Detection events from a frame table (:func:`parsers.frames.sensor.parse_frames` or ``parse_can``).
 
     ``up_is_s1_to_s3``: per sensor (or for all), whether travel S1→S3 is
     *up*; a sensor missing from a mapping gets axles of unknown direction.

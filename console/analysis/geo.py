@@ -27,22 +27,14 @@ import numpy as np
 import shapely
 from geographiclib.geodesic import Geodesic
 
-from console.layout import TrackPoint, format_kilometre_post, parse_kilometre_post
+from console.layout import TrackPoint
 
 MEAN_EARTH_RADIUS_M = 6_371_008.8  # IUGG mean radius, the usual haversine R
 # The end segments run on this far beyond the mapped line in the search tree (the
 # projection itself extends them without limit): fixes further out are off the map.
 END_EXTENSION_M = 200_000.0
 
-__all__ = [
-    "MEAN_EARTH_RADIUS_M",
-    "Projection",
-    "TrackProjector",
-    "format_kilometre_post",
-    "geodesic_m",
-    "haversine_m",
-    "parse_kilometre_post",
-]
+__all__ = ["MEAN_EARTH_RADIUS_M", "Projection", "TrackProjector", "geodesic_m", "haversine_m"]
 
 
 def geodesic_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:

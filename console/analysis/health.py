@@ -30,8 +30,8 @@ import numpy as np
 import pandas as pd
 
 from console.analysis.events import DetectionEvent, EventKind, events_to_frame
-from console.analysis.timefmt import NS as _NS_PER_S
 from console.analysis.timefmt import iso
+from parsers.units import NS as _NS_PER_S
 
 _NS_PER_H = 3600 * _NS_PER_S
 _SEVERITY_ORDER = ("info", "warning", "critical")

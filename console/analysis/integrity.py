@@ -65,8 +65,9 @@ from console.analysis.integrity_gnss import (
     judge_eot,
 )
 from console.analysis.section_state import Transition
-from console.analysis.timefmt import NS, iso
+from console.analysis.timefmt import iso
 from console.layout import Layout
+from parsers.units import NS
 
 WHOLE, DOUBTFUL, PARTED = "whole", "doubtful", "parted"
 HEAD, EOT = "head", "eot"

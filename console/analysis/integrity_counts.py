@@ -25,8 +25,8 @@ from typing import Any
 
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.section_state import SectionState, Transition
-from console.analysis.timefmt import NS
 from console.layout import Layout
+from parsers.units import NS
 
 AXLES, SECTIONS = "axles", "sections"
 # What a counting head reports that makes its count unfit as evidence either way.

@@ -43,7 +43,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from console.analysis.timefmt import NS
+from parsers.units import NS
 
 CONSISTENT, BEHIND, SLOWER, STRONG, INCONSISTENT = "consistent", "behind", "slower", "strong", "inconsistent"
 

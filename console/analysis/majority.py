@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.timefmt import NS
 from console.analysis.wheels import CountingSettings, soft_timing
+from parsers.units import NS
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from console.analysis.timefmt import NS
+from parsers.units import NS
 
 _BIG = np.iinfo(np.int64).max
 _SMALL = np.iinfo(np.int64).min

@@ -24,6 +24,7 @@ import numpy as np
 from console.analysis.head_table import Heads, heads_at
 from console.analysis.passages import Columns
 from console.analysis.timefmt import exact_ns
+from parsers.units import NS_PER_DAY
 
 _PRECISION = 10
 _POW10_FRAC = float(10**_PRECISION)
@@ -135,8 +136,7 @@ def _iso(ns: np.ndarray) -> np.ndarray | None:
     """``diagnostics.iso_strings`` as quoted bytes (UTC, ``Z``, ms at least, µs/ns where present); null for NaN."""
     ints, ok = exact_ns(ns)
     n = len(ints)
-    day_ns = 86_400 * 10**9
-    days, tod = np.divmod(ints, day_ns)
+    days, tod = np.divmod(ints, NS_PER_DAY)
     # A log spans few days: their dates as text once each, the times by arithmetic.
     uniq, which = np.unique(days, return_inverse=True)
     dates = np.datetime_as_string(uniq.astype("datetime64[D]"))

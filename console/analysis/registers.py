@@ -14,7 +14,8 @@ from console.analysis.device_table import DeviceNames, DeviceTable, Runs
 from console.analysis.head_table import HeadTable
 from console.analysis.inventory import IDENTITY_LABELS, IdentityValue
 from console.analysis.wheels import WHEEL_SENSOR_ADDRESS
-from parsers.diag import DATA_KINDS, DiagRegistry
+from parsers.diag.fields import DATA_KINDS
+from parsers.diag.registry import DiagRegistry
 from parsers.dictionary import DigestIndex, Growable
 
 _NONE = np.iinfo(np.int64).max

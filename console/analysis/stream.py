@@ -37,12 +37,11 @@ import numpy as np
 from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, analyse_parts
 from console.analysis.head_table import HeadTable
 from console.analysis.passages import Columns, merge_buckets
-from console.analysis.timefmt import NS
-from parsers.diag import DiagChunk, DiagRegistry
+from parsers.diag.read import DiagChunk
+from parsers.diag.registry import DiagRegistry
+from parsers.units import ALL_TIME, NO_TIME, NS
 
 ORDER_SLACK_S = 2.0
-NO_TIME = np.iinfo(np.int64).min
-ALL_TIME = np.iinfo(np.int64).max
 # Held reductions are merged into one part once there are this many (bounds list overhead).
 _MERGE_PARTS = 16
 

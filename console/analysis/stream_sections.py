@@ -53,16 +53,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from console.analysis.counting import ALL_TIME, CounterBank
+from console.analysis.counting import CounterBank
 from console.analysis.counting_holds import NONE
 from console.analysis.diag_events import DiagEventSettings, power_gap_columns, silent_heads, silent_loss_columns
 from console.analysis.event_block import KIND_CODE, EventBlock, StringPool
 from console.analysis.event_queue import EventQueue
 from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.timefmt import NS
 from console.layout import CountingHead, Layout
+from parsers.units import ALL_TIME, NS
 
-__all__ = ["ALL_TIME", "EventStream", "HeadFacts"]
+__all__ = ["EventStream", "HeadFacts"]
 
 # Held groups: a head's counting events come before its power events at equal times (batch order).
 _COUNTING, _POWER = 0, 1

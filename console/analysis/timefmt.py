@@ -19,7 +19,7 @@ import datetime as dt
 import numpy as np
 from numpy.typing import ArrayLike
 
-NS = 1_000_000_000  # nanoseconds per second: every time in the console is an int of ns
+from parsers.units import NS
 
 _EPOCH = dt.datetime(1970, 1, 1)
 

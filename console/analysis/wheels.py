@@ -25,7 +25,7 @@ import numpy as np
 
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.speed import MPS_TO_KMH
-from console.analysis.timefmt import NS
+from parsers.units import NS
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -54,18 +54,19 @@ from console.analysis.stream_sections import EventStream, HeadFacts
 from console.analysis.wheels import SYS1, SYS2, WHEEL_SENSOR_ADDRESS
 from console.archive.derive_sink import DERIVE_VERSION, ArchiveSink, arrow_table, day_column
 from console.archive.history import at_end_tables
-from console.archive.parts import NS_PER_DAY, write_part, write_small
+from console.archive.parts import write_part, write_small
 from console.archive.reader import heads_in, layout_of, record_batches, speed_settings
 from console.archive.records import ChunkRebuilder
 from console.archive.store import DATA, Manifest
 from console.archive.views import connect
 from console.engine.pipeline import Pipeline, PipelineSettings
 from console.engine.sinks import Sink
-from parsers.diag import DiagRegistry
+from parsers.diag.registry import DiagRegistry
+from parsers.units import NS_PER_DAY
 
 if TYPE_CHECKING:
     from console.layout import Layout
-    from parsers.diag import DiagChunk
+    from parsers.diag.read import DiagChunk
 
 # Written by the pipeline as records are fed (committed, or the tail of the last ingest).
 STREAMED = ("passages", "axles", "section_states", "count_ledger", "channel_events")

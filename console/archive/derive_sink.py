@@ -16,9 +16,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyarrow as pa
 
-from console.archive.parts import NS_PER_DAY, PartWriter
+from console.archive.parts import PartWriter
 from console.engine.pipeline import HEALTH_EVENT_KINDS
 from console.engine.sinks import Sink
+from parsers.units import NS_PER_DAY
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -32,7 +33,9 @@ if TYPE_CHECKING:
 # 4: integers stored as integers (passages' detection second), finding times as TIMESTAMP_NS.
 # 5: derived by the pipeline in the ingest's one pass, its state kept between ingests.
 # 6: the kept state's section records moved (console.analysis.section_state): a state pickled by 5 is not read.
-DERIVE_VERSION = 6
+# 7: the parsers grouped by family (parsers.diag.registry, parsers.diag.fields): a state pickled by 6 names
+#    modules that are gone, so it is not read; the records are derived again.
+DERIVE_VERSION = 7
 
 
 class ArchiveSink(Sink):

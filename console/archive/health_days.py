@@ -24,6 +24,7 @@ from console.archive.store import archive_dir, read_current
 from console.archive.trends import analog_margins_per_day, disturbances_per_day
 from console.archive.views import QueryError, connect
 from console.layout import LayoutError, load_layout
+from parsers.units import NS_PER_DAY
 
 # The due series whose daily points the document carries (the report plots them).
 PLOTS_SHOWN = 12
@@ -36,7 +37,6 @@ if TYPE_CHECKING:
     from console.layout import Layout
     from console.report.model import ReportData
 
-DAY_NS = 86_400 * 10**9
 BREAK_PERIODS = 20  # a gap this many report periods long is the unit off the line (between trips), not losses
 PERIOD_QUANTILE = 0.1  # the report period: a low quantile of the gaps (the median grows once half is lost)
 MIN_EXPECTED = 20  # fewer reports expected in a day: no loss figure that day
@@ -76,7 +76,7 @@ def gnss_loss_per_day(con: duckdb.DuckDBPyConnection, window: Window) -> list[di
             SELECT device, source, quantile_cont(gap, {PERIOD_QUANTILE}) AS period
             FROM g WHERE gap > 0 GROUP BY ALL
         )
-        SELECT g.t // {DAY_NS} AS day, device, source, any_value(p.period)::BIGINT AS period_ns,
+        SELECT g.t // {NS_PER_DAY} AS day, device, source, any_value(p.period)::BIGINT AS period_ns,
                count(*) FILTER (WHERE g.gap IS NULL OR g.gap > 0) AS fixes,
                coalesce(sum(CASE WHEN g.gap > 0 AND g.gap <= {BREAK_PERIODS} * p.period
                                  THEN greatest(round(g.gap / p.period) - 1, 0) ELSE 0 END), 0)::BIGINT AS missing

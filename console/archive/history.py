@@ -78,7 +78,7 @@ def report_data(
     from console.analysis.health import Finding, sort_findings, voltage_margin_findings
     from console.report.collect import crossings_from_fixes, frames_from_tables, sections_into_report
     from console.report.model import InputFile, ReportData
-    from parsers.can_logs import count_frames_only
+    from parsers.frames.can import count_frames_only
 
     m = manifest if manifest is not None else read_current(root)
     spec = layout_spec if layout_spec is not None else m.derived.get("layout")

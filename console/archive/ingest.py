@@ -27,16 +27,7 @@ import pyarrow as pa
 from console import __version__
 from console.archive import ledger
 from console.archive.derive import Derivation
-from console.archive.parts import (
-    COMPACT_MAX_ROWS,
-    NS_PER_DAY,
-    PartWriter,
-    compact,
-    part_rows,
-    read_part,
-    write_part,
-    write_small,
-)
+from console.archive.parts import COMPACT_MAX_ROWS, PartWriter, compact, part_rows, read_part, write_part, write_small
 from console.archive.records import RecordEncoder
 from console.archive.store import (
     TMP,
@@ -49,6 +40,7 @@ from console.archive.store import (
     writer_lock,
 )
 from parsers.report import ParseReport
+from parsers.units import NS_PER_DAY
 
 # Kinds the archive stores, by the report's recognition (console.report.collect.recognise).
 DIAGNOSTIC = "diagnostic"
@@ -266,7 +258,7 @@ class _Ingest:
                 self.derivation.must_rebuild()  # its records leave the history: made again without them
 
     def _diag(self, source: Path, e: dict[str, Any], p: ledger.Plan, out: FileOutcome) -> None:
-        from parsers.diag import DiagReader
+        from parsers.diag.read import DiagReader
 
         reader = DiagReader([source], on_progress=self.on_bytes)
         seq, gen = int(e["file_seq"]), self.gen
@@ -314,7 +306,7 @@ class _Ingest:
 
         report: ParseReport
         if kind in STORED_ELSEWHERE:
-            from parsers.gnss import parse_gnss
+            from parsers.gnss_files import parse_gnss
 
             table, report, _states = parse_gnss([source])
             name = "fixes"
@@ -324,12 +316,12 @@ class _Ingest:
             table, report = read_voltages([source])
             name = "voltages"
         elif kind == "frames":
-            from parsers.frames import parse_frames
+            from parsers.frames.sensor import parse_frames
 
             table, report = parse_frames([source])
             name = "frames"
         else:
-            from parsers.frames import parse_can
+            from parsers.frames.can import parse_can
 
             table, report = parse_can([source])
             name = "frames"
@@ -477,7 +469,7 @@ class ParsedFile:
 def parse_diag_file(root: Path, generation: int, source: str, shown: str, file_seq: int, first_line: int) -> ParsedFile:
     """One file's records and rejected lines into parts of their own (a Dask task: it reads one file and
     writes parts no other task names; the client lists them in the manifest it publishes)."""
-    from parsers.diag import DiagReader
+    from parsers.diag.read import DiagReader
 
     reader = DiagReader([Path(source)])
     records = PartWriter(root, "records", generation, f"r{file_seq}-", sort_by=RECORD_ORDER)

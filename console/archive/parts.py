@@ -34,7 +34,6 @@ import pyarrow.parquet as pq
 
 from console.archive.store import DATA
 
-NS_PER_DAY = 86_400 * 1_000_000_000
 ROW_GROUP_ROWS = 256_000
 # Rows waiting to be written, all partitions together (Arrow bytes of the tables added since the last
 # write-out): about half a second of parsing.  Bigger buffers make bigger row groups (a 3 M-record log

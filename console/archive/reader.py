@@ -20,13 +20,14 @@ import numpy as np
 
 from console.analysis.diagnostics import SpeedSettings
 from console.archive.parts import key_of_part
-from console.archive.records import REGISTER_COLUMNS, ChunkRebuilder
+from console.archive.records import ARCHIVED_RECORD_COLUMNS, REGISTER_COLUMNS, ChunkRebuilder
 from console.archive.store import TMP, Manifest, read_current
 from console.archive.views import connect
 from console.drivers.batch import ChunkSource, ReadOptions
 from console.engine.pipeline import HEALTH_REGISTERS
 from console.layout import Layout, load_layout
-from parsers.diag import DiagChunk, DiagRegistry, chunks_to_frame
+from parsers.diag.read import DiagChunk, chunks_to_frame
+from parsers.diag.registry import DiagRegistry
 from parsers.report import FileReport, ParseReport, Rejection
 
 if TYPE_CHECKING:
@@ -84,28 +85,7 @@ def parse_time(text: str) -> dt.datetime:
     return t.replace(tzinfo=None) if t.tzinfo is None else t.astimezone(dt.UTC).replace(tzinfo=None)
 
 
-RECORD_COLUMNS = (
-    "time",
-    "diag_id",
-    "device_id",
-    "device",
-    "type",
-    "gs",
-    "counting_head",
-    "channel",
-    "address",
-    "label",
-    "label_canonical",
-    "label_encoding",
-    "data",
-    "value",
-    "data_kind",
-    "subsecond",
-    "file",
-    "file_seq",
-    "line",
-)
-_RECORD_COLUMNS = ", ".join(RECORD_COLUMNS)
+_ARCHIVED_COLUMNS_SQL = ", ".join(ARCHIVED_RECORD_COLUMNS)
 
 
 def heads_in(root: Path, manifest: Manifest, file_seqs: list[int] | None) -> list[tuple[int, Any]]:
@@ -159,7 +139,7 @@ def record_batches(
             params += where[1]
         where = where_sql  # type: ignore[assignment]
         if not merged:
-            rel = con.sql(f"SELECT {_RECORD_COLUMNS} FROM records{where} ORDER BY file_seq, line", params=params)
+            rel = con.sql(f"SELECT {_ARCHIVED_COLUMNS_SQL} FROM records{where} ORDER BY file_seq, line", params=params)
             yield from rel.to_arrow_reader(BATCH_ROWS)
             return
         if on_registers is not None:
@@ -171,7 +151,7 @@ def record_batches(
             ).to_arrow_table()
             on_registers(first.combine_chunks().to_batches()[0] if first.num_rows else None)
         rel = con.sql(
-            f"SELECT {_RECORD_COLUMNS} FROM (SELECT *, min(time) OVER (PARTITION BY device_id, counting_head, "
+            f"SELECT {_ARCHIVED_COLUMNS_SQL} FROM (SELECT *, min(time) OVER (PARTITION BY device_id, counting_head, "
             f"file_seq) AS file_first FROM records{where}) ORDER BY time, file_first, file_seq, line",
             params=params,
         )
@@ -237,7 +217,7 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
     rebuild = ChunkRebuilder()
     kept: list[DiagChunk] = []
     if tables:
-        table = pa.concat_tables(tables, promote_options="permissive").select(list(RECORD_COLUMNS))
+        table = pa.concat_tables(tables, promote_options="permissive").select(list(ARCHIVED_RECORD_COLUMNS))
         order = np.lexsort((table.column("line").to_numpy(), table.column("file_seq").to_numpy()))
         for batch in table.take(pa.array(order)).to_batches(BATCH_ROWS):
             kept += rebuild.chunks(batch)
@@ -356,7 +336,9 @@ def replay(root: Path, window: Window = Window()) -> Iterator[pd.DataFrame]:
     con, _ = connect(root, m)
     try:
         where, params = window.where()
-        rel = con.sql(f"SELECT {_RECORD_COLUMNS} FROM records{where} ORDER BY time, file_seq, line", params=params)
+        rel = con.sql(
+            f"SELECT {_ARCHIVED_COLUMNS_SQL} FROM records{where} ORDER BY time, file_seq, line", params=params
+        )
         for batch in rel.to_arrow_reader(BATCH_ROWS):
             yield batch.to_pandas()
     finally:

@@ -1,10 +1,10 @@
 """Diagnostic records between the parser's chunks and the archive's ``records`` table.
 
-:func:`chunk_to_arrow` turns a parsed :class:`~parsers.diag.DiagChunk` into
+:func:`chunk_to_arrow` turns a parsed :class:`~parsers.diag.read.DiagChunk` into
 Arrow columns (dictionary-encoded straight from the parser's interners, no
 per-record Python).  :class:`ChunkRebuilder` goes back: Arrow batches read
 from the archive become chunks keyed into a fresh
-:class:`~parsers.diag.DiagRegistry`, registers numbered in first-seen order,
+:class:`~parsers.diag.registry.DiagRegistry`, registers numbered in first-seen order,
 so the analysis that ran on the files runs on the archive's records and
 gives the same answer.
 """
@@ -14,12 +14,16 @@ from __future__ import annotations
 import numpy as np
 import pyarrow as pa
 
-from parsers.diag import DATA_KINDS, DiagChunk, DiagRegistry, RegisterKey
+from parsers.diag.fields import DATA_KINDS, RegisterKey
+from parsers.diag.read import DiagChunk
+from parsers.diag.registry import DiagRegistry
 
-# Columns stored in the record parts; day and device_id are the partition keys (in the path).
-RECORD_FIELDS = (
+# The archive's record columns as read back: the parser's RECORD_COLUMNS with label_encoding and file_seq.
+# day and device_id are the partition keys (in the path): the parts store the others (RECORD_FIELDS).
+ARCHIVED_RECORD_COLUMNS = (
     "time",
     "diag_id",
+    "device_id",
     "device",
     "type",
     "gs",
@@ -37,6 +41,7 @@ RECORD_FIELDS = (
     "file_seq",
     "line",
 )
+RECORD_FIELDS = tuple(c for c in ARCHIVED_RECORD_COLUMNS if c != "device_id")
 REGISTER_COLUMNS = (
     "diag_id",
     "device_id",

@@ -36,7 +36,8 @@ from console.engine.pipeline import DiagOutcome, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks
 from console.memory import read_memory
 from console.plural import count
-from parsers.diag import DiagChunk, DiagReader, DiagRegistry, chunks_to_frame
+from parsers.diag.read import DiagChunk, DiagReader, chunks_to_frame
+from parsers.diag.registry import DiagRegistry
 from parsers.report import ParseReport
 from parsers.sources import DEFAULT_CHUNK_BYTES
 

@@ -51,10 +51,12 @@ from console.analysis.events import DetectionEvent, EventKind, sort_events
 from console.analysis.section_state import SectionState
 from console.analysis.sections import SectionEngine
 from console.analysis.status import StatusSummary
-from console.analysis.stream import NO_TIME, PassageStream, by_start, take_passages
+from console.analysis.stream import PassageStream, by_start, take_passages
 from console.analysis.stream_sections import EventStream, HeadFacts
 from console.engine.sinks import Sink
-from parsers.diag import DiagChunk, DiagRegistry
+from parsers.diag.read import DiagChunk
+from parsers.diag.registry import DiagRegistry
+from parsers.units import NO_TIME
 
 if TYPE_CHECKING:
     from console.analysis.head_table import Heads
@@ -338,7 +340,7 @@ class Pipeline:
         Live ("closed"), what was judged is dropped: each finding is judged on what came since the last.
         """
         from console.analysis.health import health_report
-        from parsers.diag import chunks_to_frame
+        from parsers.diag.read import chunks_to_frame
 
         s = self.settings
         if s.health == "closed" and not self.kept and not self.health_events:

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from console.analysis.timefmt import iso
-from console.sources.base import CanFrame, FrameRows, GnssFix, Item, LineBlock
+from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock
 
 INGEST_EVERY_S = 30.0
 FLUSH_LINES = 4096  # CAN frames come one by one: written in blocks

@@ -32,9 +32,10 @@ from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingCon
 from console.analysis.crossing_batch import OFF_TRACK_M, crossing_settings
 from console.analysis.crossing_timeline import timeline
 from console.analysis.geo import TrackProjector
-from console.analysis.timefmt import NS, iso
+from console.analysis.timefmt import iso
+from console.inputs.base import GnssFix
 from console.layout import Layout
-from console.sources.base import GnssFix
+from parsers.units import NS
 
 Emit = Callable[[dict[str, Any]], None]
 SKEW_TOLERANCE_S = 2.0  # offsets below this are radio and processing delay, not a wrong clock

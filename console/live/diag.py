@@ -22,14 +22,14 @@ from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.section_state import SectionState
-from console.analysis.stream import NO_TIME
 from console.engine.pipeline import HEALTH_REGISTERS, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks
 from console.layout import Layout
 from console.render.event_lines import health_event, reset_event, section_event
 from console.render.passage_spool import passage_texts
-from parsers.diag import DiagReader
+from parsers.diag.read import DiagReader
 from parsers.report import FileReport
+from parsers.units import NO_TIME
 
 if TYPE_CHECKING:
     from console.analysis.head_table import Heads

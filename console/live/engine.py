@@ -16,14 +16,14 @@ from typing import Any
 
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.section_state import SectionState
-from console.analysis.stream import ALL_TIME
+from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote
 from console.layout import Layout
 from console.live.archive import LiveArchiver
 from console.live.crossings import CrossingFollow
 from console.live.diag import DiagFollow, live_speed
 from console.live.frames import FrameFollow
 from console.live.integrity import IntegrityFollow
-from console.sources.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote
+from parsers.units import ALL_TIME
 
 Emit = Callable[[dict[str, Any]], None]
 TICK_S = 0.5  # crossing units' clock and the idle wake-up: two a second is nothing for the CPU

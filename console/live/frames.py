@@ -3,7 +3,7 @@
 Frames come from a CAN bus one by one (:meth:`FrameFollow.add`, ``can:``) or
 from a followed CAN log or sensor frame log a block at a time
 (:meth:`FrameFollow.add_rows`, ``file:``).  The batch path reads a log into a
-frame table (:func:`parsers.can_logs.parse_can`, :func:`parsers.frames.parse_frames`)
+frame table (:func:`parsers.frames.can.parse_can`, :func:`parsers.frames.sensor.parse_frames`)
 and turns it into detection events with
 :func:`~console.analysis.frame_events.frames_to_events`.  Live frames go
 through that same function, a block at a time: each block of a sensor's
@@ -22,7 +22,7 @@ Two things the batch path decides with hindsight are decided as data arrives:
   repeated, only its restoration is added.  So the events are the batch
   ones, whenever the data stops;
 * byte 2 = 0xA5 after a count: the check byte (a clear) or the count 165.
-  Batch looks at the next count too (``parsers.frame_table.check_byte_mask``);
+  Batch looks at the next count too (``parsers.frames.table.check_byte_mask``);
   live uses what a block holds, and at its end the rule the batch reader
   uses at the end of a file (0xA5 right after 164 is 165, else a clear).
   A clear is announced when it arrives, not one train later; only a count
@@ -47,12 +47,13 @@ from console.analysis.frame_events import frames_to_events
 from console.analysis.health import channel_fault_findings
 from console.analysis.section_state import SectionState, Transition
 from console.analysis.sections import SectionEngine
-from console.analysis.timefmt import NS, iso
+from console.analysis.timefmt import iso
+from console.inputs.base import CanFrame, FrameRows
 from console.layout import Layout
-from console.sources.base import CanFrame, FrameRows
-from parsers.can_logs import COUNT_DLC, COUNT_ID_BASE, NODE_MAX, NODE_MIN, default_sensor_name
-from parsers.frame_table import CHECK_BYTE, DER_BIT, check_byte_mask, decode_status
+from parsers.frames.can import COUNT_DLC, COUNT_ID_BASE, NODE_MAX, NODE_MIN, default_sensor_name
+from parsers.frames.table import CHECK_BYTE, DER_BIT, check_byte_mask, decode_status
 from parsers.report import escape_text
+from parsers.units import NS
 
 Emit = Callable[[dict[str, Any]], None]
 MAX_BUFFERED = 4096  # frames held between flushes (a burst is analysed in blocks of this size)

@@ -32,7 +32,7 @@ from typing import Any
 
 from console.analysis.crossing import CrossingEvent
 from console.analysis.section_state import SectionState
-from console.analysis.timefmt import NS
+from console.inputs.base import GnssFix, LineBlock
 from console.live.engine import LiveEngine
 from console.sim.diag_lines import (
     Row,
@@ -45,7 +45,7 @@ from console.sim.diag_lines import (
 )
 from console.sim.gnss_rows import as_written, unit_name
 from console.sim.station import SentFix, StationSim, StepResult
-from console.sources.base import GnssFix, LineBlock
+from parsers.units import NS
 
 Emit = Callable[[dict[str, Any]], None]
 DIAG_SOURCE = "sim:diagnostic.log"  # the followed log the lines stand for

@@ -11,7 +11,6 @@ from rich.text import Text
 
 from console.analysis.forecast import (
     ANALOG_MARGIN_LIMIT,
-    DAY_NS,
     DISTURBANCE_LIMIT_PER_H,
     GNSS_LOSS_LIMIT,
     STATUSES,
@@ -19,6 +18,7 @@ from console.analysis.forecast import (
 )
 from console.analysis.health import channel_name
 from console.safe_text import inert
+from parsers.units import NS_PER_DAY
 
 STATUS_STYLE = {"past": "bold red", "due": "yellow", "watch": "cyan", "unknown": "dim", "ok": "green"}
 FIGURE_NAMES = {"analog_margin": "analog", "disturbance_rate": "1-edge/h", "gnss_loss": "GNSS loss"}
@@ -46,10 +46,10 @@ def _days_left(f: Forecast) -> str:
     if f.crossing_ns is None and f.earliest_ns is None:
         return "–"
     if f.status == "past" and f.crossing_ns is not None:  # since when: a whole day
-        return f"{(f.crossing_ns - f.last_ns) / DAY_NS:.0f}"
+        return f"{(f.crossing_ns - f.last_ns) / NS_PER_DAY:.0f}"
 
     def d(ns: int | None) -> str:
-        return "open" if ns is None else f"{(ns - f.last_ns) / DAY_NS:.1f}"
+        return "open" if ns is None else f"{(ns - f.last_ns) / NS_PER_DAY:.1f}"
 
     point = "–" if f.crossing_ns is None else d(f.crossing_ns)
     return f"{point} ({d(f.earliest_ns)}…{d(f.latest_ns)})"

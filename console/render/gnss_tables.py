@@ -1,6 +1,6 @@
 """GNSS fixes for people and for machines: Rich tables (80 columns) and a JSON document.
 
-Times in the fix table are UTC (``parsers.nmea``); they are shown as UTC and
+Times in the fix table are UTC (``parsers.gnss.nmea``); they are shown as UTC and
 written as ISO 8601 with ``Z``.  Everything that came from a log (device
 ids, file names) goes through :func:`console.safe_text.inert`.
 """
@@ -19,8 +19,9 @@ from rich.text import Text
 from console.analysis.timefmt import display, iso, iso_array
 from console.jsonout import JSONParts, encode
 from console.safe_text import inert
-from parsers.fix_table import FIX_QUALITIES, NAT_NS, ROLES, SOURCES, FixColumns, sentence_name
+from parsers.gnss.fix_table import FIX_QUALITIES, NAT_NS, ROLES, SOURCES, FixColumns, sentence_name
 from parsers.report import ParseReport
+from parsers.units import NS_PER_DAY
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -28,7 +29,6 @@ if TYPE_CHECKING:
 FIXES_SHOWN = 200
 DEVICES_SHOWN = 200
 _MPS_TO_KMH = 3.6
-_DAY_NS = 86_400 * 1_000_000_000
 
 
 def _table(title: str) -> Table:
@@ -165,7 +165,7 @@ class _Clock:
         # Days from the ns, formatted once per distinct day (not per fix).
         ns = np.asarray(times, np.int64) if isinstance(times, np.ndarray) else _utc_ns(times)
         ns = ns[ns != NAT_NS]
-        days = [display(int(d) * _DAY_NS)[:10] for d in np.unique(ns // _DAY_NS)]
+        days = [display(int(d) * NS_PER_DAY)[:10] for d in np.unique(ns // NS_PER_DAY)]
         self.one_day = len(days) == 1
         self.note = f"{days[0]}, UTC" if self.one_day else "UTC" if days else ""
 

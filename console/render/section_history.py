@@ -19,9 +19,10 @@ from dataclasses import dataclass, field
 from typing import IO, Any
 
 from console.analysis.section_state import LedgerEntry, ResetRecord, Transition
-from console.analysis.timefmt import NS, fraction_text, iso
+from console.analysis.timefmt import fraction_text, iso
 from console.engine.sinks import Sink
 from console.jsonout import valid_unicode
+from parsers.units import NS
 
 TIMELINE_ROWS_KEPT = 201  # the text table shows 200 and says whether there are more
 SPILL_BLOCK_BYTES = 1 << 20  # spilled rows copied out at a time

@@ -1,20 +1,17 @@
 """Report inputs → :class:`ReportData`: expand directories, recognise each file, run the analyses.
 
-Recognition is by content (the first line that is not blank or a ``#``
-comment, read through :func:`parsers.sources.open_input`, so gzip and
-UTF-16 are seen through), in this order:
+Recognition is by content, by the one recogniser of file kinds
+(:func:`parsers.kinds.classify_head`: gzip and UTF-16 are seen through, the
+first line that is not blank or a ``#`` comment decides), with what only the
+report reads or refuses first:
 
 * ``*.toml`` → a layout (used when no ``--layout`` is given: the first one);
 * ``truth.json`` (or a ``trackside.truth/…`` document) → the simulator's
   ground truth: listed, **not read** — a report says what the logs say;
 * a report trackside wrote (Markdown, HTML, JSON) → listed, not read;
-* ``Diag_id:…`` → a diagnostic log;
-* BLF signature, ``.asc``, or a ``.log`` whose first line starts with
-  ``(`` (candump) → a CAN log;
-* ``<ISO time> <sensor> <frame>`` → intelligent-sensor frames;
-* a header naming sensor, in-phase and anti-phase voltages → a voltage table;
-* NMEA, device CSV / JSON lines, GPX tracks, or the monitoring-centre table → GNSS
-  (:func:`parsers.gnss.recognise_format`);
+* then the recogniser's kinds: diagnostic log, CAN log, intelligent-sensor
+  frames, voltage table, GNSS (NMEA and receiver packets, gpsd JSON, device
+  CSV / JSON lines, GPX tracks, the monitoring-centre table);
 * anything else, and empty files, are listed as not read, with the reason.
 
 A directory is read whole, recursively, in sorted order; entries whose
@@ -35,11 +32,9 @@ centre repeats the head units' positions, under the train's name).
 
 from __future__ import annotations
 
-import csv
 import errno
 import os
 import stat
-import zlib
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -80,85 +75,56 @@ from console.report.model import (
 )
 from console.report.spooled import ReportPassages, SectionHistory, report_sink
 from console.safe_text import show_path
+from parsers.kinds import classify_head, read_head
 from parsers.report import escape_text
-from parsers.sources import InputError, open_input
+from parsers.sources import InputError
 
-PEEK_BYTES = 64 * 1024
 STDIN_NAME = "-"  # an input that means standard input
-_GNSS = {"nmea": NMEA, "csv": GNSS_CSV, "jsonl": GNSS_JSONL, "centre": CENTRE, "gpx": GPX}
 
 
 class ReportInputError(Exception):
     """An input, layout or option the report cannot use: one line for the user, exit 2."""
 
 
-def _peek(path: Path) -> bytes:
-    stream, raw, _ = open_input(path)
-    try:
-        return stream.read(PEEK_BYTES)
-    except (OSError, EOFError, zlib.error) as exc:
-        raise InputError(f"{path}: cannot be read, corrupt or truncated ({exc})") from None
-    finally:
-        stream.close()
-        raw.close()
-
-
-def _first_line(head: bytes) -> bytes | None:
-    for line in head.split(b"\n"):
-        text = line.strip()
-        if text and not text.startswith(b"#"):
-            return text
-    return None
-
-
-def _is_voltage_header(text: str) -> bool:
-    from parsers.voltages import parse_header
-
-    delimiter = "\t" if "\t" in text else ";" if ";" in text else ","
-    try:
-        cells = next(csv.reader([text], delimiter=delimiter, skipinitialspace=True), [])
-        parse_header(cells)
-    except (ValueError, csv.Error):  # csv.Error: a line the csv module refuses is no header
-        return False
-    return True
+# The one recogniser's kinds (parsers.kinds) → the report's input formats.
+_FORMATS = {
+    "diag": DIAGNOSTIC,
+    "can": CAN,
+    "frames": FRAMES,
+    "voltages": VOLTAGES,
+    "nmea": NMEA,
+    "gpsd": NMEA,  # gpsd JSON is read by the stream parser, beside any NMEA in the file
+    "gnss-csv": GNSS_CSV,
+    "jsonl": GNSS_JSONL,
+    "centre": CENTRE,
+    "gpx": GPX,
+}
 
 
 def recognise(path: Path) -> tuple[str, str]:
-    """(format, note) of one file; InputError when it cannot be opened at all."""
+    """(format, note) of one file; InputError when it cannot be opened at all.
+
+    What the file is comes from the one recogniser (:func:`parsers.kinds.classify_head`); the report
+    adds what only it reads or refuses: layouts, the simulator's truth and its own reports.
+    """
     if is_layout_file(path):
         return LAYOUT, ""
-    head = _peek(path)
-    if head.startswith(b"LOGG"):
-        return CAN, ""
-    suffixes = [s.lower() for s in path.suffixes if s.lower() != ".gz"]
-    suffix = suffixes[-1] if suffixes else ""
+    head = read_head(path)
     if path.name == "truth.json" or b'"schema": "trackside.truth/' in head:
         return TRUTH, "the simulator's ground truth: not read, the report shows what the logs say"
     if head.startswith(b"# trackside report") or b'"schema": "trackside.report/' in head[:200]:
         return UNKNOWN, "not read: a trackside report"
     if head.lstrip().startswith(b"<!DOCTYPE html>") and b"trackside report" in head:
         return UNKNOWN, "not read: a trackside report"
-    first = _first_line(head)
-    if first is None:
+    guess = classify_head(head)
+    if guess.kind in _FORMATS:
+        return _FORMATS[guess.kind], ""
+    if guess.kind == "empty":
         return EMPTY, "empty: no line to read"
-    if first.startswith(b"Diag_id:"):
-        return DIAGNOSTIC, ""
-    if suffix in (".asc", ".blf", ".trc") or (suffix == ".log" and first.startswith(b"(")):
-        return CAN, ""
-    # Imported here: a report on diagnostic logs never loads the frame, CAN and GNSS parsers (memory).
-    from parsers.frames import frame_line_problem
-    from parsers.gnss import recognise_format
-
-    text = first.decode("utf-8", errors="replace")
-    if len(text.split()) in (3, 4) and frame_line_problem(text) is None:
-        return FRAMES, ""
-    if _is_voltage_header(text):
-        return VOLTAGES, ""
-    gnss = recognise_format(path)
-    if gnss in _GNSS:
-        return _GNSS[gnss], ""
     if b"\0" in head[:4096]:
         return UNKNOWN, "not read: binary data in no format trackside reads"
+    first = next(line.strip() for line in head.split(b"\n") if line.strip() and not line.strip().startswith(b"#"))
+    text = first.decode("utf-8", errors="replace")
     return UNKNOWN, f"not read: unrecognised format, first line '{escape_text(text, 60)}'"
 
 
@@ -424,7 +390,8 @@ def diag_into_report(
 def _frames(data: ReportData, text_files: list[Path], can_files: list[Path]) -> None:
     if not text_files and not can_files:
         return
-    from parsers.frames import count_frames_only, parse_can, parse_frames
+    from parsers.frames.can import count_frames_only, parse_can
+    from parsers.frames.sensor import parse_frames
 
     tables: list[pd.DataFrame] = []
     if text_files:
@@ -482,7 +449,7 @@ def _crossings(data: ReportData, gnss: list[Path]) -> None:
     if not gnss:
         data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."
         return
-    from parsers.gnss import parse_gnss
+    from parsers.gnss_files import parse_gnss
 
     fixes, report, _states = parse_gnss(gnss)
     data.reports["gnss"] = report

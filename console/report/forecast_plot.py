@@ -14,13 +14,13 @@ from typing import Any
 import numpy as np
 
 from console.safe_text import clean
+from parsers.units import NS_PER_DAY
 
 FIGURE_TITLES = {
     "analog_margin": ("analog margin", "median inside the band (counts)"),
     "disturbance_rate": ("disturbance rate", "1-edge counts per hour"),
     "gnss_loss": ("GNSS report loss", "share of reports lost"),
 }
-NS_PER_DAY = 86_400 * 10**9
 
 
 def _day(ns: int | None) -> float | None:

@@ -38,13 +38,12 @@ from typing import TYPE_CHECKING, Any, TypeVar, cast
 import numpy as np
 
 from console.safe_text import clean
+from parsers.units import NS, NS_PER_DAY
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-NS = 1_000_000_000
-NS_PER_DAY = 86_400 * NS
 WIDTH_IN = 10.0  # 720 pt: the page's width scales it (CSS), on screen and on A4
 # Okabe–Ito: distinguishable with the common colour-vision deficiencies.
 PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000")

@@ -27,7 +27,6 @@ import numpy as np
 from console.analysis.crossing import (
     EOT,
     HEAD,
-    NS,
     ControllerSettings,
     CrossingController,
     Fix,
@@ -38,6 +37,7 @@ from console.analysis.crossing_oracle import earliest_arrival_vec, oracle_onset_
 from console.analysis.crossing_timeline import timeline
 from console.analysis.geo import TrackProjector
 from console.layout import Layout, LevelCrossing
+from parsers.units import NS
 
 SCENARIOS = ("through", "stop_before", "stop_on_crossing", "crawl", "stop_far")
 # A train leaving a stop runs up to the line speed at most (the line speed the crossing unit is told);

@@ -14,8 +14,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from console.sim.station import NS, StationSim
+from console.sim.station import StationSim
 from console.sim.writers import run_layout_text, write_logs, write_truth
+from parsers.units import NS
 
 DAY_S = 86_400.0
 

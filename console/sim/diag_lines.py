@@ -13,9 +13,9 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from console.analysis.timefmt import NS
 from console.layout import Layout
 from console.sim.slow_faults import REGISTERS, HealthRows
+from parsers.units import NS
 
 IDENTITY = [
     ("000", "Diagnose I", "2"),

@@ -47,9 +47,9 @@ from console.analysis.integrity import (
 )
 from console.analysis.section_state import SectionState
 from console.analysis.sections import SectionEngine
-from console.analysis.timefmt import NS
 from console.layout import Layout, layout_from_dict
 from console.sim.dynamics import LEVEL_LINE, TrainState, scaled_train, step
+from parsers.units import NS
 
 KINDS = ("parted", "whole", "eot_loss")
 RATES_HZ = (2.5, 1.0, 0.5, 0.2, 0.1)

@@ -30,7 +30,7 @@ from console.sim.diag_lines import (
 )
 from console.sim.station import SentFix, StationSim, StepResult
 from console.sim.writers import nmea_sentences, truth
-from parsers.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
+from parsers.gnss.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
 
 STEP_WALL_S = 0.1  # a line appears within this of its (scaled) time
 

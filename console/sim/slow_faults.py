@@ -30,8 +30,9 @@ import numpy as np
 
 from console.analysis.forecast import DISTURBANCE_LIMIT_PER_H, GNSS_LOSS_LIMIT
 from console.analysis.health import BandSettings
-from console.analysis.timefmt import NS, iso
+from console.analysis.timefmt import iso
 from console.layout import Layout
+from parsers.units import NS
 
 if TYPE_CHECKING:
     from console.sim.station import Fault

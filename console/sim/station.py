@@ -36,7 +36,6 @@ import numpy as np
 
 from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingEvent
 from console.analysis.geo import TrackProjector
-from console.analysis.timefmt import NS
 from console.analysis.wheels import SYS1, SYS2
 from console.layout import Consist, Layout
 from console.sim.devices import line_devices, with_devices
@@ -45,6 +44,7 @@ from console.sim.parting import PartingTruth, braking_step, part_consist, split_
 from console.sim.radio import LoRaLink
 from console.sim.sensor_count import SensorCounts
 from console.sim.slow_faults import SLOW_FAULT_KINDS, HeadHealth, HealthRows, HealthSettings, unit_loss
+from parsers.units import NS
 
 DETECTION_ZONE_M = 0.25  # a wheel damps a coil over this length of travel
 # The truth's head arrival and tail clearance at a crossing: at the road's half width (the crossing units' figure).

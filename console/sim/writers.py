@@ -57,8 +57,9 @@ from console.sim.diag_lines import (
 )
 from console.sim.gnss_rows import DEVICE_STREAM_HEADER, device_stream_row, unit_name
 from console.sim.slow_faults import SLOW_FAULT_KINDS, threshold_crossings
-from console.sim.station import NS, StationSim
-from parsers.frames import CHECK_BYTE, encode_status
+from console.sim.station import StationSim
+from parsers.frames.table import CHECK_BYTE, encode_status
+from parsers.units import NS
 
 CENTRE_PERIOD_S = 10.0
 

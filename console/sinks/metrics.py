@@ -24,8 +24,8 @@ from console.analysis.section_state import SectionState
 if TYPE_CHECKING:
     from wsgiref.simple_server import WSGIServer
 
+    from console.inputs.base import SourceStatus
     from console.layout import Layout
-    from console.sources.base import SourceStatus
 
 SECTION_STATES = tuple(str(s) for s in SectionState)
 SEVERITIES = ("info", "warning", "critical")

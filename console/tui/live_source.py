@@ -18,9 +18,9 @@ from typing import Any
 from console.analysis.crossing import CrossingController
 from console.analysis.section_state import SectionState, Transition
 from console.analysis.sections import SectionEngine
+from console.inputs.base import Item, Source, SourceStatus
 from console.layout import Layout
 from console.live.engine import LiveEngine
-from console.sources.base import Item, Source, SourceStatus
 from console.tui.model import LogEntry, TrainView
 from console.tui.sources import integrity_entry, reported_train
 

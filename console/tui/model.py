@@ -21,8 +21,9 @@ from typing import Protocol
 from console.analysis.crossing import CrossingController
 from console.analysis.section_state import SectionState, Transition
 from console.analysis.sections import SectionEngine
-from console.analysis.timefmt import NS, display
+from console.analysis.timefmt import display
 from console.layout import Layout
+from parsers.units import NS
 
 SPEEDS = (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000)
 SEVERITIES = ("info", "warning", "critical")

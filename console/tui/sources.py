@@ -14,7 +14,8 @@ from console.analysis.section_state import SectionState, Transition
 from console.analysis.sections import SectionEngine
 from console.layout import Layout
 from console.sim.station import Fault, SimConfig, StationSim
-from console.tui.model import NS, LogEntry, TrainView
+from console.tui.model import LogEntry, TrainView
+from parsers.units import NS
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -240,7 +241,7 @@ class ReplaySource:
         events = kept.events
         frame = None
         if other and len(layout.track) >= 2:
-            from parsers.gnss import parse_gnss
+            from parsers.gnss_files import parse_gnss
 
             frame, _report, _states = parse_gnss(other)
         self._setup(layout, events, frame)

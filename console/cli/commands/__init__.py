@@ -1,0 +1,1 @@
+"""One module per trackside command; console.cli.app assembles them."""

@@ -1,0 +1,68 @@
+"""trackside approach."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from console import exit_codes
+from console.cli.common import Console, fail, guard, load_layout, print_json, read_logs
+from console.cli.options import FilesArg, JsonOpt, StrictOpt
+
+
+def approach(
+    files: FilesArg,
+    layout: Annotated[
+        str, typer.Option("--layout", metavar="LAYOUT", help="Layout with [[work_sites]] (file or osong, example).")
+    ] = "osong",
+    head: Annotated[
+        str | None, typer.Option("--head", metavar="HEAD", help="Approach counting head of an ad-hoc site.")
+    ] = None,
+    distance: Annotated[
+        float | None,
+        typer.Option("--distance", metavar="M", help="Metres from the head to the site: + up the line, − down."),
+    ] = None,
+    warning_time: Annotated[
+        float, typer.Option("--warning-time", metavar="S", help="Seconds of warning the workers need.", min=1)
+    ] = 30.0,
+    json_out: JsonOpt = False,
+    strict: StrictOpt = False,
+) -> None:
+    """Track-worker approach warnings: alarm from detection vs from the speed measured at the head."""
+
+    def body() -> int:
+        from console.analysis.approach import approach_timeline
+        from console.layout import WorkSite
+        from console.render.approach_tables import approach_table
+
+        lay = load_layout(layout)
+        sites = list(lay.work_sites)
+        if head is not None or distance is not None:
+            if head is None or distance is None or distance == 0:
+                raise fail("an ad-hoc site needs both --head and a non-zero --distance")
+            if not lay.has_head(head):
+                raise fail(f"--head {head}: not a counting head of {lay.source}")
+            sites = [WorkSite("site", head, distance, warning_time)]
+        if not sites:
+            raise fail(f"{lay.source} has no [[work_sites]]: give --head and --distance")
+        from console.drivers.batch import speed_settings
+        from console.engine.pipeline import PipelineSettings
+
+        job = read_logs(files, PipelineSettings(speed=speed_settings(lay)), hold_passages=True)
+        rows = [r for site in sites for r in approach_timeline(job.analysis.passages, lay, site)]
+        if json_out:
+            print_json(
+                {
+                    "schema": "trackside.approach/1",
+                    "files": job.files,
+                    "layout": lay.source,
+                    "warnings": [r.to_dict() for r in rows],
+                    "parse_report": job.report.to_dict(),
+                }
+            )
+        else:
+            Console(highlight=False).print(approach_table(rows))
+        return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
+
+    raise typer.Exit(guard(body))

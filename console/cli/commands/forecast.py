@@ -1,0 +1,127 @@
+"""trackside forecast: when each head's and unit's health figures will cross their thresholds."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from console import exit_codes
+from console.cli.commands.ingest import ArchiveOpt
+from console.cli.common import Console, fail, guard, load_layout, print_json
+from console.cli.options import JsonOpt
+
+
+def forecast(
+    archive: ArchiveOpt = None,
+    horizon: Annotated[
+        str,
+        typer.Option(
+            "--horizon",
+            metavar="DURATION",
+            help="Due: crossing within this time of the archive's last day (30d, 45d…).",
+        ),
+    ] = "30d",
+    head: Annotated[
+        str | None,
+        typer.Option("--head", metavar="HEAD", help="Only this counting head (or GNSS unit).", show_default=False),
+    ] = None,
+    layout: Annotated[
+        str | None,
+        typer.Option(
+            "--layout",
+            metavar="LAYOUT",
+            help="Layout for the analog bands [default: the one the archive was ingested with].",
+            show_default=False,
+        ),
+    ] = None,
+    trend_days: Annotated[
+        int,
+        typer.Option(
+            "--trend-days", metavar="N", help="Fit the trend on this many last days of figures.", min=3, max=3650
+        ),
+    ] = 14,
+    show_all: Annotated[bool, typer.Option("--all", help="Also list every series, not only the due ones.")] = False,
+    fail_on_due: Annotated[bool, typer.Option("--fail-on-due", help="Exit 1 when anything is due (for cron).")] = False,
+    textfile: Annotated[
+        Path | None,
+        typer.Option(
+            "--textfile",
+            metavar="FILE",
+            help="Also write the forecasts as Prometheus metrics to this file (node_exporter's textfile collector).",
+            show_default=False,
+        ),
+    ] = None,
+    json_out: JsonOpt = False,
+) -> None:
+    """Forecast, from the archive's daily health figures, when each head, channel and GNSS unit will cross
+    its threshold: analog values leaving their band, disturbance rates reaching the warning level, units
+    losing a quarter of their reports.  Lists what is due for maintenance, by date.
+    """
+    from console.archive.store import ArchiveError, archive_dir
+
+    root = archive_dir(archive)
+
+    def body() -> int:
+        from console.analysis.timefmt import parse_duration
+
+        try:
+            import scipy.stats  # noqa: F401 - the trend's library, an optional extra
+        except ImportError:
+            raise fail("forecast needs scipy: pip install 'trackside[forecast]'") from None
+        from console.analysis.forecast import ForecastSettings, due_list
+        from console.archive.health_days import archive_forecasts
+        from console.archive.reader import Window
+        from console.archive.views import require_archive
+
+        try:
+            horizon_days = parse_duration(horizon) / 86_400.0
+        except ValueError as exc:
+            raise fail(f"--horizon: {exc}") from None
+        if not 0 < horizon_days <= 3650:
+            raise fail("--horizon: between 1s and 3650d")
+        try:
+            manifest = require_archive(root)
+            spec = layout if layout is not None else manifest.derived.get("layout")
+            lay = load_layout(spec) if spec else None
+            settings = ForecastSettings(horizon_days=horizon_days, fit_days=trend_days)
+            err = Console(stderr=True, highlight=False)
+            if err.is_terminal:  # what it is reading, on a terminal (a big archive takes a while)
+                with err.status("reading the archive") as status:
+                    items, _ = archive_forecasts(
+                        root, manifest, Window(head=head), lay, settings, say=lambda text: status.update(text)
+                    )
+            else:
+                items, _ = archive_forecasts(root, manifest, Window(head=head), lay, settings)
+        except ArchiveError as exc:
+            raise fail(str(exc)) from None
+        due = due_list(items)
+        if textfile is not None:
+            from console.sinks.metrics import write_forecast_textfile
+
+            try:
+                write_forecast_textfile(str(textfile), items)
+            except OSError as exc:
+                raise fail(f"--textfile {textfile}: cannot write ({exc.strerror or exc})") from None
+        if json_out:
+            print_json(
+                {
+                    "schema": "trackside.forecast/1",
+                    "horizon_days": horizon_days,
+                    "trend_days": trend_days,
+                    "layout": lay.source if lay is not None else None,
+                    "counts": {
+                        s: sum(1 for f in items if f.status == s) for s in ("past", "due", "watch", "unknown", "ok")
+                    },
+                    "due": [f.to_dict() for f in due],
+                    "forecasts": [f.to_dict() for f in items],
+                }
+            )
+        else:
+            from console.render.forecast_tables import forecast_view
+
+            Console(highlight=False).print(forecast_view(items, due, horizon_days, show_all))
+        return exit_codes.FINDINGS if fail_on_due and due else exit_codes.OK
+
+    raise typer.Exit(guard(body))

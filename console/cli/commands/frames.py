@@ -1,0 +1,182 @@
+"""trackside frames."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from console import exit_codes
+from console.cli.common import (
+    Console,
+    check_inputs,
+    guard,
+    load_layout,
+    print_json,
+    refuse_unread,
+    refuse_wrong_kind,
+)
+from console.cli.options import JsonOpt, StrictOpt
+
+
+def _is_can_log(path: Path) -> bool:
+    """CAN logs by suffix (.asc, .blf, .trc, each maybe .gz) or, for .log, by content (candump lines start with '(')."""
+    from parsers.frames.can import can_log_format
+    from parsers.sources import open_input
+
+    fmt = can_log_format(path)
+    if fmt in ("asc", "blf", "trc"):
+        return True
+    if fmt != "candump":
+        return False
+    stream, raw, _ = open_input(path)  # gzip and UTF-16 as the parsers see them
+    try:
+        head = stream.read(4096)
+    finally:
+        stream.close()
+        raw.close()
+    if head.startswith(b"LOGG"):
+        return True
+    for line in head.splitlines():
+        line = line.strip()
+        if line and not line.startswith(b"#"):
+            return line.startswith(b"(")
+    return False
+
+
+# Columns of a frame row that mean something only for a sensor's own (count) frame.
+_SENSOR_FIELDS = ("sensor", "status", "byte2", "check", "sys", "ses1", "ses2", "ses3", "der", "err", "t_since_s")
+_COUNT_ONLY_FIELDS = (*_SENSOR_FIELDS, "total", "seq")
+
+
+def _frame_rows(all_frames: Any) -> list[dict[str, Any]]:
+    """JSON rows: every frame with its kind; fields of a sensor frame are null on other kinds."""
+    import pandas as pd
+
+    from console.analysis.timefmt import iso
+    from parsers.frames.can import CAN_COLUMNS
+
+    if all_frames.empty:
+        return []
+    keep = [c for c in CAN_COLUMNS if c not in ("time", "kind") and c in all_frames.columns]
+    table = all_frames[keep].astype(object).where(all_frames[keep].notna(), None)
+    # A text frame is always a sensor's own frame; concatenated with CAN tables its kind is missing.
+    kind = all_frames["kind"] if "kind" in all_frames else pd.Series("count", index=all_frames.index)
+    kinds = kind.astype(object).where(kind.notna(), "count").tolist()
+    times = all_frames["time"].astype("int64").tolist()
+    rows = []
+    for t_ns, frame_kind, rec in zip(times, kinds, table.to_dict("records"), strict=True):
+        row: dict[str, Any] = {"time": iso(t_ns), "kind": frame_kind}
+        for k, v in rec.items():
+            row[str(k)] = v.item() if hasattr(v, "item") else v
+        if frame_kind != "count":
+            row.update(dict.fromkeys(_COUNT_ONLY_FIELDS))
+        rows.append(row)
+    return rows
+
+
+def frames(
+    files: Annotated[
+        list[Path],
+        typer.Argument(metavar="FILE...", help="Sensor frame files (text) or CAN logs (candump .log, .asc, .blf)."),
+    ],
+    layout: Annotated[
+        str | None,
+        typer.Option(
+            "--layout", metavar="LAYOUT", help="Layout: which travel is up for each sensor (3-element heads)."
+        ),
+    ] = None,
+    comm_timeout: Annotated[
+        float,
+        typer.Option(
+            "--comm-timeout", metavar="S", help="Seconds without frames from a sensor that mean contact lost.", min=0.1
+        ),
+    ] = 10.0,
+    json_out: JsonOpt = False,
+    strict: StrictOpt = False,
+) -> None:
+    """Intelligent-sensor frames and CAN count frames: decoded, and as axle events."""
+
+    def body() -> int:
+        import pandas as pd
+
+        from console.analysis.frame_events import frames_to_events
+        from console.analysis.timefmt import iso
+        from console.render.diag_tables import parse_report_table, rejections_table
+        from console.render.frame_tables import (
+            can_traffic_table,
+            events_table,
+            other_frames_table,
+            sensor_summary_table,
+        )
+        from parsers.frames.can import count_frames_only, parse_can
+        from parsers.frames.sensor import parse_frames
+
+        check_inputs(files)
+        refuse_wrong_kind(files, "frames")
+        lay = load_layout(layout) if layout else None
+        can_files = [p for p in files if _is_can_log(p)]
+        text_files = [p for p in files if p not in can_files]
+        tables, reports = [], []
+        can_report, can_frames = None, pd.DataFrame()
+        if text_files:
+            tf, tr = parse_frames(text_files)
+            tables.append(tf)
+            reports.append(tr)
+        if can_files:
+            can_frames, can_report = parse_can(can_files)
+            tables.append(can_frames)
+            reports.append(can_report)
+        refuse_unread(reports, "frames")
+        up: dict[str, bool] | bool = True
+        if lay is not None:
+            up = {h.id: h.up_is_first_channel_first for h in lay.heads}
+        events = []
+        for table in tables:
+            # Each file is its own recording: sequence and count checks run within it.
+            for _, part in table.groupby("file", observed=True, sort=False):
+                events += frames_to_events(part, up_is_s1_to_s3=up, comm_timeout_s=comm_timeout)
+        events.sort(key=lambda e: e.time_ns)
+        all_frames = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
+        rejected = sum(r.rejected for r in reports)
+        if json_out:
+            print_json(
+                {
+                    "schema": "trackside.frames/2",
+                    "files": [str(p) for p in files],
+                    "frames": _frame_rows(all_frames),
+                    "events": [
+                        {
+                            "time": iso(e.time_ns),
+                            "kind": str(e.kind),
+                            "sensor": e.head,
+                            "direction": e.direction,
+                            "channel": e.channel,
+                            "source": e.source,
+                            "detail": e.detail,
+                        }
+                        for e in events
+                    ],
+                    "parse_reports": [r.to_dict() for r in reports],
+                }
+            )
+        else:
+            out = Console(highlight=False)
+            counted = count_frames_only(all_frames) if not all_frames.empty else all_frames
+            out.print(sensor_summary_table(counted, events))
+            out.print(events_table(events))
+            if can_report is not None:
+                out.print(can_traffic_table(can_report))
+                other = other_frames_table(can_frames)
+                if other is not None:
+                    out.print(other)
+            for r in reports:
+                if r is not can_report:
+                    out.print(parse_report_table(r))
+                rej = rejections_table(r)
+                if rej is not None:
+                    out.print(rej)
+        return exit_codes.FINDINGS if strict and rejected else exit_codes.OK
+
+    raise typer.Exit(guard(body))

@@ -1,0 +1,169 @@
+"""trackside sections."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+import typer
+
+from console import exit_codes
+from console.cli.common import Console, fail, guard, load_layout, read_logs
+from console.cli.options import FilesArg, JsonOpt, LayoutOpt
+from console.plural import count
+from console.safe_text import clean
+
+
+def _parse_resets(values: list[str]) -> list[Any]:
+    import pandas as pd
+
+    from console.analysis.events import DetectionEvent, EventKind
+
+    out = []
+    for v in values:
+        section, sep, when = v.partition("@")
+        try:
+            t = pd.Timestamp(when) if sep and section else None
+        except ValueError:
+            t = None
+        if t is None or pd.isna(t):
+            raise fail(f"--reset {v!r}: expected SECTION@TIME, e.g. B1@2026-03-02T09:30:00")
+        out.append(DetectionEvent(int(t.value), EventKind.RESET, section.strip(), source="operator", detail="--reset"))
+    return out
+
+
+def _write_json(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
+    """The document of ``sections_json``, its timeline and ledger copied in from the sink's spill files."""
+    import sys
+
+    from console.jsonout import dumps
+    from console.render.section_tables import sections_summary
+
+    head = dumps(
+        {
+            "schema": "trackside.sections/1",
+            "files": job.files,
+            "layout": lay.source,
+            "parse_report": job.report.to_dict(),
+            "warnings": job.warnings,
+            **sections_summary(final),
+        }
+    )
+    out = sys.stdout
+    out.write(head[:-1] + ",")
+    sink.write_json_arrays(out)
+    out.write("}\n")
+    out.flush()
+
+
+def _print_tables(job: Any, final: dict[str, Any], sink: Any) -> None:
+    from console.analysis.sections import SectionsResult, ledger_summary_frame
+    from console.render import section_tables as st
+
+    head = job.sections.result(sink.timeline_first, [], sink.reset_rows)
+    result = SectionsResult(head.timeline, head.ledger, head.resets, final, ledger_summary_frame(sink.ledger_totals))
+    out = Console(highlight=False)
+    out.print(st.final_states_table(result))
+    timeline = st.timeline_table(result)
+    # The table shows the first rows kept; title and caption count them all.
+    limit, n = 200, sink.timeline_rows
+    timeline.title = f"State timeline ({count(n, 'change')})"
+    timeline.caption = f"first {limit} of {n}; --json has all" if n > limit else None
+    out.print(timeline)
+    out.print(st.ledger_summary_table(result))
+    rt = st.resets_table(result)
+    if rt is not None:
+        out.print(rt)
+    for w in job.warnings:
+        out.print(clean(f"warning: {w}"), markup=False)
+    if job.report.rejected:
+        out.print(f"{job.report.rejected} input lines rejected (trackside analyze lists them)", markup=False)
+
+
+def sections(
+    files: FilesArg,
+    layout: LayoutOpt,
+    reset: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--reset",
+            metavar="SECTION@TIME",
+            help="Ask to reset a section at a time: SECTION@TIME (repeatable).",
+            show_default=False,
+        ),
+    ] = None,
+    power_gap: Annotated[
+        float | None,
+        typer.Option(
+            "--power-gap",
+            metavar="S",
+            help="Seconds without records from a head that mean power loss (off unless set).",
+            min=1.0,
+        ),
+    ] = None,
+    initial: Annotated[
+        str,
+        typer.Option(
+            "--initial",
+            metavar="unknown|clear",
+            help="Section state at the start of the log: unknown (until a sweep) or clear.",
+        ),
+    ] = "unknown",
+    isolation: Annotated[
+        float,
+        typer.Option(
+            "--isolation",
+            metavar="S",
+            help="Seconds of quiet before and after a lone pulse that make it accidental.",
+            min=1.0,
+        ),
+    ] = 60.0,
+    json_out: JsonOpt = False,
+    strict: Annotated[
+        bool, typer.Option("--strict", help="Exit 1 if a line was rejected or a section ends disturbed.")
+    ] = False,
+) -> None:
+    """Section states from axle counting: state timeline, count ledger, resets."""
+
+    def body() -> int:
+        from console.analysis.diag_events import DiagEventSettings
+        from console.analysis.diagnostics import SpeedSettings
+        from console.analysis.majority import MajoritySettings
+        from console.analysis.section_state import SectionState
+        from console.analysis.wheels import CountingSettings
+        from console.engine.pipeline import PipelineSettings
+        from console.render.section_history import SectionsSink
+
+        if initial not in ("unknown", "clear"):
+            raise fail(f"--initial: expected unknown or clear, found {initial!r}")
+        lay = load_layout(layout)
+        if not lay.sections:
+            raise fail(f"{lay.source}: the layout has no [[sections]]")
+        resets = _parse_resets(reset or [])
+        events = DiagEventSettings(
+            counting=CountingSettings(isolation_s=isolation),
+            majority=MajoritySettings(isolation_s=isolation),
+            power_gap_s=power_gap,
+        )
+        settings = PipelineSettings(
+            speed=SpeedSettings(spacing_m=lay.heads[0].spacing_m, train_length_m=28.6, idle_gap_s=10.0),
+            events=events,
+            layout=lay,
+            sections=lay,
+            initial=SectionState.CLEAR if initial == "clear" else SectionState.PREPARATORY,
+            resets=tuple(resets),
+        )
+        sink = SectionsSink(spill=json_out)
+        try:
+            job = read_logs(files, settings, sink)
+            assert job.sections is not None
+            final = job.sections.final_states()
+            disturbed = [sid for sid, f in final.items() if f[0] == SectionState.DISTURBED]
+            if json_out:
+                _write_json(job, lay, final, sink)
+            else:
+                _print_tables(job, final, sink)
+        finally:
+            sink.close()
+        return exit_codes.FINDINGS if strict and (job.report.rejected or disturbed) else exit_codes.OK
+
+    raise typer.Exit(guard(body))

@@ -1,0 +1,319 @@
+"""trackside simulate."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from console import exit_codes
+from console.cli.common import Console, fail, guard, load_layout, print_json
+from console.cli.options import JsonOpt
+from console.plural import count
+
+
+def _parse_fault(text: str) -> Any:
+    """``KIND:TARGET:START[:END[:CHANNEL[:RATE]]]`` (times like 90s, 30m, 3d) → a simulator Fault."""
+    from console.analysis.timefmt import parse_duration
+    from console.sim.slow_faults import SLOW_FAULT_KINDS, check_rate
+    from console.sim.station import FAULT_KINDS, Fault
+
+    parts = text.split(":")
+    if len(parts) < 3 or len(parts) > 6 or parts[0] not in FAULT_KINDS:
+        raise fail(
+            f"--fault {text!r}: expected KIND:TARGET:START[:END[:CHANNEL[:RATE]]] with KIND one of "
+            f"{', '.join(FAULT_KINDS)}"
+        )
+    try:
+        start = parse_duration(parts[2])
+        end = parse_duration(parts[3]) if len(parts) > 3 and parts[3] else float("inf")
+        channel = int(parts[4]) if len(parts) > 4 and parts[4] else 2
+        if channel not in (1, 2):
+            raise ValueError(f"channel must be 1 or 2, found {channel}")
+        rate = None
+        if len(parts) > 5:
+            if parts[0] not in SLOW_FAULT_KINDS:
+                raise ValueError(f"a RATE is for the slow faults ({', '.join(SLOW_FAULT_KINDS)})")
+            rate = float(parts[5])
+            check_rate(parts[0], rate)
+    except ValueError as exc:
+        raise fail(f"--fault {text!r}: {exc}") from None
+    return Fault(parts[0], parts[1], start, end, channel, rate=rate)
+
+
+def _check_targets(faults: tuple[Any, ...], lay: Any, fleet: int, health_only: bool) -> None:
+    from console.sim.station import TRAIN_FAULTS
+
+    heads = {h.id for h in lay.heads}
+    for f in faults:
+        if f.kind == "gnss_decay":
+            train, _, role = f.target.rpartition("-")
+            if role not in ("head", "eot") or not train:
+                raise fail(f"--fault gnss_decay: {f.target} is not a GNSS unit (TRAIN-head or TRAIN-eot, e.g. T1-eot)")
+            if fleet and train not in {f"T{i + 1}" for i in range(fleet)}:
+                raise fail(f"--fault gnss_decay: {f.target}: the fleet's trainsets are T1 to T{fleet}")
+            if health_only:
+                raise fail("--fault gnss_decay: --health-only runs no trains, so no GNSS unit reports")
+        elif f.kind not in TRAIN_FAULTS and f.target not in heads:
+            raise fail(f"--fault {f.kind}: {f.target} is not a counting head of {lay.source}")
+
+
+def simulate(
+    output: Annotated[
+        Path,
+        typer.Option(
+            "-o", "--output", metavar="DIR", help="Directory to write the run into (created; never over an input)."
+        ),
+    ],
+    layout: Annotated[
+        str, typer.Option("--layout", metavar="LAYOUT", help="Layout file, or osong / example.")
+    ] = "example",
+    duration: Annotated[
+        str, typer.Option("--duration", metavar="DURATION", help="Simulated time: 90s, 30m, 2h, 1h30m.")
+    ] = "2h",
+    seed: Annotated[
+        int, typer.Option("--seed", metavar="N", help="Random seed: the same seed gives the same run.")
+    ] = 1,
+    trains_per_hour: Annotated[float, typer.Option("--trains-per-hour", metavar="N", min=0.1, max=60)] = 6.0,
+    spreading_factor: Annotated[
+        int,
+        typer.Option(
+            "--sf",
+            metavar="7-12",
+            help="LoRa spreading factor of the GNSS units (7-12): sets their report period.",
+            min=7,
+            max=12,
+        ),
+    ] = 7,
+    fault: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--fault",
+            metavar="KIND:TARGET:START[:END[:CH[:RATE]]]",
+            help="KIND:TARGET:START[:END[:CHANNEL[:RATE]]], e.g. dead_channel:WS3:20m, train_parting:T2:14m,"
+            " analog_drift:WS3:2d::1,"
+            " gnss_decay:T2-eot:0s::2:0.02 (repeatable).",
+        ),
+    ] = None,
+    days: Annotated[
+        float | None,
+        typer.Option(
+            "--days",
+            metavar="N",
+            help="Simulate this many days (instead of --duration), from midnight: a directory of logs per day.",
+            min=0.01,
+            max=3650,
+        ),
+    ] = None,
+    one_log: Annotated[
+        bool, typer.Option("--one-log", help="With --days: one set of growing logs instead of one per day.")
+    ] = False,
+    health_only: Annotated[
+        bool,
+        typer.Option(
+            "--health-only",
+            help="Only the heads' health registers (1-edge counters, analog values): no trains; weeks in seconds.",
+        ),
+    ] = False,
+    health_every: Annotated[
+        str | None,
+        typer.Option(
+            "--health-every",
+            metavar="DURATION",
+            help="Write each head's health registers this often (default 15m with --days or a slow fault).",
+        ),
+    ] = None,
+    fleet: Annotated[
+        int | None,
+        typer.Option(
+            "--fleet",
+            metavar="N",
+            help="Trains are N trainsets T1..TN making trip after trip (default 3 with --days).",
+            min=1,
+        ),
+    ] = None,
+    json_out: JsonOpt = False,
+    live: Annotated[
+        bool,
+        typer.Option(
+            "--live", metavar="SOURCE", help="Write the logs as growing files in (scaled) real time, for `follow`."
+        ),
+    ] = False,
+    live_speed: Annotated[
+        float,
+        typer.Option(
+            "--speed", metavar="X", help="With --live/--mqtt: simulated seconds per real second.", min=0.1, max=1000
+        ),
+    ] = 1.0,
+    mqtt: Annotated[
+        str | None,
+        typer.Option(
+            "--mqtt", metavar="URL", help="Publish the GNSS units' uplinks (ChirpStack v4 JSON) to mqtt://HOST:PORT."
+        ),
+    ] = None,
+) -> None:
+    """Simulate a line: trains, counting heads, GNSS units and faults, written as real logs with a truth."""
+
+    def body() -> int:
+        from console.analysis.timefmt import parse_duration
+        from console.live.simulated import SimulatedConsole
+        from console.output_path import OutputError, check_output_directory, staged_directory
+        from console.progress import byte_progress
+        from console.safe_text import show_path
+        from console.sim.radio import LoRaLink
+        from console.sim.station import SimConfig, StationSim
+        from console.sim.writers import write_run
+
+        try:
+            seconds = parse_duration(duration) if days is None else days * 86_400.0
+            health_period = None if health_every is None else parse_duration(health_every)
+        except ValueError as exc:
+            raise fail(f"--duration/--health-every: {exc}") from None
+        if health_period is not None and not 1 <= health_period <= 86_400:
+            raise fail("--health-every: between 1s and 1d")
+        if days is None and (one_log or health_only):
+            raise fail("--one-log and --health-only go with --days N")
+        if days is not None and (live or mqtt):
+            raise fail("--days writes finished logs; --live and --mqtt run now: give one or the other")
+        lay = load_layout(layout)
+        faults = tuple(_parse_fault(f) for f in (fault or []))
+        trainsets = fleet if fleet is not None else (3 if days is not None else 0)
+        _check_targets(faults, lay, trainsets, health_only)
+        layout_file = Path(layout)
+        inputs = [layout_file] if layout_file.is_file() else []
+        try:
+            check_output_directory(output, what="run")
+        except OutputError as exc:
+            raise fail(str(exc)) from None
+        config = SimConfig(
+            seed=seed,
+            trains_per_hour=trains_per_hour,
+            radio=LoRaLink(spreading_factor=spreading_factor),
+            faults=faults,
+            health_period_s=health_period if health_period is not None else (900.0 if days is not None else None),
+            fleet=trainsets,
+        )
+        if days is not None:
+            import dataclasses
+
+            from console.sim.days import midnight_ns
+
+            config = dataclasses.replace(config, start_ns=midnight_ns(config.start_ns))
+        if live or mqtt:  # a live run happens now: the units' clocks and the console's agree
+            import dataclasses
+            import time
+
+            config = dataclasses.replace(config, start_ns=time.time_ns() // 10**9 * 10**9)
+        try:
+            sim = StationSim(lay, config)
+        except ValueError as exc:
+            raise fail(str(exc)) from None
+        # The station's console watches the run (its final section states, its warnings in the centre table).
+        console = None if health_only else SimulatedConsole(sim)
+        if live or mqtt:
+            from console.cli.commands.simulate_live import run_live_command
+
+            return run_live_command(sim, seconds, live_speed, output if live else None, mqtt, json_out)
+        if days is not None:
+            return _run_days(sim, days, output, inputs, one_log, health_only, json_out, seed)
+        # The bar counts simulated milliseconds (it only shows on a terminal, for long runs).
+        with byte_progress(int(seconds * 1000) if seconds >= 600 else 0, "simulating") as advance:
+            last = [0.0]
+
+            def tick(t_s: float) -> None:
+                if advance is not None:
+                    advance(int((t_s - last[0]) * 1000))
+                    last[0] = t_s
+
+            sim.run(seconds, on_step=tick)
+        try:
+            # Written into a hidden stage first: an interrupted run leaves no half-written log behind.
+            with staged_directory(output, inputs, what="run") as stage:
+                counts = write_run(sim, stage)
+        except OutputError as exc:
+            raise fail(str(exc)) from None
+        assert console is not None  # --health-only goes with --days
+        sim_sections = {
+            s: {"console": state, "true_count": sim.true_count(s)} for s, state in console.section_states().items()
+        }
+        summary = {
+            "schema": "trackside.simulate/1",
+            "output": show_path(output),
+            "layout": lay.source,
+            "seed": seed,
+            "duration_s": seconds,
+            "trains": len(sim.trains),
+            "axles": len(sim.truth_axles),
+            "report_period_s": round(sim.period_s, 2),
+            "written": counts,
+            "sections": sim_sections,
+        }
+        if json_out:
+            print_json(summary)
+        else:
+            out = Console(highlight=False)
+            out.print(
+                f"simulated {duration} on {lay.name} (seed {seed}): {count(len(sim.trains), 'train')}, "
+                f"{count(len(sim.truth_axles), 'axle passage')};"
+                f" GNSS every {sim.period_s:.1f} s (LoRa SF{spreading_factor})",
+                markup=False,
+            )
+            for name, n in counts.items():
+                out.print(f"  {show_path(output / name)}: {n}", markup=False)
+            for sid, st in sim_sections.items():
+                out.print(
+                    f"  section {sid}: console {st['console']}, axles really inside {st['true_count']}", markup=False
+                )
+        return exit_codes.OK
+
+    raise typer.Exit(guard(body))
+
+
+def _run_days(
+    sim: Any, days: float, output: Path, inputs: list[Path], one_log: bool, health_only: bool, json_out: bool, seed: int
+) -> int:
+    from console.output_path import OutputError, staged_directory
+    from console.progress import byte_progress
+    from console.safe_text import show_path
+    from console.sim.days import run_days
+    from console.sim.slow_faults import SLOW_FAULT_KINDS
+
+    with byte_progress(int(days * 86_400), "simulating days") as advance:
+        last = [0.0]
+
+        def tick(t_s: float) -> None:
+            if advance is not None:
+                advance(int(t_s - last[0]))
+                last[0] = t_s
+
+        try:
+            with staged_directory(output, inputs, what="run") as stage:
+                written = run_days(sim, days, stage, one_log=one_log, health_only=health_only, on_step=tick)
+        except OutputError as exc:
+            raise fail(str(exc)) from None
+    summary = {
+        "schema": "trackside.simulate-days/1",
+        "output": show_path(output),
+        "layout": sim.layout.source,
+        "seed": seed,
+        "days": days,
+        "one_log": one_log,
+        "health_only": health_only,
+        "trains": len(sim.trains),
+        "heads_with_health_registers": len(sim.health.heads) if sim.health is not None else 0,
+        "slow_faults": sum(1 for f in sim.faults if f.kind in SLOW_FAULT_KINDS),
+        "written": written,
+    }
+    if json_out:
+        print_json(summary)
+    else:
+        out = Console(highlight=False)
+        what = "health registers of" if health_only else "trains, GNSS units and"
+        out.print(
+            f"simulated {days:g} days of {what} {len(sim.layout.heads)} heads on {sim.layout.name} (seed {seed}): "
+            f"{len(sim.trains)} trips; {len(written['days'])} days written into {show_path(output)}"
+            f"{' as one growing log' if one_log else ', a directory per day'}",
+            markup=False,
+        )
+    return exit_codes.OK

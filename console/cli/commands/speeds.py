@@ -1,0 +1,66 @@
+"""trackside speeds."""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+
+from console import exit_codes
+from console.cli.common import Console, fail, guard, print_json, read_logs
+from console.cli.options import (
+    REJECTIONS_LISTED,
+    FilesArg,
+    IdleGapOpt,
+    IncludeStatusOpt,
+    JsonlOpt,
+    JsonOpt,
+    SpacingOpt,
+    StrictOpt,
+    TrainLengthOpt,
+)
+
+
+def speeds(
+    files: FilesArg,
+    spacing: SpacingOpt = 0.13,
+    train_length: TrainLengthOpt = 28.6,
+    idle_gap: IdleGapOpt = 10.0,
+    json_out: JsonOpt = False,
+    jsonl: JsonlOpt = False,
+    include_status: IncludeStatusOpt = False,
+    strict: StrictOpt = False,
+) -> None:
+    """The passages table alone: per-second, whole-train and per-axle speeds."""
+
+    def body() -> int:
+        from console.analysis.diagnostics import SpeedSettings
+        from console.engine.pipeline import PipelineSettings
+        from console.render.diag_stream import JsonLinesOut, status_json, summary_doc
+        from console.render.passage_spool import PassageSpool
+
+        if json_out and jsonl:
+            raise fail("--json and --jsonl: choose one")
+        lines = JsonLinesOut(sys.stdout, REJECTIONS_LISTED) if jsonl else None
+        spool = PassageSpool() if json_out else None
+        speed = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
+        settings = PipelineSettings(speed=speed, include_status=include_status)
+        # The text table lists every passage: held as one table.
+        job = read_logs(files, settings, spool, jsonl=lines, hold_passages=not (json_out or jsonl))
+        if lines is not None:
+            lines.finish([], summary_doc(job, "trackside.speeds/1"))
+        elif json_out:
+            assert spool is not None
+            doc = {"schema": "trackside.speeds/1", "passages": spool.json_parts()}
+            if job.status is not None:
+                doc["status_passages"] = status_json(job.status, job.analysis.heads)
+            print_json(doc)
+            if spool is not None:
+                spool.close()
+        else:
+            from console.render.diag_tables import passages_table
+
+            Console(highlight=False).print(passages_table(job.analysis, unpaired=job.analysis.unpaired_detections))
+        return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
+
+    raise typer.Exit(guard(body))

@@ -1,0 +1,357 @@
+"""What the commands share: one-line errors, the guard that turns input errors into exit 2,
+JSON output, layouts and the diagnostic job (the option types are in :mod:`console.cli.options`)."""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import io
+import os
+import signal
+import stat
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import typer
+from rich.console import Console as RichConsole
+
+from console import exit_codes
+from console.cli.options import REJECTIONS_LISTED, STDIN
+from console.safe_text import show_path
+
+JSON_SCHEMA_ANALYZE = "trackside.analyze/1"
+
+
+def fail(message: str, code: int = exit_codes.USAGE) -> typer.Exit:
+    """One unwrapped line on stderr (file names may hold anything: escaped)."""
+    from console.safe_text import clean
+
+    sys.stderr.write(f"trackside: error: {clean(message)}\n")
+    sys.stderr.flush()
+    return typer.Exit(code)
+
+
+def check_inputs(paths: list[Path]) -> None:
+    """Every input readable, before any work: one line and exit 2 for the first that is not.
+
+    ``-`` is standard input (once); FIFOs, ``/dev/stdin`` and process
+    substitution (``<(zcat x.gz)``) are read as streams; a directory, a
+    dangling symlink or a symlink loop is refused with its own reason.
+    """
+    stdin_given = False
+    for p in paths:
+        if os.fsdecode(p) == STDIN:
+            if stdin_given:
+                raise fail("-: standard input given twice")
+            if sys.stdin is None:
+                raise fail("-: standard input is closed")
+            stdin_given = True
+            continue
+        try:
+            st = os.stat(p)
+        except FileNotFoundError:
+            raise fail(f"{show_path(p)}: {'symlink to nothing' if os.path.islink(p) else 'no such file'}") from None
+        except OSError as exc:
+            reason = "symlink loop" if exc.errno == errno.ELOOP else f"cannot open ({exc.strerror or exc})"
+            raise fail(f"{show_path(p)}: {reason}") from None
+        if stat.S_ISDIR(st.st_mode):
+            raise fail(f"{show_path(p)}: is a directory, expected a log file")
+        if stat.S_ISSOCK(st.st_mode):
+            raise fail(f"{show_path(p)}: is a socket, expected a log file")
+        if not os.access(p, os.R_OK):
+            raise fail(f"{show_path(p)}: permission denied")
+
+
+# Errors that mean the output cannot be written (not that an input is bad: the
+# readers turn theirs into InputError): a full disk or quota, a file too large,
+# a read-only file system, a closed standard output.  Not EIO, which a failing
+# input disk raises too.
+OUTPUT_ERRNOS = frozenset((errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EBADF, errno.EROFS))
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread so that partial output files are cleaned up on the way out."""
+
+
+class ClosedOutput:
+    """Standard output that was closed before we started (``>&-``): any write fails, as it would on a file."""
+
+    encoding = "utf-8"
+    errors = "strict"
+
+    def write(self, text: str) -> int:
+        raise OSError(errno.EBADF, "standard output is closed")
+
+    def flush(self) -> None:
+        return None
+
+    def isatty(self) -> bool:
+        return False
+
+    def fileno(self) -> int:
+        raise OSError(errno.EBADF, "standard output is closed")
+
+    def writable(self) -> bool:
+        return True
+
+
+def _silence_stdout() -> None:
+    """Point fd 1 at /dev/null so that Python's own flush at exit cannot fail a second time."""
+    try:
+        fd = sys.stdout.fileno() if sys.stdout is not None else -1
+    except (OSError, ValueError, AttributeError):
+        return
+    if fd != 1:
+        return
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 1)
+        os.close(devnull)
+    except OSError:
+        pass
+
+
+def output_failed(exc: OSError) -> int:
+    """The exit code for a failed write to the output: 0 for a reader that left (``| head``), else 2."""
+    _silence_stdout()
+    if isinstance(exc, BrokenPipeError) or exc.errno == errno.EPIPE:
+        return exit_codes.OK
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    try:
+        sys.stderr.write(f"trackside: error: cannot write output: {reason}\n")
+        sys.stderr.flush()
+    except (OSError, ValueError, AttributeError):
+        pass
+    return exit_codes.USAGE
+
+
+def _flush_at_exit() -> None:
+    # Python flushes stdout once more at shutdown and, if that fails, prints
+    # "Exception ignored ... BrokenPipeError" and exits 120: do it here first.
+    try:
+        if sys.stdout is not None:
+            sys.stdout.flush()
+    except OSError as exc:
+        if output_failed(exc) != exit_codes.OK:
+            os._exit(exit_codes.USAGE)
+
+
+def _reopen_closed_std_fds() -> None:
+    """Occupy fds 0-2 if they were closed at start, so no file we open later becomes our stdout."""
+    for fd in (0, 1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            try:
+                new = os.open(os.devnull, os.O_RDWR)
+            except OSError:
+                continue
+            if new != fd:
+                os.dup2(new, fd)
+                os.close(new)
+
+
+_process_guarded = False
+
+
+def install_process_guards() -> Callable[[], None]:
+    """Once per process: closed stdout, SIGTERM and the exit-time flush; returns an undo for SIGTERM."""
+    global _process_guarded
+    if not _process_guarded and sys.stdout is sys.__stdout__:
+        _process_guarded = True
+        _reopen_closed_std_fds()
+        if sys.stdout is None:
+            sys.stdout = ClosedOutput()
+        if sys.stderr is None:
+            sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - lives as long as the process
+        # Last line of defence: a name that is not UTF-8 and escaped nobody's escaping
+        # prints as \udcff instead of failing the whole command.
+        for stream in (sys.stdout, sys.stderr):
+            if isinstance(stream, io.TextIOWrapper):
+                with contextlib.suppress(ValueError, OSError):
+                    stream.reconfigure(errors="backslashreplace")
+        import atexit
+
+        atexit.register(_flush_at_exit)
+    try:
+        previous = signal.getsignal(signal.SIGTERM)
+
+        def on_sigterm(signum: int, frame: object) -> None:
+            raise Terminated()
+
+        signal.signal(signal.SIGTERM, on_sigterm)
+    except ValueError:  # not the main thread (an embedding app): leave signals alone
+        return lambda: None
+
+    def undo() -> None:
+        signal.signal(signal.SIGTERM, previous)
+
+    return undo
+
+
+class Console(RichConsole):
+    """Rich's console, but a reader that stops early (``| head``) is not an error:
+    Rich exits 1 on a broken pipe; we stop quietly with 0."""
+
+    def on_broken_pipe(self) -> None:
+        _silence_stdout()
+        raise SystemExit(exit_codes.OK)
+
+
+def guard(fn: Callable[[], int]) -> int:
+    """Run a command body: input errors become one-line messages and exit 2.
+
+    The output is flushed here, so a full disk or a closed stdout is
+    reported ("cannot write output: …", exit 2), a reader that left early
+    (``| head``) ends quietly with 0, Ctrl-C exits 130 and SIGTERM 143.
+    """
+    from parsers.sources import InputError
+
+    try:
+        code = fn()
+        if sys.stdout is not None:
+            sys.stdout.flush()
+        return code
+    except (typer.Exit, typer.Abort):
+        raise
+    except InputError as exc:
+        raise fail(str(exc)) from None
+    except KeyboardInterrupt:
+        _silence_stdout()
+        return exit_codes.INTERRUPTED
+    except Terminated:
+        _silence_stdout()
+        return exit_codes.TERMINATED
+    except OSError as exc:
+        if isinstance(exc, BrokenPipeError) or exc.errno in OUTPUT_ERRNOS or exc.errno == errno.EPIPE:
+            return output_failed(exc)
+        if os.environ.get("TRACKSIDE_DEBUG"):
+            raise
+        raise fail(f"internal error: {type(exc).__name__}: {exc} (set TRACKSIDE_DEBUG=1 for details)") from None
+    except MemoryError:
+        raise fail("out of memory") from None
+    except Exception as exc:
+        if os.environ.get("TRACKSIDE_DEBUG"):
+            raise
+        raise fail(f"internal error: {type(exc).__name__}: {exc} (set TRACKSIDE_DEBUG=1 for details)") from None
+
+
+def print_json(doc: dict[str, Any]) -> None:
+    from console.jsonout import write
+
+    write(doc, sys.stdout)
+    sys.stdout.flush()
+
+
+# Kinds a command refuses outright: files it could only reject line by line.
+_NOT_DIAG_KINDS = frozenset({"nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre", "frames", "can", "voltages"})
+_NOT_FRAME_KINDS = frozenset({"diag", "nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre", "voltages"})
+_NOT_VOLTAGE_KINDS = frozenset({"diag", "nmea", "gpsd", "jsonl", "gpx", "gnss-csv", "centre", "frames", "can"})
+# What each command reads, as its refusals name it.
+READS = {
+    "diag": "an axle-counter diagnostic log",
+    "gnss": "GNSS",
+    "frames": "sensor frames or a CAN log",
+    "voltages": "a receiver-voltage table",
+}
+
+
+def refuse_wrong_kind(paths: list[Path], expected: str) -> None:
+    """A file that plainly holds something else: one line naming it and what it looks like, exit 2.
+
+    ``expected`` is a key of :data:`READS`.  Damaged files are not refused here: they are read and
+    their lines rejected with reasons, as any other input; a file of which nothing at all was read
+    is refused after reading (:func:`refuse_unread`).  An empty file is zero records, not an error.
+    """
+    from parsers.kinds import classify_head, not_gnss_reason, read_head
+
+    for p in paths:
+        if expected == "gnss":
+            wrong = not_gnss_reason(p)
+            if wrong is not None:
+                raise fail(f"{show_path(p)}: nothing readable as GNSS: {wrong}")
+            continue
+        head = read_head(p)
+        guess = classify_head(head)
+        if expected == "diag":
+            if guess.kind in _NOT_DIAG_KINDS:
+                raise fail(f"{show_path(p)}: not an axle-counter diagnostic log: looks like {guess.description}")
+            if guess.kind == "unknown" and b"Diag_id:" not in head:
+                # Not one record in the head (64 KiB): an image, a document, notes.
+                what = "binary data" if guess.why == "binary data" else _first_line(head)
+                raise fail(f"{show_path(p)}: nothing readable as {READS['diag']}: no Diag_id: record ({what})")
+        elif expected in ("frames", "voltages"):
+            refused = _NOT_FRAME_KINDS if expected == "frames" else _NOT_VOLTAGE_KINDS
+            if guess.kind in refused:
+                raise fail(f"{show_path(p)}: nothing readable as {READS[expected]}: looks like {guess.description}")
+            if guess.why == "binary data":
+                raise fail(f"{show_path(p)}: nothing readable as {READS[expected]}: binary data")
+
+
+def _first_line(head: bytes) -> str:
+    from parsers.report import escape_text
+
+    line = next((s for s in (x.strip() for x in head.split(b"\n")) if s), b"")
+    return f"first line '{escape_text(line, 40)}'"
+
+
+def refuse_unread(reports: Any, expected: str) -> None:
+    """Exit 2 with one line for the first file of which no line was read (no record, some rejected).
+
+    ``reports`` is a :class:`~parsers.report.ParseReport` or several; ``expected`` a key of :data:`READS`.
+    """
+    from console.plural import count
+
+    for report in reports if isinstance(reports, list | tuple) else [reports]:
+        for fr in report.files:
+            if fr.records or not fr.rejected:
+                continue
+            first = next((r for r in report.rejections if r.file == fr.file), None)
+            example = f"; line {first.line}: {first.reason}" if first is not None else ""
+            raise fail(
+                f"{show_path(fr.file)}: nothing readable as {READS[expected]}:"
+                f" {count(fr.rejected, 'line')} rejected, none read{example}"
+            )
+
+
+def read_logs(
+    files: list[Path],
+    settings: Any,
+    sink: Any = None,
+    *,
+    jsonl: Any = None,
+    rejected_all: bool = False,
+    hold_passages: bool = False,
+) -> Any:
+    """Read diagnostic logs through the pipeline (:func:`console.drivers.batch.read_diag`), with the
+    checks every command makes first and a progress bar; ``jsonl`` (a
+    :class:`~console.render.diag_stream.JsonLinesOut`) also gets the rejected lines as they are met."""
+    from console.drivers.batch import ReadOptions, input_bytes, read_diag
+    from console.engine.sinks import Sinks
+    from console.progress import byte_progress
+
+    check_inputs(files)
+    refuse_wrong_kind(files, "diag")
+    with byte_progress(input_bytes(files), "parsing") as advance:
+        opts = ReadOptions(
+            on_progress=advance,
+            on_records=advance.records if advance is not None else None,
+            max_rejections_kept=sys.maxsize if rejected_all else REJECTIONS_LISTED,
+            on_reject=jsonl.rejected if jsonl is not None else None,
+            passages_final=jsonl is not None,
+            hold_passages=hold_passages,
+        )
+        job = read_diag(files, settings, Sinks(jsonl, sink), opts)
+    refuse_unread(job.report, "diag")
+    return job
+
+
+def load_layout(spec: str) -> Any:
+    from console.layout import LayoutError, load_layout
+
+    try:
+        return load_layout(spec)
+    except LayoutError as exc:
+        raise fail(str(exc)) from None

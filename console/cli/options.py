@@ -1,0 +1,58 @@
+"""The option and argument types the commands share (Typer ``Annotated`` types)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+STDIN = "-"  # a file argument that means standard input
+
+FilesArg = Annotated[
+    list[Path],
+    typer.Argument(
+        metavar="FILE...", help="Diagnostic log files (plain or .gz; - reads standard input).", show_default=False
+    ),
+]
+SpacingOpt = Annotated[
+    float, typer.Option("--spacing", metavar="M", help="Coil spacing Sys1–Sys2 of the counting head, m.", min=0.001)
+]
+TrainLengthOpt = Annotated[
+    float, typer.Option("--train-length", metavar="M", help="First-to-last wheel distance of the train, m.", min=0.1)
+]
+IdleGapOpt = Annotated[
+    float, typer.Option("--idle-gap", metavar="S", help="Seconds without records that end a passage (≥ 1).", min=1.0)
+]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON document on stdout instead of tables.")]
+StrictOpt = Annotated[bool, typer.Option("--strict", help="Exit 1 if any input line was rejected.")]
+JsonlOpt = Annotated[
+    bool,
+    typer.Option("--jsonl", help="JSON lines on stdout, each written as found: rejected, passage, device, summary."),
+]
+IncludeStatusOpt = Annotated[
+    bool,
+    typer.Option("--include-status", help="List passages of status records only (default: counted per head)."),
+]
+RejectedAllOpt = Annotated[
+    bool, typer.Option("--rejected-all", help="List every rejected line (default: all counted, the first 100 listed).")
+]
+# Rejected lines listed (and held) by default; all are counted.
+REJECTIONS_LISTED = 100
+
+
+LayoutOpt = Annotated[
+    str,
+    typer.Option(
+        "--layout", metavar="LAYOUT", help="Layout TOML file, or a shipped one: osong, example.", show_default=False
+    ),
+]
+
+GnssFilesArg = Annotated[
+    list[Path],
+    typer.Argument(
+        metavar="FILE...",
+        help="GNSS telemetry: NMEA, device streams (CSV, JSON lines), monitoring-centre tables; - reads stdin.",
+        show_default=False,
+    ),
+]

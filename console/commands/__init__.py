@@ -1,1 +1,0 @@
-"""One module per trackside command; console.cli assembles them."""

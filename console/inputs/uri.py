@@ -1,0 +1,109 @@
+"""Source URIs → source objects (the transports are imported only when used)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from urllib.parse import parse_qs, unquote, urlsplit
+
+from console.inputs.base import Source, SourceError
+
+SCHEMES = ("file", "gpsd", "mqtt", "mqtts", "can")
+DEFAULT_PORTS = {"gpsd": 2947, "mqtt": 1883, "mqtts": 8883}
+
+
+@dataclass(frozen=True)
+class SourceURI:
+    scheme: str
+    path: str = ""  # file path, gpsd device, MQTT topic
+    host: str = ""
+    port: int = 0
+    interface: str = ""  # CAN: python-can interface (socketcan, virtual…)
+    channel: str = ""  # CAN channel (vcan0, a virtual bus name)
+    username: str | None = None
+    password: str | None = None
+    role: str = ""  # gpsd: ?role=head|eot (the receiver's place on the train)
+    train: str = ""  # gpsd: ?train=ID
+    ca_file: str = ""  # mqtts: ?ca=PATH, the CA bundle that signed the broker's certificate
+
+
+def parse_uri(text: str) -> SourceURI:
+    """``file:PATH``, ``gpsd://H:P[/DEV]``, ``mqtt[s]://H:P/TOPIC[?ca=PATH]``, ``can:IFACE[:CHANNEL]``.
+
+    ``mqtts://`` verifies the broker's certificate against the system's CAs,
+    or against ``?ca=PATH`` (a PEM bundle: a private or self-signed CA).
+
+    A bare path (no scheme) is a file, so ``trackside follow app.log`` works.
+    """
+    scheme, sep, rest = text.partition(":")
+    if not sep or scheme not in SCHEMES or (len(scheme) == 1 and rest.startswith("\\")):
+        return SourceURI("file", path=text)
+    if scheme == "file":
+        path = rest[2:] if rest.startswith("//") else rest
+        if not path:
+            raise SourceError(f"{text}: expected file:PATH")
+        return SourceURI("file", path=unquote(path) if rest.startswith("//") else path)
+    if scheme == "can":
+        iface, _, channel = rest.partition(":")
+        if not iface:
+            raise SourceError(f"{text}: expected can:INTERFACE[:CHANNEL], e.g. can:socketcan:vcan0")
+        return SourceURI("can", interface=iface, channel=channel)
+    parts = urlsplit(text)
+    if not parts.hostname:
+        raise SourceError(f"{text}: expected {scheme}://HOST:PORT/…")
+    try:
+        port = parts.port or DEFAULT_PORTS[scheme]
+    except ValueError:
+        raise SourceError(f"{text}: the port is not a number 0-65535") from None
+    path = unquote(parts.path.lstrip("/"))
+    if scheme in ("mqtt", "mqtts") and not path:
+        raise SourceError(f"{text}: expected a topic, e.g. {scheme}://HOST:PORT/application/+/device/+/event/up")
+    if scheme == "gpsd" and path:
+        path = "/" + path  # a device path
+    query = {k: v[-1] for k, v in parse_qs(parts.query).items()}
+    role = query.get("role", "")
+    if role not in ("", "head", "eot"):
+        raise SourceError(f"{text}: role must be head or eot, found {role!r}")
+    ca_file = query.get("ca", "")
+    if ca_file and scheme != "mqtts":
+        raise SourceError(f"{text}: ?ca= is for mqtts:// (TLS) only")
+    return SourceURI(
+        scheme,
+        path=path,
+        host=parts.hostname,
+        port=port,
+        username=parts.username,
+        password=parts.password,
+        role=role,
+        train=query.get("train", ""),
+        ca_file=ca_file,
+    )
+
+
+def open_source(text: str, *, from_start: bool = False, force_polling: bool = False) -> Source:
+    """A (not yet started) source for a URI; :class:`SourceError` if it cannot be one."""
+    u = parse_uri(text)
+    if u.scheme == "file":
+        from console.inputs.follow import FileSource
+
+        return FileSource(text, Path(u.path), from_start=from_start, force_polling=force_polling)
+    if u.scheme == "gpsd":
+        from console.inputs.gpsd import GpsdSource
+
+        return GpsdSource(text, u.host, u.port, u.path or None, role=u.role, train=u.train)
+    if u.scheme in ("mqtt", "mqtts"):
+        from console.inputs.mqtt import MqttSource
+
+        return MqttSource(
+            text,
+            u.host,
+            u.port,
+            u.path,
+            tls=u.scheme == "mqtts",
+            ca_file=u.ca_file or None,
+            username=u.username,
+            password=u.password,
+        )
+    from console.inputs.can_bus import CanSource
+
+    return CanSource(text, u.interface, u.channel)

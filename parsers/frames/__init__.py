@@ -1,0 +1,1 @@
+"""Count frames of the intelligent sensors: text frame logs and recorded CAN traffic → the frame table."""
