@@ -131,6 +131,15 @@ class PassageStream:
         self._advance(heads, chunk.time_ns)
         return self._close(final=False)
 
+    def complete_until(self, t_ns: int) -> PartAnalysis | None:
+        """No record still to come is earlier than ``t_ns`` (a source that says so: the simulated heads):
+        every file's clock runs to there, and the runs idle by then close; the passages that completed."""
+        if not len(self._file_clock) or t_ns <= self.clock_ns:
+            return None
+        self.clock_ns = t_ns
+        np.maximum(self._file_clock, t_ns, out=self._file_clock)
+        return self._close(final=False)
+
     def finish(self) -> PartAnalysis | None:
         """End of input: every open run is whole."""
         return self._close(final=True)

@@ -194,6 +194,17 @@ class Pipeline:
             if clock > NO_TIME + slack_ns:
                 self._step(self.events.release_block(clock - slack_ns, self.stream.open_firsts()))
 
+    def advance(self, until_ns: int) -> None:
+        """No record still to come is earlier than ``until_ns``: a source that hands its records over in time
+        order as its clock runs (the simulated heads, wired to the station's console) says so, and events up
+        to then are released without waiting for later records and the order slack.  A followed file never
+        can: its lines may arrive late."""
+        if self.stream is None:
+            return
+        self._closed(self.stream.complete_until(until_ns))
+        if self.events is not None:
+            self._step(self.events.release_block(until_ns, self.stream.open_firsts()))
+
     def reset(self, e: DetectionEvent) -> None:
         """An operator's reset request (a live console's), decided in time order with the detections: it
         is released with them once nothing still to come precedes it."""

@@ -164,6 +164,10 @@ class DiagFollow:
         (told as a ``reset`` event, accepted or refused with the reason)."""
         self.pipeline.reset(DetectionEvent(t_ns, EventKind.RESET, section, source="operator"))
 
+    def advance(self, until_ns: int) -> None:
+        """Every record earlier than ``until_ns`` has been added (see :meth:`Pipeline.advance`)."""
+        self.pipeline.advance(until_ns)
+
     def finish(self) -> None:
         """End of following: every open run is closed and analysed (as the batch reader ends a file)."""
         self.pipeline.finish(start_sections=False)

@@ -87,6 +87,9 @@ class SimulatedConsole:
             data = ("\n".join(lines) + "\n").encode("utf-8")
             self.engine.handle(LineBlock(DIAG_SOURCE, DIAG_SOURCE, self._next_line, data, time.monotonic()))
             self._next_line += len(lines)
+        # The heads are wired to the station: every record made before the step's end is in; what they
+        # show is decided now, not when a later record (a heartbeat away on a quiet line) comes.
+        self.engine.diag.advance(step.t_ns)
         for f in step.received:
             self.engine.handle(received_fix(f))
         # No fix still to come was measured before now less the radio's delay: the units' clock runs to there.
