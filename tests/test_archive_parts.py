@@ -11,6 +11,7 @@ import pytest
 
 from console.archive import parts
 from console.archive.parts import PartWriter, compact, read_part
+from parsers.units import NS_PER_DAY
 
 HEADS = ["WS1", "WS2", "WS3"]
 
@@ -20,7 +21,7 @@ def _chunk(rng: np.random.Generator, n: int, t0: int) -> tuple[pa.Table, np.ndar
     time_ns = t0 + np.sort(rng.integers(0, 10**9, n))
     head = rng.integers(0, len(HEADS), n)
     device = rng.integers(0, 3, n) + 5000
-    day = time_ns // parts.NS_PER_DAY
+    day = time_ns // NS_PER_DAY
     table = pa.table(
         {
             "time": pa.array(time_ns.view("datetime64[ns]")),
@@ -37,7 +38,7 @@ def _write(tmp_path: Path, chunks: int, rows: int) -> tuple[PartWriter, set[int]
     w = PartWriter(tmp_path, "records", 3, "r", sort_by=("counting_head", "time"))
     lines: set[int] = set()
     # Half a second before midnight: the first chunk straddles two days.
-    start = 20_000 * parts.NS_PER_DAY - 5 * 10**8
+    start = 20_000 * NS_PER_DAY - 5 * 10**8
     for k in range(chunks):
         table, day, device = _chunk(rng, rows, start + k * 10**9)
         lines.update(table.column("line").to_pylist())
@@ -111,7 +112,7 @@ def test_rows_in_input_order_are_written_in_that_order_and_times_are_delta_coded
     rng = np.random.default_rng(3)
     w = PartWriter(tmp_path, "records", 3, "r", sort_by=("line",))
     for k in range(5):
-        table, day, device = _chunk(rng, 400, 20_000 * parts.NS_PER_DAY + k * 10**9)
+        table, day, device = _chunk(rng, 400, 20_000 * NS_PER_DAY + k * 10**9)
         w.add(table, day, device)
     w.close()
     for rel in w.written:
@@ -128,7 +129,7 @@ def _labelled(codes: list[int], labels: list[str], first_line: int) -> pa.Table:
     n = len(codes)
     return pa.table(
         {
-            "time": pa.array(np.full(n, 20_000 * parts.NS_PER_DAY, np.int64).view("datetime64[ns]")),
+            "time": pa.array(np.full(n, 20_000 * NS_PER_DAY, np.int64).view("datetime64[ns]")),
             "label": pa.DictionaryArray.from_arrays(pa.array(codes, pa.int32()), pa.array(labels)),
             "line": pa.array(np.arange(first_line, first_line + n)),
         }

@@ -167,11 +167,12 @@ def two_days(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     from console.archive import parts
     from console.archive.store import Manifest, ensure_layout, publish
+    from parsers.units import NS_PER_DAY
 
     root = tmp_path_factory.mktemp("days") / "arc"
     ensure_layout(root)
     n = 4000
-    time_ns = 20_000 * parts.NS_PER_DAY + np.arange(n, dtype=np.int64) * 40 * 10**9  # 40 s apart: ~2 days
+    time_ns = 20_000 * NS_PER_DAY + np.arange(n, dtype=np.int64) * 40 * 10**9  # 40 s apart: ~2 days
     device = 5000 + np.arange(n) % 2
     table = pa.table(
         {
@@ -181,7 +182,7 @@ def two_days(tmp_path_factory: pytest.TempPathFactory) -> Path:
         }
     )
     w = parts.PartWriter(root, "records", 1, "r")
-    w.add(table, time_ns // parts.NS_PER_DAY, device)
+    w.add(table, time_ns // NS_PER_DAY, device)
     written = w.close()
     assert len(written) == 4
     publish(root, Manifest(generation=1, tables={"records": written}), written)

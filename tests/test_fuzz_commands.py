@@ -25,6 +25,7 @@ import hashlib
 import json
 import os
 import subprocess
+import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -264,7 +265,11 @@ def test_a_truncated_or_junk_tailed_gzip_keeps_the_lines_before_it(tmp_path: Pat
 
 def _trackside(*args: str, stdin: bytes | None = None, shell: str | None = None) -> subprocess.CompletedProcess[bytes]:
     cmd = ["bash", "-c", shell] if shell is not None else ["trackside", *args]
-    return subprocess.run(cmd, input=stdin, capture_output=True, timeout=120, cwd=ROOT)
+    # This interpreter's trackside first, whether or not its environment is activated.
+    path = os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "")])
+    return subprocess.run(
+        cmd, input=stdin, capture_output=True, timeout=120, cwd=ROOT, env={**os.environ, "PATH": path}
+    )
 
 
 def test_stdin_dash_and_dev_stdin_are_read_as_streams() -> None:
@@ -302,7 +307,8 @@ def test_process_substitution_of_a_gzip_log_is_read() -> None:
 def test_a_non_utf8_file_name_in_a_real_process_is_shown_as_ls_does(tmp_path: Path) -> None:
     path = os.fsencode(tmp_path) + b"/log\xff.log"
     Path(os.fsdecode(path)).write_bytes((SAMPLES / "osong_ws4_0932_detection.log").read_bytes())
-    run = subprocess.run([b"trackside", b"analyze", path], capture_output=True, timeout=120, cwd=ROOT)
+    trackside = os.fsencode(Path(sys.executable).with_name("trackside"))
+    run = subprocess.run([trackside, b"analyze", path], capture_output=True, timeout=120, cwd=ROOT)
     assert run.returncode == 0, run.stderr
     assert b"log\\xff.log" in run.stdout + run.stderr or b"\xff" not in run.stdout
 

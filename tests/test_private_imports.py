@@ -42,7 +42,7 @@ def test_the_check_sees_a_private_import_and_lets_dunders_and_aliases_pass() -> 
         "from console import __version__\n"
         "from parsers.gnss.fields import cells_of as _cells\n"
         "from numpy import _private\n"
-        "from .diag_fields import _split_fields\n"
+        "from .fields import _split_fields\n"
     )
     assert private_imports(source, "parsers.diag.registry") == [
         "1: from console.analysis.timefmt import _fraction",
