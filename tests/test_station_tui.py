@@ -157,11 +157,12 @@ def test_power_loss_refuses_a_reset_until_power_returns() -> None:
         app = make_app()
         async with app.run_test(size=SIZE) as pilot:
             await pilot.press("s", "3")  # B1's first head loses power for 5 minutes
-            # The console knows it from the silence: no record from WS2 for the power gap (3 heartbeats).
-            app.advance(55)
+            # The console knows it from the silence: no record from WS2 for the power gap (a heartbeat missed:
+            # the last at 0 s, the gap 30 s).
+            app.advance(25)
             await pilot.pause()
             assert states(app)["B1"] == "clear"
-            app.advance(10)
+            app.advance(20)
             await pilot.pause()
             assert states(app)["B1"] == "disturbed"
             assert any("power or contact lost at WS2" in t for t in log_texts(app))
@@ -399,7 +400,7 @@ def test_diagram_reads_without_colour() -> None:
     app = make_app()
     app.model.source.advance(2)
     app.model.source.inject("power_loss", "WS2", 300)  # type: ignore[attr-defined]
-    app.model.step(65)  # known lost after the power gap of silence
+    app.model.step(45)  # known lost after the power gap of silence
     text = draw(app.model.source.layout, app.model.snapshot(), 96).plain
     rows = text.split("\n")
     assert len(rows) == 5

@@ -3,9 +3,11 @@
 The station's console and every command reading the written run take their
 timing from the layout (``power_gap_s``, ``gnss_report_period_s``,
 ``gnss_latency_s``), so the simulator states its devices there: the layout's
-own values where it gives them, else the simulator's (a power loss after
-three missed heartbeats; the LoRa link's report period; its delay plus a
-margin for handling).  The run's ``layout.toml`` is written with them.
+own values where it gives them, else the simulator's (a power loss once a
+heartbeat is missed: silent for one and a half heartbeats; the LoRa link's
+report period; its delay plus a margin for handling).  The power gap is the
+time a train can enter over a dead head unseen (a section shown clear over
+it): the shorter, the safer, and the simulated heads keep their beat exactly.  The run's ``layout.toml`` is written with them.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from dataclasses import dataclass
 from console.layout import Layout
 from console.sim.radio import LoRaLink
 
-MISSED_HEARTBEATS = 3  # a head silent for this many of its heartbeats has lost power or contact
+MISSED_HEARTBEATS = 1.5  # a head silent this many of its heartbeats (one missed) has lost power or contact
 LATENCY_MARGIN_S = 0.5  # the console's allowance over the radio's delay (handling, clocks)
 
 
