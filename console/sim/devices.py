@@ -7,7 +7,8 @@ own values where it gives them, else the simulator's (a power loss once a
 heartbeat is missed: silent for one and a half heartbeats; the LoRa link's
 report period; its delay plus a margin for handling).  The power gap is the
 time a train can enter over a dead head unseen (a section shown clear over
-it): the shorter, the safer, and the simulated heads keep their beat exactly.  The run's ``layout.toml`` is written with them.
+it): the shorter, the safer, and the simulated heads keep their beat exactly.
+The run's ``layout.toml`` is written with them.
 """
 
 from __future__ import annotations
