@@ -311,6 +311,7 @@ def _simulated_run(tmp: Path, seed: int) -> tuple[dict[str, Any], Any, Path]:
     pipeline.sink = Sinks(pipeline.sink, history)
     sim.run(float(rng.randint(900, 1500)))
     write_run(sim, tmp / "run")
+    unseen = _clear_over_a_train(sim, events)
     shown = {
         "passages": _passage_rows([e for e in events if e["type"] == "passage"]),
         "timeline": history.timeline,
@@ -324,8 +325,52 @@ def _simulated_run(tmp: Path, seed: int) -> tuple[dict[str, Any], Any, Path]:
             (e.t_ns, e.crossing, e.train, e.kind, e.reason) for es in console.crossing_events().values() for e in es
         ),
         "facts_wrong": pipeline.facts_wrong,
+        "clear_over_a_train": unseen,
     }
     return shown, console, tmp / "run"
+
+
+def _clear_over_a_train(sim: StationSim, events: Sequence[dict[str, Any]]) -> list[str]:
+    """Fail-safe: each stretch the console showed a section clear while the truth had a train in it, unless a
+    head of that section had gone silent (a power loss) before the train came and the stretch ended within the
+    power gap of that head's last report: the console knows a dead head only from its silence."""
+    start, end = sim.cfg.start_ns, sim.now_ns
+    gap_ns = int(sim.devices.power_gap_s * 1e9) + 10**9  # and the step the console decides in
+    last_report: dict[str, list[int]] = {}
+    for t, head in sim.heartbeats:
+        last_report.setdefault(head, []).append(t)
+    for r in sim.all_records:
+        last_report.setdefault(r.head, []).append(r.t_ns)
+    reports = {h: sorted(ts) for h, ts in last_report.items()}
+    shown: dict[str, list[tuple[int, str]]] = {s.id: [(start, "clear")] for s in sim.layout.sections}
+    for e in events:
+        if e["type"] == "section":
+            shown[e["section"]].append((e["time_ns"], e["state"]))
+    out = []
+    for section in sim.layout.sections:
+        truth = sim.truth_sections[section.id]
+        stretches = shown[section.id]
+        for k, (a, state) in enumerate(stretches):
+            b = stretches[k + 1][0] if k + 1 < len(stretches) else end
+            if state != "clear" or b <= a:
+                continue
+            count_at_a = next((c for t, c in reversed(truth) if t <= a), 0)
+            entered = [t for t, c in truth if a < t < b and c != 0]
+            if count_at_a == 0 and not entered:
+                continue
+            t_in = a if count_at_a else entered[0]
+            excused = False
+            for head in section.heads:
+                dark = [
+                    f
+                    for f in sim.faults
+                    if f.kind == "power_loss" and f.target == head and f.active(0.0 + (t_in - start) / 1e9)
+                ]
+                before = [t for t in reports.get(head, [start]) if t <= t_in] or [start]
+                excused |= bool(dark) and b <= before[-1] + gap_ns
+            if not excused:
+                out.append(f"{section.id} clear over a train from {t_in} to {b}")
+    return out
 
 
 def _batch_of_run(run: Path) -> dict[str, Any]:
@@ -396,6 +441,7 @@ def test_the_simulators_console_shows_what_batch_finds_in_the_files_it_wrote(tmp
         want = _batch_of_run(run)
         assert want["passages"] and want["crossing"], f"seed {seed}: a run with passages and crossing events"
         assert shown["crossing"] == want["crossing"], f"seed {seed}: crossing events"
+        assert not shown["clear_over_a_train"], f"seed {seed}: {shown['clear_over_a_train']}"
         if shown["facts_wrong"]:
             guessed_wrong += 1
             continue
