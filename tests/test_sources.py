@@ -230,7 +230,11 @@ def test_a_file_name_that_is_not_utf8_is_read(tmp_path: Path) -> None:
 def test_process_substitution_through_the_cli_is_read_as_a_stream(tmp_path: Path) -> None:
     (tmp_path / "p.log.gz").write_bytes(gzip.compress(SAMPLE.read_bytes()))
     run = subprocess.run(
-        ["bash", "-c", f"trackside analyze --json <(zcat {tmp_path / 'p.log.gz'})"],
+        [
+            "bash",
+            "-c",
+            f"'{Path(sys.executable).with_name('trackside')}' analyze --json <(zcat {tmp_path / 'p.log.gz'})",
+        ],
         capture_output=True,
         text=True,
         timeout=120,
