@@ -24,7 +24,14 @@ Targets (issue 12), checked and printed as PASS/MISS:
 
 Records per log come from the generator's truth file next to it
 (``<stem>.truth.json``), else from counting lines.  The machine may be shared:
-ratios from alternating runs are what to compare, not absolute times.
+ratios from alternating runs are what to compare, not absolute times; the load
+average is printed with every round.
+
+``--baseline DIR`` also runs ``analyze --json`` from another checkout in each
+round (``git archive <commit> | tar -x -C DIR``), for before/after figures in
+one run (issue 28)::
+
+    python benchmarks/bench_analyze.py /work/bench_data/r3m.log --repeat 5 --baseline /tmp/base
 """
 
 from __future__ import annotations
@@ -48,11 +55,11 @@ RATIO_TARGET = 0.5
 LINEAR_TARGET = 4.3 / 4  # 12 M in ≤ 4.3x the time of 3 M: per record, ≤ 1.075x
 
 
-def run(cmd: list[str]) -> tuple[float, float, float]:
+def run(cmd: list[str], cwd: Path | None = None) -> tuple[float, float, float]:
     """Wall seconds, peak RSS (MB) and CPU seconds (user + system, all threads) of one child process;
     stdout discarded.  CPU time is what to compare on a machine shared with other jobs."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=cwd)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     err = proc.stderr.read().decode() if proc.stderr else ""
@@ -76,14 +83,31 @@ def mark(ok: bool) -> str:
     return "PASS" if ok else "MISS"
 
 
-def bench(exe: str, log: Path, repeat: int) -> dict[str, float]:
-    ours_cmd = [exe, "analyze", "--json", str(log)]
+def in_checkout(cmd: list[str]) -> list[str]:
+    """The command for ``python -c`` run in another checkout (its ``console`` is imported first there)."""
+    launch = "import sys; sys.argv = ['trackside'] + sys.argv[1:]; from console.cli.app import app; app()"
+    return [sys.executable, "-c", launch, *cmd[1:]]
+
+
+def load() -> str:
+    return "/".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def bench(exe: str, log: Path, repeat: int, baseline: Path | None = None) -> dict[str, float]:
+    ours_cmd = [exe, "analyze", "--json", str(log.resolve())]
     bare_cmd = [sys.executable, "-c", BARE, str(log)]
     run(bare_cmd)  # warm the page cache
-    ours, bare = [], []
-    for _ in range(repeat):
+    ours, bare, base = [], [], []
+    for i in range(repeat):
+        if baseline is not None:
+            base.append(run(in_checkout(ours_cmd), cwd=baseline))
         ours.append(run(ours_cmd))
         bare.append(run(bare_cmd))
+        line = f"  round {i + 1}: load {load()}  analyze {ours[-1][0]:.2f} s ({ours[-1][2]:.2f} CPU)"
+        line += f"  bare {bare[-1][0]:.2f} s ({bare[-1][2]:.2f} CPU)  ratio {ours[-1][0] / bare[-1][0]:.2f}"
+        if base:
+            line += f"  baseline {base[-1][0]:.2f} s ({base[-1][2]:.2f} CPU, {base[-1][0] / bare[-1][0]:.2f})"
+        print(line, flush=True)
     speeds_rss = run([exe, "speeds", "--json", str(log)])[1]
     records = records_in(log)
     size_mb = log.stat().st_size / 1e6
@@ -108,6 +132,14 @@ def bench(exe: str, log: Path, repeat: int) -> dict[str, float]:
     print(f"input: {log} ({size_mb:,.0f} MB, {records:,} records), {repeat} alternating runs each")
     print(f"  trackside analyze --json : median {o_t:.2f} s ({o_cpu:.2f} s CPU)  peak RSS {row['ours_rss_mb']:.0f} MB")
     print(f"  bare pandas/pyarrow read : median {b_t:.2f} s ({b_cpu:.2f} s CPU)  peak RSS {row['bare_rss_mb']:.0f} MB")
+    if base:
+        base_t = statistics.median(w for w, _, _ in base)
+        base_cpu = statistics.median(c for _, _, c in base)
+        row.update(base_s=base_t, base_cpu_s=base_cpu, base_ratio=base_t / b_t)
+        print(
+            f"  baseline analyze --json  : median {base_t:.2f} s ({base_cpu:.2f} s CPU)"
+            f"  peak RSS {max(r for _, r, _ in base):.0f} MB  ratio {base_t / b_t:.2f}"
+        )
     print(f"  trackside speeds --json  : peak RSS {speeds_rss:.0f} MB")
     print(f"  throughput               : {row['records_per_s']:,.0f} records/s, {row['mb_per_s']:.0f} MB/s")
     print(f"  ratio (trackside / bare) : {row['ratio']:.2f}  [{mark(row['ratio'] <= RATIO_TARGET)} ≤ {RATIO_TARGET}]")
@@ -129,9 +161,11 @@ def main() -> None:
     ap.add_argument("logs", type=Path, nargs="+", help="logs, smallest first")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json-out", type=Path, help="also write the rows here")
+    ap.add_argument("--baseline", type=Path, help="also run analyze --json from this checkout, alternately")
     args = ap.parse_args()
     exe = shutil.which("trackside") or sys.exit("trackside is not installed (pip install .)")
-    rows = [bench(exe, log, args.repeat) for log in args.logs]
+    print("command:", " ".join(sys.argv), f"(load {load()}, {os.cpu_count()} CPUs)", flush=True)
+    rows = [bench(exe, log, args.repeat, args.baseline) for log in args.logs]
     if len(rows) > 1:
         base = rows[0]["ours_s"] / rows[0]["records"]
         for log, row in zip(args.logs[1:], rows[1:], strict=True):

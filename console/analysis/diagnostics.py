@@ -397,7 +397,8 @@ def _or_nan(values: np.ndarray, sentinel: int) -> np.ndarray:
     return np.where(values == sentinel, np.nan, values.astype(np.float64))
 
 
-_BASIS = (None, "detections", "records")
+PASSAGE_BASES = (None, "detections", "records")
+PASSAGE_DIRECTIONS = (None, DIRECTION_12, DIRECTION_21, "mixed")  # the direction codes 0, 1, 2, 3
 PASSAGE_KINDS = ("train", "damping", "status")
 
 
@@ -406,7 +407,7 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
 
     The columns of :data:`PASSAGE_COLUMNS`, except that the text columns are
     codes: ``head`` (into the head list), ``direction`` (into
-    ``wheels.DIRECTIONS``, 3: mixed), ``whole_train_basis`` (into ``_BASIS``)
+    ``wheels.DIRECTIONS``, 3: mixed), ``whole_train_basis`` (into ``PASSAGE_BASES``)
     and ``kind`` (into ``PASSAGE_KINDS``); ``axle_speeds_kmh`` holds the per-axle
     speeds that ``axle_speeds_start``/``stop`` index.
     """
@@ -549,8 +550,8 @@ def passages_frame(cols: Columns | None, heads: Heads) -> pd.DataFrame:
     head_name[:] = used_names
     text = {
         "counting_head": head_name[inverse.reshape(-1)],
-        "direction": np.array([None, DIRECTION_12, DIRECTION_21, "mixed"], dtype=object)[cols["direction"]],
-        "whole_train_basis": np.array(_BASIS, dtype=object)[cols["whole_train_basis"]],
+        "direction": np.array(PASSAGE_DIRECTIONS, dtype=object)[cols["direction"]],
+        "whole_train_basis": np.array(PASSAGE_BASES, dtype=object)[cols["whole_train_basis"]],
         "kind": np.array(PASSAGE_KINDS, dtype=object)[cols["kind"]],
     }
     data = {"device_id": used_dev[inverse.reshape(-1)], **{c: text.get(c, cols.get(c)) for c in PASSAGE_COLUMNS[1:]}}

@@ -209,6 +209,18 @@ def _axle_lists(speeds: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.n
 def _batch(
     cols: Columns, heads: Heads, lo: int, hi: int, first: bool, opening: str = "{", sep: str = ","
 ) -> bytes | None:
+    rows = _rows(cols, heads, lo, hi, opening)
+    if rows is None:
+        return None
+    seps = np.full((hi - lo, 1), ord(sep), np.uint8)
+    if first:
+        seps[0] = 0
+    flat = np.concatenate([seps, rows], axis=1).ravel()
+    return flat[flat != 0].tobytes()
+
+
+def _rows(cols: Columns, heads: Heads, lo: int, hi: int, opening: str = "{") -> np.ndarray | None:
+    """Passages ``lo:hi`` as one row of bytes each: its JSON object, padded with 0 bytes (None: not covered)."""
     from console.analysis.passages import AXLES_UNKNOWN_REASONS, axles_unknown_codes
     from console.analysis.wheels import DIRECTION_12, DIRECTION_21
 
@@ -248,17 +260,43 @@ def _batch(
         (',"time_resolution_s":', _floats(c["time_resolution_s"])),
         (',"kind":', _texts(c["kind"], ["train", "damping", "status"])),
     ]
-    seps = np.full((n, 1), ord(sep), np.uint8)
-    if first:
-        seps[0] = 0
-    blocks = [seps]
+    blocks = []
     for key, tokens in parts:
         if tokens is None:
             return None
         blocks += [_const(key, n), tokens]
     blocks.append(_const("}", n))
-    flat = np.concatenate(blocks, axis=1).ravel()
-    return flat[flat != 0].tobytes()
+    return np.concatenate(blocks, axis=1)
+
+
+def _batches(cols: Columns) -> list[tuple[int, int]]:
+    """Row ranges to encode at a time: fewer rows per batch where trains have many axles."""
+    n = len(cols["head"])
+    count = cols["axle_speeds_stop"] - cols["axle_speeds_start"]
+    batches = []
+    lo = 0
+    while lo < n:
+        hi = min(n, lo + _BATCH_ROWS)
+        while hi - lo > 1 and (hi - lo) * int(count[lo:hi].max()) > _BATCH_CELLS:
+            hi = lo + (hi - lo) // 2
+        batches.append((lo, hi))
+        lo = hi
+    return batches
+
+
+def encode_objects(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray] | None:
+    """Each passage as one JSON object (the ``--json`` fields), the objects back to back with nothing
+    between them, and each one's length in bytes; None if not covered (see :func:`encode_passages`)."""
+    texts: list[bytes] = []
+    lengths: list[np.ndarray] = []
+    for lo, hi in _batches(cols):
+        rows = _rows(cols, heads, lo, hi)
+        if rows is None:
+            return None
+        kept = rows != 0
+        lengths.append(np.count_nonzero(kept, axis=1))
+        texts.append(rows[kept].tobytes())
+    return b"".join(texts), (np.concatenate(lengths) if lengths else np.zeros(0, np.int64)).astype(np.int64)
 
 
 def encode_passages(cols: Columns, heads: Heads, workers: int = 2, lines_of_type: str | None = None) -> str | None:
@@ -275,16 +313,7 @@ def encode_passages(cols: Columns, heads: Heads, workers: int = 2, lines_of_type
     n = len(cols["head"])
     if lines_of_type is not None and n == 0:
         return ""
-    count = cols["axle_speeds_stop"] - cols["axle_speeds_start"]
-    batches = []
-    lo = 0
-    while lo < n:
-        hi = min(n, lo + _BATCH_ROWS)
-        # Fewer rows per batch where trains have many axles.
-        while hi - lo > 1 and (hi - lo) * int(count[lo:hi].max()) > _BATCH_CELLS:
-            hi = lo + (hi - lo) // 2
-        batches.append((lo, hi))
-        lo = hi
+    batches = _batches(cols)
 
     def encode(batch: tuple[int, int]) -> bytes | None:
         return _batch(cols, heads, batch[0], batch[1], batch[0] == 0 and lines_of_type is None, opening, sep)

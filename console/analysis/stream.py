@@ -147,8 +147,7 @@ class PassageStream:
     def _advance(self, heads: np.ndarray, t: np.ndarray) -> None:
         """Move each head's open run over the chunk's records, all heads at once."""
         self.clock_ns = max(self.clock_ns, int(t.max()))
-        order = np.lexsort((t, heads))
-        hs, ts = heads[order], t[order]
+        _, hs, ts = _by_head_then_time(heads, t)
         starts = np.flatnonzero(np.r_[True, hs[1:] != hs[:-1]])
         ends = np.r_[starts[1:], len(hs)] - 1
         h = hs[starts]
@@ -197,6 +196,22 @@ class PassageStream:
         self.unpaired_detections += part.unpaired
         self.passages_closed += len(part.passages["head"]) if part.passages is not None else 0
         return part
+
+
+def _by_head_then_time(heads: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The order of ``np.lexsort((t, heads))``, and heads and times in it.
+
+    Within one head records come in time order: a stable sort by head alone (a radix sort while head
+    keys fit 16 bits) then already has each head's times sorted, at a fraction of lexsort's cost.
+    Checked, and lexsort where it does not hold.
+    """
+    if len(heads) and int(heads.max()) < 1 << 16 and int(heads.min()) >= 0:
+        order = np.argsort(heads.astype(np.uint16), kind="stable")
+        hs, ts = heads[order], t[order]
+        if bool(((ts[1:] >= ts[:-1]) | (hs[1:] != hs[:-1])).all()):
+            return order, hs, ts
+    order = np.lexsort((t, heads))
+    return order, heads[order], t[order]
 
 
 def _split(parts: list[Columns], cut: np.ndarray, time_column: str) -> tuple[list[Columns], list[Columns]]:

@@ -16,6 +16,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyarrow as pa
 
+from console.analysis.diagnostics import PASSAGE_BASES, PASSAGE_COLUMNS, PASSAGE_DIRECTIONS, PASSAGE_KINDS
+from console.analysis.head_table import heads_at
+from console.analysis.wheels import DIRECTIONS
 from console.archive.parts import PartWriter
 from console.engine.pipeline import HEALTH_EVENT_KINDS
 from console.engine.sinks import Sink
@@ -36,18 +39,23 @@ if TYPE_CHECKING:
 # 7: the parsers grouped by family (parsers.diag.registry, parsers.diag.fields): a state pickled by 6 names
 #    modules that are gone, so it is not read; the records are derived again.
 DERIVE_VERSION = 7
+# Rows each derived table buffers before a write-out (the records' writer has BUFFER_BYTES): derived rows come
+# a few per chunk, and five tables' full buffers cost memory (a 3 M-record ingest peaked 35 MB lower at 4 MB than
+# at 16 MB, for the same CPU).
+SINK_BUFFER_BYTES = 4 << 20
 
 
 class ArchiveSink(Sink):
     """The pipeline's rows, written into parts of this generation (``tag``: committed or tail)."""
 
     def __init__(self, root: Path, generation: int, tag: str) -> None:
+        buf = SINK_BUFFER_BYTES
         self.writers = {
-            "passages": PartWriter(root, "passages", generation, tag),
-            "axles": PartWriter(root, "axles", generation, tag),
-            "section_states": PartWriter(root, "section_states", generation, tag, by_device=False),
-            "count_ledger": PartWriter(root, "count_ledger", generation, tag, by_device=False),
-            "channel_events": PartWriter(root, "channel_events", generation, tag, by_device=False),
+            "passages": PartWriter(root, "passages", generation, tag, buffer_bytes=buf),
+            "axles": PartWriter(root, "axles", generation, tag, buffer_bytes=buf),
+            "section_states": PartWriter(root, "section_states", generation, tag, by_device=False, buffer_bytes=buf),
+            "count_ledger": PartWriter(root, "count_ledger", generation, tag, by_device=False, buffer_bytes=buf),
+            "channel_events": PartWriter(root, "channel_events", generation, tag, by_device=False, buffer_bytes=buf),
         }
         self._axles: list[tuple[Columns, Heads]] = []
         # The order of the section history's rows (ties in time are broken by it): by generation, then as made.
@@ -57,30 +65,15 @@ class ArchiveSink(Sink):
         self._axles.append((cols, heads))  # written with their passages: an axle's day is its passage's
 
     def passages(self, cols: Columns, heads: Heads) -> None:
-        from console.analysis.diagnostics import passages_frame
-
-        p = passages_frame(cols, heads)
-        flat = np.asarray(p.attrs.get("axle_speeds_kmh", np.zeros(0)), np.float64).tolist()
-        bounds = zip(p["axle_speeds_start"].tolist(), p["axle_speeds_stop"].tolist(), strict=True)
-        speeds = [flat[a:b] for a, b in bounds]
-        p.attrs = {}
-        p = p.drop(columns=["axle_speeds_start", "axle_speeds_stop"])
-        for c in ("detection_second_ns", "records_in_detection_second"):  # integers (NaN: none) as integers
-            p[c] = p[c].astype("Int64")
-        start_ns = p["start_ns"].to_numpy(np.int64)
-        p["start"] = start_ns.astype("datetime64[ns]")
+        start_ns = np.asarray(cols["start_ns"], np.int64)
         day = start_ns // NS_PER_DAY
-        table = arrow_table(p).append_column("axle_speeds_kmh", pa.array(speeds, pa.list_(pa.float64())))
-        table = table.append_column("day", day_column(day))
-        self.writers["passages"].add(table, day, p["device_id"].to_numpy(np.int64))
+        device_id, table = passages_table(cols, heads)
+        self.writers["passages"].add(table.append_column("day", day_column(day)), day, device_id)
         for axle_cols, axle_heads in self._axles:
             self._write_axles(axle_cols, axle_heads, cols)
         self._axles = []
 
     def _write_axles(self, axles: Columns, heads: Heads, passages: Columns) -> None:
-        from console.analysis.head_table import heads_at
-        from console.analysis.wheels import axles_frame
-
         if not len(axles["head"]):
             return
         # Each axle lies in the passage of its head that starts at or before it.
@@ -98,14 +91,8 @@ class ArchiveSink(Sink):
         owner[merged] = pos
         owner = owner[len(ph) :]
         start_day = ps[np.maximum(owner, 0)] // NS_PER_DAY
-        frame = axles_frame(axles)
-        dev, names = heads_at(heads, head)
-        frame["device_id"] = dev
-        frame["counting_head"] = np.asarray(names, dtype=object)
-        frame["time"] = t.astype("datetime64[ns]")
-        frame = frame.drop(columns=["head"])
-        table = arrow_table(frame).append_column("day", day_column(start_day))
-        self.writers["axles"].add(table, start_day, frame["device_id"].to_numpy(np.int64))
+        device_id, table = axles_table(axles, heads)
+        self.writers["axles"].add(table.append_column("day", day_column(start_day)), start_day, device_id)
 
     def transitions(self, rows: Iterable[Transition]) -> None:
         import pandas as pd
@@ -147,6 +134,80 @@ class ArchiveSink(Sink):
     def abort(self) -> None:
         for w in self.writers.values():
             w.abort()
+
+
+# Passage columns stored as integers that the pipeline gives as floats (NaN: none).
+_NULLABLE_INTEGERS = frozenset({"detection_second_ns", "records_in_detection_second"})
+# The pipeline's code columns, by their codes: the text stored.
+_PASSAGE_CODES = {
+    "direction": np.array(PASSAGE_DIRECTIONS, dtype=object),
+    "whole_train_basis": np.array(PASSAGE_BASES, dtype=object),
+    "kind": np.array(PASSAGE_KINDS, dtype=object),
+}
+_AXLE_DIRECTIONS = np.array(DIRECTIONS, dtype=object)
+
+
+def _heads_columns(heads: Heads, keys: np.ndarray) -> tuple[np.ndarray, pa.Array]:
+    """(device ids, counting heads as text) of the heads at ``keys``: each head looked up once."""
+    used, inverse = np.unique(np.asarray(keys, np.int64), return_inverse=True)
+    used_dev, used_names = heads_at(heads, used)
+    names = np.empty(len(used), dtype=object)
+    names[:] = used_names
+    return used_dev[inverse.reshape(-1)], pa.array(names[inverse.reshape(-1)], pa.large_string())
+
+
+def _column(values: Any) -> pa.Array:
+    """A numeric column as Arrow, NaN as null (as pandas hands floats to Arrow)."""
+    return pa.array(np.asarray(values), from_pandas=True)
+
+
+def passages_table(cols: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
+    """(device ids, the passages as Arrow): the columns of :func:`~console.analysis.diagnostics.passages_frame`
+    with the start as a time and each passage's axle speeds as a list, built from the pipeline's arrays (no
+    pandas: this runs for every chunk of an ingest)."""
+    device_id, counting_head = _heads_columns(heads, cols["head"])
+    arrays: list[pa.Array] = [pa.array(device_id, pa.int64()), counting_head]
+    names = ["device_id", "counting_head"]
+    for c in PASSAGE_COLUMNS[2:]:
+        if c in ("axle_speeds_start", "axle_speeds_stop"):
+            continue
+        if c in _PASSAGE_CODES:
+            arrays.append(pa.array(_PASSAGE_CODES[c][np.asarray(cols[c])], pa.large_string()))
+        elif c in _NULLABLE_INTEGERS:
+            arrays.append(_column(cols[c]).cast(pa.int64()))
+        else:
+            arrays.append(_column(cols[c]))
+        names.append(c)
+    arrays.append(pa.array(np.asarray(cols["start_ns"], np.int64).astype("datetime64[ns]")))
+    names.append("start")
+    # Per passage, its slice [start, stop) of the flat axle speeds, as one list column.
+    first = np.asarray(cols["axle_speeds_start"], np.int64)
+    lengths = np.asarray(cols["axle_speeds_stop"], np.int64) - first
+    offsets = np.r_[0, np.cumsum(lengths)].astype(np.int32)
+    picked = np.repeat(first - offsets[:-1], lengths) + np.arange(offsets[-1], dtype=np.int64)
+    flat = np.asarray(cols["axle_speeds_kmh"], np.float64)[picked]
+    arrays.append(pa.ListArray.from_arrays(pa.array(offsets), pa.array(flat)))
+    names.append("axle_speeds_kmh")
+    return device_id, pa.Table.from_arrays(arrays, names=names)
+
+
+def axles_table(axles: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
+    """(device ids, the axles as Arrow): :func:`~console.analysis.wheels.axles_frame`'s columns, the head as
+    its device and name, and the time."""
+    arrays: list[pa.Array] = []
+    names: list[str] = []
+    for c, values in axles.items():
+        if c == "head":
+            continue
+        arrays.append(
+            pa.array(_AXLE_DIRECTIONS[np.asarray(values)], pa.large_string()) if c == "direction" else _column(values)
+        )
+        names.append(c)
+    device_id, counting_head = _heads_columns(heads, axles["head"])
+    arrays += [pa.array(device_id, pa.int64()), counting_head]
+    arrays.append(pa.array(np.asarray(axles["time_ns"], np.int64).astype("datetime64[ns]")))
+    names += ["device_id", "counting_head", "time"]
+    return device_id, pa.Table.from_arrays(arrays, names=names)
 
 
 def day_column(day_index: np.ndarray) -> pa.Array:

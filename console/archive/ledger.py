@@ -41,9 +41,14 @@ class Scan:
 
 
 def scan(path: Path, prefix_len: int | None = None) -> Scan:
-    """Hash a file once: whole, up to its last newline, and a given prefix."""
+    """Hash a file once: whole, up to its last newline, and a given prefix.
+
+    Each byte is hashed once: the hash up to the last newline is the whole hash as it stood before the
+    last block holding a newline, plus that block up to its newline (kept until a later block has one).
+    """
     whole = hashlib.sha256()
-    upto_nl = hashlib.sha256()
+    before_nl = whole.copy()  # the whole hash before the last block with a newline
+    nl_block = b""  # that block, up to and including its last newline
     prefix: str | None = None
     pos = 0
     last_nl_end = 0
@@ -61,14 +66,16 @@ def scan(path: Path, prefix_len: int | None = None) -> Scan:
                 head = block[:4]
             nl = block.rfind(b"\n")
             if nl >= 0:
-                upto_nl = whole.copy()
-                upto_nl.update(block[: nl + 1])
+                before_nl = whole.copy()
+                nl_block = block[: nl + 1]
                 last_nl_end = pos + nl + 1
             whole.update(block)
             pos += len(block)
     whole_only = head.startswith(GZIP_MAGIC) or head.startswith(UTF16_BOMS)
     if whole_only:
         return Scan(pos, whole.hexdigest(), pos, whole.hexdigest(), prefix, True)
+    upto_nl = before_nl
+    upto_nl.update(nl_block)
     return Scan(pos, whole.hexdigest(), last_nl_end, upto_nl.hexdigest(), prefix, False)
 
 

@@ -4,7 +4,7 @@ A :class:`PartWriter` takes Arrow tables for one archive table, splits them
 by partition (one stable sort and one take per table added, no loop per
 row), and appends each partition's rows to one open Parquet file: at most
 one part per partition per ingest, rows appended across the parser's
-chunks.  Memory is bounded by :data:`BUFFER_BYTES` of buffered rows in all:
+chunks.  Memory is bounded by :data:`BUFFER_BYTES` (or the writer's ``buffer_bytes``) of buffered rows in all:
 past it, every partition's rows are written out as a row group (so a
 partition that gets a few rows per chunk cannot pin the chunks it came
 from).  The buffered pieces share one dictionary per column
@@ -17,6 +17,14 @@ files are open; past it the least recently written one is closed and a
 later row of its partition starts a second part (compaction merges them).
 Every file written is listed in :attr:`PartWriter.written` (relative to the
 archive) for the manifest; :func:`compact` merges a partition's small parts.
+
+The write-outs (concatenate, sort, encode, compress, write) run on one
+background thread (:func:`_writer_thread`), in the order they were asked for, while
+the caller goes on parsing: Arrow and Parquet release the GIL, and on two
+cores the ingest's reading and writing overlap.  A writer keeps at most
+:data:`MAX_PENDING_WRITE_OUTS` write-outs queued, so memory stays bounded;
+a part is fsynced on the thread when it is closed, so the publish finds it
+already on disk.  A write-out's failure is raised by the writer's next call.
 """
 
 from __future__ import annotations
@@ -25,14 +33,16 @@ import contextlib
 import datetime as dt
 import os
 import re
-from collections.abc import Sequence
+from collections import deque
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from console.archive.store import DATA
+from console.archive.store import DATA, fsync_file
 
 ROW_GROUP_ROWS = 256_000
 # Rows waiting to be written, all partitions together (Arrow bytes of the tables added since the last
@@ -50,6 +60,20 @@ DELTA_COLUMNS = frozenset({"line", "time_ns", "start_ns", "end_ns", "t_sys1_ns",
 # Compaction merges a partition's parts while the merged part stays under this many rows
 # (its rows are held in memory to be sorted: ~60 bytes a record row).
 COMPACT_MAX_ROWS = 1_500_000
+# Write-outs of one writer queued for the background thread, the one being written included: the caller
+# waits past it (each holds up to BUFFER_BYTES of rows).
+MAX_PENDING_WRITE_OUTS = 1
+# One thread for every writer of the process (made again in a forked child, which has not got its parent's
+# threads): write-outs run in the order they are asked for.
+_WRITER: dict[int, ThreadPoolExecutor] = {}
+
+
+def _writer_thread() -> ThreadPoolExecutor:
+    pid = os.getpid()
+    if pid not in _WRITER:
+        _WRITER.clear()
+        _WRITER[pid] = ThreadPoolExecutor(max_workers=1, thread_name_prefix="parquet-writer")
+    return _WRITER[pid]
 
 
 def day_text(day_index: int) -> str:
@@ -153,15 +177,15 @@ class _Dictionaries:
             table = pa.concat_tables(pieces)
             return table.unify_dictionaries().combine_chunks() if self.mixed else table.combine_chunks()
         schema = pieces[0].schema
+        together = pa.concat_tables(pieces)  # zero-copy: one chunk per piece
         cols = []
         for i, f in enumerate(schema):
-            chunks = [c for p in pieces for c in p.column(i).chunks]
+            col = together.column(i)
             if pa.types.is_dictionary(f.type) and f.name in self.values:
-                d = self.values[f.name]
-                indices = pa.concat_arrays([c.indices for c in chunks])
-                cols.append(pa.DictionaryArray.from_arrays(indices, d))
+                indices = pa.concat_arrays([c.indices for c in col.chunks])
+                cols.append(pa.DictionaryArray.from_arrays(indices, self.values[f.name]))
             else:
-                cols.append(pa.concat_arrays(chunks))
+                cols.append(col.combine_chunks())
         return pa.Table.from_arrays(cols, schema=schema)
 
 
@@ -178,8 +202,10 @@ class PartWriter:
         by_device: bool = True,
         by_day: bool = True,
         sort_by: Sequence[str] = (),
+        buffer_bytes: int | None = None,
     ) -> None:
         self.root = root
+        self.buffer_bytes = buffer_bytes  # None: BUFFER_BYTES
         self.table = table
         self.generation = generation
         self.tag = tag
@@ -189,12 +215,16 @@ class PartWriter:
         self.written: list[str] = []
         self.rows = 0
         self._writers: dict[tuple[int, int], pq.ParquetWriter] = {}  # insertion order = least recently written
+        self._file_of: dict[tuple[int, int], str] = {}  # the part each open writer writes
         self._parts_of: dict[tuple[int, int], int] = {}
         self._pieces: dict[int, list[pa.Table]] = {}  # rows added since the last write-out, by day << 32 | device
         self._dicts = _Dictionaries()
         self._pending_bytes = 0
         self._write_outs = 0
         self._last_write_out: dict[tuple[int, int], int] = {}
+        # Write-outs handed to the background thread, oldest first.  Only that thread touches the open
+        # files, ``written`` and the counters above them until :meth:`_wait` says it is done.
+        self._queued: deque[Future[None]] = deque()
 
     def _path(self, key: tuple[int, int]) -> str:
         parts = [DATA, self.table]
@@ -230,7 +260,7 @@ class PartWriter:
             cuts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1], True])
             for a, b in zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True):
                 self._pieces.setdefault(int(sorted_key[a]), []).append(grouped.slice(a, b - a))
-        if self._pending_bytes > BUFFER_BYTES:
+        if self._pending_bytes > (BUFFER_BYTES if self.buffer_bytes is None else self.buffer_bytes):
             self._write_out()
 
     def _write_out(self) -> None:
@@ -242,26 +272,53 @@ class PartWriter:
         """
         pieces, self._pieces, self._pending_bytes = self._pieces, {}, 0
         dicts, self._dicts = self._dicts, _Dictionaries()
+        self._submit(lambda: self._write_pieces(pieces, dicts))
+
+    def _write_pieces(self, pieces: dict[int, list[pa.Table]], dicts: _Dictionaries) -> None:
+        """One write-out (on the background thread)."""
         self._write_outs += 1
         for k, rows in pieces.items():
             key = (k >> 32, k & 0xFFFFFFFF)
             self._write(key, sorted_rows(dicts.concat(rows), self.sort_by))
             self._last_write_out[key] = self._write_outs
         for key in [k for k in self._writers if self._last_write_out[k] <= self._write_outs - IDLE_WRITE_OUTS]:
-            self._writers.pop(key).close()
+            self._close_file(key)
+
+    def _submit(self, job: Callable[[], None]) -> None:
+        """Queue ``job`` on the background thread, after waiting for the write-outs past the bound."""
+        while len(self._queued) >= MAX_PENDING_WRITE_OUTS:
+            self._queued.popleft().result()  # a failed write-out raises here
+        self._queued.append(_writer_thread().submit(job))
+
+    def _wait(self) -> None:
+        """Every queued write-out done (the first failure raised, after all have run)."""
+        failure: BaseException | None = None
+        while self._queued:
+            try:
+                self._queued.popleft().result()
+            except BaseException as exc:  # re-raised below, once the queue is empty
+                failure = failure or exc
+        if failure is not None:
+            raise failure
+
+    def _close_file(self, key: tuple[int, int]) -> None:
+        """Close a part and fsync it (publish then finds its bytes on disk already)."""
+        writer = self._writers.pop(key)
+        writer.close()
+        fsync_file(self.root / self._file_of[key])
 
     def _write(self, key: tuple[int, int], table: pa.Table) -> None:
         writer = self._writers.pop(key, None)
         if writer is None:
             if len(self._writers) >= MAX_OPEN_WRITERS:
                 # Close the least recently written file; this partition's later rows go to a new part.
-                oldest = next(iter(self._writers))
-                self._writers.pop(oldest).close()
+                self._close_file(next(iter(self._writers)))
             rel = self._path(key)
             path = self.root / rel
             path.parent.mkdir(parents=True, exist_ok=True)
             writer = _writer(path, table.schema)
             self.written.append(rel)
+            self._file_of[key] = rel
         elif not table.schema.equals(writer.schema):
             table = table.cast(writer.schema)
         self._writers[key] = writer  # now the most recently written
@@ -270,14 +327,19 @@ class PartWriter:
     def close(self) -> list[str]:
         """Flush every buffer and close every file; the parts written (relative paths)."""
         self._write_out()
-        for w in self._writers.values():
-            w.close()
-        self._writers.clear()
+        self._submit(self._close_all)
+        self._wait()
         return self.written
 
+    def _close_all(self) -> None:
+        for key in list(self._writers):
+            self._close_file(key)
+
     def abort(self) -> None:
+        with contextlib.suppress(BaseException):  # the parts are unlisted garbage anyway
+            self._wait()
         for w in self._writers.values():
-            with contextlib.suppress(Exception):  # the parts are unlisted garbage anyway
+            with contextlib.suppress(Exception):
                 w.close()
         self._writers.clear()
         self._pieces = {}

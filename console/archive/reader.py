@@ -206,6 +206,8 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
             window.end is not None and key[0] > window.end.date()
         ):
             continue
+        if not _has_label(root / rel, HEALTH_REGISTERS):
+            continue  # the usual part: no health register at all (its labels alone were read)
         t = pq.read_table(root / rel, filters=wanted, partitioning=None)
         if t.num_rows:
             t = t.cast(
@@ -222,6 +224,26 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
         for batch in table.take(pa.array(order)).to_batches(BATCH_ROWS):
             kept += rebuild.chunks(batch)
     return chunks_to_frame(kept, rebuild.registry)
+
+
+def _has_label(path: Path, labels: frozenset[str]) -> bool:
+    """Whether a records part holds a record of one of ``labels`` (only its ``label_canonical`` column read)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    col = pq.read_table(path, columns=["label_canonical"], partitioning=None).column(0)
+    wanted = pa.array(sorted(labels))
+    for chunk in col.chunks:
+        if not pa.types.is_dictionary(chunk.type):
+            if pc.any(pc.is_in(chunk.cast(pa.string()), value_set=wanted)).as_py():
+                return True
+            continue
+        # By the dictionary's codes: the values are decoded once per dictionary, not once per row.
+        codes = np.flatnonzero(pc.is_in(chunk.dictionary.cast(pa.string()), value_set=wanted).to_numpy(False))
+        if len(codes) and np.isin(chunk.indices.to_numpy(False), codes).any():
+            return True
+    return False
 
 
 def speed_settings(manifest: Manifest, layout: Layout | None = None) -> SpeedSettings:

@@ -15,7 +15,9 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+from collections import deque
 from collections.abc import Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import IO
 
@@ -35,6 +37,8 @@ _COPY_ROWS = 4096
 # A passage's place in the texts' file: 24 bytes on disk.
 _PLACE = [("head", "<i4"), ("length", "<i4"), ("start_ns", "<i8"), ("offset", "<i8")]
 _INDEX_ROWS = 1 << 16  # places read back at a time
+_ENCODE_ROWS = 8192  # passages encoded at a time
+_ENCODING_MAX = 2  # batches handed to the encoder and not yet written (bounds the memory they hold)
 
 
 def passage_texts(cols: Columns, heads: Heads) -> list[str]:
@@ -51,6 +55,17 @@ def passage_texts(cols: Columns, heads: Heads) -> list[str]:
     return [encode(p) for p in json.loads(passages_json_text(passages_frame(cols, heads)))]
 
 
+def _encode(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray]:
+    """The passages' JSON objects back to back, and each one's length."""
+    from console.analysis.passages_json import encode_objects
+
+    encoded = encode_objects(cols, heads)
+    if encoded is not None:
+        return encoded
+    texts = [t.encode("ascii") for t in passage_texts(cols, heads)]
+    return b"".join(texts), np.fromiter((len(t) for t in texts), np.int64, len(texts))
+
+
 class PassageSpool(Sink):
     """Collects batches of closed passages; :meth:`json_parts` gives them back as one JSON array.
 
@@ -65,26 +80,51 @@ class PassageSpool(Sink):
         self._extra = [name for name, _ in columns]
         self._size = 0
         self._ordered: tuple[np.ndarray, np.ndarray] | None = None
+        self._pending: list[Columns] = []
+        self._pending_rows = 0
+        self._heads: Heads | None = None
+        # Encoded on a thread of its own, while the pipeline goes on (numpy releases the GIL); written in order.
+        self._encoder: ThreadPoolExecutor | None = None
+        self._encoding: deque[tuple[Future[tuple[bytes, np.ndarray]], np.ndarray]] = deque()
         self.count = 0
 
     def passages(self, cols: Columns, heads: Heads) -> None:
-        """Take one batch (any order); its texts and places go to disk."""
+        """Take one batch (any order); its texts and places go to disk, a few thousand passages at a time."""
         n = len(cols["head"])
         if not n:
             return
         assert self._ordered is None, "passages added after they were read"
-        texts = [t.encode("ascii") for t in passage_texts(cols, heads)]
-        rec = np.empty(n, self._record)
-        rec["length"] = np.fromiter((len(t) for t in texts), np.int64, n)
-        rec["offset"] = self._size + np.cumsum(rec["length"], dtype=np.int64) - rec["length"]
-        rec["head"] = cols["head"]
-        rec["start_ns"] = cols["start_ns"]
-        for name in self._extra:
-            rec[name] = cols[name]
-        self._file.write(b"".join(texts))
-        self._index.write(rec.tobytes())
-        self._size += int(rec["length"].sum(dtype=np.int64))
+        # Held until there are enough to encode at once: the encoder's cost is mostly per call, and a
+        # stream closes a few hundred passages per chunk.  Head keys only ever grow: the latest table
+        # names every key of the batches held.
+        self._pending.append(cols)
+        self._pending_rows += n
+        self._heads = heads
         self.count += n
+        if self._pending_rows >= _ENCODE_ROWS:
+            self._flush()
+
+    def _flush(self, wait: bool = False) -> None:
+        """The held batches, handed to the encoder; what it has encoded, written in order (``wait``: all)."""
+        if self._pending:
+            cols = concat_passages(self._pending) if len(self._pending) > 1 else self._pending[0]
+            assert cols is not None and self._heads is not None
+            self._pending, self._pending_rows = [], 0
+            rec = np.empty(len(cols["head"]), self._record)
+            rec["head"] = cols["head"]
+            rec["start_ns"] = cols["start_ns"]
+            for name in self._extra:
+                rec[name] = cols[name]
+            if self._encoder is None:
+                self._encoder = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackside-passages")
+            self._encoding.append((self._encoder.submit(_encode, cols, self._heads), rec))
+        while self._encoding and (wait or len(self._encoding) > _ENCODING_MAX or self._encoding[0][0].done()):
+            future, rec = self._encoding.popleft()
+            text, rec["length"] = future.result()
+            rec["offset"] = self._size + np.cumsum(rec["length"], dtype=np.int64) - rec["length"]
+            self._file.write(text)
+            self._index.write(rec.tobytes())
+            self._size += len(text)
 
     def restart(self, passages: bool) -> None:
         """The log is read again: forget every passage taken so far, when they will be handed again."""
@@ -95,12 +135,17 @@ class PassageSpool(Sink):
             f.truncate()
         self._size = self.count = 0
         self._ordered = None
+        self._pending, self._pending_rows = [], 0
+        for future, _ in self._encoding:
+            future.cancel()
+        self._encoding.clear()
 
     def columns(self, names: Sequence[str], rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """These columns of every passage taken (``rows``: of these, ascending), in the order they were taken.
 
         Read back from disk a block at a time: only the result is held whole.
         """
+        self._flush(wait=True)
         picked = None if rows is None else np.asarray(rows, np.int64)
         out = {name: np.empty(self.count if picked is None else len(picked), self._record[name]) for name in names}
         self._index.flush()
@@ -124,6 +169,7 @@ class PassageSpool(Sink):
     def _order(self) -> tuple[np.ndarray, np.ndarray]:
         """Offsets and lengths of the texts in a whole read's order (by head, then start); made once."""
         if self._ordered is None:
+            self._flush(wait=True)
             self._file.flush()
             keys = self.columns(("head", "start_ns"))
             order = np.lexsort((keys.pop("start_ns"), keys.pop("head")))
@@ -158,6 +204,8 @@ class PassageSpool(Sink):
                 yield piece.decode("ascii")
 
     def close(self) -> None:
+        if self._encoder is not None:
+            self._encoder.shutdown(cancel_futures=True)
         self._file.close()
         self._index.close()
 

@@ -26,6 +26,7 @@ line number and reason (``parsers.report``).
 
 from __future__ import annotations
 
+import contextlib
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -302,6 +303,36 @@ class _Ready:
         return self.tokens
 
 
+class _ReadAhead:
+    """The items of an iterator, each fetched on a thread of its own while the one before is used."""
+
+    def __init__(self, items: Iterator[Chunk | OverlongLine]) -> None:
+        self._items = items
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackside-read")
+        self._next: Future[Chunk | OverlongLine | None] | None = self._pool.submit(self._fetch)
+
+    def _fetch(self) -> Chunk | OverlongLine | None:
+        return next(self._items, None)
+
+    def __iter__(self) -> Iterator[Chunk | OverlongLine]:
+        while self._next is not None:
+            item = self._next.result()
+            if item is None:
+                self._next = None
+                return
+            self._next = self._pool.submit(self._fetch)
+            yield item
+
+    def close(self) -> None:
+        """Wait for the read in flight (its result or error dropped), then stop the thread."""
+        if self._next is not None:
+            self._next.cancel()
+            with contextlib.suppress(BaseException):
+                self._next.result()
+            self._next = None
+        self._pool.shutdown()
+
+
 class DiagReader:
     """Streams diagnostic records from files as :class:`DiagChunk` batches.
 
@@ -371,17 +402,20 @@ class DiagReader:
                 done_buffers.append(tok.chunk.data.obj)
             return out
 
+        source = iter_chunks(
+            stream,
+            info,
+            chunk_bytes=self.chunk_bytes,
+            max_line_bytes=self.max_line_bytes,
+            on_bytes=progress,
+            name=name,
+            recycle=done_buffers,
+        )
+        # The next chunk is read on a thread of its own while this thread resolves the last one: the read
+        # (a copy from the kernel or the decompressor) releases the GIL.
+        ahead = _ReadAhead(source) if not inline else None
         try:
-            source = iter_chunks(
-                stream,
-                info,
-                chunk_bytes=self.chunk_bytes,
-                max_line_bytes=self.max_line_bytes,
-                on_bytes=progress,
-                name=name,
-                recycle=done_buffers,
-            )
-            for item in source:
+            for item in ahead if ahead is not None else source:
                 if isinstance(item, OverlongLine):
                     pending.append(item)
                 elif inline:
@@ -395,6 +429,8 @@ class DiagReader:
                 if (out := drain()) is not None:
                     yield out
         finally:
+            if ahead is not None:
+                ahead.close()  # no read in flight when the stream closes
             for fut in pending:
                 if isinstance(fut, Future):
                     fut.cancel()
