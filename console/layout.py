@@ -144,6 +144,11 @@ class Layout:
     speed_limits: tuple[SpeedLimit, ...] = ()
     work_sites: tuple[WorkSite, ...] = ()
     line_speed_mps: float = 20.0
+    # How the line's devices report ([devices]): a head silent this long has lost power or contact (None: not
+    # judged); the GNSS units' report period and the radio's delay allowance (None: the analyses' defaults).
+    power_gap_s: float | None = None
+    gnss_report_period_s: float | None = None
+    gnss_latency_s: float | None = None
     _by_id: dict[str, CountingHead] = field(default_factory=dict, compare=False, repr=False)
 
     def head(self, head_id: str) -> CountingHead:
@@ -442,6 +447,14 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
             )
         )
 
+    devices = doc.get("devices", {})
+    if not isinstance(devices, dict):
+        raise r.fail("devices", "a table [devices]", devices)
+
+    def device_time(key: str) -> float | None:
+        value = r.get(devices, key, "devices", float, None)
+        return None if value is None else _positive(r, value, f"devices.{key}", MAX_TIME_S)
+
     return Layout(
         name=name,
         source=source,
@@ -454,6 +467,9 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
         speed_limits=tuple(limits),
         work_sites=tuple(sites),
         line_speed_mps=line_speed,
+        power_gap_s=device_time("power_gap_s"),
+        gnss_report_period_s=device_time("gnss_report_period_s"),
+        gnss_latency_s=device_time("gnss_latency_s"),
         _by_id=by_id,
     )
 

@@ -31,6 +31,7 @@ from console.analysis.counting import CounterBank
 from console.analysis.diag_events import DiagEventSettings, diag_detection_events
 from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
 from console.analysis.events import DetectionEvent, EventKind, sort_events
+from console.analysis.stream import ORDER_SLACK_S
 from console.analysis.wheels import CountingSettings, HeadCounter
 from console.layout import Layout, load_layout
 from console.sim.station import Fault, SimConfig, StationSim
@@ -254,11 +255,17 @@ def _per_head_reference(analysis: DiagAnalysis, layout: Layout, s: DiagEventSett
             act = analysis.activity[analysis.activity["head"] == key].sort_values("t_first_ns", kind="stable")
             first, last = act["t_first_ns"].to_numpy(), act["t_last_ns"].to_numpy()
             gap = first[1:] - last[:-1]
-            for i in np.flatnonzero(gap > int(s.power_gap_s * NS)).tolist():
-                lost = int(last[i]) + int(s.power_gap_s * NS)
-                detail = f"no records for {gap[i] / NS:.0f} s"
+            gap_ns = int(s.power_gap_s * NS)
+            detail = f"no records for {s.power_gap_s:.0f} s"  # what is known when the loss is told
+            for i in np.flatnonzero(gap > gap_ns).tolist():
+                lost = int(last[i]) + gap_ns
                 events.append(DetectionEvent(lost, EventKind.POWER_LOSS, name, 0, None, "diag", detail))
                 events.append(DetectionEvent(int(first[i + 1]), EventKind.POWER_RESTORED, name, 0, None, "diag"))
+            # Silent at the end, while the log ran on past the gap and the order slack: lost, never back.
+            if len(last) and int(analysis.activity["t_last_ns"].max()) - int(ORDER_SLACK_S * NS) > last[-1] + gap_ns:
+                events.append(
+                    DetectionEvent(int(last[-1]) + gap_ns, EventKind.POWER_LOSS, name, 0, None, "diag", detail)
+                )
     return sort_events(events)
 
 

@@ -34,6 +34,7 @@ from console.analysis.crossing_timeline import TimelineRow
 from console.analysis.diagnostics import SpeedSettings
 from console.analysis.health import Severity
 from console.layout import load_layout
+from console.live.simulated import SimulatedConsole
 from console.output_path import write_atomic
 from console.report import command
 from console.report.collect import expand
@@ -75,6 +76,7 @@ def at_root(monkeypatch: pytest.MonkeyPatch) -> Path:
 
 def _simulate(directory: Path, minutes: float, seed: int = 3) -> Path:
     sim = StationSim(load_layout("example"), SimConfig(seed=seed))
+    SimulatedConsole(sim)  # as `simulate` runs it: the centre table shows the console's warnings
     sim.run(minutes * 60)
     write_run(sim, directory)
     return directory

@@ -10,8 +10,9 @@ import sys
 from pathlib import Path
 
 from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, Fix, TrainSpec
-from console.analysis.integrity import PARTED, WHOLE
+from console.analysis.integrity import PARTED, WHOLE, IntegrityEvent
 from console.layout import load_layout
+from console.live.simulated import SimulatedConsole
 from console.sim.station import Fault, SimConfig, StationSim
 from parsers.units import NS
 
@@ -19,17 +20,30 @@ TRACKSIDE = Path(sys.executable).with_name("trackside")
 LAYOUT = load_layout("example")
 
 
-def run_sim(faults: tuple[Fault, ...], until_s: float = 1500.0, seed: int = 1) -> tuple[StationSim, list]:
+def run_sim(
+    faults: tuple[Fault, ...], until_s: float = 1500.0, seed: int = 1
+) -> tuple[StationSim, SimulatedConsole, list[IntegrityEvent]]:
+    """A run watched by the station's console; the integrity changes it told."""
     sim = StationSim(LAYOUT, SimConfig(seed=seed, faults=faults))
-    events = []
+    events: list[IntegrityEvent] = []
+
+    def keep(ev: dict) -> None:
+        if ev["type"] == "integrity":
+            events.append(
+                IntegrityEvent(
+                    ev["time_ns"], ev["train"], ev["state"], ev["previous"], (), tuple(ev["evidence"]), ev["rear_m"]
+                )
+            )
+
+    console = SimulatedConsole(sim, keep)
     while sim.t_s < until_s:
-        events += sim.step(0.5).integrity_events
+        sim.step(0.5)
     sim.finish()
-    return sim, events
+    return sim, console, events
 
 
 def test_the_rear_half_parts_brakes_to_a_stop_and_the_console_sees_it() -> None:
-    sim, events = run_sim((Fault("train_parting", "T2", 840.0),))
+    sim, console, events = run_sim((Fault("train_parting", "T2", 840.0),))
     (p,) = sim.truth_partings
     consist = next(t for t in sim.trains if t.id == "T2")
     assert p.train == "T2" and p.rear_axles == 4 and p.rear_first_axle == 4  # dmu2: 8 axles, the rear car
@@ -44,22 +58,26 @@ def test_the_rear_half_parts_brakes_to_a_stop_and_the_console_sees_it() -> None:
     assert "EOT" in parted[0].evidence[0] and parted[0].rear_m is not None
     assert abs(parted[0].rear_m - p.rear_stop_tail_m) < 60  # type: ignore[operator]
     # The rear part stands in a section: the console keeps it occupied with the rear's axles.
-    sid = next(s for s in sim.engine.sections if sim.true_count(s) == 4)
-    assert str(sim.engine.state(sid)) == "occupied" and sim.engine.count(sid) == 4
+    shown = console.engine.section_states()
+    sid = next(s for s in shown if sim.true_count(s) == 4)
+    assert shown[sid] == ("occupied", 4)
     assert not [e for e in events if e.train == "T1" and e.state != WHOLE]
 
 
 def test_an_eot_loss_is_doubt_never_a_parting() -> None:
-    sim, events = run_sim((Fault("eot_loss", "T2", 700.0),))
+    sim, _console, events = run_sim((Fault("eot_loss", "T2", 700.0),))
     t2 = [e.state for e in events if e.train == "T2"]
     assert t2[:2] == [WHOLE, "doubtful"] and PARTED not in t2
     assert sim.truth_partings == []
 
 
 def test_a_parted_train_holds_a_crossing_warning_for_its_rear_part() -> None:
-    sim, _ = run_sim((Fault("train_parting", "T2", 600.0),), until_s=1200.0)
+    sim, console, _ = run_sim((Fault("train_parting", "T2", 600.0),), until_s=1200.0)
     (p,) = sim.truth_partings
-    ctl = sim.crossings["12+940"]  # T2 runs down: its head passes 12+940, its rear stops short of it
+    assert console.engine.crossings is not None
+    ctl = console.engine.crossings.controllers[
+        "12+940"
+    ]  # T2 runs down: its head passes 12+940, its rear stops short of it
     assert p.rear_stop_tail_m is not None and p.rear_stop_tail_m > 12_940
     assert ctl.tracks["T2"].warned and ctl.warning_on
     alarms = [e.reason for e in ctl.events if e.train == "T2" and e.kind == "alarm"]

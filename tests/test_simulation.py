@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 from console.analysis.diagnostics import SpeedSettings
 from console.cli.app import app
 from console.layout import load_layout
+from console.live.simulated import SimulatedConsole
 from console.sim.radio import LoRaLink
 from console.sim.station import Fault, SimConfig, StationSim
 from console.sim.writers import write_run
@@ -25,6 +26,7 @@ LAYOUT = load_layout("example")
 
 def _run(tmp: Path, minutes: float = 40, **config: object) -> tuple[StationSim, Path]:
     sim = StationSim(LAYOUT, SimConfig(**config))  # type: ignore[arg-type]
+    SimulatedConsole(sim)  # the station's console watches, as `simulate` runs it (centre.tsv, truth's finals)
     sim.run(minutes * 60)
     out = tmp / "run"
     write_run(sim, out)

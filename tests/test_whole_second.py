@@ -26,6 +26,7 @@ from hypothesis import strategies as st
 from benchmarks.gen_realistic_diag import generate as generate_realistic
 from console.analysis.diagnostics import SpeedSettings
 from console.layout import load_layout
+from console.live.simulated import SimulatedConsole
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_diagnostic
 from tests.conftest import record
@@ -38,6 +39,7 @@ EXAMPLES = 20 if LONG else 3
 
 def _sim(seed: int) -> StationSim:
     sim = StationSim(load_layout("example"), SimConfig(seed=seed, trains_per_hour=12))
+    SimulatedConsole(sim)  # the station's console watches the run (sim.console)
     sim.run(RUN_S)
     return sim
 
@@ -255,4 +257,5 @@ def test_sections_on_a_whole_second_log_end_as_on_the_microsecond_log(tmp_path: 
         res = CliRunner().invoke(app, ["sections", str(path), "--layout", "example", "--json"])
         assert res.exit_code == 0, res.output
         finals.append({s["section"]: s["state"] for s in json.loads(res.stdout)["sections"]})
-    assert finals[0] == finals[1] == {s: str(sim.engine.state(s)) for s in sim.engine.sections}
+    assert sim.console is not None
+    assert finals[0] == finals[1] == sim.console.section_states()

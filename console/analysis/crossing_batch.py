@@ -9,6 +9,7 @@ counted: they cannot be placed on the line.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -156,7 +157,7 @@ def run_crossings(
     chosen, unassigned = pair_trains(fixes, trains, consist.length_m if consist else 100.0)
     ctl_fixes, off = to_fixes(fixes, layout, chosen)
     s = settings or ControllerSettings(line_speed_mps=layout.line_speed_mps)
-    if report_period_s is None and ctl_fixes:
+    if report_period_s is None and layout.gnss_report_period_s is None and ctl_fixes:
         # The devices' own report period: the median gap between a device's fixes.
         gaps = []
         for tr in chosen:
@@ -164,10 +165,7 @@ def run_crossings(
                 t = np.sort([f.t_fix_ns for f in ctl_fixes if f.train == tr.train and f.role == role])
                 gaps += list(np.diff(t) / 1e9)
         report_period_s = float(np.median(gaps)) if gaps else s.report_period_s
-    if report_period_s is not None:
-        # A device is stale after several missed reports, never after one lost packet.
-        stale = max(s.stale_after_s, 4 * report_period_s)
-        s = ControllerSettings(**{**s.__dict__, "report_period_s": report_period_s, "stale_after_s": stale})
+    s = crossing_settings(layout, report_period_s, s)
     specs = [TrainSpec(t.train, t.length_m) for t in chosen]
     integrity = run_integrity(ctl_fixes, chosen, layout, s)
     partings = [(e.t_ns, e.train, "; ".join(e.evidence)) for e in integrity if e.state == PARTED]
@@ -183,14 +181,32 @@ def run_crossings(
     return CrossingRun(rows, events, list(chosen), off, unassigned, jumps, integrity)
 
 
+def crossing_settings(
+    layout: Layout, report_period_s: float | None = None, base: ControllerSettings | None = None
+) -> ControllerSettings:
+    """The crossing units' settings on ``layout``, the same in every mode: its line speed; the GNSS units'
+    report period (the layout's ``[devices]``, else ``report_period_s``, else the default) and the radio's
+    delay allowance (the layout's, else the default).  A unit is stale after several missed reports,
+    never after one lost packet."""
+    s = base or ControllerSettings(line_speed_mps=layout.line_speed_mps)
+    period = layout.gnss_report_period_s if layout.gnss_report_period_s is not None else report_period_s
+    if layout.gnss_latency_s is not None:
+        s = dataclasses.replace(s, latency_s=layout.gnss_latency_s)
+    if period is not None:
+        s = dataclasses.replace(s, report_period_s=period, stale_after_s=max(s.stale_after_s, 4 * period))
+    return s
+
+
+def integrity_settings(s: ControllerSettings) -> IntegritySettings:
+    """The integrity monitor's timing, the crossing units' (the same fixes, the same radio)."""
+    return IntegritySettings(report_period_s=s.report_period_s, latency_s=s.latency_s, stale_after_s=s.stale_after_s)
+
+
 def run_integrity(
     fixes: Sequence[Fix], trains: Sequence[TrainDevices], layout: Layout, s: ControllerSettings
 ) -> list[IntegrityEvent]:
     """Each train's integrity from its head and EOT fixes (GNSS only: the telemetry has no axle counts)."""
-    settings = IntegritySettings(
-        report_period_s=s.report_period_s, latency_s=s.latency_s, stale_after_s=s.stale_after_s
-    )
-    mon = IntegrityMonitor(settings, layout)
+    mon = IntegrityMonitor(integrity_settings(s), layout)
     for t in trains:
         mon.add_train(ConsistSpec(t.train, t.length_m, length_known=t.length_given))
     out: list[IntegrityEvent] = []

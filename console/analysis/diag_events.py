@@ -6,7 +6,10 @@ events :class:`~console.analysis.wheels.HeadCounter` gives), three-element
 heads the majority rule (:func:`console.analysis.majority.majority_events`).
 A gap in a head's records longer than ``power_gap_s`` is a power or contact
 loss: it only makes sense where the device writes records continuously
-(a heartbeat), so it is off unless set.
+(a heartbeat), so it is off unless set.  A head silent at the end of the log
+is lost too once the log ran on past its last record by more than the gap
+and the order slack: a live console knows it then, without the head coming
+back.
 
 The events come in the order of a list built head by head (counting
 events in time order, then power events) and sorted by time, stably.
@@ -22,6 +25,7 @@ from console.analysis.diagnostics import DiagAnalysis
 from console.analysis.event_block import KIND_CODE, NO_CHANNEL, Detail, EventBlock, StringPool
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.majority import MajoritySettings, majority_events
+from console.analysis.stream import ORDER_SLACK_S
 from console.analysis.wheels import CountingSettings
 from console.layout import Layout
 from parsers.units import NS
@@ -46,7 +50,9 @@ def power_gap_columns(
     of its head here (NONE: none; later buckets' values are not read).  A gap
     longer than ``power_gap_ns`` between a bucket's last record and the next
     one's first is a loss at ``last + power gap``, restored at the next
-    record; per gap the loss, then the restoration.  Columns of an
+    record; per gap the loss, then the restoration.  The loss says what was
+    known when it happened: no records for the power gap (a live console
+    tells it then, before the head is heard again).  Columns of an
     :class:`EventBlock` without ``source``.
     """
     start = np.r_[True, head[1:] != head[:-1]] if len(head) else np.zeros(0, bool)
@@ -63,8 +69,30 @@ def power_gap_columns(
         "direction": np.zeros(2 * n, np.int64),
         "channel": np.full(2 * n, NO_CHANNEL),
         "detail": np.tile([Detail.NO_RECORDS, Detail.NONE], n),
-        "aux_ns": np.c_[gap[lost], np.zeros(n, np.int64)].ravel(),
+        "aux_ns": np.tile([power_gap_ns, 0], n).astype(np.int64),
     }
+
+
+def silent_loss_columns(head: np.ndarray, last_ns: np.ndarray, power_gap_ns: int) -> dict[str, np.ndarray]:
+    """POWER_LOSS events of heads silent since ``last_ns`` while the log ran on (not heard again yet):
+    each at ``last + power gap``.  Columns of an :class:`EventBlock` without ``source``."""
+    n = len(head)
+    return {
+        "time_ns": np.asarray(last_ns, np.int64) + power_gap_ns,
+        "kind": np.full(n, KIND_CODE[EventKind.POWER_LOSS]),
+        "head": np.asarray(head, np.int64),
+        "direction": np.zeros(n, np.int64),
+        "channel": np.full(n, NO_CHANNEL),
+        "detail": np.full(n, Detail.NO_RECORDS),
+        "aux_ns": np.full(n, power_gap_ns, np.int64),
+    }
+
+
+def silent_heads(last_ns: np.ndarray, watermark_ns: int, power_gap_ns: int) -> np.ndarray:
+    """Which heads, last heard at ``last_ns`` (NONE: never) and with nothing heard since, are known to have
+    lost power: the watermark (the log's clock less the order slack: no record still to come is earlier)
+    is more than the power gap past their last record."""
+    return (last_ns != NONE) & (watermark_ns > last_ns + power_gap_ns)
 
 
 def diag_detection_events(
@@ -138,9 +166,14 @@ def diag_detection_events(
         last = act["t_last_ns"].to_numpy(np.int64)
         order = np.lexsort((first, ak))
         order = order[counted[ak[order]]]
-        cols = power_gap_columns(
-            ak[order], first[order], last[order], np.full(len(order), NONE), int(s.power_gap_s * NS)
-        )
+        gap_ns = int(s.power_gap_s * NS)
+        cols = power_gap_columns(ak[order], first[order], last[order], np.full(len(order), NONE), gap_ns)
+        # A head silent at the end while the log ran on: lost, not heard again.
+        ends = np.r_[np.flatnonzero(ak[order][1:] != ak[order][:-1]), len(order) - 1] if len(order) else order
+        tail_head, tail_last = ak[order][ends], last[order][ends]
+        silent = silent_heads(tail_last, int(last.max()) - int(ORDER_SLACK_S * NS), gap_ns)
+        tail = silent_loss_columns(tail_head[silent], tail_last[silent], gap_ns)
+        cols = {c: np.concatenate([cols[c], tail[c]]) for c in cols}
         cols["source"] = np.full(len(cols["time_ns"]), pool.code("diag"))
         block = EventBlock.from_columns(cols, names, pool.strings)
         queue.push(block, block.head, _POWER)

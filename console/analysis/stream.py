@@ -97,6 +97,11 @@ class PassageStream:
         open_ = self._open_last != NO_TIME
         return int(self._open_first[open_].min()) if open_.any() else ALL_TIME
 
+    def open_firsts(self) -> np.ndarray:
+        """Per head key, the first record of its open run (NO_TIME: none open)."""
+        n = len(self._open_last)
+        return np.where(self._open_last != NO_TIME, self._open_first[:n], NO_TIME)
+
     def lagging_clock_ns(self) -> int:
         """The clock to release events by: the log's latest record, but no later than the clock of any file
         a head is open in (followed files are read at their own pace: one that runs ahead must not release
@@ -124,6 +129,15 @@ class PassageStream:
         self._head_file[heads] = chunk.file_id
         self.late_records += int(np.count_nonzero(chunk.time_ns <= self._closed_upto[heads] + self._gap_ns))
         self._advance(heads, chunk.time_ns)
+        return self._close(final=False)
+
+    def complete_until(self, t_ns: int) -> PartAnalysis | None:
+        """No record still to come is earlier than ``t_ns`` (a source that says so: the simulated heads):
+        every file's clock runs to there, and the runs idle by then close; the passages that completed."""
+        if not len(self._file_clock) or t_ns <= self.clock_ns:
+            return None
+        self.clock_ns = t_ns
+        np.maximum(self._file_clock, t_ns, out=self._file_clock)
         return self._close(final=False)
 
     def finish(self) -> PartAnalysis | None:

@@ -27,8 +27,11 @@ batch result, event for event:
   keep the batch's order.  A lone pulse's hold may fall due before it is
   known to be lone (a damping of one system longer than ``isolation_s``):
   nothing from that time on is released while such a pulse is open
-  (:meth:`CounterBank.floor_ns`).  A power loss is known only when the
-  head's next record comes, at ``last record + power gap``;
+  (:meth:`CounterBank.floor_ns`).  A power loss (at ``last record + power
+  gap``) is known when the head's next record comes, or once the watermark
+  is past it with nothing of the head's open: the head is silent while the
+  log runs on, and a console following it must say so before it is heard
+  again (the batch path gives the same loss, from the whole log);
 * per-head facts the batch path takes from the whole log (no release
   records: point mode; any whole-second stamp) are guessed from the head's
   first closed passage and checked on every later one:
@@ -52,8 +55,8 @@ import numpy as np
 
 from console.analysis.counting import CounterBank
 from console.analysis.counting_holds import NONE
-from console.analysis.diag_events import DiagEventSettings, power_gap_columns
-from console.analysis.event_block import EventBlock, StringPool
+from console.analysis.diag_events import DiagEventSettings, power_gap_columns, silent_heads, silent_loss_columns
+from console.analysis.event_block import KIND_CODE, EventBlock, StringPool
 from console.analysis.event_queue import EventQueue
 from console.analysis.events import DetectionEvent, EventKind
 from console.layout import CountingHead, Layout
@@ -116,6 +119,10 @@ class EventStream:
         self._held: list[dict[str, np.ndarray]] = []
         self._last_heads: Sequence[tuple[int, str]] = []
         self._power_ns = int(settings.power_gap_s * NS) if settings.power_gap_s is not None else None
+
+    # Per head: its loss told while silent, its restoration not yet (a class default: a state pickled
+    # before there was one still loads).
+    _lost = np.zeros(0, bool)
 
     # -- heads -------------------------------------------------------------
     def _heads(self, keys: np.ndarray, heads: Sequence[tuple[int, str]]) -> None:
@@ -284,34 +291,92 @@ class EventStream:
         head_start = np.r_[True, hk[1:] != hk[:-1]]
         # Gaps between consecutive buckets, the first one after the head's previous batch.
         cols = power_gap_columns(hk, first, last, self._last_activity[hk], self._power_ns)
+        lost = self._lost_flags()
+        if lost[hk].any():
+            # A loss already told while the head was silent: only its restoration is new.
+            told = (cols["kind"] == KIND_CODE[EventKind.POWER_LOSS]) & lost[cols["head"]]
+            told &= cols["time_ns"] == self._last_activity[cols["head"]] + self._power_ns
+            cols = {c: v[~told] for c, v in cols.items()}
+            lost[hk] = False
         cols["source"] = np.full(len(cols["time_ns"]), self.bank.source)
         self._push(EventBlock.from_columns(cols, self.names, self.pool.strings), _POWER)
         ends = np.r_[np.flatnonzero(head_start)[1:], len(hk)] - 1
         self._last_activity[hk[ends]] = last[ends]
 
+    def _lost_flags(self) -> np.ndarray:
+        if len(self._lost) < len(self._state):
+            self._lost = np.r_[self._lost, np.zeros(len(self._state) - len(self._lost), bool)]
+        return self._lost
+
+    def _tell_silent(self, watermark_ns: int, open_first: np.ndarray) -> None:
+        """Power losses of heads silent (nothing of theirs open) for more than the power gap before
+        ``watermark_ns``: told now, each at its last record plus the gap."""
+        assert self._power_ns is not None
+        lost = self._lost_flags()
+        n = len(self._state)
+        is_open = np.zeros(n, bool)
+        m = min(n, len(open_first))
+        is_open[:m] = open_first[:m] != NONE
+        silent = silent_heads(self._last_activity[:n], watermark_ns, self._power_ns)
+        keys = np.flatnonzero(silent & ~is_open & ~lost & (self._state == _COUNTED))
+        if not len(keys):
+            return
+        cols = silent_loss_columns(keys, self._last_activity[keys], self._power_ns)
+        cols["source"] = np.full(len(keys), self.bank.source)
+        self._push(EventBlock.from_columns(cols, self.names, self.pool.strings), _POWER)
+        lost[keys] = True
+
+    def _power_bound(self, open_first: np.ndarray | None) -> int:
+        """No event at or after this may be released yet: a power event of some head could still come
+        before it (a loss at its last record plus the gap; a told loss's restoration at its open run)."""
+        assert self._power_ns is not None
+        n = len(self._state)
+        known = self._last_activity[:n] != NONE
+        lost = self._lost_flags()[:n]
+        bound = int(ALL_TIME)
+        waiting = known & ~lost
+        if waiting.any():
+            bound = int(self._last_activity[:n][waiting].min()) + self._power_ns
+        if open_first is not None and lost.any():
+            firsts = np.full(n, NONE, np.int64)
+            m = min(n, len(open_first))
+            firsts[:m] = open_first[:m]
+            back = lost & (firsts != NONE)
+            if back.any():
+                bound = min(bound, int(firsts[back].min()))
+        return bound
+
     # -- output --------------------------------------------------------------
-    def release_block(self, watermark_ns: int) -> EventBlock:
+    def release_block(self, watermark_ns: int, open_first: np.ndarray | None = None) -> EventBlock:
         """Events that nothing read later can precede, given that no record still to come is
-        earlier than ``watermark_ns``; in the batch path's order, as columns."""
+        earlier than ``watermark_ns``; in the batch path's order, as columns.
+
+        ``open_first``: per head key, the first record of its open run (NONE: none open), as the passage
+        stream holds it; with it, a power gap tells a silent head's loss as soon as it is known."""
+        if self._power_ns is not None and open_first is not None:
+            self._tell_silent(watermark_ns, open_first)
         watermark_ns = min(watermark_ns, self.held_from_ns())
         self._push(self.bank.settle_before(watermark_ns), _COUNTING)
         bound = min(watermark_ns, self.bank.floor_ns())
         if self._power_ns is not None:
-            last = self._last_activity[self._last_activity != NONE]
-            if len(last):
-                bound = min(bound, int(last.min()) + self._power_ns)
+            bound = min(bound, self._power_bound(open_first))
         return self._queue.pop_below(bound)
 
     def release(self, watermark_ns: int) -> list[DetectionEvent]:
         """:meth:`release_block` as event objects."""
         return self.release_block(watermark_ns).events()
 
-    def finish_block(self) -> EventBlock:
-        """End of the log: settle every counter; all events, in order, as columns."""
+    def finish_block(self, watermark_ns: int | None = None) -> EventBlock:
+        """End of the log: settle every counter; all events, in order, as columns.
+
+        ``watermark_ns``: the log's latest record time less the order slack; with a power gap, heads
+        silent for longer than it before that have lost power (as the batch path finds in the whole log)."""
         if self._held:
             held = np.concatenate([h["head"] for h in self._held])
             self.settle(held, self._last_heads)
         self._push(self.bank.flush(), _COUNTING)
+        if self._power_ns is not None and watermark_ns is not None:
+            self._tell_silent(watermark_ns, np.zeros(0, np.int64))
         return self._queue.pop_below(int(ALL_TIME))
 
     def finish(self) -> list[DetectionEvent]:

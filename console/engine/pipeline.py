@@ -192,7 +192,26 @@ class Pipeline:
             slack_ns = self.stream._slack_ns
             clock = self.stream.lagging_clock_ns()
             if clock > NO_TIME + slack_ns:
-                self._step(self.events.release_block(clock - slack_ns))
+                self._step(self.events.release_block(clock - slack_ns, self.stream.open_firsts()))
+
+    def advance(self, until_ns: int) -> None:
+        """No record still to come is earlier than ``until_ns``: a source that hands its records over in time
+        order as its clock runs (the simulated heads, wired to the station's console) says so, and events up
+        to then are released without waiting for later records and the order slack.  A followed file never
+        can: its lines may arrive late."""
+        if self.stream is None:
+            return
+        self._closed(self.stream.complete_until(until_ns))
+        if self.events is not None:
+            self._step(self.events.release_block(until_ns, self.stream.open_firsts()))
+
+    def reset(self, e: DetectionEvent) -> None:
+        """An operator's reset request (a live console's), decided in time order with the detections: it
+        is released with them once nothing still to come precedes it."""
+        if self.events is not None:
+            self.events.add_reset(e)
+        else:
+            self._resets_pending.append(e)
 
     def finish(self, start_sections: bool = True) -> DiagOutcome:
         """The input has ended: every open passage is whole; every held event is released.
@@ -206,7 +225,9 @@ class Pipeline:
         else:
             self._closed(self.stream.finish())
             if self.events is not None:
-                self._step(self.events.finish_block())
+                clock = self.stream.clock_ns
+                slack_ns = self.stream._slack_ns
+                self._step(self.events.finish_block(clock - slack_ns if clock > NO_TIME + slack_ns else None))
                 warnings = self.events.warnings(self.stream.heads)
         s = self.settings
         if start_sections and s.sections is not None and s.events is not None and self.section_engine is None:

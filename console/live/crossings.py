@@ -11,6 +11,14 @@ console's clock is the reference.  Per device the smallest observed delay
 (reception − measurement) estimates its clock offset; measurement times are
 moved by that offset and never put after their reception, so a unit whose
 clock runs ahead cannot make old positions look fresh.
+
+A *recorded* fix (read from a file, or the simulator's) is judged by its own
+time, and the units' clock ticks as the batch ``crossing`` command ticks it:
+every tick step after each fix, before the next one, until nothing a tick
+does can change (:func:`~console.analysis.crossing.run_controller`).  The
+ticks after the latest fix are made as the recordings' clock is known to
+have passed them (:meth:`CrossingFollow.advance`), and all of them at the
+end.  So fixes handed over in time order give the batch command's events.
 """
 
 from __future__ import annotations
@@ -21,7 +29,7 @@ from collections.abc import Callable
 from typing import Any
 
 from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, CrossingEvent, Fix, TrainSpec
-from console.analysis.crossing_batch import OFF_TRACK_M
+from console.analysis.crossing_batch import OFF_TRACK_M, crossing_settings
 from console.analysis.crossing_timeline import timeline
 from console.analysis.geo import TrackProjector
 from console.analysis.timefmt import iso
@@ -34,13 +42,45 @@ SKEW_TOLERANCE_S = 2.0  # offsets below this are radio and processing delay, not
 RECENT_FIXES = 512  # per train: enough to find its head's arrival when the warning goes off
 
 
+class _Ticks:
+    """A unit's ticks after its latest fix, as the batch run makes them: every tick step from the fix,
+    until one tick past the time after which no tick changes anything (:meth:`next_change_ns`)."""
+
+    def __init__(self, ctl: CrossingController) -> None:
+        self.ctl = ctl
+        self.step_ns = max(1, int(ctl.s.tick_s * NS))
+        self.from_ns: int | None = None  # the latest fix's time
+        self.k = 1  # the next tick: from_ns + k·step
+        self.settled: int | None = None
+        self.done_ns: int | None = None  # the latest tick made: a fix out of time order never ticks back
+
+    def after_fix(self, t_ns: int) -> None:
+        self.from_ns, self.k, self.settled = t_ns, 1, self.ctl.next_change_ns()
+        if self.done_ns is not None and self.done_ns >= t_ns:
+            self.k = (self.done_ns - t_ns) // self.step_ns + 1
+
+    def upto(self, t_ns: int, before: bool) -> list[CrossingEvent]:
+        """The ticks at or before ``t_ns`` (strictly before when ``before``: a fix at that time comes next)."""
+        out: list[CrossingEvent] = []
+        if self.from_ns is None or self.settled is None:
+            return out
+        while True:
+            t = self.from_ns + self.k * self.step_ns
+            if t > t_ns or (before and t == t_ns) or t > self.settled + 2 * self.step_ns:
+                return out
+            out += self.ctl.tick(t)
+            self.done_ns = t
+            self.k += 1
+
+
 class CrossingFollow:
     def __init__(self, layout: Layout, emit: Emit, settings: ControllerSettings | None = None) -> None:
         self.layout = layout
         self.emit = emit
-        self.settings = settings or ControllerSettings()
+        self.settings = settings or crossing_settings(layout)
         self.proj = TrackProjector(layout.track) if len(layout.track) >= 2 else None
         self.controllers = {c.code: CrossingController(c, [], self.settings) for c in layout.crossings}
+        self._ticks = {code: _Ticks(ctl) for code, ctl in self.controllers.items()}
         consist = layout.consist()
         self.default_length_m = consist.length_m if consist else 100.0
         self.skew_ns: dict[str, int] = {}
@@ -65,6 +105,15 @@ class CrossingFollow:
 
     def fix(self, f: GnssFix, now_ns: int) -> Fix | None:
         """Place a fix on the track and run the crossing units on it; the placed fix (None: not placeable)."""
+        fix = self.place(f, now_ns)
+        if fix is not None:
+            if f.recorded:
+                self.catch_up(fix.t_ns)
+            self.step(fix)
+        return fix
+
+    def place(self, f: GnssFix, now_ns: int) -> Fix | None:
+        """A fix on the track, its clock judged (None: not placeable, counted as off the track if so)."""
         if self.proj is None or math.isnan(f.lat_deg) or math.isnan(f.lon_deg):
             return None
         delay = now_ns - f.t_fix_ns
@@ -83,14 +132,28 @@ class CrossingFollow:
         if not (math.isnan(f.course_deg) or math.isnan(f.speed_mps)) and f.speed_mps >= 1.0:
             diff = (f.course_deg - self.proj.bearing_deg(chainage) + 540.0) % 360.0 - 180.0
             hint = 1 if abs(diff) < 60 else -1 if abs(diff) > 120 else 0
-        fix = Fix(now_ns, t_fix, train, role, chainage, f.speed_mps, hint)
+        return Fix(now_ns, t_fix, train, role, chainage, f.speed_mps, hint)
+
+    def catch_up(self, t_ns: int) -> None:
+        """A recorded fix at ``t_ns`` comes next: the ticks before it (the batch run's)."""
+        for code, ticks in self._ticks.items():
+            self._out(self.controllers[code], ticks.upto(t_ns, before=True))
+
+    def step(self, fix: Fix) -> None:
+        """Run the crossing units on a placed fix."""
         self.fixes += 1
-        self.last[(train, role)] = fix
-        self.recent.setdefault(train, deque(maxlen=RECENT_FIXES)).append(fix)
-        for ctl in self.controllers.values():
-            ctl.add_train(TrainSpec(train, self.default_length_m))
+        self.last[(fix.train, fix.role)] = fix
+        self.recent.setdefault(fix.train, deque(maxlen=RECENT_FIXES)).append(fix)
+        for code, ctl in self.controllers.items():
+            ctl.add_train(TrainSpec(fix.train, self.default_length_m))
             self._out(ctl, ctl.step(fix))
-        return fix
+            self._ticks[code].after_fix(fix.t_ns)
+
+    def advance(self, t_ns: int) -> None:
+        """The recordings' clock has passed ``t_ns`` (no recorded fix still to come is earlier or at it): the
+        units' ticks up to then."""
+        for code, ticks in self._ticks.items():
+            self._out(self.controllers[code], ticks.upto(t_ns, before=False))
 
     def parted(self, train: str, t_ns: int, evidence: str) -> None:
         """The integrity monitor saw ``train`` parted: every unit holds its warning for the rear part."""

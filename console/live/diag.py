@@ -20,10 +20,12 @@ from typing import TYPE_CHECKING, Any
 
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import SpeedSettings
+from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.section_state import SectionState
 from console.engine.pipeline import HEALTH_REGISTERS, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks
 from console.layout import Layout
-from console.render.event_lines import health_event, section_event
+from console.render.event_lines import health_event, reset_event, section_event
 from console.render.passage_spool import passage_texts
 from parsers.diag.read import DiagReader
 from parsers.report import FileReport
@@ -33,7 +35,7 @@ if TYPE_CHECKING:
     from console.analysis.head_table import Heads
     from console.analysis.health import Finding
     from console.analysis.passages import Columns
-    from console.analysis.section_state import Transition
+    from console.analysis.section_state import ResetRecord, Transition
 
 Emit = Callable[[dict[str, Any]], None]
 
@@ -66,6 +68,10 @@ class LiveEvents(Sink):
             self.stats.section_changes += 1
             self.emit(section_event(tr))
 
+    def resets(self, rows: Sequence[ResetRecord]) -> None:
+        for r in rows:
+            self.emit(reset_event(r))
+
     def findings(self, rows: Sequence[Finding]) -> None:
         for f in rows:
             key = (f.rule, f.counting_head, f.channel)
@@ -76,15 +82,29 @@ class LiveEvents(Sink):
             self.emit(health_event(f))
 
 
-def live_settings(layout: Layout | None, speed: SpeedSettings, include_status: bool = False) -> PipelineSettings:
-    """What the pipeline computes live: passages; with a layout, sections and health too."""
+def live_speed(layout: Layout | None, idle_gap_s: float = SpeedSettings.idle_gap_s) -> SpeedSettings:
+    """The line facts live analysis uses: the layout's coil spacing and first consist's length."""
+    spacing = layout.heads[0].spacing_m if layout is not None and layout.heads else SpeedSettings.spacing_m
+    consist = layout.consist() if layout is not None else None
+    return SpeedSettings(spacing, consist.length_m if consist else SpeedSettings.train_length_m, idle_gap_s)
+
+
+def live_settings(
+    layout: Layout | None,
+    speed: SpeedSettings,
+    include_status: bool = False,
+    initial: SectionState = SectionState.PREPARATORY,
+) -> PipelineSettings:
+    """What the pipeline computes live: passages; with a layout, sections and health too (a head silent
+    for the layout's power gap has lost power)."""
     if layout is None:
         return PipelineSettings(speed=speed, include_status=include_status)
     return PipelineSettings(
         speed=speed,
-        events=DiagEventSettings(),
+        events=DiagEventSettings(power_gap_s=layout.power_gap_s),
         layout=layout,
         sections=layout if layout.sections else None,
+        initial=initial,
         keep_registers=HEALTH_REGISTERS,
         health="closed",
         include_status=include_status,
@@ -101,9 +121,10 @@ class DiagFollow:
         emit: Emit,
         include_status: bool = False,
         also: Sink | None = None,
+        initial: SectionState = SectionState.PREPARATORY,
     ):
         """``also``: another sink of the pipeline's results (the integrity monitor takes its axles and
-        section changes)."""
+        section changes); ``initial``: the sections' state before the first detection."""
         self.layout = layout
         self.emit = emit
         self.reader = DiagReader([])
@@ -112,7 +133,7 @@ class DiagFollow:
         sink = LiveEvents(emit, self.stats)
         self.pipeline = Pipeline(
             self.reader.registry,
-            live_settings(layout, settings, include_status),
+            live_settings(layout, settings, include_status, initial),
             Sinks(sink, also) if also is not None else sink,
         )
 
@@ -137,6 +158,15 @@ class DiagFollow:
         for r in rej[self.stats.rejections_shown :]:
             self.emit({"type": "source", "kind": "rejected", **r.to_dict()})
         self.stats.rejections_shown = len(rej)
+
+    def reset(self, section: str, t_ns: int) -> None:
+        """An operator asks to reset ``section`` at ``t_ns``: decided in time order with the detections
+        (told as a ``reset`` event, accepted or refused with the reason)."""
+        self.pipeline.reset(DetectionEvent(t_ns, EventKind.RESET, section, source="operator"))
+
+    def advance(self, until_ns: int) -> None:
+        """Every record earlier than ``until_ns`` has been added (see :meth:`Pipeline.advance`)."""
+        self.pipeline.advance(until_ns)
 
     def finish(self) -> None:
         """End of following: every open run is closed and analysed (as the batch reader ends a file)."""

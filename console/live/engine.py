@@ -15,13 +15,15 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from console.analysis.diagnostics import SpeedSettings
+from console.analysis.section_state import SectionState
 from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote
 from console.layout import Layout
 from console.live.archive import LiveArchiver
 from console.live.crossings import CrossingFollow
-from console.live.diag import DiagFollow
+from console.live.diag import DiagFollow, live_speed
 from console.live.frames import FrameFollow
 from console.live.integrity import IntegrityFollow
+from parsers.units import ALL_TIME
 
 Emit = Callable[[dict[str, Any]], None]
 TICK_S = 0.5  # crossing units' clock and the idle wake-up: two a second is nothing for the CPU
@@ -35,16 +37,28 @@ class LiveEngine:
         settings: SpeedSettings | None = None,
         archiver: LiveArchiver | None = None,
         include_status: bool = False,
+        *,
+        clock: Callable[[], int] | None = None,
+        initial: SectionState = SectionState.PREPARATORY,
     ) -> None:
+        """``settings``: the line facts (default: the layout's, as ``follow`` takes them); ``clock``: the
+        console's clock in ns since the epoch (default: the wall clock; the simulator's station gives its
+        own); ``initial``: the sections' state before the first detection."""
         self.layout = layout
         self.emit = emit
         self.include_status = include_status
+        self._clock = clock or time.time_ns
         # Train integrity needs the fixes placed on the track: a layout with a [[track]].
         self.integrity = (
             IntegrityFollow(layout, self._integrity_event) if layout is not None and len(layout.track) >= 2 else None
         )
         self.diag = DiagFollow(
-            layout, settings or SpeedSettings(), emit, include_status=include_status, also=self.integrity
+            layout,
+            settings or live_speed(layout),
+            emit,
+            include_status=include_status,
+            also=self.integrity,
+            initial=initial,
         )
         placed = layout is not None and (bool(layout.crossings) or len(layout.track) >= 2)
         self.crossings = CrossingFollow(layout, emit) if layout is not None and placed else None
@@ -57,9 +71,9 @@ class LiveEngine:
         self.items = 0
         self.notes: dict[str, int] = {}
 
-    @staticmethod
-    def now_ns() -> int:
-        return time.time_ns()
+    def now_ns(self) -> int:
+        """The console's clock."""
+        return self._clock()
 
     # A recorded file's fixes are judged by its own clock (it may be read far faster or slower than it was
     # written: a replay, `simulate --live --speed 30`); a live unit's by the console's, which ticks on too.
@@ -102,9 +116,15 @@ class LiveEngine:
             self.diag.add(item.source, item.file, item.first_line, item.data)
         elif isinstance(item, GnssFix):
             if self.crossings is not None:
-                placed = self.crossings.fix(item, self._fix_clock(item))
-                if placed is not None and self.integrity is not None:
-                    self.integrity.fix(placed, item.t_fix_ns)
+                placed = self.crossings.place(item, self._fix_clock(item))
+                if placed is not None:
+                    if item.recorded:
+                        self.crossings.catch_up(placed.t_ns)
+                    # The monitor's verdict on this fix reaches the crossing units before they take it (a
+                    # train parted by it is held at once), as the batch crossing run tells its partings.
+                    if self.integrity is not None:
+                        self.integrity.fix(placed, item.t_fix_ns)
+                    self.crossings.step(placed)
         elif isinstance(item, CanFrame):
             self._live_bus = True
             self.can_frames += 1
@@ -125,20 +145,35 @@ class LiveEngine:
         if ev["state"] == "parted" and self.crossings is not None:
             self.crossings.parted(ev["train"], ev["time_ns"], "; ".join(ev["evidence"]))
 
-    def tick(self) -> None:
+    def tick(self, recorded_until_ns: int | None = None) -> None:
+        """Time passes.  ``recorded_until_ns``: no recorded fix still to come is earlier than or at this
+        (the simulator knows its radio's delay); without it, the latest recorded fix's time."""
         self.frames.flush()
-        if self.crossings is not None:
-            self.crossings.tick(self.crossing_clock_ns())
+        self._tick_crossings(recorded_until_ns)
         if self.integrity is not None:
             self.integrity.tick()
         if self.archiver is not None:
             self.archiver.tick()
 
+    def _tick_crossings(self, recorded_until_ns: int | None) -> None:
+        if self.crossings is None:
+            return
+        if self._live_fixes:  # a live unit: the console's clock
+            self.crossings.tick(self.now_ns())
+        else:  # recordings: the units' ticks as their own clock is known to have passed them
+            until = recorded_until_ns if recorded_until_ns is not None else self._data_ns
+            if until is not None:
+                self.crossings.advance(until)
+
+    def reset_section(self, section: str) -> None:
+        """An operator's reset request, now: decided in time order with the detections (a ``reset`` event)."""
+        self.diag.reset(section, self.view_clock_ns())
+
     def finish(self) -> None:
         self.diag.finish()
         self.frames.finish()
-        if self.crossings is not None:
-            self.crossings.tick(self.crossing_clock_ns())
+        # Recordings end: every tick the units' clocks still owe (the batch run's last ticks).
+        self._tick_crossings(None if self._live_fixes else int(ALL_TIME))
         if self.archiver is not None:
             self.archiver.finish()
 

@@ -12,7 +12,7 @@ from console.analysis.timefmt import iso
 
 if TYPE_CHECKING:
     from console.analysis.health import Finding
-    from console.analysis.section_state import Transition
+    from console.analysis.section_state import ResetRecord, Transition
 
 
 def section_event(tr: Transition) -> dict[str, Any]:
@@ -25,6 +25,18 @@ def section_event(tr: Transition) -> dict[str, Any]:
         "reason": tr.reason,
         "time_ns": tr.time_ns,
         "time": iso(tr.time_ns),
+    }
+
+
+def reset_event(r: ResetRecord) -> dict[str, Any]:
+    """An operator's reset request, accepted or refused, with the reason."""
+    return {
+        "type": "reset",
+        "section": r.section,
+        "accepted": r.accepted,
+        "reason": r.reason,
+        "time_ns": r.time_ns,
+        "time": iso(r.time_ns),
     }
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from console.sim.station import StationSim
-from console.sim.writers import layout_text, write_logs, write_truth
+from console.sim.writers import run_layout_text, write_logs, write_truth
 from parsers.units import NS
 
 DAY_S = 86_400.0
@@ -46,7 +46,7 @@ def run_days(
         if health_only:
             sim.run_health_only(end_s, on_step=on_step)
         else:
-            sim.run(end_s, on_step=on_step)
+            sim.run(end_s, on_step=on_step, finish=end_s >= total_s)  # the console runs on over midnight
         name = dt.datetime.fromtimestamp(day_start_ns // NS, dt.UTC).strftime("%Y-%m-%d")
         target = directory if one_log else directory / name
         written[name] = write_logs(
@@ -56,7 +56,8 @@ def run_days(
         sim.all_records.clear()
         sim.heartbeats.clear()
         sim.all_fixes.clear()
+        sim.all_received.clear()
         sim.axle_events.clear()
         sim.health_rows.clear()
-    (directory / "layout.toml").write_text(layout_text(sim.layout), encoding="utf-8")
+    (directory / "layout.toml").write_text(run_layout_text(sim), encoding="utf-8")
     return {"days": written, "truth.json": write_truth(sim, directory / "truth.json")}

@@ -20,8 +20,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from console.sim.station import SentFix, StationSim
-from console.sim.writers import IDENTITY, device_ids, diag_line, health_rows, nmea_sentences, truth
+from console.sim.diag_lines import (
+    device_ids,
+    health_register_rows,
+    heartbeat_rows,
+    identity_rows,
+    in_order_lines,
+    wheel_rows,
+)
+from console.sim.station import SentFix, StationSim, StepResult
+from console.sim.writers import nmea_sentences, truth
 from parsers.gnss.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
 
 STEP_WALL_S = 0.1  # a line appears within this of its (scaled) time
@@ -106,19 +114,12 @@ class LiveWriter:
     nmea: dict[str, IO[str]] = field(default_factory=dict)
     lines: int = 0
     fixes: int = 0
-    _records_done: int = 0
-    _beats_done: int = 0
-    _health_done: int = 0
 
     def open(self) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
         (self.directory / "nmea").mkdir(exist_ok=True)
         self.diag = (self.directory / "diagnostic.log").open("a", encoding="utf-8")
-        ids = device_ids(self.sim.layout)
-        start = self.sim.cfg.start_ns
-        self._write(
-            [diag_line(ids[h.id], h.id, 1, a, lab, d, start) for h in self.sim.layout.heads for a, lab, d in IDENTITY]
-        )
+        self._write(in_order_lines(identity_rows(self.sim.layout, self.sim.cfg.start_ns), device_ids(self.sim.layout)))
 
     def _write(self, lines: list[str]) -> None:
         assert self.diag is not None
@@ -127,21 +128,12 @@ class LiveWriter:
             self.diag.flush()
             self.lines += len(lines)
 
-    def step(self, fixes: list[SentFix]) -> None:
-        ids = device_ids(self.sim.layout)
-        rows: list[tuple[int, str, int, str, str, str]] = []
-        new_records = self.sim.all_records[self._records_done :]
-        self._records_done = len(self.sim.all_records)
-        rows += [(r.t_ns, r.head, r.channel, "026", "Radsensor", str(r.value)) for r in new_records]
-        new_beats = self.sim.heartbeats[self._beats_done :]
-        self._beats_done = len(self.sim.heartbeats)
-        rows += [(t, h, 1, "000", "Diagnose I", "2") for t, h in new_beats]
-        if len(self.sim.health_rows) > self._health_done:  # the heads' health registers (slow faults)
-            rows += health_rows(self.sim, self._health_done)
-            self._health_done = len(self.sim.health_rows)
-        rows.sort(key=lambda r: r[0])  # stable: a board's records stay in the order it saw them
-        self._write([diag_line(ids[h], h, ch, adr, lab, d, t) for t, h, ch, adr, lab, d in rows])
-        for f in fixes:
+    def step(self, res: StepResult) -> None:
+        """A step's records, status records and health registers (slow faults), and the fixes sent."""
+        rows = heartbeat_rows(res.heartbeats) + wheel_rows((r.t_ns, r.head, r.channel, r.value) for r in res.records)
+        rows += health_register_rows(res.health, self.sim.layout)
+        self._write(in_order_lines(rows, device_ids(self.sim.layout)))
+        for f in res.fixes:
             device = f"{f.train}-{f.role}"
             out = self.nmea.get(device)
             if out is None:
@@ -186,7 +178,7 @@ def run_live(
             while sim.t_s < target:  # the simulator's own step; a slow machine catches up
                 res = sim.step(min(0.5, target - sim.t_s))
                 if writer is not None:
-                    writer.step(res.fixes)
+                    writer.step(res)
                 if publisher is not None:
                     for f in res.fixes:
                         publisher.publish(f)

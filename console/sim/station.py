@@ -1,23 +1,28 @@
-"""The simulated line: trains, counting heads, GNSS units, faults, and the live console.
+"""The simulated line: trains, counting heads, GNSS units, the radio, faults, and the truth.
 
-:class:`StationSim` is deterministic for a seed and advanced by one pure
-call, :meth:`StationSim.step` (the live view calls it; tests step it by
-hand).  Each step:
+:class:`StationSim` is the world only, deterministic for a seed and advanced
+by one call, :meth:`StationSim.step` (the live view calls it; tests step it
+by hand).  Each step:
 
 1. trains move under their speed control along the speed limits, platform
    stops and the train ahead (a simple protection rule keeps followers
    behind and opposing trains off the line);
 2. every wheel passing a counting head damps Sys1 and Sys2 over the
    detection zone: onset and release times are interpolated exactly inside
-   the step; faults on demand alter what the heads *report*;
-3. head and EOT GNSS units report fixes every radio report period (LoRa
-   duty cycle), with noise, loss and latency;
-4. the **console** runs live on those reports only: a streaming
-   :class:`~console.analysis.wheels.HeadCounter` per head feeds the
-   :class:`~console.analysis.sections.SectionEngine`; projected fixes feed
-   one :class:`~console.analysis.crossing.CrossingController` per crossing;
+   the step; faults on demand alter what the heads *report* (a head without
+   power reports nothing, status records included);
+3. each head's device writes a status record every heartbeat, and counts its
+   own axles as an intelligent sensor does (:mod:`console.sim.sensor_count`);
+4. head and EOT GNSS units send fixes every radio report period (LoRa duty
+   cycle), with noise; the radio loses some and delivers the rest after its
+   latency;
 5. the **truth** (every axle at every head, true section occupancy, true
    head and tail times at crossings) is kept beside it.
+
+What the devices reported in a step (:class:`StepResult`) goes to the
+console watching the line, when one is attached (:meth:`StationSim.attach`):
+the station's console is the live engine, fed those reports as the written
+files would feed ``trackside follow`` (:mod:`console.live.simulated`).
 """
 
 from __future__ import annotations
@@ -25,25 +30,25 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
-from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, CrossingEvent, Fix, TrainSpec
-from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingEvent
 from console.analysis.geo import TrackProjector
-from console.analysis.integrity import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
-from console.analysis.section_state import SectionState, Transition
-from console.analysis.sections import SectionEngine
-from console.analysis.wheels import SYS1, SYS2, CountingSettings, HeadCounter
+from console.analysis.wheels import SYS1, SYS2
 from console.layout import Consist, Layout
+from console.sim.devices import line_devices, with_devices
 from console.sim.dynamics import LEVEL_LINE, TrainState, scaled_train
 from console.sim.parting import PartingTruth, braking_step, part_consist, split_axles
 from console.sim.radio import LoRaLink
+from console.sim.sensor_count import SensorCounts
 from console.sim.slow_faults import SLOW_FAULT_KINDS, HeadHealth, HealthRows, HealthSettings, unit_loss
 from parsers.units import NS
 
 DETECTION_ZONE_M = 0.25  # a wheel damps a coil over this length of travel
+# The truth's head arrival and tail clearance at a crossing: at the road's half width (the crossing units' figure).
+CROSSING_HALF_WIDTH_M = ControllerSettings().crossing_half_width_m
 ENTRY_ROOM_M = 400.0  # a new train enters only this far behind the tail of the one before it
 FAULT_KINDS = (
     "dead_channel",
@@ -145,7 +150,7 @@ class WheelRecord:
 
 @dataclass(frozen=True)
 class SentFix:
-    """A GNSS fix as a unit sends it (written to NMEA; the console gets it after the latency)."""
+    """A GNSS fix as a unit sends it (written to NMEA; the radio delivers it, or not, after its latency)."""
 
     t_ns: int
     train: str
@@ -159,16 +164,34 @@ class SentFix:
 
 @dataclass
 class StepResult:
-    records: list[WheelRecord]
-    detection_events: list[DetectionEvent]
-    transitions: list[Transition]
-    crossing_events: list[CrossingEvent]
-    fixes: list[SentFix]
-    integrity_events: list[IntegrityEvent] = field(default_factory=list)
+    """What the devices reported in one step (each list in time order), up to ``t_ns``."""
+
+    t_ns: int
+    records: list[WheelRecord]  # wheel-sensor onsets and releases, as the heads report them
+    heartbeats: list[tuple[int, str]]  # (time, head): each powered head's status record
+    health: list[HealthRows]  # the heads' health registers written in this step
+    fixes: list[SentFix]  # fixes the units sent (their own logs: NMEA)
+    received: list[SentFix]  # fixes the radio delivered (sent earlier, less those it lost), in delivery order
+
+
+class Console(Protocol):
+    """What watches the simulated line: the station's console (console.live.simulated)."""
+
+    def take(self, step: StepResult) -> None:
+        """A step's reports."""
+
+    def finish(self) -> None:
+        """The run ends: what the console still holds is decided."""
+
+    def section_states(self) -> dict[str, str]:
+        """Each section's state as the console shows it."""
+
+    def crossing_events(self) -> dict[str, list[CrossingEvent]]:
+        """Each crossing unit's events so far (warnings on and off, alarms)."""
 
 
 class StationSim:
-    """A line with trains and a live console.  ``step(dt)`` advances it."""
+    """A simulated line: trains, devices, radio, faults and truth.  ``step(dt)`` advances it."""
 
     def __init__(
         self, layout: Layout, config: SimConfig | None = None, motion: Callable[..., tuple[float, float]] | None = None
@@ -192,34 +215,12 @@ class StationSim:
         self._next_spawn_s = self.cfg.first_train_s
         self.faults: list[Fault] = list(self.cfg.faults)
         self.motion = motion or ato_motion
-        self.period_s = self.cfg.radio.report_period_s()
-        self.latency_s = self.cfg.radio.latency_s()
-        # The console: live analysis on reports only.
-        counting = CountingSettings()
-        self.counters = {
-            h.id: HeadCounter(h.id, up_is_sys1_first=h.up_is_first_channel_first, settings=counting, source="sim")
-            for h in layout.heads
-        }
-        self.engine = SectionEngine(layout, initial=SectionState.CLEAR, start_ns=self.cfg.start_ns)
-        self.ctl_settings = ControllerSettings(
-            report_period_s=self.period_s,
-            latency_s=self.latency_s + 0.5,
-            line_speed_mps=layout.line_speed_mps,
-            accel_mps2=self.cfg.accel_mps2,
-            stale_after_s=max(30.0, 4 * self.period_s),
-        )
-        self.crossings = {c.code: CrossingController(c, [], self.ctl_settings) for c in layout.crossings}
-        self.integrity = IntegrityMonitor(
-            IntegritySettings(
-                noise_m=max(self.cfg.gnss_noise_m, 1.0),
-                report_period_s=self.period_s,
-                latency_s=self.latency_s + 0.5,
-                stale_after_s=max(30.0, 4 * self.period_s),
-            ),
-            layout,
-        )
-        self._inbox: list[tuple[int, Fix]] = []  # fixes in flight to the crossing units
-        self.delivered: dict[tuple[str, str], Fix] = {}  # the console's latest fix per (train, role)
+        # The devices' timing, as the layout the run writes states it (the console reads it there).
+        self.devices = line_devices(layout, self.cfg.heartbeat_s, self.cfg.radio)
+        self.console_layout = with_devices(layout, self.devices)
+        self.period_s = self.devices.gnss_report_period_s
+        self.latency_s = self.cfg.radio.latency_s()  # the radio's own delay (the console allows more)
+        self._in_flight: list[tuple[int, SentFix]] = []  # fixes the radio is delivering, by delivery time
         self._next_heartbeat_s = 0.0
         self._swallowed: set[tuple[str, int]] = set()  # (head, channel) whose onset a fault removed
         # The truth.
@@ -233,8 +234,10 @@ class StationSim:
         # Everything reported, for the writers.
         self.all_records: list[WheelRecord] = []
         self.heartbeats: list[tuple[int, str]] = []
-        self.all_fixes: list[SentFix] = []
-        self.axle_events: list[DetectionEvent] = []  # the console's counted axles (for the frame writer)
+        self.all_fixes: list[SentFix] = []  # as sent (the units' own logs)
+        self.all_received: list[SentFix] = []  # as the radio delivered them (the network's device stream)
+        self.sensors = SensorCounts(layout)  # each head's own axle count (for the frame writer)
+        self.console: Console | None = None  # what watches the line (attach)
         self.injected: list[tuple[int, Fault]] = [(self.cfg.start_ns + int(f.start_s * NS), f) for f in self.faults]
         period = self.cfg.health_period_s
         if period is None and any(f.kind in ("analog_drift", "disturbance_growth") for f in self.faults):
@@ -250,6 +253,15 @@ class StationSim:
     def now_ns(self) -> int:
         return self.cfg.start_ns + round(self.t_s * NS)
 
+    def attach(self, console: Console) -> None:
+        """``console`` takes every step's reports from now on."""
+        self.console = console
+
+    @property
+    def axle_events(self) -> list[Any]:
+        """The heads' own counted axles (time_ns, head, direction), for the frame writer."""
+        return self.sensors.axles
+
     def inject(self, fault: Fault) -> None:
         """Add a fault from now on (the live view's fault keys)."""
         self.faults.append(fault)
@@ -258,12 +270,6 @@ class StationSim:
     def add_train(self, consist_id: str | None = None, direction: int | None = None) -> SimTrain | None:
         """A train enters now (or as soon as the line allows)."""
         return self._spawn(consist_id, direction)
-
-    def reset_section(self, section_id: str) -> tuple[bool, str]:
-        """An operator reset: accepted or refused, with the reason."""
-        self.engine.step(DetectionEvent(self.now_ns, EventKind.RESET, section_id, source="operator"))
-        r = self.engine.resets[-1]
-        return r.accepted, r.reason
 
     def true_count(self, section_id: str) -> int:
         return self.truth_sections[section_id][-1][1]
@@ -302,38 +308,40 @@ class StationSim:
                     self._rear_stopped(rear, t1)
             records += self._wheels(rear, x0, rear.x_m, t0, t1, v0)
             fixes += self._gnss(rear, t0, t1, x0)
-        for t in self.active:
-            if t.done:
-                for ctl in self.crossings.values():
-                    ctl.forget_train(t.id)
-                if t.rear is None:
-                    self.integrity.forget(t.id)  # a parted train stays followed: its rear part is on the line
         self.active = [t for t in self.active if not t.done]
         records += self._sensor_faults(t0, t1)
         records = self._reported(records, t0)
         records.sort(key=lambda r: (r.t_ns, r.head, r.channel))
         self.all_records += records
-        self._heartbeat(t1)
+        self.sensors.feed(
+            [r.head for r in records],
+            [r.channel for r in records],
+            [r.t_ns for r in records],
+            [r.value for r in records],
+        )
+        beats = self._heartbeat(t1)
+        health: list[HealthRows] = []
         if self.health is not None and self.health.next_s < t1:
-            self.health_rows.append(self.health.until(t1, self.cfg.start_ns))
-        events = self._console_records(records, t1)
-        self.axle_events += [e for e in events if e.kind is EventKind.AXLE]
-        transitions = []
-        integrity: list[IntegrityEvent] = []
-        for e in events:
-            integrity += self.integrity.detection(e)
-            for change in self.engine.step(e):
-                transitions.append(change)
-                integrity += self.integrity.transition(change)
-        crossing_events, from_fixes = self._console_fixes(fixes, t1)
-        integrity += from_fixes
-        crossing_events += self._hold_for_partings(integrity)
+            health.append(self.health.until(t1, self.cfg.start_ns))
+            self.health_rows += health
+        received = self._radio(fixes, t1)
         self.all_fixes += fixes
         self.t_s = t1
-        return StepResult(records, events, transitions, crossing_events, fixes, integrity)
+        result = StepResult(self.now_ns, records, beats, health, fixes, received)
+        if self.console is not None:
+            self.console.take(result)
+        return result
 
-    def run(self, duration_s: float, dt_s: float = 0.5, on_step: Callable[[float], None] | None = None) -> None:
-        """Headless: step until ``duration_s``, with larger steps while the line is empty."""
+    def run(
+        self,
+        duration_s: float,
+        dt_s: float = 0.5,
+        on_step: Callable[[float], None] | None = None,
+        *,
+        finish: bool = True,
+    ) -> None:
+        """Headless: step until ``duration_s``, with larger steps while the line is empty; then
+        :meth:`finish` (unless ``finish`` is False: the run goes on later)."""
         while self.t_s < duration_s:
             busy = bool(self.active) or self.t_s + 1.0 >= self._next_spawn_s
             dt = dt_s if busy else min(5.0, max(dt_s, self._next_spawn_s - self.t_s - 1.0))
@@ -341,7 +349,8 @@ class StationSim:
             self.step(dt)
             if on_step is not None:
                 on_step(self.t_s)
-        self.finish()
+        if finish:
+            self.finish()
 
     def run_health_only(self, duration_s: float, on_step: Callable[[float], None] | None = None) -> None:
         """Only the heads' health registers, no trains (``simulate --health-only``): the same rounds a full
@@ -355,14 +364,10 @@ class StationSim:
                 on_step(self.t_s)
 
     def finish(self) -> None:
-        """Settle the console's pending timers (end of a run)."""
-        end = self.now_ns
-        for hc in self.counters.values():
-            for e in hc.advance(end):
-                self.engine.step(e)
-        for ctl in self.crossings.values():
-            ctl.tick(end)
-        self._hold_for_partings(self.integrity.tick(end))
+        """The run ends: the heads settle their counts, and the console what it still holds."""
+        self.sensors.finish()
+        if self.console is not None:
+            self.console.finish()
 
     # -- trains --------------------------------------------------------------
     def _spawn(self, consist_id: str | None, direction: int | None) -> SimTrain | None:
@@ -396,9 +401,6 @@ class StationSim:
         tr.next_eot_fix_s = self.t_s + float(self.rng.uniform(0, self.period_s))
         self.trains.append(tr)
         self.active.append(tr)
-        for ctl in self.crossings.values():
-            ctl.add_train(TrainSpec(tr.id, consist.length_m))
-        self.integrity.add_train(ConsistSpec(tr.id, consist.length_m, len(consist.axles_m)))
         return tr
 
     def _trainset(self, k: int) -> str | None:
@@ -575,14 +577,18 @@ class StationSim:
                 keep.append(r)
         return keep
 
-    def _heartbeat(self, t1: float) -> None:
+    def _heartbeat(self, t1: float) -> list[tuple[int, str]]:
+        """Each powered head's status records up to ``t1`` (a head without power writes none)."""
+        beats = []
         while self._next_heartbeat_s <= t1:
             t = self._next_heartbeat_s
             for h in self.layout.heads:
                 dark = any(f.kind == "power_loss" and f.target == h.id and f.active(t) for f in self.faults)
                 if not dark:
-                    self.heartbeats.append((self.cfg.start_ns + int(t * NS), h.id))
+                    beats.append((self.cfg.start_ns + int(t * NS), h.id))
             self._next_heartbeat_s += self.cfg.heartbeat_s
+        self.heartbeats += beats
+        return beats
 
     # -- GNSS units -------------------------------------------------------------
     def _gnss(self, tr: SimTrain, t0: float, t1: float, x0: float) -> list[SentFix]:
@@ -612,52 +618,28 @@ class StationSim:
                 out.append(SentFix(self.cfg.start_ns + int(t * NS), tr.id, role, lat, lon, speed, course, True))
         return out
 
-    def _console_fixes(self, sent: list[SentFix], t1: float) -> tuple[list[CrossingEvent], list[IntegrityEvent]]:
-        """Deliver fixes after the radio latency (losing some), then run the crossing units and the
-        integrity monitor."""
+    def _radio(self, sent: list[SentFix], t1: float) -> list[SentFix]:
+        """The radio: it loses some of the fixes sent and delivers the others after its latency; those due by
+        ``t1``, in delivery order.  (The truth at the crossings is noted here too, once per step.)"""
+        latency_ns = int(self.latency_s * NS)
         for f in sent:
             if self.rng.random() < self.cfg.gnss_loss:
                 continue
-            p = self.proj.project(f.lat, f.lon)
-            d = 1 if abs((f.course_deg - self.proj.bearing_deg(float(p.chainage_m[0])) + 540) % 360 - 180) < 90 else -1
-            fix = Fix(
-                f.t_ns + int(self.latency_s * NS),
-                f.t_ns,
-                f.train,
-                f.role,
-                float(p.chainage_m[0]),
-                f.speed_mps,
-                d if f.speed_mps > 1.0 else 0,
-            )
-            self._inbox.append((fix.t_ns, fix))
-        self._inbox.sort(key=lambda x: x[0])
+            self._in_flight.append((f.t_ns + latency_ns, f))
+        self._in_flight.sort(key=lambda x: x[0])
         now = self.cfg.start_ns + int(t1 * NS)
-        out: list[CrossingEvent] = []
-        integrity: list[IntegrityEvent] = []
-        while self._inbox and self._inbox[0][0] <= now:
-            _, fix = self._inbox.pop(0)
-            self.delivered[(fix.train, fix.role)] = fix
-            for ctl in self.crossings.values():
-                out += ctl.step(fix)
-            integrity += self.integrity.fix(fix.t_ns, fix.t_fix_ns, fix.train, fix.role, fix.chainage_m, fix.speed_mps)
-        for ctl in self.crossings.values():
-            out += ctl.tick(now)
-        integrity += self.integrity.tick(now)
-        self._truth_crossings()
-        return out, integrity
+        due = 0
+        while due < len(self._in_flight) and self._in_flight[due][0] <= now:
+            due += 1
+        received = [f for _, f in self._in_flight[:due]]
+        del self._in_flight[:due]
+        self.all_received += received
+        self._truth_crossings(t1)
+        return received
 
-    def _hold_for_partings(self, events: list[IntegrityEvent]) -> list[CrossingEvent]:
-        """A train seen parted: every crossing unit holds its warning until the rear part is accounted for."""
-        out: list[CrossingEvent] = []
-        for e in events:
-            if e.state == PARTED:
-                for ctl in self.crossings.values():
-                    out += ctl.train_parted(e.train, e.t_ns, "; ".join(e.evidence))
-        return out
-
-    def _truth_crossings(self) -> None:
-        half = self.ctl_settings.crossing_half_width_m
-        now = self.now_ns
+    def _truth_crossings(self, t1: float) -> None:
+        half = CROSSING_HALF_WIDTH_M
+        now = self.cfg.start_ns + round(t1 * NS)
         on_line = [*self.active, *(t for t in self.trains if t.rear is not None and t not in self.active)]
         for c in self.layout.crossings:
             for tr in on_line:
@@ -676,28 +658,6 @@ class StationSim:
                     rec["t_head_arrival_ns"] = now
                 if rec["t_tail_clear_ns"] is None and tr.direction * (tail_m - c.chainage_m) >= half:
                     rec["t_tail_clear_ns"] = now
-
-    # -- the console ---------------------------------------------------------
-    def _console_records(self, records: list[WheelRecord], t1: float) -> list[DetectionEvent]:
-        events: list[DetectionEvent] = []
-        for r in records:
-            events += self.counters[r.head].feed(r.channel, r.t_ns, r.value)
-        now = self.cfg.start_ns + int(t1 * NS)
-        for hc in self.counters.values():
-            events += hc.advance(now)
-        # Power loss is what the console sees as missing heartbeats; here, the fault's own event.
-        for when, f in self.injected:
-            if f.kind == "power_loss" and self.cfg.start_ns + int(self.t_s * NS) <= when < now:
-                events.append(DetectionEvent(when, EventKind.POWER_LOSS, f.target, source="sim", detail="no heartbeat"))
-            if f.kind == "power_loss" and math.isfinite(f.end_s):
-                back = self.cfg.start_ns + int(f.end_s * NS)
-                if self.cfg.start_ns + int(self.t_s * NS) <= back < now:
-                    events.append(DetectionEvent(back, EventKind.POWER_RESTORED, f.target, source="sim"))
-            if f.kind == "dead_channel" and self.cfg.start_ns + int(self.t_s * NS) <= when < now:
-                # The head's self-test reports the dead system (as the intelligent sensor's SES bit does).
-                events.append(DetectionEvent(when, EventKind.CHANNEL_FAULT, f.target, channel=f.channel, source="sim"))
-        events.sort(key=lambda e: e.time_ns)
-        return events
 
 
 def coil_edges(

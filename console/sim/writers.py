@@ -11,18 +11,22 @@ Into one directory:
   (Adr 000) from each head's device every heartbeat, and an identity dump
   per device at the start;
 * ``nmea/<train>-<role>.nmea`` — RMC and GGA sentences per GNSS unit (real
-  checksums), as the units send them;
-* ``gnss_devices.csv`` — the same fixes as a device stream;
+  checksums), as the units send them (their own logs: every fix);
+* ``gnss_devices.csv`` — the fixes the radio delivered (less those it lost),
+  as a network server's device stream: what the station's console received;
 * ``centre.tsv`` — the monitoring-centre table of seed 004 (Vietnamese
-  header, decimal commas, newest first, one row per train every 10 s with
-  each crossing's warning state as the console saw it);
+  header, decimal commas, newest first, one row per train every 10 s of the
+  head fixes it received, with each crossing's warning state as the console
+  saw it; written when a console watched the run);
 * ``sensor_frames.txt`` — each head as an intelligent sensor (seed 002
   frame: status byte and count, 0xA5 check byte while idle);
-* ``layout.toml`` — the layout the run used;
+* ``layout.toml`` — the layout the run used, its ``[devices]`` table saying
+  how the devices report (console.sim.devices);
 * ``truth.json`` — every axle's time and speed at every head, every
   section's true occupancy, every crossing's true head and tail times, the
   trains, the partings (when, the rear part's axles, where it stopped), the
-  faults injected, and the console's final section states.
+  faults injected, and the console's final section states (when a console
+  watched the run).
 """
 
 from __future__ import annotations
@@ -38,39 +42,26 @@ import numpy as np
 
 from console.analysis.timefmt import iso
 from console.layout import BUILTIN, Layout
+from console.sim.devices import devices_text
+from console.sim.diag_lines import (
+    TIME_RESOLUTIONS,
+    Row,
+    device_ids,
+    diag_line,
+    health_lines,
+    health_register_rows,
+    heartbeat_rows,
+    identity_rows,
+    naive_time,
+    wheel_rows,
+)
+from console.sim.gnss_rows import DEVICE_STREAM_HEADER, device_stream_row, unit_name
+from console.sim.slow_faults import SLOW_FAULT_KINDS, threshold_crossings
 from console.sim.station import StationSim
 from parsers.frames.table import CHECK_BYTE, encode_status
 from parsers.units import NS
 
 CENTRE_PERIOD_S = 10.0
-IDENTITY = [
-    ("000", "Diagnose I", "2"),
-    ("002", "Bezeichnun", "'T'"),
-    ("003", "Bezeichnun", "'M'"),
-    ("004", "Bezeichnun", "'C'"),
-    ("012", "Typennum", "13"),
-    ("014", "Gerätestan", "3"),
-    ("016", "Seriennum", "4803"),
-    ("020", "CRC-Code", "0xD8"),
-    ("022", "Software V", "41"),
-]
-
-
-def _naive(t_ns: int) -> dt.datetime:
-    return dt.datetime(1970, 1, 1) + dt.timedelta(microseconds=t_ns // 1000)
-
-
-TIME_RESOLUTIONS = {"us": 1_000, "ms": 1_000_000, "s": NS}
-
-
-def diag_line(device: int, head: str, ch: int, adr: str, label: str, data: str, t_ns: int, res: str = "us") -> str:
-    """One diagnostic record line as a board writes it, its time at resolution ``res`` (us, ms or s)."""
-    t = _naive(t_ns)
-    frac = {"us": f".{t:%f}", "ms": f".{t.microsecond // 1000:03d}", "s": ""}[res]
-    return (
-        f"Diag_id:00002\tID:{device}\tDevice:IM\tType:013\tGS:GS03\tTrackinfo:{head}\tch:{ch}\tAdr:{adr}\t"
-        f"Label:{label}\tData:{data}\tDate:{t:%Y-%m-%d}\tTime:{t:%H:%M:%S}{frac}"
-    )
 
 
 def interleave_order(
@@ -95,11 +86,6 @@ def interleave_order(
     return np.lexsort((key, printed_ns))
 
 
-def device_ids(layout: Layout) -> dict[str, int]:
-    """Each head's device id: the layout's, else 4081, 4082, … in layout order."""
-    return {h.id: h.device_id if h.device_id is not None else 4081 + i for i, h in enumerate(layout.heads)}
-
-
 def write_diagnostic(
     sim: StationSim,
     path: Path,
@@ -118,16 +104,12 @@ def write_diagnostic(
     """
     ids = device_ids(sim.layout)
     res = {h.id: resolution if isinstance(resolution, str) else resolution.get(h.id, "us") for h in sim.layout.heads}
-    rows: list[tuple[int, str, int, str, str, str]] = []  # time, head, channel, address, label, data
-    start = sim.cfg.start_ns
-    if identity:
-        for h in sim.layout.heads:
-            rows += [(start, h.id, 1, a, lab, d) for a, lab, d in IDENTITY]
-    rows += [(t, h, 1, "000", "Diagnose I", "2") for t, h in sim.heartbeats]
-    rows += [(r.t_ns, r.head, r.channel, "026", "Radsensor", str(r.value)) for r in sim.all_records]
+    rows: list[Row] = identity_rows(sim.layout, sim.cfg.start_ns) if identity else []
+    rows += heartbeat_rows(sim.heartbeats)
+    rows += wheel_rows((r.t_ns, r.head, r.channel, r.value) for r in sim.all_records)
     fast = interleave_seed is None and all(r == "us" for r in res.values())
     if not fast:
-        rows += health_rows(sim)
+        rows += health_register_rows(sim.health_rows, sim.layout)
     rows.sort(key=lambda x: x[0])  # stable: a board's records stay in the order it saw them
     t_ns = np.array([r[0] for r in rows], np.int64)
     step = np.array([TIME_RESOLUTIONS[res[r[1]]] for r in rows], np.int64)
@@ -141,7 +123,7 @@ def write_diagnostic(
     if fast and sim.health_rows:
         # Weeks of hundreds of heads: the health registers formatted as columns, merged in by time
         # (a stable merge: at equal times the other records first, as the sort above puts them).
-        times, health = health_lines(sim, ids)
+        times, health = health_lines(sim.health_rows, sim.layout, ids)
         ours = zip(t_ns[order].tolist(), lines, strict=True)
         merged = heapq.merge(ours, zip(times, health, strict=True), key=lambda x: x[0])
         lines = [line for _, line in merged]
@@ -149,52 +131,6 @@ def write_diagnostic(
         if lines or not append:
             out.write("\n".join(lines) + "\n")
     return len(lines)
-
-
-def health_lines(sim: StationSim, ids: dict[str, int]) -> tuple[list[int], list[str]]:
-    """The health registers as diagnostic lines with microsecond times (as :func:`diag_line` writes
-    them), in time order: one prefix per head, channel and register, the times formatted by numpy."""
-    from console.sim.slow_faults import REGISTERS, HealthRows
-
-    h = HealthRows.concat(sim.health_rows)
-    order = np.argsort(h.t_ns, kind="stable")
-    heads = [x.id for x in sim.layout.heads]
-    prefix = {
-        (i, ch, r): f"Diag_id:00002\tID:{ids[head]}\tDevice:IM\tType:013\tGS:GS03\tTrackinfo:{head}\tch:{ch}\t"
-        f"Adr:{adr}\tLabel:{label}\tData:"
-        for i, head in enumerate(heads)
-        for ch in (1, 2)
-        for r, (adr, label) in enumerate(REGISTERS)
-    }
-    t = h.t_ns[order]
-    stamps = np.datetime_as_string((t // 1000).astype("datetime64[us]"), unit="us").tolist()
-    lines = [
-        f"{prefix[(i, ch, r)]}{v}\tDate:{d[:10]}\tTime:{d[11:]}"
-        for i, ch, r, v, d in zip(
-            h.head[order].tolist(),
-            h.channel[order].tolist(),
-            h.register[order].tolist(),
-            h.value[order].tolist(),
-            stamps,
-            strict=True,
-        )
-    ]
-    return t.tolist(), lines
-
-
-def health_rows(sim: StationSim, since: int = 0) -> list[tuple[int, str, int, str, str, str]]:
-    """The heads' health registers the run wrote (console.sim.slow_faults), as diagnostic rows;
-    ``since``: from that batch on (a live run writes them as they come)."""
-    from console.sim.slow_faults import REGISTERS, HealthRows
-
-    h = HealthRows.concat(sim.health_rows[since:])
-    heads = [x.id for x in sim.layout.heads]
-    return [
-        (t, heads[i], ch, REGISTERS[r][0], REGISTERS[r][1], str(v))
-        for t, i, ch, r, v in zip(
-            h.t_ns.tolist(), h.head.tolist(), h.channel.tolist(), h.register.tolist(), h.value.tolist(), strict=True
-        )
-    ]
 
 
 def _nmea(body: str) -> str:
@@ -229,12 +165,10 @@ def write_gnss(sim: StationSim, directory: Path, append: bool = False) -> dict[s
     nmea_dir.mkdir(exist_ok=True)
     per_device: dict[str, list[str]] = {}
     csv_path = directory / "gnss_devices.csv"
-    csv = [] if append and csv_path.exists() else ["time,device,role,lat,lon,speed,course"]
+    csv = [] if append and csv_path.exists() else [DEVICE_STREAM_HEADER]
     for f in sorted(sim.all_fixes, key=lambda f: (f.t_ns, f.train, f.role)):
-        device = f"{f.train}-{f.role}"
-        per_device.setdefault(device, []).extend(nmea_sentences(f.t_ns, f.lat, f.lon, f.speed_mps, f.course_deg))
-        t = iso(f.t_ns) or ""  # UTC with its Z
-        csv.append(f"{t},{device},{f.role},{f.lat:.7f},{f.lon:.7f},{f.speed_mps:.2f},{f.course_deg:.1f}")
+        per_device.setdefault(unit_name(f), []).extend(nmea_sentences(f.t_ns, f.lat, f.lon, f.speed_mps, f.course_deg))
+    csv += [device_stream_row(f) for f in sim.all_received]  # in delivery order: the network's stream
     for device, lines in per_device.items():
         with (nmea_dir / f"{device}.nmea").open("a" if append else "w", encoding="ascii", newline="") as out:
             out.write("\r\n".join(lines) + "\r\n")
@@ -249,18 +183,21 @@ def _comma(x: float, digits: int) -> str:
 
 
 def write_centre_table(sim: StationSim, path: Path, append: bool = False) -> int:
-    """Seed 004's monitoring-centre table: one row per train every 10 s while it is on the line.
+    """Seed 004's monitoring-centre table: one row per train every 10 s of the head fixes the centre
+    received, with the warning states of the console watching the run.
 
     ``append``: a multi-day run's next day, its rows (newest first) after the days before."""
+    if sim.console is None:
+        raise ValueError("the monitoring-centre table shows the console's warnings: attach a console to the run")
     codes = [c.code for c in sim.layout.crossings]
     header = ["TIMESTAMP", "Mã tàu", "Vĩ độ", "Kinh độ", "Vận tốc (km/h)"]
     for k in range(1, len(codes) + 1):
         header += [f"Mã đường ngang {k}", f"Trạng thái kết nối đường ngang {k}"]
     # Warning intervals per crossing and train, from the console's own events.
     intervals: dict[str, list[tuple[int, int | None]]] = {}
-    for code, ctl in sim.crossings.items():
+    for code, events in sim.console.crossing_events().items():
         on: dict[str, int] = {}
-        for e in ctl.events:
+        for e in events:
             if e.kind == "on":
                 on.setdefault(e.train, e.t_ns)
             elif e.kind == "off" and e.train in on:
@@ -270,14 +207,14 @@ def write_centre_table(sim: StationSim, path: Path, append: bool = False) -> int
     def warned(code: str, t: int) -> bool:
         return any(a <= t and (b is None or t < b) for a, b in intervals.get(code, []))
 
-    heads = sorted((f for f in sim.all_fixes if f.role == "head"), key=lambda f: f.t_ns)
+    heads = sorted((f for f in sim.all_received if f.role == "head"), key=lambda f: f.t_ns)
     rows: list[str] = []
     last: dict[str, int] = {}
     for f in heads:
         if f.t_ns - last.get(f.train, -(10**30)) < CENTRE_PERIOD_S * NS:
             continue
         last[f.train] = f.t_ns
-        t = _naive(f.t_ns)
+        t = naive_time(f.t_ns)
         cells = [f"{t:%Y-%m-%d %H:%M:%S}", f.train, _comma(f.lat, 5), _comma(f.lon, 5), _comma(f.speed_mps * 3.6, 1)]
         for code in codes:
             cells += [code, "Cảnh báo" if warned(code, f.t_ns) else "Bình thường"]
@@ -315,9 +252,8 @@ def write_frames(
                 up = h.up_is_first_channel_first
                 s1_to_s3 = (direction > 0) == up
                 status = encode_status(der=not s1_to_s3, t_since_s=0)
-                lines.append(
-                    (t_ax, f"{_naive(t_ax).isoformat(timespec='milliseconds')} {h.id} {status:02X} {count % 256:02X}")
-                )
+                stamp = naive_time(t_ax).isoformat(timespec="milliseconds")
+                lines.append((t_ax, f"{stamp} {h.id} {status:02X} {count % 256:02X}"))
                 t = t_ax
             else:
                 t = t + int(idle_every_s * NS)
@@ -325,7 +261,7 @@ def write_frames(
                 if idle:
                     status = encode_status(t_since_s=3)
                     lines.append(
-                        (t, f"{_naive(t).isoformat(timespec='milliseconds')} {h.id} {status:02X} {CHECK_BYTE:02X}")
+                        (t, f"{naive_time(t).isoformat(timespec='milliseconds')} {h.id} {status:02X} {CHECK_BYTE:02X}")
                     )
     lines.sort(key=lambda x: x[0])
     title = "# trackside simulated intelligent-sensor frames: time sensor status count\n"
@@ -343,6 +279,11 @@ def layout_text(layout: Layout) -> str:
     return Path(layout.source).read_text(encoding="utf-8")
 
 
+def run_layout_text(sim: StationSim) -> str:
+    """The layout the run writes: the one it used, with how its devices report (``[devices]``)."""
+    return devices_text(layout_text(sim.layout), sim.layout, sim.devices)
+
+
 def truth(sim: StationSim) -> dict[str, Any]:
     def t(ns: Any) -> str | None:
         return None if ns is None else iso(int(ns))
@@ -358,6 +299,7 @@ def truth(sim: StationSim) -> dict[str, Any]:
             "airtime_s": round(sim.cfg.radio.airtime_s(), 4),
             "report_period_s": round(sim.period_s, 3),
             "latency_s": round(sim.latency_s, 4),
+            "loss": sim.cfg.gnss_loss,
         },
         "trains": [
             {
@@ -403,15 +345,13 @@ def truth(sim: StationSim) -> dict[str, Any]:
             }
             for _, f in sim.injected
         ],
-        "console_final": {s: str(sim.engine.state(s)) for s in sim.engine.sections},
+        **({} if sim.console is None else {"console_final": sim.console.section_states()}),
         **_slow_truth(sim),
     }
 
 
 def _slow_truth(sim: StationSim) -> dict[str, Any]:
     """With slow faults or health registers: each threshold's crossing, and the bands the heads were set in."""
-    from console.sim.slow_faults import SLOW_FAULT_KINDS, threshold_crossings
-
     if sim.health is None and not any(f.kind in SLOW_FAULT_KINDS for f in sim.faults):
         return {}
     out: dict[str, Any] = {
@@ -437,7 +377,7 @@ def _slow_truth(sim: StationSim) -> dict[str, Any]:
 def write_run(sim: StationSim, directory: Path) -> dict[str, Any]:
     """Everything, into ``directory`` (created); returns counts of what was written."""
     counts = write_logs(sim, directory)
-    (directory / "layout.toml").write_text(layout_text(sim.layout), encoding="utf-8")
+    (directory / "layout.toml").write_text(run_layout_text(sim), encoding="utf-8")
     counts["truth.json"] = write_truth(sim, directory / "truth.json")
     return counts
 
@@ -454,7 +394,8 @@ def write_logs(
     }
     if not health_only:
         counts["nmea"] = write_gnss(sim, directory, append=append)
-        counts["centre.tsv"] = write_centre_table(sim, directory / "centre.tsv", append=append)
+        if sim.console is not None:
+            counts["centre.tsv"] = write_centre_table(sim, directory / "centre.tsv", append=append)
         counts["sensor_frames.txt"] = write_frames(
             sim, directory / "sensor_frames.txt", since_ns=since_ns, append=append
         )

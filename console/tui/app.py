@@ -21,7 +21,8 @@ from textual.widgets import Header
 from console.analysis.timefmt import display
 from console.tui.help import HelpScreen
 from console.tui.model import Snapshot, StationModel
-from console.tui.sources import ReplaySource, SimSource
+from console.tui.sim_source import SimSource
+from console.tui.sources import ReplaySource
 from console.tui.widgets.event_log import EventLog
 from console.tui.widgets.key_bar import KeyBar, acts
 from console.tui.widgets.pickable_table import PickableTable
@@ -191,13 +192,10 @@ class StationApp(App[None]):
         if sid is None or not isinstance(src, SimSource):
             self.notify("resets are for the simulated line", severity="warning")
             return
-        accepted, reason = src.reset(sid)
-        if accepted:
-            self.model.note("warning", f"section {sid}: reset accepted — {reason}")
-            self.notify(f"{sid}: reset accepted, waiting for a sweep train")
-        else:
-            self.model.note("warning", f"section {sid}: reset REFUSED — {reason}")
-            self.notify(f"{sid}: reset refused: {reason}", severity="error")
+        # Decided in time order with the detections: the verdict, with its reason, follows in the log.
+        src.reset(sid)
+        self.model.note("info", f"section {sid}: reset requested")
+        self.notify(f"{sid}: reset requested; the verdict follows in the log")
         self.refresh_views()
 
     def action_fault(self, kind: str) -> None:

@@ -40,7 +40,7 @@ def _iso_ns(text: Any) -> int | None:
     return (t - dt.datetime(1970, 1, 1, tzinfo=dt.UTC)) // dt.timedelta(microseconds=1) * 1000
 
 
-def _entry(ev: dict[str, Any], now_ns: int) -> tuple[Transition | None, LogEntry | None]:
+def event_entry(ev: dict[str, Any], now_ns: int) -> tuple[Transition | None, LogEntry | None]:
     """An event as the view shows it, at the time it happened in the log (``now_ns``: when it says none)."""
     kind = ev.get("type")
     t = int(ev.get("time_ns") or _iso_ns(ev.get("end")) or _iso_ns(ev.get("time")) or now_ns)
@@ -50,6 +50,9 @@ def _entry(ev: dict[str, Any], now_ns: int) -> tuple[Transition | None, LogEntry
         verb = {"on": "warning ON", "off": "road given back", "alarm": "ALARM"}.get(ev["kind"], ev["kind"])
         sev = "warning" if ev["kind"] == "alarm" else "info"
         return None, LogEntry(t, sev, f"crossing {ev['crossing']} {verb} (train {ev['train']}): {ev['reason']}")
+    if kind == "reset":
+        verdict = "reset accepted" if ev["accepted"] else "reset REFUSED"
+        return None, LogEntry(t, "warning", f"section {ev['section']}: {verdict} — {ev['reason']}")
     if kind == "integrity":
         return None, integrity_entry(t, ev["train"], ev["state"], ev["evidence"])
     if kind == "passage":
@@ -140,7 +143,7 @@ class LiveSource:
         for ev in events:
             if ev.get("type") == "passage":
                 self._counts[str(ev["counting_head"])] += int(ev.get("axles") or 0)
-            tr, entry = _entry(ev, now)
+            tr, entry = event_entry(ev, now)
             if tr is not None:
                 transitions.append(tr)
             if entry is not None:

@@ -1,4 +1,4 @@
-"""Sources for the station view: the live simulator, or a replay of real logs."""
+"""Sources for the station view: a replay of real logs (the simulator's is :mod:`console.tui.sim_source`)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,6 @@ from console.analysis.integrity import PARTED, ConsistSpec, IntegrityEvent, Inte
 from console.analysis.section_state import SectionState, Transition
 from console.analysis.sections import SectionEngine
 from console.layout import Layout
-from console.sim.station import Fault, SimConfig, StationSim
 from console.tui.model import LogEntry, TrainView
 from parsers.units import NS
 
@@ -122,103 +121,6 @@ def reported_train(
         true_head_m=true_head_m,
         integrity=integrity,
     )
-
-
-class SimSource:
-    """The live simulator as a view source; also takes the operator's actions."""
-
-    mode = "sim"
-
-    def __init__(self, layout: Layout, seed: int = 1, config: SimConfig | None = None) -> None:
-        # The station view starts with a train close by, so a new user sees movement at once.
-        self.sim = StationSim(layout, config or SimConfig(seed=seed, first_train_s=5.0))
-        self.layout = layout
-        self.engine: SectionEngine = self.sim.engine
-        self.crossings: dict[str, CrossingController] = self.sim.crossings
-        self._counts: Counter[str] = Counter()
-        self.pending_trains = 0  # added by the operator, waiting for the entry to clear
-
-    @property
-    def now_ns(self) -> int:
-        return self.sim.now_ns
-
-    def advance(self, seconds: float) -> tuple[list[Transition], list[LogEntry]]:
-        transitions: list[Transition] = []
-        entries: list[LogEntry] = []
-        left = seconds
-        while left > 1e-9:
-            dt = min(0.5, left)
-            r = self.sim.step(dt)
-            left -= dt
-            entries += self._release_pending()
-            transitions += r.transitions
-            entries += _detection_entries(r.detection_events) + _crossing_entries(r.crossing_events)
-            entries += _integrity_entries(r.integrity_events)
-            self._counts.update(e.head for e in r.detection_events if e.kind is EventKind.AXLE)
-        return transitions, entries
-
-    def trains(self, truth: bool = False) -> list[TrainView]:
-        """The trains on the line, placed where their units last reported them."""
-        out = []
-        platforms = self.layout.platforms
-        for t in self.sim.active:
-            nxt = "–"
-            if t.dwell_until_s is not None:
-                nxt = "dwelling"
-            elif t.stops:
-                nxt = next((p.station for p in platforms if p.from_m - 20 <= t.stops[0] <= p.to_m + 20), "stop")
-            view = reported_train(
-                t.id,
-                t.consist.length_m,
-                self.sim.delivered.get((t.id, "head")),
-                self.sim.delivered.get((t.id, "eot")),
-                self.sim.now_ns,
-                nxt,
-                t.controller,
-                t.x_m if truth else None,
-                self.sim.integrity.state(t.id),
-            )
-            if view is not None:
-                out.append(view)
-        return out
-
-    def true_count(self, section_id: str) -> int | None:
-        return self.sim.true_count(section_id)
-
-    def head_counts(self) -> dict[str, int]:
-        return dict(self._counts)
-
-    # -- operator actions ---------------------------------------------------
-    def reset(self, section_id: str) -> tuple[bool, str]:
-        return self.sim.reset_section(section_id)
-
-    def inject(self, kind: str, target: str, duration_s: float | None = None, channel: int = 2) -> None:
-        start = self.sim.t_s
-        end = start + duration_s if duration_s is not None else float("inf")
-        if kind == "isolated_pulse":
-            start, end = start + 0.1, start + 0.1
-        self.sim.inject(Fault(kind, target, start, end, channel))
-
-    def add_train(self) -> str:
-        """Queue a train; it enters, behind the others, as soon as the entry is clear."""
-        self.pending_trains += 1
-        entered = self._release_pending()
-        if entered:
-            return entered[0].text
-        return f"train queued ({self.pending_trains} waiting for the entry to clear)"
-
-    def _release_pending(self) -> list[LogEntry]:
-        if not self.pending_trains:
-            return []
-        d = self.sim.next_direction()
-        if not self.sim.entry_clear(d):
-            return []
-        tr = self.sim.add_train(direction=d)
-        if tr is None:
-            return []
-        self.pending_trains -= 1
-        side = "from the down end" if d > 0 else "from the up end"
-        return [LogEntry(self.sim.now_ns, "info", f"train {tr.id} added by the operator, entering {side}")]
 
 
 class ReplaySource:

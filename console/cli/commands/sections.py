@@ -142,7 +142,7 @@ def sections(
         events = DiagEventSettings(
             counting=CountingSettings(isolation_s=isolation),
             majority=MajoritySettings(isolation_s=isolation),
-            power_gap_s=power_gap,
+            power_gap_s=power_gap if power_gap is not None else lay.power_gap_s,
         )
         settings = PipelineSettings(
             speed=SpeedSettings(spacing_m=lay.heads[0].spacing_m, train_length_m=28.6, idle_gap_s=10.0),

@@ -157,6 +157,7 @@ def simulate(
 
     def body() -> int:
         from console.analysis.timefmt import parse_duration
+        from console.live.simulated import SimulatedConsole
         from console.output_path import OutputError, check_output_directory, staged_directory
         from console.progress import byte_progress
         from console.safe_text import show_path
@@ -208,6 +209,8 @@ def simulate(
             sim = StationSim(lay, config)
         except ValueError as exc:
             raise fail(str(exc)) from None
+        # The station's console watches the run (its final section states, its warnings in the centre table).
+        console = None if health_only else SimulatedConsole(sim)
         if live or mqtt:
             from console.cli.commands.simulate_live import run_live_command
 
@@ -230,8 +233,9 @@ def simulate(
                 counts = write_run(sim, stage)
         except OutputError as exc:
             raise fail(str(exc)) from None
+        assert console is not None  # --health-only goes with --days
         sim_sections = {
-            s: {"console": str(sim.engine.state(s)), "true_count": sim.true_count(s)} for s in sim.engine.sections
+            s: {"console": state, "true_count": sim.true_count(s)} for s, state in console.section_states().items()
         }
         summary = {
             "schema": "trackside.simulate/1",
@@ -243,9 +247,7 @@ def simulate(
             "axles": len(sim.truth_axles),
             "report_period_s": round(sim.period_s, 2),
             "written": counts,
-            "sections": {
-                s: {"console": str(sim.engine.state(s)), "true_count": sim.true_count(s)} for s in sim.engine.sections
-            },
+            "sections": sim_sections,
         }
         if json_out:
             print_json(summary)

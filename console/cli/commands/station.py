@@ -85,7 +85,8 @@ def station(
             return run_live_station(layout, uris, serve, host, port, seed, speed, replay, files, metrics)
         from console.tui.app import StationApp
         from console.tui.model import SPEEDS, StationModel
-        from console.tui.sources import ReplaySource, SimSource
+        from console.tui.sim_source import SimSource
+        from console.tui.sources import ReplaySource
 
         lay = load_layout(layout)
         from_archive = archive is not None or bool(start) or bool(end)
