@@ -11,6 +11,7 @@ Three figures per day (console.analysis.forecast says what each means and its th
 
 from __future__ import annotations
 
+import importlib.util
 from collections import defaultdict
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -241,9 +242,9 @@ def query_forecasts(root: Path, manifest: Manifest) -> pa.Table:
 def forecast_doc(root: Path, manifest: Manifest, window: Window, layout: Layout | None) -> dict[str, Any] | None:
     """The document's ``forecast``: counts, the due list, and the daily points of the plotted series.
     None when scipy (the ``forecast`` extra) is not installed."""
-    try:
-        import scipy.stats  # noqa: F401 - the trend's library, an optional extra
-    except ImportError:
+    # Installed? (the trend's library, an optional extra).  Not imported here: a second of a report's start-up,
+    # and an archive without health registers fits no trend.
+    if importlib.util.find_spec("scipy") is None:
         return None
     settings = ForecastSettings()
     items, series = archive_forecasts(root, manifest, window, layout, settings)
