@@ -15,31 +15,15 @@ import numpy as np
 import pyarrow as pa
 
 from parsers.diag.fields import DATA_KINDS, RegisterKey
-from parsers.diag.read import DiagChunk
+from parsers.diag.read import RECORD_COLUMNS, DiagChunk
 from parsers.diag.registry import DiagRegistry
 
 # The archive's record columns as read back: the parser's RECORD_COLUMNS with label_encoding and file_seq.
 # day and device_id are the partition keys (in the path): the parts store the others (RECORD_FIELDS).
-ARCHIVED_RECORD_COLUMNS = (
-    "time",
-    "diag_id",
-    "device_id",
-    "device",
-    "type",
-    "gs",
-    "counting_head",
-    "channel",
-    "address",
-    "label",
-    "label_canonical",
-    "label_encoding",
-    "data",
-    "value",
-    "data_kind",
-    "subsecond",
-    "file",
-    "file_seq",
-    "line",
+ARCHIVED_RECORD_COLUMNS = tuple(
+    c
+    for col in RECORD_COLUMNS
+    for c in ((col, "label_encoding") if col == "label_canonical" else ("file_seq", col) if col == "line" else (col,))
 )
 RECORD_FIELDS = tuple(c for c in ARCHIVED_RECORD_COLUMNS if c != "device_id")
 REGISTER_COLUMNS = (
