@@ -56,6 +56,7 @@ from pysbf2 import SBFReader
 from pyubx2 import UBX_MSGIDS, UBXReader
 
 from parsers.gnss import packets
+from parsers.gnss.fix_table import UBX_KINDS
 from parsers.units import NS_PER_DAY
 
 GPS_EPOCH_NS: Final = 315_964_800 * 1_000_000_000  # 1980-01-06T00:00:00Z
@@ -66,25 +67,8 @@ _EPOCH = dt.datetime(1970, 1, 1)
 _SBF_DNU = -2e10  # SBF's "do not use" for floating-point fields
 MAX_LEAP_S: Final = 60  # a bound on GPS - UTC no receiver will reach for decades (leap seconds end by 2035)
 
-# The UBX messages read here, by the (class, id) pyubx2's table gives each name.
-_UBX_NAMES: Final = (
-    "NAV-PVT",
-    "HNR-PVT",
-    "NAV-PVAT",
-    "NAV-SOL",
-    "NAV-POSLLH",
-    "NAV-HPPOSLLH",
-    "NAV-POSECEF",
-    "NAV-VELNED",
-    "NAV-VELECEF",
-    "NAV-STATUS",
-    "NAV-TIMEGPS",
-    "NAV-TIMEUTC",
-    "NAV-TIMELS",
-    "LOG-BATCH",
-    "LOG-RETRIEVEPOS",
-)
-UBX_READ: Final = {(key[0], key[1]): name for key, name in UBX_MSGIDS.items() if name in _UBX_NAMES}
+# The UBX messages read here (those a fix table row can name), by the (class, id) pyubx2's table gives each name.
+UBX_READ: Final = {(key[0], key[1]): name for key, name in UBX_MSGIDS.items() if name in UBX_KINDS}
 # SBF block numbers read.
 SBF_READ: Final = {4007: "PVTGeodetic", 4006: "PVTCartesian", 5914: "ReceiverTime", 5894: "GPSUtc"}
 # SBF PVT modes that are a position fix: standalone, DGPS, RTK fixed/float, SBAS, moving-base RTK, PPP

@@ -75,7 +75,7 @@ ROLES = ("head", "eot", "")
 SOURCES = ("nmea", "csv", "jsonl", "centre", "gpsd", "gpx", "ubx", "sbf")
 _NMEA_KINDS = ("RMC", "GGA", "GLL", "GNS", "VTG", "TPV")
 # Binary messages that give a row its position, velocity, time or fix status (parsers.gnss.binary).
-BINARY_KINDS = (
+UBX_KINDS = (
     "NAV-PVT",
     "HNR-PVT",
     "NAV-PVAT",
@@ -91,11 +91,9 @@ BINARY_KINDS = (
     "NAV-TIMELS",
     "LOG-BATCH",
     "LOG-RETRIEVEPOS",
-    "PVTGeodetic",
-    "PVTCartesian",
-    "ReceiverTime",
-    "GPSUtc",
 )
+SBF_KINDS = ("PVTGeodetic", "PVTCartesian", "ReceiverTime", "GPSUtc")
+BINARY_KINDS = (*UBX_KINDS, *SBF_KINDS)
 SENTENCE_KINDS = (*_NMEA_KINDS, *BINARY_KINDS)
 assert len(SENTENCE_KINDS) <= 31, "a row's sentence is an int32 bit mask"
 # Every combination of the NMEA kinds (a fixed list: the column's first categories).
