@@ -40,6 +40,25 @@ def _iso_ns(text: Any) -> int | None:
     return (t - dt.datetime(1970, 1, 1, tzinfo=dt.UTC)) // dt.timedelta(microseconds=1) * 1000
 
 
+def take_events(
+    events: list[dict[str, Any]], axles_by_head: Counter[str], now_ns: int
+) -> tuple[list[Transition], list[LogEntry]]:
+    """The console's events since the last call (``events`` is emptied), as the view's section changes and log
+    entries; each passage's axles added to its head's count."""
+    taken, events[:] = list(events), []
+    transitions: list[Transition] = []
+    entries: list[LogEntry] = []
+    for ev in taken:
+        if ev.get("type") == "passage":
+            axles_by_head[str(ev["counting_head"])] += int(ev.get("axles") or 0)
+        tr, entry = event_entry(ev, now_ns)
+        if tr is not None:
+            transitions.append(tr)
+        if entry is not None:
+            entries.append(entry)
+    return transitions, entries
+
+
 def event_entry(ev: dict[str, Any], now_ns: int) -> tuple[Transition | None, LogEntry | None]:
     """An event as the view shows it, at the time it happened in the log (``now_ns``: when it says none)."""
     kind = ev.get("type")
@@ -136,19 +155,7 @@ class LiveSource:
                 break
         self.live.tick()
         self.engine = self.live.diag.sections or self.live.frames.sections or self._placeholder
-        now = self.now_ns
-        transitions: list[Transition] = []
-        entries: list[LogEntry] = []
-        events, self._events[:] = list(self._events), []
-        for ev in events:
-            if ev.get("type") == "passage":
-                self._counts[str(ev["counting_head"])] += int(ev.get("axles") or 0)
-            tr, entry = event_entry(ev, now)
-            if tr is not None:
-                transitions.append(tr)
-            if entry is not None:
-                entries.append(entry)
-        return transitions, entries
+        return take_events(self._events, self._counts, self.now_ns)
 
     def trains(self, truth: bool = False) -> list[TrainView]:
         cf = self.live.crossings

@@ -25,7 +25,7 @@ from console.analysis.sections import SectionEngine
 from console.layout import Layout
 from console.live.simulated import INITIAL, SimulatedConsole
 from console.sim.station import Fault, SimConfig, StationSim
-from console.tui.live_source import event_entry
+from console.tui.live_source import take_events
 from console.tui.model import LogEntry, TrainView
 from console.tui.sources import reported_train
 
@@ -65,18 +65,8 @@ class SimSource:
             left -= dt
             entries += self._release_pending()
         self.engine = self.console.engine.diag.sections or self._placeholder
-        transitions: list[Transition] = []
-        now = self.now_ns
-        events, self._events[:] = list(self._events), []
-        for ev in events:
-            if ev.get("type") == "passage":
-                self._counts[str(ev["counting_head"])] += int(ev.get("axles") or 0)
-            tr, entry = event_entry(ev, now)
-            if tr is not None:
-                transitions.append(tr)
-            if entry is not None:
-                entries.append(entry)
-        return transitions, entries
+        transitions, released = take_events(self._events, self._counts, self.now_ns)
+        return transitions, entries + released
 
     def trains(self, truth: bool = False) -> list[TrainView]:
         """The trains on the line, placed where their units' fixes that reached the console put them."""
