@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import pytest
 from typer.testing import CliRunner
@@ -10,7 +11,7 @@ from typer.testing import CliRunner
 from console.cli.app import app
 from console.cli.commands.station import archive_replay_source
 from console.layout import load_layout
-from console.tui.sources import ReplaySource
+from console.tui.replay_source import ReplaySource
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"
 LOGS = [SAMPLES / "example_station.log", SAMPLES / "crossing_example.csv"]
@@ -25,39 +26,45 @@ def archive(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root
 
 
+def _played(source: ReplaySource) -> list[dict[str, Any]]:
+    """Every event the replay's engine gave, played to the end a minute at a time."""
+    events: list[dict[str, Any]] = []
+    source.sink = events.append
+    while source.now_ns < source.end_ns:
+        source.advance(60, skip_quiet=False)
+    return [e for e in events if e["type"] != "source"]
+
+
 def test_archive_replay_equals_the_replay_of_the_files(archive: Path) -> None:
     lay = load_layout("example")
     from_files = ReplaySource(LOGS, lay)
     from_archive = archive_replay_source(archive, lay, None, None)
-    assert [(e.time_ns, e.kind, e.head) for e in from_archive.events] == [
-        (e.time_ns, e.kind, e.head) for e in from_files.events
-    ]
-    assert [(f.t_ns, f.train, f.role, round(f.chainage_m, 6)) for f in from_archive.fixes] == [
-        (f.t_ns, f.train, f.role, round(f.chainage_m, 6)) for f in from_files.fixes
-    ]
-    assert from_archive.fixes, "the crossing sample has placeable fixes"
     assert (from_archive.start_ns, from_archive.end_ns) == (from_files.start_ns, from_files.end_ns)
+    assert from_archive.fixes, "the crossing sample has placeable fixes"
     # Played forward the same distance, both reach the same section states.
     from_files.advance(3600, skip_quiet=False)
     from_archive.advance(3600, skip_quiet=False)
     assert {s: from_archive.engine.state(s) for s in [x.id for x in lay.sections]} == {
         s: from_files.engine.state(s) for s in [x.id for x in lay.sections]
     }
+    # Played to the end, both gave the same events: passages, section changes, crossings, integrity.
+    files_events = _played(ReplaySource(LOGS, lay))
+    assert {e["type"] for e in files_events} >= {"passage", "section", "crossing"}
+    assert _played(archive_replay_source(archive, lay, None, None)) == files_events
 
 
 def test_a_window_replays_only_its_history(archive: Path) -> None:
     lay = load_layout("example")
     whole = archive_replay_source(archive, lay, None, None)
-    first = whole.events[0].time_ns
-    cut = archive_replay_source(archive, lay, None, None)
-    later = [e for e in cut.events if e.time_ns > first]
-    assert later, "the sample has more than one detection time"
-    import datetime as dt
-
-    start = dt.datetime.fromtimestamp(later[len(later) // 2].time_ns / 1e9, dt.UTC).isoformat()
-    windowed = archive_replay_source(archive, lay, start, None)
-    assert 0 < len(windowed.events) < len(whole.events)
-    assert min(e.time_ns for e in windowed.events) >= later[len(later) // 2].time_ns - 1_000_000
+    passages = [e for e in _played(whole) if e["type"] == "passage"]
+    assert len(passages) > 2, "the sample has several passages"
+    cut_at = passages[len(passages) // 2]["start"]
+    windowed = archive_replay_source(archive, lay, cut_at, None)
+    assert windowed.first_record_ns is not None and whole.first_record_ns is not None
+    assert windowed.first_record_ns > whole.first_record_ns
+    later = [e for e in _played(windowed) if e["type"] == "passage"]
+    assert 0 < len(later) < len(passages)
+    assert min(e["start"] for e in later) >= cut_at
 
 
 @pytest.mark.parametrize(

@@ -14,8 +14,8 @@ from console.cli.common import load_layout as _load_layout
 from console.tui.app import StationApp
 from console.tui.help import HelpScreen
 from console.tui.model import SPEEDS, StationModel
+from console.tui.replay_source import ReplaySource
 from console.tui.sim_source import SimSource
-from console.tui.sources import ReplaySource
 from console.tui.widgets.sections_table import SectionsTable
 from console.tui.widgets.speed_plot import SpeedPlot
 from console.tui.widgets.track import TrackDiagram
@@ -373,7 +373,8 @@ def test_replay_drives_the_same_view_and_jumps() -> None:
             assert source.now_ns == start
             # The two logs are six weeks apart: with no train in view the replay
             # skips the quiet stretch instead of playing it.
-            first_diag = source.events[0].time_ns
+            first_diag = source.first_record_ns
+            assert first_diag is not None
             for _ in range(200):
                 app.advance(60)
                 if source.now_ns >= first_diag:

@@ -22,8 +22,8 @@ from console.tui.app import StationApp
 from console.tui.live_app import LiveStationApp
 from console.tui.live_source import LiveSource
 from console.tui.model import StationModel
+from console.tui.replay_source import ReplaySource
 from console.tui.sim_source import SimSource
-from console.tui.sources import ReplaySource
 from console.tui.widgets.key_bar import KeyBar
 
 ROOT = Path(__file__).resolve().parents[1]

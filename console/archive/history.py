@@ -21,7 +21,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from console.analysis.diag_events import DiagEventSettings
 from console.analysis.diagnostics import DiagAnalysis
 from console.archive.history_diag import channel_events, derived_for, history_diag
 from console.archive.reader import (
@@ -39,15 +38,12 @@ from console.archive.reader import (
 from console.archive.scope import scope_report
 from console.archive.store import ArchiveError, Manifest, archive_dir, read_current
 from console.archive.views import require_archive
-from console.drivers.batch import DiagJob, ReadOptions, health_findings, no_axles, read_diag
-from console.engine.pipeline import PipelineSettings
-from console.engine.sinks import EventList
+from console.drivers.batch import DiagJob, ReadOptions, health_findings, no_axles
 from parsers.report import ParseReport
 
 if TYPE_CHECKING:
     import pandas as pd
 
-    from console.layout import Layout
     from console.report.model import ReportData
 
 
@@ -184,16 +180,14 @@ def archive_collector(
     return collector
 
 
-def replay_inputs(root: Path, layout: Layout, window: Window = Window()) -> tuple[list[Any], pd.DataFrame | None]:
-    """For ``station --replay --archive``: (detection events in time order, GNSS fixes in time order) of a window.
+def replay_inputs(root: Path, window: Window = Window()) -> tuple[ArchivedRecords | None, pd.DataFrame | None]:
+    """For ``station --replay --archive``: (the window's diagnostic records, its GNSS fixes in time order).
 
-    The same events and fixes the station view's ReplaySource builds from files: the records through
-    the pipeline, the archived fixes.
+    What the station view's ReplaySource reads from files, taken from the archive: the records as they were
+    parsed (played through the live engine's pipeline), the archived fixes.
     """
     m = require_archive(root)
-    kept = EventList()
-    if m.parts("records"):
-        read_diag(ArchivedRecords(root, m, window), PipelineSettings(events=DiagEventSettings(), layout=layout), kept)
+    records = ArchivedRecords(root, m, window) if m.parts("records") else None
     fixes = None
     parts = per_file_tables(root, m, "fixes")
     if parts:
@@ -202,7 +196,7 @@ def replay_inputs(root: Path, layout: Layout, window: Window = Window()) -> tupl
         fixes = pd.concat([p for _, p in parts], ignore_index=True)
         fixes = fixes.sort_values("time", kind="stable", na_position="last").reset_index(drop=True)
         fixes = cut_fixes(fixes, window)
-    return sorted(kept.events, key=lambda e: e.time_ns), fixes
+    return records, fixes
 
 
 def at_end_tables(

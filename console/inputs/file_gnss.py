@@ -88,43 +88,50 @@ class GnssLines:
 
     def _fixes(self, table: pd.DataFrame) -> list[GnssFix]:
         self.rows += len(table)
-        if not len(table):
-            return []
-        t = table["time"].to_numpy("datetime64[ns]").view(np.int64)
-        usable = table["valid"].to_numpy(bool) & (t != np.iinfo(np.int64).min)
-        usable &= table["lat"].notna().to_numpy() & table["lon"].notna().to_numpy()
-        self.no_fix += int((~usable).sum())
-        now = time.monotonic()
-        picked = table[usable]
-        out = []
-        for t_ns, device, role, lat, lon, speed, course, file, line, sentence, quality in zip(
-            t[usable].tolist(),
-            picked["device"].astype(str).tolist(),
-            picked["role"].astype(str).tolist(),
-            picked["lat"].tolist(),
-            picked["lon"].tolist(),
-            picked["speed_mps"].tolist(),
-            picked["course_deg"].tolist(),
-            picked["file"].astype(str).tolist(),
-            picked["line"].tolist(),
-            picked["sentence"].astype(str).tolist(),
-            picked["fix_quality"].astype(str).tolist(),
-            strict=True,
-        ):  # per fix: an item each, as gpsd's are
-            meta = {"file": file, "line": line, "sentence": sentence, "fix_quality": quality}
-            out.append(
-                GnssFix(
-                    self.uri,
-                    device,
-                    t_ns,
-                    lat,
-                    lon,
-                    speed,
-                    course,
-                    now,
-                    role=role,
-                    meta=meta,
-                    recorded=True,
-                )
+        fixes, no_fix = fix_items(self.uri, table)
+        self.no_fix += no_fix
+        return fixes
+
+
+def fix_items(uri: str, table: pd.DataFrame) -> tuple[list[GnssFix], int]:
+    """GNSS rows (``trackside gnss``'s) → (the fixes for the crossing units, as recorded fixes of ``uri``; how
+    many rows were not one: not valid, no time or no position)."""
+    if not len(table):
+        return [], 0
+    t = table["time"].to_numpy("datetime64[ns]").view(np.int64)
+    usable = table["valid"].to_numpy(bool) & (t != np.iinfo(np.int64).min)
+    usable &= table["lat"].notna().to_numpy() & table["lon"].notna().to_numpy()
+    now = time.monotonic()
+    picked = table[usable]
+    out = []
+    for t_ns, device, role, lat, lon, speed, course, file, line, sentence, quality in zip(
+        t[usable].tolist(),
+        picked["device"].astype(str).tolist(),
+        picked["role"].astype(str).tolist(),
+        picked["lat"].tolist(),
+        picked["lon"].tolist(),
+        picked["speed_mps"].tolist(),
+        picked["course_deg"].tolist(),
+        picked["file"].astype(str).tolist(),
+        picked["line"].tolist(),
+        picked["sentence"].astype(str).tolist(),
+        picked["fix_quality"].astype(str).tolist(),
+        strict=True,
+    ):  # per fix: an item each, as gpsd's are
+        meta = {"file": file, "line": line, "sentence": sentence, "fix_quality": quality}
+        out.append(
+            GnssFix(
+                uri,
+                device,
+                t_ns,
+                lat,
+                lon,
+                speed,
+                course,
+                now,
+                role=role,
+                meta=meta,
+                recorded=True,
             )
-        return out
+        )
+    return out, int((~usable).sum())

@@ -27,7 +27,8 @@ from console.engine.sinks import Sink, Sinks
 from console.layout import Layout
 from console.render.event_lines import health_event, reset_event, section_event
 from console.render.passage_spool import passage_texts
-from parsers.diag.read import DiagReader
+from parsers.diag.read import DiagChunk, DiagReader
+from parsers.diag.registry import DiagRegistry
 from parsers.report import FileReport
 from parsers.units import NO_TIME
 
@@ -122,12 +123,16 @@ class DiagFollow:
         include_status: bool = False,
         also: Sink | None = None,
         initial: SectionState = SectionState.PREPARATORY,
+        registry: DiagRegistry | None = None,
     ):
         """``also``: another sink of the pipeline's results (the integrity monitor takes its axles and
-        section changes); ``initial``: the sections' state before the first detection."""
+        section changes); ``initial``: the sections' state before the first detection; ``registry``: the one
+        the records to be fed were parsed into (a replay: :meth:`feed`)."""
         self.layout = layout
         self.emit = emit
         self.reader = DiagReader([])
+        if registry is not None:
+            self.reader.registry = registry
         self.stats = DiagFollowStats()
         self._file_ids: dict[str, int] = {}
         sink = LiveEvents(emit, self.stats)
@@ -151,6 +156,10 @@ class DiagFollow:
             self.reader.registry.files.append(source)
         chunk = self.reader.parse_lines(data, report, file_id, first_line)
         self._show_rejections()
+        self.pipeline.feed(chunk)
+
+    def feed(self, chunk: DiagChunk) -> None:
+        """Records already parsed (into the registry given), in read order: a replay of logs or the archive."""
         self.pipeline.feed(chunk)
 
     def _show_rejections(self) -> None:

@@ -23,6 +23,7 @@ from console.live.crossings import CrossingFollow
 from console.live.diag import DiagFollow, live_speed
 from console.live.frames import FrameFollow
 from console.live.integrity import IntegrityFollow
+from parsers.diag.registry import DiagRegistry
 from parsers.units import ALL_TIME
 
 Emit = Callable[[dict[str, Any]], None]
@@ -40,10 +41,12 @@ class LiveEngine:
         *,
         clock: Callable[[], int] | None = None,
         initial: SectionState = SectionState.PREPARATORY,
+        registry: DiagRegistry | None = None,
     ) -> None:
         """``settings``: the line facts (default: the layout's, as ``follow`` takes them); ``clock``: the
         console's clock in ns since the epoch (default: the wall clock; the simulator's station gives its
-        own); ``initial``: the sections' state before the first detection."""
+        own); ``initial``: the sections' state before the first detection; ``registry``: the one the records fed
+        as parsed chunks were parsed into (a replay)."""
         self.layout = layout
         self.emit = emit
         self.include_status = include_status
@@ -59,6 +62,7 @@ class LiveEngine:
             include_status=include_status,
             also=self.integrity,
             initial=initial,
+            registry=registry,
         )
         placed = layout is not None and (bool(layout.crossings) or len(layout.track) >= 2)
         self.crossings = CrossingFollow(layout, emit) if layout is not None and placed else None

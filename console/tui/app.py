@@ -21,8 +21,8 @@ from textual.widgets import Header
 from console.analysis.timefmt import display
 from console.tui.help import HelpScreen
 from console.tui.model import Snapshot, StationModel
+from console.tui.replay_source import ReplaySource
 from console.tui.sim_source import SimSource
-from console.tui.sources import ReplaySource
 from console.tui.widgets.event_log import EventLog
 from console.tui.widgets.key_bar import KeyBar, acts
 from console.tui.widgets.pickable_table import PickableTable

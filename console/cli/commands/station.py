@@ -85,8 +85,8 @@ def station(
             return run_live_station(layout, uris, serve, host, port, seed, speed, replay, files, metrics)
         from console.tui.app import StationApp
         from console.tui.model import SPEEDS, StationModel
+        from console.tui.replay_source import ReplaySource
         from console.tui.sim_source import SimSource
-        from console.tui.sources import ReplaySource
 
         lay = load_layout(layout)
         from_archive = archive is not None or bool(start) or bool(end)
@@ -131,15 +131,15 @@ def archive_replay_source(archive: Path | None, lay: Any, start: str | None, end
     from console.archive.history import replay_inputs
     from console.archive.reader import Window, parse_time
     from console.archive.store import ArchiveError, archive_dir
-    from console.tui.sources import ReplaySource
+    from console.tui.replay_source import ReplaySource
 
     try:
         window = Window(start=parse_time(start) if start else None, end=parse_time(end) if end else None)
     except ValueError as exc:
         raise fail(f"--from/--to: {exc}") from None
     try:
-        events, fixes = replay_inputs(archive_dir(archive), lay, window)
-        return ReplaySource.from_parts(lay, events, fixes)
+        records, fixes = replay_inputs(archive_dir(archive), window)
+        return ReplaySource.from_parts(lay, records, fixes)
     except ArchiveError as exc:
         raise fail(str(exc)) from None
     except ValueError as exc:  # nothing to replay in that window
