@@ -56,7 +56,7 @@ from console.analysis.stream_sections import EventStream, HeadFacts
 from console.engine.sinks import Sink
 from parsers.diag.read import DiagChunk
 from parsers.diag.registry import DiagRegistry
-from parsers.units import NO_TIME
+from parsers.units import NO_TIME, NS
 
 if TYPE_CHECKING:
     from console.analysis.head_table import Heads
@@ -68,6 +68,10 @@ if TYPE_CHECKING:
 HEALTH_EVENT_KINDS = frozenset({EventKind.CHANNEL_FAULT, EventKind.CHANNEL_OK, EventKind.SINGLE_CHANNEL})
 # The registers health judges (analog values against their band, 1-edge counter growth).
 HEALTH_REGISTERS = frozenset({"analog_value", "counter_1_edge"})
+# Live health ("closed"): judged again at most this often in log time, and at once on a new channel event ...
+HEALTH_EVERY_NS = 600 * NS
+# ... on the evidence of the last day (a batch read's of a day's log: the same findings; memory stays bounded).
+HEALTH_WINDOW_NS = 86_400 * NS
 
 
 @dataclass(frozen=True)
@@ -86,8 +90,9 @@ class PipelineSettings:
     # These registers' records are kept (health reads them).
     keep_registers: frozenset[str] = frozenset()
     # Health findings (needs events and the health registers kept): judged on everything at the end
-    # ("end", a batch read), or on what came since the last judgement each time passages close ("closed",
-    # live: the records are dropped once judged, memory stays bounded); None: not judged here.
+    # ("end", a batch read), or as passages close ("closed", live: on the last day's evidence, every
+    # HEALTH_EVERY_NS of log time and on each new channel event; a finding is handed on when it is new or
+    # graver than the one handed on before); None: not judged here.
     health: str | None = None
     # Status-only passages handed on (False: counted per head in :attr:`Pipeline.status`).
     include_status: bool = True
@@ -142,7 +147,11 @@ class Pipeline:
         self._wanted = np.zeros(0, bool)
         self.health_events: list[DetectionEvent] = []
         self.last_event: DetectionEvent | None = None
-        self.findings: list[Finding] = []
+        self.findings: list[Finding] = []  # "closed": the latest judgement's
+        self._kept_newest_ns = NO_TIME
+        self._judged_ns = NO_TIME
+        self._judged_events = 0
+        self._handed_rank: dict[tuple[str, str | None, int | None], int] = {}
         self.section_engine: SectionEngine | None = None
         if s.health is not None and not (s.events is not None and s.keep_registers >= HEALTH_REGISTERS):
             raise ValueError("health needs the detection events and the health registers kept")
@@ -177,7 +186,9 @@ class Pipeline:
                 self._wanted = self.registry.canonical_in(s.keep_registers)
             mask = self._wanted[chunk.register_id]
             if mask.any():
-                self.kept.append(chunk.take(mask))
+                kept = chunk.take(mask)
+                self.kept.append(kept)
+                self._kept_newest_ns = max(self._kept_newest_ns, int(kept.time_ns.max()))
         if self.stream is None:
             self.acc.add(chunk)
             return
@@ -235,7 +246,7 @@ class Pipeline:
             self.first_event_ns = None
             self._drain()
         if self.settings.health is not None:
-            self._judge()
+            self._judge(final=True)
         heads = self.heads
         by_file = self._overlap_by_file
         return DiagOutcome(
@@ -345,27 +356,46 @@ class Pipeline:
         return warnings
 
     # -- health -----------------------------------------------------------------------
-    def _judge(self) -> None:
-        """Health findings on the records kept and the channel events so far, handed on.
+    def _judge(self, final: bool = False) -> None:
+        """Health findings on the records kept and the channel events, handed on.
 
-        Live ("closed"), what was judged is dropped: each finding is judged on what came since the last.
+        Live ("closed"): judged when HEALTH_EVERY_NS of log time passed since the last judgement, a channel
+        event came, or the read ends (``final``); on the last HEALTH_WINDOW_NS of evidence; a finding is handed
+        on when new or graver than before for its rule, head and channel.
         """
         from console.analysis.health import health_report
         from parsers.diag.read import chunks_to_frame
 
         s = self.settings
-        if s.health == "closed" and not self.kept and not self.health_events:
-            return
+        closed = s.health == "closed"
+        if closed:
+            news = len(self.health_events) > self._judged_events
+            due = self._kept_newest_ns - self._judged_ns >= HEALTH_EVERY_NS if self.kept else False
+            if not (news or due or (final and (self.kept or self.health_events))):
+                return
         lay = s.layout or s.sections
         bands = {h.id: h.analog_band for h in lay.heads if h.analog_band} if lay is not None else None
         records = chunks_to_frame(self.kept, self.registry)
         findings = health_report(records, bands=bands or None, events=self.health_events)
-        if s.health == "closed":
-            del self.kept[:], self.health_events[:]  # in place: the event stream appends to this list
-        else:
+        if not closed:
             self.findings += findings
-        if findings:
-            self.sink.findings(findings)
+            if findings:
+                self.sink.findings(findings)
+            return
+        self.findings = findings
+        newer = []
+        for f in findings:
+            key, rank = (f.rule, f.counting_head, f.channel), f.severity.rank
+            if rank > self._handed_rank.get(key, -1):
+                self._handed_rank[key] = rank
+                newer.append(f)
+        # The evidence older than the window is let go (in place: the event stream appends to this list).
+        cutoff = self._kept_newest_ns - HEALTH_WINDOW_NS
+        self.kept[:] = [c for c in self.kept if int(c.time_ns.max()) >= cutoff]
+        self.health_events[:] = [e for e in self.health_events if e.time_ns >= cutoff]
+        self._judged_ns, self._judged_events = self._kept_newest_ns, len(self.health_events)
+        if newer:
+            self.sink.findings(newer)
 
     # -- events and sections ---------------------------------------------------------
     def _step(self, block: EventBlock) -> None:

@@ -51,13 +51,12 @@ class DiagFollowStats:
 
 
 class LiveEvents(Sink):
-    """The pipeline's results as live events: passages, section changes, health findings (each finding
-    once per rule, head and channel; info findings are not news)."""
+    """The pipeline's results as live events: passages, section changes, health findings (as the pipeline
+    hands them on: new or graver than before; info findings are not news)."""
 
     def __init__(self, emit: Emit, stats: DiagFollowStats) -> None:
         self.emit = emit
         self.stats = stats
-        self._seen_findings: set[tuple[str, str | None, int | None]] = set()
 
     def passages(self, cols: Columns, heads: Heads) -> None:
         for text in passage_texts(cols, heads):
@@ -75,10 +74,8 @@ class LiveEvents(Sink):
 
     def findings(self, rows: Sequence[Finding]) -> None:
         for f in rows:
-            key = (f.rule, f.counting_head, f.channel)
-            if key in self._seen_findings or str(f.severity) == "info":
+            if str(f.severity) == "info":
                 continue
-            self._seen_findings.add(key)
             self.stats.health_findings += 1
             self.emit(health_event(f))
 
