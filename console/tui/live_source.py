@@ -22,8 +22,9 @@ from console.inputs.base import Item, Source, SourceStatus
 from console.layout import Layout
 from console.live.engine import LiveEngine
 from console.tui.model import LogEntry, TrainView
-from console.tui.sources import integrity_entry, reported_train
+from console.tui.sources import engine_trains, integrity_entry
 
+LIVE_GONE_S = 300.0  # a live train not heard for this long has left the line
 MAX_ITEMS_PER_ADVANCE = 20_000  # a burst is taken over several redraws, the view stays responsive
 
 
@@ -158,24 +159,8 @@ class LiveSource:
         return take_events(self._events, self._counts, self.now_ns)
 
     def trains(self, truth: bool = False) -> list[TrainView]:
-        cf = self.live.crossings
-        if cf is None:
-            return []
-        now = self.now_ns
-        out = []
-        for train in sorted({t for t, _ in cf.last}):
-            integrity = self.live.integrity.monitor.state(train) if self.live.integrity is not None else None
-            view = reported_train(
-                train,
-                cf.default_length_m,
-                cf.last.get((train, "head")),
-                cf.last.get((train, "eot")),
-                now,
-                integrity=integrity,
-            )
-            if view is not None and (view.head_age_s is None or view.head_age_s < 300):
-                out.append(view)
-        return out
+        """The trains placed where their units' last fixes put them; one not heard for five minutes has left."""
+        return engine_trains(self.live, self.now_ns, LIVE_GONE_S)
 
     def true_count(self, section_id: str) -> int | None:
         return None

@@ -19,7 +19,7 @@ from console.layout import Layout
 from console.live.engine import LiveEngine
 from console.tui.live_source import take_events
 from console.tui.model import LogEntry, TrainView
-from console.tui.sources import reported_train
+from console.tui.sources import engine_trains
 from parsers.units import NS
 
 if TYPE_CHECKING:
@@ -171,20 +171,7 @@ class ReplaySource:
 
     def trains(self, truth: bool = False) -> list[TrainView]:
         """The trains placed where their units' last fixes put them; one not heard for two minutes has left."""
-        cf = self.live.crossings
-        if cf is None:
-            return []
-        out = []
-        for train in sorted({t for t, _ in cf.last}):
-            head, eot = cf.last.get((train, "head")), cf.last.get((train, "eot"))
-            ref = head or eot
-            if ref is None or self._now - ref.t_fix_ns > GONE_S * NS:
-                continue
-            integrity = self.live.integrity.monitor.state(train) if self.live.integrity is not None else None
-            view = reported_train(train, cf.default_length_m, head, eot, self._now, integrity=integrity)
-            if view is not None:
-                out.append(view)
-        return out
+        return engine_trains(self.live, self._now, GONE_S)
 
     def true_count(self, section_id: str) -> int | None:
         return None

@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from console.analysis.crossing import ControllerSettings, Fix
 from console.analysis.integrity import PARTED
 from console.tui.model import LogEntry, TrainView
 from parsers.units import NS
+
+if TYPE_CHECKING:
+    from console.live.engine import LiveEngine
 
 INTEGRITY_SEVERITY = {"whole": "info", "doubtful": "warning", PARTED: "critical"}
 
@@ -63,3 +67,22 @@ def reported_train(
         true_head_m=true_head_m,
         integrity=integrity,
     )
+
+
+def engine_trains(live: LiveEngine, now_ns: int, gone_s: float) -> list[TrainView]:
+    """The trains a live engine's units place (from their last fixes), each with its integrity; a train whose
+    head unit (or, without one, EOT unit) has not been heard for ``gone_s`` has left the line."""
+    cf = live.crossings
+    if cf is None:
+        return []
+    out = []
+    for train in sorted({t for t, _ in cf.last}):
+        head, eot = cf.last.get((train, "head")), cf.last.get((train, "eot"))
+        ref = head or eot
+        if ref is None or now_ns - ref.t_fix_ns > gone_s * NS:
+            continue
+        integrity = live.integrity.monitor.state(train) if live.integrity is not None else None
+        view = reported_train(train, cf.default_length_m, head, eot, now_ns, integrity=integrity)
+        if view is not None:
+            out.append(view)
+    return out
