@@ -5,7 +5,7 @@ from __future__ import annotations
 import itertools
 import json
 import re
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from typing import Any, TextIO
 
 # In JSON text from json.dumps(ensure_ascii=True): an escaped backslash, a
@@ -95,3 +95,25 @@ def write(doc: dict[str, Any], out: TextIO) -> None:
         for part in _parts(value):
             out.write(part)
     out.write("}\n")
+
+
+def typed_line(kind: str, item: Any) -> str:
+    """One JSON line: the object ``item`` (or its JSON text, :class:`RawJSON`) with ``"type": kind`` first."""
+    text = _encode(item)
+    if not text.startswith("{"):
+        text = _encode({"value": item})
+    return '{"type":' + _encode(kind) + ("}" if text == "{}" else "," + text[1:])
+
+
+def write_lines(doc: dict[str, Any], records: Mapping[str, str], out: TextIO) -> None:
+    """``doc`` as JSON lines: each item of the arrays ``records`` names (key → type) a line of that type, in the
+    document's order, then one ``summary`` line with the rest of the document (schema, files, report)."""
+    summary = {}
+    for key, value in doc.items():
+        kind = records.get(key)
+        if kind is None:
+            summary[key] = value
+            continue
+        for item in value:
+            out.write(typed_line(kind, item) + "\n")
+    out.write(typed_line("summary", RawJSON(dumps(summary))) + "\n")

@@ -10,7 +10,7 @@ import os
 import signal
 import stat
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -243,6 +243,24 @@ def print_json(doc: dict[str, Any]) -> None:
 
     write(doc, sys.stdout)
     sys.stdout.flush()
+
+
+def print_document(doc: dict[str, Any], lines: Mapping[str, str] | None) -> None:
+    """``doc`` as one JSON document (``--json``), or with ``lines`` (array key → type) as JSON lines (``--jsonl``):
+    a line per item of those arrays, then a ``summary`` line with the rest."""
+    if lines is None:
+        print_json(doc)
+        return
+    from console.jsonout import write_lines
+
+    write_lines(doc, lines, sys.stdout)
+    sys.stdout.flush()
+
+
+def one_json_form(json_out: bool, jsonl: bool) -> None:
+    """--json and --jsonl exclude each other: a one-line error."""
+    if json_out and jsonl:
+        raise fail("--json and --jsonl: choose one")
 
 
 # Kinds a command refuses outright: files it could only reject line by line.

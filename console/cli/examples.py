@@ -20,6 +20,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "sections": (
         "trackside sections sample_logs/example_station.log --layout example",
         "trackside sections sample_logs/example_station.log --layout example --reset B1@2026-03-02T09:30",
+        'trackside sections sample_logs/example_station.log --layout example --jsonl | grep \'"type":"section"\'',
     ),
     "health": (
         "trackside health sample_logs/ws4_health.log",
@@ -41,6 +42,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "crossing": (
         "trackside crossing sample_logs/crossing_example.csv --layout example",
         "trackside crossing sample_logs/crossing_example.csv --layout example --train A=A-head,A-eot,120 --json",
+        'trackside crossing sample_logs/crossing_example.csv --layout example --jsonl | grep \'"type":"event"\'',
     ),
     "simulate": (
         "trackside simulate -o run --duration 30m --seed 7",

@@ -26,6 +26,14 @@ IdleGapOpt = Annotated[
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON document on stdout instead of tables.")]
 StrictOpt = Annotated[bool, typer.Option("--strict", help="Exit 1 if any input line was rejected.")]
+
+# The commands that compute a whole document (JSONL: its records, then a summary line).
+RecordsJsonlOpt = Annotated[
+    bool,
+    typer.Option(
+        "--jsonl", help="JSON lines on stdout: one object per record, its `type` saying which, then a summary."
+    ),
+]
 JsonlOpt = Annotated[
     bool,
     typer.Option("--jsonl", help="JSON lines on stdout, each written as found: rejected, passage, device, summary."),

@@ -141,6 +141,16 @@ def gnss_json(fixes: pd.DataFrame | FixColumns, report: ParseReport) -> dict[str
     return {"fixes": _fix_rows(_columns(fixes)), "parse_report": report.to_dict()}
 
 
+def fix_rows(fixes: pd.DataFrame | FixColumns) -> Iterator[dict[str, Any]]:
+    """The fixes of :func:`gnss_json`, one object each, made block by block."""
+    cols = _columns(fixes)
+    for start in range(0, len(cols), FIX_BLOCK):
+        block = FixColumns(
+            **{k: v if k.endswith("_names") else v[start : start + FIX_BLOCK] for k, v in vars(cols).items()}
+        )
+        yield from _fix_rows(block)
+
+
 def gnss_json_parts(fixes: pd.DataFrame | FixColumns, report: ParseReport) -> dict[str, Any]:
     """:func:`gnss_json` for :func:`console.jsonout.write`: the fixes as JSON text, block by block."""
     cols = _columns(fixes)

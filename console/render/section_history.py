@@ -100,6 +100,30 @@ class _Spill:
         self.size += len(data)
         self.n += 1
 
+    def read_back(self) -> Iterator[str]:
+        """Each spilled item's JSON text, in order, read back a block at a time (no ``track`` needed)."""
+        decoder = json.JSONDecoder()
+        self.file.seek(0)
+        text = ""
+        while True:
+            block = self.file.read(SPILL_BLOCK_BYTES).decode("ascii")
+            text += block
+            pos = 0
+            while True:
+                while pos < len(text) and text[pos] == ",":
+                    pos += 1
+                try:
+                    _, end = decoder.raw_decode(text, pos)
+                except ValueError:  # the item goes on in the next block
+                    break
+                yield text[pos:end]
+                pos = end
+            text = text[pos:]
+            if not block:
+                if text:
+                    raise ValueError("spilled rows end inside an item")
+                return
+
     def copy_to(self, out: IO[str]) -> None:
         out.write("[")
         out.flush()
@@ -240,6 +264,13 @@ class SectionsSink(Sink):
         out.write(',"ledger":')
         self._ledger.copy_to(out)
         out.write(',"resets":[' + ",".join(reset_json(r) for r in self.reset_rows) + "]")
+
+    def json_items(self) -> Iterator[tuple[str, str]]:
+        """(type, JSON text) of every row, as ``--jsonl`` writes them: state changes, ledger rows, resets."""
+        assert self._timeline is not None and self._ledger is not None
+        yield from (("section", text) for text in self._timeline.read_back())
+        yield from (("ledger", text) for text in self._ledger.read_back())
+        yield from (("reset", reset_json(r)) for r in self.reset_rows)
 
     def close(self) -> None:
         for s in (self._timeline, self._ledger):

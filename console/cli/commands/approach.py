@@ -7,8 +7,8 @@ from typing import Annotated
 import typer
 
 from console import exit_codes
-from console.cli.common import Console, fail, guard, load_layout, print_json, read_logs
-from console.cli.options import FilesArg, JsonOpt, StrictOpt
+from console.cli.common import Console, fail, guard, load_layout, one_json_form, print_document, read_logs
+from console.cli.options import FilesArg, JsonOpt, RecordsJsonlOpt, StrictOpt
 
 
 def approach(
@@ -27,11 +27,13 @@ def approach(
         float, typer.Option("--warning-time", metavar="S", help="Seconds of warning the workers need.", min=1)
     ] = 30.0,
     json_out: JsonOpt = False,
+    jsonl: RecordsJsonlOpt = False,
     strict: StrictOpt = False,
 ) -> None:
     """Track-worker approach warnings: alarm from detection vs from the speed measured at the head."""
 
     def body() -> int:
+        one_json_form(json_out, jsonl)
         from console.analysis.approach import approach_timeline
         from console.layout import WorkSite
         from console.render.approach_tables import approach_table
@@ -51,15 +53,16 @@ def approach(
 
         job = read_logs(files, PipelineSettings(speed=speed_settings(lay)), hold_passages=True)
         rows = [r for site in sites for r in approach_timeline(job.analysis.passages, lay, site)]
-        if json_out:
-            print_json(
+        if json_out or jsonl:
+            print_document(
                 {
                     "schema": "trackside.approach/1",
                     "files": job.files,
                     "layout": lay.source,
                     "warnings": [r.to_dict() for r in rows],
                     "parse_report": job.report.to_dict(),
-                }
+                },
+                {"warnings": "approach_warning"} if jsonl else None,
             )
         else:
             Console(highlight=False).print(approach_table(rows))

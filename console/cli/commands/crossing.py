@@ -7,10 +7,21 @@ from typing import Annotated
 import typer
 
 from console import exit_codes
-from console.cli.common import Console, check_inputs, fail, guard, load_layout, print_json, refuse_wrong_kind
-from console.cli.options import GnssFilesArg, JsonOpt
+from console.cli.common import (
+    Console,
+    check_inputs,
+    fail,
+    guard,
+    load_layout,
+    one_json_form,
+    print_document,
+    refuse_wrong_kind,
+)
+from console.cli.options import GnssFilesArg, JsonOpt, RecordsJsonlOpt
 from console.plural import count
 from console.safe_text import clean
+
+CROSSING_LINES = {"timelines": "timeline", "events": "event", "trains": "train", "integrity": "integrity"}
 
 
 def crossing(
@@ -27,6 +38,7 @@ def crossing(
         ),
     ] = None,
     json_out: JsonOpt = False,
+    jsonl: RecordsJsonlOpt = False,
     strict: Annotated[
         bool, typer.Option("--strict", help="Exit 1 on a safety violation or a rejected input line.")
     ] = False,
@@ -40,6 +52,7 @@ def crossing(
     """
 
     def body() -> int:
+        one_json_form(json_out, jsonl)
         from console.analysis.crossing_batch import parse_train_option, run_crossings
         from console.analysis.integrity import timelines
         from console.analysis.timefmt import iso
@@ -72,8 +85,8 @@ def crossing(
             warnings.append("devices in no train: " + ", ".join(run.unassigned_devices))
         if not run.trains:
             warnings.append("no head or EOT device found: give --train TRAIN=HEAD,EOT")
-        if json_out:
-            print_json(
+        if json_out or jsonl:
+            print_document(
                 {
                     "schema": "trackside.crossing/1",
                     "files": [str(p) for p in files],
@@ -100,7 +113,10 @@ def crossing(
                     "integrity": timelines(run.integrity),
                     "warnings": warnings,
                     "parse_report": report.to_dict(),
-                }
+                },
+                {"timelines": "timeline", "events": "event", "trains": "train", "integrity": "integrity"}
+                if jsonl
+                else None,
             )
         else:
             out = Console(highlight=False)

@@ -9,8 +9,8 @@ import typer
 
 from console import exit_codes
 from console.cli.commands.ingest import ArchiveOpt
-from console.cli.common import Console, fail, guard, load_layout, print_json
-from console.cli.options import JsonOpt
+from console.cli.common import Console, fail, guard, load_layout, one_json_form, print_document
+from console.cli.options import JsonOpt, RecordsJsonlOpt
 
 
 def forecast(
@@ -54,6 +54,7 @@ def forecast(
         ),
     ] = None,
     json_out: JsonOpt = False,
+    jsonl: RecordsJsonlOpt = False,
 ) -> None:
     """Forecast, from the archive's daily health figures, when each head, channel and GNSS unit will cross
     its threshold: analog values leaving their band, disturbance rates reaching the warning level, units
@@ -64,6 +65,7 @@ def forecast(
     root = archive_dir(archive)
 
     def body() -> int:
+        one_json_form(json_out, jsonl)
         from console.analysis.timefmt import parse_duration
 
         try:
@@ -104,8 +106,8 @@ def forecast(
                 write_forecast_textfile(str(textfile), items)
             except OSError as exc:
                 raise fail(f"--textfile {textfile}: cannot write ({exc.strerror or exc})") from None
-        if json_out:
-            print_json(
+        if json_out or jsonl:
+            print_document(
                 {
                     "schema": "trackside.forecast/1",
                     "horizon_days": horizon_days,
@@ -116,7 +118,8 @@ def forecast(
                     },
                     "due": [f.to_dict() for f in due],
                     "forecasts": [f.to_dict() for f in items],
-                }
+                },
+                {"due": "due", "forecasts": "forecast"} if jsonl else None,
             )
         else:
             from console.render.forecast_tables import forecast_view

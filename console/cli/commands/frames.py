@@ -13,11 +13,12 @@ from console.cli.common import (
     check_inputs,
     guard,
     load_layout,
-    print_json,
+    one_json_form,
+    print_document,
     refuse_unread,
     refuse_wrong_kind,
 )
-from console.cli.options import JsonOpt, StrictOpt
+from console.cli.options import JsonOpt, RecordsJsonlOpt, StrictOpt
 
 
 def _is_can_log(path: Path) -> bool:
@@ -94,11 +95,13 @@ def frames(
         ),
     ] = 10.0,
     json_out: JsonOpt = False,
+    jsonl: RecordsJsonlOpt = False,
     strict: StrictOpt = False,
 ) -> None:
     """Intelligent-sensor frames and CAN count frames: decoded, and as axle events."""
 
     def body() -> int:
+        one_json_form(json_out, jsonl)
         import pandas as pd
 
         from console.analysis.frame_events import frames_to_events
@@ -140,8 +143,8 @@ def frames(
         events.sort(key=lambda e: e.time_ns)
         all_frames = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
         rejected = sum(r.rejected for r in reports)
-        if json_out:
-            print_json(
+        if json_out or jsonl:
+            print_document(
                 {
                     "schema": "trackside.frames/2",
                     "files": [str(p) for p in files],
@@ -159,7 +162,8 @@ def frames(
                         for e in events
                     ],
                     "parse_reports": [r.to_dict() for r in reports],
-                }
+                },
+                {"frames": "frame", "events": "event", "parse_reports": "parse_report"} if jsonl else None,
             )
         else:
             out = Console(highlight=False)

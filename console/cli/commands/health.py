@@ -14,12 +14,13 @@ from console.cli.common import (
     fail,
     guard,
     load_layout,
-    print_json,
+    one_json_form,
+    print_document,
     read_logs,
     refuse_unread,
     refuse_wrong_kind,
 )
-from console.cli.options import JsonOpt, StrictOpt
+from console.cli.options import JsonOpt, RecordsJsonlOpt, StrictOpt
 from console.safe_text import clean
 
 
@@ -55,6 +56,7 @@ def health(
         ),
     ] = None,
     json_out: JsonOpt = False,
+    jsonl: RecordsJsonlOpt = False,
     strict: StrictOpt = False,
 ) -> None:
     """Sensor and channel health: analog bands, voltage margins, disturbance rates, faulty channels."""
@@ -65,6 +67,7 @@ def health(
         from console.render.health_tables import findings_view
         from parsers.voltages import read_voltages
 
+        one_json_form(json_out, jsonl)
         if not files and not voltages:
             raise fail("give diagnostic log files, --voltages tables, or both")
         threshold = None
@@ -97,8 +100,8 @@ def health(
             reports.append(vreport)
         findings = sort_findings(findings)
         rejected = sum(r.rejected for r in reports)
-        if json_out:
-            print_json(
+        if json_out or jsonl:
+            print_document(
                 {
                     "schema": "trackside.health/1",
                     "files": [str(p) for p in (files or [])],
@@ -106,7 +109,8 @@ def health(
                     "findings": [f.to_dict() for f in findings],
                     "parse_reports": [r.to_dict() for r in reports],
                     "warnings": warnings,
-                }
+                },
+                {"findings": "finding", "parse_reports": "parse_report"} if jsonl else None,
             )
         else:
             out = Console(highlight=False)

@@ -7,8 +7,8 @@ from typing import Annotated, Any
 import typer
 
 from console import exit_codes
-from console.cli.common import Console, fail, guard, load_layout, read_logs
-from console.cli.options import FilesArg, JsonOpt, LayoutOpt
+from console.cli.common import Console, fail, guard, load_layout, one_json_form, read_logs
+from console.cli.options import FilesArg, JsonOpt, LayoutOpt, RecordsJsonlOpt
 from console.plural import count
 from console.safe_text import clean
 
@@ -52,6 +52,25 @@ def _write_json(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
     out.write(head[:-1] + ",")
     sink.write_json_arrays(out)
     out.write("}\n")
+    out.flush()
+
+
+def _write_jsonl(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
+    """``sections_json``'s rows as JSON lines: each section's end state, state changes, ledger rows, resets, then
+    a summary."""
+    import sys
+
+    from console.jsonout import RawJSON, dumps, typed_line
+    from console.render.section_tables import sections_summary
+
+    out = sys.stdout
+    for row in sections_summary(final)["sections"]:
+        out.write(typed_line("section_end", row) + "\n")
+    for kind, text in sink.json_items():
+        out.write(typed_line(kind, RawJSON(text)) + "\n")
+    summary = {"schema": "trackside.sections/1", "files": job.files, "layout": lay.source}
+    summary |= {"parse_report": job.report.to_dict(), "warnings": job.warnings}
+    out.write(typed_line("summary", RawJSON(dumps(summary))) + "\n")
     out.flush()
 
 
@@ -118,6 +137,7 @@ def sections(
         ),
     ] = 60.0,
     json_out: JsonOpt = False,
+    jsonl: RecordsJsonlOpt = False,
     strict: Annotated[
         bool, typer.Option("--strict", help="Exit 1 if a line was rejected or a section ends disturbed.")
     ] = False,
@@ -133,6 +153,7 @@ def sections(
         from console.engine.pipeline import PipelineSettings
         from console.render.section_history import SectionsSink
 
+        one_json_form(json_out, jsonl)
         if initial not in ("unknown", "clear"):
             raise fail(f"--initial: expected unknown or clear, found {initial!r}")
         lay = load_layout(layout)
@@ -152,7 +173,7 @@ def sections(
             initial=SectionState.CLEAR if initial == "clear" else SectionState.PREPARATORY,
             resets=tuple(resets),
         )
-        sink = SectionsSink(spill=json_out)
+        sink = SectionsSink(spill=json_out or jsonl)
         try:
             job = read_logs(files, settings, sink)
             assert job.sections is not None
@@ -160,6 +181,8 @@ def sections(
             disturbed = [sid for sid, f in final.items() if f[0] == SectionState.DISTURBED]
             if json_out:
                 _write_json(job, lay, final, sink)
+            elif jsonl:
+                _write_jsonl(job, lay, final, sink)
             else:
                 _print_tables(job, final, sink)
         finally:
