@@ -240,3 +240,19 @@ def test_the_forecast_as_a_textfile_for_prometheus(
             if x.name == "trackside_forecast_due" and x.value == 1:
                 due.add((x.labels["target"], x.labels["channel"], x.labels["figure"]))
     assert due == {(f["target"], str(f["channel"] or ""), f["figure"]) for f in forecast_json["due"]}
+
+
+def test_forecast_jsonl_is_the_document_a_record_a_line(
+    wearing: tuple[Path, Path, Plan], forecast_json: dict[str, Any]
+) -> None:
+    _, arc, _ = wearing
+    res = runner.invoke(app, ["forecast", "--archive", str(arc), "--jsonl"])
+    assert res.exit_code == 0, res.output
+    lines = [json.loads(line) for line in res.stdout.splitlines()]
+    assert [x.pop("type") for x in lines] == ["due"] * len(forecast_json["due"]) + ["forecast"] * len(
+        forecast_json["forecasts"]
+    ) + ["summary"]
+    doc = dict(forecast_json)
+    assert lines[: len(doc["due"])] == doc.pop("due")
+    assert lines[len(lines) - 1 - len(doc["forecasts"]) : -1] == doc.pop("forecasts")
+    assert lines[-1] == doc
