@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from console import __version__
-from console.analysis.diagnostics import SpeedSettings, passages_json_text
+from console.analysis.diagnostics import SpeedSettings
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.health import Finding, Severity
 from console.analysis.section_state import SectionState
@@ -47,7 +47,7 @@ from console.drivers.batch import DiagJob
 from console.layout import Layout
 from console.render.section_tables import sections_json
 from console.report.jsonwrite import Rows
-from console.report.spooled import LedgerFrameRows, ReportPassages, SectionHistory
+from console.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPassages, SectionHistory
 from parsers.report import ParseReport
 
 if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read (collect)
@@ -448,8 +448,8 @@ def _passages(data: ReportData) -> tuple[list[dict[str, Any]] | Rows, int]:
     p = data.job.analysis.passages
     status = int((p["kind"] == "status").sum()) if len(p) else 0
     shown = p[p["kind"] != "status"] if status else p
-    # The same passage objects as `trackside analyze --json`.
-    return list(json.loads(passages_json_text(shown))), status
+    # The same passage objects as `trackside analyze --json`, written from the table.
+    return PassageFrameRows(shown), status
 
 
 def _ledger_summary(result: SectionsResult) -> list[dict[str, Any]]:
