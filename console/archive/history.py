@@ -92,7 +92,7 @@ def report_data(
 
     findings: list[Finding] = []
     if job == "history":
-        found = history_diag(root, m, layout, settings, window)
+        found = history_diag(root, m, layout, settings, window, reports)
         job = None if found is None else found.job
         if found is not None:
             streamed = (found.channel_events, found.warnings, found.sections)
