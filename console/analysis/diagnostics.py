@@ -609,7 +609,7 @@ def frame_columns(p: pd.DataFrame) -> tuple[Columns, list[tuple[int, str]]] | No
         if c in ("direction", "whole_train_basis", "kind"):
             values = {"direction": PASSAGE_DIRECTIONS, "whole_train_basis": PASSAGE_BASES, "kind": PASSAGE_KINDS}[c]
             known = [v for v in values if v is not None]
-            code = pd.Index(known).get_indexer(p[c].to_numpy(object)).astype(np.int8)  # -1: null or unknown
+            code = pd.Index(known).get_indexer(pd.Index(p[c].to_numpy(object))).astype(np.int8)  # -1: null, unknown
             if values[0] is None:
                 if ((code < 0) != p[c].isna().to_numpy()).any():
                     return None
