@@ -222,7 +222,7 @@ def big_commands(big: Path) -> dict[str, list[str]]:
     ask = "import sys; from pathlib import Path; from console.archive.views import run_query; "
     ask += "t, h = run_query(Path(sys.argv[1]), sys.argv[2])[1][0]; print(t.isoformat()); print(h)"
     lines = subprocess.run([sys.executable, "-c", ask, str(big), sql], capture_output=True, text=True, check=True)
-    first, head = lines.stdout.splitlines()
+    first, head = lines.stdout.splitlines()[-2:]  # after DuckDB's progress bar, if a slow machine shows one
     t_first = dt.datetime.fromisoformat(first)
 
     t_end = t_first + dt.timedelta(hours=1)
