@@ -3,6 +3,7 @@
     python benchmarks/gen_realistic_diag.py 3000000 r3m.log --truth r3m.json
     python benchmarks/bench_archive.py r3m.log --replicas 10 --work W3
     python benchmarks/bench_archive.py r3m.log --replicas 10 --work W3 --skip-ingest --skip-processes
+    python benchmarks/bench_archive.py --big W3/big --baseline /tmp/base --rounds 5
 
 1. ingest vs analyze vs report on the same log: wall time, CPU time and
    peak RSS of each child process (wait4's rusage); the ingest's phases
@@ -18,6 +19,10 @@
      through a new ``trackside query`` process (beside ``trackside --version``
      and ``query "SELECT 1"``: the start-up alone);
    * a one-day report: ``history.report_data`` and ``trackside report --archive``.
+
+``--big DIR`` times only the commands (one-day report, the two queries, start-up) on an existing big
+archive, read-only; with ``--baseline CHECKOUT`` each round runs that checkout's code too, alternately,
+and the outputs of both are compared byte for byte.
 
 On a shared machine compare the CPU seconds: wall time counts other jobs' turns.
 """
@@ -56,11 +61,13 @@ _LAST_OUT = [b""]
 _LAST_CPU = [0.0]
 
 
-def run(cmd: list[str], keep_stdout: bool = False) -> tuple[float, float]:
+def run(cmd: list[str], keep_stdout: bool = False, cwd: Path | None = None) -> tuple[float, float]:
     """Wall seconds and peak RSS (MB) of one child process; stdout discarded unless ``keep_stdout``."""
     with tempfile.TemporaryFile() as out_file:
         t0 = time.perf_counter()
-        proc = subprocess.Popen(cmd, stdout=out_file if keep_stdout else subprocess.DEVNULL, stderr=subprocess.PIPE)
+        proc = subprocess.Popen(
+            cmd, stdout=out_file if keep_stdout else subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=cwd
+        )
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t0
         err = proc.stderr.read().decode() if proc.stderr else ""
@@ -195,9 +202,86 @@ def median_run(cmd: list[str], runs: int = 3) -> str:
     return f"{statistics.median(walls):.3f} s (CPU {statistics.median(cpus):.3f} s)"
 
 
+# `trackside` as run from a checkout: its own console package first (python -c puts the directory first).
+LAUNCH = "import sys; sys.argv[0] = 'trackside'; from console.cli.app import app; app()"
+
+
+def load() -> str:
+    return "/".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def big_commands(big: Path) -> dict[str, list[str]]:
+    """The commands timed on a big archive: start-up, the two queries, the one-day report.
+
+    The first head and its first time are asked of a child process: this one stays small, since a child's
+    peak RSS counts the parent's pages it was forked with.
+    """
+    import datetime as dt
+
+    sql = "SELECT min(time), counting_head FROM records GROUP BY counting_head ORDER BY 2 LIMIT 1"
+    ask = "import sys; from pathlib import Path; from console.archive.views import run_query; "
+    ask += "t, h = run_query(Path(sys.argv[1]), sys.argv[2])[1][0]; print(t.isoformat()); print(h)"
+    lines = subprocess.run([sys.executable, "-c", ask, str(big), sql], capture_output=True, text=True, check=True)
+    first, head = lines.stdout.splitlines()[-2:]  # after DuckDB's progress bar, if a slow machine shows one
+    t_first = dt.datetime.fromisoformat(first)
+
+    t_end = t_first + dt.timedelta(hours=1)
+    hour_sql = (
+        f"SELECT * FROM records WHERE counting_head = '{head}' AND time >= TIMESTAMP '{t_first}'"
+        f" AND time < TIMESTAMP '{t_end}' AND day = DATE '{t_first.date()}'"
+    )
+    day0 = dt.datetime.combine(t_first.date(), dt.time())
+    day1 = day0 + dt.timedelta(days=1)
+    q = ["query", "--archive", str(big), "--format", "csv"]
+    return {
+        "trackside --version": ["--version"],
+        "query SELECT 1": [*q, "SELECT 1"],
+        "axles per head per day (query)": [*q, "--preset", "axles-per-head-per-day"],
+        "one hour of one head (query)": [*q, hour_sql],
+        "one-day report --format json": [
+            *["report", "--archive", str(big), "--from", day0.isoformat(), "--to", day1.isoformat()],
+            *["--format", "json"],
+        ],
+    }
+
+
+def compare_big(big: Path, baseline: Path | None, rounds: int) -> None:
+    """Each command ``rounds`` times, alternating this checkout and ``baseline``'s; medians of wall and CPU,
+    peak RSS; the outputs compared byte for byte."""
+    here = Path(__file__).resolve().parent.parent
+    sides = {"ours": here, **({"baseline": baseline.resolve()} if baseline is not None else {})}
+    print(f"big archive: {big} ({du(big) / 1e6:.0f} MB); {rounds} rounds; load {load()}")
+    for label, args in big_commands(big).items():
+        cmd = [sys.executable, "-c", LAUNCH, *args]
+        got: dict[str, list[tuple[float, float, float]]] = {k: [] for k in sides}
+        outs: dict[str, bytes] = {}
+        loads = []
+        for _ in range(rounds):
+            for side, cwd in sides.items():
+                wall, rss = run(cmd, keep_stdout=True, cwd=cwd)
+                got[side].append((wall, _LAST_CPU[0], rss))
+                outs.setdefault(side, _LAST_OUT[0])
+                if outs[side] != _LAST_OUT[0]:
+                    raise SystemExit(f"{label}: {side}'s output changed between runs")
+            loads.append(load())
+        line = f"{label:32s}"
+        for side, runs in got.items():
+            wall = statistics.median(w for w, _, _ in runs)
+            cpu = statistics.median(c for _, c, _ in runs)
+            line += f"  {side} {wall:.3f} s (CPU {cpu:.3f} s, min {min(c for _, c, _ in runs):.3f}) "
+            line += f"{max(r for _, _, r in runs):.0f} MB"
+        if baseline is not None:
+            line += "  same output" if outs["ours"] == outs["baseline"] else "  OUTPUT DIFFERS"
+        print(line + f"  load {loads[0]} .. {loads[-1]}", flush=True)
+    print(f"load at the end {load()}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("log", type=Path)
+    ap.add_argument("log", type=Path, nargs="?")
+    ap.add_argument("--big", type=Path, help="time the commands on this existing big archive only (read-only)")
+    ap.add_argument("--baseline", type=Path, help="with --big: also run this checkout's code, alternately")
+    ap.add_argument("--rounds", type=int, default=5, help="with --big: runs of each command per side (median)")
     ap.add_argument("--replicas", type=int, default=15)
     ap.add_argument("--skip-processes", action="store_true", help="no analyze, report or read-only runs")
     ap.add_argument("--skip-ingest", action="store_true", help="reuse WORK/arc (an archive of LOG, see --work)")
@@ -205,6 +289,11 @@ def main() -> None:
     ap.add_argument("--skip-reports", action="store_true", help="no one-day report timings")
     ap.add_argument("--work", type=Path, help="work directory, kept (default: a temporary one, removed)")
     args = ap.parse_args()
+    if args.big is not None:
+        compare_big(args.big, args.baseline, args.rounds)
+        return
+    if args.log is None:
+        ap.error("give LOG (or --big DIR)")
     work = args.work or Path(tempfile.mkdtemp(prefix="bench-archive-"))
     work.mkdir(parents=True, exist_ok=True)
     arc = work / "arc"

@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import os
 import re
+from typing import TYPE_CHECKING
 
-from rich.text import Text
+if TYPE_CHECKING:
+    from rich.text import Text
 
 # C0, DEL, C1, line/paragraph separators; bidi marks, embeddings, overrides
 # and isolates (U+061C, U+200E-200F, U+202A-202E, U+2066-2069); surrogates.
@@ -52,4 +54,6 @@ def show_path(path: str | os.PathLike[str] | os.PathLike[bytes] | bytes) -> str:
 
 def inert(value: object, style: str = "") -> Text:
     """A Rich Text that shows value literally: no markup, no escapes."""
+    from rich.text import Text  # here: most of what imports this module never draws with Rich
+
     return Text(clean(value), style=style)

@@ -130,3 +130,62 @@ def test_spool_encodes_held_batches_as_each_passage_alone(seed: int, monkeypatch
     assert same, f"first difference at {at}"
     assert sorted(spool.columns(["axles"])["axles"].tolist()) == sorted(cols["axles"].tolist())
     spool.close()
+
+
+@pytest.mark.parametrize("decimals", [None, 3, 6])
+def test_python_floats_are_what_json_reads_back(decimals: int | None) -> None:
+    """The report writes a passage's floats as Python writes what it read of pandas' text: ``1e-06``, not
+    ``0.000001``; the text as pandas wrote it where that is Python's shortest form."""
+    import json
+
+    rng = np.random.default_rng(10 + (decimals or 0))
+    v = 10.0 ** rng.uniform(-10, 15.9, 50_000) * rng.choice([-1.0, 1.0], 50_000)
+    if decimals is not None:
+        v = np.round(v, decimals)
+    v[::97] = np.nan
+    v[::89] = 0.0
+    v[::83] = -0.0
+    v[:9] = [1e-06, 0.0001, 0.00009999999999, 1e-05, 0.001, 1.0, 0.5, 12345678.901, 1e15 + 0.5]
+    tokens = pj._python_floats(v)
+    assert tokens is not None
+    pandas_text = pd.Series(v).to_json(orient="values", double_precision=10)
+    assert _tokens(tokens) == [json.dumps(x) for x in json.loads(pandas_text)]
+
+
+@pytest.mark.parametrize("log", sorted(p.name for p in SAMPLES.glob("*.log")))
+@pytest.mark.parametrize("depth", [1, 3])
+def test_indented_objects_are_the_report_json(log: str, depth: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The passages laid out as ``json.dumps(indent=1)`` lays out what ``json.loads`` reads of the pandas
+    text, ``depth`` levels deep: from the table the archive reads, in one batch and in many."""
+    import json
+
+    from console.analysis.diagnostics import frame_columns
+    from console.report.jsonwrite import indented
+
+    p = whole_job([SAMPLES / log], SpeedSettings()).analysis.passages
+    if p.empty:
+        return
+    expected = indented(json.loads(passages_json_text(p)), depth)
+    found = frame_columns(p)
+    assert found is not None
+    for rows, cells in ((8192, 1 << 18), (7, 20)):
+        monkeypatch.setattr(pj, "_BATCH_ROWS", rows)
+        monkeypatch.setattr(pj, "_BATCH_CELLS", cells)
+        blobs = pj.indented_objects(*found, depth)
+        assert blobs is not None
+        got = "[" + b"".join(blobs).decode("ascii") + "\n" + " " * depth + "]"
+        assert got == expected
+
+
+def test_frame_columns_refuse_what_has_no_code() -> None:
+    from console.analysis.diagnostics import frame_columns
+
+    p = whole_job([SAMPLES / "example_station.log"], SpeedSettings()).analysis.passages
+    assert frame_columns(p) is not None
+    odd = p.copy()
+    odd.loc[odd.index[0], "kind"] = "tram"
+    assert frame_columns(odd) is None
+    odd = p.copy()
+    odd["direction"] = odd["direction"].astype(object)
+    odd.loc[odd.index[0], "direction"] = "sideways"
+    assert frame_columns(odd) is None

@@ -36,7 +36,7 @@ from console.analysis.health import Severity
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
 from console.output_path import write_atomic
-from console.report import command
+from console.report import command, html
 from console.report.collect import expand
 from console.report.command import run_report
 from console.report.model import ReportData, document, natural_key
@@ -162,7 +162,7 @@ def test_a_failed_render_leaves_the_old_report_untouched(
     def broken(*args: object) -> str:
         raise RuntimeError("renderer crashed half-way")
 
-    monkeypatch.setattr(command, "render_html", broken)
+    monkeypatch.setattr(html, "render_html", broken)  # the command imports it when asked for HTML
     code, out, err = _report(capsys, list(SAMPLE_INPUTS), "html", "example", output=target)
     assert code == 2 and out == ""
     assert err.startswith("trackside: error: internal error: RuntimeError") and err.count("\n") == 1

@@ -32,7 +32,7 @@ from console.jsonout import valid_unicode
 from console.layout import load_layout
 from console.render.section_history import SPILL_BLOCK_BYTES, LedgerText
 from console.render.section_tables import sections_json
-from console.report import command, outline
+from console.report import command, markdown, outline
 from console.report.collect import collect
 from console.report.command import CHUNK_CHARS, render, render_to, run_report
 from console.report.jsonwrite import Rows, indented, write_json
@@ -267,7 +267,7 @@ def test_o_writes_a_temporary_file_in_pieces_and_a_failure_half_way_leaves_the_o
         seen.extend(p.stat().st_size for p in tmp_path.glob(".report.md.*.tmp"))
         raise RuntimeError("renderer crashed half-way")
 
-    monkeypatch.setattr(command, "render_markdown", half_way)
+    monkeypatch.setattr(markdown, "render_markdown", half_way)  # the command imports it when asked for Markdown
     code = run_report(SAMPLES, "example", "md", target, None)
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("trackside: error: internal error: RuntimeError")

@@ -588,6 +588,41 @@ PASSAGE_COLUMNS = (
 )
 
 
+def frame_columns(p: pd.DataFrame) -> tuple[Columns, list[tuple[int, str]]] | None:
+    """The columns and heads :func:`passages_frame` makes ``p`` of (its rows in its order), for the
+    byte encoders; None where a value has no such form (a null head, count or flag, a text with no code)."""
+    import pandas as pd
+
+    ints = ("start_ns", "end_ns", "records", "detections_sys1", "detections_sys2", "axles")
+    if any(p[c].dtype.kind not in "iu" for c in (*ints, "device_id", "axle_speeds_start", "axle_speeds_stop")):
+        return None
+    if p["subsecond"].dtype.kind != "b" or p["counting_head"].isna().any():
+        return None
+    dev_code, devs = pd.factorize(p["device_id"].to_numpy(np.int64))
+    name_code, names = pd.factorize(p["counting_head"])
+    if not all(isinstance(n, str) for n in names):
+        return None
+    head, pairs = pd.factorize(dev_code.astype(np.int64) * max(len(names), 1) + name_code)
+    heads = [(int(devs[k // len(names)]), str(names[k % len(names)])) for k in pairs.tolist()]
+    cols: Columns = {"head": head.astype(np.int64)}
+    for c in PASSAGE_COLUMNS[2:]:
+        if c in ("direction", "whole_train_basis", "kind"):
+            values = {"direction": PASSAGE_DIRECTIONS, "whole_train_basis": PASSAGE_BASES, "kind": PASSAGE_KINDS}[c]
+            known = [v for v in values if v is not None]
+            code = pd.Index(known).get_indexer(pd.Index(p[c].to_numpy(object))).astype(np.int8)  # -1: null, unknown
+            if values[0] is None:
+                if ((code < 0) != p[c].isna().to_numpy()).any():
+                    return None
+                code = code + 1
+            elif (code < 0).any():
+                return None
+            cols[c] = code
+        else:
+            cols[c] = p[c].to_numpy()
+    cols["axle_speeds_kmh"] = np.asarray(p.attrs.get("axle_speeds_kmh", np.zeros(0)), np.float64)
+    return cols, heads
+
+
 def iso_strings(ns: pd.Series | np.ndarray) -> np.ndarray:
     """ISO 8601 strings in UTC with Z (:func:`timefmt.iso_array`: milliseconds at least), vectorized; None for NaN."""
     ints, ok = exact_ns(ns)

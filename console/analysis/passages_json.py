@@ -17,7 +17,8 @@ uses pandas.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,6 +34,42 @@ _NULL = np.frombuffer(b"null", np.uint8)
 # Rows × axle slots per batch of the per-axle lists: bounds the scratch memory.
 _BATCH_ROWS = 8192
 _BATCH_CELLS = 1 << 18
+
+
+@dataclass(frozen=True)
+class _Style:
+    """How a passage object is laid out: its brace, separators and closing, its per-axle list's, and
+    how floats are written."""
+
+    first: str
+    sep: str
+    colon: str
+    close: str
+    list_open: str
+    list_sep: str
+    list_close: str
+    python_floats: bool = False
+
+    def floats(self, values: np.ndarray) -> np.ndarray | None:
+        return _python_floats(values) if self.python_floats else _floats(values)
+
+
+def _indented_style(depth: int) -> _Style:
+    """An object ``depth`` levels deep as ``json.dumps(indent=1)`` writes it, floats as Python writes them."""
+
+    def pad(d: int) -> str:
+        return "\n" + " " * d
+
+    return _Style(
+        "{" + pad(depth + 1),
+        "," + pad(depth + 1),
+        ": ",
+        pad(depth) + "}",
+        "[" + pad(depth + 2),
+        "," + pad(depth + 2),
+        pad(depth + 1) + "]",
+        python_floats=True,
+    )
 
 
 def _const(text: str, n: int) -> np.ndarray:
@@ -55,6 +92,9 @@ def _digits(u: np.ndarray, width: int | None = None, keep_leading: bool = False)
         lead[:, -1] = False
         out[lead] = 0
     return out
+
+
+_COMPACT = _Style("{", ",", ":", "}", "[", ",", "]")
 
 
 def _with_null(tokens: np.ndarray, null: np.ndarray) -> np.ndarray:
@@ -113,6 +153,36 @@ def _floats(values: np.ndarray) -> np.ndarray | None:
         axis=1,
     )
     return _with_null(out, nan)
+
+
+def _python_floats(values: np.ndarray) -> np.ndarray | None:
+    """The floats as ``json.dumps`` writes what ``json.loads`` read from :func:`_floats`' text (Python's
+    shortest repr: ``1e-06`` where pandas writes ``0.000001``); NaN as null."""
+    tokens = _floats(values)
+    if tokens is None:
+        return None
+    v = np.asarray(values, np.float64)
+    nan = np.isnan(v)
+    a = np.abs(np.where(nan, 0.0, v))
+    # Decimals written: the bytes after the point.
+    decimals = np.count_nonzero((tokens != 0) & (np.cumsum(tokens == ord("."), axis=1) > 0), axis=1) - 1
+    # Where a float's spacing is below the last decimal written, no shorter decimal reads back as the same
+    # float, so the repr is the text as written (Python writes 1e-4 <= |v| < 1e16 without an exponent).
+    # The others (exponents, floats too coarse for ten decimals): repr of what json reads, once per value.
+    same = nan | (a == 0) | ((a >= 1e-4) & (np.spacing(a) * 10.0 ** np.maximum(decimals, 0) < 0.25))
+    other = np.flatnonzero(~same)
+    if len(other):
+        uniq, first, which = np.unique(v[other], return_index=True, return_inverse=True)
+        texts = []
+        for row in tokens[other[first]]:
+            texts.append(repr(float(row[row != 0].tobytes().decode("ascii"))).encode("ascii"))
+        width = max(tokens.shape[1], max(len(t) for t in texts))
+        table = np.zeros((len(uniq), width), np.uint8)
+        for i, t in enumerate(texts):
+            table[i, : len(t)] = np.frombuffer(t, np.uint8)
+        tokens = np.pad(tokens, ((0, 0), (0, width - tokens.shape[1])))  # a copy, wider where a repr is
+        tokens[other] = table[which.reshape(-1)]
+    return tokens
 
 
 def _texts(codes: np.ndarray, values: Sequence[str | None]) -> np.ndarray | None:
@@ -181,28 +251,38 @@ def _bools(values: np.ndarray) -> np.ndarray:
     return table[np.asarray(values, bool).astype(np.intp)]
 
 
-def _axle_lists(speeds: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray | None:
+def _choice(texts: tuple[str, str], pick: np.ndarray) -> np.ndarray:
+    """Per row, ``texts[1]`` where ``pick`` else ``texts[0]``, as bytes (padded with 0 bytes)."""
+    width = max(len(t) for t in texts)
+    table = np.zeros((2, width), np.uint8)
+    for i, t in enumerate(texts):
+        table[i, : len(t)] = np.frombuffer(t.encode("ascii"), np.uint8)
+    return table[np.asarray(pick, np.intp)]
+
+
+def _axle_lists(
+    speeds: np.ndarray, start: np.ndarray, stop: np.ndarray, style: _Style | None = None
+) -> np.ndarray | None:
     """Per row, ``[v,v,...]`` of its speeds ``speeds[start:stop]``, or null when empty."""
+    style = style or _COMPACT
     n = len(start)
     count = stop - start
     width = int(count.max()) if n else 0
     if width == 0:
         return _const("null", n).copy()
     lo, hi = int(start.min()), int(stop.max())
-    tok = _floats(np.round(speeds[lo:hi], 3))
+    tok = style.floats(np.round(speeds[lo:hi], 3))
     if tok is None:
         return None
     # Each token then its separator: a comma, or the closing bracket after a row's last.
     is_last = np.zeros(hi - lo, bool)
     is_last[(stop[count > 0] - 1) - lo] = True
-    sep = np.where(is_last, ord("]"), ord(",")).astype(np.uint8)[:, None]
-    tok = np.concatenate([tok, sep], axis=1)
+    tok = np.concatenate([tok, _choice((style.list_sep, style.list_close), is_last)], axis=1)
     tok = np.concatenate([tok, np.zeros((1, tok.shape[1]), np.uint8)])  # row -1: empty slot
     slot = np.arange(width)
     idx = np.where(slot < count[:, None], start[:, None] - lo + slot, -1)
     body = tok[idx].reshape(n, width * tok.shape[1])
-    opening = np.where(count > 0, ord("["), 0).astype(np.uint8)[:, None]
-    out = np.concatenate([opening, body], axis=1)
+    out = np.concatenate([_choice(("", style.list_open), count > 0), body], axis=1)
     return _with_null(out, count == 0)
 
 
@@ -219,8 +299,13 @@ def _batch(
     return flat[flat != 0].tobytes()
 
 
-def _rows(cols: Columns, heads: Heads, lo: int, hi: int, opening: str = "{") -> np.ndarray | None:
-    """Passages ``lo:hi`` as one row of bytes each: its JSON object, padded with 0 bytes (None: not covered)."""
+def _rows(
+    cols: Columns, heads: Heads, lo: int, hi: int, opening: str | None = None, style: _Style | None = None
+) -> np.ndarray | None:
+    """Passages ``lo:hi`` as one row of bytes each: its JSON object, padded with 0 bytes (None: not covered).
+
+    ``opening``: what comes before the first key (default the style's brace).
+    """
     from console.analysis.passages import AXLES_UNKNOWN_REASONS, axles_unknown_codes
     from console.analysis.wheels import DIRECTION_12, DIRECTION_21
 
@@ -231,42 +316,65 @@ def _rows(cols: Columns, heads: Heads, lo: int, hi: int, opening: str = "{") -> 
     head_dev, head_names = heads_at(heads, used)
     n_det = np.asarray(c["records_in_detection_second"], float)
     unknown = axles_unknown_codes(c["detections_sys1"], c["detections_sys2"])
+    style = style or _COMPACT
+    floats = style.floats
     parts: list[tuple[str, np.ndarray | None]] = [
-        (opening + '"device_id":', _ints(head_dev[head_code])),
-        (',"counting_head":', _texts(head_code, head_names)),
-        (',"start":', _iso(c["start_ns"])),
-        (',"end":', _iso(c["end_ns"])),
-        (',"duration_s":', _floats(np.round(np.asarray(c["duration_s"], float), 6))),
-        (',"records":', _ints(c["records"])),
-        (',"axles":', _ints(c["axles"])),
-        (',"axles_unknown_reason":', _texts(unknown, AXLES_UNKNOWN_REASONS)),
-        (',"detections_sys1":', _ints(c["detections_sys1"])),
-        (',"detections_sys2":', _ints(c["detections_sys2"])),
-        (',"direction":', _texts(c["direction"], [None, DIRECTION_12, DIRECTION_21, "mixed"])),
-        (',"detection_second":', _iso(c["detection_second_ns"])),
-        (',"records_in_detection_second":', _ints(np.nan_to_num(n_det).astype(np.int64), np.isnan(n_det))),
-        (',"speed_kmh_per_second_method":', _floats(np.round(c["speed_kmh_per_second_method"], 3))),
-        (',"speed_kmh_whole_train":', _floats(np.round(c["speed_kmh_whole_train"], 3))),
-        (',"speed_kmh_whole_train_min":', _floats(np.round(c["speed_kmh_whole_train_min"], 3))),
-        (',"speed_kmh_whole_train_max":', _floats(np.round(c["speed_kmh_whole_train_max"], 3))),
-        (',"whole_train_basis":', _texts(c["whole_train_basis"], [None, "detections", "records"])),
-        (',"whole_train_duration_s":', _floats(np.round(c["whole_train_duration_s"], 6))),
+        ("device_id", _ints(head_dev[head_code])),
+        ("counting_head", _texts(head_code, head_names)),
+        ("start", _iso(c["start_ns"])),
+        ("end", _iso(c["end_ns"])),
+        ("duration_s", floats(np.round(np.asarray(c["duration_s"], float), 6))),
+        ("records", _ints(c["records"])),
+        ("axles", _ints(c["axles"])),
+        ("axles_unknown_reason", _texts(unknown, AXLES_UNKNOWN_REASONS)),
+        ("detections_sys1", _ints(c["detections_sys1"])),
+        ("detections_sys2", _ints(c["detections_sys2"])),
+        ("direction", _texts(c["direction"], [None, DIRECTION_12, DIRECTION_21, "mixed"])),
+        ("detection_second", _iso(c["detection_second_ns"])),
+        ("records_in_detection_second", _ints(np.nan_to_num(n_det).astype(np.int64), np.isnan(n_det))),
+        ("speed_kmh_per_second_method", floats(np.round(c["speed_kmh_per_second_method"], 3))),
+        ("speed_kmh_whole_train", floats(np.round(c["speed_kmh_whole_train"], 3))),
+        ("speed_kmh_whole_train_min", floats(np.round(c["speed_kmh_whole_train_min"], 3))),
+        ("speed_kmh_whole_train_max", floats(np.round(c["speed_kmh_whole_train_max"], 3))),
+        ("whole_train_basis", _texts(c["whole_train_basis"], [None, "detections", "records"])),
+        ("whole_train_duration_s", floats(np.round(c["whole_train_duration_s"], 6))),
         (
-            ',"speed_kmh_per_axle":',
-            _axle_lists(cols["axle_speeds_kmh"], c["axle_speeds_start"], c["axle_speeds_stop"]),
+            "speed_kmh_per_axle",
+            _axle_lists(cols["axle_speeds_kmh"], c["axle_speeds_start"], c["axle_speeds_stop"], style),
         ),
-        (',"speed_kmh_per_axle_mean":', _floats(np.round(c["speed_kmh_per_axle_mean"], 3))),
-        (',"subsecond":', _bools(c["subsecond"])),
-        (',"time_resolution_s":', _floats(c["time_resolution_s"])),
-        (',"kind":', _texts(c["kind"], ["train", "damping", "status"])),
+        ("speed_kmh_per_axle_mean", floats(np.round(c["speed_kmh_per_axle_mean"], 3))),
+        ("subsecond", _bools(c["subsecond"])),
+        ("time_resolution_s", floats(c["time_resolution_s"])),
+        ("kind", _texts(c["kind"], ["train", "damping", "status"])),
     ]
     blocks = []
-    for key, tokens in parts:
+    for i, (key, tokens) in enumerate(parts):
         if tokens is None:
             return None
-        blocks += [_const(key, n), tokens]
-    blocks.append(_const("}", n))
+        before = (style.first if opening is None else opening) if i == 0 else style.sep
+        blocks += [_const(f'{before}"{key}"{style.colon}', n), tokens]
+    blocks.append(_const(style.close, n))
     return np.concatenate(blocks, axis=1)
+
+
+def indented_objects(cols: Columns, heads: Heads, depth: int) -> Iterator[bytes] | None:
+    """The passages as ``json.dumps(json.loads(text), indent=1)`` lays out the array of
+    :func:`encode_passages` ``depth`` levels deep (the report's JSON), without the brackets: each object
+    after a comma (the first without), a newline and its indent; in pieces of a batch of passages.
+
+    None if not covered; checked for every batch before the first is given.
+    """
+    style = _indented_style(depth + 1)
+    inner = "\n" + " " * (depth + 1)
+    blobs: list[bytes] = []
+    for lo, hi in _batches(cols):
+        rows = _rows(cols, heads, lo, hi, style=style)
+        if rows is None:
+            return None
+        seps = _choice(("," + inner, inner), np.arange(lo, hi) == 0)
+        flat = np.concatenate([seps, rows], axis=1).ravel()
+        blobs.append(flat[flat != 0].tobytes())
+    return iter(blobs)
 
 
 def _batches(cols: Columns) -> list[tuple[int, int]]:

@@ -74,7 +74,6 @@ def report_data(
     from console.analysis.health import Finding, sort_findings, voltage_margin_findings
     from console.report.collect import crossings_from_fixes, frames_from_tables, sections_into_report
     from console.report.model import InputFile, ReportData
-    from parsers.frames.can import count_frames_only
 
     m = manifest if manifest is not None else read_current(root)
     spec = layout_spec if layout_spec is not None else m.derived.get("layout")
@@ -88,7 +87,7 @@ def report_data(
 
     findings: list[Finding] = []
     if job == "history":
-        found = history_diag(root, m, layout, settings, window)
+        found = history_diag(root, m, layout, settings, window, reports)
         job = None if found is None else found.job
         if found is not None:
             streamed = (found.channel_events, found.warnings, found.sections)
@@ -117,6 +116,8 @@ def report_data(
         tables.append(frame_window(pd.concat(text, ignore_index=True), window))
         data.reports["frames"] = reports["frames"]
     if can:
+        from parsers.frames.can import count_frames_only  # here: it imports python-can
+
         tables.append(count_frames_only(frame_window(pd.concat(can, ignore_index=True), window)))
         data.reports["can"] = reports["can"]
     frames_from_tables(data, tables)

@@ -43,6 +43,7 @@ if TYPE_CHECKING:
     from console.analysis.inventory import DeviceInventory
     from console.analysis.sections import SectionsResult
     from console.layout import Layout
+    from parsers.report import ParseReport
 
 
 @dataclass
@@ -69,9 +70,17 @@ def derived_for(manifest: Manifest, layout_spec: str | None) -> bool:
 
 
 def history_diag(
-    root: Path, manifest: Manifest, layout: Layout | None, settings: SpeedSettings, window: Window
+    root: Path,
+    manifest: Manifest,
+    layout: Layout | None,
+    settings: SpeedSettings,
+    window: Window,
+    reports: dict[str, ParseReport] | None = None,
 ) -> HistoryDiag | None:
-    """The window's diagnostic analyses from the derived tables (None: no diagnostic records in it)."""
+    """The window's diagnostic analyses from the derived tables (None: no diagnostic records in it).
+
+    ``reports``: the archive's parse reports when the caller has read them (:func:`parse_reports`).
+    """
     # The health registers' records are read by pyarrow on a thread while DuckDB answers the rest:
     # both release the GIL for their reads (a 3 M-record day: 0.7 s and 1.0 s, now overlapped).
     pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackside-health")
@@ -88,7 +97,7 @@ def history_diag(
         sections = _sections(con, manifest, layout, window)
     finally:
         con.close()
-    report = parse_reports(root, manifest)["diagnostic"]
+    report = (reports if reports is not None else parse_reports(root, manifest))["diagnostic"]
     analysis = DiagAnalysis(
         settings=settings,
         devices=devices,
@@ -177,20 +186,31 @@ def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[
     # The analysis' passages hold floats (NaN where there is none) where the archive stores integers.
     as_float = {"detection_second_ns", "records_in_detection_second"}
     select = ", ".join(f'"{c}"::DOUBLE AS "{c}"' if c in as_float else f'"{c}"' for c in [*columns, "axle_speeds_kmh"])
-    df = con.execute(f"SELECT {select} FROM passages{where} ORDER BY start_ns", params).df()
-    # The batch lists passages head by head (heads in the order they first appear), each in time order.
+    query = con.sql(f"SELECT {select} FROM passages{where} ORDER BY start_ns", params=params)
+    table = query.to_arrow_table()
+    # Arrow's columns as DuckDB's DataFrame gives them (an empty one has no string dtype to take).
+    df = table.drop_columns(["axle_speeds_kmh"]).to_pandas() if table.num_rows else query.df()
+    # The batch lists passages head by head (heads in the order they first appear), each in time order:
+    # each (device, head) pair of the window looked up once.
+    device_code, devices = pd.factorize(df["device_id"], use_na_sentinel=False)
+    name_code, names = pd.factorize(df["counting_head"], use_na_sentinel=False)
+    pair_code, pairs = pd.factorize(device_code.astype(np.int64) * max(len(names), 1) + name_code)
     index = {h: i for i, h in enumerate(heads)}
-    pairs = zip(df["device_id"].tolist(), df["counting_head"].tolist(), strict=True)
-    rank = np.fromiter((index.get((d, None if n != n else n), len(index)) for d, n in pairs), np.int64, len(df))
-    df = df.iloc[np.argsort(rank, kind="stable")].reset_index(drop=True)
-    speeds = df.pop("axle_speeds_kmh")
-    n = np.fromiter((0 if v is None else len(v) for v in speeds), np.int64, len(speeds))
+
+    def rank(pair: int) -> int:
+        name = names[pair % len(names)]
+        return index.get((int(devices[pair // len(names)]), None if name != name else name), len(index))
+
+    pair_rank = np.array([rank(k) for k in pairs.tolist()], np.int64)
+    order = np.argsort(pair_rank[pair_code], kind="stable")
+    df = df.iloc[order].reset_index(drop=True)
+    speeds = table.column("axle_speeds_kmh").combine_chunks().take(order)
+    n = speeds.value_lengths().fill_null(0).to_numpy().astype(np.int64)
     stop = np.cumsum(n)
-    flat = [x for v in speeds if v is not None for x in v]
     df.insert(columns.index("speed_kmh_per_axle_mean"), "axle_speeds_start", stop - n)
     df.insert(columns.index("speed_kmh_per_axle_mean") + 1, "axle_speeds_stop", stop)
     df = df[list(PASSAGE_COLUMNS)]
-    df.attrs["axle_speeds_kmh"] = np.asarray(flat, np.float64)
+    df.attrs["axle_speeds_kmh"] = speeds.flatten().to_numpy(zero_copy_only=False).astype(np.float64)
     return df
 
 
@@ -199,26 +219,33 @@ def _inventory(con: duckdb.DuckDBPyConnection, window: Window) -> list[DeviceInv
     from console.analysis.inventory import IDENTITY_LABELS, DeviceInventory, IdentityValue, apply_identity
 
     where, params = window.where()
-    rows = con.execute(
-        # The first record's names: arg_min over the read position (a line is one record: no ties),
-        # cheaper than an ordered first().
-        "SELECT device_id, arg_min(device, file_seq::BIGINT * 4294967296 + line), "
-        "arg_min(type, file_seq::BIGINT * 4294967296 + line), "
-        "arg_min(gs, file_seq::BIGINT * 4294967296 + line), list(DISTINCT diag_id ORDER BY diag_id), "
-        "list(DISTINCT channel ORDER BY channel), count(*), min(time), max(time) "
-        f"FROM records{where} GROUP BY device_id ORDER BY device_id",
+    # One pass over the window's records, per device and head; the devices' figures gathered from their heads'.
+    # The first record's names: arg_min over the read position (a line is one record: no ties), cheaper
+    # than an ordered first().
+    pos = "file_seq::BIGINT * 4294967296 + line"
+    per_head = con.execute(
+        f"SELECT device_id, counting_head, min({pos}) AS first, arg_min(device, {pos}), arg_min(type, {pos}), "
+        f"arg_min(gs, {pos}), list(DISTINCT diag_id), list(DISTINCT channel), count(*), min(time), max(time) "
+        f"FROM records{where} GROUP BY device_id, counting_head ORDER BY device_id, first",
         params,
     ).fetchall()
-    if not rows:
+    if not per_head:
         return []
     # Heads per device in the order they first appear (the batch numbers heads so).
     heads: dict[int, list[str]] = {}
-    for device_id, head in con.execute(
-        f"SELECT device_id, counting_head FROM records{where} GROUP BY device_id, counting_head "
-        "ORDER BY device_id, min(file_seq::BIGINT * 4294967296 + line)",
-        params,
-    ).fetchall():
-        heads.setdefault(int(device_id), []).append(head)
+    rows = []
+    for device_id, head, _, device, type_, gs, diag_ids, channels, n, first, last in per_head:
+        device_id = int(device_id)
+        if device_id not in heads:
+            heads[device_id] = []
+            rows.append([device_id, device, type_, gs, set(diag_ids), set(channels), n, first, last])
+        else:
+            row = rows[-1]
+            row[4].update(diag_ids)
+            row[5].update(channels)
+            row[6] += n
+            row[7], row[8] = min(row[7], first), max(row[8], last)
+        heads[device_id].append(head)
     # Identity registers: each one's latest value (by time; ties: the later line).
     labels = sorted(IDENTITY_LABELS)
     ident_where = where + (" AND " if where else " WHERE ") + "label_canonical IN (SELECT unnest(?))"
@@ -241,9 +268,9 @@ def _inventory(con: duckdb.DuckDBPyConnection, window: Window) -> list[DeviceInv
             device=str(device),
             type=str(type_),
             gs=str(gs),
-            diag_ids=[int(x) for x in diag_ids],
+            diag_ids=sorted(int(x) for x in diag_ids),
             counting_heads=heads.get(int(device_id), []),
-            channels=[int(x) for x in channels],
+            channels=sorted(int(x) for x in channels),
             records=int(n),
             first_ns=_ns(first),
             last_ns=_ns(last),

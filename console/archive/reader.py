@@ -316,7 +316,7 @@ def parse_reports(root: Path, manifest: Manifest, only: set[int] | None = None) 
         rep.rejected_by_reason.update(Counter(e.get("rejected_by_reason", {})))
         rep.skipped.update(Counter(e.get("skipped", {})))
     if manifest.parts("rejected") and section_of:
-        con, _ = connect(root, manifest)
+        con, _ = connect(root, manifest, tables=("rejected",))
         try:
             rows = con.execute(
                 "SELECT file_seq, file, line, reason, text FROM rejected ORDER BY file_seq, line"

@@ -13,8 +13,10 @@ of the manifest it opened (the next ingest keeps them, see store.KEEP_MANIFESTS)
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Collection, Mapping
-from dataclasses import dataclass
+import threading
+from collections.abc import Callable, Collection, Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -152,6 +154,11 @@ def connect(
     import duckdb
 
     m = manifest if manifest is not None else read_current(root)
+    if spill_dir is None and sql is None and not computed:
+        shared = _SHARED.get(root.resolve())
+        cursor = shared.cursor(m, TABLES if tables is None else tables) if shared is not None else None
+        if cursor is not None:
+            return cursor, m
     config: dict[str, Any] = {"autoinstall_known_extensions": False, "autoload_known_extensions": False}
     if spill_dir is not None:
         config.update(memory_limit=INTERNAL_MEMORY_LIMIT, temp_directory=str(spill_dir), threads=2)
@@ -165,32 +172,95 @@ def connect(
         if table in only:
             # The query's WHERE drops every other partition anyway; one part stays to give the view its columns.
             rels = [r for r in rels if all(f"/{k}={only[table][k]}/" in r for k in only[table])] or rels[:1]
-        parts = [str(base / rel) for rel in rels]
-        if parts:
-            files = "[" + ", ".join(_quote(p) for p in parts) + "]"
-            hive = ""
-            if keys:
-                types = ", ".join(f"{_quote(k)}: {HIVE_TYPES[k]}" for k in keys)
-                hive = f", hive_partitioning = true, hive_types = {{{types}}}"
-            else:
-                hive = ", hive_partitioning = false"
-            # Partitioned tables share one schema: binding reads one footer, not thousands.
-            union = "" if keys else ", union_by_name = true"
-            casts = ", ".join(f"CAST({c} AS {t}) AS {c}" for c, t in COLUMN_TYPES.get(table, {}).items())
-            star = f"* REPLACE ({casts})" if casts else "*"
-            con.execute(f"CREATE VIEW {table} AS SELECT {star} FROM read_parquet({files}{union}{hive})")
-        else:
-            cols = EMPTY_COLUMNS.get(table, (("file", "VARCHAR"), ("line", "BIGINT")))
-            select = ", ".join(f"NULL::{typ} AS {name}" for name, typ in cols)
-            con.execute(f"CREATE VIEW {table} AS SELECT {select} WHERE false")
+        con.execute(_view(table, keys, [str(base / rel) for rel in rels]))
     for name, table in (computed or {}).items():  # views computed in Python (the forecasts), before the lock
         con.register(name, table)
+    _lock(con, base)
+    return con, m
+
+
+def _view(table: str, keys: tuple[str, ...], parts: list[str]) -> str:
+    """The statement that makes ``table``'s view over ``parts`` (none: an empty view with its columns)."""
+    if parts:
+        files = "[" + ", ".join(_quote(p) for p in parts) + "]"
+        hive = ""
+        if keys:
+            types = ", ".join(f"{_quote(k)}: {HIVE_TYPES[k]}" for k in keys)
+            hive = f", hive_partitioning = true, hive_types = {{{types}}}"
+        else:
+            hive = ", hive_partitioning = false"
+        # Partitioned tables share one schema: binding reads one footer, not thousands.
+        union = "" if keys else ", union_by_name = true"
+        casts = ", ".join(f"CAST({c} AS {t}) AS {c}" for c, t in COLUMN_TYPES.get(table, {}).items())
+        star = f"* REPLACE ({casts})" if casts else "*"
+        return f"CREATE OR REPLACE VIEW {table} AS SELECT {star} FROM read_parquet({files}{union}{hive})"
+    cols = EMPTY_COLUMNS.get(table, (("file", "VARCHAR"), ("line", "BIGINT")))
+    select = ", ".join(f"NULL::{typ} AS {name}" for name, typ in cols)
+    return f"CREATE OR REPLACE VIEW {table} AS SELECT {select} WHERE false"
+
+
+def _lock(con: duckdb.DuckDBPyConnection, base: Path) -> None:
     # Reading stays inside data/ (a list of thousands of allowed paths costs a quarter second to set); writing
     # anywhere is excluded by the statement check (only SELECT-like statements run).
     con.execute(f"SET allowed_directories = [{_quote(str(base / DATA) + '/')}]")
     con.execute("SET enable_external_access = false")
     con.execute("SET lock_configuration = true")
-    return con, m
+
+
+@dataclass
+class _Shared:
+    """One DuckDB database for every read of an archive in a scope (:func:`one_connection`): each
+    :func:`connect` gets a cursor on it, and each table's view is made once, when first asked for."""
+
+    root: Path
+    con: Any = None
+    generation: int | None = None
+    full: set[str] = field(default_factory=set)  # views over their parts (the others are empty)
+    guard: threading.Lock = field(default_factory=threading.Lock)
+
+    def cursor(self, m: Manifest, tables: Collection[str]) -> duckdb.DuckDBPyConnection | None:
+        """A cursor whose views of ``tables`` read their parts (None: ``m`` is another generation than the
+        database's, published meanwhile: that read gets a connection of its own, as outside the scope)."""
+        import duckdb
+
+        with self.guard:
+            if self.con is None:
+                con = duckdb.connect(
+                    ":memory:", config={"autoinstall_known_extensions": False, "autoload_known_extensions": False}
+                )
+                con.execute("SET GLOBAL TimeZone = 'UTC'")  # global: every cursor's
+                for table, keys in TABLES.items():
+                    con.execute(_view(table, keys, []))
+                _lock(con, self.root)
+                self.con, self.generation = con, m.generation
+            elif m.generation != self.generation:
+                return None
+            for table in set(tables) - self.full:
+                if table in TABLES:
+                    parts = [str(self.root / rel) for rel in m.parts(table)]
+                    self.con.execute(_view(table, TABLES[table], parts))
+                    self.full.add(table)
+            return self.con.cursor()
+
+
+_SHARED: dict[Path, _Shared] = {}
+
+
+@contextmanager
+def one_connection(root: Path) -> Iterator[None]:
+    """Within, the reads of ``root`` (:func:`connect`, but the ingest's spilling one and a query's own) share one
+    DuckDB database: a report opens one, not one per part it computes (each costs tens of ms)."""
+    key = root.resolve()
+    if key in _SHARED:  # nested: the outer scope's
+        yield
+        return
+    shared = _SHARED[key] = _Shared(key)
+    try:
+        yield
+    finally:
+        del _SHARED[key]
+        if shared.con is not None:
+            shared.con.close()
 
 
 def partition_filter(con: duckdb.DuckDBPyConnection, sql: str) -> dict[str, dict[str, str]]:

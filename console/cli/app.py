@@ -9,40 +9,68 @@ never a traceback).
 
 from __future__ import annotations
 
+import importlib
 import sys
 from typing import Annotated, Any
 
 import typer
+from typer.models import CommandInfo
 
 from console import __version__
-from console.cli.commands import (
-    analyze,
-    approach,
-    ato,
-    crossing,
-    follow,
-    forecast,
-    frames,
-    gnss,
-    health,
-    ingest,
-    query,
-    report,
-    sections,
-    simulate,
-    speeds,
-    station,
-)
 from console.cli.common import OUTPUT_ERRNOS, install_process_guards, output_failed
 from console.cli.examples import APP_EXAMPLES, EXAMPLES, epilog
+
+# The commands, in the order help lists them; each is the function of its name in console.cli.commands.<name>.
+COMMANDS = (
+    "analyze",
+    "speeds",
+    "sections",
+    "health",
+    "frames",
+    "approach",
+    "gnss",
+    "crossing",
+    "simulate",
+    "ato",
+    "station",
+    "report",
+    "follow",
+    "ingest",
+    "query",
+    "forecast",
+)
 
 __all__ = ["app"]
 
 
 class _Trackside(typer.Typer):
-    """The app, plus: output that fails outside a command body (``--help > /dev/full``) is one line, not a traceback."""
+    """The app, plus: output that fails outside a command body (``--help > /dev/full``) is one line, not a traceback;
+    and its commands' modules are imported when the commands are first asked for.
+
+    A command line that names a command (``trackside query …``) builds an app of that command alone: its help,
+    usage errors and run are the same (they never list the others), without importing and building the fifteen
+    others (a third of a short query's start-up).
+    """
+
+    _pending = False  # the commands are not registered yet
+
+    @property
+    def registered_commands(self) -> list[CommandInfo]:
+        if self._pending:
+            self._pending = False
+            _register(self, COMMANDS)
+        return self._registered
+
+    @registered_commands.setter
+    def registered_commands(self, value: list[CommandInfo]) -> None:
+        self._registered = value
 
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        named = sys.argv[1] if not args and not kwargs and len(sys.argv) > 1 else None
+        if self._pending and named in COMMANDS:
+            one = _new_app()
+            _register(one, (named,))
+            return one()
         try:
             return super().__call__(*args, **kwargs)
         except SystemExit as exc:
@@ -57,44 +85,32 @@ class _Trackside(typer.Typer):
             raise
 
 
-app = _Trackside(
-    name="trackside",
-    help="Terminal console and log analyzer for railway train detection.",
-    no_args_is_help=True,
-    # Shell completion: `trackside --install-completion` (bash, zsh, fish, PowerShell).
-    add_completion=True,
-    pretty_exceptions_enable=False,
-    # Help is plain text: Rich markup would eat examples such as `[[crossings]]`.
-    rich_markup_mode=None,
-    epilog=epilog(
-        APP_EXAMPLES,
-        "Exit codes: 0 ok; 1 findings (--strict, --fail-on); 2 bad input or usage; 130 Ctrl-C; 143 SIGTERM."
-        " A file argument '-' reads standard input. Walk-throughs and tables: the README and docs/.",
-    ),
-)
+def _new_app() -> _Trackside:
+    new = _Trackside(
+        name="trackside",
+        help="Terminal console and log analyzer for railway train detection.",
+        no_args_is_help=True,
+        # Shell completion: `trackside --install-completion` (bash, zsh, fish, PowerShell).
+        add_completion=True,
+        pretty_exceptions_enable=False,
+        # Help is plain text: Rich markup would eat examples such as `[[crossings]]`.
+        rich_markup_mode=None,
+        epilog=epilog(
+            APP_EXAMPLES,
+            "Exit codes: 0 ok; 1 findings (--strict, --fail-on); 2 bad input or usage; 130 Ctrl-C; 143 SIGTERM."
+            " A file argument '-' reads standard input. Walk-throughs and tables: the README and docs/.",
+        ),
+    )
+    new.callback()(main)
+    return new
 
-for _module in (
-    analyze,
-    speeds,
-    sections,
-    health,
-    frames,
-    approach,
-    gnss,
-    crossing,
-    simulate,
-    ato,
-    station,
-    report,
-    follow,
-    ingest,
-    query,
-    forecast,
-):
-    _name = _module.__name__.rsplit(".", 1)[1]
-    # A command without examples still works; tests/test_examples.py asks for them.
-    _examples = EXAMPLES.get(_name)
-    app.command(name=_name, epilog=epilog(_examples) if _examples else None)(getattr(_module, _name))
+
+def _register(target: typer.Typer, names: tuple[str, ...]) -> None:
+    for name in names:
+        module = importlib.import_module(f"console.cli.commands.{name}")
+        # A command without examples still works; tests/test_examples.py asks for them.
+        examples = EXAMPLES.get(name)
+        target.command(name=name, epilog=epilog(examples) if examples else None)(getattr(module, name))
 
 
 def _version(value: bool) -> None:
@@ -103,7 +119,6 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
-@app.callback()
 def main(
     ctx: typer.Context,
     version: Annotated[
@@ -113,3 +128,7 @@ def main(
     """Terminal console and log analyzer for railway train detection."""
     # Closed stdout, SIGTERM (exit 143, partial files removed) and the flush at exit.
     ctx.call_on_close(install_process_guards())
+
+
+app = _new_app()
+app._pending = True

@@ -12,10 +12,9 @@ import stat
 import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
-from rich.console import Console as RichConsole
 
 from console import exit_codes
 from console.cli.options import REJECTIONS_LISTED, STDIN
@@ -191,13 +190,32 @@ def install_process_guards() -> Callable[[], None]:
     return undo
 
 
-class Console(RichConsole):
-    """Rich's console, but a reader that stops early (``| head``) is not an error:
-    Rich exits 1 on a broken pipe; we stop quietly with 0."""
+if TYPE_CHECKING:
+    from rich.console import Console as RichConsole
 
-    def on_broken_pipe(self) -> None:
-        _silence_stdout()
-        raise SystemExit(exit_codes.OK)
+    class Console(RichConsole):
+        """Rich's console, quiet on a broken pipe (below)."""
+
+        def on_broken_pipe(self) -> None: ...
+
+
+def __getattr__(name: str) -> Any:
+    # Rich is imported when a command first asks for its console, not by every command that imports this
+    # module (a short query prints none: a tenth of its start-up).
+    if name != "Console":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from rich.console import Console as RichConsole
+
+    class Console(RichConsole):
+        """Rich's console, but a reader that stops early (``| head``) is not an error:
+        Rich exits 1 on a broken pipe; we stop quietly with 0."""
+
+        def on_broken_pipe(self) -> None:
+            _silence_stdout()
+            raise SystemExit(exit_codes.OK)
+
+    globals()["Console"] = Console
+    return Console
 
 
 def guard(fn: Callable[[], int]) -> int:

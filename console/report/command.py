@@ -24,9 +24,7 @@ from console.analysis.health import Severity
 from console.layout import LayoutError
 from console.output_path import STDOUT, OutputError, OutputTarget, check_output_file, open_output
 from console.report.collect import ReportInputError, collect
-from console.report.html import render_html
 from console.report.jsonwrite import Write, write_json
-from console.report.markdown import render_markdown
 from console.report.model import ReportData, document
 from console.safe_text import clean, show_path
 from parsers.sources import InputError
@@ -75,11 +73,16 @@ class _Pieces:
 def render_to(data: ReportData, fmt: str, write: Write) -> None:
     """The report in one format (md, html or json), handed to ``write`` piece by piece."""
     doc = document(data)
+    # Each renderer imported when its format is asked for (the HTML one brings the plots).
     if fmt == "json":
         write_json(doc, write)
     elif fmt == "md":
+        from console.report.markdown import render_markdown
+
         render_markdown(doc, write)
     else:
+        from console.report.html import render_html
+
         render_html(data, doc, write)
 
 

@@ -29,7 +29,7 @@ import json
 import math
 import re
 from collections import Counter
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, cast
 
@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from console import __version__
-from console.analysis.diagnostics import SpeedSettings, passages_json_text
+from console.analysis.diagnostics import SpeedSettings
 from console.analysis.events import DetectionEvent, EventKind
 from console.analysis.health import Finding, Severity
 from console.analysis.section_state import SectionState
@@ -47,12 +47,13 @@ from console.drivers.batch import DiagJob
 from console.layout import Layout
 from console.render.section_tables import sections_json
 from console.report.jsonwrite import Rows
-from console.report.spooled import LedgerFrameRows, ReportPassages, SectionHistory
+from console.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPassages, SectionHistory
 from parsers.report import ParseReport
 
 if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read (collect)
     from console.analysis.crossing_batch import CrossingRun
     from console.analysis.crossing_timeline import TimelineRow
+    from console.analysis.inventory import DeviceInventory
 
 SCHEMA = "trackside.report/1"
 
@@ -440,6 +441,11 @@ def _gnss_units(data: ReportData) -> list[dict[str, Any]] | Rows:
     return Rows(n, rows)
 
 
+def _devices(devices: Sequence[DeviceInventory]) -> Rows:
+    # A row made as it is written: a log where every record names its own head has a million heads in them.
+    return Rows(len(devices), lambda: (d.to_dict() for d in devices))
+
+
 def _passages(data: ReportData) -> tuple[list[dict[str, Any]] | Rows, int]:
     if data.passage_spool is not None:
         return data.passage_spool.rows(), data.passage_spool.status
@@ -448,8 +454,8 @@ def _passages(data: ReportData) -> tuple[list[dict[str, Any]] | Rows, int]:
     p = data.job.analysis.passages
     status = int((p["kind"] == "status").sum()) if len(p) else 0
     shown = p[p["kind"] != "status"] if status else p
-    # The same passage objects as `trackside analyze --json`.
-    return list(json.loads(passages_json_text(shown))), status
+    # The same passage objects as `trackside analyze --json`, written from the table.
+    return PassageFrameRows(shown), status
 
 
 def _ledger_summary(result: SectionsResult) -> list[dict[str, Any]]:
@@ -600,7 +606,7 @@ def document(data: ReportData) -> dict[str, Any]:
         "worst_severity": None if worst is None else str(worst),
         "safety": {"unsafe": unsafe, "failing": failing, "items": [a.to_dict() for a in attention]},
         "inputs": _inputs(data),
-        "devices": [d.to_dict() for d in analysis.devices] if analysis is not None else [],
+        "devices": _devices(analysis.devices) if analysis is not None else [],
         "sensors": _sensors(data),
         "gnss_units": _gnss_units(data),
         "passages": passages,

@@ -152,6 +152,35 @@ class LedgerFrameRows(Rows):
         write("\n" + " " * depth + "]")
 
 
+class PassageFrameRows(Rows):
+    """Passages held as a table (the archive's, a whole read's): the same objects as ``analyze --json``'s,
+    their JSON written from the columns by the byte encoder (:func:`~console.analysis.passages_json.indented_objects`),
+    not a dict per passage decoded and encoded again; through the dicts where the encoder does not cover a value."""
+
+    def __init__(self, passages: pd.DataFrame) -> None:
+        super().__init__(len(passages), self._items)
+        self.passages = passages
+
+    def _items(self) -> Iterator[Any]:
+        from console.analysis.diagnostics import passages_json_text
+
+        return iter(json.loads(passages_json_text(self.passages)))
+
+    def write_json(self, write: Write, depth: int) -> None:
+        from console.analysis.diagnostics import frame_columns
+        from console.analysis.passages_json import indented_objects
+
+        found = frame_columns(self.passages) if self.count else None
+        blobs = indented_objects(*found, depth) if found is not None else None
+        if blobs is None:
+            super().write_json(write, depth)
+            return
+        write("[")
+        for blob in blobs:
+            write(blob.decode("ascii"))
+        write("\n" + " " * depth + "]")
+
+
 class _NotKept(Rows):
     """Rows counted, not spilled (a format that shows only their totals)."""
 

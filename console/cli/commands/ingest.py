@@ -6,12 +6,15 @@ import errno
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from console import exit_codes
-from console.cli.common import Console, fail, guard, print_json
+from console.cli.common import fail, guard, print_json
+
+if TYPE_CHECKING:
+    from console.cli.common import Console
 from console.fleet.options import EngineOpt, SchedulerOpt, WorkersOpt
 
 ArchiveOpt = Annotated[
@@ -55,6 +58,7 @@ def ingest(
     the last ingest stopped."""
     from console.archive.ingest import IngestSummary, run_ingest
     from console.archive.store import ArchiveError, archive_dir
+    from console.cli.common import Console
     from parsers.sources import InputError
 
     root = archive_dir(archive)

@@ -98,10 +98,17 @@ def report(
                 archive_collector(archive, layout, start, end, head, device), archive, start, end, head, device
             )
             collector = with_forecast(collector, archive, start, end, head)
+            from console.archive.store import archive_dir
+            from console.archive.views import one_connection
+
             err = Console(stderr=True, highlight=False)
             try:
-                # The archive's partitions the report computes run on the engine (a LocalCluster lives as long).
-                with engine_scope(spec, say=lambda line: err.print(line, markup=False, soft_wrap=True), console=err):
+                # The archive's partitions the report computes run on the engine (a LocalCluster lives as long);
+                # the report's reads of the archive share one DuckDB database.
+                with (
+                    engine_scope(spec, say=lambda line: err.print(line, markup=False, soft_wrap=True), console=err),
+                    one_connection(archive_dir(archive)),
+                ):
                     return run_report([], layout, fmt, output, fail_on, collector=collector)
             except FleetError as exc:
                 raise engine_failure(exc) from None
