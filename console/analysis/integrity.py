@@ -293,11 +293,13 @@ class IntegrityMonitor:
         chainage_m: float,
         speed_mps: float = math.nan,
         brake_pipe_bar: float = math.nan,
+        emergency: bool = False,
     ) -> list[IntegrityEvent]:
         """One fix of a train's head or EOT unit, received at ``t_ns`` (measured at ``t_fix_ns``);
-        ``brake_pipe_bar``: the pressure its report carried (NaN: none)."""
-        if not math.isnan(brake_pipe_bar):
-            self._brake(train, role, t_fix_ns, brake_pipe_bar)
+        ``brake_pipe_bar``: the pressure its report carried (NaN: none); ``emergency``: the report is
+        the unit's emergency status (its pipe venting)."""
+        if not math.isnan(brake_pipe_bar) or emergency:
+            self._brake(train, role, t_fix_ns, brake_pipe_bar, emergency)
         now = self._clock(t_ns)
         tr = self.trains.get(train)
         if tr is None or role not in (HEAD, EOT) or math.isnan(chainage_m):
@@ -433,19 +435,22 @@ class IntegrityMonitor:
         return abs(b.s_m - a.s_m) <= noise and vb.lag_m - va.lag_m > noise
 
     # -- the brake pipe ----------------------------------------------------
-    def brake_pipe(self, t_ns: int, t_meas_ns: int, train: str, role: str, bar: float) -> list[IntegrityEvent]:
+    def brake_pipe(
+        self, t_ns: int, t_meas_ns: int, train: str, role: str, bar: float, emergency: bool = False
+    ) -> list[IntegrityEvent]:
         """A unit's brake-pipe pressure (head: the front, EOT: the rear), measured at ``t_meas_ns``,
-        received at ``t_ns``: a periodic report's, or an emergency status sent at once."""
+        received at ``t_ns``: a periodic report's, or an emergency status sent at once
+        (``emergency``: the unit saw its pipe venting)."""
         now = self._clock(t_ns)
-        if not math.isnan(bar):
-            self._brake(train, role, t_meas_ns, bar)
+        if not math.isnan(bar) or emergency:
+            self._brake(train, role, t_meas_ns, bar, emergency)
         return self._evaluate(now)
 
-    def _brake(self, train: str, role: str, t_meas_ns: int, bar: float) -> None:
+    def _brake(self, train: str, role: str, t_meas_ns: int, bar: float, emergency: bool = False) -> None:
         tr = self.trains.get(train)
         if tr is None or role not in (HEAD, EOT):
             return
-        tr.brake.report(role == EOT, t_meas_ns, bar)
+        tr.brake.report(role == EOT, t_meas_ns, bar, emergency)
         tr.brake_opinion = tr.brake.opinion(tr.length_m if tr.spec.length_known else None)
 
     # -- counters and sections ---------------------------------------------

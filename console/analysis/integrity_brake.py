@@ -26,6 +26,9 @@ last reading still charged, and at none that is not charged in between.
 * **doubt**: the rear vented and the front vented too (an emergency of the
   whole train), or its status since not known, or the rear's vent without a
   charged reading before it to date it;
+An EOT unit's emergency status (it saw its pipe venting by the rate of fall,
+before the level is down) counts as a vented reading at its measurement.
+
 * nothing, while the rear is charged, or no pressure is reported (units that
   do not report it, plain NMEA trackers): then the other witnesses decide.
 """
@@ -44,6 +47,7 @@ VENTED_BAR = 2.5  # below: vented (an emergency); a full service application lea
 CHARGED_BAR = 3.2  # at or above: charged (running, or service braking)
 FASTEST_WAVE_MPS = 340.0  # no reduction runs along the pipe faster than sound in air
 SLOWEST_WAVE_MPS = 150.0  # an emergency reduction reaches the rear at least this fast (vent valves)
+ALARM_ONSET_S = 0.5  # an EOT unit's emergency status comes within this of the fall's start
 LONGEST_TRAIN_M = 1500.0  # where the train's length is not known
 REAR_FALL_S = 3.0  # the rear's reading falls below VENTED_BAR within this once the reduction arrives
 
@@ -62,28 +66,55 @@ class BrakePipeWitness:
     s: BrakeSettings = field(default_factory=BrakeSettings)
     front: list[tuple[int, float]] = field(default_factory=list)
     rear: list[tuple[int, float]] = field(default_factory=list)
+    alarms: list[int] = field(default_factory=list)  # the EOT unit's emergency statuses (measured at)
 
-    def report(self, rear: bool, t_ns: int, bar: float) -> None:
+    def report(self, rear: bool, t_ns: int, bar: float, emergency: bool = False) -> None:
+        """A reading; ``emergency``: the unit's own emergency status (it saw its pipe venting, by the
+        rate of fall, before the level is down): counted as vented (kept as a reading of 0 bar)."""
         readings = self.rear if rear else self.front
-        if readings and readings[-1] == (t_ns, bar):
+        reading = (t_ns, 0.0 if emergency else bar)
+        if reading in readings[-8:]:
             return  # a repeat of the same status (an alarm's retransmission)
-        insort(readings, (t_ns, bar))
-        k = bisect_left(readings, (readings[-1][0] - int(self.s.history_s * NS), -1.0))
+        insort(readings, reading)
+        if emergency and rear:
+            insort(self.alarms, t_ns)
+        horizon = readings[-1][0] - int(self.s.history_s * NS)
+        k = bisect_left(readings, (horizon, -1.0))
         if k > 0:
             del readings[:k]
+        k = bisect_left(self.alarms, horizon)
+        if k > 0:
+            del self.alarms[:k]
+
+    def _rear(self) -> list[tuple[int, float]]:
+        """The rear's readings, less those of a fall in progress: still above the vented level
+        within ``REAR_FALL_S`` after the unit's emergency status (the pipe is venting)."""
+        if not self.alarms:
+            return self.rear
+        fall = int(REAR_FALL_S * NS)
+        return [
+            (t, b)
+            for t, b in self.rear
+            if b < VENTED_BAR or not any(a <= t <= a + fall for a in self.alarms[bisect_left(self.alarms, t - fall) :])
+        ]
 
     def opinion(self, length_m: float | None) -> Opinion:
         """``length_m``: the pipe's length (the train's); None where only guessed (then no credit
         for the wave's travel, and the longest train's travel time allowed)."""
-        if not self.rear or self.rear[-1][1] >= VENTED_BAR:
+        rear = self._rear()
+        if not rear or rear[-1][1] >= VENTED_BAR:
             return NONE
         # The rear's vent: its first vented reading after the last one that was not.
-        k = len(self.rear) - 1
-        while k > 0 and self.rear[k - 1][1] < VENTED_BAR:
+        k = len(rear) - 1
+        while k > 0 and rear[k - 1][1] < VENTED_BAR:
             k -= 1
-        t_vent, bar_vent = self.rear[k]
-        t_before = self.rear[k - 1][0] if k > 0 else None
-        rear_txt = f"rear brake pipe vented ({bar_vent:.1f} bar at {_hms(t_vent)})"
+        t_vent, bar_vent = rear[k]
+        t_before = rear[k - 1][0] if k > 0 else None
+        if t_vent in self.alarms:
+            # The unit's emergency status: it saw the fall begin, within ALARM_ONSET_S of it.
+            t_before = max(t_before or 0, t_vent - int(ALARM_ONSET_S * NS))
+        what = f"{bar_vent:.1f} bar" if bar_vent > 0.0 else "emergency status"
+        rear_txt = f"rear brake pipe vented ({what} at {_hms(t_vent)})"
         if t_before is None:
             return Opinion("doubt", (BRAKE_PIPE,), (rear_txt + ", not seen charged before",), t_vent)
         clock_ns = int(2 * self.s.clock_offset_s * NS)

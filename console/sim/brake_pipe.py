@@ -10,7 +10,8 @@ fed from the cab).  A parting vents the rear part's pipe from the break:
 the rear reading falls after the rear part's length at ``WAVE_MPS``; the
 head part's pipe stays charged (the head part runs on under its ATO).
 
-The EOT unit sends an emergency status at once when its pipe vents
+The EOT unit sends an emergency status at once when it sees its pipe venting
+(falling faster than any service application lowers it)
 (:func:`emergency_times`): ``ALARM_REPEATS`` transmissions ``ALARM_GAP_S``
 apart, each on its own over the radio (a confirmed uplink retried).
 """
@@ -31,7 +32,8 @@ RECHARGE_REAR_BAR_S = 0.2
 HOLD_S = 30.0  # an emergency application is held this long after the train stands
 SENSOR_NOISE_BAR = 0.02
 RESOLUTION_BAR = 0.05  # the LoRa payload's (version 2)
-ALARM_BAR = 2.5  # the EOT unit's emergency: its pipe below this
+ALARM_BAR = 2.5  # below this the pipe vents at the emergency rate (the cab's demand)
+ALARM_FALL_BAR_S = 2.5  # the EOT unit's emergency: its pipe falling faster than this (service: 0.5 bar/s)
 ALARM_REPEATS = 3
 ALARM_GAP_S = 1.5
 
@@ -98,7 +100,9 @@ def reading(rng: np.random.Generator, bar: np.ndarray) -> np.ndarray:
 
 
 def emergency_times(t_s: np.ndarray, rear_bar: np.ndarray) -> np.ndarray:
-    """When the EOT unit's pipe falls below ``ALARM_BAR`` (each vent, not each step below it)."""
-    below = rear_bar < ALARM_BAR
-    onsets = np.flatnonzero(below & ~np.r_[False, below[:-1]])
+    """When the EOT unit sees its pipe venting: falling faster than ``ALARM_FALL_BAR_S`` over one
+    step of the grid (each vent once, not each step of it)."""
+    rate = np.r_[0.0, -np.diff(rear_bar) / np.maximum(np.diff(t_s), 1e-9)]
+    fast = rate > ALARM_FALL_BAR_S
+    onsets = np.flatnonzero(fast & ~np.r_[False, fast[:-1]])
     return t_s[onsets]

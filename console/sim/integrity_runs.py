@@ -169,16 +169,21 @@ def make_plan(rng: np.random.Generator, vmax: float, duration_s: float) -> Plan:
     phases: list[tuple[float, float]] = []  # (accel, duration)
     v = float(rng.uniform(0, vmax)) if rng.random() < 0.7 else 0.0
     v0 = v
+    emergency = False
     while sum(p[1] for p in phases) < duration_s:
         r = rng.random()
         if v == 0.0:
-            phases.append((0.0, float(rng.uniform(20, 120))))  # dwell
+            # dwell; after an emergency stop at least the brake's hold and the pipe's recharge
+            dwell = float(rng.uniform(20, 120))
+            phases.append((0.0, max(dwell, bp.HOLD_S + 30.0) if emergency else dwell))
+            emergency = False
             target = float(rng.uniform(5, vmax))
             a = float(rng.uniform(0.3, 1.0))
         elif r < 0.25:
             target, a = 0.0, -float(rng.uniform(0.5, 1.0))  # a station stop
         elif r < 0.28:
             target, a = 0.0, -float(rng.uniform(1.2, 1.5))  # an emergency stop, the train whole
+            emergency = True
         else:
             target = float(rng.uniform(5, vmax))
             a = float(rng.uniform(0.3, 1.0)) if target > v else -float(rng.uniform(0.4, 1.0))
@@ -218,6 +223,7 @@ class Truth:
     eot_fails_ns: int | None = None
     fixes_in_window: int = 0  # EOT fixes received measured within 2 report periods of the parting
     hours: float = 0.0
+    vent_s: float | None = None  # brake pipe: the parting → the vent reaching the EOT unit
 
 
 @dataclass
@@ -271,6 +277,7 @@ def simulate(layout: Layout, cond: Conditions) -> RunResult:
         rear_off = float(train.axles_m[cut])  # the rear part's first axle, from the head
         rear_len = L - rear_off
         rear_part_m = rear_len
+        truth.vent_s = rear_len / bp.WAVE_MPS
         dist, vel = rear_braking(rear_len, float(v_head[part_k]))
         n_after = len(t_grid) - part_k
         dist = np.r_[dist, np.full(max(0, n_after - len(dist)), dist[-1])][:n_after]
@@ -367,7 +374,7 @@ def _alarms(
     transmission lost, or delayed, on its own."""
     out: list[Item] = []
     for t_ev in bp.emergency_times(t_grid, rear_bar):
-        t_meas = float(t_ev) + 0.1  # the unit's sampling
+        t_meas = float(t_ev)  # the end of the grid step it fell in
         if fails_s is not None and t_meas >= fails_s:
             continue
         bar = float(bp.reading(rng, np.interp([t_meas], t_grid, rear_bar))[0])
@@ -376,7 +383,8 @@ def _alarms(
             lost = rng.random() < cond.loss
             rx = sent + rng.uniform(0.05, max(0.05, cond.latency_s))
             if not lost and sent < cond.duration_s:
-                out.append((START_NS + int(rx * NS), 2, (EOT, START_NS + int((t_meas + offset_s) * NS), bar, 0.0)))
+                # The speed slot says it is the emergency status (1.0), not a periodic reading (0.0).
+                out.append((START_NS + int(rx * NS), 2, (EOT, START_NS + int((t_meas + offset_s) * NS), bar, 1.0)))
     return out
 
 
@@ -395,8 +403,8 @@ def run_monitor(
             role, t_fix, ch, v = item
             out += mon.fix(rx, t_fix, "T1", role, ch, v)
         elif kind == 2:
-            role, t_meas, bar, _ = item
-            out += mon.brake_pipe(rx, t_meas, "T1", role, bar)
+            role, t_meas, bar, alarm = item
+            out += mon.brake_pipe(rx, t_meas, "T1", role, bar, emergency=alarm > 0)
         else:
             e = DetectionEvent(item[1], EventKind.AXLE, item[0], direction, source="harness")
             out += mon.detection(e)
@@ -423,6 +431,7 @@ class Verdict:
     doubt_hours: float  # time spent doubtful on a whole train
     eot_doubt_s: float | None = None  # eot_loss: the loss → doubt
     brake_pipe: bool = False  # the units reported the brake pipe
+    vent_late: bool = False  # the vent reached the EOT later than the target less the clocks' allowance
 
 
 def judge(res: RunResult) -> Verdict:
@@ -488,6 +497,7 @@ def judge(res: RunResult) -> Verdict:
         doubt_ns / NS / 3600.0,
         eot_doubt_s,
         c.brake_pipe,
+        tr.vent_s is not None and tr.vent_s + 2 * c.clock_offset_s > 2 * c.period_s + c.latency_s,
     )
 
 
@@ -589,11 +599,21 @@ def _partings(parted: list[Verdict]) -> dict[str, object]:
             # No EOT fix measured within 2 report periods of the parting: no GNSS rule could have
             # seen it in time (all lost, or none due yet).
             "no_eot_fix_in_window": sum(v.fixes_in_window == 0 for v in sel),
+            # Brake pipe: the vent reached the EOT unit too late for any rule (its travel along the
+            # rear part, plus the units' clock allowance, beyond the target).
+            "vent_late": sum(v.vent_late for v in sel),
+            "within_target_vent_in_time": float(np.mean([bool(v.within_target) for v in sel if not v.vent_late]))
+            if any(not v.vent_late for v in sel)
+            else math.nan,
         }
     return {
         "parted_runs": len(parted),
         "missed": sum(v.missed for v in parted),
         "within_target": float(np.mean([bool(v.within_target) for v in parted])) if parted else math.nan,
         "median_detection_s": float(np.median(det)) if det else math.nan,
+        "vent_late": sum(v.vent_late for v in parted),
+        "within_target_vent_in_time": float(np.mean([bool(v.within_target) for v in parted if not v.vent_late]))
+        if any(not v.vent_late for v in parted)
+        else math.nan,
         "by_rate": by_rate,
     }
