@@ -55,7 +55,7 @@ def charged_until(t_end: float, period_s: float = 1.0) -> list[tuple[float, str,
 
 def test_the_rear_vented_while_the_front_stayed_charged_is_a_parting_with_its_evidence() -> None:
     mon = monitor()
-    events = feed(mon, [*charged_until(20.0), (20.5, EOT, 1.2), (21.0, HEAD, 5.0)])
+    events = feed(mon, [*charged_until(20.0), (20.5, EOT, 1.2), (21.5, HEAD, 5.0)])
     assert [e.state for e in events] == [DOUBTFUL, PARTED]
     parted = events[-1]
     assert parted.witnesses == (BRAKE_PIPE,)
@@ -74,6 +74,18 @@ def test_a_front_reading_from_before_the_vent_left_the_cab_does_not_part_the_tra
     mon.add_train(ConsistSpec("T1", 35.0, 8))
     events = feed(mon, [*charged_until(20.0), (20.5, EOT, 1.2), (20.6, HEAD, 5.0)])
     assert [e.state for e in events] == [DOUBTFUL]
+
+
+def test_a_front_reading_still_falling_after_the_cab_vented_is_not_charged_enough() -> None:
+    # A short train: the cab vents at 20.0 s, the EOT unit sees its pipe falling at 20.2 s (its
+    # emergency status, by the rate of fall), the front's reading is still 4.0 bar at 20.6 s (falling
+    # from 5 bar): that reading does not prove the front charged.
+    mon = IntegrityMonitor()
+    mon.add_train(ConsistSpec("T1", 35.0, 8))
+    out = feed(mon, charged_until(20.0))
+    out += mon.brake_pipe(at(20.5), at(20.2), "T1", EOT, 4.6, emergency=True)
+    out += feed(mon, [(20.6, HEAD, 4.0), (21.6, HEAD, 0.0)])
+    assert out and all(e.state == DOUBTFUL for e in out)
 
 
 def test_a_whole_train_emergency_vents_the_front_first_doubt_never_parted() -> None:
@@ -126,7 +138,7 @@ def test_service_braking_says_nothing() -> None:
 
 def test_parted_is_latched_whatever_the_pipe_says_after() -> None:
     mon = monitor()
-    events = feed(mon, [*charged_until(20.0), (20.5, EOT, 1.2), (21.0, HEAD, 5.0)])
+    events = feed(mon, [*charged_until(20.0), (20.5, EOT, 1.2), (21.5, HEAD, 5.0)])
     assert events[-1].state == PARTED
     later = feed(mon, [(t, EOT, 5.0) for t in range(30, 60)] + [(t + 0.5, HEAD, 0.0) for t in range(30, 60)])
     assert later == [] and mon.state("T1") == PARTED

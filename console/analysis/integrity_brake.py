@@ -13,7 +13,9 @@ A whole-train emergency vents the front first: the reduction travels back
 along the pipe, and no pressure wave in air travels faster than sound
 (``FASTEST_WAVE_MPS``).  So a front still charged at a moment the vent would
 already have had to leave the cab — the rear's first vented reading, less
-the pipe's length at the speed of sound, less the units' clock offsets — is
+the pipe's length at the speed of sound, plus the time the front's own
+reading may take to fall to what it read (from the highest it read before,
+at ``VENT_MIN_BAR_S`` at least) and the units' clock offsets — is
 a front that never vented: the rear vented on its own.  An emergency is held
 until the train stands and for ``emergency_hold_s`` after it, so a front
 seen charged again soon after a whole-train emergency is not possible
@@ -43,6 +45,7 @@ from console.analysis.timefmt import iso
 from parsers.units import NS
 
 BRAKE_PIPE = "brake_pipe"
+REGULATED_BAR = 5.0  # the cab charges the pipe to this
 VENTED_BAR = 2.5  # below: vented (an emergency); a full service application leaves about 3.5 bar
 CHARGED_BAR = 3.2  # at or above: charged (running, or service braking)
 FASTEST_WAVE_MPS = 340.0  # no reduction runs along the pipe faster than sound in air
@@ -50,6 +53,8 @@ SLOWEST_WAVE_MPS = 150.0  # an emergency reduction reaches the rear at least thi
 ALARM_ONSET_S = 0.5  # an EOT unit's emergency status comes within this of the fall's start
 LONGEST_TRAIN_M = 1500.0  # where the train's length is not known
 REAR_FALL_S = 3.0  # the rear's reading falls below VENTED_BAR within this once the reduction arrives
+VENT_MIN_BAR_S = 1.8  # a cab's emergency lowers the front's reading at least this fast (below 3.2 bar in 1 s)
+SENSOR_MARGIN_BAR = 0.1  # a reading's noise and resolution
 
 
 @dataclass(frozen=True)
@@ -131,7 +136,7 @@ class BrakePipeWitness:
             if bar < CHARGED_BAR:
                 why = f"{rear_txt} and the front too ({bar:.1f} bar at {_hms(t)}): an emergency of the whole train"
                 return Opinion("doubt", (BRAKE_PIPE,), (why,), t_vent)
-            if t_left <= t <= t_until:
+            if t_left + self._fall_ns(t, bar) <= t <= t_until:
                 why = (
                     f"{rear_txt} while the front stayed charged ({bar:.1f} bar at {_hms(t)}, "
                     f"{(t - t_vent) / NS:+.1f} s): an emergency at the rear the cab did not make"
@@ -140,6 +145,16 @@ class BrakePipeWitness:
         last = [b for t, b in self.front if t >= since]
         known = f"the front charged at its last reading ({last[-1]:.1f} bar)" if last else "the front's status unknown"
         return Opinion("doubt", (BRAKE_PIPE,), (f"{rear_txt}, {known}: not yet told from an emergency",), t_vent)
+
+    def _fall_ns(self, t_ns: int, bar: float) -> int:
+        """How long before ``t_ns`` the cab may have vented and the front still read ``bar``: a
+        reading falls from the highest the front read in the minute before (the regulated charge at
+        least) at ``VENT_MIN_BAR_S``
+        at least (a reading at full charge: a vent of a moment ago at most)."""
+        lo = bisect_left(self.front, (t_ns - 60 * NS, -1.0))
+        # A pipe recharging may have risen past its last reading: the regulated charge at least.
+        top = max([REGULATED_BAR, *(b for tt, b in self.front[lo:] if tt <= t_ns)])
+        return int(max(0.0, top + SENSOR_MARGIN_BAR - bar) / VENT_MIN_BAR_S * NS)
 
 
 def _hms(t_ns: int) -> str:
