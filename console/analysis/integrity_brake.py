@@ -158,4 +158,4 @@ class BrakePipeWitness:
 
 
 def _hms(t_ns: int) -> str:
-    return iso(t_ns)[11:21]
+    return (iso(t_ns) or "")[11:21]
