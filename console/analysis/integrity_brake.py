@@ -22,7 +22,8 @@ seen charged again soon after a whole-train emergency is not possible
 either; the rule only looks at front readings within that time of the rear's
 last reading still charged, and at none that is not charged in between.
 
-* **parted**: the rear vented (its first vented reading after a charged one)
+* **parted**: the rear vented (its first vented reading after a charged one;
+  readings between the two levels, a pipe recharging, arm no new vent)
   and a front reading charged, measured after the vent would have had to
   leave the cab, with no front reading below charged in between;
 * **doubt**: the rear vented and the front vented too (an emergency of the
@@ -109,12 +110,14 @@ class BrakePipeWitness:
         rear = self._rear()
         if not rear or rear[-1][1] >= VENTED_BAR:
             return NONE
-        # The rear's vent: its first vented reading after the last one that was not.
-        k = len(rear) - 1
-        while k > 0 and rear[k - 1][1] < VENTED_BAR:
-            k -= 1
-        t_vent, bar_vent = rear[k]
-        t_before = rear[k - 1][0] if k > 0 else None
+        # The rear's vent: its first vented reading after the last one charged.  Only a charged pipe
+        # arms it again: readings about the vented level (a pipe recharging slowly after an emergency)
+        # are no new vent.
+        j = len(rear) - 1
+        while j >= 0 and rear[j][1] < CHARGED_BAR:
+            j -= 1
+        t_vent, bar_vent = next(r for r in rear[j + 1 :] if r[1] < VENTED_BAR)
+        t_before = rear[j][0] if j >= 0 else None
         if t_vent in self.alarms:
             # The unit's emergency status: it saw the fall begin, within ALARM_ONSET_S of it.
             t_before = max(t_before or 0, t_vent - int(ALARM_ONSET_S * NS))

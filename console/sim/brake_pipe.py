@@ -87,7 +87,9 @@ def pipe(
     """(front, rear) pressure in bar on the grid ``t_s``."""
     demand = cab_demand(t_s, accel, speed)
     front = follow(t_s, demand, RECHARGE_FRONT_BAR_S)
-    rear_target = np.interp(t_s - length_m / WAVE_MPS, t_s, demand)
+    # Before the run the pipe was charged: a reduction made at its start reaches the rear after the
+    # pipe's length like any other.
+    rear_target = np.interp(t_s - length_m / WAVE_MPS, t_s, demand, left=NOMINAL_BAR)
     if parting_s is not None:
         rear_target[t_s >= parting_s + rear_part_m / WAVE_MPS] = 0.0
     return front, follow(t_s, rear_target, RECHARGE_REAR_BAR_S)
