@@ -5,10 +5,12 @@ seed gives the same runs as ``TRACKSIDE_INTEGRITY_RUNS=N`` in
 tests/test_integrity_runs.py, whose seed is 2026) and prints the summary as
 JSON: partings missed and detected within 2 report periods + latency,
 detection and doubt times by fix rate, false partings per 1,000 whole
-train-hours, EOT losses reported as doubt.
+train-hours, EOT losses reported as doubt.  The partings' figures are also
+split: ``brake_pipe`` (units that report the brake pipe and the EOT's
+emergency status, 70 % of the runs) and ``gnss_only`` (units that do not).
 
-    python benchmarks/integrity_sweep.py 6000 --seed 2026
-    python benchmarks/integrity_sweep.py 1000 --seed 2027 --kind whole   # more whole train-hours
+    python benchmarks/integrity_sweep.py 3000 --seed 2028
+    python benchmarks/integrity_sweep.py 1000 --seed 2029 --kind whole   # more whole train-hours
 """
 
 from __future__ import annotations

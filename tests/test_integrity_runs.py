@@ -6,9 +6,10 @@ noise, packet loss up to 30 %, radio latency, units' clock offsets, position
 jumps in half the runs; half the runs part (the rear part brakes to a stop on
 the force model), the others run whole for 20–60 minutes, some losing their
 EOT unit for good.  The monitor is the console's own, fed every fix, axle and
-section change in the order the console receives them.
+section change in the order the console receives them.  In 70 % of the runs
+the units also report the brake pipe (the EOT its emergency status at once).
 
-CI runs 60 runs (about 15 s).  The full sweep the issue asks for, on a seed
+CI runs 60 runs (about 20 s).  The full sweep the issue asks for, on a seed
 the rules were not tuned on:
 ``TRACKSIDE_INTEGRITY_RUNS=6000 python -m pytest tests/test_integrity_runs.py``.
 """
@@ -66,3 +67,21 @@ def test_detection_time_by_fix_rate(verdicts: list[Verdict]) -> None:
             continue
         late = [v.detected_s - 2 * v.period_s for v in sel if v.detected_s is not None]
         assert float(np.median(late)) <= 2.0 + 4.0, hz  # latency ≤ 2 s in these runs
+
+
+def test_the_sweep_has_units_with_and_without_the_brake_pipe(verdicts: list[Verdict]) -> None:
+    parted = [v for v in verdicts if v.kind == "parted"]
+    assert any(v.brake_pipe for v in parted) and any(not v.brake_pipe for v in parted)
+    # Whole trains with the brake pipe (their emergency stops vent it at both ends) are among the
+    # hours in which no train was seen parted (test_no_whole_train_is_seen_parted).
+    assert any(v.brake_pipe and v.kind == "whole" for v in verdicts)
+
+
+def test_with_the_brake_pipe_the_median_parting_is_seen_within_the_target(verdicts: list[Verdict]) -> None:
+    """2 report periods + latency: the EOT unit's emergency status comes at once, the head's next
+    report says the front stayed charged.  (The share within target, by fix rate, is in the note.)"""
+    bp = [v for v in verdicts if v.kind == "parted" and v.brake_pipe and v.detected_s is not None]
+    late = [v.detected_s - 2 * v.period_s for v in bp if v.detected_s is not None]
+    assert float(np.median(late)) <= 0.2  # latency ≥ 0.2 s in these runs
+    gnss = [v.detected_s for v in verdicts if v.kind == "parted" and not v.brake_pipe and v.detected_s is not None]
+    assert float(np.median([v.detected_s for v in bp if v.detected_s is not None])) < float(np.median(gnss))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import base64
 import json
 import math
+from dataclasses import replace
 
 import pytest
 from hypothesis import given, settings
@@ -13,6 +14,7 @@ from hypothesis import strategies as st
 from console.inputs.mqtt import UplinkLedger
 from parsers.gnss.lora import (
     PAYLOAD_BYTES,
+    PAYLOAD_BYTES_BRAKE,
     PayloadError,
     UnitReport,
     chirpstack_uplink,
@@ -43,6 +45,66 @@ def test_the_documented_example_encodes_and_decodes() -> None:
     assert decode_payload(raw) == DOC_REPORT
 
 
+# Version 2 (docs/lora-payload.md, "Version 2: the brake pipe"): the EOT unit's emergency status
+# and the head unit's periodic report with the front pressure.
+DOC_V2_EOT_HEX = "27 04 d2 0c 82 be 2f 3f 17 37 a0 05 76 35 7c b4 69 a5 3e 40 19 54"
+DOC_V2_EOT = replace(DOC_REPORT, version=2, brake_pipe_bar=4.2, emergency=True)
+DOC_V2_HEAD_HEX = "22 04 d2 0c 83 1d 74 3f 16 dd f5 05 76 35 7c be 69 a5 3e 40 3c 64"
+DOC_V2_HEAD = replace(
+    DOC_REPORT,
+    role="head",
+    lat_deg=20.9919348,
+    lon_deg=105.8463221,
+    battery_pct=95.0,
+    time_ns=1772437056 * 10**9 + 600_000_000,
+    version=2,
+    brake_pipe_bar=5.0,
+)
+
+
+def test_the_documented_version_2_examples_encode_and_decode() -> None:
+    for hex_, report, b64 in (
+        (DOC_V2_EOT_HEX, DOC_V2_EOT, "JwTSDIK+Lz8XN6AFdjV8tGmlPkAZVA=="),
+        (DOC_V2_HEAD_HEX, DOC_V2_HEAD, "IgTSDIMddD8W3fUFdjV8vmmlPkA8ZA=="),
+    ):
+        raw = bytes.fromhex(hex_)
+        assert len(raw) == PAYLOAD_BYTES_BRAKE
+        assert encode_payload(report) == raw
+        assert decode_payload(raw) == report
+        assert base64.b64encode(raw).decode() == b64
+
+
+def test_version_1_is_decoded_as_before_no_pressure_no_emergency() -> None:
+    r = decode_payload(bytes.fromhex(DOC_HEX))
+    assert r.version == 1 and math.isnan(r.brake_pipe_bar) and not r.emergency
+    # Its reserved bit stays refused; version 1 cannot carry a pressure.
+    with pytest.raises(PayloadError, match="reserved bit 0"):
+        decode_payload(bytes([0x17]) + bytes.fromhex(DOC_HEX)[1:])
+    with pytest.raises(PayloadError, match="version 2"):
+        encode_payload(replace(DOC_REPORT, brake_pipe_bar=5.0))
+
+
+@pytest.mark.parametrize(
+    ("patch", "reason"),
+    [
+        (lambda b: b[:-1], "expected 22 bytes for version 2"),
+        (lambda b: b + b"\x00", "expected 22 bytes for version 2"),
+        (lambda b: b[:21] + bytes([251]), "brake pipe: 12.55 bar"),
+        (lambda b: bytes([0x37]) + b[1:], "version: expected 1 or 2"),
+    ],
+)
+def test_version_2_faults_are_named(patch: object, reason: str) -> None:
+    raw = bytes.fromhex(DOC_V2_EOT_HEX)
+    with pytest.raises(PayloadError, match=reason):
+        decode_payload(patch(raw))  # type: ignore[operator]
+
+
+def test_an_unknown_pressure_is_0xff() -> None:
+    r = replace(DOC_V2_HEAD, brake_pipe_bar=math.nan)
+    raw = encode_payload(r)
+    assert raw[-1] == 0xFF and math.isnan(decode_payload(raw).brake_pipe_bar)
+
+
 reports = st.builds(
     UnitReport,
     role=st.sampled_from(["head", "eot", "other"]),
@@ -55,15 +117,22 @@ reports = st.builds(
     time_ns=st.tuples(st.integers(0, 2**32 - 1), st.integers(0, 99)).map(lambda sc: sc[0] * 10**9 + sc[1] * 10**7),
     valid=st.booleans(),
 )
+reports_v2 = st.builds(
+    replace,
+    reports,
+    version=st.just(2),
+    brake_pipe_bar=st.one_of(st.just(math.nan), st.integers(0, 250).map(lambda v: v / 20)),
+    emergency=st.booleans(),
+)
 
 
 @settings(max_examples=100, deadline=None)
-@given(reports)
+@given(st.one_of(reports, reports_v2))
 def test_any_report_on_the_field_grid_survives_a_round_trip(r: UnitReport) -> None:
     back = decode_payload(encode_payload(r))
-    for name in ("role", "train", "lat_deg", "lon_deg", "battery_pct", "time_ns", "valid"):
+    for name in ("role", "train", "lat_deg", "lon_deg", "battery_pct", "time_ns", "valid", "version", "emergency"):
         assert getattr(back, name) == getattr(r, name)
-    for name in ("speed_mps", "heading_deg"):
+    for name in ("speed_mps", "heading_deg", "brake_pipe_bar"):
         a, b = getattr(back, name), getattr(r, name)
         assert (math.isnan(a) and math.isnan(b)) or a == b
 
@@ -76,7 +145,7 @@ def test_any_bytes_decode_or_are_rejected_with_a_reason(data: bytes) -> None:
     except PayloadError as exc:
         assert str(exc)
     else:
-        assert len(data) == PAYLOAD_BYTES
+        assert len(data) == (PAYLOAD_BYTES if r.version == 1 else PAYLOAD_BYTES_BRAKE)
         assert -90 <= r.lat_deg <= 90 and -180 <= r.lon_deg <= 180
 
 

@@ -18,8 +18,12 @@ console checks it from what reaches it:
   a power loss) quiet, is a rear part that never passed.
 * **Sections**: the section the train left at that head must not stay
   occupied behind it (unless another followed train is in it).
+* **Brake pipe** (:mod:`console.analysis.integrity_brake`), where the units
+  report it: the rear pipe vented while the front stayed charged is
+  ``parted``; both vented (an emergency of the whole train) or the front's
+  status unknown is doubt.
 
-Fusion: ``parted`` on the GNSS witness alone, or on the counters' short
+Fusion: ``parted`` on the GNSS or the brake-pipe witness alone, or on the counters' short
 count and the section left occupied together, or on a GNSS separation
 doubt and a counters' separation doubt together; a short count with a
 consistent EOT fix measured after it is doubt, not parted (the counters
@@ -49,7 +53,9 @@ from typing import Any
 
 from console.analysis.crossing_evidence import DeviceEvidence, EvidenceLimits
 from console.analysis.events import DetectionEvent
-from console.analysis.integrity_counts import AXLES as AXLES  # the witnesses' names, re-exported
+from console.analysis.integrity_brake import BRAKE_PIPE as BRAKE_PIPE  # the witnesses' names, re-exported
+from console.analysis.integrity_brake import BrakePipeWitness, BrakeSettings
+from console.analysis.integrity_counts import AXLES as AXLES
 from console.analysis.integrity_counts import NONE, CountsWitness, HeadCheck, Opinion
 from console.analysis.integrity_counts import SECTIONS as SECTIONS
 from console.analysis.integrity_gnss import (
@@ -90,6 +96,7 @@ class IntegritySettings:
     stale_after_s: float = 30.0  # at least this long without a fix: the unit is stale
     counter_lag_s: float = 5.0  # axle events and section changes reach the monitor within this
     history_s: float = 240.0  # fixes and axle events kept
+    emergency_hold_s: float = 30.0  # an emergency brake application is held at least this long
 
     @property
     def stale_s(self) -> float:
@@ -200,6 +207,8 @@ class _Train:
     parted_by: Opinion | None = None
     rear_m: float | None = None
     events: list[IntegrityEvent] = field(default_factory=list)
+    brake: BrakePipeWitness = field(default_factory=BrakePipeWitness)
+    brake_opinion: Opinion = NONE
 
 
 class IntegrityMonitor:
@@ -228,6 +237,8 @@ class IntegrityMonitor:
         tr = self.trains.get(spec.train)
         if tr is None:
             tr = self.trains[spec.train] = _Train(spec, self._unit(), self._unit())
+            s = self.s
+            tr.brake = BrakePipeWitness(BrakeSettings(s.clock_offset_s, s.emergency_hold_s, s.history_s))
         tr.spec = spec
         if spec.length_known:
             tr.length_m = spec.length_m
@@ -243,7 +254,9 @@ class IntegrityMonitor:
             return []
         tr.parted_by = None
         tr.judged.clear()
-        tr.gnss = tr.counters = NONE
+        tr.gnss = tr.counters = tr.brake_opinion = NONE
+        tr.brake.front.clear()
+        tr.brake.rear.clear()
         tr.checks.clear()
         tr.rear_m = None
         if tr.state is None:
@@ -272,9 +285,21 @@ class IntegrityMonitor:
 
     # -- GNSS --------------------------------------------------------------
     def fix(
-        self, t_ns: int, t_fix_ns: int, train: str, role: str, chainage_m: float, speed_mps: float = math.nan
+        self,
+        t_ns: int,
+        t_fix_ns: int,
+        train: str,
+        role: str,
+        chainage_m: float,
+        speed_mps: float = math.nan,
+        brake_pipe_bar: float = math.nan,
+        emergency: bool = False,
     ) -> list[IntegrityEvent]:
-        """One fix of a train's head or EOT unit, received at ``t_ns`` (measured at ``t_fix_ns``)."""
+        """One fix of a train's head or EOT unit, received at ``t_ns`` (measured at ``t_fix_ns``);
+        ``brake_pipe_bar``: the pressure its report carried (NaN: none); ``emergency``: the report is
+        the unit's emergency status (its pipe venting)."""
+        if not math.isnan(brake_pipe_bar) or emergency:
+            self._brake(train, role, t_fix_ns, brake_pipe_bar, emergency)
         now = self._clock(t_ns)
         tr = self.trains.get(train)
         if tr is None or role not in (HEAD, EOT) or math.isnan(chainage_m):
@@ -409,7 +434,25 @@ class IntegrityMonitor:
         noise = 2 * self.lim.pos_allow_m
         return abs(b.s_m - a.s_m) <= noise and vb.lag_m - va.lag_m > noise
 
-    # -- counters and sections ---------------------------------------------
+    # -- the brake pipe ----------------------------------------------------
+    def brake_pipe(
+        self, t_ns: int, t_meas_ns: int, train: str, role: str, bar: float, emergency: bool = False
+    ) -> list[IntegrityEvent]:
+        """A unit's brake-pipe pressure (head: the front, EOT: the rear), measured at ``t_meas_ns``,
+        received at ``t_ns``: a periodic report's, or an emergency status sent at once
+        (``emergency``: the unit saw its pipe venting)."""
+        now = self._clock(t_ns)
+        if not math.isnan(bar) or emergency:
+            self._brake(train, role, t_meas_ns, bar, emergency)
+        return self._evaluate(now)
+
+    def _brake(self, train: str, role: str, t_meas_ns: int, bar: float, emergency: bool = False) -> None:
+        tr = self.trains.get(train)
+        if tr is None or role not in (HEAD, EOT):
+            return
+        tr.brake.report(role == EOT, t_meas_ns, bar, emergency)
+        tr.brake_opinion = tr.brake.opinion(tr.length_m if tr.spec.length_known else None)
+
     # -- counters and sections ---------------------------------------------
     def detection(self, e: DetectionEvent) -> list[IntegrityEvent]:
         """A counting head's event: an axle (counted for the train passing), or the counter's own doubt."""
@@ -492,16 +535,18 @@ class IntegrityMonitor:
         return bool(last) and now - max(last) > stale
 
     def _fuse(self, tr: _Train, now: int) -> tuple[str | None, Opinion]:
-        g, c = tr.gnss, tr.counters
+        g, c, b = tr.gnss, tr.counters, tr.brake_opinion
         stale = self._stale(tr, now)
         if self._silent(tr, now):
             # Both units silent: the train has left the line, or the data ended. Their last word
             # stands; only the counters can still change it.
             if c.level in ("none", "ok") or c.t_ns <= max(tr.head.last_fix_ns or 0, tr.eot.last_fix_ns or 0):
                 return None, NONE
-            g = stale = NONE
+            g = stale = b = NONE
         if g.level == PARTED:
             return PARTED, g
+        if b.level == PARTED:
+            return PARTED, b
         if c.level == PARTED:
             # A consistent EOT fix measured after the counters' check: the unit riding on the
             # last vehicle says the train is whole there; the counters disagree (doubt).
@@ -510,7 +555,7 @@ class IntegrityMonitor:
             return PARTED, c
         if g.level == "separation" and c.level == "separation":
             return PARTED, Opinion(PARTED, (*g.witnesses, *c.witnesses), (*g.evidence, *c.evidence), now)
-        doubts = [o for o in (stale, g, c) if o.level in ("doubt", "separation")]
+        doubts = [o for o in (stale, g, b, c) if o.level in ("doubt", "separation")]
         if doubts:
             return DOUBTFUL, Opinion(
                 "doubt",

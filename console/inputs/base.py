@@ -8,6 +8,7 @@ that cannot work at all) is a :class:`SourceError` from :meth:`Source.start`.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from abc import ABC, abstractmethod
@@ -51,6 +52,8 @@ class GnssFix:
     battery_pct: float | None = None
     meta: dict[str, Any] = field(default_factory=dict)  # fCnt, rssi, snr, gateways…
     recorded: bool = False  # read from a file: its own clock, not the console's, says when it happened
+    brake_pipe_bar: float = math.nan  # the unit's end of the brake pipe (LoRa payload version 2), NaN: none
+    emergency: bool = False  # the unit's emergency status: its brake pipe venting (sent at once)
 
 
 @dataclass(frozen=True, slots=True)

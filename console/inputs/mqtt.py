@@ -202,6 +202,8 @@ class MqttSource(Source):
                 role=unit.role if unit.role != "other" else "",
                 train=str(unit.train) if unit.train else "",
                 battery_pct=unit.battery_pct,
+                brake_pipe_bar=unit.brake_pipe_bar,
+                emergency=unit.emergency,
                 meta={
                     "network": up.network,
                     "f_cnt": up.f_cnt,

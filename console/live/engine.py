@@ -8,6 +8,7 @@ items, so the analysis state needs no locks.
 
 from __future__ import annotations
 
+import math
 import queue
 import signal
 import time
@@ -127,8 +128,12 @@ class LiveEngine:
                     # The monitor's verdict on this fix reaches the crossing units before they take it (a
                     # train parted by it is held at once), as the batch crossing run tells its partings.
                     if self.integrity is not None:
-                        self.integrity.fix(placed, item.t_fix_ns)
+                        self.integrity.fix(placed, item.t_fix_ns, item.brake_pipe_bar, item.emergency)
                     self.crossings.step(placed)
+                elif self.integrity is not None and (item.emergency or not math.isnan(item.brake_pipe_bar)):
+                    # No place on the track (no fix, say), but the brake pipe's status stands on its own.
+                    train, role = self.crossings.owner(item)
+                    self.integrity.brake_pipe(train, role, item.t_fix_ns, item.brake_pipe_bar, item.emergency)
         elif isinstance(item, CanFrame):
             self._live_bus = True
             self.can_frames += 1

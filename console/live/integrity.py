@@ -1,7 +1,8 @@
 """Train integrity, live: the fixes the crossing units get, the axles and section changes the
 counting heads give → :class:`~console.analysis.integrity.IntegrityMonitor` → ``type: integrity``.
 
-The fixes arrive placed on the track (:class:`~console.live.crossings.CrossingFollow`),
+The fixes arrive placed on the track (with the brake-pipe pressure and
+emergency status of units that report them: LoRa payload version 2) (:class:`~console.live.crossings.CrossingFollow`),
 with their units' own times: GNSS time, common to the head and the EOT unit
 (the monitor allows ``clock_offset_s`` between them).  The monitor's clock is
 the data's (the latest fix time), not the wall clock: a file followed from its
@@ -15,6 +16,7 @@ with another train's consist.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -44,13 +46,27 @@ class IntegrityFollow(Sink):
         self.events = 0
         self.clock_ns: int | None = None  # the data's clock: the latest unit time seen
 
-    def fix(self, f: Fix, t_unit_ns: int) -> None:
-        """A placed fix; ``t_unit_ns`` its unit's own time (not moved by the crossing units' skew rule)."""
+    def fix(self, f: Fix, t_unit_ns: int, brake_pipe_bar: float = math.nan, emergency: bool = False) -> None:
+        """A placed fix; ``t_unit_ns`` its unit's own time (not moved by the crossing units' skew rule);
+        the brake-pipe pressure and emergency status its report carried (LoRa version 2), if any."""
         self.clock_ns = t_unit_ns if self.clock_ns is None else max(self.clock_ns, t_unit_ns)
-        if f.train not in self.monitor.trains:
+        self._train(f.train)
+        self._out(
+            self.monitor.fix(
+                self.clock_ns, t_unit_ns, f.train, f.role, f.chainage_m, f.speed_mps, brake_pipe_bar, emergency
+            )
+        )
+
+    def brake_pipe(self, train: str, role: str, t_unit_ns: int, bar: float, emergency: bool = False) -> None:
+        """A unit's brake-pipe status without a fix placed on the track."""
+        self.clock_ns = t_unit_ns if self.clock_ns is None else max(self.clock_ns, t_unit_ns)
+        self._train(train)
+        self._out(self.monitor.brake_pipe(self.clock_ns, t_unit_ns, train, role, bar, emergency))
+
+    def _train(self, train: str) -> None:
+        if train not in self.monitor.trains:
             # The layout's consist is a guess for any one train: its length is learnt from its fixes.
-            self.monitor.add_train(ConsistSpec(f.train, self.length_m, self.axle_count, length_known=False))
-        self._out(self.monitor.fix(self.clock_ns, t_unit_ns, f.train, f.role, f.chainage_m, f.speed_mps))
+            self.monitor.add_train(ConsistSpec(train, self.length_m, self.axle_count, length_known=False))
 
     def detection(self, e: DetectionEvent) -> None:
         self._out(self.monitor.detection(e))

@@ -12,7 +12,9 @@ run's written files would hand them on:
   is what its records show (axles seen by one system only);
 * the fixes the radio delivered, each when it arrives, as recorded fixes of
   the units named as the written files name them, with the values the device
-  stream (``gnss_devices.csv``) holds.
+  stream (``gnss_devices.csv``) holds, and the brake-pipe pressure and
+  emergency status their LoRa uplinks carry (payload version 2, what
+  ``simulate --mqtt`` publishes; the written files have no place for them).
 
 The engine's clock is the simulation's.  Fixes are judged by their own time
 (recorded), and the crossing units' clock ticks as far as the radio's delay
@@ -120,7 +122,7 @@ class SimulatedConsole:
 
 def received_fix(f: SentFix) -> GnssFix:
     """A delivered fix as the console gets it from the device stream: the unit's name and the written values,
-    judged by its own (measurement) time."""
+    judged by its own (measurement) time; with the brake pipe its uplink carried."""
     w = as_written(f)
     return GnssFix(
         GNSS_SOURCE,
@@ -133,4 +135,6 @@ def received_fix(f: SentFix) -> GnssFix:
         time.monotonic(),
         role=f.role,
         recorded=True,
+        brake_pipe_bar=f.brake_pipe_bar,
+        emergency=f.emergency,
     )

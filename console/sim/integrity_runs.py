@@ -20,6 +20,13 @@ section states.
 * **eot_loss**: whole, but the EOT unit falls silent for good at a random
   moment.
 
+In most runs (``brake_pipe``) the units also report their brake-pipe
+pressure (:mod:`console.sim.brake_pipe`): the head the front's, the EOT
+the rear's, in every report (so with the fixes' loss and latency); the EOT
+unit sends an emergency status at once when its pipe vents, repeated, each
+transmission lost or delayed on its own.  The other runs are units that
+report no pressure (plain NMEA trackers): GNSS and the counters only.
+
 The motion is piecewise constant acceleration, evaluated with numpy; the
 monitor (:class:`~console.analysis.integrity.IntegrityMonitor`, the one the
 console runs) is fed every fix, axle and section change in the order the
@@ -30,7 +37,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -48,6 +55,7 @@ from console.analysis.integrity import (
 from console.analysis.section_state import SectionState
 from console.analysis.sections import SectionEngine
 from console.layout import Layout, layout_from_dict
+from console.sim import brake_pipe as bp
 from console.sim.dynamics import LEVEL_LINE, TrainState, scaled_train, step
 from parsers.units import NS
 
@@ -56,7 +64,9 @@ RATES_HZ = (2.5, 1.0, 0.5, 0.2, 0.1)
 LINE_M = 250_000.0
 DT_S = 0.2  # motion grid
 START_NS = 1_772_438_400 * NS
-# An input as the console receives it: (reception ns, 0 fix | 1 axle, (role or head, time ns, chainage m, speed m/s)).
+BRAKE_PIPE_SHARE = 0.7  # runs whose units report the brake pipe
+# An input as the console receives it: (reception ns, 0 fix | 1 axle | 2 brake pipe,
+# (role or head, time ns, chainage m or bar, speed m/s)).
 Item = tuple[int, int, tuple[str, int, float, float]]
 
 
@@ -133,6 +143,7 @@ class Conditions:
     parting_after_s: float = 300.0  # parted: the earliest moment it may part
     eot_fails_at_s: float | None = None
     seed: int = 0
+    brake_pipe: bool = False  # the units report the brake-pipe pressure (and the EOT its emergencies)
 
 
 @dataclass
@@ -158,16 +169,21 @@ def make_plan(rng: np.random.Generator, vmax: float, duration_s: float) -> Plan:
     phases: list[tuple[float, float]] = []  # (accel, duration)
     v = float(rng.uniform(0, vmax)) if rng.random() < 0.7 else 0.0
     v0 = v
+    emergency = False
     while sum(p[1] for p in phases) < duration_s:
         r = rng.random()
         if v == 0.0:
-            phases.append((0.0, float(rng.uniform(20, 120))))  # dwell
+            # dwell; after an emergency stop at least the brake's hold and the pipe's recharge
+            dwell = float(rng.uniform(20, 120))
+            phases.append((0.0, max(dwell, bp.HOLD_S + 30.0) if emergency else dwell))
+            emergency = False
             target = float(rng.uniform(5, vmax))
             a = float(rng.uniform(0.3, 1.0))
         elif r < 0.25:
             target, a = 0.0, -float(rng.uniform(0.5, 1.0))  # a station stop
         elif r < 0.28:
             target, a = 0.0, -float(rng.uniform(1.2, 1.5))  # an emergency stop, the train whole
+            emergency = True
         else:
             target = float(rng.uniform(5, vmax))
             a = float(rng.uniform(0.3, 1.0)) if target > v else -float(rng.uniform(0.4, 1.0))
@@ -207,6 +223,7 @@ class Truth:
     eot_fails_ns: int | None = None
     fixes_in_window: int = 0  # EOT fixes received measured within 2 report periods of the parting
     hours: float = 0.0
+    vent_s: float | None = None  # brake pipe: the parting → the vent reaching the EOT unit
 
 
 @dataclass
@@ -244,6 +261,7 @@ def simulate(layout: Layout, cond: Conditions) -> RunResult:
     s_eot, v_eot = s_head - L, v_head.copy()
     rear_idx = np.arange(0)
     part_k = None
+    rear_part_m = 0.0
     if cond.kind == "parted":
         # Couplings part under drawbar pull (running or accelerating), not while braking in buff.
         pulling = plan.accel_at(t_grid) >= 0
@@ -258,6 +276,8 @@ def simulate(layout: Layout, cond: Conditions) -> RunResult:
         front_len = float(train.axles_m[cut - 1])
         rear_off = float(train.axles_m[cut])  # the rear part's first axle, from the head
         rear_len = L - rear_off
+        rear_part_m = rear_len
+        truth.vent_s = rear_len / bp.WAVE_MPS
         dist, vel = rear_braking(rear_len, float(v_head[part_k]))
         n_after = len(t_grid) - part_k
         dist = np.r_[dist, np.full(max(0, n_after - len(dist)), dist[-1])][:n_after]
@@ -276,8 +296,14 @@ def simulate(layout: Layout, cond: Conditions) -> RunResult:
         eot_fails = cond.eot_fails_at_s
         truth.eot_fails_ns = START_NS + int(eot_fails * NS)
 
-    items: list[Item] = []  # (console time ns, 0 fix | 1 axle, what)
-    # -- GNSS fixes
+    items: list[Item] = []  # (console time ns, 0 fix | 1 axle | 2 brake pipe, what)
+    pressure = {HEAD: np.zeros(0), EOT: np.zeros(0)}
+    prng = np.random.default_rng([cond.seed, 26])  # its own draws: the GNSS of a run is the same without it
+    if cond.brake_pipe:
+        tp_s = None if part_k is None else float(t_grid[part_k])
+        front_bar, rear_bar = bp.pipe(t_grid, plan.accel_at(t_grid), v_head, L, tp_s, rear_part_m)
+        pressure = {HEAD: front_bar, EOT: rear_bar}
+    # -- GNSS fixes (and the pressure each report carries)
     for role, pos, vel in ((HEAD, s_head, v_head), (EOT, s_eot, v_eot)):
         phase = rng.uniform(0, cond.period_s)
         times = np.arange(phase, cond.duration_s, cond.period_s)
@@ -303,6 +329,14 @@ def simulate(layout: Layout, cond: Conditions) -> RunResult:
                     (role, START_NS + int((times[k] + offset) * NS), x0 + d * float(ch[k]), float(speed[k])),
                 )
             )
+        if cond.brake_pipe:
+            bar = bp.reading(prng, np.interp(times, t_grid, pressure[role]))
+            items += [
+                (START_NS + int(rx[k] * NS), 2, (role, START_NS + int((times[k] + offset) * NS), float(bar[k]), 0.0))
+                for k in range(len(times))
+            ]
+            if role == EOT:
+                items += _alarms(prng, cond, t_grid, pressure[EOT], offset, eot_fails)
     # -- axles at the counting heads
     heads = np.array([h.chainage_m for h in layout.heads])
     names = [h.id for h in layout.heads]
@@ -328,6 +362,32 @@ def simulate(layout: Layout, cond: Conditions) -> RunResult:
     return RunResult(cond, truth, events)
 
 
+def _alarms(
+    rng: np.random.Generator,
+    cond: Conditions,
+    t_grid: np.ndarray,
+    rear_bar: np.ndarray,
+    offset_s: float,
+    fails_s: float | None,
+) -> list[Item]:
+    """The EOT unit's emergency status, sent at once when its pipe vents and repeated: each
+    transmission lost, or delayed, on its own."""
+    out: list[Item] = []
+    for t_ev in bp.emergency_times(t_grid, rear_bar):
+        t_meas = float(t_ev)  # the end of the grid step it fell in
+        if fails_s is not None and t_meas >= fails_s:
+            continue
+        bar = float(bp.reading(rng, np.interp([t_meas], t_grid, rear_bar))[0])
+        for j in range(bp.ALARM_REPEATS):
+            sent = t_meas + j * bp.ALARM_GAP_S
+            lost = rng.random() < cond.loss
+            rx = sent + rng.uniform(0.05, max(0.05, cond.latency_s))
+            if not lost and sent < cond.duration_s:
+                # The speed slot says it is the emergency status (1.0), not a periodic reading (0.0).
+                out.append((START_NS + int(rx * NS), 2, (EOT, START_NS + int((t_meas + offset_s) * NS), bar, 1.0)))
+    return out
+
+
 def run_monitor(
     layout: Layout, cond: Conditions, train: Train, items: list[Item], direction: int
 ) -> list[IntegrityEvent]:
@@ -342,6 +402,9 @@ def run_monitor(
         if kind == 0:
             role, t_fix, ch, v = item
             out += mon.fix(rx, t_fix, "T1", role, ch, v)
+        elif kind == 2:
+            role, t_meas, bar, alarm = item
+            out += mon.brake_pipe(rx, t_meas, "T1", role, bar, emergency=alarm > 0)
         else:
             e = DetectionEvent(item[1], EventKind.AXLE, item[0], direction, source="harness")
             out += mon.detection(e)
@@ -367,6 +430,8 @@ class Verdict:
     hours: float
     doubt_hours: float  # time spent doubtful on a whole train
     eot_doubt_s: float | None = None  # eot_loss: the loss → doubt
+    brake_pipe: bool = False  # the units reported the brake pipe
+    vent_late: bool = False  # the vent reached the EOT later than the target less the clocks' allowance
 
 
 def judge(res: RunResult) -> Verdict:
@@ -431,6 +496,8 @@ def judge(res: RunResult) -> Verdict:
         hours,
         doubt_ns / NS / 3600.0,
         eot_doubt_s,
+        c.brake_pipe,
+        tr.vent_s is not None and tr.vent_s + 2 * c.clock_offset_s > 2 * c.period_s + c.latency_s,
     )
 
 
@@ -444,7 +511,7 @@ def random_conditions(rng: np.random.Generator, seed: int, kind: str | None = No
     """Across the issue's ranges: fixes at 0.1–2.5 Hz, noise ≤ 5 m, loss ≤ 30 %, jumps in half the runs."""
     kind = kind or str(rng.choice(KINDS, p=[0.5, 0.35, 0.15]))
     duration = float(rng.uniform(1200, 3600)) if kind != "parted" else float(rng.uniform(600, 1500))
-    return Conditions(
+    cond = Conditions(
         kind=kind,
         period_s=1.0 / float(rng.choice(RATES_HZ)),
         noise_m=float(rng.uniform(0, 5)),
@@ -461,6 +528,8 @@ def random_conditions(rng: np.random.Generator, seed: int, kind: str | None = No
         eot_fails_at_s=float(rng.uniform(60, duration - 300)) if kind == "eot_loss" else None,
         seed=seed,
     )
+    # Drawn last: the other conditions of a seed's runs are those they were without the brake pipe.
+    return replace(cond, brake_pipe=bool(rng.random() < BRAKE_PIPE_SHARE))
 
 
 def many_runs(
@@ -484,6 +553,33 @@ def many_runs(
 def summary(verdicts: list[Verdict]) -> dict[str, object]:
     parted = [v for v in verdicts if v.kind == "parted" and (v.detected_s is not None or v.missed)]
     whole_hours = sum(v.hours for v in verdicts)
+    false = sum(v.false_parted for v in verdicts)
+    eot = [v.eot_doubt_s for v in verdicts if v.eot_doubt_s is not None]
+    return {
+        "runs": len(verdicts),
+        **_partings(parted),
+        # Split: units that report the brake pipe, and units that do not (GNSS and counters only).
+        "brake_pipe": _partings([v for v in parted if v.brake_pipe]),
+        "gnss_only": _partings([v for v in parted if not v.brake_pipe]),
+        "whole_train_hours": whole_hours,
+        "false_parted": false,
+        "false_parted_per_1000_h": 1000.0 * false / whole_hours if whole_hours else math.nan,
+        "false_parted_brake_pipe_hours": sum(v.hours for v in verdicts if v.brake_pipe),
+        "false_parted_brake_pipe": sum(v.false_parted for v in verdicts if v.brake_pipe),
+        "eot_loss_runs": sum(v.kind == "eot_loss" for v in verdicts),
+        "eot_loss_as_doubt": sum(bool(v.eot_loss_doubt) for v in verdicts),
+        "eot_loss_doubt_median_s": float(np.median(eot)) if eot else math.nan,
+        "eot_loss_doubt_max_s": float(max(eot)) if eot else math.nan,
+        "doubt_share_whole": (
+            sum(v.doubt_hours for v in verdicts if v.kind != "eot_loss")
+            / sum(v.hours for v in verdicts if v.kind != "eot_loss")
+        )
+        if any(v.kind != "eot_loss" for v in verdicts)
+        else math.nan,
+    }
+
+
+def _partings(parted: list[Verdict]) -> dict[str, object]:
     det = [v.detected_s for v in parted if v.detected_s is not None]
     by_rate: dict[str, dict[str, object]] = {}
     for hz in RATES_HZ:
@@ -503,27 +599,21 @@ def summary(verdicts: list[Verdict]) -> dict[str, object]:
             # No EOT fix measured within 2 report periods of the parting: no GNSS rule could have
             # seen it in time (all lost, or none due yet).
             "no_eot_fix_in_window": sum(v.fixes_in_window == 0 for v in sel),
+            # Brake pipe: the vent reached the EOT unit too late for any rule (its travel along the
+            # rear part, plus the units' clock allowance, beyond the target).
+            "vent_late": sum(v.vent_late for v in sel),
+            "within_target_vent_in_time": float(np.mean([bool(v.within_target) for v in sel if not v.vent_late]))
+            if any(not v.vent_late for v in sel)
+            else math.nan,
         }
-    false = sum(v.false_parted for v in verdicts)
-    eot = [v.eot_doubt_s for v in verdicts if v.eot_doubt_s is not None]
     return {
-        "runs": len(verdicts),
         "parted_runs": len(parted),
         "missed": sum(v.missed for v in parted),
         "within_target": float(np.mean([bool(v.within_target) for v in parted])) if parted else math.nan,
         "median_detection_s": float(np.median(det)) if det else math.nan,
-        "by_rate": by_rate,
-        "whole_train_hours": whole_hours,
-        "false_parted": false,
-        "false_parted_per_1000_h": 1000.0 * false / whole_hours if whole_hours else math.nan,
-        "eot_loss_runs": sum(v.kind == "eot_loss" for v in verdicts),
-        "eot_loss_as_doubt": sum(bool(v.eot_loss_doubt) for v in verdicts),
-        "eot_loss_doubt_median_s": float(np.median(eot)) if eot else math.nan,
-        "eot_loss_doubt_max_s": float(max(eot)) if eot else math.nan,
-        "doubt_share_whole": (
-            sum(v.doubt_hours for v in verdicts if v.kind != "eot_loss")
-            / sum(v.hours for v in verdicts if v.kind != "eot_loss")
-        )
-        if any(v.kind != "eot_loss" for v in verdicts)
+        "vent_late": sum(v.vent_late for v in parted),
+        "within_target_vent_in_time": float(np.mean([bool(v.within_target) for v in parted if not v.vent_late]))
+        if any(not v.vent_late for v in parted)
         else math.nan,
+        "by_rate": by_rate,
     }

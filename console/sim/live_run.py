@@ -77,6 +77,10 @@ class UplinkPublisher:
                 battery_pct=95.0,
                 time_ns=f.t_ns,
                 valid=f.valid,
+                # Units that report their brake pipe send version 2 (docs/lora-payload.md).
+                version=1 if math.isnan(f.brake_pipe_bar) and not f.emergency else 2,
+                brake_pipe_bar=f.brake_pipe_bar,
+                emergency=f.emergency,
             )
         )
         doc = chirpstack_uplink(

@@ -38,6 +38,7 @@ from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingEve
 from console.analysis.geo import TrackProjector
 from console.analysis.wheels import SYS1, SYS2
 from console.layout import Consist, Layout
+from console.sim import brake_pipe as bp
 from console.sim.devices import line_devices, with_devices
 from console.sim.dynamics import LEVEL_LINE, TrainState, scaled_train
 from console.sim.parting import PartingTruth, braking_step, part_consist, split_axles
@@ -122,6 +123,9 @@ class SimTrain:
     units: tuple[str, ...] = ("head", "eot")  # the GNSS units riding on it
     axle_offset: int = 0  # a rear part's first axle, in the whole consist's numbering
     rear: SimTrain | None = None  # the rear part, once the train has parted
+    pipe_bar: float = bp.NOMINAL_BAR  # its brake pipe (both ends: the reduction's travel is neglected)
+    vent_from_s: float | None = None  # a rear part: its pipe vents from then (the break's wave at the EOT)
+    alarms_s: list[float] = field(default_factory=list)  # the EOT unit's emergency statuses still to send
 
     @property
     def tail_m(self) -> float:
@@ -160,6 +164,8 @@ class SentFix:
     speed_mps: float
     course_deg: float
     valid: bool
+    brake_pipe_bar: float = math.nan  # the unit's end of the brake pipe (the LoRa payload's version 2)
+    emergency: bool = False  # the unit's emergency status: its brake pipe venting, sent at once
 
 
 @dataclass
@@ -247,6 +253,7 @@ class StationSim:
         )
         self.health_rows: list[HealthRows] = []  # the health registers written, for the writers
         self._unit_rng = np.random.default_rng([self.cfg.seed, 27, 3])  # gnss_decay's losses: their own stream
+        self._alarm_rng = np.random.default_rng([self.cfg.seed, 26, 1])  # the EOT units' emergency statuses
 
     # -- public API --------------------------------------------------------
     @property
@@ -289,6 +296,7 @@ class StationSim:
                 self._parting(tr, t0)
             target = self._target_speed(tr, t0)
             tr.x_m, tr.v_mps = self.motion(tr, target, dt_s, self.cfg)
+            self._pipe(tr, (tr.v_mps - v0) / dt_s if dt_s > 0 else 0.0, t1, dt_s)
             if tr.dwell_until_s is not None and t1 >= tr.dwell_until_s:
                 tr.dwell_until_s = None
             self._stop_check(tr, t1)
@@ -306,6 +314,7 @@ class StationSim:
                 rear.x_m = x0 + rear.direction * (rear.travelled_m - before)
                 if rear.v_mps == 0.0:
                     self._rear_stopped(rear, t1)
+            self._pipe(rear, 0.0, t1, dt_s)
             records += self._wheels(rear, x0, rear.x_m, t0, t1, v0)
             fixes += self._gnss(rear, t0, t1, x0)
         self.active = [t for t in self.active if not t.done]
@@ -488,12 +497,31 @@ class StationSim:
             units=(EOT,),
             axle_offset=k,
             next_eot_fix_s=tr.next_eot_fix_s,
+            pipe_bar=tr.pipe_bar,
+            # The hoses part: the rear part's pipe vents from the break, the wave reaching its EOT unit
+            # after the rear part's length.
+            vent_from_s=t_s + rear_consist.length_m / bp.WAVE_MPS,
         )
         tr.consist, tr.units, tr.rear = front, (HEAD,), rear
         self.rears.append(rear)
         self.truth_partings.append(
             PartingTruth(tr.id, self.cfg.start_ns + round(t_s * NS), tr.v_mps, tr.x_m, k, len(rear_consist.axles_m))
         )
+
+    def _pipe(self, tr: SimTrain, accel_mps2: float, t1: float, dt_s: float) -> None:
+        """The train's brake pipe after a step: lowered for service braking, vented from ``vent_from_s``;
+        the EOT unit, seeing it vent, queues its emergency status (sent at once, repeated)."""
+        before = tr.pipe_bar
+        if tr.vent_from_s is not None and t1 >= tr.vent_from_s:
+            tr.pipe_bar = max(0.0, before - bp.VENT_BAR_S * dt_s)
+        else:
+            service = min(1.0, max(0.0, -accel_mps2 / bp.FULL_SERVICE_MPS2))
+            want = bp.NOMINAL_BAR - bp.FULL_SERVICE_DROP_BAR * service
+            rate = bp.SERVICE_BAR_S if want < before else bp.RECHARGE_FRONT_BAR_S
+            tr.pipe_bar = max(want, before - rate * dt_s) if want < before else min(want, before + rate * dt_s)
+        seen = dt_s > 0 and (before - tr.pipe_bar) / dt_s > bp.ALARM_FALL_BAR_S
+        if seen and EOT in tr.units and not tr.alarms_s and tr.vent_from_s is not None:
+            tr.alarms_s = [t1 + k * bp.ALARM_GAP_S for k in range(bp.ALARM_REPEATS)]
 
     def _rear_stopped(self, rear: SimTrain, t_s: float) -> None:
         for rec in self.truth_partings:
@@ -610,13 +638,26 @@ class StationSim:
                 frac = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
                 head_x = x0 + frac * (tr.x_m - x0)
                 x = head_x if role == HEAD else head_x - tr.direction * tr.consist.length_m
-                plat, plon = self.proj.position(x)
-                lat = float(plat[0]) + float(self.rng.normal(0, self.cfg.gnss_noise_m)) / self.proj.m_per_deg_lat
-                lon = float(plon[0]) + float(self.rng.normal(0, self.cfg.gnss_noise_m)) / self.proj.m_per_deg_lon
-                course = (self.proj.bearing_deg(x) + (0.0 if tr.direction > 0 else 180.0)) % 360.0
-                speed = max(0.0, tr.v_mps + float(self.rng.normal(0, 0.1)))
-                out.append(SentFix(self.cfg.start_ns + int(t * NS), tr.id, role, lat, lon, speed, course, True))
+                out.append(self._sent(tr, role, t, x))
+        # The EOT unit's emergency statuses due in this step: each a fresh report, the flag set.
+        while tr.alarms_s and tr.alarms_s[0] < t1 and EOT in tr.units:
+            t = max(tr.alarms_s.pop(0), t0)
+            if any(f.kind == "eot_loss" and f.target == tr.id and f.active(t) for f in self.faults):
+                continue
+            frac = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
+            x = x0 + frac * (tr.x_m - x0) - tr.direction * tr.consist.length_m
+            out.append(self._sent(tr, EOT, t, x, emergency=True))
         return out
+
+    def _sent(self, tr: SimTrain, role: str, t: float, x: float, emergency: bool = False) -> SentFix:
+        rng = self._alarm_rng if emergency else self.rng  # the periodic fixes' draws are as they were
+        plat, plon = self.proj.position(x)
+        lat = float(plat[0]) + float(rng.normal(0, self.cfg.gnss_noise_m)) / self.proj.m_per_deg_lat
+        lon = float(plon[0]) + float(rng.normal(0, self.cfg.gnss_noise_m)) / self.proj.m_per_deg_lon
+        course = (self.proj.bearing_deg(x) + (0.0 if tr.direction > 0 else 180.0)) % 360.0
+        speed = max(0.0, tr.v_mps + float(rng.normal(0, 0.1)))
+        bar = round(tr.pipe_bar * 20) / 20  # the payload's 0.05 bar
+        return SentFix(self.cfg.start_ns + int(t * NS), tr.id, role, lat, lon, speed, course, True, bar, emergency)
 
     def _radio(self, sent: list[SentFix], t1: float) -> list[SentFix]:
         """The radio: it loses some of the fixes sent and delivers the others after its latency; those due by

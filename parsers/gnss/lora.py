@@ -1,10 +1,12 @@
 """LoRaWAN uplinks of the head-of-train and end-of-train units: the one place
 their payload is encoded and decoded, and the network servers' JSON read.
 
-Payload (21 bytes, big-endian; ``docs/lora-payload.md`` is the reference)::
+Payload (version 1: 21 bytes, version 2: 22 bytes, big-endian; ``docs/lora-payload.md`` is the
+reference)::
 
-    0      header   bits 7-4 version (1), bits 3-2 role (0 head, 1 eot, 2 other),
-                    bit 1 fix valid, bit 0 reserved (0)
+    0      header   bits 7-4 version (1 or 2), bits 3-2 role (0 head, 1 eot, 2 other),
+                    bit 1 fix valid, bit 0: version 1 reserved (0); version 2 emergency status
+                    (the unit's brake pipe venting: sent at once, not on the report period)
     1-2    train    uint16, 0 = not assigned
     3-6    lat      int32, 1e-7 degree, ±90°
     7-10   lon      int32, 1e-7 degree, ±180°
@@ -13,6 +15,7 @@ Payload (21 bytes, big-endian; ``docs/lora-payload.md`` is the reference)::
     15     battery  uint8, 0.5 %, 0-200, 0xFF = unknown
     16-19  time     uint32, seconds since 1970-01-01 UTC (the unit's clock)
     20     time     uint8, hundredths of a second, 0-99
+    21     brake    (version 2) uint8, brake-pipe pressure in 0.05 bar, 0-250, 0xFF = unknown
 
 Network servers publish each uplink on MQTT as JSON: ChirpStack v4
 (``deviceInfo.devEui``, ``fCnt``, base64 ``data``, ``rxInfo[]``, ``time``)
@@ -36,6 +39,11 @@ from typing import Any
 
 PAYLOAD_VERSION = 1
 PAYLOAD_BYTES = 21
+PAYLOAD_VERSION_BRAKE = 2  # version 1 and a brake-pipe byte, header bit 0 the emergency status
+PAYLOAD_BYTES_BRAKE = 22
+BYTES_OF_VERSION = {PAYLOAD_VERSION: PAYLOAD_BYTES, PAYLOAD_VERSION_BRAKE: PAYLOAD_BYTES_BRAKE}
+BRAKE_STEPS_PER_BAR = 20  # 0.05 bar
+MAX_BRAKE_BAR = 12.5
 ROLES = ("head", "eot", "other")
 _STRUCT = struct.Struct(">BHiiHHBIB")
 UNKNOWN_U16 = 0xFFFF
@@ -62,13 +70,21 @@ class UnitReport:
     battery_pct: float | None
     time_ns: int  # the unit's clock, UTC
     valid: bool = True
+    version: int = PAYLOAD_VERSION  # 2: with the brake pipe
+    brake_pipe_bar: float = math.nan  # version 2: the unit's end of the brake pipe; NaN: unknown
+    emergency: bool = False  # version 2: sent at once, the unit's brake pipe venting
 
 
 def encode_payload(r: UnitReport) -> bytes:
-    """The 21 payload bytes of a report (rounded to the field resolutions)."""
+    """The payload bytes of a report (21 in version 1, 22 in version 2; rounded to the field
+    resolutions)."""
     if r.role not in ROLES:
         raise PayloadError(f"role: expected one of {', '.join(ROLES)}, found {r.role!r}")
-    header = (PAYLOAD_VERSION << 4) | (ROLES.index(r.role) << 2) | (0b10 if r.valid else 0)
+    if r.version not in BYTES_OF_VERSION:
+        raise PayloadError(f"version: expected 1 or 2, found {r.version}")
+    if r.version == PAYLOAD_VERSION and (r.emergency or not math.isnan(r.brake_pipe_bar)):
+        raise PayloadError("version 1 carries no brake pipe: encode it as version 2")
+    header = (r.version << 4) | (ROLES.index(r.role) << 2) | (0b10 if r.valid else 0) | int(r.emergency)
     speed = UNKNOWN_U16 if math.isnan(r.speed_mps) else round(r.speed_mps * 100)
     heading = UNKNOWN_U16 if math.isnan(r.heading_deg) else round((r.heading_deg % 360.0) * 100) % 36000
     battery = UNKNOWN_U8 if r.battery_pct is None else round(r.battery_pct * 2)
@@ -85,17 +101,27 @@ def encode_payload(r: UnitReport) -> bytes:
         rest // 10_000_000,
     )
     _check_ranges(*values)
-    return _STRUCT.pack(*values)
+    data = _STRUCT.pack(*values)
+    if r.version == PAYLOAD_VERSION_BRAKE:
+        brake = UNKNOWN_U8 if math.isnan(r.brake_pipe_bar) else round(r.brake_pipe_bar * BRAKE_STEPS_PER_BAR)
+        _check_brake(brake)
+        data += bytes([brake])
+    return data
+
+
+def _check_brake(brake: int) -> None:
+    if brake != UNKNOWN_U8 and not 0 <= brake <= round(MAX_BRAKE_BAR * BRAKE_STEPS_PER_BAR):
+        raise PayloadError(f"brake pipe: {brake / BRAKE_STEPS_PER_BAR:.2f} bar out of 0-{MAX_BRAKE_BAR:g} bar")
 
 
 def _check_ranges(
     header: int, train: int, lat: int, lon: int, speed: int, heading: int, battery: int, seconds: int, cs: int
 ) -> None:
-    if header >> 4 != PAYLOAD_VERSION:
-        raise PayloadError(f"version: expected {PAYLOAD_VERSION}, found {header >> 4}")
+    if header >> 4 not in BYTES_OF_VERSION:
+        raise PayloadError(f"version: expected 1 or 2, found {header >> 4}")
     if (header >> 2) & 0b11 >= len(ROLES):
         raise PayloadError(f"role: code {(header >> 2) & 0b11} is not defined")
-    if header & 1:
+    if header >> 4 == PAYLOAD_VERSION and header & 1:
         raise PayloadError("header: reserved bit 0 is set")
     if not 0 <= train <= 0xFFFF:
         raise PayloadError(f"train: {train} out of 0-65535")
@@ -116,11 +142,23 @@ def _check_ranges(
 
 
 def decode_payload(data: bytes) -> UnitReport:
-    """The report in 21 payload bytes; :class:`PayloadError` if they break the layout."""
-    if len(data) != PAYLOAD_BYTES:
-        raise PayloadError(f"payload: expected {PAYLOAD_BYTES} bytes, found {len(data)}")
-    header, train, lat, lon, speed, heading, battery, seconds, cs = _STRUCT.unpack(data)
+    """The report in the payload bytes (version 1: 21, version 2: 22); :class:`PayloadError` if they
+    break the layout."""
+    version = data[0] >> 4 if data else None
+    if version not in BYTES_OF_VERSION:
+        if len(data) not in (PAYLOAD_BYTES, PAYLOAD_BYTES_BRAKE):
+            raise PayloadError(f"payload: expected {PAYLOAD_BYTES} or {PAYLOAD_BYTES_BRAKE} bytes, found {len(data)}")
+        raise PayloadError(f"version: expected 1 or 2, found {version}")
+    if len(data) != BYTES_OF_VERSION[version]:
+        raise PayloadError(
+            f"payload: expected {BYTES_OF_VERSION[version]} bytes for version {version}, found {len(data)}"
+        )
+    header, train, lat, lon, speed, heading, battery, seconds, cs = _STRUCT.unpack(data[:PAYLOAD_BYTES])
     _check_ranges(header, train, lat, lon, speed, heading, battery, seconds, cs)
+    brake = math.nan
+    if version == PAYLOAD_VERSION_BRAKE:
+        _check_brake(data[PAYLOAD_BYTES])
+        brake = math.nan if data[PAYLOAD_BYTES] == UNKNOWN_U8 else data[PAYLOAD_BYTES] / BRAKE_STEPS_PER_BAR
     return UnitReport(
         role=ROLES[(header >> 2) & 0b11],
         train=train,
@@ -131,6 +169,9 @@ def decode_payload(data: bytes) -> UnitReport:
         battery_pct=None if battery == UNKNOWN_U8 else battery / 2,
         time_ns=seconds * 1_000_000_000 + cs * 10_000_000,
         valid=bool(header & 0b10),
+        version=version,
+        brake_pipe_bar=brake,
+        emergency=version == PAYLOAD_VERSION_BRAKE and bool(header & 1),
     )
 
 
