@@ -259,10 +259,11 @@ def test_driver_and_one_dynamics_step_cost_well_under_50_microseconds() -> None:
     profile = SEED_001.profile
     state = TrainState(0.0, 0.0)
     n = 20_000
-    t0 = time.perf_counter()
+    # CPU time of this process, not wall time: the cost of the step, whatever else runs on the cores.
+    t0 = time.process_time()
     for _ in range(n):
         state = driver.step(profile, state, SEED_001.target_mps(state.x_m % 1900.0), 0.05)
-    per_step_us = (time.perf_counter() - t0) / n * 1e6
+    per_step_us = (time.process_time() - t0) / n * 1e6
     assert per_step_us < 50.0  # measured about 12 µs
 
 

@@ -107,10 +107,10 @@ def test_interpolated_surface_is_within_its_stated_error_of_the_exact_one() -> N
 def test_fuzzy_controller_runs_thousands_of_steps_a_second() -> None:
     ctl = Fuzzy()
     n = 20_000
-    t0 = time.perf_counter()
+    t0 = time.process_time()  # CPU time: the controller's cost, whatever else runs on the cores
     for i in range(n):
         ctl.update(15.0, 10.0 + (i % 100) * 0.05, 0.05)
-    assert n / (time.perf_counter() - t0) > 5_000
+    assert n / (time.process_time() - t0) > 5_000
 
 
 def test_pid_step_on_the_identified_model_overshoots_about_ten_percent_and_settles() -> None:

@@ -8,6 +8,7 @@ Those that need a server, a live source, a terminal or a long run are listed in 
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import shutil
@@ -58,6 +59,7 @@ def readme_examples() -> list[str]:
     return out
 
 
+@functools.cache  # one real run of each help; two tests read it
 def help_text(command: str | None) -> str:
     args = [TRACKSIDE, *([command] if command else []), "--help"]
     env = {**os.environ, "COLUMNS": "100"}
