@@ -71,6 +71,11 @@ def test_the_hint_names_the_heads_of_a_file(tmp_path: Path) -> None:
     hint = heads_hint(log)
     assert hint and all(isinstance(d, int) and name.startswith("WS") for d, name in hint)
     assert heads_hint(tmp_path / "missing.log") == set()
+    # Cut lines (a file of the damaged lines of many devices) name nothing: they would join every group.
+    whole = log.read_bytes().splitlines(keepends=True)[:50]
+    cut = tmp_path / "cut.log"
+    cut.write_bytes(b"".join(line[: len(line) * 2 // 3] + b"\n" for line in whole))
+    assert heads_hint(cut) == set()
 
 
 @pytest.mark.parametrize("hinted", [True, False], ids=["hint right", "hint missed every shared group"])

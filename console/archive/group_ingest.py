@@ -46,8 +46,12 @@ from parsers.diag.registry import DiagRegistry
 # The hint reads this many blocks of this size, spread over each file (the start, the end and between).
 HINT_BLOCKS = 4
 HINT_BLOCK_BYTES = 16 << 10
-# ``ID:`` and ``Trackinfo:`` of a diagnostic line (the 2nd and 6th fields): a hint, the parser decides.
-_HINT = re.compile(rb"\tID:\s*(\d{1,10})\t[^\t\n]*\t[^\t\n]*\t[^\t\n]*\tTrackinfo:([^\t\n]*)\t")
+# ``ID:`` and ``Trackinfo:`` of a whole diagnostic line (the 2nd and 6th of its 12 fields, the last ``Time:``):
+# a hint, the parser decides.  A cut line names no head (a file of damaged lines would join every group).
+_HINT = re.compile(
+    rb"^[^\t\n]*\tID:\s*(\d{1,10})\t[^\t\n]*\t[^\t\n]*\t[^\t\n]*\tTrackinfo:([^\t\n]*)\t(?:[^\t\n]*\t){5}Time:[^\t\n]*$",
+    re.MULTILINE,
+)
 
 
 def heads_hint(path: Path) -> set[tuple[int, str]]:
