@@ -136,6 +136,8 @@ class _Ingest:
         self.new_diag_seqs: list[int] = []  # diagnostic files (or their new bytes) read by this ingest
         self.on_cluster = False  # diagnostic files are parsed on the cluster's workers (Dask engine)
         self.queued: list[tuple[Path, Path, dict[str, Any], ledger.Plan, FileOutcome]] = []
+        # Scans the cluster's workers made (prescan), by the name a file is known by: (prefix asked, scan).
+        self.prescanned: dict[str, tuple[int | None, ledger.Scan]] = {}
         # The layout file among the inputs that the derivation uses (report's rule), and --layout.
         self.layout_file: Path | None = None
         self.layout_spec: str | None = None
@@ -184,7 +186,9 @@ class _Ingest:
             self._ledger_row(shown, kind, "not-read", why, None, 0, 0, None)
             return FileOutcome(shown, kind, "not-read", why)
         entry = ledger.find_entry(self.new.files, shown)
-        s = ledger.scan(path, entry["bytes"] if entry is not None else None)
+        prefix_len = entry["bytes"] if entry is not None else None
+        pre = self.prescanned.pop(shown, None)
+        s = pre[1] if pre is not None and pre[0] == prefix_len else ledger.scan(path, prefix_len)
         p = ledger.plan(self.new.files, shown, s, entry)
         if kind != DIAGNOSTIC and p.action == "grown":
             # Fixes and frames are parsed whole (their parsers keep state across lines).
@@ -220,6 +224,20 @@ class _Ingest:
         if source != path and not (kind == DIAGNOSTIC and self.on_cluster):
             source.unlink()
         return outcome
+
+    def prescan(self, inputs: list[tuple[Path, str]]) -> None:
+        """On a cluster, every input hashed by the workers, side by side, before the ledger plans them (on one
+        core the client's hashing of every byte was the larger part of what it did alone)."""
+        from console.fleet.engine import map_partitions
+
+        items: list[dict[str, Any]] = []
+        for path, shown in inputs:
+            entry = ledger.find_entry(self.new.files, shown)
+            items.append({"path": path, "prefix_len": entry["bytes"] if entry is not None else None})
+        scans = map_partitions(ledger.try_scan, items, label="scan")
+        for (_path, shown), item, s in zip(inputs, items, scans, strict=True):
+            if s is not None:
+                self.prescanned[shown] = (item["prefix_len"], s)
 
     def parse_queued(self) -> None:
         """The diagnostic files queued for the cluster: one task each, their parts and accounting taken in
@@ -625,6 +643,8 @@ def run_ingest(
             # The derivation writes into the new manifest, as the records do; on a cluster, per group of heads.
             job.derivation = Derivation(root, job.new, layout, grouped=on_cluster())
             job.on_cluster = on_cluster()
+            if job.on_cluster:
+                job.prescan(inputs)
             for path, shown in inputs:
                 if on_file is not None:
                     on_file(shown)
