@@ -7,12 +7,12 @@
 What is timed: ``trackside ingest DIR`` of every file, into a fresh archive,
 the whole command's work in this process (each configuration runs in a
 child process of its own, ``--one``, in turn: local, 1 worker, 2 workers,
-then again, so a noisy machine disturbs them alike).  On Dask each file is
-parsed by a task on a worker (its record parts written there), then each
-independent group of heads is derived by a task of its own (the heads of
-sections sharing heads go together; a head no section uses is a device's
-group), each with its state; the client plans, gathers the ledger and
-publishes.
+then again, so a noisy machine disturbs them alike).  On Dask the files are
+planned by independent group of heads (the heads of sections sharing heads
+go together; a head no section uses is a device's group): the files sharing
+a group are one task, which parses them, writes their records and feeds
+each group's pipeline in the same pass, as the local ingest does, and saves
+each group's state; the client plans, gathers the ledger and publishes.
 
 * ``start_s``: the LocalCluster's start (not in ``ingest_s``);
 * ``ingest_s``, with ``phases`` (read, records, derive, publish) as the ingest reports them;

@@ -37,7 +37,7 @@ import io
 import itertools
 import os
 import pickle
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -136,10 +136,13 @@ class GroupRun:
         settings: PipelineSettings,
         key: str,
         heads: frozenset[tuple[int, Any]] | None = None,
+        salt: str = "",
     ) -> None:
         self.root, self.manifest, self.settings, self.key, self.heads = root, manifest, settings, key, heads
         self.generation = manifest.generation
-        self.tag = "" if key == LINE else f"-{_tag(key)}"
+        # ``salt``: the ingest task that runs the group, in its parts' names (two tasks that both met the group
+        # never write the same file; the ingest keeps neither's rows then, see Derivation.take_ingested).
+        self.tag = "" if key == LINE else f"-{_tag(key)}{salt}"
         self.sink = ArchiveSink(root, self.generation, "d" + self.tag)
         self.written: list[str] = []  # every part written, removed if the ingest fails
         self.tail_sink: ArchiveSink | None = None
@@ -330,9 +333,10 @@ def fingerprint_of(settings: PipelineSettings, derived: dict[str, Any]) -> dict[
     return {"version": DERIVE_VERSION, "settings": dataclasses.asdict(settings.speed), "layout": derived.get("layout")}
 
 
-def plan_groups(layout: Layout | None, heads: Iterable[tuple[int, Any]]) -> dict[str, frozenset[tuple[int, Any]]]:
-    """The independent groups of heads: the heads of sections that share heads (one section engine each),
-    and per device the heads no section uses.  Each runs a pipeline of its own, in parallel."""
+def group_key_of(layout: Layout | None) -> Callable[[int, Any], str]:
+    """The group a head (device id, name) belongs to: the sections sharing heads it bounds (one section engine
+    each), else its device (the heads no section uses).  A head's group depends on the head and the layout
+    alone, so whoever meets the head first names its group the same."""
     component: dict[str, str] = {}
     if layout is not None:
         parent: dict[str, str] = {}
@@ -353,10 +357,21 @@ def plan_groups(layout: Layout | None, heads: Iterable[tuple[int, Any]]) -> dict
         for names in members.values():
             key = "sections:" + "+".join(sorted(names))
             component.update(dict.fromkeys(names, key))
+
+    def key_of(dev: int, name: Any) -> str:
+        group = component.get(name) if isinstance(name, str) else None
+        return group or f"device:{int(dev)}"
+
+    return key_of
+
+
+def plan_groups(layout: Layout | None, heads: Iterable[tuple[int, Any]]) -> dict[str, frozenset[tuple[int, Any]]]:
+    """The independent groups of heads: the heads of sections that share heads (one section engine each),
+    and per device the heads no section uses.  Each runs a pipeline of its own, in parallel."""
+    key_of = group_key_of(layout)
     groups: dict[str, set[tuple[int, Any]]] = {}
     for dev, name in heads:
-        group = component.get(name) if isinstance(name, str) else None
-        groups.setdefault(group or f"device:{int(dev)}", set()).add((int(dev), name))
+        groups.setdefault(key_of(dev, name), set()).add((int(dev), name))
     return {k: frozenset(v) for k, v in groups.items()}
 
 
@@ -389,6 +404,11 @@ class Derivation:
         self.line = None if grouped else GroupRun(root, manifest, self.settings, LINE)
         self.rebuild_all = False
         self.results: list[GroupResult] = []
+        # Groups the ingest's own tasks derived as they parsed (group_ingest), by key; None: none did.
+        self.ingested: dict[str, GroupResult] | None = None
+        self.ingested_heads: list[tuple[int, Any]] = []
+        self.ingested_twice: list[str] = []  # groups two tasks met: derived again from their records
+        self.head_order: list[tuple[int, Any]] | None = None
 
     def _drop_parts(self, tables: dict[str, list[str]]) -> None:
         for table, rels in tables.items():
@@ -412,6 +432,29 @@ class Derivation:
         self.rebuild_all = True
         if self.line is not None:
             self.line.must_rebuild()
+
+    def take_ingested(self, results: list[list[GroupResult]], head_order: list[tuple[int, Any]] | None) -> None:
+        """The groups the ingest's tasks derived as they parsed (:mod:`console.archive.group_ingest`).
+
+        A group that two tasks met (the plan's hint missed a head they share) is kept from neither: their
+        parts of it are removed, and :meth:`finish` derives it from its archived records instead.
+        ``head_order``: the archive's heads in the order a read of every file meets them, if known.
+        """
+        by_key: dict[str, list[GroupResult]] = {}
+        for rs in results:
+            for r in rs:
+                by_key.setdefault(r.key, []).append(r)
+        self.ingested = {}
+        for key, rs in sorted(by_key.items()):
+            self.ingested_heads += [h for r in rs for h in r.heads]
+            if len(rs) == 1:
+                self.ingested[key] = rs[0]
+                continue
+            self.ingested_twice.append(key)
+            for rel in [rel for r in rs for rel in r.written]:
+                with contextlib.suppress(OSError):
+                    (self.root / rel).unlink()
+        self.head_order = head_order
 
     def finish(self, new_seqs: list[int], mapper: Any = None) -> list[str]:
         """After the records are written: every group's pipeline finished, its state and tail saved, and the
@@ -468,15 +511,24 @@ class Derivation:
     def _run_groups(self, new_seqs: list[int], mapper: Any) -> list[GroupResult]:
         old = self.manifest.derived
         known = [(int(d), n) for d, n in old.get("heads", [])] if self.same else []
-        groups = plan_groups(self.layout, dict.fromkeys([*known, *heads_in(self.root, self.manifest, new_seqs)]))
+        done = self.ingested or {}
+        # The new files' heads: as the ingest's tasks met them, else from the records they wrote.
+        fresh = self.ingested_heads if self.ingested is not None else heads_in(self.root, self.manifest, new_seqs)
+        groups = plan_groups(self.layout, dict.fromkeys([*known, *fresh]))
         tasks: list[dict[str, Any]] = [
             {"key": key, "heads": heads, "new_seqs": new_seqs, "rebuild": self.rebuild_all}
             for key, heads in sorted(groups.items())
+            if key not in done  # the groups no task met (no new record), or two did: derived here
         ]
         common: dict[str, Any] = {"root": self.root, "manifest": self.manifest, "settings": self.settings}
-        if mapper is None:
-            return [derive_group(**common, **t) for t in tasks]
-        return list(mapper(derive_group, tasks, common))
+        if not tasks:
+            ran: list[GroupResult] = []
+        elif mapper is None:
+            ran = [derive_group(**common, **t) for t in tasks]
+        else:
+            ran = list(mapper(derive_group, tasks, common))
+        by_key = {**done, **{r.key: r for r in ran}}
+        return [by_key[k] for k in sorted(by_key)]
 
     def _start_rows(self) -> list[str]:
         """The sections' start rows, at the line's first event (the groups' pipelines give none): one small part,
@@ -508,12 +560,15 @@ class Derivation:
             return self.results[0].heads
 
         # Several groups: the heads in the order a read of every file meets them.
+        if self.head_order is not None:
+            return self.head_order
         return heads_in(self.root, self.manifest, None)
 
     def abort(self) -> None:
         if self.line is not None:
             self.line.abort()
-        for rel in [rel for r in self.results for rel in r.written]:
+        ingested = list((self.ingested or {}).values())
+        for rel in [rel for r in [*self.results, *ingested] for rel in r.written]:
             with contextlib.suppress(OSError):
                 (self.root / rel).unlink()
 

@@ -27,8 +27,15 @@ import pyarrow as pa
 from console import __version__
 from console.archive import ledger
 from console.archive.derive import Derivation
+from console.archive.parse_pass import (
+    RECORD_ORDER,
+    REJECTED_BATCH_ROWS,
+    ParsedFile,
+    RejectedRows,
+    parse_one_pass,
+    rejected_row,
+)
 from console.archive.parts import COMPACT_MAX_ROWS, PartWriter, compact, part_rows, read_part, write_part, write_small
-from console.archive.records import RecordEncoder
 from console.archive.store import (
     TMP,
     ArchiveError,
@@ -40,18 +47,11 @@ from console.archive.store import (
     writer_lock,
 )
 from parsers.report import ParseReport
-from parsers.units import NS_PER_DAY
 
 # Kinds the archive stores, by the report's recognition (console.report.collect.recognise).
 DIAGNOSTIC = "diagnostic"
 STORED_ELSEWHERE = {"nmea": "fixes", "gnss-csv": "fixes", "gnss-jsonl": "fixes", "centre": "fixes"}
 STDIN_NAME = "<stdin>"
-# Record parts keep the input's order (file, line; time order in an exported log): the order the derivation
-# reads them in, no sort when they are written, and row groups that each span a stretch of time (a query for
-# one hour skips the others by their statistics).
-RECORD_ORDER = ("file_seq", "line")
-# Rejected lines gathered before they go to the rejected table's writer (a few MB of rows at most).
-REJECTED_BATCH_ROWS = 20_000
 
 
 @dataclass
@@ -136,6 +136,8 @@ class _Ingest:
         self.new_diag_seqs: list[int] = []  # diagnostic files (or their new bytes) read by this ingest
         self.on_cluster = False  # diagnostic files are parsed on the cluster's workers (Dask engine)
         self.queued: list[tuple[Path, Path, dict[str, Any], ledger.Plan, FileOutcome]] = []
+        # Scans the cluster's workers made (prescan), by the name a file is known by: (prefix asked, scan).
+        self.prescanned: dict[str, tuple[int | None, ledger.Scan]] = {}
         # The layout file among the inputs that the derivation uses (report's rule), and --layout.
         self.layout_file: Path | None = None
         self.layout_spec: str | None = None
@@ -184,7 +186,9 @@ class _Ingest:
             self._ledger_row(shown, kind, "not-read", why, None, 0, 0, None)
             return FileOutcome(shown, kind, "not-read", why)
         entry = ledger.find_entry(self.new.files, shown)
-        s = ledger.scan(path, entry["bytes"] if entry is not None else None)
+        prefix_len = entry["bytes"] if entry is not None else None
+        pre = self.prescanned.pop(shown, None)
+        s = pre[1] if pre is not None and pre[0] == prefix_len else ledger.scan(path, prefix_len)
         p = ledger.plan(self.new.files, shown, s, entry)
         if kind != DIAGNOSTIC and p.action == "grown":
             # Fixes and frames are parsed whole (their parsers keep state across lines).
@@ -221,12 +225,37 @@ class _Ingest:
             source.unlink()
         return outcome
 
+    def prescan(self, inputs: list[tuple[Path, str]]) -> None:
+        """On a cluster, every input hashed by the workers, side by side, before the ledger plans them (on one
+        core the client's hashing of every byte was the larger part of what it did alone)."""
+        from console.fleet.engine import map_partitions
+
+        items: list[dict[str, Any]] = []
+        for path, shown in inputs:
+            entry = ledger.find_entry(self.new.files, shown)
+            items.append({"path": path, "prefix_len": entry["bytes"] if entry is not None else None})
+        scans = map_partitions(ledger.try_scan, items, label="scan")
+        for (_path, shown), item, s in zip(inputs, items, scans, strict=True):
+            if s is not None:
+                self.prescanned[shown] = (item["prefix_len"], s)
+
     def parse_queued(self) -> None:
         """The diagnostic files queued for the cluster: one task each, their parts and accounting taken in
-        in file order."""
+        in file order; or, where the new records continue the derivation, one task per set of files sharing
+        a group of heads, each parsing and deriving in one pass (:meth:`_ingest_groups`)."""
         from console.fleet.engine import map_partitions
 
         if not self.queued:
+            return
+        d = self.derivation
+        if (
+            d is not None
+            and d.grouped
+            and not self.dropped_seqs
+            and not d.rebuild_all
+            and (d.same or not self.old.parts("records"))
+        ):
+            self._ingest_groups(d)
             return
         items = [
             {"source": str(src), "shown": e["path"], "file_seq": int(e["file_seq"]), "first_line": p.first_line}
@@ -244,6 +273,58 @@ class _Ingest:
                 src.unlink()
         self.queued = []
 
+    def _ingest_groups(self, d: Derivation) -> None:
+        """The queued files parsed, stored and derived in one pass on the workers, a task per set of files
+        sharing a group (:mod:`console.archive.group_ingest`); their parts, accounting and derivations taken
+        in.  (Another version's, layout's or engine's derivation, or a file replaced: the two-step way.)"""
+        from console.archive.derive import group_key_of
+        from console.archive.group_ingest import heads_hint, ingest_files, plan_tasks, task_name
+        from console.fleet.engine import map_partitions
+
+        key_of = group_key_of(d.settings.sections)
+        hints = [heads_hint(src) for src, _path, _e, _p, _out in self.queued]
+        plan = plan_tasks(hints, key_of)
+        new_seqs = [int(e["file_seq"]) for _src, _path, e, _p, _out in self.queued]
+        known = [(int(dev), n) for dev, n in self.new.derived.get("heads", [])] if d.same else []
+        items = [
+            {
+                "key": task_name([hints[i] for i in files], key_of),
+                "salt": f"-p{n}",
+                "files": [
+                    {"source": str(src), "shown": e["path"], "file_seq": int(e["file_seq"]), "first_line": p.first_line}
+                    for src, _path, e, p, _out in (self.queued[i] for i in files)
+                ],
+            }
+            for n, files in enumerate(plan)
+        ]
+        common = {"root": self.root, "manifest": self.new, "settings": d.settings, "known": known}
+        results = map_partitions(ingest_files, items, common={**common, "new_seqs": new_seqs}, label="derive")
+        reports: dict[int, ParseReport] = {}
+        first_seen: list[tuple[int, int, int, Any]] = []
+        for files, res in zip(plan, results, strict=True):
+            self.new_parts += res.records + res.rejected
+            self.new.tables.setdefault("records", []).extend(res.records)
+            self.new.tables.setdefault("rejected", []).extend(res.rejected)
+            reports.update(zip(files, res.reports, strict=True))
+            first_seen += res.first_seen
+        for i, (src, path, e, p, out) in enumerate(self.queued):
+            self.new_diag_seqs.append(int(e["file_seq"]))
+            self._take_report(e, p, out, reports[i])
+            if src != path:
+                src.unlink()
+        # The heads in the order a read of every file meets them: the earlier ingests' first, then the new ones
+        # where they first appear (a grown file's new lines sit among older files: the archive is asked then).
+        order = None
+        if not any(p.action == "grown" for _src, _path, _e, p, _out in self.queued):
+            old = set(known)
+            new: dict[tuple[int, Any], None] = {}
+            for _seq, _line, dev, head in sorted(first_seen, key=lambda t: (t[0], t[1])):
+                if (dev, head) not in old:
+                    new.setdefault((dev, head), None)
+            order = [*known, *new]
+        d.take_ingested([r.groups for r in results], order)
+        self.queued = []
+
     def _drop_entry(self, entry: dict[str, Any]) -> None:
         """A replaced file: its parts leave the manifest (the records of a diagnostic log too)."""
         entry["active"] = False
@@ -258,35 +339,27 @@ class _Ingest:
                 self.derivation.must_rebuild()  # its records leave the history: made again without them
 
     def _diag(self, source: Path, e: dict[str, Any], p: ledger.Plan, out: FileOutcome) -> None:
-        from parsers.diag.read import DiagReader
-
-        reader = DiagReader([source], on_progress=self.on_bytes)
         seq, gen = int(e["file_seq"]), self.gen
-        # The archive keeps every rejection: each goes to the rejected table as it is found.
-        reader.report.on_reject = lambda r: self._reject(
-            {
-                "file": e["path"],
-                "file_seq": seq,
-                "line": r.line + p.first_line,
-                "reason": r.reason,
-                "text": r.text,
-                "generation": gen,
-            }
-        )
         derive = self.derivation
+        registry = None
         if derive is not None and derive.registry is not None:
             # One registry for the pipeline's whole history: the chunks go to it as they are stored.
-            reader.registry = derive.registry
+            registry = derive.registry
             derive.begin_file()
         self.new_diag_seqs.append(seq)
-        enc = RecordEncoder(reader.registry)
-        for chunk in reader.chunks():
-            table, device_id = enc.encode(chunk, e["path"], int(e["file_seq"]), p.first_line)
-            day = chunk.time_ns // NS_PER_DAY
-            self.records.add(table, day, device_id)
-            if derive is not None:
-                derive.feed(chunk)
-        self._take_report(e, p, out, reader.report)
+        report = parse_one_pass(
+            source,
+            e["path"],
+            seq,
+            p.first_line,
+            self.records,
+            # The archive keeps every rejection: each goes to the rejected table as it is found.
+            lambda r: self._reject(rejected_row(r, e["path"], seq, p.first_line, gen)),
+            registry=registry,
+            on_chunk=derive.feed if derive is not None else None,
+            on_bytes=self.on_bytes,
+        )
+        self._take_report(e, p, out, report)
 
     def _take_report(self, e: dict[str, Any], p: ledger.Plan, out: FileOutcome, report: ParseReport) -> None:
         fr = report.files[0]
@@ -457,43 +530,23 @@ class _Ingest:
             self.new_parts += written
 
 
-@dataclass
-class ParsedFile:
-    """A diagnostic file parsed on a worker: the parts it wrote and its parse report."""
-
-    records: list[str]
-    rejected: list[str]
-    report: ParseReport
-
-
 def parse_diag_file(root: Path, generation: int, source: str, shown: str, file_seq: int, first_line: int) -> ParsedFile:
     """One file's records and rejected lines into parts of their own (a Dask task: it reads one file and
     writes parts no other task names; the client lists them in the manifest it publishes)."""
-    from parsers.diag.read import DiagReader
-
-    reader = DiagReader([Path(source)])
     records = PartWriter(root, "records", generation, f"r{file_seq}-", sort_by=RECORD_ORDER)
     rejected = PartWriter(root, "rejected", generation, f"l{file_seq}-", by_device=False, by_day=False)
-    rows: list[dict[str, Any]] = []
-
-    def reject(r: Any) -> None:
-        rows.append(
-            {"file": shown, "file_seq": file_seq, "line": r.line + first_line, "reason": r.reason, "text": r.text}
-            | {"generation": generation}
-        )
-        if len(rows) >= REJECTED_BATCH_ROWS:
-            rejected.add(pa.Table.from_pylist(rows))
-            rows.clear()
-
-    reader.report.on_reject = reject
-    enc = RecordEncoder(reader.registry)
+    rows = RejectedRows(rejected)
     try:
-        for chunk in reader.chunks():
-            table, device_id = enc.encode(chunk, shown, file_seq, first_line)
-            records.add(table, chunk.time_ns // NS_PER_DAY, device_id)
-        if rows:
-            rejected.add(pa.Table.from_pylist(rows))
-        return ParsedFile(records.close(), rejected.close(), reader.report)
+        report = parse_one_pass(
+            Path(source),
+            shown,
+            file_seq,
+            first_line,
+            records,
+            rows.adder(shown, file_seq, first_line, generation),
+        )
+        rows.flush()
+        return ParsedFile(records.close(), rejected.close(), report)
     except BaseException:
         records.abort()
         rejected.abort()
@@ -590,6 +643,8 @@ def run_ingest(
             # The derivation writes into the new manifest, as the records do; on a cluster, per group of heads.
             job.derivation = Derivation(root, job.new, layout, grouped=on_cluster())
             job.on_cluster = on_cluster()
+            if job.on_cluster:
+                job.prescan(inputs)
             for path, shown in inputs:
                 if on_file is not None:
                     on_file(shown)

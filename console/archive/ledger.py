@@ -79,6 +79,14 @@ def scan(path: Path, prefix_len: int | None = None) -> Scan:
     return Scan(pos, whole.hexdigest(), last_nl_end, upto_nl.hexdigest(), prefix, False)
 
 
+def try_scan(path: Path, prefix_len: int | None = None) -> Scan | None:
+    """:func:`scan`, or None where the file cannot be read (the ingest then scans it itself, and says why)."""
+    try:
+        return scan(path, prefix_len)
+    except OSError:
+        return None
+
+
 @dataclass
 class Plan:
     action: str  # "skip", "new", "grown", "replace"

@@ -117,8 +117,14 @@ class ChunkRebuilder:
 
     def __init__(self, registry: DiagRegistry | None = None) -> None:
         self.registry = registry if registry is not None else DiagRegistry()
-        self._rids: dict[RegisterKey, int] = {}
+        # A registry that has registers already (a pipeline's, whose chunks came from a parser) keeps their ids.
+        self._rids: dict[RegisterKey, int] = {key: rid for rid, key in enumerate(self.registry.registers)}
         self._files: dict[int, int] = {}  # file_seq → file_id
+
+    @property
+    def registers_by_key(self) -> dict[RegisterKey, int]:
+        """The registry's registers by what they are (shared with a :class:`ChunkTranslator` into it)."""
+        return self._rids
 
     def file_id(self, file_seq: int, name: str) -> int:
         found = self._files.get(file_seq)

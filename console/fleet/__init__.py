@@ -4,8 +4,9 @@
 ``--engine dask`` ships the same partition function to a ``distributed``
 cluster — a LocalCluster started and stopped here (``--workers N``) or an
 existing scheduler (``--scheduler tcp://HOST:PORT``).  The tasks are the
-archive's own units of work (a file to parse, a group of linked sections to
-derive: :mod:`console.archive.derive`); this
+archive's own units of work (the files of a group of linked sections, parsed
+and derived in one pass: :mod:`console.archive.group_ingest`; a group to
+derive from its records: :mod:`console.archive.derive`); this
 package never derives anything itself, it only decides where a partition
 runs and gives the results back in partition order, so the combined answer
 cannot depend on the engine or the number of workers.
