@@ -2,7 +2,7 @@
 
 An adversarial log for the counting path: N heads with one wheel record
 each (every other one a lone onset, so each head also leaves a pulse to
-settle), fed to :class:`console.analysis.stream_sections.EventStream` in
+settle), fed to :class:`console.analysis.sections.stream.EventStream` in
 batches of 10 000 records as ``stream_jobs`` feeds it, released after each
 batch.  Prints the memory the stream holds after the last batch
 (tracemalloc: Python and numpy allocations) and the CPU time.
@@ -34,7 +34,7 @@ BATCH = 10_000
 
 def measure(n: int) -> str:
     from console.analysis.diag_events import DiagEventSettings
-    from console.analysis.stream_sections import EventStream
+    from console.analysis.sections.stream import EventStream
 
     heads = [(4000 + i % 60000, f"H{i:07d}") for i in range(n)]
     wheel = {

@@ -89,7 +89,7 @@ diagnostic registry's Python objects per register (a ``RegisterKey``, its
 head name, the span bytes that key the register cache: ~0.5 kB a
 register, against ~139 bytes of log line); flat, columnar registers in
 ``parsers.diag.read`` are the next step.  The counting path's per-head state
-(``console/analysis/stream_sections.py``, ``counting.py``) is flat arrays
+(``console/analysis/sections/stream.py``, ``counting.py``) is flat arrays
 since 2026-11-26, about 120 bytes a head where it held a ``HeadCounter``
 and a ``_Head`` object (1.5 kB a head; ``bench_event_stream_heads.py``):
 ``report`` on the 100 k-head log then took 9.4 / 9.9 s against 16.2 /

@@ -20,8 +20,8 @@ from collections import Counter
 
 import numpy as np
 
-from console.analysis.events import EventKind
-from console.analysis.wheels import HeadCounter
+from console.analysis.counting.wheels import HeadCounter
+from console.analysis.events.detection import EventKind
 from console.sim.station import coil_edges
 
 NS = 1_000_000_000

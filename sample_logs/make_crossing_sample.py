@@ -12,7 +12,7 @@ from __future__ import annotations
 import datetime as dt
 from pathlib import Path
 
-from console.analysis.crossing import NS, ControllerSettings
+from console.analysis.crossing.controller import NS, ControllerSettings
 from console.layout import load_layout
 from console.sim.crossing_runs import RawFix, RunConditions, simulate
 

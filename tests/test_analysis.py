@@ -8,9 +8,9 @@ import pandas as pd
 import pytest
 
 from benchmarks.gen_diag_log import generate
-from console.analysis.diagnostics import SpeedSettings
-from console.analysis.speed import axle_kmh, per_second_method_kmh, whole_train_kmh
-from console.analysis.wheels import PairingSettings, pair_axles
+from console.analysis.counting.speed import axle_kmh, per_second_method_kmh, whole_train_kmh
+from console.analysis.counting.wheels import PairingSettings, pair_axles
+from console.analysis.passages.diagnostics import SpeedSettings
 from tests.conftest import record
 from tests.reads import whole_job
 

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from console.analysis.approach import approach_timeline
-from console.analysis.crossing import earliest_arrival_s
-from console.analysis.diagnostics import SpeedSettings
+from console.analysis.crossing.approach import approach_timeline
+from console.analysis.crossing.controller import earliest_arrival_s
+from console.analysis.passages.diagnostics import SpeedSettings
 from console.cli.app import app
 from console.layout import WorkSite, load_layout
 from tests.reads import whole_job

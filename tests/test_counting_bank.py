@@ -1,8 +1,8 @@
 """The vectorized counter gives exactly the scalar HeadCounter's events, for any split of the records.
 
-:class:`console.analysis.counting.CounterBank` applies seed 003's overlap
+:class:`console.analysis.counting.bank.CounterBank` applies seed 003's overlap
 rule to blocks of records of many heads with array operations;
-:class:`console.analysis.wheels.HeadCounter` (the live engine's and the
+:class:`console.analysis.counting.wheels.HeadCounter` (the live engine's and the
 simulator's counter) is the oracle, fed the same records one at a time.
 Random record sequences per head: wheels (both systems overlapping, either
 order, sometimes one system missing), lone pulses, repeated onsets,
@@ -27,12 +27,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from console.analysis.counting import CounterBank
+from console.analysis.counting.bank import CounterBank
+from console.analysis.counting.wheels import CountingSettings, HeadCounter
 from console.analysis.diag_events import DiagEventSettings, diag_detection_events
-from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
-from console.analysis.events import DetectionEvent, EventKind, sort_events
-from console.analysis.stream import ORDER_SLACK_S
-from console.analysis.wheels import CountingSettings, HeadCounter
+from console.analysis.events.detection import DetectionEvent, EventKind, sort_events
+from console.analysis.passages.diagnostics import DiagAnalysis, SpeedSettings
+from console.analysis.passages.stream import ORDER_SLACK_S
 from console.layout import Layout, load_layout
 from console.sim.station import Fault, SimConfig, StationSim
 from console.sim.writers import write_diagnostic

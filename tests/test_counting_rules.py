@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from console.analysis.counting import two_channel_events
-from console.analysis.edge_rule import SIGNAL_A, SIGNAL_B, confirmed_axles, edge_rule_events
-from console.analysis.events import DOWN, UP, EventKind
-from console.analysis.majority import majority_events
-from console.analysis.wheels import CountingSettings
+from console.analysis.counting.bank import two_channel_events
+from console.analysis.counting.edge_rule import SIGNAL_A, SIGNAL_B, confirmed_axles, edge_rule_events
+from console.analysis.counting.majority import majority_events
+from console.analysis.counting.wheels import CountingSettings
+from console.analysis.events.detection import DOWN, UP, EventKind
 
 MS = 1_000_000
 S = 1_000_000_000

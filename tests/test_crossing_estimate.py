@@ -23,9 +23,9 @@ from filterpy.kalman import predict, update
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from console.analysis.crossing import ControllerSettings, CrossingController, Fix, TrainSpec, run_controller
-from console.analysis.crossing_arrival import earliest_s
-from console.analysis.crossing_estimate import predict_ca, update_position, update_speed
+from console.analysis.crossing.arrival import earliest_s
+from console.analysis.crossing.controller import ControllerSettings, CrossingController, Fix, TrainSpec, run_controller
+from console.analysis.crossing.estimate import predict_ca, update_position, update_speed
 from console.layout import load_layout
 from console.sim.crossing_runs import RunConditions, random_conditions, simulate
 

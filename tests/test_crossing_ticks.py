@@ -17,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 import pytest
 
-from console.analysis.crossing import ControllerSettings, CrossingController, Fix, TrainSpec, run_controller
+from console.analysis.crossing.controller import ControllerSettings, CrossingController, Fix, TrainSpec, run_controller
 from console.layout import LevelCrossing, load_layout
 from console.sim.crossing_runs import random_conditions, simulate
 from parsers.units import NS

@@ -1,6 +1,6 @@
 """The event stream releases the batch path's events, one for one, in the batch path's order.
 
-:class:`console.analysis.stream_sections.EventStream` counts each batch of
+:class:`console.analysis.sections.stream.EventStream` counts each batch of
 closed passages (all heads at once) and releases events below a watermark;
 :func:`console.jobs.detection_events` counts the whole log.  Over realistic
 multi-board logs (µs, ms and whole-second boards, damaged lines) read in
@@ -27,10 +27,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate
+from console.analysis.counting.wheels import CountingSettings
 from console.analysis.diag_events import DiagEventSettings
-from console.analysis.diagnostics import SpeedSettings
-from console.analysis.events import EventKind
-from console.analysis.wheels import CountingSettings
+from console.analysis.events.detection import EventKind
+from console.analysis.passages.diagnostics import SpeedSettings
 from console.engine.sinks import EventList
 from console.layout import Layout, load_layout
 from tests.reads import detection_events, pipeline_sections, whole_job

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from benchmarks.forecast_heads import Plan, plan, score
-from console.analysis.forecast import FIGURES, ForecastSettings, Series, due_list, forecast, forecasts
+from console.analysis.health.forecast import FIGURES, ForecastSettings, Series, due_list, forecast, forecasts
 from console.cli.app import app
 from parsers.units import NS_PER_DAY
 

@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from console.analysis.events import DOWN, UNKNOWN, UP, DetectionEvent, EventKind
+from console.analysis.events.detection import DOWN, UNKNOWN, UP, DetectionEvent, EventKind
 from console.analysis.frame_events import frames_to_events
 from parsers.frames.can import CAN_COLUMNS, CanFileReport, count_frames_only, parse_can
 from parsers.frames.sensor import frame_line_problem, parse_frames

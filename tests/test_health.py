@@ -1,4 +1,4 @@
-"""Sensor and channel health (console/analysis/health.py, parsers/voltages.py).
+"""Sensor and channel health (console/analysis/health/rules.py, parsers/voltages.py).
 
 Truths: seed 000 Table 2 (Âm Thượng station, 2021-06-06) and the generated
 sample_logs/ws4_health.log (sample_logs/make_ws4_health.py).
@@ -13,8 +13,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.health import (
+from console.analysis.events.detection import DetectionEvent, EventKind
+from console.analysis.health.rules import (
     BandSettings,
     Finding,
     Severity,

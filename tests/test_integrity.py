@@ -10,8 +10,9 @@ import math
 import numpy as np
 import pytest
 
-from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.integrity import (
+from console.analysis.events.detection import DetectionEvent, EventKind
+from console.analysis.integrity.counts import AXLES, SECTIONS
+from console.analysis.integrity.monitor import (
     DOUBTFUL,
     EOT,
     GNSS,
@@ -24,9 +25,8 @@ from console.analysis.integrity import (
     IntegritySettings,
     timelines,
 )
-from console.analysis.integrity_counts import AXLES, SECTIONS
-from console.analysis.section_state import SectionState
-from console.analysis.sections import SectionEngine
+from console.analysis.sections.engine import SectionEngine
+from console.analysis.sections.state import SectionState
 from console.layout import layout_from_dict
 from parsers.units import NS
 

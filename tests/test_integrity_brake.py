@@ -1,4 +1,4 @@
-"""The brake pipe's witness of train integrity (console.analysis.integrity_brake): its rules.
+"""The brake pipe's witness of train integrity (console.analysis.integrity.brake_pipe): its rules.
 
 The rear pipe vented while the front stayed charged is a parting; a front
 that vented too (an emergency of the whole train), or whose status is not
@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import math
 
-from console.analysis.integrity import (
+from console.analysis.integrity.brake_pipe import BrakePipeWitness
+from console.analysis.integrity.monitor import (
     BRAKE_PIPE,
     DOUBTFUL,
     EOT,
@@ -19,7 +20,6 @@ from console.analysis.integrity import (
     IntegrityEvent,
     IntegrityMonitor,
 )
-from console.analysis.integrity_brake import BrakePipeWitness
 from parsers.units import NS
 
 T0 = 1_772_438_400 * NS

@@ -182,7 +182,7 @@ def test_a_log_out_of_time_order_is_read_whole_for_json_and_warned_about_for_jso
     swapped.write_bytes(b"".join(lines[len(lines) // 2 :] + lines[: len(lines) // 2]))
     out = run("analyze", "--json", str(swapped))
     assert "warning" not in out.stderr
-    from console.analysis.diagnostics import SpeedSettings
+    from console.analysis.passages.diagnostics import SpeedSettings
     from tests.reads import stream_job
 
     job = stream_job([swapped], SpeedSettings(), whole=True, include_status=False)

@@ -14,10 +14,10 @@ from typing import Any
 import can
 import pytest
 
-from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.events.detection import DetectionEvent, EventKind
 from console.analysis.frame_events import frames_to_events
-from console.analysis.section_state import SectionState
-from console.analysis.sections import run_sections
+from console.analysis.sections.engine import run_sections
+from console.analysis.sections.state import SectionState
 from console.inputs.base import CanFrame, Item, SourceError
 from console.inputs.uri import open_source
 from console.layout import Layout, layout_from_dict

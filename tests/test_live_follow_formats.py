@@ -30,8 +30,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from console.analysis.frame_events import frames_to_events
-from console.analysis.section_state import SectionState
-from console.analysis.sections import run_sections
+from console.analysis.sections.engine import run_sections
+from console.analysis.sections.state import SectionState
 from console.inputs.base import FrameRows, GnssFix, Item, LineBlock, SourceNote
 from console.inputs.follow import FileSource
 from console.layout import Layout, layout_from_dict, load_layout

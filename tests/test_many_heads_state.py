@@ -18,10 +18,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate
-from console.analysis.diagnostics import SpeedSettings
 from console.analysis.head_table import HeadTable, heads_at
-from console.analysis.status import STATUS_KIND
-from console.analysis.stream import take_passages
+from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.status import STATUS_KIND
+from console.analysis.passages.stream import take_passages
 from console.jsonout import array_parts, dumps
 from console.render.diag_stream import status_json
 from console.render.passage_spool import FirstPassages

@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from console.analysis import passages_json as pj
-from console.analysis.diagnostics import SpeedSettings, iso_strings, passages_json_text
+from console.analysis.passages import json_text as pj
+from console.analysis.passages.diagnostics import SpeedSettings, iso_strings, passages_json_text
 from tests.reads import whole_job
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"
@@ -103,7 +103,7 @@ def test_objects_are_the_array_items(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_spool_encodes_held_batches_as_each_passage_alone(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
     """Batches handed in any sizes are held and encoded a few at a time; one head's name needs escaping, so
     the batches holding it take pandas' encoder: the document is the same as each passage encoded alone."""
-    from console.analysis.stream import by_head_and_start, take_passages
+    from console.analysis.passages.stream import by_head_and_start, take_passages
     from console.render import passage_spool as ps
 
     analysis = whole_job([SAMPLES / "example_station.log"], SpeedSettings()).analysis
@@ -159,7 +159,7 @@ def test_indented_objects_are_the_report_json(log: str, depth: int, monkeypatch:
     text, ``depth`` levels deep: from the table the archive reads, in one batch and in many."""
     import json
 
-    from console.analysis.diagnostics import frame_columns
+    from console.analysis.passages.diagnostics import frame_columns
     from console.report.jsonwrite import indented
 
     p = whole_job([SAMPLES / log], SpeedSettings()).analysis.passages
@@ -178,7 +178,7 @@ def test_indented_objects_are_the_report_json(log: str, depth: int, monkeypatch:
 
 
 def test_frame_columns_refuse_what_has_no_code() -> None:
-    from console.analysis.diagnostics import frame_columns
+    from console.analysis.passages.diagnostics import frame_columns
 
     p = whole_job([SAMPLES / "example_station.log"], SpeedSettings()).analysis.passages
     assert frame_columns(p) is not None

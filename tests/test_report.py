@@ -29,10 +29,10 @@ from pathlib import Path
 
 import pytest
 
+from console.analysis.crossing.timeline import TimelineRow
 from console.analysis.crossing_batch import CrossingRun
-from console.analysis.crossing_timeline import TimelineRow
-from console.analysis.diagnostics import SpeedSettings
-from console.analysis.health import Severity
+from console.analysis.health.rules import Severity
+from console.analysis.passages.diagnostics import SpeedSettings
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
 from console.output_path import write_atomic

@@ -27,7 +27,7 @@ from hypothesis import strategies as st
 
 from benchmarks.bench_memory_commands import write_layout
 from benchmarks.gen_realistic_diag import generate
-from console.analysis.section_state import LedgerEntry, SectionState, Transition
+from console.analysis.sections.state import LedgerEntry, SectionState, Transition
 from console.jsonout import valid_unicode
 from console.layout import load_layout
 from console.render.section_history import SPILL_BLOCK_BYTES, LedgerText

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from console.analysis.events import DOWN, UP, DetectionEvent, EventKind
-from console.analysis.section_state import SectionState
-from console.analysis.sections import SectionEngine, run_sections
+from console.analysis.events.detection import DOWN, UP, DetectionEvent, EventKind
+from console.analysis.sections.engine import SectionEngine, run_sections
+from console.analysis.sections.state import SectionState
 from console.layout import load_layout
 
 LAY = load_layout("example")  # 1G: WS1(+1) WS2(-1); B1: WS2(+1) WS3(-1); ...

@@ -19,10 +19,10 @@ import os
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from console.analysis.event_block import EventBlock, StringPool
-from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.section_state import SectionState
-from console.analysis.sections import SectionEngine
+from console.analysis.events.block import EventBlock, StringPool
+from console.analysis.events.detection import DetectionEvent, EventKind
+from console.analysis.sections.engine import SectionEngine
+from console.analysis.sections.state import SectionState
 from console.layout import load_layout
 
 LAYOUT = load_layout("example")

@@ -23,11 +23,11 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from console.analysis.counting import two_channel_events
-from console.analysis.events import DetectionEvent, EventKind, sort_events
-from console.analysis.section_state import SectionState
-from console.analysis.sections import SectionEngine
-from console.analysis.wheels import CountingSettings
+from console.analysis.counting.bank import two_channel_events
+from console.analysis.counting.wheels import CountingSettings
+from console.analysis.events.detection import DetectionEvent, EventKind, sort_events
+from console.analysis.sections.engine import SectionEngine
+from console.analysis.sections.state import SectionState
 from console.layout import load_layout
 
 NS = 1_000_000_000

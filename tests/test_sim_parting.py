@@ -9,8 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, Fix, TrainSpec
-from console.analysis.integrity import PARTED, WHOLE, IntegrityEvent
+from console.analysis.crossing.controller import EOT, HEAD, ControllerSettings, CrossingController, Fix, TrainSpec
+from console.analysis.integrity.monitor import PARTED, WHOLE, IntegrityEvent
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
 from console.sim.station import Fault, SimConfig, StationSim

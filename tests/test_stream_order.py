@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from console.analysis.stream import _by_head_then_time
+from console.analysis.passages.stream import _by_head_then_time
 
 
 @pytest.mark.parametrize("heads", [1, 80, 70_000])  # 70 000: keys beyond 16 bits, lexsort only

@@ -28,12 +28,12 @@ from typer.testing import CliRunner
 
 from benchmarks.bench_memory_commands import write_layout
 from benchmarks.gen_realistic_diag import generate
+from console.analysis.counting.wheels import CountingSettings
 from console.analysis.diag_events import DiagEventSettings
-from console.analysis.diagnostics import SpeedSettings
-from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.section_state import SectionState
-from console.analysis.sections import ledger_summary_frame, run_sections
-from console.analysis.wheels import CountingSettings
+from console.analysis.events.detection import DetectionEvent, EventKind
+from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.sections.engine import ledger_summary_frame, run_sections
+from console.analysis.sections.state import SectionState
 from console.cli.app import app
 from console.drivers.batch import health_findings
 from console.engine.pipeline import HEALTH_REGISTERS

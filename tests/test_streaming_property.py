@@ -23,8 +23,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate
-from console.analysis.diagnostics import SpeedSettings
-from console.analysis.status import STATUS_KIND
+from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.status import STATUS_KIND
 from console.layout import load_layout
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_diagnostic

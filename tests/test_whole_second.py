@@ -24,7 +24,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate as generate_realistic
-from console.analysis.diagnostics import SpeedSettings
+from console.analysis.passages.diagnostics import SpeedSettings
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
 from console.sim.station import SimConfig, StationSim

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from console.analysis.crossing import (
+from console.analysis.crossing.controller import (
     EOT,
     HEAD,
     ControllerSettings,
@@ -27,9 +27,9 @@ from console.analysis.crossing import (
     TrainSpec,
     run_controller,
 )
-from console.analysis.crossing_timeline import TimelineRow, timeline
+from console.analysis.crossing.timeline import TimelineRow, timeline
 from console.analysis.geo import TrackProjector
-from console.analysis.integrity import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
+from console.analysis.integrity.monitor import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
 from console.layout import Layout
 
 OFF_TRACK_M = 100.0

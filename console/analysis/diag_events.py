@@ -1,9 +1,9 @@
 """A diagnostic log's wheel-sensor records → the section engine's event stream.
 
 Per counting head of the layout: two-channel heads use the overlap rule
-(:class:`console.analysis.counting.CounterBank`, every head at once: the
-events :class:`~console.analysis.wheels.HeadCounter` gives), three-element
-heads the majority rule (:func:`console.analysis.majority.majority_events`).
+(:class:`console.analysis.counting.bank.CounterBank`, every head at once: the
+events :class:`~console.analysis.counting.wheels.HeadCounter` gives), three-element
+heads the majority rule (:func:`console.analysis.counting.majority.majority_events`).
 A gap in a head's records longer than ``power_gap_s`` is a power or contact
 loss: it only makes sense where the device writes records continuously
 (a heartbeat), so it is off unless set.  A head silent at the end of the log
@@ -21,12 +21,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from console.analysis.diagnostics import DiagAnalysis
-from console.analysis.event_block import KIND_CODE, NO_CHANNEL, Detail, EventBlock, StringPool
-from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.majority import MajoritySettings, majority_events
-from console.analysis.stream import ORDER_SLACK_S
-from console.analysis.wheels import CountingSettings
+from console.analysis.counting.majority import MajoritySettings, majority_events
+from console.analysis.counting.wheels import CountingSettings
+from console.analysis.events.block import KIND_CODE, NO_CHANNEL, Detail, EventBlock, StringPool
+from console.analysis.events.detection import DetectionEvent, EventKind
+from console.analysis.passages.diagnostics import DiagAnalysis
+from console.analysis.passages.stream import ORDER_SLACK_S
 from console.layout import Layout
 from parsers.units import NS
 
@@ -99,8 +99,8 @@ def diag_detection_events(
     analysis: DiagAnalysis, layout: Layout, settings: DiagEventSettings | None = None
 ) -> tuple[list[DetectionEvent], list[str]]:
     """(events in time order, warnings about log heads the layout does not know)."""
-    from console.analysis.counting import CounterBank
-    from console.analysis.event_queue import EventQueue
+    from console.analysis.counting.bank import CounterBank
+    from console.analysis.events.queue import EventQueue
     from parsers.units import ALL_TIME
 
     s = settings or DiagEventSettings()

@@ -31,7 +31,7 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-from console.analysis.events import DOWN, UNKNOWN, UP, DetectionEvent, EventKind, sort_events
+from console.analysis.events.detection import DOWN, UNKNOWN, UP, DetectionEvent, EventKind, sort_events
 from parsers.frames.table import check_byte_mask
 from parsers.units import NS
 

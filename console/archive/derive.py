@@ -45,13 +45,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyarrow as pa
 
+from console.analysis.counting.wheels import SYS1, SYS2, WHEEL_SENSOR_ADDRESS
 from console.analysis.diag_events import DiagEventSettings
-from console.analysis.diagnostics import SpeedSettings
-from console.analysis.overlap import overlap_mask
-from console.analysis.registers import RegisterTables
-from console.analysis.sections import SectionEngine
-from console.analysis.stream_sections import EventStream, HeadFacts
-from console.analysis.wheels import SYS1, SYS2, WHEEL_SENSOR_ADDRESS
+from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.overlap import overlap_mask
+from console.analysis.passages.registers import RegisterTables
+from console.analysis.sections.engine import SectionEngine
+from console.analysis.sections.stream import EventStream, HeadFacts
 from console.archive.derive_sink import DERIVE_VERSION, ArchiveSink, arrow_table, day_column
 from console.archive.history import at_end_tables
 from console.archive.parts import write_part, write_small
@@ -272,7 +272,7 @@ class GroupRun:
         """Every derived row of the group made again from its archived records, merged as a read of all the
         files together orders them (files whose times interleave give each head's records in time order);
         records a file repeats from another at their seam (overlapping exports) are set aside, as a batch
-        read of all the files does (:mod:`console.analysis.overlap`)."""
+        read of all the files does (:mod:`console.analysis.passages.overlap`)."""
 
         self.sink.abort()
         self.sink = ArchiveSink(self.root, self.generation, "d" + self.tag)

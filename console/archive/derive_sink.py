@@ -16,9 +16,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyarrow as pa
 
-from console.analysis.diagnostics import PASSAGE_BASES, PASSAGE_COLUMNS, PASSAGE_DIRECTIONS, PASSAGE_KINDS
+from console.analysis.counting.wheels import DIRECTIONS
 from console.analysis.head_table import heads_at
-from console.analysis.wheels import DIRECTIONS
+from console.analysis.passages.diagnostics import PASSAGE_BASES, PASSAGE_COLUMNS, PASSAGE_DIRECTIONS, PASSAGE_KINDS
 from console.archive.parts import PartWriter
 from console.engine.pipeline import HEALTH_EVENT_KINDS
 from console.engine.sinks import Sink
@@ -27,18 +27,19 @@ from parsers.units import NS_PER_DAY
 if TYPE_CHECKING:
     import pandas as pd
 
-    from console.analysis.event_block import EventBlock
+    from console.analysis.events.block import EventBlock
     from console.analysis.head_table import Heads
-    from console.analysis.passages import Columns
-    from console.analysis.section_state import LedgerEntry, Transition
+    from console.analysis.passages.buckets import Columns
+    from console.analysis.sections.state import LedgerEntry, Transition
 
 # Bump when derived rows change meaning: an archive derived by another version is rebuilt.
 # 4: integers stored as integers (passages' detection second), finding times as TIMESTAMP_NS.
 # 5: derived by the pipeline in the ingest's one pass, its state kept between ingests.
-# 6: the kept state's section records moved (console.analysis.section_state): a state pickled by 5 is not read.
+# 6: the kept state's section records moved (console.analysis.sections.state): a state pickled by 5 is not read.
 # 7: the parsers grouped by family (parsers.diag.registry, parsers.diag.fields): a state pickled by 6 names
 #    modules that are gone, so it is not read; the records are derived again.
-DERIVE_VERSION = 7
+# 8: the analysis grouped by job (console.analysis.passages.stream, .counting.bank, ...): likewise.
+DERIVE_VERSION = 8
 # Rows each derived table buffers before a write-out (the records' writer has BUFFER_BYTES): derived rows come
 # a few per chunk, and five tables' full buffers cost memory (a 3 M-record ingest peaked 35 MB lower at 4 MB than
 # at 16 MB, for the same CPU).
@@ -162,7 +163,7 @@ def _column(values: Any) -> pa.Array:
 
 
 def passages_table(cols: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
-    """(device ids, the passages as Arrow): the columns of :func:`~console.analysis.diagnostics.passages_frame`
+    """(device ids, the passages as Arrow): the columns of :func:`~console.analysis.passages.diagnostics.passages_frame`
     with the start as a time and each passage's axle speeds as a list, built from the pipeline's arrays (no
     pandas: this runs for every chunk of an ingest)."""
     device_id, counting_head = _heads_columns(heads, cols["head"])
@@ -192,7 +193,7 @@ def passages_table(cols: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
 
 
 def axles_table(axles: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
-    """(device ids, the axles as Arrow): :func:`~console.analysis.wheels.axles_frame`'s columns, the head as
+    """(device ids, the axles as Arrow): :func:`~console.analysis.counting.wheels.axles_frame`'s columns, the head as
     its device and name, and the time."""
     arrays: list[pa.Array] = []
     names: list[str] = []
@@ -219,7 +220,7 @@ def channel_events_frame(events: Iterable[Any]) -> pd.DataFrame:
     """The events health judges (channel faults and recoveries, single-channel pulses), as a table."""
     import pandas as pd
 
-    from console.analysis.events import EVENT_COLUMNS
+    from console.analysis.events.detection import EVENT_COLUMNS
 
     rows = [(e.time_ns, str(e.kind), e.head, e.direction, e.channel, e.source, e.detail) for e in events]
     df = pd.DataFrame(rows, columns=list(EVENT_COLUMNS))

@@ -1,6 +1,6 @@
 """The daily health figures a forecast follows, from the archive; and the forecasts themselves.
 
-Three figures per day (console.analysis.forecast says what each means and its threshold):
+Three figures per day (console.analysis.health.forecast says what each means and its threshold):
 
 * ``analog_margin`` per counting head and channel: the day's median analog value's distance inside
   the band (``median_margin`` of :func:`console.archive.trends.analog_margins_per_day`);
@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from console.analysis.forecast import FIGURES, STATUSES, Forecast, ForecastSettings, Series, due_list, forecasts
+from console.analysis.health.forecast import FIGURES, STATUSES, Forecast, ForecastSettings, Series, due_list, forecasts
 from console.archive.reader import Window, parse_time
 from console.archive.store import archive_dir, read_current
 from console.archive.trends import analog_margins_per_day, disturbances_per_day

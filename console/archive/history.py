@@ -21,7 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from console.analysis.diagnostics import DiagAnalysis
+from console.analysis.passages.diagnostics import DiagAnalysis
 from console.archive.history_diag import channel_events, derived_for, history_diag
 from console.archive.reader import (
     ArchivedRecords,
@@ -71,7 +71,7 @@ def report_data(
     """
     import pandas as pd
 
-    from console.analysis.health import Finding, sort_findings, voltage_margin_findings
+    from console.analysis.health.rules import Finding, sort_findings, voltage_margin_findings
     from console.report.collect import crossings_from_fixes, frames_from_tables, sections_into_report
     from console.report.model import InputFile, ReportData
 

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from console.analysis.diagnostics import DiagAnalysis
+from console.analysis.passages.diagnostics import DiagAnalysis
 from console.archive.derive_sink import DERIVE_VERSION
 from console.archive.reader import Window, health_records, parse_reports
 from console.archive.store import Manifest
@@ -38,10 +38,10 @@ if TYPE_CHECKING:
     import duckdb
     import pandas as pd
 
-    from console.analysis.diagnostics import SpeedSettings
-    from console.analysis.events import DetectionEvent
+    from console.analysis.events.detection import DetectionEvent
     from console.analysis.inventory import DeviceInventory
-    from console.analysis.sections import SectionsResult
+    from console.analysis.passages.diagnostics import SpeedSettings
+    from console.analysis.sections.engine import SectionsResult
     from console.layout import Layout
     from parsers.report import ParseReport
 
@@ -144,7 +144,7 @@ def _overlap(manifest: Manifest, window: Window) -> int:
 
 def _warnings(layout: Layout | None, heads: list[tuple[int, Any]]) -> list[str]:
     from console.analysis.diag_events import DiagEventSettings
-    from console.analysis.stream_sections import EventStream
+    from console.analysis.sections.stream import EventStream
 
     return EventStream(layout, DiagEventSettings()).warnings(heads)
 
@@ -176,7 +176,7 @@ def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[
     """The window's passages as ``DiagAnalysis.passages`` gives them (per-axle speeds in ``attrs``)."""
     import pandas as pd
 
-    from console.analysis.diagnostics import PASSAGE_COLUMNS
+    from console.analysis.passages.diagnostics import PASSAGE_COLUMNS
 
     where, params = _where(window, "start_ns")
     columns = [c for c in PASSAGE_COLUMNS if c not in ("axle_speeds_start", "axle_speeds_stop")]
@@ -288,8 +288,8 @@ def _sections(
     """The section history cut to the window; the final state at its end (stored for the whole history)."""
     import pandas as pd
 
-    from console.analysis.section_state import SectionState
-    from console.analysis.sections import SectionEngine, SectionsResult
+    from console.analysis.sections.engine import SectionEngine, SectionsResult
+    from console.analysis.sections.state import SectionState
 
     if layout is None or not layout.sections:
         return None
@@ -369,7 +369,7 @@ def channel_events(root: Path, manifest: Manifest, window: Window) -> list[Detec
     """The stored channel events (the events health reads) in the window, in time order."""
     import pyarrow.parquet as pq
 
-    from console.analysis.events import DetectionEvent, EventKind
+    from console.analysis.events.detection import DetectionEvent, EventKind
 
     out: list[DetectionEvent] = []
     lo = _ns(window.start) if window.start is not None else None

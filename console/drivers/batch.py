@@ -28,10 +28,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from console.analysis.diagnostics import DiagAnalysis, SpeedSettings
-from console.analysis.passages import Columns
-from console.analysis.status import StatusSummary
-from console.analysis.stream import ORDER_SLACK_S, by_head_and_start, concat_passages, take_passages
+from console.analysis.passages.buckets import Columns
+from console.analysis.passages.diagnostics import DiagAnalysis, SpeedSettings
+from console.analysis.passages.status import StatusSummary
+from console.analysis.passages.stream import ORDER_SLACK_S, by_head_and_start, concat_passages, take_passages
 from console.engine.pipeline import DiagOutcome, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks
 from console.memory import read_memory
@@ -44,10 +44,10 @@ from parsers.sources import DEFAULT_CHUNK_BYTES
 if TYPE_CHECKING:
     import pandas as pd
 
-    from console.analysis.events import DetectionEvent
+    from console.analysis.events.detection import DetectionEvent
     from console.analysis.head_table import Heads
-    from console.analysis.health import Finding
-    from console.analysis.sections import SectionEngine
+    from console.analysis.health.rules import Finding
+    from console.analysis.sections.engine import SectionEngine
     from console.layout import Layout
 
 STDIN = "-"
@@ -147,7 +147,7 @@ class PassageTable(Sink):
 
 
 def no_axles() -> Columns:
-    from console.analysis.wheels import PairingSettings, pair_axle_arrays
+    from console.analysis.counting.wheels import PairingSettings, pair_axle_arrays
 
     empty = np.zeros(0, np.int64)
     axles, _ = pair_axle_arrays(
@@ -300,7 +300,7 @@ def health_findings(
     voltages: pd.DataFrame | None = None,
 ) -> list[Finding]:
     """Health findings of a read that kept the health registers and channel events (``events``: these)."""
-    from console.analysis.health import health_report
+    from console.analysis.health.rules import health_report
 
     bands = {h.id: h.analog_band for h in layout.heads if h.analog_band} if layout else None
     evs = job.health_events if events is None else events

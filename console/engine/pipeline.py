@@ -6,14 +6,14 @@ the chunks of a growing file as they come; the archive's ingest feeds the
 chunks it stores; a Dask task feeds one partition's records.  The
 pipeline owns, for diagnostic records:
 
-* the per-head passage stream (:class:`~console.analysis.stream.PassageStream`):
+* the per-head passage stream (:class:`~console.analysis.passages.stream.PassageStream`):
   a head's records up to an idle gap are *closed* once nothing read later
   can join them, analysed by the batch analysis itself, and handed on;
 * the counting of their wheel records into detection events
-  (:class:`~console.analysis.stream_sections.EventStream`), released in
+  (:class:`~console.analysis.sections.stream.EventStream`), released in
   the whole-log order below a *watermark* (nothing still to come is
   earlier);
-* the section engine (:class:`~console.analysis.sections.SectionEngine`),
+* the section engine (:class:`~console.analysis.sections.engine.SectionEngine`),
   stepped on the released events, whose history (state changes, ledger,
   resets) is handed on as it is made;
 * the health inputs (the health registers' records and channel events),
@@ -45,14 +45,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from console.analysis.diag_events import DiagEventSettings
-from console.analysis.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, wheel_columns
-from console.analysis.event_block import KIND_CODE, EventBlock, StringPool
-from console.analysis.events import DetectionEvent, EventKind, sort_events
-from console.analysis.section_state import SectionState
-from console.analysis.sections import SectionEngine
-from console.analysis.status import StatusSummary
-from console.analysis.stream import PassageStream, by_start, take_passages
-from console.analysis.stream_sections import EventStream, HeadFacts
+from console.analysis.events.block import KIND_CODE, EventBlock, StringPool
+from console.analysis.events.detection import DetectionEvent, EventKind, sort_events
+from console.analysis.passages.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, wheel_columns
+from console.analysis.passages.status import StatusSummary
+from console.analysis.passages.stream import PassageStream, by_start, take_passages
+from console.analysis.sections.engine import SectionEngine
+from console.analysis.sections.state import SectionState
+from console.analysis.sections.stream import EventStream, HeadFacts
 from console.engine.sinks import Sink
 from parsers.diag.read import DiagChunk
 from parsers.diag.registry import DiagRegistry
@@ -60,7 +60,7 @@ from parsers.units import NO_TIME, NS
 
 if TYPE_CHECKING:
     from console.analysis.head_table import Heads
-    from console.analysis.health import Finding
+    from console.analysis.health.rules import Finding
     from console.analysis.inventory import DeviceInventory
     from console.layout import Layout
 
@@ -363,7 +363,7 @@ class Pipeline:
         event came, or the read ends (``final``); on the last HEALTH_WINDOW_NS of evidence; a finding is handed
         on when new or graver than before for its rule, head and channel.
         """
-        from console.analysis.health import health_report
+        from console.analysis.health.rules import health_report
         from parsers.diag.read import chunks_to_frame
 
         s = self.settings

@@ -14,12 +14,12 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from console.analysis.event_block import EventBlock
-    from console.analysis.events import DetectionEvent
+    from console.analysis.events.block import EventBlock
+    from console.analysis.events.detection import DetectionEvent
     from console.analysis.head_table import Heads
-    from console.analysis.health import Finding
-    from console.analysis.passages import Columns
-    from console.analysis.section_state import LedgerEntry, ResetRecord, Transition
+    from console.analysis.health.rules import Finding
+    from console.analysis.passages.buckets import Columns
+    from console.analysis.sections.state import LedgerEntry, ResetRecord, Transition
 
 
 class Sink:

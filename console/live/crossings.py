@@ -1,7 +1,7 @@
 """GNSS fixes arriving live (gpsd, LoRaWAN) → the crossing units' warnings.
 
 Each fix is placed on the layout's track and handed to every crossing's
-:class:`~console.analysis.crossing.CrossingController`, the same unit the
+:class:`~console.analysis.crossing.controller.CrossingController`, the same unit the
 batch ``crossing`` command and the simulator run.  Time passes through
 :meth:`CrossingFollow.tick`, so a unit that goes silent becomes stale and
 the warning stays on (the controller's rule: off only on fresh evidence).
@@ -15,7 +15,7 @@ clock runs ahead cannot make old positions look fresh.
 A *recorded* fix (read from a file, or the simulator's) is judged by its own
 time, and the units' clock ticks as the batch ``crossing`` command ticks it:
 every tick step after each fix, before the next one, until nothing a tick
-does can change (:func:`~console.analysis.crossing.run_controller`).  The
+does can change (:func:`~console.analysis.crossing.controller.run_controller`).  The
 ticks after the latest fix are made as the recordings' clock is known to
 have passed them (:meth:`CrossingFollow.advance`), and all of them at the
 end.  So fixes handed over in time order give the batch command's events.
@@ -28,9 +28,17 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingController, CrossingEvent, Fix, TrainSpec
+from console.analysis.crossing.controller import (
+    EOT,
+    HEAD,
+    ControllerSettings,
+    CrossingController,
+    CrossingEvent,
+    Fix,
+    TrainSpec,
+)
+from console.analysis.crossing.timeline import timeline
 from console.analysis.crossing_batch import OFF_TRACK_M, crossing_settings
-from console.analysis.crossing_timeline import timeline
 from console.analysis.geo import TrackProjector
 from console.analysis.timefmt import iso
 from console.inputs.base import GnssFix

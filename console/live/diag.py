@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from console.analysis.diag_events import DiagEventSettings
-from console.analysis.diagnostics import SpeedSettings
-from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.section_state import SectionState
+from console.analysis.events.detection import DetectionEvent, EventKind
+from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.sections.state import SectionState
 from console.engine.pipeline import HEALTH_REGISTERS, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks
 from console.layout import Layout
@@ -34,9 +34,9 @@ from parsers.units import NO_TIME
 
 if TYPE_CHECKING:
     from console.analysis.head_table import Heads
-    from console.analysis.health import Finding
-    from console.analysis.passages import Columns
-    from console.analysis.section_state import ResetRecord, Transition
+    from console.analysis.health.rules import Finding
+    from console.analysis.passages.buckets import Columns
+    from console.analysis.sections.state import ResetRecord, Transition
 
 Emit = Callable[[dict[str, Any]], None]
 

@@ -15,8 +15,8 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from console.analysis.diagnostics import SpeedSettings
-from console.analysis.section_state import SectionState
+from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.sections.state import SectionState
 from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote
 from console.layout import Layout
 from console.live.archive import LiveArchiver

@@ -28,7 +28,7 @@ Two things the batch path decides with hindsight are decided as data arrives:
   A clear is announced when it arrives, not one train later; only a count
   that then jumps past 165 (``160, A5, 170``) reads differently from batch.
 
-Events go in time order into one :class:`~console.analysis.sections.SectionEngine`
+Events go in time order into one :class:`~console.analysis.sections.engine.SectionEngine`
 (section changes), a sensor's axles between two clears make a frame
 passage, and channel faults become health findings, as in batch.
 """
@@ -42,11 +42,11 @@ from typing import Any, Protocol
 import numpy as np
 import pandas as pd
 
-from console.analysis.events import DOWN, UP, DetectionEvent, EventKind, sort_events
+from console.analysis.events.detection import DOWN, UP, DetectionEvent, EventKind, sort_events
 from console.analysis.frame_events import frames_to_events
-from console.analysis.health import channel_fault_findings
-from console.analysis.section_state import SectionState, Transition
-from console.analysis.sections import SectionEngine
+from console.analysis.health.rules import channel_fault_findings
+from console.analysis.sections.engine import SectionEngine
+from console.analysis.sections.state import SectionState, Transition
 from console.analysis.timefmt import iso
 from console.inputs.base import CanFrame, FrameRows
 from console.layout import Layout

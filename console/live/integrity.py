@@ -1,5 +1,5 @@
 """Train integrity, live: the fixes the crossing units get, the axles and section changes the
-counting heads give → :class:`~console.analysis.integrity.IntegrityMonitor` → ``type: integrity``.
+counting heads give → :class:`~console.analysis.integrity.monitor.IntegrityMonitor` → ``type: integrity``.
 
 The fixes arrive placed on the track (with the brake-pipe pressure and
 emergency status of units that report them: LoRa payload version 2) (:class:`~console.live.crossings.CrossingFollow`),
@@ -20,15 +20,15 @@ import math
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
-from console.analysis.crossing import Fix
-from console.analysis.events import DetectionEvent
-from console.analysis.integrity import ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
-from console.analysis.section_state import Transition
+from console.analysis.crossing.controller import Fix
+from console.analysis.events.detection import DetectionEvent
+from console.analysis.integrity.monitor import ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
+from console.analysis.sections.state import Transition
 from console.engine.sinks import Sink
 from console.layout import Layout
 
 if TYPE_CHECKING:
-    from console.analysis.event_block import EventBlock
+    from console.analysis.events.block import EventBlock
 
 Emit = Callable[[dict[str, Any]], None]
 

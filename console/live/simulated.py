@@ -32,8 +32,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from console.analysis.crossing import CrossingEvent
-from console.analysis.section_state import SectionState
+from console.analysis.crossing.controller import CrossingEvent
+from console.analysis.sections.state import SectionState
 from console.inputs.base import GnssFix, LineBlock
 from console.live.engine import LiveEngine
 from console.sim.diag_lines import (

@@ -6,7 +6,7 @@ from rich import box
 from rich.table import Table
 from rich.text import Text
 
-from console.analysis.approach import ApproachRow
+from console.analysis.crossing.approach import ApproachRow
 from console.analysis.timefmt import display
 from console.safe_text import inert
 

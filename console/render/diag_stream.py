@@ -14,16 +14,16 @@ from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any, TextIO
 
 from console.analysis.head_table import Heads
-from console.analysis.passages import Columns
-from console.analysis.status import StatusSummary
+from console.analysis.passages.buckets import Columns
+from console.analysis.passages.status import StatusSummary
 from console.engine.sinks import Sink
 from console.jsonout import valid_unicode
 from console.render.event_lines import health_event, section_event
 from parsers.report import Rejection
 
 if TYPE_CHECKING:
-    from console.analysis.health import Finding
-    from console.analysis.section_state import Transition
+    from console.analysis.health.rules import Finding
+    from console.analysis.sections.state import Transition
     from console.drivers.batch import DiagJob
 
 
@@ -48,11 +48,11 @@ class JsonLinesOut(Sink):
         self.out.flush()
 
     def passages(self, cols: Columns, heads: Heads) -> None:
-        from console.analysis.passages_json import encode_passages
+        from console.analysis.passages.json_text import encode_passages
 
         text = encode_passages(cols, heads, workers=1, lines_of_type="passage")
         if text is None:  # text the byte encoder does not cover: pandas' encoder
-            from console.analysis.diagnostics import passages_frame, passages_json_text
+            from console.analysis.passages.diagnostics import passages_frame, passages_json_text
 
             rows = json.loads(passages_json_text(passages_frame(cols, heads)))
             text = "".join(line({"type": "passage", **p}) for p in rows)

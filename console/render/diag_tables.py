@@ -17,8 +17,8 @@ from console.safe_text import inert
 from parsers.report import ParseReport
 
 if TYPE_CHECKING:  # the parse report tables (gnss) need neither the analysis nor Arrow behind it
-    from console.analysis.diagnostics import DiagAnalysis
     from console.analysis.inventory import DeviceInventory
+    from console.analysis.passages.diagnostics import DiagAnalysis
     from console.render.passage_spool import FirstPassages
 
 REJECTIONS_SHOWN = 20
@@ -79,7 +79,7 @@ def passages_table(
     detections on one system only) is told there too, beyond those of the "–" passages.  Rows are read
     from numpy columns: a small log's table needs no pandas (start-up time).
     """
-    from console.analysis.passages import axles_unknown_codes
+    from console.analysis.passages.buckets import axles_unknown_codes
 
     p, status, total = _listed_passages(analysis, limit, first)
     t = _table(f"Passages ({total}); speeds in km/h: per-second method (records), whole train, per-axle mean")
@@ -171,7 +171,7 @@ def _listed_passages(
 
     With a limit, only the rows shown are looked up: a log of a million heads has a passage per head.
     """
-    from console.analysis.diagnostics import PASSAGE_KINDS
+    from console.analysis.passages.diagnostics import PASSAGE_KINDS
 
     cols = analysis.passage_columns
     if first is not None and cols is None:  # the job kept only the first rows (analyze's text face)
@@ -184,7 +184,7 @@ def _listed_passages(
         # A missing direction may read as NaN in pandas' string dtype: None, as the columns give it.
         out["direction"] = np.array([d if isinstance(d, str) else None for d in out["direction"]], dtype=object)
         return out, status, len(p) - status
-    from console.analysis.stream import take_passages
+    from console.analysis.passages.stream import take_passages
 
     keep = np.flatnonzero(cols["kind"] != PASSAGE_KINDS.index("status"))
     rows = take_passages(cols, keep[:limit])
@@ -193,8 +193,8 @@ def _listed_passages(
 
 def _shown_columns(cols: Any, analysis: DiagAnalysis) -> dict[str, np.ndarray]:
     """The shown columns from ``diagnostics._passages`` columns (codes turned into names), without pandas."""
+    from console.analysis.counting.wheels import DIRECTION_12, DIRECTION_21
     from console.analysis.head_table import heads_at
-    from console.analysis.wheels import DIRECTION_12, DIRECTION_21
 
     if cols is None or len(cols["head"]) == 0:
         return {c: np.zeros(0, object if c in ("counting_head", "direction") else np.float64) for c in _SHOWN}

@@ -11,8 +11,8 @@ from typing import TYPE_CHECKING, Any
 from console.analysis.timefmt import iso
 
 if TYPE_CHECKING:
-    from console.analysis.health import Finding
-    from console.analysis.section_state import ResetRecord, Transition
+    from console.analysis.health.rules import Finding
+    from console.analysis.sections.state import ResetRecord, Transition
 
 
 def section_event(tr: Transition) -> dict[str, Any]:

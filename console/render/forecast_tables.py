@@ -9,14 +9,14 @@ from rich.console import Group, RenderableType
 from rich.table import Table
 from rich.text import Text
 
-from console.analysis.forecast import (
+from console.analysis.health.forecast import (
     ANALOG_MARGIN_LIMIT,
     DISTURBANCE_LIMIT_PER_H,
     GNSS_LOSS_LIMIT,
     STATUSES,
     Forecast,
 )
-from console.analysis.health import channel_name
+from console.analysis.health.rules import channel_name
 from console.safe_text import inert
 from parsers.units import NS_PER_DAY
 

@@ -9,7 +9,7 @@ from rich import box
 from rich.table import Table
 from rich.text import Text
 
-from console.analysis.events import DetectionEvent, EventKind
+from console.analysis.events.detection import DetectionEvent, EventKind
 from console.analysis.timefmt import display
 from console.safe_text import inert
 from parsers.frames.can import CanFileReport

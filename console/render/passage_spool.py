@@ -24,9 +24,9 @@ from typing import IO
 import numpy as np
 
 from console.analysis.head_table import Heads
-from console.analysis.passages import Columns
-from console.analysis.status import STATUS_KIND
-from console.analysis.stream import by_head_and_start, concat_passages, take_passages
+from console.analysis.passages.buckets import Columns
+from console.analysis.passages.status import STATUS_KIND
+from console.analysis.passages.stream import by_head_and_start, concat_passages, take_passages
 from console.engine.sinks import Sink
 from console.jsonout import JSONParts
 
@@ -43,13 +43,13 @@ _ENCODING_MAX = 2  # batches handed to the encoder and not yet written (bounds t
 
 def passage_texts(cols: Columns, heads: Heads) -> list[str]:
     """Each passage of ``cols`` as one JSON object (the ``--json`` fields, ASCII)."""
-    from console.analysis.passages_json import encode_passages
+    from console.analysis.passages.json_text import encode_passages
 
     text = encode_passages(cols, heads, workers=1, lines_of_type=_LINE_TYPE)
     if text is not None:
         return ["{" + line[len(_PREFIX) :] for line in text.splitlines()]
     # Text the byte encoder does not cover: pandas' encoder, as for a whole read.
-    from console.analysis.diagnostics import passages_frame, passages_json_text
+    from console.analysis.passages.diagnostics import passages_frame, passages_json_text
     from console.jsonout import encode
 
     return [encode(p) for p in json.loads(passages_json_text(passages_frame(cols, heads)))]
@@ -57,7 +57,7 @@ def passage_texts(cols: Columns, heads: Heads) -> list[str]:
 
 def _encode(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray]:
     """The passages' JSON objects back to back, and each one's length."""
-    from console.analysis.passages_json import encode_objects
+    from console.analysis.passages.json_text import encode_objects
 
     encoded = encode_objects(cols, heads)
     if encoded is not None:

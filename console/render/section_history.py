@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import IO, Any
 
-from console.analysis.section_state import LedgerEntry, ResetRecord, Transition
+from console.analysis.sections.state import LedgerEntry, ResetRecord, Transition
 from console.analysis.timefmt import fraction_text, iso
 from console.engine.sinks import Sink
 from console.jsonout import valid_unicode

@@ -10,8 +10,8 @@ from rich.table import Table
 from rich.text import Text
 
 from console import plural
-from console.analysis.section_state import STATE_MARK, SectionState
-from console.analysis.sections import SectionsResult
+from console.analysis.sections.engine import SectionsResult
+from console.analysis.sections.state import STATE_MARK, SectionState
 from console.analysis.timefmt import display, iso
 from console.safe_text import inert
 

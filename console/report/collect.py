@@ -42,11 +42,11 @@ from pathlib import Path
 import pandas as pd
 
 from console.analysis.diag_events import DiagEventSettings
-from console.analysis.diagnostics import SpeedSettings
-from console.analysis.events import DetectionEvent, sort_events
-from console.analysis.health import Finding, sort_findings, voltage_margin_findings
-from console.analysis.section_state import SectionState
-from console.analysis.sections import run_sections
+from console.analysis.events.detection import DetectionEvent, sort_events
+from console.analysis.health.rules import Finding, sort_findings, voltage_margin_findings
+from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.sections.engine import run_sections
+from console.analysis.sections.state import SectionState
 from console.drivers.batch import ChunkSource, LogFiles, ReadOptions, input_bytes, read_diag
 from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
 from console.engine.sinks import Sinks

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from console.analysis.forecast import STATUSES
+from console.analysis.health.forecast import STATUSES
 from console.report.blocks import Block, Cell, Figure, Heading, Para, num_or_dash, table_block
 
 if TYPE_CHECKING:

@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from console.analysis.passages import Columns
-from console.analysis.section_state import SectionState
+from console.analysis.passages.buckets import Columns
+from console.analysis.sections.state import SectionState
 from console.analysis.timefmt import display
 from console.report import plots, trends
 from console.report.blocks import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table

@@ -37,11 +37,11 @@ import numpy as np
 import pandas as pd
 
 from console import __version__
-from console.analysis.diagnostics import SpeedSettings
-from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.health import Finding, Severity
-from console.analysis.section_state import SectionState
-from console.analysis.sections import SectionsResult
+from console.analysis.events.detection import DetectionEvent, EventKind
+from console.analysis.health.rules import Finding, Severity
+from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.sections.engine import SectionsResult
+from console.analysis.sections.state import SectionState
 from console.analysis.timefmt import iso
 from console.drivers.batch import DiagJob
 from console.layout import Layout
@@ -51,8 +51,8 @@ from console.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPass
 from parsers.report import ParseReport
 
 if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read (collect)
+    from console.analysis.crossing.timeline import TimelineRow
     from console.analysis.crossing_batch import CrossingRun
-    from console.analysis.crossing_timeline import TimelineRow
     from console.analysis.inventory import DeviceInventory
 
 SCHEMA = "trackside.report/1"
@@ -554,7 +554,7 @@ def _crossings(data: ReportData) -> dict[str, Any] | None:
     run = data.crossing
     if run is None:
         return None
-    from console.analysis.integrity import timelines as integrity_timelines
+    from console.analysis.integrity.monitor import timelines as integrity_timelines
 
     return {
         "violations": run.violations,

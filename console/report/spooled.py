@@ -26,10 +26,10 @@ import numpy as np
 import pandas as pd
 
 from console.analysis.head_table import Heads
-from console.analysis.passages import Columns
-from console.analysis.section_state import ResetRecord, Transition
-from console.analysis.status import STATUS_KIND
-from console.analysis.stream import take_passages
+from console.analysis.passages.buckets import Columns
+from console.analysis.passages.status import STATUS_KIND
+from console.analysis.passages.stream import take_passages
+from console.analysis.sections.state import ResetRecord, Transition
 from console.analysis.timefmt import iso
 from console.engine.sinks import Sink
 from console.jsonout import valid_unicode
@@ -130,7 +130,7 @@ class LedgerFrameRows(Rows):
         self.ledger = ledger
 
     def _entries(self) -> Iterator[Any]:
-        from console.analysis.section_state import LedgerEntry
+        from console.analysis.sections.state import LedgerEntry
 
         columns = [self.ledger[c].tolist() for c in self.COLUMNS]
         return (LedgerEntry(t, s, h, d, c) for t, s, h, d, c in zip(*columns, strict=True))
@@ -154,21 +154,22 @@ class LedgerFrameRows(Rows):
 
 class PassageFrameRows(Rows):
     """Passages held as a table (the archive's, a whole read's): the same objects as ``analyze --json``'s,
-    their JSON written from the columns by the byte encoder (:func:`~console.analysis.passages_json.indented_objects`),
-    not a dict per passage decoded and encoded again; through the dicts where the encoder does not cover a value."""
+    their JSON written from the columns by the byte encoder
+    (:func:`~console.analysis.passages.json_text.indented_objects`), not a dict per passage decoded and encoded
+    again; through the dicts where the encoder does not cover a value."""
 
     def __init__(self, passages: pd.DataFrame) -> None:
         super().__init__(len(passages), self._items)
         self.passages = passages
 
     def _items(self) -> Iterator[Any]:
-        from console.analysis.diagnostics import passages_json_text
+        from console.analysis.passages.diagnostics import passages_json_text
 
         return iter(json.loads(passages_json_text(self.passages)))
 
     def write_json(self, write: Write, depth: int) -> None:
-        from console.analysis.diagnostics import frame_columns
-        from console.analysis.passages_json import indented_objects
+        from console.analysis.passages.diagnostics import frame_columns
+        from console.analysis.passages.json_text import indented_objects
 
         found = frame_columns(self.passages) if self.count else None
         blobs = indented_objects(*found, depth) if found is not None else None

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from console.analysis.crossing import (
+from console.analysis.crossing.controller import (
     EOT,
     HEAD,
     ControllerSettings,
@@ -33,8 +33,8 @@ from console.analysis.crossing import (
     TrainSpec,
     run_controller,
 )
-from console.analysis.crossing_oracle import earliest_arrival_vec, oracle_onset_ns
-from console.analysis.crossing_timeline import timeline
+from console.analysis.crossing.oracle import earliest_arrival_vec, oracle_onset_ns
+from console.analysis.crossing.timeline import timeline
 from console.analysis.geo import TrackProjector
 from console.layout import Layout, LevelCrossing
 from parsers.units import NS
@@ -219,7 +219,7 @@ class Verdict:
     late_by_s: float | None = None  # > 0: on this much short of the warning time (a safety violation)
     jumps_sent: int = 0
     jumps_set_aside: int = 0
-    # The oracle (:mod:`console.analysis.crossing_oracle`): the unit's bounds on the true motion.
+    # The oracle (:mod:`console.analysis.crossing.oracle`): the unit's bounds on the true motion.
     oracle_lead_s: float | None = None  # truth head arrival − the oracle's onset (≥ the warning time)
     avoidable_s: float | None = None  # the oracle's onset − the controller's: warned this much early from doubt
     fix_oracle_lead_s: float | None = None  # the same for an oracle that knows the truth at the fixes only

@@ -28,7 +28,7 @@ transmission lost or delayed on its own.  The other runs are units that
 report no pressure (plain NMEA trackers): GNSS and the counters only.
 
 The motion is piecewise constant acceleration, evaluated with numpy; the
-monitor (:class:`~console.analysis.integrity.IntegrityMonitor`, the one the
+monitor (:class:`~console.analysis.integrity.monitor.IntegrityMonitor`, the one the
 console runs) is fed every fix, axle and section change in the order the
 console receives them.  :func:`judge` compares its events with the truth.
 """
@@ -41,8 +41,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.integrity import (
+from console.analysis.events.detection import DetectionEvent, EventKind
+from console.analysis.integrity.monitor import (
     DOUBTFUL,
     EOT,
     HEAD,
@@ -52,8 +52,8 @@ from console.analysis.integrity import (
     IntegrityMonitor,
     IntegritySettings,
 )
-from console.analysis.section_state import SectionState
-from console.analysis.sections import SectionEngine
+from console.analysis.sections.engine import SectionEngine
+from console.analysis.sections.state import SectionState
 from console.layout import Layout, layout_from_dict
 from console.sim import brake_pipe as bp
 from console.sim.dynamics import LEVEL_LINE, TrainState, scaled_train, step

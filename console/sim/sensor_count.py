@@ -3,7 +3,7 @@
 An intelligent sensor (seed 002's frames, ``sensor_frames.txt``) counts its
 wheels itself and reports a count per axle.  The simulated device counts what
 the head detects, after the faults (the records it reports), by the overlap
-rule the console's counting uses (:class:`~console.analysis.counting.CounterBank`),
+rule the console's counting uses (:class:`~console.analysis.counting.bank.CounterBank`),
 so a head with a dead channel or missed detections counts as such a sensor
 would.  The station's console never reads this: it counts the diagnostic
 records itself.
@@ -15,10 +15,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from console.analysis.counting import CounterBank
-from console.analysis.event_block import EventBlock
-from console.analysis.events import DetectionEvent, EventKind
-from console.analysis.wheels import CountingSettings
+from console.analysis.counting.bank import CounterBank
+from console.analysis.counting.wheels import CountingSettings
+from console.analysis.events.block import EventBlock
+from console.analysis.events.detection import DetectionEvent, EventKind
 from console.layout import Layout
 
 

@@ -28,8 +28,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from console.analysis.forecast import DISTURBANCE_LIMIT_PER_H, GNSS_LOSS_LIMIT
-from console.analysis.health import BandSettings
+from console.analysis.health.forecast import DISTURBANCE_LIMIT_PER_H, GNSS_LOSS_LIMIT
+from console.analysis.health.rules import BandSettings
 from console.analysis.timefmt import iso
 from console.layout import Layout
 from parsers.units import NS
@@ -221,7 +221,7 @@ def threshold_crossings(
 ) -> list[dict[str, Any]]:
     """Per head and channel, or unit, with a slow fault: when each figure crosses its threshold.
 
-    The figures and thresholds are the forecast's (``console.analysis.forecast``): ``analog_margin`` (the
+    The figures and thresholds are the forecast's (``console.analysis.health.forecast``): ``analog_margin`` (the
     analog level's distance inside the band; threshold 0, the band edge), ``disturbance_rate`` (1-edge
     counts per hour; the health rule's warning level), ``gnss_loss`` (share of a unit's reports lost).
     Times follow the faults' trends, without the noise; a crossing after the run's end is given too

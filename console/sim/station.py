@@ -34,9 +34,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from console.analysis.crossing import EOT, HEAD, ControllerSettings, CrossingEvent
+from console.analysis.counting.wheels import SYS1, SYS2
+from console.analysis.crossing.controller import EOT, HEAD, ControllerSettings, CrossingEvent
 from console.analysis.geo import TrackProjector
-from console.analysis.wheels import SYS1, SYS2
 from console.layout import Consist, Layout
 from console.sim import brake_pipe as bp
 from console.sim.devices import line_devices, with_devices

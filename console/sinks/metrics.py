@@ -19,7 +19,7 @@ from prometheus_client import CollectorRegistry, Counter, Gauge, disable_created
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily
 from prometheus_client.registry import Collector
 
-from console.analysis.section_state import SectionState
+from console.analysis.sections.state import SectionState
 
 if TYPE_CHECKING:
     from wsgiref.simple_server import WSGIServer

@@ -15,9 +15,9 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from console.analysis.crossing import CrossingController
-from console.analysis.section_state import SectionState, Transition
-from console.analysis.sections import SectionEngine
+from console.analysis.crossing.controller import CrossingController
+from console.analysis.sections.engine import SectionEngine
+from console.analysis.sections.state import SectionState, Transition
 from console.inputs.base import Item, Source, SourceStatus
 from console.layout import Layout
 from console.live.engine import LiveEngine

@@ -18,9 +18,9 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from console.analysis.crossing import CrossingController
-from console.analysis.section_state import SectionState, Transition
-from console.analysis.sections import SectionEngine
+from console.analysis.crossing.controller import CrossingController
+from console.analysis.sections.engine import SectionEngine
+from console.analysis.sections.state import SectionState, Transition
 from console.analysis.timefmt import display
 from console.layout import Layout
 from parsers.units import NS

@@ -10,10 +10,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from console.analysis.crossing import CrossingController
-from console.analysis.section_state import SectionState, Transition
-from console.analysis.sections import SectionEngine
-from console.analysis.stream import ORDER_SLACK_S
+from console.analysis.crossing.controller import CrossingController
+from console.analysis.passages.stream import ORDER_SLACK_S
+from console.analysis.sections.engine import SectionEngine
+from console.analysis.sections.state import SectionState, Transition
 from console.inputs.base import GnssFix
 from console.layout import Layout
 from console.live.engine import LiveEngine

@@ -19,9 +19,9 @@ from __future__ import annotations
 from collections import Counter
 from typing import Any
 
-from console.analysis.crossing import CrossingController
-from console.analysis.section_state import Transition
-from console.analysis.sections import SectionEngine
+from console.analysis.crossing.controller import CrossingController
+from console.analysis.sections.engine import SectionEngine
+from console.analysis.sections.state import Transition
 from console.layout import Layout
 from console.live.simulated import INITIAL, SimulatedConsole
 from console.sim.station import Fault, SimConfig, StationSim

@@ -34,7 +34,7 @@ def approach(
 
     def body() -> int:
         one_json_form(json_out, jsonl)
-        from console.analysis.approach import approach_timeline
+        from console.analysis.crossing.approach import approach_timeline
         from console.layout import WorkSite
         from console.render.approach_tables import approach_table
 

@@ -143,7 +143,7 @@ def follow(
     """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary (exit 130)."""
 
     def body() -> int:
-        from console.analysis.diagnostics import SpeedSettings
+        from console.analysis.passages.diagnostics import SpeedSettings
         from console.inputs.base import SourceError
         from console.inputs.uri import open_source
         from console.live.archive import LiveArchiver

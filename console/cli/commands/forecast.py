@@ -72,7 +72,7 @@ def forecast(
             import scipy.stats  # noqa: F401 - the trend's library, an optional extra
         except ImportError:
             raise fail("forecast needs scipy: pip install 'trackside[forecast]'") from None
-        from console.analysis.forecast import ForecastSettings, due_list
+        from console.analysis.health.forecast import ForecastSettings, due_list
         from console.archive.health_days import archive_forecasts
         from console.archive.reader import Window
         from console.archive.views import require_archive

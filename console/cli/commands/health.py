@@ -25,7 +25,7 @@ from console.safe_text import clean
 
 
 def _worst(findings: list[Any]) -> Any:
-    from console.analysis.health import Severity
+    from console.analysis.health.rules import Severity
 
     return max((f.severity for f in findings), default=Severity.INFO, key=lambda s: s.rank)
 
@@ -63,7 +63,7 @@ def health(
 
     def body() -> int:
         from console.analysis.diag_events import DiagEventSettings
-        from console.analysis.health import Severity, sort_findings, voltage_margin_findings
+        from console.analysis.health.rules import Severity, sort_findings, voltage_margin_findings
         from console.render.health_tables import findings_view
         from parsers.voltages import read_voltages
 

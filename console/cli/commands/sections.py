@@ -16,7 +16,7 @@ from console.safe_text import clean
 def _parse_resets(values: list[str]) -> list[Any]:
     import pandas as pd
 
-    from console.analysis.events import DetectionEvent, EventKind
+    from console.analysis.events.detection import DetectionEvent, EventKind
 
     out = []
     for v in values:
@@ -75,7 +75,7 @@ def _write_jsonl(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
 
 
 def _print_tables(job: Any, final: dict[str, Any], sink: Any) -> None:
-    from console.analysis.sections import SectionsResult, ledger_summary_frame
+    from console.analysis.sections.engine import SectionsResult, ledger_summary_frame
     from console.render import section_tables as st
 
     head = job.sections.result(sink.timeline_first, [], sink.reset_rows)
@@ -145,11 +145,11 @@ def sections(
     """Section states from axle counting: state timeline, count ledger, resets."""
 
     def body() -> int:
+        from console.analysis.counting.majority import MajoritySettings
+        from console.analysis.counting.wheels import CountingSettings
         from console.analysis.diag_events import DiagEventSettings
-        from console.analysis.diagnostics import SpeedSettings
-        from console.analysis.majority import MajoritySettings
-        from console.analysis.section_state import SectionState
-        from console.analysis.wheels import CountingSettings
+        from console.analysis.passages.diagnostics import SpeedSettings
+        from console.analysis.sections.state import SectionState
         from console.engine.pipeline import PipelineSettings
         from console.render.section_history import SectionsSink
 

@@ -34,7 +34,7 @@ def speeds(
     """The passages table alone: per-second, whole-train and per-axle speeds."""
 
     def body() -> int:
-        from console.analysis.diagnostics import SpeedSettings
+        from console.analysis.passages.diagnostics import SpeedSettings
         from console.engine.pipeline import PipelineSettings
         from console.render.diag_stream import JsonLinesOut, status_json, summary_doc
         from console.render.passage_spool import PassageSpool

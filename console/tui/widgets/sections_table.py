@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from rich.text import Text
 
-from console.analysis.section_state import STATE_MARK, SectionState
+from console.analysis.sections.state import STATE_MARK, SectionState
 from console.safe_text import inert
 from console.tui.model import Snapshot
 from console.tui.widgets.pickable_table import PickableTable

@@ -5,7 +5,7 @@ from __future__ import annotations
 from rich.text import Text
 from textual.widgets import Static
 
-from console.analysis.section_state import STATE_MARK, SectionState
+from console.analysis.sections.state import STATE_MARK, SectionState
 from console.layout import Layout
 from console.safe_text import clean
 from console.tui.model import Snapshot

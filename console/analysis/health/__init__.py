@@ -1,0 +1,1 @@
+"""Sensor and channel health: the findings, and forecasts of when a figure will cross its threshold."""

@@ -1,0 +1,1 @@
+"""Train integrity: whole, in doubt or parted, from the GNSS, counters' and sections' witnesses."""

@@ -1,0 +1,144 @@
+"""Passages: a train's run over one counting head.
+
+Records are first reduced, chunk by chunk, to *activity buckets*: one row
+per (head, second) with the record count and the first and last record
+time, overall and for Sys1 and Sys2.  A day of logging is at most 86,400
+buckets per head whatever the record rate, so memory stays bounded on long
+logs.
+
+Several files are one log: buckets of the same head and second from several
+files add up.  Records one file repeats from another (overlapping exports,
+found record by record in :mod:`console.analysis.passages.overlap`) are taken out
+again with :func:`remove_records`, so they count once.
+
+A passage is a maximal run of a head's buckets in which no gap between
+consecutive records exceeds ``idle_gap_s``.  Because bucket boundaries are
+whole seconds, splitting buckets is exact for any idle gap of 1 s or more.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from parsers.units import NS
+
+_BIG = np.iinfo(np.int64).max
+_SMALL = np.iinfo(np.int64).min
+_FIRST = ("t_first_ns", "t_first_sys1_ns", "t_first_sys2_ns")
+_LAST = ("t_last_ns", "t_last_sys1_ns", "t_last_sys2_ns")
+BUCKET_COLUMNS = ("head", "second", "records", "records_sys1", "records_sys2", "records_whole_second", *_FIRST, *_LAST)
+
+
+Columns = dict[str, np.ndarray]
+
+
+def _empty() -> Columns:
+    return {c: np.zeros(0, np.int64) for c in BUCKET_COLUMNS}
+
+
+def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, subsecond: np.ndarray) -> Columns:
+    """Run-length reduce one chunk's records to activity buckets.
+
+    Records arrive mostly in time order, so consecutive records share a
+    bucket; runs of equal keys collapse in O(n) without sorting.  The same
+    bucket may still appear in several runs; :func:`merge_buckets` combines
+    them.  Missing per-system times are int64 max/min sentinels.
+    """
+    n = len(time_ns)
+    if n == 0:
+        return {c: np.zeros(0, np.int64) for c in BUCKET_COLUMNS}
+    second = time_ns // NS
+    change = np.empty(n, bool)
+    change[0] = True
+    change[1:] = (head[1:] != head[:-1]) | (second[1:] != second[:-1])
+    starts = np.flatnonzero(change)
+    counts = np.diff(np.append(starts, n))
+    out = {
+        "head": head[starts].astype(np.int64),
+        "second": second[starts],
+        "records": counts.astype(np.int64),
+        # Records stamped to the whole second: their passage's times are only that exact.
+        "records_whole_second": np.add.reduceat((~subsecond).astype(np.int64), starts),
+        "t_first_ns": np.minimum.reduceat(time_ns, starts),
+        "t_last_ns": np.maximum.reduceat(time_ns, starts),
+    }
+    for ch in (1, 2):
+        on = channel == ch
+        out[f"records_sys{ch}"] = np.add.reduceat(on.astype(np.int64), starts)
+        out[f"t_first_sys{ch}_ns"] = np.minimum.reduceat(np.where(on, time_ns, _BIG), starts)
+        out[f"t_last_sys{ch}_ns"] = np.maximum.reduceat(np.where(on, time_ns, _SMALL), starts)
+    return out
+
+
+def merge_buckets(parts: list[Columns]) -> Columns:
+    """Combine runs (of any chunk or file) into one bucket per head and second, sorted."""
+    if not parts:
+        return _empty()
+    cols = {c: np.concatenate([part[c] for part in parts]) for c in BUCKET_COLUMNS}
+    # Runs of one (head, second) can repeat (chunk edges, interleaved heads,
+    # several files): sort by key, then reduce each group with ufunc.reduceat.
+    order = np.lexsort((cols["second"], cols["head"]))
+    cols = {c: v[order] for c, v in cols.items()}
+    h, sec = cols["head"], cols["second"]
+    new = np.ones(len(h), bool)
+    new[1:] = (h[1:] != h[:-1]) | (sec[1:] != sec[:-1])
+    if not new.all():
+        at = np.flatnonzero(new)
+        counts = ("records", "records_sys1", "records_sys2", "records_whole_second")
+        reduce: dict[str, np.ufunc] = {c: np.add for c in counts}
+        reduce.update({c: np.minimum for c in _FIRST})
+        reduce.update({c: np.maximum for c in _LAST})
+        cols = {c: (reduce[c].reduceat(v, at) if c in reduce else v[at]) for c, v in cols.items()}
+    return cols
+
+
+def remove_records(buckets: Columns, head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray) -> None:
+    """Take records out of the bucket counts (in place).
+
+    Only for records with an identical twin that stays (overlap): the
+    bucket's first and last times are the twin's too, so they stand.
+    """
+    if len(head) == 0:
+        return
+    row = bucket_index(buckets, head, time_ns)
+    found = row >= 0
+    np.subtract.at(buckets["records"], row[found], 1)
+    for ch in (1, 2):
+        on = found & (channel == ch)
+        np.subtract.at(buckets[f"records_sys{ch}"], row[on], 1)
+
+
+def split_passages(buckets: Columns, idle_gap_s: float) -> Columns:
+    """Add a ``passage`` number to buckets sorted by head and second."""
+    if idle_gap_s < 1:
+        raise ValueError("idle gap must be at least 1 s (buckets are whole seconds)")
+    head = buckets["head"]
+    first = buckets["t_first_ns"]
+    last = buckets["t_last_ns"]
+    new = np.ones(len(head), bool)
+    new[1:] = (head[1:] != head[:-1]) | (first[1:] - last[:-1] > int(idle_gap_s * NS))
+    return {**buckets, "passage": np.cumsum(new) - 1}
+
+
+def bucket_index(buckets: Columns, head: np.ndarray, time_ns: np.ndarray) -> np.ndarray:
+    """Row of ``buckets`` holding each (head, time), or -1 (vectorized lookup)."""
+    key = buckets["head"] * (1 << 40) + buckets["second"]
+    probe = head.astype(np.int64) * (1 << 40) + time_ns // NS
+    pos = np.searchsorted(key, probe)
+    pos_ok = np.minimum(pos, max(len(key) - 1, 0))
+    found = (pos < len(key)) & (key[pos_ok] == probe) if len(key) else np.zeros(len(probe), bool)
+    return np.where(found, pos_ok, -1)
+
+
+# Why a passage's axles cannot be counted ("–" in tables, ``axles_unknown_reason`` in JSON), by code: an axle
+# is a Sys1 and a Sys2 onset of one wheel, so none can be paired where a system has no onset.  JSON keeps
+# ``axles`` the number of pairs found (0), as version 1 documents always have.  Code: 2·(no Sys1) + (no Sys2).
+AXLES_UNKNOWN_REASONS = (None, "wheel onsets on Sys1 only", "wheel onsets on Sys2 only", "no wheel onset")
+
+
+def axles_unknown_codes(detections_sys1: ArrayLike, detections_sys2: ArrayLike) -> np.ndarray:
+    """Per passage, 0 where its axles were counted, else the index of its reason in AXLES_UNKNOWN_REASONS."""
+    no1 = np.asarray(detections_sys1, np.int64) == 0
+    no2 = np.asarray(detections_sys2, np.int64) == 0
+    return (2 * no1 + no2).astype(np.int8)
