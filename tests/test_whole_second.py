@@ -20,7 +20,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate as generate_realistic
@@ -186,6 +186,9 @@ def test_files_that_overlap_count_the_overlap_once(
 
 @settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(end_a=st.floats(0.02, 1.0), repeated=st.floats(0.0, 1.0))
+# Found by this test in a CI run: a head's first passage at the seam, in one whole second of both files, given
+# in the reverse order; its direction came out reversed (the files were ranked by file order on that tie).
+@example(end_a=0.142578125, repeated=0.34375)
 def test_any_split_with_any_overlap_gives_the_same_passages(
     tmp_path: Path, export: tuple[Path, dict, tuple[Counter[str], str]], end_a: float, repeated: float
 ) -> None:

@@ -368,14 +368,18 @@ def _merged_order(head: np.ndarray, file: np.ndarray, time_ns: np.ndarray) -> np
     Equal whole-second stamps from two files meet at a seam (a pull that
     ends mid-second, the next that begins there): per head, the file whose
     records begin earlier holds the earlier part of that second, whatever
-    order the files were given in.
+    order the files were given in; where both begin in the same second (the
+    head's first passage at the seam), the one that ends earlier (the earlier
+    pull, its copy of the seam set aside as overlap).
     """
     key = head * (int(file.max()) + 1) + file
     groups, inverse = np.unique(key, return_inverse=True)
     first = np.full(len(groups), _BIG, np.int64)
     np.minimum.at(first, inverse, time_ns)
+    last = np.full(len(groups), -_BIG, np.int64)
+    np.maximum.at(last, inverse, time_ns)
     g_head = groups // (int(file.max()) + 1)
-    g_order = np.lexsort((groups, first, g_head))  # per head: by first time, then file
+    g_order = np.lexsort((groups, last, first, g_head))  # per head: by first time, last time, then file
     rank = np.empty(len(groups), np.int64)
     rank[g_order] = np.arange(len(groups))
     return np.lexsort((np.arange(len(time_ns)), rank[inverse], time_ns))
