@@ -134,6 +134,13 @@ def _quote(text: str) -> str:
 INTERNAL_MEMORY_LIMIT = "160MB"
 
 
+# Every connection: no extension fetched or loaded behind the user's back.
+DUCKDB_CONFIG: dict[str, Any] = {"autoinstall_known_extensions": False, "autoload_known_extensions": False}
+# Every session (a connection, a cursor): no progress bar. DuckDB draws it on standard output after two seconds
+# of a query, where it would land inside the JSON or CSV written there.
+NO_PROGRESS_BAR = "SET enable_progress_bar = false"
+
+
 def connect(
     root: Path,
     manifest: Manifest | None = None,
@@ -159,10 +166,11 @@ def connect(
         cursor = shared.cursor(m, TABLES if tables is None else tables) if shared is not None else None
         if cursor is not None:
             return cursor, m
-    config: dict[str, Any] = {"autoinstall_known_extensions": False, "autoload_known_extensions": False}
+    config: dict[str, Any] = dict(DUCKDB_CONFIG)
     if spill_dir is not None:
         config.update(memory_limit=INTERNAL_MEMORY_LIMIT, temp_directory=str(spill_dir), threads=2)
     con = duckdb.connect(":memory:", config=config)
+    con.execute(NO_PROGRESS_BAR)
     # Zone-aware values (old fix parts, a user's now()) in UTC, the archive's one zone, whatever the machine's.
     con.execute("SET TimeZone = 'UTC'")
     base = root.resolve()
@@ -225,9 +233,8 @@ class _Shared:
 
         with self.guard:
             if self.con is None:
-                con = duckdb.connect(
-                    ":memory:", config={"autoinstall_known_extensions": False, "autoload_known_extensions": False}
-                )
+                con = duckdb.connect(":memory:", config=dict(DUCKDB_CONFIG))
+                con.execute(NO_PROGRESS_BAR)
                 con.execute("SET GLOBAL TimeZone = 'UTC'")  # global: every cursor's
                 for table, keys in TABLES.items():
                     con.execute(_view(table, keys, []))
@@ -240,7 +247,7 @@ class _Shared:
                     parts = [str(self.root / rel) for rel in m.parts(table)]
                     self.con.execute(_view(table, TABLES[table], parts))
                     self.full.add(table)
-            return self.con.cursor()
+            return self.con.cursor()  # a cursor takes the database's session settings
 
 
 _SHARED: dict[Path, _Shared] = {}
