@@ -31,6 +31,17 @@ def _parse_resets(values: list[str]) -> list[Any]:
     return out
 
 
+def _document_head(job: Any, lay: Any) -> dict[str, Any]:
+    """What ``sections_json`` says before its rows (``--jsonl``: its summary line)."""
+    return {
+        "schema": "trackside.sections/1",
+        "files": job.files,
+        "layout": lay.source,
+        "parse_report": job.report.to_dict(),
+        "warnings": job.warnings,
+    }
+
+
 def _write_json(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
     """The document of ``sections_json``, its timeline and ledger copied in from the sink's spill files."""
     import sys
@@ -38,16 +49,7 @@ def _write_json(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
     from console.jsonout import dumps
     from console.render.section_tables import sections_summary
 
-    head = dumps(
-        {
-            "schema": "trackside.sections/1",
-            "files": job.files,
-            "layout": lay.source,
-            "parse_report": job.report.to_dict(),
-            "warnings": job.warnings,
-            **sections_summary(final),
-        }
-    )
+    head = dumps(_document_head(job, lay) | sections_summary(final))
     out = sys.stdout
     out.write(head[:-1] + ",")
     sink.write_json_arrays(out)
@@ -68,9 +70,7 @@ def _write_jsonl(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
         out.write(typed_line("section_end", row) + "\n")
     for kind, text in sink.json_items():
         out.write(typed_line(kind, RawJSON(text)) + "\n")
-    summary = {"schema": "trackside.sections/1", "files": job.files, "layout": lay.source}
-    summary |= {"parse_report": job.report.to_dict(), "warnings": job.warnings}
-    out.write(typed_line("summary", RawJSON(dumps(summary))) + "\n")
+    out.write(typed_line("summary", RawJSON(dumps(_document_head(job, lay)))) + "\n")
     out.flush()
 
 
