@@ -233,6 +233,29 @@ def read_jsonl(text: str) -> list[dict[str, Any]]:
     return [json.loads(line) for line in text.splitlines() if line.strip()]
 
 
+def follow_a_live_simulation(
+    follow_args: list[str], first_lines: int, ready: Callable[[list[str]], bool], simulate_args: list[str]
+) -> tuple[list[str], str, subprocess.CompletedProcess[str]]:
+    """``follow`` started, its first lines read (its sources' states) and checked by ``ready`` before
+    ``simulate`` runs to its end, then ``follow`` waited for (it stops on its ``--idle-exit``):
+    (those first lines, the rest of follow's stdout, the simulation)."""
+    follow = subprocess.Popen(
+        trackside("follow", *follow_args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        assert follow.stdout is not None
+        said = [follow.stdout.readline() for _ in range(first_lines)]
+        assert ready(said), said
+        sim = subprocess.run(trackside("simulate", *simulate_args), capture_output=True, text=True, timeout=60)
+        assert sim.returncode == 0, sim.stderr
+        out, err = follow.communicate(timeout=60)
+    finally:
+        if follow.poll() is None:
+            follow.kill()
+    assert follow.returncode == 0, err
+    return said, out, sim
+
+
 class HeadlessChromium:
     """Headless Chromium driven over the DevTools protocol (loopback only): screenshots, and the
     text the page receives on its websockets (what the served app draws)."""

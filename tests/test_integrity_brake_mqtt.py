@@ -5,65 +5,34 @@ real mosquitto, and `follow --jsonl` tells the integrity change with its evidenc
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
 import pytest
 
-from tests.live_fixtures import Mosquitto, mosquitto, read_jsonl, trackside  # noqa: F401 - the fixture
+from tests.live_fixtures import Mosquitto, follow_a_live_simulation, mosquitto, read_jsonl  # noqa: F401
 
 pytestmark = pytest.mark.timeout(120)
 
 
 def test_follow_over_mqtt_tells_a_brake_pipe_parting_with_its_evidence(tmp_path: Path, mosquitto: Mosquitto) -> None:  # noqa: F811
     run = tmp_path / "run"
-    follow = subprocess.Popen(
-        trackside(
-            "follow",
+    said, out, _sim = follow_a_live_simulation(
+        [
             f"{mosquitto.url}/application/+/device/+/event/up",
             "--layout",
             "example",
             "--jsonl",
             "--idle-exit",
-            "4",
+            "10",  # as test_live_sim's: a simulator starved of CPU may pause seconds between uplinks
             "--include-status",
-        ),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
+        ],
+        1,
+        lambda said: '"connected"' in said[0],
+        [
+            *["-o", str(run), "--layout", "example", "--live", "--speed", "150", "--duration", "8m"],
+            *["--fault", "train_parting:T1:3m", "--mqtt", mosquitto.url, "--json"],
+        ],
     )
-    try:
-        assert follow.stdout is not None
-        said = [follow.stdout.readline()]
-        assert '"connected"' in said[0], said
-        sim = subprocess.run(
-            trackside(
-                "simulate",
-                "-o",
-                str(run),
-                "--layout",
-                "example",
-                "--live",
-                "--speed",
-                "150",
-                "--duration",
-                "8m",
-                "--fault",
-                "train_parting:T1:3m",
-                "--mqtt",
-                mosquitto.url,
-                "--json",
-            ),
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
-        assert sim.returncode == 0, sim.stderr
-        out, err = follow.communicate(timeout=60)
-    finally:
-        if follow.poll() is None:
-            follow.kill()
-    assert follow.returncode == 0, err
     (parting,) = json.loads((run / "truth.json").read_text())["partings"]
     events = read_jsonl("".join(said) + out)
     integrity = [e for e in events if e["type"] == "integrity"]

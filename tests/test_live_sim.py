@@ -8,7 +8,13 @@ from pathlib import Path
 
 import pytest
 
-from tests.live_fixtures import Mosquitto, mosquitto, read_jsonl, trackside  # noqa: F401 - the fixture
+from tests.live_fixtures import (  # noqa: F401 - the fixture
+    Mosquitto,
+    follow_a_live_simulation,
+    mosquitto,
+    read_jsonl,
+    trackside,
+)
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -17,9 +23,10 @@ def test_simulated_live_run_is_followed_from_files_and_mqtt(tmp_path: Path, mosq
     run = tmp_path / "run"
     log = run / "diagnostic.log"
     run.mkdir()
-    follow = subprocess.Popen(
-        trackside(
-            "follow",
+    # Each source says its state first, in whichever order they start: the broker's must be "connected" before
+    # the simulator publishes (the file's may come first, waiting for the file).
+    said, out, sim = follow_a_live_simulation(
+        [
             f"{mosquitto.url}/application/+/device/+/event/up",
             f"file:{log}",
             "--from-start",
@@ -31,45 +38,14 @@ def test_simulated_live_run_is_followed_from_files_and_mqtt(tmp_path: Path, mosq
             # stopped with 76 of 178 (the same assertions; only the wait after the last uplink is longer).
             "10",
             "--include-status",
-        ),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
+        ],
+        2,
+        lambda said: any('"connected"' in line and "mqtt://" in line for line in said),
+        [
+            *["-o", str(run), "--layout", "example", "--live", "--speed", "150", "--duration", "12m"],
+            *["--trains-per-hour", "20", "--mqtt", mosquitto.url, "--json"],
+        ],
     )
-    try:
-        assert follow.stdout is not None
-        # Each source says its state first, in whichever order they start: the broker's must be "connected"
-        # before the simulator publishes (the file's may come first, waiting for the file).
-        said = [follow.stdout.readline() for _ in range(2)]
-        assert any('"connected"' in line and "mqtt://" in line for line in said), said
-        sim = subprocess.run(
-            trackside(
-                "simulate",
-                "-o",
-                str(run),
-                "--layout",
-                "example",
-                "--live",
-                "--speed",
-                "150",
-                "--duration",
-                "12m",
-                "--trains-per-hour",
-                "20",
-                "--mqtt",
-                mosquitto.url,
-                "--json",
-            ),
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
-        assert sim.returncode == 0, sim.stderr
-        out, err = follow.communicate(timeout=60)
-    finally:
-        if follow.poll() is None:
-            follow.kill()
-    assert follow.returncode == 0, err
     summary_sim = json.loads(sim.stdout)
     assert summary_sim["uplinks"] == summary_sim["fixes"] > 10
     events = read_jsonl("".join(said) + out)
