@@ -8,7 +8,6 @@ items, so the analysis state needs no locks.
 
 from __future__ import annotations
 
-import math
 import queue
 import signal
 import time
@@ -17,13 +16,12 @@ from typing import Any
 
 from console.analysis.passages.diagnostics import SpeedSettings
 from console.analysis.sections.state import SectionState
+from console.engine.fixes import FixStage
 from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote
 from console.layout import Layout
 from console.live.archive import LiveArchiver
-from console.live.crossings import CrossingFollow
 from console.live.diag import DiagFollow, live_speed
 from console.live.frames import FrameFollow
-from console.live.integrity import IntegrityFollow
 from parsers.diag.registry import DiagRegistry
 from parsers.units import ALL_TIME
 
@@ -53,9 +51,8 @@ class LiveEngine:
         self.include_status = include_status
         self._clock = clock or time.time_ns
         # Train integrity needs the fixes placed on the track: a layout with a [[track]].
-        self.integrity = (
-            IntegrityFollow(layout, self._integrity_event) if layout is not None and len(layout.track) >= 2 else None
-        )
+        self.fixes = FixStage(layout, emit) if layout is not None else None
+        self.integrity = self.fixes.integrity if self.fixes is not None else None
         self.diag = DiagFollow(
             layout,
             settings or live_speed(layout),
@@ -65,8 +62,7 @@ class LiveEngine:
             initial=initial,
             registry=registry,
         )
-        placed = layout is not None and (bool(layout.crossings) or len(layout.track) >= 2)
-        self.crossings = CrossingFollow(layout, emit) if layout is not None and placed else None
+        self.crossings = self.fixes.crossings if self.fixes is not None else None
         self.frames = FrameFollow(layout, emit)
         if self.integrity is not None:
             self.frames.listener = self.integrity
@@ -120,20 +116,8 @@ class LiveEngine:
         if isinstance(item, LineBlock):
             self.diag.add(item.source, item.file, item.first_line, item.data)
         elif isinstance(item, GnssFix):
-            if self.crossings is not None:
-                placed = self.crossings.place(item, self._fix_clock(item))
-                if placed is not None:
-                    if item.recorded:
-                        self.crossings.catch_up(placed.t_ns)
-                    # The monitor's verdict on this fix reaches the crossing units before they take it (a
-                    # train parted by it is held at once), as the batch crossing run tells its partings.
-                    if self.integrity is not None:
-                        self.integrity.fix(placed, item.t_fix_ns, item.brake_pipe_bar, item.emergency)
-                    self.crossings.step(placed)
-                elif self.integrity is not None and (item.emergency or not math.isnan(item.brake_pipe_bar)):
-                    # No place on the track (no fix, say), but the brake pipe's status stands on its own.
-                    train, role = self.crossings.owner(item)
-                    self.integrity.brake_pipe(train, role, item.t_fix_ns, item.brake_pipe_bar, item.emergency)
+            if self.fixes is not None and self.crossings is not None:  # placed on a track (the clocks too)
+                self.fixes.take(item, self._fix_clock(item))
         elif isinstance(item, CanFrame):
             self._live_bus = True
             self.can_frames += 1
@@ -148,11 +132,6 @@ class LiveEngine:
     def idle(self) -> None:
         """Nothing more is queued: analyse what is buffered (CAN frames come one by one, are analysed in blocks)."""
         self.frames.flush()
-
-    def _integrity_event(self, ev: dict[str, Any]) -> None:
-        self.emit(ev)
-        if ev["state"] == "parted" and self.crossings is not None:
-            self.crossings.parted(ev["train"], ev["time_ns"], "; ".join(ev["evidence"]))
 
     def tick(self, recorded_until_ns: int | None = None) -> None:
         """Time passes.  ``recorded_until_ns``: no recorded fix still to come is earlier than or at this
