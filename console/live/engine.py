@@ -20,6 +20,7 @@ from console.engine.fixes import FixStage
 from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote
 from console.layout import Layout
 from console.live.archive import LiveArchiver
+from console.live.backlog import Backlog
 from console.live.diag import DiagFollow, live_speed
 from console.live.frames import FrameFollow
 from parsers.diag.registry import DiagRegistry
@@ -213,7 +214,7 @@ def run_sources(
     The signals only set a flag (from the main thread): an item is never cut half-way through
     its analysis, and what the sources delivered before stopping is still analysed.
     """
-    q: queue.SimpleQueue[Item] = queue.SimpleQueue()
+    q = Backlog()  # bounded: a big file followed from its start is read as fast as it is analysed
     started: list[Source] = []
     deadline = None if duration_s is None else time.monotonic() + duration_s
     stopped_by: list[int] = []
@@ -225,7 +226,7 @@ def run_sources(
             break
     try:
         for s in sources:
-            s.start(q.put)
+            s.start(q.putter(s))
             started.append(s)
         next_tick = time.monotonic() + TICK_S
         while not stopped_by:
@@ -233,7 +234,7 @@ def run_sources(
             if (until is not None and until()) or (deadline is not None and now >= deadline):
                 break
             try:
-                item = q.get(timeout=max(0.0, min(next_tick - now, TICK_S)))
+                item: Item | None = q.get(max(0.0, min(next_tick - now, TICK_S)))
             except queue.Empty:
                 item = None
             if item is not None:
@@ -248,7 +249,7 @@ def run_sources(
             s.stop()
         while True:  # what the sources delivered before stopping is still analysed
             try:
-                engine.handle(q.get_nowait())
+                engine.handle(q.get())
             except queue.Empty:
                 break
         engine.finish()

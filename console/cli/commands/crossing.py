@@ -115,9 +115,7 @@ def crossing(
                     "warnings": warnings,
                     "parse_report": report.to_dict(),
                 },
-                {"timelines": "timeline", "events": "event", "trains": "train", "integrity": "integrity"}
-                if jsonl
-                else None,
+                CROSSING_LINES if jsonl else None,
             )
         else:
             out = Console(highlight=False)
