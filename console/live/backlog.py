@@ -31,8 +31,8 @@ def _weight(item: Item) -> int:
 class Backlog:
     """A queue of items: :meth:`putter` for each source's thread, :meth:`get` for the engine's."""
 
-    def __init__(self, limit_bytes: int = BACKLOG_BYTES) -> None:
-        self.limit_bytes = limit_bytes
+    def __init__(self, limit_bytes: int | None = None) -> None:
+        self.limit_bytes = BACKLOG_BYTES if limit_bytes is None else limit_bytes
         self._q: queue.SimpleQueue[Item] = queue.SimpleQueue()
         self._bytes = 0
         self._room = threading.Condition()
