@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from console.analysis.crossing.controller import ControllerSettings, Fix, TrainSpec
+from console.analysis.crossing_batch import crossing_settings, integrity_settings
 from console.analysis.integrity.monitor import ConsistSpec, IntegritySettings
 from console.engine.crossings import CrossingFollow
 from console.engine.integrity import IntegrityFollow
@@ -43,13 +44,17 @@ class FixStage:
         ``consists``: the trains known before their first fix; ``batch``: every integrity event kept and no
         lead worked out per warning (a batch run shows whole timelines at the end)."""
         self.emit = emit
+        placed = bool(layout.crossings) or len(layout.track) >= 2
+        self.crossings = CrossingFollow(layout, emit, settings, trains, lead=not batch) if placed else None
+        # The monitor's timing is the crossing units' (the same fixes, the same radio).
+        timing = integrity or integrity_settings(
+            self.crossings.settings if self.crossings else crossing_settings(layout)
+        )
         self.integrity = (
-            IntegrityFollow(layout, self._integrity_event, integrity, consists, keep=batch)
+            IntegrityFollow(layout, self._integrity_event, timing, consists, keep=batch)
             if len(layout.track) >= 2
             else None
         )
-        placed = bool(layout.crossings) or len(layout.track) >= 2
-        self.crossings = CrossingFollow(layout, emit, settings, trains, lead=not batch) if placed else None
 
     def take(self, item: GnssFix, now_ns: int) -> None:
         """A unit's report, its clock judged against ``now_ns``."""

@@ -51,6 +51,12 @@ class Backlog:
 
         return put
 
+    def put(self, item: Item) -> None:
+        """An item handed over by no source's thread (never held)."""
+        with self._room:
+            self._bytes += _weight(item)
+        self._q.put(item)
+
     def get(self, timeout_s: float | None = None) -> Item:
         """The next item; ``queue.Empty`` if none came within ``timeout_s`` (None: none is there now)."""
         item = self._q.get_nowait() if timeout_s is None else self._q.get(timeout=timeout_s)
