@@ -11,7 +11,6 @@ and integrity stage every mode runs.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -22,10 +21,8 @@ from console.analysis.crossing.controller import (
     HEAD,
     ControllerSettings,
     CrossingEvent,
-    Fix,
 )
 from console.analysis.crossing.timeline import TimelineRow
-from console.analysis.geo import TrackProjector
 from console.analysis.integrity.monitor import IntegrityEvent, IntegritySettings
 from console.layout import Layout
 
@@ -102,44 +99,24 @@ def pair_trains(
     return [TrainDevices("train", heads, eots, default_length_m)], other
 
 
-def _hint(course: float, bearing: float, speed: float) -> int:
-    if math.isnan(course) or math.isnan(speed) or speed < 1.0:
-        return 0
-    diff = (course - bearing + 540.0) % 360.0 - 180.0
-    return 1 if abs(diff) < 60 else -1 if abs(diff) > 120 else 0
-
-
-def to_fixes(fixes: pd.DataFrame, layout: Layout, trains: Sequence[TrainDevices]) -> tuple[list[Fix], int]:
-    """Controller fixes (projected, one train each) and the number of off-track fixes."""
-    if not layout.track:
-        raise ValueError(f"{layout.source}: the layout has no [[track]] polyline to place fixes on")
-    proj = TrackProjector(layout.track)
+def unit_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> pd.DataFrame:
+    """The trains' units' valid fixes with a time and a position, one per device and instant, in time order,
+    with each one's ``train`` and ``role`` and its time in ns (``t_ns``)."""
     owner = {d: (t.train, HEAD) for t in trains for d in t.head}
     owner.update({d: (t.train, EOT) for t in trains for d in t.eot})
     sel = fixes[fixes["device"].astype(str).isin(owner) & fixes["valid"].astype(bool)]
     sel = sel.dropna(subset=["lat", "lon", "time"])
-    if sel.empty:
-        return [], 0
     # One fix per device and instant: NMEA gives an RMC and a GGA for each (keep the one with a speed).
     sel = sel.assign(_has_speed=sel["speed_mps"].notna()).sort_values(["device", "time", "_has_speed"], kind="stable")
     sel = sel.drop_duplicates(["device", "time"], keep="last").sort_values("time", kind="stable")
-    p = proj.project(sel["lat"].to_numpy(float), sel["lon"].to_numpy(float))
-    # In ns whatever resolution the table came in (pandas 3 keeps µs or s from its source).
-    t_ns = pd.to_datetime(sel["time"], utc=True).dt.as_unit("ns").astype("int64").to_numpy()
-    out: list[Fix] = []
-    off = 0
-    for k, (dev, speed, course) in enumerate(
-        zip(sel["device"].astype(str), sel["speed_mps"].to_numpy(float), sel["course_deg"].to_numpy(float), strict=True)
-    ):  # one per fix: GNSS fixes come a few per second at most
-        if p.offset_m[k] > OFF_TRACK_M:
-            off += 1
-            continue
-        train, role = owner[dev]
-        ch = float(p.chainage_m[k])
-        out.append(
-            Fix(int(t_ns[k]), int(t_ns[k]), train, role, ch, float(speed), _hint(course, proj.bearing_deg(ch), speed))
-        )
-    return out, off
+    devices = sel["device"].astype(str)
+    return sel.assign(
+        device=devices,
+        train=devices.map(lambda d: owner[d][0]),
+        role=devices.map(lambda d: owner[d][1]),
+        # In ns whatever resolution the table came in (pandas 3 keeps µs or s from its source).
+        t_ns=pd.to_datetime(sel["time"], utc=True).dt.as_unit("ns").astype("int64"),
+    )
 
 
 def crossing_settings(

@@ -1,12 +1,12 @@
 """Batch crossings: a table of GNSS fixes → the one crossing and integrity stage → timelines.
 
-``trackside crossing`` and the report (files or the archive) read their
-fixes into a table; here they are paired into trains and placed on the
-track (:mod:`console.analysis.crossing_batch`), then fed in time order to
-:class:`~console.engine.fixes.FixStage`, the stage ``follow``, the replay and
-the simulator's console run, and its units' clock is run out at the end.  What
-only a batch run can give is worked out afterwards from all the fixes: each
-warning's timeline (the lead, the spare split in hindsight).
+``trackside crossing`` and the report (files or the archive) read their fixes
+into a table; here they are paired into trains (:mod:`console.analysis.crossing_batch`),
+placed on the track as live places a unit's report, and fed in time order to
+:class:`~console.engine.fixes.FixStage`, the stage ``follow``, the replay and the
+simulator's console run; its units' clock is run out at the end.  What only a
+batch run can give is worked out afterwards from all the fixes: each warning's
+timeline (the lead, the spare split in hindsight).
 """
 
 from __future__ import annotations
@@ -25,10 +25,12 @@ from console.analysis.crossing_batch import (
     crossing_settings,
     integrity_settings,
     pair_trains,
-    to_fixes,
+    unit_fixes,
 )
 from console.analysis.integrity.monitor import ConsistSpec
+from console.engine.crossings import TrackPlacer
 from console.engine.fixes import FixStage
+from console.inputs.base import GnssFix
 from console.layout import Layout
 from parsers.units import ALL_TIME
 
@@ -43,7 +45,11 @@ def run_crossings(
     """Every crossing of the layout, every train: timelines, events and each train's integrity."""
     consist = layout.consist()
     chosen, unassigned = pair_trains(fixes, trains, consist.length_m if consist else 100.0)
-    placed, off = to_fixes(fixes, layout, chosen)
+    if len(layout.track) < 2:
+        raise ValueError(f"{layout.source}: the layout has no [[track]] polyline to place fixes on")
+    placer = TrackPlacer(layout)  # as live places a unit's report
+    placed = [p for f in _reports(unit_fixes(fixes, chosen)) if (p := placer.place(f, f.t_fix_ns)) is not None]
+    off = placer.off_track
     s = settings or ControllerSettings(line_speed_mps=layout.line_speed_mps)
     if report_period_s is None and layout.gnss_report_period_s is None and placed:
         # The devices' own report period: the median gap between a device's fixes.
@@ -64,7 +70,7 @@ def run_crossings(
         batch=True,
     )
     assert stage.crossings is not None and stage.integrity is not None  # the layout has a [[track]]
-    for f in placed:  # in time order (to_fixes); per fix: the units are state machines
+    for f in placed:  # in time order (unit_fixes); per fix: the units are state machines
         stage.placed(f, f.t_fix_ns)
     stage.crossings.advance(int(ALL_TIME))  # the recordings end: every tick the units' clocks still owe
     rows: list[TimelineRow] = []
@@ -77,6 +83,15 @@ def run_crossings(
     events.sort(key=lambda e: e.t_ns)
     integrity = stage.integrity.taken or []
     return CrossingRun(rows, events, list(chosen), off, unassigned, jumps, integrity)
+
+
+def _reports(sel: pd.DataFrame) -> list[GnssFix]:
+    """The table's fixes as the units' recorded reports (one object per fix: a file holds a few per second)."""
+    cols = ("device", "t_ns", "lat", "lon", "speed_mps", "course_deg", "role", "train")
+    return [
+        GnssFix("file", dev, int(t), float(lat), float(lon), float(v), float(c), 0.0, role, train, recorded=True)
+        for dev, t, lat, lon, v, c, role, train in zip(*(sel[c].to_numpy() for c in cols), strict=True)
+    ]
 
 
 def _unused(_event: dict[str, Any]) -> None:

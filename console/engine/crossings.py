@@ -82,33 +82,14 @@ class _Ticks:
             self.k += 1
 
 
-class CrossingFollow:
-    def __init__(
-        self,
-        layout: Layout,
-        emit: Emit,
-        settings: ControllerSettings | None = None,
-        trains: Sequence[TrainSpec] = (),
-        lead: bool = True,
-    ) -> None:
-        """``trains``: the trains known before their first fix (a batch run's, paired and with their lengths);
-        others are learnt from their fixes.  ``lead``: a warning going off is emitted with its lead (a batch
-        run, which works out every timeline from all the fixes at the end, does without)."""
-        self.layout = layout
-        self.emit = emit
-        self.settings = settings or crossing_settings(layout)
-        self.lead = lead
+class TrackPlacer:
+    """A unit's report → a fix on the layout's track, its clock judged (every mode: batch places its files'
+    fixes with it too).  Fixes more than OFF_TRACK_M from the track are set aside and counted."""
+
+    def __init__(self, layout: Layout) -> None:
         self.proj = TrackProjector(layout.track) if len(layout.track) >= 2 else None
-        self.controllers = {c.code: CrossingController(c, trains, self.settings) for c in layout.crossings}
-        self._ticks = {code: _Ticks(ctl) for code, ctl in self.controllers.items()}
-        consist = layout.consist()
-        self.default_length_m = consist.length_m if consist else 100.0
         self.skew_ns: dict[str, int] = {}
-        self.last: dict[tuple[str, str], Fix] = {}
-        self.recent: dict[str, deque[Fix]] = {}  # each train's last fixes, for the lead of its warnings
         self.off_track = 0
-        self.fixes = 0
-        self.events = 0
 
     def owner(self, f: GnssFix) -> tuple[str, str]:
         """(train, role): the unit says so (LoRa payload), or its name does (<train>-head / -eot)."""
@@ -144,6 +125,33 @@ class CrossingFollow:
             diff = (f.course_deg - self.proj.bearing_deg(chainage) + 540.0) % 360.0 - 180.0
             hint = 1 if abs(diff) < 60 else -1 if abs(diff) > 120 else 0
         return Fix(now_ns, t_fix, train, role, chainage, f.speed_mps, hint)
+
+
+class CrossingFollow:
+    def __init__(
+        self,
+        layout: Layout,
+        emit: Emit,
+        settings: ControllerSettings | None = None,
+        trains: Sequence[TrainSpec] = (),
+        lead: bool = True,
+    ) -> None:
+        """``trains``: the trains known before their first fix (a batch run's, paired and with their lengths);
+        others are learnt from their fixes.  ``lead``: a warning going off is emitted with its lead (a batch
+        run, which works out every timeline from all the fixes at the end, does without)."""
+        self.layout = layout
+        self.emit = emit
+        self.settings = settings or crossing_settings(layout)
+        self.lead = lead
+        self.placer = TrackPlacer(layout)
+        self.controllers = {c.code: CrossingController(c, trains, self.settings) for c in layout.crossings}
+        self._ticks = {code: _Ticks(ctl) for code, ctl in self.controllers.items()}
+        consist = layout.consist()
+        self.default_length_m = consist.length_m if consist else 100.0
+        self.last: dict[tuple[str, str], Fix] = {}
+        self.recent: dict[str, deque[Fix]] = {}  # each train's last fixes, for the lead of its warnings
+        self.fixes = 0
+        self.events = 0
 
     def catch_up(self, t_ns: int) -> None:
         """A recorded fix at ``t_ns`` comes next: the ticks before it (the batch run's)."""

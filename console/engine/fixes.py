@@ -60,12 +60,12 @@ class FixStage:
         """A unit's report, its clock judged against ``now_ns``."""
         if self.crossings is None:
             return
-        fix = self.crossings.place(item, now_ns)
+        fix = self.crossings.placer.place(item, now_ns)
         if fix is not None:
             self.placed(fix, item.t_fix_ns, item.brake_pipe_bar, item.emergency, item.recorded)
         elif self.integrity is not None and (item.emergency or not math.isnan(item.brake_pipe_bar)):
             # No place on the track (no fix, say), but the brake pipe's status stands on its own.
-            train, role = self.crossings.owner(item)
+            train, role = self.crossings.placer.owner(item)
             self.integrity.brake_pipe(train, role, item.t_fix_ns, item.brake_pipe_bar, item.emergency)
 
     def placed(
