@@ -57,8 +57,8 @@ def crossing(
         from console.analysis.integrity.monitor import timelines
         from console.analysis.timefmt import iso
         from console.drivers.crossings import run_crossings
-        from console.render.crossing_tables import reasons_view, spare_view, timeline_table, violations_view
-        from console.render.integrity_tables import integrity_table
+        from console.sinks.tables.crossing_tables import reasons_view, spare_view, timeline_table, violations_view
+        from console.sinks.tables.integrity_tables import integrity_table
         from parsers.gnss_files import parse_gnss
 
         check_inputs(files)
