@@ -333,6 +333,7 @@ def _simulated_run(tmp: Path, seed: int) -> tuple[dict[str, Any], Any, Path]:
         "crossing": sorted(
             (e.t_ns, e.crossing, e.train, e.kind, e.reason) for es in console.crossing_events().values() for e in es
         ),
+        "integrity": [e for e in events if e["type"] == "integrity"],
         "facts_wrong": pipeline.facts_wrong,
         "clear_over_a_train": unseen,
     }
@@ -385,8 +386,8 @@ def _clear_over_a_train(sim: StationSim, events: Sequence[dict[str, Any]]) -> li
 def _batch_of_run(run: Path) -> dict[str, Any]:
     """What the batch pipeline and the batch crossing run find in the files the run wrote, with the layout
     it wrote (its [devices]: the power gap, the GNSS units' period and delay), sections starting clear."""
-    from console.analysis.crossing_batch import run_crossings
     from console.analysis.sections.state import SectionState
+    from console.drivers.crossings import run_crossings
     from console.live.diag import live_speed
     from parsers.gnss_files import parse_gnss
 
@@ -426,6 +427,7 @@ def _batch_of_run(run: Path) -> dict[str, Any]:
         "final": final,
         "health": {f for f in history.found if f[3] != "info"},
         "crossing": sorted((e.t_ns, e.crossing, e.train, e.kind, e.reason) for e in crossing.events),
+        "integrity": [{"type": "integrity", **e.to_dict()} for e in crossing.integrity],
     }
 
 
@@ -434,8 +436,9 @@ SIM_RUNS = int(os.environ.get("TRACKSIDE_ONE_ENGINE_SIM_RUNS", 6))
 
 def test_the_simulators_console_shows_what_batch_finds_in_the_files_it_wrote(tmp_path: Path) -> None:
     """Route (e), over seeds: the station console of the simulator (the live engine fed each step's reports)
-    shows the passages, section states and counts, ledger, health warnings and crossing events that the batch
-    pipeline and ``crossing`` derive from the run's written ``diagnostic.log`` and ``gnss_devices.csv``.
+    shows the passages, section states and counts, ledger, health warnings, crossing events and the trains'
+    integrity that the batch pipeline and ``crossing`` derive from the run's written ``diagnostic.log`` and
+    ``gnss_devices.csv``.
 
     One known exception, shared with ``follow``: a head whose first passage leaves a fact about it open (a
     damping with no release yet reads as a head without release records) is guessed live and may be
@@ -455,7 +458,7 @@ def test_the_simulators_console_shows_what_batch_finds_in_the_files_it_wrote(tmp
             guessed_wrong += 1
             continue
         compared += 1
-        for what in ("passages", "timeline", "ledger", "sections_shown", "final"):
+        for what in ("passages", "timeline", "ledger", "sections_shown", "final", "integrity"):
             assert shown[what] == want[what], f"seed {seed}: {what}"
         # Live health is judged as the run goes, on the last day's evidence: at the end, batch's verdicts.
         assert shown["health"] == want["health"], f"seed {seed}: health"

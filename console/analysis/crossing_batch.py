@@ -1,35 +1,29 @@
-"""Run the crossing controllers over a table of GNSS fixes (batch).
+"""A table of GNSS fixes (batch) → the crossing units' trains and placed fixes.
 
 Fixes (from :mod:`parsers.gnss.centre`) are grouped into trains — a train is a head
 unit and an EOT unit, paired by the caller or, with one of each, by their
-roles — projected onto the layout's track, and fed to one controller per
-level crossing in time order.  Fixes far from the track are set aside and
-counted: they cannot be placed on the line.
+roles — and projected onto the layout's track.  Fixes far from the track are
+set aside and counted: they cannot be placed on the line.  The batch driver
+(:mod:`console.drivers.crossings`) feeds the placed fixes to the one crossing
+and integrity stage every mode runs.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-import numpy as np
 import pandas as pd
 
 from console.analysis.crossing.controller import (
     EOT,
     HEAD,
     ControllerSettings,
-    CrossingController,
     CrossingEvent,
-    Fix,
-    TrainSpec,
-    run_controller,
 )
-from console.analysis.crossing.timeline import TimelineRow, timeline
-from console.analysis.geo import TrackProjector
-from console.analysis.integrity.monitor import PARTED, ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
+from console.analysis.crossing.timeline import TimelineRow
+from console.analysis.integrity.monitor import IntegrityEvent, IntegritySettings
 from console.layout import Layout
 
 OFF_TRACK_M = 100.0
@@ -105,80 +99,24 @@ def pair_trains(
     return [TrainDevices("train", heads, eots, default_length_m)], other
 
 
-def _hint(course: float, bearing: float, speed: float) -> int:
-    if math.isnan(course) or math.isnan(speed) or speed < 1.0:
-        return 0
-    diff = (course - bearing + 540.0) % 360.0 - 180.0
-    return 1 if abs(diff) < 60 else -1 if abs(diff) > 120 else 0
-
-
-def to_fixes(fixes: pd.DataFrame, layout: Layout, trains: Sequence[TrainDevices]) -> tuple[list[Fix], int]:
-    """Controller fixes (projected, one train each) and the number of off-track fixes."""
-    if not layout.track:
-        raise ValueError(f"{layout.source}: the layout has no [[track]] polyline to place fixes on")
-    proj = TrackProjector(layout.track)
+def unit_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> pd.DataFrame:
+    """The trains' units' valid fixes with a time and a position, one per device and instant, in time order,
+    with each one's ``train`` and ``role`` and its time in ns (``t_ns``)."""
     owner = {d: (t.train, HEAD) for t in trains for d in t.head}
     owner.update({d: (t.train, EOT) for t in trains for d in t.eot})
     sel = fixes[fixes["device"].astype(str).isin(owner) & fixes["valid"].astype(bool)]
     sel = sel.dropna(subset=["lat", "lon", "time"])
-    if sel.empty:
-        return [], 0
     # One fix per device and instant: NMEA gives an RMC and a GGA for each (keep the one with a speed).
     sel = sel.assign(_has_speed=sel["speed_mps"].notna()).sort_values(["device", "time", "_has_speed"], kind="stable")
     sel = sel.drop_duplicates(["device", "time"], keep="last").sort_values("time", kind="stable")
-    p = proj.project(sel["lat"].to_numpy(float), sel["lon"].to_numpy(float))
-    # In ns whatever resolution the table came in (pandas 3 keeps µs or s from its source).
-    t_ns = pd.to_datetime(sel["time"], utc=True).dt.as_unit("ns").astype("int64").to_numpy()
-    out: list[Fix] = []
-    off = 0
-    for k, (dev, speed, course) in enumerate(
-        zip(sel["device"].astype(str), sel["speed_mps"].to_numpy(float), sel["course_deg"].to_numpy(float), strict=True)
-    ):  # one per fix: GNSS fixes come a few per second at most
-        if p.offset_m[k] > OFF_TRACK_M:
-            off += 1
-            continue
-        train, role = owner[dev]
-        ch = float(p.chainage_m[k])
-        out.append(
-            Fix(int(t_ns[k]), int(t_ns[k]), train, role, ch, float(speed), _hint(course, proj.bearing_deg(ch), speed))
-        )
-    return out, off
-
-
-def run_crossings(
-    fixes: pd.DataFrame,
-    layout: Layout,
-    trains: Sequence[TrainDevices] = (),
-    settings: ControllerSettings | None = None,
-    report_period_s: float | None = None,
-) -> CrossingRun:
-    """Every crossing of the layout, every train: timelines and events."""
-    consist = layout.consist()
-    chosen, unassigned = pair_trains(fixes, trains, consist.length_m if consist else 100.0)
-    ctl_fixes, off = to_fixes(fixes, layout, chosen)
-    s = settings or ControllerSettings(line_speed_mps=layout.line_speed_mps)
-    if report_period_s is None and layout.gnss_report_period_s is None and ctl_fixes:
-        # The devices' own report period: the median gap between a device's fixes.
-        gaps = []
-        for tr in chosen:
-            for role in (HEAD, EOT):
-                t = np.sort([f.t_fix_ns for f in ctl_fixes if f.train == tr.train and f.role == role])
-                gaps += list(np.diff(t) / 1e9)
-        report_period_s = float(np.median(gaps)) if gaps else s.report_period_s
-    s = crossing_settings(layout, report_period_s, s)
-    specs = [TrainSpec(t.train, t.length_m) for t in chosen]
-    integrity = run_integrity(ctl_fixes, chosen, layout, s)
-    partings = [(e.t_ns, e.train, "; ".join(e.evidence)) for e in integrity if e.state == PARTED]
-    rows: list[TimelineRow] = []
-    events: list[CrossingEvent] = []
-    jumps = 0
-    for crossing in layout.crossings:
-        ctl: CrossingController = run_controller(crossing, specs, ctl_fixes, s, partings=partings)
-        rows += timeline(ctl, ctl_fixes, s)
-        events += ctl.events
-        jumps = ctl.position_jumps  # every controller sees the same fixes and sets aside the same ones
-    events.sort(key=lambda e: e.t_ns)
-    return CrossingRun(rows, events, list(chosen), off, unassigned, jumps, integrity)
+    devices = sel["device"].astype(str)
+    return sel.assign(
+        device=devices,
+        train=devices.map(lambda d: owner[d][0]),
+        role=devices.map(lambda d: owner[d][1]),
+        # In ns whatever resolution the table came in (pandas 3 keeps µs or s from its source).
+        t_ns=pd.to_datetime(sel["time"], utc=True).dt.as_unit("ns").astype("int64"),
+    )
 
 
 def crossing_settings(
@@ -200,19 +138,6 @@ def crossing_settings(
 def integrity_settings(s: ControllerSettings) -> IntegritySettings:
     """The integrity monitor's timing, the crossing units' (the same fixes, the same radio)."""
     return IntegritySettings(report_period_s=s.report_period_s, latency_s=s.latency_s, stale_after_s=s.stale_after_s)
-
-
-def run_integrity(
-    fixes: Sequence[Fix], trains: Sequence[TrainDevices], layout: Layout, s: ControllerSettings
-) -> list[IntegrityEvent]:
-    """Each train's integrity from its head and EOT fixes (GNSS only: the telemetry has no axle counts)."""
-    mon = IntegrityMonitor(integrity_settings(s), layout)
-    for t in trains:
-        mon.add_train(ConsistSpec(t.train, t.length_m, length_known=t.length_given))
-    out: list[IntegrityEvent] = []
-    for f in sorted(fixes, key=lambda f: f.t_ns):  # per fix: the monitor is a state machine
-        out += mon.fix(f.t_ns, f.t_fix_ns, f.train, f.role, f.chainage_m, f.speed_mps)
-    return out
 
 
 def parse_train_option(text: str, default_length_m: float) -> TrainDevices:

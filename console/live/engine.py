@@ -8,7 +8,6 @@ items, so the analysis state needs no locks.
 
 from __future__ import annotations
 
-import math
 import queue
 import signal
 import time
@@ -17,13 +16,13 @@ from typing import Any
 
 from console.analysis.passages.diagnostics import SpeedSettings
 from console.analysis.sections.state import SectionState
+from console.engine.fixes import FixStage
 from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote
 from console.layout import Layout
 from console.live.archive import LiveArchiver
-from console.live.crossings import CrossingFollow
+from console.live.backlog import Backlog
 from console.live.diag import DiagFollow, live_speed
 from console.live.frames import FrameFollow
-from console.live.integrity import IntegrityFollow
 from parsers.diag.registry import DiagRegistry
 from parsers.units import ALL_TIME
 
@@ -53,9 +52,8 @@ class LiveEngine:
         self.include_status = include_status
         self._clock = clock or time.time_ns
         # Train integrity needs the fixes placed on the track: a layout with a [[track]].
-        self.integrity = (
-            IntegrityFollow(layout, self._integrity_event) if layout is not None and len(layout.track) >= 2 else None
-        )
+        self.fixes = FixStage(layout, emit) if layout is not None else None
+        self.integrity = self.fixes.integrity if self.fixes is not None else None
         self.diag = DiagFollow(
             layout,
             settings or live_speed(layout),
@@ -65,8 +63,7 @@ class LiveEngine:
             initial=initial,
             registry=registry,
         )
-        placed = layout is not None and (bool(layout.crossings) or len(layout.track) >= 2)
-        self.crossings = CrossingFollow(layout, emit) if layout is not None and placed else None
+        self.crossings = self.fixes.crossings if self.fixes is not None else None
         self.frames = FrameFollow(layout, emit)
         if self.integrity is not None:
             self.frames.listener = self.integrity
@@ -120,20 +117,8 @@ class LiveEngine:
         if isinstance(item, LineBlock):
             self.diag.add(item.source, item.file, item.first_line, item.data)
         elif isinstance(item, GnssFix):
-            if self.crossings is not None:
-                placed = self.crossings.place(item, self._fix_clock(item))
-                if placed is not None:
-                    if item.recorded:
-                        self.crossings.catch_up(placed.t_ns)
-                    # The monitor's verdict on this fix reaches the crossing units before they take it (a
-                    # train parted by it is held at once), as the batch crossing run tells its partings.
-                    if self.integrity is not None:
-                        self.integrity.fix(placed, item.t_fix_ns, item.brake_pipe_bar, item.emergency)
-                    self.crossings.step(placed)
-                elif self.integrity is not None and (item.emergency or not math.isnan(item.brake_pipe_bar)):
-                    # No place on the track (no fix, say), but the brake pipe's status stands on its own.
-                    train, role = self.crossings.owner(item)
-                    self.integrity.brake_pipe(train, role, item.t_fix_ns, item.brake_pipe_bar, item.emergency)
+            if self.fixes is not None and self.crossings is not None:  # placed on a track (the clocks too)
+                self.fixes.take(item, self._fix_clock(item))
         elif isinstance(item, CanFrame):
             self._live_bus = True
             self.can_frames += 1
@@ -148,11 +133,6 @@ class LiveEngine:
     def idle(self) -> None:
         """Nothing more is queued: analyse what is buffered (CAN frames come one by one, are analysed in blocks)."""
         self.frames.flush()
-
-    def _integrity_event(self, ev: dict[str, Any]) -> None:
-        self.emit(ev)
-        if ev["state"] == "parted" and self.crossings is not None:
-            self.crossings.parted(ev["train"], ev["time_ns"], "; ".join(ev["evidence"]))
 
     def tick(self, recorded_until_ns: int | None = None) -> None:
         """Time passes.  ``recorded_until_ns``: no recorded fix still to come is earlier than or at this
@@ -234,7 +214,7 @@ def run_sources(
     The signals only set a flag (from the main thread): an item is never cut half-way through
     its analysis, and what the sources delivered before stopping is still analysed.
     """
-    q: queue.SimpleQueue[Item] = queue.SimpleQueue()
+    q = Backlog()  # bounded: a big file followed from its start is read as fast as it is analysed
     started: list[Source] = []
     deadline = None if duration_s is None else time.monotonic() + duration_s
     stopped_by: list[int] = []
@@ -246,7 +226,7 @@ def run_sources(
             break
     try:
         for s in sources:
-            s.start(q.put)
+            s.start(q.putter(s))
             started.append(s)
         next_tick = time.monotonic() + TICK_S
         while not stopped_by:
@@ -254,7 +234,7 @@ def run_sources(
             if (until is not None and until()) or (deadline is not None and now >= deadline):
                 break
             try:
-                item = q.get(timeout=max(0.0, min(next_tick - now, TICK_S)))
+                item: Item | None = q.get(max(0.0, min(next_tick - now, TICK_S)))
             except queue.Empty:
                 item = None
             if item is not None:
@@ -269,7 +249,7 @@ def run_sources(
             s.stop()
         while True:  # what the sources delivered before stopping is still analysed
             try:
-                engine.handle(q.get_nowait())
+                engine.handle(q.get())
             except queue.Empty:
                 break
         engine.finish()

@@ -20,6 +20,7 @@ from console.analysis.sections.engine import SectionEngine
 from console.analysis.sections.state import SectionState, Transition
 from console.inputs.base import Item, Source, SourceStatus
 from console.layout import Layout
+from console.live.backlog import Backlog
 from console.live.engine import LiveEngine
 from console.tui.model import LogEntry, TrainView
 from console.tui.sources import engine_trains, integrity_entry
@@ -103,7 +104,7 @@ class LiveSource:
         self._events: list[dict[str, Any]] = []
         self.sink = sink  # another consumer of the engine's events (the Prometheus metrics)
         self.live = LiveEngine(layout, self._emit)
-        self._queue: queue.SimpleQueue[Item] = queue.SimpleQueue()
+        self._queue = Backlog()  # bounded: a file read faster than it is analysed waits
         self._placeholder = SectionEngine(layout, initial=SectionState.PREPARATORY, start_ns=time.time_ns())
         self._counts: Counter[str] = Counter()
         self.started = False
@@ -122,14 +123,19 @@ class LiveSource:
 
     def start(self) -> None:
         for s in self.sources:
-            s.start(self._put)
+            s.start(self._putter(s))
         self.started = True
 
-    def _put(self, item: Item) -> None:
-        self._queue.put(item)
-        wake = self.on_data
-        if wake is not None:
-            wake()
+    def _putter(self, source: Source) -> Callable[[Item], None]:
+        put = self._queue.putter(source)
+
+        def put_and_wake(item: Item) -> None:
+            put(item)
+            wake = self.on_data
+            if wake is not None:
+                wake()
+
+        return put_and_wake
 
     def pending(self) -> bool:
         """Items are waiting (a burst larger than one advance takes)."""
@@ -151,7 +157,7 @@ class LiveSource:
             self.start()
         for _ in range(MAX_ITEMS_PER_ADVANCE):
             try:
-                self.live.handle(self._queue.get_nowait())
+                self.live.handle(self._queue.get())
             except queue.Empty:
                 break
         self.live.tick()

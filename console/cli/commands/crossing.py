@@ -53,9 +53,10 @@ def crossing(
 
     def body() -> int:
         one_json_form(json_out, jsonl)
-        from console.analysis.crossing_batch import parse_train_option, run_crossings
+        from console.analysis.crossing_batch import parse_train_option
         from console.analysis.integrity.monitor import timelines
         from console.analysis.timefmt import iso
+        from console.drivers.crossings import run_crossings
         from console.sinks.tables.crossing_tables import reasons_view, spare_view, timeline_table, violations_view
         from console.sinks.tables.integrity_tables import integrity_table
         from parsers.gnss_files import parse_gnss
@@ -114,9 +115,7 @@ def crossing(
                     "warnings": warnings,
                     "parse_report": report.to_dict(),
                 },
-                {"timelines": "timeline", "events": "event", "trains": "train", "integrity": "integrity"}
-                if jsonl
-                else None,
+                CROSSING_LINES if jsonl else None,
             )
         else:
             out = Console(highlight=False)

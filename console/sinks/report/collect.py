@@ -472,7 +472,7 @@ def crossings_from_fixes(data: ReportData, fixes: pd.DataFrame) -> None:
     if own.any() and not own.all():
         note = "crossings use the NMEA and device streams (each unit's own fixes), not the centre's copy"
         data.inputs = [replace(i, note=note) if i.format == CENTRE else i for i in data.inputs]
-    from console.analysis.crossing_batch import run_crossings
+    from console.drivers.crossings import run_crossings
 
     run = run_crossings(fixes[own] if own.any() else fixes, lay)
     data.crossing = run

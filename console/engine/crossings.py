@@ -1,8 +1,9 @@
-"""GNSS fixes arriving live (gpsd, LoRaWAN) → the crossing units' warnings.
+"""GNSS fixes → the crossing units' warnings, in every mode (live, the replay, the simulator's console, batch).
 
 Each fix is placed on the layout's track and handed to every crossing's
-:class:`~console.analysis.crossing.controller.CrossingController`, the same unit the
-batch ``crossing`` command and the simulator run.  Time passes through
+:class:`~console.analysis.crossing.controller.CrossingController`.  The batch
+``crossing`` command and the report feed it the fixes of their files, placed
+and in time order (:mod:`console.drivers.crossings`).  Time passes through
 :meth:`CrossingFollow.tick`, so a unit that goes silent becomes stale and
 the warning stays on (the controller's rule: off only on fresh evidence).
 
@@ -13,19 +14,19 @@ moved by that offset and never put after their reception, so a unit whose
 clock runs ahead cannot make old positions look fresh.
 
 A *recorded* fix (read from a file, or the simulator's) is judged by its own
-time, and the units' clock ticks as the batch ``crossing`` command ticks it:
-every tick step after each fix, before the next one, until nothing a tick
-does can change (:func:`~console.analysis.crossing.controller.run_controller`).  The
+time, and the units' clock ticks every tick step after each fix, before the
+next one, until nothing a tick does can change (as
+:func:`~console.analysis.crossing.controller.run_controller` ticks one unit).  The
 ticks after the latest fix are made as the recordings' clock is known to
 have passed them (:meth:`CrossingFollow.advance`), and all of them at the
-end.  So fixes handed over in time order give the batch command's events.
+end.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from console.analysis.crossing.controller import (
@@ -81,22 +82,14 @@ class _Ticks:
             self.k += 1
 
 
-class CrossingFollow:
-    def __init__(self, layout: Layout, emit: Emit, settings: ControllerSettings | None = None) -> None:
-        self.layout = layout
-        self.emit = emit
-        self.settings = settings or crossing_settings(layout)
+class TrackPlacer:
+    """A unit's report → a fix on the layout's track, its clock judged (every mode: batch places its files'
+    fixes with it too).  Fixes more than OFF_TRACK_M from the track are set aside and counted."""
+
+    def __init__(self, layout: Layout) -> None:
         self.proj = TrackProjector(layout.track) if len(layout.track) >= 2 else None
-        self.controllers = {c.code: CrossingController(c, [], self.settings) for c in layout.crossings}
-        self._ticks = {code: _Ticks(ctl) for code, ctl in self.controllers.items()}
-        consist = layout.consist()
-        self.default_length_m = consist.length_m if consist else 100.0
         self.skew_ns: dict[str, int] = {}
-        self.last: dict[tuple[str, str], Fix] = {}
-        self.recent: dict[str, deque[Fix]] = {}  # each train's last fixes, for the lead of its warnings
         self.off_track = 0
-        self.fixes = 0
-        self.events = 0
 
     def owner(self, f: GnssFix) -> tuple[str, str]:
         """(train, role): the unit says so (LoRa payload), or its name does (<train>-head / -eot)."""
@@ -110,15 +103,6 @@ class CrossingFollow:
             if f.device.endswith(f"-{role}"):
                 return f.device[: -len(role) - 1], role
         return f.device, HEAD
-
-    def fix(self, f: GnssFix, now_ns: int) -> Fix | None:
-        """Place a fix on the track and run the crossing units on it; the placed fix (None: not placeable)."""
-        fix = self.place(f, now_ns)
-        if fix is not None:
-            if f.recorded:
-                self.catch_up(fix.t_ns)
-            self.step(fix)
-        return fix
 
     def place(self, f: GnssFix, now_ns: int) -> Fix | None:
         """A fix on the track, its clock judged (None: not placeable, counted as off the track if so)."""
@@ -141,6 +125,33 @@ class CrossingFollow:
             diff = (f.course_deg - self.proj.bearing_deg(chainage) + 540.0) % 360.0 - 180.0
             hint = 1 if abs(diff) < 60 else -1 if abs(diff) > 120 else 0
         return Fix(now_ns, t_fix, train, role, chainage, f.speed_mps, hint)
+
+
+class CrossingFollow:
+    def __init__(
+        self,
+        layout: Layout,
+        emit: Emit,
+        settings: ControllerSettings | None = None,
+        trains: Sequence[TrainSpec] = (),
+        lead: bool = True,
+    ) -> None:
+        """``trains``: the trains known before their first fix (a batch run's, paired and with their lengths);
+        others are learnt from their fixes.  ``lead``: a warning going off is emitted with its lead (a batch
+        run, which works out every timeline from all the fixes at the end, does without)."""
+        self.layout = layout
+        self.emit = emit
+        self.settings = settings or crossing_settings(layout)
+        self.lead = lead
+        self.placer = TrackPlacer(layout)
+        self.controllers = {c.code: CrossingController(c, trains, self.settings) for c in layout.crossings}
+        self._ticks = {code: _Ticks(ctl) for code, ctl in self.controllers.items()}
+        consist = layout.consist()
+        self.default_length_m = consist.length_m if consist else 100.0
+        self.last: dict[tuple[str, str], Fix] = {}
+        self.recent: dict[str, deque[Fix]] = {}  # each train's last fixes, for the lead of its warnings
+        self.fixes = 0
+        self.events = 0
 
     def catch_up(self, t_ns: int) -> None:
         """A recorded fix at ``t_ns`` comes next: the ticks before it (the batch run's)."""
@@ -184,7 +195,7 @@ class CrossingFollow:
                 "time_ns": e.t_ns,
                 "time": iso(e.t_ns),
             }
-            if e.kind == "off":
+            if e.kind == "off" and self.lead:
                 ev |= self._lead(ctl, e.train)
             self.emit(ev)
 

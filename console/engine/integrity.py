@@ -1,8 +1,8 @@
-"""Train integrity, live: the fixes the crossing units get, the axles and section changes the
+"""Train integrity, in every mode: the fixes the crossing units get, the axles and section changes the
 counting heads give → :class:`~console.analysis.integrity.monitor.IntegrityMonitor` → ``type: integrity``.
 
 The fixes arrive placed on the track (with the brake-pipe pressure and
-emergency status of units that report them: LoRa payload version 2) (:class:`~console.live.crossings.CrossingFollow`),
+emergency status of units that report them: LoRa payload version 2) (:class:`~console.engine.crossings.CrossingFollow`),
 with their units' own times: GNSS time, common to the head and the EOT unit
 (the monitor allows ``clock_offset_s`` between them).  The monitor's clock is
 the data's (the latest fix time), not the wall clock: a file followed from its
@@ -37,9 +37,21 @@ class IntegrityFollow(Sink):
     """The monitor, live: a sink of the pipeline's detections and section changes (and the frame
     follower's), fed the placed fixes by the engine."""
 
-    def __init__(self, layout: Layout, emit: Emit, settings: IntegritySettings | None = None) -> None:
+    def __init__(
+        self,
+        layout: Layout,
+        emit: Emit,
+        settings: IntegritySettings | None = None,
+        consists: Sequence[ConsistSpec] = (),
+        keep: bool = False,
+    ) -> None:
+        """``consists``: the trains known before their first fix (a batch run's); ``keep``: every event is
+        also kept, in :attr:`taken` (a batch run shows them all at the end)."""
         self.monitor = IntegrityMonitor(settings, layout)
+        for c in consists:
+            self.monitor.add_train(c)
         self.emit = emit
+        self.taken: list[IntegrityEvent] | None = [] if keep else None
         consist = layout.consist()
         self.length_m = consist.length_m if consist else 100.0
         self.axle_count = len(consist.axles_m) if consist is not None and len(layout.consists) == 1 else None
@@ -88,6 +100,8 @@ class IntegrityFollow(Sink):
             self._out(self.monitor.tick(self.clock_ns))
 
     def _out(self, events: list[IntegrityEvent]) -> None:
+        if self.taken is not None:
+            self.taken += events
         for e in events:
             self.events += 1
             self.emit({"type": "integrity", **e.to_dict()})

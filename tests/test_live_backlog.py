@@ -1,0 +1,98 @@
+"""The queue between the sources' threads and the live engine: a followed file's reader waits for room,
+so following a big file from its start takes memory bounded by the backlog, not by the file."""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from console.inputs.base import LineBlock
+from console.inputs.follow import FileSource
+from console.inputs.gpsd import GpsdSource
+from console.live.backlog import Backlog
+
+BLOCK = 1 << 16
+
+
+def _block(k: int) -> LineBlock:
+    return LineBlock("file:x", "x", 1 + k, b"%08d\n" % k * (BLOCK // 9), time.monotonic())
+
+
+def _producer(backlog: Backlog, source: FileSource | GpsdSource, n: int, done: list[int]) -> threading.Thread:
+    put = backlog.putter(source)
+
+    def body() -> None:
+        for k in range(n):
+            put(_block(k))
+            done.append(k)
+
+    t = threading.Thread(target=body, daemon=True)
+    t.start()
+    return t
+
+
+def test_a_files_reader_waits_while_the_backlog_is_full_and_every_block_arrives_in_order(tmp_path: Path) -> None:
+    backlog = Backlog(limit_bytes=4 * BLOCK)
+    done: list[int] = []
+    t = _producer(backlog, FileSource("file:x", tmp_path / "x.log"), 40, done)
+    time.sleep(0.5)
+    # Held: what it handed over is at most the limit and one block more, not the 40 blocks.
+    assert 4 <= len(done) <= 6, done
+    got = []
+    while len(got) < 40:
+        item = backlog.get(5.0)
+        assert isinstance(item, LineBlock)
+        got.append(item.first_line - 1)
+    t.join(5.0)
+    assert got == list(range(40)) and not t.is_alive()
+    with pytest.raises(queue.Empty):
+        backlog.get()
+    assert backlog.empty()
+
+
+def test_a_network_source_is_never_held_nor_a_stopping_file_reader(tmp_path: Path) -> None:
+    backlog = Backlog(limit_bytes=2 * BLOCK)
+    done: list[int] = []
+    _producer(backlog, GpsdSource("gpsd://127.0.0.1:1", "127.0.0.1", 1), 20, done).join(5.0)
+    assert len(done) == 20  # its sender sets the rate
+
+    stopping = FileSource("file:y", tmp_path / "y.log")
+    held: list[int] = []
+    t = _producer(backlog, stopping, 5, held)
+    time.sleep(0.3)
+    assert held == []  # the backlog is over its limit: the file's reader waits ...
+    stopping.stop()
+    t.join(5.0)
+    assert held == list(range(5))  # ... until it stops: what it still reads is handed over, analysed at the end
+
+
+def test_follow_from_start_through_a_small_backlog_gives_what_an_unbounded_one_gives(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``follow --from-start`` of the shipped station log (450 kB) read in blocks of 16 kB, its reader held to
+    8 kB of backlog (each block waits for the one before): the same events as with room for the whole file."""
+    from typer.testing import CliRunner
+
+    import console.inputs.follow as follow
+    import console.live.backlog as backlog
+    from console.cli.app import app
+
+    log = Path(__file__).parents[1] / "sample_logs" / "example_station.log"
+    args = ["follow", f"file:{log}", "--from-start", "--jsonl", "--layout", "example", "--idle-exit", "0.5"]
+
+    def lines() -> list[str]:
+        res = CliRunner().invoke(app, args)
+        assert res.exit_code == 0, res.output
+        # The summary's source rate and message age are wall-clock figures.
+        return [ln for ln in res.stdout.splitlines() if '"type": "summary"' not in ln]
+
+    monkeypatch.setattr(follow, "READ_BYTES", 16 << 10)
+    roomy = lines()
+    monkeypatch.setattr(backlog, "BACKLOG_BYTES", 8 << 10)
+    assert Backlog().limit_bytes == 8 << 10
+    assert lines() == roomy
+    assert sum('"type": "passage"' in ln for ln in roomy) > 20
