@@ -32,8 +32,10 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import time
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from console.fleet.cluster import open_client, quiet_logs
@@ -49,6 +51,20 @@ R = TypeVar("R")
 T = TypeVar("T")
 
 
+@dataclass(frozen=True)
+class TaskSpan:
+    """One :func:`map_partitions` call as this process saw it: its label, its wall clock (``perf_counter``)
+    and this process's CPU clock (``process_time``) at its start and end.  On a cluster the client only waits
+    meanwhile; what lies outside every span is the client's own serial work (benchmarks/bench_fleet.py)."""
+
+    label: str
+    tasks: int
+    wall0: float
+    wall1: float
+    cpu0: float
+    cpu1: float
+
+
 class _Engine:
     """Runs partitions here, one after the other (the local engine)."""
 
@@ -58,6 +74,7 @@ class _Engine:
         self.console = console
         self.progress = progress
         self.host = host
+        self.spans: list[TaskSpan] = []  # every map call of this engine's scope, in order
 
     def bar(self, total: int, label: str) -> contextlib.AbstractContextManager[Callable[[int], None]]:
         host = self.host() if self.host is not None else None
@@ -66,7 +83,10 @@ class _Engine:
     def map(
         self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
     ) -> list[R]:
-        return list(self.imap(fn, items, common, label))
+        wall0, cpu0 = time.perf_counter(), time.process_time()
+        out = list(self.imap(fn, items, common, label))
+        self.spans.append(TaskSpan(label, len(items), wall0, time.perf_counter(), cpu0, time.process_time()))
+        return out
 
     def imap(
         self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
@@ -149,6 +169,12 @@ class _DaskEngine(_Engine):
             raise
         finally:
             client.cancel([*submitted, *shared.values()])
+
+
+def task_spans() -> list[TaskSpan]:
+    """The :func:`map_partitions` calls made so far in the current engine's scope (none outside one)."""
+    engine = _current.get()
+    return list(engine.spans) if engine is not None else []
 
 
 def on_cluster() -> bool:
