@@ -643,10 +643,13 @@ def run_ingest(
     on_file: Callable[[str], None] | None = None,
 ) -> IngestSummary:
     """Ingest ``paths`` into the archive at ``root``; the summary of what was added, skipped and rejected."""
-    from console.fleet.engine import map_partitions, on_cluster
+    from console.fleet.engine import map_partitions, on_cluster, warm_workers
     from console.memory import read_memory, trim_heap
 
     t0 = time.perf_counter()
+    # The modules of the ingest's tasks (the prescan recognises files as the report does), imported by the
+    # workers while this process expands the inputs and takes the lock.
+    warm_workers(["console.archive.group_ingest", "console.report.collect"])
     ensure_layout(root)
     # An ingest's phases (read, derive, publish) each need their memory, one after the other.
     with read_memory(), writer_lock(root, wait=wait, on_wait=on_wait):

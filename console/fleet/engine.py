@@ -110,6 +110,7 @@ class _DaskEngine(_Engine):
     ) -> None:
         super().__init__(console, progress, host)
         self.client = client
+        self.warming: list[Future] = []  # warm_workers' imports, held for the scope
 
     def imap(
         self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
@@ -169,6 +170,26 @@ class _DaskEngine(_Engine):
             raise
         finally:
             client.cancel([*submitted, *shared.values()])
+
+
+def warm_workers(modules: Sequence[str]) -> None:
+    """On a cluster, each worker imports ``modules`` now, in the background, while this process does its own
+    first steps: otherwise every worker's first task pays for them after those steps, one after the other.
+    Nothing here waits; the tasks that follow queue behind the import on each worker."""
+    engine = _current.get()
+    if not isinstance(engine, _DaskEngine) or not modules:
+        return
+    client = engine.client
+    for address in client.scheduler_info()["workers"]:
+        # Held for the scope: a released future's task may be dropped.
+        engine.warming.append(client.submit(_import_modules, tuple(modules), workers=[address], pure=False))
+
+
+def _import_modules(modules: tuple[str, ...]) -> None:
+    import importlib
+
+    for name in modules:
+        importlib.import_module(name)
 
 
 def task_spans() -> list[TaskSpan]:
@@ -281,11 +302,13 @@ def engine_scope(
             _current.reset(token)
         return
     with open_client(spec, say) as client, quiet_logs():
-        token = _current.set(_DaskEngine(client, console, progress, host))
+        engine = _DaskEngine(client, console, progress, host)
+        token = _current.set(engine)
         try:
             yield
         finally:
             _current.reset(token)
+            client.cancel(engine.warming)
 
 
 def _raise_for(fut: Future, item: Mapping[str, Any]) -> None:
