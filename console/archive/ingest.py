@@ -649,7 +649,7 @@ def run_ingest(
     t0 = time.perf_counter()
     # The modules of the ingest's tasks (the prescan recognises files as the report does), imported by the
     # workers while this process expands the inputs and takes the lock.
-    warm_workers(["console.archive.group_ingest", "console.report.collect"])
+    warm_workers(["console.archive.group_ingest", "console.sinks.report.collect"])
     ensure_layout(root)
     # An ingest's phases (read, derive, publish) each need their memory, one after the other.
     with read_memory(), writer_lock(root, wait=wait, on_wait=on_wait):
