@@ -17,7 +17,10 @@ each group's state; the client plans, gathers the ledger and publishes.
 * ``start_s``: the LocalCluster's start (not in ``ingest_s``);
 * ``ingest_s``, with ``phases`` (read, records, derive, publish) as the ingest reports them;
 * ``client_cpu_s``, ``worker_cpu_s``: CPU seconds (user + system) here and in each worker;
-* ``peak_rss_mb``: this process's peak; per worker process its peak.
+* ``peak_rss_mb``: this process's peak; per worker process its peak;
+* ``serial``: the ingest's wall cut where its task maps start and end and its phases end; each piece
+  outside the maps is the client's serial work, by name, [wall s, client CPU s] (:func:`serial_parts`),
+  printed with its share of the wall and the load average.
 """
 
 from __future__ import annotations
