@@ -17,12 +17,16 @@ each group's state; the client plans, gathers the ledger and publishes.
 * ``start_s``: the LocalCluster's start (not in ``ingest_s``);
 * ``ingest_s``, with ``phases`` (read, records, derive, publish) as the ingest reports them;
 * ``client_cpu_s``, ``worker_cpu_s``: CPU seconds (user + system) here and in each worker;
-* ``peak_rss_mb``: this process's peak; per worker process its peak.
+* ``peak_rss_mb``: this process's peak; per worker process its peak;
+* ``serial``: the ingest's wall cut where its task maps start and end and its phases end; each piece
+  outside the maps is the client's serial work, by name, [wall s, client CPU s] (:func:`serial_parts`),
+  printed with its share of the wall and the load average.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import re
 import resource
@@ -70,6 +74,38 @@ def split(log: Path, out: Path) -> int:
     return len(files)
 
 
+def serial_parts(
+    wall0: float, cpu0: float, phase_ends: dict[str, tuple[float, float]], spans: list[Any]
+) -> dict[str, list[float]]:
+    """The ingest's wall cut at its phases' ends and its task maps' starts and ends: each piece outside the
+    task maps is the client's serial work, named by its phase and the maps around it; ``[wall s, client CPU s]``
+    each.  ``tasks: LABEL`` sums the pieces inside the maps of that label (the workers run; the client waits,
+    schedules and collects: a LocalCluster's scheduler runs in this process)."""
+    points: list[tuple[float, float, str]] = [(wall0, cpu0, "start")]
+    points += [(w, c, f"end {name}") for name, (w, c) in phase_ends.items()]
+    for sp in spans:
+        points += [(sp.wall0, sp.cpu0, f"[{sp.label}"), (sp.wall1, sp.cpu1, f"{sp.label}]")]
+    points.sort()
+    inside = [(sp.wall0, sp.wall1, sp.label) for sp in spans]
+    phase_names = list(phase_ends)
+    out: dict[str, list[float]] = {}
+    for (w0, c0, what0), (w1, c1, what1) in itertools.pairwise(points):
+        mid = (w0 + w1) / 2
+        label = next((lb for a, b, lb in inside if a <= mid <= b), None)
+        if label is not None:
+            name = f"tasks: {label}"
+        else:
+            # The phase this piece lies in (the first whose end is at or after it), and the task maps around it.
+            phase = next((n for n in phase_names if phase_ends[n][0] >= w1), phase_names[-1])
+            after = f"after {what0[:-1]}" if what0.endswith("]") else "from its start" if what0 == "start" else ""
+            before = f"before {what1[1:]}" if what1.startswith("[") else ""
+            name = ": ".join([phase, " ".join(w for w in (after, before) if w)]).rstrip(": ")
+        acc = out.setdefault(name, [0.0, 0.0])
+        acc[0] += w1 - w0
+        acc[1] += c1 - c0
+    return {k: [round(v[0], 2), round(v[1], 2)] for k, v in out.items()}
+
+
 def one(inputs: Path, engine: str) -> dict[str, Any]:
     """One configuration, in this process: ``local`` or ``dask:N``."""
     from console.archive.ingest import run_ingest
@@ -87,9 +123,11 @@ def one(inputs: Path, engine: str) -> dict[str, Any]:
             cpu_at_start = client.run(_cpu_s) if client is not None else {}
             started = time.perf_counter()
             cpu0 = _cpu_s()
+            pcpu0 = time.process_time()
             summary = run_ingest([inputs], arc)
             done = time.perf_counter()
             out["client_cpu_s"] = round(_cpu_s() - cpu0, 1)
+            out["serial"] = serial_parts(started, pcpu0, summary.phase_ends, fleet_engine.task_spans())
             if client is not None:
                 rss = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
                 cpu = client.run(_cpu_s)
@@ -103,6 +141,7 @@ def one(inputs: Path, engine: str) -> dict[str, Any]:
     out["records"] = summary.records
     out["files"] = len(summary.added)
     out["peak_rss_mb"] = round(_peak_rss_mb(), 1)
+    out["load"] = Path("/proc/loadavg").read_text().split()[0] if Path("/proc/loadavg").exists() else "?"
     return out
 
 
@@ -135,6 +174,9 @@ def main() -> None:
             run["round"] = r
             runs.append(run)
             workers = run.get("worker_peak_rss_mb", [])
+            serial = {k: v for k, v in run.get("serial", {}).items() if not k.startswith("tasks")}
+            tasks = {k: v for k, v in run.get("serial", {}).items() if k.startswith("tasks")}
+            serial_s = sum(v[0] for v in serial.values())
             print(
                 f"round {r} {engine:7s} ingest {run['ingest_s']:7.1f} s ({run['records'] / run['ingest_s'] / 1e3:,.0f}"
                 f" k rec/s, {run['files']} files)  phases {run['phases']}  start {run['start_s']:5.1f} s"
@@ -142,6 +184,15 @@ def main() -> None:
                 + (f"  workers peak {workers} MB cpu {run['worker_cpu_s']} s" if workers else ""),
                 flush=True,
             )
+            if workers:
+                print(
+                    f"    serial (client alone) {serial_s:.2f} s"
+                    f" = {100 * serial_s / run['ingest_s']:.1f} % of the wall;"
+                    f" {tasks} [wall s, client CPU s];  load {run['load']}",
+                    flush=True,
+                )
+                for k, v in serial.items():
+                    print(f"      {k:40s} {v[0]:6.2f} s wall {v[1]:6.2f} s CPU", flush=True)
     by: dict[str, list[float]] = {}
     for run in runs:
         by.setdefault(run["engine"], []).append(run["ingest_s"])

@@ -39,7 +39,9 @@ if TYPE_CHECKING:
 # 7: the parsers grouped by family (parsers.diag.registry, parsers.diag.fields): a state pickled by 6 names
 #    modules that are gone, so it is not read; the records are derived again.
 # 8: the analysis grouped by job (console.analysis.passages.stream, .counting.bank, ...): likewise.
-DERIVE_VERSION = 8
+# 9: an axle stamped at its passage's start is on that passage's day (it was put on the head's previous passage's,
+#    or another head's, as the pipeline's batches fell: the Dask engine's days differed from the local engine's).
+DERIVE_VERSION = 9
 # Rows each derived table buffers before a write-out (the records' writer has BUFFER_BYTES): derived rows come
 # a few per chunk, and five tables' full buffers cost memory (a 3 M-record ingest peaked 35 MB lower at 4 MB than
 # at 16 MB, for the same CPU).
@@ -59,6 +61,8 @@ class ArchiveSink(Sink):
             "channel_events": PartWriter(root, "channel_events", generation, tag, by_device=False, buffer_bytes=buf),
         }
         self._axles: list[tuple[Columns, Heads]] = []
+        # Per head key, the start of its latest passage written: an axle whose passage came in an earlier call.
+        self._last_start: dict[int, int] = {}
         # The order of the section history's rows (ties in time are broken by it): by generation, then as made.
         self._seq = generation << 32
 
@@ -73,6 +77,10 @@ class ArchiveSink(Sink):
         for axle_cols, axle_heads in self._axles:
             self._write_axles(axle_cols, axle_heads, cols)
         self._axles = []
+        ph = np.asarray(cols["head"], np.int64)
+        order = np.lexsort((start_ns, ph))
+        last = np.r_[ph[order][1:] != ph[order][:-1], True]  # each head's latest start
+        self._last_start.update(zip(ph[order][last].tolist(), start_ns[order][last].tolist(), strict=True))
 
     def _write_axles(self, axles: Columns, heads: Heads, passages: Columns) -> None:
         if not len(axles["head"]):
@@ -86,12 +94,22 @@ class ArchiveSink(Sink):
         keys = np.r_[ph, head]
         times = np.r_[ps, t]
         is_axle = np.r_[np.zeros(len(ph), bool), np.ones(len(head), bool)]
-        merged = np.lexsort((~is_axle, times, keys))  # a passage sorts before an axle at its start
+        # A passage sorts before an axle at its start (a whole-second head's first axle is stamped at it).
+        merged = np.lexsort((is_axle, times, keys))
         pos = np.cumsum(~is_axle[merged]) - 1  # the last passage at or before each row
         owner = np.empty(len(keys), np.int64)
         owner[merged] = pos
         owner = owner[len(ph) :]
-        start_day = ps[np.maximum(owner, 0)] // NS_PER_DAY
+        # No passage of its head at or before it among these (the last one found was another head's): its
+        # head's latest passage written before, else its own time.  Whatever the batches, the same day.
+        at = np.maximum(owner, 0)
+        lost = (owner < 0) | (ph[at] != head)
+        start = np.where(lost, t, ps[at])
+        if lost.any():
+            start[lost] = [
+                self._last_start.get(h, s) for h, s in zip(head[lost].tolist(), start[lost].tolist(), strict=True)
+            ]
+        start_day = start // NS_PER_DAY
         device_id, table = axles_table(axles, heads)
         self.writers["axles"].add(table.append_column("day", day_column(start_day)), start_day, device_id)
 

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from console.archive.derive import GroupResult, GroupRun, group_key_of, older_records
+from console.archive.ledger import Scan, try_scan
 from console.archive.parse_pass import (
     RECORD_ORDER,
     RejectedRows,
@@ -38,7 +39,7 @@ from console.archive.parse_pass import (
 )
 from console.archive.parts import PartWriter
 from console.archive.records import ChunkRebuilder, ChunkTranslator
-from console.archive.store import Manifest
+from console.archive.store import Manifest, sync_parts
 from console.engine.pipeline import PipelineSettings
 from parsers.diag.read import DiagChunk
 from parsers.diag.registry import DiagRegistry
@@ -69,6 +70,35 @@ def heads_hint(path: Path) -> set[tuple[int, str]]:
         return found
     except OSError:
         return set()  # the task's parse says what is wrong with it
+
+
+@dataclass
+class Prescan:
+    """What a worker learnt of one input before the ledger plans it: its scan (None: not readable there),
+    its kind and note (:func:`console.sinks.report.collect.recognise`; None: the client recognises it) and, for a
+    diagnostic log, the heads a few of its blocks name (:func:`heads_hint`)."""
+
+    scan: Scan | None
+    kind: tuple[str, str] | None
+    hint: set[tuple[int, str]]
+
+
+def prescan_files(files: list[dict[str, Any]]) -> list[Prescan]:
+    """One task: several inputs (``path``, ``prefix_len``) hashed, recognised and hinted, in order.  Done by the
+    client one file after another, this was the larger part of its serial work on many small files."""
+    from console.sinks.report.collect import recognise
+    from parsers.sources import InputError
+
+    out: list[Prescan] = []
+    for f in files:
+        path = Path(f["path"])
+        try:
+            kind: tuple[str, str] | None = recognise(path)
+        except (InputError, OSError):
+            kind = None  # the client says what is wrong with it
+        hint = heads_hint(path) if kind is not None and kind[0] == "diagnostic" else set()
+        out.append(Prescan(try_scan(path, f["prefix_len"]), kind, hint))
+    return out
 
 
 def plan_tasks(hints: Sequence[set[tuple[int, str]]], key_of: Callable[[int, Any], str]) -> list[list[int]]:
@@ -295,6 +325,8 @@ def ingest_files(
             if not run.resumed and manifest.parts("records") and older_records(root, manifest, run.heads, new_seqs):
                 run.must_rebuild()  # the group's heads have older records: made from all of them
             results.append(run.finish())
+        # Made durable here, side by side with the other tasks, not one by one by the client as it publishes.
+        sync_parts(root, [*record_parts, *rejected_parts, *(rel for r in results for rel in r.written)])
         return IngestedFiles(reports, record_parts, rejected_parts, results, first_seen)
     except BaseException:
         records.abort()

@@ -27,6 +27,7 @@ import pyarrow as pa
 from console import __version__
 from console.archive import ledger
 from console.archive.derive import Derivation
+from console.archive.group_ingest import Prescan
 from console.archive.parse_pass import (
     RECORD_ORDER,
     REJECTED_BATCH_ROWS,
@@ -74,6 +75,8 @@ class IngestSummary:
     published: bool = False
     # Wall seconds per step: read (parse and write the inputs), records (close, compact), derive, publish.
     phases: dict[str, float] = field(default_factory=dict)
+    # Each step's end: (wall ``perf_counter``, this process's ``process_time``), for benchmarks/bench_fleet.py.
+    phase_ends: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def records(self) -> int:
@@ -136,8 +139,11 @@ class _Ingest:
         self.new_diag_seqs: list[int] = []  # diagnostic files (or their new bytes) read by this ingest
         self.on_cluster = False  # diagnostic files are parsed on the cluster's workers (Dask engine)
         self.queued: list[tuple[Path, Path, dict[str, Any], ledger.Plan, FileOutcome]] = []
-        # Scans the cluster's workers made (prescan), by the name a file is known by: (prefix asked, scan).
-        self.prescanned: dict[str, tuple[int | None, ledger.Scan]] = {}
+        # What the cluster's workers learnt of each input (prescan), by the name a file is known by: (prefix
+        # asked, what they learnt); and the hints of the diagnostic logs they read, by path.
+        self.prescanned: dict[str, tuple[int | None, Prescan]] = {}
+        self.hints: dict[str, set[tuple[int, str]]] = {}
+        self.synced: set[str] = set()  # parts the workers made durable (publish fsyncs the others)
         # The layout file among the inputs that the derivation uses (report's rule), and --layout.
         self.layout_file: Path | None = None
         self.layout_spec: str | None = None
@@ -176,7 +182,8 @@ class _Ingest:
         return out
 
     def add_file(self, path: Path, shown: str) -> FileOutcome:
-        kind, note = _kind(path)
+        pre = self.prescanned.pop(shown, None)
+        kind, note = pre[1].kind if pre is not None and pre[1].kind is not None else _kind(path)
         if kind == "layout":
             from console.sinks.report.collect import layout_note
 
@@ -187,8 +194,10 @@ class _Ingest:
             return FileOutcome(shown, kind, "not-read", why)
         entry = ledger.find_entry(self.new.files, shown)
         prefix_len = entry["bytes"] if entry is not None else None
-        pre = self.prescanned.pop(shown, None)
-        s = pre[1] if pre is not None and pre[0] == prefix_len else ledger.scan(path, prefix_len)
+        found = pre[1].scan if pre is not None and pre[0] == prefix_len else None
+        s = found if found is not None else ledger.scan(path, prefix_len)
+        if pre is not None and pre[1].kind is not None:
+            self.hints[str(path)] = pre[1].hint  # of the whole file: used where the whole file is read
         p = ledger.plan(self.new.files, shown, s, entry)
         if kind != DIAGNOSTIC and p.action == "grown":
             # Fixes and frames are parsed whole (their parsers keep state across lines).
@@ -226,18 +235,23 @@ class _Ingest:
         return outcome
 
     def prescan(self, inputs: list[tuple[Path, str]]) -> None:
-        """On a cluster, every input hashed by the workers, side by side, before the ledger plans them (on one
-        core the client's hashing of every byte was the larger part of what it did alone)."""
-        from console.fleet.engine import map_partitions
+        """On a cluster, every input hashed, recognised and (a diagnostic log) hinted by the workers, side by
+        side, before the ledger plans them: a task per run of files, a few tasks per worker thread (a task per
+        file cost the scheduler, in this process, more than the work)."""
+        from console.archive.group_ingest import prescan_files
+        from console.fleet.engine import in_flight, map_partitions
 
-        items: list[dict[str, Any]] = []
+        files: list[dict[str, Any]] = []
         for path, shown in inputs:
             entry = ledger.find_entry(self.new.files, shown)
-            items.append({"path": path, "prefix_len": entry["bytes"] if entry is not None else None})
-        scans = map_partitions(ledger.try_scan, items, label="scan")
-        for (_path, shown), item, s in zip(inputs, items, scans, strict=True):
-            if s is not None:
-                self.prescanned[shown] = (item["prefix_len"], s)
+            files.append({"path": str(path), "prefix_len": entry["bytes"] if entry is not None else None})
+        n = max(1, min(len(files), 2 * in_flight()))
+        runs = [files[i * len(files) // n : (i + 1) * len(files) // n] for i in range(n)]
+        found = [
+            pre for run in map_partitions(prescan_files, [{"files": r} for r in runs], label="scan") for pre in run
+        ]
+        for (_path, shown), f, pre in zip(inputs, files, found, strict=True):
+            self.prescanned[shown] = (f["prefix_len"], pre)
 
     def parse_queued(self) -> None:
         """The diagnostic files queued for the cluster: one task each, their parts and accounting taken in
@@ -282,7 +296,8 @@ class _Ingest:
         from console.fleet.engine import map_partitions
 
         key_of = group_key_of(d.settings.sections)
-        hints = [heads_hint(src) for src, _path, _e, _p, _out in self.queued]
+        # The workers' hints where they read the whole file; a grown file's new bytes are hinted here.
+        hints = [self.hints[str(src)] if str(src) in self.hints else heads_hint(src) for src, *_ in self.queued]
         plan = plan_tasks(hints, key_of)
         new_seqs = [int(e["file_seq"]) for _src, _path, e, _p, _out in self.queued]
         known = [(int(dev), n) for dev, n in self.new.derived.get("heads", [])] if d.same else []
@@ -307,6 +322,7 @@ class _Ingest:
             self.new.tables.setdefault("rejected", []).extend(res.rejected)
             reports.update(zip(files, res.reports, strict=True))
             first_seen += res.first_seen
+            self.synced.update([*res.records, *res.rejected, *(rel for g in res.groups for rel in g.written)])
         for i, (src, path, e, p, out) in enumerate(self.queued):
             self.new_diag_seqs.append(int(e["file_seq"]))
             self._take_report(e, p, out, reports[i])
@@ -561,15 +577,17 @@ def _naive_utc(times: Any) -> Any:
 
 
 class _PhaseClock:
-    """Wall seconds of consecutive steps, into ``phases`` (the summary's, also in ``ingest --json``)."""
+    """Wall seconds of consecutive steps, into ``phases`` (the summary's, also in ``ingest --json``), and when
+    each ended, into ``ends``."""
 
-    def __init__(self, phases: dict[str, float]) -> None:
-        self.phases = phases
+    def __init__(self, phases: dict[str, float], ends: dict[str, tuple[float, float]]) -> None:
+        self.phases, self.ends = phases, ends
         self.t = time.perf_counter()
 
     def lap(self, name: str) -> None:
         now = time.perf_counter()
         self.phases[name] = self.phases.get(name, 0.0) + now - self.t
+        self.ends[name] = (now, time.process_time())
         self.t = now
 
 
@@ -625,10 +643,13 @@ def run_ingest(
     on_file: Callable[[str], None] | None = None,
 ) -> IngestSummary:
     """Ingest ``paths`` into the archive at ``root``; the summary of what was added, skipped and rejected."""
-    from console.fleet.engine import map_partitions, on_cluster
+    from console.fleet.engine import map_partitions, on_cluster, warm_workers
     from console.memory import read_memory, trim_heap
 
     t0 = time.perf_counter()
+    # The modules of the ingest's tasks (the prescan recognises files as the report does), imported by the
+    # workers while this process expands the inputs and takes the lock.
+    warm_workers(["console.archive.group_ingest", "console.sinks.report.collect"])
     ensure_layout(root)
     # An ingest's phases (read, derive, publish) each need their memory, one after the other.
     with read_memory(), writer_lock(root, wait=wait, on_wait=on_wait):
@@ -637,7 +658,7 @@ def run_ingest(
         job = _Ingest(root, current, on_bytes, None)
         summary = IngestSummary(root, current.generation)
         try:
-            clock = _PhaseClock(summary.phases)
+            clock = _PhaseClock(summary.phases, summary.phase_ends)
             inputs = expand_inputs(paths, root)
             layout = _inputs_layout(job, inputs, layout)
             # The derivation writes into the new manifest, as the records do; on a cluster, per group of heads.
@@ -667,7 +688,7 @@ def run_ingest(
             job.finish_ledger()
             # Nothing new (every file already ingested): no new generation at all.
             if summary.added or relayout:
-                publish(root, job.new, job.new_parts)
+                publish(root, job.new, [rel for rel in job.new_parts if rel not in job.synced])
                 summary.generation = job.gen
                 summary.published = True
             clock.lap("publish")

@@ -184,8 +184,39 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
     other records).
 
     Read with pyarrow, part by part, filtered by label as each part is read: a DuckDB connection
-    costs ~50 MB of memory to open, more than these few records.
+    costs ~50 MB of memory to open, more than these few records.  On a cluster (an ingest's end, the
+    workers idle) runs of parts are read by the workers, side by side (:func:`health_parts`).
     """
+    import pyarrow as pa
+
+    from console.fleet.engine import in_flight, map_partitions
+
+    rels: list[str] = []
+    for rel in manifest.parts("records"):
+        key = key_of_part(rel)
+        if key is None or (window.device_id is not None and key[1] != window.device_id):
+            continue
+        if (window.start is not None and key[0] < window.start.date()) or (
+            window.end is not None and key[0] > window.end.date()
+        ):
+            continue
+        rels.append(rel)
+    n = max(1, min(len(rels), 2 * in_flight())) if in_flight() > 1 else 1
+    runs = [{"rels": rels[i * len(rels) // n : (i + 1) * len(rels) // n]} for i in range(n)]
+    found = map_partitions(health_parts, runs, common={"root": root, "window": window}, label="health")
+    tables = [t for run in found for t in run]
+    rebuild = ChunkRebuilder()
+    kept: list[DiagChunk] = []
+    if tables:
+        table = pa.concat_tables(tables, promote_options="permissive").select(list(ARCHIVED_RECORD_COLUMNS))
+        order = np.lexsort((table.column("line").to_numpy(), table.column("file_seq").to_numpy()))
+        for batch in table.take(pa.array(order)).to_batches(BATCH_ROWS):
+            kept += rebuild.chunks(batch)
+    return chunks_to_frame(kept, rebuild.registry)
+
+
+def health_parts(root: Path, window: Window, rels: list[str]) -> list[pa.Table]:
+    """The health registers' records of the records parts ``rels`` in ``window`` (a task on a cluster)."""
     import pyarrow as pa
     import pyarrow.compute as pc
     import pyarrow.parquet as pq
@@ -198,15 +229,9 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
     if window.head is not None:
         wanted &= pc.field("counting_head") == window.head
     tables = []
-    for rel in manifest.parts("records"):
+    for rel in rels:
         key = key_of_part(rel)
-        if key is None or (window.device_id is not None and key[1] != window.device_id):
-            continue
-        if (window.start is not None and key[0] < window.start.date()) or (
-            window.end is not None and key[0] > window.end.date()
-        ):
-            continue
-        if not _has_label(root / rel, HEALTH_REGISTERS):
+        if key is None or not _has_label(root / rel, HEALTH_REGISTERS):
             continue  # the usual part: no health register at all (its labels alone were read)
         t = pq.read_table(root / rel, filters=wanted, partitioning=None)
         if t.num_rows:
@@ -216,14 +241,7 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
                 )
             )
             tables.append(t.append_column("device_id", pa.array(np.full(t.num_rows, key[1], np.int32))))
-    rebuild = ChunkRebuilder()
-    kept: list[DiagChunk] = []
-    if tables:
-        table = pa.concat_tables(tables, promote_options="permissive").select(list(ARCHIVED_RECORD_COLUMNS))
-        order = np.lexsort((table.column("line").to_numpy(), table.column("file_seq").to_numpy()))
-        for batch in table.take(pa.array(order)).to_batches(BATCH_ROWS):
-            kept += rebuild.chunks(batch)
-    return chunks_to_frame(kept, rebuild.registry)
+    return tables
 
 
 def _has_label(path: Path, labels: frozenset[str]) -> bool:

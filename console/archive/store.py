@@ -170,12 +170,18 @@ def ensure_layout(root: Path) -> None:
         raise ArchiveError(f"{root}: cannot create the archive ({exc.strerror or exc})") from None
 
 
-def publish(root: Path, manifest: Manifest, new_parts: list[str]) -> None:
-    """Make ``manifest`` current: fsync its new parts, write it, then swap CURRENT atomically."""
-    for rel in new_parts:
+def sync_parts(root: Path, rels: list[str]) -> None:
+    """fsync each part, then each directory holding one: a manifest may name them now."""
+    for rel in rels:
         fsync_file(root / rel)
-    for d in sorted({(root / rel).parent for rel in new_parts}):
+    for d in sorted({(root / rel).parent for rel in rels}):
         _fsync_dir(d)
+
+
+def publish(root: Path, manifest: Manifest, new_parts: list[str]) -> None:
+    """Make ``manifest`` current: fsync its new parts (those :func:`sync_parts` has not), write it, then swap
+    CURRENT atomically."""
+    sync_parts(root, new_parts)
     manifest.created = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     name = manifest_name(manifest.generation)
     mdir = root / MANIFESTS

@@ -32,8 +32,10 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import time
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from console.fleet.cluster import open_client, quiet_logs
@@ -49,6 +51,20 @@ R = TypeVar("R")
 T = TypeVar("T")
 
 
+@dataclass(frozen=True)
+class TaskSpan:
+    """One :func:`map_partitions` call as this process saw it: its label, its wall clock (``perf_counter``)
+    and this process's CPU clock (``process_time``) at its start and end.  On a cluster the client only waits
+    meanwhile; what lies outside every span is the client's own serial work (benchmarks/bench_fleet.py)."""
+
+    label: str
+    tasks: int
+    wall0: float
+    wall1: float
+    cpu0: float
+    cpu1: float
+
+
 class _Engine:
     """Runs partitions here, one after the other (the local engine)."""
 
@@ -58,6 +74,7 @@ class _Engine:
         self.console = console
         self.progress = progress
         self.host = host
+        self.spans: list[TaskSpan] = []  # every map call of this engine's scope, in order
 
     def bar(self, total: int, label: str) -> contextlib.AbstractContextManager[Callable[[int], None]]:
         host = self.host() if self.host is not None else None
@@ -66,7 +83,10 @@ class _Engine:
     def map(
         self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
     ) -> list[R]:
-        return list(self.imap(fn, items, common, label))
+        wall0, cpu0 = time.perf_counter(), time.process_time()
+        out = list(self.imap(fn, items, common, label))
+        self.spans.append(TaskSpan(label, len(items), wall0, time.perf_counter(), cpu0, time.process_time()))
+        return out
 
     def imap(
         self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
@@ -90,6 +110,7 @@ class _DaskEngine(_Engine):
     ) -> None:
         super().__init__(console, progress, host)
         self.client = client
+        self.warming: list[Future] = []  # warm_workers' imports, held for the scope
 
     def imap(
         self, fn: Callable[..., R], items: Sequence[Mapping[str, Any]], common: Mapping[str, Any], label: str
@@ -149,6 +170,32 @@ class _DaskEngine(_Engine):
             raise
         finally:
             client.cancel([*submitted, *shared.values()])
+
+
+def warm_workers(modules: Sequence[str]) -> None:
+    """On a cluster, each worker imports ``modules`` now, in the background, while this process does its own
+    first steps: otherwise every worker's first task pays for them after those steps, one after the other.
+    Nothing here waits; the tasks that follow queue behind the import on each worker."""
+    engine = _current.get()
+    if not isinstance(engine, _DaskEngine) or not modules:
+        return
+    client = engine.client
+    for address in client.scheduler_info()["workers"]:
+        # Held for the scope: a released future's task may be dropped.
+        engine.warming.append(client.submit(_import_modules, tuple(modules), workers=[address], pure=False))
+
+
+def _import_modules(modules: tuple[str, ...]) -> None:
+    import importlib
+
+    for name in modules:
+        importlib.import_module(name)
+
+
+def task_spans() -> list[TaskSpan]:
+    """The :func:`map_partitions` calls made so far in the current engine's scope (none outside one)."""
+    engine = _current.get()
+    return list(engine.spans) if engine is not None else []
 
 
 def on_cluster() -> bool:
@@ -255,11 +302,13 @@ def engine_scope(
             _current.reset(token)
         return
     with open_client(spec, say) as client, quiet_logs():
-        token = _current.set(_DaskEngine(client, console, progress, host))
+        engine = _DaskEngine(client, console, progress, host)
+        token = _current.set(engine)
         try:
             yield
         finally:
             _current.reset(token)
+            client.cancel(engine.warming)
 
 
 def _raise_for(fut: Future, item: Mapping[str, Any]) -> None:
