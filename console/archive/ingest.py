@@ -626,9 +626,10 @@ def run_ingest(
 ) -> IngestSummary:
     """Ingest ``paths`` into the archive at ``root``; the summary of what was added, skipped and rejected."""
     from console.fleet.engine import map_partitions, on_cluster
-    from console.memory import read_memory, trim_heap
+    from console.memory import one_malloc_arena, read_memory, trim_heap
 
     t0 = time.perf_counter()
+    one_malloc_arena()  # before the reader's and the writer's threads start
     ensure_layout(root)
     # An ingest's phases (read, derive, publish) each need their memory, one after the other.
     with read_memory(), writer_lock(root, wait=wait, on_wait=on_wait):
