@@ -190,7 +190,6 @@ class _Dictionaries:
                 cols.append(col.combine_chunks())
         return pa.Table.from_arrays(cols, schema=schema)
 
-
     def gather(self, pieces: list[pa.Table], order: np.ndarray | None) -> pa.Table:
         """The pieces' rows as one contiguous table, in ``order`` (row numbers; None: as they are), every
         dictionary column on the shared dictionary.  ``pieces`` is emptied: a column's buffers are let go
@@ -216,6 +215,19 @@ class _Dictionaries:
             del chunks
             out.append(col if taken is None else col.take(taken))
         return pa.Table.from_arrays(out, schema=schema)
+
+
+def _in_sort_order(pieces: list[tuple[pa.Table, np.ndarray]], sort_by: Sequence[str]) -> bool:
+    """The buffered rows, all together, in ``sort_by`` order already (the records in input order): then so is
+    each partition's share, the split being stable, and no partition needs sorting.  One check of the whole
+    buffer, where a check of each partition costs a few calls each."""
+    if not sort_by or not pieces:
+        return True
+    together = pa.concat_tables([t for t, _ in pieces])  # zero-copy
+    if any(pa.types.is_dictionary(together.schema.field(name).type) for name in sort_by):
+        return False  # codes of different pieces' dictionaries do not compare: each partition is sorted
+    keys = _sort_keys(together, sort_by)
+    return len(keys[0]) < 2 or _in_order(keys)
 
 
 def _by_partition(pieces: list[tuple[pa.Table, np.ndarray]], dicts: _Dictionaries) -> list[tuple[int, pa.Table]]:
@@ -330,9 +342,10 @@ class PartWriter:
     def _write_pieces(self, pieces: list[tuple[pa.Table, np.ndarray]], dicts: _Dictionaries) -> None:
         """One write-out (on the background thread)."""
         self._write_outs += 1
+        in_order = _in_sort_order(pieces, self.sort_by)
         for k, rows in _by_partition(pieces, dicts):
             key = (k >> 32, k & 0xFFFFFFFF)
-            self._write(key, sorted_rows(rows, self.sort_by))
+            self._write(key, rows if in_order else sorted_rows(rows, self.sort_by))
             self._last_write_out[key] = self._write_outs
         for key in [k for k in self._writers if self._last_write_out[k] <= self._write_outs - IDLE_WRITE_OUTS]:
             self._close_file(key)
