@@ -47,14 +47,15 @@ from console.archive.store import DATA, fsync_file
 ROW_GROUP_ROWS = 256_000
 # Rows waiting to be written, all partitions together (Arrow bytes of the tables added since the last
 # write-out): about half a second of parsing.  Bigger buffers make bigger row groups (a 3 M-record log
-# of 40 boards: records 6.7 MB at 16 MB, 5.6 MB at 32 MB) for more memory (+20 MB peak RSS at 32 MB).
+# of 40 boards, zstd: records 6.7 MB at 16 MB, 5.6 MB at 32 MB) for more memory (+20 MB peak RSS at 32 MB).
 BUFFER_BYTES = 16 << 20
 MAX_OPEN_WRITERS = 128
 IDLE_WRITE_OUTS = 3
 # LZ4 (LZ4_RAW): on a 3 M-record log it writes the parts with about 45 % less CPU than zstd level 6 (nearly what
 # no compression costs), for parts 1.55x the size (10.2 MB against 6.5 MB: ~3.4 bytes a record, the dictionary
-# and delta encodings do most of the work); DuckDB reads them as fast.  Parts written with zstd by an older
-# trackside read the same (each file names its codec).
+# and delta encodings do most of the work).  DuckDB's counts, group-bys and time filters on them took the same CPU;
+# reading every column, 7-11 % more.  Parts written with zstd by an older trackside read the same (each file names
+# its codec).
 COMPRESSION = "lz4"
 # Record columns no query filters on by range: no min/max statistics written for them.
 NO_STATISTICS = frozenset({"type", "gs", "label_encoding", "data", "data_kind", "subsecond", "file"})
