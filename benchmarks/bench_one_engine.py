@@ -3,8 +3,10 @@
 Each command runs as a fresh process (wall, CPU and peak RSS from ``os.wait4``, as
 bench_memory_commands.py); the commands alternate within each round, so a change of load hits them
 alike.  ``ingest`` writes a fresh archive each time (no layout: records, passages and axles), and the
-archive is removed after the round.  ``--baseline DIR`` runs ``analyze --json`` from another checkout
-too (``git archive a140356 | tar -x -C DIR``), for "no slower than today".
+archive is removed after the round.  ``--baseline DIR`` runs ``analyze --json`` and ``ingest`` from
+another checkout too, each just before this tree's (``git archive a140356 | tar -x -C DIR``), for "no slower
+than today" and for an A/B of an ingest change.  Each row shows the 1-minute load average as it ended: on a
+shared machine the wall times are only comparable within a round; CPU (user + system) is the steadier figure.
 
     python benchmarks/gen_realistic_diag.py 3000000 /work/bench_data/r3m.log
     python benchmarks/gen_realistic_diag.py 12000000 /work/bench_data/r12m.log
@@ -18,6 +20,7 @@ set) ≤ 256 MB, not growing with the log.  Figures: benchmarks/README.md.
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import statistics
 import sys
@@ -43,6 +46,11 @@ def command(name: str, exe: str, log: Path, layout: Path, archive: Path) -> list
     return [exe, "report", str(log), "--layout", str(layout), "--format", "json", "-o", str(archive.parent / "r.json")]
 
 
+def _load() -> str:
+    """The 1-minute load average now (the machine's other work during the run just ended)."""
+    return f"{os.getloadavg()[0]:4.1f}"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("logs", type=Path, nargs="+")
@@ -58,26 +66,33 @@ def main() -> None:
     with tempfile.TemporaryDirectory(dir="/work/bench_data" if Path("/work/bench_data").is_dir() else None) as tmp:
         layout = Path(tmp) / "layout.toml"
         write_layout(layout)
-        print(f"{'log':<12} {'command':<24} {'wall s':>8} {'CPU s':>8} {'peak MB':>8}  target", flush=True)
+        print(f"{'log':<12} {'command':<24} {'wall s':>8} {'CPU s':>8} {'peak MB':>8}  load  target", flush=True)
         for log in args.logs:
             walls: dict[str, list[float]] = {}
             for _ in range(args.repeat):
                 archive = Path(tmp) / "arc"
                 for name in names:
                     cmd = command(name, exe, log.resolve(), layout, archive)
-                    if args.baseline is not None and name == "analyze-json":
+                    if args.baseline is not None and name in ("analyze-json", "ingest"):
                         wall, cpu, rss, _code = run(in_checkout(cmd), cwd=args.baseline)
-                        walls.setdefault("analyze-json (base)", []).append(wall)
-                        print(f"{log.name:<12} {'analyze-json (base)':<24} {wall:8.2f} {cpu:8.2f} {rss:8.0f}")
+                        shutil.rmtree(archive, ignore_errors=True)
+                        walls.setdefault(f"{name} (base)", []).append(wall)
+                        base = f"{name} (base)"
+                        print(f"{log.name:<12} {base:<24} {wall:8.2f} {cpu:8.2f} {rss:8.0f}  {_load()}", flush=True)
                     wall, cpu, rss, _code = run(cmd)
                     walls.setdefault(name, []).append(wall)
                     verdict = "ok" if rss <= TARGET_MB else "OVER"
-                    print(f"{log.name:<12} {name:<24} {wall:8.2f} {cpu:8.2f} {rss:8.0f}  {verdict}", flush=True)
-                shutil.rmtree(archive, ignore_errors=True)
+                    print(
+                        f"{log.name:<12} {name:<24} {wall:8.2f} {cpu:8.2f} {rss:8.0f}  {_load()}  {verdict}", flush=True
+                    )
+                    shutil.rmtree(archive, ignore_errors=True)
             if "ingest" in walls and "analyze-json" in walls:
                 ratio = statistics.median(walls["ingest"]) / statistics.median(walls["analyze-json"])
                 verdict = "ok" if ratio <= INGEST_RATIO else "OVER"
                 print(f"{log.name:<12} ingest / analyze --json, median wall: {ratio:.2f}×  {verdict}", flush=True)
+            if "ingest (base)" in walls and "analyze-json (base)" in walls:
+                ratio = statistics.median(walls["ingest (base)"]) / statistics.median(walls["analyze-json (base)"])
+                print(f"{log.name:<12} base: ingest / analyze --json, median wall: {ratio:.2f}×", flush=True)
 
 
 if __name__ == "__main__":

@@ -36,3 +36,17 @@ def trim_heap() -> None:
     except (OSError, AttributeError):
         return
     trim(0)
+
+
+def one_malloc_arena() -> None:
+    """glibc's malloc serves every thread started from now on from one heap (``M_ARENA_MAX`` 1; elsewhere nothing).
+
+    A job whose threads pass buffers to each other (an ingest's tokenizers, its parser and its Parquet
+    writer) otherwise leaves each thread's heap holding pages another thread freed: a 3 M-record ingest
+    peaked about 30 MB lower with one heap, for the same CPU.
+    """
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return
+    mallopt(-8, 1)  # M_ARENA_MAX (malloc.h)

@@ -157,22 +157,21 @@ class ArchiveSink(Sink):
 
 # Passage columns stored as integers that the pipeline gives as floats (NaN: none).
 _NULLABLE_INTEGERS = frozenset({"detection_second_ns", "records_in_detection_second"})
-# The pipeline's code columns, by their codes: the text stored.
+# The pipeline's code columns, by their codes: the text stored (taken by code in Arrow, not made per row in Python).
 _PASSAGE_CODES = {
-    "direction": np.array(PASSAGE_DIRECTIONS, dtype=object),
-    "whole_train_basis": np.array(PASSAGE_BASES, dtype=object),
-    "kind": np.array(PASSAGE_KINDS, dtype=object),
+    "direction": pa.array(PASSAGE_DIRECTIONS, pa.large_string()),
+    "whole_train_basis": pa.array(PASSAGE_BASES, pa.large_string()),
+    "kind": pa.array(PASSAGE_KINDS, pa.large_string()),
 }
-_AXLE_DIRECTIONS = np.array(DIRECTIONS, dtype=object)
+_AXLE_DIRECTIONS = pa.array(DIRECTIONS, pa.large_string())
 
 
 def _heads_columns(heads: Heads, keys: np.ndarray) -> tuple[np.ndarray, pa.Array]:
     """(device ids, counting heads as text) of the heads at ``keys``: each head looked up once."""
     used, inverse = np.unique(np.asarray(keys, np.int64), return_inverse=True)
     used_dev, used_names = heads_at(heads, used)
-    names = np.empty(len(used), dtype=object)
-    names[:] = used_names
-    return used_dev[inverse.reshape(-1)], pa.array(names[inverse.reshape(-1)], pa.large_string())
+    inverse = inverse.reshape(-1)
+    return used_dev[inverse], pa.array(list(used_names), pa.large_string()).take(pa.array(inverse))
 
 
 def _column(values: Any) -> pa.Array:
@@ -191,7 +190,7 @@ def passages_table(cols: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
         if c in ("axle_speeds_start", "axle_speeds_stop"):
             continue
         if c in _PASSAGE_CODES:
-            arrays.append(pa.array(_PASSAGE_CODES[c][np.asarray(cols[c])], pa.large_string()))
+            arrays.append(_PASSAGE_CODES[c].take(pa.array(np.asarray(cols[c]))))
         elif c in _NULLABLE_INTEGERS:
             arrays.append(_column(cols[c]).cast(pa.int64()))
         else:
@@ -218,9 +217,7 @@ def axles_table(axles: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
     for c, values in axles.items():
         if c == "head":
             continue
-        arrays.append(
-            pa.array(_AXLE_DIRECTIONS[np.asarray(values)], pa.large_string()) if c == "direction" else _column(values)
-        )
+        arrays.append(_AXLE_DIRECTIONS.take(pa.array(np.asarray(values))) if c == "direction" else _column(values))
         names.append(c)
     device_id, counting_head = _heads_columns(heads, axles["head"])
     arrays += [pa.array(device_id, pa.int64()), counting_head]

@@ -644,9 +644,10 @@ def run_ingest(
 ) -> IngestSummary:
     """Ingest ``paths`` into the archive at ``root``; the summary of what was added, skipped and rejected."""
     from console.fleet.engine import map_partitions, on_cluster, warm_workers
-    from console.memory import read_memory, trim_heap
+    from console.memory import one_malloc_arena, read_memory, trim_heap
 
     t0 = time.perf_counter()
+    one_malloc_arena()  # before the reader's and the writer's threads start
     # The modules of the ingest's tasks (the prescan recognises files as the report does), imported by the
     # workers while this process expands the inputs and takes the lock.
     warm_workers(["console.archive.group_ingest", "console.sinks.report.collect"])

@@ -1,8 +1,8 @@
-"""Writing Parquet parts: zstd, partitioned hive-style by day and device, bounded memory.
+"""Writing Parquet parts: LZ4, partitioned hive-style by day and device, bounded memory.
 
 A :class:`PartWriter` takes Arrow tables for one archive table, splits them
-by partition (one stable sort and one take per table added, no loop per
-row), and appends each partition's rows to one open Parquet file: at most
+by partition (one stable sort and one take per write-out, on the writer
+thread; no loop per row), and appends each partition's rows to one open Parquet file: at most
 one part per partition per ingest, rows appended across the parser's
 chunks.  Memory is bounded by :data:`BUFFER_BYTES` (or the writer's ``buffer_bytes``) of buffered rows in all:
 past it, every partition's rows are written out as a row group (so a
@@ -47,12 +47,16 @@ from console.archive.store import DATA, fsync_file
 ROW_GROUP_ROWS = 256_000
 # Rows waiting to be written, all partitions together (Arrow bytes of the tables added since the last
 # write-out): about half a second of parsing.  Bigger buffers make bigger row groups (a 3 M-record log
-# of 40 boards: records 6.7 MB at 16 MB, 5.6 MB at 32 MB) for more memory (+20 MB peak RSS at 32 MB).
+# of 40 boards, zstd: records 6.7 MB at 16 MB, 5.6 MB at 32 MB) for more memory (+20 MB peak RSS at 32 MB).
 BUFFER_BYTES = 16 << 20
 MAX_OPEN_WRITERS = 128
 IDLE_WRITE_OUTS = 3
-COMPRESSION = "zstd"
-COMPRESSION_LEVEL = 6
+# LZ4 (LZ4_RAW): on a 3 M-record log it writes the parts with about 45 % less CPU than zstd level 6 (nearly what
+# no compression costs), for parts 1.55x the size (10.2 MB against 6.5 MB: ~3.4 bytes a record, the dictionary
+# and delta encodings do most of the work).  DuckDB's counts, group-bys and time filters on them took the same CPU;
+# reading every column, 7-11 % more.  Parts written with zstd by an older trackside read the same (each file names
+# its codec).
+COMPRESSION = "lz4"
 # Record columns no query filters on by range: no min/max statistics written for them.
 NO_STATISTICS = frozenset({"type", "gs", "label_encoding", "data", "data_kind", "subsecond", "file"})
 # Integer columns that grow steadily along a part (delta-coded); *_ns columns are times too.
@@ -106,7 +110,6 @@ def _writer(path: Path, schema: pa.Schema) -> pq.ParquetWriter:
         path,
         schema,
         compression=COMPRESSION,
-        compression_level=COMPRESSION_LEVEL,
         **encodings(schema),
     )
 
@@ -188,6 +191,73 @@ class _Dictionaries:
                 cols.append(col.combine_chunks())
         return pa.Table.from_arrays(cols, schema=schema)
 
+    def gather(self, pieces: list[pa.Table], order: np.ndarray | None) -> pa.Table:
+        """The pieces' rows as one contiguous table, in ``order`` (row numbers; None: as they are), every
+        dictionary column on the shared dictionary.  ``pieces`` is emptied: a column's buffers are let go
+        as soon as it is gathered, so a write-out holds little more than one copy of its rows."""
+        if self.mixed or len(pieces) < 2:
+            table = self.concat(pieces)
+            pieces.clear()
+            return table if order is None else table.take(pa.array(order))
+        schema = pieces[0].schema
+        columns: list[list[pa.Array] | None] = [
+            [c for t in pieces for c in t.column(i).chunks] for i in range(len(schema))
+        ]
+        pieces.clear()
+        taken = None if order is None else pa.array(order)
+        out = []
+        for i, f in enumerate(schema):
+            chunks, columns[i] = columns[i], None
+            assert chunks is not None
+            if pa.types.is_dictionary(f.type) and f.name in self.values:
+                col = pa.DictionaryArray.from_arrays(pa.concat_arrays([c.indices for c in chunks]), self.values[f.name])
+            else:
+                col = pa.concat_arrays(chunks)
+            del chunks
+            out.append(col if taken is None else col.take(taken))
+        return pa.Table.from_arrays(out, schema=schema)
+
+
+def _in_sort_order(pieces: list[tuple[pa.Table, np.ndarray]], sort_by: Sequence[str]) -> bool:
+    """The buffered rows, all together, in ``sort_by`` order already (the records in input order): then so is
+    each partition's share, the split being stable, and no partition needs sorting.  One check of the whole
+    buffer, where a check of each partition costs a few calls each."""
+    if not sort_by or not pieces:
+        return True
+    together = pa.concat_tables([t for t, _ in pieces])  # zero-copy
+    if any(pa.types.is_dictionary(together.schema.field(name).type) for name in sort_by):
+        return False  # codes of different pieces' dictionaries do not compare: each partition is sorted
+    keys = _sort_keys(together, sort_by)
+    return len(keys[0]) < 2 or _in_order(keys)
+
+
+def _by_partition(pieces: list[tuple[pa.Table, np.ndarray]], dicts: _Dictionaries) -> list[tuple[int, pa.Table]]:
+    """The buffered tables' rows by partition key, each partition's rows in the order they were added.
+
+    Partitions come in the order of their first row's table, then by key (as a split of each table as it was
+    added would order them); one stable sort and one take of the whole buffer, then zero-copy slices.
+    """
+    if not pieces:
+        return []
+    key = np.concatenate([k for _, k in pieces])
+    sizes = [len(k) for _, k in pieces]
+    tables = [t for t, _ in pieces]
+    pieces.clear()  # the rows are let go column by column as they are gathered
+    if (key == key[0]).all():  # one day, one board
+        return [(int(key[0]), dicts.gather(tables, None))]
+    order = np.argsort(key, kind="stable")
+    table = dicts.gather(tables, order)
+    sorted_key = key[order]
+    piece = np.repeat(np.arange(len(sizes)), sizes)[order]
+    cuts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1], True])
+    starts, stops = cuts[:-1], cuts[1:]
+    # A partition's first row is its earliest (the sort is stable): its table's place orders the partitions.
+    firsts = np.lexsort((sorted_key[starts], piece[starts]))
+    return [
+        (int(sorted_key[a]), table.slice(a, b - a))
+        for a, b in zip(starts[firsts].tolist(), stops[firsts].tolist(), strict=True)
+    ]
+
 
 class PartWriter:
     """Parquet parts of one table, one open file per partition, written as buffers fill."""
@@ -217,7 +287,8 @@ class PartWriter:
         self._writers: dict[tuple[int, int], pq.ParquetWriter] = {}  # insertion order = least recently written
         self._file_of: dict[tuple[int, int], str] = {}  # the part each open writer writes
         self._parts_of: dict[tuple[int, int], int] = {}
-        self._pieces: dict[int, list[pa.Table]] = {}  # rows added since the last write-out, by day << 32 | device
+        # Tables added since the last write-out, each with its rows' partitions (day << 32 | device).
+        self._pieces: list[tuple[pa.Table, np.ndarray]] = []
         self._dicts = _Dictionaries()
         self._pending_bytes = 0
         self._write_outs = 0
@@ -238,28 +309,23 @@ class PartWriter:
         return os.path.join(*parts)
 
     def add(self, table: pa.Table, day_index: np.ndarray | None = None, device_id: np.ndarray | None = None) -> None:
-        """Add rows; ``day_index`` (days since 1970) and ``device_id`` choose each row's partition."""
+        """Add rows; ``day_index`` (days since 1970) and ``device_id`` choose each row's partition.
+
+        The rows are only kept here: the split by partition is made for the whole buffer at its write-out, on
+        the background thread (one concatenation, one stable sort and one take per write-out, not per table).
+        """
         if table.num_rows == 0:
             return
         n = table.num_rows
         self.rows += n
-        if self._pieces and not table.schema.equals(next(iter(self._pieces.values()))[0].schema):
+        if self._pieces and not table.schema.equals(self._pieces[0][0].schema):
             self._write_out()  # another schema (a file with other columns): its rows in parts of their own
         self._dicts.adopt(table)
         days = day_index if self.by_day and day_index is not None else np.zeros(n, np.int64)
         devs = device_id if self.by_device and device_id is not None else np.zeros(n, np.int64)
         key = days.astype(np.int64) * (1 << 32) + devs.astype(np.int64)
         self._pending_bytes += table.nbytes
-        if (key == key[0]).all():  # one day, one board in this table
-            self._pieces.setdefault(int(key[0]), []).append(table)
-        else:
-            # One stable sort by partition, one take, then zero-copy slices (not a take per partition).
-            order = np.argsort(key, kind="stable")
-            grouped = table.take(pa.array(order))
-            sorted_key = key[order]
-            cuts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1], True])
-            for a, b in zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True):
-                self._pieces.setdefault(int(sorted_key[a]), []).append(grouped.slice(a, b - a))
+        self._pieces.append((table, key))
         if self._pending_bytes > (BUFFER_BYTES if self.buffer_bytes is None else self.buffer_bytes):
             self._write_out()
 
@@ -270,16 +336,17 @@ class PartWriter:
         over, in a log in time order): an open writer holds its buffers (~0.3 MB), and a long log would
         otherwise keep :data:`MAX_OPEN_WRITERS` of them.  A later row starts a second part (compacted).
         """
-        pieces, self._pieces, self._pending_bytes = self._pieces, {}, 0
+        pieces, self._pieces, self._pending_bytes = self._pieces, [], 0
         dicts, self._dicts = self._dicts, _Dictionaries()
         self._submit(lambda: self._write_pieces(pieces, dicts))
 
-    def _write_pieces(self, pieces: dict[int, list[pa.Table]], dicts: _Dictionaries) -> None:
+    def _write_pieces(self, pieces: list[tuple[pa.Table, np.ndarray]], dicts: _Dictionaries) -> None:
         """One write-out (on the background thread)."""
         self._write_outs += 1
-        for k, rows in pieces.items():
+        in_order = _in_sort_order(pieces, self.sort_by)
+        for k, rows in _by_partition(pieces, dicts):
             key = (k >> 32, k & 0xFFFFFFFF)
-            self._write(key, sorted_rows(dicts.concat(rows), self.sort_by))
+            self._write(key, rows if in_order else sorted_rows(rows, self.sort_by))
             self._last_write_out[key] = self._write_outs
         for key in [k for k in self._writers if self._last_write_out[k] <= self._write_outs - IDLE_WRITE_OUTS]:
             self._close_file(key)
@@ -342,7 +409,7 @@ class PartWriter:
             with contextlib.suppress(Exception):
                 w.close()
         self._writers.clear()
-        self._pieces = {}
+        self._pieces = []
 
 
 def read_part(root: Path, rel: str) -> pa.Table:

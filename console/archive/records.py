@@ -56,6 +56,9 @@ class RecordEncoder:
         self._canon_values: list[str | None] = []
         self._enc_codes = np.zeros(0, np.int32)
         self._enc_values: list[str] = []
+        # Each dictionary column's values as Arrow, made again only when the registry's grow (they only grow).
+        self._values: dict[str, pa.Array] = {}
+        self._canon: tuple[pa.Array, np.ndarray] | None = None
 
     def _refresh(self) -> dict[str, np.ndarray]:
         arrays = self.registry.arrays()
@@ -73,7 +76,15 @@ class RecordEncoder:
             self._enc_codes = arrays["label_encoding"]
             self._enc_values = list(self.registry.encodings.values)
             self._n = self.registry.n_registers
+            self._canon = None
         return arrays
+
+    def _dict(self, name: str, codes: np.ndarray, values: list[str]) -> pa.DictionaryArray:
+        """``codes`` into ``values`` as a dictionary column (the values made into Arrow once per size)."""
+        known = self._values.get(name)
+        if known is None or len(known) != len(values):
+            known = self._values[name] = pa.array(values, pa.string())
+        return pa.DictionaryArray.from_arrays(pa.array(codes, pa.int32()), known)
 
     def encode(self, chunk: DiagChunk, file_name: str, file_seq: int, line_offset: int) -> tuple[pa.Table, np.ndarray]:
         """(records table, device_id per row) of one parsed chunk."""
@@ -82,28 +93,32 @@ class RecordEncoder:
         rid = chunk.register_id
         n = len(rid)
         canon_codes = self._canon_codes[rid]
-        # A null entry cannot sit in a dictionary that is unified later: "" stands there, masked.
-        canon_dict = pa.array([v or "" for v in self._canon_values], pa.string())
+        if self._canon is None:
+            # A null entry cannot sit in a dictionary that is unified later: "" stands there, masked.
+            self._canon = (
+                pa.array([v or "" for v in self._canon_values], pa.string()),
+                np.asarray([v is None for v in self._canon_values], bool),
+            )
+        canon_dict, canon_null = self._canon
         canon = pa.DictionaryArray.from_arrays(
-            pa.array(canon_codes, pa.int32(), mask=np.asarray([v is None for v in self._canon_values])[canon_codes]),
-            canon_dict,
+            pa.array(canon_codes, pa.int32(), mask=canon_null[canon_codes]), canon_dict
         )
         device_id = a["device_id"][rid]
         cols = {
             "time": pa.array(chunk.time_ns.view("datetime64[ns]")),
             "diag_id": pa.array(a["diag_id"][rid]),
-            "device": _dict(a["device"][rid], reg.devices.values),
-            "type": _dict(a["type"][rid], reg.types.values),
-            "gs": _dict(a["gs"][rid], reg.gs.values),
-            "counting_head": _dict(a["counting_head"][rid], reg.heads.values),
+            "device": self._dict("device", a["device"][rid], reg.devices.values),
+            "type": self._dict("type", a["type"][rid], reg.types.values),
+            "gs": self._dict("gs", a["gs"][rid], reg.gs.values),
+            "counting_head": self._dict("counting_head", a["counting_head"][rid], reg.heads.values),
             "channel": pa.array(a["channel"][rid]),
             "address": pa.array(a["address"][rid].astype(np.int16)),
-            "label": _dict(a["label"][rid], reg.labels.values),
+            "label": self._dict("label", a["label"][rid], reg.labels.values),
             "label_canonical": canon,
-            "label_encoding": _dict(self._enc_codes[rid], self._enc_values),
-            "data": _dict(chunk.data_code, reg.data.values),
+            "label_encoding": self._dict("label_encoding", self._enc_codes[rid], self._enc_values),
+            "data": self._dict("data", chunk.data_code, reg.data.values),
             "value": pa.array(chunk.value),
-            "data_kind": _dict(chunk.data_kind.astype(np.int32), list(DATA_KINDS)),
+            "data_kind": self._dict("data_kind", chunk.data_kind.astype(np.int32), list(DATA_KINDS)),
             "subsecond": pa.array(chunk.subsecond),
             "file": _dict(np.zeros(n, np.int32), [file_name]),
             "file_seq": pa.array(np.full(n, file_seq, np.int32)),

@@ -56,6 +56,9 @@ def ingest(
 ) -> None:
     """Ingest logs into the archive, once each: a file seen before adds nothing; a grown file is read from where
     the last ingest stopped."""
+    from console.memory import one_malloc_arena
+
+    one_malloc_arena()  # before pyarrow is imported: its first thread would take a heap of its own
     from console.archive.ingest import IngestSummary, run_ingest
     from console.archive.store import ArchiveError, archive_dir
     from console.cli.common import Console
