@@ -33,15 +33,15 @@ from console.analysis.crossing.timeline import TimelineRow
 from console.analysis.crossing_batch import CrossingRun
 from console.analysis.health.rules import Severity
 from console.analysis.passages.diagnostics import SpeedSettings
+from console.inputs.recognise import expand, natural_key
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
 from console.output_path import write_atomic
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_run
 from console.sinks.report import command, html
-from console.sinks.report.collect import expand
 from console.sinks.report.command import run_report
-from console.sinks.report.model import ReportData, document, natural_key
+from console.sinks.report.model import ReportData, document
 from tests.conftest import ROOT, record
 
 GOLDEN = Path(__file__).parent / "golden"

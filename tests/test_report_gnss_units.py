@@ -6,7 +6,8 @@ import pandas as pd
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from console.sinks.report.model import _natural_order, natural_key
+from console.inputs.recognise import natural_key
+from console.sinks.report.model import _natural_order
 
 _NAME = st.text(alphabet=st.sampled_from("aAbZ09-_ 7ÿ.ß"), max_size=8)
 

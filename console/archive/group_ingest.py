@@ -75,7 +75,7 @@ def heads_hint(path: Path) -> set[tuple[int, str]]:
 @dataclass
 class Prescan:
     """What a worker learnt of one input before the ledger plans it: its scan (None: not readable there),
-    its kind and note (:func:`console.sinks.report.collect.recognise`; None: the client recognises it) and, for a
+    its kind and note (:func:`console.inputs.recognise.recognise`; None: the client recognises it) and, for a
     diagnostic log, the heads a few of its blocks name (:func:`heads_hint`)."""
 
     scan: Scan | None
@@ -86,7 +86,7 @@ class Prescan:
 def prescan_files(files: list[dict[str, Any]]) -> list[Prescan]:
     """One task: several inputs (``path``, ``prefix_len``) hashed, recognised and hinted, in order.  Done by the
     client one file after another, this was the larger part of its serial work on many small files."""
-    from console.sinks.report.collect import recognise
+    from console.inputs.recognise import recognise
     from parsers.sources import InputError
 
     out: list[Prescan] = []

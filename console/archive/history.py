@@ -150,7 +150,7 @@ def archive_collector(
     device_id: int | None,
 ) -> Callable[[], ReportData]:
     """For ``report --archive``: a collector giving the report's data from the archive, errors as one line."""
-    from console.sinks.report.collect import ReportInputError
+    from console.inputs.recognise import ReportInputError
 
     root = archive_dir(archive)
 

@@ -49,7 +49,7 @@ from console.archive.store import (
 )
 from parsers.report import ParseReport
 
-# Kinds the archive stores, by the report's recognition (console.sinks.report.collect.recognise).
+# Kinds the archive stores, by the report's recognition (console.inputs.recognise.recognise).
 DIAGNOSTIC = "diagnostic"
 STORED_ELSEWHERE = {"nmea": "fixes", "gnss-csv": "fixes", "gnss-jsonl": "fixes", "centre": "fixes"}
 STDIN_NAME = "<stdin>"
@@ -109,7 +109,7 @@ class IngestSummary:
 
 
 def _kind(path: Path) -> tuple[str, str]:
-    from console.sinks.report.collect import recognise
+    from console.inputs.recognise import recognise
 
     fmt, note = recognise(path)
     return fmt, note
@@ -185,7 +185,7 @@ class _Ingest:
         pre = self.prescanned.pop(shown, None)
         kind, note = pre[1].kind if pre is not None and pre[1].kind is not None else _kind(path)
         if kind == "layout":
-            from console.sinks.report.collect import layout_note
+            from console.inputs.recognise import layout_note
 
             note = layout_note(path, self.layout_file, self.layout_spec)
         if kind not in (DIAGNOSTIC, *STORED_ELSEWHERE, "frames", "can", "voltages"):
@@ -593,7 +593,7 @@ class _PhaseClock:
 
 def expand_inputs(paths: Sequence[Path], root: Path) -> list[tuple[Path, str]]:
     """(file to read, name it is known by): directories read whole (the report's order), ``-`` is stdin."""
-    from console.sinks.report.collect import ReportInputError, expand
+    from console.inputs.recognise import ReportInputError, expand
 
     out: list[tuple[Path, str]] = []
     files: list[Path] = []
@@ -618,8 +618,8 @@ def expand_inputs(paths: Sequence[Path], root: Path) -> list[tuple[Path, str]]:
 
 def _inputs_layout(job: _Ingest, inputs: list[tuple[Path, str]], layout: str | None) -> str | None:
     """The layout the derivation uses: ``--layout``, else a layout file among the inputs, by ``report``'s rule."""
+    from console.inputs.recognise import chosen_layout_file
     from console.layout import LayoutError, load_layout
-    from console.sinks.report.collect import chosen_layout_file
 
     job.layout_spec = layout
     job.layout_file = chosen_layout_file([p for p, _ in inputs], layout)
@@ -650,7 +650,7 @@ def run_ingest(
     one_malloc_arena()  # before the reader's and the writer's threads start
     # The modules of the ingest's tasks (the prescan recognises files as the report does), imported by the
     # workers while this process expands the inputs and takes the lock.
-    warm_workers(["console.archive.group_ingest", "console.sinks.report.collect"])
+    warm_workers(["console.archive.group_ingest", "console.inputs.recognise"])
     ensure_layout(root)
     # An ingest's phases (read, derive, publish) each need their memory, one after the other.
     with read_memory(), writer_lock(root, wait=wait, on_wait=on_wait):

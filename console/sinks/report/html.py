@@ -26,11 +26,12 @@ import numpy as np
 from console.analysis.passages.buckets import Columns
 from console.analysis.sections.state import SectionState
 from console.analysis.timefmt import display
+from console.inputs.recognise import natural_key
 from console.safe_text import PLAIN, clean
 from console.sinks.report import plots, trends
 from console.sinks.report.blocks import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table
 from console.sinks.report.jsonwrite import Write
-from console.sinks.report.model import ReportData, analog_series, natural_key, timeline_order
+from console.sinks.report.model import ReportData, analog_series, timeline_order
 from console.sinks.report.outline import outline
 
 STYLE = """

@@ -44,6 +44,7 @@ from console.analysis.sections.engine import SectionsResult
 from console.analysis.sections.state import SectionState
 from console.analysis.timefmt import iso
 from console.drivers.batch import DiagJob
+from console.inputs.recognise import natural_key
 from console.layout import Layout
 from console.sinks.report.jsonwrite import Rows
 from console.sinks.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPassages, SectionHistory
@@ -57,21 +58,6 @@ if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read 
 
 SCHEMA = "trackside.report/1"
 
-# Input formats, as the input summary names them.
-DIAGNOSTIC = "diagnostic"
-NMEA = "nmea"
-GNSS_CSV = "gnss-csv"
-GNSS_JSONL = "gnss-jsonl"
-CENTRE = "centre"
-GPX = "gpx"
-FRAMES = "frames"
-CAN = "can"
-VOLTAGES = "voltages"
-LAYOUT = "layout"
-TRUTH = "truth"
-EMPTY = "empty"
-UNKNOWN = "unknown"
-GNSS_FORMATS = (NMEA, GNSS_CSV, GNSS_JSONL, CENTRE, GPX)
 
 # Parse reports by kind, in the order the report lists them.
 REPORT_KINDS = ("diagnostic", "gnss", "frames", "can", "voltages")
@@ -257,11 +243,6 @@ class ReportData:
 
 
 _NUMBER_PARTS = re.compile(r"(\d+)")
-
-
-def natural_key(text: str) -> tuple[Any, ...]:
-    """``WS10`` after ``WS9``, train ``T10`` after ``T2``."""
-    return tuple(int(p) if i % 2 else p.casefold() for i, p in enumerate(_NUMBER_PARTS.split(text)))
 
 
 def timeline_order(r: TimelineRow) -> tuple[Any, ...]:
