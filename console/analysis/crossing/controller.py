@@ -34,8 +34,8 @@ travel.
   that came on early (a first fix without speed counts as the fastest train;
   a train then stops out of reach) goes off when a settled estimate of a
   fresh head unit proves the head cannot arrive within the warning time for a
-  while yet (one report period, the latency and ``release_hold_s`` beyond
-  it: the next fix is in before it could come on again, no flicker), with no
+  while yet (``release_hold_s`` at least, and until the next fix is due: it
+  does not come on again before a new fix could renew the bound, no flicker), with no
   jump set aside lately and no head-unit alarm: a train proven standing 2 km
   out does not hold the road closed.  It comes on again by the same rule as any warning: from a
   standstill the head cannot arrive sooner than √(2d/a).
@@ -138,8 +138,10 @@ class ControllerSettings:
     jerk_psd: float = 0.003
     k_sigma: float = 3.3
     settle_fixes: int = 2  # fixes in a row inside the filter's prediction before its estimate alone counts
-    # A warning is released only if, by the bound, it would not come on again before the next
-    # fix is in (one report period and the latency) and for this long after: no flicker.
+    # A warning is released only if, by the bound, the road stays open this long at least and
+    # it would not come on again before the next fix is in (one report period and the latency):
+    # no flicker.  (Waiting for the next fix *and* this long after it held a slow train's road
+    # closed one report period longer, for no gain: the bound alone guarantees the open time.)
     release_hold_s: float = 10.0
     length_sigma_m: float = 5.0  # how well the train's length is known (the EOT as a witness of the head)
 
@@ -526,7 +528,9 @@ class CrossingController:
         # until then nothing can renew the bound, so it must not come due before that.
         fresh = [r.t_fix_ns for r in (tr.head, tr.eot) if r is not None and self._fresh(r, fix.t_ns)]
         next_fix_s = (min(fresh) - fix.t_ns) / NS + s.report_period_s + s.latency_s
-        if eta <= self.horizon_s + max(0.0, next_fix_s) + s.release_hold_s:
+        # Released, the road stays open for release_hold_s at least by this bound, and until the
+        # next fix is in (no flicker); a later fix can only push the bound out for a train as seen.
+        if eta <= self.horizon_s + max(next_fix_s, s.release_hold_s):
             return []
         what = "train standing" if b.standing else f"head at most {b.speed_hi_mps:.1f} m/s"
         reason = f"released: {what} {b.ahead_m:.0f} m out cannot arrive within {eta:.0f} s"
