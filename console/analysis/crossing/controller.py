@@ -30,7 +30,7 @@ travel.
   its σ; the bound is estimate + k·σ.  Until the filter is settled (its first
   fixes, fixes set aside lately), the model-free bounds below count too, the
   earlier wins.
-* **Release** (per train, at a head fix, before the head arrives): a warning
+* **Release** (per train, at a fix while the head unit is fresh, before the head arrives): a warning
   that came on early (a first fix without speed counts as the fastest train;
   a train then stops out of reach) goes off when a settled estimate of a
   fresh head unit proves the head cannot arrive within the warning time for a
@@ -504,14 +504,18 @@ class CrossingController:
         return [self._emit(t_ns, tr, "on", reason)]
 
     def _check_release(self, tr: _Track, fix: Fix) -> list[CrossingEvent]:
-        """Off before the head arrives, on a fresh head fix whose settled estimate proves the train
-        cannot arrive for a while yet (a train standing out of reach, or slower than first feared)."""
+        """Off before the head arrives, at a fix of either unit while the head unit is fresh, when a
+        settled estimate proves the train cannot arrive for a while yet (a train standing out of
+        reach, or slower than first feared).  An EOT fix counts only through the train's filter,
+        where it is a witness of the head (at fixes every 10 s it comes between two head fixes)."""
         s = self.s
         # A stale EOT does not hold a release back: whatever it would show is behind the head.
         # Direction unknown, the bound is the nearer way round (it holds whichever way the train goes).
-        if not tr.warned or fix.role != HEAD or "head" in tr.alarms or not tr.kf_ok[HEAD]:
+        if not tr.warned or "head" in tr.alarms or not tr.kf_ok[HEAD] or not self._fresh(tr.head, fix.t_ns):
             return []
         b = self._device_bound(tr, TRAIN) if tr.parted_ns is None else None
+        if fix.role != HEAD and (b is None or not b.settled or not tr.kf_ok[fix.role]):
+            return []  # an EOT fix renews the bound only as the train filter's witness of the head
         if b is None or not b.settled:
             b = self._device_bound(tr, HEAD)
         if b is None or not b.settled or b.ahead_m <= s.guard_distance_m:
