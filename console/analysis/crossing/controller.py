@@ -513,9 +513,20 @@ class CrossingController:
         # Direction unknown, the bound is the nearer way round (it holds whichever way the train goes).
         if not tr.warned or "head" in tr.alarms or not tr.kf_ok[HEAD] or not self._fresh(tr.head, fix.t_ns):
             return []
+        # The head's own filter settled too: a bound that leans on the train's filter alone, just
+        # after the head's track was in doubt (a brake, a jump), came on again within seconds.
+        head_est = tr.kf[HEAD].estimate
+        if head_est is None or not head_est.settled:
+            return []
         b = self._device_bound(tr, TRAIN) if tr.parted_ns is None else None
-        if fix.role != HEAD and (b is None or not b.settled or not tr.kf_ok[fix.role]):
-            return []  # an EOT fix renews the bound only as the train filter's witness of the head
+        if fix.role != HEAD:
+            # An EOT fix renews the bound only as the train filter's witness of the head, and only
+            # while the head reports on time: a head unit silent since would go stale, and the
+            # EOT-plus-length bound that then counts can come due at once.
+            assert tr.head is not None
+            head_age_s = (fix.t_ns - tr.head.t_fix_ns) / NS
+            if b is None or not b.settled or not tr.kf_ok[fix.role] or head_age_s > s.report_period_s + s.latency_s:
+                return []
         if b is None or not b.settled:
             b = self._device_bound(tr, HEAD)
         if b is None or not b.settled or b.ahead_m <= s.guard_distance_m:
