@@ -188,11 +188,11 @@ def test_a_jump_set_aside_lately_holds_the_release_back() -> None:
 
 def test_at_fixes_every_10_s_an_eot_fix_releases_through_the_train_filter_and_safely() -> None:
     # The EOT's fix comes between two head fixes: through the train's filter it is a witness of the
-    # head, so it may prove the train out of reach first.  Only while the head unit is fresh, and
-    # the runs stay safe (no violation, no late warning).
+    # head, so it may prove the train out of reach first.  Only while the head unit reports on time
+    # (its last fix no older than a report period and the latency), and the runs stay safe.
     rng = np.random.default_rng(31)
     at_eot = 0
-    for k in range(60):
+    for k in range(120):
         cond = dataclasses.replace(random_conditions(rng, 3_100_000 + k), period_s=10.0, speed_reported=False)
         crossing = LAYOUT.crossings[k % len(LAYOUT.crossings)]
         s = _settings(cond)
@@ -204,10 +204,10 @@ def test_at_fixes_every_10_s_an_eot_fix_releases_through_the_train_filter_and_sa
             if e.kind == "off" and e.reason.startswith("released") and f is not None and f.role == "eot":
                 at_eot += 1
                 heads = [h.t_fix_ns for h in fixes if h.role == "head" and h.t_ns <= e.t_ns]
-                assert heads and e.t_ns - max(heads) <= s.stale_after_s * NS  # the head unit fresh
+                assert heads and e.t_ns - max(heads) <= (s.report_period_s + s.latency_s) * NS
         v = judge(ctl, truth, train, s, fixes)
         assert v.violation is None and v.late_by_s is None, (k, v.violation)
-    assert at_eot >= 3
+    assert at_eot >= 2
 
 
 def test_a_lost_head_unit_releases_nothing_at_eot_fixes() -> None:
