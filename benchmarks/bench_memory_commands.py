@@ -42,7 +42,7 @@ alternating, one run each, heavier load):
 205.9 s / 891 MB → 124.6 s / 539 MB (0.60×).
 
 `report` stayed over the target: the analysis streamed, but the report
-document (console/report/model.py ``document``) was built whole before it
+document (console/sinks/report/model.py ``document``) was built whole before it
 was rendered: every passage, every state change and every ledger row as a
 dict (332 k ledger rows and 41 k passages at 3 M), then the Markdown, HTML
 or JSON text in one string.
@@ -52,7 +52,7 @@ machine (3–5 other jobs running; wall times inflated and noisy, CPU = user +
 system seconds is the figure to compare).  Before: main at cb3d35c
 (``git archive cb3d35c | tar -x -C DIR``); after: the branch that spools
 passages and the section history to disk and writes the report as it is
-rendered (console/report/spooled.py, jsonwrite.py).  One run each, before
+rendered (console/sinks/report/spooled.py, jsonwrite.py).  One run each, before
 and after alternately, with ``/usr/bin/time``; the outputs compared with
 ``cmp``: the same bytes in every row.  A process that imports the CLI and
 the report now peaks at ~115 MB (the frame, CAN and GNSS parsers load only

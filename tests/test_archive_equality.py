@@ -21,7 +21,7 @@ from console.archive.store import read_current
 from console.archive.views import run_query
 from console.drivers.batch import ReadOptions, read_diag
 from console.engine.pipeline import PipelineSettings
-from console.report.collect import collect
+from console.sinks.report.collect import collect
 from tests.conftest import SAMPLES
 from tests.reads import whole_job
 

@@ -3,6 +3,9 @@ their own, each view made once, and a read of another manifest generation still 
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -81,3 +84,34 @@ def test_another_generation_reads_on_its_own(archive: Path) -> None:
         finally:
             cursor.close()
             own.close()
+
+
+# Run outside pytest: under it, DuckDB's Python client starts with the progress bar off already.
+PROGRESS_BARS = """
+import json, sys
+from pathlib import Path
+from console.archive import views
+archive, spill = Path(sys.argv[1]), Path(sys.argv[2])
+setting = "SELECT current_setting('enable_progress_bar')"
+cons = [views.connect(archive, tables=("records",))[0], views.connect(archive, spill_dir=spill)[0],
+        views.connect(archive, sql="SELECT count(*) FROM records")[0]]
+seen = [con.execute(setting).fetchone()[0] for con in cons]
+with views.one_connection(archive):
+    seen.append(views.connect(archive, tables=("records",))[0].execute(setting).fetchone()[0])
+try:
+    cons[0].execute("SET enable_progress_bar = true")
+    seen.append("set")
+except Exception as exc:
+    seen.append(type(exc).__name__)
+print(json.dumps(seen))
+"""
+
+
+def test_no_connection_draws_a_progress_bar(archive: Path, tmp_path: Path) -> None:
+    # DuckDB draws its progress bar on standard output after two seconds of a query: inside the JSON or CSV a
+    # report or a query writes there (seen on a one-day report of a 30 M-record archive). Every kind of archive
+    # connection turns it off, and the lock keeps a query from turning it on again.
+    out = subprocess.run(
+        [sys.executable, "-c", PROGRESS_BARS, str(archive), str(tmp_path)], capture_output=True, text=True, check=True
+    )
+    assert json.loads(out.stdout) == [False, False, False, False, "InvalidInputException"]

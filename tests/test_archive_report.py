@@ -73,7 +73,7 @@ def test_the_derived_tables_give_the_report_the_records_give(archive: Path) -> N
     # report --archive reads the derived tables; recomputing every analysis from the records is the oracle.
     from console.archive.history_diag import derived_for
     from console.archive.store import read_current
-    from console.report.command import render
+    from console.sinks.report.command import render
 
     assert derived_for(read_current(archive), None)
     history = render(report_data(archive, job="history"), "json")

@@ -19,7 +19,7 @@ from console.archive.store import read_current
 from console.archive.trends import archive_trends
 from console.cli.app import app
 from console.layout import load_layout
-from console.report.model import ReportData
+from console.sinks.report.model import ReportData
 from tests.archive_days import DAYS, DRIFT_PER_DAY, write_days
 
 runner = CliRunner()
@@ -186,7 +186,7 @@ def test_markdown_has_trend_tables_and_html_has_plots_with_log_text_escaped(arch
 
 
 def test_log_text_in_a_trend_plot_is_inert() -> None:
-    from console.report.trends import trend_plots
+    from console.sinks.report.trends import trend_plots
 
     evil = '<script>x</script>\u202e&"'
     rows = [{"day": "2026-03-02", "crossing": evil, "warnings": 1, "late": 1}]

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from console.render.ato_view import ato_json, ato_plot, ato_table
 from console.sim.ato import (
     PAPER_FIGURES,
     PAPER_ORDERINGS,
@@ -26,6 +25,7 @@ from console.sim.ato import (
 )
 from console.sim.control import CONTROLLER_NAMES, FUZZY_D_K, U_FULL, IdentifiedModel, fuzzy_interp
 from console.sim.dynamics import LineProfile, TrainState, seed_001_train
+from console.sinks.tables.ato_view import ato_json, ato_plot, ato_table
 
 
 @pytest.fixture(scope="module")

@@ -15,8 +15,8 @@ import pandas as pd
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from console.render.gnss_tables import DEVICES_SHOWN, _Clock, _num, _table, devices_table
 from console.safe_text import inert
+from console.sinks.tables.gnss_tables import DEVICES_SHOWN, _Clock, _num, _table, devices_table
 from parsers.gnss_files import parse_gnss
 
 _MPS_TO_KMH = 3.6

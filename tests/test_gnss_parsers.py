@@ -1,4 +1,4 @@
-"""GNSS parsers (parsers.gnss.nmea, parsers.gnss.centre) and their rendering (console.render.gnss_tables).
+"""GNSS parsers (parsers.gnss.nmea, parsers.gnss.centre) and their rendering (console.sinks.tables.gnss_tables).
 
 Truths: the gpsd regression captures in ../shared/data/nmea (gpsd's own
 decoding in each ``.chk``), seed 004's Table 1 as printed, and the device
@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rich.console import Console
 
-from console.render.gnss_tables import devices_table, fixes_table, gnss_json
+from console.sinks.tables.gnss_tables import devices_table, fixes_table, gnss_json
 from parsers.gnss.centre import CROSSING_COLUMNS, parse_centre_table, parse_crossing_code
 from parsers.gnss.fix_table import FIX_COLUMNS
 from parsers.gnss.nmea import KNOT_MPS, DeviceClock, decode_sentence, nmea_checksum

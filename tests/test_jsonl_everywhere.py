@@ -16,8 +16,8 @@ import pytest
 from typer.testing import CliRunner
 
 from console.cli.app import app
-from console.render import section_history
-from console.render.section_history import _Spill
+from console.sinks.tables import section_history
+from console.sinks.tables.section_history import _Spill
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"
 runner = CliRunner()

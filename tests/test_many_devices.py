@@ -190,7 +190,7 @@ def test_twenty_thousand_gnss_devices_json_and_device_table(tmp_path: Path) -> N
     from typer.testing import CliRunner
 
     from console.cli.app import app
-    from console.render.gnss_tables import DEVICES_SHOWN, FIX_BLOCK, devices_table, gnss_json
+    from console.sinks.tables.gnss_tables import DEVICES_SHOWN, FIX_BLOCK, devices_table, gnss_json
     from parsers.gnss_files import parse_gnss
 
     devices = 20_000
@@ -222,7 +222,7 @@ def test_twenty_thousand_gnss_devices_json_and_device_table(tmp_path: Path) -> N
 
 
 def test_many_devices_text_tables_show_the_first_and_say_how_many(many_heads_job: Any) -> None:
-    from console.render.diag_tables import DEVICES_SHOWN, inventory_table, passages_table
+    from console.sinks.tables.diag_tables import DEVICES_SHOWN, inventory_table, passages_table
 
     inv = inventory_table(many_heads_job.analysis)
     assert len(inv.columns) == 1 + DEVICES_SHOWN
@@ -237,7 +237,7 @@ def test_many_devices_text_tables_show_the_first_and_say_how_many(many_heads_job
 
 def test_report_gnss_units_many_devices_in_natural_order(tmp_path: Path) -> None:
     """The report's GNSS units from grouped reductions: each device once, natural order, counts right."""
-    from console.report.model import ReportData, _gnss_units
+    from console.sinks.report.model import ReportData, _gnss_units
     from parsers.gnss_files import parse_gnss
 
     rows = [f"2026-01-19T10:00:{i % 60:02d}Z,U{i},{'head' if i % 3 else 'eot'},20.6,105.9,1.0\n" for i in range(3000)]

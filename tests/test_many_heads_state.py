@@ -23,8 +23,8 @@ from console.analysis.passages.diagnostics import SpeedSettings
 from console.analysis.passages.status import STATUS_KIND
 from console.analysis.passages.stream import take_passages
 from console.jsonout import array_parts, dumps
-from console.render.diag_stream import status_json
-from console.render.passage_spool import FirstPassages
+from console.sinks.tables.diag_stream import status_json
+from console.sinks.tables.passage_spool import FirstPassages
 from parsers.dictionary import StringDictionary
 from tests.reads import stream_job
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from console.report.blocks import Styled, Table
-from console.report.markdown import _cell, _table
+from console.sinks.report.blocks import Styled, Table
+from console.sinks.report.markdown import _cell, _table
 
 _TEXT = st.text(alphabet=st.sampled_from("aZ09 .:-→←–|*_<&\x1b\u202e#`é"), max_size=6)
 _CELL = st.one_of(_TEXT, st.builds(Styled, _TEXT, st.sampled_from(["", "strong", "muted", "verdict-ok"])))

@@ -101,7 +101,7 @@ def batch(log: Path, layout: Layout) -> dict[str, Any]:
         def passages(self, cols: Any, heads: Any) -> None:
             import json
 
-            from console.render.passage_spool import passage_texts
+            from console.sinks.tables.passage_spool import passage_texts
 
             passages.extend(json.loads(t) for t in passage_texts(cols, heads))
 
@@ -408,7 +408,7 @@ def _batch_of_run(run: Path) -> dict[str, Any]:
         def passages(self, cols: Any, heads: Any) -> None:
             import json
 
-            from console.render.passage_spool import passage_texts
+            from console.sinks.tables.passage_spool import passage_texts
 
             passages.extend(json.loads(t) for t in passage_texts(cols, heads))
 

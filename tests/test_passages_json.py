@@ -104,7 +104,7 @@ def test_spool_encodes_held_batches_as_each_passage_alone(seed: int, monkeypatch
     """Batches handed in any sizes are held and encoded a few at a time; one head's name needs escaping, so
     the batches holding it take pandas' encoder: the document is the same as each passage encoded alone."""
     from console.analysis.passages.stream import by_head_and_start, take_passages
-    from console.render import passage_spool as ps
+    from console.sinks.tables import passage_spool as ps
 
     analysis = whole_job([SAMPLES / "example_station.log"], SpeedSettings()).analysis
     cols = analysis.passage_columns
@@ -160,7 +160,7 @@ def test_indented_objects_are_the_report_json(log: str, depth: int, monkeypatch:
     import json
 
     from console.analysis.passages.diagnostics import frame_columns
-    from console.report.jsonwrite import indented
+    from console.sinks.report.jsonwrite import indented
 
     p = whole_job([SAMPLES / log], SpeedSettings()).analysis.passages
     if p.empty:

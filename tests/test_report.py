@@ -36,12 +36,12 @@ from console.analysis.passages.diagnostics import SpeedSettings
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
 from console.output_path import write_atomic
-from console.report import command, html
-from console.report.collect import expand
-from console.report.command import run_report
-from console.report.model import ReportData, document, natural_key
 from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_run
+from console.sinks.report import command, html
+from console.sinks.report.collect import expand
+from console.sinks.report.command import run_report
+from console.sinks.report.model import ReportData, document, natural_key
 from tests.conftest import ROOT, record
 
 GOLDEN = Path(__file__).parent / "golden"

@@ -6,7 +6,7 @@ import pandas as pd
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from console.report.model import _natural_order, natural_key
+from console.sinks.report.model import _natural_order, natural_key
 
 _NAME = st.text(alphabet=st.sampled_from("aAbZ09-_ 7ÿ.ß"), max_size=8)
 
@@ -20,7 +20,7 @@ def test_natural_order_is_natural_key_order(names: list[str]) -> None:
 
 
 def test_units_as_rows_of_many_devices() -> None:
-    from console.report.model import ReportData, _gnss_units
+    from console.sinks.report.model import ReportData, _gnss_units
 
     t = pd.to_datetime(["2026-01-01T00:00:00Z", "2026-01-01T00:00:01Z", "2026-01-01T00:00:02Z", "NaT"], utc=True)
     fixes = pd.DataFrame(

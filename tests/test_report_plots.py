@@ -87,7 +87,7 @@ def test_same_inputs_same_bytes(run: Path, two_eras: str, tmp_path: Path) -> Non
 
 
 def test_time_panels_split_at_long_gaps_only() -> None:
-    from console.report.plots import spread_of
+    from console.sinks.report.plots import spread_of
 
     day = 86_400 * NS
     t0 = 1_446_284_000 * NS  # 2015-10-31
@@ -101,7 +101,7 @@ def test_time_panels_split_at_long_gaps_only() -> None:
 
 
 def test_ten_years_of_passages_make_a_bounded_plot() -> None:
-    from console.report.plots import SpeedSeries, speed_plot, spread_of
+    from console.sinks.report.plots import SpeedSeries, speed_plot, spread_of
 
     rng = np.random.default_rng(1)
     t = np.sort(rng.integers(1_420_000_000 * NS, 1_735_000_000 * NS, 200_000))
@@ -115,7 +115,7 @@ def test_ten_years_of_passages_make_a_bounded_plot() -> None:
 
 
 def test_log_text_in_a_plot_is_inert() -> None:
-    from console.report.plots import Line, lines_plot
+    from console.sinks.report.plots import Line, lines_plot
 
     name = "$x$ \x1b[31m\u202e<script>"
     t = np.arange(5) * NS + 1_446_284_000 * NS

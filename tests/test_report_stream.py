@@ -2,9 +2,9 @@
 
 A diagnostic log's passages and section history are spooled to disk as the
 log is read and the report is written as it is rendered
-(:mod:`console.report.spooled`, :mod:`console.report.jsonwrite`).  The old
+(:mod:`console.sinks.report.spooled`, :mod:`console.sinks.report.jsonwrite`).  The old
 path holds them as tables (``collect(whole=True)``, as the archive's report
-does) and serialises the whole document at once (:func:`console.report.model.json_text`).
+does) and serialises the whole document at once (:func:`console.sinks.report.model.json_text`).
 Both give the same bytes in every format, on the shipped samples, simulated
 runs and realistic multi-board logs with and without a layout, and with
 several files (read whole).  The JSON writer is ``json.dumps(indent=1)``
@@ -30,16 +30,16 @@ from benchmarks.gen_realistic_diag import generate
 from console.analysis.sections.state import LedgerEntry, SectionState, Transition
 from console.jsonout import valid_unicode
 from console.layout import load_layout
-from console.render.section_history import SPILL_BLOCK_BYTES, LedgerText
-from console.render.section_tables import sections_json
-from console.report import command, markdown, outline
-from console.report.collect import collect
-from console.report.command import CHUNK_CHARS, render, render_to, run_report
-from console.report.jsonwrite import Rows, indented, write_json
-from console.report.model import ReportData, document, json_text
-from console.report.spooled import ROW_DEPTH, _transition_text
 from console.sim.station import Fault, SimConfig, StationSim
 from console.sim.writers import write_run
+from console.sinks.report import command, markdown, outline
+from console.sinks.report.collect import collect
+from console.sinks.report.command import CHUNK_CHARS, render, render_to, run_report
+from console.sinks.report.jsonwrite import Rows, indented, write_json
+from console.sinks.report.model import ReportData, document, json_text
+from console.sinks.report.spooled import ROW_DEPTH, _transition_text
+from console.sinks.tables.section_history import SPILL_BLOCK_BYTES, LedgerText
+from console.sinks.tables.section_tables import sections_json
 from tests.conftest import ROOT
 
 FORMATS = ("md", "html", "json")
@@ -147,7 +147,7 @@ def test_passage_places_and_plot_numbers_read_back_in_blocks_give_the_same_page(
     inputs: dict[str, tuple[list[Path], str | None]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # The spool's records on disk read back a few at a time (blocks cut anywhere, trains picked from each).
-    monkeypatch.setattr("console.render.passage_spool._INDEX_ROWS", 37)
+    monkeypatch.setattr("console.sinks.tables.passage_spool._INDEX_ROWS", 37)
     for streamed, whole in _streamed_and_whole(inputs["realistic log"], "html"):
         assert len(streamed.passage_spool or []) > 37 * 10
         assert render(streamed, "html") == render(whole, "html")
@@ -157,7 +157,7 @@ def test_spilled_rows_read_back_are_the_whole_history(
     inputs: dict[str, tuple[list[Path], str | None]], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # Rows cut across the spill's blocks are read back whole.
-    monkeypatch.setattr("console.render.section_history.SPILL_BLOCK_BYTES", 97)
+    monkeypatch.setattr("console.sinks.tables.section_history.SPILL_BLOCK_BYTES", 97)
     for streamed, whole in _streamed_and_whole(inputs["realistic log"]):
         assert streamed.history is not None and whole.sections is not None
         expected = sections_json(whole.sections)
@@ -321,7 +321,7 @@ def test_a_report_on_diagnostic_logs_loads_no_frame_can_or_gnss_parser(tmp_path:
     )
     # Those parsers and the libraries under them (python-can, shapely) cost ~20 MB of the 256 MB budget.
     code = (
-        "import sys; from pathlib import Path; from console.report import run_report; "
+        "import sys; from pathlib import Path; from console.sinks.report import run_report; "
         f"run_report([Path({str(SAMPLES[0])!r})], 'example', 'md', Path({str(tmp_path / 'r.md')!r}), None); "
         f"print(sorted(m for m in {NOT_LOADED!r} if m in sys.modules))"
     )

@@ -39,10 +39,10 @@ from console.drivers.batch import health_findings
 from console.engine.pipeline import HEALTH_REGISTERS
 from console.jsonout import dumps
 from console.layout import Layout, load_layout
-from console.render.section_history import LedgerText, SectionsSink, ledger_json
-from console.render.section_tables import sections_json
 from console.sim.station import Fault, SimConfig, StationSim
 from console.sim.writers import write_diagnostic
+from console.sinks.tables.section_history import LedgerText, SectionsSink, ledger_json
+from console.sinks.tables.section_tables import sections_json
 from tests.reads import detection_events, pipeline_sections, whole_job
 
 LONG = bool(os.environ.get("TRACKSIDE_LONG"))

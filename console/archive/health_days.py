@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 
     from console.archive.store import Manifest
     from console.layout import Layout
-    from console.report.model import ReportData
+    from console.sinks.report.model import ReportData
 
 BREAK_PERIODS = 20  # a gap this many report periods long is the unit off the line (between trips), not losses
 PERIOD_QUANTILE = 0.1  # the report period: a low quantile of the gaps (the median grows once half is lost)

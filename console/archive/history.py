@@ -1,6 +1,6 @@
 """The archive's history as the analyses' inputs: the report's data for a window, the station's replay.
 
-:func:`report_data` returns the :class:`~console.report.model.ReportData`
+:func:`report_data` returns the :class:`~console.sinks.report.model.ReportData`
 that ``trackside report`` builds from files, built instead from the
 archive's records, fixes and frames (optionally cut to a time window, a
 counting head, a device), by calling the same analyses the same way:
@@ -44,7 +44,7 @@ from parsers.report import ParseReport
 if TYPE_CHECKING:
     import pandas as pd
 
-    from console.report.model import ReportData
+    from console.sinks.report.model import ReportData
 
 
 def report_data(
@@ -58,7 +58,7 @@ def report_data(
 ) -> ReportData:
     """The report's data, from the archive (the inputs listed are the archived files).
 
-    The same steps as :func:`console.report.collect.collect`, in the same
+    The same steps as :func:`console.sinks.report.collect.collect`, in the same
     order, on the archived tables instead of freshly parsed files.
     ``job``: the diagnostic job when the caller has it (the derivation builds it
     from the per-partition rows, :mod:`console.archive.derive`; the parse
@@ -72,8 +72,8 @@ def report_data(
     import pandas as pd
 
     from console.analysis.health.rules import Finding, sort_findings, voltage_margin_findings
-    from console.report.collect import crossings_from_fixes, frames_from_tables, sections_into_report
-    from console.report.model import InputFile, ReportData
+    from console.sinks.report.collect import crossings_from_fixes, frames_from_tables, sections_into_report
+    from console.sinks.report.model import InputFile, ReportData
 
     m = manifest if manifest is not None else read_current(root)
     spec = layout_spec if layout_spec is not None else m.derived.get("layout")
@@ -95,7 +95,7 @@ def report_data(
         # The records again through the pipeline, as the files were (another layout than the derived one).
         job = None
         if m.parts("records"):
-            from console.report.collect import diag_into_report
+            from console.sinks.report.collect import diag_into_report
 
             findings += diag_into_report(data, ArchivedRecords(root, m, window), True, None, ReadOptions())
     if job is not None:
@@ -150,7 +150,7 @@ def archive_collector(
     device_id: int | None,
 ) -> Callable[[], ReportData]:
     """For ``report --archive``: a collector giving the report's data from the archive, errors as one line."""
-    from console.report.collect import ReportInputError
+    from console.sinks.report.collect import ReportInputError
 
     root = archive_dir(archive)
 

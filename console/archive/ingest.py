@@ -48,7 +48,7 @@ from console.archive.store import (
 )
 from parsers.report import ParseReport
 
-# Kinds the archive stores, by the report's recognition (console.report.collect.recognise).
+# Kinds the archive stores, by the report's recognition (console.sinks.report.collect.recognise).
 DIAGNOSTIC = "diagnostic"
 STORED_ELSEWHERE = {"nmea": "fixes", "gnss-csv": "fixes", "gnss-jsonl": "fixes", "centre": "fixes"}
 STDIN_NAME = "<stdin>"
@@ -106,7 +106,7 @@ class IngestSummary:
 
 
 def _kind(path: Path) -> tuple[str, str]:
-    from console.report.collect import recognise
+    from console.sinks.report.collect import recognise
 
     fmt, note = recognise(path)
     return fmt, note
@@ -178,7 +178,7 @@ class _Ingest:
     def add_file(self, path: Path, shown: str) -> FileOutcome:
         kind, note = _kind(path)
         if kind == "layout":
-            from console.report.collect import layout_note
+            from console.sinks.report.collect import layout_note
 
             note = layout_note(path, self.layout_file, self.layout_spec)
         if kind not in (DIAGNOSTIC, *STORED_ELSEWHERE, "frames", "can", "voltages"):
@@ -575,7 +575,7 @@ class _PhaseClock:
 
 def expand_inputs(paths: Sequence[Path], root: Path) -> list[tuple[Path, str]]:
     """(file to read, name it is known by): directories read whole (the report's order), ``-`` is stdin."""
-    from console.report.collect import ReportInputError, expand
+    from console.sinks.report.collect import ReportInputError, expand
 
     out: list[tuple[Path, str]] = []
     files: list[Path] = []
@@ -601,7 +601,7 @@ def expand_inputs(paths: Sequence[Path], root: Path) -> list[tuple[Path, str]]:
 def _inputs_layout(job: _Ingest, inputs: list[tuple[Path, str]], layout: str | None) -> str | None:
     """The layout the derivation uses: ``--layout``, else a layout file among the inputs, by ``report``'s rule."""
     from console.layout import LayoutError, load_layout
-    from console.report.collect import chosen_layout_file
+    from console.sinks.report.collect import chosen_layout_file
 
     job.layout_spec = layout
     job.layout_file = chosen_layout_file([p for p, _ in inputs], layout)

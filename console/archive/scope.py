@@ -23,7 +23,7 @@ from console.archive.views import connect
 if TYPE_CHECKING:
     import pandas as pd
 
-    from console.report.model import ReportData
+    from console.sinks.report.model import ReportData
 
 
 def scope_heads(data: ReportData, window: Window) -> set[str]:
@@ -118,8 +118,8 @@ def _cut_inputs(root: Path, manifest: Manifest, data: ReportData, window: Window
         if heads & {str(s) for s in t.column("sensor").to_pylist()}:
             seqs |= {int(s) for s in t.column("file_seq").to_pylist()}
     if not seqs:
-        from console.report.collect import ReportInputError
         from console.safe_text import clean
+        from console.sinks.report.collect import ReportInputError
 
         what = f"--head {clean(window.head)}" if window.head is not None else f"--device {window.device_id}"
         # A report about nothing would say OK: say instead that nothing is known of it.

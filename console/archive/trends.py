@@ -41,7 +41,7 @@ if TYPE_CHECKING:
 
     from console.archive.store import Manifest
     from console.layout import Layout
-    from console.report.model import ReportData
+    from console.sinks.report.model import ReportData
 
 NS_PER_HOUR = 3_600 * 10**9
 MIN_RATE_SPAN_NS = 600 * 10**9  # the disturbance rule's shortest span (health.disturbance_rate_findings)

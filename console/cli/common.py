@@ -363,7 +363,7 @@ def read_logs(
 ) -> Any:
     """Read diagnostic logs through the pipeline (:func:`console.drivers.batch.read_diag`), with the
     checks every command makes first and a progress bar; ``jsonl`` (a
-    :class:`~console.render.diag_stream.JsonLinesOut`) also gets the rejected lines as they are met."""
+    :class:`~console.sinks.tables.diag_stream.JsonLinesOut`) also gets the rejected lines as they are met."""
     from console.drivers.batch import ReadOptions, input_bytes, read_diag
     from console.engine.sinks import Sinks
     from console.progress import byte_progress

@@ -25,8 +25,8 @@ from console.analysis.sections.state import SectionState
 from console.engine.pipeline import HEALTH_REGISTERS, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks
 from console.layout import Layout
-from console.render.event_lines import health_event, reset_event, section_event
-from console.render.passage_spool import passage_texts
+from console.sinks.tables.event_lines import health_event, reset_event, section_event
+from console.sinks.tables.passage_spool import passage_texts
 from parsers.diag.read import DiagChunk, DiagReader
 from parsers.diag.registry import DiagRegistry
 from parsers.report import FileReport

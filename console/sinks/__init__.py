@@ -1,1 +1,1 @@
-"""Sinks: what the live engine's events go to besides the screen (metrics for Prometheus)."""
+"""Sinks: where the pipeline's results go: the report (Markdown, HTML, JSON), the terminal tables, metrics."""

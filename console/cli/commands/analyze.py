@@ -61,8 +61,8 @@ def analyze(
     def body() -> int:
         from console.drivers.batch import speed_settings
         from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
-        from console.render.diag_stream import JsonLinesOut, status_json, summary_doc
-        from console.render.passage_spool import FirstPassages, PassageSpool
+        from console.sinks.tables.diag_stream import JsonLinesOut, status_json, summary_doc
+        from console.sinks.tables.passage_spool import FirstPassages, PassageSpool
 
         if json_out and jsonl:
             raise fail("--json and --jsonl: choose one")
@@ -73,7 +73,7 @@ def analyze(
         )
         if layout:
             from console.analysis.diag_events import DiagEventSettings
-            from console.render.section_tables import sections_summary
+            from console.sinks.tables.section_tables import sections_summary
 
             # With a layout: the section states and the health findings too, from the same read.
             settings = replace(
@@ -119,7 +119,7 @@ def analyze(
             print_json(doc)
             spool.close()
         else:
-            from console.render.diag_tables import (
+            from console.sinks.tables.diag_tables import (
                 inventory_table,
                 parse_report_table,
                 passages_table,
@@ -160,8 +160,8 @@ def analyze(
             for n in notes:
                 out.print(clean(n), markup=False)
             if layout:
-                from console.render.health_tables import findings_view
-                from console.render.section_tables import final_states_view
+                from console.sinks.tables.health_tables import findings_view
+                from console.sinks.tables.section_tables import final_states_view
 
                 out.print(final_states_view(final))
                 out.print(findings_view(findings, show_info=False, title="Health"))

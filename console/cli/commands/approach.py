@@ -36,7 +36,7 @@ def approach(
         one_json_form(json_out, jsonl)
         from console.analysis.crossing.approach import approach_timeline
         from console.layout import WorkSite
-        from console.render.approach_tables import approach_table
+        from console.sinks.tables.approach_tables import approach_table
 
         lay = load_layout(layout)
         sites = list(lay.work_sites)

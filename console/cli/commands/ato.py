@@ -37,9 +37,9 @@ def ato(
     """Automatic train operation run of Nguyen Van Tiem (TCSJ 2020): PID, fuzzy and Fuzzy-D beside its figures."""
 
     def body() -> int:
-        from console.render.ato_view import ato_json, ato_plot, ato_table
         from console.sim.ato import run_all
         from console.sim.control import CONTROLLER_NAMES, FUZZY_D_READINGS
+        from console.sinks.tables.ato_view import ato_json, ato_plot, ato_table
 
         names = list(CONTROLLER_NAMES) if controller == "all" else [controller]
         if any(n not in CONTROLLER_NAMES for n in names):

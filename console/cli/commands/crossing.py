@@ -56,8 +56,8 @@ def crossing(
         from console.analysis.crossing_batch import parse_train_option, run_crossings
         from console.analysis.integrity.monitor import timelines
         from console.analysis.timefmt import iso
-        from console.render.crossing_tables import reasons_view, spare_view, timeline_table, violations_view
-        from console.render.integrity_tables import integrity_table
+        from console.sinks.tables.crossing_tables import reasons_view, spare_view, timeline_table, violations_view
+        from console.sinks.tables.integrity_tables import integrity_table
         from parsers.gnss_files import parse_gnss
 
         check_inputs(files)

@@ -122,7 +122,7 @@ def forecast(
                 {"due": "due", "forecasts": "forecast"} if jsonl else None,
             )
         else:
-            from console.render.forecast_tables import forecast_view
+            from console.sinks.tables.forecast_tables import forecast_view
 
             Console(highlight=False).print(forecast_view(items, due, horizon_days, show_all))
         return exit_codes.FINDINGS if fail_on_due and due else exit_codes.OK

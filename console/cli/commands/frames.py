@@ -106,8 +106,8 @@ def frames(
 
         from console.analysis.frame_events import frames_to_events
         from console.analysis.timefmt import iso
-        from console.render.diag_tables import parse_report_table, rejections_table
-        from console.render.frame_tables import (
+        from console.sinks.tables.diag_tables import parse_report_table, rejections_table
+        from console.sinks.tables.frame_tables import (
             can_traffic_table,
             events_table,
             other_frames_table,

@@ -15,8 +15,14 @@ def gnss(
     """Decoded GNSS fixes per device, and the parse report."""
 
     def body() -> int:
-        from console.render.diag_tables import parse_report_table, rejections_table
-        from console.render.gnss_tables import devices_table, fix_rows, fixes_table, gnss_json_parts, skipped_table
+        from console.sinks.tables.diag_tables import parse_report_table, rejections_table
+        from console.sinks.tables.gnss_tables import (
+            devices_table,
+            fix_rows,
+            fixes_table,
+            gnss_json_parts,
+            skipped_table,
+        )
         from parsers.gnss_files import nothing_read, parse_gnss_columns
         from parsers.kinds import not_gnss_reason
 

@@ -64,7 +64,7 @@ def health(
     def body() -> int:
         from console.analysis.diag_events import DiagEventSettings
         from console.analysis.health.rules import Severity, sort_findings, voltage_margin_findings
-        from console.render.health_tables import findings_view
+        from console.sinks.tables.health_tables import findings_view
         from parsers.voltages import read_voltages
 
         one_json_form(json_out, jsonl)

@@ -70,7 +70,7 @@ def report(
 
     def body() -> int:
         from console.cli.commands.engine import checked_spec, engine_failure
-        from console.report.command import run_report
+        from console.sinks.report.command import run_report
 
         spec = checked_spec(engine, workers, scheduler)
         on_archive = archive is not None or start or end or head or device is not None

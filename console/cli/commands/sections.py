@@ -47,7 +47,7 @@ def _write_json(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
     import sys
 
     from console.jsonout import dumps
-    from console.render.section_tables import sections_summary
+    from console.sinks.tables.section_tables import sections_summary
 
     head = dumps(_document_head(job, lay) | sections_summary(final))
     out = sys.stdout
@@ -63,7 +63,7 @@ def _write_jsonl(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
     import sys
 
     from console.jsonout import RawJSON, dumps, typed_line
-    from console.render.section_tables import sections_summary
+    from console.sinks.tables.section_tables import sections_summary
 
     out = sys.stdout
     for row in sections_summary(final)["sections"]:
@@ -76,7 +76,7 @@ def _write_jsonl(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
 
 def _print_tables(job: Any, final: dict[str, Any], sink: Any) -> None:
     from console.analysis.sections.engine import SectionsResult, ledger_summary_frame
-    from console.render import section_tables as st
+    from console.sinks.tables import section_tables as st
 
     head = job.sections.result(sink.timeline_first, [], sink.reset_rows)
     result = SectionsResult(head.timeline, head.ledger, head.resets, final, ledger_summary_frame(sink.ledger_totals))
@@ -151,7 +151,7 @@ def sections(
         from console.analysis.passages.diagnostics import SpeedSettings
         from console.analysis.sections.state import SectionState
         from console.engine.pipeline import PipelineSettings
-        from console.render.section_history import SectionsSink
+        from console.sinks.tables.section_history import SectionsSink
 
         one_json_form(json_out, jsonl)
         if initial not in ("unknown", "clear"):

@@ -36,8 +36,8 @@ def speeds(
     def body() -> int:
         from console.analysis.passages.diagnostics import SpeedSettings
         from console.engine.pipeline import PipelineSettings
-        from console.render.diag_stream import JsonLinesOut, status_json, summary_doc
-        from console.render.passage_spool import PassageSpool
+        from console.sinks.tables.diag_stream import JsonLinesOut, status_json, summary_doc
+        from console.sinks.tables.passage_spool import PassageSpool
 
         if json_out and jsonl:
             raise fail("--json and --jsonl: choose one")
@@ -58,7 +58,7 @@ def speeds(
             if spool is not None:
                 spool.close()
         else:
-            from console.render.diag_tables import passages_table
+            from console.sinks.tables.diag_tables import passages_table
 
             Console(highlight=False).print(passages_table(job.analysis, unpaired=job.analysis.unpaired_detections))
         return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK

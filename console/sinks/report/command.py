@@ -23,10 +23,10 @@ from console import exit_codes
 from console.analysis.health.rules import Severity
 from console.layout import LayoutError
 from console.output_path import STDOUT, OutputError, OutputTarget, check_output_file, open_output
-from console.report.collect import ReportInputError, collect
-from console.report.jsonwrite import Write, write_json
-from console.report.model import ReportData, document
 from console.safe_text import clean, show_path
+from console.sinks.report.collect import ReportInputError, collect
+from console.sinks.report.jsonwrite import Write, write_json
+from console.sinks.report.model import ReportData, document
 from parsers.sources import InputError
 
 FORMATS = ("md", "html", "json")
@@ -77,11 +77,11 @@ def render_to(data: ReportData, fmt: str, write: Write) -> None:
     if fmt == "json":
         write_json(doc, write)
     elif fmt == "md":
-        from console.report.markdown import render_markdown
+        from console.sinks.report.markdown import render_markdown
 
         render_markdown(doc, write)
     else:
-        from console.report.html import render_html
+        from console.sinks.report.html import render_html
 
         render_html(data, doc, write)
 

@@ -18,7 +18,7 @@ from console.analysis.passages.buckets import Columns
 from console.analysis.passages.status import StatusSummary
 from console.engine.sinks import Sink
 from console.jsonout import valid_unicode
-from console.render.event_lines import health_event, section_event
+from console.sinks.tables.event_lines import health_event, section_event
 from parsers.report import Rejection
 
 if TYPE_CHECKING:

@@ -1,7 +1,7 @@
 """The report's building blocks: headings, paragraphs, tables, bullets, figures, and the helpers that make them.
 
-:func:`console.report.outline.outline` and the archive's parts (:mod:`console.report.trends`,
-:mod:`console.report.forecast`) build the report from these; the Markdown and HTML faces render them.
+:func:`console.sinks.report.outline.outline` and the archive's parts (:mod:`console.sinks.report.trends`,
+:mod:`console.sinks.report.forecast`) build the report from these; the Markdown and HTML faces render them.
 Every string in a block is raw text (from a log or not): the renderers escape all of it for their format.
 """
 
@@ -45,7 +45,7 @@ class Table:
 
 
 class Lazy:
-    """Rows made each time they are read, from the document's :class:`~console.report.jsonwrite.Rows`."""
+    """Rows made each time they are read, from the document's :class:`~console.sinks.report.jsonwrite.Rows`."""
 
     def __init__(self, make: Callable[[], Iterator[list[Cell]]]) -> None:
         self._make = make

@@ -50,7 +50,7 @@ class LedgerText:
 
     ``depth`` None: compact, as ``sections --json`` writes a row; else the row as
     ``json.dumps(indent=1)`` writes an array item at that depth, its newline and
-    indent first (the report's JSON: ``console.report.jsonwrite``).
+    indent first (the report's JSON: ``console.sinks.report.jsonwrite``).
     """
 
     def __init__(self, depth: int | None = None) -> None:
@@ -164,7 +164,7 @@ class SectionsSink(Sink):
     ``spill`` writes each state change with ``timeline_text`` (where each
     starts is kept, to read rows back) and, with ``spill_ledger``, each
     counted axle with ``ledger_text``: by default as ``sections --json``
-    writes them; the report gives its own form (``console.report.spooled``).
+    writes them; the report gives its own form (``console.sinks.report.spooled``).
     """
 
     spill: bool = False

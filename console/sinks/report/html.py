@@ -4,11 +4,11 @@ The page renders the same outline as the Markdown face (tables, in the
 same order) and draws the plots where the outline has a figure: speed per
 passage, section states over time, crossing warnings against the head's
 arrival and the tail clearing, and the analog values per channel
-(matplotlib's SVG backend, inlined: :mod:`console.report.plots`).  It
+(matplotlib's SVG backend, inlined: :mod:`console.sinks.report.plots`).  It
 reads at 1024 px and prints on A4 (``@media print``: no navigation, no
 scroll boxes, colours kept, rows and plots not split across pages).
 Every log-derived text goes through :func:`esc` (tables) or
-:func:`console.report.plots.label` (plots): control characters as
+:func:`console.sinks.report.plots.label` (plots): control characters as
 ``\\xNN``, bidi overrides and isolates as ``\\u202e``, then entity-escaped.
 """
 
@@ -26,12 +26,12 @@ import numpy as np
 from console.analysis.passages.buckets import Columns
 from console.analysis.sections.state import SectionState
 from console.analysis.timefmt import display
-from console.report import plots, trends
-from console.report.blocks import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table
-from console.report.jsonwrite import Write
-from console.report.model import ReportData, analog_series, natural_key, timeline_order
-from console.report.outline import outline
 from console.safe_text import PLAIN, clean
+from console.sinks.report import plots, trends
+from console.sinks.report.blocks import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table
+from console.sinks.report.jsonwrite import Write
+from console.sinks.report.model import ReportData, analog_series, natural_key, timeline_order
+from console.sinks.report.outline import outline
 
 STYLE = """
 *{box-sizing:border-box}
@@ -319,7 +319,7 @@ def _figure(plot: str, data: ReportData, write: Write) -> None:
         write("".join(f"<figure>{b}<figcaption>{esc(caption)}</figcaption></figure>" for b in _analog(data)))
         return
     if plot == "forecast":
-        from console.report.forecast import forecast_plots
+        from console.sinks.report.forecast import forecast_plots
 
         caption = (
             "The daily figure (dots), its trend over the last days with the 90 % band of its slope, the threshold "

@@ -2,8 +2,8 @@
 
 :func:`document` turns the analyses into JSON values, in the order
 the report presents them (docs/report-schema.md), a long list read from its
-spool as it is written (:class:`~console.report.jsonwrite.Rows`);
-:mod:`console.report.outline` turns that document into the blocks the
+spool as it is written (:class:`~console.sinks.report.jsonwrite.Rows`);
+:mod:`console.sinks.report.outline` turns that document into the blocks the
 Markdown and HTML faces render, so the three formats cannot disagree.  Nothing
 here computes what the analysis modules compute: it selects, groups and
 names.
@@ -45,9 +45,9 @@ from console.analysis.sections.state import SectionState
 from console.analysis.timefmt import iso
 from console.drivers.batch import DiagJob
 from console.layout import Layout
-from console.render.section_tables import sections_json
-from console.report.jsonwrite import Rows
-from console.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPassages, SectionHistory
+from console.sinks.report.jsonwrite import Rows
+from console.sinks.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPassages, SectionHistory
+from console.sinks.tables.section_tables import sections_json
 from parsers.report import ParseReport
 
 if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read (collect)
@@ -134,9 +134,9 @@ class ReportData:
     notes: dict[str, str] = field(default_factory=dict)  # part → why it is empty
     # Daily trends (console.archive.trends): only a report from the archive has history.
     trends: dict[str, Any] | None = None
-    # Condition forecasts (console.report.forecast): from the archive's daily figures too.
+    # Condition forecasts (console.sinks.report.forecast): from the archive's daily figures too.
     forecast: dict[str, Any] | None = None
-    # A diagnostic log read as a stream (console.report.spooled): its passages and section history
+    # A diagnostic log read as a stream (console.sinks.report.spooled): its passages and section history
     # kept on disk, not in ``job`` and ``sections``.
     passage_spool: ReportPassages | None = None
     history: SectionHistory | None = None
@@ -579,7 +579,7 @@ def document(data: ReportData) -> dict[str, Any]:
     """The report as JSON values (schema ``trackside.report/1``), in presentation order.
 
     A streamed log's long lists (passages, the section timeline and ledger) are
-    :class:`~console.report.jsonwrite.Rows`, read from their spools as they are
+    :class:`~console.sinks.report.jsonwrite.Rows`, read from their spools as they are
     written; otherwise every value is a plain JSON value.
     """
     attention = data.attention()
@@ -630,7 +630,7 @@ def document(data: ReportData) -> dict[str, Any]:
 def json_text(doc: dict[str, Any]) -> str:
     """Indented, ASCII-only, key order as built: the same document gives the same bytes.
 
-    For a document of plain values; :func:`console.report.jsonwrite.write_json` writes the
-    same bytes piece by piece, and also a document with :class:`~console.report.jsonwrite.Rows`.
+    For a document of plain values; :func:`console.sinks.report.jsonwrite.write_json` writes the
+    same bytes piece by piece, and also a document with :class:`~console.sinks.report.jsonwrite.Rows`.
     """
     return json.dumps(doc, ensure_ascii=True, indent=1, allow_nan=False) + "\n"

@@ -16,10 +16,10 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from console.report.blocks import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table
-from console.report.jsonwrite import Write
-from console.report.outline import outline
 from console.safe_text import PLAIN, clean
+from console.sinks.report.blocks import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table
+from console.sinks.report.jsonwrite import Write
+from console.sinks.report.outline import outline
 
 _SPECIAL = re.compile(r"([\\`*_\[\]|#~])")
 _LEADING = re.compile(r"^(\s*)([-+*]|\d+[.)])(?=\s|$)")
@@ -92,5 +92,5 @@ def write_blocks(blocks: list[Block], write: Write) -> None:
 
 
 def render_markdown(doc: dict[str, Any], write: Write) -> None:
-    """The report document (:func:`console.report.model.document`) as Markdown, piece by piece."""
+    """The report document (:func:`console.sinks.report.model.document`) as Markdown, piece by piece."""
     write_blocks(outline(doc), write)

@@ -11,9 +11,9 @@ from __future__ import annotations
 from collections import defaultdict
 from typing import Any
 
-from console.report import plots
-from console.report.blocks import Block, Cell, Figure, Heading, Para, num_or_dash, table_block
-from console.report.model import natural_key
+from console.sinks.report import plots
+from console.sinks.report.blocks import Block, Cell, Figure, Heading, Para, num_or_dash, table_block
+from console.sinks.report.model import natural_key
 
 SERIES_PER_PLOT = 8
 PLOTS = {

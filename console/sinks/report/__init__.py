@@ -7,7 +7,7 @@
 * :mod:`.write` — atomic writes; :mod:`.command` — :func:`run_report`, exit codes.
 """
 
-from console.report.command import FORMATS, render, run_report
-from console.report.model import SCHEMA
+from console.sinks.report.command import FORMATS, render, run_report
+from console.sinks.report.model import SCHEMA
 
 __all__ = ["FORMATS", "SCHEMA", "render", "run_report"]

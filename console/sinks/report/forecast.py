@@ -2,7 +2,7 @@
 
 The numbers come from :func:`console.archive.health_days.forecast_doc` over the report's window
 (the document's ``forecast``); the HTML face draws the due series the document carries points of with
-:func:`console.report.forecast_plot.forecast_svg`.
+:func:`console.sinks.report.forecast_plot.forecast_svg`.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from console.analysis.health.forecast import STATUSES
-from console.report.blocks import Block, Cell, Figure, Heading, Para, num_or_dash, table_block
+from console.sinks.report.blocks import Block, Cell, Figure, Heading, Para, num_or_dash, table_block
 
 if TYPE_CHECKING:
     pass
@@ -22,7 +22,7 @@ def forecast_plots(doc_forecast: dict[str, Any] | None) -> list[str]:
     """The SVGs of the plotted due series."""
     if not doc_forecast:
         return []
-    from console.report.forecast_plot import forecast_svg
+    from console.sinks.report.forecast_plot import forecast_svg
 
     due = {(f["figure"], f["target"], f["channel"]): f for f in doc_forecast["due"]}
     return [

@@ -2,16 +2,16 @@
 
 A report on a diagnostic log lists every passage and, in JSON, every state
 change and every counted axle: ten times more at 30 M records than at 3 M.
-They are not held.  Passages go into the :class:`~console.render.passage_spool.PassageSpool`
+They are not held.  Passages go into the :class:`~console.sinks.tables.passage_spool.PassageSpool`
 that ``analyze --json`` uses (:class:`ReportPassages`), the section history
-into the :class:`~console.render.section_history.SectionsSink` spill that ``sections --json``
+into the :class:`~console.sinks.tables.section_history.SectionsSink` spill that ``sections --json``
 uses, its rows already in the report's JSON form (:func:`report_sink`,
 :class:`SectionHistory`).  What stays in memory is a few numbers per state
 change (the state plot) and totals; the numbers the speed plot reads of each
 passage go into the spool's records on disk with its place.
 
-The document (:func:`console.report.model.document`) refers to these
-through :class:`~console.report.jsonwrite.Rows`; the renderers read them
+The document (:func:`console.sinks.report.model.document`) refers to these
+through :class:`~console.sinks.report.jsonwrite.Rows`; the renderers read them
 one item at a time.
 """
 
@@ -33,9 +33,9 @@ from console.analysis.sections.state import ResetRecord, Transition
 from console.analysis.timefmt import iso
 from console.engine.sinks import Sink
 from console.jsonout import valid_unicode
-from console.render.passage_spool import PassageSpool
-from console.render.section_history import LedgerText, SectionsSink
-from console.report.jsonwrite import Rows, Write, indented
+from console.sinks.report.jsonwrite import Rows, Write, indented
+from console.sinks.tables.passage_spool import PassageSpool
+from console.sinks.tables.section_history import LedgerText, SectionsSink
 
 TRAIN_KIND = 0  # diagnostics.PASSAGE_KINDS.index("train")
 # Where the document holds the section history's rows: doc → "sections" → "timeline" / "ledger" → a row.

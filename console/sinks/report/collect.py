@@ -53,8 +53,8 @@ from console.engine.sinks import Sinks
 from console.layout import Layout, LayoutError, load_layout
 from console.output_path import file_identity
 from console.progress import byte_progress
-from console.render.section_history import SectionsSink
-from console.report.model import (
+from console.safe_text import show_path
+from console.sinks.report.model import (
     CAN,
     CENTRE,
     DIAGNOSTIC,
@@ -73,8 +73,8 @@ from console.report.model import (
     ReportData,
     natural_key,
 )
-from console.report.spooled import ReportPassages, SectionHistory, report_sink
-from console.safe_text import show_path
+from console.sinks.report.spooled import ReportPassages, SectionHistory, report_sink
+from console.sinks.tables.section_history import SectionsSink
 from parsers.kinds import classify_head, read_head
 from parsers.report import escape_text
 from parsers.sources import InputError
@@ -269,7 +269,7 @@ def collect(
     """Recognise every input, run every analysis that applies, and return what the report shows.
 
     A diagnostic log's passages and section history are spooled to disk as it
-    is read (:mod:`console.report.spooled`): :meth:`ReportData.close` removes
+    is read (:mod:`console.sinks.report.spooled`): :meth:`ReportData.close` removes
     them.  ``for_format``: the one format it is for; what that format does not show
     is not kept (the count ledger's rows but for ``json``, the speed plot's
     numbers but for ``html``).  ``whole``: hold passages and section history in

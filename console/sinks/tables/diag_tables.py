@@ -19,7 +19,7 @@ from parsers.report import ParseReport
 if TYPE_CHECKING:  # the parse report tables (gnss) need neither the analysis nor Arrow behind it
     from console.analysis.inventory import DeviceInventory
     from console.analysis.passages.diagnostics import DiagAnalysis
-    from console.render.passage_spool import FirstPassages
+    from console.sinks.tables.passage_spool import FirstPassages
 
 REJECTIONS_SHOWN = 20
 DEVICES_SHOWN = 6  # devices are columns: more do not fit in 80

@@ -1,7 +1,7 @@
 """The report as blocks: headings, paragraphs, tables, figures (:func:`outline`; the blocks are
-:mod:`console.report.blocks`).
+:mod:`console.sinks.report.blocks`).
 
-Built from the JSON document (:func:`console.report.model.document`); the
+Built from the JSON document (:func:`console.sinks.report.model.document`); the
 Markdown and HTML faces both render these blocks, so the formats cannot
 disagree.  Every string in a block is raw text (from a log or not): the
 renderers escape all of it for their format.
@@ -13,10 +13,21 @@ import itertools
 from typing import Any
 
 from console.plural import count
-from console.report.blocks import Block, Bullets, Cell, Figure, Heading, Lazy, Para, Styled, num_or_dash, table_block
-from console.report.forecast import forecast_part
-from console.report.model import FAILING, UNSAFE
-from console.report.trends import trends_part
+from console.sinks.report.blocks import (
+    Block,
+    Bullets,
+    Cell,
+    Figure,
+    Heading,
+    Lazy,
+    Para,
+    Styled,
+    num_or_dash,
+    table_block,
+)
+from console.sinks.report.forecast import forecast_part
+from console.sinks.report.model import FAILING, UNSAFE
+from console.sinks.report.trends import trends_part
 
 TIMELINE_ROWS_SHOWN = 400
 REJECTIONS_SHOWN = 20

@@ -7,7 +7,7 @@ With ``indent=1`` a value nested ``depth`` levels deep is its own
 spaces: so each part is encoded alone (:func:`indented`) and a long list
 (:class:`Rows`: passages, the section timeline, the count ledger) is written
 an item at a time, or copied from the spill its rows were written to in this
-very form (:mod:`console.report.spooled`).
+very form (:mod:`console.sinks.report.spooled`).
 
 :func:`indented` runs json's C encoder on flat objects and arrays (an
 ``indent`` makes ``json.dumps`` fall back to its pure-Python encoder): the
@@ -119,6 +119,6 @@ def _write_value(value: Any, write: Write, depth: int) -> None:
 
 
 def write_json(doc: dict[str, Any], write: Write) -> None:
-    """The document as ``json_text`` gives it (:func:`console.report.model.json_text`), piece by piece."""
+    """The document as ``json_text`` gives it (:func:`console.sinks.report.model.json_text`), piece by piece."""
     _write_value(doc, write, 0)
     write("\n")

@@ -1,1 +1,0 @@
-"""Renderers: turn analysis results into Rich tables (and, later, reports)."""

@@ -1,0 +1,1 @@
+"""Terminal tables: analysis results as Rich tables, and their JSON forms."""
