@@ -58,7 +58,7 @@ def main() -> None:
     wall = time.perf_counter() - t0
     rows = spare_table(results)
     t = Table(box=box.MARKDOWN, title=None)
-    cols = ("case", "runs", "avoidable median", "avoidable p95", "sparse median", "sparse p95")
+    cols = ("case", "runs", "avoidable median", "avoidable p95", "fix-time oracle median", "fix-time oracle p95")
     cols += ("estimate median", "estimate p95", "physics median", "paper rule median", "paper rule late")
     for c in cols:
         t.add_column(c, justify="left" if c == "case" else "right")
@@ -101,6 +101,18 @@ def main() -> None:
         out.print(f"{k}: {s[k]}", markup=False)
     neg = [r.avoidable_s for _, r in results if r.avoidable_s is not None and r.avoidable_s < 0]
     out.print(f"runs warned later than the oracle: {len(neg)} (least {min(neg, default=0):.1f} s)", markup=False)
+    # The fix-time oracle knows the true state at every received fix and releases as the unit does:
+    # where its own avoidable spare exceeds 40 s in more than 5 % of runs, no unit warning on these
+    # fixes without flicker can meet p95 ≤ 40 s (the unit's bounds are at or before the truth).
+    fix_spare = [x for _, r in results if (x := r.sparse_s) is not None]
+    over = sum(x > 40 for x in fix_spare)
+    share = over / max(1, len(fix_spare))
+    out.print(f"fix-time oracle avoidable spare > 40 s: {over} of {len(fix_spare)} runs ({share:.1%})", markup=False)
+    est = [x for _, r in results if (x := r.estimation_s) is not None]
+    out.print(
+        f"runs warned later than the fix-time oracle: {sum(x < 0 for x in est)} (least {min(est, default=0):.1f} s)",
+        markup=False,
+    )
     base = [r.baseline_early_s for _, r in results if r.baseline_early_s is not None]
     out.print(f"fixed-time baseline: opened early in {sum(b > 0 for b in base)} runs", markup=False)
     out.print(f"wall {wall:.0f} s ({wall / max(1, len(results)) * 1000:.0f} ms a run)", markup=False)

@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 
@@ -27,7 +28,7 @@ from console.analysis.crossing.arrival import earliest_s
 from console.analysis.crossing.controller import ControllerSettings, CrossingController, Fix, TrainSpec, run_controller
 from console.analysis.crossing.estimate import predict_ca, update_position, update_speed
 from console.layout import load_layout
-from console.sim.crossing_runs import RunConditions, random_conditions, simulate
+from console.sim.crossing_runs import RunConditions, judge, random_conditions, simulate
 
 NS = 10**9
 LAYOUT = load_layout("example")
@@ -183,3 +184,38 @@ def test_a_jump_set_aside_lately_holds_the_release_back() -> None:
     assert ctl.position_jumps >= 1
     rel = [e.t_ns for e in ctl.events if e.kind == "off" and e.reason.startswith("released")]
     assert rel and min(rel) >= t_jump + int(ctl.s.speed_window_s * NS)  # released, but only once clean
+
+
+def test_at_fixes_every_10_s_an_eot_fix_releases_through_the_train_filter_and_safely() -> None:
+    # The EOT's fix comes between two head fixes: through the train's filter it is a witness of the
+    # head, so it may prove the train out of reach first.  Only while the head unit reports on time
+    # (its last fix no older than a report period and the latency), and the runs stay safe.
+    rng = np.random.default_rng(31)
+    at_eot = 0
+    for k in range(120):
+        cond = dataclasses.replace(random_conditions(rng, 3_100_000 + k), period_s=10.0, speed_reported=False)
+        crossing = LAYOUT.crossings[k % len(LAYOUT.crossings)]
+        s = _settings(cond)
+        fixes, truth, train = simulate(LAYOUT, crossing, cond, s)
+        ctl = run_controller(crossing, [train], fixes, s)
+        received = {f.t_ns: f for f in fixes}
+        for e in ctl.events:
+            f = received.get(e.t_ns)
+            if e.kind == "off" and e.reason.startswith("released") and f is not None and f.role == "eot":
+                at_eot += 1
+                heads = [h.t_fix_ns for h in fixes if h.role == "head" and h.t_ns <= e.t_ns]
+                assert heads and e.t_ns - max(heads) <= (s.report_period_s + s.latency_s) * NS
+        v = judge(ctl, truth, train, s, fixes)
+        assert v.violation is None and v.late_by_s is None, (k, v.violation)
+    assert at_eot >= 2
+
+
+def test_a_lost_head_unit_releases_nothing_at_eot_fixes() -> None:
+    # Standing 2.5 km out, fixes every 10 s; the head unit is heard for 15 s only.  The EOT alone
+    # cannot tell that the train is whole: the warning on at the first fix stays on.
+    fixes, _left = _standing_run(stop_m=2500.0, period_s=10.0)
+    lost = [f for f in fixes if f.role == "eot" or f.t_fix_ns < 15 * NS]
+    ctl = run_controller(CROSSING, [TrainSpec("T", 120.0)], lost, ControllerSettings(report_period_s=10.0))
+    assert [e.kind for e in ctl.events][:1] == ["on"]
+    assert not any(e.reason.startswith("released") for e in ctl.events)
+    assert any(e.kind == "alarm" and "head unit stale" in e.reason for e in ctl.events)

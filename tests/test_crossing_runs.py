@@ -103,11 +103,67 @@ def test_the_avoidable_spare_is_measured_by_scenario_and_fix_rate(results: list)
 
 
 def test_a_released_road_stays_open_a_while(results: list) -> None:
-    # A release waits for the next fix and 10 s beyond it by the bound: no barriers up for a few
-    # seconds only (a fix can bring the bound a little nearer: 9.9 s once in 3000 runs).
+    # A release needs the road open 10 s at least by the bound, and until the next fix is due: no
+    # barriers up for a few seconds only (a fix can bring the bound a little nearer: rarely).
     s = summary(results)
     assert s["runs_released"] and s["runs_reopened_under_10s"] <= len(results) // 1000
     assert all(r.min_open_s is None or r.min_open_s >= 5.0 for _, r in results)
+
+
+# Runs where a release came on again within seconds (found on seed 777001, before the release needed the
+# head's own filter settled and, at an EOT fix, a head unit reporting on time).
+REOPENED = [
+    # A brake unsettled the head's track; the train's filter, settled again a fix sooner, released.
+    (
+        "12+940",
+        RunConditions(
+            10.0,
+            4.82,
+            0.2797,
+            0.307,
+            None,
+            None,
+            "stop_far",
+            15.91,
+            1,
+            300.0,
+            77700100009,
+            speed_reported=False,
+            jump_rate=0.0165,
+        ),
+    ),
+    # The head unit fell silent after one fix; an EOT fix released, then the head went stale.
+    (
+        "11+850",
+        RunConditions(10.0, 0.466, 0.0091, 1.436, 8.99, None, "stop_far", 5.58, 1, 28.6, 77700100836, jump_rate=0.0278),
+    ),
+    # A head fix that jumped 1.9 km, then an EOT fix released on the train's filter.
+    (
+        "11+850",
+        RunConditions(
+            0.4,
+            1.4983538438944848,
+            0.01759579021625792,
+            0.42497525786867163,
+            31.4296029238321,
+            None,
+            "stop_on_crossing",
+            25.381075305813027,
+            -1,
+            28.6,
+            77700101508,
+            jump_rate=0.023041672117800022,
+        ),
+    ),
+]
+
+
+@pytest.mark.parametrize(("code", "cond"), REOPENED)
+def test_a_release_is_not_undone_within_seconds(code: str, cond: RunConditions) -> None:
+    crossing = next(c for c in LAYOUT.crossings if c.code == code)
+    v = one_run(LAYOUT, crossing, cond)
+    assert v.violation is None
+    assert v.min_open_s is None or v.min_open_s >= 10.0, v.min_open_s
 
 
 def test_lost_head_unit_falls_back_to_eot_plus_length() -> None:

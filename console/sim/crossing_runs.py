@@ -299,10 +299,15 @@ def fix_oracle_onset(
     )
     bound = np.maximum.accumulate(np.array([f.t_fix_ns for f in got]) + (eta * NS).astype(np.int64))
     wt_ns = int(crossing.warning_time_s * NS)
-    # Released as the unit releases: only when it would not come on again before the next fix is in.
-    hold_ns = int((settings.release_hold_s + settings.report_period_s + settings.latency_s) * NS)
+    # Released as the unit releases: only when it would stay open release_hold_s at least, and not
+    # come on again before the next fix is in.
     onset: int | None = None
+    last_fix: dict[str, int] = {}  # per unit, its latest fix so far (measurement time)
+    period_ns = int((settings.report_period_s + settings.latency_s) * NS)
     for k, f in enumerate(got):  # per received fix of one run
+        last_fix[f.role] = max(last_fix.get(f.role, f.t_fix_ns), f.t_fix_ns)
+        # Open for release_hold_s at least, and until the next fix of either unit is due.
+        hold_ns = max(int(settings.release_hold_s * NS), min(last_fix.values()) + period_ns - f.t_ns)
         end = got[k + 1].t_ns if k + 1 < len(got) else th
         due = int(bound[k]) - wt_ns
         if onset is not None and due > f.t_ns + hold_ns:

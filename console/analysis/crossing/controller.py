@@ -30,12 +30,12 @@ travel.
   its σ; the bound is estimate + k·σ.  Until the filter is settled (its first
   fixes, fixes set aside lately), the model-free bounds below count too, the
   earlier wins.
-* **Release** (per train, at a head fix, before the head arrives): a warning
+* **Release** (per train, at a fix while the head unit is fresh, before the head arrives): a warning
   that came on early (a first fix without speed counts as the fastest train;
   a train then stops out of reach) goes off when a settled estimate of a
   fresh head unit proves the head cannot arrive within the warning time for a
-  while yet (one report period, the latency and ``release_hold_s`` beyond
-  it: the next fix is in before it could come on again, no flicker), with no
+  while yet (``release_hold_s`` at least, and until the next fix is due: it
+  does not come on again before a new fix could renew the bound, no flicker), with no
   jump set aside lately and no head-unit alarm: a train proven standing 2 km
   out does not hold the road closed.  It comes on again by the same rule as any warning: from a
   standstill the head cannot arrive sooner than √(2d/a).
@@ -138,8 +138,10 @@ class ControllerSettings:
     jerk_psd: float = 0.003
     k_sigma: float = 3.3
     settle_fixes: int = 2  # fixes in a row inside the filter's prediction before its estimate alone counts
-    # A warning is released only if, by the bound, it would not come on again before the next
-    # fix is in (one report period and the latency) and for this long after: no flicker.
+    # A warning is released only if, by the bound, the road stays open this long at least and
+    # it would not come on again before the next fix is in (one report period and the latency):
+    # no flicker.  (Waiting for the next fix *and* this long after it held a slow train's road
+    # closed one report period longer, for no gain: the bound alone guarantees the open time.)
     release_hold_s: float = 10.0
     length_sigma_m: float = 5.0  # how well the train's length is known (the EOT as a witness of the head)
 
@@ -502,14 +504,29 @@ class CrossingController:
         return [self._emit(t_ns, tr, "on", reason)]
 
     def _check_release(self, tr: _Track, fix: Fix) -> list[CrossingEvent]:
-        """Off before the head arrives, on a fresh head fix whose settled estimate proves the train
-        cannot arrive for a while yet (a train standing out of reach, or slower than first feared)."""
+        """Off before the head arrives, at a fix of either unit while the head unit is fresh, when a
+        settled estimate proves the train cannot arrive for a while yet (a train standing out of
+        reach, or slower than first feared).  An EOT fix counts only through the train's filter,
+        where it is a witness of the head (at fixes every 10 s it comes between two head fixes)."""
         s = self.s
         # A stale EOT does not hold a release back: whatever it would show is behind the head.
         # Direction unknown, the bound is the nearer way round (it holds whichever way the train goes).
-        if not tr.warned or fix.role != HEAD or "head" in tr.alarms or not tr.kf_ok[HEAD]:
+        if not tr.warned or "head" in tr.alarms or not tr.kf_ok[HEAD] or not self._fresh(tr.head, fix.t_ns):
+            return []
+        # The head's own filter settled too: a bound that leans on the train's filter alone, just
+        # after the head's track was in doubt (a brake, a jump), came on again within seconds.
+        head_est = tr.kf[HEAD].estimate
+        if head_est is None or not head_est.settled:
             return []
         b = self._device_bound(tr, TRAIN) if tr.parted_ns is None else None
+        if fix.role != HEAD:
+            # An EOT fix renews the bound only as the train filter's witness of the head, and only
+            # while the head reports on time: a head unit silent since would go stale, and the
+            # EOT-plus-length bound that then counts can come due at once.
+            assert tr.head is not None
+            head_age_s = (fix.t_ns - tr.head.t_fix_ns) / NS
+            if b is None or not b.settled or not tr.kf_ok[fix.role] or head_age_s > s.report_period_s + s.latency_s:
+                return []
         if b is None or not b.settled:
             b = self._device_bound(tr, HEAD)
         if b is None or not b.settled or b.ahead_m <= s.guard_distance_m:
@@ -526,7 +543,9 @@ class CrossingController:
         # until then nothing can renew the bound, so it must not come due before that.
         fresh = [r.t_fix_ns for r in (tr.head, tr.eot) if r is not None and self._fresh(r, fix.t_ns)]
         next_fix_s = (min(fresh) - fix.t_ns) / NS + s.report_period_s + s.latency_s
-        if eta <= self.horizon_s + max(0.0, next_fix_s) + s.release_hold_s:
+        # Released, the road stays open for release_hold_s at least by this bound, and until the
+        # next fix is in (no flicker); a later fix can only push the bound out for a train as seen.
+        if eta <= self.horizon_s + max(next_fix_s, s.release_hold_s):
             return []
         what = "train standing" if b.standing else f"head at most {b.speed_hi_mps:.1f} m/s"
         reason = f"released: {what} {b.ahead_m:.0f} m out cannot arrive within {eta:.0f} s"
