@@ -58,7 +58,9 @@ def main() -> None:
     ap.add_argument("--commands", default=",".join(DEFAULT), help=f"comma-separated, of {', '.join(COMMANDS)}")
     ap.add_argument("--baseline", type=Path, help="also run analyze --json from this checkout, alternately")
     args = ap.parse_args()
-    exe = shutil.which("trackside") or sys.exit("trackside is not installed (pip install .)")
+    # The trackside of the Python running this (its venv), before any other on PATH.
+    beside = Path(sys.executable).with_name("trackside")
+    exe = str(beside) if beside.exists() else shutil.which("trackside") or sys.exit("trackside is not installed")
     names = [c.strip() for c in args.commands.split(",") if c.strip()]
     if bad := [c for c in names if c not in COMMANDS]:
         sys.exit(f"--commands: unknown {', '.join(bad)}")
@@ -74,12 +76,16 @@ def main() -> None:
                 for name in names:
                     cmd = command(name, exe, log.resolve(), layout, archive)
                     if args.baseline is not None and name in ("analyze-json", "ingest"):
-                        wall, cpu, rss, _code = run(in_checkout(cmd), cwd=args.baseline)
+                        wall, cpu, rss, code = run(in_checkout(cmd), cwd=args.baseline)
+                        if code != 0:  # a failed run's figures are no figures
+                            sys.exit(f"{name} (base) exited {code}: {' '.join(in_checkout(cmd))}")
                         shutil.rmtree(archive, ignore_errors=True)
                         walls.setdefault(f"{name} (base)", []).append(wall)
                         base = f"{name} (base)"
                         print(f"{log.name:<12} {base:<24} {wall:8.2f} {cpu:8.2f} {rss:8.0f}  {_load()}", flush=True)
-                    wall, cpu, rss, _code = run(cmd)
+                    wall, cpu, rss, code = run(cmd)
+                    if code != 0:
+                        sys.exit(f"{name} exited {code}: {' '.join(cmd)}")
                     walls.setdefault(name, []).append(wall)
                     verdict = "ok" if rss <= TARGET_MB else "OVER"
                     print(
