@@ -38,12 +38,12 @@ EMPTY = "empty"
 UNKNOWN = "unknown"
 GNSS_FORMATS = (NMEA, GNSS_CSV, GNSS_JSONL, CENTRE, GPX)
 
-_NUMBER_PARTS = re.compile(r"(\d+)")
+NUMBER_PARTS = re.compile(r"(\d+)")  # the runs of digits natural order reads as numbers
 
 
 def natural_key(text: str) -> tuple[Any, ...]:
     """``WS10`` after ``WS9``, train ``T10`` after ``T2``."""
-    return tuple(int(p) if i % 2 else p.casefold() for i, p in enumerate(_NUMBER_PARTS.split(text)))
+    return tuple(int(p) if i % 2 else p.casefold() for i, p in enumerate(NUMBER_PARTS.split(text)))
 
 
 STDIN_NAME = "-"  # an input that means standard input

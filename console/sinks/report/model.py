@@ -44,7 +44,7 @@ from console.analysis.sections.engine import SectionsResult
 from console.analysis.sections.state import SectionState
 from console.analysis.timefmt import iso
 from console.drivers.batch import DiagJob
-from console.inputs.recognise import natural_key
+from console.inputs.recognise import NUMBER_PARTS, natural_key
 from console.layout import Layout
 from console.sinks.report.jsonwrite import Rows
 from console.sinks.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPassages, SectionHistory
@@ -242,9 +242,6 @@ class ReportData:
             self.history.close()
 
 
-_NUMBER_PARTS = re.compile(r"(\d+)")
-
-
 def timeline_order(r: TimelineRow) -> tuple[Any, ...]:
     """Crossing timelines per crossing, then in the order the trains arrived."""
     t = r.t_head_arrival_ns if r.t_head_arrival_ns is not None else r.t_on_ns
@@ -355,7 +352,7 @@ def _sensors(data: ReportData) -> list[dict[str, Any]]:
 def _natural_order(names: pd.Index) -> np.ndarray:
     """Positions of ``names`` in :func:`natural_key` order (ties keep their order), one sort key
     string per name: runs of digits length-prefixed, so that plain string order is the natural one."""
-    keys = [_NUMBER_PARTS.sub(_padded_number, str(x).casefold()) for x in names]
+    keys = [NUMBER_PARTS.sub(_padded_number, str(x).casefold()) for x in names]
     return np.argsort(np.array(keys, dtype=object), kind="stable")
 
 
