@@ -20,7 +20,7 @@ import psutil  # type: ignore[import-untyped]  # (distributed depends on it; no 
 from distributed import Client, LocalCluster
 
 from console.fleet.options import WORKER_MEMORY_LIMIT_BYTES
-from console.sim.station import Fault
+from console.sim.faults import Fault
 
 
 @contextmanager

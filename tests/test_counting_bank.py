@@ -34,7 +34,8 @@ from console.analysis.events.detection import DetectionEvent, EventKind, sort_ev
 from console.analysis.passages.diagnostics import DiagAnalysis, SpeedSettings
 from console.analysis.passages.stream import ORDER_SLACK_S
 from console.layout import Layout, load_layout
-from console.sim.station import Fault, SimConfig, StationSim
+from console.sim.faults import Fault
+from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_diagnostic
 from tests.reads import whole_job
 

@@ -25,7 +25,7 @@ from typer.testing import CliRunner
 
 from console.archive.store import read_current
 from console.cli.app import app
-from console.sim.station import Fault
+from console.sim.faults import Fault
 from tests.fleet_fixtures import (
     archive_snapshot,
     kill_a_busy_worker,

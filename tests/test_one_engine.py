@@ -41,7 +41,8 @@ from console.engine.sinks import Sink, Sinks
 from console.inputs.base import LineBlock
 from console.layout import Layout, load_layout
 from console.live.engine import LiveEngine
-from console.sim.station import Fault, SimConfig, StationSim
+from console.sim.faults import Fault
+from console.sim.station import SimConfig, StationSim
 from tests.fleet_fixtures import local_cluster, simulate_over_midnight
 
 RUNS = int(os.environ.get("TRACKSIDE_ONE_ENGINE_RUNS", 2))

@@ -18,7 +18,8 @@ from typing import Any
 import pytest
 
 from console.layout import load_layout
-from console.sim.station import Fault, SimConfig, StationSim
+from console.sim.faults import Fault
+from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_run
 from console.tui.replay_source import ReplaySource
 

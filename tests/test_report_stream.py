@@ -30,7 +30,8 @@ from benchmarks.gen_realistic_diag import generate
 from console.analysis.sections.state import LedgerEntry, SectionState, Transition
 from console.jsonout import valid_unicode
 from console.layout import load_layout
-from console.sim.station import Fault, SimConfig, StationSim
+from console.sim.faults import Fault
+from console.sim.station import SimConfig, StationSim
 from console.sim.writers import write_run
 from console.sinks.report import command, markdown, outline
 from console.sinks.report.collect import collect

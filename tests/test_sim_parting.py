@@ -13,7 +13,8 @@ from console.analysis.crossing.controller import EOT, HEAD, ControllerSettings, 
 from console.analysis.integrity.monitor import PARTED, WHOLE, IntegrityEvent
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
-from console.sim.station import Fault, SimConfig, StationSim
+from console.sim.faults import Fault
+from console.sim.station import SimConfig, StationSim
 from parsers.units import NS
 
 TRACKSIDE = Path(sys.executable).with_name("trackside")

@@ -15,8 +15,9 @@ from console.archive.reader import Window
 from console.archive.views import connect
 from console.cli.app import app
 from console.layout import load_layout
+from console.sim.faults import Fault
 from console.sim.slow_faults import DEFAULT_RATES, HealthRows, threshold_crossings
-from console.sim.station import Fault, SimConfig, StationSim
+from console.sim.station import SimConfig, StationSim
 
 runner = CliRunner()
 DAY = 86_400.0

@@ -24,7 +24,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -32,12 +32,9 @@ from console.analysis.health.forecast import DISTURBANCE_LIMIT_PER_H, GNSS_LOSS_
 from console.analysis.health.rules import BandSettings
 from console.analysis.timefmt import iso
 from console.layout import Layout
+from console.sim.faults import SLOW_FAULT_KINDS, Fault
 from parsers.units import NS
 
-if TYPE_CHECKING:
-    from console.sim.station import Fault
-
-SLOW_FAULT_KINDS = ("analog_drift", "disturbance_growth", "gnss_decay")
 DEFAULT_RATES = {"analog_drift": 3.0, "disturbance_growth": 0.6, "gnss_decay": 0.015}
 RATE_UNITS = {"analog_drift": "counts/day", "disturbance_growth": "per hour, each day", "gnss_decay": "share/day"}
 DAY_S = 86_400.0

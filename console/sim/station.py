@@ -41,47 +41,17 @@ from console.layout import Consist, Layout
 from console.sim import brake_pipe as bp
 from console.sim.devices import line_devices, with_devices
 from console.sim.dynamics import LEVEL_LINE, TrainState, scaled_train
+from console.sim.faults import Fault
 from console.sim.parting import PartingTruth, braking_step, part_consist, split_axles
 from console.sim.radio import LoRaLink
 from console.sim.sensor_count import SensorCounts
-from console.sim.slow_faults import SLOW_FAULT_KINDS, HeadHealth, HealthRows, HealthSettings, unit_loss
+from console.sim.slow_faults import HeadHealth, HealthRows, HealthSettings, unit_loss
 from parsers.units import NS
 
 DETECTION_ZONE_M = 0.25  # a wheel damps a coil over this length of travel
 # The truth's head arrival and tail clearance at a crossing: at the road's half width (the crossing units' figure).
 CROSSING_HALF_WIDTH_M = ControllerSettings().crossing_half_width_m
 ENTRY_ROOM_M = 400.0  # a new train enters only this far behind the tail of the one before it
-FAULT_KINDS = (
-    "dead_channel",
-    "isolated_pulse",
-    "damped_head",
-    "power_loss",
-    "missed_detections",
-    "eot_loss",
-    "head_loss",
-    *SLOW_FAULT_KINDS,
-    "train_parting",
-)
-TRAIN_FAULTS = ("eot_loss", "head_loss", "train_parting")  # their target is a train, the others' a head
-
-
-@dataclass(frozen=True)
-class Fault:
-    """A fault on demand.  ``target``: a head id (sensor faults), a train id (GNSS unit losses,
-    ``train_parting``: from ``start_s``, or the first moment after it the train runs, its rear half
-    separates with the EOT unit and brakes to a stop) or a unit (``gnss_decay``: ``T3-eot``).  Slow faults
-    (console.sim.slow_faults) grow at ``rate``."""
-
-    kind: str
-    target: str
-    start_s: float
-    end_s: float = math.inf
-    channel: int = SYS2
-    probability: float = 0.2  # missed_detections: the share of one system's wheels missed
-    rate: float | None = None  # slow faults: growth per day (None: the kind's default)
-
-    def active(self, t_s: float) -> bool:
-        return self.start_s <= t_s < self.end_s
 
 
 @dataclass(frozen=True)

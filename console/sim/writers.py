@@ -55,8 +55,9 @@ from console.sim.diag_lines import (
     naive_time,
     wheel_rows,
 )
+from console.sim.faults import SLOW_FAULT_KINDS
 from console.sim.gnss_rows import DEVICE_STREAM_HEADER, device_stream_row, unit_name
-from console.sim.slow_faults import SLOW_FAULT_KINDS, threshold_crossings
+from console.sim.slow_faults import threshold_crossings
 from console.sim.station import StationSim
 from parsers.frames.table import CHECK_BYTE, encode_status
 from parsers.units import NS

@@ -16,8 +16,8 @@ from console.plural import count
 def _parse_fault(text: str) -> Any:
     """``KIND:TARGET:START[:END[:CHANNEL[:RATE]]]`` (times like 90s, 30m, 3d) → a simulator Fault."""
     from console.analysis.timefmt import parse_duration
-    from console.sim.slow_faults import SLOW_FAULT_KINDS, check_rate
-    from console.sim.station import FAULT_KINDS, Fault
+    from console.sim.faults import FAULT_KINDS, SLOW_FAULT_KINDS, Fault
+    from console.sim.slow_faults import check_rate
 
     parts = text.split(":")
     if len(parts) < 3 or len(parts) > 6 or parts[0] not in FAULT_KINDS:
@@ -43,7 +43,7 @@ def _parse_fault(text: str) -> Any:
 
 
 def _check_targets(faults: tuple[Any, ...], lay: Any, fleet: int, health_only: bool) -> None:
-    from console.sim.station import TRAIN_FAULTS
+    from console.sim.faults import TRAIN_FAULTS
 
     heads = {h.id for h in lay.heads}
     for f in faults:
@@ -277,7 +277,7 @@ def _run_days(
     from console.progress import byte_progress
     from console.safe_text import show_path
     from console.sim.days import run_days
-    from console.sim.slow_faults import SLOW_FAULT_KINDS
+    from console.sim.faults import SLOW_FAULT_KINDS
 
     with byte_progress(int(days * 86_400), "simulating days") as advance:
         last = [0.0]
