@@ -30,9 +30,9 @@ from __future__ import annotations
 
 import codecs
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
-from console.inputs.base import GnssFix, Item, LineBlock
+from console.inputs.base import GnssFix, Item, LineBlock, SourceStatus
 from console.inputs.file_frames import CanLines, SensorFrameLines, can_format
 from console.inputs.file_gnss import DEVICE_KINDS, STREAM_KINDS, GnssLines
 from parsers.frames.can import CanFileReport
@@ -42,8 +42,19 @@ from parsers.report import FileReport, ParseReport, Rejection, device_of_file
 FOLLOWED = frozenset({"diag", *STREAM_KINDS, *DEVICE_KINDS, "can", "frames"})
 DECIDE_LINES = 16  # record lines after which a head that is still no known format is taken as none
 SHOWN_MALFORMED = 20  # shown one by one; after that one note per 1000 (as MQTT's malformed messages)
-if TYPE_CHECKING:
-    from console.inputs.follow import FileSource
+
+
+class FollowingSource(Protocol):
+    """What a followed file's lines need of the source following it (:class:`console.inputs.follow.FileSource`)."""
+
+    uri: str
+    watching: str  # how the file is watched: "inotify" or "poll"
+
+    def note(self, kind: str, detail: str) -> None: ...
+    def set_connected(self, connected: bool, detail: str) -> None: ...
+    def count_malformed(self, n: int = 1) -> None: ...
+    def status(self) -> SourceStatus: ...
+
 
 _WHAT_IS_FOLLOWED = (
     "file: follows diagnostic logs, GNSS streams (NMEA, gpsd JSON, device CSV or JSON lines),"
@@ -71,7 +82,7 @@ def _unreadable(head: bytes) -> str:
 class FileLines:
     """A followed source's files: recognised one by one, their lines turned into items."""
 
-    def __init__(self, source: FileSource, path: Path) -> None:
+    def __init__(self, source: FollowingSource, path: Path) -> None:
         self.source = source
         self.path = path
         self.report = ParseReport(on_reject=self._rejected)

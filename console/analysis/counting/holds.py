@@ -22,21 +22,34 @@ within that feed; ``tie``: the order within the step), sorted by it once.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Sequence
+from typing import Protocol
 
 import numpy as np
 
-from console.analysis.events.block import KIND_CODE, Detail, EventBlock
+from console.analysis.events.block import KIND_CODE, Detail, EventBlock, StringPool
 from console.analysis.events.detection import EventKind
-
-if TYPE_CHECKING:
-    from console.analysis.counting.bank import CounterBank
 
 NONE = np.iinfo(np.int64).min  # no time (HeadCounter's None)
 _SINGLE_KIND, _INTERFERENCE_KIND, _ACCIDENTAL_KIND = (
     KIND_CODE[k] for k in (EventKind.SINGLE_CHANNEL, EventKind.INTERFERENCE, EventKind.ACCIDENTAL)
 )
+
+
+class HoldingBank(Protocol):
+    """What the holds' rules read and keep of :class:`~console.analysis.counting.bank.CounterBank`."""
+
+    iso: int  # the isolation time, ns
+    names: Sequence[str]
+    pool: StringPool
+    source: int
+    texts: tuple[int, int, int]  # the pool's codes of the three hold notes
+    tol: np.ndarray  # per head: the pair window, ns
+    pending: Rows
+    holds: Rows
+    hold_ids: int
+
+
 # Within one record, HeadCounter.feed makes its events in this order (an event's ``sub``): waiting
 # onsets expired, holds confirmed accidental, holds ended by activity, the record's own, head free.
 EXPIRED, ACCIDENTAL, ACTIVITY, OWN, FREE = range(5)
@@ -58,7 +71,7 @@ class Collector:
         for c, v in zip(_COLS, values, strict=True):
             self.parts[c].append(v if isinstance(v, np.ndarray) else np.full(n, v, np.int64))
 
-    def block(self, bank: CounterBank) -> EventBlock:
+    def block(self, bank: HoldingBank) -> EventBlock:
         if not self.parts["gen"]:
             return EventBlock.empty(bank.names, bank.pool.strings)
         cols = {c: np.concatenate(v) if len(v) > 1 else v[0] for c, v in self.parts.items()}
@@ -118,7 +131,7 @@ def first_record(h: np.ndarray, t: np.ndarray, qh: np.ndarray, qt: np.ndarray, a
 
 
 def lone_events(
-    bank: CounterBank,
+    bank: HoldingBank,
     out: Collector,
     gen: np.ndarray,
     sub: np.ndarray,
@@ -140,7 +153,7 @@ def lone_events(
 
 
 def settle(
-    bank: CounterBank,
+    bank: HoldingBank,
     out: Collector,
     idx: np.ndarray,
     h: np.ndarray,
@@ -184,7 +197,7 @@ def settle(
     bank.holds.add({"head": hk[stay], "t_on": ht[stay], "channel": hc[stay], "hold": hid[stay]})
 
 
-def pass_time(bank: CounterBank, until: Callable[[np.ndarray], np.ndarray], strict: bool) -> EventBlock:
+def pass_time(bank: HoldingBank, until: Callable[[np.ndarray], np.ndarray], strict: bool) -> EventBlock:
     """HeadCounter.advance at every head with something waiting or held, to ``until(heads)`` each
     (NONE: not this head):
     waiting onsets more than a window old expire, holds due by then are confirmed accidental.

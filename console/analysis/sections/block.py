@@ -20,23 +20,31 @@ only makes its later events stepped one by one (still exact), and a reset
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from console.analysis.events.block import KIND_CODE, EventBlock
-from console.analysis.events.detection import EventKind
-from console.analysis.sections.state import EngineSection, LedgerEntry, SectionState
-
-if TYPE_CHECKING:
-    from console.analysis.sections.engine import SectionEngine
+from console.analysis.events.detection import DetectionEvent, EventKind
+from console.analysis.sections.state import EngineSection, LedgerEntry, SectionState, Transition
 
 _AXLE, _DAMPED, _FREE, _RESET = (
     KIND_CODE[k] for k in (EventKind.AXLE, EventKind.HEAD_DAMPED, EventKind.HEAD_FREE, EventKind.RESET)
 )
 
 
-def step_block(engine: SectionEngine, block: EventBlock) -> None:
+class SteppedEngine(Protocol):
+    """What a block's run reads and changes of :class:`~console.analysis.sections.engine.SectionEngine`."""
+
+    sections: dict[str, EngineSection]
+    damped: set[str]  # heads with something over them now
+    ledger: list[LedgerEntry]
+
+    def step(self, e: DetectionEvent) -> list[Transition]: ...
+    def bound(self, head: str) -> list[tuple[EngineSection, int]]: ...
+
+
+def step_block(engine: SteppedEngine, block: EventBlock) -> None:
     """Apply a block of events in order, as ``engine.step`` on each would."""
     lo = 0
     n = len(block)
@@ -48,7 +56,7 @@ def step_block(engine: SectionEngine, block: EventBlock) -> None:
         lo = r + 1
 
 
-def _segment(engine: SectionEngine, block: EventBlock, lo: int, hi: int) -> None:
+def _segment(engine: SteppedEngine, block: EventBlock, lo: int, hi: int) -> None:
     """Events lo … hi - 1, none of them a reset."""
     kind = block.kind[lo:hi]
     direction = block.direction[lo:hi].astype(np.int64)
@@ -109,7 +117,7 @@ class _Context:
 
     def __init__(
         self,
-        engine: SectionEngine,
+        engine: SteppedEngine,
         block: EventBlock,
         lo: int,
         sections: list[EngineSection],
