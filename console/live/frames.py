@@ -50,6 +50,7 @@ from console.analysis.sections.state import SectionState, Transition
 from console.analysis.timefmt import iso
 from console.inputs.base import CanFrame, FrameRows
 from console.layout import Layout
+from console.sinks.tables.event_lines import section_event
 from parsers.frames.can import COUNT_DLC, COUNT_ID_BASE, NODE_MAX, NODE_MIN, default_sensor_name
 from parsers.frames.table import CHECK_BYTE, DER_BIT, check_byte_mask, decode_status
 from parsers.report import escape_text
@@ -357,17 +358,7 @@ class FrameFollow:
         self.stats.section_changes += 1
         if self.listener is not None:
             self.listener.transition(tr)
-        self.emit(
-            {
-                "type": "section",
-                "section": tr.section,
-                "state": str(tr.state),
-                "count": tr.count,
-                "reason": tr.reason,
-                "time_ns": tr.time_ns,
-                "time": iso(tr.time_ns),
-            }
-        )
+        self.emit(section_event(tr))
 
     def section_states(self) -> dict[str, tuple[str, int]]:
         if self.sections is None:

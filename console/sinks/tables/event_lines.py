@@ -1,6 +1,7 @@
 """The pipeline's results as event objects: the lines of ``--jsonl`` and what the live views show.
 
-One function per kind of result, so ``follow --jsonl``, ``analyze --jsonl``,
+One function per kind of result (the crossing stage, in the engine, makes its own:
+:mod:`console.engine.crossings`), so ``follow --jsonl``, ``analyze --jsonl``,
 the station's event log and the metrics read the same fields.
 """
 
@@ -43,16 +44,3 @@ def reset_event(r: ResetRecord) -> dict[str, Any]:
 def health_event(f: Finding) -> dict[str, Any]:
     """A health finding."""
     return {"type": "health", **f.to_dict()}
-
-
-def crossing_event(e: Any) -> dict[str, Any]:
-    """A crossing controller's event (warning on or off, an alarm)."""
-    return {
-        "type": "crossing",
-        "crossing": e.crossing,
-        "train": e.train,
-        "kind": e.kind,
-        "reason": e.reason,
-        "time_ns": e.t_ns,
-        "time": iso(e.t_ns),
-    }
