@@ -145,6 +145,23 @@ def replicate(src: Path, dst: Path, replicas: int) -> int:
                 out.tables.setdefault(table, []).append(rel)
                 new.append(rel)
                 continue
+            if table in ("head_days", "identity_days"):  # per day: each copy on its shifted day, as the records
+                t = pq.read_table(src / rel, partitioning=None)
+                day = rel.split("day=")[1][:10]
+                for k in range(replicas):
+                    shifted = t
+                    for col in ("first_time", "last_time", "at_time"):
+                        if col in shifted.column_names:
+                            idx = shifted.schema.get_field_index(col)
+                            delta = pa.scalar(k * span * NS_PER_DAY, pa.duration("ns"))
+                            shifted = shifted.set_column(idx, col, pc.add(shifted.column(col), delta))
+                    new_day = str(__import__("numpy").datetime64(day) + k * span)
+                    new_rel = rel.replace(f"day={day}", f"day={new_day}").replace(".parquet", f"-c{k}.parquet")
+                    (dst / new_rel).parent.mkdir(parents=True, exist_ok=True)
+                    pq.write_table(shifted, dst / new_rel, compression="zstd")
+                    out.tables.setdefault(table, []).append(new_rel)
+                    new.append(new_rel)
+                continue
             if table != "records":
                 target = dst / rel
                 target.parent.mkdir(parents=True, exist_ok=True)
