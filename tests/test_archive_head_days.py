@@ -36,7 +36,8 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     simulate_over_midnight(sim, seed=11, before_s=240, minutes=9, days=2)
     osong = d / "osong.log"
     osong.write_bytes(
-        (SAMPLES / "osong_ws4_0932_detection.log").read_bytes() + (SAMPLES / "osong_ws4_1032_detection.log").read_bytes()
+        (SAMPLES / "osong_ws4_0932_detection.log").read_bytes()
+        + (SAMPLES / "osong_ws4_1032_detection.log").read_bytes()
     )
     return [sim, osong]
 

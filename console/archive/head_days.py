@@ -40,7 +40,9 @@ TABLES = (HEAD_DAYS, IDENTITY_DAYS)
 # The read position of a record: a line is one record, so no two records share it.
 POSITION = "file_seq::BIGINT * 4294967296 + line"
 # The identity registers' grouping and order of "latest" (time; ties: the later file and line).
-IDENTITY_GROUP = "device_id, diag_id, device, type, gs, counting_head, channel, address, label, label_canonical, label_encoding"
+IDENTITY_GROUP = (
+    "device_id, diag_id, device, type, gs, counting_head, channel, address, label, label_canonical, label_encoding"
+)
 LATEST = "(time, file_seq, line)"
 
 _DAY_IN_PATH = re.compile(r"/day=(\d{4}-\d{2}-\d{2})/")

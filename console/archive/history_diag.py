@@ -228,7 +228,9 @@ def _inventory(
 
     labels = sorted(IDENTITY_LABELS)
     days = whole_days(window.start, window.end) if root is not None and manifest is not None else None
-    stored = stored_rows(con, root, manifest, days, window.head, window.device_id) if days and root and manifest else None
+    stored = (
+        stored_rows(con, root, manifest, days, window.head, window.device_id) if days and root and manifest else None
+    )
     per_head: list[tuple[Any, ...]] = []
     ident_rows: list[tuple[Any, ...]] = []
     pieces = [window]
