@@ -145,6 +145,23 @@ def replicate(src: Path, dst: Path, replicas: int) -> int:
                 out.tables.setdefault(table, []).append(rel)
                 new.append(rel)
                 continue
+            if table in ("head_days", "identity_days"):  # per day: each copy on its shifted day, as the records
+                t = pq.read_table(src / rel, partitioning=None)
+                day = rel.split("day=")[1][:10]
+                for k in range(replicas):
+                    shifted = t
+                    for col in ("first_time", "last_time", "at_time"):
+                        if col in shifted.column_names:
+                            idx = shifted.schema.get_field_index(col)
+                            delta = pa.scalar(k * span * NS_PER_DAY, pa.duration("ns"))
+                            shifted = shifted.set_column(idx, col, pc.add(shifted.column(col), delta))
+                    new_day = str(__import__("numpy").datetime64(day) + k * span)
+                    new_rel = rel.replace(f"day={day}", f"day={new_day}").replace(".parquet", f"-c{k}.parquet")
+                    (dst / new_rel).parent.mkdir(parents=True, exist_ok=True)
+                    pq.write_table(shifted, dst / new_rel, compression="zstd")
+                    out.tables.setdefault(table, []).append(new_rel)
+                    new.append(new_rel)
+                continue
             if table != "records":
                 target = dst / rel
                 target.parent.mkdir(parents=True, exist_ok=True)
@@ -245,20 +262,25 @@ def big_commands(big: Path) -> dict[str, list[str]]:
     }
 
 
-def compare_big(big: Path, baseline: Path | None, rounds: int) -> None:
+def compare_big(big: Path, baseline: Path | None, rounds: int, baseline_big: Path | None = None) -> None:
     """Each command ``rounds`` times, alternating this checkout and ``baseline``'s; medians of wall and CPU,
-    peak RSS; the outputs compared byte for byte."""
+    peak RSS; the outputs compared byte for byte.  ``baseline_big``: the baseline reads this archive instead
+    (the same records derived by the baseline's own derive version)."""
     here = Path(__file__).resolve().parent.parent
     sides = {"ours": here, **({"baseline": baseline.resolve()} if baseline is not None else {})}
     print(f"big archive: {big} ({du(big) / 1e6:.0f} MB); {rounds} rounds; load {load()}")
+    other = big_commands(baseline_big) if baseline_big is not None else {}
     for label, args in big_commands(big).items():
-        cmd = [sys.executable, "-c", LAUNCH, *args]
+        cmds = {
+            side: [sys.executable, "-c", LAUNCH, *(other.get(label, args) if side == "baseline" else args)]
+            for side in sides
+        }
         got: dict[str, list[tuple[float, float, float]]] = {k: [] for k in sides}
         outs: dict[str, bytes] = {}
         loads = []
         for _ in range(rounds):
             for side, cwd in sides.items():
-                wall, rss = run(cmd, keep_stdout=True, cwd=cwd)
+                wall, rss = run(cmds[side], keep_stdout=True, cwd=cwd)
                 got[side].append((wall, _LAST_CPU[0], rss))
                 outs.setdefault(side, _LAST_OUT[0])
                 if outs[side] != _LAST_OUT[0]:
@@ -281,6 +303,7 @@ def main() -> None:
     ap.add_argument("log", type=Path, nargs="?")
     ap.add_argument("--big", type=Path, help="time the commands on this existing big archive only (read-only)")
     ap.add_argument("--baseline", type=Path, help="with --big: also run this checkout's code, alternately")
+    ap.add_argument("--baseline-big", type=Path, help="with --baseline: the baseline reads this archive instead")
     ap.add_argument("--rounds", type=int, default=5, help="with --big: runs of each command per side (median)")
     ap.add_argument("--replicas", type=int, default=15)
     ap.add_argument("--skip-processes", action="store_true", help="no analyze, report or read-only runs")
@@ -290,7 +313,7 @@ def main() -> None:
     ap.add_argument("--work", type=Path, help="work directory, kept (default: a temporary one, removed)")
     args = ap.parse_args()
     if args.big is not None:
-        compare_big(args.big, args.baseline, args.rounds)
+        compare_big(args.big, args.baseline, args.rounds, args.baseline_big)
         return
     if args.log is None:
         ap.error("give LOG (or --big DIR)")

@@ -53,6 +53,7 @@ from console.analysis.passages.registers import RegisterTables
 from console.analysis.sections.engine import SectionEngine
 from console.analysis.sections.stream import EventStream, HeadFacts
 from console.archive.derive_sink import DERIVE_VERSION, ArchiveSink, arrow_table, day_column
+from console.archive.head_days import days_of_parts, derive_days
 from console.archive.history import at_end_tables
 from console.archive.parts import write_part, write_small
 from console.archive.reader import heads_in, layout_of, record_batches, speed_settings
@@ -506,7 +507,15 @@ class Derivation:
             }
         )
         parts += self._at_end(heads)
+        # The inventory's figures per day: the days this ingest's records lie in, or every day when the
+        # derivation was made again (another version, a file replaced).
+        fresh = None if not self.same or self.rebuild_all else days_of_parts(self._records_of_this_ingest())
+        parts += derive_days(self.root, self.manifest, self.generation, fresh)
         return parts
+
+    def _records_of_this_ingest(self) -> list[str]:
+        mine = f"g{self.generation:06d}-"
+        return [rel for rel in self.manifest.parts("records") if os.path.basename(rel).startswith(mine)]
 
     def _run_groups(self, new_seqs: list[int], mapper: Any) -> list[GroupResult]:
         old = self.manifest.derived

@@ -41,7 +41,8 @@ if TYPE_CHECKING:
 # 8: the analysis grouped by job (console.analysis.passages.stream, .counting.bank, ...): likewise.
 # 9: an axle stamped at its passage's start is on that passage's day (it was put on the head's previous passage's,
 #    or another head's, as the pipeline's batches fell: the Dask engine's days differed from the local engine's).
-DERIVE_VERSION = 9
+# 10: the inventory's figures per day, device and head (console.archive.head_days), read by a report over whole days.
+DERIVE_VERSION = 10
 # Rows each derived table buffers before a write-out (the records' writer has BUFFER_BYTES): derived rows come
 # a few per chunk, and five tables' full buffers cost memory (a 3 M-record ingest peaked 35 MB lower at 4 MB than
 # at 16 MB, for the same CPU).

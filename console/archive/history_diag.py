@@ -88,7 +88,7 @@ def history_diag(
     pool.shutdown(wait=False)
     con, _ = connect(root, manifest, tables=("records", "passages", "section_states", "count_ledger"))
     try:
-        devices = _inventory(con, window)
+        devices = _inventory(con, window, root, manifest)
         if not devices:
             kept.cancel()
             return None
@@ -214,31 +214,70 @@ def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[
     return df
 
 
-def _inventory(con: duckdb.DuckDBPyConnection, window: Window) -> list[DeviceInventory]:
-    """The devices of the window's records, as the batch inventory gives them, from per-register aggregates."""
-    from console.analysis.inventory import IDENTITY_LABELS, DeviceInventory, IdentityValue, apply_identity
+def _inventory(
+    con: duckdb.DuckDBPyConnection, window: Window, root: Path | None = None, manifest: Manifest | None = None
+) -> list[DeviceInventory]:
+    """The devices of the window's records, as the batch inventory gives them: per device and head, the
+    figures of the window's whole days as derived at ingest (:mod:`console.archive.head_days`, with
+    ``manifest``), the rest aggregated over the records; the devices' figures gathered from their heads'."""
+    import dataclasses
+    import datetime as dt
 
-    where, params = window.where()
-    # One pass over the window's records, per device and head; the devices' figures gathered from their heads'.
-    # The first record's names: arg_min over the read position (a line is one record: no ties), cheaper
-    # than an ordered first().
-    pos = "file_seq::BIGINT * 4294967296 + line"
-    per_head = con.execute(
-        f"SELECT device_id, counting_head, min({pos}) AS first, arg_min(device, {pos}), arg_min(type, {pos}), "
-        f"arg_min(gs, {pos}), list(DISTINCT diag_id), list(DISTINCT channel), count(*), min(time), max(time) "
-        f"FROM records{where} GROUP BY device_id, counting_head ORDER BY device_id, first",
-        params,
-    ).fetchall()
+    from console.analysis.inventory import IDENTITY_LABELS, DeviceInventory, IdentityValue, apply_identity
+    from console.archive.head_days import IDENTITY_GROUP, head_rows_sql, identity_rows_sql, stored_rows, whole_days
+
+    labels = sorted(IDENTITY_LABELS)
+    days = whole_days(window.start, window.end) if root is not None and manifest is not None else None
+    stored = (
+        stored_rows(con, root, manifest, days, window.head, window.device_id) if days and root and manifest else None
+    )
+    per_head: list[tuple[Any, ...]] = []
+    ident_rows: list[tuple[Any, ...]] = []
+    pieces = [window]
+    if days is not None and stored is not None:
+        per_head, ident_rows = list(stored[0]), list(stored[1])
+        lo, hi = (dt.datetime.combine(d, dt.time()) for d in days)
+        pieces = [
+            w
+            for w in (dataclasses.replace(window, end=lo), dataclasses.replace(window, start=hi))
+            if w.start is not None and w.end is not None and w.start < w.end
+        ]
+    for piece in pieces:
+        where, params = piece.where()
+        # The first record's names: arg_min over the read position (a line is one record: no ties), cheaper
+        # than an ordered first().
+        per_head += con.execute(head_rows_sql(where) + " GROUP BY device_id, counting_head", params).fetchall()
+        # Identity registers: each one's latest value (by time; ties: the later line).
+        ident_where = where + (" AND " if where else " WHERE ") + "label_canonical IN (SELECT unnest(?))"
+        ident_rows += con.execute(
+            identity_rows_sql(ident_where) + f" GROUP BY {IDENTITY_GROUP}", [*params, labels]
+        ).fetchall()
     if not per_head:
         return []
+    # Per (device, head): its pieces (days, partial days) gathered; then in the order heads first appear.
+    merged: dict[tuple[Any, Any], list[Any]] = {}
+    for device_id, head, first, device, type_, gs, diag_ids, channels, n, t0, t1 in per_head:
+        row = merged.get((device_id, head))
+        if row is None:
+            merged[(device_id, head)] = [first, device, type_, gs, set(diag_ids), set(channels), n, t0, t1]
+            continue
+        if first < row[0]:
+            row[0:4] = [first, device, type_, gs]
+        row[4].update(diag_ids)
+        row[5].update(channels)
+        row[6] += n
+        row[7] = t0 if row[7] is None or (t0 is not None and t0 < row[7]) else row[7]
+        row[8] = t1 if row[8] is None or (t1 is not None and t1 > row[8]) else row[8]
     # Heads per device in the order they first appear (the batch numbers heads so).
     heads: dict[int, list[str]] = {}
     rows = []
-    for device_id, head, _, device, type_, gs, diag_ids, channels, n, first, last in per_head:
+    for (device_id, head), (_, device, type_, gs, diag_ids, channels, n, first, last) in sorted(
+        merged.items(), key=lambda kv: (kv[0][0], kv[1][0])
+    ):
         device_id = int(device_id)
         if device_id not in heads:
             heads[device_id] = []
-            rows.append([device_id, device, type_, gs, set(diag_ids), set(channels), n, first, last])
+            rows.append([device_id, device, type_, gs, diag_ids, channels, n, first, last])
         else:
             row = rows[-1]
             row[4].update(diag_ids)
@@ -246,18 +285,15 @@ def _inventory(con: duckdb.DuckDBPyConnection, window: Window) -> list[DeviceInv
             row[6] += n
             row[7], row[8] = min(row[7], first), max(row[8], last)
         heads[device_id].append(head)
-    # Identity registers: each one's latest value (by time; ties: the later line).
-    labels = sorted(IDENTITY_LABELS)
-    ident_where = where + (" AND " if where else " WHERE ") + "label_canonical IN (SELECT unnest(?))"
+    # Per register, its latest value among the pieces (time, then file and line).
+    latest: dict[tuple[Any, ...], tuple[Any, ...]] = {}
+    for r in ident_rows:
+        key, at = r[:11], r[14:17]
+        if key not in latest or at > latest[key][14:17]:
+            latest[key] = r
     identity: dict[int, list[IdentityValue]] = {}
-    for device_id, canonical, address, value, kind, data in con.execute(
-        "SELECT device_id, label_canonical, address, "
-        "arg_max(value, (time, file_seq, line)), arg_max(data_kind, (time, file_seq, line)), "
-        "arg_max(data, (time, file_seq, line)) "
-        f"FROM records{ident_where} GROUP BY device_id, diag_id, device, type, gs, counting_head, channel, "
-        "address, label, label_canonical, label_encoding",
-        [*params, labels],
-    ).fetchall():
+    for r in latest.values():
+        device_id, canonical, address, value, kind, data = r[0], r[9], r[7], r[11], r[12], r[13]
         identity.setdefault(int(device_id), []).append(
             IdentityValue(str(canonical), int(address), int(value), str(kind), str(data))
         )

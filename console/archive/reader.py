@@ -68,8 +68,15 @@ class Window:
                 params.append(self.start.date())
             if self.end is not None:
                 conds.append("day <= ?")
-                params.append(self.end.date())
+                params.append(self.last_day)
         return (" WHERE " + " AND ".join(conds)) if conds else "", params
+
+    @property
+    def last_day(self) -> dt.date:
+        """The last day a record before the end can lie in (a record's day is its time's: a window ending at
+        midnight reads nothing of the day it ends on)."""
+        assert self.end is not None
+        return (self.end - dt.timedelta(microseconds=1)).date()
 
     @property
     def whole(self) -> bool:
@@ -197,7 +204,7 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
         if key is None or (window.device_id is not None and key[1] != window.device_id):
             continue
         if (window.start is not None and key[0] < window.start.date()) or (
-            window.end is not None and key[0] > window.end.date()
+            window.end is not None and key[0] > window.last_day
         ):
             continue
         rels.append(rel)

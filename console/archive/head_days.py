@@ -1,0 +1,165 @@
+"""The device inventory's figures per day, device and counting head, derived at ingest.
+
+``report --archive`` lists the devices of its window (:func:`console.archive.history_diag._inventory`):
+per device and head, the first record's names, the diagnostic ids and channels, the records and their
+first and last times, and the identity registers' latest values.  Over a day of a busy station that is
+two aggregates over millions of records (about half a CPU second for 3 M); here they are made once per
+day at ingest, so a report over whole days reads a few hundred rows.
+
+Two tables, partitioned by day, each day's part made again from all of that day's records whenever an
+ingest adds records to it (so the rows do not depend on how the files were split between ingests):
+
+* ``head_days``: per (day, device_id, counting_head): the first record's read position (``file_seq`` ×
+  2³² + ``line``) and its ``device``, ``type`` and ``gs``; the distinct ``diag_ids`` and ``channels``;
+  ``records``; ``first_time`` and ``last_time``;
+* ``identity_days``: per day and identity register (the inventory's grouping): its latest value, kind
+  and data, and when (time, file, line) it was read.
+
+Only records with a time are summarised: a window is a time range, and a record without a time is in no
+bounded window (a report without ``--from``/``--to`` scans the records, as before).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+import re
+from collections.abc import Iterable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from console.archive.store import DATA, Manifest
+
+if TYPE_CHECKING:
+    import duckdb
+
+HEAD_DAYS = "head_days"
+IDENTITY_DAYS = "identity_days"
+TABLES = (HEAD_DAYS, IDENTITY_DAYS)
+
+# The read position of a record: a line is one record, so no two records share it.
+POSITION = "file_seq::BIGINT * 4294967296 + line"
+# The identity registers' grouping and order of "latest" (time; ties: the later file and line).
+IDENTITY_GROUP = (
+    "device_id, diag_id, device, type, gs, counting_head, channel, address, label, label_canonical, label_encoding"
+)
+LATEST = "(time, file_seq, line)"
+
+_DAY_IN_PATH = re.compile(r"/day=(\d{4}-\d{2}-\d{2})/")
+
+
+def head_rows_sql(where: str) -> str:
+    """Per (device, head) of the records ``where`` selects: the inventory's figures (``day`` first when
+    grouped by it: ``where`` decides nothing about that, the caller's GROUP BY does)."""
+    pos = POSITION
+    return (
+        f"SELECT device_id, counting_head, min({pos}) AS first_pos, arg_min(device, {pos}) AS device, "
+        f"arg_min(type, {pos}) AS type, arg_min(gs, {pos}) AS gs, list(DISTINCT diag_id) AS diag_ids, "
+        "list(DISTINCT channel) AS channels, count(*) AS records, min(time) AS first_time, "
+        f"max(time) AS last_time FROM records{where}"
+    )
+
+
+def identity_rows_sql(where: str) -> str:
+    """Per identity register of the records ``where`` selects (labels already chosen by it): its latest value."""
+    return (
+        f"SELECT {IDENTITY_GROUP}, arg_max(value, {LATEST}) AS value, arg_max(data_kind, {LATEST}) AS data_kind, "
+        f"arg_max(data, {LATEST}) AS data, max(time) AS at_time, arg_max(file_seq, {LATEST}) AS at_file_seq, "
+        f"arg_max(line, {LATEST}) AS at_line FROM records{where}"
+    )
+
+
+def days_of_parts(rels: Iterable[str]) -> set[str]:
+    """The days (YYYY-MM-DD) that record parts lie in (their paths say)."""
+    return {m[1] for rel in rels if (m := _DAY_IN_PATH.search("/" + rel))}
+
+
+def derive_days(root: Path, manifest: Manifest, generation: int, days: set[str] | None) -> list[str]:
+    """Both tables' parts for ``days`` (None: every day) made again from the records, replacing theirs in
+    ``manifest``; the parts written."""
+    import pyarrow.compute as pc
+
+    from console.analysis.inventory import IDENTITY_LABELS
+    from console.archive.parts import write_part
+    from console.archive.views import connect
+
+    for table in TABLES:
+        keep = [] if days is None else [r for r in manifest.parts(table) if not (days_of_parts([r]) & days)]
+        manifest.tables[table] = keep
+    if days is not None and not days:
+        return []
+    if not manifest.parts("records"):
+        return []
+    conds = ["time IS NOT NULL"]
+    params: list[Any] = []
+    if days is not None:
+        conds.append("day IN (SELECT unnest(?::DATE[]))")
+        params.append(sorted(days))
+    where = " WHERE " + " AND ".join(conds)
+    labels = ", ".join(f"'{x}'" for x in sorted(IDENTITY_LABELS))
+    con, _ = connect(root, manifest, tables=("records",))
+    try:
+        heads = con.sql(_grouped(head_rows_sql(where), "device_id, counting_head"), params=params).to_arrow_table()
+        ident_sql = _grouped(identity_rows_sql(f"{where} AND label_canonical IN ({labels})"), IDENTITY_GROUP)
+        ident = con.sql(ident_sql, params=params).to_arrow_table()
+    finally:
+        con.close()
+    written: list[str] = []
+    for table, rows in ((HEAD_DAYS, heads), (IDENTITY_DAYS, ident)):
+        day_col = rows.column("day")
+        for day in sorted({str(d) for d in day_col.to_pylist()}):
+            part = rows.filter(pc.equal(day_col.cast("string"), day)).drop_columns(["day"])
+            rel = os.path.join(DATA, table, f"day={day}", f"g{generation:06d}-s.parquet")
+            (root / rel).parent.mkdir(parents=True, exist_ok=True)
+            written.append(write_part(root, rel, part))
+            manifest.tables[table] = [*manifest.parts(table), rel]
+    return written
+
+
+def _grouped(select: str, group: str) -> str:
+    """``select`` (one SELECT ... FROM records WHERE ...) per day as well: ``day`` first, ordered for a stable part."""
+    rest = select.removeprefix("SELECT ")
+    return f"SELECT day, {rest} GROUP BY day, {group} ORDER BY day, {group}"
+
+
+def whole_days(start: dt.datetime | None, end: dt.datetime | None) -> tuple[dt.date, dt.date] | None:
+    """The whole days [first, last) inside the window [start, end), if any (both bounds needed)."""
+    if start is None or end is None:
+        return None
+    first = start.date() if start.time() == dt.time() else start.date() + dt.timedelta(days=1)
+    last = end.date()
+    return (first, last) if first < last else None
+
+
+def stored_rows(
+    con: duckdb.DuckDBPyConnection,
+    root: Path,
+    manifest: Manifest,
+    days: tuple[dt.date, dt.date],
+    head: str | None,
+    device_id: int | None,
+) -> tuple[list[tuple[Any, ...]], list[tuple[Any, ...]]] | None:
+    """Both tables' rows of the days [first, last), cut to the head and device (None: the archive has no
+    ``head_days`` part at all: derived before them, or no timed record; the caller reads the records)."""
+    if not manifest.parts(HEAD_DAYS):
+        return None
+    lo, hi = days[0].isoformat(), days[1].isoformat()
+    conds: list[str] = []
+    params: list[Any] = []
+    if head is not None:
+        conds.append("counting_head = ?")
+        params.append(head)
+    if device_id is not None:
+        conds.append("device_id = ?")
+        params.append(device_id)
+    where = (" WHERE " + " AND ".join(conds)) if conds else ""
+    out: list[list[tuple[Any, ...]]] = []
+    for table in TABLES:
+        rels = [r for r in manifest.parts(table) if any(lo <= d < hi for d in days_of_parts([r]))]
+        if not rels:
+            out.append([])
+            continue
+        files = "[" + ", ".join("'" + str(root / r).replace("'", "''") + "'" for r in rels) + "]"
+        sql = f"SELECT * FROM read_parquet({files}, hive_partitioning = false){where}"
+        out.append(con.execute(sql, params).fetchall())
+    return out[0], out[1]
