@@ -54,37 +54,41 @@ def scan(
     ``stop``: set by another thread, the scan ends early (its result is then meaningless).
     """
     whole = hashlib.sha256()
-    before_nl = whole.copy()  # the whole hash before the last block with a newline
-    nl_block = b""  # that block, up to and including its last newline
+    upto_nl = whole.copy()  # the hash up to the last newline so far
     prefix: str | None = None
     pos = 0
     last_nl_end = 0
     head = b""
+    # Read into one buffer, hashed through views: a fresh block per read, and a copy of each block up to its
+    # newline, cost as much CPU as the hash itself.
+    buf = bytearray(BLOCK)
+    view = memoryview(buf)
     with path.open("rb") as f:
         while True:
-            block = f.read(BLOCK if limit is None else min(BLOCK, limit - pos))
+            n = f.readinto(view if limit is None else view[: min(BLOCK, limit - pos)])
             if stop is not None and stop.is_set():
-                block = b""
-            if prefix_len is not None and prefix is None and pos + len(block) >= prefix_len:
+                n = 0
+            block = view[:n]
+            if prefix_len is not None and prefix is None and pos + n >= prefix_len:
                 h = whole.copy()
                 h.update(block[: prefix_len - pos])
                 prefix = h.hexdigest()
-            if not block:
+            if not n:
                 break
             if pos == 0:
-                head = block[:4]
-            nl = block.rfind(b"\n")
+                head = bytes(block[:4])
+            nl = buf.rfind(b"\n", 0, n)
             if nl >= 0:
-                before_nl = whole.copy()
-                nl_block = block[: nl + 1]
+                whole.update(block[: nl + 1])
+                upto_nl = whole.copy()
                 last_nl_end = pos + nl + 1
-            whole.update(block)
-            pos += len(block)
+                whole.update(block[nl + 1 :])
+            else:
+                whole.update(block)
+            pos += n
     whole_only = head.startswith(GZIP_MAGIC) or head.startswith(UTF16_BOMS)
     if whole_only:
         return Scan(pos, whole.hexdigest(), pos, whole.hexdigest(), prefix, True)
-    upto_nl = before_nl
-    upto_nl.update(nl_block)
     return Scan(pos, whole.hexdigest(), last_nl_end, upto_nl.hexdigest(), prefix, False)
 
 
