@@ -42,6 +42,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from console.archive import arrow_np
 from console.archive.store import DATA, fsync_file, sync_paths
 
 ROW_GROUP_ROWS = 256_000
@@ -123,7 +124,7 @@ def _sort_keys(table: pa.Table, sort_by: Sequence[str]) -> list[np.ndarray]:
             col = pa.chunked_array([c.indices for c in col.chunks], col.type.index_type)
         if pa.types.is_timestamp(col.type):
             col = col.cast(pa.int64())
-        keys.append(col.fill_null(-1).to_numpy())
+        keys.append(arrow_np.to_numpy(col.fill_null(-1) if col.null_count else col))
     return keys
 
 
@@ -146,7 +147,7 @@ def sorted_rows(table: pa.Table, sort_by: Sequence[str]) -> pa.Table:
     if _in_order(keys):
         return table
     order = np.lexsort(keys[::-1])  # np.lexsort: the last key is the primary one
-    return table.take(pa.array(order))
+    return table.take(arrow_np.array(order))
 
 
 class _Dictionaries:
@@ -198,13 +199,13 @@ class _Dictionaries:
         if self.mixed or len(pieces) < 2:
             table = self.concat(pieces)
             pieces.clear()
-            return table if order is None else table.take(pa.array(order))
+            return table if order is None else table.take(arrow_np.array(order))
         schema = pieces[0].schema
         columns: list[list[pa.Array] | None] = [
             [c for t in pieces for c in t.column(i).chunks] for i in range(len(schema))
         ]
         pieces.clear()
-        taken = None if order is None else pa.array(order)
+        taken = None if order is None else arrow_np.array(order)
         out = []
         for i, f in enumerate(schema):
             chunks, columns[i] = columns[i], None
