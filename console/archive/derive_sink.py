@@ -19,6 +19,7 @@ import pyarrow as pa
 from console.analysis.counting.wheels import DIRECTIONS
 from console.analysis.head_table import heads_at
 from console.analysis.passages.diagnostics import PASSAGE_BASES, PASSAGE_COLUMNS, PASSAGE_DIRECTIONS, PASSAGE_KINDS
+from console.archive import arrow_np
 from console.archive.parts import PartWriter
 from console.engine.pipeline import HEALTH_EVENT_KINDS
 from console.engine.sinks import Sink
@@ -160,11 +161,11 @@ class ArchiveSink(Sink):
 _NULLABLE_INTEGERS = frozenset({"detection_second_ns", "records_in_detection_second"})
 # The pipeline's code columns, by their codes: the text stored (taken by code in Arrow, not made per row in Python).
 _PASSAGE_CODES = {
-    "direction": pa.array(PASSAGE_DIRECTIONS, pa.large_string()),
-    "whole_train_basis": pa.array(PASSAGE_BASES, pa.large_string()),
-    "kind": pa.array(PASSAGE_KINDS, pa.large_string()),
+    "direction": arrow_np.strings(PASSAGE_DIRECTIONS, pa.large_string()),
+    "whole_train_basis": arrow_np.strings(PASSAGE_BASES, pa.large_string()),
+    "kind": arrow_np.strings(PASSAGE_KINDS, pa.large_string()),
 }
-_AXLE_DIRECTIONS = pa.array(DIRECTIONS, pa.large_string())
+_AXLE_DIRECTIONS = arrow_np.strings(DIRECTIONS, pa.large_string())
 
 
 def _heads_columns(heads: Heads, keys: np.ndarray) -> tuple[np.ndarray, pa.Array]:
@@ -172,12 +173,12 @@ def _heads_columns(heads: Heads, keys: np.ndarray) -> tuple[np.ndarray, pa.Array
     used, inverse = np.unique(np.asarray(keys, np.int64), return_inverse=True)
     used_dev, used_names = heads_at(heads, used)
     inverse = inverse.reshape(-1)
-    return used_dev[inverse], pa.array(list(used_names), pa.large_string()).take(pa.array(inverse))
+    return used_dev[inverse], arrow_np.strings(list(used_names), pa.large_string()).take(arrow_np.array(inverse))
 
 
 def _column(values: Any) -> pa.Array:
     """A numeric column as Arrow, NaN as null (as pandas hands floats to Arrow)."""
-    return pa.array(np.asarray(values), from_pandas=True)
+    return arrow_np.array(np.asarray(values), nan_is_null=True)
 
 
 def passages_table(cols: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
@@ -185,19 +186,19 @@ def passages_table(cols: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
     with the start as a time and each passage's axle speeds as a list, built from the pipeline's arrays (no
     pandas: this runs for every chunk of an ingest)."""
     device_id, counting_head = _heads_columns(heads, cols["head"])
-    arrays: list[pa.Array] = [pa.array(device_id, pa.int64()), counting_head]
+    arrays: list[pa.Array] = [arrow_np.array(device_id, pa.int64()), counting_head]
     names = ["device_id", "counting_head"]
     for c in PASSAGE_COLUMNS[2:]:
         if c in ("axle_speeds_start", "axle_speeds_stop"):
             continue
         if c in _PASSAGE_CODES:
-            arrays.append(_PASSAGE_CODES[c].take(pa.array(np.asarray(cols[c]))))
+            arrays.append(_PASSAGE_CODES[c].take(arrow_np.array(np.asarray(cols[c]))))
         elif c in _NULLABLE_INTEGERS:
             arrays.append(_column(cols[c]).cast(pa.int64()))
         else:
             arrays.append(_column(cols[c]))
         names.append(c)
-    arrays.append(pa.array(np.asarray(cols["start_ns"], np.int64).astype("datetime64[ns]")))
+    arrays.append(arrow_np.array(np.asarray(cols["start_ns"], np.int64).astype("datetime64[ns]")))
     names.append("start")
     # Per passage, its slice [start, stop) of the flat axle speeds, as one list column.
     first = np.asarray(cols["axle_speeds_start"], np.int64)
@@ -205,7 +206,7 @@ def passages_table(cols: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
     offsets = np.r_[0, np.cumsum(lengths)].astype(np.int32)
     picked = np.repeat(first - offsets[:-1], lengths) + np.arange(offsets[-1], dtype=np.int64)
     flat = np.asarray(cols["axle_speeds_kmh"], np.float64)[picked]
-    arrays.append(pa.ListArray.from_arrays(pa.array(offsets), pa.array(flat)))
+    arrays.append(pa.ListArray.from_arrays(arrow_np.array(offsets), arrow_np.array(flat)))
     names.append("axle_speeds_kmh")
     return device_id, pa.Table.from_arrays(arrays, names=names)
 
@@ -218,18 +219,20 @@ def axles_table(axles: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
     for c, values in axles.items():
         if c == "head":
             continue
-        arrays.append(_AXLE_DIRECTIONS.take(pa.array(np.asarray(values))) if c == "direction" else _column(values))
+        arrays.append(
+            _AXLE_DIRECTIONS.take(arrow_np.array(np.asarray(values))) if c == "direction" else _column(values)
+        )
         names.append(c)
     device_id, counting_head = _heads_columns(heads, axles["head"])
-    arrays += [pa.array(device_id, pa.int64()), counting_head]
-    arrays.append(pa.array(np.asarray(axles["time_ns"], np.int64).astype("datetime64[ns]")))
+    arrays += [arrow_np.array(device_id, pa.int64()), counting_head]
+    arrays.append(arrow_np.array(np.asarray(axles["time_ns"], np.int64).astype("datetime64[ns]")))
     names += ["device_id", "counting_head", "time"]
     return device_id, pa.Table.from_arrays(arrays, names=names)
 
 
 def day_column(day_index: np.ndarray) -> pa.Array:
     """Days since 1970 as the archive's ``day`` column (DATE)."""
-    return pa.array(np.asarray(day_index, np.int64).astype(np.int32), pa.date32())
+    return arrow_np.array(np.asarray(day_index, np.int64).astype(np.int32), pa.date32())
 
 
 def channel_events_frame(events: Iterable[Any]) -> pd.DataFrame:

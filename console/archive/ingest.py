@@ -195,6 +195,12 @@ class _Ingest:
         entry = ledger.find_entry(self.new.files, shown)
         prefix_len = entry["bytes"] if entry is not None else None
         found = pre[1].scan if pre is not None and pre[0] == prefix_len else None
+        if found is None and kind == DIAGNOSTIC and not self.on_cluster:
+            # A diagnostic log new by its size alone is parsed while it is hashed: the hash goes in the ledger.
+            z = ledger.sizes(path)
+            p_new = ledger.new_by_size(self.new.files, entry, z)
+            if p_new is not None:
+                return self._add_hashing(path, shown, kind, p_new, ledger.BackgroundScan(path, z))
         s = found if found is not None else ledger.scan(path, prefix_len)
         if pre is not None and pre[1].kind is not None:
             self.hints[str(path)] = pre[1].hint  # of the whole file: used where the whole file is read
@@ -207,13 +213,7 @@ class _Ingest:
             return FileOutcome(shown, kind, "skip", p.note)
         if p.action == "replace" and p.entry is not None:
             self._drop_entry(p.entry)
-        if p.action == "grown" and p.entry is not None:
-            e = p.entry
-        else:
-            e = {"file_seq": self._next_seq(), "path": shown, "kind": kind, "bytes": 0, "lines": 0, "active": True}
-            e.update({"records": 0, "blank": 0, "rejected": 0, "parts": [], "sha256": "", "complete_sha256": ""})
-            e["encoding"] = "utf-8"
-            self.new.files.append(e)
+        e = p.entry if p.action == "grown" and p.entry is not None else self._new_entry(shown, kind)
         # Fixes and frames are parsed from the file itself (GNSS names a device after its file).
         source = self._range_file(path, p.start, p.end, s.size) if kind == DIAGNOSTIC else path
         outcome = FileOutcome(shown, kind, p.action, p.note)
@@ -224,6 +224,43 @@ class _Ingest:
             self._diag(source, e, p, outcome)
         else:
             self._other(source, kind, e, outcome)
+        return self._read_done(path, shown, kind, source, e, p, s, outcome)
+
+    def _new_entry(self, shown: str, kind: str) -> dict[str, Any]:
+        e = {"file_seq": self._next_seq(), "path": shown, "kind": kind, "bytes": 0, "lines": 0, "active": True}
+        e.update({"records": 0, "blank": 0, "rejected": 0, "parts": [], "sha256": "", "complete_sha256": ""})
+        e["encoding"] = "utf-8"
+        self.new.files.append(e)
+        return e
+
+    def _add_hashing(
+        self, path: Path, shown: str, kind: str, p: ledger.Plan, hashing: ledger.BackgroundScan
+    ) -> FileOutcome:
+        """A new diagnostic log read (as :meth:`add_file` would) while ``hashing`` hashes it."""
+        try:
+            e = self._new_entry(shown, kind)
+            source = self._range_file(path, p.start, p.end, hashing.sizes.size)
+            outcome = FileOutcome(shown, kind, p.action, p.note)
+            self._diag(source, e, p, outcome)
+            s = hashing.result()
+        finally:
+            hashing.cancel()  # on a failure, the hash is not waited for
+        if hashing.changed(s):
+            raise ArchiveError(f"{shown}: changed while it was read (rewritten, not appended to)")
+        return self._read_done(path, shown, kind, source, e, p, s, outcome)
+
+    def _read_done(
+        self,
+        path: Path,
+        shown: str,
+        kind: str,
+        source: Path,
+        e: dict[str, Any],
+        p: ledger.Plan,
+        s: ledger.Scan,
+        outcome: FileOutcome,
+    ) -> FileOutcome:
+        """The ledger entry and the ingest's row of a file read (or queued for the cluster)."""
         outcome.bytes_read = p.end - p.start
         e["bytes"] = s.complete_bytes
         e["sha256"] = s.sha256

@@ -19,6 +19,9 @@ next ingest (a writer may be in the middle of that line).
 from __future__ import annotations
 
 import hashlib
+import os
+import threading
+from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -40,42 +43,52 @@ class Scan:
     whole_only: bool  # gzip or UTF-16: read whole or not at all
 
 
-def scan(path: Path, prefix_len: int | None = None) -> Scan:
+def scan(
+    path: Path, prefix_len: int | None = None, limit: int | None = None, stop: threading.Event | None = None
+) -> Scan:
     """Hash a file once: whole, up to its last newline, and a given prefix.
 
     Each byte is hashed once: the hash up to the last newline is the whole hash as it stood before the
     last block holding a newline, plus that block up to its newline (kept until a later block has one).
+    ``limit``: only the file's first ``limit`` bytes (its size when it was planned; it may be growing).
+    ``stop``: set by another thread, the scan ends early (its result is then meaningless).
     """
     whole = hashlib.sha256()
-    before_nl = whole.copy()  # the whole hash before the last block with a newline
-    nl_block = b""  # that block, up to and including its last newline
+    upto_nl = whole.copy()  # the hash up to the last newline so far
     prefix: str | None = None
     pos = 0
     last_nl_end = 0
     head = b""
+    # Read into one buffer, hashed through views: a fresh block per read, and a copy of each block up to its
+    # newline, cost as much CPU as the hash itself.
+    buf = bytearray(BLOCK)
+    view = memoryview(buf)
     with path.open("rb") as f:
         while True:
-            block = f.read(BLOCK)
-            if prefix_len is not None and prefix is None and pos + len(block) >= prefix_len:
+            n = f.readinto(view if limit is None else view[: min(BLOCK, limit - pos)])
+            if stop is not None and stop.is_set():
+                n = 0
+            block = view[:n]
+            if prefix_len is not None and prefix is None and pos + n >= prefix_len:
                 h = whole.copy()
                 h.update(block[: prefix_len - pos])
                 prefix = h.hexdigest()
-            if not block:
+            if not n:
                 break
             if pos == 0:
-                head = block[:4]
-            nl = block.rfind(b"\n")
+                head = bytes(block[:4])
+            nl = buf.rfind(b"\n", 0, n)
             if nl >= 0:
-                before_nl = whole.copy()
-                nl_block = block[: nl + 1]
+                whole.update(block[: nl + 1])
+                upto_nl = whole.copy()
                 last_nl_end = pos + nl + 1
-            whole.update(block)
-            pos += len(block)
+                whole.update(block[nl + 1 :])
+            else:
+                whole.update(block)
+            pos += n
     whole_only = head.startswith(GZIP_MAGIC) or head.startswith(UTF16_BOMS)
     if whole_only:
         return Scan(pos, whole.hexdigest(), pos, whole.hexdigest(), prefix, True)
-    upto_nl = before_nl
-    upto_nl.update(nl_block)
     return Scan(pos, whole.hexdigest(), last_nl_end, upto_nl.hexdigest(), prefix, False)
 
 
@@ -85,6 +98,83 @@ def try_scan(path: Path, prefix_len: int | None = None) -> Scan | None:
         return scan(path, prefix_len)
     except OSError:
         return None
+
+
+@dataclass(frozen=True)
+class Sizes:
+    """What a file's size and last newline say, read without hashing it (its first and last bytes)."""
+
+    size: int
+    complete_bytes: int  # up to and including the last newline (the whole file if read whole only)
+    whole_only: bool
+
+
+def sizes(path: Path) -> Sizes:
+    """A file's :class:`Sizes`: its size, its head, and a search for the last newline from the end."""
+    with path.open("rb") as f:
+        size = os.fstat(f.fileno()).st_size
+        head = f.read(4)
+        if head.startswith(GZIP_MAGIC) or head.startswith(UTF16_BOMS):
+            return Sizes(size, size, True)
+        end = size
+        while end > 0:
+            start = max(0, end - BLOCK)
+            f.seek(start)
+            block = f.read(end - start)
+            nl = block.rfind(b"\n")
+            if nl >= 0:
+                return Sizes(size, start + nl + 1, False)
+            end = start
+    return Sizes(size, 0, False)
+
+
+def new_by_size(files: list[dict[str, Any]], entry: dict[str, Any] | None, z: Sizes) -> Plan | None:
+    """The plan of a file the ledger cannot hold yet, proved by sizes alone; None where only its hash can tell.
+
+    A file is skipped only when its content (whole, or up to its last newline) hashes as an entry's whole file
+    (``size_seen`` bytes) or an entry's lines (``bytes``); content of another length cannot.  With no entry of
+    its path either, :func:`plan` would call it new, whatever its hash: so it can be read while it is hashed.
+    """
+    if entry is not None:
+        return None
+    for e in files:
+        seen = e.get("size_seen")
+        if seen is None or int(seen) in (z.size, z.complete_bytes) or int(e["bytes"]) in (z.size, z.complete_bytes):
+            return None
+    return Plan("new", None, 0, z.complete_bytes, 0, "new file")
+
+
+class BackgroundScan:
+    """:func:`scan` of a file's first ``size`` bytes on a thread of its own, while the file is parsed
+    (hashlib and the reads let go of the GIL: on two cores the hash costs the ingest little wall time)."""
+
+    def __init__(self, path: Path, z: Sizes) -> None:
+        self.sizes = z
+        self._stop = threading.Event()
+        self._future: Future[Scan] = Future()
+        self._thread = threading.Thread(target=self._run, args=(path,), name="ingest-hash", daemon=True)
+        self._thread.start()
+
+    def _run(self, path: Path) -> None:
+        try:
+            self._future.set_result(scan(path, None, self.sizes.size, self._stop))
+        except BaseException as exc:  # handed to result()
+            self._future.set_exception(exc)
+
+    def result(self) -> Scan:
+        return self._future.result()
+
+    def changed(self, s: Scan) -> bool:
+        """The file changed under the ingest: another size or last line than planned (its bytes were rewritten)."""
+        return (s.size, s.complete_bytes, s.whole_only) != (
+            self.sizes.size,
+            self.sizes.complete_bytes,
+            self.sizes.whole_only,
+        )
+
+    def cancel(self) -> None:
+        self._stop.set()
+        self._thread.join()
 
 
 @dataclass

@@ -42,7 +42,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from console.archive.store import DATA, fsync_file
+from console.archive import arrow_np
+from console.archive.store import DATA, fsync_file, sync_paths
 
 ROW_GROUP_ROWS = 256_000
 # Rows waiting to be written, all partitions together (Arrow bytes of the tables added since the last
@@ -123,7 +124,7 @@ def _sort_keys(table: pa.Table, sort_by: Sequence[str]) -> list[np.ndarray]:
             col = pa.chunked_array([c.indices for c in col.chunks], col.type.index_type)
         if pa.types.is_timestamp(col.type):
             col = col.cast(pa.int64())
-        keys.append(col.fill_null(-1).to_numpy())
+        keys.append(arrow_np.to_numpy(col.fill_null(-1) if col.null_count else col))
     return keys
 
 
@@ -146,7 +147,7 @@ def sorted_rows(table: pa.Table, sort_by: Sequence[str]) -> pa.Table:
     if _in_order(keys):
         return table
     order = np.lexsort(keys[::-1])  # np.lexsort: the last key is the primary one
-    return table.take(pa.array(order))
+    return table.take(arrow_np.array(order))
 
 
 class _Dictionaries:
@@ -198,13 +199,13 @@ class _Dictionaries:
         if self.mixed or len(pieces) < 2:
             table = self.concat(pieces)
             pieces.clear()
-            return table if order is None else table.take(pa.array(order))
+            return table if order is None else table.take(arrow_np.array(order))
         schema = pieces[0].schema
         columns: list[list[pa.Array] | None] = [
             [c for t in pieces for c in t.column(i).chunks] for i in range(len(schema))
         ]
         pieces.clear()
-        taken = None if order is None else pa.array(order)
+        taken = None if order is None else arrow_np.array(order)
         out = []
         for i, f in enumerate(schema):
             chunks, columns[i] = columns[i], None
@@ -399,8 +400,12 @@ class PartWriter:
         return self.written
 
     def _close_all(self) -> None:
-        for key in list(self._writers):
-            self._close_file(key)
+        """Every open part closed, then fsynced several at a time (at the end of a read, one after the other,
+        they held up the ingest for a few ms each)."""
+        keys = list(self._writers)
+        for key in keys:
+            self._writers.pop(key).close()
+        sync_paths(self.root / self._file_of[key] for key in keys)
 
     def abort(self) -> None:
         with contextlib.suppress(BaseException):  # the parts are unlisted garbage anyway

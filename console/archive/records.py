@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pyarrow as pa
 
+from console.archive import arrow_np
 from parsers.diag.fields import DATA_KINDS, RegisterKey
 from parsers.diag.read import RECORD_COLUMNS, DiagChunk
 from parsers.diag.registry import DiagRegistry
@@ -43,7 +44,7 @@ _STR = pa.dictionary(pa.int32(), pa.string())
 
 
 def _dict(codes: np.ndarray, values: list[str]) -> pa.DictionaryArray:
-    return pa.DictionaryArray.from_arrays(pa.array(codes, pa.int32()), pa.array(values, pa.string()))
+    return pa.DictionaryArray.from_arrays(arrow_np.array(codes, pa.int32()), arrow_np.strings(values))
 
 
 class RecordEncoder:
@@ -83,8 +84,8 @@ class RecordEncoder:
         """``codes`` into ``values`` as a dictionary column (the values made into Arrow once per size)."""
         known = self._values.get(name)
         if known is None or len(known) != len(values):
-            known = self._values[name] = pa.array(values, pa.string())
-        return pa.DictionaryArray.from_arrays(pa.array(codes, pa.int32()), known)
+            known = self._values[name] = arrow_np.strings(values)
+        return pa.DictionaryArray.from_arrays(arrow_np.array(codes, pa.int32()), known)
 
     def encode(self, chunk: DiagChunk, file_name: str, file_seq: int, line_offset: int) -> tuple[pa.Table, np.ndarray]:
         """(records table, device_id per row) of one parsed chunk."""
@@ -96,33 +97,33 @@ class RecordEncoder:
         if self._canon is None:
             # A null entry cannot sit in a dictionary that is unified later: "" stands there, masked.
             self._canon = (
-                pa.array([v or "" for v in self._canon_values], pa.string()),
+                arrow_np.strings([v or "" for v in self._canon_values]),
                 np.asarray([v is None for v in self._canon_values], bool),
             )
         canon_dict, canon_null = self._canon
         canon = pa.DictionaryArray.from_arrays(
-            pa.array(canon_codes, pa.int32(), mask=canon_null[canon_codes]), canon_dict
+            arrow_np.array(canon_codes, pa.int32(), mask=canon_null[canon_codes]), canon_dict
         )
         device_id = a["device_id"][rid]
         cols = {
-            "time": pa.array(chunk.time_ns.view("datetime64[ns]")),
-            "diag_id": pa.array(a["diag_id"][rid]),
+            "time": arrow_np.array(chunk.time_ns.view("datetime64[ns]")),
+            "diag_id": arrow_np.array(a["diag_id"][rid]),
             "device": self._dict("device", a["device"][rid], reg.devices.values),
             "type": self._dict("type", a["type"][rid], reg.types.values),
             "gs": self._dict("gs", a["gs"][rid], reg.gs.values),
             "counting_head": self._dict("counting_head", a["counting_head"][rid], reg.heads.values),
-            "channel": pa.array(a["channel"][rid]),
-            "address": pa.array(a["address"][rid].astype(np.int16)),
+            "channel": arrow_np.array(a["channel"][rid]),
+            "address": arrow_np.array(a["address"][rid].astype(np.int16)),
             "label": self._dict("label", a["label"][rid], reg.labels.values),
             "label_canonical": canon,
             "label_encoding": self._dict("label_encoding", self._enc_codes[rid], self._enc_values),
             "data": self._dict("data", chunk.data_code, reg.data.values),
-            "value": pa.array(chunk.value),
+            "value": arrow_np.array(chunk.value),
             "data_kind": self._dict("data_kind", chunk.data_kind.astype(np.int32), list(DATA_KINDS)),
-            "subsecond": pa.array(chunk.subsecond),
+            "subsecond": arrow_np.array(chunk.subsecond),
             "file": _dict(np.zeros(n, np.int32), [file_name]),
-            "file_seq": pa.array(np.full(n, file_seq, np.int32)),
-            "line": pa.array(chunk.line + line_offset),
+            "file_seq": arrow_np.array(np.full(n, file_seq, np.int32)),
+            "line": arrow_np.array(chunk.line + line_offset),
         }
         return pa.table(cols), device_id
 

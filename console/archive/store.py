@@ -25,7 +25,8 @@ import json
 import os
 import shutil
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -170,12 +171,28 @@ def ensure_layout(root: Path) -> None:
         raise ArchiveError(f"{root}: cannot create the archive ({exc.strerror or exc})") from None
 
 
+# fsyncs in flight at once.  An ingest's parts are a few per day and board (140 files in 133 folders for a
+# 3 M-record log of 40 boards): one after the other they took 0.25-0.5 s on a virtual disk, 16 at a time
+# 0.03-0.07 s (the journal commits them together).
+SYNC_THREADS = 16
+
+
+def sync_paths(paths: Iterable[Path]) -> None:
+    """fsync files (or directories), several at a time."""
+    todo = list(paths)
+    if len(todo) < 2:
+        for p in todo:
+            fsync_file(p)
+        return
+    with ThreadPoolExecutor(min(SYNC_THREADS, len(todo)), thread_name_prefix="fsync") as pool:
+        for _ in pool.map(fsync_file, todo):  # the first failure raised
+            pass
+
+
 def sync_parts(root: Path, rels: list[str]) -> None:
     """fsync each part, then each directory holding one: a manifest may name them now."""
-    for rel in rels:
-        fsync_file(root / rel)
-    for d in sorted({(root / rel).parent for rel in rels}):
-        _fsync_dir(d)
+    sync_paths(root / rel for rel in rels)
+    sync_paths(sorted({(root / rel).parent for rel in rels}))
 
 
 def publish(root: Path, manifest: Manifest, new_parts: list[str]) -> None:
