@@ -494,25 +494,31 @@ class DiagReader:
 
         rid = reg_lut[tok.reg_idx]
         good = (rid >= 0) & val_ok[tok.val_idx] & tok.time_ok
-        vi = tok.val_idx[good]
-        rid_g = rid[good]
-        time_ns = val_cols[3][vi] + tok.tod_ns[good]
-        subsecond = tok.subsecond[good]
+        if good.all():  # the usual chunk: no selection to copy (the token arrays are this chunk's alone)
+            vi, rid_g, tod_ns, subsecond, lines = tok.val_idx, rid, tok.tod_ns, tok.subsecond, tok.fast
+        else:
+            vi, rid_g, tod_ns = tok.val_idx[good], rid[good], tok.tod_ns[good]
+            subsecond, lines = tok.subsecond[good], tok.fast[good]
+        time_ns = val_cols[3][vi] + tod_ns
         value = val_cols[1][vi]
-        data_code = val_cols[0][vi]
-        data_kind = val_cols[2][vi]
-        lines = tok.fast[good]
+        # Narrowed per distinct value span, before the gather: no conversion per record.
+        data_code = val_cols[0].astype(np.int32)[vi]
+        data_kind = val_cols[2].astype(np.int8)[vi]
 
         # The rest is blank, off the fast path, or rejected: few lines, Python is fine.
-        rest = np.ones(n_lines, bool)
-        rest[lines] = False
-        rest &= ~tok.blank
-        fr.blank += int(tok.blank.sum())
+        n_blank = int(tok.blank.sum())
+        fr.blank += n_blank
+        rest_lines: list[int] = []
+        if len(lines) + n_blank < n_lines:  # else every line is a record or blank (fast lines are never blank)
+            rest = np.ones(n_lines, bool)
+            rest[lines] = False
+            rest &= ~tok.blank
+            rest_lines = np.flatnonzero(rest).tolist()
         bad_j = np.flatnonzero(~good)
         bad_fast = dict(zip(tok.fast[bad_j].tolist(), bad_j.tolist(), strict=True))
         last_open = tok.chunk.final and not tok.chunk.ends_with_newline()
         slow: list[tuple[int, int, int, bool, int, int, int]] = []
-        for li in np.flatnonzero(rest).tolist():
+        for li in rest_lines:
             raw = bytes(tok.buf[tok.starts[li] : tok.ends[li]])
             j = bad_fast.get(li)
             err: FieldError | None = None
