@@ -13,7 +13,6 @@ neither the passages table nor its JSON is ever held whole.
 from __future__ import annotations
 
 import json
-import mmap
 import os
 import tempfile
 from collections import deque
@@ -39,8 +38,6 @@ _COPY_ROWS = 4096
 _PLACE = [("head", "<i4"), ("length", "<i4"), ("start_ns", "<i8"), ("offset", "<i8")]
 _INDEX_ROWS = 1 << 16  # places read back at a time
 _ENCODE_ROWS = 8192  # passages encoded at a time
-# Where the system has it (not Windows): mapped pages of the texts' file are let go block by block.
-_DONTNEED: int | None = getattr(mmap, "MADV_DONTNEED", None) if hasattr(mmap.mmap, "madvise") else None
 _ENCODING_MAX = 2  # batches handed to the encoder and not yet written (bounds the memory they hold)
 
 
@@ -183,19 +180,11 @@ class PassageSpool(Sink):
     def _blocks(self) -> Iterator[list[bytes]]:
         """The texts in order, a list of up to ``_COPY_ROWS`` at a time."""
         offset, length = self._order()
-        if not len(offset):
-            return
-        # Sliced from a map of the file (flushed in _order, so it holds them all): a copy per passage and no
-        # system call, where a read per passage cost about three times as much.
-        with mmap.mmap(self._file.fileno(), 0, access=mmap.ACCESS_READ) as texts:
-            for lo in range(0, len(offset), _COPY_ROWS):
-                rows = slice(lo, lo + _COPY_ROWS)
-                yield [
-                    texts[off : off + n] for off, n in zip(offset[rows].tolist(), length[rows].tolist(), strict=True)
-                ]
-                if _DONTNEED is not None:
-                    # The pages this block read are let go: memory holds no more of the file than a block.
-                    texts.madvise(_DONTNEED)
+        fd = self._file.fileno()
+        for lo in range(0, len(offset), _COPY_ROWS):
+            rows = slice(lo, lo + _COPY_ROWS)
+            # One pread per passage (no seek, no buffer refill): flushed in _order, so the file holds them all.
+            yield [os.pread(fd, n, off) for off, n in zip(offset[rows].tolist(), length[rows].tolist(), strict=True)]
 
     def _parts(self) -> Iterator[str]:
         if not self.count:
