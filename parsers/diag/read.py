@@ -174,17 +174,49 @@ def _tab_bytes(words: np.ndarray) -> np.ndarray:
 def _last_tab(u8: np.ndarray, window_end: np.ndarray, words: int) -> np.ndarray:
     """Offset of the last tab in the ``8 * words`` bytes before window_end, or -1."""
     found = np.full(len(window_end), -1, np.int64)
-    todo = np.ones(len(window_end), bool)
+    rows: np.ndarray | None = None  # the rows still searched (None: all); most find their tab in the first word
     for k in range(1, words + 1):
-        base = window_end - 8 * k
+        base = (window_end if rows is None else window_end[rows]) - 8 * k
         mask = _tab_bytes(u8[base])
-        hit = todo & (mask != 0)
+        hit = mask != 0
         if hit.any():
             # Set bits sit at 8j+7 and are sparse, so float log2 finds the top one exactly.
             top = (np.log2(mask[hit].astype(np.float64)).astype(np.int64) - 7) // 8
-            found[hit] = base[hit] + top
-            todo &= ~hit
+            found[hit if rows is None else rows[hit]] = base[hit] + top
+        miss = ~hit
+        if not miss.any():
+            break
+        rows = np.flatnonzero(miss) if rows is None else rows[miss]
     return found
+
+
+_DIGIT_BYTES = np.uint64(0x3030303030303030)
+# Per count of fraction digits k (0-8): the top k bytes of the line's last 8, where those digits are.
+_FRACTION_BYTES = np.array([(1 << 64) - (1 << (8 * (8 - k))) if k else 0 for k in range(9)], np.uint64)
+
+
+def _fraction_digits(
+    arr: np.ndarray, u8: np.ndarray, en: np.ndarray, n_frac: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The value of the ``n_frac`` (0-9) digits that end each line, and whether they are all digits.
+
+    The last 8 bytes of a line are one little-endian word, so its digits are its top bytes; the bytes
+    before them are masked to 0 (leading zeros) and all 8 are combined in three multiply-shift steps
+    (pairs, then fours, then eights), with no loop per digit.  A ninth digit is read on its own.
+    """
+    x = (u8[en - 8] ^ _DIGIT_BYTES) & _FRACTION_BYTES[np.minimum(n_frac, 8)]
+    # A byte that is 10 or more (or has its top bit set) after the XOR was not a digit; masked bytes are 0.
+    ok = (((x + _HMS_DIGIT_LIMIT) | x) & _HIGH_BITS) == 0
+    x = ((x * np.uint64(10)) + (x >> np.uint64(8))) & np.uint64(0x00FF00FF00FF00FF)
+    x = ((x * np.uint64(100)) + (x >> np.uint64(16))) & np.uint64(0x0000FFFF0000FFFF)
+    x = (x * np.uint64(10000)) + (x >> np.uint64(32))
+    value = (x & np.uint64(0xFFFFFFFF)).astype(np.int64)
+    nine = n_frac == 9
+    if nine.any():
+        first = arr[en[nine] - 9].astype(np.int64) - 48
+        ok[nine] &= (first >= 0) & (first <= 9)
+        value[nine] += first * 10**8
+    return value, ok
 
 
 # A valid record is never shorter than this; shorter lines take the slow path,
@@ -218,7 +250,8 @@ def _tokenize(chunk: Chunk) -> _Tokens:
     ends = nl.copy()
     # CRLF and trailing blanks: trim a few rounds, only where needed.
     for _ in range(4):
-        trail = (ends > starts) & ((arr[ends - 1] == 13) | (arr[ends - 1] == 32))
+        last = arr[ends - 1]
+        trail = (ends > starts) & ((last == 13) | (last == 32))
         if not trail.any():
             break
         ends -= trail
@@ -265,13 +298,9 @@ def _tokenize(chunk: Chunk) -> _Tokens:
     subsecond = n_frac > 0
     if subsecond.any():
         time_ok &= ~subsecond | (arr[np.minimum(ts + 13, size - 1)] == ord("."))
-        frac = np.zeros(len(ts), np.int64)
-        for k in range(int(n_frac.max())):
-            has = n_frac > k
-            b = arr[np.minimum(ts + 14 + k, size - 1)].astype(np.int64) - 48
-            time_ok &= ~has | ((b >= 0) & (b <= 9))
-            frac = np.where(has, frac * 10 + b, frac)
-        tod += frac * _POW10[9 - np.minimum(n_frac, 9)]
+        frac, frac_ok = _fraction_digits(arr, u8, en, n_frac)
+        time_ok &= frac_ok
+        tod += frac * _POW10[9 - n_frac]
     return _Tokens(
         chunk=chunk,
         buf=data,
@@ -465,25 +494,31 @@ class DiagReader:
 
         rid = reg_lut[tok.reg_idx]
         good = (rid >= 0) & val_ok[tok.val_idx] & tok.time_ok
-        vi = tok.val_idx[good]
-        rid_g = rid[good]
-        time_ns = val_cols[3][vi] + tok.tod_ns[good]
-        subsecond = tok.subsecond[good]
+        if good.all():  # the usual chunk: no selection to copy (the token arrays are this chunk's alone)
+            vi, rid_g, tod_ns, subsecond, lines = tok.val_idx, rid, tok.tod_ns, tok.subsecond, tok.fast
+        else:
+            vi, rid_g, tod_ns = tok.val_idx[good], rid[good], tok.tod_ns[good]
+            subsecond, lines = tok.subsecond[good], tok.fast[good]
+        time_ns = val_cols[3][vi] + tod_ns
         value = val_cols[1][vi]
-        data_code = val_cols[0][vi]
-        data_kind = val_cols[2][vi]
-        lines = tok.fast[good]
+        # Narrowed per distinct value span, before the gather: no conversion per record.
+        data_code = val_cols[0].astype(np.int32)[vi]
+        data_kind = val_cols[2].astype(np.int8)[vi]
 
         # The rest is blank, off the fast path, or rejected: few lines, Python is fine.
-        rest = np.ones(n_lines, bool)
-        rest[lines] = False
-        rest &= ~tok.blank
-        fr.blank += int(tok.blank.sum())
+        n_blank = int(tok.blank.sum())
+        fr.blank += n_blank
+        rest_lines: list[int] = []
+        if len(lines) + n_blank < n_lines:  # else every line is a record or blank (fast lines are never blank)
+            rest = np.ones(n_lines, bool)
+            rest[lines] = False
+            rest &= ~tok.blank
+            rest_lines = np.flatnonzero(rest).tolist()
         bad_j = np.flatnonzero(~good)
         bad_fast = dict(zip(tok.fast[bad_j].tolist(), bad_j.tolist(), strict=True))
         last_open = tok.chunk.final and not tok.chunk.ends_with_newline()
         slow: list[tuple[int, int, int, bool, int, int, int]] = []
-        for li in np.flatnonzero(rest).tolist():
+        for li in rest_lines:
             raw = bytes(tok.buf[tok.starts[li] : tok.ends[li]])
             j = bad_fast.get(li)
             err: FieldError | None = None
