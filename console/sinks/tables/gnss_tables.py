@@ -8,7 +8,7 @@ ids, file names) goes through :func:`console.safe_text.inert`.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -19,7 +19,7 @@ from rich.text import Text
 from console.analysis.timefmt import display, iso, iso_array
 from console.jsonout import JSONParts, encode
 from console.safe_text import inert
-from parsers.gnss.fix_table import FIX_QUALITIES, NAT_NS, ROLES, SOURCES, FixColumns, sentence_name
+from parsers.gnss.fix_table import FIX_QUALITIES, NAT_NS, ROLES, SOURCES, FixColumns, NameTable, sentence_name
 from parsers.report import ParseReport
 from parsers.units import NS_PER_DAY
 
@@ -103,10 +103,14 @@ def _floats(values: np.ndarray) -> list[float | None]:
     return list(out.tolist())
 
 
-def _names(codes: np.ndarray, names: list[str] | tuple[str, ...]) -> list[str]:
+def _names(codes: np.ndarray, names: Sequence[str]) -> list[str]:
+    if not len(codes):
+        return []
+    if isinstance(names, NameTable):
+        return names.take(codes)  # only this block's names become strings (a file may name a million devices)
     table = np.empty(len(names), dtype=object)
     table[:] = [str(n) for n in names]
-    return list(table[codes].tolist()) if len(codes) else []
+    return list(table[codes].tolist())
 
 
 def _sentence_names(masks: np.ndarray) -> list[str]:
