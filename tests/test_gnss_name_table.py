@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from hypothesis import HealthCheck, given, settings
@@ -43,7 +44,8 @@ def test_name_table_reads_as_the_list_it_stands_for(names: list[str], data: st.D
 
 def _plain(cols: FixColumns) -> FixColumns:
     """The same columns with the names as plain lists (as before the lazy table)."""
-    return FixColumns(**{k: list(v) if k.endswith("_names") else v for k, v in vars(cols).items()})
+    fields: dict[str, Any] = {k: list(v) if k.endswith("_names") else v for k, v in vars(cols).items()}
+    return FixColumns(**fields)
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
