@@ -23,6 +23,7 @@ def gnss(
             gnss_json_parts,
             skipped_table,
         )
+        from console.memory import big_read_memory
         from parsers.gnss_files import nothing_read, parse_gnss_columns
         from parsers.kinds import not_gnss_reason
 
@@ -32,7 +33,8 @@ def gnss(
             wrong = not_gnss_reason(path)
             if wrong is not None:
                 raise fail(f"{path}: nothing readable as GNSS: {wrong}")
-        fixes, report = parse_gnss_columns(files)  # numpy columns: no pandas for the tables
+        with big_read_memory(files):
+            fixes, report = parse_gnss_columns(files)  # numpy columns: no pandas for the tables
         unread = nothing_read(report)
         if unread:
             raise fail(unread[0])
