@@ -15,6 +15,7 @@ def gnss(
     """Decoded GNSS fixes per device, and the parse report."""
 
     def body() -> int:
+        from console.memory import big_read_memory
         from console.sinks.tables.diag_tables import parse_report_table, rejections_table
         from console.sinks.tables.gnss_tables import (
             devices_table,
@@ -23,7 +24,6 @@ def gnss(
             gnss_json_parts,
             skipped_table,
         )
-        from console.memory import big_read_memory
         from parsers.gnss_files import nothing_read, parse_gnss_columns
         from parsers.kinds import not_gnss_reason
 
