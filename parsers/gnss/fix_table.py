@@ -36,9 +36,9 @@ from __future__ import annotations
 
 import itertools
 from array import array
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, cast, overload
 
 import numpy as np
 
@@ -173,7 +173,7 @@ class _Codes:
     def append(self, value: str) -> None:
         self.codes.append(self.code_of(value))
 
-    def used(self, order: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
+    def used(self, order: np.ndarray | None = None) -> tuple[np.ndarray, NameTable]:
         """The codes (taken at ``order``, if given) renumbered over the values used, and those values,
         in order of first appearance in the rows as collected (whatever order they were interned in: rows
         may be read in batches and put back in line order)."""
@@ -183,7 +183,52 @@ class _Codes:
         renumber = np.zeros(len(self.names), np.int32)
         renumber[in_order] = np.arange(len(in_order), dtype=np.int32)
         out = renumber[codes] if order is None else renumber[codes[order]]
-        return out, list(self.names.take(in_order))
+        return out, NameTable(self.names, in_order)
+
+
+class NameTable(Sequence[str]):
+    """The strings a column's codes index, left in their flat :class:`StringDictionary` until read.
+
+    A file of a million devices would otherwise hold a million Python strings for as long as its
+    fixes: here a name becomes a string when it is shown or written (:meth:`take`, a block at a time).
+    Equal to any sequence of the same strings (a list compares equal to it).
+    """
+
+    __slots__ = ("_at", "_names")
+
+    def __init__(self, names: StringDictionary, at: np.ndarray) -> None:
+        self._names = names
+        self._at = np.asarray(at, np.int64)  # code here → code in ``names``
+
+    def __len__(self) -> int:
+        return len(self._at)
+
+    @overload
+    def __getitem__(self, i: int) -> str: ...
+    @overload
+    def __getitem__(self, i: slice) -> list[str]: ...
+    def __getitem__(self, i: int | slice) -> str | list[str]:
+        if isinstance(i, slice):
+            return self._names.take(self._at[i])
+        return self._names.value(int(self._at[i]))
+
+    def __iter__(self) -> Iterator[str]:
+        for start in range(0, len(self._at), 65_536):
+            yield from self._names.take(self._at[start : start + 65_536])
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Sequence) or isinstance(other, str):
+            return NotImplemented
+        return len(self) == len(other) and all(a == b for a, b in zip(self, other, strict=True))
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        return f"NameTable({list(self)!r})"
+
+    def take(self, codes: np.ndarray) -> list[str]:
+        """The strings of ``codes`` (codes of this table), as a new list."""
+        return self._names.take(self._at[np.asarray(codes, np.int64)])
 
 
 class FixRows:
@@ -364,7 +409,7 @@ class FixRows:
                 setattr(self, name, array(a.typecode))
             return out
 
-        def strings(codes: _Codes) -> tuple[np.ndarray, list[str]]:
+        def strings(codes: _Codes) -> tuple[np.ndarray, NameTable]:
             out = codes.used(order)
             if release:
                 codes.codes = array("i")
@@ -408,7 +453,7 @@ class FixColumns:
 
     time_ns: np.ndarray
     device_codes: np.ndarray
-    device_names: list[str]
+    device_names: Sequence[str]  # a NameTable from the readers (strings made when read)
     role: np.ndarray
     lat: np.ndarray
     lon: np.ndarray
@@ -418,7 +463,7 @@ class FixColumns:
     source: np.ndarray
     sentence: np.ndarray
     file_codes: np.ndarray
-    file_names: list[str]
+    file_names: Sequence[str]
     line: np.ndarray
     fix_quality: np.ndarray
 
@@ -433,9 +478,9 @@ class FixColumns:
         """The fix table (:data:`FIX_COLUMNS`, the documented dtypes)."""
         import pandas as pd
 
-        def categorical(codes: np.ndarray, names: list[str]) -> pd.Categorical[Any]:
+        def categorical(codes: np.ndarray, names: Sequence[str]) -> pd.Categorical[Any]:
             # Python strings (object): pandas would make them for Arrow strings anyway, to check them unique.
-            return pd.Categorical.from_codes(codes, categories=pd.Index(names, dtype=object))
+            return pd.Categorical.from_codes(codes, categories=pd.Index(list(names), dtype=object))
 
         def coded(codes: np.ndarray, values: tuple[str, ...]) -> pd.Categorical[Any]:
             return pd.Categorical.from_codes(codes, dtype=pd.CategoricalDtype(list(values)))

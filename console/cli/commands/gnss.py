@@ -15,6 +15,7 @@ def gnss(
     """Decoded GNSS fixes per device, and the parse report."""
 
     def body() -> int:
+        from console.memory import big_read_memory
         from console.sinks.tables.diag_tables import parse_report_table, rejections_table
         from console.sinks.tables.gnss_tables import (
             devices_table,
@@ -32,7 +33,8 @@ def gnss(
             wrong = not_gnss_reason(path)
             if wrong is not None:
                 raise fail(f"{path}: nothing readable as GNSS: {wrong}")
-        fixes, report = parse_gnss_columns(files)  # numpy columns: no pandas for the tables
+        with big_read_memory(files):
+            fixes, report = parse_gnss_columns(files)  # numpy columns: no pandas for the tables
         unread = nothing_read(report)
         if unread:
             raise fail(unread[0])

@@ -270,9 +270,11 @@ def _crossings(data: ReportData, gnss: list[Path]) -> None:
     if not gnss:
         data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."
         return
+    from console.memory import big_read_memory
     from parsers.gnss_files import parse_gnss
 
-    fixes, report, _states = parse_gnss(gnss)
+    with big_read_memory(gnss):
+        fixes, report, _states = parse_gnss(gnss)
     data.reports["gnss"] = report
     crossings_from_fixes(data, fixes)
 

@@ -48,6 +48,7 @@ from console.inputs.recognise import NUMBER_PARTS, natural_key
 from console.layout import Layout
 from console.sinks.report.jsonwrite import Rows
 from console.sinks.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPassages, SectionHistory
+from console.sinks.report.unit_codes import first_last_ns, sorted_codes
 from console.sinks.tables.section_tables import sections_json
 from parsers.report import ParseReport
 
@@ -365,7 +366,7 @@ def _padded_number(m: re.Match[str]) -> str:
 def _value_sets(code: np.ndarray, values: pd.Series, n: int) -> tuple[np.ndarray, list[str]]:
     """Per device, the set of ``values`` it has, as a bit mask over the distinct values (few: roles,
     sources), and those values: flat, not a set object per device."""
-    vcode, vnames = pd.factorize(values.astype(str), sort=True)
+    vcode, vnames = sorted_codes(values)
     mask = np.zeros(n, np.uint64)
     if len(vnames) > 64:  # never for roles or sources; keep the first 64 rather than fail
         vcode = np.where(vcode < 64, vcode, 63)
@@ -379,16 +380,14 @@ def _gnss_units(data: ReportData) -> list[dict[str, Any]] | Rows:
         return []
     # Grouped reductions into flat columns, and one row made at a time as the report is written:
     # a file may hold a million devices.
-    code, names = pd.factorize(fixes["device"].astype(str), sort=True)
+    code, names = sorted_codes(fixes["device"])
     n = len(names)
     count = np.bincount(code, minlength=n)
     n_valid = np.bincount(code, weights=fixes["valid"].astype(bool).to_numpy(), minlength=n).astype(np.int64)
-    by = fixes["time"].groupby(code, sort=True)
-    first = np.full(n, np.iinfo(np.int64).min, np.int64)
-    last = first.copy()
-    t0, t1 = by.min(), by.max()
-    first[t0.index.to_numpy()] = t0.to_numpy("datetime64[ns]").view(np.int64)
-    last[t1.index.to_numpy()] = t1.to_numpy("datetime64[ns]").view(np.int64)
+    times = fixes["time"]
+    if getattr(times.dt, "tz", None) is not None:
+        times = times.dt.tz_convert(None)
+    first, last = first_last_ns(code, np.asarray(times.to_numpy("datetime64[ns]")).view(np.int64), n)
     roles, role_names = _value_sets(code, fixes["role"], n)
     sources, source_names = _value_sets(code, fixes["source"], n)
     order = _natural_order(names)

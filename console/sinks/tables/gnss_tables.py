@@ -8,7 +8,7 @@ ids, file names) goes through :func:`console.safe_text.inert`.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -19,7 +19,7 @@ from rich.text import Text
 from console.analysis.timefmt import display, iso, iso_array
 from console.jsonout import JSONParts, encode
 from console.safe_text import inert
-from parsers.gnss.fix_table import FIX_QUALITIES, NAT_NS, ROLES, SOURCES, FixColumns, sentence_name
+from parsers.gnss.fix_table import FIX_QUALITIES, NAT_NS, ROLES, SOURCES, FixColumns, NameTable, sentence_name
 from parsers.report import ParseReport
 from parsers.units import NS_PER_DAY
 
@@ -103,10 +103,14 @@ def _floats(values: np.ndarray) -> list[float | None]:
     return list(out.tolist())
 
 
-def _names(codes: np.ndarray, names: list[str] | tuple[str, ...]) -> list[str]:
+def _names(codes: np.ndarray, names: Sequence[str]) -> list[str]:
+    if not len(codes):
+        return []
+    if isinstance(names, NameTable):
+        return names.take(codes)  # only this block's names become strings (a file may name a million devices)
     table = np.empty(len(names), dtype=object)
     table[:] = [str(n) for n in names]
-    return list(table[codes].tolist()) if len(codes) else []
+    return list(table[codes].tolist())
 
 
 def _sentence_names(masks: np.ndarray) -> list[str]:
@@ -281,30 +285,39 @@ def devices_table(fixes: pd.DataFrame | FixColumns, limit: int = DEVICES_SHOWN) 
         return t
     # Devices in the order of their names (first appearance), each figure one reduction over the codes:
     # no Python per fix, and only the devices shown are looked at (a file may hold a million devices).
-    codes = cols.device_codes.astype(np.int64)
     n_names = len(cols.device_names)
-    per_device = np.bincount(codes, minlength=n_names)
+    per_device = np.bincount(cols.device_codes, minlength=n_names)
     observed = np.flatnonzero(per_device)
     shown = observed[:limit]
-    valid = cols.valid.astype(bool)
-    n_valid = np.bincount(codes, weights=valid, minlength=n_names)
-    timed = cols.time_ns != NAT_NS
-    first = np.full(n_names, np.iinfo(np.int64).max)
-    last = np.full(n_names, NAT_NS)
-    np.minimum.at(first, codes[timed], cols.time_ns[timed])
-    np.maximum.at(last, codes[timed], cols.time_ns[timed])
-    moving = valid & ~np.isnan(cols.speed_mps)
-    speed_sum = np.bincount(codes[moving], weights=cols.speed_mps[moving], minlength=n_names)
-    speed_n = np.bincount(codes[moving], minlength=n_names)
-    has_role = np.zeros((n_names, len(ROLES)), bool)
-    has_role[codes, cols.role.astype(np.int64)] = True
-    for d in shown.tolist():
+    # The other figures over the rows of the devices shown only, numbered 0 … len(shown) - 1 in that order.
+    local = np.full(n_names, -1, np.int64)
+    local[shown] = np.arange(len(shown))
+    at = local[cols.device_codes]
+    rows = np.flatnonzero(at >= 0)
+    codes = at[rows]
+    del local, at
+    n_shown = len(shown)
+    valid = cols.valid[rows].astype(bool)
+    times = cols.time_ns[rows]
+    n_valid = np.bincount(codes, weights=valid, minlength=n_shown)
+    timed = times != NAT_NS
+    first = np.full(n_shown, np.iinfo(np.int64).max)
+    last = np.full(n_shown, NAT_NS)
+    np.minimum.at(first, codes[timed], times[timed])
+    np.maximum.at(last, codes[timed], times[timed])
+    speed = cols.speed_mps[rows]
+    moving = valid & ~np.isnan(speed)
+    speed_sum = np.bincount(codes[moving], weights=speed[moving], minlength=n_shown)
+    speed_n = np.bincount(codes[moving], minlength=n_shown)
+    has_role = np.zeros((n_shown, len(ROLES)), bool)
+    has_role[codes, cols.role[rows].astype(np.int64)] = True
+    for d, device in enumerate(shown.tolist()):  # d: the figures' index; device: the name's
         roles = sorted(ROLES[r] for r in np.flatnonzero(has_role[d]) if ROLES[r])
         nv = int(n_valid[d])
         t.add_row(
-            inert(cols.device_names[d]),
+            inert(cols.device_names[device]),
             inert("/".join(roles) or "–", style="" if roles else "dim"),
-            Text(f"{int(per_device[d]):,}"),
+            Text(f"{int(per_device[device]):,}"),
             Text(f"{nv:,}", style="" if nv else "yellow"),
             clock.text(first[d] if last[d] != NAT_NS else NAT_NS, seconds=True),
             clock.text(last[d], seconds=True),
