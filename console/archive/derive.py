@@ -62,6 +62,7 @@ from console.archive.store import DATA, Manifest
 from console.archive.views import connect
 from console.engine.pipeline import Pipeline, PipelineSettings
 from console.engine.sinks import Sink
+from console.memory import trim_heap
 from parsers.diag.registry import DiagRegistry
 from parsers.units import NS_PER_DAY
 
@@ -510,6 +511,7 @@ class Derivation:
         # The inventory's figures per day: the days this ingest's records lie in, or every day when the
         # derivation was made again (another version, a file replaced).
         fresh = None if not self.same or self.rebuild_all else days_of_parts(self._records_of_this_ingest())
+        trim_heap()  # the at-end tables' freed memory given back before DuckDB's aggregates take their own
         parts += derive_days(self.root, self.manifest, self.generation, fresh)
         return parts
 
