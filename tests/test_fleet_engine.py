@@ -97,10 +97,10 @@ def test_several_maps_share_one_cluster_and_empty_maps_are_empty(cluster2: tuple
     assert third == [partition_total(it["key"], it["day_before"], 5) for it in ITEMS[:3]]  # type: ignore[arg-type]
 
 
-def test_workers_are_bounded_to_512_mb(cluster2: tuple[Any, Any]) -> None:
+def test_workers_are_bounded_to_1_gib(cluster2: tuple[Any, Any]) -> None:
     _cluster, client = cluster2
     limits = {w["memory_limit"] for w in client.scheduler_info()["workers"].values()}
-    assert limits == {512 << 20}
+    assert limits == {1 << 30}
 
 
 def test_local_cluster_is_started_on_loopback_and_stopped() -> None:
