@@ -78,6 +78,22 @@ def _derived(archive: Path) -> dict[str, Any]:
     return out
 
 
+def _day_rows(archive: Path) -> dict[str, list[dict[str, Any]]]:
+    """The per-day inventory rows stored at ingest (head_days, identity_days: not query views), by day."""
+    import pyarrow.parquet as pq
+
+    from console.archive.head_days import TABLES, days_of_parts
+
+    m = read_current(archive)
+    out = {}
+    for table in TABLES:
+        rows = []
+        for rel in sorted(m.parts(table), key=lambda r: sorted(days_of_parts([r]))):
+            rows += [{"day": sorted(days_of_parts([rel])), **r} for r in pq.read_table(archive / rel).to_pylist()]
+        out[table] = rows
+    return out
+
+
 @settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     seed=st.integers(1, 1000),
@@ -112,6 +128,7 @@ def test_the_same_rows_and_report_bytes_on_every_engine(
         _invoke(["ingest", str(piece), "--archive", str(local_arc), "--layout", "example"])
     want = _derived(local_arc)
     assert want["passages"]
+    assert all(_day_rows(local_arc).values())
     local_json = _invoke(["report", "--archive", str(local_arc), "--format", "json"]).stdout
     assert json.loads(local_json)["passages"]  # a report with something in it
     # Through the commands on Dask, 1 and 3 workers: each group of heads a task, its state carried from
@@ -124,6 +141,7 @@ def test_the_same_rows_and_report_bytes_on_every_engine(
             _invoke([*args, "--engine", "dask", "--scheduler", address])
         assert "*" not in read_current(dask_arc).derived["states"], name  # each group its own state
         assert _derived(dask_arc) == want, name
+        assert _day_rows(dask_arc) == _day_rows(local_arc), name
         dask_json = _invoke(
             ["report", "--archive", str(dask_arc), "--format", "json", "--engine", "dask", "--scheduler", address]
         ).stdout

@@ -54,8 +54,8 @@ def head_rows_sql(where: str) -> str:
     pos = POSITION
     return (
         f"SELECT device_id, counting_head, min({pos}) AS first_pos, arg_min(device, {pos}) AS device, "
-        f"arg_min(type, {pos}) AS type, arg_min(gs, {pos}) AS gs, list(DISTINCT diag_id) AS diag_ids, "
-        "list(DISTINCT channel) AS channels, count(*) AS records, min(time) AS first_time, "
+        f"arg_min(type, {pos}) AS type, arg_min(gs, {pos}) AS gs, list(DISTINCT diag_id ORDER BY diag_id) AS diag_ids, "
+        "list(DISTINCT channel ORDER BY channel) AS channels, count(*) AS records, min(time) AS first_time, "
         f"max(time) AS last_time FROM records{where}"
     )
 
@@ -76,44 +76,56 @@ def days_of_parts(rels: Iterable[str]) -> set[str]:
 
 def derive_days(root: Path, manifest: Manifest, generation: int, days: set[str] | None) -> list[str]:
     """Both tables' parts for ``days`` (None: every day) made again from the records, replacing theirs in
-    ``manifest``; the parts written."""
-    import pyarrow.compute as pc
+    ``manifest``; the parts written.
 
-    from console.analysis.inventory import IDENTITY_LABELS
-    from console.archive.parts import write_part
-    from console.archive.views import connect
+    A day is a task of the current engine (:func:`console.fleet.engine.map_partitions`): on Dask the
+    workers aggregate the days, where the client's one DuckDB pass over a 100 M-record archive took
+    10 s alone and set its peak memory."""
+    from console.fleet.engine import map_partitions
 
     for table in TABLES:
         keep = [] if days is None else [r for r in manifest.parts(table) if not (days_of_parts([r]) & days)]
         manifest.tables[table] = keep
     if days is not None and not days:
         return []
-    if not manifest.parts("records"):
-        return []
-    conds = ["time IS NOT NULL"]
-    params: list[Any] = []
-    if days is not None:
-        conds.append("day IN (SELECT unnest(?::DATE[]))")
-        params.append(sorted(days))
-    where = " WHERE " + " AND ".join(conds)
-    labels = ", ".join(f"'{x}'" for x in sorted(IDENTITY_LABELS))
-    con, _ = connect(root, manifest, tables=("records",))
-    try:
-        heads = con.sql(_grouped(head_rows_sql(where), "device_id, counting_head"), params=params).to_arrow_table()
-        ident_sql = _grouped(identity_rows_sql(f"{where} AND label_canonical IN ({labels})"), IDENTITY_GROUP)
-        ident = con.sql(ident_sql, params=params).to_arrow_table()
-    finally:
-        con.close()
+    by_day: dict[str, list[str]] = {}
+    for rel in manifest.parts("records"):
+        for day in days_of_parts([rel]):
+            if days is None or day in days:
+                by_day.setdefault(day, []).append(rel)
+    items = [{"day": day, "records": by_day[day]} for day in sorted(by_day)]
     written: list[str] = []
-    for table, rows in ((HEAD_DAYS, heads), (IDENTITY_DAYS, ident)):
-        day_col = rows.column("day")
-        for day in sorted({str(d) for d in day_col.to_pylist()}):
-            part = rows.filter(pc.equal(day_col.cast("string"), day)).drop_columns(["day"])
-            rel = os.path.join(DATA, table, f"day={day}", f"g{generation:06d}-s.parquet")
-            (root / rel).parent.mkdir(parents=True, exist_ok=True)
-            written.append(write_part(root, rel, part))
+    for parts in map_partitions(_day_parts, items, common={"root": root, "generation": generation}, label="head days"):
+        for table, rel in parts:
+            written.append(rel)
             manifest.tables[table] = [*manifest.parts(table), rel]
     return written
+
+
+def _day_parts(root: Path, generation: int, day: str, records: list[str]) -> list[tuple[str, str]]:
+    """One day's rows of both tables, from that day's record parts, written as their parts: (table, part)."""
+    from console.analysis.inventory import IDENTITY_LABELS
+    from console.archive.parts import write_part
+    from console.archive.views import connect
+
+    where = " WHERE time IS NOT NULL"
+    labels = ", ".join(f"'{x}'" for x in sorted(IDENTITY_LABELS))
+    con, _ = connect(root, Manifest(tables={"records": records}), tables=("records",))
+    try:
+        heads = con.sql(_grouped(head_rows_sql(where), "device_id, counting_head")).to_arrow_table()
+        ident_sql = _grouped(identity_rows_sql(f"{where} AND label_canonical IN ({labels})"), IDENTITY_GROUP)
+        ident = con.sql(ident_sql).to_arrow_table()
+    finally:
+        con.close()
+    out: list[tuple[str, str]] = []
+    for table, rows in ((HEAD_DAYS, heads), (IDENTITY_DAYS, ident)):
+        if rows.num_rows == 0:
+            continue
+        # A record's day partition is its time's (parse_pass), so the rows are all of ``day``.
+        rel = os.path.join(DATA, table, f"day={day}", f"g{generation:06d}-s.parquet")
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        out.append((table, write_part(root, rel, rows.drop_columns(["day"]))))
+    return out
 
 
 def _grouped(select: str, group: str) -> str:
