@@ -51,7 +51,9 @@ def first_last_ns(code: np.ndarray, times_ns: np.ndarray, n: int) -> tuple[np.nd
     return first, last
 
 
-def sorted_positions(names: Sequence[object], key: Callable[[object], str], chunk: int = 65_536) -> np.ndarray:
+def sorted_positions(
+    names: pd.Index | Sequence[object], key: Callable[[object], str], chunk: int = 65_536
+) -> np.ndarray:
     """``np.argsort(np.array([key(x) for x in names], dtype=object), kind="stable")``, with the keys held
     as one array of UTF-8 bytes (whose order is the code points' order) made a chunk of names at a
     time, instead of a Python string per name (a million device names: ~70 MB of keys at the peak)."""
@@ -70,5 +72,5 @@ def sorted_positions(names: Sequence[object], key: Callable[[object], str], chun
     return np.argsort(joined, kind="stable")
 
 
-def _sorted_as_strings(names: Sequence[object], key: Callable[[object], str]) -> np.ndarray:
+def _sorted_as_strings(names: pd.Index | Sequence[object], key: Callable[[object], str]) -> np.ndarray:
     return np.argsort(np.array([key(x) for x in names], dtype=object), kind="stable")
