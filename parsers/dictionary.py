@@ -154,7 +154,7 @@ class StringDictionary:
     """
 
     def __init__(self) -> None:
-        self._index = DigestIndex()
+        self._index: DigestIndex | None = DigestIndex()
         self._front: dict[str, int] = {}
         self._text = bytearray()
         self._offsets = Growable(np.int64)
@@ -172,8 +172,17 @@ class StringDictionary:
             return found
         return int(self.codes([value])[0])
 
+    def freeze(self) -> None:
+        """No more strings will be interned: drop the lookup (its digests weigh about as much as the
+        strings); :meth:`value`, :meth:`take` and :meth:`arrow` still read them, ``code(s)`` then raise."""
+        self._index = None
+        self._front = {}
+
     def codes(self, values: Sequence[str]) -> np.ndarray:
         """Codes of many strings at once (int32), new strings numbered in order of first sight."""
+        index = self._index
+        if index is None:
+            raise RuntimeError("StringDictionary frozen: no more strings can be interned")
         front = self._front
         got = [front.get(v) for v in values]
         if None not in got:
@@ -186,11 +195,11 @@ class StringDictionary:
             encoded = [v.encode("utf-8", "surrogatepass") for v in distinct]
             self._surrogates = True
         hi, lo = digests(encoded)
-        ids = self._index.get(hi, lo)
+        ids = index.get(hi, lo)
         new = np.flatnonzero(ids < 0)
         if len(new):
             ids[new] = len(self) + np.arange(len(new), dtype=np.int32)
-            self._index.add(hi[new], lo[new], ids[new])
+            index.add(hi[new], lo[new], ids[new])
             new_bytes = [encoded[k] for k in new.tolist()]
             lengths = np.fromiter(map(len, new_bytes), np.int64, len(new_bytes))
             self._offsets.extend(len(self._text) + np.cumsum(lengths))

@@ -45,11 +45,13 @@ import re
 import unicodedata
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from parsers.report import FileReport, ParseReport, escape_name
 from parsers.sources import OverlongLine, ReadFailure, iter_chunks, open_input
+
+if TYPE_CHECKING:
+    import pandas as pd  # loaded when a table is made: the file-kind check imports this module too
 
 VOLTAGE_COLUMNS = ("sensor", "in_phase_mv", "anti_phase_mv", "difference_mv", "file", "line")
 REQUIRED = ("sensor", "in_phase_mv", "anti_phase_mv")
@@ -274,6 +276,8 @@ def _file_lines(path: Path, report: ParseReport) -> tuple[FileReport, Iterator[t
 
 
 def _frame(rows: list[tuple[str, float, float, float, str, int]]) -> pd.DataFrame:
+    import pandas as pd
+
     frame = pd.DataFrame(rows, columns=list(VOLTAGE_COLUMNS))
     return frame.astype(
         {
@@ -306,4 +310,6 @@ def read_voltages(paths: Iterable[Path | str]) -> tuple[pd.DataFrame, ParseRepor
     report.check()
     if not frames:
         return _frame([]), report
+    import pandas as pd
+
     return pd.concat(frames, ignore_index=True), report

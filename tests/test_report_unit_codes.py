@@ -7,8 +7,11 @@ with unused categories, plain strings, missing values, NaT times).
 
 from __future__ import annotations
 
+import random
+
 import numpy as np
 import pandas as pd
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -58,3 +61,33 @@ def test_first_last_as_groupby(rows: list[tuple[int, int | None]]) -> None:
         ref_last[t1.index.to_numpy()] = t1.to_numpy("datetime64[ns]").view(np.int64)
     assert first.tolist() == ref_first.tolist()
     assert last.tolist() == ref_last.tolist()
+
+
+def _natural_key(x: object) -> str:
+    from console.inputs.recognise import NUMBER_PARTS
+    from console.sinks.report.model import _padded_number
+
+    return NUMBER_PARTS.sub(_padded_number, str(x).casefold())
+
+
+@pytest.mark.parametrize("with_nul", [False, True])
+def test_sorted_positions_as_string_keys(with_nul: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Digits (padded to keys with NULs inside), case, casefold's ß, accents, a lone surrogate, non-ASCII
+    # digits, empty names; with_nul adds names ending in NUL (the string path).
+    from console.sinks.report import unit_codes
+
+    alphabet = ["a", "B", "b", "0", "1", "9", "00", "12", "-", " ", "ß", "é", "Ω", "\udc80", "x", "Z", "٣", "²"]
+    if with_nul:
+        alphabet.append("\x00")
+    else:
+
+        def no_strings(*_: object) -> np.ndarray:
+            raise AssertionError("bytes keys expected")
+
+        monkeypatch.setattr(unit_codes, "_sorted_as_strings", no_strings)
+    rng = random.Random(int(with_nul))
+    for _ in range(30):
+        names = ["".join(rng.choice(alphabet) for _ in range(rng.randint(0, 6))) for _ in range(rng.randint(0, 2000))]
+        want = np.argsort(np.array([_natural_key(x) for x in names], dtype=object), kind="stable")
+        got = unit_codes.sorted_positions(pd.Index(names, dtype=object), _natural_key, chunk=rng.choice([1, 7, 500]))
+        assert (want == got).all()

@@ -48,7 +48,7 @@ from console.inputs.recognise import NUMBER_PARTS, natural_key
 from console.layout import Layout
 from console.sinks.report.jsonwrite import Rows
 from console.sinks.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPassages, SectionHistory
-from console.sinks.report.unit_codes import first_last_ns, sorted_codes
+from console.sinks.report.unit_codes import first_last_ns, sorted_codes, sorted_positions
 from console.sinks.tables.section_tables import sections_json
 from parsers.report import ParseReport
 
@@ -353,8 +353,7 @@ def _sensors(data: ReportData) -> list[dict[str, Any]]:
 def _natural_order(names: pd.Index) -> np.ndarray:
     """Positions of ``names`` in :func:`natural_key` order (ties keep their order), one sort key
     string per name: runs of digits length-prefixed, so that plain string order is the natural one."""
-    keys = [NUMBER_PARTS.sub(_padded_number, str(x).casefold()) for x in names]
-    return np.argsort(np.array(keys, dtype=object), kind="stable")
+    return sorted_positions(names, lambda x: NUMBER_PARTS.sub(_padded_number, str(x).casefold()))
 
 
 def _padded_number(m: re.Match[str]) -> str:
