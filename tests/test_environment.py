@@ -300,3 +300,23 @@ def test_an_interrupted_simulate_publishes_nothing(tmp_path: Path) -> None:
         "nmea/T1-head.nmea",
         "notes.txt",
     ]
+
+
+def test_ctrl_c_exits_130_even_with_a_worker_thread_blocked_in_a_read(tmp_path: Path) -> None:
+    """The interpreter's exit waits for every worker thread: one blocked reading a FIFO whose writer stays
+    open would hold it forever (a report on a FIFO once did, in CI); the command still ends, with 130."""
+    fifo = tmp_path / "in.fifo"
+    os.mkfifo(fifo)
+    body = (
+        "import sys, threading\n"
+        "from console.cli.common import guard\n"
+        "def blocked(): open(sys.argv[1], 'rb').read()\n"
+        "def fn():\n"
+        "    threading.Thread(target=blocked).start()\n"
+        "    raise KeyboardInterrupt\n"
+        "sys.exit(guard(fn))\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", body, str(fifo)], stderr=subprocess.PIPE)
+    with open(fifo, "wb"):  # the writer stays open: the thread's read never ends
+        assert proc.wait(timeout=30) == 130
+    assert proc.stderr is not None and b"Traceback" not in proc.stderr.read()

@@ -10,6 +10,8 @@ import os
 import signal
 import stat
 import sys
+import threading
+import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -218,6 +220,20 @@ def __getattr__(name: str) -> Any:
     return Console
 
 
+def _exit_within(code: int, seconds: float = 5.0) -> None:
+    """End the process with ``code`` after ``seconds`` if the interpreter has not ended it by then.
+
+    The interpreter's exit waits for every worker thread, and one blocked in a read (a FIFO whose writer
+    stays open) never returns: a report on a FIFO once hung for a minute after Ctrl-C.  Its outputs are
+    already removed by then (the stack has unwound)."""
+
+    def last_resort() -> None:
+        time.sleep(seconds)
+        os._exit(code)
+
+    threading.Thread(target=last_resort, name="exit watchdog", daemon=True).start()
+
+
 def guard(fn: Callable[[], int]) -> int:
     """Run a command body: input errors become one-line messages and exit 2.
 
@@ -238,9 +254,11 @@ def guard(fn: Callable[[], int]) -> int:
         raise fail(str(exc)) from None
     except KeyboardInterrupt:
         _silence_stdout()
+        _exit_within(exit_codes.INTERRUPTED)
         return exit_codes.INTERRUPTED
     except Terminated:
         _silence_stdout()
+        _exit_within(exit_codes.TERMINATED)
         return exit_codes.TERMINATED
     except OSError as exc:
         if isinstance(exc, BrokenPipeError) or exc.errno in OUTPUT_ERRNOS or exc.errno == errno.EPIPE:
