@@ -27,6 +27,7 @@ line number and reason (``parsers.report``).
 from __future__ import annotations
 
 import contextlib
+import os
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -55,6 +56,11 @@ from parsers.sources import (
     open_input,
 )
 from parsers.units import NS
+
+try:
+    from parsers.diag import _tokenize_c
+except ImportError:  # built without a C compiler: the numpy tokenizer
+    _tokenize_c = None  # type: ignore[assignment]
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -224,7 +230,36 @@ def _fraction_digits(
 _MIN_FAST_LINE = 64
 
 
-def _tokenize(chunk: Chunk) -> _Tokens:
+def _chunk_bytes(chunk: Chunk) -> memoryview | bytes:
+    """The chunk's data, ending with a newline (a last line without one gets it)."""
+    return chunk.data if chunk.ends_with_newline() else bytes(chunk.data) + b"\n"
+
+
+def _tokenize_compiled(chunk: Chunk) -> _Tokens:
+    """:func:`_tokenize_numpy`'s cut, in one compiled pass without the GIL (``_tokenize_c.c``)."""
+    assert _tokenize_c is not None
+    data = _chunk_bytes(chunk)
+    n_fast, starts, ends, blank, fast, reg_idx, reg_dict, val_idx, val_dict, tod, subsecond, time_ok = (
+        _tokenize_c.tokenize(data)
+    )
+    return _Tokens(
+        chunk=chunk,
+        buf=data,
+        starts=np.frombuffer(starts, np.intp),
+        ends=np.frombuffer(ends, np.intp),
+        blank=np.frombuffer(blank, np.bool_),
+        fast=np.frombuffer(fast, np.intp)[:n_fast],
+        reg_idx=np.frombuffer(reg_idx, np.intp)[:n_fast],
+        reg_dict=reg_dict,
+        val_idx=np.frombuffer(val_idx, np.intp)[:n_fast],
+        val_dict=val_dict,
+        tod_ns=np.frombuffer(tod, np.int64)[:n_fast],
+        subsecond=np.frombuffer(subsecond, np.bool_)[:n_fast],
+        time_ok=np.frombuffer(time_ok, np.bool_)[:n_fast],
+    )
+
+
+def _tokenize_numpy(chunk: Chunk) -> _Tokens:
     """Cut a chunk into lines and spans: numpy and Arrow only, no per-line Python.
 
     Only newlines are scanned for.  In a record the last three tabs stand
@@ -233,7 +268,7 @@ def _tokenize(chunk: Chunk) -> _Tokens:
     they are found with 8-byte loads.  The tab count of the rest is checked
     when each distinct register span is parsed.
     """
-    data = chunk.data if chunk.ends_with_newline() else bytes(chunk.data) + b"\n"
+    data = _chunk_bytes(chunk)
     size = len(data)
     buf = data
     arr = np.frombuffer(buf, np.uint8)
@@ -316,6 +351,18 @@ def _tokenize(chunk: Chunk) -> _Tokens:
         subsecond=subsecond,
         time_ok=time_ok,
     )
+
+
+# The compiled tokenizer where it was built (``pip install`` with a C compiler), unless TRACKSIDE_PURE=1 asks
+# for the numpy one: both give the same tokens (tests/test_diag_compiled.py).
+_tokenize: Callable[[Chunk], _Tokens] = (
+    _tokenize_compiled if _tokenize_c is not None and not os.environ.get("TRACKSIDE_PURE") else _tokenize_numpy
+)
+
+
+def compiled_tokenizer() -> bool:
+    """Whether the compiled tokenizer is in use."""
+    return _tokenize is _tokenize_compiled
 
 
 # Below this chunk size the thread pool's hand-over costs more than tokenizing in the reading thread.
