@@ -32,6 +32,8 @@ round (``git archive <commit> | tar -x -C DIR``), for before/after figures in
 one run (issue 28)::
 
     python benchmarks/bench_analyze.py /work/bench_data/r3m.log --repeat 5 --baseline /tmp/base
+
+``--pure`` also runs it with ``TRACKSIDE_PURE=1`` (the numpy tokenizer instead of the compiled one).
 """
 
 from __future__ import annotations
@@ -55,11 +57,11 @@ RATIO_TARGET = 0.5
 LINEAR_TARGET = 4.3 / 4  # 12 M in ≤ 4.3x the time of 3 M: per record, ≤ 1.075x
 
 
-def run(cmd: list[str], cwd: Path | None = None) -> tuple[float, float, float]:
+def run(cmd: list[str], cwd: Path | None = None, env: dict[str, str] | None = None) -> tuple[float, float, float]:
     """Wall seconds, peak RSS (MB) and CPU seconds (user + system, all threads) of one child process;
     stdout discarded.  CPU time is what to compare on a machine shared with other jobs."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=cwd)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=cwd, env=env)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     err = proc.stderr.read().decode() if proc.stderr else ""
@@ -93,20 +95,26 @@ def load() -> str:
     return "/".join(f"{x:.1f}" for x in os.getloadavg())
 
 
-def bench(exe: str, log: Path, repeat: int, baseline: Path | None = None) -> dict[str, float]:
+def bench(exe: str, log: Path, repeat: int, baseline: Path | None = None, pure: bool = False) -> dict[str, float]:
     ours_cmd = [exe, "analyze", "--json", str(log.resolve())]
     bare_cmd = [sys.executable, "-c", BARE, str(log)]
     run(bare_cmd)  # warm the page cache
-    ours, bare, base = [], [], []
+    ours, bare, base, ours_pure = [], [], [], []
+    pure_env = {**os.environ, "TRACKSIDE_PURE": "1"}
     for i in range(repeat):
         if baseline is not None:
             base.append(run(in_checkout(ours_cmd), cwd=baseline))
         ours.append(run(ours_cmd))
         bare.append(run(bare_cmd))
+        if pure:
+            ours_pure.append(run(ours_cmd, env=pure_env))
         line = f"  round {i + 1}: load {load()}  analyze {ours[-1][0]:.2f} s ({ours[-1][2]:.2f} CPU)"
         line += f"  bare {bare[-1][0]:.2f} s ({bare[-1][2]:.2f} CPU)  ratio {ours[-1][0] / bare[-1][0]:.2f}"
         if base:
             line += f"  baseline {base[-1][0]:.2f} s ({base[-1][2]:.2f} CPU, {base[-1][0] / bare[-1][0]:.2f})"
+        if ours_pure:
+            p = ours_pure[-1]
+            line += f"  pure {p[0]:.2f} s ({p[2]:.2f} CPU, {p[0] / bare[-1][0]:.2f})"
         print(line, flush=True)
     speeds_rss = run([exe, "speeds", "--json", str(log)])[1]
     records = records_in(log)
@@ -140,6 +148,14 @@ def bench(exe: str, log: Path, repeat: int, baseline: Path | None = None) -> dic
             f"  baseline analyze --json  : median {base_t:.2f} s ({base_cpu:.2f} s CPU)"
             f"  peak RSS {max(r for _, r, _ in base):.0f} MB  ratio {base_t / b_t:.2f}"
         )
+    if ours_pure:
+        pure_t = statistics.median(w for w, _, _ in ours_pure)
+        pure_cpu = statistics.median(c for _, _, c in ours_pure)
+        row.update(pure_s=pure_t, pure_cpu_s=pure_cpu, pure_ratio=pure_t / b_t)
+        print(
+            f"  TRACKSIDE_PURE=1 analyze : median {pure_t:.2f} s ({pure_cpu:.2f} s CPU)"
+            f"  peak RSS {max(r for _, r, _ in ours_pure):.0f} MB  ratio {pure_t / b_t:.2f}"
+        )
     print(f"  trackside speeds --json  : peak RSS {speeds_rss:.0f} MB")
     print(f"  throughput               : {row['records_per_s']:,.0f} records/s, {row['mb_per_s']:.0f} MB/s")
     print(f"  ratio (trackside / bare) : {row['ratio']:.2f}  [{mark(row['ratio'] <= RATIO_TARGET)} ≤ {RATIO_TARGET}]")
@@ -162,10 +178,13 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json-out", type=Path, help="also write the rows here")
     ap.add_argument("--baseline", type=Path, help="also run analyze --json from this checkout, alternately")
+    ap.add_argument(
+        "--pure", action="store_true", help="also run analyze --json with TRACKSIDE_PURE=1 (numpy tokenizer)"
+    )
     args = ap.parse_args()
     exe = shutil.which("trackside") or sys.exit("trackside is not installed (pip install .)")
     print("command:", " ".join(sys.argv), f"(load {load()}, {os.cpu_count()} CPUs)", flush=True)
-    rows = [bench(exe, log, args.repeat, args.baseline) for log in args.logs]
+    rows = [bench(exe, log, args.repeat, args.baseline, args.pure) for log in args.logs]
     if len(rows) > 1:
         base = rows[0]["ours_s"] / rows[0]["records"]
         for log, row in zip(args.logs[1:], rows[1:], strict=True):
