@@ -672,4 +672,3 @@ def json_text(doc: dict[str, Any]) -> str:
     same bytes piece by piece, and also a document with :class:`~console.sinks.report.jsonwrite.Rows`.
     """
     return json.dumps(doc, ensure_ascii=True, indent=1, allow_nan=False) + "\n"
-
