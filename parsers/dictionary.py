@@ -245,6 +245,19 @@ class StringDictionary:
             for a, b in zip(at[codes].tolist(), at[codes + 1].tolist(), strict=True)
         ]
 
+    def binary(self) -> pa.Array:
+        """All strings, by code, as their UTF-8 bytes (``surrogatepass``) in an Arrow large_binary array.
+
+        Byte order there is the strings' code-point order (Python's ``<``), lone surrogates included:
+        sorting it sorts the strings without making them."""
+        import pyarrow as pa
+
+        n = len(self)
+        offsets = self._offsets.data[: n + 1]
+        return pa.Array.from_buffers(
+            pa.large_binary(), n, [None, pa.py_buffer(offsets.copy()), pa.py_buffer(bytes(self._text))]
+        )
+
     def arrow(self) -> pa.Array:
         """All strings, by code, as an Arrow large_string array over one copy of the buffer.
 

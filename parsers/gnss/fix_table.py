@@ -230,6 +230,26 @@ class NameTable(Sequence[str]):
         """The strings of ``codes`` (codes of this table), as a new list."""
         return self._names.take(self._at[np.asarray(codes, np.int64)])
 
+    def reordered(self, positions: np.ndarray) -> NameTable:
+        """The names at ``positions``, in that order (a table over the same strings: none made)."""
+        return NameTable(self._names, self._at[np.asarray(positions, np.int64)])
+
+    def string_order(self, positions: np.ndarray) -> np.ndarray:
+        """``positions`` sorted by their names in Python's string order, read from the UTF-8 bytes
+        (whose order is the code points'): no Python string per name."""
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        positions = np.asarray(positions, np.int64)
+        if not len(positions):
+            return positions
+        at = self._at[positions]
+        names = self._names.binary().take(pa.Array.from_buffers(pa.int64(), len(at), [None, pa.py_buffer(at)]))
+        order = pc.sort_indices(names)
+        del names
+        ranked = np.frombuffer(order.buffers()[1], np.uint64, len(order), order.offset * 8)
+        return positions[ranked.astype(np.int64)]
+
 
 class FixRows:
     """Fix rows being collected, column by column (``time`` in ns, NaT as :data:`NAT_NS`).

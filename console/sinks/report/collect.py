@@ -66,7 +66,7 @@ from console.inputs.recognise import (
 )
 from console.layout import Layout, LayoutError, load_layout
 from console.progress import byte_progress
-from console.sinks.report.model import InputFile, ReportData
+from console.sinks.report.model import InputFile, ReportData, gnss_units_of_columns
 from console.sinks.report.spooled import ReportPassages, SectionHistory, report_sink
 from console.sinks.tables.section_history import SectionsSink
 from parsers.sources import InputError
@@ -271,26 +271,49 @@ def _crossings(data: ReportData, gnss: list[Path]) -> None:
         data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."
         return
     from console.memory import big_read_memory
-    from parsers.gnss_files import parse_gnss
+    from parsers.gnss_files import parse_gnss, parse_gnss_columns
 
+    if _runs_crossings(data.layout):
+        with big_read_memory(gnss):
+            fixes, report, _states = parse_gnss(gnss)
+        data.reports["gnss"] = report
+        crossings_from_fixes(data, fixes)
+        return
+    # The unit table is all the fixes are read for: made from the columns it needs, the rest let go first,
+    # within the read's memory settings (its Arrow sort on the system allocator, the heap trimmed after).
     with big_read_memory(gnss):
-        fixes, report, _states = parse_gnss(gnss)
+        columns, report = parse_gnss_columns(gnss)
+        c = columns
+        needed = (c.device_codes, c.device_names, c.valid, c.time_ns, c.role, c.source)
+        del c, columns
+        data.gnss_units = gnss_units_of_columns(*needed)
+        del needed
     data.reports["gnss"] = report
-    crossings_from_fixes(data, fixes)
+    _no_crossing_note(data)
+
+
+def _runs_crossings(lay: Layout | None) -> bool:
+    return lay is not None and bool(lay.crossings) and len(lay.track) >= 2
+
+
+def _no_crossing_note(data: ReportData) -> None:
+    lay = data.layout
+    if lay is None:
+        data.notes["crossings"] = "No level-crossing timelines: they need a layout with [[crossings]] and a [[track]]."
+    else:
+        data.notes["crossings"] = (
+            f"No level-crossing timelines: the layout {lay.source} has no [[crossings]] or no [[track]] polyline."
+        )
 
 
 def crossings_from_fixes(data: ReportData, fixes: pd.DataFrame) -> None:
     """Parsed fixes (from files, or from the archive) → the crossing controller's run, with its notes."""
     lay = data.layout
     data.fixes = fixes
-    if lay is None:
-        data.notes["crossings"] = "No level-crossing timelines: they need a layout with [[crossings]] and a [[track]]."
+    if not _runs_crossings(lay):
+        _no_crossing_note(data)
         return
-    if not lay.crossings or len(lay.track) < 2:
-        data.notes["crossings"] = (
-            f"No level-crossing timelines: the layout {lay.source} has no [[crossings]] or no [[track]] polyline."
-        )
-        return
+    assert lay is not None
     own = fixes["source"].astype(str) != "centre"
     if own.any() and not own.all():
         note = "crossings use the NMEA and device streams (each unit's own fixes), not the centre's copy"

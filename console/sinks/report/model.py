@@ -48,7 +48,7 @@ from console.inputs.recognise import NUMBER_PARTS, natural_key
 from console.layout import Layout
 from console.sinks.report.jsonwrite import Rows
 from console.sinks.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPassages, SectionHistory
-from console.sinks.report.unit_codes import first_last_ns, sorted_codes, sorted_positions
+from console.sinks.report.unit_codes import first_last_ns, sorted_codes, sorted_name_codes, sorted_positions
 from console.sinks.tables.section_tables import sections_json
 from parsers.report import ParseReport
 
@@ -115,6 +115,8 @@ class ReportData:
     frames: pd.DataFrame | None = None  # sensor and CAN frames together
     frame_events: list[DetectionEvent] = field(default_factory=list)
     fixes: pd.DataFrame | None = None
+    # The GNSS unit table, when the fixes were read for it alone (no crossing run): they are not kept.
+    gnss_units: GnssUnits | None = None
     crossing: CrossingRun | None = None
     reports: dict[str, ParseReport] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
@@ -350,7 +352,7 @@ def _sensors(data: ReportData) -> list[dict[str, Any]]:
     return out
 
 
-def _natural_order(names: pd.Index) -> np.ndarray:
+def _natural_order(names: pd.Index | Sequence[str]) -> np.ndarray:
     """Positions of ``names`` in :func:`natural_key` order (ties keep their order), one sort key
     string per name: runs of digits length-prefixed, so that plain string order is the natural one."""
     return sorted_positions(names, lambda x: NUMBER_PARTS.sub(_padded_number, str(x).casefold()))
@@ -366,30 +368,88 @@ def _value_sets(code: np.ndarray, values: pd.Series, n: int) -> tuple[np.ndarray
     """Per device, the set of ``values`` it has, as a bit mask over the distinct values (few: roles,
     sources), and those values: flat, not a set object per device."""
     vcode, vnames = sorted_codes(values)
-    mask = np.zeros(n, np.uint64)
     if len(vnames) > 64:  # never for roles or sources; keep the first 64 rather than fail
         vcode = np.where(vcode < 64, vcode, 63)
-    np.bitwise_or.at(mask, code, np.left_shift(np.uint64(1), vcode.astype(np.uint64)))
+    # The narrowest mask that holds them (a byte per device for the few roles or sources).
+    bits = next(t for t in (np.uint8, np.uint16, np.uint32, np.uint64) if np.iinfo(t).bits >= len(vnames))
+    mask = np.zeros(n, bits)
+    np.bitwise_or.at(mask, code, np.left_shift(bits(1), vcode.astype(bits)))
     return mask, [str(v) for v in vnames[:64]]
 
 
-def _gnss_units(data: ReportData) -> list[dict[str, Any]] | Rows:
-    fixes = data.fixes
-    if fixes is None or fixes.empty:
-        return []
-    # Grouped reductions into flat columns, and one row made at a time as the report is written:
-    # a file may hold a million devices.
-    code, names = sorted_codes(fixes["device"])
+@dataclass
+class GnssUnits:
+    """The GNSS unit table as flat columns, one entry per device (``names`` in string order), and the
+    devices' natural order: what the report shows of the fixes, without them."""
+
+    names: pd.Index | Sequence[str]
+    order: np.ndarray  # positions in ``names``, in natural_key order
+    count: np.ndarray
+    n_valid: np.ndarray
+    first_ns: np.ndarray
+    last_ns: np.ndarray
+    roles: np.ndarray  # bit masks over role_names
+    role_names: list[str]
+    sources: np.ndarray  # bit masks over source_names
+    source_names: list[str]
+
+
+def gnss_units_of_columns(
+    device_codes: np.ndarray,
+    device_names: Sequence[str],
+    valid: np.ndarray,
+    time_ns: np.ndarray,
+    role: np.ndarray,
+    source: np.ndarray,
+) -> GnssUnits:
+    """:class:`GnssUnits` of the fix columns it reads (:class:`~parsers.gnss.fix_table.FixColumns`' fields
+    of those names; ``role``/``source`` codes into ROLES/SOURCES): the device names stay flat."""
+    from parsers.gnss.fix_table import ROLES, SOURCES
+
+    code, names = sorted_name_codes(device_codes, device_names)
+    role_column = pd.Series(pd.Categorical.from_codes(role, dtype=pd.CategoricalDtype(list(ROLES))))
+    source_column = pd.Series(pd.Categorical.from_codes(source, dtype=pd.CategoricalDtype(list(SOURCES))))
+    return _units(code, names, valid.astype(bool), time_ns, role_column, source_column)
+
+
+def _units(
+    code: np.ndarray,
+    names: pd.Index | Sequence[str],
+    valid: np.ndarray,
+    times_ns: np.ndarray,
+    role_column: pd.Series,
+    source_column: pd.Series,
+) -> GnssUnits:
     n = len(names)
-    count = np.bincount(code, minlength=n)
-    n_valid = np.bincount(code, weights=fixes["valid"].astype(bool).to_numpy(), minlength=n).astype(np.int64)
-    times = fixes["time"]
-    if getattr(times.dt, "tz", None) is not None:
-        times = times.dt.tz_convert(None)
-    first, last = first_last_ns(code, np.asarray(times.to_numpy("datetime64[ns]")).view(np.int64), n)
-    roles, role_names = _value_sets(code, fixes["role"], n)
-    sources, source_names = _value_sets(code, fixes["source"], n)
-    order = _natural_order(names)
+    # Counts as int32 (a device's fixes are rows of one table) and positions too: kept until written.
+    count = np.bincount(code, minlength=n).astype(np.int32)
+    n_valid = np.bincount(code, weights=valid, minlength=n).astype(np.int32)
+    first, last = first_last_ns(code, times_ns, n)
+    roles, role_names = _value_sets(code, role_column, n)
+    sources, source_names = _value_sets(code, source_column, n)
+    del code
+    order = _natural_order(names).astype(np.int32)
+    return GnssUnits(names, order, count, n_valid, first, last, roles, role_names, sources, source_names)
+
+
+def _gnss_units(data: ReportData) -> list[dict[str, Any]] | Rows:
+    units = data.gnss_units
+    if units is None:
+        fixes = data.fixes
+        if fixes is None or fixes.empty:
+            return []
+        # Grouped reductions into flat columns, and one row made at a time as the report is written:
+        # a file may hold a million devices.
+        code, names = sorted_codes(fixes["device"])
+        times = fixes["time"]
+        if getattr(times.dt, "tz", None) is not None:
+            times = times.dt.tz_convert(None)
+        times_ns = np.asarray(times.to_numpy("datetime64[ns]")).view(np.int64)
+        valid = fixes["valid"].astype(bool).to_numpy()
+        units = _units(code, names, valid, times_ns, fixes["role"], fixes["source"])
+    if not len(units.names):
+        return []
+    u = units
 
     def members(mask: int, values: list[str], cache: dict[int, list[str]]) -> list[str]:
         got = cache.get(mask)
@@ -401,20 +461,22 @@ def _gnss_units(data: ReportData) -> list[dict[str, Any]] | Rows:
         role_cache: dict[int, list[str]] = {}
         source_cache: dict[int, list[str]] = {}
         nat = np.iinfo(np.int64).min
-        for i in order.tolist():
-            role = [r for r in members(int(roles[i]), role_names, role_cache) if r]
-            t_first, t_last = int(first[i]), int(last[i])
-            yield {
-                "device": str(names[i]),
-                "role": "/".join(role) or None,
-                "sources": list(members(int(sources[i]), source_names, source_cache)),
-                "fixes": int(count[i]),
-                "valid": int(n_valid[i]),
-                "first": None if t_first == nat else iso(t_first),
-                "last": None if t_last == nat else iso(t_last),
-            }
+        # A block of positions at a time: a Python int per device for all of them weighed ~36 MB.
+        for start in range(0, len(u.order), 65_536):
+            for i in u.order[start : start + 65_536].tolist():
+                role = [r for r in members(int(u.roles[i]), u.role_names, role_cache) if r]
+                t_first, t_last = int(u.first_ns[i]), int(u.last_ns[i])
+                yield {
+                    "device": str(u.names[i]),
+                    "role": "/".join(role) or None,
+                    "sources": list(members(int(u.sources[i]), u.source_names, source_cache)),
+                    "fixes": int(u.count[i]),
+                    "valid": int(u.n_valid[i]),
+                    "first": None if t_first == nat else iso(t_first),
+                    "last": None if t_last == nat else iso(t_last),
+                }
 
-    return Rows(n, rows)
+    return Rows(len(u.names), rows)
 
 
 def _devices(devices: Sequence[DeviceInventory]) -> Rows:

@@ -32,6 +32,32 @@ def sorted_codes(column: pd.Series) -> tuple[np.ndarray, pd.Index]:
     return np.asarray(code, np.int64), pd.Index(names, dtype=object)
 
 
+def sorted_name_codes(codes: np.ndarray, names: Sequence[str]) -> tuple[np.ndarray, Sequence[str]]:
+    """:func:`sorted_codes` for a column held as codes into its distinct ``names`` (the GNSS fix columns):
+    (code per row into the names used, the names used in string order).
+
+    Names in a :class:`~parsers.gnss.fix_table.NameTable` are sorted from their UTF-8 bytes and come
+    back as a table over the same flat strings: no Python string per name (a pandas categorical of a
+    million device names held ~60 MB of them from the read to the report's end).
+    """
+    from parsers.gnss.fix_table import NameTable
+
+    codes = np.asarray(codes)
+    if not len(codes):
+        return np.zeros(0, np.int64), []
+    used = np.flatnonzero(np.bincount(codes, minlength=len(names)))
+    if isinstance(names, NameTable):
+        ranked = names.string_order(used)
+        table: Sequence[str] = names.reordered(ranked)
+    else:
+        values = np.asarray(list(names), dtype=object)
+        ranked = used[np.argsort(values[used], kind="stable")]
+        table = [str(v) for v in values[ranked]]
+    rank = np.zeros(len(names), np.int64)
+    rank[ranked] = np.arange(len(ranked))
+    return rank[codes], table
+
+
 def first_last_ns(code: np.ndarray, times_ns: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Per group (``code`` in ``range(n)``), the first and last known time (int64 ns; NaT when none).
 
@@ -52,7 +78,7 @@ def first_last_ns(code: np.ndarray, times_ns: np.ndarray, n: int) -> tuple[np.nd
 
 
 def sorted_positions(
-    names: pd.Index | Sequence[object], key: Callable[[object], str], chunk: int = 65_536
+    names: pd.Index | Sequence[object] | Sequence[str], key: Callable[[object], str], chunk: int = 65_536
 ) -> np.ndarray:
     """``np.argsort(np.array([key(x) for x in names], dtype=object), kind="stable")``, with the keys held
     as one array of UTF-8 bytes (whose order is the code points' order) made a chunk of names at a
