@@ -38,3 +38,75 @@ def record(
 @pytest.fixture
 def samples() -> Path:
     return SAMPLES
+
+
+# -- how the suite is shared between xdist workers (pyproject: --dist loadgroup --no-loadscope-reorder) --------
+#
+# A test file is one unit, run on one worker in its order (its module fixtures are built once), except:
+# files whose tests are independent and long are cut into one unit per test, and a file with independent
+# parts is cut into those parts. The units go out longest first (seconds of one worker, measured on 2 cores),
+# so the two workers end together rather than one finishing a long file alone.
+
+# Files cut into one unit per test: no test reads what another wrote, no module fixture worth sharing.
+PER_TEST = {"tests/test_one_engine.py"}
+# Files cut into one unit per test function (its parametrized cases stay together, in order).
+PER_FUNCTION = {"tests/test_examples.py"}
+# The units to send first, longest first (nodeid prefixes; a unit takes the place of its first match).
+# Figures: seconds per unit in a 2-worker run at load ~10 (tests/test_one_engine.py 250 s in all, each of its
+# cases 44-81 s); the other units follow in the collection's order.
+LONGEST_FIRST = (
+    "tests/test_sim_parting.py",  # 105 s
+    "tests/test_fleet_archive.py",  # 82
+    "tests/test_one_engine.py::test_every_mode_gives_the_batch_result[simulated-100]",  # 81
+    "tests/test_integrity_faces.py",  # 77
+    "tests/test_station_archive.py",  # 74
+    "tests/test_replay_engine.py",  # 69
+    "tests/test_crossing_runs.py",  # 61
+    "tests/test_crossing_ticks.py",  # 57
+    "tests/test_one_engine.py::test_every_mode_gives_the_batch_result[simulated-101]",  # 55
+    "tests/test_counting_bank.py",  # 55
+    "tests/test_examples.py::test_help_example_runs",  # 55
+    "tests/test_archive_crash.py",  # 54
+    "tests/test_one_engine.py::test_every_mode_gives_the_batch_result[realistic-200]",  # 53
+    "tests/test_integrity_runs.py",  # 48
+    "tests/test_report.py",  # 46
+    "tests/test_one_engine.py::test_the_simulators_console_shows_what_batch_finds_in_the_files_it_wrote",  # 46
+    "tests/test_one_engine.py::test_every_mode_gives_the_batch_result[realistic-201]",  # 44
+    "tests/test_live_sim.py",  # 40
+    "tests/test_live_follow_formats.py",  # 39
+    "tests/test_whole_second.py",  # 39
+    "tests/test_archive_incremental.py",  # 35
+    "tests/test_examples.py::test_readme_example_runs",  # 34
+    "tests/test_metrics.py",  # 31
+    "tests/test_archive_equality.py",  # 30
+    "tests/test_live_gpsd.py",  # 30
+    "tests/test_stream_sections.py",  # 30
+    "tests/test_fleet_group_ingest.py",  # 26
+    "tests/test_archive_derive.py",  # 24
+    "tests/test_integrity_brake_mqtt.py",  # 23
+)
+
+
+def _unit(nodeid: str) -> str:
+    path, _, rest = nodeid.partition("::")
+    if path in PER_TEST:
+        return nodeid
+    if path in PER_FUNCTION:
+        return f"{path}::{rest.split('[')[0]}"
+    return path
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist's own hook reads the group markers
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # On an xdist worker ``dist`` reads "no": xdist keeps the controller's choice in ``option.loadgroup``.
+    if not getattr(config.option, "loadgroup", False):
+        return
+
+    def rank(item: pytest.Item) -> int:
+        return next((k for k, p in enumerate(LONGEST_FIRST) if item.nodeid.startswith(p)), len(LONGEST_FIRST))
+
+    items.sort(key=rank)  # stable: the rest keep the collection's order
+    for item in items:
+        unit = _unit(item.nodeid)
+        if unit != item.nodeid:
+            item.add_marker(pytest.mark.xdist_group(unit))
