@@ -5,6 +5,6 @@ from setuptools import Extension, setup
 
 setup(
     ext_modules=[
-        Extension("parsers.diag._tokenize_c", ["parsers/diag/_tokenize_c.c"], optional=True),
+        Extension("parsers.diag.compiled_tokens", ["parsers/diag/compiled_tokens.c"], optional=True),
     ]
 )

@@ -1,4 +1,4 @@
-"""The compiled tokenizer (parsers/diag/_tokenize_c.c) and the numpy one cut every input alike.
+"""The compiled tokenizer (parsers/diag/compiled_tokens.c) and the numpy one cut every input alike.
 
 Both tokenizers run over the same bytes: their tokens are compared field by field, and whole reads
 through each are compared record by record and rejection by rejection (file, line, reason, text).
@@ -26,18 +26,18 @@ from parsers.sources import Chunk
 from tests.conftest import SAMPLES, record
 
 try:
-    from parsers.diag import _tokenize_c
+    from parsers.diag import compiled_tokens
 except ImportError:  # pragma: no cover - depends on the build
-    _tokenize_c = None  # type: ignore[assignment]
+    compiled_tokens = None  # type: ignore[assignment]
 
 _COMPILER = shutil.which("cc") or shutil.which("gcc")
-if _tokenize_c is None and os.environ.get("CI") and _COMPILER:
+if compiled_tokens is None and os.environ.get("CI") and _COMPILER:
     # CI installs a C compiler: a package built without the module there means the build broke.
     raise AssertionError(f"the compiled tokenizer was not built, though a C compiler is present ({_COMPILER})")
 
 pytestmark = pytest.mark.skipif(
-    _tokenize_c is None,
-    reason="parsers.diag._tokenize_c is not built (no C compiler at install): only the numpy tokenizer exists",
+    compiled_tokens is None,
+    reason="parsers.diag.compiled_tokens is not built (no C compiler at install): only the numpy tokenizer exists",
 )
 
 _PER_LINE = ("starts", "ends", "blank")
@@ -195,11 +195,11 @@ def test_random_bytes_tokenize_alike(data: bytes) -> None:
 
 
 def test_compiled_tokenizer_rejects_data_without_newline() -> None:
-    assert _tokenize_c is not None
+    assert compiled_tokens is not None
     with pytest.raises(ValueError, match="newline"):
-        _tokenize_c.tokenize(b"no newline")
+        compiled_tokens.tokenize(b"no newline")
     with pytest.raises(ValueError, match="newline"):
-        _tokenize_c.tokenize(b"")
+        compiled_tokens.tokenize(b"")
 
 
 def test_pure_switch_chooses_the_numpy_tokenizer() -> None:

@@ -58,9 +58,9 @@ from parsers.sources import (
 from parsers.units import NS
 
 try:
-    from parsers.diag import _tokenize_c
+    from parsers.diag import compiled_tokens
 except ImportError:  # built without a C compiler: the numpy tokenizer
-    _tokenize_c = None  # type: ignore[assignment]
+    compiled_tokens = None  # type: ignore[assignment]
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -236,11 +236,11 @@ def _chunk_bytes(chunk: Chunk) -> memoryview | bytes:
 
 
 def _tokenize_compiled(chunk: Chunk) -> _Tokens:
-    """:func:`_tokenize_numpy`'s cut, in one compiled pass without the GIL (``_tokenize_c.c``)."""
-    assert _tokenize_c is not None
+    """:func:`_tokenize_numpy`'s cut, in one compiled pass without the GIL (``compiled_tokens.c``)."""
+    assert compiled_tokens is not None
     data = _chunk_bytes(chunk)
     n_fast, starts, ends, blank, fast, reg_idx, reg_dict, val_idx, val_dict, tod, subsecond, time_ok = (
-        _tokenize_c.tokenize(data)
+        compiled_tokens.tokenize(data)
     )
     return _Tokens(
         chunk=chunk,
@@ -356,7 +356,7 @@ def _tokenize_numpy(chunk: Chunk) -> _Tokens:
 # The compiled tokenizer where it was built (``pip install`` with a C compiler), unless TRACKSIDE_PURE=1 asks
 # for the numpy one: both give the same tokens (tests/test_diag_compiled.py).
 _tokenize: Callable[[Chunk], _Tokens] = (
-    _tokenize_compiled if _tokenize_c is not None and not os.environ.get("TRACKSIDE_PURE") else _tokenize_numpy
+    _tokenize_compiled if compiled_tokens is not None and not os.environ.get("TRACKSIDE_PURE") else _tokenize_numpy
 )
 
 

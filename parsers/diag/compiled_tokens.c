@@ -273,7 +273,7 @@ static PyMethodDef methods[] = {
 };
 
 static struct PyModuleDef module = {
-    PyModuleDef_HEAD_INIT, "_tokenize_c", "The compiled tokenizer of diagnostic records.", -1, methods,
+    PyModuleDef_HEAD_INIT, "compiled_tokens", "The compiled tokenizer of diagnostic records.", -1, methods,
 };
 
-PyMODINIT_FUNC PyInit__tokenize_c(void) { return PyModule_Create(&module); }
+PyMODINIT_FUNC PyInit_compiled_tokens(void) { return PyModule_Create(&module); }
