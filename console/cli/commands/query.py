@@ -6,7 +6,7 @@ import csv
 import datetime as dt
 import json
 import sys
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, cast
 
 import typer
 
@@ -110,7 +110,9 @@ def _plain_rows(rows: list[tuple[object, ...]], ns_columns: frozenset[int]) -> l
     if len(rows) <= SCALAR_TIMES_MAX_ROWS:
         from console.analysis.timefmt import iso
 
-        return [tuple(iso(v) if i in ns_columns else _plain(v) for i, v in enumerate(r)) for r in rows]
+        return [
+            tuple(iso(cast(int | None, v)) if i in ns_columns else _plain(v) for i, v in enumerate(r)) for r in rows
+        ]
     import numpy as np
 
     from console.analysis.timefmt import iso_array
