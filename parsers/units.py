@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 NS = 1_000_000_000  # nanoseconds per second
 NS_PER_DAY = 86_400 * NS
-NO_TIME = int(np.iinfo(np.int64).min)  # no time known: before every time
-ALL_TIME = int(np.iinfo(np.int64).max)  # after every time: a bound that closes nothing
+NO_TIME = -(1 << 63)  # no time known: before every time (int64's least; no numpy import for two constants)
+ALL_TIME = (1 << 63) - 1  # after every time: a bound that closes nothing (int64's greatest)

@@ -15,11 +15,13 @@ when parsed; sources without one (the diagnostic logs, centre tables without
 from __future__ import annotations
 
 import datetime as dt
-
-import numpy as np
-from numpy.typing import ArrayLike
+from typing import TYPE_CHECKING
 
 from parsers.units import NS
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import ArrayLike
 
 _EPOCH = dt.datetime(1970, 1, 1)
 
@@ -37,6 +39,8 @@ def fraction_text(frac_ns: int) -> str:
 def exact_ns(ns: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """(epoch ns as int64, which are present): integer columns exactly, float columns
     with NaN as absent (float64 would round epoch ns to 256 ns, so ints stay ints)."""
+    import numpy as np  # deferred: a query's few times use iso() alone, which spares numpy's import (~0.1 s)
+
     if np.asarray(ns).dtype.kind in "iu":
         ints = np.asarray(ns, np.int64)
         return ints, np.ones(len(ints), bool)
@@ -55,6 +59,8 @@ def iso(ns: int | None) -> str | None:
 
 def iso_array(ns: np.ndarray) -> np.ndarray:
     """:func:`iso` over an array of ns (float with NaN for none → None), vectorized."""
+    import numpy as np  # deferred: see exact_ns
+
     vals = np.asarray(ns)
     ok = ~np.isnan(vals) if vals.dtype.kind == "f" else np.ones(len(vals), dtype=bool)
     ints = np.where(ok, vals, 0).astype(np.int64)

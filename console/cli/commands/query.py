@@ -6,7 +6,7 @@ import csv
 import datetime as dt
 import json
 import sys
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, cast
 
 import typer
 
@@ -22,6 +22,10 @@ if TYPE_CHECKING:
     from console.archive.store import Manifest
 
 FORMATS = ("table", "csv", "json", "jsonl")
+# Up to this many rows the times are formatted one by one (timefmt.iso), as the other values are: a query of a
+# head's hour (a few thousand rows) then never imports numpy, a tenth of a second of its start-up; above it the
+# vectorized iso_array is quicker than the import.  Both give the same text (tests/test_query_times.py).
+SCALAR_TIMES_MAX_ROWS = 50_000
 
 
 def query(
@@ -103,6 +107,12 @@ def _plain_rows(rows: list[tuple[object, ...]], ns_columns: frozenset[int]) -> l
     """Rows of Python values as output values; ``ns_columns`` hold epoch ns, written as _column writes times."""
     if not ns_columns or not rows:
         return [tuple(_plain(v) for v in r) for r in rows]
+    if len(rows) <= SCALAR_TIMES_MAX_ROWS:
+        from console.analysis.timefmt import iso
+
+        return [
+            tuple(iso(cast(int | None, v)) if i in ns_columns else _plain(v) for i, v in enumerate(r)) for r in rows
+        ]
     import numpy as np
 
     from console.analysis.timefmt import iso_array
