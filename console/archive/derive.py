@@ -412,7 +412,7 @@ class Derivation:
         self.ingested_heads: list[tuple[int, Any]] = []
         self.ingested_twice: list[str] = []  # groups two tasks met: derived again from their records
         self.head_order: list[tuple[int, Any]] | None = None
-        # The head_days figures the ingest's read gathered (console.archive.day_rows); None: none.
+        # The per-day inventory figures the ingest's read gathered (console.archive.day_rows); None: none.
         self.day_rows: DayRows | None = None
         self.records_before = bool(manifest.parts("records"))  # the archive held records before this ingest
 

@@ -128,7 +128,7 @@ class _Ingest:
         self.gen = self.new.generation
         self.on_bytes = on_bytes
         self.records = PartWriter(root, "records", self.gen, "r", sort_by=RECORD_ORDER)
-        # The head_days figures of the records stored here (the derivation merges them with the stored rows).
+        # The per-day inventory figures of the records stored here (merged with the stored rows at the end).
         self.day_rows = DayRows()
         self.new_parts: list[str] = []
         self.ingest_rows: list[dict[str, Any]] = []
