@@ -52,6 +52,7 @@ from console.analysis.passages.overlap import overlap_mask
 from console.analysis.passages.registers import RegisterTables
 from console.analysis.sections.engine import SectionEngine
 from console.analysis.sections.stream import EventStream, HeadFacts
+from console.archive.day_rows import DayRows
 from console.archive.derive_sink import DERIVE_VERSION, ArchiveSink, arrow_table, day_column
 from console.archive.head_days import days_of_parts, derive_days
 from console.archive.history import at_end_tables
@@ -411,6 +412,9 @@ class Derivation:
         self.ingested_heads: list[tuple[int, Any]] = []
         self.ingested_twice: list[str] = []  # groups two tasks met: derived again from their records
         self.head_order: list[tuple[int, Any]] | None = None
+        # The per-day inventory figures the ingest's read gathered (console.archive.day_rows); None: none.
+        self.day_rows: DayRows | None = None
+        self.records_before = bool(manifest.parts("records"))  # the archive held records before this ingest
 
     def _drop_parts(self, tables: dict[str, list[str]]) -> None:
         for table, rels in tables.items():
@@ -511,8 +515,12 @@ class Derivation:
         # The inventory's figures per day: the days this ingest's records lie in, or every day when the
         # derivation was made again (another version, a file replaced).
         fresh = None if not self.same or self.rebuild_all else days_of_parts(self._records_of_this_ingest())
+        if fresh is None and not self.records_before and self.day_rows is not None:
+            # A new archive: every day is this ingest's, no earlier rows to merge with.
+            self.day_rows.first = True
+            fresh = days_of_parts(self.manifest.parts("records"))
         trim_heap()  # the at-end tables' freed memory given back before DuckDB's aggregates take their own
-        parts += derive_days(self.root, self.manifest, self.generation, fresh)
+        parts += derive_days(self.root, self.manifest, self.generation, fresh, self.day_rows)
         return parts
 
     def _records_of_this_ingest(self) -> list[str]:

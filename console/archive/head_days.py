@@ -28,6 +28,9 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
+from console.archive.day_rows import DayRows, stored_day_table
 from console.archive.store import DATA, Manifest
 
 if TYPE_CHECKING:
@@ -74,20 +77,34 @@ def days_of_parts(rels: Iterable[str]) -> set[str]:
     return {m[1] for rel in rels if (m := _DAY_IN_PATH.search("/" + rel))}
 
 
-def derive_days(root: Path, manifest: Manifest, generation: int, days: set[str] | None) -> list[str]:
+def derive_days(
+    root: Path, manifest: Manifest, generation: int, days: set[str] | None, day_rows: DayRows | None = None
+) -> list[str]:
     """Both tables' parts for ``days`` (None: every day) made again from the records, replacing theirs in
     ``manifest``; the parts written.
 
     A day is a task of the current engine (:func:`console.fleet.engine.map_partitions`): on Dask the
     workers aggregate the days, where the client's one DuckDB pass over a 100 M-record archive took
-    10 s alone and set its peak memory."""
+    10 s alone and set its peak memory.  ``day_rows``: what this ingest's read gathered; the days it can
+    make exactly (:mod:`console.archive.day_rows`) are merged with their stored rows, not read back."""
     from console.fleet.engine import map_partitions
 
+    merged: list[str] = []
+    if days is not None and day_rows is not None and day_rows.complete:
+        days = set(days)
+        for day in sorted(days):
+            made = _merged_day(root, manifest, generation, day, day_rows)
+            if made is not None:
+                days.discard(day)
+                for table in TABLES:
+                    kept = [r for r in manifest.parts(table) if day not in days_of_parts([r])]
+                    manifest.tables[table] = kept + [r for r in made if r.startswith(os.path.join(DATA, table, ""))]
+                merged += made
     for table in TABLES:
         keep = [] if days is None else [r for r in manifest.parts(table) if not (days_of_parts([r]) & days)]
         manifest.tables[table] = keep
     if days is not None and not days:
-        return []
+        return _in_day_order(manifest, merged)
     by_day: dict[str, list[str]] = {}
     for rel in manifest.parts("records"):
         for day in days_of_parts([rel]):
@@ -99,7 +116,43 @@ def derive_days(root: Path, manifest: Manifest, generation: int, days: set[str] 
         for table, rel in parts:
             written.append(rel)
             manifest.tables[table] = [*manifest.parts(table), rel]
-    return written
+    return _in_day_order(manifest, merged + written)
+
+
+def _in_day_order(manifest: Manifest, written: list[str]) -> list[str]:
+    """``written`` (this call's parts, one per table and day) listed after the others, by day, in both
+    tables: the order every day made from the records gives, whichever way each day was made."""
+    new = set(written)
+    for table in TABLES:
+        rels = manifest.parts(table)
+        manifest.tables[table] = [r for r in rels if r not in new] + sorted((r for r in rels if r in new), key=_day_of)
+    return sorted(written, key=_day_of)
+
+
+def _day_of(rel: str) -> str:
+    m = _DAY_IN_PATH.search("/" + rel)
+    return m[1] if m else ""
+
+
+def _merged_day(root: Path, manifest: Manifest, generation: int, day: str, day_rows: DayRows) -> list[str] | None:
+    """``day``'s parts of both tables from the read's figures and the stored rows (the parts written), or
+    None when the read saw no timed record of that day (made from the records, as before)."""
+    from console.archive.parts import write_part
+
+    index = int(np.datetime64(day, "D").astype(np.int64))
+    if index not in day_rows.days():
+        return None
+    out: list[str] = []
+    for table in TABLES:
+        rels = [] if day_rows.first else [r for r in manifest.parts(table) if day in days_of_parts([r])]
+        stored = stored_day_table(root, rels)
+        rows = day_rows.head_rows(index, stored) if table == HEAD_DAYS else day_rows.identity_rows(index, stored)
+        if rows.num_rows == 0:
+            continue
+        rel = os.path.join(DATA, table, f"day={day}", f"g{generation:06d}-s.parquet")
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        out.append(write_part(root, rel, rows))
+    return out
 
 
 def _day_parts(root: Path, generation: int, day: str, records: list[str]) -> list[tuple[str, str]]:

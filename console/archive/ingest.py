@@ -26,6 +26,7 @@ import pyarrow as pa
 
 from console import __version__
 from console.archive import ledger
+from console.archive.day_rows import DayRows
 from console.archive.derive import Derivation
 from console.archive.group_ingest import Prescan
 from console.archive.parse_pass import (
@@ -127,6 +128,8 @@ class _Ingest:
         self.gen = self.new.generation
         self.on_bytes = on_bytes
         self.records = PartWriter(root, "records", self.gen, "r", sort_by=RECORD_ORDER)
+        # The per-day inventory figures of the records stored here (merged with the stored rows at the end).
+        self.day_rows = DayRows()
         self.new_parts: list[str] = []
         self.ingest_rows: list[dict[str, Any]] = []
         # Every rejected line, written out as it comes (a hostile file may reject millions of lines).
@@ -298,6 +301,7 @@ class _Ingest:
 
         if not self.queued:
             return
+        self.day_rows.complete = False  # records stored by the workers
         d = self.derivation
         if (
             d is not None
@@ -411,6 +415,7 @@ class _Ingest:
             registry=registry,
             on_chunk=derive.feed if derive is not None else None,
             on_bytes=self.on_bytes,
+            day_rows=self.day_rows,
         )
         self._take_report(e, p, out, report)
 
@@ -518,6 +523,7 @@ class _Ingest:
             self.new.tables.setdefault("records", []).extend(written)
             self.new_parts += written
         if self.dropped_seqs:
+            self.day_rows.complete = False  # the stored rows count records that leave
             self._rewrite_records_without(self.dropped_seqs)
         self._compact_records(set(written))
 
@@ -701,6 +707,7 @@ def run_ingest(
             layout = _inputs_layout(job, inputs, layout)
             # The derivation writes into the new manifest, as the records do; on a cluster, per group of heads.
             job.derivation = Derivation(root, job.new, layout, grouped=on_cluster())
+            job.derivation.day_rows = job.day_rows
             job.on_cluster = on_cluster()
             if job.on_cluster:
                 job.prescan(inputs)

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import pyarrow as pa
 
+from console.archive.day_rows import DayRows
 from console.archive.parts import PartWriter
 from console.archive.records import RecordEncoder
 from parsers.report import ParseReport
@@ -89,11 +90,13 @@ def parse_one_pass(
     registry: DiagRegistry | None = None,
     on_chunk: Callable[[DiagChunk], None] | None = None,
     on_bytes: Callable[[int], None] | None = None,
+    day_rows: DayRows | None = None,
 ) -> ParseReport:
     """Parse ``source`` (known as ``shown``, the archive's file ``file_seq``, its first line ``first_line`` + 1):
     each chunk's records to ``records``, then to ``on_chunk``; each rejected line to ``reject``.
 
     ``registry``: the one to parse into (a pipeline's, shared by the files of a read), else the reader's own.
+    ``day_rows``: given each chunk's records too (the head_days figures of the read).
     """
     from parsers.diag.read import DiagReader
 
@@ -105,6 +108,8 @@ def parse_one_pass(
     for chunk in reader.chunks():
         table, device_id = enc.encode(chunk, shown, file_seq, first_line)
         records.add(table, chunk.time_ns // NS_PER_DAY, device_id)
+        if day_rows is not None:
+            day_rows.add(enc.registry, chunk, file_seq, first_line)
         if on_chunk is not None:
             on_chunk(chunk)
     return reader.report
