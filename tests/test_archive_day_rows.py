@@ -5,7 +5,6 @@ records as before."""
 
 from __future__ import annotations
 
-import random
 from pathlib import Path
 
 import pyarrow as pa
@@ -18,6 +17,7 @@ from console.archive.ingest import run_ingest
 from console.archive.store import read_current
 from tests.conftest import SAMPLES
 from tests.test_archive_derive import simulate_over_midnight
+from tests.test_archive_head_days import ingest_split
 
 
 @pytest.fixture(scope="module")
@@ -32,46 +32,24 @@ def nights(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     return [a, b, sub]
 
 
-def _from_records(root: Path, tmp: Path) -> dict[str, pa.Table]:
-    """Each day's head_days rows made from all of that day's records (the aggregate the merge replaces)."""
+def _from_records(root: Path) -> dict[str, dict[str, pa.Table]]:
+    """Each day's rows made from all of that day's records (the aggregate the merge replaces), by table."""
     m = read_current(root)
-    out: dict[str, pa.Table] = {}
+    out: dict[str, dict[str, pa.Table]] = {}
     by_day: dict[str, list[str]] = {}
     for rel in m.parts("records"):
         for day in days_of_parts([rel]):
             by_day.setdefault(day, []).append(rel)
     for day, rels in by_day.items():
         for table, rel in head_days._day_parts(root, 999_999, day, rels):
-            if table == HEAD_DAYS:
-                out[day] = pq.read_table(root / rel)
-                (root / rel).unlink()
+            out.setdefault(table, {})[day] = pq.read_table(root / rel)
+            (root / rel).unlink()
     return out
 
 
-def _stored(root: Path) -> dict[str, pa.Table]:
+def _stored(root: Path, table: str = HEAD_DAYS) -> dict[str, pa.Table]:
     m = read_current(root)
-    return {days_of_parts([rel]).pop(): pq.read_table(root / rel) for rel in m.parts(HEAD_DAYS)}
-
-
-def _ingest(logs: list[Path], root: Path, how: str, seed: int) -> None:
-    rng = random.Random(seed)
-    if how == "whole":
-        run_ingest(logs, root)
-    elif how == "file_by_file":
-        for log in logs:
-            run_ingest([log], root)
-    else:  # each file cut at a random line, ingested, then grown to its whole and ingested again
-        grown = []
-        for log in logs:
-            lines = log.read_bytes().splitlines(keepends=True)
-            cut = rng.randrange(1, len(lines))
-            path = root.parent / f"grown-{log.name}"
-            path.write_bytes(b"".join(lines[:cut]))
-            grown.append((path, b"".join(lines)))
-        run_ingest([p for p, _ in grown], root)
-        for path, whole in grown:
-            path.write_bytes(whole)
-        run_ingest([p for p, _ in grown], root)
+    return {days_of_parts([rel]).pop(): pq.read_table(root / rel) for rel in m.parts(table)}
 
 
 @pytest.mark.parametrize("how", ["whole", "file_by_file", "grown-1", "grown-2"])
@@ -87,11 +65,11 @@ def test_merged_rows_equal_the_records_aggregate(
 
     monkeypatch.setattr(head_days, "_day_parts", counted)
     root = tmp_path / "arc"
-    _ingest(nights, root, how, seed=int(how[-1]) if how[-1].isdigit() else 0)
+    ingest_split(nights, root, how)
     assert not made_from_records  # no identity registers here: every day merged, none read back
     monkeypatch.setattr(head_days, "_day_parts", real)
     stored = _stored(root)
-    want = _from_records(root, tmp_path)
+    want = _from_records(root)[HEAD_DAYS]
     assert len(want) >= 3  # the nights' days, and the sub-second board's
     assert sorted(stored) == sorted(want)
     for day, table in want.items():
@@ -110,21 +88,12 @@ def test_identity_registers_merged_over_ingests(
     run_ingest([nights[0], SAMPLES / "osong_ws4_0932_detection.log"], root)
     run_ingest([SAMPLES / "osong_ws4_1032_detection.log", nights[1]], root)
     monkeypatch.setattr(head_days, "_day_parts", real)
-    m = read_current(root)
-    stored = {days_of_parts([rel]).pop(): pq.read_table(root / rel) for rel in m.parts(IDENTITY_DAYS)}
-    want: dict[str, pa.Table] = {}
-    by_day: dict[str, list[str]] = {}
-    for rel in m.parts("records"):
-        for day in days_of_parts([rel]):
-            by_day.setdefault(day, []).append(rel)
-    for day, rels in by_day.items():
-        for table, rel in head_days._day_parts(root, 999_999, day, rels):
-            t = pq.read_table(root / rel)
-            (root / rel).unlink()
-            if table == IDENTITY_DAYS:
-                want[day] = t
-            else:
-                assert _stored(root)[day].equals(t), day
+    stored = _stored(root, IDENTITY_DAYS)
+    made = _from_records(root)
+    want = made[IDENTITY_DAYS]
+    stored_heads = _stored(root)
+    for day, t in made[HEAD_DAYS].items():
+        assert stored_heads[day].equals(t), day
     assert want and sorted(stored) == sorted(want)
     for day, table in want.items():
         assert stored[day].schema.equals(table.schema, check_metadata=True), day

@@ -111,40 +111,33 @@ def _ordered(df: pd.DataFrame, columns: list[str]) -> pd.DataFrame:
     return df.sort_values(columns[:7], kind="stable").reset_index(drop=True)
 
 
-def _ingest_whole(logs: list[Path], root: Path) -> None:
-    run_ingest(logs, root)
-
-
-def _ingest_file_by_file(logs: list[Path], root: Path) -> None:
-    for log in logs:
-        run_ingest([log], root)
-
-
-def _ingest_grown(logs: list[Path], root: Path, seed: int) -> None:
-    """Each file ingested at a random line, then again grown to its whole."""
-    rng = random.Random(seed)
-    grown = []
-    for log in logs:
-        lines = log.read_bytes().splitlines(keepends=True)
-        cut = rng.randrange(1, len(lines))
-        path = root.parent / f"grown-{log.name}"
-        path.write_bytes(b"".join(lines[:cut]))
-        grown.append((path, b"".join(lines)))
-    run_ingest([p for p, _ in grown], root)
-    for path, whole in grown:
-        path.write_bytes(whole)
-    run_ingest([p for p, _ in grown], root)
+def ingest_split(logs: list[Path], root: Path, how: str) -> None:
+    """Ingest ``logs`` ``whole``, ``file_by_file``, or ``grown-N``: each file cut at a random line (seed N),
+    ingested, then grown to its whole and ingested again."""
+    if how == "whole":
+        run_ingest(logs, root)
+    elif how == "file_by_file":
+        for log in logs:
+            run_ingest([log], root)
+    else:
+        rng = random.Random(int(how.removeprefix("grown-")))
+        grown = []
+        for log in logs:
+            lines = log.read_bytes().splitlines(keepends=True)
+            cut = rng.randrange(1, len(lines))
+            path = root.parent / f"grown-{log.name}"
+            path.write_bytes(b"".join(lines[:cut]))
+            grown.append((path, b"".join(lines)))
+        run_ingest([p for p, _ in grown], root)
+        for path, whole in grown:
+            path.write_bytes(whole)
+        run_ingest([p for p, _ in grown], root)
 
 
 @pytest.mark.parametrize("how", ["whole", "file_by_file", "grown-1", "grown-2"])
 def test_stored_rows_are_the_records_figures_whatever_the_ingests(logs: list[Path], tmp_path: Path, how: str) -> None:
     root = tmp_path / "arc"
-    if how == "whole":
-        _ingest_whole(logs, root)
-    elif how == "file_by_file":
-        _ingest_file_by_file(logs, root)
-    else:
-        _ingest_grown(logs, root, seed=int(how[-1]))
+    ingest_split(logs, root, how)
     records = _records(root)
     heads = _ordered(_stored(root, HEAD_DAYS), HEAD_COLUMNS)
     want = _want_heads(records)
@@ -170,7 +163,7 @@ def _inventories(con: Any, root: Path, window: Window) -> tuple[list[dict[str, A
 
 def test_report_inventory_from_stored_rows_equals_the_records(logs: list[Path], tmp_path: Path) -> None:
     root = tmp_path / "arc"
-    _ingest_file_by_file(logs, root)
+    ingest_split(logs, root, "file_by_file")
     records = _records(root)
     days = sorted(records["time"].dt.normalize().unique())
     day0 = pd.Timestamp(days[1]).to_pydatetime()  # the simulated nights' first day (days[0]: the Osong excerpts')
@@ -203,7 +196,7 @@ def test_report_inventory_from_stored_rows_equals_the_records(logs: list[Path], 
 def test_archive_without_stored_rows_reads_the_records(logs: list[Path], tmp_path: Path) -> None:
     """An archive derived before the rows existed (no parts listed): the inventory is the records' own."""
     root = tmp_path / "arc"
-    _ingest_whole(logs, root)
+    ingest_split(logs, root, "whole")
     m = read_current(root)
     m.tables[HEAD_DAYS] = []
     m.tables[IDENTITY_DAYS] = []
