@@ -140,21 +140,16 @@ def bench(exe: str, log: Path, repeat: int, baseline: Path | None = None, pure: 
     print(f"input: {log} ({size_mb:,.0f} MB, {records:,} records), {repeat} alternating runs each")
     print(f"  trackside analyze --json : median {o_t:.2f} s ({o_cpu:.2f} s CPU)  peak RSS {row['ours_rss_mb']:.0f} MB")
     print(f"  bare pandas/pyarrow read : median {b_t:.2f} s ({b_cpu:.2f} s CPU)  peak RSS {row['bare_rss_mb']:.0f} MB")
-    if base:
-        base_t = statistics.median(w for w, _, _ in base)
-        base_cpu = statistics.median(c for _, _, c in base)
-        row.update(base_s=base_t, base_cpu_s=base_cpu, base_ratio=base_t / b_t)
+    others = (("base", "baseline analyze --json ", base), ("pure", "TRACKSIDE_PURE=1 analyze", ours_pure))
+    for key, label, runs in others:
+        if not runs:
+            continue
+        run_t = statistics.median(w for w, _, _ in runs)
+        run_cpu = statistics.median(c for _, _, c in runs)
+        row.update({f"{key}_s": run_t, f"{key}_cpu_s": run_cpu, f"{key}_ratio": run_t / b_t})
         print(
-            f"  baseline analyze --json  : median {base_t:.2f} s ({base_cpu:.2f} s CPU)"
-            f"  peak RSS {max(r for _, r, _ in base):.0f} MB  ratio {base_t / b_t:.2f}"
-        )
-    if ours_pure:
-        pure_t = statistics.median(w for w, _, _ in ours_pure)
-        pure_cpu = statistics.median(c for _, _, c in ours_pure)
-        row.update(pure_s=pure_t, pure_cpu_s=pure_cpu, pure_ratio=pure_t / b_t)
-        print(
-            f"  TRACKSIDE_PURE=1 analyze : median {pure_t:.2f} s ({pure_cpu:.2f} s CPU)"
-            f"  peak RSS {max(r for _, r, _ in ours_pure):.0f} MB  ratio {pure_t / b_t:.2f}"
+            f"  {label} : median {run_t:.2f} s ({run_cpu:.2f} s CPU)"
+            f"  peak RSS {max(r for _, r, _ in runs):.0f} MB  ratio {run_t / b_t:.2f}"
         )
     print(f"  trackside speeds --json  : peak RSS {speeds_rss:.0f} MB")
     print(f"  throughput               : {row['records_per_s']:,.0f} records/s, {row['mb_per_s']:.0f} MB/s")
