@@ -29,14 +29,13 @@ import numpy as np
 import pyarrow as pa
 
 from console.archive import arrow_np
-from parsers.units import NO_TIME, NS_PER_DAY
+from parsers.units import ALL_TIME, NO_TIME, NS_PER_DAY
 
 if TYPE_CHECKING:
     from parsers.diag.read import DiagChunk
     from parsers.diag.registry import DiagRegistry
 
-_I64_MAX = int(np.iinfo(np.int64).max)
-_I64_MIN = int(np.iinfo(np.int64).min)
+_POS_MAX = int(np.iinfo(np.int64).max)  # a minimum of positions starts above every position
 
 # The schema DuckDB gives the head rows (head_rows_sql grouped, without ``day``): the part is written with it.
 HEAD_SCHEMA = pa.schema(
@@ -95,9 +94,9 @@ class _Day:
             return
         extra = n - old
         self.count = np.concatenate([self.count, np.zeros(extra, np.int64)])
-        self.t_min = np.concatenate([self.t_min, np.full(extra, _I64_MAX, np.int64)])
-        self.t_max = np.concatenate([self.t_max, np.full(extra, _I64_MIN, np.int64)])
-        self.pos_min = np.concatenate([self.pos_min, np.full(extra, _I64_MAX, np.int64)])
+        self.t_min = np.concatenate([self.t_min, np.full(extra, ALL_TIME, np.int64)])
+        self.t_max = np.concatenate([self.t_max, np.full(extra, NO_TIME, np.int64)])
+        self.pos_min = np.concatenate([self.pos_min, np.full(extra, _POS_MAX, np.int64)])
 
 
 @dataclass
