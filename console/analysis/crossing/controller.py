@@ -164,6 +164,8 @@ RECENT_FIXES = 3  # the model-free bound takes each of this many last fixes on i
 
 # Why a warning came on earlier than the evidence alone required: the causes a timeline names.
 NO_SPEED, SPARSE, STALE, JUMPS = "no speed", "sparse fixes", "stale units", "jumps"
+# The basis of a bound from the EOT and the length while the head unit is fresh but unsettled.
+EOT_WITNESS = "eot+length (head unsettled)"
 
 
 @dataclass(frozen=True)
@@ -327,7 +329,8 @@ class CrossingController:
         return b
 
     def _bound(self, tr: _Track, t_ns: int) -> tuple[ArrivalBound, str] | None:
-        """The bound that counts now: the head unit's while it is fresh, else the EOT's plus the
+        """The bound that counts now: the head unit's while it is fresh (the EOT's plus the train's
+        length where it is nearer and the head's estimate is not settled), else the EOT's plus the
         train's length, else (every unit stale) the one heard last: the train is not forgotten."""
         # A parted train's EOT rides on the rear part: it says nothing of the head (nor does the
         # train's filter, which took it as a witness of the head).
@@ -338,6 +341,14 @@ class CrossingController:
                 return tb, "head"
             hb = self._device_bound(tr, HEAD)
             if hb is not None:
+                # Unsettled, the head's bound stands on its own few fixes, and a first fix cannot be
+                # told from a position jump (nothing to gate it against): the EOT plus the length is
+                # a second witness of the same head, and the nearer of the two counts (a jump in
+                # either only brings the warning forward).
+                if not hb.settled and whole and self._fresh(tr.eot, t_ns):
+                    eb = self._device_bound(tr, EOT)
+                    if eb is not None and eb.t_arrival_ns < hb.t_arrival_ns:
+                        return eb, EOT_WITNESS
                 return hb, "head"
         if whole and self._fresh(tr.eot, t_ns) and (eb := self._device_bound(tr, EOT)) is not None:
             return eb, "eot+length"
@@ -460,7 +471,7 @@ class CrossingController:
         nominal = None
         if b.t_nominal_ns is not None and b.t_position_ns is not None and b.t_filter_ns is not None:
             nominal = (b.t_nominal_ns - t_ns) / NS
-        if basis != "head":
+        if basis not in ("head", EOT_WITNESS):
             # The head unit lost (or every unit silent): the bound stands on the EOT and the length,
             # or on an old fix: all of what it cost is the stale units'.
             add(STALE, max(1.0, (nominal or eta) - eta))
@@ -497,7 +508,9 @@ class CrossingController:
             reason += f" (speed ≤ {b.speed_hi_mps:.1f} m/s, {how}; {b.ahead_m:.0f} m out)"
         if not reason:
             return []
-        if basis != "head":
+        if basis == EOT_WITNESS:
+            reason += " (EOT + train length: nearer than the head unit's first fixes)"
+        elif basis != "head":
             reason += " (head unit lost: EOT + train length)" if basis == "eot+length" else f" ({basis}: no fresh unit)"
         tr.warned, tr.t_on, tr.reason_on, tr.t_off, tr.reason_off = True, t_ns, reason, None, ""
         tr.onset = self._onset(tr, t_ns, b, basis)
