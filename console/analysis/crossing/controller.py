@@ -164,7 +164,8 @@ RECENT_FIXES = 3  # the model-free bound takes each of this many last fixes on i
 
 # Why a warning came on earlier than the evidence alone required: the causes a timeline names.
 NO_SPEED, SPARSE, STALE, JUMPS = "no speed", "sparse fixes", "stale units", "jumps"
-# The basis of a bound from the EOT and the length while the head unit is fresh but unsettled.
+# The basis of a bound from the EOT and the length, nearer than the fresh head unit's own while
+# the train's filter (head and EOT together) is not settled.
 EOT_WITNESS = "eot+length (head unsettled)"
 
 
@@ -299,6 +300,10 @@ class CrossingController:
         h, e, s = tr.head, tr.eot, self.s
         if h is None or e is None or h.t_fix_ns == e.t_fix_ns:
             return math.inf
+        if not (tr.kf_ok[HEAD] and tr.kf_ok[EOT]):
+            # A fix its device's filter set aside is a jump: one position of it proves no slow train
+            # (the speed bounds from the device's own fixes keep the most of its last few instead).
+            return math.inf
         dt = abs(h.t_fix_ns - e.t_fix_ns) / NS
         d, length = tr.direction, tr.spec.length_m
         gap = abs(h.chainage_m - e.chainage_m - d * length) if d else abs(h.chainage_m - e.chainage_m) + length
@@ -322,7 +327,9 @@ class CrossingController:
         b = None
         if last is not None:
             est = tr.kf[role].estimate
-            cap = self._speed(tr, last.t_fix_ns)
+            # The cap holds at the time the bound is anchored: the train's filter may stand on a
+            # later fix (of the EOT) than the head's last, and the train may have accelerated since.
+            cap = self._speed(tr, last.t_fix_ns if est is None else max(last.t_fix_ns, est.t_ns))
             extra = tr.spec.length_m if role == EOT else 0.0
             b = device_bound(self.motion, est, tr.recent[EOT if role == EOT else HEAD], tr.direction, extra, cap)
         tr.bounds[role] = b
@@ -330,7 +337,7 @@ class CrossingController:
 
     def _bound(self, tr: _Track, t_ns: int) -> tuple[ArrivalBound, str] | None:
         """The bound that counts now: the head unit's while it is fresh (the EOT's plus the train's
-        length where it is nearer and the head's estimate is not settled), else the EOT's plus the
+        length where it is nearer and the train's filter is not settled), else the EOT's plus the
         train's length, else (every unit stale) the one heard last: the train is not forgotten."""
         # A parted train's EOT rides on the rear part: it says nothing of the head (nor does the
         # train's filter, which took it as a witness of the head).
@@ -341,11 +348,13 @@ class CrossingController:
                 return tb, "head"
             hb = self._device_bound(tr, HEAD)
             if hb is not None:
-                # Unsettled, the head's bound stands on its own few fixes, and a first fix cannot be
-                # told from a position jump (nothing to gate it against): the EOT plus the length is
-                # a second witness of the same head, and the nearer of the two counts (a jump in
-                # either only brings the warning forward).
-                if not hb.settled and whole and self._fresh(tr.eot, t_ns):
+                # The train's filter not settled, the head's and the EOT's fixes have not agreed
+                # lately, and the head's bound stands on its own fixes alone: a first fix cannot be
+                # told from a position jump (nothing to gate it against), nor a jump inside the wide
+                # gate after a gap of sparse fixes from motion.  The EOT plus the length is a second
+                # witness of the same head: the nearer of the two counts (a jump in either only
+                # brings the warning forward).
+                if whole and self._fresh(tr.eot, t_ns):
                     eb = self._device_bound(tr, EOT)
                     if eb is not None and eb.t_arrival_ns < hb.t_arrival_ns:
                         return eb, EOT_WITNESS
@@ -509,7 +518,7 @@ class CrossingController:
         if not reason:
             return []
         if basis == EOT_WITNESS:
-            reason += " (EOT + train length: nearer than the head unit's first fixes)"
+            reason += " (EOT + train length: nearer than the head unit's own fixes)"
         elif basis != "head":
             reason += " (head unit lost: EOT + train length)" if basis == "eot+length" else f" ({basis}: no fresh unit)"
         tr.warned, tr.t_on, tr.reason_on, tr.t_off, tr.reason_off = True, t_ns, reason, None, ""
