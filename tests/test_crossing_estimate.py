@@ -156,6 +156,22 @@ def test_a_first_head_fix_that_jumped_back_does_not_place_the_head_further_out(s
     assert basis.startswith("eot+length")
 
 
+def test_an_eot_fix_set_aside_as_a_jump_proves_no_slow_train() -> None:
+    # 25 m/s, no speed column, fixes every 10 s, the EOT 4 s after the head.  The last EOT fix
+    # jumped 120 m back: its filter sets it aside, but paired with the head's last fix it would
+    # "prove" a head that ran ~20 m/s, and the filter's bound (≈ 29 m/s) was cut to its nominal.
+    s = ControllerSettings(report_period_s=10.0, line_speed_mps=25.0)
+    ctl = CrossingController(CROSSING, [TrainSpec("T", 100.0)], s)
+    v, x0 = 25.0, C - 4000.0
+    for k in range(8):
+        th, te = 10.0 * k, 10.0 * k + 4.0
+        ctl.step(Fix(int(th * NS) + NS // 2, int(th * NS), "T", "head", x0 + v * th))
+        ctl.step(Fix(int(te * NS) + NS // 2, int(te * NS), "T", "eot", x0 + v * te - 100.0 - 120.0 * (k == 7)))
+        got = ctl.arrival_bound("T", int(te * NS) + NS // 2)
+        assert got is not None and got[0].speed_hi_mps > v + 1.0, (k, got)
+    assert not ctl.tracks["T"].kf_ok["eot"]  # the jump was set aside by the EOT's filter
+
+
 def _standing_run(stop_m: float, period_s: float = 0.4, seed: int = 1) -> tuple[list[Fix], float]:
     """A 120 m train without speed in its export, standing ``stop_m`` before the crossing when its
     units are first heard (a train at a station): it stands 200 s, then leaves at 0.5 m/s² up to
