@@ -65,8 +65,9 @@ def test_preset_through_the_command_is_byte_identical(tmp_path: Path) -> None:
     res = runner.invoke(app, ["ingest", *map(str, logs), "--archive", str(arc)])
     assert res.exit_code == 0, res.output
     for fmt in ("csv", "json", "jsonl", "table"):
-        got = runner.invoke(app, ["query", "--preset", "axles-per-head-per-day", "--archive", str(arc), "--format", fmt])
-        want = runner.invoke(app, ["query", ONE_PASS, "--archive", str(arc), "--format", fmt])
+        where = ["--archive", str(arc), "--format", fmt]
+        got = runner.invoke(app, ["query", "--preset", "axles-per-head-per-day", *where])
+        want = runner.invoke(app, ["query", ONE_PASS, *where])
         assert got.exit_code == want.exit_code == 0, got.output + want.output
         assert got.stdout == want.stdout
         assert fmt != "csv" or len(got.stdout.splitlines()) > 1  # the samples have axles
