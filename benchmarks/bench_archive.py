@@ -262,6 +262,18 @@ def big_commands(big: Path) -> dict[str, list[str]]:
     }
 
 
+def derivation_note(big: Path, code: Path) -> str:
+    """Whether ``code``'s report reads ``big``'s derived tables or, derived by another version, its records
+    through the whole pipeline (several times slower).  Asked of a child: this process stays small."""
+    current = (big / "CURRENT").read_text().strip()
+    stored = json.loads((big / "manifests" / current).read_text()).get("derived", {}).get("fingerprint", {})
+    ask = "from console.archive.derive_sink import DERIVE_VERSION; print(DERIVE_VERSION)"
+    version = subprocess.run([sys.executable, "-c", ask], capture_output=True, text=True, check=True, cwd=code)
+    ours = int(version.stdout.split()[-1])
+    how = "the report reads the derived tables" if stored.get("version") == ours else "the report reads the RECORDS"
+    return f"archive derived by version {stored.get('version')}, code's version {ours}: {how}"
+
+
 def compare_big(big: Path, baseline: Path | None, rounds: int, baseline_big: Path | None = None) -> None:
     """Each command ``rounds`` times, alternating this checkout and ``baseline``'s; medians of wall and CPU,
     peak RSS; the outputs compared byte for byte.  ``baseline_big``: the baseline reads this archive instead
@@ -269,6 +281,8 @@ def compare_big(big: Path, baseline: Path | None, rounds: int, baseline_big: Pat
     here = Path(__file__).resolve().parent.parent
     sides = {"ours": here, **({"baseline": baseline.resolve()} if baseline is not None else {})}
     print(f"big archive: {big} ({du(big) / 1e6:.0f} MB); {rounds} rounds; load {load()}")
+    for side, cwd in sides.items():
+        print(f"  {side}: {derivation_note(baseline_big if side == 'baseline' and baseline_big else big, cwd)}")
     other = big_commands(baseline_big) if baseline_big is not None else {}
     for label, args in big_commands(big).items():
         cmds = {

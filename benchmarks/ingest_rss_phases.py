@@ -6,7 +6,7 @@ the bytes in use and the bytes free inside it, and the large blocks mapped on th
 allocated bytes; the bytes read; the part files open.  Each phase's end is printed as it comes, and the
 head_days aggregates (the derivation's DuckDB step) get their own peak.  The sampler adds a little.
 
-    python -m benchmarks.ingest_rss_phases /work/bench_data/r12m.log /tmp/arc --every 0.5
+    python -m benchmarks.ingest_rss_phases r12m.log /tmp/arc --every 0.5 --peaks
 
 Read it so: RSS growing with ``free`` inside the heap is fragmentation (pages the heap keeps); growing
 with ``used`` is memory held.  Figures: docs in the ingest notes (issue 22).
@@ -58,6 +58,11 @@ def main() -> None:
     ap.add_argument("log", type=Path)
     ap.add_argument("archive", type=Path, help="a fresh archive directory (removed first)")
     ap.add_argument("--every", type=float, default=0.5, help="seconds between samples printed")
+    ap.add_argument(
+        "--peaks",
+        action="store_true",
+        help="also print a line at each new peak of the read (after start-up): where the peak sits in the input",
+    )
     args = ap.parse_args()
 
     one_malloc_arena()  # as the ingest command does, before pyarrow is imported
@@ -101,9 +106,15 @@ def main() -> None:
         last = 0.0
         while not stop.is_set():
             rss = _rss_mb()
+            now = time.perf_counter() - t0
+            if args.peaks and rss > state["peak"] and state["phase"] == "read" and state["bytes"]:
+                print(
+                    f"{now:7.1f}s new peak rss={rss} MB {_heap()} arrow={pa.total_allocated_bytes() >> 20} "
+                    f"read={state['bytes'] >> 20} MB open_parts={sum(len(w._writers) for w in writers)}",
+                    flush=True,
+                )
             state["peak"] = max(state["peak"], rss)
             state["step_peak"] = max(state["step_peak"], rss)
-            now = time.perf_counter() - t0
             if now - last >= args.every:
                 last = now
                 open_files = sum(len(w._writers) for w in writers)

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import compileall
+import os
+import re
+import sys
 from pathlib import Path
 
 import pytest
@@ -16,6 +20,16 @@ settings.load_profile("default")
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLES = ROOT / "sample_logs"
+
+# Bytecode caches, where the environment says not to write them (PYTHONDONTWRITEBYTECODE): every `trackside`
+# subprocess and Dask worker the suite starts would compile the package's modules from source again (about
+# 0.06 s of CPU each, hundreds of them), and each xdist worker would parse and rewrite every test module again
+# (about 5 s each). The package is compiled once here, by the process that starts the run (it is quick when
+# nothing changed), and this process and its xdist workers write their caches; __pycache__ is ignored by git.
+if "PYTEST_XDIST_WORKER" not in os.environ:
+    for package in ("console", "parsers", "benchmarks"):
+        compileall.compile_dir(ROOT / package, quiet=2)
+sys.dont_write_bytecode = False
 
 RECORD = (
     "Diag_id:00002\tID:4083\tDevice:IM\tType:013\tGS:GS03\tTrackinfo:WS4\tch:{ch}\tAdr:{adr}\t"
@@ -51,6 +65,12 @@ def samples() -> Path:
 PER_TEST = {"tests/test_one_engine.py"}
 # Files cut into one unit per test function (its parametrized cases stay together, in order).
 PER_FUNCTION = {"tests/test_examples.py"}
+# Functions of those files kept in one unit: the two tests of every command's --help read one run of it
+# (test_examples.help_text, cached per process).
+SAME_UNIT = {
+    "test_every_help_ends_with_two_or_three_examples_one_per_line": "help texts",
+    "test_usage_lines_name_no_python_types": "help texts",
+}
 # The units to send first, longest first (nodeid prefixes; a unit takes the place of its first match).
 # Figures: seconds per unit in a 2-worker run at load ~10 (tests/test_one_engine.py 250 s in all, each of its
 # cases 44-81 s); the other units follow in the collection's order.
@@ -90,9 +110,14 @@ LONGEST_FIRST = (
 def _unit(nodeid: str) -> str:
     path, _, rest = nodeid.partition("::")
     if path in PER_TEST:
-        return nodeid
+        # One simulated and one realistic case of the cross-mode test per unit (seeds 100+k and 200+k): a
+        # worker starts the module's two Dask clusters once for both, where a unit per case started them for
+        # each (a worker's module fixtures end when it turns to another file's unit).
+        paired = re.fullmatch(r"(test_every_mode_gives_the_batch_result)\[(?:simulated|realistic)-\d*?(\d\d)\]", rest)
+        return f"{path}::{paired[1]}-{paired[2]}" if paired else nodeid
     if path in PER_FUNCTION:
-        return f"{path}::{rest.split('[')[0]}"
+        function = rest.split("[")[0]
+        return f"{path}::{SAME_UNIT.get(function, function)}"
     return path
 
 

@@ -46,7 +46,17 @@ def test_register_ids_across_chunks_equal_a_dict_in_first_seen_order(chunks: lis
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(dictionary, "FRONT_CACHE_MAX", front_max)
         mp.setattr("parsers.dictionary.FRONT_CACHE_MAX", front_max)
-        _check_register_ids(chunks)
+        # Read again without the invalid spans: every chunk then names only registers met before (a long
+        # log's usual chunk), which the registry answers without a loop.
+        _check_register_ids(chunks + [[s for s in spans if _parses(s)] for spans in chunks])
+
+
+def _parses(span: bytes) -> bool:
+    try:
+        parse_register_span(span)
+    except (FieldError, ValueError):
+        return False
+    return True
 
 
 def _check_register_ids(chunks: list[list[bytes]]) -> None:
@@ -72,6 +82,50 @@ def _check_register_ids(chunks: list[list[bytes]]) -> None:
     a = reg.arrays()
     assert a["device_id"].tolist() == [k.device_id for k in keys]
     assert reg.heads.take(a["counting_head"]) == [k.counting_head for k in keys]
+
+
+# Value spans ``Data:…\tDate:…``: few distinct, valid and not (bad data, bad date, wrong shape).
+_value_span = st.builds(
+    lambda data, day: f"Data:{data}\tDate:{day}".encode(),
+    st.sampled_from(["18", "0", "1", "Ω", "", "12x"]),
+    st.sampled_from(["2015-10-31", "2015-11-01", "2015-13-01", "x"]),
+)
+_any_value_span = st.one_of(_value_span, _value_span, _value_span, st.binary(max_size=30))
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    chunks=st.lists(st.lists(_any_value_span, max_size=20, unique=True), max_size=8),
+    cache_max=st.sampled_from([1, 3, 10**6]),
+)
+def test_values_across_chunks_equal_each_span_decoded_alone(chunks: list[list[bytes]], cache_max: int) -> None:
+    """A chunk whose value spans were all met before takes their rows from the cache kept across chunks:
+    the same rows, errors and data codes (texts numbered in order of first reading) as decoding each span
+    on its own.  A tiny cache is cleared between and within chunks."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("parsers.diag.registry._VALUE_CACHE_MAX", cache_max)
+        reg = DiagRegistry()
+        codes: dict[str, int] = {}
+        for spans in chunks:
+            cols, errors = reg.values(spans)
+            assert cols.shape == (4, len(spans)) and cols.dtype == np.int64
+            for i, span in enumerate(spans):
+                parts = span.split(b"\t")
+                if len(parts) != 2:
+                    assert isinstance(errors[i], FieldError) and cols[:, i].tolist() == [0, 0, 0, 0]
+                    continue
+                data = DiagRegistry._parse_data(parts[0])
+                day = DiagRegistry._parse_day(parts[1])
+                if isinstance(data, FieldError):
+                    assert errors[i].reason == data.reason and cols[:, i].tolist() == [0, 0, 0, 0]
+                    continue
+                code = codes.setdefault(data[0], len(codes))  # read, so interned, even beside a bad date
+                if isinstance(day, FieldError):
+                    assert errors[i].reason == day.reason and cols[:, i].tolist() == [0, 0, 0, 0]
+                    continue
+                assert i not in errors
+                assert cols[:, i].tolist() == [code, data[1], data[2], day]
+        assert reg.data.values == list(codes)
 
 
 @settings(max_examples=150, deadline=None)

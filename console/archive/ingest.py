@@ -38,6 +38,7 @@ from console.archive.parse_pass import (
     rejected_row,
 )
 from console.archive.parts import COMPACT_MAX_ROWS, PartWriter, compact, part_rows, read_part, write_part, write_small
+from console.archive.plain_rows import table_from_rows
 from console.archive.store import (
     TMP,
     ArchiveError,
@@ -158,7 +159,7 @@ class _Ingest:
 
     def _flush_rejected(self) -> None:
         if self._rejected_rows:
-            self.rejected.add(pa.Table.from_pylist(self._rejected_rows))
+            self.rejected.add(table_from_rows(self._rejected_rows))
             self._rejected_rows = []
 
     def _next_seq(self) -> int:
@@ -578,7 +579,7 @@ class _Ingest:
 
     def finish_ledger(self) -> None:
         if self.ingest_rows:
-            rel = write_small(self.root, "ingests", self.gen, "l", pa.Table.from_pylist(self.ingest_rows))
+            rel = write_small(self.root, "ingests", self.gen, "l", table_from_rows(self.ingest_rows))
             if rel is not None:
                 self.new.tables.setdefault("ingests", []).append(rel)
                 self.new_parts.append(rel)

@@ -105,13 +105,20 @@ def _forecasts(root: Path, manifest: Manifest) -> pa.Table:
 
 def _plain_rows(rows: list[tuple[object, ...]], ns_columns: frozenset[int]) -> list[tuple[Any, ...]]:
     """Rows of Python values as output values; ``ns_columns`` hold epoch ns, written as _column writes times."""
+    # Most values (text, integers, flags, nulls) are their own output: tested by exact type before _plain's
+    # checks, which took most of a head's hour query's formatting (1,881 rows × 20 columns: 22 → 8 ms).
+    as_is = _AS_IS
     if not ns_columns or not rows:
-        return [tuple(_plain(v) for v in r) for r in rows]
+        return [tuple(v if type(v) in as_is else _plain(v) for v in r) for r in rows]
     if len(rows) <= SCALAR_TIMES_MAX_ROWS:
         from console.analysis.timefmt import iso
 
         return [
-            tuple(iso(cast(int | None, v)) if i in ns_columns else _plain(v) for i, v in enumerate(r)) for r in rows
+            tuple(
+                iso(cast(int | None, v)) if i in ns_columns else v if type(v) in as_is else _plain(v)
+                for i, v in enumerate(r)
+            )
+            for r in rows
         ]
     import numpy as np
 
@@ -128,6 +135,10 @@ def _plain_rows(rows: list[tuple[object, ...]], ns_columns: frozenset[int]) -> l
         else:
             columns[i] = [_plain(v) for v in col]
     return list(zip(*columns, strict=True))
+
+
+# Exact types _plain returns unchanged (a subclass, a float's NaN, go through _plain).
+_AS_IS = frozenset((str, int, bool, type(None)))
 
 
 def _plain(value: Any) -> Any:
