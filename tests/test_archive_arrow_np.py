@@ -71,6 +71,15 @@ def test_strings_equal_pa_array(type: pa.DataType | None) -> None:
     assert arrow_np.strings([], type).equals(pa.array([], type or pa.string()))
 
 
+@pytest.mark.parametrize("type", [None, pa.binary(), pa.large_binary()])
+def test_binaries_equal_pa_array(type: pa.DataType | None) -> None:
+    values = [None, b"\x00\xff pickled", b"", "Zählkopf".encode(), None, b"x" * 300]
+    got = arrow_np.binaries(values, type)
+    got.validate(full=True)
+    assert got.equals(pa.array(values, type or pa.binary()))
+    assert arrow_np.binaries([], type).equals(pa.array([], type or pa.binary()))
+
+
 def test_an_ingests_read_does_not_import_pandas(tmp_path: Path) -> None:
     # pandas (+46 MB) would sit under the read's peak: only the derivation's end imports it (or the health
     # events' table, where a log has any: this one has none).

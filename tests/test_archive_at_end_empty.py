@@ -1,6 +1,6 @@
 """An ingest's at-end tables (health findings, crossing timelines) are skipped only where computing them would
 find nothing (console.archive.at_end_empty), and a plain ingest's small tables are the ones pyarrow's
-``from_pylist`` makes (console.archive.plain_rows), without importing pandas."""
+``from_pylist`` makes (console.archive.arrow_np), without importing pandas."""
 
 from __future__ import annotations
 
@@ -14,9 +14,9 @@ import pytest
 
 from benchmarks.gen_realistic_diag import generate
 from console.archive import derive
+from console.archive.arrow_np import table_from_rows
 from console.archive.history import at_end_tables
 from console.archive.ingest import run_ingest
-from console.archive.plain_rows import table_from_rows
 from console.archive.store import read_current
 from tests.conftest import SAMPLES
 

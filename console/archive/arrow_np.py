@@ -84,12 +84,44 @@ def strings(values: Sequence[str | None], type: pa.DataType | None = None) -> pa
     type = pa.string() if type is None else type
     if type not in (pa.string(), pa.large_string()):
         return pa.array(list(values), type)
-    encoded = [b"" if v is None else v.encode("utf-8") for v in values]
-    offsets = np.zeros(len(encoded) + 1, np.int64 if type == pa.large_string() else np.int32)
-    np.cumsum([len(b) for b in encoded], out=offsets[1:])
-    validity, nulls = _validity(np.array([v is not None for v in values], bool))
-    buffers = [validity, pa.py_buffer(offsets), pa.py_buffer(b"".join(encoded))]
+    return _var_width([None if v is None else v.encode("utf-8") for v in values], type)
+
+
+def binaries(values: Sequence[bytes | None], type: pa.DataType | None = None) -> pa.Array:
+    """``pa.array(values, type)`` for Python bytes (None: null), as ``binary`` or ``large_binary``."""
+    type = pa.binary() if type is None else type
+    if type not in (pa.binary(), pa.large_binary()):
+        return pa.array(list(values), type)
+    return _var_width(values, type)
+
+
+def _var_width(encoded: Sequence[bytes | None], type: pa.DataType) -> pa.Array:
+    """A variable-width array of ``type`` (32- or 64-bit offsets by its name) from its values' bytes."""
+    large = type in (pa.large_string(), pa.large_binary())
+    offsets = np.zeros(len(encoded) + 1, np.int64 if large else np.int32)
+    np.cumsum([0 if b is None else len(b) for b in encoded], out=offsets[1:])
+    validity, nulls = _validity(np.array([b is not None for b in encoded], bool))
+    buffers = [validity, pa.py_buffer(offsets), pa.py_buffer(b"".join(b for b in encoded if b is not None))]
     return pa.Array.from_buffers(type, len(encoded), buffers, null_count=nulls)
+
+
+def table_from_rows(rows: list[dict[str, Any]]) -> pa.Table:
+    """``pa.Table.from_pylist(rows)`` for rows whose every column holds only ``int`` (in int64) or only
+    ``str``, built from buffers as ``from_pylist`` types them (int64, string, no nulls); anything else (None,
+    floats, booleans, rows with other keys or key orders) goes to ``from_pylist``."""
+    names = list(rows[0]) if rows else []
+    if not rows or any(list(r) != names for r in rows):
+        return pa.Table.from_pylist(rows)
+    arrays: list[pa.Array] = []
+    for name in names:
+        values = [r[name] for r in rows]
+        if all(type(v) is str for v in values):
+            arrays.append(strings(values, pa.string()))
+        elif all(type(v) is int and -(1 << 63) <= v < (1 << 63) for v in values):
+            arrays.append(array(np.array(values, np.int64)))
+        else:
+            return pa.Table.from_pylist(rows)
+    return pa.Table.from_arrays(arrays, names=names)
 
 
 def to_numpy(arr: pa.Array | pa.ChunkedArray) -> np.ndarray:

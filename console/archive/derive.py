@@ -52,6 +52,7 @@ from console.analysis.passages.overlap import overlap_mask
 from console.analysis.passages.registers import RegisterTables
 from console.analysis.sections.engine import SectionEngine
 from console.analysis.sections.stream import EventStream, HeadFacts
+from console.archive import arrow_np
 from console.archive.at_end_empty import at_end_is_empty
 from console.archive.day_rows import DayRows
 from console.archive.derive_sink import DERIVE_VERSION, ArchiveSink, arrow_table, day_column
@@ -229,7 +230,7 @@ class GroupRun:
         (self.root / state_rel).parent.mkdir(parents=True, exist_ok=True)
         self.written.append(state_rel)
         # A part like any other (a fresh name, published with the manifest): one row, the pickled pipeline.
-        write_part(self.root, state_rel, pa.table({"pipeline": _one_binary(payload)}))
+        write_part(self.root, state_rel, pa.table({"pipeline": arrow_np.binaries([payload], pa.large_binary())}))
         committed = self.sink.close()
         self.written += [rel for rels in committed.values() for rel in rels]
         self.tail_sink = tail_sink = ArchiveSink(self.root, self.generation, "t" + self.tag)
@@ -299,13 +300,6 @@ class GroupRun:
                 pipeline.feed(chunk)
         self.rebuild = False
         self.rebuilt = True
-
-
-def _one_binary(payload: bytes) -> pa.Array:
-    """``pa.array([payload], pa.large_binary())`` from its buffers: ``pa.array`` of a list imports pandas (to
-    ask whether the list is one of its arrays), which a plain ingest otherwise never needs."""
-    offsets = pa.py_buffer(np.array([0, len(payload)], np.int64))
-    return pa.Array.from_buffers(pa.large_binary(), 1, [None, offsets, pa.py_buffer(payload)])
 
 
 LINE = "*"  # the local engine's one group: the whole line

@@ -25,7 +25,7 @@ import numpy as np
 import pyarrow as pa
 
 from console import __version__
-from console.archive import ledger
+from console.archive import arrow_np, ledger
 from console.archive.day_rows import DayRows
 from console.archive.derive import Derivation
 from console.archive.group_ingest import Prescan
@@ -38,7 +38,6 @@ from console.archive.parse_pass import (
     rejected_row,
 )
 from console.archive.parts import COMPACT_MAX_ROWS, PartWriter, compact, part_rows, read_part, write_part, write_small
-from console.archive.plain_rows import table_from_rows
 from console.archive.store import (
     TMP,
     ArchiveError,
@@ -159,7 +158,7 @@ class _Ingest:
 
     def _flush_rejected(self) -> None:
         if self._rejected_rows:
-            self.rejected.add(table_from_rows(self._rejected_rows))
+            self.rejected.add(arrow_np.table_from_rows(self._rejected_rows))
             self._rejected_rows = []
 
     def _next_seq(self) -> int:
@@ -579,7 +578,7 @@ class _Ingest:
 
     def finish_ledger(self) -> None:
         if self.ingest_rows:
-            rel = write_small(self.root, "ingests", self.gen, "l", table_from_rows(self.ingest_rows))
+            rel = write_small(self.root, "ingests", self.gen, "l", arrow_np.table_from_rows(self.ingest_rows))
             if rel is not None:
                 self.new.tables.setdefault("ingests", []).append(rel)
                 self.new_parts.append(rel)
