@@ -99,9 +99,9 @@ _any_value_span = st.one_of(_value_span, _value_span, _value_span, st.binary(max
     cache_max=st.sampled_from([1, 3, 10**6]),
 )
 def test_values_across_chunks_equal_each_span_decoded_alone(chunks: list[list[bytes]], cache_max: int) -> None:
-    """A chunk whose value spans were all met before takes their rows from the cache kept across chunks:
-    the same rows, errors and data codes (texts numbered in order of first reading) as decoding each span
-    on its own.  A tiny cache is cleared between and within chunks."""
+    """Value spans read chunk after chunk, many met before (from the decoded-span cache): the same rows,
+    errors and data codes (texts numbered in order of first reading) as decoding each span on its own.  A
+    tiny cache is cleared between and within chunks."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr("parsers.diag.registry._VALUE_CACHE_MAX", cache_max)
         reg = DiagRegistry()

@@ -94,8 +94,6 @@ class DiagRegistry:
         self._span_front: dict[bytes, int] = {}  # the spans met lately, before the index
         self._register_errors: dict[bytes, FieldError] = {}
         self._values: dict[bytes, tuple[tuple[str, int, int] | FieldError, int | FieldError]] = {}
-        # Valid value spans → (data code, value, kind code, day ns): what values() gives, kept across chunks.
-        self._value_rows: dict[bytes, tuple[int, int, int, int]] = {}
         self._data: dict[bytes, tuple[str, int, int] | FieldError] = {}
         self._days: dict[bytes, int | FieldError] = {}
 
@@ -241,20 +239,12 @@ class DiagRegistry:
     def values(self, spans: Sequence[bytes]) -> tuple[np.ndarray, dict[int, FieldError]]:
         """(data code, value, kind code, day ns) of value spans ``Data:…\tDate:…`` as four int64 rows,
         and the errors by position (their columns hold 0)."""
-        cached = self._value_rows
-        # The usual chunk's value spans were all met before (as valid ones): their rows as they are.
-        known = list(map(cached.get, spans))
-        if known and None not in known:
-            return np.array(known, np.int64).T.copy(), {}
         cols = np.zeros((4, len(spans)), np.int64)
         errors: dict[int, FieldError] = {}
         texts: list[str] = []
         rows: list[tuple[int, int, int]] = []
         at: list[int] = []
-        for i, (span, k) in enumerate(zip(spans, known, strict=True)):
-            if k is not None:  # interned before: its code is final (codes only ever grow)
-                cols[:, i] = k
-                continue
+        for i, span in enumerate(spans):
             data, day = self._decoded(span)
             if isinstance(data, FieldError):
                 errors[i] = data
@@ -272,10 +262,6 @@ class DiagRegistry:
             cols[1:, at] = np.array(rows, np.int64).T
             if errors:
                 cols[:, list(errors)] = 0
-            valid = [i for i in at if i not in errors]
-            if len(cached) + len(valid) > _VALUE_CACHE_MAX:
-                cached.clear()  # bounded: a cache, not a store
-            cached.update(zip([spans[i] for i in valid], map(tuple, cols[:, valid].T.tolist()), strict=True))
         return cols, errors
 
     def value(self, span: bytes) -> tuple[int, int, int, int] | FieldError:
