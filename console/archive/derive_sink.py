@@ -79,6 +79,11 @@ class ArchiveSink(Sink):
         for axle_cols, axle_heads in self._axles:
             self._write_axles(axle_cols, axle_heads, cols)
         self._axles = []
+        if len(start_ns):
+            # The stream's time (a median: one damaged time does not move it): past days' files are closed.
+            watermark = int(np.median(start_ns))
+            self.writers["passages"].advance(watermark)
+            self.writers["axles"].advance(watermark)
         ph = np.asarray(cols["head"], np.int64)
         order = np.lexsort((start_ns, ph))
         last = np.r_[ph[order][1:] != ph[order][:-1], True]  # each head's latest start
