@@ -73,6 +73,7 @@ def _axle_days(
     for axles, passages in calls:
         sink.axles(_axles(axles), HEADS)
         sink.passages(_passages(passages), HEADS)
+    sink.close()  # the tables are made a batch of calls at a time
     return sorted(r for r in written.rows if r[0] in {t for axles, _ in calls for _, t in axles})
 
 

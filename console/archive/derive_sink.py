@@ -20,7 +20,7 @@ from console.analysis.counting.wheels import DIRECTIONS
 from console.analysis.head_table import heads_at
 from console.analysis.passages.diagnostics import PASSAGE_BASES, PASSAGE_COLUMNS, PASSAGE_DIRECTIONS, PASSAGE_KINDS
 from console.archive import arrow_np
-from console.archive.parts import PartWriter
+from console.archive.parts import DAY_CLOSE_MARGIN_NS, PartWriter
 from console.engine.pipeline import HEALTH_EVENT_KINDS
 from console.engine.sinks import Sink
 from parsers.units import NS_PER_DAY
@@ -48,6 +48,12 @@ DERIVE_VERSION = 10
 # a few per chunk, and five tables' full buffers cost memory (a 3 M-record ingest peaked 35 MB lower at 4 MB than
 # at 16 MB, for the same CPU).
 SINK_BUFFER_BYTES = 4 << 20
+# Passages and axles gathered over the pipeline's calls before their tables are made: a call brings a few
+# hundred passages, and each table costs some thirty Arrow calls on the ingest's main thread whatever its
+# size (a 3 M-record ingest made 97 of each; 9 at this size, the day closes included; 21 at 16,384 rows,
+# for more main-thread CPU).  The rows are the same; the write-outs (row groups) fall at other rows than
+# with a table per call.
+PASSAGE_BATCH_ROWS = 65_536
 
 
 class ArchiveSink(Sink):
@@ -65,6 +71,12 @@ class ArchiveSink(Sink):
         self._axles: list[tuple[Columns, Heads]] = []
         # Per head key, the start of its latest passage written: an axle whose passage came in an earlier call.
         self._last_start: dict[int, int] = {}
+        # Passages and axles (with each axle's day, settled per call) waiting to be made into tables.
+        self._batch: list[Columns] = []
+        self._batch_axles: list[tuple[Columns, np.ndarray]] = []
+        self._batch_rows = 0
+        self._heads: Heads | None = None
+        self._days_over = -(1 << 62)  # the writers' days before this one are closed (PartWriter.advance)
         # The order of the section history's rows (ties in time are broken by it): by generation, then as made.
         self._seq = generation << 32
 
@@ -72,26 +84,55 @@ class ArchiveSink(Sink):
         self._axles.append((cols, heads))  # written with their passages: an axle's day is its passage's
 
     def passages(self, cols: Columns, heads: Heads) -> None:
+        """A call's passages, and the axles given since the last call, each axle on its passage's day (settled
+        now, as the calls fall); their tables are made a batch of calls at a time (:data:`PASSAGE_BATCH_ROWS`)."""
         start_ns = np.asarray(cols["start_ns"], np.int64)
-        day = start_ns // NS_PER_DAY
-        device_id, table = passages_table(cols, heads)
-        self.writers["passages"].add(table.append_column("day", day_column(day)), day, device_id)
-        for axle_cols, axle_heads in self._axles:
-            self._write_axles(axle_cols, axle_heads, cols)
+        for axle_cols, _ in self._axles:
+            if len(axle_cols["head"]):
+                self._batch_axles.append((axle_cols, self._axle_days(axle_cols, cols)))
+                self._batch_rows += len(axle_cols["head"])
         self._axles = []
-        if len(start_ns):
-            # The stream's time (a median: one damaged time does not move it): past days' files are closed.
-            watermark = int(np.median(start_ns))
-            self.writers["passages"].advance(watermark)
-            self.writers["axles"].advance(watermark)
+        self._batch.append(cols)
+        self._batch_rows += len(start_ns)
+        self._heads = heads  # head keys only grow: the latest table names every head of the batch
         ph = np.asarray(cols["head"], np.int64)
         order = np.lexsort((start_ns, ph))
         last = np.r_[ph[order][1:] != ph[order][:-1], True]  # each head's latest start
         self._last_start.update(zip(ph[order][last].tolist(), start_ns[order][last].tolist(), strict=True))
+        over = self._days_over
+        if len(start_ns):
+            # The stream's time (a median: one damaged time does not move it): past days' files are closed,
+            # once every row given so far is with the writers (a row of a closed day would open a further part).
+            watermark = int(np.median(start_ns))
+            over = (watermark - DAY_CLOSE_MARGIN_NS) // NS_PER_DAY
+        if over > self._days_over or self._batch_rows >= PASSAGE_BATCH_ROWS:
+            self._write_batch()
+        if over > self._days_over:
+            self._days_over = over
+            self.writers["passages"].advance(watermark)
+            self.writers["axles"].advance(watermark)
 
-    def _write_axles(self, axles: Columns, heads: Heads, passages: Columns) -> None:
-        if not len(axles["head"]):
+    def _write_batch(self) -> None:
+        """The batch's passages and axles, one table each (in the order the calls gave them)."""
+        heads, batch, axles = self._heads, self._batch, self._batch_axles
+        self._batch, self._batch_axles, self._batch_rows = [], [], 0
+        if heads is None:
             return
+        if batch:
+            cols = concat_passages(batch)
+            if len(cols["head"]):
+                day = np.asarray(cols["start_ns"], np.int64) // NS_PER_DAY
+                device_id, table = passages_table(cols, heads)
+                self.writers["passages"].add(table.append_column("day", day_column(day)), day, device_id)
+        if axles:
+            names = list(axles[0][0])
+            together = {c: np.concatenate([np.asarray(a[c]) for a, _ in axles]) for c in names}
+            start_day = np.concatenate([d for _, d in axles])
+            device_id, table = axles_table(together, heads)
+            self.writers["axles"].add(table.append_column("day", day_column(start_day)), start_day, device_id)
+
+    def _axle_days(self, axles: Columns, passages: Columns) -> np.ndarray:
+        """Each axle's day: that of the passage of its head that starts at or before it."""
         # Each axle lies in the passage of its head that starts at or before it.
         head, t = np.asarray(axles["head"], np.int64), np.asarray(axles["time_ns"], np.int64)
         ph, ps = np.asarray(passages["head"], np.int64), np.asarray(passages["start_ns"], np.int64)
@@ -110,15 +151,13 @@ class ArchiveSink(Sink):
         # No passage of its head at or before it among these (the last one found was another head's): its
         # head's latest passage written before, else its own time.  Whatever the batches, the same day.
         at = np.maximum(owner, 0)
-        lost = (owner < 0) | (ph[at] != head)
-        start = np.where(lost, t, ps[at])
+        lost = (owner < 0) | (ph[at] != head) if len(ph) else np.ones(len(head), bool)
+        start = np.where(lost, t, ps[at]) if len(ph) else t.copy()
         if lost.any():
             start[lost] = [
                 self._last_start.get(h, s) for h, s in zip(head[lost].tolist(), start[lost].tolist(), strict=True)
             ]
-        start_day = start // NS_PER_DAY
-        device_id, table = axles_table(axles, heads)
-        self.writers["axles"].add(table.append_column("day", day_column(start_day)), start_day, device_id)
+        return start // NS_PER_DAY
 
     def transitions(self, rows: Iterable[Transition]) -> None:
         import pandas as pd
@@ -155,9 +194,11 @@ class ArchiveSink(Sink):
         self.writers[table].add(arrow_table(df).append_column("day", day_column(day)), day)
 
     def close(self) -> dict[str, list[str]]:
+        self._write_batch()
         return {name: w.close() for name, w in self.writers.items()}
 
     def abort(self) -> None:
+        self._batch, self._batch_axles, self._batch_rows = [], [], 0
         for w in self.writers.values():
             w.abort()
 
@@ -214,6 +255,23 @@ def passages_table(cols: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
     arrays.append(pa.ListArray.from_arrays(arrow_np.array(offsets), arrow_np.array(flat)))
     names.append("axle_speeds_kmh")
     return device_id, pa.Table.from_arrays(arrays, names=names)
+
+
+def concat_passages(batch: list[Columns]) -> Columns:
+    """Several calls' passage columns as one call's: each passage's slice of the flat axle speeds moved to
+    where its call's speeds land in the joined ones."""
+    if len(batch) == 1:
+        return batch[0]
+    speeds = ("axle_speeds_start", "axle_speeds_stop", "axle_speeds_kmh")
+    out: dict[str, Any] = {
+        c: np.concatenate([np.asarray(cols[c]) for cols in batch]) for c in batch[0] if c not in speeds
+    }
+    flats = [np.asarray(cols["axle_speeds_kmh"], np.float64) for cols in batch]
+    bases = np.cumsum([0] + [len(f) for f in flats[:-1]]).tolist()
+    for c in speeds[:2]:
+        out[c] = np.concatenate([np.asarray(cols[c], np.int64) + b for cols, b in zip(batch, bases, strict=True)])
+    out["axle_speeds_kmh"] = np.concatenate(flats)
+    return out
 
 
 def axles_table(axles: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
