@@ -114,7 +114,9 @@ class DiagJob:
             import pandas as pd
 
             kept = self.outcome.kept if self.outcome is not None else []
-            self.kept_records = chunks_to_frame(kept, self.registry) if self.registry else pd.DataFrame()
+            self.kept_records = (
+                chunks_to_frame(kept, self.registry, all_heads=False) if self.registry else pd.DataFrame()
+            )
         return self.kept_records
 
 

@@ -375,7 +375,7 @@ class Pipeline:
                 return
         lay = s.layout or s.sections
         bands = {h.id: h.analog_band for h in lay.heads if h.analog_band} if lay is not None else None
-        records = chunks_to_frame(self.kept, self.registry)
+        records = chunks_to_frame(self.kept, self.registry, all_heads=False)  # the kept ones' heads only
         findings = health_report(records, bands=bands or None, events=self.health_events)
         if not closed:
             self.findings += findings

@@ -680,8 +680,22 @@ def _categorical(codes: np.ndarray, values: list[str]) -> pd.Categorical:
     return pd.Categorical.from_codes(codes, categories=cats, validate=False)
 
 
-def chunks_to_frame(chunks: list[DiagChunk], registry: DiagRegistry) -> pd.DataFrame:
-    """One DataFrame (the documented record table) from parsed chunks."""
+def _present_heads(codes: np.ndarray, registry: DiagRegistry) -> pd.Categorical:
+    """The head column with only the heads its records name as categories (in the registry's order)."""
+    import pandas as pd
+
+    codes = np.asarray(codes).ravel()
+    present = np.unique(codes[codes >= 0])
+    at = np.where(codes >= 0, np.searchsorted(present, codes), -1).astype(np.int32)  # -1: no head, as given
+    cats = pd.Index([_utf8_name(v) for v in registry.heads.take(present)], dtype=pd.StringDtype("pyarrow"))
+    return pd.Categorical.from_codes(at, categories=cats, validate=False)
+
+
+def chunks_to_frame(chunks: list[DiagChunk], registry: DiagRegistry, all_heads: bool = True) -> pd.DataFrame:
+    """One DataFrame (the documented record table) from parsed chunks.
+
+    ``all_heads``: the head column's categories are every head of the registry; without, only the heads
+    the chunks' records name (a few registers kept from a log that names a million heads)."""
     import pandas as pd
 
     rid = np.concatenate([c.register_id for c in chunks]) if chunks else np.zeros(0, np.int32)
@@ -711,7 +725,9 @@ def chunks_to_frame(chunks: list[DiagChunk], registry: DiagRegistry) -> pd.DataF
             # All head names, not kept as a list by the registry (a log may name a million heads).
             "counting_head": _categorical(
                 reg("counting_head", "int32"), registry.heads.take(np.arange(len(registry.heads)))
-            ),
+            )
+            if all_heads
+            else _present_heads(reg("counting_head", "int32"), registry),
             "channel": reg("channel", "int8"),
             "address": reg("address", "int32").astype(np.int16),
             "label": _categorical(reg("label", "int32"), registry.labels.values),

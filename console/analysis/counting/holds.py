@@ -27,7 +27,7 @@ from typing import Protocol
 
 import numpy as np
 
-from console.analysis.events.block import KIND_CODE, Detail, EventBlock, StringPool
+from console.analysis.events.block import _DTYPES, COLUMNS, KIND_CODE, Detail, EventBlock, StringPool
 from console.analysis.events.detection import EventKind
 
 NONE = np.iinfo(np.int64).min  # no time (HeadCounter's None)
@@ -74,9 +74,17 @@ class Collector:
     def block(self, bank: HoldingBank) -> EventBlock:
         if not self.parts["gen"]:
             return EventBlock.empty(bank.names, bank.pool.strings)
-        cols = {c: np.concatenate(v) if len(v) > 1 else v[0] for c, v in self.parts.items()}
-        order = np.lexsort((cols["tie"], cols["sub"], cols["gen"]))
-        cols = {c: v[order] for c, v in cols.items()}
+        # One column at a time, the pieces let go as they are joined: at the end of a log with a million
+        # heads this block holds every head's last events, and whole copies of all columns at once would
+        # set the read's peak.
+        parts, self.parts = self.parts, {c: [] for c in _COLS}
+
+        def joined(c: str) -> np.ndarray:
+            v = parts.pop(c)
+            return np.concatenate(v) if len(v) > 1 else v[0]
+
+        order = np.lexsort((joined("tie"), joined("sub"), joined("gen")))
+        cols = {c: np.asarray(joined(c)[order], _DTYPES[c]) for c in COLUMNS if c != "source"}
         cols["source"] = np.full(len(order), bank.source, np.int32)
         return EventBlock.from_columns(cols, bank.names, bank.pool.strings)
 

@@ -12,12 +12,12 @@ merges, not a scan per release.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from console.analysis.events.block import EventBlock
+from console.analysis.events.block import COLUMNS, EventBlock
 from parsers.units import ALL_TIME
 
 
@@ -36,13 +36,27 @@ class _Part:
         return _Part(self.events.take(ix), self.key[ix], self.group[ix], self.seq[ix])
 
 
+def _joined(parts: list[_Part], get: Callable[[_Part], np.ndarray]) -> np.ndarray:
+    return get(parts[0]) if len(parts) == 1 else np.concatenate([get(p) for p in parts])
+
+
 def _sorted(parts: list[_Part], names: Sequence[str], pool: Sequence[str]) -> _Part:
-    events = EventBlock.concat([p.events for p in parts], names, pool)
-    key = np.concatenate([p.key for p in parts])
-    group = np.concatenate([p.group for p in parts])
-    seq = np.concatenate([p.seq for p in parts])
-    order = np.lexsort((seq, group, key, events.time_ns))
-    return _Part(events.take(order), key[order], group[order], seq[order])
+    # Column by column: each is joined and put in order before the next is touched, so a merge of a
+    # million events (a log's end with a million heads) never holds the joined block and the ordered
+    # one whole at once.
+    order = np.lexsort(
+        (
+            _joined(parts, lambda p: p.seq),
+            _joined(parts, lambda p: p.group),
+            _joined(parts, lambda p: p.key),
+            _joined(parts, lambda p: p.events.time_ns),
+        )
+    )
+    cols = {c: _joined(parts, lambda p, c=c: p.events.column(c))[order] for c in COLUMNS}  # type: ignore[misc]
+    key = _joined(parts, lambda p: p.key)[order]
+    group = _joined(parts, lambda p: p.group)[order]
+    seq = _joined(parts, lambda p: p.seq)[order]
+    return _Part(EventBlock.from_columns(cols, names, pool), key, group, seq)
 
 
 class EventQueue:
