@@ -78,3 +78,32 @@ def heads_at(heads: Heads, keys: np.ndarray) -> tuple[np.ndarray, list[str]]:
         return heads.devices(keys), heads.names(keys)
     picked = [heads[k] for k in keys.tolist()]
     return np.array([h[0] for h in picked], dtype=np.int64), [h[1] for h in picked]
+
+
+class HeadNames(Sequence[str]):
+    """Head key → name, read from the heads last given (:meth:`follow`): an event stream's names
+    without a Python string per head held (a log may name a million heads)."""
+
+    def __init__(self) -> None:
+        self._heads: Heads = ()
+
+    def follow(self, heads: Heads) -> None:
+        """The read's heads so far (keys only ever added): the longer of these and the ones held."""
+        if len(heads) > len(self._heads):
+            self._heads = heads
+
+    def __len__(self) -> int:
+        return len(self._heads)
+
+    @overload
+    def __getitem__(self, key: int) -> str: ...
+    @overload
+    def __getitem__(self, key: slice) -> list[str]: ...
+    def __getitem__(self, key: int | slice) -> str | list[str]:
+        if isinstance(key, slice):
+            return [name for _, name in self._heads[key]]
+        return self._heads[key][1]
+
+    def take(self, keys: np.ndarray) -> list[str]:
+        """The names of the heads at ``keys``, in one go."""
+        return heads_at(self._heads, keys)[1]

@@ -389,11 +389,13 @@ class CounterBank:
         before what came in between, so nothing after it may be released yet.
         """
         iso = self.iso
-        held = (self.open_t != NONE) & ~self.paired
-        quiet = (self.before == NONE) | (self.open_t - np.where(self.before == NONE, 0, self.before) > iso)
+        # Only the held systems' times are looked at (a few), not temporaries over every head's.
+        held = np.flatnonzero(((self.open_t != NONE) & ~self.paired).ravel())
+        open_t, before = self.open_t.ravel()[held], self.before.ravel()[held]
+        quiet = (before == NONE) | (open_t - np.where(before == NONE, 0, before) > iso)
         p = self.pending.cols
         p_quiet = (p["before"] == NONE) | (p["t_on"] - np.where(p["before"] == NONE, 0, p["before"]) > iso)
-        starts = np.r_[self.open_t[held & quiet], p["t_on"][p_quiet]]
+        starts = np.r_[open_t[quiet], p["t_on"][p_quiet]]
         return int(starts.min()) + iso if len(starts) else int(ALL_TIME)
 
     def flush(self) -> EventBlock:

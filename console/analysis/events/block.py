@@ -180,7 +180,12 @@ class EventBlock:
 
     def events(self) -> list[DetectionEvent]:
         """Every event as an object, in order (a loop per event: for consumers that need objects)."""
-        names, pool = self.names, self.pool
+        names: Sequence[str] | dict[int, str] = self.names
+        pool = self.pool
+        take = getattr(names, "take", None)
+        if take is not None:  # names read from columns: this block's heads looked up once each
+            keys = np.unique(self.head[self.head >= 0])
+            names = dict(zip(keys.tolist(), take(keys), strict=True))
         out = []
         cols = zip(
             self.time_ns.tolist(),

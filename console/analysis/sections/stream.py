@@ -59,6 +59,7 @@ from console.analysis.diag_events import DiagEventSettings, power_gap_columns, s
 from console.analysis.events.block import KIND_CODE, EventBlock, StringPool
 from console.analysis.events.detection import DetectionEvent, EventKind
 from console.analysis.events.queue import EventQueue
+from console.analysis.head_table import HeadNames
 from console.layout import CountingHead, Layout
 from parsers.units import ALL_TIME, NS
 
@@ -107,7 +108,7 @@ class EventStream:
         self.event_kinds = frozenset(event_kinds) if event_kinds is not None else None
         self.guess_failed = False
         self.pool = StringPool()
-        self.names: list[str] = []  # head key → name
+        self.names: list[str] | HeadNames = HeadNames()  # head key → name (a list in a state pickled before)
         self.bank = CounterBank(settings.counting, names=self.names, pool=self.pool)
         self._state = np.zeros(0, np.int8)
         self._configured = np.zeros(0, bool)
@@ -127,7 +128,9 @@ class EventStream:
     # -- heads -------------------------------------------------------------
     def _heads(self, keys: np.ndarray, heads: Sequence[tuple[int, str]]) -> None:
         """Resolve the heads first seen among ``keys``: counted or not, and how (once per head)."""
-        if len(self.names) < len(heads):
+        if isinstance(self.names, HeadNames):
+            self.names.follow(heads)
+        elif len(self.names) < len(heads):
             self.names.extend(name for _, name in heads[len(self.names) :])
         n = len(heads)
         if len(self._state) < n:
