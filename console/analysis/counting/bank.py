@@ -121,7 +121,9 @@ class CounterBank:
         have = len(self.tol)
         if n <= have:
             return
-        n = max(n, 2 * have)
+        # By a quarter, not double: with a million heads these columns are some 50 MB at their size, and
+        # doubling would hold up to as much again unused.
+        n = max(n, have + have // 4)
         extra = n - have
         self.up_first = np.r_[self.up_first, np.ones(extra, bool)]
         self.point_mode = np.r_[self.point_mode, np.zeros(extra, bool)]
