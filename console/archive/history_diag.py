@@ -186,25 +186,20 @@ def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[
     # The analysis' passages hold floats (NaN where there is none) where the archive stores integers.
     as_float = {"detection_second_ns", "records_in_detection_second"}
     select = ", ".join(f'"{c}"::DOUBLE AS "{c}"' if c in as_float else f'"{c}"' for c in [*columns, "axle_speeds_kmh"])
-    query = con.sql(f"SELECT {select} FROM passages{where} ORDER BY start_ns", params=params)
+    # The batch lists passages head by head (heads in the order they first appear), each in time order:
+    # DuckDB sorts them so, each passage's head ranked by a join with the heads' list (heads not in it last).
+    index = {_head_key(d, n): i for i, (d, n) in enumerate(heads)}
+    key = "CAST(device_id AS VARCHAR) || CASE WHEN counting_head IS NULL THEN chr(30) ELSE chr(31) || counting_head END"
+    sql = (
+        "WITH h AS (SELECT unnest(?::VARCHAR[]) AS k, unnest(?::BIGINT[]) AS r) "
+        f"SELECT {select} FROM passages LEFT JOIN h ON h.k = {key}{where} "
+        f"ORDER BY coalesce(h.r, {len(index)}), start_ns"
+    )
+    query = con.sql(sql, params=[list(index), list(index.values()), *params])
     table = query.to_arrow_table()
     # Arrow's columns as DuckDB's DataFrame gives them (an empty one has no string dtype to take).
     df = table.drop_columns(["axle_speeds_kmh"]).to_pandas() if table.num_rows else query.df()
-    # The batch lists passages head by head (heads in the order they first appear), each in time order:
-    # each (device, head) pair of the window looked up once.
-    device_code, devices = pd.factorize(df["device_id"], use_na_sentinel=False)
-    name_code, names = pd.factorize(df["counting_head"], use_na_sentinel=False)
-    pair_code, pairs = pd.factorize(device_code.astype(np.int64) * max(len(names), 1) + name_code)
-    index = {h: i for i, h in enumerate(heads)}
-
-    def rank(pair: int) -> int:
-        name = names[pair % len(names)]
-        return index.get((int(devices[pair // len(names)]), None if name != name else name), len(index))
-
-    pair_rank = np.array([rank(k) for k in pairs.tolist()], np.int64)
-    order = np.argsort(pair_rank[pair_code], kind="stable")
-    df = df.iloc[order].reset_index(drop=True)
-    speeds = table.column("axle_speeds_kmh").combine_chunks().take(order)
+    speeds = table.column("axle_speeds_kmh").combine_chunks()
     n = speeds.value_lengths().fill_null(0).to_numpy().astype(np.int64)
     stop = np.cumsum(n)
     df.insert(columns.index("speed_kmh_per_axle_mean"), "axle_speeds_start", stop - n)
@@ -212,6 +207,11 @@ def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[
     df = df[list(PASSAGE_COLUMNS)]
     df.attrs["axle_speeds_kmh"] = speeds.flatten().to_numpy(zero_copy_only=False).astype(np.float64)
     return df
+
+
+def _head_key(device_id: int, name: Any) -> str:
+    """A head's key in the passages' order: its device and name (None or NaN: no name), as the SQL makes it."""
+    return f"{int(device_id)}" + ("\x1e" if name is None or name != name else "\x1f" + str(name))
 
 
 def _inventory(
