@@ -397,38 +397,26 @@ def _rows(
     return np.concatenate(blocks, axis=1)
 
 
-def indented_objects(cols: Columns, heads: Heads, depth: int, workers: int = 2) -> Iterator[bytes] | None:
+def indented_objects(cols: Columns, heads: Heads, depth: int) -> Iterator[bytes] | None:
     """The passages as ``json.dumps(json.loads(text), indent=1)`` lays out the array of
     :func:`encode_passages` ``depth`` levels deep (the report's JSON), without the brackets: each object
-    after a comma (the first without), a newline and its indent; in pieces of a batch of passages,
-    encoded on ``workers`` threads (numpy releases the GIL).
+    after a comma (the first without), a newline and its indent; in pieces of a batch of passages.
 
     None if not covered; checked for every batch before the first is given.
     """
     style = _indented_style(depth + 1)
-    # Each object opens with its separator, the comma included; the first object's comma is cut off after.
+    # Each object opens with its separator, the comma included (one pass over the bytes, not two); the
+    # first object's comma is cut off after.
     opening = ",\n" + " " * (depth + 1) + style.first
-
-    def encode(batch: tuple[int, int]) -> bytes | None:
-        lo, hi = batch
+    blobs: list[bytes] = []
+    for lo, hi in _batches(cols):
         rows = _rows(cols, heads, lo, hi, opening, style)
         if rows is None:
             return None
         flat = rows.ravel()
         blob = flat[flat != 0].tobytes()
-        return blob[1:] if lo == 0 else blob
-
-    batches = _batches(cols)
-    if workers > 1 and len(batches) > 1:
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="trackside-json") as pool:
-            blobs = list(pool.map(encode, batches))
-    else:
-        blobs = [encode(b) for b in batches]
-    if any(b is None for b in blobs):
-        return None
-    return iter([b for b in blobs if b is not None])
+        blobs.append(blob[1:] if lo == 0 else blob)
+    return iter(blobs)
 
 
 def _batches(cols: Columns) -> list[tuple[int, int]]:
