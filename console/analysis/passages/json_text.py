@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -76,6 +77,7 @@ def _const(text: str, n: int) -> np.ndarray:
     return np.broadcast_to(np.frombuffer(text.encode("ascii"), np.uint8), (n, len(text)))
 
 
+@cache
 def _quad_tables() -> np.ndarray:
     """The four decimal digits of 0…9999 as one 4-byte word each, in three tables: every digit (0); leading
     zeros as 0 bytes, a zero's last digit kept (1); nothing at all, the 0 bytes of a zero (2)."""
@@ -85,9 +87,6 @@ def _quad_tables() -> np.ndarray:
     blanked = np.where(lead, 0, digits + ord("0")).astype(np.uint8)
     tables = np.stack([digits + ord("0"), blanked, np.zeros_like(digits)])
     return np.ascontiguousarray(tables).view(np.uint32).reshape(3 * 10_000)
-
-
-_QUADS = _quad_tables()
 
 
 def _digits(u: np.ndarray, width: int | None = None, keep_leading: bool = False) -> np.ndarray:
@@ -111,6 +110,7 @@ def _digits(u: np.ndarray, width: int | None = None, keep_leading: bool = False)
         quad[j] = high - low * ten_k
         high = low
     seen = np.zeros(n, bool)
+    quads = _quad_tables()
     for j in range(groups):
         table = quad[j]
         if not keep_leading:
@@ -119,7 +119,7 @@ def _digits(u: np.ndarray, width: int | None = None, keep_leading: bool = False)
             last = j == groups - 1
             table = table + np.where(seen, 0, np.where(nonzero | last, 10_000, 20_000))
             seen |= nonzero
-        words[:, j] = _QUADS[table]
+        words[:, j] = quads[table]
     return words.view(np.uint8).reshape(n, 4 * groups)[:, 4 * groups - width :]
 
 
