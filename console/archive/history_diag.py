@@ -37,6 +37,7 @@ from console.drivers.batch import DiagJob
 if TYPE_CHECKING:
     import duckdb
     import pandas as pd
+    import pyarrow as pa
 
     from console.analysis.events.detection import DetectionEvent
     from console.analysis.inventory import DeviceInventory
@@ -186,17 +187,12 @@ def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[
     # The analysis' passages hold floats (NaN where there is none) where the archive stores integers.
     as_float = {"detection_second_ns", "records_in_detection_second"}
     select = ", ".join(f'"{c}"::DOUBLE AS "{c}"' if c in as_float else f'"{c}"' for c in [*columns, "axle_speeds_kmh"])
-    # The batch lists passages head by head (heads in the order they first appear), each in time order:
-    # DuckDB sorts them so, each passage's head ranked by a join with the heads' list (heads not in it last).
-    index = {_head_key(d, n): i for i, (d, n) in enumerate(heads)}
-    key = "CAST(device_id AS VARCHAR) || CASE WHEN counting_head IS NULL THEN chr(30) ELSE chr(31) || counting_head END"
-    sql = (
-        "WITH h AS (SELECT unnest(?::VARCHAR[]) AS k, unnest(?::BIGINT[]) AS r) "
-        f"SELECT {select} FROM passages LEFT JOIN h ON h.k = {key}{where} "
-        f"ORDER BY coalesce(h.r, {len(index)}), start_ns"
-    )
-    query = con.sql(sql, params=[list(index), list(index.values()), *params])
+    query = con.sql(f"SELECT {select} FROM passages{where} ORDER BY start_ns", params=params)
     table = query.to_arrow_table()
+    if table.num_rows:
+        # The batch lists passages head by head (heads in the order they first appear), each in time order:
+        # the rows (in time order) sorted stably by their head's rank, each (device, head) pair looked up once.
+        table = table.take(np.argsort(_head_ranks(table, heads), kind="stable"))
     # Arrow's columns as DuckDB's DataFrame gives them (an empty one has no string dtype to take).
     df = table.drop_columns(["axle_speeds_kmh"]).to_pandas() if table.num_rows else query.df()
     speeds = table.column("axle_speeds_kmh").combine_chunks()
@@ -209,9 +205,21 @@ def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[
     return df
 
 
-def _head_key(device_id: int, name: Any) -> str:
-    """A head's key in the passages' order: its device and name (None or NaN: no name), as the SQL makes it."""
-    return f"{int(device_id)}" + ("\x1e" if name is None or name != name else "\x1f" + str(name))
+def _head_ranks(table: pa.Table, heads: list[tuple[int, Any]]) -> np.ndarray:
+    """Per row of ``table``, its (device, head) pair's place in ``heads`` (pairs not in it: after them all)."""
+    import pyarrow.compute as pc
+
+    names = pc.dictionary_encode(table.column("counting_head").combine_chunks())
+    name_code = names.indices.fill_null(-1).to_numpy().astype(np.int64) + 1  # 0: no name
+    labels = [None, *names.dictionary.to_pylist()]
+    device = table.column("device_id").to_numpy().astype(np.int64)
+    pairs, pair_code = np.unique(device * len(labels) + name_code, return_inverse=True)
+    index = {(int(d), n): i for i, (d, n) in enumerate(heads)}
+    pair_rank = np.array(
+        [index.get((int(k // len(labels)), labels[int(k % len(labels))]), len(index)) for k in pairs.tolist()],
+        np.int64,
+    )
+    return pair_rank[pair_code.reshape(-1)]
 
 
 def _inventory(
