@@ -405,17 +405,17 @@ def indented_objects(cols: Columns, heads: Heads, depth: int) -> Iterator[bytes]
     None if not covered; checked for every batch before the first is given.
     """
     style = _indented_style(depth + 1)
-    # Each object opens with its separator, the comma included (one pass over the bytes, not two); the
-    # first object's comma is cut off after.
+    # Each object opens with its separator, the comma included (one pass over the bytes, not two).
     opening = ",\n" + " " * (depth + 1) + style.first
     blobs: list[bytes] = []
     for lo, hi in _batches(cols):
         rows = _rows(cols, heads, lo, hi, opening, style)
         if rows is None:
             return None
+        if lo == 0:
+            rows[0, 0] = 0  # the first object's comma: dropped with the padding
         flat = rows.ravel()
-        blob = flat[flat != 0].tobytes()
-        blobs.append(blob[1:] if lo == 0 else blob)
+        blobs.append(flat[flat != 0].tobytes())
     return iter(blobs)
 
 
