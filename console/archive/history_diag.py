@@ -37,7 +37,6 @@ from console.drivers.batch import DiagJob
 if TYPE_CHECKING:
     import duckdb
     import pandas as pd
-    import pyarrow as pa
 
     from console.analysis.events.detection import DetectionEvent
     from console.analysis.inventory import DeviceInventory
@@ -189,13 +188,23 @@ def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[
     select = ", ".join(f'"{c}"::DOUBLE AS "{c}"' if c in as_float else f'"{c}"' for c in [*columns, "axle_speeds_kmh"])
     query = con.sql(f"SELECT {select} FROM passages{where} ORDER BY start_ns", params=params)
     table = query.to_arrow_table()
-    if table.num_rows:
-        # The batch lists passages head by head (heads in the order they first appear), each in time order:
-        # the rows (in time order) sorted stably by their head's rank, each (device, head) pair looked up once.
-        table = table.take(np.argsort(_head_ranks(table, heads), kind="stable"))
     # Arrow's columns as DuckDB's DataFrame gives them (an empty one has no string dtype to take).
     df = table.drop_columns(["axle_speeds_kmh"]).to_pandas() if table.num_rows else query.df()
-    speeds = table.column("axle_speeds_kmh").combine_chunks()
+    # The batch lists passages head by head (heads in the order they first appear), each in time order:
+    # each (device, head) pair of the window looked up once.
+    device_code, devices = pd.factorize(df["device_id"], use_na_sentinel=False)
+    name_code, names = pd.factorize(df["counting_head"], use_na_sentinel=False)
+    pair_code, pairs = pd.factorize(device_code.astype(np.int64) * max(len(names), 1) + name_code)
+    index = {h: i for i, h in enumerate(heads)}
+
+    def rank(pair: int) -> int:
+        name = names[pair % len(names)]
+        return index.get((int(devices[pair // len(names)]), None if name != name else name), len(index))
+
+    pair_rank = np.array([rank(k) for k in pairs.tolist()], np.int64)
+    order = np.argsort(pair_rank[pair_code], kind="stable")
+    df = df.iloc[order].reset_index(drop=True)
+    speeds = table.column("axle_speeds_kmh").combine_chunks().take(order)
     n = speeds.value_lengths().fill_null(0).to_numpy().astype(np.int64)
     stop = np.cumsum(n)
     df.insert(columns.index("speed_kmh_per_axle_mean"), "axle_speeds_start", stop - n)
@@ -203,23 +212,6 @@ def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[
     df = df[list(PASSAGE_COLUMNS)]
     df.attrs["axle_speeds_kmh"] = speeds.flatten().to_numpy(zero_copy_only=False).astype(np.float64)
     return df
-
-
-def _head_ranks(table: pa.Table, heads: list[tuple[int, Any]]) -> np.ndarray:
-    """Per row of ``table``, its (device, head) pair's place in ``heads`` (pairs not in it: after them all)."""
-    import pyarrow.compute as pc
-
-    names = pc.dictionary_encode(table.column("counting_head").combine_chunks())
-    name_code = names.indices.fill_null(-1).to_numpy().astype(np.int64) + 1  # 0: no name
-    labels = [None, *names.dictionary.to_pylist()]
-    device = table.column("device_id").to_numpy().astype(np.int64)
-    pairs, pair_code = np.unique(device * len(labels) + name_code, return_inverse=True)
-    index = {(int(d), n): i for i, (d, n) in enumerate(heads)}
-    pair_rank = np.array(
-        [index.get((int(k // len(labels)), labels[int(k % len(labels))]), len(index)) for k in pairs.tolist()],
-        np.int64,
-    )
-    return pair_rank[pair_code.reshape(-1)]
 
 
 def _inventory(
