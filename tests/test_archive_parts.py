@@ -215,3 +215,15 @@ def test_write_batch_rows_change_no_byte_of_a_part(tmp_path: Path) -> None:
     assert parts.WRITE_BATCH_ROWS != 1024  # Arrow's default, written above
     assert (tmp_path / ours).read_bytes() == default.read_bytes()
     assert pq.read_table(tmp_path / ours).equals(t)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_partition_order_is_the_stable_sort_of_the_keys(seed: int) -> None:
+    """The radix path over (day, device) ranks gives np.argsort's stable permutation, and so does the fallback
+    when the pairs do not fit 16 bits (devices far apart, many days)."""
+    rng = np.random.default_rng(seed)
+    n = 50_000
+    devices = rng.choice([5000, 5001, 5039, 7, 0] if seed % 2 else [3, 2**31 + 5, 90_000], n)
+    days = 20_000 + rng.integers(0, 3 if seed < 4 else 900, n)
+    key = days.astype(np.int64) * (1 << 32) + devices.astype(np.int64)
+    assert (parts._stable_order(key) == np.argsort(key, kind="stable")).all()

