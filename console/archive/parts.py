@@ -37,6 +37,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -306,9 +307,15 @@ class PartWriter:
         by_day: bool = True,
         sort_by: Sequence[str] = (),
         buffer_bytes: int | None = None,
+        expand: Callable[[pa.Table, Any], pa.Table] | None = None,
     ) -> None:
         self.root = root
         self.buffer_bytes = buffer_bytes  # None: BUFFER_BYTES
+        # Rows may be added in a compact form: ``expand(rows, payload)`` makes a partition's rows the stored
+        # columns as they are written, with the payload of the last :meth:`add`'s ``context`` (records: their
+        # registers' columns, a number per row in the buffer; more rows per buffer, so bigger row groups).
+        self.expand = expand
+        self._context: tuple[object, Any] | None = None
         self.table = table
         self.generation = generation
         self.tag = tag
@@ -343,8 +350,19 @@ class PartWriter:
         parts.append(f"g{self.generation:06d}-{self.tag}{n or ''}.parquet")
         return os.path.join(*parts)
 
-    def add(self, table: pa.Table, day_index: np.ndarray | None = None, device_id: np.ndarray | None = None) -> None:
+    def add(
+        self,
+        table: pa.Table,
+        day_index: np.ndarray | None = None,
+        device_id: np.ndarray | None = None,
+        *,
+        context: tuple[object, Any] | None = None,
+    ) -> None:
         """Add rows; ``day_index`` (days since 1970) and ``device_id`` choose each row's partition.
+
+        ``context`` (a writer with ``expand``): (group, payload); rows of one group are expanded with the
+        payload of its latest rows (a registry's snapshot holds every register of the earlier ones), so rows
+        of another group are written out first.
 
         The rows are only kept here: the split by partition is made for the whole buffer at its write-out, on
         the background thread (one concatenation, one stable sort and one take per write-out, not per table).
@@ -355,6 +373,10 @@ class PartWriter:
         self.rows += n
         if self._pieces and not table.schema.equals(self._pieces[0][0].schema):
             self._write_out()  # another schema (a file with other columns): its rows in parts of their own
+        if context is not None:
+            if self._pieces and self._context is not None and self._context[0] is not context[0]:
+                self._write_out()
+            self._context = context
         self._dicts.adopt(table)
         days = day_index if self.by_day and day_index is not None else np.zeros(n, np.int64)
         devs = device_id if self.by_device and device_id is not None else np.zeros(n, np.int64)
@@ -376,15 +398,19 @@ class PartWriter:
         pieces, self._pieces, self._pending_bytes = self._pieces, [], 0
         self._pending_min_day = _NO_DAY
         dicts, self._dicts = self._dicts, _Dictionaries()
-        self._submit(lambda: self._write_pieces(pieces, dicts))
+        payload = None if self._context is None else self._context[1]
+        self._submit(lambda: self._write_pieces(pieces, dicts, payload))
 
-    def _write_pieces(self, pieces: list[tuple[pa.Table, np.ndarray]], dicts: _Dictionaries) -> None:
+    def _write_pieces(
+        self, pieces: list[tuple[pa.Table, np.ndarray]], dicts: _Dictionaries, payload: Any = None
+    ) -> None:
         """One write-out (on the background thread)."""
         self._write_outs += 1
         in_order = _in_sort_order(pieces, self.sort_by)
         for k, rows in _by_partition(pieces, dicts):
             key = (k >> 32, k & 0xFFFFFFFF)
-            self._write(key, rows if in_order else sorted_rows(rows, self.sort_by))
+            rows = rows if in_order else sorted_rows(rows, self.sort_by)
+            self._write(key, rows if self.expand is None else self.expand(rows, payload))
             self._last_write_out[key] = self._write_outs
         for key in [k for k in self._writers if self._last_write_out[k] <= self._write_outs - IDLE_WRITE_OUTS]:
             self._close_file(key)
