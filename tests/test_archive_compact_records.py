@@ -69,3 +69,24 @@ def test_a_writer_of_compact_records_stores_each_registrys_records_as_encoded(tm
     order = np.lexsort((stored.column("line").to_numpy(), stored.column("file_seq").to_numpy()))
     want_order = np.lexsort((want.column("line").to_numpy(), want.column("file_seq").to_numpy()))
     assert stored.take(pa.array(order)).equals(want.take(pa.array(want_order)))
+
+
+def test_one_partitions_compact_rows_are_expanded_a_quarter_buffer_at_a_time(tmp_path: Path) -> None:
+    enc, chunks = _chunks(LOGS)
+    buffer = 400_000
+    w = PartWriter(
+        tmp_path, "records", 1, "r", by_day=False, by_device=False, buffer_bytes=buffer, expand=expand_records
+    )
+    expected = []
+    for i, chunk in enumerate(chunks):
+        expected.append(enc.encode(chunk, "x.log", i, 0)[0])
+        compact, _, registers = enc.encode_compact(chunk, "x.log", i, 0)
+        w.add(compact, context=(enc.registry, registers))
+    (rel,) = w.close()
+    f = pq.ParquetFile(tmp_path / rel)
+    sizes = [f.metadata.row_group(g).num_rows for g in range(f.num_row_groups)]
+    want = pa.concat_tables(expected, promote_options="permissive")
+    row_bytes = want.nbytes / want.num_rows  # an upper bound: each chunk's dictionaries counted again
+    assert len(sizes) > 3  # one write-out of the whole (a buffer of compact rows), written a step at a time
+    assert max(sizes) <= max(1024, buffer / 4 / 80, buffer / 4 / row_bytes * 1.5)  # the first step guesses 80
+    assert _dense(f.read()).equals(_dense(want))

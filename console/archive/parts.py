@@ -315,6 +315,7 @@ class PartWriter:
         # columns as they are written, with the payload of the last :meth:`add`'s ``context`` (records: their
         # registers' columns, a number per row in the buffer; more rows per buffer, so bigger row groups).
         self.expand = expand
+        self._expanded_row_bytes = 80.0  # an expanded row's bytes, as last seen (the writer thread's)
         self._context: tuple[object, Any] | None = None
         self.table = table
         self.generation = generation
@@ -385,7 +386,7 @@ class PartWriter:
         if self.by_day and day_index is not None:
             self._pending_min_day = min(self._pending_min_day, int(days.min()))
         self._pieces.append((table, key))
-        if self._pending_bytes > (BUFFER_BYTES if self.buffer_bytes is None else self.buffer_bytes):
+        if self._pending_bytes > self._buffer():
             self._write_out()
 
     def _write_out(self) -> None:
@@ -410,10 +411,30 @@ class PartWriter:
         for k, rows in _by_partition(pieces, dicts):
             key = (k >> 32, k & 0xFFFFFFFF)
             rows = rows if in_order else sorted_rows(rows, self.sort_by)
-            self._write(key, rows if self.expand is None else self.expand(rows, payload))
+            if self.expand is None:
+                self._write(key, rows)
+            else:
+                self._write_expanded(key, rows, payload)
             self._last_write_out[key] = self._write_outs
         for key in [k for k in self._writers if self._last_write_out[k] <= self._write_outs - IDLE_WRITE_OUTS]:
             self._close_file(key)
+
+    def _write_expanded(self, key: tuple[int, int], rows: pa.Table, payload: Any) -> None:
+        """(On the background thread.)  Compact rows written as their stored columns, at most a quarter of the
+        buffer's bytes of them expanded at a time (then a row group each).  A write-out of many boards' rows
+        expands a few MB per partition; one of a single partition (a file per board and day) holds its compact
+        rows, 1.7x as many as the buffer held expanded, while they are expanded: a quarter keeps that within
+        4 MB of the buffer's full-width rows it held before, in row groups of ~50,000 rows."""
+        assert self.expand is not None
+        step = max(1024, int(self._buffer() / 4 / self._expanded_row_bytes))
+        for start in range(0, rows.num_rows, step):
+            full = self.expand(rows.slice(start, step), payload)
+            self._expanded_row_bytes = max(1.0, full.nbytes / max(1, full.num_rows))
+            self._write(key, full)
+            del full
+
+    def _buffer(self) -> int:
+        return BUFFER_BYTES if self.buffer_bytes is None else self.buffer_bytes
 
     def advance(self, watermark_ns: int) -> None:
         """The caller's rows have reached ``watermark_ns``: the files of days that ended more than
