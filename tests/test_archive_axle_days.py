@@ -57,6 +57,9 @@ class _Rows:
         if times is not None:
             self.rows += list(zip(times.tolist(), np.asarray(day).tolist(), strict=True))
 
+    def closes_day(self, watermark_ns: int) -> bool:
+        return True  # every call's batch written at once: the finest batching the sink can make
+
     def advance(self, watermark_ns: int) -> None:
         pass  # files are closed by time: nothing kept here is a file
 

@@ -90,7 +90,10 @@ def test_advance_writes_a_days_buffered_rows_then_closes_its_files_and_a_late_ro
     w.advance((day + 1) * NS_PER_DAY)  # only just past day's end: within the margin, nothing closed
     w._wait()
     assert w.written == []
+    assert not w.closes_day((day + 1) * NS_PER_DAY + parts.DAY_CLOSE_MARGIN_NS - 1)
+    assert w.closes_day((day + 1) * NS_PER_DAY + parts.DAY_CLOSE_MARGIN_NS)
     w.advance((day + 1) * NS_PER_DAY + parts.DAY_CLOSE_MARGIN_NS)
+    assert not w.closes_day((day + 1) * NS_PER_DAY + parts.DAY_CLOSE_MARGIN_NS)  # that day is closed already
     w._wait()
     assert list(w._writers) == [(day + 1, 5000)]  # day's file written and closed, the next day's open
     w.add(_labelled([0], ["Radsensor"], 3), np.full(1, day), np.full(1, 5000))  # a late row of the closed day
@@ -107,6 +110,7 @@ def test_advance_writes_a_days_buffered_rows_then_closes_its_files_and_a_late_ro
 def test_a_writer_not_split_by_day_ignores_the_watermark(tmp_path: Path) -> None:
     w = PartWriter(tmp_path, "rejected", 3, "l", by_device=False, by_day=False)
     w.add(_labelled([0], ["Radsensor"], 1))
+    assert not w.closes_day(10**18)
     w.advance(10**18)
     w.add(_labelled([0], ["Radsensor"], 2))
     assert len(w.close()) == 1

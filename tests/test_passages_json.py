@@ -57,6 +57,26 @@ def test_ints_and_times_match() -> None:
     assert _tokens(iso) == ["null" if s is None else f'"{s}"' for s in iso_strings(ns)]
 
 
+@pytest.mark.parametrize("keep_leading", [False, True])
+def test_digits_are_the_decimal_text(keep_leading: bool) -> None:
+    """Digits four at a time (looked up) right-aligned in any width: what str() writes, zero-padded or not."""
+    rng = np.random.default_rng(7)
+    for width in range(1, 21):
+        top = 10**width if width < 20 else 2**64
+        u = rng.integers(0, top, 2_000, dtype=np.uint64)
+        u[:4] = [0, 1, 10 ** (width - 1), top - 1]
+        u[4:200] = rng.integers(0, min(100, top), 196, dtype=np.uint64)
+        rows = pj._digits(u, width, keep_leading=keep_leading)
+        assert rows.shape == (len(u), width)
+        texts = [r[r != 0].tobytes().decode("ascii") for r in rows]
+        assert texts == [str(int(x)).zfill(width) if keep_leading else str(int(x)) for x in u]
+        # Right-aligned: the 0 bytes (unwritten leading zeros) all come first.
+        assert all(
+            r[width - len(t) :].all() and not r[: width - len(t)].any() for r, t in zip(rows, texts, strict=True)
+        )
+    assert pj._digits(np.array([5, 12345678901], np.uint64)).shape == (2, 11)  # width: the largest's
+
+
 def test_text_needing_escapes_is_left_to_pandas() -> None:
     assert pj._texts(np.array([0]), ['W"S']) is None
     assert pj._texts(np.array([0]), ["WS/1"]) is None

@@ -20,7 +20,7 @@ from console.analysis.counting.wheels import DIRECTIONS
 from console.analysis.head_table import heads_at
 from console.analysis.passages.diagnostics import PASSAGE_BASES, PASSAGE_COLUMNS, PASSAGE_DIRECTIONS, PASSAGE_KINDS
 from console.archive import arrow_np
-from console.archive.parts import DAY_CLOSE_MARGIN_NS, PartWriter
+from console.archive.parts import PartWriter
 from console.engine.pipeline import HEALTH_EVENT_KINDS
 from console.engine.sinks import Sink
 from parsers.units import NS_PER_DAY
@@ -76,7 +76,6 @@ class ArchiveSink(Sink):
         self._batch_axles: list[tuple[Columns, np.ndarray]] = []
         self._batch_rows = 0
         self._heads: Heads | None = None
-        self._days_over = -(1 << 62)  # the writers' days before this one are closed (PartWriter.advance)
         # The order of the section history's rows (ties in time are broken by it): by generation, then as made.
         self._seq = generation << 32
 
@@ -99,16 +98,13 @@ class ArchiveSink(Sink):
         order = np.lexsort((start_ns, ph))
         last = np.r_[ph[order][1:] != ph[order][:-1], True]  # each head's latest start
         self._last_start.update(zip(ph[order][last].tolist(), start_ns[order][last].tolist(), strict=True))
-        over = self._days_over
-        if len(start_ns):
-            # The stream's time (a median: one damaged time does not move it): past days' files are closed,
-            # once every row given so far is with the writers (a row of a closed day would open a further part).
-            watermark = int(np.median(start_ns))
-            over = (watermark - DAY_CLOSE_MARGIN_NS) // NS_PER_DAY
-        if over > self._days_over or self._batch_rows >= PASSAGE_BATCH_ROWS:
+        # The stream's time (a median: one damaged time does not move it): past days' files are closed, once
+        # every row given so far is with the writers (a row of a closed day would open a further part).
+        watermark = int(np.median(start_ns)) if len(start_ns) else None
+        closing = watermark is not None and self.writers["passages"].closes_day(watermark)
+        if closing or self._batch_rows >= PASSAGE_BATCH_ROWS:
             self._write_batch()
-        if over > self._days_over:
-            self._days_over = over
+        if closing and watermark is not None:
             self.writers["passages"].advance(watermark)
             self.writers["axles"].advance(watermark)
 

@@ -293,6 +293,11 @@ def _by_partition(pieces: list[tuple[pa.Table, np.ndarray]], dicts: _Dictionarie
     ]
 
 
+def _days_over(watermark_ns: int) -> int:
+    """The index of the first day whose files stay open at ``watermark_ns``."""
+    return (int(watermark_ns) - DAY_CLOSE_MARGIN_NS) // NS_PER_DAY
+
+
 class PartWriter:
     """Parquet parts of one table, one open file per partition, written as buffers fill."""
 
@@ -444,15 +449,17 @@ class PartWriter:
         :data:`DAY_CLOSE_MARGIN_NS` before it are closed (their buffered rows written first, so a log in time
         order keeps one part per partition).  A later row of a closed day starts a further part of it, as a
         file closed for :data:`MAX_OPEN_WRITERS` does; readers take every part the manifest lists."""
-        if not self.by_day:
+        if not self.closes_day(watermark_ns):
             return
-        over = (int(watermark_ns) - DAY_CLOSE_MARGIN_NS) // NS_PER_DAY
-        if over <= self._days_over:
-            return
-        self._days_over = over
+        over = self._days_over = _days_over(watermark_ns)
         if self._pending_min_day < over:
             self._write_out()
         self._submit(lambda: self._close_days_before(over))
+
+    def closes_day(self, watermark_ns: int) -> bool:
+        """Whether :meth:`advance` to ``watermark_ns`` would close the files of a day not closed yet (a caller
+        holding rows of its own writes them first, so that a log in time order keeps one part per partition)."""
+        return self.by_day and _days_over(watermark_ns) > self._days_over
 
     def _close_days_before(self, day_index: int) -> None:
         """(On the background thread.)"""

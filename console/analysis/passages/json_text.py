@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -76,22 +77,50 @@ def _const(text: str, n: int) -> np.ndarray:
     return np.broadcast_to(np.frombuffer(text.encode("ascii"), np.uint8), (n, len(text)))
 
 
+@cache
+def _quad_tables() -> np.ndarray:
+    """The four decimal digits of 0…9999 as one 4-byte word each, in three tables: every digit (0); leading
+    zeros as 0 bytes, a zero's last digit kept (1); nothing at all, the 0 bytes of a zero (2)."""
+    digits = (np.arange(10_000)[:, None] // np.array([1000, 100, 10, 1]) % 10).astype(np.uint8)
+    lead = np.cumsum(digits != 0, axis=1) == 0
+    lead[:, -1] = False
+    blanked = np.where(lead, 0, digits + ord("0")).astype(np.uint8)
+    tables = np.stack([digits + ord("0"), blanked, np.zeros_like(digits)])
+    return np.ascontiguousarray(tables).view(np.uint32).reshape(3 * 10_000)
+
+
 def _digits(u: np.ndarray, width: int | None = None, keep_leading: bool = False) -> np.ndarray:
     """Decimal digits of unsigned ints, right-aligned in ``width`` bytes (default: as many as the largest needs).
 
     Leading zeros are 0 bytes (a zero keeps its last digit) unless
     ``keep_leading``.
     """
+    u = np.asarray(u, np.uint64)
     if width is None:
         width = len(str(int(u.max()))) if len(u) else 1
-    pw = np.uint64(10) ** np.arange(width - 1, -1, -1, dtype=np.uint64)
-    d = (u[:, None] // pw) % np.uint64(10)
-    out = (d + np.uint64(48)).astype(np.uint8)
-    if not keep_leading:
-        lead = np.cumsum(d != 0, axis=1) == 0
-        lead[:, -1] = False
-        out[lead] = 0
-    return out
+    # Four digits at a time, each group looked up as one word: a division by one number (numpy's fast path)
+    # per group, not one by a different power of ten per digit.
+    n, groups = len(u), -(-width // 4)
+    words = np.empty((n, groups), np.uint32)
+    quad = np.empty((groups, n), np.intp)
+    high = u
+    ten_k = np.uint64(10_000)
+    for j in range(groups - 1, -1, -1):
+        low = high // ten_k
+        quad[j] = high - low * ten_k
+        high = low
+    seen = np.zeros(n, bool)
+    quads = _quad_tables()
+    for j in range(groups):
+        table = quad[j]
+        if not keep_leading:
+            # Before the first group with a digit other than 0: nothing; that group without its leading zeros.
+            nonzero = table != 0
+            last = j == groups - 1
+            table = table + np.where(seen, 0, np.where(nonzero | last, 10_000, 20_000))
+            seen |= nonzero
+        words[:, j] = quads[table]
+    return words.view(np.uint8).reshape(n, 4 * groups)[:, 4 * groups - width :]
 
 
 _COMPACT = _Style("{", ",", ":", "}", "[", ",", "]")
@@ -118,6 +147,12 @@ def _ints(values: np.ndarray, null: np.ndarray | None = None) -> np.ndarray | No
 
 def _floats(values: np.ndarray) -> np.ndarray | None:
     """ultrajson's fixed-point form with ten decimals; NaN as null."""
+    found = _float_tokens(values)
+    return None if found is None else found[0]
+
+
+def _float_tokens(values: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`_floats`, and how many decimals each value is written with."""
     v = np.asarray(values, np.float64)
     nan = np.isnan(v)
     a = np.abs(np.where(nan, 0.0, v))
@@ -138,9 +173,15 @@ def _floats(values: np.ndarray) -> np.ndarray | None:
     shift = 0
     while shift < _PRECISION - 1 and not (frac % np.uint64(10 ** (shift + 1))).any():
         shift += 1
-    fd = _digits(frac // np.uint64(10**shift), _PRECISION - shift, keep_leading=True)
-    trailing = np.cumsum((fd != ord("0"))[:, ::-1], axis=1)[:, ::-1] == 0
-    fd[trailing] = 0
+    width = _PRECISION - shift
+    digits = frac // np.uint64(10**shift)
+    fd = _digits(digits, width, keep_leading=True)
+    # The decimals kept: the width less the value's trailing zeros (all of them in a zero).
+    kept = np.full(len(v), width, np.intp)
+    for k in range(1, width + 1):
+        p10 = np.uint64(10**k)
+        kept -= digits - digits // p10 * p10 == 0
+    fd = np.where(np.arange(width)[None, :] < kept[:, None], fd, np.uint8(0))
     fd[:, 0] = np.where(frac == 0, ord("0"), fd[:, 0])
     n = len(v)
     out = np.concatenate(
@@ -152,20 +193,19 @@ def _floats(values: np.ndarray) -> np.ndarray | None:
         ],
         axis=1,
     )
-    return _with_null(out, nan)
+    return _with_null(out, nan), np.maximum(kept, 1)
 
 
 def _python_floats(values: np.ndarray) -> np.ndarray | None:
     """The floats as ``json.dumps`` writes what ``json.loads`` read from :func:`_floats`' text (Python's
     shortest repr: ``1e-06`` where pandas writes ``0.000001``); NaN as null."""
-    tokens = _floats(values)
-    if tokens is None:
+    found = _float_tokens(values)
+    if found is None:
         return None
+    tokens, decimals = found  # decimals written: the bytes after the point (NaN: any, it is null)
     v = np.asarray(values, np.float64)
     nan = np.isnan(v)
     a = np.abs(np.where(nan, 0.0, v))
-    # Decimals written: the bytes after the point.
-    decimals = np.count_nonzero((tokens != 0) & (np.cumsum(tokens == ord("."), axis=1) > 0), axis=1) - 1
     # Where a float's spacing is below the last decimal written, no shorter decimal reads back as the same
     # float, so the repr is the text as written (Python writes 1e-4 <= |v| < 1e16 without an exponent).
     # The others (exponents, floats too coarse for ten decimals): repr of what json reads, once per value.
@@ -365,14 +405,16 @@ def indented_objects(cols: Columns, heads: Heads, depth: int) -> Iterator[bytes]
     None if not covered; checked for every batch before the first is given.
     """
     style = _indented_style(depth + 1)
-    inner = "\n" + " " * (depth + 1)
+    # Each object opens with its separator, the comma included (one pass over the bytes, not two).
+    opening = ",\n" + " " * (depth + 1) + style.first
     blobs: list[bytes] = []
     for lo, hi in _batches(cols):
-        rows = _rows(cols, heads, lo, hi, style=style)
+        rows = _rows(cols, heads, lo, hi, opening, style)
         if rows is None:
             return None
-        seps = _choice(("," + inner, inner), np.arange(lo, hi) == 0)
-        flat = np.concatenate([seps, rows], axis=1).ravel()
+        if lo == 0:
+            rows[0, 0] = 0  # the first object's comma: dropped with the padding
+        flat = rows.ravel()
         blobs.append(flat[flat != 0].tobytes())
     return iter(blobs)
 

@@ -9,7 +9,15 @@ from typing import Annotated
 import typer
 
 from console import __version__, exit_codes
-from console.cli.common import JSON_SCHEMA_ANALYZE, Console, fail, guard, load_layout, print_json, read_logs
+from console.cli.common import (
+    JSON_SCHEMA_ANALYZE,
+    Console,
+    guard,
+    load_layout,
+    one_json_form,
+    print_json,
+    read_logs,
+)
 from console.cli.options import (
     REJECTIONS_LISTED,
     FilesArg,
@@ -64,8 +72,7 @@ def analyze(
         from console.sinks.tables.diag_stream import JsonLinesOut, status_json, summary_doc
         from console.sinks.tables.passage_spool import FirstPassages, PassageSpool
 
-        if json_out and jsonl:
-            raise fail("--json and --jsonl: choose one")
+        one_json_form(json_out, jsonl)
         # Line facts come from the layout; the Osong test line when none is given.
         lay = load_layout(layout or "osong")
         settings = PipelineSettings(

@@ -7,7 +7,7 @@ import sys
 import typer
 
 from console import exit_codes
-from console.cli.common import Console, fail, guard, print_json, read_logs
+from console.cli.common import Console, guard, one_json_form, print_json, read_logs
 from console.cli.options import (
     REJECTIONS_LISTED,
     FilesArg,
@@ -39,8 +39,7 @@ def speeds(
         from console.sinks.tables.diag_stream import JsonLinesOut, status_json, summary_doc
         from console.sinks.tables.passage_spool import PassageSpool
 
-        if json_out and jsonl:
-            raise fail("--json and --jsonl: choose one")
+        one_json_form(json_out, jsonl)
         lines = JsonLinesOut(sys.stdout, REJECTIONS_LISTED) if jsonl else None
         spool = PassageSpool() if json_out else None
         speed = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
