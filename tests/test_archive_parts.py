@@ -179,9 +179,51 @@ def test_a_partition_idle_for_some_write_outs_is_closed_and_a_late_row_starts_a_
 
 
 def test_statistics_are_written_for_filtered_columns_only(tmp_path: Path) -> None:
-    t = _labelled([0, 1], ["Radsensor", "Diagnose"], 1).append_column("data", pa.array(["0001", "0002"]))
+    heads = pa.DictionaryArray.from_arrays(pa.array([0, 1], pa.int32()), pa.array(["WS1", "WS2"]))
+    t = (
+        _labelled([0, 1], ["Radsensor", "Diagnose"], 1)
+        .append_column("data", pa.array(["0001", "0002"]))
+        .append_column("counting_head", heads)
+    )
     rel = parts.write_part(tmp_path, "p.parquet", t)
     rg = pq.ParquetFile(tmp_path / rel).metadata.row_group(0)
     cols = {rg.column(i).path_in_schema: rg.column(i) for i in range(rg.num_columns)}
-    assert cols["time"].is_stats_set and cols["label"].is_stats_set and cols["line"].is_stats_set
+    assert cols["time"].is_stats_set and cols["line"].is_stats_set
+    assert cols["counting_head"].is_stats_set  # a query for a head skips the other boards' parts
+    assert (cols["counting_head"].statistics.min, cols["counting_head"].statistics.max) == ("WS1", "WS2")
     assert not cols["data"].is_stats_set  # in NO_STATISTICS
+    assert not cols["label"].is_stats_set  # every row group of a board's part holds every label
+
+
+def test_write_batch_rows_change_no_byte_of_a_part(tmp_path: Path) -> None:
+    """The writer's step size is CPU only: pages are cut by their own limits, so the file is the same."""
+    rng = np.random.default_rng(5)
+    n = 300_000  # more rows than a page holds (20,000) and than one step of either size
+    labels = pa.array(["Radsensor", "Diagnose", "Summe"])
+    t = pa.table(
+        {
+            "time": pa.array(np.cumsum(rng.integers(0, 10**6, n)).view("datetime64[ns]")),
+            "label": pa.DictionaryArray.from_arrays(pa.array(rng.integers(0, 3, n, dtype=np.int32)), labels),
+            "value": pa.array(rng.integers(0, 50, n)),
+            "line": pa.array(np.arange(1, n + 1)),
+        }
+    )
+    ours = parts.write_part(tmp_path, "ours.parquet", t)
+    default = tmp_path / "default.parquet"
+    with pq.ParquetWriter(default, t.schema, compression=parts.COMPRESSION, **parts.encodings(t.schema)) as w:
+        w.write_table(t, row_group_size=parts.ROW_GROUP_ROWS)
+    assert parts.WRITE_BATCH_ROWS != 1024  # Arrow's default, written above
+    assert (tmp_path / ours).read_bytes() == default.read_bytes()
+    assert pq.read_table(tmp_path / ours).equals(t)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_partition_order_is_the_stable_sort_of_the_keys(seed: int) -> None:
+    """The radix path over (day, device) ranks gives np.argsort's stable permutation, and so does the fallback
+    when the pairs do not fit 16 bits (devices far apart, many days)."""
+    rng = np.random.default_rng(seed)
+    n = 50_000
+    devices = rng.choice([5000, 5001, 5039, 7, 0] if seed % 2 else [3, 2**31 + 5, 90_000], n)
+    days = 20_000 + rng.integers(0, 3 if seed < 4 else 900, n)
+    key = days.astype(np.int64) * (1 << 32) + devices.astype(np.int64)
+    assert (parts._stable_order(key) == np.argsort(key, kind="stable")).all()

@@ -38,7 +38,7 @@ from console.archive.parse_pass import (
     parse_one_pass,
 )
 from console.archive.parts import PartWriter
-from console.archive.records import ChunkRebuilder, ChunkTranslator
+from console.archive.records import ChunkRebuilder, ChunkTranslator, expand_records
 from console.archive.store import Manifest, sync_parts
 from console.engine.pipeline import PipelineSettings
 from parsers.diag.read import DiagChunk
@@ -274,7 +274,7 @@ def ingest_files(
     generation = manifest.generation
     key_of = group_key_of(settings.sections)
     first_seq = int(files[0]["file_seq"])
-    records = PartWriter(root, "records", generation, f"r{first_seq}-", sort_by=RECORD_ORDER)
+    records = PartWriter(root, "records", generation, f"r{first_seq}-", sort_by=RECORD_ORDER, expand=expand_records)
     rejected = PartWriter(root, "rejected", generation, f"l{first_seq}-", by_device=False, by_day=False)
     rows = RejectedRows(rejected)
     groups: dict[str, _Group] = {}

@@ -38,6 +38,7 @@ from console.archive.parse_pass import (
     rejected_row,
 )
 from console.archive.parts import COMPACT_MAX_ROWS, PartWriter, compact, part_rows, read_part, write_part, write_small
+from console.archive.records import expand_records
 from console.archive.store import (
     TMP,
     ArchiveError,
@@ -127,7 +128,7 @@ class _Ingest:
         self.new.generation = manifest.generation + 1
         self.gen = self.new.generation
         self.on_bytes = on_bytes
-        self.records = PartWriter(root, "records", self.gen, "r", sort_by=RECORD_ORDER)
+        self.records = PartWriter(root, "records", self.gen, "r", sort_by=RECORD_ORDER, expand=expand_records)
         # The per-day inventory figures of the records stored here (merged with the stored rows at the end).
         self.day_rows = DayRows()
         self.new_parts: list[str] = []
@@ -592,7 +593,7 @@ class _Ingest:
 def parse_diag_file(root: Path, generation: int, source: str, shown: str, file_seq: int, first_line: int) -> ParsedFile:
     """One file's records and rejected lines into parts of their own (a Dask task: it reads one file and
     writes parts no other task names; the client lists them in the manifest it publishes)."""
-    records = PartWriter(root, "records", generation, f"r{file_seq}-", sort_by=RECORD_ORDER)
+    records = PartWriter(root, "records", generation, f"r{file_seq}-", sort_by=RECORD_ORDER, expand=expand_records)
     rejected = PartWriter(root, "rejected", generation, f"l{file_seq}-", by_device=False, by_day=False)
     rows = RejectedRows(rejected)
     try:
