@@ -27,7 +27,7 @@ from typing import Protocol
 
 import numpy as np
 
-from console.analysis.events.block import _DTYPES, COLUMNS, KIND_CODE, Detail, EventBlock, StringPool
+from console.analysis.events.block import COLUMN_DTYPES, COLUMNS, KIND_CODE, Detail, EventBlock, StringPool
 from console.analysis.events.detection import EventKind
 
 NONE = np.iinfo(np.int64).min  # no time (HeadCounter's None)
@@ -84,7 +84,7 @@ class Collector:
             return np.concatenate(v) if len(v) > 1 else v[0]
 
         order = np.lexsort((joined("tie"), joined("sub"), joined("gen")))
-        cols = {c: np.asarray(joined(c)[order], _DTYPES[c]) for c in COLUMNS if c != "source"}
+        cols = {c: np.asarray(joined(c)[order], COLUMN_DTYPES[c]) for c in COLUMNS if c != "source"}
         cols["source"] = np.full(len(order), bank.source, np.int32)
         return EventBlock.from_columns(cols, bank.names, bank.pool.strings)
 

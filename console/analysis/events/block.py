@@ -79,7 +79,7 @@ def _detail(code: int, t: int, aux: int, pool: Sequence[str]) -> str:
 
 
 COLUMNS = ("time_ns", "kind", "head", "direction", "channel", "source", "detail", "aux_ns")
-_DTYPES = {
+COLUMN_DTYPES = {
     "time_ns": np.int64,
     "kind": np.int8,
     "head": np.int64,
@@ -111,11 +111,11 @@ class EventBlock:
 
     @classmethod
     def empty(cls, names: Sequence[str], pool: Sequence[str]) -> EventBlock:
-        return cls.from_columns({c: np.zeros(0, _DTYPES[c]) for c in COLUMNS}, names, pool)
+        return cls.from_columns({c: np.zeros(0, COLUMN_DTYPES[c]) for c in COLUMNS}, names, pool)
 
     @classmethod
     def from_columns(cls, cols: dict[str, np.ndarray], names: Sequence[str], pool: Sequence[str]) -> EventBlock:
-        c = {name: np.asarray(cols[name], _DTYPES[name]) for name in COLUMNS}
+        c = {name: np.asarray(cols[name], COLUMN_DTYPES[name]) for name in COLUMNS}
         return cls(
             time_ns=c["time_ns"],
             kind=c["kind"],
@@ -142,7 +142,7 @@ class EventBlock:
             cols["source"].append(pool.code(e.source))
             cols["detail"].append(Detail.TEXT if e.detail else Detail.NONE)
             cols["aux_ns"].append(pool.code(e.detail) if e.detail else 0)
-        return cls.from_columns({c: np.array(v, _DTYPES[c]) for c, v in cols.items()}, names, pool.strings)
+        return cls.from_columns({c: np.array(v, COLUMN_DTYPES[c]) for c, v in cols.items()}, names, pool.strings)
 
     def column(self, name: str) -> np.ndarray:
         value: np.ndarray = getattr(self, name)
