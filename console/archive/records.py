@@ -182,18 +182,7 @@ class RecordEncoder:
 
 
 # The stored record columns that are the register's (the same on every record of a register), and the others.
-REGISTER_FIELDS = (
-    "diag_id",
-    "device",
-    "type",
-    "gs",
-    "counting_head",
-    "channel",
-    "address",
-    "label",
-    "label_canonical",
-    "label_encoding",
-)
+REGISTER_FIELDS = tuple(c for c in REGISTER_COLUMNS if c != "device_id")
 # A record as buffered before it is written (:meth:`RecordEncoder.encode_compact`): its register's number in
 # place of the register's ten columns, 44 bytes where the stored columns take 75.
 REGISTER_NUMBER = "register"
