@@ -17,6 +17,7 @@ CI runs a few hundred examples; ``TRACKSIDE_LONG=1`` runs many more.
 
 from __future__ import annotations
 
+import copy
 import itertools
 import os
 from dataclasses import dataclass
@@ -28,8 +29,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from console.analysis.counting.bank import CounterBank
+from console.analysis.counting.holds import NONE, pass_time, pass_time_slices
 from console.analysis.counting.wheels import CountingSettings, HeadCounter
 from console.analysis.diag_events import DiagEventSettings, diag_detection_events
+from console.analysis.events.block import COLUMNS, EventBlock
 from console.analysis.events.detection import DetectionEvent, EventKind, sort_events
 from console.analysis.passages.diagnostics import DiagAnalysis, SpeedSettings
 from console.analysis.passages.stream import ORDER_SLACK_S
@@ -297,3 +300,43 @@ def test_the_batch_path_gives_the_per_head_loops_events(
     events, _ = diag_detection_events(job.analysis, layout, s)
     assert events == _per_head_reference(job.analysis, layout, s)
     assert {e.kind for e in events} >= {EventKind.AXLE, EventKind.SINGLE_CHANNEL, EventKind.INTERFERENCE}
+
+
+def _columns(blocks: list[EventBlock]) -> dict[str, list[int]]:
+    return {c: [int(x) for b in blocks for x in b.column(c)] for c in COLUMNS}
+
+
+@CASE
+@given(log=logs(), data=st.data())
+def test_time_passing_a_slice_of_heads_at_a_time_gives_the_events_of_all_at_once(
+    log: tuple[list[Head], list[tuple[int, int, int, int]], CountingSettings], data: st.DataObject
+) -> None:
+    # The log's end settles a million heads' waiting onsets and holds a slice of heads at a time (for
+    # memory): the blocks joined are the events of all heads at once, column for column and in order, and
+    # the rows left waiting or held are the same, whatever the slice's size.
+    heads, records, s = log
+    bank = _bank(heads, s)
+    n = len(records)
+    cut = data.draw(st.integers(0, n), label="fed before time passes")
+    for block in (records[:cut], records[cut:]):
+        rows = sorted(range(len(block)), key=lambda i: block[i][0])  # by head, read order kept
+        a = np.array([block[i] for i in rows], np.int64).reshape(-1, 4)
+        bank.feed(a[:, 0], a[:, 1], a[:, 2], a[:, 3])
+        # Time passes to some time per head (NONE: not this head), short of its records' end or past it.
+        late = data.draw(st.lists(st.sampled_from([NONE, 0, NS, 30 * NS, 100 * NS, 10_000 * NS]), min_size=4))
+        times = np.array([late[k % len(late)] for k in range(len(heads))], np.int64)
+        strict = data.draw(st.booleans(), label="strict")
+        size = data.draw(st.integers(1, 4), label="slice rows")
+        whole, sliced = copy.deepcopy(bank), copy.deepcopy(bank)
+        expected = [pass_time(whole, lambda h, times=times: times[h], strict)]
+        got = list(pass_time_slices(sliced, lambda h, times=times: times[h], strict, size))
+        assert _columns(got) == _columns(expected)
+        for table in ("pending", "holds"):
+            left, want = getattr(sliced, table).cols, getattr(whole, table).cols
+            assert {c: v.tolist() for c, v in left.items()} == {c: v.tolist() for c, v in want.items()}
+        assert sliced.hold_ids == whole.hold_ids
+        bank = sliced
+    size = data.draw(st.integers(1, 4), label="slice rows at the end")
+    whole = copy.deepcopy(bank)
+    assert _columns(list(bank.flush_blocks(size))) == _columns([whole.flush()])
+    assert not len(bank.pending) and not len(bank.holds)

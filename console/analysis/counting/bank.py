@@ -39,7 +39,7 @@ record, per head or per pulse.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -52,6 +52,7 @@ from console.analysis.counting.holds import (
     Rows,
     first_record,
     pass_time,
+    pass_time_slices,
     settle,
 )
 from console.analysis.counting.point_mode import group_starts, pair_point_onsets
@@ -400,14 +401,18 @@ class CounterBank:
         starts = np.r_[open_t[quiet], p["t_on"][p_quiet]]
         return int(starts.min()) + iso if len(starts) else int(ALL_TIME)
 
+    def _end(self, heads: np.ndarray) -> np.ndarray:
+        last = self.last_onset[heads]
+        return np.where(last != NONE, last + self.iso + self.tol[heads] + 1, NONE)
+
     def flush(self) -> EventBlock:
         """End of input: settle everything still open, at each head's last onset plus the windows."""
+        return pass_time(self, self._end, strict=False)
 
-        def end(heads: np.ndarray) -> np.ndarray:
-            last = self.last_onset[heads]
-            return np.where(last != NONE, last + self.iso + self.tol[heads] + 1, NONE)
-
-        return pass_time(self, end, strict=False)
+    def flush_blocks(self, rows: int) -> Iterator[EventBlock]:
+        """:meth:`flush` a slice of whole heads at a time (about ``rows`` onsets waiting or pulses held
+        each): its events over the blocks, in the same order."""
+        return pass_time_slices(self, self._end, strict=False, size=rows)
 
 
 def two_channel_events(

@@ -22,7 +22,8 @@ within that feed; ``tie``: the order within the step), sorted by it once.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import itertools
+from collections.abc import Callable, Iterator, Sequence
 from typing import Protocol
 
 import numpy as np
@@ -106,6 +107,21 @@ class Rows:
         """Remove the rows of ``mask`` and return them (in the table's order)."""
         out = {c: v[mask] for c, v in self.cols.items()}
         self.cols = {c: v[~mask] for c, v in self.cols.items()}
+        return out
+
+    def between(self, lo: int, hi: int) -> Rows:
+        """A table of the rows of heads ``lo`` … ``hi - 1`` (views of this one's columns)."""
+        heads = self.cols["head"]
+        a, b = np.searchsorted(heads, (lo, hi))
+        part = Rows(self.columns, self.order)
+        part.cols = {c: v[a:b] for c, v in self.cols.items()}
+        return part
+
+    @classmethod
+    def joined(cls, parts: Sequence[Rows]) -> Rows:
+        """Tables of ascending, disjoint head ranges as one."""
+        out = cls(parts[0].columns, parts[0].order)
+        out.cols = {c: np.concatenate([p.cols[c] for p in parts]) for c in out.columns}
         return out
 
     def add(self, rows: dict[str, np.ndarray]) -> None:
@@ -238,3 +254,32 @@ def pass_time(bank: HoldingBank, until: Callable[[np.ndarray], np.ndarray], stri
             text = bank.texts[2]
             out.add(key, ACCIDENTAL, rows["hold"], due, _ACCIDENTAL_KIND, key, 0, rows["channel"], Detail.TEXT, text)
     return out.block(bank)
+
+
+def pass_time_slices(
+    bank: HoldingBank, until: Callable[[np.ndarray], np.ndarray], strict: bool, size: int
+) -> Iterator[EventBlock]:
+    """:func:`pass_time` a slice of whole heads at a time (about ``size`` rows waiting or held each):
+    the same events, in the same order over the blocks, each block a slice's.
+
+    A head's events depend on its own rows only, and the hold ids are handed out in the same order, so
+    only the temporaries shrink: at the end of a log of a million heads, half a million onsets may
+    expire at once.  Iterate to the end: the bank's tables are whole again only then."""
+    pending, holds = bank.pending, bank.holds
+    if len(pending) + len(holds) <= size:
+        yield pass_time(bank, until, strict)
+        return
+    heads = np.unique(np.r_[pending.heads(), holds.heads()])
+    # Rows of the heads up to each; a slice ends with the head that reaches the next multiple of size.
+    rows_to = np.searchsorted(pending.heads(), heads, side="right") + np.searchsorted(holds.heads(), heads, "right")
+    cut = np.searchsorted(rows_to, np.arange(size, rows_to[-1], size), side="left") + 1
+    bounds = np.r_[heads[0], heads[np.minimum(cut, len(heads) - 1)], heads[-1] + 1]
+    left: tuple[list[Rows], list[Rows]] = ([], [])
+    for lo, hi in itertools.pairwise(bounds):
+        if lo >= hi:
+            continue
+        bank.pending, bank.holds = pending.between(int(lo), int(hi)), holds.between(int(lo), int(hi))
+        yield pass_time(bank, until, strict)
+        left[0].append(bank.pending)
+        left[1].append(bank.holds)
+    bank.pending, bank.holds = Rows.joined(left[0]), Rows.joined(left[1])

@@ -48,7 +48,7 @@ streamed: the caller reads those whole.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,6 +79,22 @@ class HeadFacts:
 
     point_mode: bool  # no release record at all: onsets pair within a window
     whole_second: bool  # some wheel record is stamped to the whole second
+
+
+def _head_slices(records: dict[str, np.ndarray], size: int) -> Iterator[dict[str, np.ndarray]]:
+    """Records (read order) in slices of whole heads by head key, each of about ``size`` records or one
+    head's; within a head, read order kept."""
+    n = len(records["head"])
+    if n <= size:
+        yield records
+        return
+    order = np.argsort(records["head"], kind="stable")
+    key = np.asarray(records["head"])[order]
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])  # each head's first position
+    cuts = np.unique(starts[np.minimum(np.searchsorted(starts, np.arange(0, n, size)), len(starts) - 1)])
+    for lo, hi in zip(cuts, np.r_[cuts[1:], n], strict=True):
+        part = order[lo:hi]
+        yield {c: v[part] for c, v in records.items()}
 
 
 class EventStream:
@@ -120,6 +136,10 @@ class EventStream:
         self._held: list[dict[str, np.ndarray]] = []
         self._last_heads: Sequence[tuple[int, str]] = []
         self._power_ns = int(settings.power_gap_s * NS) if settings.power_gap_s is not None else None
+
+    # Held records counted, and the bank's waiting rows settled at the end, about this many (whole heads)
+    # at a time.
+    slice_records = 1 << 16
 
     # Per head: its loss told while silent, its restoration not yet (a class default: a state pickled
     # before there was one still loads).
@@ -242,7 +262,14 @@ class EventStream:
             return
         rest = {c: v[~now] for c, v in held.items()}
         self._held = [rest] if len(rest["head"]) else []
-        self._count({c: v[now] for c, v in held.items()}, heads)
+        ready = {c: v[now] for c, v in held.items()}
+        del held, rest, now
+        # Counted a slice of whole heads at a time: a head's events do not depend on other heads', and the
+        # queue orders them by (time, head, group, generation order), so the events are the same as counted
+        # at once; but counting's temporaries (a few dozen arrays a record) stay a slice's, where a log of a
+        # million heads settles half a million held records at its end.
+        for part in _head_slices(ready, self.slice_records):
+            self._count(part, heads)
 
     def held_from_ns(self) -> int:
         """The earliest wheel record held (int64 max: none): no event of its head is made before it."""
@@ -377,7 +404,8 @@ class EventStream:
         if self._held:
             held = np.concatenate([h["head"] for h in self._held])
             self.settle(held, self._last_heads)
-        self._push(self.bank.flush(), _COUNTING)
+        for block in self.bank.flush_blocks(self.slice_records):
+            self._push(block, _COUNTING)
         if self._power_ns is not None and watermark_ns is not None:
             self._tell_silent(watermark_ns, np.zeros(0, np.int64))
         return self._queue.pop_below(int(ALL_TIME))
