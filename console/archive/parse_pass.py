@@ -107,12 +107,9 @@ def parse_one_pass(
         reader.registry = registry
     enc = RecordEncoder(reader.registry)
     for chunk in reader.chunks():
-        if records.expand is not None:  # buffered with each record's register number (records.expand)
-            table, device_id, registers = enc.encode_compact(chunk, shown, file_seq, first_line)
-            records.add(table, chunk.time_ns // NS_PER_DAY, device_id, context=(enc.registry, registers))
-        else:
-            table, device_id = enc.encode(chunk, shown, file_seq, first_line)
-            records.add(table, chunk.time_ns // NS_PER_DAY, device_id)
+        # Buffered with each record's register number: the writer expands them (records.expand_records).
+        table, device_id, registers = enc.encode_compact(chunk, shown, file_seq, first_line)
+        records.add(table, chunk.time_ns // NS_PER_DAY, device_id, context=(enc.registry, registers))
         if len(chunk.time_ns):
             records.advance(int(np.median(chunk.time_ns)))  # past days' files closed (a median: damaged times)
         if day_rows is not None:

@@ -98,40 +98,6 @@ class RecordEncoder:
             known = self._values[name] = arrow_np.strings(values)
         return pa.DictionaryArray.from_arrays(arrow_np.array(codes, pa.int32()), known)
 
-    def encode(self, chunk: DiagChunk, file_name: str, file_seq: int, line_offset: int) -> tuple[pa.Table, np.ndarray]:
-        """(records table, device_id per row) of one parsed chunk."""
-        reg = self.registry
-        a = self._refresh()
-        rid = chunk.register_id
-        n = len(rid)
-        canon_codes = self._canon_codes[rid]
-        canon_dict, canon_null = self._canon_arrays()
-        canon = pa.DictionaryArray.from_arrays(
-            arrow_np.array(canon_codes, pa.int32(), mask=canon_null[canon_codes]), canon_dict
-        )
-        device_id = a["device_id"][rid]
-        cols = {
-            "time": arrow_np.array(chunk.time_ns.view("datetime64[ns]")),
-            "diag_id": arrow_np.array(a["diag_id"][rid]),
-            "device": self._dict("device", a["device"][rid], reg.devices.values),
-            "type": self._dict("type", a["type"][rid], reg.types.values),
-            "gs": self._dict("gs", a["gs"][rid], reg.gs.values),
-            "counting_head": self._dict("counting_head", a["counting_head"][rid], reg.heads.values),
-            "channel": arrow_np.array(a["channel"][rid]),
-            "address": arrow_np.array(a["address"][rid].astype(np.int16)),
-            "label": self._dict("label", a["label"][rid], reg.labels.values),
-            "label_canonical": canon,
-            "label_encoding": self._dict("label_encoding", self._enc_codes[rid], self._enc_values),
-            "data": self._dict("data", chunk.data_code, reg.data.values),
-            "value": arrow_np.array(chunk.value),
-            "data_kind": self._dict("data_kind", chunk.data_kind.astype(np.int32), list(DATA_KINDS)),
-            "subsecond": arrow_np.array(chunk.subsecond),
-            "file": _dict(np.zeros(n, np.int32), [file_name]),
-            "file_seq": arrow_np.array(np.full(n, file_seq, np.int32)),
-            "line": arrow_np.array(chunk.line + line_offset),
-        }
-        return pa.table(cols), device_id
-
     def registers(self) -> pa.Table:
         """The registry's registers as the stored records' register columns (row = register id): made again
         only when registers appear, so a table given earlier stays as it was (the writer thread reads it)."""
@@ -162,7 +128,7 @@ class RecordEncoder:
         self, chunk: DiagChunk, file_name: str, file_seq: int, line_offset: int
     ) -> tuple[pa.Table, np.ndarray, pa.Table]:
         """(records with their register's number in place of its columns, device_id per row, the registers
-        they number): :func:`expand_records` of the two is :meth:`encode`'s table."""
+        they number): :func:`expand_records` of the two is the stored records' table."""
         reg = self.registry
         registers = self.registers()
         rid = chunk.register_id
