@@ -210,3 +210,65 @@ def test_a_pruned_view_gives_what_the_whole_view_gives(two_days: Path, sql: str)
     a, b = pruned.sql(sql), whole.sql(sql)
     assert a.columns == b.columns
     assert a.fetchall() == b.fetchall()
+
+
+# Statements whose every column is a plain value: answered by DuckDB's engine alone (views.engine).
+ENGINE_ONLY_SQL = [
+    "SELECT count(*) AS n, min(counting_head) AS head FROM records",
+    "SELECT 1 AS a, 2 AS a",
+    "SELECT counting_head, count(*) FROM axles GROUP BY ALL ORDER BY 1 -- a comment",
+    "SELECT 3::BIGINT AS n, 2.5::DECIMAL(4, 2) AS dec, [1, 2] AS l, {'a': 1} AS s, DATE '2026-03-02' AS d;",
+    "VALUES (1, 'a'), (2, NULL)",
+    "FROM range(3)",
+    "DESCRIBE records",
+    "SUMMARIZE SELECT 1 AS x",
+    "SHOW TABLES",
+]
+# The package's relations answer these: times, Arrow types, or a statement DESCRIBE cannot take.
+RELATION_SQL = ["SELECT min(time) AS t FROM records", "SELECT INTERVAL 90 SECOND AS iv", "EXPLAIN SELECT 1"]
+
+
+def test_the_engine_alone_answers_plain_queries_as_the_relations_do(archive: Path) -> None:
+    import duckdb
+
+    from console.archive.views import _query_connection, plain_result
+
+    for sql in ENGINE_ONLY_SQL + RELATION_SQL:
+        con = _query_connection(archive, sql, engine_only=True)
+        try:
+            plain = plain_result(con, sql)
+            assert (plain is not None) == (sql in ENGINE_ONLY_SQL), sql
+            if plain is not None:
+                rel = con.sql(sql)
+                assert (plain.names, plain.rows) == (list(rel.columns), rel.fetchall()), sql
+                assert plain.arrow is None and not plain.ns_columns
+        finally:
+            con.close()
+    with pytest.raises(duckdb.Error):  # a bad statement still fails (through the relation, as before)
+        con = _query_connection(archive, "SELECT nope FROM records", engine_only=True)
+        try:
+            assert plain_result(con, "SELECT nope FROM records") is None
+            con.sql("SELECT nope FROM records")
+        finally:
+            con.close()
+
+
+def test_a_plain_query_does_not_import_the_duckdb_package(archive: Path) -> None:
+    import importlib.util
+    import subprocess
+    import sys
+
+    if importlib.util.find_spec("_duckdb") is None:
+        pytest.skip("this DuckDB has no engine module apart from the package (1.x)")
+    code = (
+        "import sys; from pathlib import Path; from console.archive.views import run_query_result; "
+        "r = run_query_result(Path(sys.argv[1]), 'SELECT counting_head, count(*) FROM records GROUP BY ALL'); "
+        "print(len(r.rows or []), 'duckdb' in sys.modules, 'pyarrow' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code, str(archive)], capture_output=True, text=True, check=True)
+    n, package, arrow = out.stdout.split()
+    assert int(n) > 0 and package == "False" and arrow == "False"
+    # A query with a time column takes the package's relations, as before.
+    timed = code.replace("counting_head, count(*)", "counting_head, min(time)")
+    out = subprocess.run([sys.executable, "-c", timed, str(archive)], capture_output=True, text=True, check=True)
+    assert out.stdout.split()[1] == "True"

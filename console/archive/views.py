@@ -12,6 +12,7 @@ of the manifest it opened (the next ingest keeps them, see store.KEEP_MANIFESTS)
 
 from __future__ import annotations
 
+import importlib
 import re
 import threading
 from collections.abc import Callable, Collection, Iterator, Mapping
@@ -141,6 +142,19 @@ DUCKDB_CONFIG: dict[str, Any] = {"autoinstall_known_extensions": False, "autoloa
 NO_PROGRESS_BAR = "SET enable_progress_bar = false"
 
 
+def engine() -> Any:
+    """DuckDB's compiled engine: the ``_duckdb`` module where DuckDB ships it apart (2.x), else the package.
+
+    Connecting, running a statement and fetching its rows as Python values need only the engine; the package's
+    Python layer (relations, expressions) takes ~60 ms to import, a fifth of a short ``trackside query``.  Its
+    connections are the package's own class, which importing the package completes (``sql``, Arrow results).
+    """
+    try:
+        return importlib.import_module("_duckdb")
+    except ImportError:  # DuckDB 1.x: the engine is inside the package
+        return importlib.import_module("duckdb")
+
+
 def connect(
     root: Path,
     manifest: Manifest | None = None,
@@ -149,6 +163,7 @@ def connect(
     tables: Collection[str] | None = None,
     sql: str | None = None,
     computed: dict[str, pa.Table] | None = None,
+    engine_only: bool = False,
 ) -> tuple[duckdb.DuckDBPyConnection, Manifest]:
     """An in-memory DuckDB connection with a view per archive table, locked read-only.
 
@@ -157,8 +172,13 @@ def connect(
     thousands of parts costs a few hundred ms to create.
     ``sql``: the one query the connection is for: where it keeps only some days or devices of
     a partitioned table (see :func:`partition_filter`), that view lists only their parts.
+    ``engine_only``: the caller uses only ``execute``/``description``/``fetch*`` until it imports the package
+    itself (see :func:`engine`).
     """
-    import duckdb
+    if engine_only and not computed:
+        duckdb = engine()
+    else:
+        import duckdb
 
     m = manifest if manifest is not None else read_current(root)
     if spill_dir is None and sql is None and not computed:
@@ -280,11 +300,9 @@ def partition_filter(con: duckdb.DuckDBPyConnection, sql: str) -> dict[str, dict
     """
     import json
 
-    import duckdb
-
     try:
         doc = json.loads(con.execute("SELECT json_serialize_sql(?)", [sql]).fetchone()[0])  # type: ignore[index]
-    except (duckdb.Error, TypeError, ValueError):
+    except (engine().Error, TypeError, ValueError):
         return {}
     statements = doc.get("statements") or []
     if doc.get("error") or len(statements) != 1:
@@ -362,11 +380,9 @@ def _key_value(key: str, expr: object) -> str | None:
 
 def check_read_only(con: duckdb.DuckDBPyConnection, sql: str) -> None:
     """One SELECT-like statement, or QueryError."""
-    import duckdb
-
     try:
         statements = con.extract_statements(sql)
-    except duckdb.Error as exc:
+    except engine().Error as exc:
         raise QueryError(one_line(exc)) from None
     if len(statements) != 1:
         raise QueryError(f"give exactly one statement (found {len(statements)})")
@@ -417,10 +433,13 @@ def run_query_result(
     ``manifest``: the current one, when the caller has read it already (a year's manifest is megabytes).
     ``computed``: views computed in Python, by name, made when the statement names them.
     """
-    import duckdb
-
-    con = _query_connection(root, sql, manifest, computed)
+    con = _query_connection(root, sql, manifest, computed, engine_only=True)
     try:
+        plain = plain_result(con, sql)
+        if plain is not None:
+            return plain
+        import duckdb  # the package's relations: Arrow results and epoch_ns projections
+
         try:
             rel = con.sql(sql)
             if rel is None:  # a statement without a result (none passes check_read_only today)
@@ -441,6 +460,25 @@ def run_query_result(
             raise QueryError(one_line(exc)) from None
     finally:
         con.close()
+
+
+def plain_result(con: duckdb.DuckDBPyConnection, sql: str) -> QueryResult | None:
+    """The result as Python rows when no column needs Arrow or holds times (DuckDB's engine alone, see
+    :func:`engine`); None: the columns need the package's relations, or ``DESCRIBE`` cannot tell them (EXPLAIN)
+    or fails (the error then comes from the relation, as for every other query)."""
+    error = engine().Error
+    try:
+        columns = con.execute(f"DESCRIBE {sql}").fetchall()
+    except error:
+        return None
+    types = [str(c[1]).upper() for c in columns]
+    if any(t in _PLAIN_TIME_TYPES or any(word in t for word in _ARROW_TYPE_WORDS) for t in types):
+        return None
+    try:
+        rows = con.execute(sql).fetchall()
+    except error as exc:
+        raise QueryError(one_line(exc)) from None
+    return QueryResult([str(c[0]) for c in columns], rows=rows)
 
 
 def show_query(
@@ -469,17 +507,22 @@ def show_query(
 
 
 def _query_connection(
-    root: Path, sql: str, manifest: Manifest | None = None, computed: Mapping[str, ComputedView] | None = None
+    root: Path,
+    sql: str,
+    manifest: Manifest | None = None,
+    computed: Mapping[str, ComputedView] | None = None,
+    *,
+    engine_only: bool = False,
 ) -> duckdb.DuckDBPyConnection:
     """A connection with views for the tables ``sql`` names (and the computed views it names), the statement
-    checked read-only."""
+    checked read-only (``engine_only``: see :func:`connect`)."""
     named = {t for t in TABLES if re.search(rf"\b{t}\b", sql, re.IGNORECASE)}
     wanted = [name for name in computed or {} if re.search(rf"\b{name}\b", sql, re.IGNORECASE)]
     tables = None
     if computed and wanted:
         m = manifest if manifest is not None else read_current(root)
         manifest, tables = m, {name: computed[name](root, m) for name in wanted}
-    con, _ = connect(root, manifest, tables=named, sql=sql, computed=tables)
+    con, _ = connect(root, manifest, tables=named, sql=sql, computed=tables, engine_only=engine_only)
     try:
         check_read_only(con, sql)
     except BaseException:
