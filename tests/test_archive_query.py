@@ -223,9 +223,12 @@ ENGINE_ONLY_SQL = [
     "DESCRIBE records",
     "SUMMARIZE SELECT 1 AS x",
     "SHOW TABLES",
+    # Top-level times, as epoch nanoseconds (the statement read as a subquery, its order kept).
+    "SELECT time, counting_head FROM records ORDER BY time DESC, line DESC -- newest first",
+    "SELECT min(time) AS t, TIMESTAMPTZ '2026-03-02 10:00:00+02' AS tz FROM records;",
 ]
 # The package's relations answer these: times, Arrow types, or a statement DESCRIBE cannot take.
-RELATION_SQL = ["SELECT min(time) AS t FROM records", "SELECT INTERVAL 90 SECOND AS iv", "EXPLAIN SELECT 1"]
+RELATION_SQL = ["SELECT [min(time)] AS t FROM records", "SELECT INTERVAL 90 SECOND AS iv", "EXPLAIN SELECT 1"]
 
 
 def test_the_engine_alone_answers_plain_queries_as_the_relations_do(archive: Path) -> None:
@@ -240,8 +243,12 @@ def test_the_engine_alone_answers_plain_queries_as_the_relations_do(archive: Pat
             assert (plain is not None) == (sql in ENGINE_ONLY_SQL), sql
             if plain is not None:
                 rel = con.sql(sql)
-                assert (plain.names, plain.rows) == (list(rel.columns), rel.fetchall()), sql
-                assert plain.arrow is None and not plain.ns_columns
+                assert plain.names == list(rel.columns), sql
+                # The relations' own projection of times as epoch nanoseconds (what the query command did before).
+                times = [i for i, t in enumerate(rel.types) if str(t).startswith("TIMESTAMP")]
+                picked = [f"epoch_ns(#{i + 1})" if i in times else f"#{i + 1}" for i in range(len(rel.types))]
+                assert plain.rows == (rel.project(", ".join(picked)) if times else rel).fetchall(), sql
+                assert plain.arrow is None and plain.ns_columns == frozenset(times), sql
         finally:
             con.close()
     with pytest.raises(duckdb.Error):  # a bad statement still fails (through the relation, as before)
@@ -268,7 +275,10 @@ def test_a_plain_query_does_not_import_the_duckdb_package(archive: Path) -> None
     out = subprocess.run([sys.executable, "-c", code, str(archive)], capture_output=True, text=True, check=True)
     n, package, arrow = out.stdout.split()
     assert int(n) > 0 and package == "False" and arrow == "False"
-    # A query with a time column takes the package's relations, as before.
+    # A time column too; a time inside a list takes the package's relations and Arrow, as before.
     timed = code.replace("counting_head, count(*)", "counting_head, min(time)")
     out = subprocess.run([sys.executable, "-c", timed, str(archive)], capture_output=True, text=True, check=True)
-    assert out.stdout.split()[1] == "True"
+    assert out.stdout.split()[1] == "False"
+    nested = code.replace("counting_head, count(*)", "counting_head, [min(time)]")
+    out = subprocess.run([sys.executable, "-c", nested, str(archive)], capture_output=True, text=True, check=True)
+    assert out.stdout.split()[1:] == ["True", "True"]

@@ -463,22 +463,31 @@ def run_query_result(
 
 
 def plain_result(con: duckdb.DuckDBPyConnection, sql: str) -> QueryResult | None:
-    """The result as Python rows when no column needs Arrow or holds times (DuckDB's engine alone, see
-    :func:`engine`); None: the columns need the package's relations, or ``DESCRIBE`` cannot tell them (EXPLAIN)
-    or fails (the error then comes from the relation, as for every other query)."""
+    """The result as Python rows, top-level times as epoch nanoseconds, by DuckDB's engine alone (see
+    :func:`engine`); None: a column needs Arrow, or ``DESCRIBE`` cannot type the statement (EXPLAIN) or fails, or
+    the statement cannot be read as a subquery (then the package's relations answer, and raise its error)."""
     error = engine().Error
     try:
         columns = con.execute(f"DESCRIBE {sql}").fetchall()
     except error:
         return None
     types = [str(c[1]).upper() for c in columns]
-    if any(t in _PLAIN_TIME_TYPES or any(word in t for word in _ARROW_TYPE_WORDS) for t in types):
+    times = frozenset(i for i, t in enumerate(types) if t in _PLAIN_TIME_TYPES)
+    if any(word in t for i, t in enumerate(types) if i not in times for word in _ARROW_TYPE_WORDS):
         return None
+    statement = sql
+    if times:
+        # As the relations project them: the statement as a subquery (on lines of its own: a trailing comment
+        # stays inside), whose order a projection keeps.
+        picked = ", ".join(f"epoch_ns(#{i + 1})" if i in times else f"#{i + 1}" for i in range(len(types)))
+        statement = f"SELECT {picked} FROM (\n{sql.rstrip().rstrip(';')}\n)"
     try:
-        rows = con.execute(sql).fetchall()
+        rows = con.execute(statement).fetchall()
     except error as exc:
+        if times:
+            return None
         raise QueryError(one_line(exc)) from None
-    return QueryResult([str(c[0]) for c in columns], rows=rows)
+    return QueryResult([str(c[0]) for c in columns], rows=rows, ns_columns=times)
 
 
 def show_query(
