@@ -56,12 +56,14 @@ from console.analysis.counting.holds import (
     settle,
 )
 from console.analysis.counting.point_mode import group_starts, pair_point_onsets
-from console.analysis.counting.wheels import SYS1, SYS2, CountingSettings
+from console.analysis.counting.wheels import REVERSED_RELEASE, SYS1, SYS2, CountingSettings
 from console.analysis.events.block import KIND_CODE, NO_CHANNEL, Detail, EventBlock, StringPool
 from console.analysis.events.detection import DetectionEvent, EventKind
 from parsers.units import ALL_TIME, NS
 
-_AXLE, _DAMPED, _FREE_KIND = (KIND_CODE[k] for k in (EventKind.AXLE, EventKind.HEAD_DAMPED, EventKind.HEAD_FREE))
+_AXLE, _DAMPED, _FREE_KIND, _SINGLE = (
+    KIND_CODE[k] for k in (EventKind.AXLE, EventKind.HEAD_DAMPED, EventKind.HEAD_FREE, EventKind.SINGLE_CHANNEL)
+)
 
 
 def _last(mask: np.ndarray, hstart: np.ndarray, strict: bool) -> np.ndarray:
@@ -244,6 +246,16 @@ class CounterBank:
             axles_before[rp + 1] - axles_before[s0] > 0,
             self.paired[rh, rc] | (axles_before[rp + 1] - axles_before[hstart[rp]] > 0),
         )
+        # An axle's system damped second, freed while the first is still damped: its direction is in doubt
+        # (HeadCounter.feed).  The other system's damping began at its last onset, or before the block.
+        oc_r = 1 - rc
+        so = np.where(oc_r == 0, last_on[0][rp], last_on[1][rp])
+        other_on = np.where(so >= 0, t[np.maximum(so, 0)], self.open_t[rh, oc_r])
+        this_on = np.where(inb, t[s0], self.open_t[rh, rc])
+        rev = np.flatnonzero(paired & other_open[rp] & (other_on < this_on))
+        if len(rev):
+            text = self.pool.code(REVERSED_RELEASE)
+            out.add(idx[rp[rev]], OWN, 0, t[rp[rev]], _SINGLE, rh[rev], 0, rc[rev] + 1, Detail.TEXT, text)
         lone_at = np.flatnonzero(~paired)
         lr, lh, lc = rp[lone_at], rh[lone_at], rc[lone_at]
         lones = {

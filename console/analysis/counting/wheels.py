@@ -35,6 +35,8 @@ SYS1, SYS2 = 1, 2
 DIRECTION_12 = "sys1_to_sys2"
 DIRECTION_21 = "sys2_to_sys1"
 DIRECTIONS = (None, DIRECTION_12, DIRECTION_21)  # axle direction codes 0, 1, 2
+# The detail of the doubt raised when an axle's second system is freed while its first is still damped.
+REVERSED_RELEASE = "freed before the system damped first: direction doubtful"
 
 
 @dataclass(frozen=True)
@@ -295,6 +297,10 @@ class HeadCounter:
       second are ordered by the order they come in (the log's line order,
       the only timing evidence there), and point-mode onsets pair within a
       second, not the sub-second window;
+    * an axle's system damped second must not be freed while the first is
+      still damped (a wheel crossing one way frees the first system first):
+      where it is, the direction is in doubt (SINGLE_CHANNEL), as when a
+      pulse on one system overlaps a wheel and came before it;
     * a damping of one system alone is not an axle.  Seed 002's soft timing
       decides what it is: with nothing else at the head for ``isolation_s``
       before it, it holds the section (INTERFERENCE) and is confirmed
@@ -403,6 +409,10 @@ class HeadCounter:
                 return out
             if not self.paired[ch]:
                 out.append(self._lone(t_on, ch, t, self.before[ch]))
+            elif (o := self.open[other]) is not None and o < t_on:
+                # The system damped second is freed first: not a wheel crossing one way (the first damped is
+                # the first freed), but e.g. a pulse on one system over a wheel, which may have set the direction.
+                out.append(self._ev(t, EventKind.SINGLE_CHANNEL, 0, ch, REVERSED_RELEASE))
             self.open[ch], self.paired[ch] = None, False
             if self.open[other] is None:
                 out.append(self._ev(t, EventKind.HEAD_FREE))
