@@ -145,7 +145,7 @@ def _events(trains: list[Train], faults: dict) -> list[DetectionEvent]:
     events: list[DetectionEvent] = []
     for head, rows in recs.items():
         if rows:
-            arr = np.array(rows, dtype=np.int64)
+            arr = _as_the_channel_reports(np.array(rows, dtype=np.int64))
             events += two_channel_events(head, arr[:, 0], arr[:, 1], arr[:, 2], settings=CountingSettings())
     if power:
         events.append(DetectionEvent(int(power[1] * NS), EventKind.POWER_LOSS, power[0]))
@@ -167,10 +167,57 @@ PULSE_OVER_A_WHEEL = (
 )
 
 
+def _as_the_channel_reports(rows: np.ndarray) -> np.ndarray:
+    """(channel, t, value) dampings as a system's records show them: a channel's state, so dampings that
+    overlap (a pulse over a wheel) are one damping from the first onset to the last release, not a release
+    in the middle while the system is still damped."""
+    out = []
+    for ch in np.unique(rows[:, 0]):
+        on = rows[(rows[:, 0] == ch) & (rows[:, 2] == 1), 1]
+        off = rows[(rows[:, 0] == ch) & (rows[:, 2] == 0), 1]
+        order = np.argsort(on, kind="stable")
+        on, off = on[order], off[order]  # each damping's release is written right after its onset
+        end = np.maximum.accumulate(off)
+        new = np.r_[True, on[1:] > end[:-1]]  # begins after every earlier damping ended
+        starts = np.flatnonzero(new)
+        ends = np.r_[starts[1:], len(on)] - 1
+        out += [(ch, t, 1) for t in on[starts]] + [(ch, t, 0) for t in end[ends]]
+    return np.array(out, dtype=np.int64)
+
+
 @settings(max_examples=300, deadline=None)
 @given(scenario=scenarios(), initial=st.sampled_from([SectionState.CLEAR, SectionState.PREPARATORY]))
 @example(scenario=PULSE_OVER_A_WHEEL, initial=SectionState.CLEAR)
 def test_never_clear_with_an_axle_inside(scenario: tuple[list[Train], dict], initial: SectionState) -> None:
+    _assert_never_clear_with_an_axle_inside(scenario, initial)
+
+
+@st.composite
+def pulses_over_wheels(draw: st.DrawFn) -> tuple[list[Train], dict]:
+    """Scenarios whose interference pulses fall within 0.3 s of a wheel at a head: the rare case the
+    uniformly placed pulses above reach only once in many runs.  One pulse per head, and none at a head that
+    misses a wheel: pulses on both systems in turn over a wheel, or a pulse standing in for a missed damping,
+    are a whole wheel the other way, which no counter can tell from one."""
+    trains, faults = draw(scenarios())
+    missing = {head for _, _, head in faults["miss"]}
+    pulses = []
+    heads = [h for h in HEAD_X if h not in missing]
+    for head in draw(st.lists(st.sampled_from(heads), min_size=1, max_size=3, unique=True)):
+        tr = trains[draw(st.integers(0, len(trains) - 1))]
+        t_s = crossing_ns(tr, head, draw(st.sampled_from(tr.axles))) / NS + draw(st.floats(-0.3, 0.3))
+        pulses.append((head, draw(st.sampled_from([1, 2])), t_s))
+    return trains, {**faults, "pulses": pulses}
+
+
+@settings(max_examples=500, deadline=None)
+@given(scenario=pulses_over_wheels(), initial=st.sampled_from([SectionState.CLEAR, SectionState.PREPARATORY]))
+def test_never_clear_with_an_axle_inside_when_pulses_fall_on_wheels(
+    scenario: tuple[list[Train], dict], initial: SectionState
+) -> None:
+    _assert_never_clear_with_an_axle_inside(scenario, initial)
+
+
+def _assert_never_clear_with_an_axle_inside(scenario: tuple[list[Train], dict], initial: SectionState) -> None:
     trains, faults = scenario
     events = _events(trains, faults)
     # Operator resets, only when the section is truly empty at that moment.
