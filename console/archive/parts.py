@@ -206,7 +206,8 @@ class _Dictionaries:
             col = together.column(i)
             if pa.types.is_dictionary(f.type) and f.name in self.values:
                 indices = pa.concat_arrays([c.indices for c in col.chunks])
-                cols.append(pa.DictionaryArray.from_arrays(indices, self.values[f.name]))
+                # Every piece's codes index a prefix of the shared dictionary: no bounds check (a pass over the codes).
+                cols.append(pa.DictionaryArray.from_arrays(indices, self.values[f.name], safe=False))
             else:
                 cols.append(col.combine_chunks())
         return pa.Table.from_arrays(cols, schema=schema)
@@ -230,7 +231,8 @@ class _Dictionaries:
             chunks, columns[i] = columns[i], None
             assert chunks is not None
             if pa.types.is_dictionary(f.type) and f.name in self.values:
-                col = pa.DictionaryArray.from_arrays(pa.concat_arrays([c.indices for c in chunks]), self.values[f.name])
+                codes = pa.concat_arrays([c.indices for c in chunks])
+                col = pa.DictionaryArray.from_arrays(codes, self.values[f.name], safe=False)  # valid, as in concat
             else:
                 col = pa.concat_arrays(chunks)
             del chunks

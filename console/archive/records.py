@@ -44,7 +44,8 @@ _STR = pa.dictionary(pa.int32(), pa.string())
 
 
 def _dict(codes: np.ndarray, values: list[str]) -> pa.DictionaryArray:
-    return pa.DictionaryArray.from_arrays(arrow_np.array(codes, pa.int32()), arrow_np.strings(values))
+    """``codes`` into ``values``, the codes known to be in range (no bounds check: a pass over them)."""
+    return pa.DictionaryArray.from_arrays(arrow_np.array(codes, pa.int32()), arrow_np.strings(values), safe=False)
 
 
 class RecordEncoder:
@@ -96,7 +97,8 @@ class RecordEncoder:
         known = self._values.get(name)
         if known is None or len(known) != len(values):
             known = self._values[name] = arrow_np.strings(values)
-        return pa.DictionaryArray.from_arrays(arrow_np.array(codes, pa.int32()), known)
+        # The codes are the registry's, into its values: no bounds check (a pass over every record's codes).
+        return pa.DictionaryArray.from_arrays(arrow_np.array(codes, pa.int32()), known, safe=False)
 
     def registers(self) -> pa.Table:
         """The registry's registers as the stored records' register columns (row = register id): made again
