@@ -216,10 +216,13 @@ class _Dictionaries:
         """The pieces' rows as one contiguous table, in ``order`` (row numbers; None: as they are), every
         dictionary column on the shared dictionary.  ``pieces`` is emptied: a column's buffers are let go
         as soon as it is gathered, so a write-out holds little more than one copy of its rows."""
+        import pyarrow.compute as pc  # deferred: a query's start-up imports this module, not the writing
+
         if self.mixed or len(pieces) < 2:
             table = self.concat(pieces)
             pieces.clear()
-            return table if order is None else table.take(arrow_np.array(order))
+            # ``order`` is a permutation of the rows: no bounds check (a pass over it per column).
+            return table if order is None else pc.take(table, arrow_np.array(order), boundscheck=False)
         schema = pieces[0].schema
         columns: list[list[pa.Array] | None] = [
             [c for t in pieces for c in t.column(i).chunks] for i in range(len(schema))
@@ -236,7 +239,7 @@ class _Dictionaries:
             else:
                 col = pa.concat_arrays(chunks)
             del chunks
-            out.append(col if taken is None else col.take(taken))
+            out.append(col if taken is None else pc.take(col, taken, boundscheck=False))
         return pa.Table.from_arrays(out, schema=schema)
 
 

@@ -165,7 +165,10 @@ NULLABLE_RECORD_FIELDS = frozenset({"label_canonical"})
 def expand_records(compact: pa.Table, registers: pa.Table) -> pa.Table:
     """Compact records (:meth:`RecordEncoder.encode_compact`) as the stored columns: each register's columns
     taken from ``registers`` (a snapshot of the registry at or after these records were parsed)."""
-    per_register = registers.take(compact.column(REGISTER_NUMBER))
+    import pyarrow.compute as pc  # deferred: a query's start-up imports this module, not the writing
+
+    # A record's register number is a row of ``registers`` (a snapshot at or after it): no bounds check.
+    per_register = pc.take(registers, compact.column(REGISTER_NUMBER), boundscheck=False)
     names = [n for n in RECORD_FIELDS if n != "time"]
     cols = [compact.column("time")]
     cols += [per_register.column(n) if n in REGISTER_FIELDS else compact.column(n) for n in names]
