@@ -64,7 +64,9 @@ def _encode(
         "file_seq": arrow_np.array(np.full(n, file_seq, np.int32)),
         "line": arrow_np.array(chunk.line + line_offset),
     }
-    return pa.table(cols), device_id
+    # Stored as required columns, but for the canonical label (null: a label the catalogue does not know).
+    schema = pa.schema(pa.field(name, col.type, nullable=name == "label_canonical") for name, col in cols.items())
+    return pa.table(cols, schema=schema), device_id
 
 
 def _dense(t: pa.Table) -> pa.Table:

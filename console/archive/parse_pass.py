@@ -110,8 +110,10 @@ def parse_one_pass(
         # Buffered with each record's register number: the writer expands them (records.expand_records).
         table, device_id, registers = enc.encode_compact(chunk, shown, file_seq, first_line)
         records.add(table, chunk.time_ns // NS_PER_DAY, device_id, context=(enc.registry, registers))
-        if len(chunk.time_ns):
-            records.advance(int(np.median(chunk.time_ns)))  # past days' files closed (a median: damaged times)
+        # Past days' files closed (at the chunk's median time: one damaged time does not move it).  The median
+        # is no later than the chunk's latest time: only a chunk whose latest time would close a day is ranked.
+        if len(chunk.time_ns) and records.closes_day(int(chunk.time_ns.max())):
+            records.advance(int(np.median(chunk.time_ns)))
         if day_rows is not None:
             day_rows.add(enc.registry, chunk, file_seq, first_line)
         if on_chunk is not None:

@@ -206,7 +206,8 @@ class _Dictionaries:
             col = together.column(i)
             if pa.types.is_dictionary(f.type) and f.name in self.values:
                 indices = pa.concat_arrays([c.indices for c in col.chunks])
-                cols.append(pa.DictionaryArray.from_arrays(indices, self.values[f.name]))
+                # Every piece's codes index a prefix of the shared dictionary: no bounds check (a pass over the codes).
+                cols.append(pa.DictionaryArray.from_arrays(indices, self.values[f.name], safe=False))
             else:
                 cols.append(col.combine_chunks())
         return pa.Table.from_arrays(cols, schema=schema)
@@ -215,10 +216,13 @@ class _Dictionaries:
         """The pieces' rows as one contiguous table, in ``order`` (row numbers; None: as they are), every
         dictionary column on the shared dictionary.  ``pieces`` is emptied: a column's buffers are let go
         as soon as it is gathered, so a write-out holds little more than one copy of its rows."""
+        import pyarrow.compute as pc  # deferred: a query's start-up imports this module, not the writing
+
         if self.mixed or len(pieces) < 2:
             table = self.concat(pieces)
             pieces.clear()
-            return table if order is None else table.take(arrow_np.array(order))
+            # ``order`` is a permutation of the rows: no bounds check (a pass over it per column).
+            return table if order is None else pc.take(table, arrow_np.array(order), boundscheck=False)
         schema = pieces[0].schema
         columns: list[list[pa.Array] | None] = [
             [c for t in pieces for c in t.column(i).chunks] for i in range(len(schema))
@@ -230,11 +234,12 @@ class _Dictionaries:
             chunks, columns[i] = columns[i], None
             assert chunks is not None
             if pa.types.is_dictionary(f.type) and f.name in self.values:
-                col = pa.DictionaryArray.from_arrays(pa.concat_arrays([c.indices for c in chunks]), self.values[f.name])
+                codes = pa.concat_arrays([c.indices for c in chunks])
+                col = pa.DictionaryArray.from_arrays(codes, self.values[f.name], safe=False)  # valid, as in concat
             else:
                 col = pa.concat_arrays(chunks)
             del chunks
-            out.append(col if taken is None else col.take(taken))
+            out.append(col if taken is None else pc.take(col, taken, boundscheck=False))
         return pa.Table.from_arrays(out, schema=schema)
 
 

@@ -246,8 +246,10 @@ class EventStream:
         ready = self._configured[key_col] | (self._state[key_col] != _COUNTED)
         if self.known_facts is not None:
             ready |= np.isin(key_col, np.fromiter(self.known_facts, np.int64, len(self.known_facts)))
-        if not ready.all():
-            self._held.append({c: np.asarray(v)[~ready] for c, v in wheel.items()})
+        if ready.all():  # the usual case once every head's facts are settled: no copy of the columns
+            self._count(wheel, heads)
+            return
+        self._held.append({c: np.asarray(v)[~ready] for c, v in wheel.items()})
         if ready.any():
             self._count({c: np.asarray(v)[ready] for c, v in wheel.items()}, heads)
 
