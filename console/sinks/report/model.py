@@ -40,6 +40,8 @@ from console import __version__
 from console.analysis.events.detection import DetectionEvent, EventKind
 from console.analysis.health.rules import Finding, Severity
 from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.status import STATUS_KIND
+from console.analysis.passages.stream import take_passages
 from console.analysis.sections.engine import SectionsResult
 from console.analysis.sections.state import SectionState
 from console.analysis.timefmt import iso
@@ -47,7 +49,13 @@ from console.drivers.batch import DiagJob
 from console.inputs.recognise import NUMBER_PARTS, natural_key
 from console.layout import Layout
 from console.sinks.report.jsonwrite import Rows
-from console.sinks.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPassages, SectionHistory
+from console.sinks.report.spooled import (
+    LedgerFrameRows,
+    PassageColumnRows,
+    PassageFrameRows,
+    ReportPassages,
+    SectionHistory,
+)
 from console.sinks.report.unit_codes import first_last_ns, sorted_codes, sorted_name_codes, sorted_positions
 from console.sinks.tables.section_tables import sections_json
 from parsers.report import ParseReport
@@ -489,7 +497,15 @@ def _passages(data: ReportData) -> tuple[list[dict[str, Any]] | Rows, int]:
         return data.passage_spool.rows(), data.passage_spool.status
     if data.job is None:
         return [], 0
-    p = data.job.analysis.passages
+    analysis = data.job.analysis
+    cols = analysis.passage_columns
+    if cols is not None and "passages" not in analysis.__dict__:  # the columns, not made a table for this
+        status_rows = cols["kind"] == STATUS_KIND
+        n_status = int(status_rows.sum())
+        if n_status:
+            cols = take_passages(cols, np.flatnonzero(~status_rows))
+        return PassageColumnRows(cols, analysis.heads), n_status
+    p = analysis.passages
     status = int((p["kind"] == "status").sum()) if len(p) else 0
     shown = p[p["kind"] != "status"] if status else p
     # The same passage objects as `trackside analyze --json`, written from the table.

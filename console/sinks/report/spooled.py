@@ -182,6 +182,40 @@ class PassageFrameRows(Rows):
         write("\n" + " " * depth + "]")
 
 
+class PassageColumnRows(Rows):
+    """Passages held as the pipeline's columns (an archive's window, a whole read's): their JSON written from
+    the columns by the byte encoder, without a table; through the table (:class:`PassageFrameRows`) where the
+    encoder does not cover a value."""
+
+    def __init__(self, cols: Columns, heads: Heads) -> None:
+        super().__init__(len(cols["head"]), self._items)
+        self.cols = cols
+        self.heads = heads
+
+    def _table(self) -> PassageFrameRows:
+        from console.analysis.passages.diagnostics import passages_frame
+
+        return PassageFrameRows(passages_frame(self.cols, self.heads))
+
+    def _items(self) -> Iterator[Any]:
+        from console.analysis.passages.json_text import encode_passages
+
+        text = encode_passages(self.cols, self.heads)
+        return iter(json.loads(text)) if text is not None else iter(self._table())
+
+    def write_json(self, write: Write, depth: int) -> None:
+        from console.analysis.passages.json_text import indented_objects
+
+        blobs = indented_objects(self.cols, self.heads, depth) if self.count else None
+        if blobs is None:
+            self._table().write_json(write, depth)
+            return
+        write("[")
+        for blob in blobs:
+            write(blob.decode("ascii"))
+        write("\n" + " " * depth + "]")
+
+
 class _NotKept(Rows):
     """Rows counted, not spilled (a format that shows only their totals)."""
 
