@@ -398,13 +398,13 @@ def _sections(
     con: duckdb.DuckDBPyConnection, manifest: Manifest, layout: Layout | None, window: Window
 ) -> SectionsResult | None:
     """The section history cut to the window; the final state at its end (stored for the whole history)."""
+    if layout is None or not layout.sections:
+        return None
     import pandas as pd
 
     from console.analysis.sections.engine import SectionEngine, SectionsResult
     from console.analysis.sections.state import SectionState
 
-    if layout is None or not layout.sections:
-        return None
     where, params = _where(window, "time_ns", heads=False)
     order = [s.id for s in layout.sections] if layout is not None else []
     timeline = _rows(con, "section_states", ["time_ns", "section", "state", "count", "reason"], where, params, order)

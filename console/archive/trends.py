@@ -141,20 +141,23 @@ def analog_margins_per_day(
 ) -> list[dict[str, Any]]:
     """Per (head, channel, day): values, min, max, the band, the margin (least distance inside it), the
     median (of each register, averaged over the channel's registers) and its distance inside the band."""
-    import pandas as pd
-
     from console.analysis.health.rules import learn_band
 
     where, params = window.where()
     cond = f"{where} AND label_canonical = 'analog_value'" if where else " WHERE label_canonical = 'analog_value'"
-    df = con.execute(
+    # Fetched as numpy arrays and made a table (as DuckDB's df() does) only when there are rows: a window
+    # without analog values needs no pandas.
+    arrays = con.execute(
         f"SELECT strftime(day, '%Y-%m-%d') AS day, counting_head, channel, address, value::DOUBLE AS value "
         f"FROM records{cond} "
         "ORDER BY counting_head, channel, time, file_seq, line",
         params,
-    ).df()
-    if df.empty:
+    ).fetchnumpy()
+    if not len(arrays["value"]):
         return []
+    import pandas as pd
+
+    df = pd.DataFrame.from_dict(arrays)
     bands: dict[str, tuple[float, float]] = (
         {h.id: h.analog_band for h in layout.heads if h.analog_band} if layout is not None else {}
     )

@@ -34,7 +34,6 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
-import pandas as pd
 
 from console import __version__
 from console.analysis.events.detection import DetectionEvent, EventKind
@@ -59,6 +58,9 @@ from console.sinks.report.spooled import (
 from console.sinks.report.unit_codes import first_last_ns, sorted_codes, sorted_name_codes, sorted_positions
 from console.sinks.tables.section_tables import sections_json
 from parsers.report import ParseReport
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read (collect)
     from console.analysis.crossing.timeline import TimelineRow
@@ -412,6 +414,8 @@ def gnss_units_of_columns(
 ) -> GnssUnits:
     """:class:`GnssUnits` of the fix columns it reads (:class:`~parsers.gnss.fix_table.FixColumns`' fields
     of those names; ``role``/``source`` codes into ROLES/SOURCES): the device names stay flat."""
+    import pandas as pd
+
     from parsers.gnss.fix_table import ROLES, SOURCES
 
     code, names = sorted_name_codes(device_codes, device_names)
@@ -561,6 +565,8 @@ def _sections(data: ReportData) -> dict[str, Any] | None:
 
 def analog_series(data: ReportData) -> pd.DataFrame:
     """The analog receiver values (``analog_value`` registers) as time_ns, head, channel, address, value."""
+    import pandas as pd
+
     cols = ["time_ns", "head", "channel", "address", "value"]
     rec = data.job.records if data.job is not None else pd.DataFrame()
     if rec.empty or "label_canonical" not in rec.columns:
@@ -583,6 +589,8 @@ def analog_series(data: ReportData) -> pd.DataFrame:
 
 
 def _analog(data: ReportData) -> list[dict[str, Any]]:
+    if data.job is None or data.job.kept_nothing:
+        return []  # no record kept: no table made
     series = analog_series(data)
     out = []
     for key, g in series.groupby(["head", "channel", "address"], sort=True):
