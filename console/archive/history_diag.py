@@ -189,7 +189,7 @@ def _passage_columns(con: duckdb.DuckDBPyConnection, window: Window, heads: list
     reads them as a table (:func:`_passages`).
     """
     from console.analysis.passages.diagnostics import PASSAGE_BASES, PASSAGE_COLUMNS, PASSAGE_DIRECTIONS, PASSAGE_KINDS
-    from console.archive.arrow_np import to_numpy
+    from console.archive.arrow_np import list_values, to_numpy
 
     names = con.sql("SELECT * FROM passages LIMIT 0").columns
     if "axle_speeds_kmh" not in names:  # no passage at all: the view has the empty table's columns
@@ -240,11 +240,11 @@ def _passage_columns(con: duckdb.DuckDBPyConnection, window: Window, heads: list
     cols["subsecond"] = cols["subsecond"].astype(bool)
     n = cols.pop("n_speeds")
     stop = np.cumsum(n)
-    speeds = table.column("axle_speeds_kmh").combine_chunks().flatten()
+    speeds = list_values(table.column("axle_speeds_kmh")).astype(np.float64)
     if len(speeds) != (int(stop[-1]) if len(stop) else 0):
         return None
     cols["axle_speeds_start"], cols["axle_speeds_stop"] = stop - n, stop
-    cols["axle_speeds_kmh"] = to_numpy(speeds).astype(np.float64) if len(speeds) else np.zeros(0, np.float64)
+    cols["axle_speeds_kmh"] = speeds
     return cols
 
 
