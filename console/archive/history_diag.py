@@ -200,9 +200,10 @@ def _passage_columns(con: duckdb.DuckDBPyConnection, window: Window, heads: list
         return None
     where, params = _where(window, "start_ns")
     ints = ("start_ns", "end_ns", "records", "detections_sys1", "detections_sys2", "axles")
-    # Null where the batch has NaN (the archive stores integers where the analysis holds floats).
-    floats = [c for c in PASSAGE_COLUMNS[4:] if c not in (*ints, "direction", "whole_train_basis", "kind", "subsecond")]
-    floats = [c for c in floats if c not in ("axle_speeds_start", "axle_speeds_stop")]
+    texts = ("direction", "whole_train_basis", "kind")
+    others = (*ints, *texts, "subsecond", "axle_speeds_start", "axle_speeds_stop")
+    # The rest are floats, NaN where the archive has a null (it stores integers where the analysis has floats).
+    floats = [c for c in PASSAGE_COLUMNS[2:] if c not in others]
 
     def code(column: str, values: tuple[str | None, ...]) -> str:
         # Into ``values``; -1: a text with no code (and a null where ``values`` has none).
@@ -231,11 +232,10 @@ def _passage_columns(con: duckdb.DuckDBPyConnection, window: Window, heads: list
         "ORDER BY k_rank NULLS LAST, start_ns",
         params=[[d for d, _ in rank], [n for _, n in rank], list(rank.values()), *params],
     ).to_arrow_table()
-    strict = ("head", *ints, "direction", "whole_train_basis", "kind", "subsecond", "n_speeds")
-    if any(table.column(c).null_count for c in strict):
+    if any(table.column(c).null_count for c in ("head", *ints, *texts, "subsecond", "n_speeds")):
         return None
     cols: Columns = {c: to_numpy(table.column(c)) for c in table.column_names if c != "axle_speeds_kmh"}
-    if any((cols[c] < 0).any() for c in ("direction", "whole_train_basis", "kind")):
+    if any((cols[c] < 0).any() for c in texts):
         return None
     cols["subsecond"] = cols["subsecond"].astype(bool)
     n = cols.pop("n_speeds")
