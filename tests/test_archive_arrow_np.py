@@ -101,3 +101,26 @@ def test_an_ingests_read_does_not_import_pandas(tmp_path: Path) -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True)
     assert out.stdout.split() == ["False"], out.stderr
+
+
+@pytest.mark.parametrize("value_type", [pa.float64(), pa.int32()])
+def test_list_values_are_flatten_s_for_slices_nulls_and_chunks(value_type: pa.DataType) -> None:
+    rng = np.random.default_rng(5)
+    lists: list[list[float | None] | None] = []
+    for _ in range(300):
+        k = int(rng.integers(0, 5))
+        lists.append([float(x) if value_type == pa.float64() else int(x) for x in rng.integers(0, 99, k)])
+    whole = pa.array(lists, pa.list_(value_type))
+    with_nulls = pa.array([None if i % 7 == 0 else v for i, v in enumerate(lists)], pa.list_(value_type))
+    cases = [
+        whole,
+        whole.slice(13, 200),  # ``values`` would still hold the lists outside the slice
+        with_nulls,
+        with_nulls.slice(5, 50),
+        pa.chunked_array([whole.slice(0, 100), whole.slice(100, 0), whole.slice(150, 150)]),
+        pa.chunked_array([], pa.list_(value_type)),
+    ]
+    for arr in cases:
+        want = (arr.combine_chunks() if isinstance(arr, pa.ChunkedArray) else arr).flatten().to_numpy()
+        got = arrow_np.list_values(arr)
+        assert got.dtype == want.dtype and np.array_equal(got, want)

@@ -137,3 +137,30 @@ def test_replay_inputs_are_the_records_and_the_fixes_in_time_order(archive: Path
 
 def _dt(ns: int) -> dt.datetime:
     return dt.datetime(1970, 1, 1) + dt.timedelta(microseconds=ns // 1000)
+
+
+def test_passages_read_as_columns_equal_those_read_as_a_table(archive: Path) -> None:
+    # The history reads a window's passages straight into the pipeline's columns; a head the manifest does not
+    # list makes it read them as a table instead (the unlisted head's passages after the listed ones, by time).
+    # Unlisting the last head keeps the order, so both reads must write the same passages, byte for byte (the
+    # heads' list also says which heads the layout does not count: the warnings differ).
+    import dataclasses
+
+    from console.archive.store import read_current
+    from console.sinks.report.command import render
+
+    m = read_current(archive)
+    heads = m.derived["heads"]
+    assert len(heads) > 1
+    fewer = dataclasses.replace(m, derived={**m.derived, "heads": heads[:-1]})
+    for window in (Window(), Window(head=heads[-1][1]), Window(device_id=int(heads[-1][0]))):
+        columns = report_data(archive, window=window, manifest=m, job="history")
+        table = report_data(archive, window=window, manifest=fewer, job="history")
+        assert columns.job is not None and table.job is not None
+        # The columns read builds no table; the other read holds one.
+        assert "passages" not in columns.job.analysis.__dict__ and "passages" in table.job.analysis.__dict__
+        for fmt, start, end in (("json", '"passages": [', '"sections":'), ("md", "## 4. ", "## 5. ")):
+            a, b = render(columns, fmt), render(table, fmt)
+            part = a[a.index(start) : a.index(end)]
+            assert part == b[b.index(start) : b.index(end)], (window, fmt)
+            assert len(part) > 1000

@@ -209,3 +209,46 @@ def test_the_report_has_the_forecast_of_the_archive_with_a_plot_per_due_series(a
     assert part.count("<svg") == min(12, len(due)) and "WS5 Sys2: disturbance rate (past)" in part
     cells = [part.index(f"<td>{f['target']}</td>") for f in due[:1]]
     assert cells and "<script" not in part
+
+
+def test_a_heads_disturbances_are_its_channels_summed(archive: Path) -> None:
+    # The trends and the forecast share one per-channel query; the per-head rows summed from it must equal
+    # the per-head aggregate over the records themselves (the query the trends ran on their own).
+    from console.archive.trends import disturbances_per_day
+    from console.archive.views import connect
+
+    con, _ = connect(archive, read_current(archive), tables={"records"})
+    try:
+        t0 = con.execute("SELECT min(time) FROM records WHERE label_canonical = 'counter_1_edge'").fetchone()
+        assert t0 is not None and t0[0] is not None
+        for window in (Window(), Window(head="WS4"), Window(start=t0[0].replace(hour=12))):
+            where, params = window.where()
+            cond = (
+                f"{where} AND label_canonical = 'counter_1_edge'"
+                if where
+                else " WHERE label_canonical = 'counter_1_edge'"
+            )
+            cur = con.execute(
+                f"""
+                WITH c AS (
+                    SELECT day, device_id, counting_head, time, value,
+                           value - lag(value) OVER w AS step, lag(time) OVER w AS prev_time
+                    FROM records{cond}
+                    WINDOW w AS (PARTITION BY device_id, counting_head, channel, address ORDER BY time, file_seq, line)
+                )
+                SELECT strftime(day, '%Y-%m-%d') AS day, device_id, counting_head,
+                       sum(CASE WHEN step IS NULL THEN 0 WHEN step < 0 THEN value ELSE step END)::BIGINT,
+                       count(*), epoch_ns(max(time)) - epoch_ns(min(coalesce(prev_time, time)))
+                FROM c GROUP BY ALL ORDER BY 1, 2, 3
+                """,
+                params,
+            )
+            direct = cur.fetchall()
+            got = disturbances_per_day(con, window)
+            assert direct and len(got) == len(direct)
+            for r, (day, device, head, n, readings, span_ns) in zip(got, direct, strict=True):
+                assert (r["day"], r["device_id"], r["counting_head"]) == (day, device, head)
+                assert (r["disturbances"], r["readings"]) == (n, readings)
+                assert r["hours"] == round(span_ns / 3.6e12, 3)
+    finally:
+        con.close()

@@ -136,3 +136,22 @@ def to_numpy(arr: pa.Array | pa.ChunkedArray) -> np.ndarray:
     if dtype is None or arr.null_count:
         return arr.to_numpy(zero_copy_only=False)
     return np.frombuffer(arr.buffers()[1], dtype, count=len(arr), offset=arr.offset * dtype.itemsize)
+
+
+def list_values(column: pa.Array | pa.ChunkedArray) -> np.ndarray:
+    """A list column's values end to end (``flatten()``'s, as numpy), read from the lists' own buffers where
+    no list is null: ``flatten`` and ``combine_chunks`` import ``pyarrow.compute`` (a tenth of a second)."""
+    chunks = column.chunks if isinstance(column, pa.ChunkedArray) else [column]
+    value_type = column.type.value_type
+    dtype = next((d for d, t in _PRIMITIVE.items() if t == value_type), None)
+    parts = [np.zeros(0, dtype if dtype is not None else object)]
+    for chunk in chunks:
+        if chunk.null_count:
+            flat = chunk.flatten()
+        else:
+            offsets = to_numpy(chunk.offsets)
+            # ``values`` ignores a slice of the lists: the offsets say which values are these lists'.
+            flat = chunk.values.slice(int(offsets[0]), int(offsets[-1] - offsets[0]))
+        if len(flat):
+            parts.append(to_numpy(flat))
+    return np.concatenate(parts)

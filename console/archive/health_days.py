@@ -14,6 +14,7 @@ from __future__ import annotations
 import importlib.util
 from collections import defaultdict
 from collections.abc import Callable, Iterable
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -22,7 +23,14 @@ import numpy as np
 from console.analysis.health.forecast import FIGURES, STATUSES, Forecast, ForecastSettings, Series, due_list, forecasts
 from console.archive.reader import Window, parse_time
 from console.archive.store import archive_dir, read_current
-from console.archive.trends import analog_margins_per_day, disturbances_per_day
+from console.archive.trends import (
+    RecordFigures,
+    analog_margins_per_day,
+    archive_trends,
+    disturbance_figures,
+    disturbances_per_day,
+    record_figures,
+)
 from console.archive.views import QueryError, connect
 from console.layout import LayoutError, load_layout
 from parsers.units import NS_PER_DAY
@@ -122,13 +130,19 @@ def daily_figures(
     window: Window,
     layout: Layout | None,
     say: Callable[[str], None] | None = None,
+    figures: RecordFigures | None = None,
 ) -> dict[str, list[dict[str, Any]]]:
-    """The three daily figures of the window, as rows (see the module's doc); ``say`` hears each step."""
+    """The three daily figures of the window, as rows (see the module's doc); ``say`` hears each step.
+
+    ``figures``: the window's record figures when the caller has them (the same window and layout)."""
     tell = say or (lambda _: None)
-    tell("daily analog values per head and channel")
-    analog = analog_margins_per_day(con, window, layout)
-    tell("daily disturbance rates per head and channel")
-    dist = disturbances_per_day(con, window, by_channel=True)
+    if figures is not None and figures.window == window:
+        analog, dist = figures.analog, disturbance_figures(figures.disturbances, by_channel=True)
+    else:
+        tell("daily analog values per head and channel")
+        analog = analog_margins_per_day(con, window, layout)
+        tell("daily disturbance rates per head and channel")
+        dist = disturbances_per_day(con, window, by_channel=True)
     tell("daily report losses per GNSS unit")
     return {"analog_margin": analog, "disturbance_rate": dist, "gnss_loss": gnss_loss_per_day(con, window)}
 
@@ -169,11 +183,12 @@ def archive_forecasts(
     layout: Layout | None,
     settings: ForecastSettings | None = None,
     say: Callable[[str], None] | None = None,
+    figures: RecordFigures | None = None,
 ) -> tuple[list[Forecast], list[Series]]:
     """Every head's, channel's and unit's forecast over the window (and the series they were fitted on)."""
     con, _ = connect(root, manifest, tables={"records", "fixes"})
     try:
-        series = series_of(daily_figures(con, window, layout, say))
+        series = series_of(daily_figures(con, window, layout, say, figures))
     finally:
         con.close()
     if say is not None:
@@ -239,15 +254,17 @@ def query_forecasts(root: Path, manifest: Manifest) -> pa.Table:
     return forecast_table(items)
 
 
-def forecast_doc(root: Path, manifest: Manifest, window: Window, layout: Layout | None) -> dict[str, Any] | None:
+def forecast_doc(
+    root: Path, manifest: Manifest, window: Window, layout: Layout | None, figures: RecordFigures | None = None
+) -> dict[str, Any] | None:
     """The document's ``forecast``: counts, the due list, and the daily points of the plotted series.
-    None when scipy (the ``forecast`` extra) is not installed."""
+    None when scipy (the ``forecast`` extra) is not installed.  ``figures``: as :func:`daily_figures`."""
     # Installed? (the trend's library, an optional extra).  Not imported here: a second of a report's start-up,
     # and an archive without health registers fits no trend.
     if importlib.util.find_spec("scipy") is None:
         return None
     settings = ForecastSettings()
-    items, series = archive_forecasts(root, manifest, window, layout, settings)
+    items, series = archive_forecasts(root, manifest, window, layout, settings, figures=figures)
     due = due_list(items)
     by_key = {(s.figure, s.target, s.channel): s for s in series}
     plotted = []
@@ -271,16 +288,34 @@ def forecast_doc(root: Path, manifest: Manifest, window: Window, layout: Layout 
     }
 
 
-def with_forecast(
-    collector: Callable[[], ReportData], archive: Path | None, start: str | None, end: str | None, head: str | None
+def with_trends_and_forecast(
+    collector: Callable[[], ReportData],
+    archive: Path | None,
+    start: str | None,
+    end: str | None,
+    head: str | None,
+    device_id: int | None,
 ) -> Callable[[], ReportData]:
-    """``report --archive``'s collector, its data completed with the window's forecast."""
+    """``report --archive``'s collector, its data completed with the window's trends and forecast (the forecast
+    over every device: no ``device_id``); the record figures both read are queried once where the windows agree."""
 
     def collect() -> ReportData:
         data = collector()  # checks the archive and the window first (one-line errors)
         root = archive_dir(archive)
-        window = Window(start=parse_time(start) if start else None, end=parse_time(end) if end else None, head=head)
-        data.forecast = forecast_doc(root, read_current(root), window, data.layout)
+        manifest = read_current(root)
+        window = Window(
+            start=parse_time(start) if start else None,
+            end=parse_time(end) if end else None,
+            head=head,
+            device_id=device_id,
+        )
+        con, _ = connect(root, manifest, tables={"records"})
+        try:
+            figures = record_figures(con, window, data.layout)
+        finally:
+            con.close()
+        data.trends = archive_trends(root, manifest, window, data.layout, figures)
+        data.forecast = forecast_doc(root, manifest, replace(window, device_id=None), data.layout, figures)
         return data
 
     return collect

@@ -69,8 +69,6 @@ def report_data(
     step): (the channel events health reads, the warnings, the section engine's
     result or None); ``data.events`` is then left empty.
     """
-    import pandas as pd
-
     from console.analysis.health.rules import Finding, sort_findings, voltage_margin_findings
     from console.sinks.report.collect import crossings_from_fixes, frames_from_tables, sections_into_report
     from console.sinks.report.model import InputFile, ReportData
@@ -113,19 +111,19 @@ def report_data(
     can = [df for seq, df in frames if kind_of.get(seq) == "can"]
     tables: list[pd.DataFrame] = []
     if text:
-        tables.append(frame_window(pd.concat(text, ignore_index=True), window))
+        tables.append(frame_window(_concat(text), window))
         data.reports["frames"] = reports["frames"]
     if can:
         from parsers.frames.can import count_frames_only  # here: it imports python-can
 
-        tables.append(count_frames_only(frame_window(pd.concat(can, ignore_index=True), window)))
+        tables.append(count_frames_only(frame_window(_concat(can), window)))
         data.reports["can"] = reports["can"]
     frames_from_tables(data, tables)
 
     volts = per_file_tables(root, m, "voltages")
     if volts:
         data.reports["voltages"] = reports["voltages"]
-        findings += voltage_margin_findings(pd.concat([df for _, df in volts], ignore_index=True))
+        findings += voltage_margin_findings(_concat([df for _, df in volts]))
     data.findings = sort_findings(findings)
 
     sections_into_report(data)
@@ -133,12 +131,18 @@ def report_data(
     if not fixes_parts:
         data.notes["crossings"] = "No level-crossing timelines: no GNSS telemetry among the inputs."
         return data
-    fixes = pd.concat([p for _, p in fixes_parts], ignore_index=True)
+    fixes = _concat([p for _, p in fixes_parts])
     # parse_gnss sorts the fixes of all its files by time, stably, unknown times last.
     fixes = fixes.sort_values("time", kind="stable", na_position="last").reset_index(drop=True)
     data.reports["gnss"] = reports["gnss"]
     crossings_from_fixes(data, cut_fixes(fixes, window))
     return data
+
+
+def _concat(tables: list[pd.DataFrame]) -> pd.DataFrame:
+    import pandas as pd  # here: only an archive with frames, voltages or fixes needs it
+
+    return pd.concat(tables, ignore_index=True)
 
 
 def archive_collector(

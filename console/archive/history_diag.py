@@ -40,6 +40,7 @@ if TYPE_CHECKING:
 
     from console.analysis.events.detection import DetectionEvent
     from console.analysis.inventory import DeviceInventory
+    from console.analysis.passages.buckets import Columns
     from console.analysis.passages.diagnostics import SpeedSettings
     from console.analysis.sections.engine import SectionsResult
     from console.layout import Layout
@@ -93,26 +94,33 @@ def history_diag(
             kept.cancel()
             return None
         heads = _heads(manifest)
-        passages = _passages(con, window, heads)
+        columns = _passage_columns(con, window, heads)
+        passages = _passages(con, window, heads) if columns is None else None
         sections = _sections(con, manifest, layout, window)
     finally:
         con.close()
     report = (reports if reports is not None else parse_reports(root, manifest))["diagnostic"]
+    # Every wheel onset lies in a passage; the unpaired are those no axle took.
+    if passages is not None:
+        unpaired = (
+            int(passages["detections_sys1"].sum() + passages["detections_sys2"].sum() - 2 * passages["axles"].sum())
+            if len(passages)
+            else 0
+        )
+    else:
+        c = columns or {}
+        unpaired = int(c["detections_sys1"].sum() + c["detections_sys2"].sum() - 2 * c["axles"].sum()) if c else 0
     analysis = DiagAnalysis(
         settings=settings,
         devices=devices,
-        passage_columns=None,
+        passage_columns=columns or None,  # {}: no passage in the window
         axle_columns={},
         overlap_records=_overlap(manifest, window),
-        # Every wheel onset lies in a passage; the unpaired are those no axle took.
-        unpaired_detections=int(
-            (passages["detections_sys1"].sum() + passages["detections_sys2"].sum() - 2 * passages["axles"].sum())
-            if len(passages)
-            else 0
-        ),
+        unpaired_detections=unpaired,
         heads=heads,
     )
-    analysis.__dict__["passages"] = passages  # the cached table, as DiagAnalysis.passages builds it
+    if passages is not None:
+        analysis.__dict__["passages"] = passages  # the cached table, as DiagAnalysis.passages builds it
     job = DiagJob(
         files=[f.file for f in report.files],
         report=report,
@@ -170,6 +178,74 @@ def _ns(t: Any) -> int:
     import datetime as dt
 
     return (t - dt.datetime(1970, 1, 1)) // dt.timedelta(microseconds=1) * 1000
+
+
+def _passage_columns(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[int, Any]]) -> Columns | None:
+    """The window's passages as the pipeline's columns (``DiagAnalysis.passage_columns``, head keys into
+    ``heads``), in the batch's order: head by head (heads in the order they first appear), each in time order.
+
+    Read straight into numpy, without a table: ``{}`` when the window has none; None where the columns cannot
+    hold them (a head ``heads`` does not list, a null head, count or flag, a text with no code): the caller
+    reads them as a table (:func:`_passages`).
+    """
+    from console.analysis.passages.diagnostics import PASSAGE_BASES, PASSAGE_COLUMNS, PASSAGE_DIRECTIONS, PASSAGE_KINDS
+    from console.archive.arrow_np import list_values, to_numpy
+
+    names = con.sql("SELECT * FROM passages LIMIT 0").columns
+    if "axle_speeds_kmh" not in names:  # no passage at all: the view has the empty table's columns
+        return {}
+    # Each (device, head) once, with its place (a repeated head: its last, as a dict of them keeps it).
+    rank = {h: i for i, h in enumerate(heads)}
+    if any(name is None for _, name in rank):
+        return None
+    where, params = _where(window, "start_ns")
+    ints = ("start_ns", "end_ns", "records", "detections_sys1", "detections_sys2", "axles")
+    texts = ("direction", "whole_train_basis", "kind")
+    others = (*ints, *texts, "subsecond", "axle_speeds_start", "axle_speeds_stop")
+    # The rest are floats, NaN where the archive has a null (it stores integers where the analysis has floats).
+    floats = [c for c in PASSAGE_COLUMNS[2:] if c not in others]
+
+    def code(column: str, values: tuple[str | None, ...]) -> str:
+        # Into ``values``; -1: a text with no code (and a null where ``values`` has none).
+        known = "[" + ", ".join("'" + v + "'" for v in values if v is not None) + "]"
+        found = f"list_position({known}, {column}) - {0 if values[0] is None else 1}"
+        null = "0" if values[0] is None else "-1"
+        return f"(CASE WHEN {column} IS NULL THEN {null} ELSE coalesce({found}, -1) END)::TINYINT AS {column}"
+
+    select = ", ".join(
+        [
+            "k_rank AS head",
+            *ints,
+            *(f'coalesce("{c}"::DOUBLE, \'NaN\'::DOUBLE) AS "{c}"' for c in floats),
+            code("direction", PASSAGE_DIRECTIONS),
+            code("whole_train_basis", PASSAGE_BASES),
+            code("kind", PASSAGE_KINDS),
+            "subsecond::UTINYINT AS subsecond",  # bytes, not Arrow's bits
+            "coalesce(len(axle_speeds_kmh), 0)::BIGINT AS n_speeds",
+            "axle_speeds_kmh",
+        ]
+    )
+    table = con.sql(
+        "WITH k AS (SELECT unnest(?::BIGINT[]) AS k_device, unnest(?::VARCHAR[]) AS k_head, "
+        "unnest(?::BIGINT[]) AS k_rank) "
+        f"SELECT {select} FROM passages LEFT JOIN k ON device_id = k_device AND counting_head = k_head{where} "
+        "ORDER BY k_rank NULLS LAST, start_ns",
+        params=[[d for d, _ in rank], [n for _, n in rank], list(rank.values()), *params],
+    ).to_arrow_table()
+    if any(table.column(c).null_count for c in ("head", *ints, *texts, "subsecond", "n_speeds")):
+        return None
+    cols: Columns = {c: to_numpy(table.column(c)) for c in table.column_names if c != "axle_speeds_kmh"}
+    if any((cols[c] < 0).any() for c in texts):
+        return None
+    cols["subsecond"] = cols["subsecond"].astype(bool)
+    n = cols.pop("n_speeds")
+    stop = np.cumsum(n)
+    speeds = list_values(table.column("axle_speeds_kmh")).astype(np.float64)
+    if len(speeds) != (int(stop[-1]) if len(stop) else 0):
+        return None
+    cols["axle_speeds_start"], cols["axle_speeds_stop"] = stop - n, stop
+    cols["axle_speeds_kmh"] = speeds
+    return cols
 
 
 def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[int, Any]]) -> pd.DataFrame:
@@ -322,13 +398,13 @@ def _sections(
     con: duckdb.DuckDBPyConnection, manifest: Manifest, layout: Layout | None, window: Window
 ) -> SectionsResult | None:
     """The section history cut to the window; the final state at its end (stored for the whole history)."""
+    if layout is None or not layout.sections:
+        return None
     import pandas as pd
 
     from console.analysis.sections.engine import SectionEngine, SectionsResult
     from console.analysis.sections.state import SectionState
 
-    if layout is None or not layout.sections:
-        return None
     where, params = _where(window, "time_ns", heads=False)
     order = [s.id for s in layout.sections] if layout is not None else []
     timeline = _rows(con, "section_states", ["time_ns", "section", "state", "count", "reason"], where, params, order)

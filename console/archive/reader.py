@@ -186,9 +186,9 @@ class ArchivedRecords(ChunkSource):
         self.report.unknown_labels.update(rebuild.registry.unknown_labels())
 
 
-def health_records(root: Path, manifest: Manifest, window: Window = Window()) -> pd.DataFrame:
+def health_records(root: Path, manifest: Manifest, window: Window = Window()) -> pd.DataFrame | None:
     """The records of the health registers, as a read through the pipeline keeps them (without reading the
-    other records).
+    other records); None when there is none (no table made: a window without them needs no pandas).
 
     Read with pyarrow, part by part, filtered by label as each part is read: a DuckDB connection
     costs ~50 MB of memory to open, more than these few records.  On a cluster (an ingest's end, the
@@ -212,34 +212,30 @@ def health_records(root: Path, manifest: Manifest, window: Window = Window()) ->
     runs = [{"rels": rels[i * len(rels) // n : (i + 1) * len(rels) // n]} for i in range(n)]
     found = map_partitions(health_parts, runs, common={"root": root, "window": window}, label="health")
     tables = [t for run in found for t in run]
+    if not tables:
+        return None
     rebuild = ChunkRebuilder()
     kept: list[DiagChunk] = []
-    if tables:
-        table = pa.concat_tables(tables, promote_options="permissive").select(list(ARCHIVED_RECORD_COLUMNS))
-        order = np.lexsort((table.column("line").to_numpy(), table.column("file_seq").to_numpy()))
-        for batch in table.take(pa.array(order)).to_batches(BATCH_ROWS):
-            kept += rebuild.chunks(batch)
+    table = pa.concat_tables(tables, promote_options="permissive").select(list(ARCHIVED_RECORD_COLUMNS))
+    order = np.lexsort((table.column("line").to_numpy(), table.column("file_seq").to_numpy()))
+    for batch in table.take(pa.array(order)).to_batches(BATCH_ROWS):
+        kept += rebuild.chunks(batch)
     return chunks_to_frame(kept, rebuild.registry)
 
 
 def health_parts(root: Path, window: Window, rels: list[str]) -> list[pa.Table]:
     """The health registers' records of the records parts ``rels`` in ``window`` (a task on a cluster)."""
     import pyarrow as pa
-    import pyarrow.compute as pc
     import pyarrow.parquet as pq
 
-    wanted = pc.field("label_canonical").isin(sorted(HEALTH_REGISTERS))
-    if window.start is not None:
-        wanted &= pc.field("time") >= pa.scalar(window.start, pa.timestamp("ns"))
-    if window.end is not None:
-        wanted &= pc.field("time") < pa.scalar(window.end, pa.timestamp("ns"))
-    if window.head is not None:
-        wanted &= pc.field("counting_head") == window.head
     tables = []
+    wanted = None
     for rel in rels:
         key = key_of_part(rel)
         if key is None or not _has_label(root / rel, HEALTH_REGISTERS):
             continue  # the usual part: no health register at all (its labels alone were read)
+        # The filter made once a part holds a health register (pyarrow's expressions import pandas).
+        wanted = _health_filter(window) if wanted is None else wanted
         t = pq.read_table(root / rel, filters=wanted, partitioning=None)
         if t.num_rows:
             t = t.cast(
@@ -251,22 +247,48 @@ def health_parts(root: Path, window: Window, rels: list[str]) -> list[pa.Table]:
     return tables
 
 
-def _has_label(path: Path, labels: frozenset[str]) -> bool:
-    """Whether a records part holds a record of one of ``labels`` (only its ``label_canonical`` column read)."""
+def _health_filter(window: Window) -> Any:
+    """The pyarrow filter of the health registers' records in ``window``."""
     import pyarrow as pa
     import pyarrow.compute as pc
+
+    wanted = pc.field("label_canonical").isin(sorted(HEALTH_REGISTERS))
+    if window.start is not None:
+        wanted &= pc.field("time") >= pa.scalar(window.start, pa.timestamp("ns"))
+    if window.end is not None:
+        wanted &= pc.field("time") < pa.scalar(window.end, pa.timestamp("ns"))
+    if window.head is not None:
+        wanted &= pc.field("counting_head") == window.head
+    return wanted
+
+
+def _has_label(path: Path, labels: frozenset[str]) -> bool:
+    """Whether a records part holds a record of one of ``labels`` (only its ``label_canonical`` column read).
+
+    Read and looked at without the calls that wake pyarrow's pandas shim (``read_table``, ``pa.array``,
+    ``to_numpy`` of a copy) and, for the usual dictionary-encoded column, without ``pyarrow.compute`` (its
+    import is a tenth of a second): a part without those labels is the usual one, and a report over such
+    parts needs neither.
+    """
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
-    col = pq.read_table(path, columns=["label_canonical"], partitioning=None).column(0)
-    wanted = pa.array(sorted(labels))
+    from console.archive.arrow_np import to_numpy
+
+    with pq.ParquetFile(path) as f:
+        col = f.read(columns=["label_canonical"]).column(0)
     for chunk in col.chunks:
-        if not pa.types.is_dictionary(chunk.type):
-            if pc.any(pc.is_in(chunk.cast(pa.string()), value_set=wanted)).as_py():
+        if pa.types.is_dictionary(chunk.type) and not chunk.indices.null_count:
+            # By the dictionary's codes: the values are decoded once per dictionary (a part's few distinct
+            # labels), not once per row.
+            codes = [i for i, name in enumerate(chunk.dictionary.to_pylist()) if name in labels]
+            if codes and np.isin(to_numpy(chunk.indices), codes).any():
                 return True
             continue
-        # By the dictionary's codes: the values are decoded once per dictionary, not once per row.
-        codes = np.flatnonzero(pc.is_in(chunk.dictionary.cast(pa.string()), value_set=wanted).to_numpy(False))
-        if len(codes) and np.isin(chunk.indices.to_numpy(False), codes).any():
+        import pyarrow.compute as pc
+
+        plain = chunk.dictionary_decode() if pa.types.is_dictionary(chunk.type) else chunk
+        if pc.any(pc.is_in(plain.cast(pa.string()), value_set=pa.array(sorted(labels), pa.string()))).as_py():
             return True
     return False
 

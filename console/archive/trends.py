@@ -26,14 +26,13 @@ Times are the logs' own, read as UTC like everywhere in trackside.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from console.archive.reader import Window, parse_time
-from console.archive.store import archive_dir, read_current
+from console.archive.reader import Window
 from console.archive.views import connect
 
 if TYPE_CHECKING:
@@ -41,7 +40,6 @@ if TYPE_CHECKING:
 
     from console.archive.store import Manifest
     from console.layout import Layout
-    from console.sinks.report.model import ReportData
 
 NS_PER_HOUR = 3_600 * 10**9
 MIN_RATE_SPAN_NS = 600 * 10**9  # the disturbance rule's shortest span (health.disturbance_rate_findings)
@@ -68,34 +66,74 @@ def disturbances_per_day(
     con: duckdb.DuckDBPyConnection, window: Window, *, by_channel: bool = False
 ) -> list[dict[str, Any]]:
     """Per (day, device, head), or per channel too with ``by_channel`` (as the health rule judges a rate)."""
+    return disturbance_figures(disturbance_rows(con, window), by_channel=by_channel)
+
+
+def disturbance_rows(con: duckdb.DuckDBPyConnection, window: Window) -> list[dict[str, Any]]:
+    """Per (day, device, head, channel): the 1-edge counters' growth, readings, and the time that growth took
+    (``first_ns``: the reading before the day's first, ``last_ns``: the day's last); what
+    :func:`disturbance_figures` makes both the per-channel and the per-head figures of."""
     where, params = window.where()
-    channel = "channel, " if by_channel else ""
-    then_channel = ", channel" if by_channel else ""
     cond = f"{where} AND label_canonical = 'counter_1_edge'" if where else " WHERE label_canonical = 'counter_1_edge'"
     # Growth since the series' previous reading (file and line break ties, as the batch read orders them).
-    rows = _rows(
+    return _rows(
         con,
         f"""
         WITH c AS (
-            SELECT day, device_id, counting_head, {channel}time, value,
+            SELECT day, device_id, counting_head, channel, time, value,
                    value - lag(value) OVER w AS step, lag(time) OVER w AS prev_time
             FROM records{cond}
             WINDOW w AS (PARTITION BY device_id, counting_head, channel, address ORDER BY time, file_seq, line)
         )
-        SELECT day, device_id, counting_head, {channel}
+        SELECT day, device_id, counting_head, channel,
                sum(CASE WHEN step IS NULL THEN 0 WHEN step < 0 THEN value ELSE step END)::BIGINT AS disturbances,
                count(*) AS readings,
-               epoch_ns(max(time)) - epoch_ns(min(coalesce(prev_time, time))) AS span_ns
-        FROM c GROUP BY ALL ORDER BY day, device_id, counting_head{then_channel}
+               epoch_ns(min(coalesce(prev_time, time))) AS first_ns, epoch_ns(max(time)) AS last_ns
+        FROM c GROUP BY ALL ORDER BY day, device_id, counting_head, channel
         """,
         params,
     )
+
+
+def disturbance_figures(rows: list[dict[str, Any]], *, by_channel: bool = False) -> list[dict[str, Any]]:
+    """:func:`disturbances_per_day`'s rows from :func:`disturbance_rows`' (a head's: its channels' summed,
+    its span from the earliest first to the latest last)."""
+    key = ("day", "device_id", "counting_head", "channel") if by_channel else ("day", "device_id", "counting_head")
+    merged: dict[tuple[Any, ...], dict[str, Any]] = {}
+    for r in rows:  # ordered by day, device, head, channel: a head's channels are together
+        k = tuple(r[c] for c in key)
+        m = merged.get(k)
+        if m is None:
+            merged[k] = {
+                **{c: r[c] for c in key},
+                **{c: r[c] for c in ("disturbances", "readings", "first_ns", "last_ns")},
+            }
+            continue
+        m["disturbances"] += r["disturbances"]
+        m["readings"] += r["readings"]
+        m["first_ns"] = min(m["first_ns"], r["first_ns"])
+        m["last_ns"] = max(m["last_ns"], r["last_ns"])
     out = []
-    for r in rows:
-        span = int(r.pop("span_ns"))
+    for r in merged.values():
+        span = int(r.pop("last_ns")) - int(r.pop("first_ns"))
         rate = r["disturbances"] / (span / NS_PER_HOUR) if span >= MIN_RATE_SPAN_NS else None
         out.append({**r, "day": str(r["day"]), "hours": round(span / NS_PER_HOUR, 3), "per_hour": _round(rate)})
     return out
+
+
+@dataclass(frozen=True)
+class RecordFigures:
+    """The daily figures of a window's records that the trends and the forecast both read: the analog margins
+    (:func:`analog_margins_per_day`) and the disturbance counters per channel (:func:`disturbance_rows`);
+    queried once for a report that shows both."""
+
+    window: Window
+    analog: list[dict[str, Any]]
+    disturbances: list[dict[str, Any]]
+
+
+def record_figures(con: duckdb.DuckDBPyConnection, window: Window, layout: Layout | None) -> RecordFigures:
+    return RecordFigures(window, analog_margins_per_day(con, window, layout), disturbance_rows(con, window))
 
 
 def analog_margins_per_day(
@@ -103,20 +141,23 @@ def analog_margins_per_day(
 ) -> list[dict[str, Any]]:
     """Per (head, channel, day): values, min, max, the band, the margin (least distance inside it), the
     median (of each register, averaged over the channel's registers) and its distance inside the band."""
-    import pandas as pd
-
     from console.analysis.health.rules import learn_band
 
     where, params = window.where()
     cond = f"{where} AND label_canonical = 'analog_value'" if where else " WHERE label_canonical = 'analog_value'"
-    df = con.execute(
+    # Fetched as numpy arrays and made a table (as DuckDB's df() does) only when there are rows: a window
+    # without analog values needs no pandas.
+    arrays = con.execute(
         f"SELECT strftime(day, '%Y-%m-%d') AS day, counting_head, channel, address, value::DOUBLE AS value "
         f"FROM records{cond} "
         "ORDER BY counting_head, channel, time, file_seq, line",
         params,
-    ).df()
-    if df.empty:
+    ).fetchnumpy()
+    if not len(arrays["value"]):
         return []
+    import pandas as pd
+
+    df = pd.DataFrame.from_dict(arrays)
     bands: dict[str, tuple[float, float]] = (
         {h.id: h.analog_band for h in layout.heads if h.analog_band} if layout is not None else {}
     )
@@ -203,40 +244,21 @@ def _round(x: float | None, digits: int = 3) -> float | None:
     return round(float(x), digits)
 
 
-def archive_trends(root: Path, manifest: Manifest, window: Window, layout: Layout | None) -> dict[str, Any]:
-    """The four daily trends of the window, as plain JSON values (the report's ``trends`` part)."""
+def archive_trends(
+    root: Path, manifest: Manifest, window: Window, layout: Layout | None, figures: RecordFigures | None = None
+) -> dict[str, Any]:
+    """The four daily trends of the window, as plain JSON values (the report's ``trends`` part).
+
+    ``figures``: the window's record figures when the caller has them (the same window and layout)."""
     con, _ = connect(root, manifest, tables={"records", "axles", "crossing_timelines"})
     try:
+        if figures is None or figures.window != window:
+            figures = record_figures(con, window, layout)
         return {
             "axles_per_head_per_day": axles_per_day(con, window),
-            "disturbances_per_head_per_day": disturbances_per_day(con, window),
-            "analog_margin_per_head_per_day": analog_margins_per_day(con, window, layout),
+            "disturbances_per_head_per_day": disturbance_figures(figures.disturbances),
+            "analog_margin_per_head_per_day": figures.analog,
             "late_warnings_per_crossing_per_day": late_warnings_per_day(con, window),
         }
     finally:
         con.close()
-
-
-def with_trends(
-    collector: Callable[[], ReportData],
-    archive: Path | None,
-    start: str | None,
-    end: str | None,
-    head: str | None,
-    device_id: int | None,
-) -> Callable[[], ReportData]:
-    """``report --archive``'s collector, its data completed with the window's trends."""
-
-    def collect() -> ReportData:
-        data = collector()  # checks the archive and the window first (one-line errors)
-        root = archive_dir(archive)
-        window = Window(
-            start=parse_time(start) if start else None,
-            end=parse_time(end) if end else None,
-            head=head,
-            device_id=device_id,
-        )
-        data.trends = archive_trends(root, read_current(root), window, data.layout)
-        return data
-
-    return collect

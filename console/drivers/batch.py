@@ -108,6 +108,13 @@ class DiagJob:
         return self.outcome.health_events if self.outcome is not None else []
 
     @property
+    def kept_nothing(self) -> bool:
+        """Whether no record was kept: known without making the table (none: no pandas needed for it)."""
+        if self.kept_records is not None:
+            return len(self.kept_records) == 0
+        return self.outcome is None or not self.registry or not any(len(c) for c in self.outcome.kept)
+
+    @property
     def records(self) -> pd.DataFrame:
         """The kept registers' records (an empty table when none were kept)."""
         if self.kept_records is None:
@@ -306,7 +313,8 @@ def health_findings(
 
     bands = {h.id: h.analog_band for h in layout.heads if h.analog_band} if layout else None
     evs = job.health_events if events is None else events
-    return health_report(job.records, bands=bands or None, events=evs, voltages=voltages)
+    records = None if job.kept_nothing else job.records
+    return health_report(records, bands=bands or None, events=evs, voltages=voltages)
 
 
 def speed_settings(

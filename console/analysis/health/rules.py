@@ -24,14 +24,16 @@ import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from console.analysis.events.detection import DetectionEvent, EventKind, events_to_frame
 from console.analysis.timefmt import iso
 from parsers.units import NS as _NS_PER_S
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 _NS_PER_H = 3600 * _NS_PER_S
 _SEVERITY_ORDER = ("info", "warning", "critical")
@@ -132,6 +134,8 @@ def _time_ns(times: pd.Series) -> np.ndarray:
 
 def _rows(records: pd.DataFrame, canonical: str, extra: tuple[str, ...] = ()) -> pd.DataFrame:
     """Records of one register, with a plain-string head, sorted by head, channel, time."""
+    import pandas as pd
+
     picked = records.loc[records["label_canonical"] == canonical, ["time", "counting_head", "channel", "value", *extra]]
     out = pd.DataFrame(
         {
@@ -518,11 +522,12 @@ def channel_fault_findings(
       sign of a channel that misses wheels or sees ghosts → WARNING.  Fewer
       → INFO.
     """
-    frame = events_to_frame(events)
     kinds = (str(EventKind.CHANNEL_FAULT), str(EventKind.CHANNEL_OK), str(EventKind.SINGLE_CHANNEL))
-    frame = frame[frame["kind"].isin(kinds)]
-    if frame.empty:
+    # Only these kinds, picked before the table is made (few: a few per fault; none: no table, no pandas).
+    picked = [e for e in events if str(e.kind) in kinds]
+    if not picked:
         return []
+    frame = events_to_frame(picked)
     # A whole-head event has no channel: key it as -1 so it groups like any other.
     frame = frame.assign(channel_key=frame["channel"].fillna(-1).astype("int64"))
     stats = (
@@ -623,16 +628,18 @@ def sort_findings(findings: Iterable[Finding]) -> list[Finding]:
 
 
 def health_report(
-    records: pd.DataFrame,
+    records: pd.DataFrame | None,
     *,
     bands: Mapping[str, tuple[float, float]] | None = None,
     events: Iterable[DetectionEvent] = (),
     voltages: pd.DataFrame | None = None,
 ) -> list[Finding]:
-    """All health rules over one log (and optional events and voltage table), critical first."""
+    """All health rules over one log (and optional events and voltage table), critical first.
+
+    ``records`` None: no record of the health registers (what an empty table gives, without making one)."""
     findings = [
-        *analog_band_findings(records, bands),
-        *disturbance_rate_findings(records),
+        *(analog_band_findings(records, bands) if records is not None else []),
+        *(disturbance_rate_findings(records) if records is not None else []),
         *channel_fault_findings(events),
     ]
     if voltages is not None:

@@ -88,16 +88,14 @@ def report(
                     check_outside(output, archive, what="report")  # never a file among the archive's own
                 except OutputError as exc:
                     raise fail(str(exc)) from None
-            from console.archive.health_days import with_forecast
-            from console.archive.trends import with_trends
+            from console.archive.health_days import with_trends_and_forecast
             from console.cli.common import Console
             from console.fleet import engine_scope
             from console.fleet.options import FleetError
 
-            collector = with_trends(
+            collector = with_trends_and_forecast(
                 archive_collector(archive, layout, start, end, head, device), archive, start, end, head, device
             )
-            collector = with_forecast(collector, archive, start, end, head)
             from console.archive.store import archive_dir
             from console.archive.views import one_connection
 

@@ -34,12 +34,13 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
-import pandas as pd
 
 from console import __version__
 from console.analysis.events.detection import DetectionEvent, EventKind
 from console.analysis.health.rules import Finding, Severity
 from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.status import STATUS_KIND
+from console.analysis.passages.stream import take_passages
 from console.analysis.sections.engine import SectionsResult
 from console.analysis.sections.state import SectionState
 from console.analysis.timefmt import iso
@@ -47,10 +48,19 @@ from console.drivers.batch import DiagJob
 from console.inputs.recognise import NUMBER_PARTS, natural_key
 from console.layout import Layout
 from console.sinks.report.jsonwrite import Rows
-from console.sinks.report.spooled import LedgerFrameRows, PassageFrameRows, ReportPassages, SectionHistory
+from console.sinks.report.spooled import (
+    LedgerFrameRows,
+    PassageColumnRows,
+    PassageFrameRows,
+    ReportPassages,
+    SectionHistory,
+)
 from console.sinks.report.unit_codes import first_last_ns, sorted_codes, sorted_name_codes, sorted_positions
 from console.sinks.tables.section_tables import sections_json
 from parsers.report import ParseReport
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read (collect)
     from console.analysis.crossing.timeline import TimelineRow
@@ -404,6 +414,8 @@ def gnss_units_of_columns(
 ) -> GnssUnits:
     """:class:`GnssUnits` of the fix columns it reads (:class:`~parsers.gnss.fix_table.FixColumns`' fields
     of those names; ``role``/``source`` codes into ROLES/SOURCES): the device names stay flat."""
+    import pandas as pd
+
     from parsers.gnss.fix_table import ROLES, SOURCES
 
     code, names = sorted_name_codes(device_codes, device_names)
@@ -489,7 +501,15 @@ def _passages(data: ReportData) -> tuple[list[dict[str, Any]] | Rows, int]:
         return data.passage_spool.rows(), data.passage_spool.status
     if data.job is None:
         return [], 0
-    p = data.job.analysis.passages
+    analysis = data.job.analysis
+    cols = analysis.passage_columns
+    if cols is not None and "passages" not in analysis.__dict__:  # the columns, not made a table for this
+        status_rows = cols["kind"] == STATUS_KIND
+        n_status = int(status_rows.sum())
+        if n_status:
+            cols = take_passages(cols, np.flatnonzero(~status_rows))
+        return PassageColumnRows(cols, analysis.heads), n_status
+    p = analysis.passages
     status = int((p["kind"] == "status").sum()) if len(p) else 0
     shown = p[p["kind"] != "status"] if status else p
     # The same passage objects as `trackside analyze --json`, written from the table.
@@ -545,6 +565,8 @@ def _sections(data: ReportData) -> dict[str, Any] | None:
 
 def analog_series(data: ReportData) -> pd.DataFrame:
     """The analog receiver values (``analog_value`` registers) as time_ns, head, channel, address, value."""
+    import pandas as pd
+
     cols = ["time_ns", "head", "channel", "address", "value"]
     rec = data.job.records if data.job is not None else pd.DataFrame()
     if rec.empty or "label_canonical" not in rec.columns:
@@ -567,6 +589,8 @@ def analog_series(data: ReportData) -> pd.DataFrame:
 
 
 def _analog(data: ReportData) -> list[dict[str, Any]]:
+    if data.job is None or data.job.kept_nothing:
+        return []  # no record kept: no table made
     series = analog_series(data)
     out = []
     for key, g in series.groupby(["head", "channel", "address"], sort=True):

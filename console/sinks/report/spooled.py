@@ -20,10 +20,9 @@ from __future__ import annotations
 import json
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from console.analysis.head_table import Heads
 from console.analysis.passages.buckets import Columns
@@ -36,6 +35,9 @@ from console.jsonout import valid_unicode
 from console.sinks.report.jsonwrite import Rows, Write, indented
 from console.sinks.tables.passage_spool import PassageSpool
 from console.sinks.tables.section_history import LedgerText, SectionsSink
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 TRAIN_KIND = 0  # diagnostics.PASSAGE_KINDS.index("train")
 # Where the document holds the section history's rows: doc → "sections" → "timeline" / "ledger" → a row.
@@ -175,6 +177,40 @@ class PassageFrameRows(Rows):
         blobs = indented_objects(*found, depth) if found is not None else None
         if blobs is None:
             super().write_json(write, depth)
+            return
+        write("[")
+        for blob in blobs:
+            write(blob.decode("ascii"))
+        write("\n" + " " * depth + "]")
+
+
+class PassageColumnRows(Rows):
+    """Passages held as the pipeline's columns (an archive's window, a whole read's): their JSON written from
+    the columns by the byte encoder, without a table; through the table (:class:`PassageFrameRows`) where the
+    encoder does not cover a value."""
+
+    def __init__(self, cols: Columns, heads: Heads) -> None:
+        super().__init__(len(cols["head"]), self._items)
+        self.cols = cols
+        self.heads = heads
+
+    def _table(self) -> PassageFrameRows:
+        from console.analysis.passages.diagnostics import passages_frame
+
+        return PassageFrameRows(passages_frame(self.cols, self.heads))
+
+    def _items(self) -> Iterator[Any]:
+        from console.analysis.passages.json_text import encode_passages
+
+        text = encode_passages(self.cols, self.heads)
+        return iter(json.loads(text)) if text is not None else iter(self._table())
+
+    def write_json(self, write: Write, depth: int) -> None:
+        from console.analysis.passages.json_text import indented_objects
+
+        blobs = indented_objects(self.cols, self.heads, depth) if self.count else None
+        if blobs is None:
+            self._table().write_json(write, depth)
             return
         write("[")
         for blob in blobs:

@@ -9,15 +9,20 @@ references and ``factorize`` hashed every string again (together ~65 MB at the r
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 NAT_NS = int(np.iinfo(np.int64).min)
 
 
 def sorted_codes(column: pd.Series) -> tuple[np.ndarray, pd.Index]:
     """(code per row, the distinct values as strings, sorted) as ``pd.factorize(column.astype(str), sort=True)``."""
+    import pandas as pd
+
     dtype = column.dtype
     if isinstance(dtype, pd.CategoricalDtype) and dtype.categories.inferred_type in ("string", "empty"):
         raw = column.cat.codes.to_numpy()
