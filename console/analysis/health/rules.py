@@ -24,14 +24,16 @@ import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from console.analysis.events.detection import DetectionEvent, EventKind, events_to_frame
 from console.analysis.timefmt import iso
 from parsers.units import NS as _NS_PER_S
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 _NS_PER_H = 3600 * _NS_PER_S
 _SEVERITY_ORDER = ("info", "warning", "critical")
@@ -132,6 +134,8 @@ def _time_ns(times: pd.Series) -> np.ndarray:
 
 def _rows(records: pd.DataFrame, canonical: str, extra: tuple[str, ...] = ()) -> pd.DataFrame:
     """Records of one register, with a plain-string head, sorted by head, channel, time."""
+    import pandas as pd  # deferred: the report path reads its inputs before pandas is needed (memory)
+
     picked = records.loc[records["label_canonical"] == canonical, ["time", "counting_head", "channel", "value", *extra]]
     out = pd.DataFrame(
         {

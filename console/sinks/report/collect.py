@@ -35,8 +35,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.events.detection import DetectionEvent, sort_events
@@ -70,6 +69,9 @@ from console.sinks.report.model import InputFile, ReportData, gnss_units_of_colu
 from console.sinks.report.spooled import ReportPassages, SectionHistory, report_sink
 from console.sinks.tables.section_history import SectionsSink
 from parsers.sources import InputError
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 def _load(spec: str | Path) -> Layout:
@@ -230,6 +232,8 @@ def frames_from_tables(data: ReportData, tables: list[pd.DataFrame]) -> None:
     """Frame tables (already parsed: from files, or from the archive) → frame events and the frames table."""
     if not tables:
         return
+    import pandas as pd
+
     from console.analysis.frame_events import frames_to_events
 
     lay = data.layout

@@ -34,7 +34,6 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
-import pandas as pd
 
 from console import __version__
 from console.analysis.events.detection import DetectionEvent, EventKind
@@ -53,6 +52,10 @@ from console.sinks.tables.section_tables import sections_json
 from parsers.report import ParseReport
 
 if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read (collect)
+    # pandas too is imported where it is used: a report on a GNSS file reads its fixes first, and pandas
+    # loaded before that read sat under its peak (~35 MB of a million-device CSV's 255 MB).
+    import pandas as pd
+
     from console.analysis.crossing.timeline import TimelineRow
     from console.analysis.crossing_batch import CrossingRun
     from console.analysis.inventory import DeviceInventory
@@ -404,6 +407,8 @@ def gnss_units_of_columns(
 ) -> GnssUnits:
     """:class:`GnssUnits` of the fix columns it reads (:class:`~parsers.gnss.fix_table.FixColumns`' fields
     of those names; ``role``/``source`` codes into ROLES/SOURCES): the device names stay flat."""
+    import pandas as pd
+
     from parsers.gnss.fix_table import ROLES, SOURCES
 
     code, names = sorted_name_codes(device_codes, device_names)
@@ -421,14 +426,14 @@ def _units(
     source_column: pd.Series,
 ) -> GnssUnits:
     n = len(names)
+    # The natural order first: its sort keys (~30 MB a million devices) are made before the columns below.
+    order = _natural_order(names).astype(np.int32)
     # Counts as int32 (a device's fixes are rows of one table) and positions too: kept until written.
     count = np.bincount(code, minlength=n).astype(np.int32)
     n_valid = np.bincount(code, weights=valid, minlength=n).astype(np.int32)
     first, last = first_last_ns(code, times_ns, n)
     roles, role_names = _value_sets(code, role_column, n)
     sources, source_names = _value_sets(code, source_column, n)
-    del code
-    order = _natural_order(names).astype(np.int32)
     return GnssUnits(names, order, count, n_valid, first, last, roles, role_names, sources, source_names)
 
 
@@ -545,6 +550,8 @@ def _sections(data: ReportData) -> dict[str, Any] | None:
 
 def analog_series(data: ReportData) -> pd.DataFrame:
     """The analog receiver values (``analog_value`` registers) as time_ns, head, channel, address, value."""
+    import pandas as pd
+
     cols = ["time_ns", "head", "channel", "address", "value"]
     rec = data.job.records if data.job is not None else pd.DataFrame()
     if rec.empty or "label_canonical" not in rec.columns:

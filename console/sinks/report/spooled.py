@@ -20,10 +20,9 @@ from __future__ import annotations
 import json
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from console.analysis.head_table import Heads
 from console.analysis.passages.buckets import Columns
@@ -36,6 +35,9 @@ from console.jsonout import valid_unicode
 from console.sinks.report.jsonwrite import Rows, Write, indented
 from console.sinks.tables.passage_spool import PassageSpool
 from console.sinks.tables.section_history import LedgerText, SectionsSink
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 TRAIN_KIND = 0  # diagnostics.PASSAGE_KINDS.index("train")
 # Where the document holds the section history's rows: doc → "sections" → "timeline" / "ledger" → a row.

@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import pandas as pd
 from rich import box
 from rich.table import Table
 from rich.text import Text
@@ -14,6 +13,9 @@ from console.analysis.sections.engine import SectionsResult
 from console.analysis.sections.state import STATE_MARK, SectionState
 from console.analysis.timefmt import display, iso
 from console.safe_text import inert
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 STATE_STYLE = {
     SectionState.CLEAR: "green",
