@@ -95,6 +95,16 @@ and a ``_Head`` object (1.5 kB a head; ``bench_event_stream_heads.py``):
 ``report`` on the 100 k-head log then took 9.4 / 9.9 s against 16.2 /
 14.1 s, alternately, at the same peak (808 / 801 MB before, 826 / 822 MB
 after), which is the report's JSON document.
+
+``report`` within the target (2026-11-28, load average 5-7, base ee49b64 and 80b573c alternated)::
+
+    command          input                 MB in   base CPU s / MB    after CPU s / MB   RSS/in
+    report (json)    heads_1000000.log     132.5       28.3 /  655        30.0 /  520     3.9
+    report (json)    devices_1000000.csv    59.4       23.6 /  255        23.7 /  221     3.7
+
+pandas is no longer loaded before the report's reads (~33 MB under the GNSS read), and the diagnostic
+read maps blocks from 512 kB on their own (``big_read_memory``): a million heads' growing columns had
+left ~110 MB of freed heap under the read's end.
 """
 
 from __future__ import annotations

@@ -76,9 +76,9 @@ BIG_READ_BYTES = 16 << 20
 
 
 @contextmanager
-def big_read_memory(paths: Iterable[Path | str]) -> Iterator[None]:
-    """Around a read of files of :data:`BIG_READ_BYTES` or more in all: :func:`read_memory`, and large blocks
-    mapped on their own (:func:`fixed_mmap_threshold`); smaller reads as they are.
+def big_read_memory(paths: Iterable[Path | str], mmap_threshold_bytes: int = 128 << 10) -> Iterator[None]:
+    """Around a read of files of :data:`BIG_READ_BYTES` or more in all: :func:`read_memory`, and blocks from
+    ``mmap_threshold_bytes`` up mapped on their own (:func:`fixed_mmap_threshold`); smaller reads as they are.
 
     `trackside gnss --json` on a million-device CSV (59 MB) peaked at 279 MB, not 352 MB."""
     total = 0
@@ -88,6 +88,6 @@ def big_read_memory(paths: Iterable[Path | str]) -> Iterator[None]:
     if total < BIG_READ_BYTES:
         yield
         return
-    fixed_mmap_threshold()
+    fixed_mmap_threshold(mmap_threshold_bytes)
     with read_memory():
         yield

@@ -134,7 +134,7 @@ def _time_ns(times: pd.Series) -> np.ndarray:
 
 def _rows(records: pd.DataFrame, canonical: str, extra: tuple[str, ...] = ()) -> pd.DataFrame:
     """Records of one register, with a plain-string head, sorted by head, channel, time."""
-    import pandas as pd
+    import pandas as pd  # deferred: the report path reads its inputs before pandas is needed (memory)
 
     picked = records.loc[records["label_canonical"] == canonical, ["time", "counting_head", "channel", "value", *extra]]
     out = pd.DataFrame(

@@ -21,7 +21,7 @@ NAT_NS = int(np.iinfo(np.int64).min)
 
 def sorted_codes(column: pd.Series) -> tuple[np.ndarray, pd.Index]:
     """(code per row, the distinct values as strings, sorted) as ``pd.factorize(column.astype(str), sort=True)``."""
-    import pandas as pd
+    import pandas as pd  # deferred, with the report's other uses of pandas (see console.sinks.report.model)
 
     dtype = column.dtype
     if isinstance(dtype, pd.CategoricalDtype) and dtype.categories.inferred_type in ("string", "empty"):
@@ -87,20 +87,23 @@ def sorted_positions(
 ) -> np.ndarray:
     """``np.argsort(np.array([key(x) for x in names], dtype=object), kind="stable")``, with the keys held
     as one array of UTF-8 bytes (whose order is the code points' order) made a chunk of names at a
-    time, instead of a Python string per name (a million device names: ~70 MB of keys at the peak)."""
-    parts = []
+    time, instead of a Python string per name (a million device names: ~70 MB of keys at the peak).
+    The keys go straight into the one array (not chunks joined at the end, which held them twice)."""
+    keys_all: np.ndarray | None = None
     for start in range(0, len(names), chunk):
         keys = [key(x) for x in names[start : start + chunk]]
         # numpy compares bytes with trailing NULs as padding: a key ending in one is sorted as strings.
         if any(k.endswith("\x00") for k in keys):
             return _sorted_as_strings(names, key)
-        parts.append(np.array([k.encode("utf-8", "surrogatepass") for k in keys], dtype=bytes))
-    if not parts:
+        part = np.array([k.encode("utf-8", "surrogatepass") for k in keys], dtype=bytes)
+        if keys_all is None:
+            keys_all = np.empty(len(names), part.dtype)
+        elif part.dtype.itemsize > keys_all.dtype.itemsize:
+            keys_all = keys_all.astype(part.dtype)  # a longer key: those so far padded to its width
+        keys_all[start : start + len(part)] = part
+    if keys_all is None:
         return np.zeros(0, np.int64)
-    width = max(p.dtype.itemsize for p in parts)
-    joined = np.concatenate([p.astype(f"S{width}", copy=False) for p in parts])
-    del parts
-    return np.argsort(joined, kind="stable")
+    return np.argsort(keys_all, kind="stable")
 
 
 def _sorted_as_strings(names: pd.Index | Sequence[object], key: Callable[[object], str]) -> np.ndarray:
