@@ -100,16 +100,13 @@ def history_diag(
     finally:
         con.close()
     report = (reports if reports is not None else parse_reports(root, manifest))["diagnostic"]
-    # Every wheel onset lies in a passage; the unpaired are those no axle took.
-    if passages is not None:
-        unpaired = (
-            int(passages["detections_sys1"].sum() + passages["detections_sys2"].sum() - 2 * passages["axles"].sum())
-            if len(passages)
-            else 0
-        )
-    else:
-        c = columns or {}
-        unpaired = int(c["detections_sys1"].sum() + c["detections_sys2"].sum() - 2 * c["axles"].sum()) if c else 0
+    # Every wheel onset lies in a passage; the unpaired are those no axle took (the table or the columns alike).
+    held = passages if passages is not None else columns
+    unpaired = (
+        int(held["detections_sys1"].sum() + held["detections_sys2"].sum() - 2 * held["axles"].sum())
+        if held is not None and len(held)  # an empty table, or {}: no passage
+        else 0
+    )
     analysis = DiagAnalysis(
         settings=settings,
         devices=devices,

@@ -59,9 +59,6 @@ from console.sinks.report.unit_codes import first_last_ns, sorted_codes, sorted_
 from console.sinks.tables.section_tables import sections_json
 from parsers.report import ParseReport
 
-if TYPE_CHECKING:
-    import pandas as pd
-
 if TYPE_CHECKING:  # the crossing modules load only when GNSS telemetry is read (collect)
     # pandas too is imported where it is used: a report on a GNSS file reads its fixes first, and pandas
     # loaded before that read sat under its peak (~35 MB of a million-device CSV's 255 MB).
