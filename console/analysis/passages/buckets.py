@@ -18,10 +18,18 @@ whole seconds, splitting buckets is exact for any idle gap of 1 s or more.
 
 from __future__ import annotations
 
+import os
+from typing import Protocol
+
 import numpy as np
 from numpy.typing import ArrayLike
 
 from parsers.units import NS
+
+try:
+    from console.analysis.passages import compiled_runs
+except ImportError:  # built without a C compiler: the numpy path, which gives the same columns
+    compiled_runs = None  # type: ignore[assignment]
 
 _BIG = np.iinfo(np.int64).max
 _SMALL = np.iinfo(np.int64).min
@@ -69,6 +77,74 @@ def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, su
         out[f"t_first_sys{ch}_ns"] = np.minimum.reduceat(np.where(on, time_ns, _BIG), starts)
         out[f"t_last_sys{ch}_ns"] = np.maximum.reduceat(np.where(on, time_ns, _SMALL), starts)
     return out
+
+
+def _record_runs_numpy(
+    register_id: np.ndarray,
+    time_ns: np.ndarray,
+    subsecond: np.ndarray,
+    value: np.ndarray,
+    luts: RunTables,
+    keep_releases: bool,
+) -> tuple[np.ndarray, Columns, np.ndarray]:
+    head = luts.head[register_id].astype(np.int64)
+    channel = luts.channel[register_id].astype(np.int64)
+    runs = chunk_buckets(head, channel, time_ns, subsecond)
+    wanted = (value == 1) | (value == 0) if keep_releases else value == 1
+    return head, runs, np.flatnonzero(luts.is_wheel[register_id] & wanted)
+
+
+def _record_runs_compiled(
+    register_id: np.ndarray,
+    time_ns: np.ndarray,
+    subsecond: np.ndarray,
+    value: np.ndarray,
+    luts: RunTables,
+    keep_releases: bool,
+) -> tuple[np.ndarray, Columns, np.ndarray]:
+    """:func:`_record_runs_numpy`'s columns in two compiled passes without the GIL (``compiled_runs.c``)."""
+    assert compiled_runs is not None
+    head, runs, n_runs, wheel = compiled_runs.chunk_runs(
+        register_id, time_ns, subsecond, value, luts.head, luts.channel, luts.is_wheel, keep_releases
+    )
+    cols = np.frombuffer(runs, np.int64).reshape(len(BUCKET_COLUMNS), n_runs)
+    return np.frombuffer(head, np.int64), dict(zip(BUCKET_COLUMNS, cols, strict=True)), np.frombuffer(wheel, np.int64)
+
+
+class RunTables(Protocol):
+    """Per register: its head key (int32), channel (int8), and whether it is a wheel sensor (bool)."""
+
+    @property
+    def head(self) -> np.ndarray: ...
+    @property
+    def channel(self) -> np.ndarray: ...
+    @property
+    def is_wheel(self) -> np.ndarray: ...
+
+
+# The compiled pass where it was built (``pip install`` with a C compiler), unless TRACKSIDE_PURE=1 asks
+# for the numpy path (the reference: tests/test_passages_compiled.py checks both alike).
+_record_runs = (
+    _record_runs_compiled if compiled_runs is not None and not os.environ.get("TRACKSIDE_PURE") else _record_runs_numpy
+)
+
+
+def compiled_record_runs() -> bool:
+    """Whether records are reduced to runs by the compiled pass."""
+    return _record_runs is _record_runs_compiled
+
+
+def record_runs(
+    register_id: np.ndarray,
+    time_ns: np.ndarray,
+    subsecond: np.ndarray,
+    value: np.ndarray,
+    luts: RunTables,
+    keep_releases: bool,
+) -> tuple[np.ndarray, Columns, np.ndarray]:
+    """A chunk's head key per record (int64), its activity runs (:func:`chunk_buckets`), and the positions of
+    its wheel-sensor records wanted: onsets (value 1), and releases (0) too with ``keep_releases``."""
+    return _record_runs(register_id, time_ns, subsecond, value, luts, keep_releases)
 
 
 def merge_buckets(parts: list[Columns]) -> Columns:

@@ -33,8 +33,8 @@ from console.analysis.passages.buckets import (
     Columns,
     axles_unknown_codes,
     bucket_index,
-    chunk_buckets,
     merge_buckets,
+    record_runs,
     remove_records,
     split_passages,
 )
@@ -180,14 +180,16 @@ class DiagAccumulator:
         np.minimum.at(self.head_first_ns, buckets["head"], buckets["t_first_ns"])
         np.maximum.at(self.head_last_ns, buckets["head"], buckets["t_last_ns"])
 
-    def add(self, chunk: DiagChunk) -> None:
+    def add(self, chunk: DiagChunk) -> np.ndarray:
+        """Take in a chunk; its records' head keys (int64)."""
         if len(chunk) == 0:
-            return
+            return np.zeros(0, np.int64)
         luts = self._lookup()
         rid = chunk.register_id
-        head = luts.head_of(rid)
-        channel = luts.channel_of(rid)
-        buckets = chunk_buckets(head, channel, chunk.time_ns, chunk.subsecond)
+        # Releases (Radsensor 0) only for the section engine's overlap rule.
+        head, buckets, wheel = record_runs(
+            rid, chunk.time_ns, chunk.subsecond, chunk.value, luts, keep_releases=self.keep_releases
+        )
         self._buckets.append(buckets)
         self._track_spans(buckets)
         first_record = self._n_records
@@ -202,20 +204,17 @@ class DiagAccumulator:
                 }
             )
 
-        # Wheel sensor records: onsets (1) for speeds, releases (0) too for the
-        # overlap rule of the section engine.
-        wanted = (chunk.value == 1) | (chunk.value == 0) if self.keep_releases else chunk.value == 1
-        wheel = luts.is_wheel[rid] & wanted
-        if wheel.any():
+        # Wheel sensor records: onsets for speeds (and releases, when kept).
+        if len(wheel):
             self._detections.append(
                 {
                     "head": head[wheel],
-                    "channel": channel[wheel],
+                    "channel": luts.channel_of(rid[wheel]),
                     "time_ns": chunk.time_ns[wheel],
                     "value": chunk.value[wheel].astype(np.int8),
                     "subsecond": chunk.subsecond[wheel],
-                    "file": np.full(int(wheel.sum()), chunk.file_id, np.int64),
-                    "record": first_record + np.flatnonzero(wheel),
+                    "file": np.full(len(wheel), chunk.file_id, np.int64),
+                    "record": first_record + wheel,
                 }
             )
 
@@ -230,6 +229,7 @@ class DiagAccumulator:
                 prev = self._identity.get(int(r[i]))
                 if prev is None or t[i] >= prev[0]:
                     self._identity[int(r[i])] = (int(t[i]), int(v[i]), int(k[i]), int(d[i]))
+        return head
 
     def result(self, settings: SpeedSettings) -> DiagAnalysis:
         luts = self._lookup()

@@ -115,7 +115,7 @@ class PassageStream:
         """Take in a chunk; the passages it completed, if any."""
         if len(chunk) == 0:
             return None
-        self.acc.add(chunk)
+        heads = self.acc.add(chunk)
         tables = self.acc._lookup()
         n = len(tables.head_device)
         self._open_first = _grown(self._open_first, n, NO_TIME)
@@ -125,7 +125,6 @@ class PassageStream:
         self._head_file = _grown(self._head_file, len(self._open_last), 0)
         self._file_clock = _grown(self._file_clock, chunk.file_id + 1, NO_TIME)
         self._file_clock[chunk.file_id] = max(int(self._file_clock[chunk.file_id]), int(chunk.time_ns.max()))
-        heads = tables.head_of(chunk.register_id)
         self._head_file[heads] = chunk.file_id
         self.late_records += int(np.count_nonzero(chunk.time_ns <= self._closed_upto[heads] + self._gap_ns))
         self._advance(heads, chunk.time_ns)

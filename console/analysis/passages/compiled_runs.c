@@ -1,0 +1,166 @@
+/* The compiled reduction of a chunk's records to activity runs: one pass over the records.
+ *
+ * It does what console/analysis/passages/buckets.py's chunk_buckets and the head and wheel lookups of
+ * DiagAccumulator.add do, rule for rule (the numpy path is the reference; tests/test_passages_compiled.py
+ * checks both give the same columns): each record's head key from its register, runs of consecutive
+ * records of one (head, whole second) with their counts and first and last times, overall and per system,
+ * and the positions of the wheel-sensor records wanted.  The passes run without the GIL; only the
+ * allocation of the outputs holds it.
+ *
+ * Outputs are bytearrays (wrapped by numpy in Python), so the build needs the Python headers only.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <stdint.h>
+#include <string.h>
+
+#define NS_PER_S 1000000000LL
+#define N_RUN_COLUMNS 12
+
+/* numpy's floor division: times before 1970 fall in the second below. */
+static inline int64_t floor_second(int64_t t)
+{
+    int64_t q = t / NS_PER_S;
+    return (t % NS_PER_S < 0) ? q - 1 : q;
+}
+
+typedef struct {
+    Py_buffer rid, time_ns, subsecond, value, head_lut, channel_lut, wheel_lut;
+} Inputs;
+
+static int get(PyObject *o, Py_buffer *b, Py_ssize_t itemsize, const char *name)
+{
+    if (PyObject_GetBuffer(o, b, PyBUF_C_CONTIGUOUS) < 0) return -1;
+    if (b->len % itemsize != 0) {
+        PyBuffer_Release(b);
+        PyErr_Format(PyExc_ValueError, "chunk_runs: %s is not of %zd-byte items", name, itemsize);
+        return -1;
+    }
+    return 0;
+}
+
+PyDoc_STRVAR(chunk_runs_doc,
+             "chunk_runs(register_id, time_ns, subsecond, value, head_lut, channel_lut, wheel_lut, keep_releases)\n"
+             "    -> (head, runs, n_runs, wheel)\n\n"
+             "register_id int32, time_ns int64, subsecond bool and value int64 per record; head_lut int32,\n"
+             "channel_lut int8 and wheel_lut bool per register.  head: int64 per record; runs: the 12 run\n"
+             "columns of buckets.BUCKET_COLUMNS one after another, n_runs int64 each; wheel: int64 positions\n"
+             "of the wheel-sensor records with value 1 (or 0 too, with keep_releases).");
+
+static PyObject *chunk_runs(PyObject *self, PyObject *args)
+{
+    PyObject *o[7];
+    int keep_releases;
+    if (!PyArg_ParseTuple(args, "OOOOOOOp", &o[0], &o[1], &o[2], &o[3], &o[4], &o[5], &o[6], &keep_releases))
+        return NULL;
+    Inputs in;
+    Py_buffer *bufs[7] = {&in.rid, &in.time_ns, &in.subsecond, &in.value, &in.head_lut, &in.channel_lut,
+                          &in.wheel_lut};
+    static const Py_ssize_t sizes[7] = {4, 8, 1, 8, 4, 1, 1};
+    static const char *names[7] = {"register_id", "time_ns", "subsecond", "value", "head_lut", "channel_lut",
+                                   "wheel_lut"};
+    int got = 0;
+    for (; got < 7; got++)
+        if (get(o[got], bufs[got], sizes[got], names[got]) < 0) goto release;
+
+    const int64_t n = (int64_t)(in.rid.len / 4);
+    const int64_t n_registers = (int64_t)(in.head_lut.len / 4);
+    if (in.time_ns.len / 8 != n || in.subsecond.len != n || in.value.len / 8 != n ||
+        in.channel_lut.len != n_registers || in.wheel_lut.len != n_registers) {
+        PyErr_SetString(PyExc_ValueError, "chunk_runs: the record columns or the register tables differ in length");
+        goto release;
+    }
+    const int32_t *rid = in.rid.buf, *head_lut = in.head_lut.buf;
+    const int64_t *time_ns = in.time_ns.buf, *value = in.value.buf;
+    const unsigned char *subsecond = in.subsecond.buf, *wheel_lut = in.wheel_lut.buf;
+    const int8_t *channel_lut = in.channel_lut.buf;
+
+    PyObject *head_out = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(n * 8));
+    if (!head_out) goto release;
+    int64_t *head = (int64_t *)PyByteArray_AS_STRING(head_out);
+    int64_t n_runs = 0, n_wheel = 0, bad_register = -1;
+    Py_BEGIN_ALLOW_THREADS
+    int64_t prev_head = 0, prev_second = 0;
+    for (int64_t i = 0; i < n; i++) {
+        int32_t r = rid[i];
+        if (r < 0 || r >= n_registers) {
+            bad_register = i;
+            break;
+        }
+        int64_t h = head_lut[r], s = floor_second(time_ns[i]);
+        head[i] = h;
+        n_runs += i == 0 || h != prev_head || s != prev_second;
+        prev_head = h;
+        prev_second = s;
+        n_wheel += wheel_lut[r] && (value[i] == 1 || (keep_releases && value[i] == 0));
+    }
+    Py_END_ALLOW_THREADS
+    if (bad_register >= 0) {
+        Py_DECREF(head_out);
+        PyErr_Format(PyExc_IndexError, "chunk_runs: record %lld names no register of the tables",
+                     (long long)bad_register);
+        goto release;
+    }
+    PyObject *runs_out = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(n_runs * 8 * N_RUN_COLUMNS));
+    PyObject *wheel_out = runs_out ? PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(n_wheel * 8)) : NULL;
+    if (!wheel_out) {
+        Py_XDECREF(runs_out);
+        Py_DECREF(head_out);
+        goto release;
+    }
+    int64_t *cols = (int64_t *)PyByteArray_AS_STRING(runs_out), *wheel = (int64_t *)PyByteArray_AS_STRING(wheel_out);
+    Py_BEGIN_ALLOW_THREADS
+    /* Columns in the order of buckets.BUCKET_COLUMNS. */
+    int64_t *c_head = cols, *c_second = cols + n_runs, *c_records = cols + 2 * n_runs,
+            *c_sys1 = cols + 3 * n_runs, *c_sys2 = cols + 4 * n_runs, *c_whole = cols + 5 * n_runs,
+            *c_first = cols + 6 * n_runs, *c_first1 = cols + 7 * n_runs, *c_first2 = cols + 8 * n_runs,
+            *c_last = cols + 9 * n_runs, *c_last1 = cols + 10 * n_runs, *c_last2 = cols + 11 * n_runs;
+    int64_t k = -1, w = 0;
+    for (int64_t i = 0; i < n; i++) {
+        int32_t r = rid[i];
+        int64_t h = head[i], t = time_ns[i], s = floor_second(t);
+        if (k < 0 || h != c_head[k] || s != c_second[k]) {
+            k++;
+            c_head[k] = h;
+            c_second[k] = s;
+            c_records[k] = c_sys1[k] = c_sys2[k] = c_whole[k] = 0;
+            c_first[k] = c_first1[k] = c_first2[k] = INT64_MAX;
+            c_last[k] = c_last1[k] = c_last2[k] = INT64_MIN;
+        }
+        c_records[k]++;
+        c_whole[k] += !subsecond[i];
+        if (t < c_first[k]) c_first[k] = t;
+        if (t > c_last[k]) c_last[k] = t;
+        int8_t ch = channel_lut[r];
+        if (ch == 1) {
+            c_sys1[k]++;
+            if (t < c_first1[k]) c_first1[k] = t;
+            if (t > c_last1[k]) c_last1[k] = t;
+        }
+        else if (ch == 2) {
+            c_sys2[k]++;
+            if (t < c_first2[k]) c_first2[k] = t;
+            if (t > c_last2[k]) c_last2[k] = t;
+        }
+        if (wheel_lut[r] && (value[i] == 1 || (keep_releases && value[i] == 0))) wheel[w++] = i;
+    }
+    Py_END_ALLOW_THREADS
+    for (int b = 0; b < 7; b++) PyBuffer_Release(bufs[b]);
+    return Py_BuildValue("(NNLN)", head_out, runs_out, (long long)n_runs, wheel_out);
+
+release:
+    for (int b = 0; b < got; b++) PyBuffer_Release(bufs[b]);
+    return NULL;
+}
+
+static PyMethodDef methods[] = {
+    {"chunk_runs", chunk_runs, METH_VARARGS, chunk_runs_doc},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "compiled_runs", "The compiled reduction of a chunk's records to activity runs.", -1,
+    methods,
+};
+
+PyMODINIT_FUNC PyInit_compiled_runs(void) { return PyModule_Create(&module); }

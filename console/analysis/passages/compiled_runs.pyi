@@ -1,0 +1,13 @@
+import numpy as np
+
+def chunk_runs(
+    register_id: np.ndarray,
+    time_ns: np.ndarray,
+    subsecond: np.ndarray,
+    value: np.ndarray,
+    head_lut: np.ndarray,
+    channel_lut: np.ndarray,
+    wheel_lut: np.ndarray,
+    keep_releases: bool,
+    /,
+) -> tuple[bytearray, bytearray, int, bytearray]: ...

@@ -1,0 +1,140 @@
+"""The compiled reduction of records to activity runs (console/analysis/passages/compiled_runs.c) and the numpy
+one give the same columns.
+
+Both run over the same records and register tables: the head key per record, every run column (counts, first
+and last times overall and per system) and the positions of the wheel-sensor records must be equal, dtypes
+included.  The inputs: random tables and records (times before 1970 and on whole seconds, heads interleaved,
+channels other than 1 and 2, values other than 0 and 1), and whole reads through the command either way.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from benchmarks.gen_realistic_diag import generate
+from console.analysis.passages import buckets
+from tests.conftest import SAMPLES
+
+pytestmark = pytest.mark.skipif(
+    buckets.compiled_runs is None,
+    reason="console.analysis.passages.compiled_runs is not built (no C compiler at install): only the numpy path",
+)
+
+
+@dataclass
+class Tables:
+    head: np.ndarray
+    channel: np.ndarray
+    is_wheel: np.ndarray
+
+
+@st.composite
+def chunks(draw: st.DrawFn) -> tuple[Tables, dict[str, np.ndarray], bool]:
+    n_registers = draw(st.integers(1, 12))
+    tables = Tables(
+        head=np.array(
+            draw(st.lists(st.integers(0, 2**31 - 1) | st.integers(0, 4), min_size=n_registers, max_size=n_registers)),
+            np.int32,
+        ),
+        channel=np.array(draw(st.lists(st.integers(-1, 3), min_size=n_registers, max_size=n_registers)), np.int8),
+        is_wheel=np.array(draw(st.lists(st.booleans(), min_size=n_registers, max_size=n_registers)), bool),
+    )
+    n = draw(st.integers(0, 60))
+    # Steps of a few ms to a few s from a start anywhere, before 1970 too: runs of one second and breaks.
+    start_ns = draw(st.integers(-(10**18), 10**18))
+    steps = draw(st.lists(st.integers(-2 * 10**9, 3 * 10**9), min_size=n, max_size=n))
+    whole = draw(st.booleans())
+    time_ns = start_ns + np.cumsum(np.array(steps, np.int64))
+    if whole:  # a whole-second board's stamps
+        time_ns = time_ns // 10**9 * 10**9
+    records = {
+        "register_id": np.array(draw(st.lists(st.integers(0, n_registers - 1), min_size=n, max_size=n)), np.int32),
+        "time_ns": time_ns.astype(np.int64),
+        "subsecond": np.array(draw(st.lists(st.booleans(), min_size=n, max_size=n)), bool),
+        "value": np.array(draw(st.lists(st.integers(-1, 2), min_size=n, max_size=n)), np.int64),
+    }
+    return tables, records, draw(st.booleans())
+
+
+def _alike(got: tuple, want: tuple) -> None:
+    (g_head, g_runs, g_wheel), (w_head, w_runs, w_wheel) = got, want
+    assert g_head.dtype == w_head.dtype == np.int64
+    assert np.array_equal(g_head, w_head)
+    assert sorted(g_runs) == sorted(w_runs) == sorted(buckets.BUCKET_COLUMNS)
+    for name in buckets.BUCKET_COLUMNS:
+        assert g_runs[name].dtype == w_runs[name].dtype == np.int64, name
+        assert np.array_equal(g_runs[name], w_runs[name]), name
+    assert g_wheel.dtype == w_wheel.dtype == np.int64
+    assert np.array_equal(g_wheel, w_wheel)
+
+
+@settings(max_examples=400, deadline=None)
+@given(case=chunks())
+def test_random_records_reduce_alike(case: tuple[Tables, dict[str, np.ndarray], bool]) -> None:
+    tables, rec, keep_releases = case
+    args = (rec["register_id"], rec["time_ns"], rec["subsecond"], rec["value"], tables, keep_releases)
+    _alike(buckets._record_runs_compiled(*args), buckets._record_runs_numpy(*args))
+
+
+def test_realistic_chunk_reduces_alike() -> None:
+    """Many records of one second in a row, several boards interleaved, both systems: the usual chunk."""
+    rng = np.random.default_rng(7)
+    n = 50_000
+    tables = Tables(
+        head=rng.integers(0, 80, 400).astype(np.int32),
+        channel=rng.integers(1, 3, 400).astype(np.int8),
+        is_wheel=rng.random(400) < 0.3,
+    )
+    time_ns = 1_772_409_600 * 10**9 + np.sort(rng.integers(0, 600 * 10**9, n))
+    args = (
+        rng.integers(0, 400, n).astype(np.int32),
+        time_ns,
+        rng.random(n) < 0.9,
+        rng.integers(0, 2, n).astype(np.int64),
+        tables,
+    )
+    for keep_releases in (False, True):
+        _alike(buckets._record_runs_compiled(*args, keep_releases), buckets._record_runs_numpy(*args, keep_releases))
+
+
+def test_a_record_naming_no_register_is_refused() -> None:
+    tables = Tables(np.zeros(2, np.int32), np.ones(2, np.int8), np.ones(2, bool))
+    one = np.zeros(1, np.int64)
+    with pytest.raises(IndexError, match="names no register"):
+        buckets._record_runs_compiled(np.array([2], np.int32), one, np.ones(1, bool), one, tables, False)
+
+
+def test_pure_switch_chooses_the_numpy_path() -> None:
+    probe = "from console.analysis.passages import buckets; print(buckets.compiled_record_runs())"
+    env = {k: v for k, v in os.environ.items() if k != "TRACKSIDE_PURE"}
+    outs = [
+        subprocess.run([sys.executable, "-c", probe], env=e, capture_output=True, text=True, check=True).stdout
+        for e in (env, {**env, "TRACKSIDE_PURE": "1"})
+    ]
+    assert [o.strip() for o in outs] == ["True", "False"]
+
+
+def test_speeds_and_sections_alike_through_the_command(tmp_path: Path) -> None:
+    """The releases kept (sections) and not (speeds): whole commands either way, byte for byte."""
+    log = tmp_path / "real.log"
+    generate(6000, log, boards=4, resolution="mixed", seed=11, corrupt_every=80, block_s=90)
+    trackside = Path(sys.executable).with_name("trackside")
+    env = {k: v for k, v in os.environ.items() if k != "TRACKSIDE_PURE"}
+    station = SAMPLES / "example_station.log"
+    for command in (["speeds", "--json", str(log)], ["sections", "--json", "--layout", "example", str(station)]):
+        outs = [
+            subprocess.run([str(trackside), *command], env=e, capture_output=True, timeout=120, check=False)
+            for e in (env, {**env, "TRACKSIDE_PURE": "1"})
+        ]
+        assert outs[0].returncode == outs[1].returncode == 0, outs[0].stderr
+        assert outs[0].stdout == outs[1].stdout, command
+        assert len(outs[0].stdout) > 100, command
