@@ -28,6 +28,7 @@ from parsers.dictionary import FRONT_CACHE_MAX, DigestIndex, Growable, StringDic
 
 _ERROR_CACHE_MAX = 20_000
 _VALUE_CACHE_MAX = 200_000
+_NO_ROW = (0, 0, 0, 0)  # an invalid value span's columns
 
 # Per-register columns and their types; the string ones are codes into the registry's dictionaries.
 _COLUMNS: dict[str, type] = {
@@ -96,6 +97,9 @@ class DiagRegistry:
         self._values: dict[bytes, tuple[tuple[str, int, int] | FieldError, int | FieldError]] = {}
         self._data: dict[bytes, tuple[str, int, int] | FieldError] = {}
         self._days: dict[bytes, int | FieldError] = {}
+        # A valid value span's whole row (data code, value, kind code, day ns): the usual chunk's spans were all
+        # met before, and their rows then come in one C-level pass of lookups.
+        self._value_rows: dict[bytes, tuple[int, int, int, int]] = {}
 
     @property
     def n_registers(self) -> int:
@@ -239,30 +243,35 @@ class DiagRegistry:
     def values(self, spans: Sequence[bytes]) -> tuple[np.ndarray, dict[int, FieldError]]:
         """(data code, value, kind code, day ns) of value spans ``Data:…\tDate:…`` as four int64 rows,
         and the errors by position (their columns hold 0)."""
-        cols = np.zeros((4, len(spans)), np.int64)
+        found: list[tuple[int, int, int, int] | None] = list(map(self._value_rows.get, spans))
+        # Only spans not met before are decoded here (a chunk brings a few new values among hundreds).
+        miss = [i for i, row in enumerate(found) if row is None]
         errors: dict[int, FieldError] = {}
-        texts: list[str] = []
-        rows: list[tuple[int, int, int]] = []
-        at: list[int] = []
-        for i, span in enumerate(spans):
-            data, day = self._decoded(span)
-            if isinstance(data, FieldError):
-                errors[i] = data
-                continue
-            # Every data text read is interned (also beside a bad date), in the order read.
-            texts.append(data[0])
-            if isinstance(day, FieldError):
-                errors[i] = day
-                rows.append((0, 0, 0))
-            else:
-                rows.append((data[1], data[2], day))
-            at.append(i)
-        if at:
-            cols[0, at] = self.data.codes(texts)
-            cols[1:, at] = np.array(rows, np.int64).T
-            if errors:
-                cols[:, list(errors)] = 0
-        return cols, errors
+        if miss:
+            if len(self._value_rows) + len(miss) > _VALUE_CACHE_MAX:
+                self._value_rows.clear()  # bounded: a cache, not a store
+            texts: list[str] = []
+            text_at: list[int] = []
+            for i in miss:
+                data, day = self._decoded(spans[i])
+                found[i] = _NO_ROW
+                if isinstance(data, FieldError):
+                    errors[i] = data
+                    continue
+                # Every data text read is interned (also beside a bad date), in the order read.
+                texts.append(data[0])
+                text_at.append(i)
+                if isinstance(day, FieldError):
+                    errors[i] = day
+                else:
+                    found[i] = (0, data[1], data[2], day)
+            codes = self.data.codes(texts).tolist() if texts else []
+            for i, code in zip(text_at, codes, strict=True):
+                if i not in errors:
+                    row = found[i]
+                    assert row is not None
+                    found[i] = self._value_rows[spans[i]] = (code, row[1], row[2], row[3])
+        return np.array(found, np.int64).reshape(len(spans), 4).T, errors
 
     def value(self, span: bytes) -> tuple[int, int, int, int] | FieldError:
         """(data code, value, kind code, day ns) for one value span, or why it is invalid."""
