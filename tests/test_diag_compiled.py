@@ -65,9 +65,14 @@ def _read_both(
     paths: list[Path], monkeypatch: pytest.MonkeyPatch, **kwargs: object
 ) -> list[tuple[pd.DataFrame, dict[str, object], list[dict[str, object]]]]:
     out: list[tuple[pd.DataFrame, dict[str, object], list[dict[str, object]]]] = []
-    for tokenize in (diag_read._tokenize_numpy, diag_read._tokenize_compiled):
+    paths_by_kind = (
+        (diag_read._tokenize_numpy, diag_read._gather_good_numpy),
+        (diag_read._tokenize_compiled, diag_read._gather_good_compiled),
+    )
+    for tokenize, gather in paths_by_kind:
         with monkeypatch.context() as m:
             m.setattr(diag_read, "_tokenize", tokenize)
+            m.setattr(diag_read, "_gather_good", gather)
             df, report = diag_read.read_diag(paths, **kwargs)
         out.append((df, report.to_dict(), [r.to_dict() for r in report.rejections]))
     return out
@@ -92,6 +97,24 @@ def test_realistic_logs_read_alike(tmp_path: Path, monkeypatch: pytest.MonkeyPat
     assert records > 5000
     _, report = diag_read.read_diag([log])
     assert report.rejected > 50  # the damaged lines were there to be compared
+
+
+@pytest.mark.parametrize("resolution", ["mixed", "s"])
+def test_clean_logs_read_alike(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, resolution: str) -> None:
+    """Chunks without a damaged line: their records are gathered in the compiled pass."""
+    log = tmp_path / "clean.log"
+    generate(6000, log, boards=6, resolution=resolution, seed=4, corrupt=False, block_s=120)
+    calls: list[bool] = []
+    compiled = diag_read._gather_good_compiled
+
+    def gather(*args: object) -> object:
+        out = compiled(*args)  # type: ignore[arg-type]
+        calls.append(out is not None)
+        return out
+
+    monkeypatch.setattr(diag_read, "_gather_good_compiled", gather)
+    assert _assert_same_reads([log], monkeypatch, chunk_bytes=64 << 10) > 5000
+    assert calls and all(calls)  # every chunk took the compiled gather
 
 
 def test_sample_logs_read_alike(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -14,3 +14,13 @@ def tokenize(
     bytearray,
     bytearray,
 ]: ...
+def gather_records(
+    reg_lut: object,
+    reg_idx: object,
+    val_idx: object,
+    val_cols: object,
+    val_ok: object,
+    time_ok: object,
+    tod_ns: object,
+    /,
+) -> tuple[bytearray, bytearray, bytearray, bytearray, bytearray] | None: ...
