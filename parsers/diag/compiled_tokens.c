@@ -272,24 +272,27 @@ fail:
 
 
 PyDoc_STRVAR(gather_records_doc,
-             "gather_records(reg_lut, reg_idx, val_idx, val_cols, val_ok, time_ok, tod_ns)\n"
-             "    -> (register_id, time_ns, value, data_code, data_kind) | None\n\n"
-             "The record columns of a chunk whose fast lines are all good: register and value spans valid\n"
-             "(reg_lut int32 >= 0 per register span, val_ok bool per value span) and time read (time_ok).\n"
-             "reg_idx, val_idx, tod_ns: int64 per fast line; val_cols: int64 rows (data code, value, kind\n"
-             "code, day ns) per value span, C order.  None where a line is not good (the caller selects).\n"
-             "Outputs are bytearrays: int32, int64, int64, int32, int8.");
+             "gather_records(reg_lut, reg_idx, val_idx, val_cols, val_ok, time_ok, tod_ns, subsecond, fast)\n"
+             "    -> (n_good, register_id, time_ns, value, data_code, data_kind, subsecond, line, bad)\n\n"
+             "The record columns of a chunk's good fast lines: register and value spans valid (reg_lut int32\n"
+             ">= 0 per register span, val_ok bool per value span) and time read (time_ok).  reg_idx, val_idx,\n"
+             "tod_ns, fast: int64 per fast line; subsecond: bool per fast line; val_cols: int64 rows (data\n"
+             "code, value, kind code, day ns) per value span, C order.  Outputs are bytearrays of one item per\n"
+             "fast line (int32, int64, int64, int32, int8, bool, int64), the first n_good valid; bad: int64\n"
+             "positions of the other fast lines, in order.");
 
 static PyObject *gather_records(PyObject *self, PyObject *args)
 {
-    PyObject *o[7];
-    if (!PyArg_ParseTuple(args, "OOOOOOO", &o[0], &o[1], &o[2], &o[3], &o[4], &o[5], &o[6])) return NULL;
-    Py_buffer b[7];
-    static const Py_ssize_t sizes[7] = {4, 8, 8, 8, 1, 1, 8};
+    enum { N_IN = 9, N_OUT = 8 };
+    PyObject *o[N_IN];
+    if (!PyArg_ParseTuple(args, "OOOOOOOOO", &o[0], &o[1], &o[2], &o[3], &o[4], &o[5], &o[6], &o[7], &o[8]))
+        return NULL;
+    Py_buffer b[N_IN];
+    static const Py_ssize_t sizes[N_IN] = {4, 8, 8, 8, 1, 1, 8, 1, 8};
     int got = 0;
     PyObject *result = NULL;
-    PyObject *out[5] = {NULL};
-    for (; got < 7; got++) {
+    PyObject *out[N_OUT] = {NULL};
+    for (; got < N_IN; got++) {
         if (PyObject_GetBuffer(o[got], &b[got], PyBUF_C_CONTIGUOUS) < 0) goto done;
         if (b[got].len % sizes[got] != 0) {
             got++;
@@ -298,47 +301,57 @@ static PyObject *gather_records(PyObject *self, PyObject *args)
         }
     }
     const int64_t n_reg = (int64_t)(b[0].len / 4), n = (int64_t)(b[1].len / 8), m = (int64_t)b[4].len;
-    if (b[2].len / 8 != n || b[5].len != n || b[6].len / 8 != n || b[3].len / 8 != 4 * m) {
+    if (b[2].len / 8 != n || b[5].len != n || b[6].len / 8 != n || b[7].len != n || b[8].len / 8 != n ||
+        b[3].len / 8 != 4 * m) {
         PyErr_SetString(PyExc_ValueError, "gather_records: the columns differ in length");
         goto done;
     }
     const int32_t *reg_lut = b[0].buf;
-    const int64_t *reg_idx = b[1].buf, *val_idx = b[2].buf, *val_cols = b[3].buf, *tod_ns = b[6].buf;
-    const unsigned char *val_ok = b[4].buf, *time_ok = b[5].buf;
-    static const int widths[5] = {4, 8, 8, 4, 1};
-    for (int k = 0; k < 5; k++) {
+    const int64_t *reg_idx = b[1].buf, *val_idx = b[2].buf, *val_cols = b[3].buf, *tod_ns = b[6].buf,
+                  *fast = b[8].buf;
+    const unsigned char *val_ok = b[4].buf, *time_ok = b[5].buf, *subsecond = b[7].buf;
+    static const int widths[N_OUT] = {4, 8, 8, 4, 1, 1, 8, 8};
+    for (int k = 0; k < N_OUT; k++) {
         out[k] = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(n * widths[k]));
         if (!out[k]) goto done;
     }
     int32_t *rid = (int32_t *)PyByteArray_AS_STRING(out[0]), *code = (int32_t *)PyByteArray_AS_STRING(out[3]);
-    int64_t *time_out = (int64_t *)PyByteArray_AS_STRING(out[1]), *value = (int64_t *)PyByteArray_AS_STRING(out[2]);
+    int64_t *time_out = (int64_t *)PyByteArray_AS_STRING(out[1]), *value = (int64_t *)PyByteArray_AS_STRING(out[2]),
+            *line = (int64_t *)PyByteArray_AS_STRING(out[6]), *bad = (int64_t *)PyByteArray_AS_STRING(out[7]);
     int8_t *kind = (int8_t *)PyByteArray_AS_STRING(out[4]);
-    int all_good = 1;
+    char *sub = PyByteArray_AS_STRING(out[5]);
+    int64_t n_good = 0, n_bad = 0, out_of_range = 0;
     Py_BEGIN_ALLOW_THREADS
     const int64_t *v_code = val_cols, *v_value = val_cols + m, *v_kind = val_cols + 2 * m, *v_day = val_cols + 3 * m;
     for (int64_t i = 0; i < n; i++) {
         int64_t r = reg_idx[i], v = val_idx[i];
-        if (r < 0 || r >= n_reg || v < 0 || v >= m || reg_lut[r] < 0 || !val_ok[v] || !time_ok[i]) {
-            all_good = 0;
+        if (r < 0 || r >= n_reg || v < 0 || v >= m) {
+            out_of_range = 1;
             break;
         }
-        rid[i] = reg_lut[r];
-        time_out[i] = v_day[v] + tod_ns[i];
-        value[i] = v_value[v];
-        code[i] = (int32_t)v_code[v];
-        kind[i] = (int8_t)v_kind[v];
+        if (reg_lut[r] < 0 || !val_ok[v] || !time_ok[i]) {
+            bad[n_bad++] = i;
+            continue;
+        }
+        int64_t j = n_good++;
+        rid[j] = reg_lut[r];
+        time_out[j] = v_day[v] + tod_ns[i];
+        value[j] = v_value[v];
+        code[j] = (int32_t)v_code[v];
+        kind[j] = (int8_t)v_kind[v];
+        sub[j] = (char)subsecond[i];
+        line[j] = fast[i];
     }
     Py_END_ALLOW_THREADS
-    if (all_good) {
-        result = PyTuple_Pack(5, out[0], out[1], out[2], out[3], out[4]);
+    if (out_of_range) {
+        PyErr_SetString(PyExc_IndexError, "gather_records: a span index beyond its dictionary");
+        goto done;
     }
-    else {
-        Py_INCREF(Py_None);
-        result = Py_None;
-    }
+    result = Py_BuildValue("(LOOOOOOOO)", (long long)n_good, out[0], out[1], out[2], out[3], out[4], out[5],
+                           out[6], out[7]);
 
 done:
-    for (int k = 0; k < 5; k++) Py_XDECREF(out[k]);
+    for (int k = 0; k < N_OUT; k++) Py_XDECREF(out[k]);
     for (int k = 0; k < got; k++) PyBuffer_Release(&b[k]);
     return result;
 }

@@ -22,5 +22,7 @@ def gather_records(
     val_ok: object,
     time_ok: object,
     tod_ns: object,
+    subsecond: object,
+    fast: object,
     /,
-) -> tuple[bytearray, bytearray, bytearray, bytearray, bytearray] | None: ...
+) -> tuple[int, bytearray, bytearray, bytearray, bytearray, bytearray, bytearray, bytearray, bytearray]: ...

@@ -353,33 +353,51 @@ def _tokenize_numpy(chunk: Chunk) -> _Tokens:
     )
 
 
-def _gather_good_compiled(
-    tok: _Tokens, reg_lut: np.ndarray, val_cols: np.ndarray, val_ok: np.ndarray
-) -> tuple[np.ndarray, ...] | None:
-    """A chunk's record columns in one compiled pass without the GIL where every fast line is good (else None:
-    the numpy selection)."""
+def _gather_compiled(tok: _Tokens, reg_lut: np.ndarray, val_cols: np.ndarray, val_ok: np.ndarray) -> _Gathered:
+    """:func:`_gather_numpy`'s columns in one compiled pass without the GIL (``compiled_tokens.c``)."""
     assert compiled_tokens is not None
-    out = compiled_tokens.gather_records(
-        reg_lut, tok.reg_idx, tok.val_idx, np.ascontiguousarray(val_cols), val_ok, tok.time_ok, tok.tod_ns
+    n_good, *cols, bad = compiled_tokens.gather_records(
+        reg_lut,
+        tok.reg_idx,
+        tok.val_idx,
+        np.ascontiguousarray(val_cols),
+        val_ok,
+        tok.time_ok,
+        tok.tod_ns,
+        tok.subsecond,
+        tok.fast,
     )
-    if out is None:
-        return None
-    return tuple(np.frombuffer(b, t) for b, t in zip(out, _GATHERED_TYPES, strict=True))
+    got: list[np.ndarray] = [np.frombuffer(c, t)[:n_good] for c, t in zip(cols, _GATHERED_TYPES, strict=True)]
+    return (*got, np.frombuffer(bad, np.intp)[: len(tok.fast) - n_good])  # type: ignore[return-value]
 
 
-def _gather_good_numpy(
-    tok: _Tokens, reg_lut: np.ndarray, val_cols: np.ndarray, val_ok: np.ndarray
-) -> tuple[np.ndarray, ...] | None:
-    return None  # the selection in DiagReader._resolve is the reference
+def _gather_numpy(tok: _Tokens, reg_lut: np.ndarray, val_cols: np.ndarray, val_ok: np.ndarray) -> _Gathered:
+    """The record columns of a chunk's good fast lines (register and value spans valid, time read), and the
+    positions of the other fast lines."""
+    rid = reg_lut[tok.reg_idx]
+    good = (rid >= 0) & val_ok[tok.val_idx] & tok.time_ok
+    if good.all():  # the usual chunk: no selection to copy (the token arrays are this chunk's alone)
+        vi, rid_g, tod_ns, subsecond, lines = tok.val_idx, rid, tok.tod_ns, tok.subsecond, tok.fast
+    else:
+        vi, rid_g, tod_ns = tok.val_idx[good], rid[good], tok.tod_ns[good]
+        subsecond, lines = tok.subsecond[good], tok.fast[good]
+    time_ns = val_cols[3][vi] + tod_ns
+    value = val_cols[1][vi]
+    # Narrowed per distinct value span, before the gather: no conversion per record.
+    data_code = val_cols[0].astype(np.int32)[vi]
+    data_kind = val_cols[2].astype(np.int8)[vi]
+    return rid_g, time_ns, value, data_code, data_kind, subsecond, lines, np.flatnonzero(~good)
 
 
-_GATHERED_TYPES = (np.int32, np.int64, np.int64, np.int32, np.int8)
+# register id, time ns, value, data code, data kind, subsecond, line (per good fast line); bad fast lines.
+_Gathered = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+_GATHERED_TYPES = (np.int32, np.int64, np.int64, np.int32, np.int8, np.bool_, np.intp)
 
 # The compiled tokenizer where it was built (``pip install`` with a C compiler), unless TRACKSIDE_PURE=1 asks
 # for the numpy one: both give the same tokens (tests/test_diag_compiled.py).
 _COMPILED = compiled_tokens is not None and not os.environ.get("TRACKSIDE_PURE")
 _tokenize: Callable[[Chunk], _Tokens] = _tokenize_compiled if _COMPILED else _tokenize_numpy
-_gather_good = _gather_good_compiled if _COMPILED else _gather_good_numpy
+_gather = _gather_compiled if _COMPILED else _gather_numpy
 
 
 def compiled_tokenizer() -> bool:
@@ -561,23 +579,7 @@ class DiagReader:
         val_ok = np.ones(len(tok.val_dict), bool)
         val_ok[list(val_err)] = False
 
-        gathered = _gather_good(tok, reg_lut, val_cols, val_ok)
-        if gathered is not None:  # the usual chunk: every fast line a record
-            rid_g, time_ns, value, data_code, data_kind = gathered
-            subsecond, lines, good = tok.subsecond, tok.fast, None
-        else:
-            rid = reg_lut[tok.reg_idx]
-            good = (rid >= 0) & val_ok[tok.val_idx] & tok.time_ok
-            if good.all():  # no selection to copy (the token arrays are this chunk's alone)
-                vi, rid_g, tod_ns, subsecond, lines = tok.val_idx, rid, tok.tod_ns, tok.subsecond, tok.fast
-            else:
-                vi, rid_g, tod_ns = tok.val_idx[good], rid[good], tok.tod_ns[good]
-                subsecond, lines = tok.subsecond[good], tok.fast[good]
-            time_ns = val_cols[3][vi] + tod_ns
-            value = val_cols[1][vi]
-            # Narrowed per distinct value span, before the gather: no conversion per record.
-            data_code = val_cols[0].astype(np.int32)[vi]
-            data_kind = val_cols[2].astype(np.int8)[vi]
+        rid_g, time_ns, value, data_code, data_kind, subsecond, lines, bad_j = _gather(tok, reg_lut, val_cols, val_ok)
 
         # The rest is blank, off the fast path, or rejected: few lines, Python is fine.
         n_blank = int(tok.blank.sum())
@@ -588,7 +590,6 @@ class DiagReader:
             rest[lines] = False
             rest &= ~tok.blank
             rest_lines = np.flatnonzero(rest).tolist()
-        bad_j = np.flatnonzero(~good) if good is not None else np.zeros(0, np.intp)
         bad_fast = dict(zip(tok.fast[bad_j].tolist(), bad_j.tolist(), strict=True))
         last_open = tok.chunk.final and not tok.chunk.ends_with_newline()
         slow: list[tuple[int, int, int, bool, int, int, int]] = []
