@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import ctypes
 import os
+import sys
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
 
 @contextmanager
-def read_memory() -> Iterator[None]:
+def read_memory(arrow: bool = True) -> Iterator[None]:
     """Memory kept bounded around a log's read: Arrow on the system allocator, freed pages returned after.
 
     Arrow's default pool (mimalloc) keeps the pages the decoder's threads
@@ -19,7 +20,16 @@ def read_memory() -> Iterator[None]:
     output after the read, so that output would stack on top of both.  On a
     12 M-record report the peak RSS was 17 MB (the pool) and 5 MB (the heap)
     lower, at the same CPU.
+
+    ``arrow``: whether the read uses Arrow.  A read that does not (the compiled tokenizer's) and finds it not
+    loaded yet does not load it: about 30 ms of start-up.
     """
+    if not arrow and "pyarrow" not in sys.modules:
+        try:
+            yield
+        finally:
+            trim_heap()
+        return
     import pyarrow as pa
 
     before = pa.default_memory_pool()

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import os
+import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
-from rich.console import Console
-
 if TYPE_CHECKING:
+    from rich.console import Console
     from rich.progress import Progress, TaskID
 
 MIN_BYTES_FOR_PROGRESS = 4 << 20
@@ -47,14 +48,30 @@ class ByteProgress:
         self._bar.update(self._task, records=self._records)
 
 
+def _stderr_may_be_terminal() -> bool:
+    """Whether Rich could take stderr for a terminal: it is one, or the environment says to treat it as one
+    (``TTY_COMPATIBLE``, ``FORCE_COLOR``: Rich's own rules decide then)."""
+    if os.environ.get("TTY_COMPATIBLE") or os.environ.get("FORCE_COLOR") is not None:
+        return True
+    try:
+        return sys.stderr is not None and sys.stderr.isatty()
+    except ValueError:  # closed
+        return False
+
+
 @contextmanager
 def byte_progress(total_bytes: int, label: str, console: Console | None = None) -> Iterator[ByteProgress | None]:
     """Yield a :class:`ByteProgress` (call it with the bytes read), or None when no bar is shown.
 
     Silent when stderr is not a terminal (cron, pipes) or the input is small.
     """
+    if total_bytes < MIN_BYTES_FOR_PROGRESS or (console is None and not _stderr_may_be_terminal()):
+        yield None  # Rich not loaded: a script's run does not pay its start-up (~20 ms)
+        return
+    from rich.console import Console
+
     console = console or Console(stderr=True)
-    if not console.is_terminal or total_bytes < MIN_BYTES_FOR_PROGRESS:
+    if not console.is_terminal:
         yield None
         return
     from rich.progress import (

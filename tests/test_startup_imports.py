@@ -61,6 +61,29 @@ def test_analyze_of_a_small_log_imports_no_pandas(tiny: dict[str, Path]) -> None
     assert _loaded("analyze", str(tiny["log"])) == (0, [])
 
 
+def test_analyze_json_of_a_big_log_imports_neither_arrow_nor_rich(tmp_path: Path) -> None:
+    """A script's `analyze --json` (stderr no terminal) of a log big enough for a progress bar: the compiled
+    tokenizer needs no Arrow, and no bar is shown, so neither is loaded (~50 ms of start-up)."""
+    from parsers.diag.read import compiled_tokenizer
+
+    if not compiled_tokenizer():
+        pytest.skip("the numpy tokenizer reads through Arrow")
+    from console.progress import MIN_BYTES_FOR_PROGRESS
+
+    log = tmp_path / "big.log"
+    one = (SAMPLES / "osong_ws4_0932_passage.log").read_bytes()
+    log.write_bytes(one * (MIN_BYTES_FOR_PROGRESS // len(one) + 1))
+    probe = PROBE.replace("%r", repr(("pyarrow", "rich", "pandas")))
+    out = subprocess.run(
+        [sys.executable, "-c", probe, "analyze", "--json", str(log)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == {"code": 0, "loaded": []}
+
+
 def test_gnss_of_a_small_capture_imports_no_pandas(tiny: dict[str, Path]) -> None:
     assert _loaded("gnss", str(tiny["nmea"])) == (0, [])
 

@@ -36,7 +36,7 @@ from console.engine.pipeline import DiagOutcome, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks
 from console.memory import read_memory
 from console.plural import count
-from parsers.diag.read import DiagChunk, DiagReader, chunks_to_frame
+from parsers.diag.read import DiagChunk, DiagReader, chunks_to_frame, compiled_tokenizer
 from parsers.diag.registry import DiagRegistry
 from parsers.report import ParseReport
 from parsers.sources import DEFAULT_CHUNK_BYTES
@@ -225,7 +225,8 @@ def read_diag(
     o = opts or ReadOptions()
     table = PassageTable() if o.hold_passages else None
     sinks = Sinks(sink, table) if table is not None else (sink or Sink())
-    with read_memory():
+    # Log files read by the compiled tokenizer need no Arrow; another source (stored records) may.
+    with read_memory(arrow=not (isinstance(source, LogFiles) and compiled_tokenizer())):
         whole = o.whole or source.several
         job = _read(source, settings, sinks, o, whole, None, passages=True)
         if not whole and job.late_records and not o.passages_final and source.rereadable:

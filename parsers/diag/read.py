@@ -36,7 +36,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pyarrow as pa
 
 from parsers.diag.fields import (
     DATA_KINDS,
@@ -64,6 +63,7 @@ except ImportError:  # built without a C compiler: the numpy tokenizer
 
 if TYPE_CHECKING:
     import pandas as pd
+    import pyarrow as pa
 
 # Re-exported: the record's fields and the registry are part of this module's interface.
 __all__ = ["DiagChunk", "DiagReader", "chunks_to_frame", "read_diag"]
@@ -130,6 +130,8 @@ class _Tokens:
 
 
 def _views(view_buf: pa.Buffer, u4: np.ndarray, starts: np.ndarray, lens: np.ndarray) -> pa.Array:
+    import pyarrow as pa  # only the numpy tokenizer uses Arrow: the compiled one's start-up does not load it
+
     v = np.empty(len(starts), _VIEW)
     v["len"] = lens
     v["prefix"] = u4[starts]
@@ -306,6 +308,8 @@ def _tokenize_numpy(chunk: Chunk) -> _Tokens:
     ok &= (t8 - st > _VIEW_INLINE_MAX) & (en - t10 >= 14)
     if not ok.all():
         fast, st, en, t8, t10 = fast[ok], st[ok], en[ok], t8[ok], t10[ok]
+    import pyarrow as pa
+
     view_buf = pa.py_buffer(buf)
     reg_idx, reg_dict = _encode(view_buf, u4, st, t8 - st)
     val_idx, val_dict = _encode(view_buf, u4, t8 + 1, t10 - t8 - 1)

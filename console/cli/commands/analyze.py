@@ -11,7 +11,6 @@ import typer
 from console import __version__, exit_codes
 from console.cli.common import (
     JSON_SCHEMA_ANALYZE,
-    Console,
     guard,
     load_layout,
     one_json_form,
@@ -126,6 +125,7 @@ def analyze(
             print_json(doc)
             spool.close()
         else:
+            from console.cli.common import Console  # Rich: loaded for the tables only, not for --json
             from console.sinks.tables.diag_tables import (
                 inventory_table,
                 parse_report_table,
