@@ -21,7 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate
-from console.analysis.passages import buckets
+from console.analysis.passages import buckets, stream
 from tests.conftest import SAMPLES
 
 pytestmark = pytest.mark.skipif(
@@ -138,3 +138,43 @@ def test_speeds_and_sections_alike_through_the_command(tmp_path: Path) -> None:
         assert outs[0].returncode == outs[1].returncode == 0, outs[0].stderr
         assert outs[0].stdout == outs[1].stdout, command
         assert len(outs[0].stdout) > 100, command
+
+
+@st.composite
+def head_records(draw: st.DrawFn) -> tuple[np.ndarray, np.ndarray, int, int]:
+    n_heads = draw(st.integers(1, 6))
+    n = draw(st.integers(1, 80))
+    heads = np.array(draw(st.lists(st.integers(0, n_heads - 1), min_size=n, max_size=n)), np.int64)
+    # Steps of exactly the gap too: a pause is longer than the gap, not as long.
+    step = st.integers(0, 30 * 10**9) | st.sampled_from([10**9, 10 * 10**9])
+    steps = draw(st.lists(step, min_size=n, max_size=n))
+    time_ns = draw(st.integers(-(10**18), 10**18)) + np.cumsum(np.array(steps, np.int64))
+    if draw(st.booleans()):  # boards out of step: some head's times go back (the numpy sort then)
+        i, j = draw(st.integers(0, n - 1)), draw(st.integers(0, n - 1))
+        time_ns[[i, j]] = time_ns[[j, i]]
+    gap_ns = draw(st.sampled_from([10**9, 10 * 10**9]))
+    return heads, time_ns, gap_ns, n_heads
+
+
+def _by_head(spans: tuple[np.ndarray, ...]) -> list[np.ndarray]:
+    order = np.argsort(spans[0])
+    return [c[order] for c in spans]
+
+
+@settings(max_examples=400, deadline=None)
+@given(case=head_records())
+def test_head_spans_alike(case: tuple[np.ndarray, np.ndarray, int, int]) -> None:
+    heads, time_ns, gap_ns, n_heads = case
+    slot = np.full(n_heads + 3, -1, np.int32)
+    got = _by_head(stream._head_spans_compiled(heads, time_ns, gap_ns, slot))
+    want = _by_head(stream._head_spans_numpy(heads, time_ns, gap_ns, slot.copy()))
+    for g, w in zip(got, want, strict=True):
+        assert g.dtype == w.dtype == np.int64
+        assert np.array_equal(g, w)
+    assert (slot == -1).all()  # the scratch is left as it was found
+
+
+def test_head_spans_refuse_a_head_beyond_the_scratch() -> None:
+    one = np.zeros(1, np.int64)
+    with pytest.raises(IndexError, match="beyond the slots"):
+        stream._head_spans_compiled(np.array([4]), one, 10**9, np.full(4, -1, np.int32))

@@ -153,8 +153,96 @@ release:
     return NULL;
 }
 
+PyDoc_STRVAR(head_spans_doc,
+             "head_spans(head, time_ns, gap_ns, slot) -> (n, heads, first, last, before, after) | None\n\n"
+             "Per head key in a chunk (in order of first appearance): its first and last record time, and\n"
+             "around its last pause longer than gap_ns, the times before and after it (before = after =\n"
+             "INT64_MIN: no pause).  head and time_ns: int64 per record.  slot: int32 per head key, -1 on\n"
+             "entry, and -1 again on return (scratch the caller keeps).  None where a head's times go back\n"
+             "(the caller sorts).  Outputs are int64 bytearrays of one item per record, the first n valid.");
+
+static PyObject *head_spans(PyObject *self, PyObject *args)
+{
+    PyObject *o_head, *o_time, *o_slot;
+    long long gap_ns;
+    if (!PyArg_ParseTuple(args, "OOLO", &o_head, &o_time, &gap_ns, &o_slot)) return NULL;
+    Py_buffer bh, bt, bs;
+    if (PyObject_GetBuffer(o_head, &bh, PyBUF_C_CONTIGUOUS) < 0) return NULL;
+    if (PyObject_GetBuffer(o_time, &bt, PyBUF_C_CONTIGUOUS) < 0) {
+        PyBuffer_Release(&bh);
+        return NULL;
+    }
+    if (PyObject_GetBuffer(o_slot, &bs, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE) < 0) {
+        PyBuffer_Release(&bh);
+        PyBuffer_Release(&bt);
+        return NULL;
+    }
+    PyObject *result = NULL, *out[5] = {NULL};
+    const int64_t n = (int64_t)(bh.len / 8), n_slots = (int64_t)(bs.len / 4);
+    if (bh.len % 8 || bs.len % 4 || bt.len != bh.len) {
+        PyErr_SetString(PyExc_ValueError, "head_spans: head and time_ns must be int64 of one length, slot int32");
+        goto done;
+    }
+    for (int k = 0; k < 5; k++) {
+        out[k] = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(n * 8));
+        if (!out[k]) goto done;
+    }
+    const int64_t *head = bh.buf, *t = bt.buf;
+    int32_t *slot = bs.buf;
+    int64_t *heads = (int64_t *)PyByteArray_AS_STRING(out[0]), *first = (int64_t *)PyByteArray_AS_STRING(out[1]),
+            *last = (int64_t *)PyByteArray_AS_STRING(out[2]), *before = (int64_t *)PyByteArray_AS_STRING(out[3]),
+            *after = (int64_t *)PyByteArray_AS_STRING(out[4]);
+    int64_t m = 0;
+    int status = 0; /* 1: a head beyond the slots; 2: a head's times go back */
+    Py_BEGIN_ALLOW_THREADS
+    for (int64_t i = 0; i < n; i++) {
+        int64_t h = head[i];
+        if (h < 0 || h >= n_slots) {
+            status = 1;
+            break;
+        }
+        int32_t k = slot[h];
+        if (k < 0) {
+            k = slot[h] = (int32_t)m++;
+            heads[k] = h;
+            first[k] = last[k] = t[i];
+            before[k] = after[k] = INT64_MIN;
+            continue;
+        }
+        if (t[i] < last[k]) {
+            status = 2;
+            break;
+        }
+        if (t[i] - last[k] > gap_ns) {
+            before[k] = last[k];
+            after[k] = t[i];
+        }
+        last[k] = t[i];
+    }
+    for (int64_t k = 0; k < m; k++) slot[heads[k]] = -1;
+    Py_END_ALLOW_THREADS
+    if (status == 1) {
+        PyErr_SetString(PyExc_IndexError, "head_spans: a head key beyond the slots");
+        goto done;
+    }
+    if (status == 2) {
+        Py_INCREF(Py_None);
+        result = Py_None;
+        goto done;
+    }
+    result = Py_BuildValue("(LOOOOO)", (long long)m, out[0], out[1], out[2], out[3], out[4]);
+
+done:
+    for (int k = 0; k < 5; k++) Py_XDECREF(out[k]);
+    PyBuffer_Release(&bh);
+    PyBuffer_Release(&bt);
+    PyBuffer_Release(&bs);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"chunk_runs", chunk_runs, METH_VARARGS, chunk_runs_doc},
+    {"head_spans", head_spans, METH_VARARGS, head_spans_doc},
     {NULL, NULL, 0, NULL},
 };
 

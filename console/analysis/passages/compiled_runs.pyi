@@ -11,3 +11,6 @@ def chunk_runs(
     keep_releases: bool,
     /,
 ) -> tuple[bytearray, bytearray, int, bytearray]: ...
+def head_spans(
+    head: np.ndarray, time_ns: np.ndarray, gap_ns: int, slot: np.ndarray, /
+) -> tuple[int, bytearray, bytearray, bytearray, bytearray, bytearray] | None: ...

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from console.analysis.head_table import HeadTable
-from console.analysis.passages.buckets import Columns, merge_buckets
+from console.analysis.passages.buckets import Columns, compiled_record_runs, compiled_runs, merge_buckets
 from console.analysis.passages.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, analyse_parts
 from parsers.diag.read import DiagChunk
 from parsers.diag.registry import DiagRegistry
@@ -81,6 +81,7 @@ class PassageStream:
     _open_last: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _cut: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _closed_upto: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    _slot: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))  # head_spans' scratch
 
     def __post_init__(self) -> None:
         # One read of one log: no other file to overlap (see jobs.analyze_files).
@@ -146,11 +147,9 @@ class PassageStream:
     def _advance(self, heads: np.ndarray, t: np.ndarray) -> None:
         """Move each head's open run over the chunk's records, all heads at once."""
         self.clock_ns = max(self.clock_ns, int(t.max()))
-        _, hs, ts = _by_head_then_time(heads, t)
-        starts = np.flatnonzero(np.r_[True, hs[1:] != hs[:-1]])
-        ends = np.r_[starts[1:], len(hs)] - 1
-        h = hs[starts]
-        first, last = ts[starts], ts[ends]
+        if len(self._slot) < len(self._open_last):
+            self._slot = np.full(len(self._open_last), -1, np.int32)
+        h, first, last, before, after = head_spans(heads, t, self._gap_ns, self._slot)
         prev = self._open_last[h]
         # The chunk's first record is more than the gap after the open run: that run is whole.
         broke = (prev != NO_TIME) & (first - prev > self._gap_ns)
@@ -158,11 +157,9 @@ class PassageStream:
         new_run = (prev == NO_TIME) | broke
         self._open_first[h[new_run]] = first[new_run]
         # A pause inside the chunk's records of a head: everything up to the last pause is whole.
-        pause = np.r_[(np.diff(ts) > self._gap_ns) & (hs[1:] == hs[:-1]), False]
-        at = np.maximum.reduceat(np.where(pause, np.arange(len(ts)), -1), starts)
-        inner = at >= 0
-        self._cut[h[inner]] = np.maximum(self._cut[h[inner]], ts[at[inner]])
-        self._open_first[h[inner]] = ts[at[inner] + 1]
+        inner = before != NO_PAUSE
+        self._cut[h[inner]] = np.maximum(self._cut[h[inner]], before[inner])
+        self._open_first[h[inner]] = after[inner]
         self._open_last[h] = np.where(prev == NO_TIME, last, np.maximum(prev, last))
 
     def _close(self, final: bool) -> PartAnalysis | None:
@@ -195,6 +192,50 @@ class PassageStream:
         self.unpaired_detections += part.unpaired
         self.passages_closed += len(part.passages["head"]) if part.passages is not None else 0
         return part
+
+
+NO_PAUSE = np.iinfo(np.int64).min  # head_spans: no pause longer than the gap among a head's records
+
+
+def _head_spans_numpy(
+    heads: np.ndarray, t: np.ndarray, gap_ns: int, slot: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    _, hs, ts = _by_head_then_time(heads, t)
+    starts = np.flatnonzero(np.r_[True, hs[1:] != hs[:-1]])
+    ends = np.r_[starts[1:], len(hs)] - 1
+    pause = np.r_[(np.diff(ts) > gap_ns) & (hs[1:] == hs[:-1]), False]
+    at = np.maximum.reduceat(np.where(pause, np.arange(len(ts)), -1), starts)
+    inner = at >= 0
+    before = np.where(inner, ts[at], NO_PAUSE)
+    after = np.where(inner, ts[np.minimum(at + 1, len(ts) - 1)], NO_PAUSE)
+    return hs[starts], ts[starts], ts[ends], before, after
+
+
+def _head_spans_compiled(
+    heads: np.ndarray, t: np.ndarray, gap_ns: int, slot: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_head_spans_numpy`'s figures in one compiled pass without the GIL (``compiled_runs.c``), heads in
+    order of first appearance; the numpy sort where a head's times go back."""
+    assert compiled_runs is not None
+    out = compiled_runs.head_spans(heads, t, gap_ns, slot)
+    if out is None:
+        return _head_spans_numpy(heads, t, gap_ns, slot)
+    m, *cols = out
+    h, first, last, before, after = (np.frombuffer(c, np.int64)[:m] for c in cols)
+    return h, first, last, before, after
+
+
+# The compiled pass where it was built, unless TRACKSIDE_PURE=1 asks for numpy (tests/test_passages_compiled.py).
+_head_spans = _head_spans_compiled if compiled_record_runs() else _head_spans_numpy
+
+
+def head_spans(
+    heads: np.ndarray, t: np.ndarray, gap_ns: int, slot: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per head key of a chunk's records (each head's in time order or not): the key, its first and last
+    record time, and around its last pause longer than ``gap_ns`` the times before and after it
+    (:data:`NO_PAUSE`: none).  ``slot``: int32 scratch, one per head key, all -1 (left so)."""
+    return _head_spans(heads, t, gap_ns, slot)
 
 
 def _by_head_then_time(heads: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
