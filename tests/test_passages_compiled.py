@@ -10,8 +10,10 @@ channels other than 1 and 2, values other than 0 and 1), and whole reads through
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
+import sysconfig
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,6 +25,15 @@ from hypothesis import strategies as st
 from benchmarks.gen_realistic_diag import generate
 from console.analysis.passages import buckets, stream
 from tests.conftest import SAMPLES
+
+_COMPILER = shutil.which("cc") or shutil.which("gcc")
+_HEADERS = (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file()
+if buckets.compiled_runs is None and os.environ.get("CI") and _COMPILER and _HEADERS:
+    # CI installs a C compiler and this Python's headers: a package built without the module there means
+    # the build broke.
+    raise AssertionError(
+        f"console.analysis.passages.compiled_runs was not built, though a C compiler is present ({_COMPILER})"
+    )
 
 pytestmark = pytest.mark.skipif(
     buckets.compiled_runs is None,
