@@ -189,3 +189,41 @@ def test_head_spans_refuse_a_head_beyond_the_scratch() -> None:
     one = np.zeros(1, np.int64)
     with pytest.raises(IndexError, match="beyond the slots"):
         stream._head_spans_compiled(np.array([4]), one, 10**9, np.full(4, -1, np.int32))
+
+
+@st.composite
+def run_parts(draw: st.DrawFn) -> list[dict[str, np.ndarray]]:
+    """Runs as chunks leave them: several parts, one (head, second) repeated within and across parts."""
+    wide = draw(st.booleans())  # seconds or heads beyond the one-key sort: lexsort then
+    parts = []
+    for _ in range(draw(st.integers(1, 4))):
+        n = draw(st.integers(0, 25))
+        col = {
+            "head": st.integers(0, 2**40 if wide else 3),
+            "second": st.integers(-(2**40), 2**40) if wide else st.integers(1_772_409_600, 1_772_409_603),
+            "records": st.integers(0, 50),
+            "t_first_ns": st.integers(-(2**62), 2**62),
+            "t_last_ns": st.integers(-(2**62), 2**62),
+        }
+        part = {
+            c: np.array(draw(st.lists(col.get(c, col["records"]), min_size=n, max_size=n)), np.int64)
+            for c in ("head", "second", "records", "records_sys1", "records_sys2", "records_whole_second")
+        }
+        for c in buckets.BUCKET_COLUMNS[6:]:
+            key = "t_first_ns" if "first" in c else "t_last_ns"
+            part[c] = np.array(draw(st.lists(col[key], min_size=n, max_size=n)), np.int64)
+        parts.append(part)
+    return parts
+
+
+@settings(max_examples=400, deadline=None)
+@given(parts=run_parts())
+def test_runs_merge_alike(parts: list[dict[str, np.ndarray]]) -> None:
+    runs = np.stack([np.concatenate([p[c] for p in parts]) for c in buckets.BUCKET_COLUMNS])
+    assert np.array_equal(buckets._by_head_and_second(runs[0], runs[1]), np.lexsort((runs[1], runs[0])))
+    got, want = buckets._merge_runs_compiled(runs), buckets._merge_runs_numpy(runs)
+    for name in buckets.BUCKET_COLUMNS:
+        assert got[name].dtype == want[name].dtype == np.int64, name
+        assert np.array_equal(got[name], want[name]), name
+    keys = list(zip(want["head"].tolist(), want["second"].tolist(), strict=True))
+    assert keys == sorted(set(keys))  # one bucket per head and second, in order

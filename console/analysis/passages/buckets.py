@@ -124,9 +124,8 @@ class RunTables(Protocol):
 
 # The compiled pass where it was built (``pip install`` with a C compiler), unless TRACKSIDE_PURE=1 asks
 # for the numpy path (the reference: tests/test_passages_compiled.py checks both alike).
-_record_runs = (
-    _record_runs_compiled if compiled_runs is not None and not os.environ.get("TRACKSIDE_PURE") else _record_runs_numpy
-)
+_COMPILED = compiled_runs is not None and not os.environ.get("TRACKSIDE_PURE")
+_record_runs = _record_runs_compiled if _COMPILED else _record_runs_numpy
 
 
 def compiled_record_runs() -> bool:
@@ -151,11 +150,22 @@ def merge_buckets(parts: list[Columns]) -> Columns:
     """Combine runs (of any chunk or file) into one bucket per head and second, sorted."""
     if not parts:
         return _empty()
-    cols = {c: np.concatenate([part[c] for part in parts]) for c in BUCKET_COLUMNS}
     # Runs of one (head, second) can repeat (chunk edges, interleaved heads,
-    # several files): sort by key, then reduce each group with ufunc.reduceat.
-    order = np.lexsort((cols["second"], cols["head"]))
-    cols = {c: v[order] for c, v in cols.items()}
+    # several files): sort by key, then combine each group.
+    return _merge_runs(np.stack([np.concatenate([part[c] for part in parts]) for c in BUCKET_COLUMNS], dtype=np.int64))
+
+
+def _by_head_and_second(head: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """The order of ``np.lexsort((second, head))``: one stable sort of a key of both where they fit 63 bits."""
+    if len(head) and int(head.min()) >= 0 and int(head.max()) < 1 << 30:
+        s_min = int(second.min())
+        if int(second.max()) - s_min < 1 << 33:
+            return np.argsort((head << 33) | (second - s_min), kind="stable")
+    return np.lexsort((second, head))
+
+
+def _merge_runs_numpy(runs: np.ndarray) -> Columns:
+    cols = dict(zip(BUCKET_COLUMNS, runs[:, _by_head_and_second(runs[0], runs[1])], strict=True))
     h, sec = cols["head"], cols["second"]
     new = np.ones(len(h), bool)
     new[1:] = (h[1:] != h[:-1]) | (sec[1:] != sec[:-1])
@@ -167,6 +177,19 @@ def merge_buckets(parts: list[Columns]) -> Columns:
         reduce.update({c: np.maximum for c in _LAST})
         cols = {c: (reduce[c].reduceat(v, at) if c in reduce else v[at]) for c, v in cols.items()}
     return cols
+
+
+def _merge_runs_compiled(runs: np.ndarray) -> Columns:
+    """:func:`_merge_runs_numpy`'s buckets, combined in one compiled pass without the GIL (``compiled_runs.c``)."""
+    assert compiled_runs is not None
+    n = runs.shape[1]
+    m, merged = compiled_runs.merge_runs(_by_head_and_second(runs[0], runs[1]), runs)
+    # Copied out when groups combined: the buckets are held between chunks, the runs' room is not.
+    cols = np.frombuffer(merged, np.int64).reshape(len(BUCKET_COLUMNS), n)[:, :m]
+    return dict(zip(BUCKET_COLUMNS, cols if m == n else cols.copy(), strict=True))
+
+
+_merge_runs = _merge_runs_compiled if _COMPILED else _merge_runs_numpy
 
 
 def remove_records(buckets: Columns, head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray) -> None:

@@ -240,7 +240,71 @@ done:
     return result;
 }
 
+PyDoc_STRVAR(merge_runs_doc,
+             "merge_runs(order, columns) -> (n, merged)\n\n"
+             "Runs (columns: the 12 int64 columns of buckets.BUCKET_COLUMNS one after another, n_runs each)\n"
+             "taken in ``order`` (int64 positions sorting them by head and second) and combined into one per\n"
+             "head and second: counts added, first times the least, last times the greatest.  merged: the\n"
+             "12 columns one after another, n_runs each, the first n of each valid.");
+
+static PyObject *merge_runs(PyObject *self, PyObject *args)
+{
+    PyObject *o_order, *o_cols;
+    if (!PyArg_ParseTuple(args, "OO", &o_order, &o_cols)) return NULL;
+    Py_buffer bo, bc;
+    if (PyObject_GetBuffer(o_order, &bo, PyBUF_C_CONTIGUOUS) < 0) return NULL;
+    if (PyObject_GetBuffer(o_cols, &bc, PyBUF_C_CONTIGUOUS) < 0) {
+        PyBuffer_Release(&bo);
+        return NULL;
+    }
+    PyObject *result = NULL, *out = NULL;
+    const int64_t n = (int64_t)(bo.len / 8);
+    if (bo.len % 8 || bc.len != bo.len * N_RUN_COLUMNS) {
+        PyErr_SetString(PyExc_ValueError, "merge_runs: order int64, and 12 int64 columns of its length");
+        goto done;
+    }
+    out = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(bc.len));
+    if (!out) goto done;
+    const int64_t *order = bo.buf, *in = bc.buf;
+    int64_t *res = (int64_t *)PyByteArray_AS_STRING(out);
+    int64_t m = 0, bad = 0;
+    Py_BEGIN_ALLOW_THREADS
+    const int64_t *i_head = in, *i_second = in + n;
+    int64_t *o_head = res, *o_second = res + n;
+    for (int64_t j = 0; j < n; j++) {
+        int64_t i = order[j];
+        if (i < 0 || i >= n) {
+            bad = 1;
+            break;
+        }
+        if (m == 0 || i_head[i] != o_head[m - 1] || i_second[i] != o_second[m - 1]) {
+            for (int c = 0; c < N_RUN_COLUMNS; c++) res[c * n + m] = in[c * n + i];
+            m++;
+            continue;
+        }
+        int64_t k = m - 1;
+        for (int c = 2; c < 6; c++) res[c * n + k] += in[c * n + i]; /* records, per system, whole-second */
+        for (int c = 6; c < 9; c++)                                    /* first times */
+            if (in[c * n + i] < res[c * n + k]) res[c * n + k] = in[c * n + i];
+        for (int c = 9; c < 12; c++) /* last times */
+            if (in[c * n + i] > res[c * n + k]) res[c * n + k] = in[c * n + i];
+    }
+    Py_END_ALLOW_THREADS
+    if (bad) {
+        PyErr_SetString(PyExc_IndexError, "merge_runs: a position beyond the runs");
+        goto done;
+    }
+    result = Py_BuildValue("(LO)", (long long)m, out);
+
+done:
+    Py_XDECREF(out);
+    PyBuffer_Release(&bo);
+    PyBuffer_Release(&bc);
+    return result;
+}
+
 static PyMethodDef methods[] = {
+    {"merge_runs", merge_runs, METH_VARARGS, merge_runs_doc},
     {"chunk_runs", chunk_runs, METH_VARARGS, chunk_runs_doc},
     {"head_spans", head_spans, METH_VARARGS, head_spans_doc},
     {NULL, NULL, 0, NULL},
