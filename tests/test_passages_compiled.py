@@ -227,3 +227,19 @@ def test_runs_merge_alike(parts: list[dict[str, np.ndarray]]) -> None:
         assert np.array_equal(got[name], want[name]), name
     keys = list(zip(want["head"].tolist(), want["second"].tolist(), strict=True))
     assert keys == sorted(set(keys))  # one bucket per head and second, in order
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    n=st.integers(0, 6),
+    items=st.lists(st.tuples(st.integers(0, 5), st.integers(-(2**63), 2**63 - 1), st.integers(0, 3)), max_size=40),
+    wanted=st.integers(1, 2),
+)
+def test_group_extremes_alike(n: int, items: list[tuple[int, int, int]], wanted: int) -> None:
+    items = [i for i in items if i[0] < n]
+    group, values, channel = (np.array([i[k] for i in items], np.int64) for k in range(3))
+    got = buckets._group_extremes_compiled(n, group, values, channel, wanted)
+    want = buckets._group_extremes_numpy(n, group, values, channel, wanted)
+    for g, w in zip(got, want, strict=True):
+        assert g.dtype == w.dtype == np.int64
+        assert np.array_equal(g, w)

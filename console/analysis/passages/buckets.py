@@ -192,6 +192,39 @@ def _merge_runs_compiled(runs: np.ndarray) -> Columns:
 _merge_runs = _merge_runs_compiled if _COMPILED else _merge_runs_numpy
 
 
+def _group_extremes_numpy(
+    n: int, group: np.ndarray, values: np.ndarray, channel: np.ndarray, wanted: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    m = channel == wanted
+    g, v = group[m], values[m]
+    least = np.full(n, _BIG, np.int64)
+    np.minimum.at(least, g, v)
+    greatest = np.full(n, _SMALL, np.int64)
+    np.maximum.at(greatest, g, v)
+    return np.bincount(g, minlength=n).astype(np.int64), least, greatest
+
+
+def _group_extremes_compiled(
+    n: int, group: np.ndarray, values: np.ndarray, channel: np.ndarray, wanted: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_group_extremes_numpy`'s figures in one compiled pass without the GIL (``compiled_runs.c``)."""
+    assert compiled_runs is not None
+    g, v, c = (np.ascontiguousarray(a, np.int64) for a in (group, values, channel))
+    count, least, greatest = compiled_runs.group_extremes(n, g, v, c, wanted)
+    return np.frombuffer(count, np.int64), np.frombuffer(least, np.int64), np.frombuffer(greatest, np.int64)
+
+
+_group_extremes = _group_extremes_compiled if _COMPILED else _group_extremes_numpy
+
+
+def group_extremes(
+    n: int, group: np.ndarray, values: np.ndarray, channel: np.ndarray, wanted: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per group 0…n-1, over the items on channel ``wanted``: how many, the least and the greatest value
+    (int64 max and min where none)."""
+    return _group_extremes(n, group, values, channel, wanted)
+
+
 def remove_records(buckets: Columns, head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray) -> None:
     """Take records out of the bucket counts (in place).
 

@@ -303,7 +303,80 @@ done:
     return result;
 }
 
+PyDoc_STRVAR(group_extremes_doc,
+             "group_extremes(n, group, values, channel, wanted) -> (count, least, greatest)\n\n"
+             "Per group 0..n-1, over the items whose channel is ``wanted``: how many, and the least and\n"
+             "greatest value (INT64_MAX and INT64_MIN where none).  group and values: int64 per item;\n"
+             "channel: int64 per item.  Outputs are int64 bytearrays of n items.");
+
+static PyObject *group_extremes(PyObject *self, PyObject *args)
+{
+    long long n_groups, wanted;
+    PyObject *o_group, *o_values, *o_channel;
+    if (!PyArg_ParseTuple(args, "LOOOL", &n_groups, &o_group, &o_values, &o_channel, &wanted)) return NULL;
+    if (n_groups < 0) {
+        PyErr_SetString(PyExc_ValueError, "group_extremes: a negative number of groups");
+        return NULL;
+    }
+    Py_buffer bg, bv, bc;
+    if (PyObject_GetBuffer(o_group, &bg, PyBUF_C_CONTIGUOUS) < 0) return NULL;
+    if (PyObject_GetBuffer(o_values, &bv, PyBUF_C_CONTIGUOUS) < 0) {
+        PyBuffer_Release(&bg);
+        return NULL;
+    }
+    if (PyObject_GetBuffer(o_channel, &bc, PyBUF_C_CONTIGUOUS) < 0) {
+        PyBuffer_Release(&bg);
+        PyBuffer_Release(&bv);
+        return NULL;
+    }
+    PyObject *result = NULL, *out[3] = {NULL};
+    const int64_t n = (int64_t)(bg.len / 8);
+    if (bg.len % 8 || bv.len != bg.len || bc.len != bg.len) {
+        PyErr_SetString(PyExc_ValueError, "group_extremes: group, values and channel must be int64 of one length");
+        goto done;
+    }
+    for (int k = 0; k < 3; k++) {
+        out[k] = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(n_groups * 8));
+        if (!out[k]) goto done;
+    }
+    const int64_t *group = bg.buf, *values = bv.buf, *channel = bc.buf;
+    int64_t *count = (int64_t *)PyByteArray_AS_STRING(out[0]), *least = (int64_t *)PyByteArray_AS_STRING(out[1]),
+            *greatest = (int64_t *)PyByteArray_AS_STRING(out[2]);
+    int bad = 0;
+    Py_BEGIN_ALLOW_THREADS
+    for (int64_t g = 0; g < n_groups; g++) {
+        count[g] = 0;
+        least[g] = INT64_MAX;
+        greatest[g] = INT64_MIN;
+    }
+    for (int64_t i = 0; i < n; i++) {
+        if (channel[i] != wanted) continue;
+        int64_t g = group[i];
+        if (g < 0 || g >= n_groups) {
+            bad = 1;
+            break;
+        }
+        count[g]++;
+        if (values[i] < least[g]) least[g] = values[i];
+        if (values[i] > greatest[g]) greatest[g] = values[i];
+    }
+    Py_END_ALLOW_THREADS
+    if (bad) {
+        PyErr_SetString(PyExc_IndexError, "group_extremes: a group beyond n");
+        goto done;
+    }
+    result = PyTuple_Pack(3, out[0], out[1], out[2]);
+
+done:
+    for (int k = 0; k < 3; k++) Py_XDECREF(out[k]);
+    PyBuffer_Release(&bg);
+    PyBuffer_Release(&bv);
+    PyBuffer_Release(&bc);
+    return result;
+}
+
 static PyMethodDef methods[] = {
+    {"group_extremes", group_extremes, METH_VARARGS, group_extremes_doc},
     {"merge_runs", merge_runs, METH_VARARGS, merge_runs_doc},
     {"chunk_runs", chunk_runs, METH_VARARGS, chunk_runs_doc},
     {"head_spans", head_spans, METH_VARARGS, head_spans_doc},

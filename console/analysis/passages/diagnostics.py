@@ -33,6 +33,7 @@ from console.analysis.passages.buckets import (
     Columns,
     axles_unknown_codes,
     bucket_index,
+    group_extremes,
     merge_buckets,
     record_runs,
     remove_records,
@@ -436,10 +437,9 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     op, och, ot = onsets["passage"], onsets["channel"], onsets["time_ns"]
     det_n, det_first, det_last = {}, {}, {}
     for c in (SYS1, SYS2):
-        m = och == c
-        det_n[c] = np.bincount(op[m], minlength=n)
-        det_first[c] = _or_nan(_group_min(n, op[m], ot[m]), _BIG)
-        det_last[c] = _or_nan(_group_max(n, op[m], ot[m]), _SMALL)
+        det_n[c], least, greatest = group_extremes(n, op, ot, och, c)
+        det_first[c] = _or_nan(least, _BIG)
+        det_last[c] = _or_nan(greatest, _SMALL)
     n_onsets = np.bincount(op, minlength=n)
     subsecond = (n_onsets > 0) & (np.bincount(op[~onsets["subsecond"]], minlength=n) == 0)
 
