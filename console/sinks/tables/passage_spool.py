@@ -66,6 +66,14 @@ def _encode(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray]:
     return b"".join(texts), np.fromiter((len(t) for t in texts), np.int64, len(texts))
 
 
+def _encode_by_head(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray, np.ndarray]:
+    """:func:`_encode` of the passages by head, then start (each head's then lie back to back on disk, to be
+    read back at once); and that order."""
+    order = by_head_and_start(cols)
+    text, lengths = _encode(take_passages(cols, order), heads)
+    return text, lengths, order
+
+
 class PassageSpool(Sink):
     """Collects batches of closed passages; :meth:`json_parts` gives them back as one JSON array.
 
@@ -85,7 +93,7 @@ class PassageSpool(Sink):
         self._heads: Heads | None = None
         # Encoded on a thread of its own, while the pipeline goes on (numpy releases the GIL); written in order.
         self._encoder: ThreadPoolExecutor | None = None
-        self._encoding: deque[tuple[Future[tuple[bytes, np.ndarray]], np.ndarray]] = deque()
+        self._encoding: deque[tuple[Future[tuple[bytes, np.ndarray, np.ndarray]], np.ndarray]] = deque()
         self.count = 0
 
     def passages(self, cols: Columns, heads: Heads) -> None:
@@ -117,11 +125,13 @@ class PassageSpool(Sink):
                 rec[name] = cols[name]
             if self._encoder is None:
                 self._encoder = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackside-passages")
-            self._encoding.append((self._encoder.submit(_encode, cols, self._heads), rec))
+            self._encoding.append((self._encoder.submit(_encode_by_head, cols, self._heads), rec))
         while self._encoding and (wait or len(self._encoding) > _ENCODING_MAX or self._encoding[0][0].done()):
             future, rec = self._encoding.popleft()
-            text, rec["length"] = future.result()
-            rec["offset"] = self._size + np.cumsum(rec["length"], dtype=np.int64) - rec["length"]
+            text, lengths, order = future.result()
+            # The places stay in the order taken (columns() reads them so); the texts are by head.
+            rec["length"][order] = lengths
+            rec["offset"][order] = self._size + np.cumsum(lengths, dtype=np.int64) - lengths
             self._file.write(text)
             self._index.write(rec.tobytes())
             self._size += len(text)
@@ -182,9 +192,16 @@ class PassageSpool(Sink):
         offset, length = self._order()
         fd = self._file.fileno()
         for lo in range(0, len(offset), _COPY_ROWS):
-            rows = slice(lo, lo + _COPY_ROWS)
-            # One pread per passage (no seek, no buffer refill): flushed in _order, so the file holds them all.
-            yield [os.pread(fd, n, off) for off, n in zip(offset[rows].tolist(), length[rows].tolist(), strict=True)]
+            off, n = offset[lo : lo + _COPY_ROWS], length[lo : lo + _COPY_ROWS]
+            # Passages back to back in the file (a head's of one batch) are read at once (pread: no seek, no
+            # buffer refill; flushed in _order, so the file holds them all), then cut apart.
+            cut = np.flatnonzero(off[1:] != off[:-1] + n[:-1]) + 1
+            pieces: list[bytes] = []
+            for a, b in zip(np.r_[0, cut].tolist(), np.r_[cut, len(off)].tolist(), strict=True):
+                run = os.pread(fd, int(off[b - 1] + n[b - 1] - off[a]), int(off[a]))
+                at = (off[a:b] - off[a]).tolist()
+                pieces.extend(run[x : x + k] for x, k in zip(at, n[a:b].tolist(), strict=True))
+            yield pieces
 
     def _parts(self) -> Iterator[str]:
         if not self.count:
