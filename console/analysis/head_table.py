@@ -107,3 +107,20 @@ class HeadNames(Sequence[str]):
     def take(self, keys: np.ndarray) -> list[str]:
         """The names of the heads at ``keys``, in one go."""
         return heads_at(self._heads, keys)[1]
+
+
+def by_head_then_time(heads: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The order of ``np.lexsort((t, heads))``, and heads and times in it.
+
+    Within one head, records (and onsets) mostly come in time order: a stable sort by head alone (a radix
+    sort while head keys fit 16 bits) then already has each head's times sorted, at a fraction of lexsort's
+    cost.
+    Checked, and lexsort where it does not hold.
+    """
+    if len(heads) and int(heads.max()) < 1 << 16 and int(heads.min()) >= 0:
+        order = np.argsort(heads.astype(np.uint16), kind="stable")
+        hs, ts = heads[order], t[order]
+        if bool(((ts[1:] >= ts[:-1]) | (hs[1:] != hs[:-1])).all()):
+            return order, hs, ts
+    order = np.lexsort((t, heads))
+    return order, heads[order], t[order]

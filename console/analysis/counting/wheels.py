@@ -25,6 +25,7 @@ import numpy as np
 
 from console.analysis.counting.speed import MPS_TO_KMH
 from console.analysis.events.detection import DetectionEvent, EventKind
+from console.analysis.head_table import by_head_then_time
 from parsers.units import NS
 
 if TYPE_CHECKING:
@@ -149,7 +150,7 @@ def pair_axle_arrays(
 
     wheel = np.flatnonzero(is1 | is2)
     # By head, then time; stable: ties keep file order.
-    order = wheel[np.lexsort((time_ns[wheel], head[wheel]))]
+    order = wheel[by_head_then_time(head[wheel], time_ns[wheel])[0]]
     gh, t = head[order], time_ns[order]
     starts = _group_starts(gh)
     size = np.diff(np.r_[starts, len(order)])

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from console.analysis.head_table import HeadTable
+from console.analysis.head_table import HeadTable, by_head_then_time
 from console.analysis.passages.buckets import Columns, compiled_record_runs, compiled_runs, merge_buckets
 from console.analysis.passages.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, analyse_parts
 from parsers.diag.read import DiagChunk
@@ -200,7 +200,7 @@ NO_PAUSE = np.iinfo(np.int64).min  # head_spans: no pause longer than the gap am
 def _head_spans_numpy(
     heads: np.ndarray, t: np.ndarray, gap_ns: int, slot: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    _, hs, ts = _by_head_then_time(heads, t)
+    _, hs, ts = by_head_then_time(heads, t)
     starts = np.flatnonzero(np.r_[True, hs[1:] != hs[:-1]])
     ends = np.r_[starts[1:], len(hs)] - 1
     pause = np.r_[(np.diff(ts) > gap_ns) & (hs[1:] == hs[:-1]), False]
@@ -236,22 +236,6 @@ def head_spans(
     record time, and around its last pause longer than ``gap_ns`` the times before and after it
     (:data:`NO_PAUSE`: none).  ``slot``: int32 scratch, one per head key, all -1 (left so)."""
     return _head_spans(heads, t, gap_ns, slot)
-
-
-def _by_head_then_time(heads: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The order of ``np.lexsort((t, heads))``, and heads and times in it.
-
-    Within one head records come in time order: a stable sort by head alone (a radix sort while head
-    keys fit 16 bits) then already has each head's times sorted, at a fraction of lexsort's cost.
-    Checked, and lexsort where it does not hold.
-    """
-    if len(heads) and int(heads.max()) < 1 << 16 and int(heads.min()) >= 0:
-        order = np.argsort(heads.astype(np.uint16), kind="stable")
-        hs, ts = heads[order], t[order]
-        if bool(((ts[1:] >= ts[:-1]) | (hs[1:] != hs[:-1])).all()):
-            return order, hs, ts
-    order = np.lexsort((t, heads))
-    return order, heads[order], t[order]
 
 
 def _split(parts: list[Columns], cut: np.ndarray, time_column: str) -> tuple[list[Columns], list[Columns]]:
