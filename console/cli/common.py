@@ -384,10 +384,12 @@ def read_logs(
     :class:`~console.sinks.tables.diag_stream.JsonLinesOut`) also gets the rejected lines as they are met."""
     from console.drivers.batch import ReadOptions, input_bytes, read_diag
     from console.engine.sinks import Sinks
+    from console.memory import heap_kept_for_reuse
     from console.progress import byte_progress
 
     check_inputs(files)
     refuse_wrong_kind(files, "diag")
+    heap_kept_for_reuse()
     with byte_progress(input_bytes(files), "parsing") as advance:
         opts = ReadOptions(
             on_progress=advance,
