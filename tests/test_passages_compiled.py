@@ -243,3 +243,16 @@ def test_group_extremes_alike(n: int, items: list[tuple[int, int, int]], wanted:
     for g, w in zip(got, want, strict=True):
         assert g.dtype == w.dtype == np.int64
         assert np.array_equal(g, w)
+
+
+@settings(max_examples=300, deadline=None)
+@given(rows=st.lists(st.binary(min_size=7, max_size=7), max_size=20), zeros=st.integers(0, 6))
+def test_rows_squeeze_alike(rows: list[bytes], zeros: int) -> None:
+    """Rows padded with 0 bytes anywhere (a zero byte every ``zeros``), squeezed to their texts."""
+    a = np.frombuffer(b"".join(rows), np.uint8).reshape(len(rows), 7).copy() if rows else np.zeros((0, 7), np.uint8)
+    if zeros:
+        a[:, ::zeros] = 0
+    got, want = buckets._squeeze_rows_compiled(a), buckets._squeeze_rows_numpy(a)
+    assert got[0] == want[0]
+    assert got[1].dtype == want[1].dtype == np.int64
+    assert np.array_equal(got[1], want[1])

@@ -225,6 +225,29 @@ def group_extremes(
     return _group_extremes(n, group, values, channel, wanted)
 
 
+def _squeeze_rows_numpy(rows: np.ndarray) -> tuple[bytes, np.ndarray]:
+    kept = rows != 0
+    return rows[kept].tobytes(), np.count_nonzero(kept, axis=1).astype(np.int64)
+
+
+def _squeeze_rows_compiled(rows: np.ndarray) -> tuple[bytes, np.ndarray]:
+    """:func:`_squeeze_rows_numpy`'s text and lengths in one compiled pass without the GIL (``compiled_runs.c``)."""
+    assert compiled_runs is not None
+    if rows.size == 0:
+        return b"", np.zeros(len(rows), np.int64)
+    text, lengths = compiled_runs.squeeze_rows(np.ascontiguousarray(rows, np.uint8), rows.shape[1])
+    return text, np.frombuffer(lengths, np.int64)
+
+
+_squeeze_rows = _squeeze_rows_compiled if _COMPILED else _squeeze_rows_numpy
+
+
+def squeeze_rows(rows: np.ndarray) -> tuple[bytes, np.ndarray]:
+    """Rows of bytes (uint8, 2-D), each a text padded with 0 bytes: the texts without them, back to back, and
+    each one's length."""
+    return _squeeze_rows(rows)
+
+
 def remove_records(buckets: Columns, head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray) -> None:
     """Take records out of the bucket counts (in place).
 

@@ -375,7 +375,58 @@ done:
     return result;
 }
 
+PyDoc_STRVAR(squeeze_rows_doc,
+             "squeeze_rows(rows, width) -> (text, lengths)\n\n"
+             "Rows of ``width`` bytes (uint8, C order), each a text padded with 0 bytes anywhere in it: the\n"
+             "texts without their 0 bytes, back to back (bytes), and each one's length (int64 bytearray).");
+
+static PyObject *squeeze_rows(PyObject *self, PyObject *args)
+{
+    PyObject *o_rows;
+    Py_ssize_t width;
+    if (!PyArg_ParseTuple(args, "On", &o_rows, &width)) return NULL;
+    if (width <= 0) {
+        PyErr_SetString(PyExc_ValueError, "squeeze_rows: the width must be positive");
+        return NULL;
+    }
+    Py_buffer b;
+    if (PyObject_GetBuffer(o_rows, &b, PyBUF_C_CONTIGUOUS) < 0) return NULL;
+    PyObject *text = NULL, *lengths = NULL, *result = NULL;
+    if (b.len % width) {
+        PyErr_SetString(PyExc_ValueError, "squeeze_rows: the bytes are not whole rows");
+        goto done;
+    }
+    const Py_ssize_t n = b.len / width;
+    lengths = PyByteArray_FromStringAndSize(NULL, n * 8);
+    text = lengths ? PyBytes_FromStringAndSize(NULL, b.len) : NULL; /* at most every byte; shrunk after */
+    if (!text) goto done;
+    const unsigned char *in = b.buf;
+    char *out = PyBytes_AS_STRING(text);
+    int64_t *len = (int64_t *)PyByteArray_AS_STRING(lengths);
+    Py_ssize_t at = 0;
+    Py_BEGIN_ALLOW_THREADS
+    for (Py_ssize_t r = 0; r < n; r++) {
+        const unsigned char *row = in + r * width;
+        Py_ssize_t start = at;
+        for (Py_ssize_t k = 0; k < width; k++) {
+            out[at] = (char)row[k];
+            at += row[k] != 0;
+        }
+        len[r] = at - start;
+    }
+    Py_END_ALLOW_THREADS
+    if (_PyBytes_Resize(&text, at) < 0) goto done;
+    result = PyTuple_Pack(2, text, lengths);
+
+done:
+    Py_XDECREF(text);
+    Py_XDECREF(lengths);
+    PyBuffer_Release(&b);
+    return result;
+}
+
 static PyMethodDef methods[] = {
+    {"squeeze_rows", squeeze_rows, METH_VARARGS, squeeze_rows_doc},
     {"group_extremes", group_extremes, METH_VARARGS, group_extremes_doc},
     {"merge_runs", merge_runs, METH_VARARGS, merge_runs_doc},
     {"chunk_runs", chunk_runs, METH_VARARGS, chunk_runs_doc},

@@ -24,7 +24,7 @@ from functools import cache
 import numpy as np
 
 from console.analysis.head_table import Heads, heads_at
-from console.analysis.passages.buckets import Columns
+from console.analysis.passages.buckets import Columns, squeeze_rows
 from console.analysis.timefmt import exact_ns
 from parsers.units import NS_PER_DAY
 
@@ -335,8 +335,7 @@ def _batch(
     seps = np.full((hi - lo, 1), ord(sep), np.uint8)
     if first:
         seps[0] = 0
-    flat = np.concatenate([seps, rows], axis=1).ravel()
-    return flat[flat != 0].tobytes()
+    return squeeze_rows(np.concatenate([seps, rows], axis=1))[0]
 
 
 def _rows(
@@ -414,8 +413,7 @@ def indented_objects(cols: Columns, heads: Heads, depth: int) -> Iterator[bytes]
             return None
         if lo == 0:
             rows[0, 0] = 0  # the first object's comma: dropped with the padding
-        flat = rows.ravel()
-        blobs.append(flat[flat != 0].tobytes())
+        blobs.append(squeeze_rows(rows)[0])
     return iter(blobs)
 
 
@@ -443,9 +441,9 @@ def encode_objects(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray] | No
         rows = _rows(cols, heads, lo, hi)
         if rows is None:
             return None
-        kept = rows != 0
-        lengths.append(np.count_nonzero(kept, axis=1))
-        texts.append(rows[kept].tobytes())
+        text, length = squeeze_rows(rows)
+        texts.append(text)
+        lengths.append(length)
     return b"".join(texts), (np.concatenate(lengths) if lengths else np.zeros(0, np.int64)).astype(np.int64)
 
 
