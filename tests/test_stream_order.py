@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from console.analysis.passages.stream import _by_head_then_time
+from console.analysis.head_table import by_head_then_time
 
 
 @pytest.mark.parametrize("heads", [1, 80, 70_000])  # 70 000: keys beyond 16 bits, lexsort only
@@ -17,7 +17,7 @@ def test_same_order_as_lexsort(heads: int) -> None:
         t = rng.integers(0, 40, n).astype(np.int64)  # ties in time, within a head and across heads
         if trial % 2:
             t = np.sort(t)  # each head's records in time order: the radix path
-        order, hs, ts = _by_head_then_time(h, t)
+        order, hs, ts = by_head_then_time(h, t)
         expected = np.lexsort((t, h))
         assert order.tolist() == expected.tolist()
         assert hs.tolist() == h[expected].tolist() and ts.tolist() == t[expected].tolist()
