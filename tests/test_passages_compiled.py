@@ -24,6 +24,7 @@ from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate
 from console.analysis.passages import buckets, stream
+from parsers.diag.read import DiagChunk
 from tests.conftest import SAMPLES
 
 _COMPILER = shutil.which("cc") or shutil.which("gcc")
@@ -76,6 +77,12 @@ def chunks(draw: st.DrawFn) -> tuple[Tables, dict[str, np.ndarray], bool]:
     return tables, records, draw(st.booleans())
 
 
+def _chunk(register_id: np.ndarray, time_ns: np.ndarray, subsecond: np.ndarray, value: np.ndarray) -> DiagChunk:
+    n = len(register_id)
+    zeros = np.zeros(n, np.int32)
+    return DiagChunk(0, register_id, time_ns, subsecond, value, zeros, zeros.astype(np.int8), np.arange(n))
+
+
 def _alike(got: tuple, want: tuple) -> None:
     (g_head, g_runs, g_wheel), (w_head, w_runs, w_wheel) = got, want
     assert g_head.dtype == w_head.dtype == np.int64
@@ -92,7 +99,7 @@ def _alike(got: tuple, want: tuple) -> None:
 @given(case=chunks())
 def test_random_records_reduce_alike(case: tuple[Tables, dict[str, np.ndarray], bool]) -> None:
     tables, rec, keep_releases = case
-    args = (rec["register_id"], rec["time_ns"], rec["subsecond"], rec["value"], tables, keep_releases)
+    args = (_chunk(rec["register_id"], rec["time_ns"], rec["subsecond"], rec["value"]), tables, keep_releases)
     _alike(buckets._record_runs_compiled(*args), buckets._record_runs_numpy(*args))
 
 
@@ -106,22 +113,19 @@ def test_realistic_chunk_reduces_alike() -> None:
         is_wheel=rng.random(400) < 0.3,
     )
     time_ns = 1_772_409_600 * 10**9 + np.sort(rng.integers(0, 600 * 10**9, n))
-    args = (
-        rng.integers(0, 400, n).astype(np.int32),
-        time_ns,
-        rng.random(n) < 0.9,
-        rng.integers(0, 2, n).astype(np.int64),
-        tables,
+    chunk = _chunk(
+        rng.integers(0, 400, n).astype(np.int32), time_ns, rng.random(n) < 0.9, rng.integers(0, 2, n).astype(np.int64)
     )
     for keep_releases in (False, True):
-        _alike(buckets._record_runs_compiled(*args, keep_releases), buckets._record_runs_numpy(*args, keep_releases))
+        got = buckets._record_runs_compiled(chunk, tables, keep_releases)
+        _alike(got, buckets._record_runs_numpy(chunk, tables, keep_releases))
 
 
 def test_a_record_naming_no_register_is_refused() -> None:
     tables = Tables(np.zeros(2, np.int32), np.ones(2, np.int8), np.ones(2, bool))
     one = np.zeros(1, np.int64)
     with pytest.raises(IndexError, match="names no register"):
-        buckets._record_runs_compiled(np.array([2], np.int32), one, np.ones(1, bool), one, tables, False)
+        buckets._record_runs_compiled(_chunk(np.array([2], np.int32), one, np.ones(1, bool), one), tables, False)
 
 
 def test_pure_switch_chooses_the_numpy_path() -> None:

@@ -24,6 +24,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike
 
+from parsers.diag.read import DiagChunk
 from parsers.units import NS
 
 try:
@@ -80,32 +81,27 @@ def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, su
 
 
 def _record_runs_numpy(
-    register_id: np.ndarray,
-    time_ns: np.ndarray,
-    subsecond: np.ndarray,
-    value: np.ndarray,
-    luts: RunTables,
-    keep_releases: bool,
+    chunk: DiagChunk, luts: RunTables, keep_releases: bool
 ) -> tuple[np.ndarray, Columns, np.ndarray]:
-    head = luts.head[register_id].astype(np.int64)
-    channel = luts.channel[register_id].astype(np.int64)
-    runs = chunk_buckets(head, channel, time_ns, subsecond)
+    """A chunk's head key per record (int64), its activity runs (:func:`chunk_buckets`), and the positions of
+    its wheel-sensor records wanted: onsets (value 1), and releases (0) too with ``keep_releases``
+    (:data:`record_runs`: this, or the compiled pass alike)."""
+    rid, value = chunk.register_id, chunk.value
+    head = luts.head[rid].astype(np.int64)
+    channel = luts.channel[rid].astype(np.int64)
+    runs = chunk_buckets(head, channel, chunk.time_ns, chunk.subsecond)
     wanted = (value == 1) | (value == 0) if keep_releases else value == 1
-    return head, runs, np.flatnonzero(luts.is_wheel[register_id] & wanted)
+    return head, runs, np.flatnonzero(luts.is_wheel[rid] & wanted)
 
 
 def _record_runs_compiled(
-    register_id: np.ndarray,
-    time_ns: np.ndarray,
-    subsecond: np.ndarray,
-    value: np.ndarray,
-    luts: RunTables,
-    keep_releases: bool,
+    chunk: DiagChunk, luts: RunTables, keep_releases: bool
 ) -> tuple[np.ndarray, Columns, np.ndarray]:
     """:func:`_record_runs_numpy`'s columns in two compiled passes without the GIL (``compiled_runs.c``)."""
     assert compiled_runs is not None
+    c = chunk
     head, runs, n_runs, wheel = compiled_runs.chunk_runs(
-        register_id, time_ns, subsecond, value, luts.head, luts.channel, luts.is_wheel, keep_releases
+        c.register_id, c.time_ns, c.subsecond, c.value, luts.head, luts.channel, luts.is_wheel, keep_releases
     )
     cols = np.frombuffer(runs, np.int64).reshape(len(BUCKET_COLUMNS), n_runs)
     return np.frombuffer(head, np.int64), dict(zip(BUCKET_COLUMNS, cols, strict=True)), np.frombuffer(wheel, np.int64)
@@ -125,25 +121,12 @@ class RunTables(Protocol):
 # The compiled pass where it was built (``pip install`` with a C compiler), unless TRACKSIDE_PURE=1 asks
 # for the numpy path (the reference: tests/test_passages_compiled.py checks both alike).
 _COMPILED = compiled_runs is not None and not os.environ.get("TRACKSIDE_PURE")
-_record_runs = _record_runs_compiled if _COMPILED else _record_runs_numpy
+record_runs = _record_runs_compiled if _COMPILED else _record_runs_numpy
 
 
 def compiled_record_runs() -> bool:
     """Whether records are reduced to runs by the compiled pass."""
-    return _record_runs is _record_runs_compiled
-
-
-def record_runs(
-    register_id: np.ndarray,
-    time_ns: np.ndarray,
-    subsecond: np.ndarray,
-    value: np.ndarray,
-    luts: RunTables,
-    keep_releases: bool,
-) -> tuple[np.ndarray, Columns, np.ndarray]:
-    """A chunk's head key per record (int64), its activity runs (:func:`chunk_buckets`), and the positions of
-    its wheel-sensor records wanted: onsets (value 1), and releases (0) too with ``keep_releases``."""
-    return _record_runs(register_id, time_ns, subsecond, value, luts, keep_releases)
+    return record_runs is _record_runs_compiled
 
 
 def merge_buckets(parts: list[Columns]) -> Columns:
@@ -195,6 +178,8 @@ _merge_runs = _merge_runs_compiled if _COMPILED else _merge_runs_numpy
 def _group_extremes_numpy(
     n: int, group: np.ndarray, values: np.ndarray, channel: np.ndarray, wanted: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per group 0…n-1, over the items on channel ``wanted``: how many, the least and the greatest value
+    (int64 max and min where none).  (:data:`group_extremes`: this, or the compiled pass alike.)"""
     m = channel == wanted
     g, v = group[m], values[m]
     least = np.full(n, _BIG, np.int64)
@@ -214,18 +199,12 @@ def _group_extremes_compiled(
     return np.frombuffer(count, np.int64), np.frombuffer(least, np.int64), np.frombuffer(greatest, np.int64)
 
 
-_group_extremes = _group_extremes_compiled if _COMPILED else _group_extremes_numpy
-
-
-def group_extremes(
-    n: int, group: np.ndarray, values: np.ndarray, channel: np.ndarray, wanted: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per group 0…n-1, over the items on channel ``wanted``: how many, the least and the greatest value
-    (int64 max and min where none)."""
-    return _group_extremes(n, group, values, channel, wanted)
+group_extremes = _group_extremes_compiled if _COMPILED else _group_extremes_numpy
 
 
 def _squeeze_rows_numpy(rows: np.ndarray) -> tuple[bytes, np.ndarray]:
+    """Rows of bytes (uint8, 2-D), each a text padded with 0 bytes: the texts without them, back to back, and
+    each one's length.  (:data:`squeeze_rows`: this, or the compiled pass alike.)"""
     kept = rows != 0
     return rows[kept].tobytes(), np.count_nonzero(kept, axis=1).astype(np.int64)
 
@@ -239,13 +218,7 @@ def _squeeze_rows_compiled(rows: np.ndarray) -> tuple[bytes, np.ndarray]:
     return text, np.frombuffer(lengths, np.int64)
 
 
-_squeeze_rows = _squeeze_rows_compiled if _COMPILED else _squeeze_rows_numpy
-
-
-def squeeze_rows(rows: np.ndarray) -> tuple[bytes, np.ndarray]:
-    """Rows of bytes (uint8, 2-D), each a text padded with 0 bytes: the texts without them, back to back, and
-    each one's length."""
-    return _squeeze_rows(rows)
+squeeze_rows = _squeeze_rows_compiled if _COMPILED else _squeeze_rows_numpy
 
 
 def remove_records(buckets: Columns, head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray) -> None:

@@ -188,9 +188,7 @@ class DiagAccumulator:
         luts = self._lookup()
         rid = chunk.register_id
         # Releases (Radsensor 0) only for the section engine's overlap rule.
-        head, buckets, wheel = record_runs(
-            rid, chunk.time_ns, chunk.subsecond, chunk.value, luts, keep_releases=self.keep_releases
-        )
+        head, buckets, wheel = record_runs(chunk, luts, keep_releases=self.keep_releases)
         self._buckets.append(buckets)
         self._track_spans(buckets)
         first_record = self._n_records

@@ -200,6 +200,10 @@ NO_PAUSE = np.iinfo(np.int64).min  # head_spans: no pause longer than the gap am
 def _head_spans_numpy(
     heads: np.ndarray, t: np.ndarray, gap_ns: int, slot: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per head key of a chunk's records (each head's in time order or not): the key, its first and last
+    record time, and around its last pause longer than ``gap_ns`` the times before and after it
+    (:data:`NO_PAUSE`: none).  ``slot``: int32 scratch, one per head key, all -1 (left so).
+    (:data:`head_spans`: this, or the compiled pass alike, which lists the heads as they first appear.)"""
     _, hs, ts = by_head_then_time(heads, t)
     starts = np.flatnonzero(np.r_[True, hs[1:] != hs[:-1]])
     ends = np.r_[starts[1:], len(hs)] - 1
@@ -226,16 +230,7 @@ def _head_spans_compiled(
 
 
 # The compiled pass where it was built, unless TRACKSIDE_PURE=1 asks for numpy (tests/test_passages_compiled.py).
-_head_spans = _head_spans_compiled if compiled_record_runs() else _head_spans_numpy
-
-
-def head_spans(
-    heads: np.ndarray, t: np.ndarray, gap_ns: int, slot: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per head key of a chunk's records (each head's in time order or not): the key, its first and last
-    record time, and around its last pause longer than ``gap_ns`` the times before and after it
-    (:data:`NO_PAUSE`: none).  ``slot``: int32 scratch, one per head key, all -1 (left so)."""
-    return _head_spans(heads, t, gap_ns, slot)
+head_spans = _head_spans_compiled if compiled_record_runs() else _head_spans_numpy
 
 
 def _split(parts: list[Columns], cut: np.ndarray, time_column: str) -> tuple[list[Columns], list[Columns]]:
