@@ -13,5 +13,10 @@ setup(
             ["console/analysis/passages/compiled_runs.c"],
             optional=True,
         ),
+        Extension(
+            "console.analysis.passages.compiled_json",
+            ["console/analysis/passages/compiled_json.c"],
+            optional=True,
+        ),
     ]
 )

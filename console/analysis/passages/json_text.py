@@ -17,6 +17,7 @@ uses pandas.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from functools import cache
@@ -27,6 +28,11 @@ from console.analysis.head_table import Heads, heads_at
 from console.analysis.passages.buckets import Columns, squeeze_rows
 from console.analysis.timefmt import exact_ns
 from parsers.units import NS_PER_DAY
+
+try:
+    from console.analysis.passages import compiled_json
+except ImportError:  # built without a C compiler: the numpy path alone
+    compiled_json = None  # type: ignore[assignment]
 
 _PRECISION = 10
 _POW10_FRAC = float(10**_PRECISION)
@@ -151,13 +157,19 @@ def _floats(values: np.ndarray) -> np.ndarray | None:
     return None if found is None else found[0]
 
 
+def _floats_covered(v: np.ndarray) -> bool:
+    """Whether every float is written in fixed point (not the encoder's exponent form, nor an error)."""
+    a = np.abs(np.where(np.isnan(v), 0.0, v))
+    return not (np.isinf(a).any() or ((a > 1e16 - 1) | ((a != 0) & (a < 1e-15))).any())
+
+
 def _float_tokens(values: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """:func:`_floats`, and how many decimals each value is written with."""
     v = np.asarray(values, np.float64)
+    if not _floats_covered(v):
+        return None  # the encoder's exponent form (or an error): not covered here
     nan = np.isnan(v)
     a = np.abs(np.where(nan, 0.0, v))
-    if np.isinf(a).any() or ((a > 1e16 - 1) | ((a != 0) & (a < 1e-15))).any():
-        return None  # the encoder's exponent form (or an error): not covered here
     neg = v < 0
     whole = a.astype(np.uint64)
     tmp = (a - whole.astype(np.float64)) * _POW10_FRAC
@@ -432,7 +444,7 @@ def _batches(cols: Columns) -> list[tuple[int, int]]:
     return batches
 
 
-def encode_objects(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray] | None:
+def _encode_objects_numpy(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray] | None:
     """Each passage as one JSON object (the ``--json`` fields), the objects back to back with nothing
     between them, and each one's length in bytes; None if not covered (see :func:`encode_passages`)."""
     texts: list[bytes] = []
@@ -445,6 +457,126 @@ def encode_objects(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray] | No
         texts.append(text)
         lengths.append(length)
     return b"".join(texts), (np.concatenate(lengths) if lengths else np.zeros(0, np.int64)).astype(np.int64)
+
+
+def _text_table(values: Sequence[str | None]) -> tuple[bytes, np.ndarray] | None:
+    """:func:`_texts`' table for the compiled encoder: the JSON strings back to back and their offsets."""
+    encoded = []
+    for s in values:
+        if s is None:
+            encoded.append(b"null")
+        elif set(s) <= _SAFE:
+            encoded.append(b'"' + s.encode("ascii") + b'"')
+        else:
+            return None
+    offsets = np.zeros(len(encoded) + 1, np.int64)
+    offsets[1:] = np.cumsum([len(e) for e in encoded])
+    return b"".join(encoded), offsets
+
+
+# Field kinds of compiled_json.encode_objects.
+_K_INT, _K_FLOAT, _K_TEXT, _K_ISO, _K_BOOL, _K_AXLES = range(6)
+
+
+def _encode_objects_compiled(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray] | None:
+    """:func:`_encode_objects_numpy`'s bytes, formatted by ``compiled_json.c`` without the GIL; the checks
+    of what is covered done here first, over whole columns or once per distinct text."""
+    from console.analysis.counting.wheels import DIRECTION_12, DIRECTION_21
+    from console.analysis.passages.buckets import AXLES_UNKNOWN_REASONS, axles_unknown_codes
+
+    assert compiled_json is not None
+    n = len(cols["head"])
+    if n == 0:
+        return b"", np.zeros(0, np.int64)
+    used, head_code = np.unique(cols["head"], return_inverse=True)
+    head_dev, head_names = heads_at(heads, used)
+    n_det = np.asarray(cols["records_in_detection_second"], float)
+    fields: list[tuple[object, ...]] = []
+
+    def key(name: str) -> bytes:
+        return (("{" if not fields else ",") + f'"{name}":').encode("ascii")
+
+    def ints(name: str, values: np.ndarray, null: np.ndarray | None = None) -> bool:
+        v = np.ascontiguousarray(values, np.int64)
+        if v.min() == np.iinfo(np.int64).min:
+            return False
+        fields.append((_K_INT, key(name), v, None if null is None else np.ascontiguousarray(null, np.uint8)))
+        return True
+
+    def floats(name: str, values: np.ndarray) -> bool:
+        v = np.ascontiguousarray(values, np.float64)
+        if not _floats_covered(v):
+            return False
+        fields.append((_K_FLOAT, key(name), v))
+        return True
+
+    def texts(name: str, codes: np.ndarray, values: Sequence[str | None]) -> bool:
+        c = np.ascontiguousarray(codes, np.int64)
+        table = _text_table(values)
+        if table is None or c.min() < 0 or c.max() >= len(values):
+            return False
+        fields.append((_K_TEXT, key(name), c, table[0], table[1]))
+        return True
+
+    def times(name: str, ns: np.ndarray) -> bool:
+        ints_ns, ok = exact_ns(ns)
+        fields.append((_K_ISO, key(name), np.ascontiguousarray(ints_ns), np.ascontiguousarray(ok, np.uint8)))
+        return True
+
+    def axle_lists(name: str) -> bool:
+        start = np.ascontiguousarray(cols["axle_speeds_start"], np.int64)
+        stop = np.ascontiguousarray(cols["axle_speeds_stop"], np.int64)
+        speeds = np.asarray(cols["axle_speeds_kmh"], np.float64)
+        count = stop - start
+        # The numpy path checks the speeds from each batch's first start to its last stop.
+        for lo, hi in _batches(cols):
+            if int(count[lo:hi].max()) > 0:
+                a, b = int(start[lo:hi].min()), int(stop[lo:hi].max())
+                if not _floats_covered(np.round(speeds[a:b], 3)):
+                    return False
+        fields.append((_K_AXLES, key(name), np.ascontiguousarray(np.round(speeds, 3)), start, stop))
+        return True
+
+    unknown = axles_unknown_codes(cols["detections_sys1"], cols["detections_sys2"])
+    ok = (
+        ints("device_id", head_dev[head_code])
+        and texts("counting_head", head_code, head_names)
+        and times("start", cols["start_ns"])
+        and times("end", cols["end_ns"])
+        and floats("duration_s", np.round(np.asarray(cols["duration_s"], float), 6))
+        and ints("records", cols["records"])
+        and ints("axles", cols["axles"])
+        and texts("axles_unknown_reason", unknown, AXLES_UNKNOWN_REASONS)
+        and ints("detections_sys1", cols["detections_sys1"])
+        and ints("detections_sys2", cols["detections_sys2"])
+        and texts("direction", cols["direction"], [None, DIRECTION_12, DIRECTION_21, "mixed"])
+        and times("detection_second", cols["detection_second_ns"])
+        and ints("records_in_detection_second", np.nan_to_num(n_det).astype(np.int64), np.isnan(n_det))
+        and floats("speed_kmh_per_second_method", np.round(cols["speed_kmh_per_second_method"], 3))
+        and floats("speed_kmh_whole_train", np.round(cols["speed_kmh_whole_train"], 3))
+        and floats("speed_kmh_whole_train_min", np.round(cols["speed_kmh_whole_train_min"], 3))
+        and floats("speed_kmh_whole_train_max", np.round(cols["speed_kmh_whole_train_max"], 3))
+        and texts("whole_train_basis", cols["whole_train_basis"], [None, "detections", "records"])
+        and floats("whole_train_duration_s", np.round(cols["whole_train_duration_s"], 6))
+        and axle_lists("speed_kmh_per_axle")
+        and floats("speed_kmh_per_axle_mean", np.round(cols["speed_kmh_per_axle_mean"], 3))
+    )
+    if not ok:
+        return None
+    fields.append((_K_BOOL, key("subsecond"), np.ascontiguousarray(cols["subsecond"], bool).view(np.uint8)))
+    if not (
+        floats("time_resolution_s", cols["time_resolution_s"])
+        and texts("kind", cols["kind"], ["train", "damping", "status"])
+    ):
+        return None
+    text, lengths = compiled_json.encode_objects(n, fields, b"}")
+    return bytes(text), np.frombuffer(lengths, np.int64)
+
+
+# The compiled encoder where it was built, unless TRACKSIDE_PURE=1 asks for the numpy path (the reference:
+# tests/test_json_compiled.py checks both alike).
+_COMPILED = compiled_json is not None and not os.environ.get("TRACKSIDE_PURE")
+encode_objects = _encode_objects_compiled if _COMPILED else _encode_objects_numpy
 
 
 def encode_passages(cols: Columns, heads: Heads, workers: int = 2, lines_of_type: str | None = None) -> str | None:
