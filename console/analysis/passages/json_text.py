@@ -237,8 +237,9 @@ def _python_floats(values: np.ndarray) -> np.ndarray | None:
     return tokens
 
 
-def _texts(codes: np.ndarray, values: Sequence[str | None]) -> np.ndarray | None:
-    """JSON strings from a small set (codes into values; None is null)."""
+def _json_strings(values: Sequence[str | None]) -> list[bytes] | None:
+    """Each of a small set of texts as a JSON string (None: null); None if one would need escaping (left to
+    pandas' encoder)."""
     encoded = []
     for s in values:
         if s is None:
@@ -246,7 +247,15 @@ def _texts(codes: np.ndarray, values: Sequence[str | None]) -> np.ndarray | None
         elif set(s) <= _SAFE:
             encoded.append(b'"' + s.encode("ascii") + b'"')
         else:
-            return None  # would need escaping: left to pandas' encoder
+            return None
+    return encoded
+
+
+def _texts(codes: np.ndarray, values: Sequence[str | None]) -> np.ndarray | None:
+    """JSON strings from a small set (codes into values; None is null)."""
+    encoded = _json_strings(values)
+    if encoded is None:
+        return None
     width = max(len(e) for e in encoded)
     table = np.zeros((len(encoded), width), np.uint8)
     for i, e in enumerate(encoded):
@@ -461,14 +470,9 @@ def _encode_objects_numpy(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarra
 
 def _text_table(values: Sequence[str | None]) -> tuple[bytes, np.ndarray] | None:
     """:func:`_texts`' table for the compiled encoder: the JSON strings back to back and their offsets."""
-    encoded = []
-    for s in values:
-        if s is None:
-            encoded.append(b"null")
-        elif set(s) <= _SAFE:
-            encoded.append(b'"' + s.encode("ascii") + b'"')
-        else:
-            return None
+    encoded = _json_strings(values)
+    if encoded is None:
+        return None
     offsets = np.zeros(len(encoded) + 1, np.int64)
     offsets[1:] = np.cumsum([len(e) for e in encoded])
     return b"".join(encoded), offsets
