@@ -18,7 +18,7 @@ uses pandas.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import cache
 
@@ -359,6 +359,55 @@ def _batch(
     return squeeze_rows(np.concatenate([seps, rows], axis=1))[0]
 
 
+# Field kinds of a passage object (and of compiled_json.encode_objects).
+_K_INT, _K_FLOAT, _K_TEXT, _K_ISO, _K_BOOL, _K_AXLES = range(6)
+
+
+def _fields(c: Columns, heads: Heads) -> list[tuple[str, int, tuple]]:
+    """The ``--json`` fields of passages ``c``, in order, for either encoder: (key, kind, values).
+
+    Values per kind: ints (and where null, or None); floats, rounded as written; text codes and the texts;
+    times in ns; bools; each row's start and stop into the per-axle speeds (given apart, unsliced)."""
+    from console.analysis.counting.wheels import DIRECTION_12, DIRECTION_21
+    from console.analysis.passages.buckets import AXLES_UNKNOWN_REASONS, axles_unknown_codes
+
+    # Only these passages' heads: a log may have a million heads and many batches.
+    used, head_code = np.unique(c["head"], return_inverse=True)
+    head_dev, head_names = heads_at(heads, used)
+    n_det = np.asarray(c["records_in_detection_second"], float)
+    unknown = axles_unknown_codes(c["detections_sys1"], c["detections_sys2"])
+
+    def rounded(name: str, decimals: int) -> tuple[np.ndarray]:
+        return (np.round(np.asarray(c[name], float), decimals),)
+
+    return [
+        ("device_id", _K_INT, (head_dev[head_code], None)),
+        ("counting_head", _K_TEXT, (head_code, head_names)),
+        ("start", _K_ISO, (c["start_ns"],)),
+        ("end", _K_ISO, (c["end_ns"],)),
+        ("duration_s", _K_FLOAT, rounded("duration_s", 6)),
+        ("records", _K_INT, (c["records"], None)),
+        ("axles", _K_INT, (c["axles"], None)),
+        ("axles_unknown_reason", _K_TEXT, (unknown, AXLES_UNKNOWN_REASONS)),
+        ("detections_sys1", _K_INT, (c["detections_sys1"], None)),
+        ("detections_sys2", _K_INT, (c["detections_sys2"], None)),
+        ("direction", _K_TEXT, (c["direction"], [None, DIRECTION_12, DIRECTION_21, "mixed"])),
+        ("detection_second", _K_ISO, (c["detection_second_ns"],)),
+        ("records_in_detection_second", _K_INT, (np.nan_to_num(n_det).astype(np.int64), np.isnan(n_det))),
+        ("speed_kmh_per_second_method", _K_FLOAT, rounded("speed_kmh_per_second_method", 3)),
+        ("speed_kmh_whole_train", _K_FLOAT, rounded("speed_kmh_whole_train", 3)),
+        ("speed_kmh_whole_train_min", _K_FLOAT, rounded("speed_kmh_whole_train_min", 3)),
+        ("speed_kmh_whole_train_max", _K_FLOAT, rounded("speed_kmh_whole_train_max", 3)),
+        ("whole_train_basis", _K_TEXT, (c["whole_train_basis"], [None, "detections", "records"])),
+        ("whole_train_duration_s", _K_FLOAT, rounded("whole_train_duration_s", 6)),
+        ("speed_kmh_per_axle", _K_AXLES, (c["axle_speeds_start"], c["axle_speeds_stop"])),
+        ("speed_kmh_per_axle_mean", _K_FLOAT, rounded("speed_kmh_per_axle_mean", 3)),
+        ("subsecond", _K_BOOL, (c["subsecond"],)),
+        ("time_resolution_s", _K_FLOAT, (c["time_resolution_s"],)),
+        ("kind", _K_TEXT, (c["kind"], ["train", "damping", "status"])),
+    ]
+
+
 def _rows(
     cols: Columns, heads: Heads, lo: int, hi: int, opening: str | None = None, style: _Style | None = None
 ) -> np.ndarray | None:
@@ -366,49 +415,21 @@ def _rows(
 
     ``opening``: what comes before the first key (default the style's brace).
     """
-    from console.analysis.counting.wheels import DIRECTION_12, DIRECTION_21
-    from console.analysis.passages.buckets import AXLES_UNKNOWN_REASONS, axles_unknown_codes
-
     c = {k: v[lo:hi] for k, v in cols.items() if k != "axle_speeds_kmh"}
     n = hi - lo
-    # Only this batch's heads: a log may have a million heads and many batches.
-    used, head_code = np.unique(c["head"], return_inverse=True)
-    head_dev, head_names = heads_at(heads, used)
-    n_det = np.asarray(c["records_in_detection_second"], float)
-    unknown = axles_unknown_codes(c["detections_sys1"], c["detections_sys2"])
     style = style or _COMPACT
-    floats = style.floats
-    parts: list[tuple[str, np.ndarray | None]] = [
-        ("device_id", _ints(head_dev[head_code])),
-        ("counting_head", _texts(head_code, head_names)),
-        ("start", _iso(c["start_ns"])),
-        ("end", _iso(c["end_ns"])),
-        ("duration_s", floats(np.round(np.asarray(c["duration_s"], float), 6))),
-        ("records", _ints(c["records"])),
-        ("axles", _ints(c["axles"])),
-        ("axles_unknown_reason", _texts(unknown, AXLES_UNKNOWN_REASONS)),
-        ("detections_sys1", _ints(c["detections_sys1"])),
-        ("detections_sys2", _ints(c["detections_sys2"])),
-        ("direction", _texts(c["direction"], [None, DIRECTION_12, DIRECTION_21, "mixed"])),
-        ("detection_second", _iso(c["detection_second_ns"])),
-        ("records_in_detection_second", _ints(np.nan_to_num(n_det).astype(np.int64), np.isnan(n_det))),
-        ("speed_kmh_per_second_method", floats(np.round(c["speed_kmh_per_second_method"], 3))),
-        ("speed_kmh_whole_train", floats(np.round(c["speed_kmh_whole_train"], 3))),
-        ("speed_kmh_whole_train_min", floats(np.round(c["speed_kmh_whole_train_min"], 3))),
-        ("speed_kmh_whole_train_max", floats(np.round(c["speed_kmh_whole_train_max"], 3))),
-        ("whole_train_basis", _texts(c["whole_train_basis"], [None, "detections", "records"])),
-        ("whole_train_duration_s", floats(np.round(c["whole_train_duration_s"], 6))),
-        (
-            "speed_kmh_per_axle",
-            _axle_lists(cols["axle_speeds_kmh"], c["axle_speeds_start"], c["axle_speeds_stop"], style),
-        ),
-        ("speed_kmh_per_axle_mean", floats(np.round(c["speed_kmh_per_axle_mean"], 3))),
-        ("subsecond", _bools(c["subsecond"])),
-        ("time_resolution_s", floats(c["time_resolution_s"])),
-        ("kind", _texts(c["kind"], ["train", "damping", "status"])),
-    ]
+    speeds = cols["axle_speeds_kmh"]
+    tokens_of: dict[int, Callable[..., np.ndarray | None]] = {
+        _K_INT: _ints,
+        _K_FLOAT: style.floats,
+        _K_TEXT: _texts,
+        _K_ISO: _iso,
+        _K_BOOL: _bools,
+        _K_AXLES: lambda start, stop: _axle_lists(speeds, start, stop, style),
+    }
     blocks = []
-    for i, (key, tokens) in enumerate(parts):
+    for i, (key, kind, values) in enumerate(_fields(c, heads)):
+        tokens = tokens_of[kind](*values)
         if tokens is None:
             return None
         before = (style.first if opening is None else opening) if i == 0 else style.sep
@@ -478,101 +499,47 @@ def _text_table(values: Sequence[str | None]) -> tuple[bytes, np.ndarray] | None
     return b"".join(encoded), offsets
 
 
-# Field kinds of compiled_json.encode_objects.
-_K_INT, _K_FLOAT, _K_TEXT, _K_ISO, _K_BOOL, _K_AXLES = range(6)
-
-
 def _encode_objects_compiled(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray] | None:
     """:func:`_encode_objects_numpy`'s bytes, formatted by ``compiled_json.c`` without the GIL; the checks
     of what is covered done here first, over whole columns or once per distinct text."""
-    from console.analysis.counting.wheels import DIRECTION_12, DIRECTION_21
-    from console.analysis.passages.buckets import AXLES_UNKNOWN_REASONS, axles_unknown_codes
-
     assert compiled_json is not None
     n = len(cols["head"])
     if n == 0:
         return b"", np.zeros(0, np.int64)
-    used, head_code = np.unique(cols["head"], return_inverse=True)
-    head_dev, head_names = heads_at(heads, used)
-    n_det = np.asarray(cols["records_in_detection_second"], float)
     fields: list[tuple[object, ...]] = []
-
-    def key(name: str) -> bytes:
-        return (("{" if not fields else ",") + f'"{name}":').encode("ascii")
-
-    def ints(name: str, values: np.ndarray, null: np.ndarray | None = None) -> bool:
-        v = np.ascontiguousarray(values, np.int64)
-        if v.min() == np.iinfo(np.int64).min:
-            return False
-        fields.append((_K_INT, key(name), v, None if null is None else np.ascontiguousarray(null, np.uint8)))
-        return True
-
-    def floats(name: str, values: np.ndarray) -> bool:
-        v = np.ascontiguousarray(values, np.float64)
-        if not _floats_covered(v):
-            return False
-        fields.append((_K_FLOAT, key(name), v))
-        return True
-
-    def texts(name: str, codes: np.ndarray, values: Sequence[str | None]) -> bool:
-        c = np.ascontiguousarray(codes, np.int64)
-        table = _text_table(values)
-        if table is None or c.min() < 0 or c.max() >= len(values):
-            return False
-        fields.append((_K_TEXT, key(name), c, table[0], table[1]))
-        return True
-
-    def times(name: str, ns: np.ndarray) -> bool:
-        ints_ns, ok = exact_ns(ns)
-        fields.append((_K_ISO, key(name), np.ascontiguousarray(ints_ns), np.ascontiguousarray(ok, np.uint8)))
-        return True
-
-    def axle_lists(name: str) -> bool:
-        start = np.ascontiguousarray(cols["axle_speeds_start"], np.int64)
-        stop = np.ascontiguousarray(cols["axle_speeds_stop"], np.int64)
-        speeds = np.asarray(cols["axle_speeds_kmh"], np.float64)
-        count = stop - start
-        # The numpy path checks the speeds from each batch's first start to its last stop.
-        for lo, hi in _batches(cols):
-            if int(count[lo:hi].max()) > 0:
-                a, b = int(start[lo:hi].min()), int(stop[lo:hi].max())
-                if not _floats_covered(np.round(speeds[a:b], 3)):
-                    return False
-        fields.append((_K_AXLES, key(name), np.ascontiguousarray(np.round(speeds, 3)), start, stop))
-        return True
-
-    unknown = axles_unknown_codes(cols["detections_sys1"], cols["detections_sys2"])
-    ok = (
-        ints("device_id", head_dev[head_code])
-        and texts("counting_head", head_code, head_names)
-        and times("start", cols["start_ns"])
-        and times("end", cols["end_ns"])
-        and floats("duration_s", np.round(np.asarray(cols["duration_s"], float), 6))
-        and ints("records", cols["records"])
-        and ints("axles", cols["axles"])
-        and texts("axles_unknown_reason", unknown, AXLES_UNKNOWN_REASONS)
-        and ints("detections_sys1", cols["detections_sys1"])
-        and ints("detections_sys2", cols["detections_sys2"])
-        and texts("direction", cols["direction"], [None, DIRECTION_12, DIRECTION_21, "mixed"])
-        and times("detection_second", cols["detection_second_ns"])
-        and ints("records_in_detection_second", np.nan_to_num(n_det).astype(np.int64), np.isnan(n_det))
-        and floats("speed_kmh_per_second_method", np.round(cols["speed_kmh_per_second_method"], 3))
-        and floats("speed_kmh_whole_train", np.round(cols["speed_kmh_whole_train"], 3))
-        and floats("speed_kmh_whole_train_min", np.round(cols["speed_kmh_whole_train_min"], 3))
-        and floats("speed_kmh_whole_train_max", np.round(cols["speed_kmh_whole_train_max"], 3))
-        and texts("whole_train_basis", cols["whole_train_basis"], [None, "detections", "records"])
-        and floats("whole_train_duration_s", np.round(cols["whole_train_duration_s"], 6))
-        and axle_lists("speed_kmh_per_axle")
-        and floats("speed_kmh_per_axle_mean", np.round(cols["speed_kmh_per_axle_mean"], 3))
-    )
-    if not ok:
-        return None
-    fields.append((_K_BOOL, key("subsecond"), np.ascontiguousarray(cols["subsecond"], bool).view(np.uint8)))
-    if not (
-        floats("time_resolution_s", cols["time_resolution_s"])
-        and texts("kind", cols["kind"], ["train", "damping", "status"])
-    ):
-        return None
+    for i, (name, kind, values) in enumerate(_fields(cols, heads)):
+        key = (("{" if i == 0 else ",") + f'"{name}":').encode("ascii")
+        if kind == _K_INT:
+            v, null = np.ascontiguousarray(values[0], np.int64), values[1]
+            if v.min() == np.iinfo(np.int64).min:
+                return None
+            fields.append((kind, key, v, None if null is None else np.ascontiguousarray(null, np.uint8)))
+        elif kind == _K_FLOAT:
+            v = np.ascontiguousarray(values[0], np.float64)
+            if not _floats_covered(v):
+                return None
+            fields.append((kind, key, v))
+        elif kind == _K_TEXT:
+            codes, texts = np.ascontiguousarray(values[0], np.int64), values[1]
+            table = _text_table(texts)
+            if table is None or codes.min() < 0 or codes.max() >= len(texts):
+                return None
+            fields.append((kind, key, codes, table[0], table[1]))
+        elif kind == _K_ISO:
+            ints_ns, ok = exact_ns(values[0])
+            fields.append((kind, key, np.ascontiguousarray(ints_ns), np.ascontiguousarray(ok, np.uint8)))
+        elif kind == _K_BOOL:
+            fields.append((kind, key, np.ascontiguousarray(values[0], bool).view(np.uint8)))
+        else:
+            start, stop = (np.ascontiguousarray(v, np.int64) for v in values)
+            speeds = np.round(np.asarray(cols["axle_speeds_kmh"], np.float64), 3)
+            # The numpy path checks the speeds from each batch's first start to its last stop.
+            for lo, hi in _batches(cols):
+                if int((stop[lo:hi] - start[lo:hi]).max()) > 0:
+                    a, b = int(start[lo:hi].min()), int(stop[lo:hi].max())
+                    if not _floats_covered(speeds[a:b]):
+                        return None
+            fields.append((kind, key, np.ascontiguousarray(speeds), start, stop))
     text, lengths = compiled_json.encode_objects(n, fields, b"}")
     return bytes(text), np.frombuffer(lengths, np.int64)
 
