@@ -176,7 +176,8 @@ def test_passages_reach_a_pipe_while_the_input_is_still_being_written(tmp_path: 
 
 def test_a_log_out_of_time_order_is_read_whole_for_json_and_warned_about_for_jsonl(tmp_path: Path) -> None:
     log = tmp_path / "b.log"
-    generate(40_000, log, boards=3, seed=1)  # > one 4 MiB chunk
+    # Each half more than the four 4 MiB chunks a file read closes passages after (FILE_CLOSE_EVERY_CHUNKS).
+    generate(150_000, log, boards=3, seed=1)
     lines = log.read_bytes().splitlines(keepends=True)
     swapped = tmp_path / "swapped.log"
     swapped.write_bytes(b"".join(lines[len(lines) // 2 :] + lines[: len(lines) // 2]))

@@ -51,6 +51,10 @@ if TYPE_CHECKING:
     from console.layout import Layout
 
 STDIN = "-"
+# A read of regular files closes passages every 4 chunks rather than after each: fewer, larger analysis calls
+# (r3m: −8 % of analyze's wall), the same passages.  A pipe, standard input or a live source closes after every
+# chunk: a reader waiting on it sees each passage as soon as it is whole.
+FILE_CLOSE_EVERY_CHUNKS = 4
 
 
 @dataclass
@@ -257,7 +261,14 @@ def _read(
     passages: bool,
 ) -> DiagJob:
     registry, chunks, report = source.open(o)
-    pipeline = Pipeline(registry, settings, sink if passages else _HistoryOnly(sink), whole=whole, facts=facts)
+    pipeline = Pipeline(
+        registry,
+        settings,
+        sink if passages else _HistoryOnly(sink),
+        whole=whole,
+        facts=facts,
+        close_every_chunks=FILE_CLOSE_EVERY_CHUNKS if source.rereadable else 1,
+    )
     for chunk in chunks:
         if o.on_records is not None:
             o.on_records(len(chunk))

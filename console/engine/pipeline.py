@@ -135,7 +135,10 @@ class Pipeline:
         whole: bool = False,
         facts: dict[int, HeadFacts] | None = None,
         head_step_s: np.ndarray | None = None,
+        close_every_chunks: int = 1,
     ) -> None:
+        """``close_every_chunks``: see :attr:`PassageStream.close_every_chunks` (a read of files sets it;
+        taken only without detection events, whose release waits on the open runs)."""
         self.registry = registry
         self.settings = s = settings
         self.sink = sink if sink is not None else Sink()
@@ -164,7 +167,13 @@ class Pipeline:
             # Wheel records reach the counting as they are read; closed passages give it only their activity
             # (for power-loss events, when asked for), which the stream keeps with the releases.
             power = s.events is not None and s.events.power_gap_s is not None
-            self.stream = PassageStream(registry, s.speed, keep_releases=power, head_step_s=head_step_s)
+            self.stream = PassageStream(
+                registry,
+                s.speed,
+                keep_releases=power,
+                head_step_s=head_step_s,
+                close_every_chunks=close_every_chunks if s.events is None else 1,
+            )
             self.acc = self.stream.acc
             self.events = None
             if s.events is not None:

@@ -66,6 +66,10 @@ class PassageStream:
     order_slack_s: float = ORDER_SLACK_S
     # Per head key, its stamps' resolution over the whole log when known up front (see pair_axle_arrays).
     head_step_s: np.ndarray | None = None
+    # Passages close after every this many chunks (1: every chunk, as a live source wants them).  A read of
+    # files closes every few: the analysis of closed passages costs per call as much as per passage, and the
+    # passages are the same whenever they close.
+    close_every_chunks: int = 1
     unpaired_detections: int = 0
     passages_closed: int = 0
     # Records that came after their head's passage was closed, near enough to have joined it
@@ -82,6 +86,7 @@ class PassageStream:
     _cut: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _closed_upto: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _slot: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))  # head_spans' scratch
+    _chunks_since_close: int = 0
 
     def __post_init__(self) -> None:
         # One read of one log: no other file to overlap (see jobs.analyze_files).
@@ -129,6 +134,9 @@ class PassageStream:
         self._head_file[heads] = chunk.file_id
         self.late_records += int(np.count_nonzero(chunk.time_ns <= self._closed_upto[heads] + self._gap_ns))
         self._advance(heads, chunk.time_ns)
+        self._chunks_since_close += 1
+        if self._chunks_since_close < self.close_every_chunks:
+            return None
         return self._close(final=False)
 
     def complete_until(self, t_ns: int) -> PartAnalysis | None:
@@ -163,6 +171,7 @@ class PassageStream:
         self._open_last[h] = np.where(prev == NO_TIME, last, np.maximum(prev, last))
 
     def _close(self, final: bool) -> PartAnalysis | None:
+        self._chunks_since_close = 0
         # Per head state is updated in place, and temporaries are only the heads closing (a log
         # may have a million heads and close a few hundred per chunk).
         idle = self._open_last != NO_TIME
