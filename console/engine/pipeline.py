@@ -137,8 +137,9 @@ class Pipeline:
         head_step_s: np.ndarray | None = None,
         close_every_chunks: int = 1,
     ) -> None:
-        """``close_every_chunks``: see :attr:`PassageStream.close_every_chunks` (a read of files sets it;
-        taken only without detection events, whose release waits on the open runs)."""
+        """``close_every_chunks``: see :attr:`PassageStream.close_every_chunks` (a read of files sets it, and
+        its closed passages are then analysed aside; taken only without detection events, whose release waits
+        on the open runs)."""
         self.registry = registry
         self.settings = s = settings
         self.sink = sink if sink is not None else Sink()
@@ -173,6 +174,7 @@ class Pipeline:
                 keep_releases=power,
                 head_step_s=head_step_s,
                 close_every_chunks=close_every_chunks if s.events is None else 1,
+                analyse_aside=close_every_chunks > 1 and s.events is None,
             )
             self.acc = self.stream.acc
             self.events = None
@@ -208,6 +210,8 @@ class Pipeline:
             if wheel is not None:
                 self.events.add_records(wheel, self.heads)
         self._closed(self.stream.add(chunk))
+        for part in self.stream.closed_parts():
+            self._closed(part)
         if self.events is not None:
             slack_ns = self.stream._slack_ns
             clock = self.stream.lagging_clock_ns()
@@ -222,6 +226,8 @@ class Pipeline:
         if self.stream is None:
             return
         self._closed(self.stream.complete_until(until_ns))
+        for part in self.stream.closed_parts():
+            self._closed(part)
         if self.events is not None:
             self._step(self.events.release_block(until_ns, self.stream.open_firsts()))
 
@@ -244,6 +250,8 @@ class Pipeline:
             warnings = self._finish_whole()
         else:
             self._closed(self.stream.finish())
+            for part in self.stream.closed_parts(wait=True):
+                self._closed(part)
             if self.events is not None:
                 clock = self.stream.clock_ns
                 slack_ns = self.stream._slack_ns

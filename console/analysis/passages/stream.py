@@ -30,6 +30,9 @@ are those of a whole-file read (``tests/test_streaming_property.py``).
 
 from __future__ import annotations
 
+from collections import deque
+from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -70,6 +73,10 @@ class PassageStream:
     # files closes every few: the analysis of closed passages costs per call as much as per passage, and the
     # passages are the same whenever they close.
     close_every_chunks: int = 1
+    # Closed passages analysed on a worker thread while the next chunks are read (numpy lets go of the GIL in
+    # its larger loops): :meth:`add` and :meth:`finish` then return None, and the parts come back, in the
+    # order they closed, from :meth:`closed_parts`.  For a read of files, which closes every few chunks.
+    analyse_aside: bool = False
     unpaired_detections: int = 0
     passages_closed: int = 0
     # Records that came after their head's passage was closed, near enough to have joined it
@@ -87,6 +94,8 @@ class PassageStream:
     _closed_upto: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     _slot: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))  # head_spans' scratch
     _chunks_since_close: int = 0
+    _analysing: deque[Future[PartAnalysis]] = field(default_factory=deque)
+    _analyst: ThreadPoolExecutor | None = None
 
     def __post_init__(self) -> None:
         # One read of one log: no other file to overlap (see jobs.analyze_files).
@@ -195,9 +204,24 @@ class PassageStream:
             self.acc._detections = [{c: np.concatenate([d[c] for d in held]) for c in held[0]}]
         if not buckets:
             return None
-        part = analyse_parts(
-            merge_buckets(buckets), detections, self.settings, self.keep_releases, head_step_s=self.head_step_s
-        )
+        args = (merge_buckets(buckets), detections, self.settings, self.keep_releases, None, self.head_step_s)
+        if not self.analyse_aside:
+            return self._counted(analyse_parts(*args))
+        if self._analyst is None:
+            self._analyst = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackside-close")
+        self._analysing.append(self._analyst.submit(analyse_parts, *args))
+        return None
+
+    def closed_parts(self, wait: bool = False) -> Iterator[PartAnalysis]:
+        """The parts analysed aside, in the order they closed: those done (``wait``: all, and the worker
+        stops; after :meth:`finish`)."""
+        while self._analysing and (wait or self._analysing[0].done()):
+            yield self._counted(self._analysing.popleft().result())
+        if wait and self._analyst is not None:
+            self._analyst.shutdown()
+            self._analyst = None
+
+    def _counted(self, part: PartAnalysis) -> PartAnalysis:
         self.unpaired_detections += part.unpaired
         self.passages_closed += len(part.passages["head"]) if part.passages is not None else 0
         return part
