@@ -117,6 +117,11 @@ def test_objects_are_the_array_items(monkeypatch: pytest.MonkeyPatch) -> None:
         ends = np.cumsum(lengths)
         objects = [text[e - n : e].decode("ascii") for e, n in zip(ends.tolist(), lengths.tolist(), strict=True)]
         assert "[" + ",".join(objects) + "]" == array
+        # Each followed by a separator (the spool's commas): the same objects, one byte longer each.
+        with_commas = pj.encode_objects(cols, analysis.heads, after=",")
+        assert with_commas is not None
+        assert with_commas[0] == b"".join(o.encode("ascii") + b"," for o in objects)
+        np.testing.assert_array_equal(with_commas[1], lengths + 1)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -143,7 +148,9 @@ def test_spool_encodes_held_batches_as_each_passage_alone(seed: int, monkeypatch
     for part in np.split(rows, cuts):
         spool.passages(take_passages(cols, part), heads)
     assert spool.count == n
-    expected = "[" + ",".join(ps.passage_texts(take_passages(cols, by_head_and_start(cols)), heads)) + "]"
+    objects = ps.passage_texts(take_passages(cols, by_head_and_start(cols)), heads)
+    assert list(spool.texts()) == objects  # each alone, its comma in the spool left out
+    expected = "[" + ",".join(objects) + "]"
     got = "".join(spool.json_parts().parts)
     same = got == expected  # not compared by pytest's diff: two long texts
     at = next((i for i, (a, b) in enumerate(zip(got, expected, strict=False)) if a != b), min(len(got), len(expected)))

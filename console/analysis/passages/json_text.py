@@ -409,11 +409,18 @@ def _fields(c: Columns, heads: Heads) -> list[tuple[str, int, tuple]]:
 
 
 def _rows(
-    cols: Columns, heads: Heads, lo: int, hi: int, opening: str | None = None, style: _Style | None = None
+    cols: Columns,
+    heads: Heads,
+    lo: int,
+    hi: int,
+    opening: str | None = None,
+    style: _Style | None = None,
+    after: str = "",
 ) -> np.ndarray | None:
     """Passages ``lo:hi`` as one row of bytes each: its JSON object, padded with 0 bytes (None: not covered).
 
-    ``opening``: what comes before the first key (default the style's brace).
+    ``opening``: what comes before the first key (default the style's brace); ``after``: what follows the
+    closing brace.
     """
     c = {k: v[lo:hi] for k, v in cols.items() if k != "axle_speeds_kmh"}
     n = hi - lo
@@ -434,7 +441,7 @@ def _rows(
             return None
         before = (style.first if opening is None else opening) if i == 0 else style.sep
         blocks += [_const(f'{before}"{key}"{style.colon}', n), tokens]
-    blocks.append(_const(style.close, n))
+    blocks.append(_const(style.close + after, n))
     return np.concatenate(blocks, axis=1)
 
 
@@ -474,13 +481,13 @@ def _batches(cols: Columns) -> list[tuple[int, int]]:
     return batches
 
 
-def _encode_objects_numpy(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray] | None:
-    """Each passage as one JSON object (the ``--json`` fields), the objects back to back with nothing
-    between them, and each one's length in bytes; None if not covered (see :func:`encode_passages`)."""
+def _encode_objects_numpy(cols: Columns, heads: Heads, after: str = "") -> tuple[bytes, np.ndarray] | None:
+    """Each passage as one JSON object (the ``--json`` fields), each followed by ``after`` and then the next,
+    and each one's length in bytes (``after`` included); None if not covered (see :func:`encode_passages`)."""
     texts: list[bytes] = []
     lengths: list[np.ndarray] = []
     for lo, hi in _batches(cols):
-        rows = _rows(cols, heads, lo, hi)
+        rows = _rows(cols, heads, lo, hi, after=after)
         if rows is None:
             return None
         text, length = squeeze_rows(rows)
@@ -499,7 +506,7 @@ def _text_table(values: Sequence[str | None]) -> tuple[bytes, np.ndarray] | None
     return b"".join(encoded), offsets
 
 
-def _encode_objects_compiled(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray] | None:
+def _encode_objects_compiled(cols: Columns, heads: Heads, after: str = "") -> tuple[bytes, np.ndarray] | None:
     """:func:`_encode_objects_numpy`'s bytes, formatted by ``compiled_json.c`` without the GIL; the checks
     of what is covered done here first, over whole columns or once per distinct text."""
     assert compiled_json is not None
@@ -540,7 +547,7 @@ def _encode_objects_compiled(cols: Columns, heads: Heads) -> tuple[bytes, np.nda
                     if not _floats_covered(speeds[a:b]):
                         return None
             fields.append((kind, key, np.ascontiguousarray(speeds), start, stop))
-    text, lengths = compiled_json.encode_objects(n, fields, b"}")
+    text, lengths = compiled_json.encode_objects(n, fields, ("}" + after).encode("ascii"))
     return bytes(text), np.frombuffer(lengths, np.int64)
 
 

@@ -34,6 +34,7 @@ _LINE_TYPE = "p"
 _PREFIX = '{"type":"' + _LINE_TYPE + '",'
 # Texts copied out per read of the spool (bounded memory, few calls).
 _COPY_ROWS = 4096
+_COPY_BYTES = 2 << 20  # text handed to the writer at a time
 # A passage's place in the texts' file: 24 bytes on disk.
 _PLACE = [("head", "<i4"), ("length", "<i4"), ("start_ns", "<i8"), ("offset", "<i8")]
 _INDEX_ROWS = 1 << 16  # places read back at a time
@@ -56,13 +57,14 @@ def passage_texts(cols: Columns, heads: Heads) -> list[str]:
 
 
 def _encode(cols: Columns, heads: Heads) -> tuple[bytes, np.ndarray]:
-    """The passages' JSON objects back to back, and each one's length."""
+    """The passages' JSON objects, each followed by a comma, back to back; and each one's length, its comma
+    included.  (A run of passages read back is then a piece of the array as it is: no cutting, no joining.)"""
     from console.analysis.passages.json_text import encode_objects
 
-    encoded = encode_objects(cols, heads)
+    encoded = encode_objects(cols, heads, after=",")
     if encoded is not None:
         return encoded
-    texts = [t.encode("ascii") for t in passage_texts(cols, heads)]
+    texts = [t.encode("ascii") + b"," for t in passage_texts(cols, heads)]
     return b"".join(texts), np.fromiter((len(t) for t in texts), np.int64, len(texts))
 
 
@@ -187,38 +189,44 @@ class PassageSpool(Sink):
             self._ordered = places["offset"][order], places["length"][order]
         return self._ordered
 
-    def _blocks(self) -> Iterator[list[bytes]]:
-        """The texts in order, a list of up to ``_COPY_ROWS`` at a time."""
+    def _runs(self) -> Iterator[tuple[bytes, list[int]]]:
+        """The texts in order (each with its comma), as runs read at once, each with its texts' lengths."""
         offset, length = self._order()
         fd = self._file.fileno()
         for lo in range(0, len(offset), _COPY_ROWS):
             off, n = offset[lo : lo + _COPY_ROWS], length[lo : lo + _COPY_ROWS]
             # Passages back to back in the file (a head's of one batch) are read at once (pread: no seek, no
-            # buffer refill; flushed in _order, so the file holds them all), then cut apart.
+            # buffer refill; flushed in _order, so the file holds them all).
             cut = np.flatnonzero(off[1:] != off[:-1] + n[:-1]) + 1
-            pieces: list[bytes] = []
             for a, b in zip(np.r_[0, cut].tolist(), np.r_[cut, len(off)].tolist(), strict=True):
-                run = os.pread(fd, int(off[b - 1] + n[b - 1] - off[a]), int(off[a]))
-                at = (off[a:b] - off[a]).tolist()
-                pieces.extend(run[x : x + k] for x, k in zip(at, n[a:b].tolist(), strict=True))
-            yield pieces
+                yield os.pread(fd, int(off[b - 1] + n[b - 1] - off[a]), int(off[a])), n[a:b].tolist()
 
     def _parts(self) -> Iterator[str]:
         if not self.count:
             yield "[]"
             return
+        # Runs of texts each with its comma are the array's body as it is: only the last comma goes.
+        run_bytes = 0
+        batch: list[bytes] = []
         yield "["
-        for i, pieces in enumerate(self._blocks()):
-            yield ("," if i else "") + b",".join(pieces).decode("ascii")
+        for run, _ in self._runs():
+            if batch and run_bytes >= _COPY_BYTES:
+                yield b"".join(batch).decode("ascii")
+                batch, run_bytes = [], 0
+            batch.append(run)
+            run_bytes += len(run)
+        yield b"".join(batch)[:-1].decode("ascii")
         yield "]"
 
     def texts(self) -> Iterator[str]:
         """Each passage's JSON object, in a whole read's order (by head, then start); may be read again."""
         if not self.count:
             return
-        for pieces in self._blocks():
-            for piece in pieces:
-                yield piece.decode("ascii")
+        for run, lengths in self._runs():
+            at = 0
+            for k in lengths:
+                yield run[at : at + k - 1].decode("ascii")  # its comma left out
+                at += k
 
     def close(self) -> None:
         if self._encoder is not None:
