@@ -3,7 +3,8 @@
 * The filter's written-out predict and update are filterpy's (Labbe, filterpy 2.0).
 * Over randomized runs of the harness (console/sim/crossing_runs.py), the bound the unit acts on
   after each fix is not below the true speed, and does not put the head further from the road
-  than it is, on ≥ 99.9 % of fixes.  CI runs a quarter of ``TRACKSIDE_CROSSING_RUNS`` (default
+  than it is, on ≥ 99.9 % of fixes (with each device's noise as its own fixes prove it); the same
+  check fails for a unit too sure of itself.  CI runs a quarter of ``TRACKSIDE_CROSSING_RUNS`` (default
   300); the full sweep: ``TRACKSIDE_CROSSING_RUNS=3000 python -m pytest tests/test_crossing_estimate.py``.
 * Standstill: a train proven standing beyond reach releases the road, comes back in time when it
   leaves; one standing within reach keeps it closed; a unit that falls silent warns again by the
@@ -82,10 +83,14 @@ def _settings(cond: RunConditions) -> ControllerSettings:
 
 
 def _coverage(
-    seed: int, n: int, adjust: Callable[[RunConditions, np.random.Generator], RunConditions] | None = None
+    seed: int,
+    n: int,
+    adjust: Callable[[RunConditions, np.random.Generator], RunConditions] | None = None,
+    **unit: float | bool,
 ) -> tuple[int, int, int]:
     """(bounds checked, speed below the truth, head placed further out than it was) over n runs;
-    ``adjust``: the conditions of each run changed (a fix rate or a noise under test)."""
+    ``adjust``: the conditions of each run changed (a fix rate or a noise under test); ``unit``:
+    controller settings changed (a unit made too sure of itself, to show the check can fail)."""
     rng = np.random.default_rng(seed)
     checked = speed_miss = ahead_miss = 0
     for k in range(n):
@@ -93,7 +98,7 @@ def _coverage(
         cond = random_conditions(rng, seed * 100_000 + k)
         if adjust is not None:
             cond = adjust(cond, rng)
-        s = _settings(cond)
+        s = dataclasses.replace(_settings(cond), **unit)  # type: ignore[arg-type]
         fixes, truth, train = simulate(LAYOUT, crossing, cond, s)
         assert truth.speed_mps is not None
         ts = (truth.t_ns - truth.t_ns[0]) / NS
@@ -137,6 +142,21 @@ def test_the_bounds_hold_at_fixes_every_10_s_whatever_the_noise() -> None:
     assert checked > 10 * RUNS
     assert speed_miss <= 0.001 * checked, (speed_miss, checked)
     assert ahead_miss <= 0.001 * checked, (ahead_miss, checked)
+
+
+@pytest.mark.parametrize(
+    "unit",
+    [
+        {"k_sigma": 1.0},  # bounds at one σ instead of 3.3
+        {"adaptive_noise": False, "noise_m": 0.3},  # every receiver taken for a 0.1 m one
+    ],
+)
+def test_the_coverage_check_fails_for_a_unit_too_sure_of_itself(unit: dict[str, float | bool]) -> None:
+    # The two properties above would catch a filter whose bounds are too tight: the same check,
+    # with the unit made too sure of itself, misses the truth on more than 0.1 % of fixes.
+    checked, speed_miss, ahead_miss = _coverage(seed=2510, n=max(20, RUNS // 3), adjust=_sparse, **unit)
+    assert checked > 0
+    assert max(speed_miss, ahead_miss) > 0.001 * checked, (speed_miss, ahead_miss, checked)
 
 
 @pytest.mark.parametrize("speed_mps", [math.nan, 20.0])

@@ -138,6 +138,8 @@ class ControllerSettings:
     jerk_psd: float = 0.003
     k_sigma: float = 3.3
     settle_fixes: int = 2  # fixes in a row inside the filter's prediction before its estimate alone counts
+    # The filter's update uses the noise each device's own fixes prove (σ at most noise_m / 3).
+    adaptive_noise: bool = True
     # A warning is released only if, by the bound, the road stays open this long at least and
     # it would not come on again before the next fix is in (one report period and the latency):
     # no flicker.  (Waiting for the next fix *and* this long after it held a slow train's road
@@ -240,6 +242,7 @@ class CrossingController:
             s.max_speed_mps,
             k_sigma=s.k_sigma,
             settle_fixes=s.settle_fixes,
+            adaptive_noise=s.adaptive_noise,
         )
         kf = {HEAD: MotionFilter(flim), EOT: MotionFilter(flim), TRAIN: MotionFilter(flim)}
         return _Track(spec, DeviceEvidence(lim), DeviceEvidence(lim), kf)
@@ -653,11 +656,13 @@ class CrossingController:
         train = tr.kf[TRAIN]
         if rep.restarted:
             train.reset()
+        # Each fix with its own device's noise (the two receivers need not be alike).
+        sigma_m = tr.kf[fix.role].noise_sigma_m
         if fix.role == HEAD:
-            train.offer(fix.t_fix_ns, fix.chainage_m, fix.speed_mps, tr.direction)
+            train.offer(fix.t_fix_ns, fix.chainage_m, fix.speed_mps, tr.direction, sigma_m=sigma_m)
         elif tr.direction and tr.parted_ns is None:  # a parted train's EOT is on the rear part
             at = fix.chainage_m + tr.direction * tr.spec.length_m
-            train.offer(fix.t_fix_ns, at, fix.speed_mps, tr.direction, self.s.length_sigma_m**2)
+            train.offer(fix.t_fix_ns, at, fix.speed_mps, tr.direction, self.s.length_sigma_m**2, sigma_m)
 
     def step(self, fix: Fix) -> list[CrossingEvent]:
         """Process one received fix."""

@@ -12,7 +12,10 @@ much better:
   Li and Kirubarajan, Wiley 2001).  Fixes come at any interval; the filter
   predicts over each gap.
 * **Measurements**: each fix's chainage (σ: the GNSS noise), and its Doppler
-  speed where the export has one and the direction is known.
+  speed where the export has one and the direction is known.  The noise is
+  the worst case (5 m) until the device's own fixes prove it quieter
+  (:mod:`console.analysis.crossing.noise`, a robust and widened estimate);
+  the gate keeps the worst case, a brake between sparse fixes is no jump.
 * **Upper bounds**: estimate + ``k·σ`` (k = 3.3: one-sided 99.95 % for
   Gaussian errors), the property the tests check on randomized runs against
   the truth: not below the true speed on ≥ 99.9 % of fixes.
@@ -36,6 +39,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+from console.analysis.crossing.noise import NoiseEstimate
 from parsers.units import NS
 
 # (p00, p01, p02, p11, p12, p22): the symmetric 3 × 3 covariance of (chainage, speed, acceleration).
@@ -100,7 +104,7 @@ def update_speed(x: State, p: Cov, z: float, r: float) -> tuple[State, Cov]:
 
 @dataclass(frozen=True)
 class FilterLimits:
-    position_sigma_m: float  # GNSS noise along the track, one σ
+    position_sigma_m: float  # GNSS noise along the track, one σ: the worst case (the gate keeps it)
     speed_sigma_mps: float  # a reported (Doppler) speed's error, one σ
     jerk_psd: float  # how fast the acceleration may change: white jerk, m²/s⁵
     max_speed_mps: float  # no train runs faster (the speed prior before any evidence)
@@ -108,6 +112,7 @@ class FilterLimits:
     gate_sigma: float = 5.0  # a fix further than this from the prediction is set aside
     k_sigma: float = 3.3  # bounds: estimate ± k·σ
     settle_fixes: int = 4  # fixes in a row inside 3 σ of the prediction before the estimate is settled
+    adaptive_noise: bool = True  # the update uses the noise the device's own fixes prove (never above the worst)
 
 
 @dataclass(frozen=True)
@@ -146,21 +151,39 @@ class MotionFilter:
         self.rejected = 0  # fixes set aside by the gate, in all
         self.restarts = 0
         self._agree: deque[bool] = deque(maxlen=limits.settle_fixes)
-        self._pending: tuple[int, float, float, int, float] | None = None  # the last set-aside fix
+        self._pending: tuple[int, float, float, int, float, float | None] | None = None  # the last set-aside fix
+        self.noise = NoiseEstimate(limits.position_sigma_m)
+
+    @property
+    def noise_sigma_m(self) -> float:
+        """The position noise (one σ) the filter uses for this device's fixes now."""
+        return self.noise.sigma_m if self.lim.adaptive_noise else self.lim.position_sigma_m
 
     def reset(self) -> None:
         self.x = self.P = None
         self.fixes = 0
         self._agree.clear()
         self._pending = None
+        self.noise.restart()
 
-    def _start(self, t_ns: int, chainage_m: float, speed_mps: float, direction: int, extra_var: float = 0.0) -> None:
+    def _start(
+        self,
+        t_ns: int,
+        chainage_m: float,
+        speed_mps: float,
+        direction: int,
+        extra_var: float = 0.0,
+        sigma_m: float | None = None,
+    ) -> None:
         lim = self.lim
         v0, sv = 0.0, lim.max_speed_mps / math.sqrt(3.0)  # uniform over ± the fastest train
         if direction and not math.isnan(speed_mps):
             v0, sv = direction * speed_mps, 3 * lim.speed_sigma_mps
         self.x = (chainage_m, v0, 0.0)
-        self.P = (lim.position_sigma_m**2 + extra_var, 0.0, 0.0, sv * sv, 0.0, lim.accel_sigma_mps2**2)
+        sigma = self.noise_sigma_m if sigma_m is None else sigma_m
+        self.P = (sigma**2 + extra_var, 0.0, 0.0, sv * sv, 0.0, lim.accel_sigma_mps2**2)
+        if sigma_m is None:
+            self.noise.add(t_ns, chainage_m)
         self.t_ns = t_ns
         self.fixes = 1
         self._agree.clear()
@@ -174,26 +197,37 @@ class MotionFilter:
         return predict_ca(self.x, self.P, dt, self.lim.jerk_psd)
 
     def offer(
-        self, t_ns: int, chainage_m: float, speed_mps: float = math.nan, direction: int = 0, extra_var: float = 0.0
+        self,
+        t_ns: int,
+        chainage_m: float,
+        speed_mps: float = math.nan,
+        direction: int = 0,
+        extra_var: float = 0.0,
+        sigma_m: float | None = None,
     ) -> bool:
         """Take a fix (True) or set it aside as inconsistent with the track so far (False).
 
         ``speed_mps``: the reported speed (NaN: none), used with ``direction`` (±1) only.
         ``extra_var``: variance to add to the fix's own (m²; a position carried over from another
-        device of the train)."""
+        device of the train).  ``sigma_m``: the fix's noise as its own device's filter knows it
+        (None: this filter's device, its own estimate)."""
         lim = self.lim
         if self.x is None:
-            self._start(t_ns, chainage_m, speed_mps, direction, extra_var)
+            self._start(t_ns, chainage_m, speed_mps, direction, extra_var, sigma_m)
             return True
         if t_ns < self.t_ns:
             return False  # older than the state: not usable here
         x, P = self._predicted(t_ns)
-        r = lim.position_sigma_m**2 + extra_var
-        s = P[0] + r
+        # The gate and the agreement test keep the worst-case noise: a brake's onset between sparse
+        # fixes strays further from the prediction than a quiet receiver's noise, and is no jump.
+        s = P[0] + lim.position_sigma_m**2 + extra_var
         nu = chainage_m - x[0]
         if nu * nu > lim.gate_sigma**2 * s:
-            return self._set_aside(t_ns, chainage_m, speed_mps, direction, extra_var)
-        x, P = update_position(x, P, chainage_m, r)
+            return self._set_aside(t_ns, chainage_m, speed_mps, direction, extra_var, sigma_m)
+        sigma = self.noise_sigma_m if sigma_m is None else sigma_m
+        x, P = update_position(x, P, chainage_m, sigma**2 + extra_var)
+        if sigma_m is None:
+            self.noise.add(t_ns, chainage_m)
         if direction and not math.isnan(speed_mps):
             rv = lim.speed_sigma_mps**2
             nu_v = direction * speed_mps - x[1]
@@ -207,18 +241,21 @@ class MotionFilter:
         self._pending = None
         return True
 
-    def _set_aside(self, t_ns: int, chainage_m: float, speed_mps: float, direction: int, extra_var: float) -> bool:
+    def _set_aside(
+        self, t_ns: int, chainage_m: float, speed_mps: float, direction: int, extra_var: float, sigma_m: float | None
+    ) -> bool:
         self.rejected += 1
         self._agree.clear()
-        pending, self._pending = self._pending, (t_ns, chainage_m, speed_mps, direction, extra_var)
+        pending, self._pending = self._pending, (t_ns, chainage_m, speed_mps, direction, extra_var, sigma_m)
         if pending is not None:
             dt = (t_ns - pending[0]) / NS
             reach = self.lim.max_speed_mps * dt + 2 * self.lim.gate_sigma * self.lim.position_sigma_m
             if dt > 0 and abs(chainage_m - pending[1]) <= reach:
                 # Two set-aside fixes agree with each other: the track so far was wrong. Start over.
                 self.restarts += 1
+                self.noise.restart()
                 self._start(*pending)
-                self.offer(t_ns, chainage_m, speed_mps, direction, extra_var)
+                self.offer(t_ns, chainage_m, speed_mps, direction, extra_var, sigma_m)
                 return True
         return False
 
