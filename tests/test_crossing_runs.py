@@ -189,6 +189,29 @@ def test_stopped_train_near_the_crossing_keeps_it_warned() -> None:
     assert v.violation is None and v.excess_s is not None
 
 
+def test_a_train_braking_to_a_far_stop_stands_there_and_leaves_no_faster_than_the_line_speed() -> None:
+    # Seed 610061, run 1632 of the 3,000-run sweep: braking from 28.8 m/s in 0.2 s steps left 0.16 m/s a few
+    # centimetres short of the stop; the step that crept past it was not taken as the stop, and the train
+    # ran on at its cruising speed, above the 25 m/s a train leaving a stop may reach: a late warning
+    # (4.6 s short of 70 s) that was the harness breaking the unit's bounds.
+    cond = RunConditions(
+        period_s=10.0,
+        noise_m=4.312141517530633,
+        loss=0.23945686568123542,
+        latency_s=0.9449579852335691,
+        scenario="stop_far",
+        speed_mps=28.83860370881344,
+        direction=-1,
+        length_m=40.0,
+        seed=61006101632,
+        run_past_m=600.0,
+        speed_reported=False,
+    )
+    v = one_run(LAYOUT, LAYOUT.crossings[1632 % len(LAYOUT.crossings)], cond)
+    assert v.violation is None and v.late_by_s is None
+    assert v.physics_s is not None and v.physics_s >= 0.0  # the oracle, on the true motion, is in time
+
+
 @pytest.mark.parametrize("period_s", [0.4, 10.0])
 def test_a_121_kmh_train_without_speed_is_warned_in_time(period_s: float) -> None:
     # The case: 121 km/h (33.6 m/s), no speed column, a 70 s crossing; the unit is told 25 m/s.

@@ -106,9 +106,10 @@ def _motion(
             to_go = stop_at - past
             if v * v / (2 * brake) >= to_go:  # time to brake
                 v = max(0.0, v - brake * dt)
-                # Stopped at the point: a last step that would run past it ends the braking there.
-                if v == 0.0 or to_go < 0.05 or v * dt >= to_go:
-                    v, stopped_until = 0.0, t + dwell
+            # Stopped at the point: a step that would run past it ends there, braking or creeping the last
+            # centimetres (a train that ran past its stop would leave it at its cruising speed, not from a stand).
+            if v == 0.0 or to_go < 0.05 or v * dt >= to_go:
+                v, stopped_until = 0.0, t + dwell
         elif stopped_until is not None and t < stopped_until:
             v = 0.0
         else:
