@@ -168,13 +168,14 @@ class Pipeline:
             # Wheel records reach the counting as they are read; closed passages give it only their activity
             # (for power-loss events, when asked for), which the stream keeps with the releases.
             power = s.events is not None and s.events.power_gap_s is not None
+            batched = close_every_chunks > 1 and s.events is None
             self.stream = PassageStream(
                 registry,
                 s.speed,
                 keep_releases=power,
                 head_step_s=head_step_s,
-                close_every_chunks=close_every_chunks if s.events is None else 1,
-                analyse_aside=close_every_chunks > 1 and s.events is None,
+                close_every_chunks=close_every_chunks if batched else 1,
+                analyse_aside=batched,
             )
             self.acc = self.stream.acc
             self.events = None
@@ -209,9 +210,7 @@ class Pipeline:
             wheel = wheel_columns(self.acc._lookup(), chunk)
             if wheel is not None:
                 self.events.add_records(wheel, self.heads)
-        self._closed(self.stream.add(chunk))
-        for part in self.stream.closed_parts():
-            self._closed(part)
+        self._take(self.stream.add(chunk))
         if self.events is not None:
             slack_ns = self.stream._slack_ns
             clock = self.stream.lagging_clock_ns()
@@ -225,9 +224,7 @@ class Pipeline:
         can: its lines may arrive late."""
         if self.stream is None:
             return
-        self._closed(self.stream.complete_until(until_ns))
-        for part in self.stream.closed_parts():
-            self._closed(part)
+        self._take(self.stream.complete_until(until_ns))
         if self.events is not None:
             self._step(self.events.release_block(until_ns, self.stream.open_firsts()))
 
@@ -249,9 +246,7 @@ class Pipeline:
         if self.stream is None:
             warnings = self._finish_whole()
         else:
-            self._closed(self.stream.finish())
-            for part in self.stream.closed_parts(wait=True):
-                self._closed(part)
+            self._take(self.stream.finish(), wait=True)
             if self.events is not None:
                 clock = self.stream.clock_ns
                 slack_ns = self.stream._slack_ns
@@ -306,6 +301,13 @@ class Pipeline:
     _unpaired = 0
     _overlap_by_file: list[int] = []  # noqa: RUF012 (replaced, never mutated)
     _overlap_times = np.zeros(0, np.int64)
+
+    def _take(self, part: PartAnalysis | None, wait: bool = False) -> None:
+        """A part the stream closed at once, then those its worker has analysed since (``wait``: all)."""
+        assert self.stream is not None
+        self._closed(part)
+        for done in self.stream.closed_parts(wait):
+            self._closed(done)
 
     def _closed(self, part: PartAnalysis | None) -> None:
         if part is None:

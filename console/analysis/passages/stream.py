@@ -34,6 +34,7 @@ from collections import deque
 from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -206,12 +207,19 @@ class PassageStream:
             self.acc._detections = [{c: np.concatenate([d[c] for d in held]) for c in held[0]}]
         if not buckets:
             return None
-        args = (merge_buckets(buckets), detections, self.settings, self.keep_releases, None, self.head_step_s)
+        analysis = partial(
+            analyse_parts,
+            merge_buckets(buckets),
+            detections,
+            self.settings,
+            self.keep_releases,
+            head_step_s=self.head_step_s,
+        )
         if not self.analyse_aside:
-            return self._counted(analyse_parts(*args))
+            return self._counted(analysis())
         if self._analyst is None:
             self._analyst = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackside-close")
-        self._analysing.append(self._analyst.submit(analyse_parts, *args))
+        self._analysing.append(self._analyst.submit(analysis))
         return None
 
     def closed_parts(self, wait: bool = False) -> Iterator[PartAnalysis]:
