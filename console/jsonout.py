@@ -19,10 +19,18 @@ class RawJSON(str):
 
 class JSONParts:
     """Pieces of text that together are valid JSON (ASCII only), written one by one:
-    a large array is never one string.  Iterable once."""
+    a large array is never one string.  Iterable once.
 
-    def __init__(self, parts: Iterable[str]) -> None:
+    A piece may be ASCII bytes: :func:`write` hands those to the output's byte layer as they are (a spool's
+    megabytes of passages are never decoded to text and encoded back)."""
+
+    def __init__(self, parts: Iterable[str | bytes]) -> None:
         self.parts = parts
+
+    def texts(self) -> Iterator[str]:
+        """The pieces as text."""
+        for part in self.parts:
+            yield part.decode("ascii") if isinstance(part, bytes) else part
 
 
 def _lone_surrogate(match: re.Match[str]) -> str:
@@ -43,7 +51,7 @@ def _encode(value: Any) -> str:
     if isinstance(value, RawJSON):
         return value
     if isinstance(value, JSONParts):
-        return "".join(value.parts)
+        return "".join(value.texts())
     # ensure_ascii: no raw control or C1 bytes from a log can reach a terminal.
     # Compact: json's C encoder only runs without indent (pipe into jq to read).
     return valid_unicode(json.dumps(value, ensure_ascii=True, separators=(",", ":"), allow_nan=False))
@@ -56,7 +64,12 @@ def encode(value: Any) -> str:
 
 def dumps(doc: dict[str, Any]) -> str:
     """Compact, ASCII-only JSON; :class:`RawJSON` and :class:`JSONParts` values go in verbatim."""
-    return "{" + ",".join(f"{valid_unicode(json.dumps(k))}:{''.join(_parts(v))}" for k, v in doc.items()) + "}"
+    return "{" + ",".join(f"{valid_unicode(json.dumps(k))}:{''.join(_texts(_parts(v)))}" for k, v in doc.items()) + "}"
+
+
+def _texts(parts: Iterable[str | bytes]) -> Iterator[str]:
+    for part in parts:
+        yield part.decode("ascii") if isinstance(part, bytes) else part
 
 
 def array_parts(items: Iterable[Any], block: int = 4096) -> JSONParts:
@@ -74,7 +87,7 @@ def array_parts(items: Iterable[Any], block: int = 4096) -> JSONParts:
     return JSONParts(parts())
 
 
-def _parts(value: Any) -> Iterator[str]:
+def _parts(value: Any) -> Iterator[str | bytes]:
     """The JSON text of a value whose parts may be :class:`JSONParts` (also inside a dict), piece by piece."""
     if isinstance(value, JSONParts):
         yield from value.parts
@@ -89,11 +102,18 @@ def _parts(value: Any) -> Iterator[str]:
 
 def write(doc: dict[str, Any], out: TextIO) -> None:
     """Write ``dumps(doc)`` and a newline part by part: no second copy of a large document."""
+    raw = getattr(out, "buffer", None)
     out.write("{")
     for i, (key, value) in enumerate(doc.items()):
         out.write(("," if i else "") + valid_unicode(json.dumps(key)) + ":")
         for part in _parts(value):
-            out.write(part)
+            if not isinstance(part, bytes):
+                out.write(part)
+            elif raw is not None:
+                out.flush()  # the text written before it goes first
+                raw.write(part)
+            else:
+                out.write(part.decode("ascii"))
     out.write("}\n")
 
 

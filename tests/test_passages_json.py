@@ -151,7 +151,7 @@ def test_spool_encodes_held_batches_as_each_passage_alone(seed: int, monkeypatch
     objects = ps.passage_texts(take_passages(cols, by_head_and_start(cols)), heads)
     assert list(spool.texts()) == objects  # each alone, its comma in the spool left out
     expected = "[" + ",".join(objects) + "]"
-    got = "".join(spool.json_parts().parts)
+    got = "".join(spool.json_parts().texts())
     same = got == expected  # not compared by pytest's diff: two long texts
     at = next((i for i, (a, b) in enumerate(zip(got, expected, strict=False)) if a != b), min(len(got), len(expected)))
     assert same, f"first difference at {at}"

@@ -17,7 +17,7 @@ import typer
 from typer.models import CommandInfo
 
 from console import __version__
-from console.cli.common import OUTPUT_ERRNOS, install_process_guards, output_failed
+from console.cli.common import OUTPUT_ERRNOS, exit_at_once, install_process_guards, output_failed
 from console.cli.examples import APP_EXAMPLES, EXAMPLES, epilog
 
 # The commands, in the order help lists them; each is the function of its name in console.cli.commands.<name>.
@@ -40,7 +40,7 @@ COMMANDS = (
     "forecast",
 )
 
-__all__ = ["app"]
+__all__ = ["app", "run"]
 
 
 class _Trackside(typer.Typer):
@@ -132,3 +132,13 @@ def main(
 
 app = _new_app()
 app._pending = True
+
+
+def run() -> None:
+    """The ``trackside`` program: the app, ended at once when it is done (:func:`exit_at_once`).  Not for an
+    embedding process, which calls :data:`app` and goes on."""
+    try:
+        app()
+    except SystemExit as exc:
+        exit_at_once(exc)
+        raise

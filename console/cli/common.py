@@ -139,6 +139,29 @@ def _flush_at_exit() -> None:
             os._exit(exit_codes.USAGE)
 
 
+def exit_at_once(exc: SystemExit) -> None:
+    """End the process now with ``exc``'s status, as a normal exit would but without the interpreter's teardown.
+
+    After a large read that teardown (freeing every object, module by module) took 20–30 ms of a 0.7 s
+    `analyze`.  Taken only when nothing else runs (no other thread) and the status is a number: the exit
+    handlers run and stdout and stderr are flushed first, as at a normal exit; a flush that fails leaves the
+    exit to Python (and to :func:`_flush_at_exit`).
+    """
+    code = exc.code
+    if not (code is None or isinstance(code, int)) or threading.active_count() > 1:
+        return
+    import atexit
+
+    atexit._run_exitfuncs()
+    try:
+        for stream in (sys.stdout, sys.stderr):
+            if stream is not None:
+                stream.flush()
+    except (OSError, ValueError):
+        return
+    os._exit(code or 0)
+
+
 def _reopen_closed_std_fds() -> None:
     """Occupy fds 0-2 if they were closed at start, so no file we open later becomes our stdout."""
     for fd in (0, 1, 2):

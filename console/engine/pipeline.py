@@ -44,24 +44,26 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from console.analysis.diag_events import DiagEventSettings
-from console.analysis.events.block import KIND_CODE, EventBlock, StringPool
 from console.analysis.events.detection import DetectionEvent, EventKind, sort_events
 from console.analysis.passages.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, wheel_columns
 from console.analysis.passages.status import StatusSummary
 from console.analysis.passages.stream import PassageStream, by_start, take_passages
-from console.analysis.sections.engine import SectionEngine
 from console.analysis.sections.state import SectionState
-from console.analysis.sections.stream import EventStream, HeadFacts
 from console.engine.sinks import Sink
 from parsers.diag.read import DiagChunk
 from parsers.diag.registry import DiagRegistry
 from parsers.units import NO_TIME, NS
 
 if TYPE_CHECKING:
+    # Imported where first used: a read of passages alone (analyze, speeds) never counts events or runs the
+    # section engine, and its start-up is a third of a 3 M-record analyze's wall time.
+    from console.analysis.diag_events import DiagEventSettings
+    from console.analysis.events.block import EventBlock
     from console.analysis.head_table import Heads
     from console.analysis.health.rules import Finding
     from console.analysis.inventory import DeviceInventory
+    from console.analysis.sections.engine import SectionEngine
+    from console.analysis.sections.stream import EventStream, HeadFacts
     from console.layout import Layout
 
 # The events health reads (channel_fault_findings): everything else only drives sections.
@@ -180,6 +182,8 @@ class Pipeline:
             self.acc = self.stream.acc
             self.events = None
             if s.events is not None:
+                from console.analysis.sections.stream import EventStream
+
                 self.events = EventStream(
                     s.layout, s.events, facts=facts, on_event=self.health_events.append, event_kinds=HEALTH_EVENT_KINDS
                 )
@@ -338,6 +342,7 @@ class Pipeline:
     def _finish_whole(self) -> list[str]:
         """Whole mode: every record is in; analyse them together, as one read of every file."""
         from console.analysis.diag_events import diag_detection_events
+        from console.analysis.events.block import EventBlock, StringPool
         from console.layout import layout_from_heads
 
         s = self.settings
@@ -418,6 +423,8 @@ class Pipeline:
 
     # -- events and sections ---------------------------------------------------------
     def _step(self, block: EventBlock) -> None:
+        from console.analysis.events.block import KIND_CODE
+
         if not len(block):
             return
         # The last diagnostic event (a report's data end): operator resets do not count.
@@ -432,6 +439,8 @@ class Pipeline:
 
     def _engine(self, start_ns: int) -> SectionEngine:
         if self.section_engine is None:
+            from console.analysis.sections.engine import SectionEngine
+
             s = self.settings
             assert s.sections is not None
             self.section_engine = SectionEngine(s.sections, initial=s.initial, start_ns=start_ns)

@@ -208,12 +208,7 @@ class PassageStream:
         if not buckets:
             return None
         analysis = partial(
-            analyse_parts,
-            merge_buckets(buckets),
-            detections,
-            self.settings,
-            self.keep_releases,
-            head_step_s=self.head_step_s,
+            _analyse_closed, buckets, detections, self.settings, self.keep_releases, head_step_s=self.head_step_s
         )
         if not self.analyse_aside:
             return self._counted(analysis())
@@ -235,6 +230,18 @@ class PassageStream:
         self.unpaired_detections += part.unpaired
         self.passages_closed += len(part.passages["head"]) if part.passages is not None else 0
         return part
+
+
+def _analyse_closed(
+    buckets: list[Columns],
+    detections: list[Columns],
+    settings: SpeedSettings,
+    keep_releases: bool,
+    head_step_s: np.ndarray | None,
+) -> PartAnalysis:
+    """The passages of closed runs: their chunks' buckets merged (on the worker, when analysed aside: the merge's
+    sort lets go of the GIL), then analysed."""
+    return analyse_parts(merge_buckets(buckets), detections, settings, keep_releases, head_step_s=head_step_s)
 
 
 # The activity runs a deferred close holds at most: a log whose every record opens a run (a million heads)

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
-from console.layout import Section
+if TYPE_CHECKING:
+    from console.layout import Section
 
 
 class SectionState(StrEnum):

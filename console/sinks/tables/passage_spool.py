@@ -34,7 +34,6 @@ _LINE_TYPE = "p"
 _PREFIX = '{"type":"' + _LINE_TYPE + '",'
 # Texts copied out per read of the spool (bounded memory, few calls).
 _COPY_ROWS = 4096
-_COPY_BYTES = 2 << 20  # text handed to the writer at a time
 # A passage's place in the texts' file: 24 bytes on disk.
 _PLACE = [("head", "<i4"), ("length", "<i4"), ("start_ns", "<i8"), ("offset", "<i8")]
 _INDEX_ROWS = 1 << 16  # places read back at a time
@@ -201,21 +200,19 @@ class PassageSpool(Sink):
             for a, b in zip(np.r_[0, cut].tolist(), np.r_[cut, len(off)].tolist(), strict=True):
                 yield os.pread(fd, int(off[b - 1] + n[b - 1] - off[a]), int(off[a])), n[a:b].tolist()
 
-    def _parts(self) -> Iterator[str]:
+    def _parts(self) -> Iterator[str | bytes]:
         if not self.count:
             yield "[]"
             return
-        # Runs of texts each with its comma are the array's body as it is: only the last comma goes.
-        run_bytes = 0
-        batch: list[bytes] = []
+        # Runs of texts each with its comma are the array's body as it is, handed on as read (tens of kB each):
+        # only the last comma goes.
         yield "["
+        last = b""
         for run, _ in self._runs():
-            if batch and run_bytes >= _COPY_BYTES:
-                yield b"".join(batch).decode("ascii")
-                batch, run_bytes = [], 0
-            batch.append(run)
-            run_bytes += len(run)
-        yield b"".join(batch)[:-1].decode("ascii")
+            if last:
+                yield last
+            last = run
+        yield last[:-1]
         yield "]"
 
     def texts(self) -> Iterator[str]:
