@@ -19,7 +19,7 @@ APP = "import sys; sys.argv[0] = 'trackside'; from console.cli.app import app; a
 
 def _run(launch: str, *args: str, stdout: int | None = subprocess.PIPE, **kw: object) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run(  # type: ignore[call-overload, no-any-return]
+    return subprocess.run(  # type: ignore[call-overload]
         [sys.executable, "-c", launch, *args], stdout=stdout, stderr=subprocess.PIPE, env=env, timeout=120, **kw
     )
 
