@@ -13,6 +13,7 @@ setup(
             ["console/analysis/passages/compiled_runs.c"],
             optional=True,
         ),
+        Extension("console.analysis.counting.compiled_pairs", ["console/analysis/counting/compiled_pairs.c"], optional=True),
         Extension(
             "console.analysis.passages.compiled_json",
             ["console/analysis/passages/compiled_json.c"],

@@ -17,6 +17,7 @@ not an axle; it is counted as an unpaired detection.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -27,6 +28,11 @@ from console.analysis.counting.speed import MPS_TO_KMH
 from console.analysis.events.detection import DetectionEvent, EventKind
 from console.analysis.head_table import by_head_then_time
 from parsers.units import NS
+
+try:
+    from console.analysis.counting import compiled_pairs
+except ImportError:  # built without a C compiler: the numpy pairing
+    compiled_pairs = None  # type: ignore[assignment]
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -64,17 +70,15 @@ def _group_starts(keys: np.ndarray) -> np.ndarray:
 
 
 def _fine_pairs(
-    order: np.ndarray, gh: np.ndarray, t: np.ndarray, on1: np.ndarray, on2: np.ndarray, window_ns: int
+    gh: np.ndarray, t: np.ndarray, on1: np.ndarray, on2: np.ndarray, window_ns: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest-partner pairs of sub-second heads, all heads at once: positions (a, b) into ``order``.
-
-    ``order`` sorts the heads' onsets by head, then time (ties in read
-    order); ``gh`` is each position's head.  Each Sys1 onset takes the
+    """Nearest-partner pairs of sub-second heads, all heads at once: positions (a, b) of onsets sorted by
+    head, then time (ties in read order); ``gh`` is each position's head.  Each Sys1 onset takes the
     nearest Sys2 onset of its head within the window (one ``np.searchsorted``
     over a (head, time) rank stands for one per head), then a Sys2 onset
     claimed twice goes to the nearer Sys1 onset.
     """
-    n = len(order)
+    n = len(gh)
     # Dense rank of (head, time): one sorted key that compares as the pair does.
     new = np.r_[True, (gh[1:] != gh[:-1]) | (t[1:] != t[:-1])] if n else np.zeros(0, bool)
     key = np.cumsum(new)
@@ -151,40 +155,16 @@ def pair_axle_arrays(
     wheel = np.flatnonzero(is1 | is2)
     # By head, then time; stable: ties keep file order.
     order = wheel[by_head_then_time(head[wheel], time_ns[wheel])[0]]
-    gh, t = head[order], time_ns[order]
-    starts = _group_starts(gh)
-    size = np.diff(np.r_[starts, len(order)])
-    # Per head: all its stamps sub-second (pairs by nearest time), and their resolution.
-    fine_head = np.logical_and.reduceat(subsecond[order], starts) if len(order) else np.zeros(0, bool)
-    fine = np.repeat(fine_head, size)
-    ms = np.repeat(np.logical_and.reduceat(t % 1_000_000 == 0, starts), size) if len(order) else fine
-    us = np.repeat(np.logical_and.reduceat(t % 1_000 == 0, starts), size) if len(order) else fine
-    step_s = np.ones(len(head))  # per onset: its head's stamp resolution
-    step_s[order[fine]] = np.where(ms, 1e-3, np.where(us, 1e-6, 1e-9))[fine]
-    if head_step_s is not None and len(order):
-        known = gh < len(head_step_s)
-        given = np.where(known, head_step_s[np.minimum(gh, len(head_step_s) - 1)], np.nan)
-        fine = np.where(known, given < 1.0, fine)
-        step_s[order[known]] = given[known]
-
-    ch = channel[order]
-    fa, fb = _fine_pairs(order, gh, t, fine & (ch == SYS1), fine & (ch == SYS2), fine_window_ns)
-    coarse = np.flatnonzero(~fine)
-    at = coarse[_coarse_pairs(gh[coarse], ch[coarse], t[coarse], coarse_window_ns)]
-    nxt = coarse[np.searchsorted(coarse, at) + 1]
-    c_first1 = ch[at] == SYS1
-    ca, cb = np.where(c_first1, at, nxt), np.where(c_first1, nxt, at)
-    # Pairs in head order, each head's in its own order (sub-second and whole-second heads are apart).
-    pa, pb = np.r_[fa, ca], np.r_[fb, cb]
-    by_head = np.argsort(gh[pa], kind="stable")
-    pa, pb = pa[by_head], pb[by_head]
+    pa, pb, step_a = pair_positions(
+        head[order], time_ns[order], channel[order], subsecond[order], head_step_s, fine_window_ns, coarse_window_ns
+    )
     sys1_first = pa < pb  # positions in time order, ties in file order
     a, b = order[pa], order[pb]
     t1, t2 = time_ns[a], time_ns[b]
     delay_s = (t2 - t1) / NS
     exact = subsecond[a] & subsecond[b]
     # Millisecond stamps time a 4 ms delay (0.13 m at 120 km/h) to ±25 %: no figure then.
-    timed = exact & (np.abs(delay_s) >= settings.min_delay_steps * step_s[a])
+    timed = exact & (np.abs(delay_s) >= settings.min_delay_steps * step_a)
     with np.errstate(divide="ignore"):
         speed = np.where(timed & (delay_s != 0), settings.spacing_m / np.abs(delay_s) * MPS_TO_KMH, np.nan)
     # The order of two onsets is known from their times, or, for equal
@@ -205,6 +185,76 @@ def pair_axle_arrays(
     }
     unpaired = int((is1 | is2).sum()) - 2 * len(a)
     return axles, unpaired
+
+
+def _pair_positions_numpy(
+    gh: np.ndarray,
+    t: np.ndarray,
+    ch: np.ndarray,
+    subsecond: np.ndarray,
+    head_step_s: np.ndarray | None,
+    fine_window_ns: int,
+    coarse_window_ns: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Onsets sorted by head, then time (ties in read order): the positions of each pair's Sys1 and Sys2 onset,
+    by head, each head's in its own order; and each pair's stamp step (its head's resolution, 1.0: whole
+    seconds).  (:data:`pair_positions`: this, or the compiled pass alike.)"""
+    starts = _group_starts(gh)
+    size = np.diff(np.r_[starts, len(gh)])
+    # Per head: all its stamps sub-second (pairs by nearest time), and their resolution.
+    fine_head = np.logical_and.reduceat(subsecond, starts) if len(gh) else np.zeros(0, bool)
+    fine = np.repeat(fine_head, size)
+    ms = np.repeat(np.logical_and.reduceat(t % 1_000_000 == 0, starts), size) if len(gh) else fine
+    us = np.repeat(np.logical_and.reduceat(t % 1_000 == 0, starts), size) if len(gh) else fine
+    step_s = np.where(fine, np.where(ms, 1e-3, np.where(us, 1e-6, 1e-9)), 1.0)  # per position
+    if head_step_s is not None and len(gh):
+        known = gh < len(head_step_s)
+        given = np.where(known, head_step_s[np.minimum(gh, len(head_step_s) - 1)], np.nan)
+        fine = np.where(known, given < 1.0, fine)
+        step_s[known] = given[known]
+    fa, fb = _fine_pairs(gh, t, fine & (ch == SYS1), fine & (ch == SYS2), fine_window_ns)
+    coarse = np.flatnonzero(~fine)
+    at = coarse[_coarse_pairs(gh[coarse], ch[coarse], t[coarse], coarse_window_ns)]
+    nxt = coarse[np.searchsorted(coarse, at) + 1]
+    c_first1 = ch[at] == SYS1
+    ca, cb = np.where(c_first1, at, nxt), np.where(c_first1, nxt, at)
+    # Pairs in head order, each head's in its own order (sub-second and whole-second heads are apart).
+    pa, pb = np.r_[fa, ca], np.r_[fb, cb]
+    by_head = np.argsort(gh[pa], kind="stable")
+    pa, pb = pa[by_head], pb[by_head]
+    return pa, pb, step_s[pa]
+
+
+def _pair_positions_compiled(
+    gh: np.ndarray,
+    t: np.ndarray,
+    ch: np.ndarray,
+    subsecond: np.ndarray,
+    head_step_s: np.ndarray | None,
+    fine_window_ns: int,
+    coarse_window_ns: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_pair_positions_numpy`'s pairs in one compiled pass without the GIL (``compiled_pairs.c``)."""
+    assert compiled_pairs is not None
+    steps = None if head_step_s is None else np.ascontiguousarray(head_step_s, np.float64)
+    m, pa, pb, step = compiled_pairs.pair_positions(
+        np.ascontiguousarray(gh, np.int64),
+        np.ascontiguousarray(t, np.int64),
+        np.ascontiguousarray(ch, np.int64),
+        np.ascontiguousarray(subsecond, np.bool_),
+        steps,
+        fine_window_ns,
+        coarse_window_ns,
+        SYS1,
+        SYS2,
+    )
+    pa_, pb_ = np.frombuffer(pa, np.int64)[:m], np.frombuffer(pb, np.int64)[:m]
+    return pa_, pb_, np.frombuffer(step, np.float64)[pa_]
+
+
+# The compiled pass where it was built, unless TRACKSIDE_PURE=1 asks for numpy (tests/test_pairs_compiled.py).
+_COMPILED = compiled_pairs is not None and not os.environ.get("TRACKSIDE_PURE")
+pair_positions = _pair_positions_compiled if _COMPILED else _pair_positions_numpy
 
 
 def axles_frame(axles: Mapping[str, np.ndarray]) -> pd.DataFrame:
