@@ -13,7 +13,9 @@ setup(
             ["console/analysis/passages/compiled_runs.c"],
             optional=True,
         ),
-        Extension("console.analysis.counting.compiled_pairs", ["console/analysis/counting/compiled_pairs.c"], optional=True),
+        Extension(
+            "console.analysis.counting.compiled_pairs", ["console/analysis/counting/compiled_pairs.c"], optional=True
+        ),
         Extension(
             "console.analysis.passages.compiled_json",
             ["console/analysis/passages/compiled_json.c"],
