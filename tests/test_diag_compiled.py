@@ -9,10 +9,8 @@ lines), every sample log, hand-made edge cases, and random lines and bytes.
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
-import sysconfig
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +22,7 @@ from hypothesis import strategies as st
 from benchmarks.gen_realistic_diag import generate
 from parsers.diag import read as diag_read
 from parsers.sources import Chunk
+from tests.compiled_parts import needs_compiled
 from tests.conftest import SAMPLES, record
 
 try:
@@ -31,17 +30,7 @@ try:
 except ImportError:  # pragma: no cover - depends on the build
     compiled_tokens = None  # type: ignore[assignment]
 
-_COMPILER = shutil.which("cc") or shutil.which("gcc")
-_HEADERS = (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file()
-if compiled_tokens is None and os.environ.get("CI") and _COMPILER and _HEADERS:
-    # CI installs a C compiler and this Python's headers: a package built without the module there means
-    # the build broke.
-    raise AssertionError(f"the compiled tokenizer was not built, though a C compiler is present ({_COMPILER})")
-
-pytestmark = pytest.mark.skipif(
-    compiled_tokens is None,
-    reason="parsers.diag.compiled_tokens is not built (no C compiler at install): only the numpy tokenizer exists",
-)
+pytestmark = needs_compiled(compiled_tokens, "parsers.diag.compiled_tokens")
 
 _PER_LINE = ("starts", "ends", "blank")
 _PER_FAST_LINE = ("fast", "reg_idx", "val_idx", "time_ok")

@@ -10,32 +10,16 @@ given up front (some heads beyond the given ones, a NaN step); and whole pairing
 
 from __future__ import annotations
 
-import os
-import shutil
-import sysconfig
-from pathlib import Path
-
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from console.analysis.counting import wheels
 from console.analysis.counting.wheels import SYS1, SYS2, PairingSettings, pair_axle_arrays
 from parsers.units import NS
+from tests.compiled_parts import needs_compiled
 
-_COMPILER = shutil.which("cc") or shutil.which("gcc")
-_HEADERS = (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file()
-if wheels.compiled_pairs is None and os.environ.get("CI") and _COMPILER and _HEADERS:
-    # CI installs a C compiler and this Python's headers: a package built without the module means the build broke.
-    raise AssertionError(
-        f"console.analysis.counting.compiled_pairs was not built, though a C compiler is present ({_COMPILER})"
-    )
-
-pytestmark = pytest.mark.skipif(
-    wheels.compiled_pairs is None,
-    reason="console.analysis.counting.compiled_pairs is not built (no C compiler at install): only the numpy path",
-)
+pytestmark = needs_compiled(wheels.compiled_pairs, "console.analysis.counting.compiled_pairs")
 
 _STEPS_NS = (1, 1_000, 1_000_000, NS)
 

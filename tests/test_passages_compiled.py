@@ -10,10 +10,8 @@ channels other than 1 and 2, values other than 0 and 1), and whole reads through
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
-import sysconfig
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,21 +23,10 @@ from hypothesis import strategies as st
 from benchmarks.gen_realistic_diag import generate
 from console.analysis.passages import buckets, stream
 from parsers.diag.read import DiagChunk
+from tests.compiled_parts import needs_compiled
 from tests.conftest import SAMPLES
 
-_COMPILER = shutil.which("cc") or shutil.which("gcc")
-_HEADERS = (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file()
-if buckets.compiled_runs is None and os.environ.get("CI") and _COMPILER and _HEADERS:
-    # CI installs a C compiler and this Python's headers: a package built without the module there means
-    # the build broke.
-    raise AssertionError(
-        f"console.analysis.passages.compiled_runs was not built, though a C compiler is present ({_COMPILER})"
-    )
-
-pytestmark = pytest.mark.skipif(
-    buckets.compiled_runs is None,
-    reason="console.analysis.passages.compiled_runs is not built (no C compiler at install): only the numpy path",
-)
+pytestmark = needs_compiled(buckets.compiled_runs, "console.analysis.passages.compiled_runs")
 
 
 @dataclass

@@ -1,0 +1,14 @@
+import numpy as np
+
+def pair_positions(
+    gh: np.ndarray,
+    t: np.ndarray,
+    ch: np.ndarray,
+    subsecond: np.ndarray,
+    head_step_s: np.ndarray | None,
+    fine_window_ns: int,
+    coarse_window_ns: int,
+    sys1: int,
+    sys2: int,
+    /,
+) -> tuple[int, bytearray, bytearray, bytearray]: ...
