@@ -131,7 +131,17 @@ def _coarse_pairs(gh: np.ndarray, ch: np.ndarray, t: np.ndarray, window_ns: int)
 def pair_axle_arrays(
     onsets: Mapping[str, Any], settings: PairingSettings, head_step_s: np.ndarray | None = None
 ) -> tuple[dict[str, np.ndarray], int]:
-    """:func:`pair_axles` as columns of arrays, ``direction`` as a code into :data:`DIRECTIONS`.
+    """:func:`pair_axles` as columns of arrays, ``direction`` as a code into :data:`DIRECTIONS`
+    (:func:`pair_onsets` without the onsets' rows)."""
+    axles, unpaired, _ = pair_onsets(onsets, settings, head_step_s)
+    return axles, unpaired
+
+
+def pair_onsets(
+    onsets: Mapping[str, Any], settings: PairingSettings, head_step_s: np.ndarray | None = None
+) -> tuple[dict[str, np.ndarray], int, np.ndarray]:
+    """The axles and unpaired onsets of :func:`pair_axle_arrays`, and per axle the row of ``onsets`` holding its
+    earlier onset (the one its ``time_ns`` is; a tie: the Sys1 onset).
 
     ``head_step_s``: per head key, its stamps' resolution over the whole log (1.0: whole seconds), when the
     caller knows it (a part of a log then pairs as the whole log does); else judged from these onsets.
@@ -184,7 +194,7 @@ def pair_axle_arrays(
         "speed_kmh": speed,
     }
     unpaired = int((is1 | is2).sum()) - 2 * len(a)
-    return axles, unpaired
+    return axles, unpaired, np.where(t1 <= t2, a, b)
 
 
 def _pair_positions_numpy(

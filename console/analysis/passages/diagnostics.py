@@ -23,7 +23,7 @@ from console.analysis.counting.wheels import (
     SYS2,
     PairingSettings,
     axles_frame,
-    pair_axle_arrays,
+    pair_onsets,
 )
 from console.analysis.device_table import DeviceTable
 from console.analysis.head_table import Heads, HeadTable, heads_at
@@ -319,9 +319,9 @@ def analyse_parts(
     # Without releases every wheel record is an onset: no copy needed.
     onsets = {c: v[wheel["value"] == 1] for c, v in wheel.items()} if keep_releases else wheel
     pairing = PairingSettings(settings.spacing_m, settings.pair_window_s)
-    axles, n_unpaired = pair_axle_arrays(onsets, pairing, head_step_s)
+    axles, n_unpaired, first_onset = pair_onsets(onsets, pairing, head_step_s)
     return PartAnalysis(
-        passages=_passages(buckets, onsets, axles, settings),
+        passages=_passages(buckets, onsets, axles, onsets["bucket"][first_onset], settings),
         axles=axles,
         unpaired=n_unpaired,
         wheel={c: wheel[c] for c in ("head", "channel", "time_ns", "value", "subsecond")} if keep_releases else None,
@@ -405,7 +405,9 @@ PASSAGE_DIRECTIONS = (None, DIRECTION_12, DIRECTION_21, "mixed")  # the directio
 PASSAGE_KINDS = ("train", "damping", "status")
 
 
-def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings) -> Columns | None:
+def _passages(
+    buckets: Columns, onsets: Arrays, axles: Arrays, axle_bucket: np.ndarray, s: SpeedSettings
+) -> Columns | None:
     """One row per passage, every figure vectorized over passages (no groupby per record).
 
     The columns of :data:`PASSAGE_COLUMNS`, except that the text columns are
@@ -441,10 +443,9 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     n_onsets = np.bincount(op, minlength=n)
     subsecond = (n_onsets > 0) & (np.bincount(op[~onsets["subsecond"]], minlength=n) == 0)
 
-    # Axles belong to the passage of the bucket holding their earlier onset.
-    row = bucket_index(buckets, axles["head"], axles["time_ns"])
-    ax_ok = row >= 0
-    ax_p = passage[row[ax_ok]]
+    # Axles belong to the passage of the bucket holding their earlier onset (``axle_bucket``: that row).
+    ax_ok = axle_bucket >= 0
+    ax_p = passage[axle_bucket[ax_ok]]
     ax_dir = axles["direction"][ax_ok]
     n_axles = np.bincount(ax_p, minlength=n)
     n12 = np.bincount(ax_p[ax_dir == 1], minlength=n)
@@ -457,8 +458,11 @@ def _passages(buckets: Columns, onsets: Arrays, axles: Arrays, s: SpeedSettings)
     # holds [start, stop) into it.
     speed = axles["speed_kmh"][ax_ok]
     timed = ~np.isnan(speed)
-    order = np.lexsort((axles["time_ns"][ax_ok][timed], ax_p[timed]))
-    timed_p, timed_v = ax_p[timed][order], speed[timed][order]
+    timed_p, timed_t, timed_v = ax_p[timed], axles["time_ns"][ax_ok][timed], speed[timed]
+    # Axles come by head, each head's in time: the sort is mostly not needed (stable: the same order either way).
+    if not bool(np.all((timed_p[1:] > timed_p[:-1]) | ((timed_p[1:] == timed_p[:-1]) & (timed_t[1:] >= timed_t[:-1])))):
+        order = np.lexsort((timed_t, timed_p))
+        timed_p, timed_v = timed_p[order], timed_v[order]
     n_timed = np.bincount(timed_p, minlength=n)
     with np.errstate(invalid="ignore", divide="ignore"):
         axle_mean = np.bincount(timed_p, weights=timed_v, minlength=n) / n_timed
