@@ -216,3 +216,33 @@ def test_frame_columns_refuse_what_has_no_code() -> None:
     odd["direction"] = odd["direction"].astype(object)
     odd.loc[odd.index[0], "direction"] = "sideways"
     assert frame_columns(odd) is None
+
+
+def test_a_document_with_the_spool_s_bytes_is_the_same_text_whatever_the_output() -> None:
+    """The spool hands its runs of passages as bytes: written to a text stream with a byte layer (stdout), text
+    and bytes come out in the document's order, as written to one without (the text buffered before a run of
+    bytes goes first), and the JSON reads back to the passages each encoded alone."""
+    import io
+    import json
+
+    from console.jsonout import write
+    from console.sinks.tables.passage_spool import PassageSpool, passage_texts
+
+    analysis = whole_job([SAMPLES / "example_station.log"], SpeedSettings()).analysis
+    cols = analysis.passage_columns
+    assert cols is not None
+    heads = list(analysis.heads)
+    texts = []
+    for out in (io.TextIOWrapper(io.BytesIO(), encoding="ascii", write_through=False), io.StringIO()):
+        spool = PassageSpool()
+        spool.passages(cols, heads)
+        write({"schema": "x", "passages": spool.json_parts(), "after": [1, 2]}, out)
+        out.flush()
+        texts.append(out.buffer.getvalue().decode("ascii") if isinstance(out, io.TextIOWrapper) else out.getvalue())
+    same = texts[0] == texts[1]  # not compared by pytest's diff: two long texts
+    assert same, "the outputs differ"
+    doc = json.loads(texts[0])
+    assert list(doc) == ["schema", "passages", "after"] and doc["after"] == [1, 2]
+    assert [json.dumps(p, separators=(",", ":")) for p in doc["passages"]] == [
+        json.dumps(json.loads(t), separators=(",", ":")) for t in passage_texts(cols, heads)
+    ]
