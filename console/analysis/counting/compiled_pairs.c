@@ -29,29 +29,33 @@ static int get(Buf *x, PyObject *o, Py_ssize_t item, Py_ssize_t n, const char *n
 }
 
 PyDoc_STRVAR(pair_positions_doc,
-             "pair_positions(gh, t, ch, subsecond, head_step_s, fine_window_ns, coarse_window_ns, sys1, sys2)\n"
-             "    -> (n_pairs, pa, pb, step_s)\n\n"
-             "Onsets sorted by head, then time (ties in read order): gh, t, ch int64, subsecond bool;\n"
-             "head_step_s: float64 per head key (None: judged from the onsets).  pa, pb: int64 positions of\n"
-             "each pair's Sys1 and Sys2 onset, by head, each head's in order; step_s: float64 per position,\n"
-             "its head's stamp step (1.0: whole seconds).  Bytearrays; the first n_pairs of pa, pb valid.");
+             "pair_positions(head, t, ch, subsecond, order, head_step_s, fine_window_ns, coarse_window_ns, sys1,\n"
+             "               sys2) -> (n_pairs, order, pa, pb, step_s) or None\n\n"
+             "Wheel onsets in read order: head, t, ch int64, subsecond bool.  order: int64 positions sorting\n"
+             "them by head, then time (ties in read order), or None: found here by a counting sort of the head\n"
+             "keys, and None returned where that cannot be (a key below 0 or far above the onsets' number, or a\n"
+             "head's times going back: the caller sorts).  head_step_s: float64 per head key (None: judged from\n"
+             "the onsets).  pa, pb: int64 positions (into order) of each pair's Sys1 and Sys2 onset, by head,\n"
+             "each head's in order; step_s: float64 per position, its head's stamp step (1.0: whole seconds).\n"
+             "Bytearrays; the first n_pairs of pa, pb valid.");
 
 static PyObject *pair_positions(PyObject *self, PyObject *args)
 {
-    PyObject *o_gh, *o_t, *o_ch, *o_sub, *o_step;
+    PyObject *o_head, *o_t, *o_ch, *o_sub, *o_order, *o_step;
     long long fine_window, coarse_window, sys1, sys2;
-    if (!PyArg_ParseTuple(args, "OOOOOLLLL", &o_gh, &o_t, &o_ch, &o_sub, &o_step, &fine_window, &coarse_window,
-                          &sys1, &sys2))
+    if (!PyArg_ParseTuple(args, "OOOOOOLLLL", &o_head, &o_t, &o_ch, &o_sub, &o_order, &o_step, &fine_window,
+                          &coarse_window, &sys1, &sys2))
         return NULL;
-    Buf bg = {0}, bt = {0}, bc = {0}, bs = {0}, bh = {0};
-    PyObject *result = NULL, *out[3] = {NULL};
-    int64_t *claim = NULL;
-    if (PyObject_GetBuffer(o_gh, &bg.b, PyBUF_C_CONTIGUOUS) < 0) return NULL;
+    Buf bg = {0}, bt = {0}, bc = {0}, bs = {0}, bo = {0}, bh = {0};
+    PyObject *result = NULL, *out[4] = {NULL};
+    int64_t *scratch = NULL;
+    if (PyObject_GetBuffer(o_head, &bg.b, PyBUF_C_CONTIGUOUS) < 0) return NULL;
     bg.held = 1;
     const Py_ssize_t n = bg.b.len / 8;
     if (bg.b.len % 8 || get(&bt, o_t, 8, n, "t") < 0 || get(&bc, o_ch, 8, n, "ch") < 0 ||
         get(&bs, o_sub, 1, n, "subsecond") < 0)
         goto done;
+    if (o_order != Py_None && get(&bo, o_order, 8, n, "order") < 0) goto done;
     Py_ssize_t n_steps = 0;
     if (o_step != Py_None) {
         if (PyObject_GetBuffer(o_step, &bh.b, PyBUF_C_CONTIGUOUS) < 0) goto done;
@@ -62,22 +66,82 @@ static PyObject *pair_positions(PyObject *self, PyObject *args)
         }
         n_steps = bh.b.len / 8;
     }
-    static const int widths[3] = {8, 8, 8};
-    for (int k = 0; k < 3; k++) {
-        out[k] = PyByteArray_FromStringAndSize(NULL, (n > 0 ? n : 1) * widths[k]);
+    const Py_ssize_t n1 = n > 0 ? n : 1;
+    for (int k = 0; k < 4; k++) {
+        out[k] = PyByteArray_FromStringAndSize(NULL, n1 * 8);
         if (!out[k]) goto done;
     }
-    claim = PyMem_RawMalloc((size_t)(n > 0 ? n : 1) * sizeof(int64_t));
-    if (!claim) {
+    const int64_t *head = bg.b.buf, *t_in = bt.b.buf, *ch_in = bc.b.buf;
+    const char *sub_in = bs.b.buf;
+    const double *head_step = bh.held ? bh.b.buf : NULL;
+    int64_t *order = (int64_t *)PyByteArray_AS_STRING(out[0]), *pa = (int64_t *)PyByteArray_AS_STRING(out[1]),
+            *pb = (int64_t *)PyByteArray_AS_STRING(out[2]);
+    double *step = (double *)PyByteArray_AS_STRING(out[3]);
+    /* The counting sort's room: a key far above the onsets' number would cost more than a sort. */
+    int64_t max_head = -1, sortable = 1;
+    if (!bo.held) {
+        for (Py_ssize_t i = 0; i < n; i++) {
+            if (head[i] < 0) sortable = 0;
+            if (head[i] > max_head) max_head = head[i];
+        }
+        if (max_head > 4 * (int64_t)n + 65536) sortable = 0;
+        if (!sortable) {
+            Py_INCREF(Py_None);
+            result = Py_None;
+            goto done;
+        }
+    }
+    /* Per position: its head, time, channel (three int64 runs), its claim, then its count (the sort's). */
+    size_t n_counts = bo.held ? 0 : (size_t)max_head + 2;
+    scratch = PyMem_RawMalloc(((size_t)n1 * 5 + n_counts) * sizeof(int64_t));
+    if (!scratch) {
         PyErr_NoMemory();
         goto done;
     }
-    const int64_t *gh = bg.b.buf, *t = bt.b.buf, *ch = bc.b.buf;
-    const char *sub = bs.b.buf;
-    const double *head_step = bh.held ? bh.b.buf : NULL;
-    int64_t *pa = (int64_t *)PyByteArray_AS_STRING(out[0]), *pb = (int64_t *)PyByteArray_AS_STRING(out[1]);
-    double *step = (double *)PyByteArray_AS_STRING(out[2]);
+    int64_t *gh = scratch, *t = scratch + n1, *ch = scratch + 2 * n1, *claim = scratch + 3 * n1;
+    char *sub = (char *)(scratch + 4 * n1);
     int64_t m = 0;
+    int bad_order = 0, went_back = 0;
+
+    Py_BEGIN_ALLOW_THREADS
+    if (bo.held) {
+        const int64_t *given = bo.b.buf;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            if (given[i] < 0 || given[i] >= n) bad_order = 1;
+            order[i] = given[i];
+        }
+    }
+    else {
+        /* Stable counting sort by head key: each head's onsets keep their read order. */
+        int64_t *count = scratch + 5 * n1;
+        memset(count, 0, n_counts * sizeof(int64_t));
+        for (Py_ssize_t i = 0; i < n; i++) count[head[i] + 1]++;
+        for (size_t k = 1; k < n_counts; k++) count[k] += count[k - 1];
+        for (Py_ssize_t i = 0; i < n; i++) order[count[head[i]]++] = i;
+    }
+    if (!bad_order)
+        for (Py_ssize_t i = 0; i < n; i++) {
+            int64_t o = order[i];
+            gh[i] = head[o];
+            t[i] = t_in[o];
+            ch[i] = ch_in[o];
+            sub[i] = sub_in[o];
+            if (i && gh[i] == gh[i - 1] && t[i] < t[i - 1]) went_back = 1;
+        }
+    Py_END_ALLOW_THREADS
+    if (bad_order) {
+        PyErr_SetString(PyExc_IndexError, "pair_positions: an order position beyond the onsets");
+        goto done;
+    }
+    if (went_back) {
+        if (bo.held) {
+            PyErr_SetString(PyExc_ValueError, "pair_positions: the order does not sort each head's times");
+            goto done;
+        }
+        Py_INCREF(Py_None);
+        result = Py_None;
+        goto done;
+    }
 
     Py_BEGIN_ALLOW_THREADS
     /* Pass 1, per head: sub-second or not, the step; the sub-second heads' nearest-partner pairs (their Sys2
@@ -172,13 +236,13 @@ static PyObject *pair_positions(PyObject *self, PyObject *args)
         m = kept;
     }
     Py_END_ALLOW_THREADS
-    result = Py_BuildValue("(LOOO)", (long long)m, out[0], out[1], out[2]);
+    result = Py_BuildValue("(LOOOO)", (long long)m, out[0], out[1], out[2], out[3]);
 
 done:
-    for (int k = 0; k < 3; k++) Py_XDECREF(out[k]);
-    PyMem_RawFree(claim);
-    Buf *bufs[5] = {&bg, &bt, &bc, &bs, &bh};
-    for (int k = 0; k < 5; k++)
+    for (int k = 0; k < 4; k++) Py_XDECREF(out[k]);
+    PyMem_RawFree(scratch);
+    Buf *bufs[6] = {&bg, &bt, &bc, &bs, &bo, &bh};
+    for (int k = 0; k < 6; k++)
         if (bufs[k]->held) PyBuffer_Release(&bufs[k]->b);
     return result;
 }

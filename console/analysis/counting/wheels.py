@@ -163,11 +163,16 @@ def pair_onsets(
     coarse_window_ns = max(fine_window_ns, NS)  # stamps a second apart may be 1 ms apart
 
     wheel = np.flatnonzero(is1 | is2)
-    # By head, then time; stable: ties keep file order.
-    order = wheel[by_head_then_time(head[wheel], time_ns[wheel])[0]]
-    pa, pb, step_a = pair_positions(
-        head[order], time_ns[order], channel[order], subsecond[order], head_step_s, fine_window_ns, coarse_window_ns
-    )
+    # Positions by head, then time; stable: ties keep file order.
+    if len(wheel) == len(head):
+        order, pa, pb, step_a = pair_positions(
+            head, time_ns, channel, subsecond, head_step_s, fine_window_ns, coarse_window_ns
+        )
+    else:
+        order, pa, pb, step_a = pair_positions(
+            head[wheel], time_ns[wheel], channel[wheel], subsecond[wheel], head_step_s, fine_window_ns, coarse_window_ns
+        )
+        order = wheel[order]
     sys1_first = pa < pb  # positions in time order, ties in file order
     a, b = order[pa], order[pb]
     t1, t2 = time_ns[a], time_ns[b]
@@ -198,17 +203,20 @@ def pair_onsets(
 
 
 def _pair_positions_numpy(
-    gh: np.ndarray,
+    head: np.ndarray,
     t: np.ndarray,
     ch: np.ndarray,
     subsecond: np.ndarray,
     head_step_s: np.ndarray | None,
     fine_window_ns: int,
     coarse_window_ns: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Onsets sorted by head, then time (ties in read order): the positions of each pair's Sys1 and Sys2 onset,
-    by head, each head's in its own order; and each pair's stamp step (its head's resolution, 1.0: whole
-    seconds).  (:data:`pair_positions`: this, or the compiled pass alike.)"""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Wheel onsets in read order: the order sorting them by head, then time (ties in read order); the positions
+    (into that order) of each pair's Sys1 and Sys2 onset, by head, each head's in its own order; and each pair's
+    stamp step (its head's resolution, 1.0: whole seconds).  (:data:`pair_positions`: this, or the compiled pass
+    alike.)"""
+    order = by_head_then_time(head, t)[0]
+    gh, t, ch, subsecond = head[order], t[order], ch[order], subsecond[order]
     starts = _group_starts(gh)
     size = np.diff(np.r_[starts, len(gh)])
     # Per head: all its stamps sub-second (pairs by nearest time), and their resolution.
@@ -232,34 +240,37 @@ def _pair_positions_numpy(
     pa, pb = np.r_[fa, ca], np.r_[fb, cb]
     by_head = np.argsort(gh[pa], kind="stable")
     pa, pb = pa[by_head], pb[by_head]
-    return pa, pb, step_s[pa]
+    return order, pa, pb, step_s[pa]
 
 
 def _pair_positions_compiled(
-    gh: np.ndarray,
+    head: np.ndarray,
     t: np.ndarray,
     ch: np.ndarray,
     subsecond: np.ndarray,
     head_step_s: np.ndarray | None,
     fine_window_ns: int,
     coarse_window_ns: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`_pair_positions_numpy`'s pairs in one compiled pass without the GIL (``compiled_pairs.c``)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_pair_positions_numpy`'s order and pairs in one compiled pass without the GIL
+    (``compiled_pairs.c``); its counting sort of the head keys, or numpy's where that cannot serve."""
     assert compiled_pairs is not None
-    steps = None if head_step_s is None else np.ascontiguousarray(head_step_s, np.float64)
-    m, pa, pb, step = compiled_pairs.pair_positions(
-        np.ascontiguousarray(gh, np.int64),
+    cols = (
+        np.ascontiguousarray(head, np.int64),
         np.ascontiguousarray(t, np.int64),
         np.ascontiguousarray(ch, np.int64),
         np.ascontiguousarray(subsecond, np.bool_),
-        steps,
-        fine_window_ns,
-        coarse_window_ns,
-        SYS1,
-        SYS2,
     )
+    steps = None if head_step_s is None else np.ascontiguousarray(head_step_s, np.float64)
+    windows = (fine_window_ns, coarse_window_ns, SYS1, SYS2)
+    out = compiled_pairs.pair_positions(*cols, None, steps, *windows)
+    if out is None:  # keys too sparse for a counting sort, or a head's times going back
+        out = compiled_pairs.pair_positions(*cols, by_head_then_time(cols[0], cols[1])[0], steps, *windows)
+        assert out is not None
+    m, order, pa, pb, step = out
+    n = len(cols[0])
     pa_, pb_ = np.frombuffer(pa, np.int64)[:m], np.frombuffer(pb, np.int64)[:m]
-    return pa_, pb_, np.frombuffer(step, np.float64)[pa_]
+    return np.frombuffer(order, np.int64)[:n], pa_, pb_, np.frombuffer(step, np.float64)[pa_]
 
 
 # The compiled pass where it was built, unless TRACKSIDE_PURE=1 asks for numpy (tests/test_pairs_compiled.py).
