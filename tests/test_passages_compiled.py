@@ -247,3 +247,30 @@ def test_rows_squeeze_alike(rows: list[bytes], zeros: int) -> None:
     assert got[0] == want[0]
     assert got[1].dtype == want[1].dtype == np.int64
     assert np.array_equal(got[1], want[1])
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    keys=st.lists(st.tuples(st.integers(0, 6), st.integers(-5, 5)), max_size=40),
+    probes=st.lists(st.tuples(st.integers(0, 7), st.integers(-7 * 10**9, 7 * 10**9)), max_size=60),
+    twice=st.booleans(),
+)
+def test_compiled_and_numpy_bucket_lookups_agree(
+    keys: list[tuple[int, int]], probes: list[tuple[int, int]], twice: bool
+) -> None:
+    """Each (head, time) to the first bucket row of its head and second (floored: times before 1970 too), or -1;
+    a key listed twice gives its first row either way."""
+    rows = sorted(set(keys)) if not twice else sorted(keys)
+    cols = {
+        "head": np.array([h for h, _ in rows], np.int64),
+        "second": np.array([s for _, s in rows], np.int64),
+    }
+    head = np.array([h for h, _ in probes], np.int64)
+    time_ns = np.array([t for _, t in probes], np.int64)
+    # Probes on the keys' own seconds too, so that many are found.
+    head = np.r_[head, cols["head"]]
+    time_ns = np.r_[time_ns, cols["second"] * 1_000_000_000 + 999_999_999]
+    compiled = buckets._bucket_index_compiled(cols, head, time_ns)
+    numpy = buckets._bucket_index_numpy(cols, head, time_ns)
+    assert compiled.dtype == numpy.dtype
+    np.testing.assert_array_equal(compiled, numpy)

@@ -249,14 +249,31 @@ def split_passages(buckets: Columns, idle_gap_s: float) -> Columns:
     return {**buckets, "passage": np.cumsum(new) - 1}
 
 
-def bucket_index(buckets: Columns, head: np.ndarray, time_ns: np.ndarray) -> np.ndarray:
-    """Row of ``buckets`` holding each (head, time), or -1 (vectorized lookup)."""
+def _bucket_index_numpy(buckets: Columns, head: np.ndarray, time_ns: np.ndarray) -> np.ndarray:
+    """Row of ``buckets`` (sorted by head and second) holding each (head, time), or -1 (vectorized lookup).
+    (:data:`bucket_index`: this, or the compiled lookup alike.)"""
     key = buckets["head"] * (1 << 40) + buckets["second"]
     probe = head.astype(np.int64) * (1 << 40) + time_ns // NS
     pos = np.searchsorted(key, probe)
     pos_ok = np.minimum(pos, max(len(key) - 1, 0))
     found = (pos < len(key)) & (key[pos_ok] == probe) if len(key) else np.zeros(len(probe), bool)
     return np.where(found, pos_ok, -1)
+
+
+def _bucket_index_compiled(buckets: Columns, head: np.ndarray, time_ns: np.ndarray) -> np.ndarray:
+    """:func:`_bucket_index_numpy`'s rows through a hash of the buckets' keys, without the GIL
+    (``compiled_runs.c``): no search per item."""
+    assert compiled_runs is not None
+    rows = compiled_runs.bucket_rows(
+        np.ascontiguousarray(buckets["head"], np.int64),
+        np.ascontiguousarray(buckets["second"], np.int64),
+        np.ascontiguousarray(head, np.int64),
+        np.ascontiguousarray(time_ns, np.int64),
+    )
+    return np.frombuffer(rows, np.int64)[: len(head)]
+
+
+bucket_index = _bucket_index_compiled if _COMPILED else _bucket_index_numpy
 
 
 # Why a passage's axles cannot be counted ("–" in tables, ``axles_unknown_reason`` in JSON), by code: an axle

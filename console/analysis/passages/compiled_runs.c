@@ -425,7 +425,84 @@ done:
     return result;
 }
 
+PyDoc_STRVAR(bucket_rows_doc,
+             "bucket_rows(key_head, key_second, head, time_ns) -> rows\n\n"
+             "Per (head, time_ns) the first row of the keys (head, second) holding it (its second: time_ns\n"
+             "floored to whole seconds), or -1.  All int64; rows: a bytearray of int64, one per item.");
+
+static inline uint64_t bucket_hash(int64_t head, int64_t second)
+{
+    uint64_t h = (uint64_t)head * 0x9E3779B97F4A7C15ULL ^ (uint64_t)second * 0xC2B2AE3D27D4EB4FULL;
+    return h ^ (h >> 29);
+}
+
+static PyObject *bucket_rows(PyObject *self, PyObject *args)
+{
+    PyObject *o[4];
+    if (!PyArg_ParseTuple(args, "OOOO", &o[0], &o[1], &o[2], &o[3])) return NULL;
+    Py_buffer b[4];
+    int got = 0;
+    PyObject *result = NULL, *out = NULL;
+    int64_t *slots = NULL;
+    for (; got < 4; got++)
+        if (PyObject_GetBuffer(o[got], &b[got], PyBUF_C_CONTIGUOUS) < 0) goto done;
+    const int64_t m = (int64_t)(b[0].len / 8), n = (int64_t)(b[2].len / 8);
+    if (b[0].len % 8 || b[1].len != b[0].len || b[2].len % 8 || b[3].len != b[2].len) {
+        PyErr_SetString(PyExc_ValueError, "bucket_rows: int64 keys of one length, int64 items of one length");
+        goto done;
+    }
+    size_t n_slots = 16;
+    while (n_slots < 2 * (size_t)m) n_slots <<= 1;
+    slots = PyMem_RawMalloc(n_slots * sizeof(int64_t));
+    out = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)((n > 0 ? n : 1) * 8));
+    if (!slots || !out) {
+        if (!slots) PyErr_NoMemory();
+        goto done;
+    }
+    const int64_t *k_head = b[0].buf, *k_second = b[1].buf, *p_head = b[2].buf, *p_time = b[3].buf;
+    int64_t *rows = (int64_t *)PyByteArray_AS_STRING(out);
+    const size_t mask = n_slots - 1;
+    Py_BEGIN_ALLOW_THREADS
+    memset(slots, 0xff, n_slots * sizeof(int64_t));
+    for (int64_t r = 0; r < m; r++) {
+        size_t i = (size_t)bucket_hash(k_head[r], k_second[r]) & mask;
+        for (;; i = (i + 1) & mask) {
+            int64_t e = slots[i];
+            if (e < 0) {
+                slots[i] = r;
+                break;
+            }
+            if (k_head[e] == k_head[r] && k_second[e] == k_second[r]) break; /* the first row stays */
+        }
+    }
+    for (int64_t j = 0; j < n; j++) {
+        int64_t second = p_time[j] / 1000000000LL;
+        if (p_time[j] % 1000000000LL < 0) second--; /* floored, as numpy's // */
+        size_t i = (size_t)bucket_hash(p_head[j], second) & mask;
+        int64_t row = -1;
+        for (;; i = (i + 1) & mask) {
+            int64_t e = slots[i];
+            if (e < 0) break;
+            if (k_head[e] == p_head[j] && k_second[e] == second) {
+                row = e;
+                break;
+            }
+        }
+        rows[j] = row;
+    }
+    Py_END_ALLOW_THREADS
+    result = out;
+    out = NULL;
+
+done:
+    Py_XDECREF(out);
+    PyMem_RawFree(slots);
+    for (int k = 0; k < got; k++) PyBuffer_Release(&b[k]);
+    return result;
+}
+
 static PyMethodDef methods[] = {
+    {"bucket_rows", bucket_rows, METH_VARARGS, bucket_rows_doc},
     {"squeeze_rows", squeeze_rows, METH_VARARGS, squeeze_rows_doc},
     {"group_extremes", group_extremes, METH_VARARGS, group_extremes_doc},
     {"merge_runs", merge_runs, METH_VARARGS, merge_runs_doc},
