@@ -227,3 +227,32 @@ def test_partition_order_is_the_stable_sort_of_the_keys(seed: int) -> None:
     days = 20_000 + rng.integers(0, 3 if seed < 4 else 900, n)
     key = days.astype(np.int64) * (1 << 32) + devices.astype(np.int64)
     assert (parts._stable_order(key) == np.argsort(key, kind="stable")).all()
+
+
+def test_the_buffer_size_changes_only_the_row_groups_of_parts_in_input_order(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The buffer bounds an ingest's memory: a smaller one cuts the same rows, in the same order, into more row
+    groups (records keep their input order: no ``sort_by``)."""
+
+    def write(name: str, buffer_bytes: int) -> tuple[Path, list[str]]:
+        monkeypatch.setattr(parts, "BUFFER_BYTES", buffer_bytes)
+        rng = np.random.default_rng(11)
+        root = tmp_path / name
+        w = PartWriter(root, "records", 3, "r")
+        start = 20_000 * NS_PER_DAY - 5 * 10**8  # the first chunk straddles two days
+        for k in range(6):
+            w.add(*_chunk(rng, 400, start + k * 10**9))
+        w.close()
+        return root, sorted(w.written)
+
+    def row_groups(root: Path, rels: list[str]) -> int:
+        return sum(pq.ParquetFile(root / rel).metadata.num_row_groups for rel in rels)
+
+    big, big_rels = write("big", 64 << 20)
+    small, small_rels = write("small", 5_000)
+    assert big_rels and small_rels == big_rels
+    assert row_groups(small, small_rels) > row_groups(big, big_rels)
+    for rel in big_rels:
+        a, b = read_part(big, rel), read_part(small, rel)
+        assert a.num_rows > 0 and b.schema.equals(a.schema) and b.equals(a), rel

@@ -49,9 +49,13 @@ from parsers.units import NS_PER_DAY
 
 ROW_GROUP_ROWS = 256_000
 # Rows waiting to be written, all partitions together (Arrow bytes of the tables added since the last
-# write-out): about half a second of parsing.  Bigger buffers make bigger row groups (a 3 M-record log
-# of 40 boards, zstd: records 6.7 MB at 16 MB, 5.6 MB at 32 MB) for more memory (+20 MB peak RSS at 32 MB).
-BUFFER_BYTES = 16 << 20
+# write-out): about a third of a second of parsing.  A write-out holds these rows and their copy in partition
+# order while the next buffer fills, so the buffer sets much of an ingest's peak: a 12 M-record log of 40
+# boards peaked at 276-287 MB at 16 MB and 249-255 MB at 10 MB (242-247 at 8), for about 6 % more CPU (more,
+# smaller row groups; at 3 M records the same CPU within noise).
+# Bigger buffers make bigger row groups, which compress better (3 M records, LZ4: records 8.9 MB at 16 MB,
+# 10.1 MB at 10 MB, 10.6 MB at 8 MB).
+BUFFER_BYTES = 10 << 20
 MAX_OPEN_WRITERS = 128
 IDLE_WRITE_OUTS = 3
 # :meth:`PartWriter.advance` closes a day's files once the caller's time watermark is this far past the
