@@ -91,6 +91,20 @@ def test_the_app_moves_by_itself() -> None:
     run(go())
 
 
+def test_a_tick_that_ends_after_the_app_draws_nothing() -> None:
+    """A tick's worker can finish while the app shuts down (its widgets gone): that is not an error."""
+
+    async def go() -> None:
+        app = StationApp(StationModel(SimSource(_load_layout("example"), seed=1)), autoplay=False)
+        async with app.run_test(size=SIZE):
+            pass
+        app._busy = True
+        app._after_advance()  # what call_from_thread runs when the tick ends
+        assert not app._busy
+
+    run(go())
+
+
 def test_select_sections_and_trains_by_key_and_click() -> None:
     async def go() -> None:
         app = make_app()

@@ -108,7 +108,9 @@ class StationApp(App[None]):
 
     def _after_advance(self) -> None:
         self._busy = False
-        self.refresh_views()
+        # A tick in flight can end while the app shuts down, after its widgets are gone: nothing to draw then.
+        if self.is_running:
+            self.refresh_views()
 
     def advance(self, sim_s: float) -> None:
         """Advance the model by simulated seconds and redraw (tests, single step)."""
