@@ -44,7 +44,7 @@ def main() -> None:
     for kv in args.set:
         name, _, value = kv.partition("=")
         TUNE[name] = int(value) if value.isdigit() else float(value)
-    out = Console(highlight=False, width=220)
+    out = Console(highlight=False, width=320)
     out.print(f"$ python {' '.join(sys.argv)}", markup=False)
     layout = load_layout("example")
     t0 = time.perf_counter()
@@ -58,10 +58,18 @@ def main() -> None:
     wall = time.perf_counter() - t0
     rows = spare_table(results)
     t = Table(box=box.MARKDOWN, title=None)
-    cols = ("case", "runs", "avoidable median", "avoidable p95", "fix-time oracle median", "fix-time oracle p95")
+    cols: tuple[str, ...] = (
+        "case",
+        "runs",
+        "avoidable median",
+        "avoidable p95",
+        "fix-time oracle median",
+        "fix-time oracle p95",
+    )
+    cols += ("kinematic floor median", "noise reference median", "noise reference p95")
     cols += ("estimate median", "estimate p95", "physics median", "paper rule median", "paper rule late")
     for c in cols:
-        t.add_column(c, justify="left" if c == "case" else "right")
+        t.add_column(c, justify="left" if c == "case" else "right", no_wrap=True)
     for r in rows:
         t.add_row(
             r.case,
@@ -70,6 +78,9 @@ def main() -> None:
             _f(r.p95_s),
             _f(r.sparse_median_s),
             _f(r.sparse_p95_s),
+            _f(r.floor_median_s),
+            _f(r.noise_ref_median_s),
+            _f(r.noise_ref_p95_s),
             _f(r.estimation_median_s),
             _f(r.estimation_p95_s),
             _f(r.physics_median_s),
@@ -97,8 +108,8 @@ def main() -> None:
         "baseline_early_runs",
         "baseline_max_early_s",
     )
-    for k in keys:
-        out.print(f"{k}: {s[k]}", markup=False)
+    for key in keys:
+        out.print(f"{key}: {s[key]}", markup=False)
     neg = [r.avoidable_s for _, r in results if r.avoidable_s is not None and r.avoidable_s < 0]
     out.print(f"runs warned later than the oracle: {len(neg)} (least {min(neg, default=0):.1f} s)", markup=False)
     # The fix-time oracle knows the true state at every received fix and releases as the unit does:
@@ -113,6 +124,13 @@ def main() -> None:
         f"runs warned later than the fix-time oracle: {sum(x < 0 for x in est)} (least {min(est, default=0):.1f} s)",
         markup=False,
     )
+    for name, attr in (("kinematic floor", "floor_lead_s"), ("noise reference", "noise_ref_lead_s")):
+        diff = [r.lead_s - lead for _, r in results if r.lead_s is not None and (lead := getattr(r, attr)) is not None]
+        out.print(
+            f"runs warned later than the {name}: {sum(x < 0 for x in diff)} of {len(diff)}"
+            f" (least {min(diff, default=0):.1f} s)",
+            markup=False,
+        )
     base = [r.baseline_early_s for _, r in results if r.baseline_early_s is not None]
     out.print(f"fixed-time baseline: opened early in {sum(b > 0 for b in base)} runs", markup=False)
     out.print(f"wall {wall:.0f} s ({wall / max(1, len(results)) * 1000:.0f} ms a run)", markup=False)

@@ -33,10 +33,10 @@ from console.analysis.crossing.controller import (
     TrainSpec,
     run_controller,
 )
-from console.analysis.crossing.oracle import earliest_arrival_vec, oracle_onset_ns
 from console.analysis.crossing.timeline import timeline
 from console.analysis.geo import TrackProjector
 from console.layout import Layout, LevelCrossing
+from console.sim.crossing_yardsticks import Truth, fix_oracle_onset, kinematic_onset, oracle_onset, paper_onset
 from parsers.units import NS
 
 SCENARIOS = ("through", "stop_before", "stop_on_crossing", "crawl", "stop_far")
@@ -61,17 +61,6 @@ class RunConditions:
     run_past_m: float = 600.0  # how far the head runs on past the crossing
     speed_reported: bool = True  # False: the export has no speed column (NaN), nor a course
     jump_rate: float = 0.0  # share of fixes displaced along the track (position jumps)
-
-
-@dataclass
-class Truth:
-    t_ns: np.ndarray  # simulation times
-    head_m: np.ndarray  # head chainage over time
-    t_head_arrival_ns: int | None  # head reaches the road's near edge
-    t_tail_clear_ns: int | None  # tail passes the road's far edge
-    jumps: int = 0  # fixes sent displaced (position jumps)
-    direction: int = 1  # +1: towards increasing chainage
-    speed_mps: np.ndarray | None = None  # the head's true speed along the track at t_ns
 
 
 def _motion(
@@ -232,6 +221,13 @@ class Verdict:
     # What `trackside crossing` shows for this warning, judged from the fixes alone (no truth):
     hindsight_physics_s: float | None = None
     hindsight_doubt_s: dict[str, float] | None = None
+    # The kinematic yardsticks (:mod:`console.sim.crossing_yardsticks`): their leads.
+    floor_lead_s: float | None = None  # the true positions at the fixes, the speed only where reported
+    noise_ref_lead_s: float | None = None  # the measured positions ± the unit's noise allowance, jumps set aside
+
+    def yardstick_avoidable_s(self, lead_s: float | None) -> float | None:
+        """How much earlier than the oracle a yardstick with this lead warned."""
+        return None if lead_s is None or self.oracle_lead_s is None else lead_s - self.oracle_lead_s
 
     @property
     def sparse_s(self) -> float | None:
@@ -251,90 +247,6 @@ class Verdict:
     def physics_s(self) -> float | None:
         """The spare the bounds cost even with perfect knowledge (oracle lead − warning time)."""
         return None if self.oracle_lead_s is None else self.oracle_lead_s - self.warning_time_s
-
-
-def oracle_onset(truth: Truth, crossing: LevelCrossing, settings: ControllerSettings) -> int | None:
-    """The oracle's onset for the head's arrival in this run (None: the head never arrived)."""
-    th = truth.t_head_arrival_ns
-    if th is None or truth.speed_mps is None:
-        return None
-    near_edge = crossing.chainage_m - truth.direction * settings.crossing_half_width_m
-    ahead = truth.direction * (near_edge - truth.head_m)
-    return oracle_onset_ns(
-        truth.t_ns,
-        ahead,
-        truth.speed_mps,
-        th,
-        crossing.warning_time_s,
-        settings.guard_distance_m,
-        settings.accel_mps2,
-        settings.line_speed_mps,
-    )
-
-
-def fix_oracle_onset(
-    truth: Truth, crossing: LevelCrossing, settings: ControllerSettings, fixes: list[Fix]
-) -> int | None:
-    """The best any unit could do with the fixes this run's unit received: it knows the true state
-    (position, speed) at each received fix's measurement time, exactly, and nothing between fixes.
-
-    Every fix bounds the arrival (measured at t_fix: t_fix + earliest arrival from the true state);
-    the unit's bound is the latest of those received so far, and the warning is on while that is
-    within the warning time.  The onset of the stretch that covers the head's arrival; None: the
-    head never arrived.  Beside the oracle's onset it separates what sparse fixes cost (they hide
-    an acceleration between two of them) from what the estimate costs.  It releases a warning as
-    the unit does, only when it cannot come on again before the next fix and a few seconds more."""
-    th = truth.t_head_arrival_ns
-    if th is None or truth.speed_mps is None:
-        return None
-    got = sorted((f for f in fixes if f.t_ns < th and f.train == "T1"), key=lambda f: f.t_ns)
-    if not got:
-        return None
-    ts = (truth.t_ns - truth.t_ns[0]) / NS
-    t_fix = np.array([(f.t_fix_ns - truth.t_ns[0]) / NS for f in got])
-    head = np.interp(t_fix, ts, truth.head_m)
-    speed = np.interp(t_fix, ts, truth.speed_mps)
-    near_edge = crossing.chainage_m - truth.direction * settings.crossing_half_width_m
-    eta = earliest_arrival_vec(
-        truth.direction * (near_edge - head), speed, settings.accel_mps2, settings.line_speed_mps
-    )
-    bound = np.maximum.accumulate(np.array([f.t_fix_ns for f in got]) + (eta * NS).astype(np.int64))
-    wt_ns = int(crossing.warning_time_s * NS)
-    # Released as the unit releases: only when it would stay open release_hold_s at least, and not
-    # come on again before the next fix is in.
-    onset: int | None = None
-    last_fix: dict[str, int] = {}  # per unit, its latest fix so far (measurement time)
-    period_ns = int((settings.report_period_s + settings.latency_s) * NS)
-    for k, f in enumerate(got):  # per received fix of one run
-        last_fix[f.role] = max(last_fix.get(f.role, f.t_fix_ns), f.t_fix_ns)
-        # Open for release_hold_s at least, and until the next fix of either unit is due.
-        hold_ns = max(int(settings.release_hold_s * NS), min(last_fix.values()) + period_ns - f.t_ns)
-        end = got[k + 1].t_ns if k + 1 < len(got) else th
-        due = int(bound[k]) - wt_ns
-        if onset is not None and due > f.t_ns + hold_ns:
-            onset = None  # this fix proves the warning is not needed for a while yet: released
-        if onset is None and due < end:
-            onset = max(due, f.t_ns)
-    return onset
-
-
-def paper_onset(fixes: list[Fix], crossing: LevelCrossing, direction: int, t_arrival_ns: int) -> int | None:
-    """The paper's rule (Co Nhu Van, TCSJ 2026, eq. 6-8): on at the first head fix with d_L / v_L ≤ T,
-    with the reported speed, or the mean speed from the last two head fixes when the export has none;
-    the warning then holds until the EOT has passed.  None: no such fix before the arrival."""
-    prev: Fix | None = None
-    for f in sorted((f for f in fixes if f.role == HEAD), key=lambda f: f.t_ns):  # one run's head fixes
-        if f.t_ns >= t_arrival_ns:
-            return None
-        v = f.speed_mps
-        if math.isnan(v):
-            dt = (f.t_fix_ns - prev.t_fix_ns) / NS if prev is not None else 0.0
-            v = abs(f.chainage_m - prev.chainage_m) / dt if prev is not None and dt > 0 else 0.0
-        prev = f
-        ahead = direction * (crossing.chainage_m - f.chainage_m)
-        if ahead <= 0 or (v > 0 and ahead / v <= crossing.warning_time_s):
-            return f.t_ns
-    return None
 
 
 def judge(
@@ -400,6 +312,17 @@ def judge(
         paper_late = wt - paper_lead if paper_lead < wt else None
     row = next(iter(timeline(ctl, fixes, settings)), None)
     hind = row.spare if row is not None else None
+    floor_lead = noise_lead = None
+    if th is not None:
+        reported = any(not math.isnan(f.speed_mps) for f in fixes)
+
+        def yardstick_lead(margin_m: float) -> float | None:
+            t = kinematic_onset(truth, ctl.crossing, settings, fixes, train.length_m, reported, margin_m)
+            return None if t is None else (th - t) / NS
+
+        floor_lead = yardstick_lead(0.0)
+        # The unit's own allowance: k·σ of the worst noise it assumes (its filter's gate and bounds).
+        noise_lead = yardstick_lead(settings.k_sigma * settings.noise_m / 3.0)
     return Verdict(
         violation,
         lead,
@@ -421,6 +344,8 @@ def judge(
         float(min(gaps)) if gaps else None,
         hind.physics_s if hind is not None else None,
         dict(hind.doubt_s) if hind is not None else None,
+        floor_lead,
+        noise_lead,
     )
 
 
@@ -553,6 +478,9 @@ class SpareRow:
     estimation_p95_s: float | None
     paper_median_s: float | None  # the paper's rule d/v ≤ T, against the same oracle
     paper_late: int  # runs where the paper's rule warned short of the warning time
+    floor_median_s: float | None = None  # the kinematic floor's avoidable spare
+    noise_ref_median_s: float | None = None  # the noise reference's
+    noise_ref_p95_s: float | None = None
 
 
 def spare_table(results: list[tuple[RunConditions, Verdict]]) -> list[SpareRow]:
@@ -593,6 +521,8 @@ def spare_table(results: list[tuple[RunConditions, Verdict]]) -> list[SpareRow]:
         sp = [p for r in vs if (p := r.sparse_s) is not None]
         es = [p for r in vs if (p := r.estimation_s) is not None]
         pa = [r.paper_avoidable_s for r in vs if r.paper_avoidable_s is not None]
+        fl = [x for r in vs if (x := r.yardstick_avoidable_s(r.floor_lead_s)) is not None]
+        nr = [x for r in vs if (x := r.yardstick_avoidable_s(r.noise_ref_lead_s)) is not None]
         rows.append(
             SpareRow(
                 case,
@@ -606,6 +536,9 @@ def spare_table(results: list[tuple[RunConditions, Verdict]]) -> list[SpareRow]:
                 float(np.percentile(es, 95)) if es else None,
                 float(np.median(pa)) if pa else None,
                 sum(r.paper_late_by_s is not None for r in vs),
+                float(np.median(fl)) if fl else None,
+                float(np.median(nr)) if nr else None,
+                float(np.percentile(nr, 95)) if nr else None,
             )
         )
     return rows
