@@ -90,19 +90,19 @@ def test_the_truth_keeps_to_the_units_bounds_so_the_oracle_is_never_late(results
     physics = [r.physics_s for _, r in results if r.physics_s is not None]
     assert len(physics) > 0.9 * RUNS and min(physics) >= 0.0
     assert all(r.fix_oracle_lead_s is None or r.fix_oracle_lead_s >= r.warning_time_s for _, r in results)
-    # So is the kinematic floor: its speed bound from the true positions holds on these trains, up to
+    # So is the exact-positions yardstick: its speed bound from the true positions holds on these trains, up to
     # the truth's own integration: in 0.2 s Euler steps (speed first, then position) the positions
     # run half a step ahead of a motion that keeps to the acceleration bound, so up to 0.1 s of lead.
-    floors = [r.floor_lead_s - r.warning_time_s for _, r in results if r.floor_lead_s is not None]
-    assert len(floors) > 0.9 * RUNS and min(floors) >= -0.1
+    exact = [r.exact_lead_s - r.warning_time_s for _, r in results if r.exact_lead_s is not None]
+    assert len(exact) > 0.9 * RUNS and min(exact) >= -0.1
 
 
-def test_the_kinematic_floor_is_the_fix_time_oracle_where_the_speed_is_reported(results: list) -> None:
+def test_the_exact_positions_yardstick_is_the_fix_time_oracle_where_the_speed_is_reported(results: list) -> None:
     # The same knowledge (the true state at each fix) where the export reports the speed; without
-    # it, the floor bounds the speed from positions and warns earlier: that is what no speed costs.
-    with_speed = [(r.floor_lead_s, r.fix_oracle_lead_s) for c, r in results if c.speed_reported and r.floor_lead_s]
+    # it, the yardstick bounds the speed from positions and warns earlier: that is what no speed costs.
+    with_speed = [(r.exact_lead_s, r.fix_oracle_lead_s) for c, r in results if c.speed_reported and r.exact_lead_s]
     assert with_speed and all(a == b for a, b in with_speed)
-    without = [(r.floor_lead_s, r.fix_oracle_lead_s) for c, r in results if not c.speed_reported and r.floor_lead_s]
+    without = [(r.exact_lead_s, r.fix_oracle_lead_s) for c, r in results if not c.speed_reported and r.exact_lead_s]
     assert without and sum(a > b + 1.0 for a, b in without if b is not None) > len(without) // 4
 
 

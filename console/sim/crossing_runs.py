@@ -222,8 +222,8 @@ class Verdict:
     hindsight_physics_s: float | None = None
     hindsight_doubt_s: dict[str, float] | None = None
     # The kinematic yardsticks (:mod:`console.sim.crossing_yardsticks`): their leads.
-    floor_lead_s: float | None = None  # the true positions at the fixes, the speed only where reported
-    noise_ref_lead_s: float | None = None  # the measured positions ± the unit's noise allowance, jumps set aside
+    exact_lead_s: float | None = None  # the true positions at the fixes, the speed only where reported
+    allowance_lead_s: float | None = None  # the measured positions ± the unit's noise allowance, jumps set aside
 
     def yardstick_avoidable_s(self, lead_s: float | None) -> float | None:
         """How much earlier than the oracle a yardstick with this lead warned."""
@@ -312,7 +312,7 @@ def judge(
         paper_late = wt - paper_lead if paper_lead < wt else None
     row = next(iter(timeline(ctl, fixes, settings)), None)
     hind = row.spare if row is not None else None
-    floor_lead = noise_lead = None
+    exact_lead = allowance_lead = None
     if th is not None:
         reported = any(not math.isnan(f.speed_mps) for f in fixes)
 
@@ -320,9 +320,9 @@ def judge(
             t = kinematic_onset(truth, ctl.crossing, settings, fixes, train.length_m, reported, margin_m)
             return None if t is None else (th - t) / NS
 
-        floor_lead = yardstick_lead(0.0)
+        exact_lead = yardstick_lead(0.0)
         # The unit's own allowance: k·σ of the worst noise it assumes (its filter's gate and bounds).
-        noise_lead = yardstick_lead(settings.k_sigma * settings.noise_m / 3.0)
+        allowance_lead = yardstick_lead(settings.k_sigma * settings.noise_m / 3.0)
     return Verdict(
         violation,
         lead,
@@ -344,8 +344,8 @@ def judge(
         float(min(gaps)) if gaps else None,
         hind.physics_s if hind is not None else None,
         dict(hind.doubt_s) if hind is not None else None,
-        floor_lead,
-        noise_lead,
+        exact_lead,
+        allowance_lead,
     )
 
 
@@ -478,9 +478,10 @@ class SpareRow:
     estimation_p95_s: float | None
     paper_median_s: float | None  # the paper's rule d/v ≤ T, against the same oracle
     paper_late: int  # runs where the paper's rule warned short of the warning time
-    floor_median_s: float | None = None  # the kinematic floor's avoidable spare
-    noise_ref_median_s: float | None = None  # the noise reference's
-    noise_ref_p95_s: float | None = None
+    exact_median_s: float | None = None  # the exact-positions yardstick's avoidable spare
+    exact_p95_s: float | None = None
+    allowance_median_s: float | None = None  # the noise-allowance yardstick's
+    allowance_p95_s: float | None = None
 
 
 def spare_table(results: list[tuple[RunConditions, Verdict]]) -> list[SpareRow]:
@@ -521,8 +522,8 @@ def spare_table(results: list[tuple[RunConditions, Verdict]]) -> list[SpareRow]:
         sp = [p for r in vs if (p := r.sparse_s) is not None]
         es = [p for r in vs if (p := r.estimation_s) is not None]
         pa = [r.paper_avoidable_s for r in vs if r.paper_avoidable_s is not None]
-        fl = [x for r in vs if (x := r.yardstick_avoidable_s(r.floor_lead_s)) is not None]
-        nr = [x for r in vs if (x := r.yardstick_avoidable_s(r.noise_ref_lead_s)) is not None]
+        fl = [x for r in vs if (x := r.yardstick_avoidable_s(r.exact_lead_s)) is not None]
+        nr = [x for r in vs if (x := r.yardstick_avoidable_s(r.allowance_lead_s)) is not None]
         rows.append(
             SpareRow(
                 case,
@@ -537,6 +538,7 @@ def spare_table(results: list[tuple[RunConditions, Verdict]]) -> list[SpareRow]:
                 float(np.median(pa)) if pa else None,
                 sum(r.paper_late_by_s is not None for r in vs),
                 float(np.median(fl)) if fl else None,
+                float(np.percentile(fl, 95)) if fl else None,
                 float(np.median(nr)) if nr else None,
                 float(np.percentile(nr, 95)) if nr else None,
             )
