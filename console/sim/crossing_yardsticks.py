@@ -78,19 +78,19 @@ def oracle_onset(truth: Truth, crossing: LevelCrossing, settings: ControllerSett
     )
 
 
-def _received(truth: Truth, fixes: Sequence[Fix]) -> list[Fix]:
-    """The fixes of the run's train received before the head arrived, in reception order."""
+def _received_with_truth(truth: Truth, fixes: Sequence[Fix]) -> tuple[list[Fix], np.ndarray, np.ndarray] | None:
+    """The fixes of the run's train received before the head arrived (reception order), with the
+    head's true chainage and speed at each one's measurement time; None: the head never arrived,
+    or nothing was received before."""
     th = truth.t_head_arrival_ns
-    assert th is not None
-    return sorted((f for f in fixes if f.t_ns < th and f.train == "T1"), key=lambda f: f.t_ns)
-
-
-def _truth_at(truth: Truth, got: Sequence[Fix]) -> tuple[np.ndarray, np.ndarray]:
-    """The head's true chainage and speed at each fix's measurement time."""
-    assert truth.speed_mps is not None
+    if th is None or truth.speed_mps is None:
+        return None
+    got = sorted((f for f in fixes if f.t_ns < th and f.train == "T1"), key=lambda f: f.t_ns)
+    if not got:
+        return None
     ts = (truth.t_ns - truth.t_ns[0]) / NS
     t_fix = np.array([(f.t_fix_ns - truth.t_ns[0]) / NS for f in got])
-    return np.interp(t_fix, ts, truth.head_m), np.interp(t_fix, ts, truth.speed_mps)
+    return got, np.interp(t_fix, ts, truth.head_m), np.interp(t_fix, ts, truth.speed_mps)
 
 
 def _onset_from_bounds(
@@ -140,12 +140,10 @@ def fix_oracle_onset(
     (position, speed) at each received fix's measurement time, exactly, and nothing between fixes.
     Beside the oracle's onset it separates what sparse fixes cost (they hide an acceleration between
     two of them) from what the estimate costs.  None: the head never arrived."""
-    if truth.t_head_arrival_ns is None or truth.speed_mps is None:
+    received = _received_with_truth(truth, fixes)
+    if received is None:
         return None
-    got = _received(truth, fixes)
-    if not got:
-        return None
-    head, speed = _truth_at(truth, got)
+    got, head, speed = received
     return _onset_from_bounds(truth, crossing, settings, got, _arrivals_ns(truth, crossing, settings, got, head, speed))
 
 
@@ -181,12 +179,10 @@ def kinematic_onset(
     (``margin_m`` > 0: the measured positions, each known to ± that, the jumped fixes set aside).
     The speed where the export reports one is the truth at the fix; without, the bound from the
     positions (:func:`speed_bound_from_positions`).  An EOT fix is a head fix a length behind."""
-    if truth.t_head_arrival_ns is None or truth.speed_mps is None:
+    received = _received_with_truth(truth, fixes)
+    if received is None:
         return None
-    got = _received(truth, fixes)
-    if not got:
-        return None
-    head, speed = _truth_at(truth, got)
+    got, head, speed = received
     d = truth.direction
     if margin_m > 0:
         measured = np.array([f.chainage_m + (d * length_m if f.role == EOT else 0.0) for f in got])
