@@ -17,7 +17,14 @@ from collections.abc import Sequence
 import numpy as np
 import pytest
 
-from console.analysis.crossing.controller import ControllerSettings, CrossingController, Fix, TrainSpec, run_controller
+from console.analysis.crossing.controller import (
+    ControllerSettings,
+    CrossingController,
+    Fix,
+    TrainSpec,
+    run_controller,
+    wake_until,
+)
 from console.layout import LevelCrossing, load_layout
 from console.sim.crossing_runs import random_conditions, simulate
 from parsers.units import NS
@@ -29,18 +36,22 @@ YEAR_NS = 365 * 86_400 * NS
 def _walk_every_tick(
     crossing: LevelCrossing, trains: Sequence[TrainSpec], fixes: Sequence[Fix], settings: ControllerSettings
 ) -> CrossingController:
-    """The controller as it ran before: a tick every second between fixes, then the stale time's ticks."""
+    """The controller's clock walked without skipping: a tick every second between fixes, then the stale
+    time's ticks; and, before each, the instants something falls due (a warning comes on at its instant)."""
     ctl = CrossingController(crossing, trains, settings)
     ordered = sorted(fixes, key=lambda f: f.t_ns)
     t, step = ordered[0].t_ns, NS
     for f in ordered:
         while t + step < f.t_ns:
+            wake_until(ctl, t, t + step)
             t += step
             ctl.tick(t)
+        wake_until(ctl, t, f.t_ns)
         ctl.step(f)
         t = f.t_ns
     end = t + int((ctl.s.stale_after_s + 1.0) * NS)
     while t < end:
+        wake_until(ctl, t, t + step)
         t += step
         ctl.tick(t)
     return ctl
@@ -100,3 +111,30 @@ def test_a_fix_dated_years_later_costs_the_stale_time_not_the_years(monkeypatch:
     assert span_s > 29 * 365 * 86_400
     assert len(ticks) < 200_000  # a tick per second of the span would be about 10⁹
     assert ctl.events  # the run itself was analysed
+
+
+def test_a_warning_comes_on_at_the_instant_it_is_due_not_a_tick_before() -> None:
+    # The unit's clock wakes when a warning falls due (next_onset_ns), so a warning that comes on by
+    # extrapolation between fixes does so with its earliest arrival exactly the horizon away: on a
+    # steady tick it would come anywhere up to a tick early (or, without the tick in the horizon, late).
+    rng = np.random.default_rng(11)
+    checked = 0
+    for k in range(60):
+        crossing = LAYOUT.crossings[k % len(LAYOUT.crossings)]
+        cond = random_conditions(rng, seed=90_000 + k)
+        settings = ControllerSettings(
+            report_period_s=cond.period_s, latency_s=2 * cond.latency_s + 0.5, line_speed_mps=25.0, accel_mps2=0.5
+        )
+        fixes, _truth, train = simulate(LAYOUT, crossing, cond, settings)
+        if not fixes:
+            continue
+        ctl = run_controller(crossing, [train], fixes, settings)
+        onset = ctl.tracks[train.train].onset
+        received = {f.t_ns for f in fixes}
+        ons = [e for e in ctl.events if e.kind == "on"]
+        if onset is None or not ons or ons[-1].t_ns in received or not ons[-1].reason.startswith("ETA"):
+            continue
+        assert onset.t_ns == ons[-1].t_ns
+        assert abs(onset.eta_s - ctl.horizon_s) < 1e-6, (k, cond, onset)
+        checked += 1
+    assert checked >= 10

@@ -273,3 +273,42 @@ def test_two_logs_with_skewed_clocks_give_each_logs_own_passages(skew_s: float, 
     sections = [(e["section"], e["state"], e["count"]) for e in events if e["type"] == "section"]
     assert sections == [(e["section"], e["state"], e["count"]) for e in together if e["type"] == "section"]
     assert all(count == 0 for _, state, count in sections if state == "clear")
+
+
+def test_the_live_console_wakes_at_the_instant_a_warning_falls_due() -> None:
+    # As run_sources does: between its steady ticks the console's clock wakes when next_wake_s says a
+    # warning falls due, so the warning comes on at that instant (its earliest arrival exactly the
+    # unit's horizon away), not at the next steady tick.
+    lay = load_layout("example")
+    proj = TrackProjector(lay.track)
+    events: list[dict[str, Any]] = []
+    engine = LiveEngine(lay, events.append)
+    clock = Clock()
+    engine.now_ns = clock  # type: ignore[method-assign]
+    assert engine.next_wake_s() is None  # nothing heard: nothing due
+    assert engine.crossings is not None
+    ctl = engine.crossings.controllers["11+850"]
+    woken: list[tuple[int, int]] = []  # (instant, the instant the bound said) per wake-up
+    for k in range(0, 400):
+        step_end = T0 + (k + 1) * NS // 2
+        clock.t = T0 + k * NS // 2
+        if k % 20 == 0:  # fixes every 10 s
+            head_m = START_M + 15.0 * k / 2
+            for role, x in (("head", head_m), ("eot", head_m - TRAIN_M)):
+                lat, lon = proj.position(x)
+                fix = GnssFix(
+                    "mqtt://test", f"unit-{role}", clock.t - NS // 5, float(lat[0]), float(lon[0]), 15.0,
+                    proj.bearing_deg(x), time.monotonic(), role=role, train="7",
+                )  # fmt: skip
+                engine.handle(fix)
+        engine.tick()
+        while (due_s := engine.next_wake_s()) is not None and clock.t + int(due_s * NS) < step_end:
+            clock.t += int(due_s * NS)
+            bound = ctl.arrival_bound("7", clock.t)
+            engine.tick()
+            if bound is not None:
+                woken.append((clock.t, bound[0].t_arrival_ns - int(ctl.horizon_s * NS)))
+    on = [e for e in events if e["type"] == "crossing" and e["crossing"] == "11+850" and e["kind"] == "on"]
+    assert len(on) == 1 and str(on[0]["reason"]).startswith("ETA")
+    assert (on[0]["time_ns"] - T0) % (NS // 2) != 0  # not on a steady tick
+    assert (on[0]["time_ns"], on[0]["time_ns"]) in woken  # at the instant the bound fell due

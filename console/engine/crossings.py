@@ -69,17 +69,36 @@ class _Ticks:
             self.k = (self.done_ns - t_ns) // self.step_ns + 1
 
     def upto(self, t_ns: int, before: bool) -> list[CrossingEvent]:
-        """The ticks at or before ``t_ns`` (strictly before when ``before``: a fix at that time comes next)."""
+        """The ticks at or before ``t_ns`` (strictly before when ``before``: a fix at that time comes next),
+        and the instants between them when something falls due (:meth:`CrossingController.next_onset_ns`)."""
         out: list[CrossingEvent] = []
         if self.from_ns is None or self.settled is None:
             return out
+        end_ns = t_ns if before else t_ns + 1  # wake-ups strictly before this
         while True:
             t = self.from_ns + self.k * self.step_ns
-            if t > t_ns or (before and t == t_ns) or t > self.settled + 2 * self.step_ns:
+            stop = t > t_ns or (before and t == t_ns) or t > self.settled + 2 * self.step_ns
+            out += self._wake(min(t, end_ns) if stop else t)
+            if stop:
                 return out
             out += self.ctl.tick(t)
             self.done_ns = t
             self.k += 1
+
+    def _wake(self, to_ns: int) -> list[CrossingEvent]:
+        """The unit's clock at each instant before ``to_ns`` (after the last tick made) when something
+        falls due: a warning comes on at the instant it is due, not a tick before."""
+        out: list[CrossingEvent] = []
+        done = (
+            self.from_ns
+            if self.done_ns is None or self.from_ns is None or self.done_ns < self.from_ns
+            else self.done_ns
+        )
+        assert done is not None
+        while (w := self.ctl.next_onset_ns(done)) is not None and w < to_ns:
+            out += self.ctl.tick(w)
+            self.done_ns = done = w
+        return out
 
 
 class TrackPlacer:
@@ -182,6 +201,12 @@ class CrossingFollow:
     def tick(self, now_ns: int) -> None:
         for ctl in self.controllers.values():
             self._out(ctl, ctl.tick(now_ns))
+
+    def next_wake_ns(self, now_ns: int) -> int | None:
+        """When a live console must tick the units next, besides its steady ticks: the first instant after
+        ``now_ns`` at which a warning falls due or a unit goes stale (None: nothing pending)."""
+        wake = [w for ctl in self.controllers.values() if (w := ctl.next_onset_ns(now_ns)) is not None]
+        return min(wake) if wake else None
 
     def _out(self, ctl: CrossingController, events: list[CrossingEvent]) -> None:
         for e in events:

@@ -24,7 +24,7 @@ from console.live.backlog import Backlog
 from console.live.diag import DiagFollow, live_speed
 from console.live.frames import FrameFollow
 from parsers.diag.registry import DiagRegistry
-from parsers.units import ALL_TIME
+from parsers.units import ALL_TIME, NS
 
 Emit = Callable[[dict[str, Any]], None]
 TICK_S = 0.5  # crossing units' clock and the idle wake-up: two a second is nothing for the CPU
@@ -144,6 +144,16 @@ class LiveEngine:
         if self.archiver is not None:
             self.archiver.tick()
 
+    def next_wake_s(self) -> float | None:
+        """Seconds until a live crossing unit has something due (a warning, a unit going stale): the
+        console's clock wakes then, not only every TICK_S.  None: nothing pending, or the units run on
+        the recordings' clock (their ticks come with the recordings)."""
+        if self.crossings is None or not self._live_fixes:
+            return None
+        now = self.now_ns()
+        wake = self.crossings.next_wake_ns(now)
+        return None if wake is None else max(0.0, (wake - now) / NS)
+
     def _tick_crossings(self, recorded_until_ns: int | None) -> None:
         if self.crossings is None:
             return
@@ -233,17 +243,21 @@ def run_sources(
             now = time.monotonic()
             if (until is not None and until()) or (deadline is not None and now >= deadline):
                 break
+            # A crossing warning falls due at its instant, not at the next steady tick.
+            due_s = engine.next_wake_s()
+            wake_at = min(next_tick, now + TICK_S if due_s is None else now + min(due_s, TICK_S))
             try:
-                item: Item | None = q.get(max(0.0, min(next_tick - now, TICK_S)))
+                item: Item | None = q.get(max(0.0, wake_at - now))
             except queue.Empty:
                 item = None
             if item is not None:
                 engine.handle(item)
                 if q.empty():
                     engine.idle()
-            if time.monotonic() >= next_tick:
+            if time.monotonic() >= wake_at:
                 engine.tick()
-                next_tick = time.monotonic() + TICK_S
+                if time.monotonic() >= next_tick:
+                    next_tick = time.monotonic() + TICK_S
     finally:
         for s in started:
             s.stop()

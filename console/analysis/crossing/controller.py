@@ -15,10 +15,11 @@ approaching would end it too early.  And an unsigned distance cannot tell
 projected onto the layout's polyline), signed in the train's direction of
 travel.
 
-* **On** (per train, at each fix and each tick of the unit's clock): the
-  earliest the head can reach the road's near edge
+* **On** (per train, at each fix and whenever the unit's clock wakes: every
+  tick, and the instant a warning falls due, :meth:`CrossingController.next_onset_ns`):
+  the earliest the head can reach the road's near edge
   (:mod:`console.analysis.crossing.arrival`) is within the warning time (plus
-  one tick of the clock and a small margin), or the head is within the guard
+  a small margin), or the head is within the guard
   distance whatever the speed (a slow or stopped train near the crossing), or
   already at or past it while the tail is not.  The earliest arrival is
   anchored at a fix: where the head was at most, how fast it ran at most,
@@ -131,7 +132,7 @@ class ControllerSettings:
     # the crossing) and rise with the lights going out.
     barrier_delay_s: float = 8.0
     tick_s: float = 1.0  # the unit's clock: between fixes it looks again this often
-    onset_margin_s: float = 1.0  # on this much beyond the warning time and one tick
+    onset_margin_s: float = 1.0  # on this much beyond the warning time (the clock wakes at the instant due)
     # The estimate (crossing_estimate): speed σ of a reported (Doppler) speed; how fast the
     # acceleration may change (white jerk, m²/s⁵); bounds at estimate + k·σ.
     speed_sigma_mps: float = 0.2
@@ -272,7 +273,8 @@ class CrossingController:
 
     # -- estimates -------------------------------------------------------
     def _fresh(self, r: Report | None, t_ns: int) -> bool:
-        return r is not None and (t_ns - r.t_fix_ns) <= self.s.stale_after_s * NS
+        """Heard from within the stale time: stale from ``stale_after_s`` after its fix on."""
+        return r is not None and (t_ns - r.t_fix_ns) < int(self.s.stale_after_s * NS)
 
     def _speed(self, tr: _Track, t_ns: int) -> float:
         """The fastest the train may be running at ``t_ns`` (m/s) by the model-free bounds: reported
@@ -466,8 +468,27 @@ class CrossingController:
 
     @property
     def horizon_s(self) -> float:
-        """A warning comes on when the earliest arrival is this near (s)."""
-        return self.crossing.warning_time_s + self.s.tick_s + self.s.onset_margin_s
+        """A warning comes on when the earliest arrival is this near (s).  No tick is added: the unit's
+        clock wakes at the instant a warning comes due (:meth:`next_onset_ns`), not only every tick."""
+        return self.crossing.warning_time_s + self.s.onset_margin_s
+
+    def next_onset_ns(self, now_ns: int) -> int | None:
+        """The first instant after ``now_ns`` at which the passing of time alone may change what the
+        unit does: a warning coming due by extrapolation, or a unit going stale (its bound may then be
+        another's, and an alarm is due).  Every driver wakes the unit's clock then, as well as every
+        tick, so a warning comes on at the instant it is due, never a tick before (nor after).
+        None: nothing is pending."""
+        horizon_ns = int(self.horizon_s * NS)
+        stale_ns = int(self.s.stale_after_s * NS)
+        wake: list[int] = []
+        for tr in self.tracks.values():
+            for r in (tr.head, tr.eot):
+                if r is not None:
+                    wake.append(r.t_fix_ns + stale_ns)  # the instant it goes stale
+            if not tr.warned and (a := self._approach(tr, now_ns)) is not None:
+                wake.append(a[3].t_arrival_ns - horizon_ns)
+        later = [t for t in wake if t > now_ns]
+        return min(later) if later else None
 
     def _onset(self, tr: _Track, t_ns: int, b: ArrivalBound, basis: str) -> Onset:
         """The bound's parts when the warning came on: what each doubt cost (ETA s)."""
@@ -510,7 +531,7 @@ class CrossingController:
             reason = "head at or past the crossing"
         elif ahead <= self.s.guard_distance_m:
             reason = f"within the guard distance ({ahead:.0f} m)"
-        elif eta <= horizon_s:
+        elif t_ns >= b.t_arrival_ns - int(horizon_s * NS):  # in ns: the instant next_onset_ns wakes at is due
             extra = horizon_s - self.crossing.warning_time_s
             reason = f"ETA {eta:.0f} s ≤ {self.crossing.warning_time_s:g} s + {extra:.0f} s"
             how = self._speed_basis(tr) if not b.settled else "estimated from the fixes"
@@ -773,7 +794,7 @@ def run_controller(
     told = sorted(partings)
     for f in ordered:
         if f.t_ns > t:
-            _tick(ctl, t, (f.t_ns - t - 1) // step, step)  # every tick before the fix
+            wake_until(ctl, _tick(ctl, t, (f.t_ns - t - 1) // step, step), f.t_ns)  # every tick before the fix
         while told and told[0][0] <= f.t_ns:
             ctl.train_parted(told[0][1], told[0][0], told[0][2])
             told.pop(0)
@@ -786,19 +807,33 @@ def run_controller(
     return ctl
 
 
-def _tick(ctl: CrossingController, t0_ns: int, n: int, step_ns: int) -> None:
-    """``ctl.tick`` at ``t0 + k·step`` for k = 1..n, as a walk over every tick would give it.
+def _tick(ctl: CrossingController, t0_ns: int, n: int, step_ns: int) -> int:
+    """``ctl.tick`` at ``t0 + k·step`` for k = 1..n, and at each instant between them when a warning
+    comes due (:meth:`CrossingController.next_onset_ns`), as a live unit's clock wakes.
 
     Ticks stop one tick after nothing a tick does can change until the next fix
     (:meth:`CrossingController.next_change_ns`): every device gone stale and every
     warning due.  So a fix dated years after the one before it (a damaged year) costs
-    the stale time's ticks, not one tick per second of the years.
+    the stale time's ticks, not one tick per second of the years.  Returns the last instant ticked.
     """
     if n < 1:
-        return
+        return t0_ns
     settled = ctl.next_change_ns()
+    done = t0_ns
     for k in range(1, n + 1):
         t = t0_ns + k * step_ns
         if settled is None or t > settled + 2 * step_ns:  # two ticks past it: the stale time is a float
-            return
+            return done
+        wake_until(ctl, done, t)
         ctl.tick(t)
+        done = t
+    return done
+
+
+def wake_until(ctl: CrossingController, from_ns: int, to_ns: int) -> int:
+    """Tick ``ctl`` at each instant in (``from_ns``, ``to_ns``) when something falls due; returns the
+    last instant ticked (``from_ns`` if none)."""
+    while (w := ctl.next_onset_ns(from_ns)) is not None and w < to_ns:
+        ctl.tick(w)
+        from_ns = w
+    return from_ns
