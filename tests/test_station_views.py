@@ -136,3 +136,29 @@ def test_a_replay_jump_puts_the_section_changes_it_passed_into_the_log() -> None
 
     texts = asyncio.run(go())
     assert any(t.startswith("section ") for t in texts), texts[:10]
+
+
+def test_the_live_view_wakes_when_a_crossing_warning_falls_due() -> None:
+    # Between its steady wake-ups (every STATUS_S) the live view also wakes at the instant the engine says
+    # a crossing unit has something due, as `follow` does: a warning comes on at its instant, not later.
+    source = LiveSource(load_layout("example"), [])
+    source.live.next_wake_s = lambda: 0.05  # type: ignore[method-assign]
+    app = LiveStationApp(source, autoplay=True)
+    timers: list[float] = []
+
+    async def go() -> None:
+        async with app.run_test(size=SIZE) as pilot:
+            set_timer = app.set_timer
+
+            def recording(delay: float, callback: object = None, **kw: object) -> object:
+                timers.append(delay)
+                return set_timer(delay, callback, **kw)  # type: ignore[arg-type]
+
+            app.set_timer = recording  # type: ignore[method-assign,assignment]
+            for _ in range(200):  # until an advance has ended (a loaded machine may take a while)
+                await pilot.pause(0.05)
+                if timers:
+                    break
+
+    asyncio.run(go())
+    assert 0.05 in timers

@@ -102,9 +102,16 @@ class LiveStationApp(StationApp):
 
     def _after_advance(self) -> None:
         super()._after_advance()
+        if not self.is_running:
+            return
         if self._again or self.live_source.pending():
             self._again = False
             self._wake()
+            return
+        # A crossing warning falls due at its instant: wake then if that is before the steady interval.
+        due_s = self.live_source.live.next_wake_s()
+        if due_s is not None and due_s < STATUS_S:
+            self.set_timer(due_s, self._wake)
 
     # -- drawing -------------------------------------------------------------------
     def subtitle(self, snap: Snapshot) -> str:
