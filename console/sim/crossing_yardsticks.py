@@ -14,7 +14,7 @@ distance, the release rule) to more knowledge than the unit had:
   the speed from the earlier fixes' positions.  It shows what an export
   without speed costs a unit that bounds the speed by kinematics (not a
   floor for a statistical estimate with another release history: the unit
-  warned later than it in 3 of 3,600 runs, seeds 20261129 and 4242);
+  warned later than it in 3 to 4 of 3,600 runs, seeds 20261129 and 4242);
 * the **noise-allowance yardstick** is the same with the fixes' measured
   positions, taken with the unit's own worst-case noise allowance; it sets
   every position jump aside (it knows which fixes jumped).  It shows what the
