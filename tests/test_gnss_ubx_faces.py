@@ -88,7 +88,7 @@ def test_crossing_gives_the_csvs_warnings(run: tuple[Path, list[Path], pd.DataFr
     csv, files, _ = run
     want = _json("crossing", str(csv), "--layout", "example", "--json")
     got = _json("crossing", *map(str, files), "--layout", "example", "--json")
-    assert got["events"] == want["events"] and len(got["events"]) == 10
+    assert got["events"] == want["events"] and len(got["events"]) == 12  # 4 on, 4 off, 4 stale alarms
     assert _timelines(got) == _timelines(want) and got["violations"] == 0
 
 
