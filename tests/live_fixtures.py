@@ -17,11 +17,13 @@ import socket
 import subprocess
 import sys
 import time
+import urllib.request
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+from prometheus_client.parser import text_string_to_metric_families
 
 REPO = Path(__file__).resolve().parent.parent
 NMEA_DIR = Path("/work/shared/data/nmea")
@@ -42,6 +44,25 @@ def wait_until(cond: Callable[[], bool], timeout_s: float = 10.0, step_s: float 
             return True
         time.sleep(step_s)
     return cond()
+
+
+def lines_read(metrics_port: int) -> int:
+    """Messages (lines, for a file) that a `follow --metrics 127.0.0.1:PORT` has read so far, all sources; 0 while
+    its metrics are not served yet."""
+    try:
+        with urllib.request.urlopen(f"http://127.0.0.1:{metrics_port}/metrics", timeout=5) as r:
+            text = r.read().decode()
+    except OSError:
+        return 0
+    return int(
+        sum(
+            sample.value
+            for family in text_string_to_metric_families(text)
+            if family.name == "trackside_source_messages"
+            for sample in family.samples
+            if sample.name == "trackside_source_messages_total"
+        )
+    )
 
 
 def port_open(port: int) -> bool:
@@ -284,8 +305,6 @@ class HeadlessChromium:
         )
 
     def page_ws_url(self) -> str:
-        import urllib.request
-
         end = time.monotonic() + 20
         while time.monotonic() < end:
             try:

@@ -14,6 +14,7 @@ from console.inputs.base import LineBlock
 from console.inputs.follow import FileSource
 from console.inputs.gpsd import GpsdSource
 from console.live.backlog import Backlog
+from tests.live_fixtures import wait_until
 
 BLOCK = 1 << 16
 
@@ -39,6 +40,9 @@ def test_a_files_reader_waits_while_the_backlog_is_full_and_every_block_arrives_
     backlog = Backlog(limit_bytes=4 * BLOCK)
     done: list[int] = []
     t = _producer(backlog, FileSource("file:x", tmp_path / "x.log"), 40, done)
+    # The producer fills the backlog (a fixed 0.5 s was not always enough for its thread on a loaded
+    # machine), then gets no further while nothing is taken out.
+    assert wait_until(lambda: len(done) >= 4, 30), done
     time.sleep(0.5)
     # Held: what it handed over is at most the limit and one block more, not the 40 blocks.
     assert 4 <= len(done) <= 6, done

@@ -13,13 +13,14 @@ import signal
 import subprocess
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
 from console.inputs.base import Item, LineBlock
 from console.inputs.follow import FileSource
-from tests.live_fixtures import REPO, read_jsonl, trackside, wait_until
+from tests.live_fixtures import REPO, free_port, lines_read, read_jsonl, trackside, wait_until
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -157,8 +158,9 @@ def mid_train(src: bytes, after: float) -> int:
     return cut
 
 
-def _write_in_pieces(src: bytes, dest: Path, cut: int, mode: str) -> None:
-    """Write ``src`` into ``dest`` in uneven pieces (lines cut anywhere), rotating at byte ``cut`` (a line end)."""
+def _write_in_pieces(src: bytes, dest: Path, cut: int, mode: str, read_all_of: Callable[[bytes], bool]) -> None:
+    """Write ``src`` into ``dest`` in uneven pieces (lines cut anywhere), rotating at byte ``cut`` (a line end)
+    once ``read_all_of(src[:cut])`` says the follower has read up to it."""
     halves = (src[:cut], src[cut:])
     for k, half in enumerate(halves):
         with dest.open("ab") as f:
@@ -168,7 +170,10 @@ def _write_in_pieces(src: bytes, dest: Path, cut: int, mode: str) -> None:
                 f.flush()
                 time.sleep(0.01)
             if k == 0:
-                time.sleep(0.3)
+                # copytruncate loses what the follower has not read when the file is cut (logrotate's own
+                # gap): the test rotates once the follower has caught up, which a fixed 0.3 s did not
+                # always give it on a loaded machine.
+                assert wait_until(lambda: read_all_of(halves[0]), 60), "the follower did not catch up"
                 if mode == "rename":
                     os.rename(dest, dest.with_name(dest.name + ".1"))
                 else:
@@ -196,6 +201,7 @@ def test_follow_of_a_log_written_in_pieces_and_rotated_mid_train_reports_what_an
 ) -> None:
     log = tmp_path / "station.log"
     log.write_bytes(b"")
+    port = free_port()  # its metrics tell how many lines the follower has read
     proc = subprocess.Popen(
         trackside(
             "follow",
@@ -207,6 +213,8 @@ def test_follow_of_a_log_written_in_pieces_and_rotated_mid_train_reports_what_an
             "--idle-exit",
             "1.5",
             "--include-status",
+            "--metrics",
+            f"127.0.0.1:{port}",
         ),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -220,7 +228,7 @@ def test_follow_of_a_log_written_in_pieces_and_rotated_mid_train_reports_what_an
         cut = mid_train(data, 0.5)
         # The rotation falls inside a train: wheel records just before and just after it.
         assert data[:cut].splitlines()[-1].count(b"Radsensor") == data[cut:].splitlines()[0].count(b"Radsensor") == 1
-        _write_in_pieces(data, log, cut, mode)
+        _write_in_pieces(data, log, cut, mode, lambda written: lines_read(port) >= written.count(b"\n"))
         out, err = proc.communicate(timeout=40)
         out = first + out
     finally:

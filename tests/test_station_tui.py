@@ -5,6 +5,7 @@ derived (section states, reset decisions, log entries), never the pixels."""
 from __future__ import annotations
 
 import asyncio
+import time
 from pathlib import Path
 
 import pytest
@@ -79,11 +80,16 @@ def test_the_app_moves_by_itself() -> None:
         app = StationApp(model, autoplay=True)
         async with app.run_test(size=SIZE) as pilot:
             t0 = model.source.now_ns
-            await pilot.pause(0.6)
-            t1 = model.source.now_ns
-            assert t1 > t0
+            # The first tick is due after 0.1 s, but its worker thread can wait long for the CPU on a loaded
+            # machine: wait for the clock to move (a stuck clock still fails, after 10 s).
+            end = time.monotonic() + 10
+            while model.source.now_ns == t0 and time.monotonic() < end:
+                await pilot.pause(0.05)
+            assert model.source.now_ns > t0
             await pilot.press("space")
-            await pilot.pause(0.3)  # let a tick already in flight finish
+            # A tick already in flight when the pause came may still move the clock: wait for it to end (a
+            # fixed wait was too short under load, and the tick then moved the clock after t2 was read).
+            await app.workers.wait_for_complete()
             t2 = model.source.now_ns
             await pilot.pause(0.5)
             assert model.source.now_ns == t2

@@ -68,6 +68,25 @@ def test_the_live_title_says_live_once() -> None:
     assert f"{title} — {sub}".count("live") == 1, (title, sub)
 
 
+def test_a_tick_that_ends_after_the_live_app_closed_starts_no_other() -> None:
+    """A tick's end with data still waiting would start the next tick: not once the app has shut down
+    (its worker would tick a closed app and call back into it)."""
+    source = LiveSource(load_layout("example"), [])
+    app = LiveStationApp(source, autoplay=False)
+
+    async def go() -> None:
+        async with app.run_test(size=SIZE):
+            pass
+        advances = app.advances
+        app._busy, app._again = True, True  # a tick in flight, and data came meanwhile
+        app._after_advance()  # what call_from_thread runs when the tick ends
+        assert not app._busy
+        assert app.advances == advances
+        assert not list(app.workers)
+
+    asyncio.run(go())
+
+
 def test_recorded_fixes_run_the_crossing_on_their_own_clock() -> None:
     """A recording read at many times its speed: the warning comes on and goes off at the recording's times
     (on the console's clock the fixes would be minutes in the future, then stale: the warning stuck on)."""

@@ -80,7 +80,9 @@ class LiveStationApp(StationApp):
         self._wake()
 
     def _wake(self) -> None:
-        if self.model.paused:
+        # A wake-up that comes while the app shuts down (a tick's end, a source's message, the gap timer)
+        # starts nothing: a worker started then would tick a closed app and call back into it.
+        if self.model.paused or not self.is_running:
             return
         if self._busy:
             self._again = True
