@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from console.inputs.base import LineBlock
+from console.inputs.base import LineBlock, Source
 from console.inputs.follow import FileSource
 from console.inputs.gpsd import GpsdSource
 from console.live.backlog import Backlog
@@ -100,3 +100,51 @@ def test_follow_from_start_through_a_small_backlog_gives_what_an_unbounded_one_g
     assert Backlog().limit_bytes == 8 << 10
     assert lines() == roomy
     assert sum('"type": "passage"' in ln for ln in roomy) > 20
+
+
+class _SlowLastRead(Source):
+    """A source whose last read, on stop, delivers ``blocks`` blocks ``gap_s`` apart (a followed file with a
+    long unread tail on a busy machine): longer in all than a fixed 3 s wait for its thread."""
+
+    def __init__(self, blocks: int, gap_s: float) -> None:
+        super().__init__("file:slow")
+        self.blocks, self.gap_s = blocks, gap_s
+
+    def run(self) -> None:
+        while not self.stopping:
+            time.sleep(0.01)
+        for k in range(self.blocks):
+            time.sleep(self.gap_s)
+            self.emit(LineBlock(self.uri, "slow", k + 1, b"x\n", time.monotonic()))
+
+
+class _Counting:
+    """The engine's side of run_sources, counting what it is handed."""
+
+    def __init__(self) -> None:
+        self.handled: list[int] = []
+        self.finished_after = -1
+
+    def handle(self, item: LineBlock) -> None:
+        self.handled.append(item.first_line)
+
+    def idle(self) -> None:
+        pass
+
+    def tick(self) -> None:
+        pass
+
+    def next_wake_s(self) -> None:
+        return None
+
+    def finish(self) -> None:
+        self.finished_after = len(self.handled)
+
+
+def test_what_a_source_delivers_while_it_stops_is_analysed_however_long_that_takes() -> None:
+    from console.live.engine import run_sources
+
+    engine = _Counting()
+    source = _SlowLastRead(blocks=40, gap_s=0.1)  # 4 s of last read
+    run_sources(engine, [source], duration_s=0.2)  # type: ignore[arg-type]
+    assert engine.handled == list(range(1, 41)) and engine.finished_after == 40

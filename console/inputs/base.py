@@ -175,10 +175,20 @@ class Source(ABC):
         """Raise :class:`SourceError` if the source cannot work at all (called before the thread)."""
 
     def stop(self, timeout_s: float = 3.0) -> None:
-        self._stop.set()
-        self.interrupt()
+        self.request_stop()
         if self._thread is not None:
             self._thread.join(timeout_s)
+
+    def request_stop(self) -> None:
+        """Ask the thread to end, without waiting: it may still deliver what it reads on its way out
+        (a followed file is read to its end)."""
+        self._stop.set()
+        self.interrupt()
+
+    @property
+    def running(self) -> bool:
+        """The source's thread has not ended yet."""
+        return self._thread is not None and self._thread.is_alive()
 
     def interrupt(self) -> None:  # noqa: B027 - optional hook
         """Wake a thread blocked on I/O (close a socket…)."""

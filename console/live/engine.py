@@ -28,6 +28,7 @@ from parsers.units import ALL_TIME, NS
 
 Emit = Callable[[dict[str, Any]], None]
 TICK_S = 0.5  # crossing units' clock and the idle wake-up: two a second is nothing for the CPU
+STOP_QUIET_S = 3.0  # stopping: a source's thread that delivers nothing for this long is left behind
 
 
 class LiveEngine:
@@ -260,13 +261,29 @@ def run_sources(
                     next_tick = time.monotonic() + TICK_S
     finally:
         for s in started:
-            s.stop()
-        while True:  # what the sources delivered before stopping is still analysed
-            try:
-                engine.handle(q.get())
-            except queue.Empty:
-                break
+            s.request_stop()
+        _drain_while_stopping(q, engine, started)
         engine.finish()
         for restored, handler in previous.items():
             signal.signal(restored, handler)
     return stopped_by[0] if stopped_by else None
+
+
+def _drain_while_stopping(q: Backlog, engine: LiveEngine, sources: Sequence[Source]) -> None:
+    """What the sources deliver while they stop (a followed file is read to its end) is still analysed:
+    the backlog is drained for as long as any of their threads runs, not for a fixed time, so a long last
+    read on a busy machine is not cut off.  A thread that delivers nothing for ``STOP_QUIET_S`` (blocked
+    on a device that never answers) is left behind."""
+    quiet_since = time.monotonic()
+    while True:
+        try:
+            engine.handle(q.get(0.05))
+            quiet_since = time.monotonic()
+        except queue.Empty:
+            if not any(s.running for s in sources) or time.monotonic() - quiet_since > STOP_QUIET_S:
+                break
+    while True:  # what came in as the last thread ended
+        try:
+            engine.handle(q.get())
+        except queue.Empty:
+            break
