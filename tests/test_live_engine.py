@@ -34,6 +34,16 @@ class Clock:
         return self.t
 
 
+def _engine_on_a_clock() -> tuple[TrackProjector, list[dict[str, Any]], LiveEngine, Clock]:
+    """A live engine on the example layout whose console clock the test sets, and what it emits."""
+    lay = load_layout("example")
+    events: list[dict[str, Any]] = []
+    engine = LiveEngine(lay, events.append)
+    clock = Clock()
+    engine.now_ns = clock  # type: ignore[method-assign]
+    return TrackProjector(lay.track), events, engine, clock
+
+
 def run(
     skews_s: dict[str, float] | None = None,
     silent_eot_after_s: float | None = None,
@@ -42,12 +52,7 @@ def run(
 ) -> tuple[list[dict[str, Any]], LiveEngine]:
     """A train from chainage 9,000 m (before the mapped track: projected along its end) at constant
     speed, head and EOT fixes every 2 s."""
-    lay = load_layout("example")
-    proj = TrackProjector(lay.track)
-    events: list[dict[str, Any]] = []
-    engine = LiveEngine(lay, events.append)
-    clock = Clock()
-    engine.now_ns = clock  # type: ignore[method-assign]
+    proj, events, engine, clock = _engine_on_a_clock()
     skews = skews_s or {}
     for k in range(0, seconds * 2):
         clock.t = T0 + k * NS // 2
@@ -279,12 +284,7 @@ def test_the_live_console_wakes_at_the_instant_a_warning_falls_due() -> None:
     # As run_sources does: between its steady ticks the console's clock wakes when next_wake_s says a
     # warning falls due, so the warning comes on at that instant (its earliest arrival exactly the
     # unit's horizon away), not at the next steady tick.
-    lay = load_layout("example")
-    proj = TrackProjector(lay.track)
-    events: list[dict[str, Any]] = []
-    engine = LiveEngine(lay, events.append)
-    clock = Clock()
-    engine.now_ns = clock  # type: ignore[method-assign]
+    proj, events, engine, clock = _engine_on_a_clock()
     assert engine.next_wake_s() is None  # nothing heard: nothing due
     assert engine.crossings is not None
     ctl = engine.crossings.controllers["11+850"]
