@@ -37,6 +37,7 @@ from console.analysis.crossing.controller import (
     CrossingEvent,
     Fix,
     TrainSpec,
+    wake_until,
 )
 from console.analysis.crossing.timeline import timeline
 from console.analysis.crossing_batch import OFF_TRACK_M, crossing_settings
@@ -86,18 +87,11 @@ class _Ticks:
             self.k += 1
 
     def _wake(self, to_ns: int) -> list[CrossingEvent]:
-        """The unit's clock at each instant before ``to_ns`` (after the last tick made) when something
+        """The unit's clock at each instant before ``to_ns``, after the latest fix and tick, when something
         falls due: a warning comes on at the instant it is due, not a tick before."""
-        out: list[CrossingEvent] = []
-        done = (
-            self.from_ns
-            if self.done_ns is None or self.from_ns is None or self.done_ns < self.from_ns
-            else self.done_ns
-        )
-        assert done is not None
-        while (w := self.ctl.next_onset_ns(done)) is not None and w < to_ns:
-            out += self.ctl.tick(w)
-            self.done_ns = done = w
+        assert self.from_ns is not None
+        start = self.from_ns if self.done_ns is None else max(self.from_ns, self.done_ns)
+        self.done_ns, out = wake_until(self.ctl, start, to_ns)
         return out
 
 

@@ -246,7 +246,7 @@ def run_sources(
                 break
             # A crossing warning falls due at its instant, not at the next steady tick.
             due_s = engine.next_wake_s()
-            wake_at = min(next_tick, now + TICK_S if due_s is None else now + min(due_s, TICK_S))
+            wake_at = next_tick if due_s is None else min(next_tick, now + due_s)  # next_tick ≤ now + TICK_S
             try:
                 item: Item | None = q.get(max(0.0, wake_at - now))
             except queue.Empty:

@@ -24,7 +24,8 @@ distance, the release rule) to more knowledge than the unit had:
 * the paper's rule d/v ≤ T (Co Nhu Van, TCSJ 2026, eq. 6-8) at each head fix.
 
 The speed bound from positions: two fixes Δt apart, their positions known to
-±m, give the mean speed between them at most ``(|Δs| + 2m) / Δt``; the train
+±m, give the mean speed between them at most ``(Δs + 2m) / Δt`` (Δs in the
+direction of travel); the train
 may have accelerated at ``a`` since, so the speed at the later fix is at most
 that plus ``a·Δt / 2``.  The smallest over the last few earlier fixes counts.
 """

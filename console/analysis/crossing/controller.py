@@ -794,7 +794,7 @@ def run_controller(
     told = sorted(partings)
     for f in ordered:
         if f.t_ns > t:
-            wake_until(ctl, _tick(ctl, t, (f.t_ns - t - 1) // step, step), f.t_ns)  # every tick before the fix
+            wake_until(ctl, _tick(ctl, t, (f.t_ns - t - 1) // step, step), f.t_ns)  # every tick and wake-up before it
         while told and told[0][0] <= f.t_ns:
             ctl.train_parted(told[0][1], told[0][0], told[0][2])
             told.pop(0)
@@ -830,10 +830,12 @@ def _tick(ctl: CrossingController, t0_ns: int, n: int, step_ns: int) -> int:
     return done
 
 
-def wake_until(ctl: CrossingController, from_ns: int, to_ns: int) -> int:
-    """Tick ``ctl`` at each instant in (``from_ns``, ``to_ns``) when something falls due; returns the
-    last instant ticked (``from_ns`` if none)."""
+def wake_until(ctl: CrossingController, from_ns: int, to_ns: int) -> tuple[int, list[CrossingEvent]]:
+    """Tick ``ctl`` at each instant in (``from_ns``, ``to_ns``) when something falls due (every driver's
+    wake-ups between its steady ticks); returns the last instant ticked (``from_ns`` if none) and the
+    events of those ticks."""
+    out: list[CrossingEvent] = []
     while (w := ctl.next_onset_ns(from_ns)) is not None and w < to_ns:
-        ctl.tick(w)
+        out += ctl.tick(w)
         from_ns = w
-    return from_ns
+    return from_ns, out
