@@ -58,20 +58,45 @@ def test_a_files_reader_waits_while_the_backlog_is_full_and_every_block_arrives_
     assert backlog.empty()
 
 
-def test_a_network_source_is_never_held_nor_a_stopping_file_reader(tmp_path: Path) -> None:
+def test_a_network_source_is_never_held_but_a_stopping_file_reader_is_until_the_backlog_closes(tmp_path: Path) -> None:
     backlog = Backlog(limit_bytes=2 * BLOCK)
     done: list[int] = []
     _producer(backlog, GpsdSource("gpsd://127.0.0.1:1", "127.0.0.1", 1), 20, done).join(5.0)
     assert len(done) == 20  # its sender sets the rate
 
     stopping = FileSource("file:y", tmp_path / "y.log")
+    stopping.request_stop()  # read to its end on the way out: in bounded memory too (follow drains meanwhile)
     held: list[int] = []
     t = _producer(backlog, stopping, 5, held)
     time.sleep(0.3)
-    assert held == []  # the backlog is over its limit: the file's reader waits ...
-    stopping.stop()
+    assert held == []  # the backlog is over its limit: the stopping reader waits ...
+    backlog.close()  # ... until the consumer will take no more: it is let go, and the rest is dropped, on record
     t.join(5.0)
-    assert held == list(range(5))  # ... until it stops: what it still reads is handed over, analysed at the end
+    assert held == list(range(5)) and backlog.empty()
+    dropped, n = backlog.not_analysed()
+    assert dropped == {"x": 1} and n == 20 + 5  # the first line of the first block dropped; every item counted
+    with pytest.raises(queue.Empty):
+        backlog.get()
+
+
+def test_an_abandoned_file_reader_stops_reading_and_ends(tmp_path: Path) -> None:
+    """A second Ctrl-C or a closed view: the reader of a big file followed from its start stops where it is."""
+    log = tmp_path / "big.log"
+    station = Path(__file__).parents[1] / "sample_logs" / "example_station.log"
+    log.write_bytes(station.read_bytes() * 16)  # 7 MB of a diagnostic log: handed over as blocks of lines
+    backlog = Backlog(limit_bytes=BLOCK)
+    source = FileSource("file:big", log, from_start=True)
+    source.start(backlog.putter(source))
+    assert wait_until(lambda: not backlog.empty(), 30)
+    source.request_stop()
+    time.sleep(0.3)
+    assert source.running  # stopping, held: it would read on to the end as the backlog is drained
+    source.abandon()
+    backlog.close()
+    assert wait_until(lambda: not source.running, 10)
+    assert source.bytes_read < log.stat().st_size
+    dropped, _ = backlog.not_analysed()
+    assert list(dropped) == [str(log)]
 
 
 def test_follow_from_start_through_a_small_backlog_gives_what_an_unbounded_one_gives(
@@ -148,3 +173,41 @@ def test_what_a_source_delivers_while_it_stops_is_analysed_however_long_that_tak
     source = _SlowLastRead(blocks=40, gap_s=0.1)  # 4 s of last read
     run_sources(engine, [source], duration_s=0.2)  # type: ignore[arg-type]
     assert engine.handled == list(range(1, 41)) and engine.finished_after == 40
+
+
+class _LastReadAtOnce(Source):
+    """A source whose last read, on stop, hands over ``blocks`` blocks at once."""
+
+    def __init__(self, blocks: int) -> None:
+        super().__init__("file:slow")
+        self.blocks = blocks
+
+    def run(self) -> None:
+        while not self.stopping:
+            time.sleep(0.01)
+        for k in range(self.blocks):
+            self.emit(LineBlock(self.uri, "slow", k + 1, b"x\n", time.monotonic()))
+
+
+def test_a_second_interrupt_while_stopping_stops_at_once_and_says_what_was_not_analysed() -> None:
+    import signal
+
+    from console.live.engine import run_sources
+
+    source = _LastReadAtOnce(blocks=300)
+    told: list[str] = []
+
+    class Interrupted(_Counting):
+        def handle(self, item: LineBlock) -> None:
+            super().handle(item)
+            if item.first_line == 5:
+                # The last read is all queued by now; the user presses Ctrl-C (the run ended by its duration).
+                assert wait_until(lambda: not source.running, 10)
+                signal.raise_signal(signal.SIGINT)
+
+    engine = Interrupted()
+    engine.not_analysed, engine.items_not_analysed = {}, 0  # type: ignore[attr-defined]
+    stopped_by = run_sources(engine, [source], duration_s=0.2, tell=told.append)  # type: ignore[arg-type]
+    assert stopped_by == signal.SIGINT
+    assert engine.handled == [1, 2, 3, 4, 5] and engine.finished_after == 5
+    assert engine.not_analysed == {"slow": 6} and engine.items_not_analysed == 295  # type: ignore[attr-defined]

@@ -70,3 +70,22 @@ def test_one_hidden_info_finding_is_singular() -> None:
     result = runner.invoke(app, ["analyze", str(log), "--layout", "example"], env={"COLUMNS": "200"})
     assert result.exit_code == 0, result.output
     assert "1 info finding not shown" in result.output
+
+
+def test_follow_summary_says_what_a_second_interrupt_left_unanalysed() -> None:
+    from console.cli.commands.follow import _summary_lines
+
+    summary = {
+        "passages": 0,
+        "section_changes": 0,
+        "crossing_events": 0,
+        "health_findings": 0,
+        "files": [{"file": "a.log", "lines_read": 41, "records": 41, "blank": 0, "rejected": 0}],
+        "not_analysed": [{"file": "a.log", "from_line": 42}],
+        "items_not_analysed": 1,
+        "sources": [],
+        "sections": {},
+    }
+    lines = _summary_lines(summary)
+    assert "  a.log: not analysed from line 42 on (stopped at a second interrupt)" in lines
+    assert "  1 item read but not analysed (stopped at a second interrupt)" in lines

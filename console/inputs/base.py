@@ -151,6 +151,7 @@ class Source(ABC):
     def __init__(self, uri: str) -> None:
         self.uri = uri
         self._stop = threading.Event()
+        self.abandoned = False  # stopping without the last read: what it would deliver is not wanted
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
         self._connected = False
@@ -184,6 +185,11 @@ class Source(ABC):
         (a followed file is read to its end)."""
         self._stop.set()
         self.interrupt()
+
+    def abandon(self) -> None:
+        """Stop without the last read (a second Ctrl-C, a closed view): a followed file is not read on to its end."""
+        self.abandoned = True
+        self.request_stop()
 
     @property
     def running(self) -> bool:

@@ -85,9 +85,10 @@ class FileSource(Source):
             first = False
             self._wake.wait(CHECK_S if watcher is not None and watcher.is_alive() else POLL_S)
             self._wake.clear()
-        self._pump(False)
-        self._flush_carry("end")
-        self._hand_over(self.files.finish())
+        if not self.abandoned:
+            self._pump(False)
+            self._flush_carry("end")
+            self._hand_over(self.files.finish())
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
@@ -245,7 +246,7 @@ class FileSource(Source):
     def _read_to_end(self) -> None:
         if self._fd is None:
             return
-        while True:
+        while not self.abandoned:
             block = os.pread(self._fd, READ_BYTES, self._pos)
             if not block:
                 return

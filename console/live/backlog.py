@@ -7,8 +7,12 @@ followed from its start (``follow --from-start`` of a 407 MB log peaked at
 :data:`BACKLOG_BYTES` of what was read waits for the engine: the file keeps,
 and memory no longer grows with the input.  A source on the network is never
 held (its sender sets the rate; holding it would only lose its messages
-elsewhere), and a source that is stopping is not held either: what it
-still reads is analysed before the end, as before.
+elsewhere).  A reader that is stopping is held too: ``follow`` drains the
+backlog while its sources stop, so a big file read to its end on Ctrl-C
+keeps memory as flat as the rest of the run.  A consumer that will take no
+more (a second Ctrl-C, a closed station view) calls :meth:`Backlog.close`:
+the readers are let go, and what they still hand over is dropped and
+recorded (:meth:`Backlog.not_analysed`), never silently.
 """
 
 from __future__ import annotations
@@ -36,6 +40,9 @@ class Backlog:
         self._q: queue.SimpleQueue[Item] = queue.SimpleQueue()
         self._bytes = 0
         self._room = threading.Condition()
+        self._closed = False
+        self._dropped: dict[str, int] = {}  # a file (as its blocks name it) -> its first line dropped
+        self._dropped_items = 0
 
     def putter(self, source: Source) -> Callable[[Item], None]:
         """How ``source`` hands its items over: a followed file's reader waits for room."""
@@ -44,24 +51,54 @@ class Backlog:
         def put(item: Item) -> None:
             w = _weight(item)
             with self._room:
-                while waits and self._bytes > self.limit_bytes and not source.stopping:
-                    self._room.wait(0.25)  # woken by the engine's get; the timeout sees a stop
+                while waits and self._bytes > self.limit_bytes and not self._closed:
+                    self._room.wait(0.25)  # woken by the engine's get or by close
+                if self._closed:
+                    self._drop(item)
+                    return
                 self._bytes += w
-            self._q.put(item)
+                self._q.put(item)  # under the lock: close never misses an item on its way in
 
         return put
+
+    def close(self) -> None:
+        """No more is taken: the readers waiting for room are let go, and what is handed over from now on,
+        and what still waits, is dropped (recorded in :meth:`not_analysed`)."""
+        with self._room:
+            self._closed = True
+            while True:
+                try:
+                    self._drop(self._q.get_nowait())
+                except queue.Empty:
+                    break
+            self._bytes = 0
+            self._room.notify_all()
+
+    def _drop(self, item: Item) -> None:
+        self._dropped_items += 1
+        if isinstance(item, LineBlock):
+            self._dropped.setdefault(item.file, item.first_line)
+
+    def not_analysed(self) -> tuple[dict[str, int], int]:
+        """What :meth:`close` dropped: each file's first line not analysed, and the number of items."""
+        with self._room:
+            return dict(self._dropped), self._dropped_items
 
     def put(self, item: Item) -> None:
         """An item handed over by no source's thread (never held)."""
         with self._room:
+            if self._closed:
+                self._drop(item)
+                return
             self._bytes += _weight(item)
-        self._q.put(item)
+            self._q.put(item)
 
     def get(self, timeout_s: float | None = None) -> Item:
         """The next item; ``queue.Empty`` if none came within ``timeout_s`` (None: none is there now)."""
         item = self._q.get_nowait() if timeout_s is None else self._q.get(timeout=timeout_s)
         with self._room:
-            self._bytes -= _weight(item)
+            if not self._closed:  # close has already let go of every item's weight
+                self._bytes -= _weight(item)
             if self._bytes <= self.limit_bytes:
                 self._room.notify_all()
         return item

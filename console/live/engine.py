@@ -29,6 +29,7 @@ from parsers.units import ALL_TIME, NS
 Emit = Callable[[dict[str, Any]], None]
 TICK_S = 0.5  # crossing units' clock and the idle wake-up: two a second is nothing for the CPU
 STOP_QUIET_S = 3.0  # stopping: a source's thread that delivers nothing for this long is left behind
+STOP_TELL_S = 1.0  # stopping takes longer than this (a big file's last read): say so, and how to cut it short
 
 
 class LiveEngine:
@@ -73,6 +74,9 @@ class LiveEngine:
         self.file_frames = 0  # count frames read from followed CAN and frame logs
         self.items = 0
         self.notes: dict[str, int] = {}
+        # What a second interrupt left unanalysed: each file's first line not analysed, and other items.
+        self.not_analysed: dict[str, int] = {}
+        self.items_not_analysed = 0
 
     def now_ns(self) -> int:
         """The console's clock."""
@@ -201,6 +205,14 @@ class LiveEngine:
             "can_frames": self.can_frames,
             "file_frames": self.file_frames,
             "files": files,
+            **(
+                {
+                    "not_analysed": [{"file": f, "from_line": n} for f, n in self.not_analysed.items()],
+                    "items_not_analysed": self.items_not_analysed,
+                }
+                if self.not_analysed or self.items_not_analysed
+                else {}
+            ),
             "sections": {k: {"state": s, "count": c} for k, (s, c) in self.section_states().items()},
             "sources": [s.status().to_dict() for s in sources],
             # A board's status dumps make a passage each, train or not: counted, listed on request (as analyze).
@@ -218,12 +230,16 @@ def run_sources(
     *,
     until: Callable[[], bool] | None = None,
     duration_s: float | None = None,
+    tell: Callable[[str], None] | None = None,
 ) -> int | None:
     """Start the sources, feed their items to the engine until ``until()``, the duration, or
     Ctrl-C / SIGTERM; then stop them and finish the engine.  Returns the signal that ended it.
 
     The signals only set a flag (from the main thread): an item is never cut half-way through
-    its analysis, and what the sources delivered before stopping is still analysed.
+    its analysis, and what the sources delivered before stopping is still analysed (a followed
+    file is read to its end, in bounded memory).  A second signal while that takes long stops at
+    once: the rest is recorded in the engine's ``not_analysed``.  ``tell`` hears, once, that the
+    stop takes long.
     """
     q = Backlog()  # bounded: a big file followed from its start is read as fast as it is analysed
     started: list[Source] = []
@@ -262,20 +278,41 @@ def run_sources(
     finally:
         for s in started:
             s.request_stop()
-        _drain_while_stopping(q, engine, started)
+        again = len(stopped_by) + 1  # one more signal than ended the run
+        _drain_while_stopping(q, engine, started, cut_short=lambda: len(stopped_by) >= again, tell=tell)
+        engine.not_analysed, engine.items_not_analysed = q.not_analysed()
         engine.finish()
         for restored, handler in previous.items():
             signal.signal(restored, handler)
     return stopped_by[0] if stopped_by else None
 
 
-def _drain_while_stopping(q: Backlog, engine: LiveEngine, sources: Sequence[Source]) -> None:
+def _drain_while_stopping(
+    q: Backlog,
+    engine: LiveEngine,
+    sources: Sequence[Source],
+    cut_short: Callable[[], bool],
+    tell: Callable[[str], None] | None,
+) -> None:
     """What the sources deliver while they stop (a followed file is read to its end) is still analysed:
     the backlog is drained for as long as any of their threads runs, not for a fixed time, so a long last
     read on a busy machine is not cut off.  A thread that delivers nothing for ``STOP_QUIET_S`` (blocked
-    on a device that never answers) is left behind."""
-    quiet_since = time.monotonic()
+    on a device that never answers) is left behind.  ``cut_short()`` (a second Ctrl-C) abandons the
+    sources and closes the backlog: what was not analysed is recorded there."""
+    began = quiet_since = time.monotonic()
+    told = False
     while True:
+        if cut_short():
+            for s in sources:
+                s.abandon()
+            q.close()
+            return
+        if tell is not None and not told and time.monotonic() - began > STOP_TELL_S:
+            told = True
+            tell(
+                "stopping: analysing what the sources still deliver (a followed file to its end);"
+                " interrupt again to stop at once"
+            )
         try:
             engine.handle(q.get(0.05))
             quiet_since = time.monotonic()

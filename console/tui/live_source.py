@@ -142,6 +142,11 @@ class LiveSource:
         return not self._queue.empty()
 
     def stop(self) -> None:
+        """The view closes: nothing more is shown, so a followed file's last read is not wanted, and a reader
+        waiting for room in the backlog is let go."""
+        for s in self.sources:
+            s.abandon()
+        self._queue.close()
         for s in self.sources:
             s.stop()
 

@@ -66,6 +66,11 @@ def _line(ev: dict[str, Any]) -> str:
     return clean(text)
 
 
+def _tell(message: str) -> None:
+    sys.stderr.write(f"follow: {message}\n")
+    sys.stderr.flush()
+
+
 def _summary_lines(summary: dict[str, Any]) -> list[str]:
     from console.safe_text import clean
 
@@ -87,6 +92,11 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
                 f" + {f['rejected']} rejected"
             )
         )
+    why = "(stopped at a second interrupt)"
+    for f in summary.get("not_analysed", []):
+        out.append(clean(f"  {f['file']}: not analysed from line {f['from_line']} on {why}"))
+    if summary.get("items_not_analysed"):
+        out.append(f"  {count(summary['items_not_analysed'], 'item')} read but not analysed {why}")
     for s in summary["sources"]:
         out.append(
             clean(
@@ -199,7 +209,7 @@ def follow(
         import signal
 
         try:
-            stopped_by = run_sources(engine, srcs, until=idle, duration_s=duration)
+            stopped_by = run_sources(engine, srcs, until=idle, duration_s=duration, tell=_tell)
         finally:
             if sink is not None:
                 sink.close()
