@@ -211,3 +211,25 @@ def test_a_second_interrupt_while_stopping_stops_at_once_and_says_what_was_not_a
     assert stopped_by == signal.SIGINT
     assert engine.handled == [1, 2, 3, 4, 5] and engine.finished_after == 5
     assert engine.not_analysed == {"slow": 6} and engine.items_not_analysed == 295  # type: ignore[attr-defined]
+
+
+def test_closing_the_live_view_stops_a_big_files_reader_where_it_is(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The station view over a big file followed from its start, closed at once: its reader is let go and stops
+    (it was left reading the rest into an unbounded queue, nothing showing it)."""
+    import console.live.backlog as backlog_module
+    from console.cli.common import load_layout
+    from console.inputs.uri import open_source
+    from console.tui.live_source import LiveSource
+
+    monkeypatch.setattr(backlog_module, "BACKLOG_BYTES", 4 * BLOCK)
+    log = tmp_path / "big.log"
+    log.write_bytes((Path(__file__).parents[1] / "sample_logs" / "example_station.log").read_bytes() * 16)
+    reader = open_source(f"file:{log}", from_start=True)
+    assert isinstance(reader, FileSource)
+    view = LiveSource(load_layout("example"), [reader])
+    view.start()
+    assert wait_until(lambda: view.pending(), 30)
+    view.stop()
+    assert not reader.running and reader.bytes_read < log.stat().st_size
