@@ -29,6 +29,7 @@ from parsers.units import ALL_TIME, NS
 Emit = Callable[[dict[str, Any]], None]
 TICK_S = 0.5  # crossing units' clock and the idle wake-up: two a second is nothing for the CPU
 STOP_QUIET_S = 3.0  # stopping: a source's thread that delivers nothing for this long is left behind
+STOP_ABANDON_S = 1.0  # an abandoned source's thread ends within this (a file's reader: at its next block)
 STOP_TELL_S = 1.0  # stopping takes longer than this (a big file's last read): say so, and how to cut it short
 
 
@@ -306,6 +307,8 @@ def _drain_while_stopping(
             for s in sources:
                 s.abandon()
             q.close()
+            for s in sources:  # a block in a reader's hands as it closed is dropped on record too
+                s.stop(STOP_ABANDON_S)
             return
         if tell is not None and not told and time.monotonic() - began > STOP_TELL_S:
             told = True
