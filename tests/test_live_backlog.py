@@ -6,9 +6,12 @@ from __future__ import annotations
 import queue
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from console.inputs.base import LineBlock, Source
 from console.inputs.follow import FileSource
@@ -233,3 +236,45 @@ def test_closing_the_live_view_stops_a_big_files_reader_where_it_is(
     assert wait_until(lambda: view.pending(), 30)
     view.stop()
     assert not reader.running and reader.bytes_read < log.stat().st_size
+
+
+@given(
+    blocks=st.lists(st.integers(1, 40), min_size=1, max_size=3),
+    taken=st.integers(0, 60),
+    limit_blocks=st.integers(1, 6),
+)
+@settings(max_examples=25, deadline=None, derandomize=True)
+def test_every_block_is_analysed_or_dropped_on_record_whenever_the_backlog_closes(
+    blocks: list[int], taken: int, limit_blocks: int
+) -> None:
+    """Readers of several files hand blocks over through a small backlog; the consumer takes ``taken`` items and
+    closes it.  Nothing is lost and nothing silent: per file, the blocks taken are its first ones in order and
+    the record of what was dropped starts at the very next line; taken + dropped is all that was handed over."""
+    backlog = Backlog(limit_bytes=limit_blocks * BLOCK)
+    threads = []
+    for f, n in enumerate(blocks):
+        source = FileSource(f"file:f{f}", Path(f"/nonexistent/f{f}.log"))
+        put = backlog.putter(source)
+
+        def body(put: Callable[[LineBlock], None] = put, f: int = f, n: int = n) -> None:
+            for k in range(n):
+                put(LineBlock(f"file:f{f}", f"f{f}", 1 + k, b"%08d\n" % k * (BLOCK // 9), time.monotonic()))
+
+        threads.append(threading.Thread(target=body, daemon=True))
+    for t in threads:
+        t.start()
+    got: dict[str, list[int]] = {}
+    for _ in range(min(taken, sum(blocks))):
+        item = backlog.get(10.0)
+        assert isinstance(item, LineBlock)
+        got.setdefault(item.file, []).append(item.first_line)
+    backlog.close()
+    for t in threads:
+        t.join(10.0)
+        assert not t.is_alive()  # a reader waiting for room is let go
+    dropped, n_dropped = backlog.not_analysed()
+    assert sum(len(v) for v in got.values()) + n_dropped == sum(blocks)
+    for f, n in enumerate(blocks):
+        lines = got.get(f"f{f}", [])
+        assert lines == list(range(1, len(lines) + 1))
+        assert dropped.get(f"f{f}") == (len(lines) + 1 if len(lines) < n else None)
