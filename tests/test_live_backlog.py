@@ -174,8 +174,11 @@ def test_what_a_source_delivers_while_it_stops_is_analysed_however_long_that_tak
 
     engine = _Counting()
     source = _SlowLastRead(blocks=40, gap_s=0.1)  # 4 s of last read
-    run_sources(engine, [source], duration_s=0.2)  # type: ignore[arg-type]
+    told: list[str] = []
+    run_sources(engine, [source], duration_s=0.2, tell=told.append)  # type: ignore[arg-type]
     assert engine.handled == list(range(1, 41)) and engine.finished_after == 40
+    # Over a second of stopping: said once, with the way to cut it short.
+    assert len(told) == 1 and told[0].startswith("stopping:") and told[0].endswith("Ctrl-C stops at once")
 
 
 class _LastReadAtOnce(Source):
@@ -198,7 +201,6 @@ def test_a_second_interrupt_while_stopping_stops_at_once_and_says_what_was_not_a
     from console.live.engine import run_sources
 
     source = _LastReadAtOnce(blocks=300)
-    told: list[str] = []
 
     class Interrupted(_Counting):
         def handle(self, item: LineBlock) -> None:
@@ -210,7 +212,7 @@ def test_a_second_interrupt_while_stopping_stops_at_once_and_says_what_was_not_a
 
     engine = Interrupted()
     engine.not_analysed, engine.items_not_analysed = {}, 0  # type: ignore[attr-defined]
-    stopped_by = run_sources(engine, [source], duration_s=0.2, tell=told.append)  # type: ignore[arg-type]
+    stopped_by = run_sources(engine, [source], duration_s=0.2)  # type: ignore[arg-type]
     assert stopped_by == signal.SIGINT
     assert engine.handled == [1, 2, 3, 4, 5] and engine.finished_after == 5
     assert engine.not_analysed == {"slow": 6} and engine.items_not_analysed == 295  # type: ignore[attr-defined]

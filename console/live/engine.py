@@ -313,8 +313,7 @@ def _drain_while_stopping(
         if tell is not None and not told and time.monotonic() - began > STOP_TELL_S:
             told = True
             tell(
-                "stopping: analysing what the sources still deliver (a followed file to its end);"
-                " interrupt again to stop at once"
+                "stopping: analysing what the sources still deliver (a followed file to its end); Ctrl-C stops at once"
             )
         try:
             engine.handle(q.get(0.05))
