@@ -28,7 +28,16 @@ import numpy as np
 from rich.progress import track
 
 from console.analysis.integrity.brake_pipe import CHARGED_BAR, FASTEST_WAVE_MPS, VENTED_BAR
-from console.sim.integrity_runs import EOT, HEAD, RunResult, judge, line_layout, random_conditions, simulate
+from console.sim.integrity_runs import (
+    EOT,
+    HEAD,
+    RunResult,
+    judge,
+    line_layout,
+    make_train,
+    random_conditions,
+    simulate,
+)
 from parsers.units import NS
 
 
@@ -43,7 +52,8 @@ def cause(res: RunResult, vent_late: bool) -> str:
     if not vented or vented[0][0] > deadline:
         return "rear lost or late"
     t_vent = vented[0][1][1]
-    earliest = t_vent - int(res.length_m / FASTEST_WAVE_MPS * NS)  # a cab emergency left the cab by then
+    # A cab emergency left the cab by then, at the latest.
+    earliest = t_vent - int(make_train(c.consist).length_m / FASTEST_WAVE_MPS * NS)
     front = [it for rx, kind, it in res.items if kind == 2 and it[0] == HEAD and it[1] >= earliest and rx <= deadline]
     if not front:
         return "no front in time"

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import queue
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from console.inputs.base import Item, LineBlock, Source
 from console.inputs.follow import FileSource
@@ -73,6 +73,16 @@ class Backlog:
                     break
             self._bytes = 0
             self._room.notify_all()
+
+    def abandon(self, sources: Sequence[Source], wait_s: float) -> None:
+        """The consumer gives up (a second Ctrl-C, a closed view): ``sources`` stop without their last read,
+        the backlog closes, and each source's thread gets ``wait_s`` to end, so a block in a reader's hands
+        as it closed is dropped on record too."""
+        for s in sources:
+            s.abandon()
+        self.close()
+        for s in sources:
+            s.stop(wait_s)
 
     def _drop(self, item: Item) -> None:
         self._dropped_items += 1

@@ -304,11 +304,7 @@ def _drain_while_stopping(
     told = False
     while True:
         if cut_short():
-            for s in sources:
-                s.abandon()
-            q.close()
-            for s in sources:  # a block in a reader's hands as it closed is dropped on record too
-                s.stop(STOP_ABANDON_S)
+            q.abandon(sources, STOP_ABANDON_S)
             return
         if tell is not None and not told and time.monotonic() - began > STOP_TELL_S:
             told = True

@@ -232,7 +232,6 @@ class RunResult:
     truth: Truth
     events: list[IntegrityEvent] = field(default_factory=list)
     items: list[Item] = field(default_factory=list)  # the monitor's inputs, in the order it got them
-    length_m: float = 0.0  # the train's
 
 
 def _first_passing(s_grid: np.ndarray, t_grid: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -361,7 +360,7 @@ def simulate(layout: Layout, cond: Conditions) -> RunResult:
                 items.append((START_NS + int((t + lag) * NS), 1, (names[h], START_NS + int(t * NS), 0.0, 0.0)))
     items.sort(key=lambda x: (x[0], x[1]))
     events = run_monitor(layout, cond, train, items, d)
-    return RunResult(cond, truth, events, items, L)
+    return RunResult(cond, truth, events, items)
 
 
 def _alarms(

@@ -27,6 +27,7 @@ from console.tui.sources import engine_trains, integrity_entry
 
 LIVE_GONE_S = 300.0  # a live train not heard for this long has left the line
 MAX_ITEMS_PER_ADVANCE = 20_000  # a burst is taken over several redraws, the view stays responsive
+STOP_WAIT_S = 3.0  # closing the view: each source's thread gets this long to end
 
 
 def _iso_ns(text: Any) -> int | None:
@@ -144,11 +145,7 @@ class LiveSource:
     def stop(self) -> None:
         """The view closes: nothing more is shown, so a followed file's last read is not wanted, and a reader
         waiting for room in the backlog is let go."""
-        for s in self.sources:
-            s.abandon()
-        self._queue.close()
-        for s in self.sources:
-            s.stop()
+        self._queue.abandon(self.sources, STOP_WAIT_S)
 
     @property
     def now_ns(self) -> int:
