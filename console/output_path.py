@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import json
 import os
 import shutil
 import stat
@@ -158,14 +159,73 @@ def check_output_directory(target: Path, what: str = "output") -> None:
         raise OutputError(f"{show_path(target)}: directory not writable")
 
 
+RUN_MARKER = "truth.json"
+RUN_SCHEMA_PREFIX = "trackside.truth/"
+
+
+def files_below(directory: Path) -> list[Path]:
+    """Every file below ``directory`` (not directories, not a stage of ours); empty when it does not exist."""
+    if not directory.is_dir():
+        return []
+    return sorted(
+        p
+        for p in directory.rglob("*")
+        if not p.is_dir() and not any(part.startswith(".trackside-") for part in p.relative_to(directory).parts)
+    )
+
+
+def _is_earlier_run(directory: Path) -> bool:
+    try:
+        doc = json.loads((directory / RUN_MARKER).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(doc, dict) and str(doc.get("schema", "")).startswith(RUN_SCHEMA_PREFIX)
+
+
+def check_run_directory(target: Path, replace: bool, what: str = "run") -> bool:
+    """``target`` fit to receive a simulated run; True when it holds an earlier run that ``replace`` lets go.
+
+    A run is a directory of its own: new, or empty (empty folders, such as
+    one made for a follower to wait in, do not count), or an earlier run's
+    (its ``truth.json``) when ``replace`` is given.  Anything else is refused
+    (OutputError), so a run never lands among a user's own files, and never
+    silently mixes with an earlier run's.
+    """
+    check_output_directory(target, what)
+    held = files_below(target)
+    if not held:
+        return False
+    if not _is_earlier_run(target):
+        raise OutputError(
+            f"{show_path(target)}: holds files that are not a simulated run ({show_path(held[0])}…); "
+            f"refusing to write a {what} among them: give a new or empty directory"
+        )
+    if not replace:
+        raise OutputError(
+            f"{show_path(target)}: holds an earlier run; --replace replaces it, or give a new directory"
+        )
+    return True
+
+
+def remove_files(files: Iterable[Path]) -> None:
+    """Remove ``files`` (an earlier run's); folders stay, a follower may be waiting in them."""
+    for f in files:
+        with contextlib.suppress(FileNotFoundError):
+            f.unlink()
+
+
 @contextmanager
-def staged_directory(target: Path, inputs: Iterable[Path], what: str = "output") -> Iterator[Path]:
+def staged_directory(
+    target: Path, inputs: Iterable[Path], what: str = "output", replace: Iterable[Path] = ()
+) -> Iterator[Path]:
     """A hidden directory inside ``target`` to write a run into; its files move into ``target`` on success.
 
     Nothing half-written is ever left under its final name: on any error,
     Ctrl-C or SIGTERM the stage is removed (and ``target`` too, when this
     call created it and it is still empty).  Before the first file moves,
     each is checked not to replace an input (OutputError otherwise).
+    ``replace``: an earlier run's files; those the new run does not write
+    again are removed once it is published, so the two never mix.
     """
     check_output_directory(target, what)
     created = not target.exists()
@@ -182,6 +242,8 @@ def staged_directory(target: Path, inputs: Iterable[Path], what: str = "output")
         for src, dest in moves:
             dest.parent.mkdir(parents=True, exist_ok=True)
             os.replace(src, dest)
+        published = {dest for _, dest in moves}
+        remove_files(p for p in replace if p not in published)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
         if created:

@@ -84,9 +84,47 @@ def test_simulate_onto_its_layout_file_is_refused(tmp_path: Path) -> None:
     layout.write_bytes((ROOT / "console" / "layouts" / "example_station.toml").read_bytes())
     before = layout.read_bytes()
     res = invoke("simulate", "-o", run_dir, "--layout", layout, "--duration", "2m")
-    one_line_error(res, "layout.toml", "refusing to write over it")
+    one_line_error(res, "layout.toml", "not a simulated run", "new or empty directory")
     assert layout.read_bytes() == before
     assert sorted(p.name for p in run_dir.iterdir()) == ["layout.toml"]  # nothing else published, no stage left
+    # An earlier run replaced with its own layout: the layout is an input, never written over.
+    assert invoke("simulate", "-o", tmp_path / "r2", "--duration", "1m").returncode == 0
+    own = tmp_path / "r2" / "layout.toml"
+    kept = {p: p.read_bytes() for p in (tmp_path / "r2").rglob("*") if p.is_file()}
+    res = invoke("simulate", "-o", tmp_path / "r2", "--layout", own, "--duration", "1m", "--replace")
+    one_line_error(res, "layout.toml", "refusing to write over it")
+    assert {p: p.read_bytes() for p in (tmp_path / "r2").rglob("*") if p.is_file()} == kept
+
+
+def test_simulate_never_lands_among_other_files_nor_mixes_with_an_earlier_run(tmp_path: Path) -> None:
+    """A run is a directory of its own: new or empty, or an earlier run's with --replace, which it replaces whole."""
+    mine = tmp_path / "mine"
+    (mine / "nmea").mkdir(parents=True)
+    (mine / "notes.txt").write_text("keep me\n")
+    one_line_error(invoke("simulate", "-o", mine, "--duration", "1m"), "notes.txt", "not a simulated run")
+    one_line_error(invoke("simulate", "-o", mine, "--duration", "1m", "--replace"), "not a simulated run")
+    assert sorted(p.name for p in mine.rglob("*")) == ["nmea", "notes.txt"]
+    # Empty folders (made for a follower to wait in) do not count.
+    waiting = tmp_path / "waiting"
+    (waiting / "nmea").mkdir(parents=True)
+    assert invoke("simulate", "-o", waiting, "--duration", "1m").returncode == 0
+    assert (waiting / "truth.json").is_file()
+    # Again without --replace: refused, the earlier run untouched.
+    run_dir = tmp_path / "run"
+    assert invoke("simulate", "-o", run_dir, "--duration", "10m", "--seed", "3").returncode == 0
+    first = {p.relative_to(run_dir): p.read_bytes() for p in run_dir.rglob("*") if p.is_file()}
+    assert any(p.parts[0] == "nmea" for p in first)  # the 10 min run's GNSS units wrote fixes
+    one_line_error(invoke("simulate", "-o", run_dir, "--duration", "1m"), "earlier run", "--replace")
+    assert {p.relative_to(run_dir): p.read_bytes() for p in run_dir.rglob("*") if p.is_file()} == first
+    # With --replace: exactly the new run's files, none of the earlier one's left to be read with it.
+    (run_dir / "stale.log").write_text("2026-03-02 08:00:00 not of this run\n")
+    new = tmp_path / "new"
+    assert invoke("simulate", "-o", new, "--duration", "1m", "--seed", "4").returncode == 0
+    assert invoke("simulate", "-o", run_dir, "--duration", "1m", "--seed", "4", "--replace").returncode == 0
+    got = {p.relative_to(run_dir): p.read_bytes() for p in run_dir.rglob("*") if p.is_file()}
+    want = {p.relative_to(new): p.read_bytes() for p in new.rglob("*") if p.is_file()}
+    assert got.keys() == want.keys()
+    assert got[Path("diagnostic.log")] == want[Path("diagnostic.log")]
 
 
 def test_output_onto_a_fifo_is_written_through_not_replaced(tmp_path: Path) -> None:

@@ -63,7 +63,10 @@ def simulate(
     output: Annotated[
         Path,
         typer.Option(
-            "-o", "--output", metavar="DIR", help="Directory to write the run into (created; never over an input)."
+            "-o",
+            "--output",
+            metavar="DIR",
+            help="Directory to write the run into: new or empty (an earlier run's with --replace).",
         ),
     ],
     layout: Annotated[
@@ -134,6 +137,12 @@ def simulate(
         ),
     ] = None,
     json_out: JsonOpt = False,
+    replace: Annotated[
+        bool,
+        typer.Option(
+            "--replace", help="DIR holds an earlier run (its truth.json): replace it; every file in DIR goes."
+        ),
+    ] = False,
     live: Annotated[
         bool,
         typer.Option(
@@ -158,7 +167,14 @@ def simulate(
     def body() -> int:
         from console.analysis.timefmt import parse_duration
         from console.live.simulated import SimulatedConsole
-        from console.output_path import OutputError, check_output_directory, staged_directory
+        from console.output_path import (
+            OutputError,
+            check_output_directory,
+            check_run_directory,
+            files_below,
+            remove_files,
+            staged_directory,
+        )
         from console.progress import byte_progress
         from console.safe_text import show_path
         from console.sim.radio import LoRaLink
@@ -182,8 +198,13 @@ def simulate(
         _check_targets(faults, lay, trainsets, health_only)
         layout_file = Path(layout)
         inputs = [layout_file] if layout_file.is_file() else []
+        writes_run = live or not mqtt  # --mqtt alone publishes and writes nothing
         try:
-            check_output_directory(output, what="run")
+            if writes_run:
+                earlier = files_below(output) if check_run_directory(output, replace) else []
+            else:
+                check_output_directory(output, what="run")
+                earlier = []
         except OutputError as exc:
             raise fail(str(exc)) from None
         config = SimConfig(
@@ -214,9 +235,11 @@ def simulate(
         if live or mqtt:
             from console.cli.commands.simulate_live import run_live_command
 
+            if live:
+                remove_files(earlier)  # a live run grows its files in place: the earlier run goes first
             return run_live_command(sim, seconds, live_speed, output if live else None, mqtt, json_out)
         if days is not None:
-            return _run_days(sim, days, output, inputs, one_log, health_only, json_out, seed)
+            return _run_days(sim, days, output, inputs, earlier, one_log, health_only, json_out, seed)
         # The bar counts simulated milliseconds (it only shows on a terminal, for long runs).
         with byte_progress(int(seconds * 1000) if seconds >= 600 else 0, "simulating") as advance:
             last = [0.0]
@@ -229,7 +252,7 @@ def simulate(
             sim.run(seconds, on_step=tick)
         try:
             # Written into a hidden stage first: an interrupted run leaves no half-written log behind.
-            with staged_directory(output, inputs, what="run") as stage:
+            with staged_directory(output, inputs, what="run", replace=earlier) as stage:
                 counts = write_run(sim, stage)
         except OutputError as exc:
             raise fail(str(exc)) from None
@@ -271,7 +294,15 @@ def simulate(
 
 
 def _run_days(
-    sim: Any, days: float, output: Path, inputs: list[Path], one_log: bool, health_only: bool, json_out: bool, seed: int
+    sim: Any,
+    days: float,
+    output: Path,
+    inputs: list[Path],
+    earlier: list[Path],
+    one_log: bool,
+    health_only: bool,
+    json_out: bool,
+    seed: int,
 ) -> int:
     from console.output_path import OutputError, staged_directory
     from console.progress import byte_progress
@@ -288,7 +319,7 @@ def _run_days(
                 last[0] = t_s
 
         try:
-            with staged_directory(output, inputs, what="run") as stage:
+            with staged_directory(output, inputs, what="run", replace=earlier) as stage:
                 written = run_days(sim, days, stage, one_log=one_log, health_only=health_only, on_step=tick)
         except OutputError as exc:
             raise fail(str(exc)) from None
