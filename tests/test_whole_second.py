@@ -22,9 +22,11 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
+from typer.testing import CliRunner
 
 from benchmarks.gen_realistic_diag import generate as generate_realistic
 from console.analysis.passages.diagnostics import SpeedSettings
+from console.cli.app import app
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
 from console.sim.station import SimConfig, StationSim
@@ -189,12 +191,73 @@ def test_files_that_overlap_count_the_overlap_once(
 # Found by this test in a CI run: a head's first passage at the seam, in one whole second of both files, given
 # in the reverse order; its direction came out reversed (the files were ranked by file order on that tie).
 @example(end_a=0.142578125, repeated=0.34375)
+# Found by this test (2026-11-29): the export cut mid-second (nothing repeated) between two wheels of WS17 and of
+# WS24 that wrote the same lines in the same whole second; each head's second wheel was taken for a repeat.
+@example(end_a=0.05, repeated=0.0)
 def test_any_split_with_any_overlap_gives_the_same_passages(
     tmp_path: Path, export: tuple[Path, dict, tuple[Counter[str], str]], end_a: float, repeated: float
 ) -> None:
     n = len(_lines(export[0]))
     a_end = max(1, int(n * end_a))
     _check_split(export, tmp_path, a_end, a_end - int(a_end * repeated))
+
+
+def _wheel(time: str = "09:00:00") -> list[str]:
+    """One wheel over both systems of WS4, in whole seconds: four lines, the same for every wheel of the second."""
+    rad = {"adr": "026", "label": "Radsensor", "time": time}
+    return [record(ch=c, data=d, **rad) for c, d in ((1, "1"), (2, "1"), (1, "0"), (2, "0"))]
+
+
+def _other_board(data: str) -> str:
+    return record(data=data, time="09:00:00").replace("ID:4083", "ID:4090").replace("WS4", "WS9")
+
+
+def test_a_log_cut_between_two_identical_wheels_counts_both(tmp_path: Path) -> None:
+    """A rotation by size cuts a whole second: WS4's lines repeat across the cut, the file's do not."""
+    a, b = tmp_path / "a.log", tmp_path / "b.log"
+    a.write_text("\n".join([*_wheel(), _other_board("7")]) + "\n", encoding="utf-8")
+    b.write_text("\n".join([*_wheel(), _other_board("8")]) + "\n", encoding="utf-8")
+    for files in ([a, b], [b, a]):
+        job = whole_job(files, SpeedSettings())
+        assert [f.overlap_records for f in job.report.files] == [0, 0]
+        (p,) = [p for p in job.analysis.passages_json() if p["counting_head"] == "WS4"]
+        assert p["axles"] == 2
+
+
+@pytest.mark.parametrize(
+    ("first", "second", "axles"),
+    [
+        ([*_wheel(), _other_board("7")], [*_wheel(), _other_board("8")], 2),
+        ([_other_board("7"), *_wheel()], [*_wheel(), _other_board("8")], 1),
+    ],
+)
+def test_the_archive_tells_a_cut_from_a_repeat_as_a_read_does(
+    tmp_path: Path, first: list[str], second: list[str], axles: int
+) -> None:
+    """Ingested one by one, then together: WS4's axles as the batch read counts them (above)."""
+    a, b = tmp_path / "a.log", tmp_path / "b.log"
+    a.write_text("\n".join(first) + "\n", encoding="utf-8")
+    b.write_text("\n".join(second) + "\n", encoding="utf-8")
+    sql = "SELECT sum(axles) AS n FROM passages WHERE counting_head = 'WS4'"
+    for k, batches in enumerate([([a], [b]), ([a, b],)]):
+        arc = tmp_path / f"arc{k}"
+        for files in batches:
+            res = CliRunner().invoke(app, ["ingest", *map(str, files), "--archive", str(arc)])
+            assert res.exit_code == 0, res.output
+        res = CliRunner().invoke(app, ["query", sql, "--archive", str(arc), "--format", "json"])
+        assert res.exit_code == 0, res.output
+        assert json.loads(res.stdout)[0]["n"] == axles
+
+
+def test_an_export_repeated_within_one_second_is_still_overlap(tmp_path: Path) -> None:
+    """Two pulls that share the lines around their seam, all in one whole second: the later copy is set aside."""
+    a, b = tmp_path / "a.log", tmp_path / "b.log"
+    a.write_text("\n".join([_other_board("7"), *_wheel()]) + "\n", encoding="utf-8")
+    b.write_text("\n".join([*_wheel(), _other_board("8")]) + "\n", encoding="utf-8")
+    job = whole_job([a, b], SpeedSettings())
+    assert [f.overlap_records for f in job.report.files] == [0, 4]
+    (p,) = [p for p in job.analysis.passages_json() if p["counting_head"] == "WS4"]
+    assert p["axles"] == 1
 
 
 def test_identical_lines_in_one_file_are_two_events(tmp_path: Path) -> None:

@@ -667,6 +667,9 @@ def older_records(root: Path, manifest: Manifest, heads: frozenset[tuple[int, An
     return bool(rows and rows[0][0])
 
 
+_RECORD_PRINT = "hash(time, diag_id, device_id, counting_head, channel, address, label, value)"
+
+
 def repeated_records(root: Path, manifest: Manifest, where: tuple[str, list[Any]]) -> dict[str, np.ndarray]:
     """The archived records that repeat another file's at a seam: ``key`` (file_seq << 32 | line), sorted,
     and their ``time_ns``.  Only heads whose files' time ranges intersect are compared record by record."""
@@ -692,16 +695,35 @@ def repeated_records(root: Path, manifest: Manifest, where: tuple[str, list[Any]
             return none
         rows = con.sql(
             "SELECT file_seq, line, device_id, counting_head, epoch_ns(time) AS t, "
-            "hash(time, diag_id, device_id, counting_head, channel, address, label, value) AS fp "
+            f"{_RECORD_PRINT} AS fp "
             f"FROM records WHERE {HEAD_KEY} IN (SELECT unnest(?)) ORDER BY file_seq, line",
             params=[sorted(head_key(d, h) for d, h in suspects)],
         ).fetchnumpy()
+
+        def whole_files(fa: int, fb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            # Every record of the two files (all heads, all boards), as the batch read compares them.
+            got = []
+            for seq in (fa, fb):
+                r = con.sql(
+                    f"SELECT line, {_RECORD_PRINT} AS fp FROM records WHERE file_seq = ? ORDER BY line",
+                    params=[seq],
+                ).fetchnumpy()
+                got += [(np.int64(seq) << 32) | r["line"].astype(np.int64), r["fp"].astype(np.uint64)]
+            return got[0], got[1], got[2], got[3]
+
+        import pandas as pd
+
+        head = pd.factorize(pd.MultiIndex.from_arrays([rows["device_id"], rows["counting_head"]]))[0]
+        mask = overlap_mask(
+            rows["file_seq"].astype(np.int64),
+            head.astype(np.int64),
+            rows["fp"].astype(np.uint64),
+            rows["t"].astype(np.int64),
+            key=(rows["file_seq"].astype(np.int64) << 32) | rows["line"].astype(np.int64),
+            whole_files=whole_files,
+        )
     finally:
         con.close()
-    import pandas as pd
-
-    head = pd.factorize(pd.MultiIndex.from_arrays([rows["device_id"], rows["counting_head"]]))[0]
-    mask = overlap_mask(rows["file_seq"].astype(np.int64), head.astype(np.int64), rows["fp"].astype(np.uint64))
     key = (rows["file_seq"].astype(np.int64)[mask] << 32) | rows["line"].astype(np.int64)[mask]
     order = np.argsort(key)
     return {"key": key[order], "time_ns": rows["t"].astype(np.int64)[mask][order]}

@@ -266,7 +266,7 @@ class DiagAccumulator:
         cols = {c: np.concatenate([p[c] for p in prints]) for c in ("fp", "rid", "time_ns", "file")}
         del prints
         head = luts.head_of(cols["rid"])
-        mask = overlap_mask(cols["file"], head, cols["fp"])
+        mask = overlap_mask(cols["file"], head, cols["fp"], cols["time_ns"])
         if not mask.any():
             return None, [0] * n_files, none
         remove_records(buckets, head[mask], luts.channel_of(cols["rid"][mask]), cols["time_ns"][mask])

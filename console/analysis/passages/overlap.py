@@ -20,9 +20,21 @@ only when it reaches the end of one of the two files (that is what a seam
 is): a whole-second log repeats identical lines within a second as distinct
 events, so a record of A that happens to equal one inside B is no overlap.
 Where several runs qualify, the longest wins.
+
+A run within a single instant is ambiguous on one head: a log cut in the
+middle of a whole second (a rotation by size) ends A with a wheel's lines
+and begins B with the next wheel's, the same lines at the same second.
+Such a run counts only when the files repeat it as a whole: over all their
+records (every head and board, in read order), B's beginning must repeat
+A's end there too, or B must repeat A's beginning.  A repeated export
+repeats every line in the order it wrote them; a cut does not, unless the
+lines around it happen to repeat too (a file cut between two identical
+wheels of the only head then writing: the same bytes either way).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 
@@ -65,26 +77,80 @@ def _best_run(ref: np.ndarray, probe: np.ndarray) -> tuple[int, int]:
     return best
 
 
-def overlap_mask(file: np.ndarray, head: np.ndarray, fp: np.ndarray) -> np.ndarray:
-    """Records (in read order) that repeat an earlier file's run at a seam."""
+WholeFiles = Callable[[int, int], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
+
+
+class _Corroboration:
+    """Two files' seam runs over all their records (every head and board, in read order), once a pair."""
+
+    def __init__(self, whole_files: WholeFiles) -> None:
+        self.whole_files = whole_files
+        self._pairs: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+
+    def holds(self, fa: int, fb: int, keys: np.ndarray, b_begins: bool) -> bool:
+        """Whether the records ``keys`` (of file ``fb``) lie in the files' own seam run: B's beginning
+        repeating A's end (``b_begins``), else the run of B repeating A's beginning."""
+        if (fa, fb) not in self._pairs:
+            _, fp_a, keys_b, fp_b = self.whole_files(fa, fb)
+            _, n = _best_run(fp_a, fp_b)
+            j, m = _best_run(fp_b, fp_a)
+            self._pairs[fa, fb] = (keys_b[:n], keys_b[j : j + m])
+        run = self._pairs[fa, fb][0 if b_begins else 1]
+        return bool(np.isin(keys, run).all())
+
+
+def overlap_mask(
+    file: np.ndarray,
+    head: np.ndarray,
+    fp: np.ndarray,
+    time_ns: np.ndarray,
+    key: np.ndarray | None = None,
+    whole_files: WholeFiles | None = None,
+) -> np.ndarray:
+    """Records (in read order) that repeat an earlier file's run at a seam.
+
+    ``key`` names each record (default: its place in these arrays);
+    ``whole_files(fa, fb)`` gives (keys, fingerprints) of every record of
+    files ``fa`` and ``fb`` in read order (default: these arrays, which must
+    then hold every record of the files).
+    """
     n = len(fp)
     out = np.zeros(n, bool)
     if n == 0 or (file == file[0]).all():
         return out
+    keys = np.arange(n) if key is None else key
+    if whole_files is None:
+
+        def whole_files(fa: int, fb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            in_a, in_b = np.flatnonzero(file == fa), np.flatnonzero(file == fb)
+            return keys[in_a], fp[in_a], keys[in_b], fp[in_b]
+
     order = np.lexsort((file, head))  # per head, files in read order, each in its own order
     h, f = head[order], file[order]
     cut = np.flatnonzero(np.r_[True, (h[1:] != h[:-1]) | (f[1:] != f[:-1]), True])
     groups: dict[int, list[tuple[int, np.ndarray]]] = {}
     for lo, hi in zip(cut[:-1].tolist(), cut[1:].tolist(), strict=True):  # per (head, file)
         groups.setdefault(int(h[lo]), []).append((int(f[lo]), order[lo:hi]))
+    whole = _Corroboration(whole_files)
+
+    def counts(fa: int, fb: int, records: np.ndarray, b_begins: bool) -> bool:
+        if not len(records):
+            return False
+        t = time_ns[records]
+        if t.min() != t.max():
+            return True  # identical events share one instant: a run over several is a repeat
+        return whole.holds(fa, fb, keys[records], b_begins)
+
     for parts in groups.values():
-        for k, (_, later) in enumerate(parts):
-            for _, earlier in parts[:k]:
-                fa, fb = fp[earlier], fp[later]
+        for k, (fb, later) in enumerate(parts):
+            for fa, earlier in parts[:k]:
+                pa, pb = fp[earlier], fp[later]
                 # B begins inside A: B's first records are overlap.
-                _, n_b = _best_run(fa, fb)
-                out[later[:n_b]] = True
+                _, n_b = _best_run(pa, pb)
+                if counts(fa, fb, later[:n_b], True):
+                    out[later[:n_b]] = True
                 # A begins inside B: the run of B equal to A's beginning is overlap.
-                j, n_a = _best_run(fb, fa)
-                out[later[j : j + n_a]] = True
+                j, n_a = _best_run(pb, pa)
+                if counts(fa, fb, later[j : j + n_a], False):
+                    out[later[j : j + n_a]] = True
     return out
