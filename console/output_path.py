@@ -201,9 +201,7 @@ def check_run_directory(target: Path, replace: bool, what: str = "run") -> bool:
             f"refusing to write a {what} among them: give a new or empty directory"
         )
     if not replace:
-        raise OutputError(
-            f"{show_path(target)}: holds an earlier run; --replace replaces it, or give a new directory"
-        )
+        raise OutputError(f"{show_path(target)}: holds an earlier run; --replace replaces it, or give a new directory")
     return True
 
 

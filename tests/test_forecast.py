@@ -256,3 +256,41 @@ def test_forecast_jsonl_is_the_document_a_record_a_line(
     assert lines[: len(doc["due"])] == doc.pop("due")
     assert lines[len(lines) - 1 - len(doc["forecasts"]) : -1] == doc.pop("forecasts")
     assert lines[-1] == doc
+
+
+def test_the_textfile_never_replaces_a_device_a_fifo_or_the_archives_own_files(
+    wearing: tuple[Path, Path, Plan], tmp_path: Path
+) -> None:
+    import os
+    import threading
+
+    _, arc, _ = wearing
+    before = {p: p.read_bytes() for p in arc.rglob("*") if p.is_file()}
+    for inside in (arc / "CURRENT", arc / "metrics.prom"):
+        res = subprocess.run(
+            [TRACKSIDE, "forecast", "--archive", str(arc), "--textfile", str(inside)], capture_output=True, text=True
+        )
+        assert res.returncode == 2 and res.stderr.count("\n") == 1, res.stderr
+        assert "which is read" in res.stderr
+    assert {p: p.read_bytes() for p in arc.rglob("*") if p.is_file()} == before
+    # A full disk is a one-line error, and /dev/full stays the device it is.
+    res = subprocess.run(
+        [TRACKSIDE, "forecast", "--archive", str(arc), "--textfile", "/dev/full"], capture_output=True, text=True
+    )
+    assert res.returncode == 2 and "No space left on device" in res.stderr and res.stderr.count("\n") == 1
+    assert Path("/dev/full").is_char_device()
+    # A FIFO is written through (a collector reading it), never replaced by a regular file.
+    fifo = tmp_path / "metrics.fifo"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_bytes()))
+    reader.start()
+    res = subprocess.run(
+        [TRACKSIDE, "forecast", "--archive", str(arc), "--textfile", str(fifo)], capture_output=True, text=True
+    )
+    if reader.is_alive():
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+    reader.join(timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert got and b"trackside_forecast_series" in got[0]
+    assert fifo.is_fifo()

@@ -238,10 +238,11 @@ class MetricsSink:
             self._thread = None
 
 
-def write_forecast_textfile(path: str, items: Sequence[Any]) -> None:
+def forecast_exposition(items: Sequence[Any]) -> bytes:
     """``forecast --textfile``: the forecasts in the exposition format, for node_exporter's textfile collector
-    (a cron job's metrics): per series whether it is due and the days left; written atomically."""
-    from prometheus_client import write_to_textfile
+    (a cron job's metrics): per series whether it is due and the days left.  The command writes it through
+    ``console.output_path`` (atomically, never over a device, a FIFO or the archive's own files)."""
+    from prometheus_client import generate_latest
 
     disable_created_metrics()
     r = CollectorRegistry()
@@ -265,4 +266,4 @@ def write_forecast_textfile(path: str, items: Sequence[Any]) -> None:
     for s, n in counts.items():
         status.labels(s).set(n)
     Gauge("trackside_forecast_last_run_timestamp_seconds", "When the forecast ran.", registry=r).set_to_current_time()
-    write_to_textfile(path, r)
+    return generate_latest(r)

@@ -67,6 +67,15 @@ def forecast(
     def body() -> int:
         one_json_form(json_out, jsonl)
         from console.analysis.timefmt import parse_duration
+        from console.output_path import OutputError, check_output_file, check_outside, open_output
+
+        target = None
+        if textfile is not None:
+            try:  # before any work: never a device replaced, nor a file among the archive's own
+                target = check_output_file(textfile, [], what="metrics file")
+                check_outside(textfile, root, what="metrics file")
+            except OutputError as exc:
+                raise fail(f"--textfile {exc}") from None
 
         try:
             import scipy.stats  # noqa: F401 - the trend's library, an optional extra
@@ -99,11 +108,12 @@ def forecast(
         except ArchiveError as exc:
             raise fail(str(exc)) from None
         due = due_list(items)
-        if textfile is not None:
-            from console.sinks.metrics import write_forecast_textfile
+        if target is not None:
+            from console.sinks.metrics import forecast_exposition
 
             try:
-                write_forecast_textfile(str(textfile), items)
+                with open_output(target) as f:
+                    f.write(forecast_exposition(items))
             except OSError as exc:
                 raise fail(f"--textfile {textfile}: cannot write ({exc.strerror or exc})") from None
         if json_out or jsonl:
