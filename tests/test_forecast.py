@@ -22,6 +22,7 @@ from benchmarks.forecast_heads import Plan, plan, score
 from console.analysis.health.forecast import FIGURES, ForecastSettings, Series, due_list, forecast, forecasts
 from console.cli.app import app
 from parsers.units import NS_PER_DAY
+from tests.conftest import ROOT
 
 runner = CliRunner()
 TRACKSIDE = str(Path(sys.executable).with_name("trackside"))
@@ -294,3 +295,21 @@ def test_the_textfile_never_replaces_a_device_a_fifo_or_the_archives_own_files(
     assert res.returncode == 0, res.stderr
     assert got and b"trackside_forecast_series" in got[0]
     assert fifo.is_fifo()
+
+
+@pytest.mark.parametrize("sample", ["gnss_devices.csv", "sensor_frames.txt"])
+def test_an_archive_without_diagnostic_records_reports_and_forecasts(tmp_path: Path, sample: str) -> None:
+    """The records view is empty but has every column the trends, the forecast and the presets query."""
+    arc = tmp_path / "arc"
+    res = runner.invoke(app, ["ingest", "--archive", str(arc), str(ROOT / "sample_logs" / sample)])
+    assert res.exit_code == 0, res.output
+    for args in (
+        ["report", "--archive", str(arc), "--format", "json"],
+        ["forecast", "--archive", str(arc), "--json"],
+        ["query", "--archive", str(arc), "--preset", "due-for-maintenance", "--format", "json"],
+    ):
+        res = runner.invoke(app, args)
+        assert res.exit_code == 0, (args, res.output)
+        assert "internal error" not in res.output
+    forecast = json.loads(runner.invoke(app, ["forecast", "--archive", str(arc), "--json"]).stdout)
+    assert forecast["due"] == []

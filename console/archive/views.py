@@ -52,17 +52,29 @@ ALLOWED_STATEMENTS = ("SELECT", "EXPLAIN")
 # derived tables' full columns come from the analyses, once there are rows).
 _T = "TIMESTAMP_NS"
 EMPTY_COLUMNS: dict[str, tuple[tuple[str, str], ...]] = {
+    # Every column of a record part (an archive of GNSS fixes or frames alone has none, and the trends and
+    # the forecast still query them).
     "records": (
         ("time", _T),
-        ("day", "DATE"),
-        ("device_id", "INTEGER"),
+        ("diag_id", "INTEGER"),
+        ("device", "VARCHAR"),
+        ("type", "VARCHAR"),
+        ("gs", "VARCHAR"),
         ("counting_head", "VARCHAR"),
         ("channel", "TINYINT"),
+        ("address", "SMALLINT"),
+        ("label", "VARCHAR"),
         ("label_canonical", "VARCHAR"),
+        ("label_encoding", "VARCHAR"),
+        ("data", "VARCHAR"),
         ("value", "BIGINT"),
+        ("data_kind", "VARCHAR"),
+        ("subsecond", "BOOLEAN"),
         ("file", "VARCHAR"),
         ("file_seq", "INTEGER"),
         ("line", "BIGINT"),
+        ("day", "DATE"),
+        ("device_id", "INTEGER"),
     ),
     "axles": (
         ("time", _T),
