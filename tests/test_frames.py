@@ -881,3 +881,24 @@ def test_frames_command_reads_trc_and_lists_every_frame_with_its_kind() -> None:
     text = runner.invoke(app, ["frames", str(SAMPLES / "can_counts.trc")], env={"COLUMNS": "100"})
     assert text.exit_code == 0
     assert "CAN traffic" in text.output and "remote" in text.output and "18FEF100x" in text.output
+
+
+def test_axles_of_a_sensor_the_layout_does_not_orient_are_neither_up_nor_down() -> None:
+    """frames --layout: AC07/AC08 are not heads of the example line: their axles go in '?', and it is said."""
+    from typer.testing import CliRunner
+
+    from console.cli.app import app
+
+    path = str(SAMPLES / "sensor_frames.txt")
+    plain = CliRunner().invoke(app, ["frames", path])
+    oriented = CliRunner().invoke(app, ["frames", path, "--layout", "example"])
+    assert plain.exit_code == oriented.exit_code == 0, oriented.output
+
+    def row(out: str, sensor: str) -> list[str]:
+        return next(line.split() for line in out.splitlines() if line.split()[:1] == [sensor])
+
+    # Sensor Frames From To Up Down [?] Fault Err Lost
+    assert row(plain.stdout, "AC07")[4:6] == ["8", "4"]
+    assert row(oriented.stdout, "AC07")[4:7] == ["0", "0", "12"]
+    assert row(oriented.stdout, "AC08")[4:7] == ["0", "0", "8"]
+    assert "AC07, AC08: not heads of" in oriented.stderr

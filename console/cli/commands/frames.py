@@ -135,6 +135,16 @@ def frames(
         up: dict[str, bool] | bool = True
         if lay is not None:
             up = {h.id: h.up_is_first_channel_first for h in lay.heads}
+            sensors = sorted({str(s) for t in tables if "sensor" in t for s in t["sensor"].dropna().unique()})
+            strangers = [s for s in sensors if s not in up]
+            if strangers and not (json_out or jsonl):
+                from console.safe_text import clean
+
+                Console(stderr=True, highlight=False).print(
+                    f"frames: {', '.join(clean(s) for s in strangers)}: not heads of {clean(lay.source)}; "
+                    "their axles' direction is unknown",
+                    markup=False,
+                )
         events = []
         for table in tables:
             # Each file is its own recording: sequence and count checks run within it.

@@ -21,20 +21,25 @@ def _table(title: str) -> Table:
 
 
 def sensor_summary_table(frames: pd.DataFrame, events: list[DetectionEvent]) -> Table:
-    t = _table("Sensors (axles up / down; faults, count errors, contact losses)")
-    for c in ("Sensor", "Frames", "From", "To", "Up", "Down", "Fault", "Err", "Lost"):
-        t.add_column(c, justify="left" if c in ("Sensor", "From", "To") else "right", no_wrap=True, min_width=len(c))
     tally: dict[str, Counter[str]] = {}
     for e in events:
         kinds = tally.setdefault(e.head, Counter())
         if e.kind is EventKind.AXLE:
-            kinds["up" if e.direction > 0 else "down"] += 1
+            # 0: a sensor the layout does not orient; its axles are neither up nor down.
+            kinds["up" if e.direction > 0 else "down" if e.direction < 0 else "unknown"] += 1
         else:
             kinds[str(e.kind)] += 1
+    unknown = any(k["unknown"] for k in tally.values())
+    what = "axles up / down" + (" / ? unknown" if unknown else "")
+    t = _table(f"Sensors ({what}; faults, count errors, contact losses)")
+    t.collapse_padding = unknown  # one column more still fits 80 columns
+    columns = ("Sensor", "Frames", "From", "To", "Up", "Down", *(("?",) if unknown else ()), "Fault", "Err", "Lost")
+    for c in columns:
+        t.add_column(c, justify="left" if c in ("Sensor", "From", "To") else "right", no_wrap=True, min_width=len(c))
     if frames.empty:
         return t
     days = sorted({display(int(x.value))[:10] for x in (frames["time"].min(), frames["time"].max())})
-    t.title = f"Sensors, {' to '.join(days)} (axles up / down; faults, count errors, contact losses)"
+    t.title = f"Sensors, {' to '.join(days)} ({what}; faults, count errors, contact losses)"
     for sensor, times in frames.groupby("sensor", observed=True)["time"]:
         k = tally.get(str(sensor), Counter())
         t.add_row(
@@ -44,6 +49,7 @@ def sensor_summary_table(frames: pd.DataFrame, events: list[DetectionEvent]) -> 
             Text(display(int(times.max().value))[11:]),
             Text(str(k["up"])),
             Text(str(k["down"])),
+            *((Text(str(k["unknown"]), style="yellow" if k["unknown"] else ""),) if unknown else ()),
             Text(str(k["channel_fault"]), style="bold red" if k["channel_fault"] else ""),
             Text(str(k["count_error"]), style="yellow" if k["count_error"] else ""),
             Text(str(k["power_loss"]), style="yellow" if k["power_loss"] else ""),
