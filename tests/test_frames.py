@@ -902,3 +902,40 @@ def test_axles_of_a_sensor_the_layout_does_not_orient_are_neither_up_nor_down() 
     assert row(oriented.stdout, "AC07")[4:7] == ["0", "0", "12"]
     assert row(oriented.stdout, "AC08")[4:7] == ["0", "0", "8"]
     assert "AC07, AC08: not heads of" in oriented.stderr
+
+
+def test_one_capture_in_two_formats_counts_each_axle_once(tmp_path: Path) -> None:
+    """sensor_frames.txt and can_counts.log hold one frame sequence (sample_logs/README.md); the CAN logger's
+    clock may run a little apart from the sensor's: here 37 ms late."""
+    import json
+    import re
+
+    from typer.testing import CliRunner
+
+    from console.cli.app import app
+
+    skewed = tmp_path / "can_skewed.log"
+    skewed.write_text(
+        re.sub(
+            r"^\((\d+\.\d+)\)",
+            lambda m: f"({float(m.group(1)) + 0.037:.6f})",
+            (SAMPLES / "can_counts.log").read_text(encoding="utf-8"),
+            flags=re.M,
+        ),
+        encoding="utf-8",
+    )
+
+    def frames(*paths: Path) -> dict:
+        res = CliRunner().invoke(app, ["frames", *map(str, paths), "--json"])
+        assert res.exit_code == 0, res.output
+        return json.loads(res.stdout)
+
+    def axles(doc: dict) -> list[tuple[str, int]]:
+        return sorted((e["sensor"], e["direction"]) for e in doc["events"] if e["kind"] == "axle")
+
+    alone = frames(SAMPLES / "sensor_frames.txt")
+    for second in (SAMPLES / "can_counts.log", skewed):
+        both = frames(SAMPLES / "sensor_frames.txt", second)
+        assert axles(both) == axles(alone) and len(axles(alone)) == 20
+        assert len(both["events"]) == len(alone["events"])
+        assert both["events_repeated"] == {str(second): len(alone["events"])}

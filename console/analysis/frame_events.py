@@ -202,3 +202,59 @@ def _sensor_events(
 
 def _silence(timeout_ns: int) -> str:
     return f"no frames for {timeout_ns / NS:g} s"
+
+
+# The same frames recorded twice (the sensor's text frames and a CAN capture of its bus, or one capture in two
+# formats) give the same events, at most a clock's skew apart.  Two distinct events of one kind at one sensor
+# with the same detail are never this close: an axle's detail carries the count byte, which repeats only after
+# 256 axles.
+REPEAT_TOLERANCE_NS = NS // 2
+
+
+def events_once(
+    tables: list[pd.DataFrame],
+    up_is_s1_to_s3: Mapping[str, bool] | bool = True,
+    comm_timeout_s: float | None = None,
+) -> tuple[list[DetectionEvent], dict[str, int]]:
+    """Frame tables → their events in time order, each event once, and per file how many it repeated.
+
+    Per file (its own recording: sequence and count checks run within it);
+    an event that an earlier file already gave (same sensor, kind,
+    direction, channel and detail, within :data:`REPEAT_TOLERANCE_NS`) is
+    set aside and counted against the later file.
+    """
+    kw = {} if comm_timeout_s is None else {"comm_timeout_s": comm_timeout_s}
+    earlier: dict[tuple[object, ...], np.ndarray] = {}  # per event key: the earlier files' times, sorted
+    events: list[DetectionEvent] = []
+    repeated: dict[str, int] = {}
+    for table in tables:
+        for name, part in table.groupby("file", observed=True, sort=False):
+            mine: dict[tuple[object, ...], list[int]] = {}
+            n_repeated = 0
+            for e in frames_to_events(part, up_is_s1_to_s3=up_is_s1_to_s3, **kw):
+                key = (e.head, e.kind, e.direction, e.channel, e.detail)
+                times = earlier.get(key)
+                if times is not None:
+                    k = int(np.searchsorted(times, e.time_ns))
+                    near = [times[j] for j in (k - 1, k) if 0 <= j < len(times)]
+                    if any(abs(int(t) - e.time_ns) <= REPEAT_TOLERANCE_NS for t in near):
+                        n_repeated += 1
+                        continue
+                events.append(e)
+                mine.setdefault(key, []).append(e.time_ns)
+            for key, ts in mine.items():
+                earlier[key] = np.sort(np.r_[earlier.get(key, np.zeros(0, np.int64)), ts])
+            repeated[str(name)] = repeated.get(str(name), 0) + n_repeated
+    return sort_events(events), repeated
+
+
+def frames_once(tables: list[pd.DataFrame]) -> pd.DataFrame:
+    """The count frames of frame tables (a CAN capture's other traffic aside), a frame that two files both
+    recorded (same sensor, time and bytes) once: ``time``, ``sensor``, ``status``, ``byte2``, ``file``, ``line``."""
+    columns = ["time", "sensor", "status", "byte2", "file", "line"]
+    parts = [(t[t["kind"] == "count"] if "kind" in t.columns else t)[columns] for t in tables]
+    if not parts:
+        return pd.DataFrame(columns=columns)
+    # File names as objects: pandas would infer Arrow strings, which a name that is not UTF-8 cannot be.
+    frames = pd.concat([p.astype({"file": object}) for p in parts], ignore_index=True)
+    return frames.drop_duplicates(["sensor", "time", "status", "byte2"], keep="first", ignore_index=True)

@@ -104,8 +104,10 @@ def frames(
         one_json_form(json_out, jsonl)
         import pandas as pd
 
-        from console.analysis.frame_events import frames_to_events
+        from console.analysis.frame_events import events_once, frames_once
         from console.analysis.timefmt import iso
+        from console.plural import count
+        from console.safe_text import clean
         from console.sinks.tables.diag_tables import parse_report_table, rejections_table
         from console.sinks.tables.frame_tables import (
             can_traffic_table,
@@ -113,7 +115,7 @@ def frames(
             other_frames_table,
             sensor_summary_table,
         )
-        from parsers.frames.can import count_frames_only, parse_can
+        from parsers.frames.can import parse_can
         from parsers.frames.sensor import parse_frames
 
         check_inputs(files)
@@ -138,19 +140,13 @@ def frames(
             sensors = sorted({str(s) for t in tables if "sensor" in t for s in t["sensor"].dropna().unique()})
             strangers = [s for s in sensors if s not in up]
             if strangers and not (json_out or jsonl):
-                from console.safe_text import clean
-
                 Console(stderr=True, highlight=False).print(
                     f"frames: {', '.join(clean(s) for s in strangers)}: not heads of {clean(lay.source)}; "
                     "their axles' direction is unknown",
                     markup=False,
                 )
-        events = []
-        for table in tables:
-            # Each file is its own recording: sequence and count checks run within it.
-            for _, part in table.groupby("file", observed=True, sort=False):
-                events += frames_to_events(part, up_is_s1_to_s3=up, comm_timeout_s=comm_timeout)
-        events.sort(key=lambda e: e.time_ns)
+        # Each file is its own recording; the same frames in two files (two formats of one capture) count once.
+        events, repeated = events_once(tables, up, comm_timeout)
         all_frames = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
         rejected = sum(r.rejected for r in reports)
         if json_out or jsonl:
@@ -172,13 +168,19 @@ def frames(
                         for e in events
                     ],
                     "parse_reports": [r.to_dict() for r in reports],
+                    "events_repeated": {f: n for f, n in repeated.items() if n},
                 },
                 {"frames": "frame", "events": "event", "parse_reports": "parse_report"} if jsonl else None,
             )
         else:
             out = Console(highlight=False)
-            counted = count_frames_only(all_frames) if not all_frames.empty else all_frames
-            out.print(sensor_summary_table(counted, events))
+            out.print(sensor_summary_table(frames_once(tables), events))
+            for name, n in repeated.items():
+                if n:
+                    out.print(
+                        f"{clean(name)}: {count(n, 'event')} repeated from another file's frames, counted once",
+                        markup=False,
+                    )
             out.print(events_table(events))
             if can_report is not None:
                 out.print(can_traffic_table(can_report))

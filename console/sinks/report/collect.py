@@ -38,7 +38,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from console.analysis.diag_events import DiagEventSettings
-from console.analysis.events.detection import DetectionEvent, sort_events
 from console.analysis.health.rules import Finding, sort_findings, voltage_margin_findings
 from console.analysis.passages.diagnostics import SpeedSettings
 from console.analysis.sections.engine import run_sections
@@ -240,21 +239,14 @@ def frames_from_tables(data: ReportData, tables: list[pd.DataFrame]) -> None:
     """Frame tables (already parsed: from files, or from the archive) → frame events and the frames table."""
     if not tables:
         return
-    import pandas as pd
 
-    from console.analysis.frame_events import frames_to_events
+    from console.analysis.frame_events import events_once, frames_once
 
     lay = data.layout
     up: dict[str, bool] | bool = {h.id: h.up_is_first_channel_first for h in lay.heads} if lay is not None else True
-    events: list[DetectionEvent] = []
-    for table in tables:
-        # Each file is its own recording: sequence and count checks run within it (as `trackside frames`).
-        for _, part in table.groupby("file", observed=True, sort=False):
-            events += frames_to_events(part, up_is_s1_to_s3=up)
-    data.frame_events = sort_events(events)
-    # File names as objects: pandas would infer Arrow strings, which a name that is not UTF-8 cannot be.
-    columns = ["time", "sensor", "file", "line"]
-    data.frames = pd.concat([t[columns].astype({"file": object}) for t in tables], ignore_index=True)
+    # As `trackside frames`: per file, and the same frames in two files once.
+    data.frame_events, _ = events_once(tables, up)
+    data.frames = frames_once(tables)[["time", "sensor", "file", "line"]]
 
 
 def sections_into_report(data: ReportData) -> None:
