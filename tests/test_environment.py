@@ -365,3 +365,26 @@ def test_ctrl_c_exits_130_even_with_a_worker_thread_blocked_in_a_read(tmp_path: 
     with open(fifo, "wb"):  # the writer stays open: the thread's read never ends
         assert proc.wait(timeout=30) == 130
     assert proc.stderr is not None and b"Traceback" not in proc.stderr.read()
+
+
+def test_an_archive_is_never_made_among_other_files(tmp_path: Path) -> None:
+    """`--archive ""` is the current directory; a folder of one's own files is refused, an empty one is fine."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep me\n")
+    one_line_error(invoke("ingest", "--archive", mine, SMALL_LOG), "notes.txt", "no archive", "new or empty")
+    one_line_error(
+        invoke("follow", f"file:{SMALL_LOG}", "--from-start", "--idle-exit", "1", "--archive", mine),
+        "--archive",
+        "no archive",
+    )
+    one_line_error(
+        invoke("follow", f"file:{SMALL_LOG}", "--from-start", "--idle-exit", "1", "--archive", mine / "notes.txt"),
+        "not a directory",
+    )
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["mine", "notes.txt"]  # nothing spooled, nothing made
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert invoke("ingest", "--archive", empty, SMALL_LOG).returncode == 0
+    assert invoke("ingest", "--archive", empty, STATION_LOG).returncode == 0  # an archive already: added to
+    assert (empty / "CURRENT").is_file()

@@ -31,6 +31,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from console.safe_text import show_path
+
 SCHEMA = "trackside.archive"
 SCHEMA_VERSION = 1
 CURRENT = "CURRENT"
@@ -161,9 +163,24 @@ def read_current(root: Path) -> Manifest:
     return Manifest.from_dict(doc)
 
 
+ARCHIVE_ENTRIES = frozenset({CURRENT, MANIFESTS, DATA, TMP, LOCK, f".{CURRENT}.tmp"})
+
+
 def ensure_layout(root: Path) -> None:
+    """``root`` made an archive: a new or empty directory, or an archive already (never a folder of other
+    files: ``--archive ""`` is the current directory, and a typo must not scatter an archive among a
+    user's files)."""
     if root.exists() and not root.is_dir():
         raise ArchiveError(f"{root}: not a directory")
+    try:
+        others = sorted(e.name for e in os.scandir(root) if e.name not in ARCHIVE_ENTRIES) if root.exists() else []
+    except OSError as exc:
+        raise ArchiveError(f"{root}: cannot read the archive ({exc.strerror or exc})") from None
+    if others and not (root / CURRENT).exists() and not (root / MANIFESTS).is_dir():
+        raise ArchiveError(
+            f"{show_path(root)}: holds other files ({show_path(Path(others[0]))}…) and no archive; "
+            "give a new or empty directory"
+        )
     try:
         for sub in (MANIFESTS, DATA, TMP):
             (root / sub).mkdir(parents=True, exist_ok=True)

@@ -16,6 +16,7 @@ archive holds what the batch commands would read from the spool.
 from __future__ import annotations
 
 import math
+import os
 import threading
 import time
 from pathlib import Path
@@ -65,10 +66,19 @@ class LiveArchiver:
     """Spools followed items and ingests the spool into the archive now and then."""
 
     def __init__(self, archive: Path, layout: str | None = None) -> None:
-        self.archive = archive
+        from console.archive.store import ArchiveError, ensure_layout
+
+        # Absolute: "" and "." name a directory whose spool needs a name of its own.
+        self.archive = archive = Path(os.path.abspath(archive))
         self.layout = layout
+        # Checked before anything is followed (a file, a folder of other files, no permission: ArchiveError),
+        # not at the first ingest a minute on, which could only log it.
+        ensure_layout(archive)
         self.spool = spool_dir(archive)
-        self.spool.mkdir(parents=True, exist_ok=True)
+        try:
+            self.spool.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ArchiveError(f"{self.spool}: cannot spool there ({exc.strerror or exc})") from None
         self._files: dict[str, Path] = {}
         self._last_ingest = time.monotonic()
         self._thread: threading.Thread | None = None

@@ -154,6 +154,7 @@ def follow(
 
     def body() -> int:
         from console.analysis.passages.diagnostics import SpeedSettings
+        from console.archive.store import ArchiveError
         from console.inputs.base import SourceError
         from console.inputs.uri import open_source
         from console.live.archive import LiveArchiver
@@ -186,7 +187,10 @@ def follow(
         spacing = lay.heads[0].spacing_m if lay and lay.heads else 0.13
         consist = lay.consist() if lay else None
         settings = SpeedSettings(spacing, consist.length_m if consist else 28.6, idle_gap)
-        archiver = LiveArchiver(archive, layout) if archive is not None else None
+        try:
+            archiver = LiveArchiver(archive, layout) if archive is not None else None
+        except ArchiveError as exc:
+            raise fail(f"--archive: {exc}") from None
         engine = LiveEngine(lay, emit, settings, archiver=archiver, include_status=include_status)
         last = [time.monotonic(), engine.items]
         data_items = [0]
