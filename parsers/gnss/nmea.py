@@ -383,12 +383,17 @@ def _zda(address: str, payload: list[str], clock: DeviceClock) -> None:
         return  # no date yet (a receiver without a fix sends empty fields)
     msg = _library_parse(address, payload)
     tod = _tod_ns(msg.time, payload[0])
+    day_raw, month_raw, year_raw = payload[1], payload[2], payload[3]
+    if not (day_raw.isdigit() and month_raw.isdigit() and year_raw.isdigit()):
+        raise SentenceError("field", f"ZDA date '{day_raw[:12]}/{month_raw[:12]}/{year_raw[:12]}' is not a date")
+    # The range is checked on the text first: a year of 2^31 or more overflows dt.date (OverflowError).
+    if len(year_raw) > 9 or not 1980 <= int(year_raw) <= 2200:
+        # GPS time began in 1980; later years would overflow ns timestamps.
+        raise SentenceError("field", f"ZDA year {year_raw[:12]} is outside 1980-2200")
     try:
-        day = dt.date(int(payload[3]), int(payload[2]), int(payload[1]))
-    except ValueError:
-        raise SentenceError("field", f"ZDA date '{payload[1]}/{payload[2]}/{payload[3]}' is not a date") from None
-    if not 1980 <= day.year <= 2200:  # GPS time began in 1980; later years would overflow ns timestamps
-        raise SentenceError("field", f"ZDA year {day.year} is outside 1980-2200")
+        day = dt.date(int(year_raw), int(month_raw), int(day_raw))
+    except (ValueError, OverflowError):  # a day or month of 2^31 or more overflows too
+        raise SentenceError("field", f"ZDA date '{day_raw[:12]}/{month_raw[:12]}/{year_raw}' is not a date") from None
     clock.set_date(day, tod)
 
 
