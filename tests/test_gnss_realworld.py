@@ -300,6 +300,7 @@ def test_sentences_with_numbers_beyond_any_range_are_rejected_alone(tmp_path: Pa
 
 GSV = nmea("GPGSV,1,1,04,05,40,083,46,07,23,062,42,13,63,124,46,20,14,245,38")
 VTG2 = nmea("GPVTG,084.4,T,081.3,M,022.5,N,041.7,K,A")
+NINES = "9" * 400  # float() of it is inf
 
 
 def _receiver_log(bad: bytes) -> bytes:
@@ -338,6 +339,38 @@ def test_a_zda_with_a_huge_year_day_or_month_is_rejected_and_the_log_read_on(
     assert report.rejected_by_reason == {"field": 1}
 
 
+@pytest.mark.parametrize(
+    ("bad", "field"),
+    [
+        (nmea(f"GPRMC,123519.50,A,4807.038,N,01131.000,E,{NINES},084.4,230394,003.1,W"), "speed (knots)"),
+        (nmea(f"GPRMC,123519.50,A,4807.038,N,01131.000,E,022.4,{NINES}.5,230394,003.1,W"), "course"),
+        (nmea(f"GPVTG,084.4,T,081.3,M,{NINES},N,041.7,K,A"), "speed (knots)"),
+        (nmea(f"GPVTG,084.4,T,081.3,M,,N,{NINES},K,A"), "speed (km/h)"),
+        (nmea(f"GPVTG,{NINES},T,081.3,M,022.5,N,041.7,K,A"), "course (true)"),
+    ],
+    ids=["rmc-speed", "rmc-course", "vtg-knots", "vtg-kmh", "vtg-course"],
+)
+def test_a_speed_or_course_of_hundreds_of_digits_is_rejected_not_read_as_infinity(
+    tmp_path: Path, bad: bytes, field: str
+) -> None:
+    _, report = _read_around(tmp_path, bad)
+    reason = report.rejections[0].reason
+    assert reason.startswith(f"{field} field '999999999999") and reason.endswith("characters: expected a finite number")
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        nmea("GPRMC,123519.50,A,nan07.038,N,01131.000,E,022.4,084.4,230394,003.1,W"),
+        nmea("GPGGA,123519.50,4807.038,N,nan31.000,E,1,08,0.9,545.4,M,46.9,M,,"),
+    ],
+    ids=["rmc-lat", "gga-lon"],
+)
+def test_a_nan_coordinate_is_rejected_not_read_as_a_missing_position(tmp_path: Path, bad: bytes) -> None:
+    _, report = _read_around(tmp_path, bad)
+    assert "field 'nan" in report.rejections[0].reason and "is not (d)ddmm.mmmm" in report.rejections[0].reason
+
+
 def _strict_json(text: str) -> dict:
     def refuse(name: str) -> None:
         raise AssertionError(f"{name} in the JSON output")
@@ -349,8 +382,8 @@ def _strict_json(text: str) -> dict:
 
 @pytest.mark.parametrize(
     "bad",
-    [nmea("GPZDA,123519.50,23,03,2147483648,00,00")],
-    ids=["zda-year-2^31"],
+    [nmea("GPZDA,123519.50,23,03,2147483648,00,00"), nmea(f"GPVTG,084.4,T,081.3,M,{NINES},N,041.7,K,A")],
+    ids=["zda-year-2^31", "vtg-knots-inf"],
 )
 @pytest.mark.parametrize("command", [["gnss"], ["crossing", "--layout", "example"]])
 def test_gnss_commands_reject_the_sentence_and_print_valid_json(tmp_path: Path, bad: bytes, command: list[str]) -> None:

@@ -244,8 +244,9 @@ def _coordinate(value: Any, raw: str, hemisphere: str, axis: str) -> float:
     if raw == "":
         return math.nan
     name, limit, signs = ("latitude", 90.0, "NS") if axis == "lat" else ("longitude", 180.0, "EW")
-    if not isinstance(value, float):
-        raise SentenceError("field", f"{name} field '{raw}' is not (d)ddmm.mmmm")
+    # dmm2ddd reads its degrees with float(): 'nan34.5' gives NaN, which would pass for an empty field.
+    if not isinstance(value, float) or math.isnan(value):
+        raise SentenceError("field", f"{name} field '{raw[:24]}' is not (d)ddmm.mmmm")
     if hemisphere not in signs:
         raise SentenceError("field", f"{name} hemisphere '{hemisphere}' is not {signs[0]} or {signs[1]}")
     if abs(value) > limit:
@@ -259,6 +260,8 @@ def _decimal(raw: str, what: str, *, minimum: float | None = None) -> float:
     if not _NUMBER_RE.fullmatch(raw):
         raise SentenceError("field", f"{what} field '{raw}' is not a number")
     value = float(raw)
+    if not math.isfinite(value):  # hundreds of digits: float() gives inf, which no JSON can hold
+        raise SentenceError("field", f"{what} field '{raw[:12]}…' of {len(raw)} characters: expected a finite number")
     if minimum is not None and value < minimum:
         raise SentenceError("field", f"{what} field '{raw}' is below {minimum:g}")
     return value
