@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -197,3 +198,56 @@ def test_a_late_warning_is_a_violation_listed_first_with_how_late(samples: Path,
     assert res.exit_code == 1
     assert res.output.index("SAFETY VIOLATIONS") < res.output.index("Level crossings")
     assert "late warning" in res.output
+
+
+def _decimal_commas(samples: Path, tmp_path: Path) -> Path:
+    """The sample's first rows as a spreadsheet in a comma locale writes them: decimal commas, unquoted."""
+    lines = (samples / "crossing_example.csv").read_text().splitlines()
+    path = tmp_path / "commas.csv"
+    path.write_text("\n".join([lines[0], *(line.replace(".", ",") for line in lines[1:6])]) + "\n")
+    return path
+
+
+def _points_without_lat(samples: Path, tmp_path: Path) -> Path:
+    path = tmp_path / "A-head.gpx"
+    points = [f'<trkpt lon="105.89{k}"><time>2026-01-19T17:00:0{k}Z</time></trkpt>' for k in range(3)]
+    path.write_text(
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<gpx version="1.1" creator="t" xmlns="http://www.topografix.com/GPX/1/1">\n'
+        "<trk><name>A-head</name><trkseg>\n" + "\n".join(points) + "\n</trkseg></trk></gpx>\n"
+    )
+    return path
+
+
+@pytest.mark.parametrize(
+    ("make", "line", "reason"),
+    [
+        (_decimal_commas, 2, "expected 7 fields, found"),
+        (_points_without_lat, 4, "lat and lon attributes are required"),
+    ],
+    ids=["csv-decimal-commas", "gpx-points-without-lat"],
+)
+@pytest.mark.parametrize("form", [[], ["--json"]], ids=["table", "json"])
+def test_crossing_refuses_a_file_of_which_every_line_is_rejected(
+    samples: Path, tmp_path: Path, make: Callable[[Path, Path], Path], line: int, reason: str, form: list[str]
+) -> None:
+    bad = make(samples, tmp_path)
+    # Alone or beside a readable file: gnss refuses it too (exit 2), rather than an empty table and exit 0.
+    for files in ([bad], [samples / "crossing_example.csv", bad]):
+        res = runner.invoke(app, ["crossing", *map(str, files), "--layout", "example", *form])
+        assert res.exit_code == 2, res.output
+        assert res.stdout == ""
+        (message,) = res.stderr.strip().splitlines()
+        assert f"{bad.name}: nothing readable as GNSS:" in message and "none read" in message
+        assert f"; line {line}: " in message and reason in message
+
+
+def test_crossing_reads_a_file_with_one_rejected_line_and_counts_it(samples: Path, tmp_path: Path) -> None:
+    lines = (samples / "crossing_example.csv").read_text().splitlines()
+    one_bad = tmp_path / "one_bad.csv"
+    one_bad.write_text("\n".join([*lines[:10], lines[10].replace(".", ","), *lines[11:]]) + "\n")
+    doc = _crossing(samples, *TRAINS, path=one_bad)
+    report = doc["parse_report"]
+    assert report["rejected"] == 1 and [r["line"] for r in report["rejections"]] == [11]
+    assert report["records"] == len(lines) - 2 and report["records"] + report["blank"] + 1 == report["lines_read"]
+    assert doc["timelines"] and doc["violations"] == 0

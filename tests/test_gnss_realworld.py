@@ -298,6 +298,102 @@ def test_sentences_with_numbers_beyond_any_range_are_rejected_alone(tmp_path: Pa
     assert len(fixes) == 1 and report.rejected == 1 and reason in report.rejections[0].reason
 
 
+GSV = nmea("GPGSV,1,1,04,05,40,083,46,07,23,062,42,13,63,124,46,20,14,245,38")
+VTG2 = nmea("GPVTG,084.4,T,081.3,M,022.5,N,041.7,K,A")
+NINES = "9" * 400  # float() of it is inf
+
+
+def _receiver_log(bad: bytes) -> bytes:
+    """A receiver's log as captured: a header, an epoch, the bad sentence at line 4, noise before the next
+    epoch's RMC, a sentence without a fix and a blank line."""
+    return b"\n".join([b"# rx-logger 2.1, COM4 9600 8N1", RMC, GGA, bad, b"rx> " + RMC2, VTG2, GSV, b""]) + b"\n"
+
+
+def _read_around(tmp_path: Path, bad: bytes) -> tuple[pd.DataFrame, ParseReport]:
+    """The log around ``bad``: both epochs read, every line counted, the bad one rejected alone at line 4."""
+    fixes, report = stream(tmp_path, _receiver_log(bad))  # stream() checks that every line is counted
+    assert (report.lines_read, report.records, report.blank, report.rejected) == (8, 4, 3, 1)
+    assert [r.line for r in report.rejections] == [4]
+    assert list(fixes["sentence"]) == ["RMC+GGA", "RMC+VTG"]
+    assert list(fixes["time"]) == [pd.Timestamp("1994-03-23T12:35:19Z"), pd.Timestamp("1994-03-23T12:35:20Z")]
+    assert fixes[["speed_mps", "course_deg"]].map(math.isfinite).all().all()
+    return fixes, report
+
+
+@pytest.mark.parametrize(
+    ("bad", "reason"),
+    [
+        # 2^31: dt.date raised OverflowError, which escaped as an internal error
+        (nmea("GPZDA,123519.50,23,03,2147483648,00,00"), "ZDA year 2147483648 is outside 1980-2200"),
+        (nmea("GPZDA,123519.50,2147483648,03,1994,00,00"), "ZDA date '2147483648/03/1994' is not a date"),
+        (nmea("GPZDA,123519.50,23,99999999999999999999,1994,00,00"), "is not a date"),
+        (nmea("GPZDA,123519.50,23,03,1" + "0" * 5000 + ",00,00"), "ZDA year 100000000000 is outside"),
+    ],
+    ids=["year-2^31", "day-2^31", "month-10^20", "year-of-5001-digits"],
+)
+def test_a_zda_with_a_huge_year_day_or_month_is_rejected_and_the_log_read_on(
+    tmp_path: Path, bad: bytes, reason: str
+) -> None:
+    _, report = _read_around(tmp_path, bad)
+    assert reason in report.rejections[0].reason
+    assert report.rejected_by_reason == {"field": 1}
+
+
+@pytest.mark.parametrize(
+    ("bad", "field"),
+    [
+        (nmea(f"GPRMC,123519.50,A,4807.038,N,01131.000,E,{NINES},084.4,230394,003.1,W"), "speed (knots)"),
+        (nmea(f"GPRMC,123519.50,A,4807.038,N,01131.000,E,022.4,{NINES}.5,230394,003.1,W"), "course"),
+        (nmea(f"GPVTG,084.4,T,081.3,M,{NINES},N,041.7,K,A"), "speed (knots)"),
+        (nmea(f"GPVTG,084.4,T,081.3,M,,N,{NINES},K,A"), "speed (km/h)"),
+        (nmea(f"GPVTG,{NINES},T,081.3,M,022.5,N,041.7,K,A"), "course (true)"),
+    ],
+    ids=["rmc-speed", "rmc-course", "vtg-knots", "vtg-kmh", "vtg-course"],
+)
+def test_a_speed_or_course_of_hundreds_of_digits_is_rejected_not_read_as_infinity(
+    tmp_path: Path, bad: bytes, field: str
+) -> None:
+    _, report = _read_around(tmp_path, bad)
+    reason = report.rejections[0].reason
+    assert reason.startswith(f"{field} field '999999999999") and reason.endswith("characters: expected a finite number")
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        nmea("GPRMC,123519.50,A,nan07.038,N,01131.000,E,022.4,084.4,230394,003.1,W"),
+        nmea("GPGGA,123519.50,4807.038,N,nan31.000,E,1,08,0.9,545.4,M,46.9,M,,"),
+    ],
+    ids=["rmc-lat", "gga-lon"],
+)
+def test_a_nan_coordinate_is_rejected_not_read_as_a_missing_position(tmp_path: Path, bad: bytes) -> None:
+    _, report = _read_around(tmp_path, bad)
+    assert "field 'nan" in report.rejections[0].reason and "is not (d)ddmm.mmmm" in report.rejections[0].reason
+
+
+def _strict_json(text: str) -> dict:
+    def refuse(name: str) -> None:
+        raise AssertionError(f"{name} in the JSON output")
+
+    doc = json.loads(text, parse_constant=refuse)
+    assert isinstance(doc, dict)
+    return doc
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [nmea("GPZDA,123519.50,23,03,2147483648,00,00"), nmea(f"GPVTG,084.4,T,081.3,M,{NINES},N,041.7,K,A")],
+    ids=["zda-year-2^31", "vtg-knots-inf"],
+)
+@pytest.mark.parametrize("command", [["gnss"], ["crossing", "--layout", "example"]])
+def test_gnss_commands_reject_the_sentence_and_print_valid_json(tmp_path: Path, bad: bytes, command: list[str]) -> None:
+    res = runner.invoke(app, [*command, "--json", str(write(tmp_path, "head1.log", _receiver_log(bad)))])
+    assert res.exit_code == 0, res.output
+    report = _strict_json(res.stdout)["parse_report"]
+    assert (report["lines_read"], report["records"], report["blank"], report["rejected"]) == (8, 4, 3, 1)
+    assert [r["line"] for r in report["rejections"]] == [4]
+
+
 def test_a_device_row_dated_beyond_the_timestamp_range_is_rejected_alone(tmp_path: Path) -> None:
     data = b"time,lat,lon\n9999-01-19T10:05:00Z,20.6,105.9\n2026-01-19T10:05:00Z,20.6,105.9\n"
     fixes, report = parse_device_stream([write(tmp_path, "d.csv", data)])

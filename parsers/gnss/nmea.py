@@ -244,8 +244,9 @@ def _coordinate(value: Any, raw: str, hemisphere: str, axis: str) -> float:
     if raw == "":
         return math.nan
     name, limit, signs = ("latitude", 90.0, "NS") if axis == "lat" else ("longitude", 180.0, "EW")
-    if not isinstance(value, float):
-        raise SentenceError("field", f"{name} field '{raw}' is not (d)ddmm.mmmm")
+    # dmm2ddd reads its degrees with float(): 'nan34.5' gives NaN, which would pass for an empty field.
+    if not isinstance(value, float) or math.isnan(value):
+        raise SentenceError("field", f"{name} field '{raw[:24]}' is not (d)ddmm.mmmm")
     if hemisphere not in signs:
         raise SentenceError("field", f"{name} hemisphere '{hemisphere}' is not {signs[0]} or {signs[1]}")
     if abs(value) > limit:
@@ -259,6 +260,8 @@ def _decimal(raw: str, what: str, *, minimum: float | None = None) -> float:
     if not _NUMBER_RE.fullmatch(raw):
         raise SentenceError("field", f"{what} field '{raw}' is not a number")
     value = float(raw)
+    if not math.isfinite(value):  # hundreds of digits: float() gives inf, which no JSON can hold
+        raise SentenceError("field", f"{what} field '{raw[:12]}…' of {len(raw)} characters: expected a finite number")
     if minimum is not None and value < minimum:
         raise SentenceError("field", f"{what} field '{raw}' is below {minimum:g}")
     return value
@@ -383,12 +386,17 @@ def _zda(address: str, payload: list[str], clock: DeviceClock) -> None:
         return  # no date yet (a receiver without a fix sends empty fields)
     msg = _library_parse(address, payload)
     tod = _tod_ns(msg.time, payload[0])
+    day_raw, month_raw, year_raw = payload[1], payload[2], payload[3]
+    if not (day_raw.isdigit() and month_raw.isdigit() and year_raw.isdigit()):
+        raise SentenceError("field", f"ZDA date '{day_raw[:12]}/{month_raw[:12]}/{year_raw[:12]}' is not a date")
+    # The range is checked on the text first: a year of 2^31 or more overflows dt.date (OverflowError).
+    if len(year_raw) > 9 or not 1980 <= int(year_raw) <= 2200:
+        # GPS time began in 1980; later years would overflow ns timestamps.
+        raise SentenceError("field", f"ZDA year {year_raw[:12]} is outside 1980-2200")
     try:
-        day = dt.date(int(payload[3]), int(payload[2]), int(payload[1]))
-    except ValueError:
-        raise SentenceError("field", f"ZDA date '{payload[1]}/{payload[2]}/{payload[3]}' is not a date") from None
-    if not 1980 <= day.year <= 2200:  # GPS time began in 1980; later years would overflow ns timestamps
-        raise SentenceError("field", f"ZDA year {day.year} is outside 1980-2200")
+        day = dt.date(int(year_raw), int(month_raw), int(day_raw))
+    except (ValueError, OverflowError):  # a day or month of 2^31 or more overflows too
+        raise SentenceError("field", f"ZDA date '{day_raw[:12]}/{month_raw[:12]}/{year_raw}' is not a date") from None
     clock.set_date(day, tod)
 
 

@@ -15,6 +15,7 @@ from console.cli.common import (
     load_layout,
     one_json_form,
     print_document,
+    refuse_unread,
     refuse_wrong_kind,
 )
 from console.cli.options import GnssFilesArg, JsonOpt, RecordsJsonlOpt
@@ -75,6 +76,8 @@ def crossing(
         except ValueError as exc:
             raise fail(str(exc)) from None
         fixes, report, _states = parse_gnss(files)
+        # A file of which every line was rejected is refused, as gnss does: not an empty table and exit 0.
+        refuse_unread(report, "gnss")
         run = run_crossings(fixes, lay, trains)
         violations = run.violations
         warnings = []
