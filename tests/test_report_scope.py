@@ -101,3 +101,20 @@ def test_a_scope_with_nothing_in_the_archive_is_an_error_not_an_ok(archive: Path
         assert res.exit_code == 2, res.output
         assert res.stderr.startswith("trackside: error: ") and res.stderr.count("\n") == 1
         assert "no record, frame or voltage of it" in res.stderr
+
+
+def test_the_report_says_its_window_and_refuses_an_empty_one(archive: Path) -> None:
+    """The simulated run starts 2026-03-02 08:00 (SimConfig): a window over its first ten minutes."""
+    doc = _report(archive, "--from", "2026-03-02T08:00", "--to", "2026-03-02T08:10")
+    assert doc["scope"] == "the archive's history from 2026-03-02 08:00:00 until 2026-03-02 08:10:00 (excluded)"
+    assert "scope" not in _report(archive)  # the whole archive: nothing to say
+    head = _report(archive, "--head", "WS5", "--from", "2026-03-02T08:00")
+    assert head["scope"].startswith("counting head WS5") and head["scope"].endswith("from 2026-03-02 08:00:00")
+    for window in (
+        ["--from", "2026-03-02T09:00", "--to", "2026-03-02T08:00"],
+        ["--from", "2026-03-02", "--to", "2026-03-02"],
+    ):
+        for command in (["report", "--archive", str(archive)], ["station", "--replay", "--archive", str(archive)]):
+            res = runner.invoke(app, [*command, *window])
+            assert res.exit_code == 2, res.output
+            assert res.stderr.count("\n") == 1 and "is not before to" in res.stderr

@@ -31,9 +31,9 @@ from console.archive.reader import (
     health_records,
     layout_of,
     parse_reports,
-    parse_time,
     per_file_tables,
     speed_settings,
+    user_window,
 )
 from console.archive.scope import scope_report
 from console.archive.store import ArchiveError, Manifest, archive_dir, read_current
@@ -161,12 +161,7 @@ def archive_collector(
     def collector() -> ReportData:
         # Errors raised here reach the report's one-line error handling.
         try:
-            window = Window(
-                start=parse_time(start) if start else None,
-                end=parse_time(end) if end else None,
-                head=head,
-                device_id=device_id,
-            )
+            window = user_window(start, end, head, device_id)
         except ValueError as exc:
             raise ReportInputError(f"--from/--to: {exc}") from None
         try:

@@ -92,6 +92,15 @@ def parse_time(text: str) -> dt.datetime:
     return t.replace(tzinfo=None) if t.tzinfo is None else t.astimezone(dt.UTC).replace(tzinfo=None)
 
 
+def user_window(start: str | None, end: str | None, head: str | None = None, device_id: int | None = None) -> Window:
+    """``--from``/``--to`` as given: ValueError on a time that is not one, and on an empty window (it would
+    report nothing, which reads as "nothing happened")."""
+    window = Window(parse_time(start) if start else None, parse_time(end) if end else None, head, device_id)
+    if window.start is not None and window.end is not None and window.start >= window.end:
+        raise ValueError(f"from {window.start.isoformat()} is not before to {window.end.isoformat()}")
+    return window
+
+
 _ARCHIVED_COLUMNS_SQL = ", ".join(ARCHIVED_RECORD_COLUMNS)
 
 

@@ -49,14 +49,25 @@ def describe(window: Window, heads: set[str], bounded: list[str]) -> str:
     return f"{who}: its inputs, findings and the sections it bounds ({', '.join(bounded) or 'none'})"
 
 
+def window_text(window: Window) -> str:
+    """``--from``/``--to`` as the report says them ("" for the whole archive)."""
+    start = "" if window.start is None else f" from {window.start.isoformat(sep=' ')}"
+    end = "" if window.end is None else f" until {window.end.isoformat(sep=' ')} (excluded)"
+    return start + end
+
+
 def scope_report(root: Path, manifest: Manifest, data: ReportData, window: Window) -> None:
-    """Cut ``data`` (the whole archive's report for the window) to the window's head or device, in place."""
+    """Cut ``data`` (the whole archive's report for the window) to the window's head or device, in place; the
+    report says what it covers."""
+    when = window_text(window)
     if window.head is None and window.device_id is None:
+        if when:
+            data.scope = f"the archive's history{when}"
         return
     heads = scope_heads(data, window)
     lay = data.layout
     bounded = [s.id for s in lay.sections if heads & set(s.heads)] if lay is not None else []
-    data.scope = describe(window, heads, bounded)
+    data.scope = describe(window, heads, bounded) + when
 
     data.findings = [f for f in data.findings if f.counting_head in heads]
     if data.sections is not None:

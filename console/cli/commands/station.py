@@ -129,12 +129,12 @@ def station(
 def archive_replay_source(archive: Path | None, lay: Any, start: str | None, end: str | None) -> Any:
     """The station view's replay source over the archive's history in [--from, --to): one line on any error."""
     from console.archive.history import replay_inputs
-    from console.archive.reader import Window, parse_time
+    from console.archive.reader import user_window
     from console.archive.store import ArchiveError, archive_dir
     from console.tui.replay_source import ReplaySource
 
     try:
-        window = Window(start=parse_time(start) if start else None, end=parse_time(end) if end else None)
+        window = user_window(start, end)
     except ValueError as exc:
         raise fail(f"--from/--to: {exc}") from None
     try:
