@@ -195,7 +195,8 @@ def test_served_station_view_loads_in_headless_chromium_shows_the_track_and_upda
         browser.close()
         with contextlib.suppress(ProcessLookupError):
             os.killpg(server.pid, signal.SIGTERM)
-        server.wait(10)
+        code = server.wait(10)
+    assert code == 143  # stopped by SIGTERM, as the README's exit codes say
     # The track diagram: every counting head and both crossings of the example line.
     for label in ("WS1", "WS2", "WS3", "WS4", "WS5", "11+850", "12+940", "preparatory"):
         assert label in first, label

@@ -127,9 +127,9 @@ def test_a_tab_closed_while_its_app_starts_leaves_no_process(tmp_path: Path) -> 
             close(browser)  # the tab goes while its app is still starting
         assert wait_until(lambda: not alive(started), 20, 0.1), f"left behind: {cpu_share(alive(started))}"
         assert server.poll() is None  # the server itself serves on
-        # The server stops on Ctrl-C at once, and nothing is left.
+        # The server stops on Ctrl-C at once, and nothing is left; its exit code says Ctrl-C (README).
         os.kill(server.pid, signal.SIGINT)
-        server.wait(15)
+        assert server.wait(15) == 130
 
 
 def test_ctrl_c_to_the_server_alone_stops_every_app(tmp_path: Path) -> None:

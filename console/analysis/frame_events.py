@@ -214,7 +214,7 @@ REPEAT_TOLERANCE_NS = NS // 2
 def events_once(
     tables: list[pd.DataFrame],
     up_is_s1_to_s3: Mapping[str, bool] | bool = True,
-    comm_timeout_s: float | None = None,
+    comm_timeout_s: float = 10.0,
 ) -> tuple[list[DetectionEvent], dict[str, int]]:
     """Frame tables → their events in time order, each event once, and per file how many it repeated.
 
@@ -223,15 +223,15 @@ def events_once(
     direction, channel and detail, within :data:`REPEAT_TOLERANCE_NS`) is
     set aside and counted against the later file.
     """
-    kw = {} if comm_timeout_s is None else {"comm_timeout_s": comm_timeout_s}
-    earlier: dict[tuple[object, ...], np.ndarray] = {}  # per event key: the earlier files' times, sorted
+    EventKey = tuple[str, EventKind, int, int | None, str]
+    earlier: dict[EventKey, np.ndarray] = {}  # per event key: the earlier files' times, sorted
     events: list[DetectionEvent] = []
     repeated: dict[str, int] = {}
     for table in tables:
         for name, part in table.groupby("file", observed=True, sort=False):
-            mine: dict[tuple[object, ...], list[int]] = {}
+            mine: dict[EventKey, list[int]] = {}
             n_repeated = 0
-            for e in frames_to_events(part, up_is_s1_to_s3=up_is_s1_to_s3, **kw):
+            for e in frames_to_events(part, up_is_s1_to_s3=up_is_s1_to_s3, comm_timeout_s=comm_timeout_s):
                 key = (e.head, e.kind, e.direction, e.channel, e.detail)
                 times = earlier.get(key)
                 if times is not None:

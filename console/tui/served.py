@@ -106,6 +106,11 @@ class StationServer(Server):
         self.live: set[TiedAppService] = set()
         self.sockets: set[Any] = set()  # the tabs' websockets: closed on exit, or aiohttp waits for them
         self.closing: list[asyncio.Task[Any]] = []
+        self.stopped_by: int | None = None  # the signal that stopped the server: the exit code says it
+
+    def _on_signal(self, signum: int) -> None:
+        self.stopped_by = self.stopped_by or signum
+        self.request_exit()
 
     def request_exit(self) -> None:
         """Ctrl-C or SIGTERM: end every app's group now (SIGKILL after TERM_S), then stop serving."""
@@ -126,6 +131,10 @@ class StationServer(Server):
 
     async def on_startup(self, app: Any) -> None:
         await super().on_startup(app)
+        # In place of textual-serve's handlers (set in serve()), to know which signal it was: 130 or 143.
+        loop = asyncio.get_running_loop()
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(signum, self._on_signal, signum)
         self.console.print(
             "Each browser tab starts its own station view: the page shows textual-serve's splash "
             "for a few seconds while it starts.",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -60,8 +61,10 @@ def run_live_station(
         from console.tui.served import StationServer
 
         argv = served_command(layout, live, seed, speed, replay, files)
-        StationServer(argv, host=host, port=port, title="trackside station").serve()
-        return exit_codes.OK
+        server = StationServer(argv, host=host, port=port, title="trackside station")
+        server.serve()
+        stopped = {signal.SIGINT: exit_codes.INTERRUPTED, signal.SIGTERM: exit_codes.TERMINATED}
+        return stopped.get(server.stopped_by, exit_codes.OK)  # type: ignore[call-overload]
     if not (sys.stdin.isatty() and sys.stdout.isatty()) and WEB_DRIVER_ENV not in os.environ:
         raise fail("the station view needs a terminal: run it without pipes or redirection (or use --serve)")
     from console.cli.commands.follow import metrics_sink
