@@ -388,3 +388,21 @@ def test_an_archive_is_never_made_among_other_files(tmp_path: Path) -> None:
     assert invoke("ingest", "--archive", empty, SMALL_LOG).returncode == 0
     assert invoke("ingest", "--archive", empty, STATION_LOG).returncode == 0  # an archive already: added to
     assert (empty / "CURRENT").is_file()
+
+
+def test_ingest_says_what_it_holds_back_after_the_last_line_end(tmp_path: Path) -> None:
+    """A log still being written ends mid-line: that line waits for the file to grow, and ingest says so."""
+    lines = SMALL_LOG.read_bytes().splitlines(keepends=True)
+    log = tmp_path / "growing.log"
+    log.write_bytes(b"".join(lines[:-1]) + lines[-1].rstrip(b"\r\n"))
+    arc = tmp_path / "arc"
+    res = invoke("ingest", "--archive", arc, log, "--json")
+    assert res.returncode == 0, res.stderr
+    (f,) = json.loads(res.stdout)["files"]
+    assert (f["records"], f["held_back_bytes"]) == (len(lines) - 1, len(lines[-1].rstrip(b"\r\n")))
+    text = invoke("ingest", "--archive", tmp_path / "arc2", log).stdout.decode()
+    assert f"{f['held_back_bytes']} bytes after the last line end held back" in text
+    with log.open("ab") as out:  # the line ends: the next ingest takes it
+        out.write(b"\n")
+    (f,) = json.loads(invoke("ingest", "--archive", arc, log, "--json").stdout)["files"]
+    assert (f["action"], f["records"], f["held_back_bytes"]) == ("grown", 1, 0)

@@ -66,6 +66,9 @@ class FileOutcome:
     records: int = 0
     rejected: int = 0
     bytes_read: int = 0
+    # Bytes after the last line end, not read yet: an unfinished line (a log still being written), read
+    # once the file grows; or a file whose lines end in CR alone, which the archive does not take.
+    held_back_bytes: int = 0
 
 
 @dataclass
@@ -266,6 +269,8 @@ class _Ingest:
     ) -> FileOutcome:
         """The ledger entry and the ingest's row of a file read (or queued for the cluster)."""
         outcome.bytes_read = p.end - p.start
+        if kind == DIAGNOSTIC:
+            outcome.held_back_bytes = max(0, s.size - p.end)
         e["bytes"] = s.complete_bytes
         e["sha256"] = s.sha256
         e["complete_sha256"] = s.complete_sha256

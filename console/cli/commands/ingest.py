@@ -178,8 +178,15 @@ def _print_summary(summary: object) -> None:
     rate = summary.records / summary.seconds if summary.seconds > 0 else 0.0
     for f in summary.files:
         if f.action in ("new", "grown", "replace"):
+            held = (
+                f"; {count(f.held_back_bytes, 'byte')} after the last line end held back"
+                " (an unfinished line, read when the file grows; lines that end in CR alone are not taken)"
+                if f.held_back_bytes
+                else ""
+            )
             lines.append(
                 f"added    {clean(f.path)}: {count(f.records, 'record')}, {f.rejected} rejected ({clean(f.note)})"
+                + held
             )
         elif f.kind == "layout":
             lines.append(f"layout   {clean(f.path)}: {clean(f.note)}")
