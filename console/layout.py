@@ -44,6 +44,9 @@ UP_ORDERS = {2: ("sys1_to_sys2", "sys2_to_sys1"), 3: ("s1_to_s3", "s3_to_s1")}
 _KP = re.compile(r"^(\d+)\+(\d{3})$")
 
 
+DEFAULT_SPACING_M = 0.13
+
+
 class LayoutError(ValueError):
     """A layout file that cannot be used, with the place and the fix."""
 
@@ -52,7 +55,7 @@ class LayoutError(ValueError):
 class CountingHead:
     id: str  # as in the log's Trackinfo
     chainage_m: float
-    spacing_m: float = 0.13  # Sys1–Sys2 (or element) spacing
+    spacing_m: float = DEFAULT_SPACING_M  # Sys1–Sys2 (or element) spacing
     channels: int = 2
     up: str = "sys1_to_sys2"
     device_id: int | None = None
@@ -179,6 +182,22 @@ class Layout:
         if reach < hi or not speeds:
             speeds.append(self.line_speed_mps)  # some of the stretch has no limit of its own
         return max(speeds)
+
+    def spacing_m(self) -> float:
+        """The Sys1–Sys2 spacing speeds are computed with: the first head's (the analysis takes one per line;
+        :meth:`spacing_note` says when the heads differ)."""
+        return self.heads[0].spacing_m if self.heads else DEFAULT_SPACING_M
+
+    def spacing_note(self) -> str | None:
+        """A one-line warning when the heads' spacings differ (speeds then use the first head's), else None."""
+        other = [h for h in self.heads if h.spacing_m != self.spacing_m()]
+        if not other:
+            return None
+        return (
+            f"layout {self.source}: counting heads differ in spacing_m ({self.heads[0].id} {self.spacing_m():g} m, "
+            f"{other[0].id} {other[0].spacing_m:g} m); speeds use {self.spacing_m():g} m for every head "
+            "(--spacing sets another)"
+        )
 
     def consist(self, consist_id: str | None = None) -> Consist | None:
         if not self.consists:
@@ -321,7 +340,9 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
             CountingHead(
                 id=r.req(t, "id", p, str),
                 chainage_m=_chainage(r, t, "chainage_m", p),
-                spacing_m=_positive(r, r.get(t, "spacing_m", p, float, 0.13), f"{p}.spacing_m", MAX_SPACING_M),
+                spacing_m=_positive(
+                    r, r.get(t, "spacing_m", p, float, DEFAULT_SPACING_M), f"{p}.spacing_m", MAX_SPACING_M
+                ),
                 channels=channels,
                 up=up,
                 device_id=_device_id(r, t, p),

@@ -225,3 +225,22 @@ def test_simulate_with_a_bad_layout_exits_2_with_one_line(tmp_path: Path) -> Non
     lines = res.output.strip().splitlines()
     assert len(lines) == 1 and "track[0].lat" in lines[0] and str(p) in lines[0]
     assert "internal error" not in res.output
+
+
+def test_heads_that_differ_in_spacing_are_warned_of_not_silently_given_the_first(tmp_path: Path) -> None:
+    """Speeds take one Sys1-Sys2 spacing per line (the first head's): a layout whose heads differ says so."""
+    from typer.testing import CliRunner
+
+    from console.cli.app import app
+    from console.layouts import __file__ as layouts_init
+
+    text = Path(layouts_init).with_name("example_station.toml").read_text(encoding="utf-8")
+    assert text.count("spacing_m = 0.13") >= 2
+    mixed = tmp_path / "mixed.toml"
+    mixed.write_text(text.replace("spacing_m = 0.13", "spacing_m = 0.2", 1), encoding="utf-8")
+    log = str(Path(layouts_init).parents[2] / "sample_logs" / "example_station.log")
+    res = CliRunner().invoke(app, ["analyze", log, "--layout", str(mixed)])
+    assert res.exit_code == 0, res.output
+    assert "counting heads differ in spacing_m (WS1 0.2 m, WS2 0.13 m); speeds use 0.2 m" in res.stderr
+    same = CliRunner().invoke(app, ["analyze", log, "--layout", "example"])
+    assert same.exit_code == 0 and "warning" not in same.stderr

@@ -431,6 +431,12 @@ def load_layout(spec: str) -> Any:
     from console.layout import LayoutError, load_layout
 
     try:
-        return load_layout(spec)
+        lay = load_layout(spec)
     except LayoutError as exc:
         raise fail(str(exc)) from None
+    note = lay.spacing_note()
+    if note is not None:
+        from console.safe_text import clean
+
+        sys.stderr.write(f"trackside: warning: {clean(note)}\n")
+    return lay

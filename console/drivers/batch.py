@@ -336,9 +336,7 @@ def speed_settings(
     """Line facts from the layout unless given: the first head's spacing, the first consist's length."""
     consist = layout.consist()
     return SpeedSettings(
-        spacing_m=spacing_m
-        if spacing_m is not None
-        else (layout.heads[0].spacing_m if layout.heads else SpeedSettings.spacing_m),
+        spacing_m=spacing_m if spacing_m is not None else layout.spacing_m(),
         train_length_m=train_length_m if train_length_m is not None else (consist.length_m if consist else 28.6),
         idle_gap_s=idle_gap_s,
     )

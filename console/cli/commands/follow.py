@@ -184,7 +184,7 @@ def follow(
                 out.write(_line(ev) + "\n")
             out.flush()  # a reader downstream sees each event at once
 
-        spacing = lay.heads[0].spacing_m if lay and lay.heads else 0.13
+        spacing = lay.spacing_m() if lay else SpeedSettings.spacing_m
         consist = lay.consist() if lay else None
         settings = SpeedSettings(spacing, consist.length_m if consist else 28.6, idle_gap)
         try:

@@ -166,7 +166,7 @@ def sections(
             power_gap_s=power_gap if power_gap is not None else lay.power_gap_s,
         )
         settings = PipelineSettings(
-            speed=SpeedSettings(spacing_m=lay.heads[0].spacing_m, train_length_m=28.6, idle_gap_s=10.0),
+            speed=SpeedSettings(spacing_m=lay.spacing_m(), train_length_m=28.6, idle_gap_s=10.0),
             events=events,
             layout=lay,
             sections=lay,

@@ -124,7 +124,7 @@ def collect(
 
     consist = layout.consist() if layout is not None else None
     settings = SpeedSettings(
-        spacing_m=layout.heads[0].spacing_m if layout is not None and layout.heads else SpeedSettings.spacing_m,
+        spacing_m=layout.spacing_m() if layout is not None else SpeedSettings.spacing_m,
         train_length_m=consist.length_m if consist is not None else SpeedSettings.train_length_m,
     )
     data = ReportData(inputs=rows, layout=layout, settings=settings, warnings=warnings)
