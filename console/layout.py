@@ -45,6 +45,8 @@ _KP = re.compile(r"^(\d+)\+(\d{3})$")
 
 
 DEFAULT_SPACING_M = 0.13
+# A layout of a whole network is some hundred kB; a bound keeps a device or a pipe from filling memory.
+MAX_LAYOUT_BYTES = 16 * 2**20
 
 
 class LayoutError(ValueError):
@@ -508,7 +510,12 @@ def load_layout(spec: str | Path) -> Layout:
         if path.is_dir():
             raise LayoutError(f"{path}: is a directory, expected a layout .toml file")
         try:
-            text = path.read_text(encoding="utf-8")
+            # Read up to a bound: a device or a pipe (--layout /dev/zero) must not fill memory.
+            with path.open("rb") as f:
+                raw = f.read(MAX_LAYOUT_BYTES + 1)
+            if len(raw) > MAX_LAYOUT_BYTES:
+                raise LayoutError(f"{path}: over {MAX_LAYOUT_BYTES // 2**20} MiB, not a layout file")
+            text = raw.decode("utf-8-sig")  # an editor's byte-order mark is no TOML
         except (OSError, UnicodeDecodeError) as exc:
             raise LayoutError(f"{path}: cannot read ({exc})") from None
         source = str(path)

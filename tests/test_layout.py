@@ -244,3 +244,14 @@ def test_heads_that_differ_in_spacing_are_warned_of_not_silently_given_the_first
     assert "counting heads differ in spacing_m (WS1 0.2 m, WS2 0.13 m); speeds use 0.2 m" in res.stderr
     same = CliRunner().invoke(app, ["analyze", log, "--layout", "example"])
     assert same.exit_code == 0 and "warning" not in same.stderr
+
+
+def test_a_layout_from_a_device_is_bounded_and_a_byte_order_mark_is_read(tmp_path: Path) -> None:
+    from console.layouts import __file__ as layouts_init
+
+    with pytest.raises(LayoutError, match="over 16 MiB, not a layout file"):
+        load_layout("/dev/zero")  # read without end: refused at the bound, memory stays small
+    text = Path(layouts_init).with_name("example_station.toml").read_bytes()
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + text)  # as some editors save
+    assert [h.id for h in load_layout(bom).heads] == [h.id for h in load_layout("example").heads]
