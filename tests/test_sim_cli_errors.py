@@ -29,3 +29,20 @@ def test_simulate_on_a_layout_without_consists_is_a_usage_error(tmp_path: Path) 
     assert "needs [[consists]]" in result.output
     assert "internal error" not in result.output
     assert not (tmp_path / "run").exists()
+
+
+def test_fault_rates_and_times_out_of_range_are_one_line_usage_errors(tmp_path: Path) -> None:
+    for fault, says in (
+        ("analog_drift:WS3:0s::1:1e308", "at most 10000 counts/day"),
+        ("disturbance_growth:WS3:0s::1:1e308", "at most 10000 per hour, each day"),
+        ("disturbance_growth:WS3:0s::1:nan", "rate must be above 0"),
+        ("gnss_decay:T1-eot:0s::1:2", "at most 1 share/day"),
+        ("dead_channel:WS3:5m:1m", "END must come after START"),
+    ):
+        result = CliRunner().invoke(
+            app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "20m", "--fault", fault]
+        )
+        assert result.exit_code == 2, (fault, result.output)
+        assert says in result.stderr and result.stderr.count("\n") == 1, result.stderr
+        assert "internal error" not in result.output
+        assert not (tmp_path / "run").exists()

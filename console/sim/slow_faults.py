@@ -263,7 +263,14 @@ def threshold_crossings(
     return out
 
 
+# The largest rate each kind takes: far past any wear a forecast could follow (an analog value of some 2400
+# counts gone in a quarter of a day; 10,000 more disturbances an hour each day), and small enough that ten
+# years of it stay numbers the registers and the generator can hold.
+MAX_RATES = {"analog_drift": 10_000.0, "disturbance_growth": 10_000.0, "gnss_decay": 1.0}
+
+
 def check_rate(kind: str, rate: float) -> None:
     """A rate the kind can use (ValueError otherwise)."""
-    if not math.isfinite(rate) or rate <= 0 or (kind == "gnss_decay" and rate > 1):
-        raise ValueError(f"{kind}: rate must be above 0{' and at most 1' if kind == 'gnss_decay' else ''}")
+    top = MAX_RATES.get(kind, 1.0)
+    if not math.isfinite(rate) or rate <= 0 or rate > top:
+        raise ValueError(f"{kind}: rate must be above 0 and at most {top:g} {RATE_UNITS.get(kind, '')}".rstrip())

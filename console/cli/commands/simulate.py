@@ -28,6 +28,8 @@ def _parse_fault(text: str) -> Any:
     try:
         start = parse_duration(parts[2])
         end = parse_duration(parts[3]) if len(parts) > 3 and parts[3] else float("inf")
+        if end <= start:
+            raise ValueError("END must come after START (a fault repaired before it begins never shows)")
         channel = int(parts[4]) if len(parts) > 4 and parts[4] else 2
         if channel not in (1, 2):
             raise ValueError(f"channel must be 1 or 2, found {channel}")
