@@ -185,3 +185,19 @@ def test_times_in_the_box_are_iso_utc_with_z_like_every_other_output(archive: Pa
     for text in ("2026-03-02T08:00:13.250125001Z", "2026-03-02T08:00:13.500Z", "2026-03-02T08:00:00.000Z"):
         assert text in out, out
     assert "9999-01-01T00:00:00.000000Z" in out
+
+
+def test_csv_text_is_inert_like_the_table(tmp_path: Path) -> None:
+    """A file named with a terminal escape and a bidi override: the CSV says it escaped, never raw."""
+    from tests.conftest import SAMPLES
+
+    log = tmp_path / "esc\x1b[2J\u202ename.log"
+    log.write_bytes((SAMPLES / "ws4_subsecond.log").read_bytes())
+    arc = tmp_path / "arc"
+    assert CliRunner().invoke(app, ["ingest", "--archive", str(arc), str(log)]).exit_code == 0
+    res = CliRunner().invoke(
+        app, ["query", "--archive", str(arc), "SELECT DISTINCT file FROM records", "--format", "csv"]
+    )
+    assert res.exit_code == 0, res.output
+    assert "\x1b" not in res.stdout and "\u202e" not in res.stdout
+    assert "esc\\x1b[2J\\u202ename.log" in res.stdout

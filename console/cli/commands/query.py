@@ -13,6 +13,7 @@ import typer
 from console import exit_codes
 from console.cli.commands.ingest import ArchiveOpt
 from console.cli.common import fail, guard
+from console.safe_text import clean
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -218,8 +219,10 @@ def _emit(names: list[str], rows: list[tuple[Any, ...]] | list[tuple[str, str, s
     if fmt == "csv":
         w = csv.writer(out, lineterminator="\n")
         w.writerow(names)
+        # Text values inert, as in the table: a log line's or a file name's escape sequences and bidi
+        # overrides must not act on the terminal or the spreadsheet that shows the CSV (JSON escapes C0 itself).
         for r in rows:
-            w.writerow(["" if v is None else v for v in r])
+            w.writerow(["" if v is None else clean(v) if isinstance(v, str) else v for v in r])
     elif fmt == "json":
         json.dump([dict(zip(names, r, strict=True)) for r in rows], out, ensure_ascii=False, default=str)
         out.write("\n")
