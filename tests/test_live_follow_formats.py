@@ -639,3 +639,19 @@ def test_a_big_file_read_here_is_handed_on_in_pieces_while_it_is_read(tmp_path: 
     size = log.stat().st_size
     assert len(set(seen)) >= size // (64 << 10)  # one count per piece, not one per 1 MiB read
     assert src.message_count == 2 * 5 * 3600
+
+
+def test_follow_counts_a_runaway_line_as_one_line_as_a_batch_read_does(tmp_path: Path) -> None:
+    """A 9 MB line (over the 4 MB a line may be) among records: one rejected line in follow, as in analyze."""
+    good = (SAMPLES / "ws4_subsecond.log").read_bytes().splitlines(keepends=True)
+    log = tmp_path / "runaway.log"
+    log.write_bytes(b"".join(good[:3]) + b"A" * (9 << 20) + b"\n" + b"BADLINE\n" + b"".join(good[3:6]))
+    out = subprocess.run(
+        trackside("follow", f"file:{log}", "--from-start", "--jsonl", "--idle-exit", "1"),
+        capture_output=True,
+        text=True,
+        timeout=90,
+    )
+    assert out.returncode == 0, out.stderr
+    (f,) = json.loads(out.stdout.splitlines()[-1])["files"]
+    assert (f["lines_read"], f["records"], f["rejected"]) == (8, 6, 2)

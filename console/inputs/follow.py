@@ -52,6 +52,7 @@ class FileSource(Source):
         self._pos = 0
         self._line = 1
         self._carry = b""
+        self._overlong = False  # inside a runaway line whose start was handed over
         self._head = b""  # first bytes of the current file, to recognise its copy
         self._tail = b""  # last bytes read, to notice truncate-and-regrow
         self._generation = 0
@@ -168,6 +169,7 @@ class FileSource(Source):
         self._fd, self._ident = fd, (st.st_dev, st.st_ino)
         self._generation += 1
         self._pos, self._line, self._carry, self._tail = 0, 1, b"", b""
+        self._overlong = False
         self._head = os.pread(fd, SIGNATURE_BYTES, 0)
         skipped = b""
         if first and not self.from_start:
@@ -257,12 +259,19 @@ class FileSource(Source):
             self._deliver(block)
 
     def _deliver(self, block: bytes) -> None:
+        if self._overlong:
+            # The rest of a runaway line already handed over (as one line, as a batch read counts it).
+            nl = block.find(b"\n")
+            if nl < 0:
+                return
+            self._overlong, block = False, block[nl + 1 :]
         data = self._carry + block if self._carry else block
         cut = data.rfind(b"\n") + 1
         if cut == 0:
             self._carry = data
             if len(data) > MAX_LINE_BYTES:  # a runaway line: hand it over, the parser rejects it
                 self._flush_carry("overlong")
+                self._overlong = True
             return
         self._carry = data[cut:]
         self._emit(data[:cut])
