@@ -46,3 +46,15 @@ def test_fault_rates_and_times_out_of_range_are_one_line_usage_errors(tmp_path: 
         assert says in result.stderr and result.stderr.count("\n") == 1, result.stderr
         assert "internal error" not in result.output
         assert not (tmp_path / "run").exists()
+
+
+def test_the_summary_says_what_each_file_holds_in_words(tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    result = CliRunner().invoke(app, ["simulate", "-o", str(run), "--duration", "20m"])
+    assert result.exit_code == 0, result.output
+    out = result.stdout
+    assert "{" not in out and "'" not in out  # no Python dict shown
+    assert f"{run / 'diagnostic.log'}: " in out and " lines" in out
+    assert f"{run / 'nmea'}/: T1-head " in out and " fixes" in out
+    for name in ("gnss_devices.csv", "layout.toml"):
+        assert str(run / name) in out and (run / name).is_file()

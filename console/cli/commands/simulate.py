@@ -284,8 +284,8 @@ def simulate(
                 f" GNSS every {sim.period_s:.1f} s (LoRa SF{spreading_factor})",
                 markup=False,
             )
-            for name, n in counts.items():
-                out.print(f"  {show_path(output / name)}: {n}", markup=False)
+            for line in _written_lines(output, counts):
+                out.print(line, markup=False)
             for sid, st in sim_sections.items():
                 out.print(
                     f"  section {sid}: console {st['console']}, axles really inside {st['true_count']}", markup=False
@@ -293,6 +293,33 @@ def simulate(
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
+
+
+# What each count of a written file counts.
+_UNITS = {"diagnostic.log": "line", "centre.tsv": "row", "sensor_frames.txt": "frame"}
+
+
+def _written_lines(output: Path, counts: dict[str, Any]) -> list[str]:
+    """The run's files, each with what it holds in words (``--json`` has the counts as they are)."""
+    from console.plural import count
+    from console.safe_text import show_path
+
+    lines = []
+    for name, n in counts.items():
+        where = show_path(output / name)
+        if name == "nmea":
+            units = ", ".join(f"{dev} {count(k, 'fix')}" for dev, k in n.items())
+            lines.append(f"  {where}/: {units or 'no fix (no train reported in time)'}")
+        elif name == "truth.json":
+            lines.append(
+                f"  {where}: the truth ({count(n.get('axles', 0), 'axle passage')}, "
+                f"{count(n.get('crossings', 0), 'train at a crossing', 'trains at a crossing')})"
+            )
+        else:
+            lines.append(f"  {where}: {count(n, _UNITS.get(name, 'item'))}")
+    for extra in sorted(p.name for p in output.iterdir() if p.is_file() and p.name not in counts):
+        lines.append(f"  {show_path(output / extra)}")  # the layout used, the GNSS units' export
+    return lines
 
 
 def _run_days(
