@@ -285,7 +285,7 @@ def simulate(
                 markup=False,
             )
             for line in _written_lines(output, counts):
-                out.print(line, markup=False)
+                out.print(line, markup=False, soft_wrap=True)  # a path is not cut across lines
             for sid, st in sim_sections.items():
                 out.print(
                     f"  section {sid}: console {st['console']}, axles really inside {st['true_count']}", markup=False
