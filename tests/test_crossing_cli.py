@@ -251,3 +251,20 @@ def test_crossing_reads_a_file_with_one_rejected_line_and_counts_it(samples: Pat
     assert report["rejected"] == 1 and [r["line"] for r in report["rejections"]] == [11]
     assert report["records"] == len(lines) - 2 and report["records"] + report["blank"] + 1 == report["lines_read"]
     assert doc["timelines"] and doc["violations"] == 0
+
+
+def test_the_spare_parts_shown_add_up_to_the_spare_shown() -> None:
+    import re
+
+    from typer.testing import CliRunner
+
+    from console.cli.app import app
+    from tests.conftest import SAMPLES
+
+    res = CliRunner().invoke(app, ["crossing", str(SAMPLES / "crossing_example.csv"), "--layout", "example"])
+    assert res.exit_code == 0, res.output
+    text = " ".join(res.stdout.split())  # the table may wrap a line
+    found = re.findall(r"spare (\d+) s = physics (\d+) s \+ doubt (-?\d+) s", text)
+    assert len(found) >= 2
+    for spare, physics, doubt in found:
+        assert int(spare) == int(physics) + int(doubt)

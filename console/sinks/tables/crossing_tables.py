@@ -108,9 +108,10 @@ def spare_text(r: TimelineRow) -> str | None:
     sp = r.spare
     text = f"lead {r.lead_s:.0f} s, {r.warning_time_s:g} s required"
     if sp.spare_s >= 0:
-        doubt = sum(sp.doubt_s.values())
         causes = ", ".join(f"{k} {v:.0f} s" for k, v in sorted(sp.doubt_s.items(), key=lambda kv: -kv[1]) if v >= 0.5)
-        text += f": spare {sp.spare_s:.0f} s = physics {sp.physics_s:.0f} s + doubt {doubt:.0f} s"
+        # Whole seconds that add up as shown (170.4 + 11.4 = 181.8 reads 182 = 170 + 12, not + 11).
+        spare, physics = round(sp.spare_s), round(sp.physics_s)
+        text += f": spare {spare} s = physics {physics} s + doubt {spare - physics} s"
         text += f" ({causes})" if causes else ""
     if r.released:
         text += f"; released {r.released}× before it arrived (proven out of reach)"
