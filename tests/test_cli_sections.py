@@ -121,3 +121,13 @@ def test_analyze_with_layout_adds_sections_and_health(samples: Path) -> None:
     kinds = [p["kind"] for p in doc["passages"]]
     assert kinds.count("train") == 4 * 5  # four trains past five heads
     assert kinds.count("damping") == 1  # the lone WS2 damping at 10:30: not a train
+
+
+def test_a_reset_count_beside_totals_since_the_log_began_is_explained(samples: Path) -> None:
+    log = str(samples / "example_station.log")
+    reset = runner.invoke(app, ["sections", log, "--layout", "example", "--reset", "B1@2026-03-02T09:30"])
+    assert reset.exit_code == 0, reset.output
+    b1 = next(line.split() for line in reset.stdout.splitlines() if line.split()[:1] == ["B1"])
+    count, n_in, n_out = (int(x) for x in b1[3:6])
+    assert count != n_in - n_out  # the reset restarted the count, not the totals
+    assert "In, Out: axles since the log began; Count: since the last sweep or reset" in reset.stdout

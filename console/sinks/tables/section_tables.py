@@ -50,6 +50,9 @@ def final_states_view(final: dict[str, tuple[str, int, int, int, str]]) -> Table
         t.add_column(c, justify="right" if c in ("Count", "In", "Out") else "left")
     for sid, (state, count, n_in, n_out, reason) in final.items():
         t.add_row(inert(sid), state_text(state), Text(str(count)), Text(str(n_in)), Text(str(n_out)), inert(reason))
+    if any(count != n_in - n_out for _, count, n_in, n_out, _ in final.values()):
+        # A reset or a sweep restarts the count; In and Out keep every axle since the log began.
+        t.caption = "In, Out: axles since the log began; Count: since the last sweep or reset"
     return t
 
 
