@@ -258,9 +258,9 @@ def fixes_table(fixes: pd.DataFrame | FixColumns, limit: int = FIXES_SHOWN) -> T
     if n > limit:
         notes.append(f"first {limit:,} of {n:,} fixes; --json has all")
     if len(files) == 1:
-        notes.append(f"file {files[0]}")
+        notes.append(f"Line: the line of {files[0]}")
     elif files:
-        notes.append("files " + ", ".join(f"{i} = {name}" for name, i in file_no.items()))
+        notes.append("Line: file:line, files " + ", ".join(f"{i} = {name}" for name, i in file_no.items()))
     if notes:
         t.caption = inert("; ".join(notes))  # file names are log text: never markup
         t.caption_justify = "left"
