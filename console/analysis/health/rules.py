@@ -245,7 +245,7 @@ def _judge_band(
     settings: BandSettings,
 ) -> Finding:
     where = _where(head, channel)
-    band = f"{low:.0f}–{high:.0f} ({origin})"
+    band = f"{low:.0f}–{high:.0f} counts ({origin})"  # the receiver's raw reading (Analogwert), no unit beyond
     below, above = values < low, values > high
     out = below | above
     n, n_out = len(values), int(out.sum())
@@ -255,7 +255,7 @@ def _judge_band(
             "analog_band",
             head,
             channel,
-            f"{where}: all {n} analog values within {band}, median {np.median(values):.0f}.",
+            f"{where}: all {n} analog values within {band}, median {np.median(values):.0f} counts.",
         )
     distance = np.where(below, low - values, values - high)
     worst = int(np.argmax(distance))
@@ -273,7 +273,7 @@ def _judge_band(
             head,
             channel,
             f"{where}: analog value has drifted {side} its band {band}: {how} "
-            f"({n_out} of {n}), latest {values[-1]:.0f}, furthest {values[worst]:.0f}, first out at "
+            f"({n_out} of {n}), latest {values[-1]:.0f}, furthest {values[worst]:.0f} counts, first out at "
             f"{iso(int(times[first]))}; inspect the sensor's mounting, cable and rail clearance and "
             "readjust or replace it before it stops detecting.",
             float(values[worst]),
