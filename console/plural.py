@@ -6,7 +6,7 @@ finding is never "1 findings".
 
 from __future__ import annotations
 
-_IRREGULAR = {"fix": "fixes", "passage of status records only": "passages of status records only"}
+_IRREGULAR = {"fix": "fixes"}
 
 
 def plural(n: int | float, noun: str, nouns: str | None = None) -> str:

@@ -50,7 +50,7 @@ def test_follow_summary_counts_are_singular_for_one() -> None:
     assert first.startswith(
         "followed: 1 passage, 1 section change, 1 crossing event, 1 integrity change, 1 health finding;"
     )
-    assert "1 passage of status records only not listed" in first
+    assert "1 status-only record burst (no wheel onset) not listed" in first
     assert file_line.strip() == "a.log: 1 line = 1 record + 1 blank + 1 rejected"
     assert "1 message, 1 lost, 1 malformed, 1 duplicate" in source_line
 

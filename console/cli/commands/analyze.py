@@ -160,7 +160,7 @@ def analyze(
                 )
             if job.status is not None and job.status.passages.sum():
                 notes.append(
-                    f"{count(int(job.status.passages.sum()), 'passage of status records only')} (no wheel onset)"
+                    f"{count(int(job.status.passages.sum()), 'status-only record burst')} (no wheel onset)"
                     " not listed;"
                     " --include-status lists them"
                 )

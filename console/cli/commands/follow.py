@@ -83,7 +83,7 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
     if summary.get("status_only_passages"):
         n = summary["status_only_passages"]
         # Not "of them": the passages counted above exclude these.
-        out[0] += f"; {count(n, 'passage of status records only')} not listed (--include-status lists them)"
+        out[0] += f"; {count(n, 'status-only record burst')} (no wheel onset) not listed (--include-status lists them)"
     for f in summary["files"]:
         out.append(
             clean(
