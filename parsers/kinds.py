@@ -66,7 +66,9 @@ DESCRIPTIONS: Final = {
     "unknown": "no format trackside reads",
 }
 
-HEAD_BYTES: Final = 64 * 1024
+# Enough for a banner or a long run of comments before the first record (a preamble of 3,000 lines, a
+# 70 kB line of junk), and still a moment's read.
+HEAD_BYTES: Final = 1024 * 1024
 _NMEA_RE = re.compile(rb"[$!][A-Z][A-Z0-9]{4},")
 _CANDUMP_RE = re.compile(rb"\(\d+(?:\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
 _TRC_RECORD_RE = re.compile(rb"^\d+\)\s+\d")  # a PEAK trace's message: number, time (TRC 1.0 has no $ header)
@@ -119,7 +121,8 @@ def classify_head(head: bytes) -> KindGuess:
     lowered = head[:4096].lower()
     if b"<gpx" in lowered and (first.startswith(b"<") or lowered.lstrip().startswith(b"<?xml")):
         return KindGuess("gpx", "a <gpx> document")
-    if first.startswith(b"Diag_id:"):
+    if first.startswith(b"Diag_id:") or any(line.startswith(b"Diag_id:") for line in lines[1:]):
+        # Records after a banner or junk lines: the parser rejects those lines one by one, with their reason.
         return KindGuess("diag", "lines of Diag_id:… records")
     if _CANDUMP_RE.match(first) or _ASC_RE.match(first) or first.startswith(b";$FILEVERSION"):
         return KindGuess("can", "CAN log lines")

@@ -120,3 +120,31 @@ def test_an_empty_log_is_still_zero_records_not_an_error(tmp_path: Path) -> None
     empty.write_bytes(b"")
     result = runner.invoke(app, ["analyze", str(empty), "--json"])
     assert result.exit_code == 0, result.output
+
+
+def test_records_after_a_banner_or_a_long_preamble_are_recognised(tmp_path: Path) -> None:
+    """An export that opens with a banner, 3,000 lines of junk or a 70 kB line: its records are still read,
+    and every line before them is rejected with its reason (the totals add up)."""
+    import json
+
+    from tests.conftest import SAMPLES
+
+    records = (SAMPLES / "ws4_subsecond.log").read_bytes()
+    n = records.count(b"\n")
+    for name, preamble, junk in (
+        ("banner.log", b"ACS export 2015-10-31\nboard 4083\n", 2),
+        ("preamble.log", b"".join(b"junk line %d\n" % i for i in range(3000)), 3000),
+        ("longline.log", b"X" * 70_000 + b"\n", 1),
+    ):
+        log = tmp_path / name
+        log.write_bytes(preamble + records)
+        res = CliRunner().invoke(app, ["analyze", str(log), "--json"])
+        assert res.exit_code == 0, (name, res.output)
+        (f,) = json.loads(res.stdout)["parse_report"]["files"]
+        assert (f["lines_read"], f["records"], f["rejected"]) == (n + junk, n, junk), name
+    # An NMEA capture after 3,000 comment lines is GNSS, not "an empty file".
+    nmea = tmp_path / "late.nmea"
+    nmea.write_bytes(b"# comment\n" * 3000 + b"$GPRMC,123519,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W*6A\n")
+    res = CliRunner().invoke(app, ["gnss", str(nmea), "--json"])
+    assert res.exit_code == 0, res.output
+    assert len(json.loads(res.stdout)["fixes"]) == 1
