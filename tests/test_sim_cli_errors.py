@@ -58,3 +58,11 @@ def test_the_summary_says_what_each_file_holds_in_words(tmp_path: Path) -> None:
     assert f"{run / 'nmea'}/: T1-head " in out and " fixes" in out
     for name in ("gnss_devices.csv", "layout.toml"):
         assert str(run / name) in out and (run / name).is_file()
+
+
+def test_a_duration_past_two_days_points_to_days(tmp_path: Path) -> None:
+    for duration in ("99999999d", "3d", "0s"):
+        result = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "run"), "--duration", duration])
+        assert result.exit_code == 2, (duration, result.output)
+        assert "between 1s and 2d (longer runs: --days N" in result.stderr and result.stderr.count("\n") == 1
+    assert not (tmp_path / "run").exists()

@@ -188,6 +188,9 @@ def simulate(
             health_period = None if health_every is None else parse_duration(health_every)
         except ValueError as exc:
             raise fail(f"--duration/--health-every: {exc}") from None
+        if days is None and not 0 < seconds <= MAX_DURATION_S and not (live or mqtt):
+            # The stepped run keeps its whole truth until it writes: longer runs go a day at a time (--days).
+            raise fail("--duration: between 1s and 2d (longer runs: --days N, written a day at a time)")
         if health_period is not None and not 1 <= health_period <= 86_400:
             raise fail("--health-every: between 1s and 1d")
         if days is None and (one_log or health_only):
@@ -295,6 +298,7 @@ def simulate(
     raise typer.Exit(guard(body))
 
 
+MAX_DURATION_S = 2 * 86_400.0
 # What each count of a written file counts.
 _UNITS = {"diagnostic.log": "line", "centre.tsv": "row", "sensor_frames.txt": "frame"}
 
