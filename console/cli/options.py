@@ -40,7 +40,10 @@ JsonlOpt = Annotated[
 ]
 IncludeStatusOpt = Annotated[
     bool,
-    typer.Option("--include-status", help="List the status-only record bursts (no wheel onset) as passages (default: counted per head)."),
+    typer.Option(
+        "--include-status",
+        help="List the status-only record bursts (no wheel onset) as passages (default: counted per head).",
+    ),
 ]
 RejectedAllOpt = Annotated[
     bool, typer.Option("--rejected-all", help="List every rejected line (default: all counted, the first 100 listed).")
