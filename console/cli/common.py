@@ -42,6 +42,7 @@ def check_inputs(paths: list[Path]) -> None:
     dangling symlink or a symlink loop is refused with its own reason.
     """
     stdin_given = False
+    seen: dict[tuple[int, int], Path] = {}  # a file given twice would be read twice (its fixes, frames doubled)
     for p in paths:
         if os.fsdecode(p) == STDIN:
             if stdin_given:
@@ -63,6 +64,11 @@ def check_inputs(paths: list[Path]) -> None:
             raise fail(f"{show_path(p)}: is a socket, expected a log file")
         if not os.access(p, os.R_OK):
             raise fail(f"{show_path(p)}: permission denied")
+        if stat.S_ISREG(st.st_mode):
+            first = seen.setdefault((st.st_dev, st.st_ino), p)
+            if first is not p:
+                same = "" if os.fsdecode(first) == os.fsdecode(p) else f" (the same file as {show_path(first)})"
+                raise fail(f"{show_path(p)}: given twice{same}")
 
 
 # Errors that mean the output cannot be written (not that an input is bad: the
