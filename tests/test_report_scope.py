@@ -118,3 +118,19 @@ def test_the_report_says_its_window_and_refuses_an_empty_one(archive: Path) -> N
             res = runner.invoke(app, [*command, *window])
             assert res.exit_code == 2, res.output
             assert res.stderr.count("\n") == 1 and "is not before to" in res.stderr
+
+
+def test_a_scoped_report_warns_only_of_its_own_heads(tmp_path: Path) -> None:
+    """The README's archive: the Osong logs' WS4/WS5 devices differ from the example layout's; a report on WS2
+    does not carry those warnings, nor the GNSS one (it judges no crossing)."""
+    from tests.conftest import SAMPLES
+
+    arc = tmp_path / "arc"
+    res = runner.invoke(app, ["ingest", str(SAMPLES), "--archive", str(arc), "--layout", "example"])
+    assert res.exit_code == 0, res.output
+    whole = _report(arc)["warnings"]
+    assert any(w.startswith("counting head WS4:") for w in whole)
+    ws2 = _report(arc, "--head", "WS2")["warnings"]
+    assert not any(w.startswith(("counting head WS4", "counting head WS5", "no GNSS")) for w in ws2), ws2
+    ws4 = _report(arc, "--head", "WS4")["warnings"]
+    assert any(w.startswith("counting head WS4:") for w in ws4)

@@ -49,6 +49,16 @@ def describe(window: Window, heads: set[str], bounded: list[str]) -> str:
     return f"{who}: its inputs, findings and the sections it bounds ({', '.join(bounded) or 'none'})"
 
 
+def _about_scope(warning: str, heads: set[str]) -> bool:
+    """Whether a report's warning concerns the scope: one about another counting head does not, nor one about
+    the trains' GNSS units (a scoped report judges no crossing)."""
+    if warning.startswith("no GNSS head or EOT device found"):
+        return False
+    if warning.startswith("counting head "):
+        return warning[len("counting head ") :].split(":", 1)[0] in heads
+    return True
+
+
 def window_text(window: Window) -> str:
     """``--from``/``--to`` as the report says them ("" for the whole archive)."""
     start = "" if window.start is None else f" from {window.start.isoformat(sep=' ')}"
@@ -70,6 +80,7 @@ def scope_report(root: Path, manifest: Manifest, data: ReportData, window: Windo
     data.scope = describe(window, heads, bounded) + when
 
     data.findings = [f for f in data.findings if f.counting_head in heads]
+    data.warnings = [w for w in data.warnings if _about_scope(w, heads)]
     if data.sections is not None:
         data.sections = _cut_sections(data.sections, set(bounded), heads)
         if not bounded:
