@@ -140,6 +140,9 @@ def integrity_settings(s: ControllerSettings) -> IntegritySettings:
     return IntegritySettings(report_period_s=s.report_period_s, latency_s=s.latency_s, stale_after_s=s.stale_after_s)
 
 
+MAX_TRAIN_LENGTH_M = 5000.0  # past the longest freight trains run (about 3.5 km)
+
+
 def parse_train_option(text: str, default_length_m: float) -> TrainDevices:
     """``T1=head1,eot1[,length_m]`` → TrainDevices (ValueError with the reason)."""
     name, sep, rest = text.partition("=")
@@ -152,4 +155,6 @@ def parse_train_option(text: str, default_length_m: float) -> TrainDevices:
             length = float(parts[2])
         except ValueError:
             raise ValueError(f"--train {text!r}: length {parts[2]!r} is not a number") from None
+        if not 0 < length <= MAX_TRAIN_LENGTH_M:  # NaN fails this too
+            raise ValueError(f"--train {text!r}: length {parts[2]!r} m: expected above 0 and at most 5000")
     return TrainDevices(name.strip(), (parts[0],), (parts[1],), length, len(parts) == 3)

@@ -14,11 +14,17 @@ import sys
 from typing import Annotated, Any
 
 import typer
+
+# Typer 0.28 parses with a Click of its own: its usage errors are these (pyproject pins Typer 0.28).
+from typer._click.exceptions import ClickException, UsageError
+from typer.core import TyperCommand, TyperGroup
 from typer.models import CommandInfo
 
-from console import __version__
+from console import __version__, exit_codes
 from console.cli.common import OUTPUT_ERRNOS, exit_at_once, install_process_guards, output_failed
 from console.cli.examples import APP_EXAMPLES, EXAMPLES, epilog
+from console.cli.options import finite_numbers
+from console.safe_text import clean
 
 # The commands, in the order help lists them; each is the function of its name in console.cli.commands.<name>.
 COMMANDS = (
@@ -85,8 +91,53 @@ class _Trackside(typer.Typer):
             raise
 
 
+class _OneLineUsageError(ClickException):
+    """A usage error said in one line (Click writes the usage, a hint and the error: three)."""
+
+    exit_code = exit_codes.USAGE
+
+    def __init__(self, error: UsageError) -> None:
+        super().__init__(error.format_message())
+        self.path = error.ctx.command_path if error.ctx is not None else "trackside"
+
+    def show(self, file: Any = None) -> None:
+        typer.echo(f"trackside: error: {clean(self.message)} (see {self.path} --help)", file=file, err=file is None)
+
+
+def _one_line(error: UsageError) -> UsageError | _OneLineUsageError:
+    # No arguments at all shows the help (no_args_is_help): that one stays as it is.
+    return error if type(error).__name__ == "NoArgsIsHelpError" else _OneLineUsageError(error)
+
+
+class _Command(TyperCommand):
+    """A command whose usage errors (a bad option value, a missing argument) are one line."""
+
+    def make_context(self, info_name: str | None, args: list[str], parent: Any = None, **extra: Any) -> Any:
+        try:
+            return super().make_context(info_name, args, parent=parent, **extra)
+        except UsageError as error:
+            raise _one_line(error) from None
+
+
+class _Group(TyperGroup):
+    """The app's group: its own usage errors (an unknown command or option) one line, as its commands'."""
+
+    def make_context(self, info_name: str | None, args: list[str], parent: Any = None, **extra: Any) -> Any:
+        try:
+            return super().make_context(info_name, args, parent=parent, **extra)
+        except UsageError as error:
+            raise _one_line(error) from None
+
+    def resolve_command(self, ctx: Any, args: list[str]) -> Any:
+        try:
+            return super().resolve_command(ctx, args)
+        except UsageError as error:
+            raise _one_line(error) from None
+
+
 def _new_app() -> _Trackside:
     new = _Trackside(
+        cls=_Group,
         name="trackside",
         help="Terminal console and log analyzer for railway train detection.",
         no_args_is_help=True,
@@ -110,7 +161,8 @@ def _register(target: typer.Typer, names: tuple[str, ...]) -> None:
         module = importlib.import_module(f"console.cli.commands.{name}")
         # A command without examples still works; tests/test_examples.py asks for them.
         examples = EXAMPLES.get(name)
-        target.command(name=name, epilog=epilog(examples) if examples else None)(getattr(module, name))
+        command = finite_numbers(getattr(module, name))
+        target.command(name=name, epilog=epilog(examples) if examples else None, cls=_Command)(command)
 
 
 def _version(value: bool) -> None:
