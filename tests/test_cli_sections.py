@@ -71,7 +71,7 @@ def test_sections_errors_are_exit_2(samples: Path, tmp_path: Path) -> None:
     assert runner.invoke(app, ["sections", log, "--layout", str(tmp_path / "none.toml")]).exit_code == 2
     assert runner.invoke(app, ["sections", log, "--layout", "osong"]).exit_code == 2  # no sections
     res = runner.invoke(app, ["sections", log, "--layout", "example", "--reset", "B1@tomorrow-ish"])
-    assert res.exit_code == 2 and "SECTION@TIME" in res.stderr
+    assert res.exit_code == 2 and "is not a date and time" in res.stderr
     bad = tmp_path / "bad.toml"
     bad.write_text('[[heads]]\nid = "A"\nchainage_m = "x"\n', encoding="utf-8")
     res = runner.invoke(app, ["sections", log, "--layout", str(bad)])
@@ -131,3 +131,20 @@ def test_a_reset_count_beside_totals_since_the_log_began_is_explained(samples: P
     count, n_in, n_out = (int(x) for x in b1[3:6])
     assert count != n_in - n_out  # the reset restarted the count, not the totals
     assert "In, Out: axles since the log began; Count: since the last sweep or reset" in reset.stdout
+
+
+def test_a_reset_needs_a_section_of_the_layout_and_a_date_and_time(samples: Path) -> None:
+    log = str(samples / "example_station.log")
+    for reset, says in (
+        ("B1@09:30", "is not a date and time"),  # not the machine's today: the log is from another day
+        ("B1@9999-12-31T23:59:59", "outside 1970-2261"),
+        ("B9@2026-03-02T09:30", "no section 'B9' in the layout"),
+        ("B1@", "expected SECTION@DATE-TIME"),
+    ):
+        res = runner.invoke(app, ["sections", log, "--layout", "example", "--reset", reset])
+        assert res.exit_code == 2, (reset, res.output)
+        assert says in res.stderr and res.stderr.count("\n") == 1, res.stderr
+    ok = runner.invoke(app, ["sections", log, "--layout", "example", "--reset", "B1@2026-03-02 09:30", "--json"])
+    assert ok.exit_code == 0, ok.output
+    (r,) = json.loads(ok.stdout)["resets"]
+    assert r["section"] == "B1" and r["time"].startswith("2026-03-02T09:30:00")

@@ -13,21 +13,32 @@ from console.plural import count
 from console.safe_text import clean
 
 
-def _parse_resets(values: list[str]) -> list[Any]:
-    import pandas as pd
+def _parse_resets(values: list[str], sections: set[str]) -> list[Any]:
+    """``SECTION@DATE-TIME`` → reset events; a one-line usage error for anything else, before any reading."""
+    import datetime as dt
 
     from console.analysis.events.detection import DetectionEvent, EventKind
+    from parsers.units import NS
 
+    example = "e.g. B1@2026-03-02T09:30:00"
     out = []
     for v in values:
-        section, sep, when = v.partition("@")
+        section, sep, when = (x.strip() for x in v.partition("@"))
+        if not (sep and section and when):
+            raise fail(f"--reset {v!r}: expected SECTION@DATE-TIME, {example}")
+        if section not in sections:
+            raise fail(f"--reset {v!r}: no section {section!r} in the layout (it has {', '.join(sorted(sections))})")
         try:
-            t = pd.Timestamp(when) if sep and section else None
+            t = dt.datetime.fromisoformat(when)
         except ValueError:
-            t = None
-        if t is None or pd.isna(t):
-            raise fail(f"--reset {v!r}: expected SECTION@TIME, e.g. B1@2026-03-02T09:30:00")
-        out.append(DetectionEvent(int(t.value), EventKind.RESET, section.strip(), source="operator", detail="--reset"))
+            # A time alone would be taken on the machine's day, not the log's: the date is asked for.
+            raise fail(f"--reset {v!r}: {when!r} is not a date and time, {example}") from None
+        if t.tzinfo is not None:
+            t = t.astimezone(dt.UTC).replace(tzinfo=None)  # the logs' times are naive UTC
+        if not dt.datetime(1970, 1, 1) <= t < dt.datetime(2262, 1, 1):
+            raise fail(f"--reset {v!r}: {when!r} is outside 1970-2261, the times a log can hold")
+        ns = (t - dt.datetime(1970, 1, 1)) // dt.timedelta(microseconds=1) * (NS // 1_000_000)
+        out.append(DetectionEvent(ns, EventKind.RESET, section, source="operator", detail="--reset"))
     return out
 
 
@@ -159,7 +170,7 @@ def sections(
         lay = load_layout(layout)
         if not lay.sections:
             raise fail(f"{lay.source}: the layout has no [[sections]]")
-        resets = _parse_resets(reset or [])
+        resets = _parse_resets(reset or [], {s.id for s in lay.sections})
         events = DiagEventSettings(
             counting=CountingSettings(isolation_s=isolation),
             majority=MajoritySettings(isolation_s=isolation),
