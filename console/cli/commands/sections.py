@@ -117,7 +117,7 @@ def sections(
         typer.Option(
             "--reset",
             metavar="SECTION@TIME",
-            help="Ask to reset a section at a time: SECTION@TIME (repeatable).",
+            help="Ask to reset a section at a time: SECTION@DATE-TIME, e.g. B1@2026-03-02T09:30 (repeatable).",
             show_default=False,
         ),
     ] = None,
