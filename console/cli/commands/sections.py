@@ -116,7 +116,7 @@ def sections(
         list[str] | None,
         typer.Option(
             "--reset",
-            metavar="SECTION@TIME",
+            metavar="SECTION@DATE-TIME",
             help="Ask to reset a section at a time: SECTION@DATE-TIME, e.g. B1@2026-03-02T09:30 (repeatable).",
             show_default=False,
         ),
