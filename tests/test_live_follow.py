@@ -327,3 +327,25 @@ def test_ctrl_c_or_sigterm_end_follow_cleanly_with_a_summary(tmp_path: Path, sig
     assert proc.returncode == code, err
     assert "Traceback" not in err
     assert "followed:" in err and "50 lines = 50 records + 0 blank + 0 rejected" in err
+
+
+def test_duration_takes_what_simulate_takes_and_zero_reads_nothing_old(tmp_path: Path) -> None:
+    """--duration 2s as simulate writes it; --duration 0 stops at once, and what was in the file before the
+    follow began is still not read (it was all read, as if --from-start)."""
+    import json
+
+    log = tmp_path / "station.log"
+    shutil.copy(REPO / "sample_logs" / "example_station.log", log)
+
+    def summary(*args: str) -> dict:
+        out = subprocess.run(
+            trackside("follow", f"file:{log}", "--jsonl", *args), capture_output=True, text=True, timeout=60
+        )
+        assert out.returncode == 0, out.stderr
+        return dict(json.loads(out.stdout.splitlines()[-1]))
+
+    for duration in ("0", "0.5s", "0.01m"):
+        assert sum(f["lines_read"] for f in summary("--duration", duration)["files"]) == 0, duration
+    assert summary("--duration", "0", "--from-start")["files"][0]["lines_read"] == 3385
+    bad = subprocess.run(trackside("follow", f"file:{log}", "--duration", "soon"), capture_output=True, text=True)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "--duration" in bad.stderr

@@ -87,7 +87,7 @@ class FileSource(Source):
             self._wake.wait(CHECK_S if watcher is not None and watcher.is_alive() else POLL_S)
             self._wake.clear()
         if not self.abandoned:
-            self._pump(False)
+            self._pump(first)  # still first when stopped before the loop ran: the file is then met at its end
             self._flush_carry("end")
             self._hand_over(self.files.finish())
         if self._fd is not None:

@@ -132,8 +132,12 @@ def follow(
         ),
     ] = None,
     duration: Annotated[
-        float | None,
-        typer.Option("--duration", metavar="S", help="Stop after this many seconds (default: until Ctrl-C).", min=0),
+        str | None,
+        typer.Option(
+            "--duration",
+            metavar="DURATION",
+            help="Stop after this long: 90s, 30m, 2h or seconds, as simulate takes it (default: until Ctrl-C).",
+        ),
     ] = None,
     idle_exit: Annotated[
         float | None,
@@ -154,6 +158,14 @@ def follow(
 
     def body() -> int:
         from console.analysis.passages.diagnostics import SpeedSettings
+        from console.analysis.timefmt import parse_duration
+
+        try:
+            duration_s = None if duration is None else parse_duration(duration)
+        except ValueError as exc:
+            raise fail(f"--duration: {exc}") from None
+        if duration_s is not None and duration_s > 1e9:
+            raise fail(f"--duration: {duration!r} is more than 31 years")
         from console.archive.store import ArchiveError
         from console.inputs.base import SourceError
         from console.inputs.uri import open_source
@@ -213,7 +225,7 @@ def follow(
         import signal
 
         try:
-            stopped_by = run_sources(engine, srcs, until=idle, duration_s=duration, tell=_tell)
+            stopped_by = run_sources(engine, srcs, until=idle, duration_s=duration_s, tell=_tell)
         finally:
             if sink is not None:
                 sink.close()
