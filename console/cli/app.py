@@ -21,9 +21,8 @@ from typer.core import TyperCommand, TyperGroup
 from typer.models import CommandInfo
 
 from console import __version__, exit_codes
-from console.cli.common import OUTPUT_ERRNOS, exit_at_once, install_process_guards, output_failed
+from console.cli.common import OUTPUT_ERRNOS, exit_at_once, finite_numbers, install_process_guards, output_failed
 from console.cli.examples import APP_EXAMPLES, EXAMPLES, epilog
-from console.cli.options import finite_numbers
 from console.safe_text import clean
 
 # The commands, in the order help lists them; each is the function of its name in console.cli.commands.<name>.

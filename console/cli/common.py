@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import functools
+import inspect
 import io
+import math
 import os
 import signal
 import stat
@@ -446,3 +449,40 @@ def load_layout(spec: str) -> Any:
 
         sys.stderr.write(f"trackside: warning: {clean(note)}\n")
     return lay
+
+
+# Every number option of every command, checked once here: Click's FloatRange lets nan through, and inf or
+# 1e308 pass an open bound, then overflow a time in nanoseconds deep in a command (an internal error).  No
+# option means anything beyond 1e9 (31 years in seconds, a million km in metres).
+MAX_OPTION_NUMBER = 1e9
+
+
+def finite_numbers(command: Callable[..., Any]) -> Callable[..., Any]:
+    """``command`` refusing a number option that is not finite or beyond :data:`MAX_OPTION_NUMBER`: one line
+    naming the option, exit 2, before any work."""
+    names = _option_names(command)
+
+    @functools.wraps(command)
+    def checked(*args: Any, **kwargs: Any) -> Any:
+        for key, value in kwargs.items():
+            for v in value if isinstance(value, list | tuple) else (value,):
+                if isinstance(v, float) and not (math.isfinite(v) and abs(v) <= MAX_OPTION_NUMBER):
+                    raise fail(
+                        f"{names.get(key, key)}: expected a finite number of at most {MAX_OPTION_NUMBER:g}, got {v!r}"
+                    )
+        return command(*args, **kwargs)
+
+    return checked
+
+
+def _option_names(command: Callable[..., Any]) -> dict[str, str]:
+    """Parameter name → its longest option name (``idle_gap`` → ``--idle-gap``)."""
+    out: dict[str, str] = {}
+    for name, param in inspect.signature(command, eval_str=True).parameters.items():
+        for meta in getattr(param.annotation, "__metadata__", ()):
+            # Inside Annotated, typer.Option("--idle-gap", ...) keeps its first name where a default would go.
+            given = (getattr(meta, "default", None), *(getattr(meta, "param_decls", ()) or ()))
+            decls = [d for d in given if isinstance(d, str) and d.startswith("--")]
+            if decls:
+                out[name] = max(decls, key=len)
+    return out
