@@ -108,24 +108,22 @@ def _one_line(error: UsageError) -> UsageError | _OneLineUsageError:
     return error if type(error).__name__ == "NoArgsIsHelpError" else _OneLineUsageError(error)
 
 
-class _Command(TyperCommand):
-    """A command whose usage errors (a bad option value, a missing argument) are one line."""
+class _OneLineUsage:
+    """Usage errors met while parsing a command line (a bad option value, a missing argument) said in one line."""
 
     def make_context(self, info_name: str | None, args: list[str], parent: Any = None, **extra: Any) -> Any:
         try:
-            return super().make_context(info_name, args, parent=parent, **extra)
+            return super().make_context(info_name, args, parent=parent, **extra)  # type: ignore[misc]
         except UsageError as error:
             raise _one_line(error) from None
 
 
-class _Group(TyperGroup):
-    """The app's group: its own usage errors (an unknown command or option) one line, as its commands'."""
+class _Command(_OneLineUsage, TyperCommand):
+    """A command of the app."""
 
-    def make_context(self, info_name: str | None, args: list[str], parent: Any = None, **extra: Any) -> Any:
-        try:
-            return super().make_context(info_name, args, parent=parent, **extra)
-        except UsageError as error:
-            raise _one_line(error) from None
+
+class _Group(_OneLineUsage, TyperGroup):
+    """The app's group: an unknown command is one line too."""
 
     def resolve_command(self, ctx: Any, args: list[str]) -> Any:
         try:
