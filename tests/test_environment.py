@@ -406,3 +406,8 @@ def test_ingest_says_what_it_holds_back_after_the_last_line_end(tmp_path: Path) 
         out.write(b"\n")
     (f,) = json.loads(invoke("ingest", "--archive", arc, log, "--json").stdout)["files"]
     assert (f["action"], f["records"], f["held_back_bytes"]) == ("grown", 1, 0)
+
+
+def test_ingest_of_standard_input_twice_is_one_line(tmp_path: Path) -> None:
+    res = run("ingest", "--archive", tmp_path / "arc", "-", "-", input=SMALL_LOG.read_bytes())
+    one_line_error(res, "-: standard input given twice")

@@ -66,3 +66,15 @@ def test_a_duration_past_two_days_points_to_days(tmp_path: Path) -> None:
         assert result.exit_code == 2, (duration, result.output)
         assert "between 1s and 2d (longer runs: --days N" in result.stderr and result.stderr.count("\n") == 1
     assert not (tmp_path / "run").exists()
+
+
+def test_a_fault_for_a_train_that_never_ran_is_said(tmp_path: Path) -> None:
+    result = CliRunner().invoke(
+        app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "20m", "--fault", "train_parting:T9:1m"]
+    )
+    assert result.exit_code == 0, result.output
+    assert "--fault train_parting:T9: no train T9 ran (T1, T2); nothing was injected" in result.stderr
+    ok = CliRunner().invoke(
+        app, ["simulate", "-o", str(tmp_path / "run2"), "--duration", "20m", "--fault", "train_parting:T1:5m"]
+    )
+    assert ok.exit_code == 0 and "warning" not in ok.stderr

@@ -646,6 +646,8 @@ def expand_inputs(paths: Sequence[Path], root: Path) -> list[tuple[Path, str]]:
 
     out: list[tuple[Path, str]] = []
     files: list[Path] = []
+    if sum(str(p) == "-" for p in paths) > 1:
+        raise ArchiveError("-: standard input given twice")  # as every other command says
     for p in paths:
         if str(p) == "-":
             if files:

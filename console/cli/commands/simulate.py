@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -255,6 +256,7 @@ def simulate(
                     last[0] = t_s
 
             sim.run(seconds, on_step=tick)
+        _warn_unmet_train_faults(sim, faults)
         try:
             # Written into a hidden stage first: an interrupted run leaves no half-written log behind.
             with staged_directory(output, inputs, what="run", replace=earlier) as stage:
@@ -296,6 +298,20 @@ def simulate(
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
+
+
+def _warn_unmet_train_faults(sim: Any, faults: tuple[Any, ...]) -> None:
+    """A fault aimed at a train that never ran does nothing: said, so the run is not taken for one with it."""
+    from console.safe_text import clean
+    from console.sim.faults import TRAIN_FAULTS
+
+    ran = sorted({str(tr.id) for tr in sim.trains})
+    for f in faults:
+        if f.kind in TRAIN_FAULTS and f.target not in ran:
+            sys.stderr.write(
+                f"trackside: warning: --fault {f.kind}:{clean(f.target)}: no train {clean(f.target)} ran "
+                f"({', '.join(ran) or 'none'}); nothing was injected\n"
+            )
 
 
 MAX_DURATION_S = 2 * 86_400.0
