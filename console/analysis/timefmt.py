@@ -97,3 +97,21 @@ def parse_duration(text: str) -> float:
     if not parts or "".join(n + u for n, u in parts) != t:
         raise ValueError(f"expected a duration like 90s, 30m, 2h or 1h30m, found {text!r}")
     return sum(float(n) * _DURATION_UNITS[u] for n, u in parts)
+
+
+def parse_time(text: str) -> dt.datetime:
+    """``2026-03-02``, ``2026-03-02T10:00``, ``2026-03-02 10:00:05``: naive, as the logs write time."""
+    try:
+        t = dt.datetime.fromisoformat(text.strip())
+    except ValueError:
+        raise ValueError(f"expected an ISO date or time (2026-03-02 or 2026-03-02T10:00), found {text!r}") from None
+    return t.replace(tzinfo=None) if t.tzinfo is None else t.astimezone(dt.UTC).replace(tzinfo=None)
+
+
+def time_ns(t: dt.datetime) -> int:
+    """A naive UTC time (:func:`parse_time`) → ns since the epoch; ValueError where int64 ns cannot hold it."""
+    delta = t - _EPOCH
+    ns = (delta.days * 86_400 + delta.seconds) * NS + delta.microseconds * 1_000
+    if not -(2**63) <= ns < 2**63:
+        raise ValueError(f"{t.isoformat()} is outside the times a log can hold (1677 to 2262)")
+    return ns

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from console.analysis.health.forecast import FIGURES, STATUSES, Forecast, ForecastSettings, Series, due_list, forecasts
-from console.archive.reader import Window, parse_time
+from console.archive.reader import Window, user_window
 from console.archive.store import archive_dir, read_current
 from console.archive.trends import (
     RecordFigures,
@@ -303,12 +303,7 @@ def with_trends_and_forecast(
         data = collector()  # checks the archive and the window first (one-line errors)
         root = archive_dir(archive)
         manifest = read_current(root)
-        window = Window(
-            start=parse_time(start) if start else None,
-            end=parse_time(end) if end else None,
-            head=head,
-            device_id=device_id,
-        )
+        window = user_window(start, end, head, device_id)  # as the collector read it
         con, _ = connect(root, manifest, tables={"records"})
         try:
             figures = record_figures(con, window, data.layout)

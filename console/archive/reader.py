@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.timefmt import parse_time
 from console.archive.parts import key_of_part
 from console.archive.records import ARCHIVED_RECORD_COLUMNS, REGISTER_COLUMNS, ChunkRebuilder
 from console.archive.store import TMP, Manifest, read_current
@@ -81,15 +82,6 @@ class Window:
     @property
     def whole(self) -> bool:
         return self == Window()
-
-
-def parse_time(text: str) -> dt.datetime:
-    """``2026-03-02``, ``2026-03-02T10:00``, ``2026-03-02 10:00:05``: naive, as the logs write time."""
-    try:
-        t = dt.datetime.fromisoformat(text.strip())
-    except ValueError:
-        raise ValueError(f"expected an ISO date or time (2026-03-02 or 2026-03-02T10:00), found {text!r}") from None
-    return t.replace(tzinfo=None) if t.tzinfo is None else t.astimezone(dt.UTC).replace(tzinfo=None)
 
 
 def user_window(start: str | None, end: str | None, head: str | None = None, device_id: int | None = None) -> Window:

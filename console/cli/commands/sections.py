@@ -18,7 +18,7 @@ def _parse_resets(values: list[str], sections: set[str]) -> list[Any]:
     import datetime as dt
 
     from console.analysis.events.detection import DetectionEvent, EventKind
-    from parsers.units import NS
+    from console.analysis.timefmt import parse_time, time_ns
 
     example = "e.g. B1@2026-03-02T09:30:00"
     out = []
@@ -29,16 +29,13 @@ def _parse_resets(values: list[str], sections: set[str]) -> list[Any]:
         if section not in sections:
             raise fail(f"--reset {v!r}: no section {section!r} in the layout (it has {', '.join(sorted(sections))})")
         try:
-            t = dt.datetime.fromisoformat(when)
+            t = parse_time(when)
         except ValueError:
             # A time alone would be taken on the machine's day, not the log's: the date is asked for.
             raise fail(f"--reset {v!r}: {when!r} is not a date and time, {example}") from None
-        if t.tzinfo is not None:
-            t = t.astimezone(dt.UTC).replace(tzinfo=None)  # the logs' times are naive UTC
         if not dt.datetime(1970, 1, 1) <= t < dt.datetime(2262, 1, 1):
             raise fail(f"--reset {v!r}: {when!r} is outside 1970-2261, the times a log can hold")
-        ns = (t - dt.datetime(1970, 1, 1)) // dt.timedelta(microseconds=1) * (NS // 1_000_000)
-        out.append(DetectionEvent(ns, EventKind.RESET, section, source="operator", detail="--reset"))
+        out.append(DetectionEvent(time_ns(t), EventKind.RESET, section, source="operator", detail="--reset"))
     return out
 
 
