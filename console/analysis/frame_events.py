@@ -209,6 +209,7 @@ def _silence(timeout_ns: int) -> str:
 # with the same detail are never this close: an axle's detail carries the count byte, which repeats only after
 # 256 axles.
 REPEAT_TOLERANCE_NS = NS // 2
+_EventKey = tuple[str, EventKind, int, int | None, str]  # what makes two files' events the same, time aside
 
 
 def events_once(
@@ -223,13 +224,12 @@ def events_once(
     direction, channel and detail, within :data:`REPEAT_TOLERANCE_NS`) is
     set aside and counted against the later file.
     """
-    EventKey = tuple[str, EventKind, int, int | None, str]
-    earlier: dict[EventKey, np.ndarray] = {}  # per event key: the earlier files' times, sorted
+    earlier: dict[_EventKey, np.ndarray] = {}  # per event key: the earlier files' times, sorted
     events: list[DetectionEvent] = []
     repeated: dict[str, int] = {}
     for table in tables:
         for name, part in table.groupby("file", observed=True, sort=False):
-            mine: dict[EventKey, list[int]] = {}
+            mine: dict[_EventKey, list[int]] = {}
             n_repeated = 0
             for e in frames_to_events(part, up_is_s1_to_s3=up_is_s1_to_s3, comm_timeout_s=comm_timeout_s):
                 key = (e.head, e.kind, e.direction, e.channel, e.detail)

@@ -23,15 +23,13 @@ import typer
 
 from console import exit_codes
 from console.cli.options import REJECTIONS_LISTED, STDIN
-from console.safe_text import show_path
+from console.safe_text import clean, show_path
 
 JSON_SCHEMA_ANALYZE = "trackside.analyze/1"
 
 
 def fail(message: str, code: int = exit_codes.USAGE) -> typer.Exit:
     """One unwrapped line on stderr (file names may hold anything: escaped)."""
-    from console.safe_text import clean
-
     sys.stderr.write(f"trackside: error: {clean(message)}\n")
     sys.stderr.flush()
     return typer.Exit(code)
@@ -445,8 +443,6 @@ def load_layout(spec: str) -> Any:
         raise fail(str(exc)) from None
     note = lay.spacing_note()
     if note is not None:
-        from console.safe_text import clean
-
         sys.stderr.write(f"trackside: warning: {clean(note)}\n")
     return lay
 
@@ -460,16 +456,15 @@ MAX_OPTION_NUMBER = 1e9
 def finite_numbers(command: Callable[..., Any]) -> Callable[..., Any]:
     """``command`` refusing a number option that is not finite or beyond :data:`MAX_OPTION_NUMBER`: one line
     naming the option, exit 2, before any work."""
-    names = _option_names(command)
 
     @functools.wraps(command)
     def checked(*args: Any, **kwargs: Any) -> Any:
         for key, value in kwargs.items():
             for v in value if isinstance(value, list | tuple) else (value,):
                 if isinstance(v, float) and not (math.isfinite(v) and abs(v) <= MAX_OPTION_NUMBER):
-                    raise fail(
-                        f"{names.get(key, key)}: expected a finite number of at most {MAX_OPTION_NUMBER:g}, got {v!r}"
-                    )
+                    # The option's name only now: reading every signature would cost each start-up.
+                    name = _option_names(command).get(key, key)
+                    raise fail(f"{name}: expected a finite number of at most {MAX_OPTION_NUMBER:g}, got {v!r}")
         return command(*args, **kwargs)
 
     return checked

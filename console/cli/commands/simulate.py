@@ -13,6 +13,9 @@ from console.cli.common import Console, fail, guard, load_layout, print_json
 from console.cli.options import JsonOpt
 from console.plural import count
 
+# The stepped run keeps its whole truth in memory until it writes: longer runs are --days.
+MAX_DURATION_S = 2 * 86_400.0
+
 
 def _parse_fault(text: str) -> Any:
     """``KIND:TARGET:START[:END[:CHANNEL[:RATE]]]`` (times like 90s, 30m, 3d) → a simulator Fault."""
@@ -314,14 +317,12 @@ def _warn_unmet_train_faults(sim: Any, faults: tuple[Any, ...]) -> None:
             )
 
 
-MAX_DURATION_S = 2 * 86_400.0
 # What each count of a written file counts.
 _UNITS = {"diagnostic.log": "line", "centre.tsv": "row", "sensor_frames.txt": "frame"}
 
 
 def _written_lines(output: Path, counts: dict[str, Any]) -> list[str]:
     """The run's files, each with what it holds in words (``--json`` has the counts as they are)."""
-    from console.plural import count
     from console.safe_text import show_path
 
     lines = []
