@@ -118,12 +118,12 @@ def overlap_mask(
     out = np.zeros(n, bool)
     if n == 0 or (file == file[0]).all():
         return out
-    keys = np.arange(n) if key is None else key
     if whole_files is None:
 
         def whole_files(fa: int, fb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
             in_a, in_b = np.flatnonzero(file == fa), np.flatnonzero(file == fb)
-            return keys[in_a], fp[in_a], keys[in_b], fp[in_b]
+            named = (in_a, in_b) if key is None else (key[in_a], key[in_b])
+            return named[0], fp[in_a], named[1], fp[in_b]
 
     order = np.lexsort((file, head))  # per head, files in read order, each in its own order
     h, f = head[order], file[order]
@@ -139,7 +139,7 @@ def overlap_mask(
         t = time_ns[records]
         if t.min() != t.max():
             return True  # identical events share one instant: a run over several is a repeat
-        return whole.holds(fa, fb, keys[records], b_begins)
+        return whole.holds(fa, fb, records if key is None else key[records], b_begins)
 
     for parts in groups.values():
         for k, (fb, later) in enumerate(parts):
