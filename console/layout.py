@@ -23,6 +23,7 @@ import math
 import re
 import reprlib
 import tomllib
+from collections import Counter
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -186,20 +187,11 @@ class Layout:
         return max(speeds)
 
     def spacing_m(self) -> float:
-        """The Sys1–Sys2 spacing speeds are computed with: the first head's (the analysis takes one per line;
-        :meth:`spacing_note` says when the heads differ)."""
-        return self.heads[0].spacing_m if self.heads else DEFAULT_SPACING_M
-
-    def spacing_note(self) -> str | None:
-        """A one-line warning when the heads' spacings differ (speeds then use the first head's), else None."""
-        other = [h for h in self.heads if h.spacing_m != self.spacing_m()]
-        if not other:
-            return None
-        return (
-            f"layout {self.source}: counting heads differ in spacing_m ({self.heads[0].id} {self.spacing_m():g} m, "
-            f"{other[0].id} {other[0].spacing_m:g} m); speeds use {self.spacing_m():g} m for every head "
-            "(--spacing sets another)"
-        )
+        """The line's Sys1–Sys2 spacing: most heads' (the first head's of a tie), for heads the layout does not
+        name; a head of another spacing keeps its own (``SpeedSettings.of_layout``)."""
+        if not self.heads:
+            return DEFAULT_SPACING_M
+        return Counter(h.spacing_m for h in self.heads).most_common(1)[0][0]
 
     def consist(self, consist_id: str | None = None) -> Consist | None:
         if not self.consists:

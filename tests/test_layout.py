@@ -227,8 +227,13 @@ def test_simulate_with_a_bad_layout_exits_2_with_one_line(tmp_path: Path) -> Non
     assert "internal error" not in res.output
 
 
-def test_heads_that_differ_in_spacing_are_warned_of_not_silently_given_the_first(tmp_path: Path) -> None:
-    """Speeds take one Sys1-Sys2 spacing per line (the first head's): a layout whose heads differ says so."""
+def test_each_head_keeps_its_own_spacing_in_the_speeds(tmp_path: Path) -> None:
+    """A line whose heads differ in Sys1-Sys2 spacing (WS1 0.2 m, the others 0.13 m): each head's axle and
+    whole-train speeds use its own spacing, in batch and from the archive, and match the simulator's truth;
+    ``--spacing`` sets one for every head (WS1 then reads 35 % slow)."""
+    import json
+    from collections import defaultdict
+
     from typer.testing import CliRunner
 
     from console.cli.app import app
@@ -238,12 +243,47 @@ def test_heads_that_differ_in_spacing_are_warned_of_not_silently_given_the_first
     assert text.count("spacing_m = 0.13") >= 2
     mixed = tmp_path / "mixed.toml"
     mixed.write_text(text.replace("spacing_m = 0.13", "spacing_m = 0.2", 1), encoding="utf-8")
-    log = str(Path(layouts_init).parents[2] / "sample_logs" / "example_station.log")
-    res = CliRunner().invoke(app, ["analyze", log, "--layout", str(mixed)])
+    assert load_layout(mixed).heads[0].id == "WS1" and load_layout(mixed).spacing_m() == 0.13
+    runner = CliRunner()
+    run = tmp_path / "run"
+    res = runner.invoke(app, ["simulate", "--layout", str(mixed), "-o", str(run), "--duration", "8m", "--seed", "3"])
     assert res.exit_code == 0, res.output
-    assert "counting heads differ in spacing_m (WS1 0.2 m, WS2 0.13 m); speeds use 0.2 m" in res.stderr
-    same = CliRunner().invoke(app, ["analyze", log, "--layout", "example"])
-    assert same.exit_code == 0 and "warning" not in same.stderr
+    truth: dict[str, list[float]] = defaultdict(list)
+    for axle in json.loads((run / "truth.json").read_text())["axles"]:
+        truth[axle["head"]].append(axle["speed_mps"] * 3.6)
+    assert set(truth) == {"WS1", "WS2", "WS3", "WS4", "WS5"}
+
+    def mean_axle_kmh(passages: list[dict[str, object]]) -> dict[str, float]:
+        got: dict[str, list[float]] = defaultdict(list)
+        for p in passages:
+            got[str(p["counting_head"])] += [float(v) for v in p["speed_kmh_per_axle"] if v is not None]  # type: ignore[attr-defined]
+        return {h: sum(v) / len(v) for h, v in got.items() if v}
+
+    log = str(run / "diagnostic.log")
+    res = runner.invoke(app, ["analyze", log, "--layout", str(mixed), "--json"])
+    assert res.exit_code == 0, res.output
+    assert "warning" not in res.stderr
+    doc = json.loads(res.stdout)
+    assert doc["settings"]["spacing_m"] == 0.13 and doc["settings"]["head_spacing_m"] == {"WS1": 0.2}
+    batch = mean_axle_kmh(doc["passages"])
+    for head, speeds in truth.items():
+        assert batch[head] == pytest.approx(sum(speeds) / len(speeds), rel=0.01), head
+    whole = {p["counting_head"]: p["speed_kmh_whole_train"] for p in doc["passages"] if p["kind"] == "train"}
+    assert whole["WS1"] == pytest.approx(batch["WS1"], rel=0.05)
+
+    archive = tmp_path / "archive"
+    assert runner.invoke(app, ["ingest", "--archive", str(archive), "--layout", str(mixed), log]).exit_code == 0
+    res = runner.invoke(app, ["report", "--archive", str(archive), "--format", "json", "-o", str(tmp_path / "r.json")])
+    assert res.exit_code == 0, res.output
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert report["settings"]["head_spacing_m"] == {"WS1": 0.2}
+    assert mean_axle_kmh(report["passages"]) == pytest.approx(batch)
+
+    res = runner.invoke(app, ["analyze", log, "--layout", str(mixed), "--json", "--spacing", "0.13"])
+    one = json.loads(res.stdout)
+    assert one["settings"]["head_spacing_m"] == {}
+    assert mean_axle_kmh(one["passages"])["WS1"] == pytest.approx(batch["WS1"] * 0.13 / 0.2, rel=1e-3)
+    assert mean_axle_kmh(one["passages"])["WS2"] == pytest.approx(batch["WS2"], rel=1e-3)
 
 
 def test_a_layout_from_a_device_is_bounded_and_a_byte_order_mark_is_read(tmp_path: Path) -> None:

@@ -71,6 +71,11 @@ class HeadTable(Sequence[tuple[int, str]]):
         return self.device_id[np.asarray(keys, np.int64)].astype(np.int64)
 
 
+def head_names(heads: Heads) -> list[str]:
+    """Every head's name, by head key."""
+    return heads.names() if isinstance(heads, HeadTable) else [name for _, name in heads]
+
+
 def heads_at(heads: Heads, keys: np.ndarray) -> tuple[np.ndarray, list[str]]:
     """(device ids as int64, names) of the heads at ``keys``: only those heads are looked at."""
     keys = np.asarray(keys, np.int64)

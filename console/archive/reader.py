@@ -296,11 +296,7 @@ def _has_label(path: Path, labels: frozenset[str]) -> bool:
 
 def speed_settings(manifest: Manifest, layout: Layout | None = None) -> SpeedSettings:
     lay = layout if layout is not None else layout_of(manifest.derived.get("layout"))
-    consist = lay.consist() if lay is not None else None
-    return SpeedSettings(
-        spacing_m=lay.heads[0].spacing_m if lay is not None and lay.heads else SpeedSettings.spacing_m,
-        train_length_m=consist.length_m if consist is not None else SpeedSettings.train_length_m,
-    )
+    return SpeedSettings.of_layout(lay)
 
 
 def layout_of(spec: str | None) -> Layout | None:

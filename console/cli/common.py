@@ -441,9 +441,6 @@ def load_layout(spec: str) -> Any:
         lay = load_layout(spec)
     except LayoutError as exc:
         raise fail(str(exc)) from None
-    note = lay.spacing_note()
-    if note is not None:
-        sys.stderr.write(f"trackside: warning: {clean(note)}\n")
     return lay
 
 

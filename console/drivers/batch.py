@@ -328,15 +328,3 @@ def health_findings(
     evs = job.health_events if events is None else events
     records = None if job.kept_nothing else job.records
     return health_report(records, bands=bands or None, events=evs, voltages=voltages)
-
-
-def speed_settings(
-    layout: Layout, spacing_m: float | None = None, train_length_m: float | None = None, idle_gap_s: float = 10.0
-) -> SpeedSettings:
-    """Line facts from the layout unless given: the first head's spacing, the first consist's length."""
-    consist = layout.consist()
-    return SpeedSettings(
-        spacing_m=spacing_m if spacing_m is not None else layout.spacing_m(),
-        train_length_m=train_length_m if train_length_m is not None else (consist.length_m if consist else 28.6),
-        idle_gap_s=idle_gap_s,
-    )

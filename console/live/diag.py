@@ -82,9 +82,7 @@ class LiveEvents(Sink):
 
 def live_speed(layout: Layout | None, idle_gap_s: float = SpeedSettings.idle_gap_s) -> SpeedSettings:
     """The line facts live analysis uses: the layout's coil spacing and first consist's length."""
-    spacing = layout.spacing_m() if layout is not None else SpeedSettings.spacing_m
-    consist = layout.consist() if layout is not None else None
-    return SpeedSettings(spacing, consist.length_m if consist else SpeedSettings.train_length_m, idle_gap_s)
+    return SpeedSettings.of_layout(layout, idle_gap_s=idle_gap_s)
 
 
 def live_settings(

@@ -138,7 +138,10 @@ def pair_axle_arrays(
 
 
 def pair_onsets(
-    onsets: Mapping[str, Any], settings: PairingSettings, head_step_s: np.ndarray | None = None
+    onsets: Mapping[str, Any],
+    settings: PairingSettings,
+    head_step_s: np.ndarray | None = None,
+    head_spacing_m: np.ndarray | None = None,
 ) -> tuple[dict[str, np.ndarray], int, np.ndarray]:
     """The axles and unpaired onsets of :func:`pair_axle_arrays`, and per axle the row of ``onsets`` holding its
     earlier onset (the one its ``time_ns`` is; a tie: the Sys1 onset).
@@ -181,7 +184,8 @@ def pair_onsets(
     # Millisecond stamps time a 4 ms delay (0.13 m at 120 km/h) to ±25 %: no figure then.
     timed = exact & (np.abs(delay_s) >= settings.min_delay_steps * step_a)
     with np.errstate(divide="ignore"):
-        speed = np.where(timed & (delay_s != 0), settings.spacing_m / np.abs(delay_s) * MPS_TO_KMH, np.nan)
+        spacing_m = head_spacing_m[head[a]] if head_spacing_m is not None else settings.spacing_m
+        speed = np.where(timed & (delay_s != 0), spacing_m / np.abs(delay_s) * MPS_TO_KMH, np.nan)
     # The order of two onsets is known from their times, or, for equal
     # stamps, from their order in one file; two files' equal stamps say nothing.
     known = (t1 != t2) | (file[a] == file[b])

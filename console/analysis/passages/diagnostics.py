@@ -26,7 +26,7 @@ from console.analysis.counting.wheels import (
     pair_onsets,
 )
 from console.analysis.device_table import DeviceTable
-from console.analysis.head_table import Heads, HeadTable, heads_at
+from console.analysis.head_table import Heads, head_names, heads_at
 from console.analysis.inventory import DeviceInventory
 from console.analysis.passages.buckets import (
     AXLES_UNKNOWN_REASONS,
@@ -49,6 +49,8 @@ from parsers.units import NS
 if TYPE_CHECKING:
     import pandas as pd
 
+    from console.layout import Layout
+
 
 @dataclass(frozen=True)
 class SpeedSettings:
@@ -62,6 +64,50 @@ class SpeedSettings:
     pair_window_s: float = PairingSettings.pair_window_s
     # Above this, a "whole-train speed" is an artefact, not a train.
     max_speed_kmh: float = 400.0
+    # Heads (by their Trackinfo name) whose Sys1–Sys2 spacing is not ``spacing_m``: a line of WS4 heads at
+    # 0.13 m and a newer type at 0.15 m reads 15 % fast at the one or slow at the other with one spacing.
+    head_spacing_m: tuple[tuple[str, float], ...] = ()
+
+    @classmethod
+    def of_layout(
+        cls,
+        layout: Layout | None,
+        spacing_m: float | None = None,
+        train_length_m: float | None = None,
+        idle_gap_s: float = 10.0,
+    ) -> SpeedSettings:
+        """The line's facts from its layout unless given: each head's spacing (``spacing_m`` given sets one
+        for every head), the first consist's length."""
+        consist = layout.consist() if layout is not None else None
+        per_head: tuple[tuple[str, float], ...] = ()
+        if spacing_m is None and layout is not None:
+            spacing_m = layout.spacing_m()
+            per_head = tuple((h.id, h.spacing_m) for h in layout.heads if h.spacing_m != spacing_m)
+        return cls(
+            spacing_m=spacing_m if spacing_m is not None else cls.spacing_m,
+            train_length_m=train_length_m
+            if train_length_m is not None
+            else (consist.length_m if consist is not None else cls.train_length_m),
+            idle_gap_s=idle_gap_s,
+            head_spacing_m=per_head,
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        """The settings as every JSON document gives them (``head_spacing_m``: the heads not at ``spacing_m``)."""
+        return {
+            "spacing_m": self.spacing_m,
+            "head_spacing_m": dict(self.head_spacing_m),
+            "train_length_m": self.train_length_m,
+            "idle_gap_s": self.idle_gap_s,
+            "pair_window_s": round(self.pair_window_s, 6),
+        }
+
+    def spacing_by_head(self, heads: Heads) -> np.ndarray | None:
+        """Per head key, the head's spacing in metres; None: ``spacing_m`` for every head."""
+        if not self.head_spacing_m:
+            return None
+        own = dict(self.head_spacing_m)
+        return np.array([own.get(n, self.spacing_m) for n in head_names(heads)], np.float64)
 
 
 @dataclass
@@ -92,7 +138,7 @@ class DiagAnalysis:
     @property
     def head_names(self) -> list[str]:
         """Every head's name, by head key."""
-        return self.heads.names() if isinstance(self.heads, HeadTable) else [name for _, name in self.heads]
+        return head_names(self.heads)
 
     @cached_property
     def passages(self) -> pd.DataFrame:
@@ -132,12 +178,7 @@ class DiagAnalysis:
         """The JSON document's analysis part; ``passages`` and ``devices`` may be pre-encoded text."""
         s = self.settings
         return {
-            "settings": {
-                "spacing_m": s.spacing_m,
-                "train_length_m": s.train_length_m,
-                "idle_gap_s": s.idle_gap_s,
-                "pair_window_s": s.pair_window_s,
-            },
+            "settings": s.to_json(),
             "devices": [d.to_dict() for d in self.devices] if devices is None else devices,
             "passages": self.passages_json() if passages is None else passages,
             "overlap_records": self.overlap_records,
@@ -236,7 +277,8 @@ class DiagAccumulator:
         self._buckets = []  # reduced: free the per-chunk runs
         repeated, overlap_by_file, overlap_times = self._overlap(luts, buckets)
         detections, self._detections = self._detections, []
-        part = analyse_parts(buckets, detections, settings, self.keep_releases, repeated)
+        spacing = settings.spacing_by_head(luts.heads)
+        part = analyse_parts(buckets, detections, settings, self.keep_releases, repeated, head_spacing_m=spacing)
         return DiagAnalysis(
             settings=settings,
             devices=self.devices(),
@@ -308,6 +350,7 @@ def analyse_parts(
     keep_releases: bool = False,
     repeated: np.ndarray | None = None,
     head_step_s: np.ndarray | None = None,
+    head_spacing_m: np.ndarray | None = None,
 ) -> PartAnalysis:
     """Merged buckets and wheel detections of whole passages → their passages and axles.
 
@@ -319,9 +362,9 @@ def analyse_parts(
     # Without releases every wheel record is an onset: no copy needed.
     onsets = {c: v[wheel["value"] == 1] for c, v in wheel.items()} if keep_releases else wheel
     pairing = PairingSettings(settings.spacing_m, settings.pair_window_s)
-    axles, n_unpaired, first_onset = pair_onsets(onsets, pairing, head_step_s)
+    axles, n_unpaired, first_onset = pair_onsets(onsets, pairing, head_step_s, head_spacing_m)
     return PartAnalysis(
-        passages=_passages(buckets, onsets, axles, onsets["bucket"][first_onset], settings),
+        passages=_passages(buckets, onsets, axles, onsets["bucket"][first_onset], settings, head_spacing_m),
         axles=axles,
         unpaired=n_unpaired,
         wheel={c: wheel[c] for c in ("head", "channel", "time_ns", "value", "subsecond")} if keep_releases else None,
@@ -406,7 +449,12 @@ PASSAGE_KINDS = ("train", "damping", "status")
 
 
 def _passages(
-    buckets: Columns, onsets: Arrays, axles: Arrays, axle_bucket: np.ndarray, s: SpeedSettings
+    buckets: Columns,
+    onsets: Arrays,
+    axles: Arrays,
+    axle_bucket: np.ndarray,
+    s: SpeedSettings,
+    head_spacing_m: np.ndarray | None = None,
 ) -> Columns | None:
     """One row per passage, every figure vectorized over passages (no groupby per record).
 
@@ -427,6 +475,7 @@ def _passages(
         return buckets[name]
 
     head = col("head")[at]
+    spacing_m = head_spacing_m[head] if head_spacing_m is not None else s.spacing_m
     start_ns = np.minimum.reduceat(col("t_first_ns"), at)
     end_ns = np.maximum.reduceat(col("t_last_ns"), at)
     records = np.add.reduceat(col("records"), at)
@@ -491,7 +540,7 @@ def _passages(
     )
     duration = (leave_last - enter_first) / NS
     with np.errstate(invalid="ignore", divide="ignore"):
-        whole = np.where(duration > 0, (s.train_length_m + s.spacing_m) / duration * MPS_TO_KMH, np.nan)
+        whole = np.where(duration > 0, (s.train_length_m + spacing_m) / duration * MPS_TO_KMH, np.nan)
     # A status dump with no wheel in it spans milliseconds: as a "train" it
     # would run at thousands of km/h.  No train is faster than max_speed_kmh.
     implausible = whole > s.max_speed_kmh
@@ -506,7 +555,7 @@ def _passages(
     resolution_s = np.where(whole_second, 1.0, SUBSECOND_RESOLUTION_S)
     measured = basis > 0
     with np.errstate(invalid="ignore", divide="ignore"):
-        length_m = s.train_length_m + s.spacing_m
+        length_m = s.train_length_m + spacing_m
         whole_min = np.where(measured, length_m / (duration + resolution_s) * MPS_TO_KMH, np.nan)
         whole_max = np.where(
             measured & (duration > resolution_s), length_m / (duration - resolution_s) * MPS_TO_KMH, np.nan
@@ -524,7 +573,7 @@ def _passages(
         "direction": direction,
         "detection_second_ns": detection_second_ns,
         "records_in_detection_second": records_in_second,
-        "speed_kmh_per_second_method": s.spacing_m * records_in_second * MPS_TO_KMH,
+        "speed_kmh_per_second_method": spacing_m * records_in_second * MPS_TO_KMH,
         "speed_kmh_whole_train": whole,
         "speed_kmh_whole_train_min": whole_min,
         "speed_kmh_whole_train_max": whole_max,

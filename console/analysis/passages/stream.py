@@ -98,6 +98,7 @@ class PassageStream:
     _runs_since_close: int = 0
     _analysing: deque[Future[PartAnalysis]] = field(default_factory=deque)
     _analyst: ThreadPoolExecutor | None = None
+    _head_spacing_m: np.ndarray | None = None  # per head key, when the heads' spacings differ
 
     def __post_init__(self) -> None:
         # One read of one log: no other file to overlap (see jobs.analyze_files).
@@ -208,7 +209,13 @@ class PassageStream:
         if not buckets:
             return None
         analysis = partial(
-            _analyse_closed, buckets, detections, self.settings, self.keep_releases, head_step_s=self.head_step_s
+            _analyse_closed,
+            buckets,
+            detections,
+            self.settings,
+            self.keep_releases,
+            head_step_s=self.head_step_s,
+            head_spacing_m=self._spacing_by_head(),
         )
         if not self.analyse_aside:
             return self._counted(analysis())
@@ -216,6 +223,15 @@ class PassageStream:
             self._analyst = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trackside-close")
         self._analysing.append(self._analyst.submit(analysis))
         return None
+
+    def _spacing_by_head(self) -> np.ndarray | None:
+        """Per head key, its spacing (None: one for all), made again only when heads have been added."""
+        if not self.settings.head_spacing_m:
+            return None
+        heads = self.heads
+        if self._head_spacing_m is None or len(self._head_spacing_m) != len(heads):
+            self._head_spacing_m = self.settings.spacing_by_head(heads)
+        return self._head_spacing_m
 
     def closed_parts(self, wait: bool = False) -> Iterator[PartAnalysis]:
         """The parts analysed aside, in the order they closed: those done (``wait``: all, and the worker
@@ -238,10 +254,18 @@ def _analyse_closed(
     settings: SpeedSettings,
     keep_releases: bool,
     head_step_s: np.ndarray | None,
+    head_spacing_m: np.ndarray | None = None,
 ) -> PartAnalysis:
     """The passages of closed runs: their chunks' buckets merged (on the worker, when analysed aside: the merge's
     sort lets go of the GIL), then analysed."""
-    return analyse_parts(merge_buckets(buckets), detections, settings, keep_releases, head_step_s=head_step_s)
+    return analyse_parts(
+        merge_buckets(buckets),
+        detections,
+        settings,
+        keep_releases,
+        head_step_s=head_step_s,
+        head_spacing_m=head_spacing_m,
+    )
 
 
 # The activity runs a deferred close holds at most: a log whose every record opens a run (a million heads)

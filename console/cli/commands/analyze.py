@@ -38,7 +38,10 @@ def analyze(
     spacing: Annotated[
         float | None,
         typer.Option(
-            "--spacing", metavar="M", help="Coil spacing Sys1–Sys2, m [default: the layout's, 0.13]", min=0.001
+            "--spacing",
+            metavar="M",
+            help="Coil spacing Sys1–Sys2 of every head, m [default: each head's from the layout, 0.13]",
+            min=0.001,
         ),
     ] = None,
     train_length: Annotated[
@@ -66,7 +69,7 @@ def analyze(
     """Inventory, passages with speeds, and the parse report of diagnostic logs."""
 
     def body() -> int:
-        from console.drivers.batch import speed_settings
+        from console.analysis.passages.diagnostics import SpeedSettings
         from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
         from console.sinks.tables.diag_stream import JsonLinesOut, status_json, summary_doc
         from console.sinks.tables.passage_spool import FirstPassages, PassageSpool
@@ -75,7 +78,7 @@ def analyze(
         # Line facts come from the layout; the Osong test line when none is given.
         lay = load_layout(layout or "osong")
         settings = PipelineSettings(
-            speed=speed_settings(lay, spacing, train_length, idle_gap), include_status=include_status
+            speed=SpeedSettings.of_layout(lay, spacing, train_length, idle_gap), include_status=include_status
         )
         if layout:
             from console.analysis.diag_events import DiagEventSettings

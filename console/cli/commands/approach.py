@@ -48,10 +48,10 @@ def approach(
             sites = [WorkSite("site", head, distance, warning_time)]
         if not sites:
             raise fail(f"{lay.source} has no [[work_sites]]: give --head and --distance")
-        from console.drivers.batch import speed_settings
+        from console.analysis.passages.diagnostics import SpeedSettings
         from console.engine.pipeline import PipelineSettings
 
-        job = read_logs(files, PipelineSettings(speed=speed_settings(lay)), hold_passages=True)
+        job = read_logs(files, PipelineSettings(speed=SpeedSettings.of_layout(lay)), hold_passages=True)
         rows = [r for site in sites for r in approach_timeline(job.analysis.passages, lay, site)]
         if json_out or jsonl:
             print_document(

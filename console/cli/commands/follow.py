@@ -196,9 +196,7 @@ def follow(
                 out.write(_line(ev) + "\n")
             out.flush()  # a reader downstream sees each event at once
 
-        spacing = lay.spacing_m() if lay else SpeedSettings.spacing_m
-        consist = lay.consist() if lay else None
-        settings = SpeedSettings(spacing, consist.length_m if consist else 28.6, idle_gap)
+        settings = SpeedSettings.of_layout(lay, idle_gap_s=idle_gap)
         try:
             archiver = LiveArchiver(archive, layout) if archive is not None else None
         except ArchiveError as exc:

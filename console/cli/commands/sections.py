@@ -174,7 +174,7 @@ def sections(
             power_gap_s=power_gap if power_gap is not None else lay.power_gap_s,
         )
         settings = PipelineSettings(
-            speed=SpeedSettings(spacing_m=lay.spacing_m(), train_length_m=28.6, idle_gap_s=10.0),
+            speed=SpeedSettings.of_layout(lay, train_length_m=SpeedSettings.train_length_m),
             events=events,
             layout=lay,
             sections=lay,

@@ -122,11 +122,7 @@ def collect(
         why = "; ".join(f"{r.path}: {r.note or r.format}" for r in rows[:3]) or "no files"
         raise ReportInputError(f"no input in a format trackside reads ({why})")
 
-    consist = layout.consist() if layout is not None else None
-    settings = SpeedSettings(
-        spacing_m=layout.spacing_m() if layout is not None else SpeedSettings.spacing_m,
-        train_length_m=consist.length_m if consist is not None else SpeedSettings.train_length_m,
-    )
+    settings = SpeedSettings.of_layout(layout)
     data = ReportData(inputs=rows, layout=layout, settings=settings, warnings=warnings)
 
     try:

@@ -232,7 +232,7 @@ def _passages_part(doc: dict[str, Any]) -> list[Block]:
                 "Speeds in km/h. Per-second: the paper's method, coil spacing × records in the first detection "
                 "second (the records counted in brackets). Whole train: (train length + spacing) / the entering "
                 "system's first detection → the leaving system's last. Per axle: spacing / each wheel's "
-                f"Sys1→Sys2 delay (logs with sub-second times), here the mean. Spacing {s['spacing_m']} m, "
+                f"Sys1→Sys2 delay (logs with sub-second times), here the mean. Spacing {_spacing_text(s)}, "
                 f"train length {s['train_length_m']} m; a gap of {s['idle_gap_s']:g} s ends a passage.",
             )
         ),
@@ -553,3 +553,10 @@ def outline(doc: dict[str, Any]) -> list[Block]:
     blocks += trends_part(doc)  # only a report from the archive has them
     blocks += forecast_part(doc)
     return blocks
+
+
+def _spacing_text(settings: dict[str, Any]) -> str:
+    """``0.13 m``, or with the heads of another spacing: ``0.13 m (WS1 0.2 m)``."""
+    own = settings.get("head_spacing_m") or {}
+    others = ", ".join(f"{head} {m:g} m" for head, m in own.items())
+    return f"{settings['spacing_m']:g} m" + (f" ({others})" if others else "")

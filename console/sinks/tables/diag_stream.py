@@ -95,12 +95,7 @@ def summary_doc(job: DiagJob, schema: str) -> dict[str, object]:
         "schema": schema,
         "trackside_version": __version__,
         "files": job.files,
-        "settings": {
-            "spacing_m": s.spacing_m,
-            "train_length_m": s.train_length_m,
-            "idle_gap_s": s.idle_gap_s,
-            "pair_window_s": s.pair_window_s,
-        },
+        "settings": s.to_json(),
         "passages": job.passage_count,
         **({"status_passages": status_json(job.status, a.heads)} if job.status is not None else {}),
         "overlap_records": a.overlap_records,
