@@ -178,3 +178,25 @@ def test_records_older_than_the_history_rebuild_it_from_every_record(
     _names, rows = run_query(root, "SELECT count(*), sum(axles) FROM passages")
     job = whole_job([second, first])
     assert rows == [(len(job.analysis.passages), int(job.analysis.passages["axles"].sum()))]
+
+
+def test_the_fingerprint_survives_the_manifest_and_keeps_older_archives_resuming(tmp_path: Path) -> None:
+    """The manifest keeps the fingerprint as JSON: a layout with heads of their own spacing must compare equal
+    after the round trip (else every later ingest reads every record again); a layout of one spacing keeps
+    the fingerprint archives had before heads had spacings of their own."""
+    import json
+    from types import SimpleNamespace
+
+    from console.analysis.passages.diagnostics import SpeedSettings
+    from console.archive.derive import fingerprint
+    from console.layout import load_layout
+    from console.layouts import __file__ as layouts_init
+
+    uniform = SimpleNamespace(speed=SpeedSettings.of_layout(load_layout("example")))
+    fp = fingerprint(uniform, "example")  # type: ignore[arg-type]
+    assert set(fp["settings"]) == {"spacing_m", "train_length_m", "idle_gap_s", "pair_window_s", "max_speed_kmh"}
+    text = Path(layouts_init).with_name("example_station.toml").read_text(encoding="utf-8")
+    (tmp_path / "mixed.toml").write_text(text.replace("spacing_m = 0.13", "spacing_m = 0.2", 1), encoding="utf-8")
+    mixed = SimpleNamespace(speed=SpeedSettings.of_layout(load_layout(tmp_path / "mixed.toml")))
+    fp = fingerprint(mixed, "mixed.toml")  # type: ignore[arg-type]
+    assert json.loads(json.dumps(fp)) == fp and fp["settings"]["head_spacing_m"] == [["WS1", 0.2]]

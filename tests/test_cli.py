@@ -145,6 +145,46 @@ def test_subprocess_quick_start_command() -> None:
     assert res.stderr == ""  # no progress bar when stderr is not a terminal
 
 
+def test_piped_tables_keep_each_row_on_one_line() -> None:
+    """Piped (no terminal, no COLUMNS), a file name is not cut at 80 columns: a script or grep gets it whole."""
+    names = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "sample_logs").glob("osong_*.log"))
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
+    exe = Path(sys.executable).with_name("trackside")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from console.cli.app import app; app()"]
+    piped = subprocess.run([*cmd, "analyze", *names], capture_output=True, text=True, cwd=ROOT, env=env, timeout=120)
+    assert piped.returncode == 0, piped.stderr
+    rows = [line for line in piped.stdout.splitlines() if "osong_ws4_" in line]
+    assert [next(n for n in names if n in row) for row in rows] == names
+    # A width asked for is still kept.
+    narrow = subprocess.run(
+        [*cmd, "analyze", *names], capture_output=True, text=True, cwd=ROOT, env={**env, "COLUMNS": "60"}, timeout=120
+    )
+    assert max(map(len, narrow.stdout.splitlines())) <= 60 and names[0] not in narrow.stdout
+
+
+def test_speeds_takes_each_heads_spacing_from_a_layout(tmp_path: Path, samples: Path) -> None:
+    from console.layouts import __file__ as layouts_init
+
+    text = Path(layouts_init).with_name("example_station.toml").read_text(encoding="utf-8")
+    mixed = tmp_path / "mixed.toml"
+    mixed.write_text(text.replace("spacing_m = 0.13", "spacing_m = 0.2", 1), encoding="utf-8")  # WS1 only
+    log = str(samples / "example_station.log")
+
+    def axle_speeds(*extra: str) -> dict[str, list[float]]:
+        res = runner.invoke(app, ["speeds", log, "--json", *extra])
+        assert res.exit_code == 0, res.output
+        got: dict[str, list[float]] = {}
+        for p in json.loads(res.stdout)["passages"]:
+            got.setdefault(p["counting_head"], []).extend(v for v in p["speed_kmh_per_axle"] or [] if v is not None)
+        return got
+
+    plain, per_head = axle_speeds(), axle_speeds("--layout", str(mixed))
+    assert plain.keys() == per_head.keys() and plain["WS1"] and plain["WS2"]
+    assert per_head["WS1"] == pytest.approx([v * 0.2 / 0.13 for v in plain["WS1"]], rel=1e-3)
+    assert per_head["WS2"] == pytest.approx(plain["WS2"])
+    assert axle_speeds("--layout", str(mixed), "--spacing", "0.13") == plain
+
+
 def test_subprocess_json_and_exit_codes(tmp_path: Path) -> None:
     res = _run("analyze", "sample_logs/ws4_subsecond.log", "--json")
     assert res.returncode == 0 and json.loads(res.stdout)["parse_report"]["records"] == 100

@@ -95,7 +95,15 @@ def derive_settings(manifest: Manifest, layout: Layout | None) -> PipelineSettin
 
 
 def fingerprint(settings: PipelineSettings, layout_spec: str | None) -> dict[str, Any]:
-    return {"version": DERIVE_VERSION, "settings": dataclasses.asdict(settings.speed), "layout": layout_spec}
+    """What the derived rows were made with, as the manifest keeps it (JSON): another one, and the next
+    ingest makes them again from the records."""
+    speed = dataclasses.asdict(settings.speed)
+    # Heads' own spacings only where a layout gives some: an archive made before they existed (one spacing
+    # for every head) keeps its fingerprint, and resumes.
+    own = speed.pop("head_spacing_m")
+    if own:
+        speed["head_spacing_m"] = [[head, m] for head, m in own]
+    return {"version": DERIVE_VERSION, "settings": speed, "layout": layout_spec}
 
 
 # -- one ingest's derivation ------------------------------------------------------------------------------
@@ -335,7 +343,7 @@ def _group_where(heads: frozenset[tuple[int, Any]] | None, file_seqs: list[int] 
 
 
 def fingerprint_of(settings: PipelineSettings, derived: dict[str, Any]) -> dict[str, Any]:
-    return {"version": DERIVE_VERSION, "settings": dataclasses.asdict(settings.speed), "layout": derived.get("layout")}
+    return fingerprint(settings, derived.get("layout"))
 
 
 def group_key_of(layout: Layout | None) -> Callable[[int, Any], str]:

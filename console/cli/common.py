@@ -231,6 +231,10 @@ if TYPE_CHECKING:
         def on_broken_pipe(self) -> None: ...
 
 
+# The width tables are laid out in when no terminal gives one: wide enough for any row of ours.
+PIPED_WIDTH = 400
+
+
 def __getattr__(name: str) -> Any:
     # Rich is imported when a command first asks for its console, not by every command that imports this
     # module (a short query prints none: a tenth of its start-up).
@@ -240,7 +244,15 @@ def __getattr__(name: str) -> Any:
 
     class Console(RichConsole):
         """Rich's console, but a reader that stops early (``| head``) is not an error:
-        Rich exits 1 on a broken pipe; we stop quietly with 0."""
+        Rich exits 1 on a broken pipe; we stop quietly with 0.
+
+        Piped or redirected (no terminal, no ``COLUMNS``), lines are not cut at Rich's 80 columns: a script
+        or ``grep`` reading the tables gets each file name and row on one line."""
+
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            if "width" not in kwargs and not self.is_terminal and not os.environ.get("COLUMNS"):
+                self.width = PIPED_WIDTH
 
         def on_broken_pipe(self) -> None:
             _silence_stdout()

@@ -16,6 +16,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "speeds": (
         "trackside speeds sample_logs/ws4_subsecond.log",
         "trackside speeds --json sample_logs/osong_*.log",
+        "trackside speeds sample_logs/example_station.log --layout example",
     ),
     "sections": (
         "trackside sections sample_logs/example_station.log --layout example",

@@ -16,10 +16,22 @@ FilesArg = Annotated[
     ),
 ]
 SpacingOpt = Annotated[
-    float, typer.Option("--spacing", metavar="M", help="Coil spacing Sys1–Sys2 of the counting head, m.", min=0.001)
+    float | None,
+    typer.Option(
+        "--spacing",
+        metavar="M",
+        help="Coil spacing Sys1–Sys2 of every head, m [default: each head's from the layout, 0.13]",
+        min=0.001,
+    ),
 ]
 TrainLengthOpt = Annotated[
-    float, typer.Option("--train-length", metavar="M", help="First-to-last wheel distance of the train, m.", min=0.1)
+    float | None,
+    typer.Option(
+        "--train-length",
+        metavar="M",
+        help="First-to-last wheel, m [default: the layout's first consist, 28.6]",
+        min=0.1,
+    ),
 ]
 IdleGapOpt = Annotated[
     float, typer.Option("--idle-gap", metavar="S", help="Seconds without records that end a passage (≥ 1).", min=1.0)

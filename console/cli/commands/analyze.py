@@ -25,7 +25,9 @@ from console.cli.options import (
     JsonlOpt,
     JsonOpt,
     RejectedAllOpt,
+    SpacingOpt,
     StrictOpt,
+    TrainLengthOpt,
 )
 from console.plural import count
 from console.safe_text import clean
@@ -35,24 +37,8 @@ PASSAGES_SHOWN = 200  # rows of the text table; --json has all
 
 def analyze(
     files: FilesArg,
-    spacing: Annotated[
-        float | None,
-        typer.Option(
-            "--spacing",
-            metavar="M",
-            help="Coil spacing Sys1–Sys2 of every head, m [default: each head's from the layout, 0.13]",
-            min=0.001,
-        ),
-    ] = None,
-    train_length: Annotated[
-        float | None,
-        typer.Option(
-            "--train-length",
-            metavar="M",
-            help="First-to-last wheel, m [default: the layout's first consist, 28.6]",
-            min=0.1,
-        ),
-    ] = None,
+    spacing: SpacingOpt = None,
+    train_length: TrainLengthOpt = None,
     idle_gap: IdleGapOpt = 10.0,
     layout: Annotated[
         str | None,

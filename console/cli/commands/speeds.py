@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import sys
+from typing import Annotated
 
 import typer
 
 from console import exit_codes
-from console.cli.common import Console, guard, one_json_form, print_json, read_logs
+from console.cli.common import Console, guard, load_layout, one_json_form, print_json, read_logs
 from console.cli.options import (
     REJECTIONS_LISTED,
     FilesArg,
@@ -23,9 +24,17 @@ from console.cli.options import (
 
 def speeds(
     files: FilesArg,
-    spacing: SpacingOpt = 0.13,
-    train_length: TrainLengthOpt = 28.6,
+    spacing: SpacingOpt = None,
+    train_length: TrainLengthOpt = None,
     idle_gap: IdleGapOpt = 10.0,
+    layout: Annotated[
+        str | None,
+        typer.Option(
+            "--layout",
+            metavar="LAYOUT",
+            help="Layout (file or osong, example): each head's coil spacing, the first consist's length.",
+        ),
+    ] = None,
     json_out: JsonOpt = False,
     jsonl: JsonlOpt = False,
     include_status: IncludeStatusOpt = False,
@@ -42,7 +51,8 @@ def speeds(
         one_json_form(json_out, jsonl)
         lines = JsonLinesOut(sys.stdout, REJECTIONS_LISTED) if jsonl else None
         spool = PassageSpool() if json_out else None
-        speed = SpeedSettings(spacing_m=spacing, train_length_m=train_length, idle_gap_s=idle_gap)
+        lay = load_layout(layout) if layout else None
+        speed = SpeedSettings.of_layout(lay, spacing, train_length, idle_gap)
         settings = PipelineSettings(speed=speed, include_status=include_status)
         # The text table lists every passage: held as one table.
         job = read_logs(files, settings, spool, jsonl=lines, hold_passages=not (json_out or jsonl))
