@@ -168,15 +168,13 @@ def follow(
             raise fail(f"--duration: {duration!r} is more than 31 years")
         from console.archive.store import ArchiveError
         from console.inputs.base import SourceError
-        from console.inputs.uri import open_source
+        from console.inputs.uri import open_sources
         from console.live.archive import LiveArchiver
         from console.live.engine import LiveEngine, run_sources
 
         lay = load_layout(layout) if layout else None
         try:
-            srcs = [open_source(s, from_start=from_start, force_polling=poll) for s in sources]
-            for s in srcs:
-                s.check()
+            srcs = open_sources(sources, from_start=from_start, force_polling=poll)
         except SourceError as exc:
             raise fail(str(exc)) from None
         out = sys.stdout
