@@ -85,11 +85,12 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
         # Not "of them": the passages counted above exclude these.
         out[0] += f"; {count(n, 'status-only record burst')} (no wheel onset) not listed (--include-status lists them)"
     for f in summary["files"]:
+        unread = f" + {f['unrecognised']} unrecognised (not read)" if "unrecognised" in f else ""
         out.append(
             clean(
                 f"  {f['file']}: {count(f['lines_read'], 'line')} = {count(f['records'], 'record')}"
                 f" + {f['blank']} blank"
-                f" + {f['rejected']} rejected"
+                f" + {f['rejected']} rejected{unread}"
             )
         )
     why = "(stopped at a second interrupt)"
