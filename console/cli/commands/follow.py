@@ -30,8 +30,8 @@ SourcesArg = Annotated[
     typer.Argument(
         metavar="SOURCE...",
         help="Sources: file:PATH (or a path: a diagnostic, NMEA, gpsd JSON, GNSS device CSV/JSON lines, CAN or"
-        " sensor frame log, told by its content), gpsd://HOST:PORT[/DEVICE], mqtt[s]://HOST:PORT/TOPIC,"
-        " can:IFACE[:CHANNEL].",
+        " sensor frame log, told by its content), - (standard input: a pipe, read to its end; a FIFO path too),"
+        " gpsd://HOST:PORT[/DEVICE], mqtt[s]://HOST:PORT/TOPIC, can:IFACE[:CHANNEL].",
         show_default=False,
     ),
 ]
@@ -155,7 +155,8 @@ def follow(
     include_status: IncludeStatusOpt = False,
     metrics: MetricsOpt = None,
 ) -> None:
-    """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary (exit 130)."""
+    """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary (exit 130), and so
+    does the end of every stream given (`… | trackside follow -`; exit 0)."""
 
     def body() -> int:
         from console.analysis.passages.diagnostics import SpeedSettings
