@@ -338,3 +338,33 @@ def test_a_fast_writer_waits_on_the_full_pipe_while_the_engine_is_behind(tmp_pat
     firsts = [b.first_line for b in blocks]
     assert firsts == sorted(firsts) and firsts[0] == 1
     assert blocks[-1].first_line + blocks[-1].data.count(b"\n") - 1 == written[0] // len(line)
+
+
+def test_standard_input_closed_is_a_one_line_error() -> None:
+    # bash closes fd 0 (<&-) before trackside starts: nothing there to read, not some file that took fd 0.
+    out = subprocess.run(
+        ["bash", "-c", 'exec "$@" <&-', "bash", *trackside("follow", "-")], capture_output=True, text=True, timeout=30
+    )
+    assert out.returncode == 2
+    assert out.stderr.strip() == "trackside: error: -: standard input is closed"
+
+
+def test_a_fifo_made_where_a_followed_file_was_awaited_is_said_not_read_by_position(tmp_path: Path) -> None:
+    late = tmp_path / "late.log"
+    out_path = tmp_path / "out.jsonl"
+    with out_path.open("wb") as out:
+        proc = subprocess.Popen(
+            trackside("follow", str(late), "--jsonl"), stdout=out, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL
+        )
+        try:
+            assert wait_until(lambda: b"waiting for the file" in out_path.read_bytes(), 20)
+            os.mkfifo(late)
+            assert wait_until(lambda: b"not a file now" in out_path.read_bytes(), 10)
+            proc.send_signal(signal.SIGTERM)
+            _, err = proc.communicate(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+    assert proc.returncode == 143, err  # stopped at once: nothing blocked on opening the FIFO
+    assert b"Illegal seek" not in out_path.read_bytes()
+    assert read_jsonl(out_path.read_text())[-1]["type"] == "summary"

@@ -22,6 +22,7 @@ fixes, a CAN or sensor frame log's as frames.
 from __future__ import annotations
 
 import os
+import stat
 import threading
 from pathlib import Path
 
@@ -49,6 +50,7 @@ class FileSource(LineSource):
         self._tail = b""  # last bytes read, to notice truncate-and-regrow
         self._generation = 0
         self._wake = threading.Event()
+        self._told_not_a_file = False
         self.rotations = 0
         self.truncations = 0
 
@@ -134,6 +136,18 @@ class FileSource(LineSource):
         except OSError as exc:
             self.set_connected(False, f"cannot stat: {exc.strerror}")
             return
+        if not stat.S_ISREG(st.st_mode):
+            # A FIFO or a device made at the path after follow started: a stream (read as one when given at the
+            # start, console.inputs.stream); opened here it would block, then fail at the first positioned read.
+            if self._fd is not None:
+                self._read_to_end()
+            detail = "not a file now (a FIFO or a device): give it to follow again to read it"
+            if not self._told_not_a_file:  # said once, even when it was already "waiting for the file"
+                self._told_not_a_file = True
+                self.note("disconnected", f"{self.path}: {detail}")
+            self.set_connected(False, detail)
+            return
+        self._told_not_a_file = False
         ident = (st.st_dev, st.st_ino)
         if self._fd is None:
             self._open(first)

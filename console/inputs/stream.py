@@ -24,6 +24,7 @@ import fcntl
 import os
 import select
 import stat
+import sys
 import termios
 import threading
 from pathlib import Path
@@ -47,8 +48,7 @@ class StreamSource(LineSource):
         super().__init__(uri, path)
         self.watching = "stream"
         self._fd: int | None = None
-        self._wake_r, self._wake_w = os.pipe()  # interrupt() writes here: a blocked poll wakes at once
-        os.set_blocking(self._wake_w, False)
+        self._wake_r = self._wake_w = -1  # interrupt() writes here: a blocked poll wakes at once (made by run)
         self._wake_lock = threading.Lock()
 
     @property
@@ -63,6 +63,8 @@ class StreamSource(LineSource):
     def identity(self) -> tuple[int, int]:
         """The stream's (device, inode): one pipe given twice, as ``-`` and ``/dev/stdin``, is one."""
         try:
+            if self.is_stdin and sys.stdin is None:
+                raise OSError
             st = os.fstat(STDIN_FD) if self.is_stdin else os.stat(self.path)
         except OSError:
             return (-1, id(self))  # not there: check says so
@@ -71,6 +73,8 @@ class StreamSource(LineSource):
     def check(self) -> None:
         if self.is_stdin:
             try:
+                if sys.stdin is None:  # closed when we started: fd 0 may since be a file of ours
+                    raise OSError
                 os.fstat(STDIN_FD)
             except OSError:
                 raise SourceError("-: standard input is closed") from None
@@ -94,6 +98,9 @@ class StreamSource(LineSource):
 
     # -- thread ------------------------------------------------------------
     def run(self) -> None:
+        with self._wake_lock:  # a stop asked before this is seen by the loop's first check
+            self._wake_r, self._wake_w = os.pipe()
+            os.set_blocking(self._wake_w, False)
         try:
             self._open_and_read()
         finally:
@@ -102,7 +109,7 @@ class StreamSource(LineSource):
             with self._wake_lock:
                 os.close(self._wake_r)
                 os.close(self._wake_w)
-                self._wake_w = -1
+                self._wake_r = self._wake_w = -1
 
     def _open_and_read(self) -> None:
         try:
