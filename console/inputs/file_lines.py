@@ -45,10 +45,11 @@ SHOWN_MALFORMED = 20  # shown one by one; after that one note per 1000 (as MQTT'
 
 
 class FollowingSource(Protocol):
-    """What a followed file's lines need of the source following it (:class:`console.inputs.follow.FileSource`)."""
+    """What a followed file's lines need of the source reading it (:class:`console.inputs.line_source.LineSource`:
+    a followed file, or a stream)."""
 
     uri: str
-    watching: str  # how the file is watched: "inotify" or "poll"
+    watching: str  # how the file is watched: "inotify" or "poll"; "stream" for a pipe
 
     def note(self, kind: str, detail: str) -> None: ...
     def set_connected(self, connected: bool, detail: str) -> None: ...

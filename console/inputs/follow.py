@@ -16,7 +16,9 @@
 
 What the lines are is recognised per file (:mod:`console.inputs.file_lines`):
 a diagnostic log's lines go on as :class:`LineBlock`, a GNSS file's as
-fixes, a CAN or sensor frame log's as frames.
+fixes, a CAN or sensor frame log's as frames.  Cutting the bytes into lines
+is :class:`~console.inputs.line_source.LineSource`'s, shared with a stream
+(a pipe: :mod:`console.inputs.stream`); this module only says which bytes.
 """
 
 from __future__ import annotations

@@ -138,7 +138,7 @@ class StreamSource(LineSource):
         """Read as it comes until the stream ends (True) or the source is asked to stop (False)."""
         assert self._fd is not None
         poller = select.poll()
-        poller.register(self._fd, select.POLLIN | select.POLLPRI)
+        poller.register(self._fd, select.POLLIN)
         poller.register(self._wake_r, select.POLLIN)
         while not self.stopping:
             poller.poll()  # data, the writer gone (POLLHUP), or a wake-up
