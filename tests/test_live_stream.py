@@ -368,3 +368,26 @@ def test_a_fifo_made_where_a_followed_file_was_awaited_is_said_not_read_by_posit
     assert proc.returncode == 143, err  # stopped at once: nothing blocked on opening the FIFO
     assert b"Illegal seek" not in out_path.read_bytes()
     assert read_jsonl(out_path.read_text())[-1]["type"] == "summary"
+
+
+def test_the_station_view_reads_a_fifo_and_says_when_it_ended(tmp_path: Path) -> None:
+    from console.layout import load_layout
+    from console.tui.live_source import LiveSource, status_line
+
+    fifo = tmp_path / "station.log"
+    os.mkfifo(fifo)
+    source = StreamSource(f"file:{fifo}", fifo)
+    view = LiveSource(load_layout("example"), [source])
+    view.start()
+    data = (SAMPLES / "example_station.log").read_bytes()
+    writer = threading.Thread(target=lambda: fifo.write_bytes(data), daemon=True)  # opens, writes, closes
+    writer.start()
+    end = time.monotonic() + 60
+    while not (source.input_ended and not view.pending()) and time.monotonic() < end:
+        view.advance(0.1)
+    view.advance(0.1)
+    view.stop()
+    (status,) = view.statuses()
+    assert status.messages == data.count(b"\n")
+    assert f"file:{fifo}: ended" in status_line(status)
+    assert view.live.diag.stats.passages > 0  # analysed as it came, by the view's engine
