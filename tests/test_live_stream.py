@@ -391,3 +391,12 @@ def test_the_station_view_reads_a_fifo_and_says_when_it_ended(tmp_path: Path) ->
     assert status.messages == data.count(b"\n")
     assert f"file:{fifo}: ended" in status_line(status)
     assert view.live.diag.stats.passages > 0  # analysed as it came, by the view's engine
+
+
+def test_strict_exits_1_on_a_line_of_the_stream_rejected(tmp_path: Path) -> None:
+    data = (SAMPLES / "ws4_subsecond.log").read_bytes() + b"not a record\n"
+    code, got, err = follow_piped(data, "--strict", seed=17, tmp=tmp_path)
+    assert code == 1, err
+    assert rejections(got)[-1][0] == data.count(b"\n")
+    code, _, err = follow_piped((SAMPLES / "ws4_subsecond.log").read_bytes(), "--strict", seed=19, tmp=tmp_path)
+    assert code == 0, err
