@@ -14,7 +14,8 @@ shared machine the wall times are only comparable within a round; CPU (user + sy
 
 Targets: ingest wall ≤ 1.3 × analyze --json wall and peak ≤ 256 MB at both sizes; report --format json
 ≤ 256 MB at 12 M records; ``follow --from-start`` (``--commands follow-from-start``: not in the default
-set) ≤ 256 MB, not growing with the log.  Figures: benchmarks/README.md.
+set) ≤ 256 MB, not growing with the log, and so ``cat LOG | trackside follow -`` (``follow-pipe``).
+Figures: benchmarks/README.md.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from pathlib import Path
 from benchmarks.bench_memory_commands import TARGET_MB, in_checkout, run, write_layout
 
 INGEST_RATIO = 1.3
-COMMANDS = ("analyze-json", "ingest", "report-json", "report-json-layout", "follow-from-start")
+COMMANDS = ("analyze-json", "ingest", "report-json", "report-json-layout", "follow-from-start", "follow-pipe")
 DEFAULT = COMMANDS[:4]
 
 
@@ -41,6 +42,8 @@ def command(name: str, exe: str, log: Path, layout: Path, archive: Path) -> list
         return [exe, "ingest", str(log), "--archive", str(archive)]
     if name == "follow-from-start":  # the log read as a followed file from its start; ends 3 s after its last line
         return [exe, "follow", str(log), "--from-start", "--jsonl", "--idle-exit", "3"]
+    if name == "follow-pipe":  # `cat LOG | trackside follow -`: ends with the stream (peak RSS: the larger, follow's)
+        return ["sh", "-c", 'cat "$1" | "$0" follow - --jsonl', exe, str(log)]
     if name == "report-json":
         return [exe, "report", str(log), "--format", "json", "-o", str(archive.parent / "report.json")]
     return [exe, "report", str(log), "--layout", str(layout), "--format", "json", "-o", str(archive.parent / "r.json")]

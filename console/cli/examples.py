@@ -65,7 +65,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     ),
     "follow": (
         "trackside follow sample_logs/example_station.log --from-start --layout example --idle-exit 2",
-        "trackside follow file:/var/log/trackside/diag.log --layout example --jsonl",
+        "cat sample_logs/example_station.log | trackside follow - --layout example --jsonl",
         "trackside follow 'gpsd://127.0.0.1:2947?role=head&train=1' 'gpsd://127.0.0.1:2948?role=eot&train=1'",
     ),
     "ingest": (

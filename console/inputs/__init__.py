@@ -1,4 +1,4 @@
-"""Inputs: growing files, gpsd, LoRaWAN uplinks over MQTT, a CAN bus; and what a file is.
+"""Inputs: growing files, pipes and FIFOs, gpsd, LoRaWAN uplinks over MQTT, a CAN bus; and what a file is.
 
 A source knows its transport, not railways.  Each one runs in its own thread
 and hands *items* to one queue: raw record bytes of a followed log
@@ -14,6 +14,7 @@ a followed file's lines are routed by it (:mod:`console.inputs.file_lines`).
 A source is named by a URI (:func:`console.inputs.uri.open_source`)::
 
     file:PATH                      follow a growing file (tail -F): a diagnostic, GNSS, CAN or frame log
+    -, file:-, a FIFO's path       a stream (standard input, a pipe), read as it comes until its writer closes it
     gpsd://HOST:PORT[/DEVICE]      a running gpsd, WATCH JSON
     mqtt://HOST:PORT/TOPIC         LoRaWAN uplinks (ChirpStack v4, The Things Stack v3)
     mqtts://HOST:PORT/TOPIC        the same over TLS

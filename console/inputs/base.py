@@ -102,7 +102,7 @@ class SourceNote:
     """Something about the transport itself: connected, lost, malformed, rotated…"""
 
     source: str
-    # connected | disconnected | malformed | lost | duplicate | rotated | truncated | unrecognised | info
+    # connected | disconnected | ended | malformed | lost | duplicate | rotated | truncated | unrecognised | info
     kind: str
     detail: str
     received_mono: float
@@ -147,11 +147,15 @@ class Source(ABC):
     """A live feed run in a daemon thread; :meth:`stop` ends it within about a second."""
 
     kind = "source"
+    # May its thread be made to wait for the engine (console.live.backlog)?  Not a network source: its
+    # sender sets the rate, and holding it would only lose its messages elsewhere.
+    waits_for_room = False
 
     def __init__(self, uri: str) -> None:
         self.uri = uri
         self._stop = threading.Event()
         self.abandoned = False  # stopping without the last read: what it would deliver is not wanted
+        self.input_ended = False  # its input ended for good (a pipe's writer closed it): it delivers no more
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
         self._connected = False
@@ -258,6 +262,13 @@ class Source(ABC):
             self._detail = detail
         if changed:
             self.note("connected" if connected else "disconnected", detail)
+
+    def set_ended(self, detail: str) -> None:
+        """Its input ended for good (a stream's writer closed it): told once, as an ``ended`` note."""
+        with self._lock:
+            self._connected, self._told, self._detail = False, True, f"ended: {detail}"
+        self.note("ended", detail)
+        self.input_ended = True  # after every item of it was handed over
 
     def status(self) -> SourceStatus:
         now = time.monotonic()

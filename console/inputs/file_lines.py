@@ -45,10 +45,11 @@ SHOWN_MALFORMED = 20  # shown one by one; after that one note per 1000 (as MQTT'
 
 
 class FollowingSource(Protocol):
-    """What a followed file's lines need of the source following it (:class:`console.inputs.follow.FileSource`)."""
+    """What a followed file's lines need of the source reading it (:class:`console.inputs.line_source.LineSource`:
+    a followed file, or a stream)."""
 
     uri: str
-    watching: str  # how the file is watched: "inotify" or "poll"
+    watching: str  # how the file is watched: "inotify" or "poll"; "stream" for a pipe
 
     def note(self, kind: str, detail: str) -> None: ...
     def set_connected(self, connected: bool, detail: str) -> None: ...
@@ -91,6 +92,7 @@ class FileLines:
         self.kind = ""  # the current file's kind; "" while not recognised
         self.previous_kind = ""
         self.ignored_lines = 0
+        self._not_read: dict[str, int] = {}  # a file of a kind not followed -> its lines (counted, not read)
         self._head = b""  # the file's first bytes (up to HEAD_BYTES), while it is not recognised
         self._skipped: list[tuple[int, bytes]] = []  # its first lines that are not delivered
         self._pending: list[LineBlock] = []
@@ -137,11 +139,14 @@ class FileLines:
         return out + list(self.gnss.finish())
 
     def reports(self) -> list[dict[str, Any]]:
-        """Line accounting of the files read here (not the diagnostic ones: the engine reads those)."""
-        return [
+        """Line accounting of the files read here (not the diagnostic ones: the engine reads those); a file of
+        no kind followed (its ``unrecognised`` note says what it looks like) has its lines as ``unrecognised``."""
+        out = [
             {"file": f.file, "lines_read": f.lines_read, "records": f.records, "blank": f.blank, "rejected": f.rejected}
             for f in self.report.files
         ]
+        zero = {"records": 0, "blank": 0, "rejected": 0}
+        return out + [{"file": k, "lines_read": n, **zero, "unrecognised": n} for k, n in self._not_read.items()]
 
     # -- recognition ------------------------------------------------------------
     def _recognise(self, final: bool) -> list[Item]:
@@ -214,7 +219,9 @@ class FileLines:
         if kind == "diag":
             return [block]
         if kind == "ignored":
-            self.ignored_lines += block.data.count(b"\n")
+            n = block.data.count(b"\n")
+            self.ignored_lines += n
+            self._not_read[self.label] = self._not_read.get(self.label, 0) + n
             return []
         data = block.data.removeprefix(codecs.BOM_UTF8) if block.first_line == 1 else block.data
         if self._reader is not None:

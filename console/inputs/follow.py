@@ -16,51 +16,45 @@
 
 What the lines are is recognised per file (:mod:`console.inputs.file_lines`):
 a diagnostic log's lines go on as :class:`LineBlock`, a GNSS file's as
-fixes, a CAN or sensor frame log's as frames.
+fixes, a CAN or sensor frame log's as frames.  Cutting the bytes into lines
+is :class:`~console.inputs.line_source.LineSource`'s, shared with a stream
+(a pipe: :mod:`console.inputs.stream`); this module only says which bytes.
 """
 
 from __future__ import annotations
 
 import os
+import stat
 import threading
-import time
 from pathlib import Path
-from typing import Any
 
-from console.inputs.base import Item, LineBlock, Source, SourceError
-from console.inputs.file_lines import FileLines
+from console.inputs.base import SourceError
+from console.inputs.line_source import LineSource
 from parsers.kinds import HEAD_BYTES
 
 READ_BYTES = 1 << 20
-MAX_LINE_BYTES = 4 << 20
-PIECE_BYTES = 64 << 10
 SIGNATURE_BYTES = 64
 POLL_S = 0.05  # without inotify: 20 stat calls a second, negligible CPU
 CHECK_S = 1.0  # with inotify: a safety re-check, in case an event was missed
 
 
-class FileSource(Source):
+class FileSource(LineSource):
     kind = "file"
 
     def __init__(self, uri: str, path: Path, from_start: bool = False, force_polling: bool = False) -> None:
-        super().__init__(uri)
-        self.path = path
+        super().__init__(uri, path)
         self.from_start = from_start
         self.force_polling = force_polling
         self._fd: int | None = None
         self._ident: tuple[int, int] | None = None
         self._pos = 0
-        self._line = 1
-        self._carry = b""
-        self._overlong = False  # inside a runaway line whose start was handed over
         self._head = b""  # first bytes of the current file, to recognise its copy
         self._tail = b""  # last bytes read, to notice truncate-and-regrow
         self._generation = 0
         self._wake = threading.Event()
+        self._told_not_a_file = False
         self.rotations = 0
         self.truncations = 0
-        self.watching = "poll"
-        self.files = FileLines(self, path)
 
     def check(self) -> None:
         if self.path.is_dir():
@@ -144,6 +138,18 @@ class FileSource(Source):
         except OSError as exc:
             self.set_connected(False, f"cannot stat: {exc.strerror}")
             return
+        if not stat.S_ISREG(st.st_mode):
+            # A FIFO or a device made at the path after follow started: a stream (read as one when given at the
+            # start, console.inputs.stream); opened here it would block, then fail at the first positioned read.
+            if self._fd is not None:
+                self._read_to_end()
+            detail = "not a file now (a FIFO or a device): give it to follow again to read it"
+            if not self._told_not_a_file:  # said once, even when it was already "waiting for the file"
+                self._told_not_a_file = True
+                self.note("disconnected", f"{self.path}: {detail}")
+            self.set_connected(False, detail)
+            return
+        self._told_not_a_file = False
         ident = (st.st_dev, st.st_ino)
         if self._fd is None:
             self._open(first)
@@ -168,8 +174,8 @@ class FileSource(Source):
         st = os.fstat(fd)
         self._fd, self._ident = fd, (st.st_dev, st.st_ino)
         self._generation += 1
-        self._pos, self._line, self._carry, self._tail = 0, 1, b"", b""
-        self._overlong = False
+        self._restart_lines()
+        self._pos, self._tail = 0, b""
         self._head = os.pread(fd, SIGNATURE_BYTES, 0)
         skipped = b""
         if first and not self.from_start:
@@ -257,53 +263,3 @@ class FileSource(Source):
                 self._head = os.pread(self._fd, SIGNATURE_BYTES, 0)
             self._tail = (self._tail + block)[-SIGNATURE_BYTES:]
             self._deliver(block)
-
-    def _deliver(self, block: bytes) -> None:
-        if self._overlong:
-            # The rest of a runaway line already handed over (as one line, as a batch read counts it).
-            nl = block.find(b"\n")
-            if nl < 0:
-                return
-            self._overlong, block = False, block[nl + 1 :]
-        data = self._carry + block if self._carry else block
-        cut = data.rfind(b"\n") + 1
-        if cut == 0:
-            self._carry = data
-            if len(data) > MAX_LINE_BYTES:  # a runaway line: hand it over, the parser rejects it
-                self._flush_carry("overlong")
-                self._overlong = True
-            return
-        self._carry = data[cut:]
-        self._emit(data[:cut])
-
-    def _emit(self, lines: bytes) -> None:
-        start = 0
-        while start < len(lines):
-            # A file read here (not a diagnostic log: the engine parses those) goes in pieces, so that
-            # its items, and the count of its lines, keep flowing while a big file is read.
-            cut = len(lines)
-            if self.files.kind != "diag" and cut - start > PIECE_BYTES:
-                cut = lines.rfind(b"\n", start, start + PIECE_BYTES) + 1
-                if cut <= start:  # one line longer than a piece
-                    cut = lines.index(b"\n", start) + 1
-            piece = lines[start:cut] if start or cut < len(lines) else lines
-            n = piece.count(b"\n")
-            block = LineBlock(self.uri, self.label, self._line, piece, time.monotonic())
-            self._line += n
-            self.count_messages(n)
-            self._hand_over(self.files.lines(block))
-            start = cut
-
-    def _hand_over(self, items: list[Item]) -> None:
-        for item in items:
-            self.emit(item, messages=0)
-
-    def file_reports(self) -> list[dict[str, Any]]:
-        return self.files.reports()
-
-    def _flush_carry(self, why: str) -> None:
-        """An unfinished line when the file ends for good: handed over, so it is accounted for."""
-        if self._carry:
-            carry, self._carry = self._carry, b""
-            self.note("info", f"{self.label} line {self._line}: unfinished line ({len(carry)} bytes) at {why}")
-            self._emit(carry + b"\n")

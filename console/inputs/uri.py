@@ -33,7 +33,8 @@ def parse_uri(text: str) -> SourceURI:
     ``mqtts://`` verifies the broker's certificate against the system's CAs,
     or against ``?ca=PATH`` (a PEM bundle: a private or self-signed CA).
 
-    A bare path (no scheme) is a file, so ``trackside follow app.log`` works.
+    A bare path (no scheme) is a file, so ``trackside follow app.log`` works; ``-`` (or ``file:-``) is
+    standard input.
     """
     scheme, sep, rest = text.partition(":")
     if not sep or scheme not in SCHEMES or (len(scheme) == 1 and rest.startswith("\\")):
@@ -84,6 +85,10 @@ def open_source(text: str, *, from_start: bool = False, force_polling: bool = Fa
     """A (not yet started) source for a URI; :class:`SourceError` if it cannot be one."""
     u = parse_uri(text)
     if u.scheme == "file":
+        from console.inputs.stream import STDIN, StreamSource, is_stream
+
+        if u.path == STDIN or is_stream(Path(u.path)):  # a pipe, a FIFO, a device: read as it comes
+            return StreamSource(text, Path(u.path))
         from console.inputs.follow import FileSource
 
         return FileSource(text, Path(u.path), from_start=from_start, force_polling=force_polling)
@@ -107,3 +112,22 @@ def open_source(text: str, *, from_start: bool = False, force_polling: bool = Fa
     from console.inputs.can_bus import CanSource
 
     return CanSource(text, u.interface, u.channel)
+
+
+def open_sources(texts: list[str], *, from_start: bool = False, force_polling: bool = False) -> list[Source]:
+    """Sources for URIs, each checked (:meth:`Source.check`); :class:`SourceError` for the first that cannot
+    be one.  A stream is read once: standard input, or one FIFO, given twice would share its lines out."""
+    sources = [open_source(t, from_start=from_start, force_polling=force_polling) for t in texts]
+    from console.inputs.stream import StreamSource
+
+    streams: dict[tuple[int, int], str] = {}
+    for s in sources:
+        if isinstance(s, StreamSource):
+            ident = s.identity()
+            if ident in streams:
+                twice = "standard input given twice" if s.is_stdin else f"the same stream as {streams[ident]}"
+                raise SourceError(f"{s.uri}: {twice}")
+            streams[ident] = s.uri
+    for s in sources:
+        s.check()
+    return sources

@@ -3,7 +3,7 @@
 A followed file is read as fast as the disk gives it; the engine analyses
 it more slowly.  Unbounded, the queue between them held most of a big file
 followed from its start (``follow --from-start`` of a 407 MB log peaked at
-490 MB).  Here a file's reader waits while more than
+490 MB).  Here a file's reader (and a pipe's: its writer then waits) waits while more than
 :data:`BACKLOG_BYTES` of what was read waits for the engine: the file keeps,
 and memory no longer grows with the input.  A source on the network is never
 held (its sender sets the rate; holding it would only lose its messages
@@ -22,7 +22,6 @@ import threading
 from collections.abc import Callable, Sequence
 
 from console.inputs.base import Item, LineBlock, Source
-from console.inputs.follow import FileSource
 
 BACKLOG_BYTES = 16 << 20  # a few of the file reader's blocks: the engine never waits for the disk
 ITEM_BYTES = 512  # an item other than a block of lines (a fix, a frame, a note), as counted here
@@ -45,8 +44,8 @@ class Backlog:
         self._dropped_items = 0
 
     def putter(self, source: Source) -> Callable[[Item], None]:
-        """How ``source`` hands its items over: a followed file's reader waits for room."""
-        waits = isinstance(source, FileSource)
+        """How ``source`` hands its items over: a followed file's or a stream's reader waits for room."""
+        waits = source.waits_for_room
 
         def put(item: Item) -> None:
             w = _weight(item)

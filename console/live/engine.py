@@ -233,8 +233,9 @@ def run_sources(
     duration_s: float | None = None,
     tell: Callable[[str], None] | None = None,
 ) -> int | None:
-    """Start the sources, feed their items to the engine until ``until()``, the duration, or
-    Ctrl-C / SIGTERM; then stop them and finish the engine.  Returns the signal that ended it.
+    """Start the sources, feed their items to the engine until ``until()``, the duration, the end of
+    every source's input (streams: their writers closed them), or Ctrl-C / SIGTERM; then stop them and
+    finish the engine.  Returns the signal that ended it.
 
     The signals only set a flag (from the main thread): an item is never cut half-way through
     its analysis, and what the sources delivered before stopping is still analysed (a followed
@@ -261,6 +262,8 @@ def run_sources(
             now = time.monotonic()
             if (until is not None and until()) or (deadline is not None and now >= deadline):
                 break
+            if all(s.input_ended for s in started) and q.empty():
+                break  # every source's input ended (streams whose writers closed them), all of it analysed
             # A crossing warning falls due at its instant, not at the next steady tick.
             due_s = engine.next_wake_s()
             wake_at = next_tick if due_s is None else min(next_tick, now + due_s)  # next_tick ≤ now + TICK_S

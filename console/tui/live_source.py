@@ -185,7 +185,7 @@ def status_line(s: SourceStatus) -> str:
     from console.safe_text import clean
 
     age = "never" if s.last_message_age_s is None else f"{s.last_message_age_s:.1f} s ago"
-    state = "connected" if s.connected else "DOWN"
+    state = "connected" if s.connected else "ended" if s.detail.startswith("ended") else "DOWN"
     return clean(
         f"{s.uri}: {state} · last {age} · {s.rate_per_s:.1f}/s · lost {s.lost} · malformed {s.malformed}"
         f" · dup {s.duplicates}"

@@ -30,8 +30,8 @@ SourcesArg = Annotated[
     typer.Argument(
         metavar="SOURCE...",
         help="Sources: file:PATH (or a path: a diagnostic, NMEA, gpsd JSON, GNSS device CSV/JSON lines, CAN or"
-        " sensor frame log, told by its content), gpsd://HOST:PORT[/DEVICE], mqtt[s]://HOST:PORT/TOPIC,"
-        " can:IFACE[:CHANNEL].",
+        " sensor frame log, told by its content), - (standard input: a pipe, read to its end; a FIFO path too),"
+        " gpsd://HOST:PORT[/DEVICE], mqtt[s]://HOST:PORT/TOPIC, can:IFACE[:CHANNEL].",
         show_default=False,
     ),
 ]
@@ -85,11 +85,12 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
         # Not "of them": the passages counted above exclude these.
         out[0] += f"; {count(n, 'status-only record burst')} (no wheel onset) not listed (--include-status lists them)"
     for f in summary["files"]:
+        unread = f" + {f['unrecognised']} unrecognised (not read)" if "unrecognised" in f else ""
         out.append(
             clean(
                 f"  {f['file']}: {count(f['lines_read'], 'line')} = {count(f['records'], 'record')}"
                 f" + {f['blank']} blank"
-                f" + {f['rejected']} rejected"
+                f" + {f['rejected']} rejected{unread}"
             )
         )
     why = "(stopped at a second interrupt)"
@@ -154,7 +155,8 @@ def follow(
     include_status: IncludeStatusOpt = False,
     metrics: MetricsOpt = None,
 ) -> None:
-    """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary (exit 130)."""
+    """Follow live sources and report what happens as it happens; Ctrl-C ends with a summary (exit 130), and so
+    does the end of every stream given (`… | trackside follow -`; exit 0)."""
 
     def body() -> int:
         from console.analysis.passages.diagnostics import SpeedSettings
@@ -168,15 +170,13 @@ def follow(
             raise fail(f"--duration: {duration!r} is more than 31 years")
         from console.archive.store import ArchiveError
         from console.inputs.base import SourceError
-        from console.inputs.uri import open_source
+        from console.inputs.uri import open_sources
         from console.live.archive import LiveArchiver
         from console.live.engine import LiveEngine, run_sources
 
         lay = load_layout(layout) if layout else None
         try:
-            srcs = [open_source(s, from_start=from_start, force_polling=poll) for s in sources]
-            for s in srcs:
-                s.check()
+            srcs = open_sources(sources, from_start=from_start, force_polling=poll)
         except SourceError as exc:
             raise fail(str(exc)) from None
         out = sys.stdout

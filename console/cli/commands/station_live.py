@@ -48,13 +48,15 @@ def run_live_station(
     metrics: str | None = None,
 ) -> int:
     from console.inputs.base import SourceError
-    from console.inputs.uri import open_source
+    from console.inputs.stream import STDIN
+    from console.inputs.uri import open_sources, parse_uri
 
     lay = load_layout(layout)
     try:
-        sources = [open_source(s) for s in live]
-        for s in sources:
-            s.check()
+        if any(u.scheme == "file" and u.path == STDIN for u in map(parse_uri, live)):
+            # The view reads its keys there (and a served view's browsers each run one): as --replay - says.
+            raise fail("--live -: the station view reads keys from standard input; give a FIFO (mkfifo) or a file")
+        sources = open_sources(live)
     except SourceError as exc:
         raise fail(str(exc)) from None
     if serve:
