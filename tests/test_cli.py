@@ -155,6 +155,7 @@ def test_piped_tables_keep_each_row_on_one_line() -> None:
     assert piped.returncode == 0, piped.stderr
     rows = [line for line in piped.stdout.splitlines() if "osong_ws4_" in line]
     assert [next(n for n in names if n in row) for row in rows] == names
+    assert not [line for line in piped.stdout.splitlines() if line.endswith(" ")]  # no cell padding
     # A width asked for is still kept.
     narrow = subprocess.run(
         [*cmd, "analyze", *names], capture_output=True, text=True, cwd=ROOT, env={**env, "COLUMNS": "60"}, timeout=120

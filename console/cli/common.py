@@ -10,6 +10,7 @@ import inspect
 import io
 import math
 import os
+import re
 import signal
 import stat
 import sys
@@ -17,7 +18,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any, cast
 
 import typer
 
@@ -233,6 +234,20 @@ if TYPE_CHECKING:
 
 # The width tables are laid out in when no terminal gives one: wide enough for any row of ours.
 PIPED_WIDTH = 400
+_TRAILING_SPACES = re.compile(r" +\n")
+
+
+class _NoTrailingSpaces:
+    """A text file whose lines are written without their trailing spaces (a table's cell padding)."""
+
+    def __init__(self, file: Any) -> None:
+        self._file = file
+
+    def write(self, text: str) -> int:
+        return int(self._file.write(_TRAILING_SPACES.sub("\n", text)) or 0)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._file, name)
 
 
 def __getattr__(name: str) -> Any:
@@ -247,12 +262,14 @@ def __getattr__(name: str) -> Any:
         Rich exits 1 on a broken pipe; we stop quietly with 0.
 
         Piped or redirected (no terminal, no ``COLUMNS``), lines are not cut at Rich's 80 columns: a script
-        or ``grep`` reading the tables gets each file name and row on one line."""
+        or ``grep`` reading the tables gets each file name and row on one line, without the spaces that pad
+        it to the table's width."""
 
         def __init__(self, *args: Any, **kwargs: Any) -> None:
             super().__init__(*args, **kwargs)
             if "width" not in kwargs and not self.is_terminal and not os.environ.get("COLUMNS"):
                 self.width = PIPED_WIDTH
+                self.file = cast("IO[str]", _NoTrailingSpaces(self.file))
 
         def on_broken_pipe(self) -> None:
             _silence_stdout()
