@@ -203,6 +203,11 @@ class LiveEngine:
             "crossing_events": self.crossings.events if self.crossings else 0,
             "integrity_events": self.integrity.events if self.integrity else 0,
             "gnss_fixes": self.crossings.fixes if self.crossings else 0,
+            **(
+                {"gnss_fixes_bad_clock": self.crossings.placer.bad_clock}
+                if self.crossings and self.crossings.placer.bad_clock
+                else {}
+            ),
             "can_frames": self.can_frames,
             "file_frames": self.file_frames,
             "files": files,
