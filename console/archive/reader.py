@@ -93,6 +93,22 @@ def user_window(start: str | None, end: str | None, head: str | None = None, dev
     return window
 
 
+def window_holds_data(root: Path, manifest: Manifest, window: Window) -> bool:
+    """Whether a record, frame or GNSS fix of the archive lies in the window's time range (voltages, which have
+    no time, are in every window)."""
+    tables = [t for t in ("records", "frames", "fixes") if manifest.parts(t)]
+    if manifest.parts("voltages") or not tables:
+        return True
+    conds = [c for c, v in (("time >= ?", window.start), ("time < ?", window.end)) if v is not None]
+    params = [v for v in (window.start, window.end) if v is not None]
+    con, _ = connect(root, manifest, tables=tables)
+    try:
+        where = " AND ".join(conds) or "true"
+        return any(con.execute(f"SELECT 1 FROM {t} WHERE {where} LIMIT 1", params).fetchone() for t in tables)
+    finally:
+        con.close()
+
+
 _ARCHIVED_COLUMNS_SQL = ", ".join(ARCHIVED_RECORD_COLUMNS)
 
 
