@@ -109,6 +109,19 @@ def window_holds_data(root: Path, manifest: Manifest, window: Window) -> bool:
         con.close()
 
 
+def names_a_unit(root: Path, manifest: Manifest, name: str) -> bool:
+    """Whether ``name`` is a counting head (of records, frames or voltages) or a GNSS unit of the archive."""
+    columns = {"records": "counting_head", "frames": "sensor", "voltages": "sensor", "fixes": "device"}
+    tables = [t for t in columns if manifest.parts(t)]
+    if not tables:
+        return False
+    con, _ = connect(root, manifest, tables=tables)
+    try:
+        return any(con.execute(f"SELECT 1 FROM {t} WHERE {columns[t]} = ? LIMIT 1", [name]).fetchone() for t in tables)
+    finally:
+        con.close()
+
+
 _ARCHIVED_COLUMNS_SQL = ", ".join(ARCHIVED_RECORD_COLUMNS)
 
 
