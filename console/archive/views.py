@@ -478,6 +478,19 @@ def plain_result(con: duckdb.DuckDBPyConnection, sql: str) -> QueryResult | None
     """The result as Python rows, top-level times as epoch nanoseconds, by DuckDB's engine alone (see
     :func:`engine`); None: a column needs Arrow, or ``DESCRIBE`` cannot type the statement (EXPLAIN) or fails, or
     the statement cannot be read as a subquery (then the package's relations answer, and raise its error)."""
+    found = _plain_cursor(con, sql)
+    if found is None:
+        return None
+    names, times, cursor = found
+    try:
+        rows = cursor.fetchall()
+    except engine().Error as exc:
+        raise QueryError(one_line(exc)) from None
+    return QueryResult(names, rows=rows, ns_columns=times)
+
+
+def _plain_cursor(con: duckdb.DuckDBPyConnection, sql: str) -> tuple[list[str], frozenset[int], Any] | None:
+    """(column names, the columns of times as epoch ns, the statement run) for :func:`plain_result`; None as there."""
     error = engine().Error
     try:
         columns = con.execute(f"DESCRIBE {sql}").fetchall()
@@ -494,12 +507,40 @@ def plain_result(con: duckdb.DuckDBPyConnection, sql: str) -> QueryResult | None
         picked = ", ".join(f"epoch_ns(#{i + 1})" if i in times else f"#{i + 1}" for i in range(len(types)))
         statement = f"SELECT {picked} FROM (\n{sql.rstrip().rstrip(';')}\n)"
     try:
-        rows = con.execute(statement).fetchall()
+        cursor = con.execute(statement)
     except error as exc:
         if times:
             return None
         raise QueryError(one_line(exc)) from None
-    return QueryResult([str(c[0]) for c in columns], rows=rows, ns_columns=times)
+    return [str(c[0]) for c in columns], times, cursor
+
+
+def run_query_batches(
+    root: Path,
+    sql: str,
+    manifest: Manifest | None = None,
+    computed: Mapping[str, ComputedView] | None = None,
+    batch_rows: int = 100_000,
+) -> Iterator[QueryResult]:
+    """:func:`run_query_result` in batches of at most ``batch_rows`` rows (at least one, maybe empty): a result of
+    millions of rows is written as it is read, in bounded memory, and stops when its reader leaves (``| head``).
+    A result that needs Arrow's types comes whole, as one batch."""
+    con = _query_connection(root, sql, manifest, computed, engine_only=True)
+    try:
+        found = _plain_cursor(con, sql)
+        if found is not None:
+            names, times, cursor = found
+            while True:
+                try:
+                    rows = cursor.fetchmany(batch_rows)
+                except engine().Error as exc:  # a cast or a division fails as the rows are made
+                    raise QueryError(one_line(exc)) from None
+                yield QueryResult(names, rows=rows, ns_columns=times)
+                if len(rows) < batch_rows:
+                    return
+    finally:
+        con.close()
+    yield run_query_result(root, sql, manifest, computed)
 
 
 def show_query(
