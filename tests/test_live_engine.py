@@ -207,6 +207,38 @@ def test_followed_input_is_ingested_into_the_archive_once(tmp_path: Path) -> Non
     assert json.loads(out.stdout)[0]["n"] == data.count(b"\n")
 
 
+def test_a_full_disk_at_the_spools_ingest_is_said_in_the_summary(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`follow --archive` on a full disk exited 0 with no word: the spool's ingest failed in silence."""
+    import errno
+
+    import pyarrow.parquet as pq
+
+    from console.archive.views import run_query
+    from console.cli.commands.follow import _summary_lines
+    from console.live.archive import LiveArchiver
+
+    archive = tmp_path / "arc"
+    arch = LiveArchiver(archive)
+    engine = LiveEngine(load_layout("example"), lambda ev: None, archiver=arch)
+    data = (REPO / "sample_logs" / "example_station.log").read_bytes()
+    engine.handle(LineBlock("file:x", "x.log", 1, data, time.monotonic()))
+
+    def full(*_a: object, **_k: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(pq.ParquetWriter, "write_table", full)
+    engine.finish()
+    monkeypatch.undo()
+    summary = engine.summary([])
+    assert summary["archive_errors"] == [f"{archive}: no space left on device: archive unchanged"]
+    assert f"  --archive: not ingested: {archive}: no space left on device" in "\n".join(_summary_lines(summary))
+    arch.ingest()  # space again: the spool kept it all
+    assert arch.ingests == 1
+    assert run_query(archive, "SELECT count(*) FROM records")[1] == [(data.count(b"\n"),)]
+
+
 @pytest.fixture(scope="module")
 def batch_passages() -> list[dict[str, Any]]:
     from console.analysis.passages.diagnostics import SpeedSettings

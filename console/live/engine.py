@@ -219,6 +219,12 @@ class LiveEngine:
                 if self.not_analysed or self.items_not_analysed
                 else {}
             ),
+            # A failed ingest of the spool (a full disk…) is said: the spool keeps it for the next one.
+            **(
+                {"archive_errors": list(dict.fromkeys(self.archiver.errors))}
+                if self.archiver is not None and self.archiver.errors
+                else {}
+            ),
             "sections": {k: {"state": s, "count": c} for k, (s, c) in self.section_states().items()},
             "sources": [s.status().to_dict() for s in sources],
             # A board's status dumps make a passage each, train or not: counted, listed on request (as analyze).

@@ -109,6 +109,8 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
         )
     for sid, st in summary["sections"].items():
         out.append(clean(f"  section {sid}: {st['state']} (count {st['count']})"))
+    for error in summary.get("archive_errors", []):
+        out.append(clean(f"  --archive: not ingested: {error} (kept in the spool for the next ingest)"))
     return out
 
 
