@@ -21,7 +21,9 @@ fixes, a CAN or sensor frame log's as frames.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import stat
 import threading
 import time
 from pathlib import Path
@@ -65,6 +67,10 @@ class FileSource(Source):
     def check(self) -> None:
         if self.path.is_dir():
             raise SourceError(f"{self.path}: is a directory, expected a log file")
+        with contextlib.suppress(OSError):  # not there yet: waited for
+            if not stat.S_ISREG(os.stat(self.path).st_mode):
+                # A pipe cannot be read again from a position (the source stopped: "Illegal seek").
+                raise SourceError(f"{self.path}: not a regular file (a pipe or a device), expected a log file")
         if not self.path.parent.is_dir():
             raise SourceError(f"{self.path}: no such directory {self.path.parent}")
 
@@ -143,6 +149,13 @@ class FileSource(Source):
             return
         except OSError as exc:
             self.set_connected(False, f"cannot stat: {exc.strerror}")
+            return
+        if not stat.S_ISREG(st.st_mode):
+            # Replaced by a directory or a FIFO: reading a directory raised and stopped the source for good,
+            # opening a FIFO would block it.  Finish the old file; wait for a log file there again.
+            if self._fd is not None:
+                self._read_to_end()
+            self.set_connected(False, "not a regular file there; waiting for the log file")
             return
         ident = (st.st_dev, st.st_ino)
         if self._fd is None:
