@@ -163,8 +163,11 @@ def record_batches(
     """
     if not manifest.parts("records"):
         return
-    (root / TMP).mkdir(parents=True, exist_ok=True)
-    spill = Path(tempfile.mkdtemp(prefix="duckdb-", dir=root / TMP))
+    try:
+        (root / TMP).mkdir(parents=True, exist_ok=True)
+        spill = Path(tempfile.mkdtemp(prefix="duckdb-", dir=root / TMP))
+    except OSError:  # an archive only read (a snapshot, read-only media, another user's): spill to the system's
+        spill = Path(tempfile.mkdtemp(prefix="trackside-duckdb-"))
     con, _ = connect(root, manifest, spill_dir=spill, tables=tables)
     try:
         where_sql, params = window.where()
