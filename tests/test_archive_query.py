@@ -317,3 +317,20 @@ def test_millions_of_rows_to_a_reader_that_leaves_end_quietly_in_bounded_memory(
         assert (rc, out.stderr) == ("0", "")
         assert first == ("0," + "x" * 50 if fmt == "csv" else json.dumps({"i": 1, "s": "x" * 50}))  # the 2nd line
         assert int(peak_mb) < 300, peak_mb
+
+
+def test_a_part_cut_short_or_deleted_on_disk_is_named_not_an_internal_error(tmp_path: Path) -> None:
+    arc = tmp_path / "arc"
+    assert runner.invoke(app, ["ingest", str(LOG), "--archive", str(arc)]).exit_code == 0
+    part = next((arc / "data" / "records").rglob("*.parquet"))
+    data = part.read_bytes()
+    part.write_bytes(data[:100])  # bit rot, a copy cut short
+    for command in (["query", "SELECT count(*) FROM records"], ["report", "--format", "json"], ["forecast"]):
+        res = runner.invoke(app, [*command, "--archive", str(arc)])
+        assert res.exit_code == 2, res.output
+        assert res.stderr.startswith(f"trackside: error: {arc}: the archive is damaged: its records cannot be read (")
+        assert res.stderr.count("\n") == 1 and "internal error" not in res.stderr, res.stderr
+    part.unlink()
+    res = runner.invoke(app, ["report", "--archive", str(arc), "--format", "json"])
+    assert res.exit_code == 2
+    assert res.stderr == f"trackside: error: {arc}: the archive is damaged: {part.relative_to(arc)} is missing\n"

@@ -207,16 +207,33 @@ def connect(
     con.execute("SET TimeZone = 'UTC'")
     base = root.resolve()
     only = partition_filter(con, sql) if sql is not None else {}
-    for table, keys in TABLES.items():
-        rels = m.parts(table) if tables is None or table in tables else []
-        if table in only:
-            # The query's WHERE drops every other partition anyway; one part stays to give the view its columns.
-            rels = [r for r in rels if all(f"/{k}={only[table][k]}/" in r for k in only[table])] or rels[:1]
-        con.execute(_view(table, keys, [str(base / rel) for rel in rels]))
+    try:
+        for table in TABLES:
+            rels = m.parts(table) if tables is None or table in tables else []
+            if table in only:
+                # The query's WHERE drops every other partition anyway; one part stays to give the view its columns.
+                rels = [r for r in rels if all(f"/{k}={only[table][k]}/" in r for k in only[table])] or rels[:1]
+            _make_view(con, duckdb.Error, root, table, rels)
+    except ArchiveError:
+        con.close()
+        raise
     for name, table in (computed or {}).items():  # views computed in Python (the forecasts), before the lock
         con.register(name, table)
     _lock(con, base)
     return con, m
+
+
+def _make_view(con: Any, error: type[Exception], root: Path, table: str, rels: list[str]) -> None:
+    """``table``'s view over its parts; a part deleted or cut short on disk is an ArchiveError saying so (it was
+    "internal error: IOException" with the statement that made the view)."""
+    base = root.resolve()
+    try:
+        con.execute(_view(table, TABLES[table], [str(base / rel) for rel in rels]))
+    except error as exc:
+        missing = next((rel for rel in rels if not (base / rel).is_file()), None)
+        why = one_line(exc).split(" LINE 1:")[0]  # not the statement that made the view
+        what = f"{missing} is missing" if missing else f"its {table} cannot be read ({why})"
+        raise ArchiveError(f"{root}: the archive is damaged: {what}") from None
 
 
 def _view(table: str, keys: tuple[str, ...], parts: list[str]) -> str:
@@ -276,8 +293,7 @@ class _Shared:
                 return None
             for table in set(tables) - self.full:
                 if table in TABLES:
-                    parts = [str(self.root / rel) for rel in m.parts(table)]
-                    self.con.execute(_view(table, TABLES[table], parts))
+                    _make_view(self.con, duckdb.Error, self.root, table, m.parts(table))
                     self.full.add(table)
             return self.con.cursor()  # a cursor takes the database's session settings
 
