@@ -8,6 +8,8 @@ ingest derives at its end) are :mod:`console.archive.history`.
 from __future__ import annotations
 
 import datetime as dt
+import fcntl
+import os
 import shutil
 import tempfile
 from collections import Counter
@@ -22,7 +24,7 @@ from console.analysis.passages.diagnostics import SpeedSettings
 from console.analysis.timefmt import parse_time
 from console.archive.parts import key_of_part
 from console.archive.records import ARCHIVED_RECORD_COLUMNS, REGISTER_COLUMNS, ChunkRebuilder
-from console.archive.store import TMP, Manifest, read_current
+from console.archive.store import READING, TMP, Manifest, read_current
 from console.archive.views import connect
 from console.drivers.batch import ChunkSource, ReadOptions
 from console.engine.pipeline import HEALTH_REGISTERS
@@ -168,7 +170,15 @@ def record_batches(
         spill = Path(tempfile.mkdtemp(prefix="duckdb-", dir=root / TMP))
     except OSError:  # an archive only read (a snapshot, read-only media, another user's): spill to the system's
         spill = Path(tempfile.mkdtemp(prefix="trackside-duckdb-"))
-    con, _ = connect(root, manifest, spill_dir=spill, tables=tables)
+    # Held while reading: an ingest starting meanwhile leaves the folder alone (store.collect_garbage).
+    hold = os.open(spill / READING, os.O_CREAT | os.O_RDWR, 0o600)
+    fcntl.flock(hold, fcntl.LOCK_SH)
+    try:
+        con, _ = connect(root, manifest, spill_dir=spill, tables=tables)
+    except BaseException:
+        os.close(hold)
+        shutil.rmtree(spill, ignore_errors=True)
+        raise
     try:
         where_sql, params = window.where()
         if labels is not None:
@@ -198,6 +208,7 @@ def record_batches(
         yield from rel.to_arrow_reader(BATCH_ROWS)
     finally:
         con.close()
+        os.close(hold)
         shutil.rmtree(spill, ignore_errors=True)
 
 
