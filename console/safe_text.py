@@ -5,7 +5,8 @@ sequences; log text goes through :func:`inert` into a :class:`rich.text.Text`
 (never parsed as markup) with control characters shown as ``\\xNN``.
 
 Bidirectional formatting characters (embeddings, overrides, isolates and
-the directional marks) are shown as ``\\u202e`` too: left as they are, a
+the directional marks) and invisible ones (zero-width space, joiners, BOM,
+tags) are shown as ``\\u202e`` too: left as they are, a
 device name or a rejected line could display reversed and spoof the
 columns beside it.  A file name that is not valid UTF-8 reaches Python
 with its bad bytes as lone surrogates (``os.fsdecode``'s surrogateescape);
@@ -23,8 +24,13 @@ if TYPE_CHECKING:
     from rich.text import Text
 
 # C0, DEL, C1, line/paragraph separators; bidi marks, embeddings, overrides
-# and isolates (U+061C, U+200E-200F, U+202A-202E, U+2066-2069); surrogates.
-_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069\ud800-\udfff]")
+# and isolates (U+061C, U+200E-200F, U+202A-202E, U+2066-2069); surrogates;
+# and the invisible ones (zero-width space and joiners U+200B-200D, U+180E,
+# word joiner and invisible operators U+2060-2064, U+206A-206F, BOM U+FEFF,
+# tags U+E0000-E007F): "WS1\u200b" must not show as a second "WS1".
+_CONTROL = re.compile(
+    r"[\x00-\x1f\x7f-\x9f\u061c\u180e\u200b-\u200f\u2028-\u202e\u2060-\u206f\ufeff\ud800-\udfff\U000e0000-\U000e007f]"
+)
 
 
 def _escape(match: re.Match[str]) -> str:
@@ -33,7 +39,7 @@ def _escape(match: re.Match[str]) -> str:
         return f"\\x{code:02x}"
     if 0xDC80 <= code <= 0xDCFF:
         return f"\\x{code - 0xDC00:02x}"  # a byte of a name that is not UTF-8
-    return f"\\u{code:04x}"
+    return f"\\u{code:04x}" if code <= 0xFFFF else f"\\U{code:08x}"
 
 
 # Text that no escaper changes (Markdown, HTML, terminal): letters, digits and a few signs, no control

@@ -23,10 +23,12 @@ REASON_CUT_CHARS = 500
 
 # C0 (tab, CR and LF have their own escapes), DEL, C1, line/paragraph separators,
 # bidi marks, embeddings, overrides and isolates (U+061C, U+200E-200F,
-# U+202A-202E, U+2066-2069), surrogates and U+FFFD (a byte that did not decode).
-# The same set as console.safe_text, which parsers cannot import.
+# U+202A-202E, U+2066-2069), the invisible ones (U+180E, U+200B-200D,
+# U+2060-206F, U+FEFF, tags U+E0000-E007F), surrogates and U+FFFD (a byte
+# that did not decode).  The same set as console.safe_text, which parsers cannot import.
 _CONTROL = re.compile(
-    r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069\ud800-\udfff\ufffd]"
+    r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f\u061c\u180e\u200b-\u200f\u2028-\u202e\u2060-\u206f\ufeff"
+    r"\ud800-\udfff\ufffd\U000e0000-\U000e007f]"
 )
 _WHITESPACE_ESCAPES = str.maketrans({"\t": "\\t", "\r": "\\r", "\n": "\\n"})
 
@@ -37,7 +39,7 @@ def _escape(match: re.Match[str]) -> str:
         return f"\\x{code:02x}"
     if 0xDC80 <= code <= 0xDCFF:
         return f"\\x{code - 0xDC00:02x}"  # a byte of a file name that is not UTF-8 (surrogateescape)
-    return f"\\u{code:04x}"
+    return f"\\u{code:04x}" if code <= 0xFFFF else f"\\U{code:08x}"
 
 
 def escape_text(raw: bytes | str, limit: int = TEXT_CUT_CHARS) -> str:

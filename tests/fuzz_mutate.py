@@ -245,8 +245,11 @@ def describe(seed: int, max_ops: int = 3) -> str:
 
 # ------------------------------------------------------------------ properties
 
-# What may never reach a reader raw: C0 controls but tab/LF, DEL, C1, bidi controls, surrogates, line separators.
-UNSAFE_CHARS = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069\ud800-\udfff]")
+# What may never reach a reader raw: C0 controls but tab/LF, DEL, C1, bidi controls, surrogates, line separators,
+# invisible characters.
+UNSAFE_CHARS = re.compile(
+    r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u061c\u180e\u200b-\u200f\u2028-\u202e\u2060-\u206f\ufeff\ud800-\udfff\U000e0000-\U000e007f]"
+)
 # In text output only SGR escapes (colours) are allowed; CliRunner output is not a terminal, so none appear.
 SGR = re.compile(r"\x1b\[[0-9;]*m")
 

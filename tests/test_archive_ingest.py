@@ -296,3 +296,23 @@ def test_a_full_disk_in_the_derivation_leaves_no_part_of_the_failed_ingest(
     assert res.exit_code == 2, res.output
     assert "no space left on device" in res.stderr
     assert sorted(p.relative_to(arc) for p in (arc / "data").rglob("*") if p.is_file()) == files_before
+
+
+def test_an_ingest_leaves_a_reading_reports_spill_folder_alone_and_removes_a_dead_ones(tmp_path: Path) -> None:
+    """An ingest's clean-up removed every folder under tmp/, the spill folder of a report or replay still
+    reading the records too (DuckDB spills there past its 160 MB)."""
+    from console.archive.reader import record_batches
+
+    arc = tmp_path / "arc"
+    assert _ingest(arc, SAMPLES / "osong_ws4_0932_detection.log").exit_code == 0
+    dead = arc / "tmp" / "duckdb-killed"  # a reader killed mid-read: its lock went with it
+    dead.mkdir()
+    (dead / ".reading").touch()
+    reading = record_batches(arc, read_current(arc))
+    next(reading)
+    live = sorted(p for p in (arc / "tmp").iterdir() if p != dead)
+    assert len(live) == 1
+    assert _ingest(arc, STATION).exit_code == 0
+    assert sorted((arc / "tmp").iterdir()) == live
+    assert list(reading) == []  # read to its end: its folder goes with it
+    assert list((arc / "tmp").iterdir()) == []

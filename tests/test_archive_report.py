@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 from console.archive.history import replay_inputs, report_data
 from console.archive.reader import Window
 from console.cli.app import app
+from console.drivers.batch import ReadOptions
 from tests.conftest import SAMPLES
 
 runner = CliRunner()
@@ -116,6 +117,30 @@ def test_a_report_with_another_layout_is_recomputed_from_the_records(archive: Pa
 
     m = read_current(archive)
     assert derived_for(m, "example") and not derived_for(m, "osong")
+
+
+def test_an_archive_on_read_only_media_is_still_read_from_its_records(
+    archive: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Reading the records made DuckDB's spill folder inside the archive: on a read-only snapshot, or another
+    user's archive, `report --archive A --layout osong` and `station --replay --archive` ended with
+    "internal error: OSError: [Errno 30] Read-only file system"."""
+    import errno
+    import tempfile
+
+    made = tempfile.mkdtemp
+
+    def read_only(*args: object, **kw: object) -> str:
+        if str(kw.get("dir", "")).startswith(str(archive)):
+            raise OSError(errno.EROFS, "Read-only file system", str(kw["dir"]))
+        return made(*args, **kw)  # type: ignore[call-overload,no-any-return]
+
+    monkeypatch.setattr(tempfile, "mkdtemp", read_only)
+    res = runner.invoke(app, ["report", "--archive", str(archive), "--layout", "osong", "--format", "json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["passages"]
+    records, _ = replay_inputs(archive)
+    assert records is not None and sum(len(c) for c in records.open(ReadOptions())[1]) > 0
 
 
 def test_bad_window_and_missing_archive_are_one_line_errors(tmp_path: Path, archive: Path) -> None:

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from console.cli.app import app
-from tests.conftest import ROOT, record
+from tests.conftest import ROOT, SAMPLES, record
 
 runner = CliRunner()
 
@@ -316,9 +316,22 @@ def test_bidi_controls_from_a_log_are_shown_escaped(tmp_path: Path) -> None:
     assert "\\u202e" in res.output and "\\u2066" in res.output
 
 
+def test_a_head_name_with_an_invisible_character_does_not_show_as_another_head(tmp_path: Path) -> None:
+    """A head "WS4" and a head "WS4" + U+200B (zero-width space) showed as two identical "WS4" columns."""
+    log = (SAMPLES / "osong_ws4_0932_detection.log").read_text(encoding="utf-8")
+    twin = log.replace("ID:4083", "ID:4099").replace("Trackinfo:WS4", "Trackinfo:WS4\u200b")
+    p = tmp_path / "two.log"
+    p.write_text(log + twin, encoding="utf-8")
+    res = runner.invoke(app, ["analyze", str(p)], env={"COLUMNS": "250"})
+    assert res.exit_code == 0, res.output
+    assert "\u200b" not in res.output and "WS4\\u200b" in res.output
+
+
 # --- what reaches a terminal or a JSON reader, for any text ----------------------------------
 
-_DANGEROUS = re.compile(r"[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069\ud800-\udfff]")
+_DANGEROUS = re.compile(
+    r"[\x00-\x1f\x7f-\x9f\u061c\u180e\u200b-\u200f\u2028-\u202e\u2060-\u206f\ufeff\ud800-\udfff\U000e0000-\U000e007f]"
+)
 
 
 @given(st.text(alphabet=st.characters(codec=None, categories=None)))

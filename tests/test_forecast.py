@@ -22,7 +22,7 @@ from benchmarks.forecast_heads import Plan, plan, score
 from console.analysis.health.forecast import FIGURES, ForecastSettings, Series, due_list, forecast, forecasts
 from console.cli.app import app
 from parsers.units import NS_PER_DAY
-from tests.conftest import ROOT
+from tests.conftest import ROOT, SAMPLES
 
 runner = CliRunner()
 TRACKSIDE = str(Path(sys.executable).with_name("trackside"))
@@ -224,6 +224,18 @@ def test_forecast_errors_are_one_line(tmp_path: Path) -> None:
     assert res.returncode == 2 and res.stderr.count("\n") == 1 and "no archive here" in res.stderr
     res = runner.invoke(app, ["forecast", "--horizon", "soon", "--archive", str(tmp_path)])
     assert res.exit_code == 2 and "--horizon" in res.output
+
+
+def test_a_head_the_archive_never_saw_is_refused_not_reported_nothing_due(tmp_path: Path) -> None:
+    # A typo (--head WS05) said "0 series ... Nothing is due within 30 days." and exited 0, as for a healthy head.
+    arc = tmp_path / "arc"
+    res = runner.invoke(app, ["ingest", str(SAMPLES / "osong_ws4_0932_detection.log"), "--archive", str(arc)])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["forecast", "--archive", str(arc), "--head", "WS05", "--fail-on-due"])
+    assert res.exit_code == 2
+    assert "--head WS05: no counting head or GNSS unit of that name in the archive" in res.output
+    res = runner.invoke(app, ["forecast", "--archive", str(arc), "--head", "WS4", "--json"])
+    assert res.exit_code == 0, res.output  # a head it knows: its series, if any, however few
 
 
 def test_the_forecast_as_a_textfile_for_prometheus(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import random
 import threading
 import time
@@ -54,6 +55,31 @@ def test_frames_from_a_virtual_bus_arrive_and_sequence_gaps_count_as_lost() -> N
     assert [f.arbitration_id for f in frames] == [0x183] * 4 + [0x7FF]
     assert frames[2].data == bytes([0x00, 0xA5, 7, 0, 5])
     assert src.status().lost == 2
+
+
+def test_frames_with_impossible_receive_times_are_malformed_and_the_bus_is_still_read() -> None:
+    # A peer sets any timestamp (udp_multicast, a virtual bus): NaN stopped the source for good, and
+    # 1e12 s (ns past int64) raised OverflowError in the engine, ending follow with a traceback.
+    channel = f"trackside-{uuid.uuid4().hex[:8]}"
+    src = open_source(f"can:virtual:{channel}")
+    got: list[Item] = []
+    src.start(got.append)
+    sender = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    now = time.time()
+    try:
+        assert wait_until(lambda: src.status().connected, 5)
+        for seq, stamp in enumerate([now, math.nan, math.inf, 1e12, -5.0, now + 1], start=1):
+            sender.send(
+                can.Message(timestamp=stamp, arbitration_id=0x183, data=[0, 0xA5, 7, 0, seq], is_extended_id=False)
+            )
+        assert wait_until(lambda: src.status().messages == 2, 5), src.status()
+        status = src.status()
+    finally:
+        sender.shutdown()
+        src.stop()
+    frames = [i for i in got if isinstance(i, CanFrame)]
+    assert [f.data[4] for f in frames] == [1, 6]
+    assert (status.malformed, status.lost, status.connected) == (4, 0, True)
 
 
 def test_an_unknown_interface_is_refused_before_starting() -> None:

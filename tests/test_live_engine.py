@@ -49,9 +49,10 @@ def run(
     silent_eot_after_s: float | None = None,
     speed_mps: float = 15.0,
     seconds: int = 300,
+    first_stamped_ns: int | None = None,
 ) -> tuple[list[dict[str, Any]], LiveEngine]:
     """A train from chainage 9,000 m (before the mapped track: projected along its end) at constant
-    speed, head and EOT fixes every 2 s."""
+    speed, head and EOT fixes every 2 s; ``first_stamped_ns``: each unit's first report carries this time."""
     proj, events, engine, clock = _engine_on_a_clock()
     skews = skews_s or {}
     for k in range(0, seconds * 2):
@@ -68,7 +69,9 @@ def run(
                     GnssFix(
                         "mqtt://test",
                         dev,
-                        clock.t + int(skews.get(dev, 0.0) * NS) - NS // 5,  # measured 0.2 s before reception
+                        first_stamped_ns
+                        if k == 0 and first_stamped_ns is not None
+                        else clock.t + int(skews.get(dev, 0.0) * NS) - NS // 5,  # measured 0.2 s before reception
                         float(lat[0]),
                         float(lon[0]),
                         speed_mps,
@@ -134,6 +137,18 @@ def test_an_end_of_train_clock_running_ahead_does_not_make_old_positions_fresh()
     assert "off" not in kinds(events)
 
 
+@pytest.mark.parametrize("stamp", ["2099-12-31T23:59:59Z", "1970-01-01T00:00:00Z"])
+def test_one_report_from_a_broken_clock_does_not_age_the_units_later_fixes(stamp: str) -> None:
+    # A receiver without its almanac (1970) or past a week rollover (2099): before, the 2099 report was
+    # learnt as the units' clock skew and every later fix placed 73 years old (stale units, alarms).
+    from parsers.gnss.lora import parse_time_rfc3339
+
+    reference, _ = run()
+    events, engine = run(first_stamped_ns=parse_time_rfc3339(stamp))
+    assert kinds(events) == kinds(reference) == ["on", "off"]
+    assert engine.summary([])["gnss_fixes_bad_clock"] == 2
+
+
 def test_a_diagnostic_source_that_stops_mid_train_leaves_the_section_occupied() -> None:
     lines = (REPO / "sample_logs" / "example_station.log").read_bytes().splitlines(keepends=True)
     events: list[dict[str, Any]] = []
@@ -190,6 +205,38 @@ def test_followed_input_is_ingested_into_the_archive_once(tmp_path: Path) -> Non
         check=True,
     )
     assert json.loads(out.stdout)[0]["n"] == data.count(b"\n")
+
+
+def test_a_full_disk_at_the_spools_ingest_is_said_in_the_summary(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`follow --archive` on a full disk exited 0 with no word: the spool's ingest failed in silence."""
+    import errno
+
+    import pyarrow.parquet as pq
+
+    from console.archive.views import run_query
+    from console.cli.commands.follow import _summary_lines
+    from console.live.archive import LiveArchiver
+
+    archive = tmp_path / "arc"
+    arch = LiveArchiver(archive)
+    engine = LiveEngine(load_layout("example"), lambda ev: None, archiver=arch)
+    data = (REPO / "sample_logs" / "example_station.log").read_bytes()
+    engine.handle(LineBlock("file:x", "x.log", 1, data, time.monotonic()))
+
+    def full(*_a: object, **_k: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(pq.ParquetWriter, "write_table", full)
+    engine.finish()
+    monkeypatch.undo()
+    summary = engine.summary([])
+    assert summary["archive_errors"] == [f"{archive}: no space left on device: archive unchanged"]
+    assert f"  --archive: not ingested: {archive}: no space left on device" in "\n".join(_summary_lines(summary))
+    arch.ingest()  # space again: the spool kept it all
+    assert arch.ingests == 1
+    assert run_query(archive, "SELECT count(*) FROM records")[1] == [(data.count(b"\n"),)]
 
 
 @pytest.fixture(scope="module")

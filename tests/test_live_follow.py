@@ -306,6 +306,30 @@ def test_follow_human_output_escapes_log_content() -> None:
     assert "\u202e" not in _line(passage)
 
 
+@pytest.mark.parametrize("polling", [False, True], ids=["inotify", "polling"])
+def test_a_log_replaced_by_a_directory_or_a_fifo_is_waited_for_not_the_end_of_the_source(
+    tmp_path: Path, polling: bool
+) -> None:
+    # A directory there stopped the source for good (IsADirectoryError); a FIFO would have blocked it in open().
+    log = tmp_path / "a.log"
+    log.write_bytes(b"Diag_id: first\n")
+    src, got = _follow(log, from_start=True, force_polling=polling)
+    try:
+        assert wait_until(lambda: got.data() == b"Diag_id: first\n", 10)
+        log.unlink()
+        log.mkdir()
+        assert wait_until(lambda: "not a file now" in src.status().detail, 10), src.status()
+        log.rmdir()
+        os.mkfifo(log)
+        time.sleep(0.5)
+        log.unlink()
+        log.write_bytes(b"Diag_id: second\n")
+        assert wait_until(lambda: got.data() == b"Diag_id: first\nDiag_id: second\n", 10), src.status()
+        assert src.running and src.status().connected
+    finally:
+        src.stop()
+
+
 def test_follow_of_an_impossible_source_is_a_one_line_error(tmp_path: Path) -> None:
     out = subprocess.run(trackside("follow", "mqtt://127.0.0.1:1883"), capture_output=True, text=True, timeout=30)
     assert out.returncode == 2

@@ -12,8 +12,9 @@ from typing import Any
 
 import pytest
 
-from console.inputs.base import GnssFix, Item
+from console.inputs.base import GnssFix, Item, SourceError
 from console.inputs.mqtt import MqttSource
+from console.inputs.uri import open_source
 from parsers.gnss.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
 from tests.live_fixtures import Mosquitto, mosquitto, wait_until  # noqa: F401 - the fixture
 
@@ -105,6 +106,30 @@ def test_chirpstack_and_tts_uplinks_become_fixes_with_radio_data(mosquitto: Mosq
     assert head.meta["rssi_dbm"] == -97 and head.meta["network"] == "chirpstack"
     assert head.t_fix_ns == T0 + 10**9 and head.speed_mps == 12.5 and head.battery_pct == 80.0
     assert (eot.device, eot.role, eot.meta["snr_db"], eot.meta["network"]) == (EUI_EOT, "eot", -7.25, "tts")
+
+
+def test_a_topic_ending_in_the_multi_level_wildcard_is_subscribed_as_written(
+    mosquitto: Mosquitto,  # noqa: F811
+    publisher: Publisher,
+) -> None:
+    # urlsplit read `#` as a URL fragment: `…/application/#` subscribed to `application/`, which no uplink is
+    # published on, and the source sat connected and silent.
+    src = open_source(f"{mosquitto.url}/application/#")
+    got = Got()
+    src.start(got)
+    try:
+        assert wait_until(lambda: src.status().connected, 10), src.status()
+        assert src.status().detail == "subscribed to application/#"
+        publisher.send(chirpstack_topic(EUI_HEAD), cs(EUI_HEAD, 1, report(1)))
+        assert wait_until(lambda: len(got.fixes()) == 1, 10), src.status()
+    finally:
+        src.stop()
+
+
+@pytest.mark.parametrize("topic", ["up#", "up/#/x", "up/#x"])
+def test_a_wildcard_that_does_not_end_the_topic_is_refused(topic: str) -> None:
+    with pytest.raises(SourceError, match="wildcard"):
+        open_source(f"mqtt://127.0.0.1:1883/{topic}")
 
 
 def test_duplicates_are_merged_and_fcnt_gaps_are_lost_uplinks(mosquitto: Mosquitto, publisher: Publisher) -> None:  # noqa: F811

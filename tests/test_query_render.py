@@ -80,6 +80,8 @@ def test_log_text_stays_inert_in_the_box(archive: Path) -> None:
     out = _table(archive, "SELECT '[b]x' || chr(27) || '[2J' || chr(127) || chr(8238) || 'y' AS t")
     assert "[b]x\\x1b[2J\\x7f\\u202ey" in out
     assert "\x1b" not in out and "\u202e" not in out and "\x7f" not in out
+    invisible = _table(archive, "SELECT 'WS1' || chr(8203) || chr(65279) || chr(917569) AS t")
+    assert "WS1\\u200b\\ufeff\\U000e0041" in invisible and "\u200b" not in invisible
 
 
 def test_list_presets_in_a_box_and_documented() -> None:

@@ -120,6 +120,16 @@ def test_the_report_says_its_window_and_refuses_an_empty_one(archive: Path) -> N
             assert res.stderr.count("\n") == 1 and "is not before to" in res.stderr
 
 
+@pytest.mark.parametrize("window", [["--from", "2030-01-01"], ["--to", "2026-03-01"]])
+def test_a_window_with_nothing_of_the_archive_is_refused_not_reported_ok(archive: Path, window: list[str]) -> None:
+    # It gave "Verdict: OK", listed every archived file as read, and warned that no GNSS unit was named
+    # <train>-head / -eot (the run's units are; they were outside the window).
+    res = runner.invoke(app, ["report", "--archive", str(archive), "--format", "json", *window])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.startswith("trackside: error: --from/--to: the archive holds no record, frame or fix")
+    assert res.stdout == ""
+
+
 def test_a_scoped_report_warns_only_of_its_own_heads(tmp_path: Path) -> None:
     """The README's archive: the Osong logs' WS4/WS5 devices differ from the example layout's; a report on WS2
     does not carry those warnings, nor the GNSS one (it judges no crossing)."""

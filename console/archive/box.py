@@ -25,13 +25,18 @@ if TYPE_CHECKING:
 
 # A long result shows its first and last rows, as the duckdb shell does (.maxrows 40).
 MAX_ROWS = 40
-# What console.safe_text.clean escapes, in RE2 syntax (C0, DEL, C1, line/paragraph separators, bidi controls).
-_CONTROL_RE2 = r"[\x00-\x1f\x7f-\x9f\x{61c}\x{200e}\x{200f}\x{2028}-\x{202e}\x{2066}-\x{2069}]"
+# What console.safe_text.clean escapes, in RE2 syntax (C0, DEL, C1, line/paragraph separators, bidi controls,
+# the invisible characters).
+_CONTROL_RE2 = (
+    r"[\x00-\x1f\x7f-\x9f\x{61c}\x{180e}\x{200b}-\x{200f}\x{2028}-\x{202e}\x{2060}-\x{206f}\x{feff}"
+    r"\x{e0000}-\x{e007f}]"
+)
 # Rare: a whole-value regexp test first; only values that hold a control character are split and rebuilt.
 INERT_SQL = (
     f"CASE WHEN regexp_matches({{v}}, '{_CONTROL_RE2}') THEN array_to_string(list_transform(string_split({{v}}, ''),"
     f" lambda c: CASE WHEN regexp_matches(c, '{_CONTROL_RE2}') THEN printf(CASE WHEN unicode(c) < 256"
-    " THEN '\\x%02x' ELSE '\\u%04x' END, unicode(c)) ELSE c END), '') ELSE {v} END"
+    " THEN '\\x%02x' WHEN unicode(c) < 65536 THEN '\\u%04x' ELSE '\\U%08x' END, unicode(c)) ELSE c END), '')"
+    " ELSE {v} END"
 )
 # Times as every trackside output writes them (console.analysis.timefmt.iso): ISO 8601, UTC, Z, milliseconds at
 # least, microseconds or nanoseconds when they are not zero.  A zone-aware time is UTC (the connection's zone).

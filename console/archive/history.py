@@ -34,8 +34,9 @@ from console.archive.reader import (
     per_file_tables,
     speed_settings,
     user_window,
+    window_holds_data,
 )
-from console.archive.scope import scope_report
+from console.archive.scope import scope_report, window_text
 from console.archive.store import ArchiveError, Manifest, archive_dir, read_current
 from console.archive.views import require_archive
 from console.drivers.batch import DiagJob, ReadOptions, health_findings, no_axles
@@ -166,6 +167,9 @@ def archive_collector(
             raise ReportInputError(f"--from/--to: {exc}") from None
         try:
             m = require_archive(root)
+            if window.head is None and window.device_id is None and not window_holds_data(root, m, window):
+                # A report about nothing would say OK (--head says so of a head with nothing in the window).
+                raise ReportInputError(f"--from/--to: the archive holds no record, frame or fix{window_text(window)}")
             # The derived tables when they hold this report (the layout they were derived with), else the records.
             how: Literal["read", "history"] = "history" if derived_for(m, layout) else "read"
             data = report_data(root, layout, window, manifest=m, job=how)

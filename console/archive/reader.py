@@ -8,6 +8,8 @@ ingest derives at its end) are :mod:`console.archive.history`.
 from __future__ import annotations
 
 import datetime as dt
+import fcntl
+import os
 import shutil
 import tempfile
 from collections import Counter
@@ -22,7 +24,7 @@ from console.analysis.passages.diagnostics import SpeedSettings
 from console.analysis.timefmt import parse_time
 from console.archive.parts import key_of_part
 from console.archive.records import ARCHIVED_RECORD_COLUMNS, REGISTER_COLUMNS, ChunkRebuilder
-from console.archive.store import TMP, Manifest, read_current
+from console.archive.store import READING, TMP, Manifest, read_current
 from console.archive.views import connect
 from console.drivers.batch import ChunkSource, ReadOptions
 from console.engine.pipeline import HEALTH_REGISTERS
@@ -93,6 +95,35 @@ def user_window(start: str | None, end: str | None, head: str | None = None, dev
     return window
 
 
+def window_holds_data(root: Path, manifest: Manifest, window: Window) -> bool:
+    """Whether a record, frame or GNSS fix of the archive lies in the window's time range (voltages, which have
+    no time, are in every window)."""
+    tables = [t for t in ("records", "frames", "fixes") if manifest.parts(t)]
+    if manifest.parts("voltages") or not tables:
+        return True
+    conds = [c for c, v in (("time >= ?", window.start), ("time < ?", window.end)) if v is not None]
+    params = [v for v in (window.start, window.end) if v is not None]
+    con, _ = connect(root, manifest, tables=tables)
+    try:
+        where = " AND ".join(conds) or "true"
+        return any(con.execute(f"SELECT 1 FROM {t} WHERE {where} LIMIT 1", params).fetchone() for t in tables)
+    finally:
+        con.close()
+
+
+def names_a_unit(root: Path, manifest: Manifest, name: str) -> bool:
+    """Whether ``name`` is a counting head (of records, frames or voltages) or a GNSS unit of the archive."""
+    columns = {"records": "counting_head", "frames": "sensor", "voltages": "sensor", "fixes": "device"}
+    tables = [t for t in columns if manifest.parts(t)]
+    if not tables:
+        return False
+    con, _ = connect(root, manifest, tables=tables)
+    try:
+        return any(con.execute(f"SELECT 1 FROM {t} WHERE {columns[t]} = ? LIMIT 1", [name]).fetchone() for t in tables)
+    finally:
+        con.close()
+
+
 _ARCHIVED_COLUMNS_SQL = ", ".join(ARCHIVED_RECORD_COLUMNS)
 
 
@@ -134,9 +165,20 @@ def record_batches(
     """
     if not manifest.parts("records"):
         return
-    (root / TMP).mkdir(parents=True, exist_ok=True)
-    spill = Path(tempfile.mkdtemp(prefix="duckdb-", dir=root / TMP))
-    con, _ = connect(root, manifest, spill_dir=spill, tables=tables)
+    try:
+        (root / TMP).mkdir(parents=True, exist_ok=True)
+        spill = Path(tempfile.mkdtemp(prefix="duckdb-", dir=root / TMP))
+    except OSError:  # an archive only read (a snapshot, read-only media, another user's): spill to the system's
+        spill = Path(tempfile.mkdtemp(prefix="trackside-duckdb-"))
+    # Held while reading: an ingest starting meanwhile leaves the folder alone (store.collect_garbage).
+    hold = os.open(spill / READING, os.O_CREAT | os.O_RDWR, 0o600)
+    fcntl.flock(hold, fcntl.LOCK_SH)
+    try:
+        con, _ = connect(root, manifest, spill_dir=spill, tables=tables)
+    except BaseException:
+        os.close(hold)
+        shutil.rmtree(spill, ignore_errors=True)
+        raise
     try:
         where_sql, params = window.where()
         if labels is not None:
@@ -166,6 +208,7 @@ def record_batches(
         yield from rel.to_arrow_reader(BATCH_ROWS)
     finally:
         con.close()
+        os.close(hold)
         shutil.rmtree(spill, ignore_errors=True)
 
 

@@ -242,6 +242,24 @@ def _write_synced(path: Path, payload: bytes) -> None:
         os.close(fd)
 
 
+READING = ".reading"  # in a reader's spill folder under tmp/: flock-ed (shared) for as long as it reads
+
+
+def spill_in_use(folder: Path) -> bool:
+    """Whether a reader still holds ``folder`` (its lock on READING): a live read's spill, not a killed one's."""
+    try:
+        fd = os.open(folder / READING, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)  # and with it the lock just taken
+    return False
+
+
 def collect_garbage(root: Path, current: Manifest) -> int:
     """Remove what no kept manifest lists: parts of killed ingests, replaced parts, scratch files.
 
@@ -285,7 +303,9 @@ def collect_garbage(root: Path, current: Manifest) -> int:
         for p in tmp.iterdir():
             with contextlib.suppress(OSError):
                 if p.is_dir():
-                    shutil.rmtree(p)  # a killed ingest's sort spill
+                    if spill_in_use(p):
+                        continue  # a report or replay reading now: DuckDB may spill there yet
+                    shutil.rmtree(p)  # a killed ingest's or reader's sort spill
                 else:
                     p.unlink()
                 removed += 1

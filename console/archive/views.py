@@ -207,16 +207,33 @@ def connect(
     con.execute("SET TimeZone = 'UTC'")
     base = root.resolve()
     only = partition_filter(con, sql) if sql is not None else {}
-    for table, keys in TABLES.items():
-        rels = m.parts(table) if tables is None or table in tables else []
-        if table in only:
-            # The query's WHERE drops every other partition anyway; one part stays to give the view its columns.
-            rels = [r for r in rels if all(f"/{k}={only[table][k]}/" in r for k in only[table])] or rels[:1]
-        con.execute(_view(table, keys, [str(base / rel) for rel in rels]))
+    try:
+        for table in TABLES:
+            rels = m.parts(table) if tables is None or table in tables else []
+            if table in only:
+                # The query's WHERE drops every other partition anyway; one part stays to give the view its columns.
+                rels = [r for r in rels if all(f"/{k}={only[table][k]}/" in r for k in only[table])] or rels[:1]
+            _make_view(con, duckdb.Error, root, table, rels)
+    except ArchiveError:
+        con.close()
+        raise
     for name, table in (computed or {}).items():  # views computed in Python (the forecasts), before the lock
         con.register(name, table)
     _lock(con, base)
     return con, m
+
+
+def _make_view(con: Any, error: type[Exception], root: Path, table: str, rels: list[str]) -> None:
+    """``table``'s view over its parts; a part deleted or cut short on disk is an ArchiveError saying so (it was
+    "internal error: IOException" with the statement that made the view)."""
+    base = root.resolve()
+    try:
+        con.execute(_view(table, TABLES[table], [str(base / rel) for rel in rels]))
+    except error as exc:
+        missing = next((rel for rel in rels if not (base / rel).is_file()), None)
+        why = one_line(exc).split(" LINE 1:")[0]  # not the statement that made the view
+        what = f"{missing} is missing" if missing else f"its {table} cannot be read ({why})"
+        raise ArchiveError(f"{root}: the archive is damaged: {what}") from None
 
 
 def _view(table: str, keys: tuple[str, ...], parts: list[str]) -> str:
@@ -276,8 +293,7 @@ class _Shared:
                 return None
             for table in set(tables) - self.full:
                 if table in TABLES:
-                    parts = [str(self.root / rel) for rel in m.parts(table)]
-                    self.con.execute(_view(table, TABLES[table], parts))
+                    _make_view(self.con, duckdb.Error, self.root, table, m.parts(table))
                     self.full.add(table)
             return self.con.cursor()  # a cursor takes the database's session settings
 
@@ -478,6 +494,19 @@ def plain_result(con: duckdb.DuckDBPyConnection, sql: str) -> QueryResult | None
     """The result as Python rows, top-level times as epoch nanoseconds, by DuckDB's engine alone (see
     :func:`engine`); None: a column needs Arrow, or ``DESCRIBE`` cannot type the statement (EXPLAIN) or fails, or
     the statement cannot be read as a subquery (then the package's relations answer, and raise its error)."""
+    found = _plain_cursor(con, sql)
+    if found is None:
+        return None
+    names, times, cursor = found
+    try:
+        rows = cursor.fetchall()
+    except engine().Error as exc:
+        raise QueryError(one_line(exc)) from None
+    return QueryResult(names, rows=rows, ns_columns=times)
+
+
+def _plain_cursor(con: duckdb.DuckDBPyConnection, sql: str) -> tuple[list[str], frozenset[int], Any] | None:
+    """(column names, the columns of times as epoch ns, the statement run) for :func:`plain_result`; None as there."""
     error = engine().Error
     try:
         columns = con.execute(f"DESCRIBE {sql}").fetchall()
@@ -494,12 +523,40 @@ def plain_result(con: duckdb.DuckDBPyConnection, sql: str) -> QueryResult | None
         picked = ", ".join(f"epoch_ns(#{i + 1})" if i in times else f"#{i + 1}" for i in range(len(types)))
         statement = f"SELECT {picked} FROM (\n{sql.rstrip().rstrip(';')}\n)"
     try:
-        rows = con.execute(statement).fetchall()
+        cursor = con.execute(statement)
     except error as exc:
         if times:
             return None
         raise QueryError(one_line(exc)) from None
-    return QueryResult([str(c[0]) for c in columns], rows=rows, ns_columns=times)
+    return [str(c[0]) for c in columns], times, cursor
+
+
+def run_query_batches(
+    root: Path,
+    sql: str,
+    manifest: Manifest | None = None,
+    computed: Mapping[str, ComputedView] | None = None,
+    batch_rows: int = 100_000,
+) -> Iterator[QueryResult]:
+    """:func:`run_query_result` in batches of at most ``batch_rows`` rows (at least one, maybe empty): a result of
+    millions of rows is written as it is read, in bounded memory, and stops when its reader leaves (``| head``).
+    A result that needs Arrow's types comes whole, as one batch."""
+    con = _query_connection(root, sql, manifest, computed, engine_only=True)
+    try:
+        found = _plain_cursor(con, sql)
+        if found is not None:
+            names, times, cursor = found
+            while True:
+                try:
+                    rows = cursor.fetchmany(batch_rows)
+                except engine().Error as exc:  # a cast or a division fails as the rows are made
+                    raise QueryError(one_line(exc)) from None
+                yield QueryResult(names, rows=rows, ns_columns=times)
+                if len(rows) < batch_rows:
+                    return
+    finally:
+        con.close()
+    yield run_query_result(root, sql, manifest, computed)
 
 
 def show_query(

@@ -49,6 +49,9 @@ from parsers.units import NS
 
 Emit = Callable[[dict[str, Any]], None]
 SKEW_TOLERANCE_S = 2.0  # offsets below this are radio and processing delay, not a wrong clock
+# A unit's time this far from the console's is a broken clock (a receiver without its almanac, a week
+# rollover), not a skew to learn: taken as skew, one such report would age every later fix of the unit.
+MAX_CLOCK_OFF_S = 86_400.0
 RECENT_FIXES = 512  # per train: enough to find its head's arrival when the warning goes off
 
 
@@ -97,12 +100,14 @@ class _Ticks:
 
 class TrackPlacer:
     """A unit's report → a fix on the layout's track, its clock judged (every mode: batch places its files'
-    fixes with it too).  Fixes more than OFF_TRACK_M from the track are set aside and counted."""
+    fixes with it too).  Fixes more than OFF_TRACK_M from the track, or stamped more than MAX_CLOCK_OFF_S
+    from the console's clock, are set aside and counted."""
 
     def __init__(self, layout: Layout) -> None:
         self.proj = TrackProjector(layout.track) if len(layout.track) >= 2 else None
         self.skew_ns: dict[str, int] = {}
         self.off_track = 0
+        self.bad_clock = 0
 
     def owner(self, f: GnssFix) -> tuple[str, str]:
         """(train, role): the unit says so (LoRa payload), or its name does (<train>-head / -eot)."""
@@ -122,6 +127,9 @@ class TrackPlacer:
         if self.proj is None or math.isnan(f.lat_deg) or math.isnan(f.lon_deg):
             return None
         delay = now_ns - f.t_fix_ns
+        if abs(delay) > MAX_CLOCK_OFF_S * NS:
+            self.bad_clock += 1
+            return None
         best = self.skew_ns.get(f.device)
         self.skew_ns[f.device] = delay if best is None else min(best, delay)
         offset = self.skew_ns[f.device]

@@ -10,6 +10,7 @@ as malformed.  A bus that cannot be opened is retried with backoff.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -17,6 +18,8 @@ from console.inputs.base import CanFrame, Source, SourceError, backoff_delays
 from parsers.frames.can import COUNT_DLC, COUNT_ID_BASE, NODE_MAX, NODE_MIN
 
 RECV_TIMEOUT_S = 0.5
+# Receive times as nanoseconds fit an int64 up to 2262; a peer (udp_multicast, a virtual bus) sends any float.
+LATEST_TIMESTAMP_S = 9.2e9
 
 
 class CanSource(Source):
@@ -77,8 +80,12 @@ class CanSource(Source):
             if prev is not None and seq != (prev + 1) % 256 and seq != prev:
                 self.count_lost((seq - prev - 1) % 256)
             self._seq[node] = seq
+        stamp = msg.timestamp
+        if stamp and not (math.isfinite(stamp) and 0 < stamp < LATEST_TIMESTAMP_S):
+            self.count_malformed()  # received, not lost; a NaN stopped the source, 1e12 s overflowed the engine
+            return
         # Microseconds, as the log readers take them: the same frames give the same times live and recorded.
-        t_ns = round(msg.timestamp * 1e6) * 1000 if msg.timestamp else time.time_ns()
+        t_ns = round(stamp * 1e6) * 1000 if stamp else time.time_ns()
         channel = str(msg.channel or self.channel)
         self.emit(
             CanFrame(

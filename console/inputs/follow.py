@@ -139,11 +139,16 @@ class FileSource(LineSource):
             self.set_connected(False, f"cannot stat: {exc.strerror}")
             return
         if not stat.S_ISREG(st.st_mode):
-            # A FIFO or a device made at the path after follow started: a stream (read as one when given at the
-            # start, console.inputs.stream); opened here it would block, then fail at the first positioned read.
+            # A directory, FIFO or device made at the path after follow started (an operator's mistake, a rotation
+            # gone wrong): reading a directory raises; a FIFO opened here would block, then fail at the first
+            # positioned read (given at the start, it is read as a stream: console.inputs.stream).  The old file is
+            # finished; a log file there again is read.
             if self._fd is not None:
                 self._read_to_end()
-            detail = "not a file now (a FIFO or a device): give it to follow again to read it"
+            detail = (
+                "not a file now (a directory, a FIFO or a device): waiting for the log file; "
+                "a FIFO is read when given to follow"
+            )
             if not self._told_not_a_file:  # said once, even when it was already "waiting for the file"
                 self._told_not_a_file = True
                 self.note("disconnected", f"{self.path}: {detail}")

@@ -78,18 +78,24 @@ class GpsdSource(Source):
 
     def _read(self, sock: socket.socket) -> None:
         buf = b""
+        skipping = False  # in a line too long to keep: dropped up to its end, counted once
         while not self.stopping:
             try:
                 data = sock.recv(65536)
             except TimeoutError:
                 continue
             if not data:
+                if buf.strip() and not skipping:
+                    self.count_malformed()  # gpsd went away mid-line
                 return
             buf += data
             *lines, buf = buf.split(b"\n")
+            if skipping and lines:
+                lines, skipping = lines[1:], False  # the long line's tail
             if len(buf) > MAX_LINE_BYTES:
-                self.count_malformed()
-                buf = b""
+                if not skipping:
+                    self.count_malformed()
+                skipping, buf = True, b""
             for line in lines:
                 if line.strip():
                     self._line(line)
@@ -117,6 +123,10 @@ class GpsdSource(Source):
         lat, lon = doc.get("lat"), doc.get("lon")
         if not isinstance(mode, int) or mode < 2 or not _finite(lat) or not _finite(lon):
             return None
+        lat_deg, lon_deg = float(lat), float(lon)  # type: ignore[arg-type]  # _finite checked them
+        if abs(lat_deg) > 90 or abs(lon_deg) > 180:
+            self.count_malformed()  # as every other GNSS reader refuses it
+            return None
         try:
             t_ns = parse_time_rfc3339(doc.get("time"))
         except PayloadError:
@@ -128,8 +138,8 @@ class GpsdSource(Source):
             source=self.uri,
             device=str(doc.get("device") or self.device or f"gpsd@{self.host}:{self.port}"),
             t_fix_ns=t_ns,
-            lat_deg=float(lat),  # type: ignore[arg-type]  # _finite checked it
-            lon_deg=float(lon),  # type: ignore[arg-type]
+            lat_deg=lat_deg,
+            lon_deg=lon_deg,
             speed_mps=float(doc["speed"]) if _finite(doc.get("speed")) else math.nan,
             course_deg=float(doc["track"]) if _finite(doc.get("track")) else math.nan,
             received_mono=time.monotonic(),

@@ -57,11 +57,20 @@ def parse_uri(text: str) -> SourceURI:
     except ValueError:
         raise SourceError(f"{text}: the port is not a number 0-65535") from None
     path = unquote(parts.path.lstrip("/"))
-    if scheme in ("mqtt", "mqtts") and not path:
-        raise SourceError(f"{text}: expected a topic, e.g. {scheme}://HOST:PORT/application/+/device/+/event/up")
+    query_text = parts.query
+    if scheme in ("mqtt", "mqtts"):
+        if "#" in text:
+            # MQTT's multi-level wildcard, not a URL fragment (urlsplit took it, and its ?options, off the topic).
+            after, _, fragment_query = parts.fragment.partition("?")
+            path += "#" + unquote(after)
+            query_text = query_text or fragment_query
+        if ("#" in path and not (path == "#" or path.endswith("/#"))) or path.count("#") > 1:
+            raise SourceError(f"{text}: the wildcard # stands for whole levels at the topic's end (…/up/#)")
+        if not path:
+            raise SourceError(f"{text}: expected a topic, e.g. {scheme}://HOST:PORT/application/+/device/+/event/up")
     if scheme == "gpsd" and path:
         path = "/" + path  # a device path
-    query = {k: v[-1] for k, v in parse_qs(parts.query).items()}
+    query = {k: v[-1] for k, v in parse_qs(query_text).items()}
     role = query.get("role", "")
     if role not in ("", "head", "eot"):
         raise SourceError(f"{text}: role must be head or eot, found {role!r}")

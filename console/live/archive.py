@@ -15,6 +15,7 @@ archive holds what the batch commands would read from the spool.
 
 from __future__ import annotations
 
+import errno
 import math
 import os
 import threading
@@ -150,8 +151,11 @@ class LiveArchiver:
             self.ingests += 1
         except ArchiveBusy:
             pass  # another ingest is writing: the next turn takes it
-        except (ArchiveError, OSError) as exc:
+        except ArchiveError as exc:
             self.errors.append(str(exc))
+        except OSError as exc:  # as `trackside ingest` says it (pyarrow's text of ENOSPC is two errnos long)
+            why = "no space left on device" if exc.errno == errno.ENOSPC else exc.strerror or str(exc)
+            self.errors.append(f"{exc.filename or self.archive}: {why}: archive unchanged")
 
     def finish(self) -> None:
         if self._thread is not None:

@@ -203,6 +203,11 @@ class LiveEngine:
             "crossing_events": self.crossings.events if self.crossings else 0,
             "integrity_events": self.integrity.events if self.integrity else 0,
             "gnss_fixes": self.crossings.fixes if self.crossings else 0,
+            **(
+                {"gnss_fixes_bad_clock": self.crossings.placer.bad_clock}
+                if self.crossings and self.crossings.placer.bad_clock
+                else {}
+            ),
             "can_frames": self.can_frames,
             "file_frames": self.file_frames,
             "files": files,
@@ -212,6 +217,12 @@ class LiveEngine:
                     "items_not_analysed": self.items_not_analysed,
                 }
                 if self.not_analysed or self.items_not_analysed
+                else {}
+            ),
+            # A failed ingest of the spool (a full disk…) is said: the spool keeps it for the next one.
+            **(
+                {"archive_errors": list(dict.fromkeys(self.archiver.errors))}
+                if self.archiver is not None and self.archiver.errors
                 else {}
             ),
             "sections": {k: {"state": s, "count": c} for k, (s, c) in self.section_states().items()},

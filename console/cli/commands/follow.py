@@ -84,6 +84,9 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
         n = summary["status_only_passages"]
         # Not "of them": the passages counted above exclude these.
         out[0] += f"; {count(n, 'status-only record burst')} (no wheel onset) not listed (--include-status lists them)"
+    if summary.get("gnss_fixes_bad_clock"):
+        n = summary["gnss_fixes_bad_clock"]
+        out.append(f"  {count(n, 'GNSS fix', 'GNSS fixes')} set aside: stamped over a day from the console's clock")
     for f in summary["files"]:
         unread = f" + {f['unrecognised']} unrecognised (not read)" if "unrecognised" in f else ""
         out.append(
@@ -107,6 +110,8 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
         )
     for sid, st in summary["sections"].items():
         out.append(clean(f"  section {sid}: {st['state']} (count {st['count']})"))
+    for error in summary.get("archive_errors", []):
+        out.append(clean(f"  --archive: not ingested: {error} (kept in the spool for the next ingest)"))
     return out
 
 

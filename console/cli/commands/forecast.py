@@ -83,7 +83,7 @@ def forecast(
             raise fail("forecast needs scipy: pip install 'trackside[forecast]'") from None
         from console.analysis.health.forecast import ForecastSettings, due_list
         from console.archive.health_days import archive_forecasts
-        from console.archive.reader import Window
+        from console.archive.reader import Window, names_a_unit
         from console.archive.views import require_archive
 
         try:
@@ -105,6 +105,9 @@ def forecast(
                     )
             else:
                 items, _ = archive_forecasts(root, manifest, Window(head=head), lay, settings)
+            if head is not None and not items and not names_a_unit(root, manifest, head):
+                # "Nothing is due" of a name the archive never saw (a typo) would read as good news.
+                raise fail(f"--head {head}: no counting head or GNSS unit of that name in the archive")
         except ArchiveError as exc:
             raise fail(str(exc)) from None
         due = due_list(items)

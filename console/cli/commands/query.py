@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import csv
 import datetime as dt
+import itertools
 import json
 import sys
+from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING, Annotated, Any, cast
 
 import typer
@@ -21,6 +23,7 @@ if TYPE_CHECKING:
     import pyarrow as pa
 
     from console.archive.store import Manifest
+    from console.archive.views import QueryResult
 
 FORMATS = ("table", "csv", "json", "jsonl")
 # Up to this many rows the times are formatted one by one (timefmt.iso), as the other values are: a query of a
@@ -55,7 +58,7 @@ def query(
     """SQL (DuckDB) over the archive, read-only: one view per table."""
     from console.archive.presets import PRESETS
     from console.archive.store import ArchiveError, archive_dir
-    from console.archive.views import QueryError, require_archive, run_query_result, schema, show_query
+    from console.archive.views import QueryError, require_archive, run_query_batches, schema, show_query
 
     computed = {"forecasts": _forecasts}
 
@@ -85,13 +88,14 @@ def query(
                 sys.stdout.write(show_query(root, text, manifest, computed=computed))
                 sys.stdout.flush()
                 return exit_codes.OK
-            result = run_query_result(root, text, manifest, computed)
+            # In batches, each written before the next is read: millions of rows in bounded memory, and a
+            # reader that leaves (| head) stops the query.
+            batches = run_query_batches(root, text, manifest, computed)
+            first = next(batches)
+            rows = (_output_rows(b) for b in itertools.chain([first], batches))
+            _emit_batches(first.names, rows, fmt)
         except (ArchiveError, QueryError) as exc:
             raise fail(str(exc)) from None
-        if result.arrow is not None:
-            _emit_table(result.arrow, fmt)
-        else:
-            _emit(result.names, _plain_rows(result.rows or [], result.ns_columns), fmt)
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
@@ -207,30 +211,44 @@ def _column(col: pa.ChunkedArray) -> list[Any]:
     return [_plain(v) for v in col.to_pylist()]
 
 
-def _emit_table(result: pa.Table, fmt: str) -> None:
-    columns = [_column(c) for c in result.columns]
-    rows = list(zip(*columns, strict=True)) if columns else []
-    _emit(list(result.column_names), rows, fmt)
+def _output_rows(result: QueryResult) -> list[tuple[Any, ...]]:
+    """A batch of the result as output values (see _column and _plain_rows)."""
+    if result.arrow is not None:
+        columns = [_column(c) for c in result.arrow.columns]
+        return list(zip(*columns, strict=True)) if columns else []
+    return _plain_rows(result.rows or [], result.ns_columns)
 
 
 def _emit(names: list[str], rows: list[tuple[Any, ...]] | list[tuple[str, str, str]], fmt: str) -> None:
     """Rows whose values are already plain (see _column)."""
+    _emit_batches(names, iter([rows]), fmt)
+
+
+def _emit_batches(names: list[str], batches: Iterator[Sequence[tuple[Any, ...]]], fmt: str) -> None:
+    """Batches of rows whose values are already plain, each written as it comes (the table: all at once)."""
     out = sys.stdout
     if fmt == "csv":
         w = csv.writer(out, lineterminator="\n")
         w.writerow(names)
         # Text values inert, as in the table: a log line's or a file name's escape sequences and bidi
         # overrides must not act on the terminal or the spreadsheet that shows the CSV (JSON escapes C0 itself).
-        for r in rows:
-            w.writerow(["" if v is None else clean(v) if isinstance(v, str) else v for v in r])
+        for rows in batches:
+            for r in rows:
+                w.writerow(["" if v is None else clean(v) if isinstance(v, str) else v for v in r])
     elif fmt == "json":
-        json.dump([dict(zip(names, r, strict=True)) for r in rows], out, ensure_ascii=False, default=str)
-        out.write("\n")
+        # One array, written row by row as json.dump writes a list: "[{…}, {…}]".
+        sep = "["
+        for rows in batches:
+            for r in rows:
+                out.write(sep + json.dumps(dict(zip(names, r, strict=True)), ensure_ascii=False, default=str))
+                sep = ", "
+        out.write("[]\n" if sep == "[" else "]\n")
     elif fmt == "jsonl":
-        for r in rows:
-            out.write(json.dumps(dict(zip(names, r, strict=True)), ensure_ascii=False, default=str) + "\n")
+        for rows in batches:
+            for r in rows:
+                out.write(json.dumps(dict(zip(names, r, strict=True)), ensure_ascii=False, default=str) + "\n")
     else:
         from console.archive.box import render_rows
 
-        out.write(render_rows(names, rows))
+        out.write(render_rows(names, [r for rows in batches for r in rows]))
     out.flush()
