@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from console.analysis.geo import TrackProjector
@@ -359,3 +359,43 @@ def test_the_live_console_wakes_at_the_instant_a_warning_falls_due() -> None:
     assert len(on) == 1 and str(on[0]["reason"]).startswith("ETA")
     assert (on[0]["time_ns"] - T0) % (NS // 2) != 0  # not on a steady tick
     assert (on[0]["time_ns"], on[0]["time_ns"]) in woken  # at the instant the bound fell due
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    cuts1=st.lists(st.integers(1, 3384), max_size=6),
+    cuts2=st.lists(st.integers(1, 3384), max_size=6),
+    stop=st.integers(1, 3385),
+)
+def test_a_log_followed_again_from_its_start_is_not_archived_twice(
+    tmp_path_factory: pytest.TempPathFactory, cuts1: list[int], cuts2: list[int], stop: int
+) -> None:
+    """`follow --from-start --archive` run again on the same log (a restart) spooled it a second time: the
+    archive's records held every line twice.  A first run that stopped anywhere (``stop``), a second run
+    reading the log from its start in other blocks, then a rewritten log: each line is archived once, and
+    the lines read again are counted."""
+    from console.archive.views import run_query
+    from console.live.archive import LiveArchiver
+
+    tmp_path = tmp_path_factory.mktemp("again")
+    archive = tmp_path / "arc"
+    lines = (REPO / "sample_logs" / "example_station.log").read_bytes().splitlines(keepends=True)
+
+    def run(upto: int, cuts: list[int], first: int = 1) -> LiveArchiver:
+        arch = LiveArchiver(archive)
+        at = [0, *sorted({c for c in cuts if c < upto}), upto]
+        for a, b in itertools.pairwise(at):
+            arch(LineBlock("file:x", "x.log", first + a, b"".join(lines[a:b]), time.monotonic()))
+        arch.finish()
+        return arch
+
+    run(stop, cuts1)
+    again = run(len(lines), cuts2)
+    assert again.repeated_lines == stop
+    assert run_query(archive, "SELECT count(*) FROM records")[1] == [(len(lines),)]
+    # The log rewritten (its first line differs): all of it is new.
+    lines[0] = lines[0].replace(b"07:55:00", b"07:55:01")
+    assert lines[0] != (REPO / "sample_logs" / "example_station.log").read_bytes().splitlines(keepends=True)[0]
+    rewritten = run(len(lines), cuts1)
+    assert rewritten.repeated_lines == 0
+    assert run_query(archive, "SELECT count(*) FROM records")[1] == [(2 * len(lines),)]

@@ -11,6 +11,13 @@ forms ``trackside frames`` reads.  Every
 own ingest (``console.archive.ingest.run_ingest``), which reads a grown file
 from where the last ingest stopped: nothing is stored twice, and the
 archive holds what the batch commands would read from the spool.
+
+A followed log read again (``follow --from-start --archive`` after a restart)
+repeats, from its first line, what an earlier run spooled: while a file's
+lines (or fixes, frames) are the same bytes its spool file holds from its
+start, they are counted (:attr:`LiveArchiver.repeated_lines`) and not spooled
+again; from the first block that differs (the log was rotated or rewritten),
+or past the spool's end, they are appended.
 """
 
 from __future__ import annotations
@@ -30,6 +37,7 @@ from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock
 
 INGEST_EVERY_S = 30.0
 FLUSH_LINES = 4096  # CAN frames come one by one: written in blocks
+FIXES_HEADER = b"time,device,role,lat,lon,speed,course\n"
 _HEX = np.array([f"{b:02X}" for b in range(256)], dtype=object)
 
 
@@ -86,6 +94,10 @@ class LiveArchiver:
         self._can_lines: dict[str, list[str]] = {}  # by source: frames not written yet
         self.ingests = 0
         self.errors: list[str] = []
+        # Per followed file: how far its lines have matched its spool file's bytes from their start (an earlier
+        # run's); -1: appended to since this run began (no longer compared).
+        self._matched: dict[Path, int] = {}
+        self.repeated_lines = 0
 
     def _path(self, key: str, suffix: str) -> Path:
         p = self._files.get(key)
@@ -96,21 +108,14 @@ class LiveArchiver:
 
     def __call__(self, item: Item) -> None:
         if isinstance(item, LineBlock):
-            with self._path(item.file, ".log").open("ab") as f:
-                f.write(item.data)
+            self._append(self._path(item.file, ".log"), item.data)
         elif isinstance(item, GnssFix) and not (math.isnan(item.lat_deg) or math.isnan(item.lon_deg)):
-            p = self._path("gnss-" + item.source, ".csv")
-            new = not p.exists()
             role = item.role or ("eot" if item.device.endswith("-eot") else "head")
             speed = "" if math.isnan(item.speed_mps) else f"{item.speed_mps:.2f}"
             course = "" if math.isnan(item.course_deg) else f"{item.course_deg:.1f}"
             device = f"{item.train}-{role}" if item.train else item.device
-            with p.open("a", encoding="utf-8") as f:
-                if new:
-                    f.write("time,device,role,lat,lon,speed,course\n")
-                f.write(
-                    f"{iso(item.t_fix_ns)},{device},{role},{item.lat_deg:.7f},{item.lon_deg:.7f},{speed},{course}\n"
-                )
+            line = f"{iso(item.t_fix_ns)},{device},{role},{item.lat_deg:.7f},{item.lon_deg:.7f},{speed},{course}\n"
+            self._append(self._path("gnss-" + item.source, ".csv"), line.encode(), header=FIXES_HEADER)
         elif isinstance(item, CanFrame):
             pending = self._can_lines.setdefault(item.source, [])
             pending.append(candump_line(item))
@@ -118,14 +123,46 @@ class LiveArchiver:
                 self._write_can()
         elif isinstance(item, FrameRows) and len(item):
             key, suffix = ("can-", ".log") if item.kind == "can" else ("frames-", ".txt")
-            with self._path(key + item.source, suffix).open("a", encoding="utf-8") as f:
-                f.write(frame_rows_text(item))
+            self._append(self._path(key + item.source, suffix), frame_rows_text(item).encode())
+
+    def _append(self, path: Path, data: bytes, header: bytes = b"") -> None:
+        """``data`` (whole lines) to the spool file at ``path``, less what it repeats (see the module)."""
+        if header and not path.exists():
+            with path.open("ab") as f:
+                f.write(header)
+        data = self._not_spooled(path, data, len(header))
+        if data:
+            with path.open("ab") as f:
+                f.write(data)
+
+    def _not_spooled(self, path: Path, data: bytes, start: int) -> bytes:
+        """The part of ``data`` the spool file does not hold yet at the same place: this run's lines are compared
+        with the file's from ``start`` (past its header) until one differs or the file ends."""
+        at = self._matched.get(path, start)
+        if at < 0:
+            return data
+        try:
+            with path.open("rb") as f:
+                f.seek(at)
+                held = f.read(len(data))
+        except FileNotFoundError:
+            held = b""
+        same = len(held) if data.startswith(held) else 0
+        if same == len(data):
+            self._matched[path] = at + same
+            self.repeated_lines += data.count(b"\n")
+            return b""
+        # Differs, or the spool ends within the block: from here on it is new (a mismatch keeps the whole block).
+        self._matched[path] = -1
+        if same and held.endswith(b"\n"):  # the spool's end, on a line's end: the lines after it are new
+            self.repeated_lines += held.count(b"\n")
+            return data[same:]
+        return data
 
     def _write_can(self) -> None:
         for source, lines in self._can_lines.items():
             if lines:
-                with self._path("can-" + source, ".log").open("a", encoding="utf-8") as f:
-                    f.write("".join(lines))
+                self._append(self._path("can-" + source, ".log"), "".join(lines).encode())
                 lines.clear()
 
     def tick(self) -> None:

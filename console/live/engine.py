@@ -219,6 +219,12 @@ class LiveEngine:
                 if self.not_analysed or self.items_not_analysed
                 else {}
             ),
+            # Lines an earlier run had spooled, read again (--from-start after a restart): not stored twice.
+            **(
+                {"archive_repeated_lines": self.archiver.repeated_lines}
+                if self.archiver is not None and self.archiver.repeated_lines
+                else {}
+            ),
             # A failed ingest of the spool (a full disk…) is said: the spool keeps it for the next one.
             **(
                 {"archive_errors": list(dict.fromkeys(self.archiver.errors))}

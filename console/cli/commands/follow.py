@@ -110,6 +110,11 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
         )
     for sid, st in summary["sections"].items():
         out.append(clean(f"  section {sid}: {st['state']} (count {st['count']})"))
+    if summary.get("archive_repeated_lines"):
+        out.append(
+            f"  --archive: {count(summary['archive_repeated_lines'], 'line')} an earlier run had archived, read again:"
+            " not stored twice"
+        )
     for error in summary.get("archive_errors", []):
         out.append(clean(f"  --archive: not ingested: {error} (kept in the spool for the next ingest)"))
     return out
