@@ -399,3 +399,42 @@ def test_a_log_followed_again_from_its_start_is_not_archived_twice(
     rewritten = run(len(lines), cuts1)
     assert rewritten.repeated_lines == 0
     assert run_query(archive, "SELECT count(*) FROM records")[1] == [(2 * len(lines),)]
+
+
+def test_a_spool_file_that_cannot_be_written_takes_nothing_more_and_says_from_where(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A full disk at the spool stopped `follow --archive` with 'cannot write output' (it is not the output);
+    now the analysis goes on, the spool file takes nothing more (the archive never holds a log with a gap),
+    and the summary says from which line and how many lines were not archived."""
+    import errno
+
+    from console.archive.views import run_query
+    from console.cli.commands.follow import _summary_lines
+    from console.live.archive import LiveArchiver
+
+    archive = tmp_path / "arc"
+    arch = LiveArchiver(archive)
+    engine = LiveEngine(load_layout("example"), lambda ev: None, archiver=arch)
+    lines = (REPO / "sample_logs" / "example_station.log").read_bytes().splitlines(keepends=True)
+    engine.handle(LineBlock("file:x", "x.log", 1, b"".join(lines[:1000]), time.monotonic()))
+    real_open = Path.open
+
+    def full(self: Path, mode: str = "r", *a: Any, **k: Any) -> Any:
+        if "a" in mode and self.parent.name.endswith(".live"):
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_open(self, mode, *a, **k)
+
+    monkeypatch.setattr(Path, "open", full)
+    engine.handle(LineBlock("file:x", "x.log", 1001, b"".join(lines[1000:2000]), time.monotonic()))
+    monkeypatch.undo()  # space again: still nothing more in this run, the log would have a gap
+    engine.handle(LineBlock("file:x", "x.log", 2001, b"".join(lines[2000:]), time.monotonic()))
+    engine.finish()
+    summary = engine.summary([])
+    assert summary["files"][0]["lines_read"] == len(lines)  # analysed all the same
+    assert summary["archive_lines_not_spooled"] == len(lines) - 1000
+    [error] = summary["archive_spool_errors"]
+    assert error.endswith("cannot spool (no space left on device): not archived from line 1001 of the followed file on")
+    shown = "\n".join(_summary_lines(summary))
+    assert f"--archive: {len(lines) - 1000} lines not archived" in shown
+    assert run_query(archive, "SELECT count(*) FROM records")[1] == [(1000,)]

@@ -98,6 +98,9 @@ class LiveArchiver:
         # run's); -1: appended to since this run began (no longer compared).
         self._matched: dict[Path, int] = {}
         self.repeated_lines = 0
+        self._unwritable: set[Path] = set()
+        self.spool_errors: list[str] = []
+        self.unspooled_lines = 0  # not spooled (and so never archived): their spool file could not be written
 
     def _path(self, key: str, suffix: str) -> Path:
         p = self._files.get(key)
@@ -108,7 +111,7 @@ class LiveArchiver:
 
     def __call__(self, item: Item) -> None:
         if isinstance(item, LineBlock):
-            self._append(self._path(item.file, ".log"), item.data)
+            self._append(self._path(item.file, ".log"), item.data, first_line=item.first_line)
         elif isinstance(item, GnssFix) and not (math.isnan(item.lat_deg) or math.isnan(item.lon_deg)):
             role = item.role or ("eot" if item.device.endswith("-eot") else "head")
             speed = "" if math.isnan(item.speed_mps) else f"{item.speed_mps:.2f}"
@@ -125,15 +128,29 @@ class LiveArchiver:
             key, suffix = ("can-", ".log") if item.kind == "can" else ("frames-", ".txt")
             self._append(self._path(key + item.source, suffix), frame_rows_text(item).encode())
 
-    def _append(self, path: Path, data: bytes, header: bytes = b"") -> None:
-        """``data`` (whole lines) to the spool file at ``path``, less what it repeats (see the module)."""
-        if header and not path.exists():
-            with path.open("ab") as f:
-                f.write(header)
-        data = self._not_spooled(path, data, len(header))
-        if data:
-            with path.open("ab") as f:
-                f.write(data)
+    def _append(self, path: Path, data: bytes, header: bytes = b"", first_line: int | None = None) -> None:
+        """``data`` (whole lines) to the spool file at ``path``, less what it repeats (see the module).
+
+        A spool file that cannot be written (a full disk) takes nothing more in this run, so the archive
+        never holds a log with a gap in it; the lines it did not take are counted, and it is said where
+        they start (``first_line``: the block's first line in the followed file)."""
+        if path in self._unwritable:
+            self.unspooled_lines += data.count(b"\n")
+            return
+        try:
+            if header and not path.exists():
+                with path.open("ab") as f:
+                    f.write(header)
+            data = self._not_spooled(path, data, len(header))
+            if data:
+                with path.open("ab") as f:
+                    f.write(data)
+        except OSError as exc:
+            self._unwritable.add(path)
+            self.unspooled_lines += data.count(b"\n")
+            why = "no space left on device" if exc.errno == errno.ENOSPC else exc.strerror or str(exc)
+            where = f" from line {first_line} of the followed file" if first_line is not None else ""
+            self.spool_errors.append(f"{path}: cannot spool ({why}): not archived{where} on")
 
     def _not_spooled(self, path: Path, data: bytes, start: int) -> bytes:
         """The part of ``data`` the spool file does not hold yet at the same place: this run's lines are compared

@@ -225,6 +225,15 @@ class LiveEngine:
                 if self.archiver is not None and self.archiver.repeated_lines
                 else {}
             ),
+            # A spool file that could not be written takes nothing more: what it did not take is said.
+            **(
+                {
+                    "archive_spool_errors": self.archiver.spool_errors,
+                    "archive_lines_not_spooled": self.archiver.unspooled_lines,
+                }
+                if self.archiver is not None and self.archiver.spool_errors
+                else {}
+            ),
             # A failed ingest of the spool (a full disk…) is said: the spool keeps it for the next one.
             **(
                 {"archive_errors": list(dict.fromkeys(self.archiver.errors))}

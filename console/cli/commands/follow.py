@@ -115,6 +115,10 @@ def _summary_lines(summary: dict[str, Any]) -> list[str]:
             f"  --archive: {count(summary['archive_repeated_lines'], 'line')} an earlier run had archived, read again:"
             " not stored twice"
         )
+    for error in summary.get("archive_spool_errors", []):
+        out.append(clean(f"  --archive: {error}"))
+    if summary.get("archive_lines_not_spooled"):
+        out.append(f"  --archive: {count(summary['archive_lines_not_spooled'], 'line')} not archived")
     for error in summary.get("archive_errors", []):
         out.append(clean(f"  --archive: not ingested: {error} (kept in the spool for the next ingest)"))
     return out
