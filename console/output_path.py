@@ -27,7 +27,9 @@ import contextlib
 import errno
 import json
 import os
+import re
 import shutil
+import socket
 import stat
 import tempfile
 from collections.abc import Iterable, Iterator
@@ -294,6 +296,39 @@ def _fsync_directory(directory: Path) -> None:
         os.close(fd)
 
 
+def _host() -> str:
+    return socket.gethostname().replace(".", "_")[:32]  # a file name has 255 bytes at most
+
+
+def _remove_stale_temporaries(directory: Path, name: str) -> None:
+    """Who writes a temporary file is in its name (``.report.html.HOST-PID.XXXXXXXX.tmp``): a writer killed
+    before its rename (kill -9, a power cut) leaves one, removed here, at the next write of the same target,
+    once that process is gone.  The host keeps a shared folder's other machines' writes, whose processes are
+    not ours to see."""
+    host = _host()
+    mine = re.compile(rf"\.{re.escape(name)}\.{re.escape(host)}-(\d+)\.[^.]+\.tmp")
+    try:
+        entries = list(os.scandir(directory))
+    except OSError:
+        return
+    for entry in entries:
+        m = mine.fullmatch(entry.name)
+        if m is None or int(m[1]) == os.getpid() or _alive(int(m[1])):
+            continue
+        with contextlib.suppress(OSError):
+            os.unlink(entry.path)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's: alive
+        return True
+    return True
+
+
 @contextmanager
 def atomic_file(target: Path) -> Iterator[BinaryIO]:
     """A new file to write in pieces; it replaces ``target`` when the block ends without an error.
@@ -302,7 +337,8 @@ def atomic_file(target: Path) -> Iterator[BinaryIO]:
     """
     directory = target.parent if str(target.parent) else Path(".")
     mode = _new_file_mode(target)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+    _remove_stale_temporaries(directory, target.name)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.{_host()}-{os.getpid()}.", suffix=".tmp", dir=directory)
     tmp = Path(tmp_name)
     try:
         with os.fdopen(fd, "wb") as f:

@@ -197,6 +197,32 @@ def test_an_atomic_write_replaces_the_file_with_an_ordinary_mode(tmp_path: Path)
     assert target.read_bytes() == b"two\n" and (target.stat().st_mode & 0o777) == 0o640
 
 
+def test_a_killed_writers_temporary_file_goes_at_the_next_write_a_live_ones_stays(tmp_path: Path) -> None:
+    """`kill -9` of `report -o r.html` left `.r.html.XXXX.tmp` for ever (the target itself is always whole)."""
+    import signal
+    import socket
+    import sys
+
+    target = tmp_path / "r.html"
+    host = socket.gethostname().replace(".", "_")[:32]
+    # A writer killed mid-write, with the name the real write gives its temporary file.
+    code = (
+        "import os, signal, sys; from pathlib import Path; from console.output_path import atomic_file\n"
+        "with atomic_file(Path(sys.argv[1])) as f:\n"
+        "    f.write(b'half'); f.flush(); print(flush=True); os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    killed = subprocess.run([sys.executable, "-c", code, str(target)], capture_output=True, timeout=60, cwd=ROOT)
+    assert killed.returncode == -signal.SIGKILL
+    [stale] = tmp_path.glob(f".r.html.{host}-*.tmp")
+    live = tmp_path / f".r.html.{host}-{os.getpid()}.abcdefgh.tmp"  # a write of this (running) process
+    other_host = tmp_path / ".r.html.elsewhere-1.abcdefgh.tmp"  # another machine's, on a shared folder
+    live.write_bytes(b"")
+    other_host.write_bytes(b"")
+    write_atomic(target, b"whole\n")
+    assert target.read_bytes() == b"whole\n"
+    assert not stale.exists() and live.exists() and other_host.exists()
+
+
 # ----------------------------------------------------------------------------- exit codes
 
 
