@@ -75,6 +75,7 @@ each received fix, :meth:`CrossingController.tick` for the passing of time.
 
 from __future__ import annotations
 
+import heapq
 import math
 from collections import deque
 from collections.abc import Iterable, Sequence
@@ -209,6 +210,16 @@ class _Track:
     alarms: set[str] = field(default_factory=set)
     episodes: list[tuple[int, int | None, str, str]] = field(default_factory=list)
     parted_ns: int | None = None  # when the integrity monitor saw the train parted
+    # The unit's agenda (see CrossingController): the order the train was first followed in, the
+    # first instant after its last evaluation at which time alone may change what the unit does for
+    # it (None: nothing pending), and its share of next_change_ns (None: none).
+    seq: int = 0
+    due_ns: int | None = None
+    late_ns: int | None = None
+
+
+# A train to evaluate at the next tick or fix whatever the time (its state changed outside a step).
+_AT_ONCE = -(2**63)
 
 
 class CrossingController:
@@ -221,6 +232,21 @@ class CrossingController:
         self.s = settings or ControllerSettings()
         s = self.s
         self.motion = Motion(crossing.chainage_m, s.crossing_half_width_m, s.accel_mps2, s.line_speed_mps, s.noise_m)
+        # The agenda: a fix or a tick evaluates only the trains it can change, not every train followed.
+        # Between a train's fixes its state is fixed, and what a tick finds for it (a warning due by
+        # extrapolation, an alarm for a unit gone stale) changes only at the instants next_onset_ns
+        # names: a unit going stale, its bound coming due.  Until the first of them (its due_ns)
+        # evaluating it finds nothing and changes nothing, so it is left out; at that instant (or the
+        # first tick or fix after it) it is evaluated exactly as before, in the order trains were
+        # first followed.  (Its alarms are dropped only when a unit is fresh again, which takes a fix
+        # of its own; a unit going stale is one of its instants.)  Nothing is skipped that could warn:
+        # a train's due instant is never later than its warning's, and a fix, a parting or the clock
+        # going back evaluates it again.
+        self._seq = 0
+        self._due: list[tuple[int, int, str]] = []  # (due_ns, seq, train), stale entries skipped
+        self._late: list[tuple[int, int, str]] = []  # (−late_ns, seq, train): next_change_ns's maximum
+        self._last_fix_ns: int | None = None  # the latest fix time of any device followed
+        self._t_eval_ns: int | None = None  # the latest instant any train was evaluated at
         self.tracks = {t.train: self._new_track(t) for t in trains}
         self.events: list[CrossingEvent] = []
         # Fixes set aside as position jumps, per (train, role): their fix times.
@@ -246,7 +272,8 @@ class CrossingController:
             adaptive_noise=s.adaptive_noise,
         )
         kf = {HEAD: MotionFilter(flim), EOT: MotionFilter(flim), TRAIN: MotionFilter(flim)}
-        return _Track(spec, DeviceEvidence(lim), DeviceEvidence(lim), kf)
+        self._seq += 1
+        return _Track(spec, DeviceEvidence(lim), DeviceEvidence(lim), kf, seq=self._seq)
 
     @property
     def position_jumps(self) -> int:
@@ -264,7 +291,9 @@ class CrossingController:
         tr = self.tracks.get(train)
         if tr is None or tr.warned:
             return False
-        del self.tracks[train]
+        del self.tracks[train]  # its agenda entries go stale with it
+        last = [r.t_fix_ns for t in self.tracks.values() for r in (t.head, t.eot) if r is not None]
+        self._last_fix_ns = max(last) if last else None
         return True
 
     @property
@@ -477,18 +506,87 @@ class CrossingController:
         unit does: a warning coming due by extrapolation, or a unit going stale (its bound may then be
         another's, and an alarm is due).  Every driver wakes the unit's clock then, as well as every
         tick, so a warning comes on at the instant it is due, never a tick before (nor after).
-        None: nothing is pending."""
-        horizon_ns = int(self.horizon_s * NS)
+        None: nothing is pending.  A train evaluated at or before ``now_ns`` and not due by then wakes
+        at its due instant; the others (due, not yet evaluated) are worked out."""
+        if self._t_eval_ns is not None and now_ns < self._t_eval_ns:
+            wakes = [w for tr in self.tracks.values() if (w := self._wake_ns(tr, now_ns)) is not None]
+            return min(wakes) if wakes else None
+        due = self._pop_due(now_ns)
+        wakes = [w for tr in due if (w := self._wake_ns(tr, now_ns)) is not None]
+        while self._due and not self._entry_ok(self._due[0]):
+            heapq.heappop(self._due)
+        if self._due:
+            wakes.append(self._due[0][0])  # the first train not due by now
+        for tr in due:  # put back: asking does not evaluate
+            assert tr.due_ns is not None
+            heapq.heappush(self._due, (tr.due_ns, tr.seq, tr.spec.train))
+        return min(wakes) if wakes else None
+
+    def _wake_ns(self, tr: _Track, now_ns: int) -> int | None:
+        """The first instant after ``now_ns`` at which time alone may change what the unit does for
+        ``tr``: a device going stale, or (no warning on) its bound coming due."""
         stale_ns = int(self.s.stale_after_s * NS)
-        wake: list[int] = []
-        for tr in self.tracks.values():
-            for r in (tr.head, tr.eot):
-                if r is not None:
-                    wake.append(r.t_fix_ns + stale_ns)  # the instant it goes stale
-            if not tr.warned and (a := self._approach(tr, now_ns)) is not None:
-                wake.append(a[3].t_arrival_ns - horizon_ns)
+        wake = [r.t_fix_ns + stale_ns for r in (tr.head, tr.eot) if r is not None]  # the instants they go stale
+        if not tr.warned and (a := self._approach(tr, now_ns)) is not None:
+            wake.append(a[3].t_arrival_ns - int(self.horizon_s * NS))
         later = [t for t in wake if t > now_ns]
         return min(later) if later else None
+
+    def _late_ns(self, tr: _Track) -> int | None:
+        """``tr``'s share of :meth:`next_change_ns`: the latest instant one of its bounds comes due, while
+        no warning is on for it and its tail is not past (None: none)."""
+        if tr.warned or self._tail_past(tr):
+            return None
+        horizon_ns = int(self.horizon_s * NS)
+        due = [b.t_arrival_ns - horizon_ns for role in (HEAD, EOT, TRAIN) if (b := self._device_bound(tr, role))]
+        return max(due) if due else None
+
+    def _entry_ok(self, entry: tuple[int, int, str]) -> bool:
+        tr = self.tracks.get(entry[2])
+        return tr is not None and tr.seq == entry[1] and tr.due_ns == entry[0]
+
+    def _arm(self, tr: _Track, t_ns: int) -> None:
+        """``tr`` was just evaluated at ``t_ns``: its next due instant and its share of next_change_ns."""
+        tr.due_ns = self._wake_ns(tr, t_ns)
+        if tr.due_ns is not None:
+            heapq.heappush(self._due, (tr.due_ns, tr.seq, tr.spec.train))
+        late = self._late_ns(tr)
+        if late != tr.late_ns:
+            tr.late_ns = late
+            if late is not None:
+                heapq.heappush(self._late, (-late, tr.seq, tr.spec.train))
+        self._t_eval_ns = t_ns if self._t_eval_ns is None else max(self._t_eval_ns, t_ns)
+
+    def _at_once(self, tr: _Track) -> None:
+        """``tr``'s state changed outside an evaluation: evaluated at the next tick or fix."""
+        tr.due_ns = _AT_ONCE
+        heapq.heappush(self._due, (_AT_ONCE, tr.seq, tr.spec.train))
+
+    def _pop_due(self, t_ns: int) -> list[_Track]:
+        """The trains due at or before ``t_ns``, taken off the agenda, in the order they were followed."""
+        due: dict[int, _Track] = {}
+        while self._due and self._due[0][0] <= t_ns:
+            entry = heapq.heappop(self._due)
+            if self._entry_ok(entry):
+                due[entry[1]] = self.tracks[entry[2]]
+        return [due[k] for k in sorted(due)]
+
+    def _evaluate(self, t_ns: int, skip: _Track | None = None) -> list[CrossingEvent]:
+        """What time alone does at ``t_ns`` to every train but ``skip``: warnings due, stale-unit alarms.
+        Only the trains due are evaluated; all of them when the clock went back (a fix out of time
+        order: a unit fresh again at that instant must be seen so)."""
+        out: list[CrossingEvent] = []
+        if self._t_eval_ns is not None and t_ns < self._t_eval_ns:
+            todo = list(self.tracks.values())
+            self._t_eval_ns = t_ns
+        else:
+            todo = self._pop_due(t_ns)
+        for tr in todo:
+            if tr is skip:
+                continue
+            out += self._check_on(tr, t_ns) + self._alarms(tr, t_ns)
+            self._arm(tr, t_ns)
+        return out
 
     def _onset(self, tr: _Track, t_ns: int, b: ArrivalBound, basis: str) -> Onset:
         """The bound's parts when the warning came on: what each doubt cost (ETA s)."""
@@ -688,6 +786,8 @@ class CrossingController:
     def step(self, fix: Fix) -> list[CrossingEvent]:
         """Process one received fix."""
         tr = self.tracks.get(fix.train)
+        if tr is not None:
+            self._at_once(tr)  # a fix set aside is doubt, kept in its state: evaluated at once
         if tr is None or not fix.valid or math.isnan(fix.chainage_m) or fix.role not in (HEAD, EOT):
             return self.tick(fix.t_ns)
         prev = tr.head if fix.role == HEAD else tr.eot
@@ -711,6 +811,7 @@ class CrossingController:
             tr.head = rep
         else:
             tr.eot = rep
+        self._last_fix_ns = rep.t_fix_ns if self._last_fix_ns is None else max(self._last_fix_ns, rep.t_fix_ns)
         self._filter(tr, fix, rep, ev)
         self._update_direction(tr, fix)
         self._filter_train(tr, fix, rep)
@@ -723,10 +824,12 @@ class CrossingController:
         out += self._check_release(tr, fix)
         out += self._check_on(tr, fix.t_ns)
         out += self._alarms(tr, fix.t_ns)
-        for other in self.tracks.values():
-            if other is not tr:
-                out += self._check_on(other, fix.t_ns) + self._alarms(other, fix.t_ns)
-        return out
+        # The clock going back evaluates every train but this one; else the others due by now.
+        back = self._t_eval_ns is not None and fix.t_ns < self._t_eval_ns
+        self._arm(tr, fix.t_ns)
+        if back:
+            self._t_eval_ns = fix.t_ns + 1  # any earlier instant: _evaluate takes every train
+        return out + self._evaluate(fix.t_ns, skip=tr)
 
     def train_parted(self, train: str, t_ns: int, evidence: str) -> list[CrossingEvent]:
         """The integrity monitor saw ``train`` parted.  A warning on for it is held until the rear
@@ -736,6 +839,7 @@ class CrossingController:
         if tr is None or tr.parted_ns is not None:
             return []
         tr.parted_ns = t_ns
+        self._at_once(tr)  # its bound is another now
         if self._cleared(tr):
             return []  # its rear part is past this crossing already
         what = "warning held until the rear part is accounted for" if tr.warned else "its rear part is short of here"
@@ -749,17 +853,16 @@ class CrossingController:
         train not warned has had its warning due (the earliest arrival, less the horizon):
         after that no estimate can warn by extrapolation alone, a head-unit alarm needs a fresh
         EOT, and a stale-EOT alarm fires at the first tick."""
-        last = [r.t_fix_ns for tr in self.tracks.values() for r in (tr.head, tr.eot) if r is not None]
-        if not last:
+        if self._last_fix_ns is None:
             return None
-        t = max(last) + int(self.s.stale_after_s * NS)
-        horizon_ns = int(self.horizon_s * NS)
-        for tr in self.tracks.values():
-            if not tr.warned and not self._tail_past(tr):
-                due = [
-                    b.t_arrival_ns - horizon_ns for role in (HEAD, EOT, TRAIN) if (b := self._device_bound(tr, role))
-                ]
-                t = max(t, max(due, default=t))
+        t = self._last_fix_ns + int(self.s.stale_after_s * NS)
+        # Each train's share is kept up to date as it is evaluated (it changes only then).
+        while self._late:
+            neg, seq, train = self._late[0]
+            tr = self.tracks.get(train)
+            if tr is not None and tr.seq == seq and tr.late_ns == -neg:
+                return max(t, -neg)
+            heapq.heappop(self._late)
         return t
 
     def settled_ns(self) -> int | None:
@@ -768,10 +871,7 @@ class CrossingController:
 
     def tick(self, t_ns: int) -> list[CrossingEvent]:
         """The passing of time: activation by extrapolation, stale-device alarms."""
-        out: list[CrossingEvent] = []
-        for tr in self.tracks.values():
-            out += self._check_on(tr, t_ns) + self._alarms(tr, t_ns)
-        return out
+        return self._evaluate(t_ns)
 
 
 def run_controller(

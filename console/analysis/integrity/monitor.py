@@ -44,6 +44,7 @@ arrived too (the pipeline hands the axles first, then the changes).
 
 from __future__ import annotations
 
+import heapq
 import math
 import statistics
 from bisect import bisect_left
@@ -210,6 +211,12 @@ class _Train:
     events: list[IntegrityEvent] = field(default_factory=list)
     brake: BrakePipeWitness = field(default_factory=BrakePipeWitness)
     brake_opinion: Opinion = NONE
+    seq: int = 0  # the order it was first followed in (the order trains are evaluated in)
+    due_ns: int | None = None  # the next instant time alone may change its verdict (None: none pending)
+
+
+# A train to evaluate at the next fix or tick whatever the time (its evidence changed).
+_AT_ONCE = -(2**63)
 
 
 class IntegrityMonitor:
@@ -225,6 +232,16 @@ class IntegrityMonitor:
             layout, self.lim.pos_allow_m, self.lim.coupling_slack_m, self.s.counter_lag_s, self.s.history_s
         )
         self.late_fixes = 0  # fixes older than their unit's last one: set aside
+        # The agenda: a fix or a tick evaluates the trains whose verdict it can change, not every train
+        # followed.  A train's verdict changes with its own evidence (its fixes, brake reports, the
+        # operator's reset: it is evaluated at once), with the counters' evidence (a train with a
+        # counters' check still open is evaluated every time, as before), and with time alone only
+        # as a unit goes stale (the instants _stale and _silent turn at: its due instant).  Between
+        # them evaluating it finds the same verdict and changes nothing, so it is left out; doubt is
+        # never late: a train is evaluated at the first fix or tick at or after each of its instants.
+        self._seq = 0
+        self._due: list[tuple[int, int, str]] = []  # (due_ns, seq, train), stale entries skipped
+        self._open: dict[int, str] = {}  # seq → train: trains with a counters' check still open
 
     # -- trains ------------------------------------------------------------
     def _unit(self) -> _Unit:
@@ -237,22 +254,28 @@ class IntegrityMonitor:
         """Follow a train (again: its consist is updated, its history kept)."""
         tr = self.trains.get(spec.train)
         if tr is None:
-            tr = self.trains[spec.train] = _Train(spec, self._unit(), self._unit())
+            self._seq += 1
+            tr = self.trains[spec.train] = _Train(spec, self._unit(), self._unit(), seq=self._seq)
             s = self.s
             tr.brake = BrakePipeWitness(BrakeSettings(s.clock_offset_s, s.emergency_hold_s, s.history_s))
+        else:
+            self._at_once(tr)  # its consist changed: its checks are judged by it
         tr.spec = spec
         if spec.length_known:
             tr.length_m = spec.length_m
 
     def forget(self, train: str) -> None:
         """Stop following a train that has left the line."""
-        self.trains.pop(train, None)
+        tr = self.trains.pop(train, None)
+        if tr is not None:  # its agenda entries go stale with it
+            self._open.pop(tr.seq, None)
 
     def reset(self, train: str, t_ns: int) -> list[IntegrityEvent]:
         """The operator accounts for the rear part (recoupled, or taken away): judge the train afresh."""
         tr = self.trains.get(train)
         if tr is None:
             return []
+        self._at_once(tr)
         tr.parted_by = None
         tr.judged.clear()
         tr.gnss = tr.counters = tr.brake_opinion = NONE
@@ -303,6 +326,8 @@ class IntegrityMonitor:
             self._brake(train, role, t_fix_ns, brake_pipe_bar, emergency)
         now = self._clock(t_ns)
         tr = self.trains.get(train)
+        if tr is not None:
+            self._at_once(tr)  # whatever of the fix it takes (a first reception, a jump) is its evidence
         if tr is None or role not in (HEAD, EOT) or math.isnan(chainage_m):
             return self.tick(now)
         unit = tr.head if role == HEAD else tr.eot
@@ -459,6 +484,7 @@ class IntegrityMonitor:
         tr = self.trains.get(train)
         if tr is None or role not in (HEAD, EOT):
             return
+        self._at_once(tr)
         tr.brake.report(role == EOT, t_meas_ns, bar, emergency)
         tr.brake_opinion = tr.brake.opinion(tr.length_m if tr.spec.length_known else None)
 
@@ -517,11 +543,38 @@ class IntegrityMonitor:
         return self._evaluate(self._clock(now_ns))
 
     def _evaluate(self, now: int) -> list[IntegrityEvent]:
+        """The trains whose verdict may change at ``now`` (see the agenda), in the order they were followed."""
+        todo = dict(self._open)
+        while self._due and self._due[0][0] <= now:
+            due_ns, seq, train = heapq.heappop(self._due)
+            tr = self.trains.get(train)
+            if tr is not None and tr.seq == seq and tr.due_ns == due_ns:
+                todo[seq] = train
         out: list[IntegrityEvent] = []
-        for tr in self.trains.values():
+        for seq in sorted(todo):
+            tr = self.trains[todo[seq]]
             self._run_checks(tr, now)
             out += self._settle(tr, now)
+            self._arm(tr, now)
         return out
+
+    def _at_once(self, tr: _Train) -> None:
+        tr.due_ns = _AT_ONCE
+        heapq.heappush(self._due, (_AT_ONCE, tr.seq, tr.spec.train))
+
+    def _arm(self, tr: _Train, now: int) -> None:
+        """``tr`` was just evaluated at ``now``: the next instant a unit of it turns stale (``now − t >
+        stale_s``, first true at t + ⌊stale_s⌋ + 1 ns), and whether a counters' check is still open."""
+        after = math.floor(self.s.stale_s * NS) + 1
+        turns = [t + after for t in (tr.head.first_rx_ns, tr.head.last_fix_ns, tr.eot.last_fix_ns) if t is not None]
+        later = [t for t in turns if t > now]
+        tr.due_ns = min(later) if later else None
+        if tr.due_ns is not None:
+            heapq.heappush(self._due, (tr.due_ns, tr.seq, tr.spec.train))
+        if any(not c.done for c in tr.checks.values()):
+            self._open[tr.seq] = tr.spec.train
+        else:
+            self._open.pop(tr.seq, None)
 
     def _stale(self, tr: _Train, now: int) -> Opinion:
         stale = self.s.stale_s * NS
