@@ -213,7 +213,7 @@ def connect(
             if table in only:
                 # The query's WHERE drops every other partition anyway; one part stays to give the view its columns.
                 rels = [r for r in rels if all(f"/{k}={only[table][k]}/" in r for k in only[table])] or rels[:1]
-            _make_view(con, duckdb.Error, root, table, rels)
+            _make_view(con, root, table, rels)
     except ArchiveError:
         con.close()
         raise
@@ -223,13 +223,13 @@ def connect(
     return con, m
 
 
-def _make_view(con: Any, error: type[Exception], root: Path, table: str, rels: list[str]) -> None:
+def _make_view(con: Any, root: Path, table: str, rels: list[str]) -> None:
     """``table``'s view over its parts; a part deleted or cut short on disk is an ArchiveError saying so (it was
     "internal error: IOException" with the statement that made the view)."""
     base = root.resolve()
     try:
         con.execute(_view(table, TABLES[table], [str(base / rel) for rel in rels]))
-    except error as exc:
+    except engine().Error as exc:
         missing = next((rel for rel in rels if not (base / rel).is_file()), None)
         why = one_line(exc).split(" LINE 1:")[0]  # not the statement that made the view
         what = f"{missing} is missing" if missing else f"its {table} cannot be read ({why})"
@@ -293,7 +293,7 @@ class _Shared:
                 return None
             for table in set(tables) - self.full:
                 if table in TABLES:
-                    _make_view(self.con, duckdb.Error, self.root, table, m.parts(table))
+                    _make_view(self.con, self.root, table, m.parts(table))
                     self.full.add(table)
             return self.con.cursor()  # a cursor takes the database's session settings
 

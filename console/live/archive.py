@@ -28,6 +28,7 @@ import os
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -181,6 +182,18 @@ class LiveArchiver:
             if lines:
                 self._append(self._path("can-" + source, ".log"), "".join(lines).encode())
                 lines.clear()
+
+    def summary(self) -> dict[str, Any]:
+        """What the run's summary says of the archiving, where there is something to say."""
+        out: dict[str, Any] = {}
+        if self.repeated_lines:  # lines an earlier run had spooled, read again: not stored twice
+            out["archive_repeated_lines"] = self.repeated_lines
+        if self.spool_errors:  # a spool file that could not be written took nothing more: said, and how much
+            out["archive_spool_errors"] = self.spool_errors
+            out["archive_lines_not_spooled"] = self.unspooled_lines
+        if self.errors:  # a failed ingest of the spool (a full disk…): the spool keeps it for the next one
+            out["archive_errors"] = list(dict.fromkeys(self.errors))
+        return out
 
     def tick(self) -> None:
         """Ingest in the background every INGEST_EVERY_S (never two at once)."""

@@ -80,11 +80,6 @@ class LiveEvents(Sink):
             self.emit(health_event(f))
 
 
-def live_speed(layout: Layout | None, idle_gap_s: float = SpeedSettings.idle_gap_s) -> SpeedSettings:
-    """The line facts live analysis uses: the layout's coil spacing and first consist's length."""
-    return SpeedSettings.of_layout(layout, idle_gap_s=idle_gap_s)
-
-
 def live_settings(
     layout: Layout | None,
     speed: SpeedSettings,

@@ -21,7 +21,7 @@ from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, S
 from console.layout import Layout
 from console.live.archive import LiveArchiver
 from console.live.backlog import Backlog
-from console.live.diag import DiagFollow, live_speed
+from console.live.diag import DiagFollow
 from console.live.frames import FrameFollow
 from parsers.diag.registry import DiagRegistry
 from parsers.units import ALL_TIME, NS
@@ -59,7 +59,7 @@ class LiveEngine:
         self.integrity = self.fixes.integrity if self.fixes is not None else None
         self.diag = DiagFollow(
             layout,
-            settings or live_speed(layout),
+            settings or SpeedSettings.of_layout(layout),
             emit,
             include_status=include_status,
             also=self.integrity,
@@ -219,27 +219,7 @@ class LiveEngine:
                 if self.not_analysed or self.items_not_analysed
                 else {}
             ),
-            # Lines an earlier run had spooled, read again (--from-start after a restart): not stored twice.
-            **(
-                {"archive_repeated_lines": self.archiver.repeated_lines}
-                if self.archiver is not None and self.archiver.repeated_lines
-                else {}
-            ),
-            # A spool file that could not be written takes nothing more: what it did not take is said.
-            **(
-                {
-                    "archive_spool_errors": self.archiver.spool_errors,
-                    "archive_lines_not_spooled": self.archiver.unspooled_lines,
-                }
-                if self.archiver is not None and self.archiver.spool_errors
-                else {}
-            ),
-            # A failed ingest of the spool (a full disk…) is said: the spool keeps it for the next one.
-            **(
-                {"archive_errors": list(dict.fromkeys(self.archiver.errors))}
-                if self.archiver is not None and self.archiver.errors
-                else {}
-            ),
+            **(self.archiver.summary() if self.archiver is not None else {}),
             "sections": {k: {"state": s, "count": c} for k, (s, c) in self.section_states().items()},
             "sources": [s.status().to_dict() for s in sources],
             # A board's status dumps make a passage each, train or not: counted, listed on request (as analyze).
