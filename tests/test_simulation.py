@@ -193,7 +193,9 @@ def test_simulate_command_and_its_errors(tmp_path: Path) -> None:
 def test_ato_command_json_and_errors() -> None:
     res = runner.invoke(app, ["ato", "--json"])
     assert res.exit_code == 0, res.output
-    rows = json.loads(res.stdout)
+    doc = json.loads(res.stdout)
+    assert doc["schema"] == "trackside.ato/1"
+    rows = doc["runs"]
     assert [r["controller"] for r in rows] == ["pid", "fuzzy", "fuzzy-d"]
     for r in rows:
         for key in ("overshoot_pct", "distance_to_target_m", "steady_state_error_mps", "stop_error_m", "paper"):

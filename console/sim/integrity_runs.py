@@ -245,8 +245,11 @@ def _first_passing(s_grid: np.ndarray, t_grid: np.ndarray, targets: np.ndarray) 
     return np.where(ok, t, np.nan)
 
 
-def simulate(layout: Layout, cond: Conditions) -> RunResult:
-    """One run: the motion, the fixes and axles as the console receives them, the monitor's events."""
+def simulate(layout: Layout, cond: Conditions, monitor: bool = True) -> RunResult:
+    """One run: the motion, the fixes and axles as the console receives them, the monitor's events.
+
+    ``monitor``: False for the inputs alone (no events): a caller that drives its own monitor on them.
+    """
     rng = np.random.default_rng(cond.seed)
     train = make_train(cond.consist)
     L = train.length_m
@@ -359,7 +362,7 @@ def simulate(layout: Layout, cond: Conditions) -> RunResult:
                 lag = float(rng.uniform(0.0, 1.0))
                 items.append((START_NS + int((t + lag) * NS), 1, (names[h], START_NS + int(t * NS), 0.0, 0.0)))
     items.sort(key=lambda x: (x[0], x[1]))
-    events = run_monitor(layout, cond, train, items, d)
+    events = run_monitor(layout, cond, train, items, d) if monitor else []
     return RunResult(cond, truth, events, items)
 
 

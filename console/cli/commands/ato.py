@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from typing import Annotated
 
@@ -52,8 +53,9 @@ def ato(
             raise fail(f"--fuzzy-d-reading: expected output-gain, normalised or both, found {fuzzy_d_reading!r}")
         results = run_all(plants, names=names, fuzzy_d_readings=readings)
         if json_out:
-            doc = ato_json(results)
-            sys.stdout.write(__import__("json").dumps(doc, ensure_ascii=True, allow_nan=False) + "\n")
+            # An object with its schema, as every JSON document of trackside's (earlier versions printed the bare list).
+            doc = {"schema": "trackside.ato/1", "runs": ato_json(results)}
+            sys.stdout.write(json.dumps(doc, ensure_ascii=True, allow_nan=False) + "\n")
         else:
             out = Console(highlight=False)
             out.print(ato_table(results))
