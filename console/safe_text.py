@@ -63,3 +63,9 @@ def inert(value: object, style: str = "") -> Text:
     from rich.text import Text  # here: most of what imports this module never draws with Rich
 
     return Text(clean(value), style=style)
+
+
+def one_line(exc: BaseException) -> str:
+    """An exception's message on one line (a library's may span several), else its type's name."""
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__

@@ -45,14 +45,15 @@ from console.archive.store import (
     Manifest,
     collect_garbage,
     ensure_layout,
+    missing_part,
     publish,
     read_current,
     writer_lock,
 )
+from console.inputs.recognise import DIAGNOSTIC
 from parsers.report import ParseReport
 
 # Kinds the archive stores, by the report's recognition (console.inputs.recognise.recognise).
-DIAGNOSTIC = "diagnostic"
 STORED_ELSEWHERE = {"nmea": "fixes", "gnss-csv": "fixes", "gnss-jsonl": "fixes", "centre": "fixes"}
 STDIN_NAME = "<stdin>"
 
@@ -706,6 +707,13 @@ def run_ingest(
     # An ingest's phases (read, derive, publish) each need their memory, one after the other.
     with read_memory(), writer_lock(root, wait=wait, on_wait=on_wait):
         current = read_current(root)
+        lost = missing_part(root, current)
+        if lost is not None:
+            # Built on, the archive would stay damaged under a new generation, with nothing said.
+            raise ArchiveError(
+                f"{root}: the archive is damaged: {lost} is missing or not a file"
+                " (`trackside verify` lists what is damaged); nothing ingested"
+            )
         collect_garbage(root, current)
         job = _Ingest(root, current, on_bytes, None)
         summary = IngestSummary(root, current.generation)

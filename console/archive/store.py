@@ -24,6 +24,7 @@ import fcntl
 import json
 import os
 import shutil
+import stat
 import time
 from collections.abc import Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -258,6 +259,20 @@ def spill_in_use(folder: Path) -> bool:
     finally:
         os.close(fd)  # and with it the lock just taken
     return False
+
+
+def missing_part(root: Path, m: Manifest) -> str | None:
+    """The first part ``m`` names that is not a file under ``root`` (None: all there).  A stat each: an ingest
+    asks before it builds on the archive (``trackside verify`` reads every part, and counts)."""
+    for rels in m.tables.values():
+        for rel in rels:
+            try:
+                if stat.S_ISREG((root / rel).lstat().st_mode):
+                    continue
+            except OSError:
+                pass
+            return rel
+    return None
 
 
 def collect_garbage(root: Path, current: Manifest) -> int:

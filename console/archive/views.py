@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from console.archive.store import DATA, ArchiveError, Manifest, read_current
+from console.safe_text import one_line
 
 if TYPE_CHECKING:
     import duckdb
@@ -417,11 +418,6 @@ def check_read_only(con: duckdb.DuckDBPyConnection, sql: str) -> None:
     kind = statements[0].type.name
     if kind not in ALLOWED_STATEMENTS:
         raise QueryError(f"the archive is read-only: {kind} statements are not run (only SELECT-like queries)")
-
-
-def one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
-    return text or type(exc).__name__
 
 
 def run_query(

@@ -42,6 +42,7 @@ COMMANDS = (
     "follow",
     "ingest",
     "query",
+    "verify",
     "forecast",
 )
 

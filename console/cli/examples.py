@@ -77,6 +77,10 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "trackside query --archive arc --preset axles-per-head-per-day --format csv",
         'trackside query --archive arc "SELECT counting_head, count(*) AS records FROM records GROUP BY ALL"',
     ),
+    "verify": (
+        "trackside verify --archive arc",
+        "trackside verify --archive arc --deep --json",
+    ),
     "forecast": (
         "trackside forecast --archive arc --all",
         "trackside forecast --archive arc --horizon 45d --head WS5 --json",

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 from console.fleet.options import EngineSpec, EngineUsageError, FleetError
 from console.plural import count
+from console.safe_text import one_line
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -79,7 +80,7 @@ def open_client(spec: EngineSpec, say: Callable[[str], None] | None = None) -> I
             try:
                 client = Client(spec.scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
             except (OSError, TimeoutError) as exc:
-                raise FleetError(f"cannot reach the dask scheduler {spec.scheduler}: {_one_line(exc)}") from None
+                raise FleetError(f"cannot reach the dask scheduler {spec.scheduler}: {one_line(exc)}") from None
             try:
                 try:
                     client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
@@ -105,7 +106,7 @@ def open_client(spec: EngineSpec, say: Callable[[str], None] | None = None) -> I
                     silence_logs=logging.CRITICAL,
                 )
         except (OSError, TimeoutError) as exc:
-            raise FleetError(f"cannot start a local dask cluster: {_one_line(exc)}") from None
+            raise FleetError(f"cannot start a local dask cluster: {one_line(exc)}") from None
         try:
             client = Client(cluster, set_as_default=False)
             try:
@@ -117,8 +118,3 @@ def open_client(spec: EngineSpec, say: Callable[[str], None] | None = None) -> I
                 client.close()
         finally:
             cluster.close()
-
-
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
-    return text or type(exc).__name__
