@@ -153,9 +153,7 @@ def test_a_part_damaged_inside_is_found_by_deep_only(made: Path, tmp_path: Path)
     assert code == 1 and [d["part"] for d in doc["damaged"]] == [rel]
 
 
-def test_ingest_refuses_to_build_on_a_missing_part_and_leaves_the_archive_as_it_was(
-    made: Path, tmp_path: Path
-) -> None:
+def test_ingest_refuses_to_build_on_a_missing_part_and_leaves_the_archive_as_it_was(made: Path, tmp_path: Path) -> None:
     arc = _copy(made, tmp_path)
     gone = _part(arc, "axles")
     (arc / gone).unlink()
