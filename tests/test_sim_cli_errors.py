@@ -31,6 +31,20 @@ def test_simulate_on_a_layout_without_consists_is_a_usage_error(tmp_path: Path) 
     assert not (tmp_path / "run").exists()
 
 
+def test_simulate_on_a_layout_with_a_spaced_head_id_is_a_usage_error(tmp_path: Path) -> None:
+    # The run's sensor_frames.txt ("<time> <sensor> <frame>") could not carry it: frames rejected every line of it.
+    example = Path(layouts_init).with_name("example_station.toml").read_text(encoding="utf-8")
+    layout = tmp_path / "spaced.toml"
+    layout.write_text(example.replace('"WS3"', '"WS 3"'), encoding="utf-8")
+    result = CliRunner().invoke(
+        app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "60s", "--layout", str(layout)]
+    )
+    assert result.exit_code == 2, result.output
+    assert "head 'WS 3': the simulator writes head ids into sensor frames" in result.stderr
+    assert result.stderr.count("\n") == 1 and "internal error" not in result.output
+    assert not (tmp_path / "run").exists()
+
+
 def test_fault_rates_and_times_out_of_range_are_one_line_usage_errors(tmp_path: Path) -> None:
     for fault, says in (
         ("analog_drift:WS3:0s::1:1e308", "at most 10000 counts/day"),
