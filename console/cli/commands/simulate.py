@@ -15,6 +15,8 @@ from console.plural import count
 
 # The stepped run keeps its whole truth in memory until it writes: longer runs are --days.
 MAX_DURATION_S = 2 * 86_400.0
+# The faults a --health-only run honours: the slow wear of the heads' registers (console.sim.slow_faults).
+HEALTH_REGISTER_FAULTS = ("analog_drift", "disturbance_growth")
 
 
 def _parse_fault(text: str) -> Any:
@@ -48,6 +50,12 @@ def _parse_fault(text: str) -> Any:
     return Fault(parts[0], parts[1], start, end, channel, rate=rate)
 
 
+def _is_trainset(name: str, fleet: int) -> bool:
+    """``name`` is one of the fleet's trainsets T1..T{fleet} (read off the name: --fleet may be huge)."""
+    number = name[1:]
+    return name[:1] == "T" and number.isascii() and number.isdigit() and number[0] != "0" and int(number) <= fleet
+
+
 def _check_targets(faults: tuple[Any, ...], lay: Any, fleet: int, health_only: bool) -> None:
     from console.sim.faults import TRAIN_FAULTS
 
@@ -57,12 +65,21 @@ def _check_targets(faults: tuple[Any, ...], lay: Any, fleet: int, health_only: b
             train, _, role = f.target.rpartition("-")
             if role not in ("head", "eot") or not train:
                 raise fail(f"--fault gnss_decay: {f.target} is not a GNSS unit (TRAIN-head or TRAIN-eot, e.g. T1-eot)")
-            if fleet and train not in {f"T{i + 1}" for i in range(fleet)}:
+            if fleet and not _is_trainset(train, fleet):
                 raise fail(f"--fault gnss_decay: {f.target}: the fleet's trainsets are T1 to T{fleet}")
             if health_only:
                 raise fail("--fault gnss_decay: --health-only runs no trains, so no GNSS unit reports")
-        elif f.kind not in TRAIN_FAULTS and f.target not in heads:
+        elif f.kind in TRAIN_FAULTS:
+            if fleet and not _is_trainset(f.target, fleet):
+                raise fail(f"--fault {f.kind}: {f.target}: the fleet's trainsets are T1 to T{fleet}")
+        elif f.target not in heads:
             raise fail(f"--fault {f.kind}: {f.target} is not a counting head of {lay.source}")
+        if health_only and f.kind not in HEALTH_REGISTER_FAULTS:
+            # Nothing else reaches the registers: the fault would be listed in the truth yet change nothing.
+            raise fail(
+                f"--fault {f.kind}: --health-only writes only the heads' health registers, which only "
+                f"{' and '.join(HEALTH_REGISTER_FAULTS)} change"
+            )
 
 
 def simulate(
