@@ -52,6 +52,10 @@ def test_fault_rates_and_times_out_of_range_are_one_line_usage_errors(tmp_path: 
         ("disturbance_growth:WS3:0s::1:nan", "rate must be above 0"),
         ("gnss_decay:T1-eot:0s::1:2", "at most 1 share/day"),
         ("dead_channel:WS3:5m:1m", "END must come after START"),
+        # Said in the option's words, not int()'s or float()'s ("invalid literal for int() with base 10").
+        ("dead_channel:WS3:5m::x", "channel must be 1 or 2, found 'x'"),
+        ("dead_channel:WS3:5m::1.5", "channel must be 1 or 2, found '1.5'"),
+        ("analog_drift:WS3:0s::1:fast", "RATE: expected a number, found 'fast'"),
     ):
         result = CliRunner().invoke(
             app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "20m", "--fault", fault]

@@ -36,14 +36,18 @@ def _parse_fault(text: str) -> Any:
         end = parse_duration(parts[3]) if len(parts) > 3 and parts[3] else float("inf")
         if end <= start:
             raise ValueError("END must come after START (a fault repaired before it begins never shows)")
-        channel = int(parts[4]) if len(parts) > 4 and parts[4] else 2
-        if channel not in (1, 2):
-            raise ValueError(f"channel must be 1 or 2, found {channel}")
+        channel_text = parts[4] if len(parts) > 4 and parts[4] else "2"
+        channel = int(channel_text) if channel_text.strip().lstrip("+").isdecimal() else 0
+        if channel not in (1, 2):  # said here: int() would say "invalid literal for int() with base 10"
+            raise ValueError(f"channel must be 1 or 2, found {channel_text!r}")
         rate = None
         if len(parts) > 5:
             if parts[0] not in SLOW_FAULT_KINDS:
                 raise ValueError(f"a RATE is for the slow faults ({', '.join(SLOW_FAULT_KINDS)})")
-            rate = float(parts[5])
+            try:
+                rate = float(parts[5])
+            except ValueError:
+                raise ValueError(f"RATE: expected a number, found {parts[5]!r}") from None
             check_rate(parts[0], rate)
     except ValueError as exc:
         raise fail(f"--fault {text!r}: {exc}") from None
