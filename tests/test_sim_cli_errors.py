@@ -96,3 +96,14 @@ def test_a_fault_for_a_train_that_never_ran_is_said(tmp_path: Path) -> None:
         app, ["simulate", "-o", str(tmp_path / "run2"), "--duration", "20m", "--fault", "train_parting:T1:5m"]
     )
     assert ok.exit_code == 0 and "warning" not in ok.stderr
+
+
+def test_the_days_summary_counts_in_words(tmp_path: Path) -> None:
+    # plural.count's rule: a single thing is never "1 days" (it said "1 days written", "1 heads" on osong).
+    result = CliRunner().invoke(
+        app, ["simulate", "-o", str(tmp_path / "run"), "--days", "1", "--health-only", "--layout", "osong"]
+    )
+    assert result.exit_code == 0, result.output
+    line = " ".join(result.stdout.split())
+    assert line.startswith("simulated 1 day of health registers of 1 head on ")
+    assert "0 trips; 1 day written into " in line

@@ -11,7 +11,7 @@ import typer
 from console import exit_codes
 from console.cli.common import Console, fail, guard, load_layout, print_json
 from console.cli.options import JsonOpt
-from console.plural import count
+from console.plural import count, plural
 
 # The stepped run keeps its whole truth in memory until it writes: longer runs are --days.
 MAX_DURATION_S = 2 * 86_400.0
@@ -413,8 +413,9 @@ def _run_days(
         out = Console(highlight=False)
         what = "health registers of" if health_only else "trains, GNSS units and"
         out.print(
-            f"simulated {days:g} days of {what} {len(sim.layout.heads)} heads on {sim.layout.name} (seed {seed}): "
-            f"{len(sim.trains)} trips; {len(written['days'])} days written into {show_path(output)}"
+            f"simulated {days:g} {plural(days, 'day')} of {what} {count(len(sim.layout.heads), 'head')} on "
+            f"{sim.layout.name} (seed {seed}): {count(len(sim.trains), 'trip')}; "
+            f"{count(len(written['days']), 'day')} written into {show_path(output)}"
             f"{' as one growing log' if one_log else ', a directory per day'}",
             markup=False,
         )
