@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from typer.testing import CliRunner
@@ -107,3 +108,23 @@ def test_the_days_summary_counts_in_words(tmp_path: Path) -> None:
     line = " ".join(result.stdout.split())
     assert line.startswith("simulated 1 day of health registers of 1 head on ")
     assert "0 trips; 1 day written into " in line
+
+
+def test_heads_off_the_track_are_said(tmp_path: Path) -> None:
+    # A head beyond the track polyline is never passed: the run had no axle passage there, without a word.
+    example = Path(layouts_init).with_name("example_station.toml").read_text(encoding="utf-8")
+    layout = tmp_path / "off.toml"
+    layout.write_text(
+        example.replace('"WS5"\ndevice_id = 4085\nchainage_m = 13950', '"WS5"\ndevice_id = 4085\nchainage_m = 99950'),
+        encoding="utf-8",
+    )
+    result = CliRunner().invoke(
+        app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "20m", "--layout", str(layout), "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    assert "warning: 1 counting head outside the track (10000 to 14200 m)" in result.stderr
+    assert result.stderr.rstrip().endswith(": WS5") and result.stderr.count("\n") == 1
+    truth = json.loads((tmp_path / "run" / "truth.json").read_text(encoding="utf-8"))
+    assert truth["axles"] and not [a for a in truth["axles"] if a["head"] == "WS5"]
+    ok = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "run2"), "--duration", "1m"])
+    assert ok.exit_code == 0 and "warning" not in ok.stderr

@@ -226,6 +226,8 @@ def simulate(
         faults = tuple(_parse_fault(f) for f in (fault or []))
         trainsets = fleet if fleet is not None else (3 if days is not None else 0)
         _check_targets(faults, lay, trainsets, health_only)
+        if not health_only:
+            _warn_heads_off_the_track(lay)
         layout_file = Path(layout)
         inputs = [layout_file] if layout_file.is_file() else []
         writes_run = live or not mqtt  # --mqtt alone publishes and writes nothing
@@ -322,6 +324,23 @@ def simulate(
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
+
+
+def _warn_heads_off_the_track(lay: Any) -> None:
+    """A head beyond the [[track]] polyline is never passed (the trains run the polyline): said, so a run
+    of no axle passages is not taken for a quiet line (a track in km beside heads in m, say)."""
+    from console.safe_text import clean
+
+    if len(lay.track) < 2:
+        return  # the simulator refuses the layout, with its reason
+    low, high = lay.track[0].chainage_m, lay.track[-1].chainage_m
+    off = [h.id for h in lay.heads if not low <= h.chainage_m <= high]
+    if off:
+        shown = ", ".join(clean(h) for h in off[:5]) + (", …" if len(off) > 5 else "")
+        sys.stderr.write(
+            f"trackside: warning: {count(len(off), 'counting head')} outside the track ({low:g} to {high:g} m),"
+            f" which no simulated train passes: {shown}\n"
+        )
 
 
 def _warn_unmet_train_faults(sim: Any, faults: tuple[Any, ...]) -> None:
