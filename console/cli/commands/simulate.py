@@ -105,7 +105,16 @@ def simulate(
     seed: Annotated[
         int, typer.Option("--seed", metavar="N", help="Random seed: the same seed gives the same run.")
     ] = 1,
-    trains_per_hour: Annotated[float, typer.Option("--trains-per-hour", metavar="N", min=0.1, max=60)] = 6.0,
+    trains_per_hour: Annotated[
+        float,
+        typer.Option(
+            "--trains-per-hour",
+            metavar="N",
+            help="Trains entering the line an hour, on average (each interval varies by ±20 %).",
+            min=0.1,
+            max=60,
+        ),
+    ] = 6.0,
     spreading_factor: Annotated[
         int,
         typer.Option(
