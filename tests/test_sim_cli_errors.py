@@ -128,3 +128,16 @@ def test_heads_off_the_track_are_said(tmp_path: Path) -> None:
     assert truth["axles"] and not [a for a in truth["axles"] if a["head"] == "WS5"]
     ok = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "run2"), "--duration", "1m"])
     assert ok.exit_code == 0 and "warning" not in ok.stderr
+
+
+def test_a_layout_name_with_control_characters_is_shown_escaped(tmp_path: Path) -> None:
+    # The summary printed the [line] name raw: an escape sequence in a layout recoloured the terminal.
+    example = Path(layouts_init).with_name("example_station.toml").read_text(encoding="utf-8")
+    layout = tmp_path / "named.toml"
+    layout.write_text(example.replace('name = "Example line:', 'name = "\\u001b[31mRed line:', 1), encoding="utf-8")
+    for args in (["--duration", "1m"], ["--days", "0.01", "--health-only"]):
+        result = CliRunner().invoke(
+            app, ["simulate", "-o", str(tmp_path / "run"), "--replace", "--layout", str(layout), *args]
+        )
+        assert result.exit_code == 0, result.output
+        assert "\x1b" not in result.stdout and "on \\x1b[31mRed line:" in result.stdout

@@ -212,7 +212,7 @@ def simulate(
             staged_directory,
         )
         from console.progress import byte_progress
-        from console.safe_text import show_path
+        from console.safe_text import clean, show_path
         from console.sim.radio import LoRaLink
         from console.sim.station import SimConfig, StationSim
         from console.sim.writers import write_run
@@ -319,7 +319,7 @@ def simulate(
         else:
             out = Console(highlight=False)
             out.print(
-                f"simulated {duration} on {lay.name} (seed {seed}): {count(len(sim.trains), 'train')}, "
+                f"simulated {duration} on {clean(lay.name)} (seed {seed}): {count(len(sim.trains), 'train')}, "
                 f"{count(len(sim.truth_axles), 'axle passage')};"
                 f" GNSS every {sim.period_s:.1f} s (LoRa SF{spreading_factor})",
                 markup=False,
@@ -405,7 +405,7 @@ def _run_days(
 ) -> int:
     from console.output_path import OutputError, staged_directory
     from console.progress import byte_progress
-    from console.safe_text import show_path
+    from console.safe_text import clean, show_path
     from console.sim.days import run_days
     from console.sim.faults import SLOW_FAULT_KINDS
 
@@ -442,7 +442,7 @@ def _run_days(
         what = "health registers of" if health_only else "trains, GNSS units and"
         out.print(
             f"simulated {days:g} {plural(days, 'day')} of {what} {count(len(sim.layout.heads), 'head')} on "
-            f"{sim.layout.name} (seed {seed}): {count(len(sim.trains), 'trip')}; "
+            f"{clean(sim.layout.name)} (seed {seed}): {count(len(sim.trains), 'trip')}; "
             f"{count(len(written['days']), 'day')} written into {show_path(output)}"
             f"{' as one growing log' if one_log else ', a directory per day'}",
             markup=False,
