@@ -87,6 +87,14 @@ def test_a_duration_past_two_days_points_to_days(tmp_path: Path) -> None:
     assert not (tmp_path / "run").exists()
 
 
+def test_a_live_run_of_no_time_is_refused(tmp_path: Path) -> None:
+    # --live --duration 0s wrote a run's first records, said "simulated 0 s" and exited 0.
+    result = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "run"), "--live", "--duration", "0s"])
+    assert result.exit_code == 2, result.output
+    assert result.stderr == "trackside: error: --duration: a live run lasts more than 0s\n"
+    assert not (tmp_path / "run").exists()
+
+
 def test_a_fault_for_a_train_that_never_ran_is_said(tmp_path: Path) -> None:
     result = CliRunner().invoke(
         app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "20m", "--fault", "train_parting:T9:1m"]

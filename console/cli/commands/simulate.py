@@ -225,6 +225,8 @@ def simulate(
         if days is None and not 0 < seconds <= MAX_DURATION_S and not (live or mqtt):
             # The stepped run keeps its whole truth until it writes: longer runs go a day at a time (--days).
             raise fail("--duration: between 1s and 2d (longer runs: --days N, written a day at a time)")
+        if days is None and (live or mqtt) and seconds <= 0:
+            raise fail("--duration: a live run lasts more than 0s")  # it wrote its first records and stopped
         if health_period is not None and not 1 <= health_period <= 86_400:
             raise fail("--health-every: between 1s and 1d")
         if days is None and (one_log or health_only):
