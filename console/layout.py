@@ -43,6 +43,9 @@ MAX_LATITUDE_DEG = 85.0  # no railway runs nearer the poles; the local plane deg
 MAX_DEVICE_ID = (1 << 31) - 1  # stored as a 32-bit integer downstream
 UP_ORDERS = {2: ("sys1_to_sys2", "sys2_to_sys1"), 3: ("s1_to_s3", "s3_to_s1")}
 _KP = re.compile(r"^(\d+)\+(\d{3})$")
+# What a log's Trackinfo field can carry: its reader strips the field and rejects control
+# characters, so a head id with them (or empty) could never match a record of the head.
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
 
 
 DEFAULT_SPACING_M = 0.13
@@ -298,6 +301,15 @@ def _lat_lon(r: _Reader, table: dict[str, Any], path: str) -> tuple[float, float
     return lat, lon
 
 
+def _head_id(r: _Reader, table: dict[str, Any], path: str) -> str:
+    head_id: str = r.req(table, "id", path, str)
+    if not head_id or head_id != head_id.strip() or _CONTROL.search(head_id):
+        raise r.fail(
+            f"{path}.id", "a head id as logs write it (not empty, no control characters or edge spaces)", head_id
+        )
+    return head_id
+
+
 def _device_id(r: _Reader, table: dict[str, Any], path: str) -> int | None:
     device_id: int | None = r.get(table, "device_id", path, int, None)
     if device_id is not None and not 0 <= device_id <= MAX_DEVICE_ID:
@@ -332,7 +344,7 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
             band = (float(band[0]), float(band[1]))
         heads.append(
             CountingHead(
-                id=r.req(t, "id", p, str),
+                id=_head_id(r, t, p),
                 chainage_m=_chainage(r, t, "chainage_m", p),
                 spacing_m=_positive(
                     r, r.get(t, "spacing_m", p, float, DEFAULT_SPACING_M), f"{p}.spacing_m", MAX_SPACING_M

@@ -149,6 +149,22 @@ def test_usage_lines_name_no_python_types(command: str | None) -> None:
     assert not leaks, leaks
 
 
+def test_every_option_says_what_it_does() -> None:
+    # simulate --trains-per-hour showed only "[default: 6.0; 0.1<=x<=60]".
+    import typer
+
+    from console.cli.app import app
+
+    group = typer.main.get_command(app)
+    bare = [
+        f"{name} {'/'.join(p.opts)}"
+        for name, command in group.commands.items()  # type: ignore[attr-defined]
+        for p in command.params
+        if p.param_type_name == "option" and not (p.help or "").strip()
+    ]
+    assert not bare, bare
+
+
 @pytest.mark.parametrize("example", README)
 def test_readme_example_runs(example: str, readme_dir: Path) -> None:
     run_example(example, readme_dir)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -225,6 +226,33 @@ def test_simulate_with_a_bad_layout_exits_2_with_one_line(tmp_path: Path) -> Non
     lines = res.output.strip().splitlines()
     assert len(lines) == 1 and "track[0].lat" in lines[0] and str(p) in lines[0]
     assert "internal error" not in res.output
+
+
+def _with_head_id(head_id: str) -> str:
+    quoted = json.dumps(head_id)  # a JSON string is a TOML basic string (\\uXXXX escapes and all)
+    return WITH_EVERYTHING.replace('id = "WS2"', f"id = {quoted}").replace('head = "WS2"', f"head = {quoted}")
+
+
+@pytest.mark.parametrize("head_id", ["", " WS2", "WS2\t", "WS2\n", "WS\x1b[2J", "WS\x00", "WS\x85"])
+def test_a_head_id_no_log_can_carry_is_refused(tmp_path: Path, head_id: str) -> None:
+    # A log's reader strips Trackinfo and rejects control characters, so such a head matches no record:
+    # simulate wrote it into logs whose records of it were then all rejected (exit 0, half the run lost).
+    from typer.testing import CliRunner
+
+    from console.cli.app import app
+
+    p = _write(tmp_path, _with_head_id(head_id))
+    res = CliRunner().invoke(app, ["simulate", "--layout", str(p), "-o", str(tmp_path / "out"), "--duration", "1m"])
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and f"{p}: heads[1].id: expected a head id" in lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("head_id", ["W S", "WS:2", "Ω2", "WS-2/a"])
+def test_a_head_id_a_log_carries_loads(tmp_path: Path, head_id: str) -> None:
+    lay = load_layout(_write(tmp_path, _with_head_id(head_id)))
+    assert lay.heads[1].id == head_id and lay.sections[0].heads == ("WS1", head_id)
 
 
 def test_each_head_keeps_its_own_spacing_in_the_speeds(tmp_path: Path) -> None:

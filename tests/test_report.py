@@ -279,6 +279,25 @@ def test_inputs_of_which_none_can_be_read_are_an_error(tmp_path: Path, capsys: p
     assert code == 2 and "no input in a format trackside reads" in err
 
 
+def test_inputs_that_give_no_record_but_rejected_lines_are_an_error_not_an_ok(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Every line rejected (dates no time can hold): it wrote "Verdict: OK" over nothing, where analyze refuses.
+    good = ROOT / "sample_logs/example_station.log"
+    bad = tmp_path / "far_future.log"
+    bad.write_text(good.read_text("utf-8").replace("Date:2026-", "Date:9999-"), "utf-8")
+    for fmt in ("md", "json"):
+        code, out, err = _report(capsys, [bad], fmt, "example")
+        assert (code, out) == (2, "") and err.count("\n") == 1
+        assert err.startswith("trackside: error: nothing readable in the inputs: ")
+        assert f"none read; {bad} line 1: Date: date out of range" in err
+    # Beside a file that reads, the report is made and shows the rejected one.
+    code, out, err = _report(capsys, [bad, good], "json", "example")
+    assert (code, err) == (0, "")
+    rows = {Path(f["file"]).name: f for f in json.loads(out)["inputs"]["files"]}
+    assert rows[bad.name]["records"] == 0 and rows[bad.name]["rejected"] == rows[bad.name]["lines_read"] > 0
+
+
 # ----------------------------------------------------------------------------- inputs
 
 

@@ -120,6 +120,17 @@ def test_the_report_says_its_window_and_refuses_an_empty_one(archive: Path) -> N
             assert res.stderr.count("\n") == 1 and "is not before to" in res.stderr
 
 
+@pytest.mark.parametrize("window", [["--from", "9999-01-01"], ["--to", "1600-01-01"], ["--from", "2262-04-12"]])
+def test_a_window_beyond_the_times_a_log_holds_is_one_line(archive: Path, window: list[str]) -> None:
+    # It was "internal error: ConversionException: ... Could not convert Timestamp to higher precision".
+    for command in (["report", "--archive", str(archive)], ["station", "--replay", "--archive", str(archive)]):
+        res = runner.invoke(app, [*command, *window])
+        assert res.exit_code == 2, res.output
+        assert res.stderr.startswith("trackside: error: --from/--to: ") and res.stderr.count("\n") == 1
+        assert "outside the times a log can hold (1677 to 2262)" in res.stderr
+        assert "internal error" not in res.stderr
+
+
 @pytest.mark.parametrize("window", [["--from", "2030-01-01"], ["--to", "2026-03-01"]])
 def test_a_window_with_nothing_of_the_archive_is_refused_not_reported_ok(archive: Path, window: list[str]) -> None:
     # It gave "Verdict: OK", listed every archived file as read, and warned that no GNSS unit was named

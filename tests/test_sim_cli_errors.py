@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from typer.testing import CliRunner
@@ -31,6 +32,20 @@ def test_simulate_on_a_layout_without_consists_is_a_usage_error(tmp_path: Path) 
     assert not (tmp_path / "run").exists()
 
 
+def test_simulate_on_a_layout_with_a_spaced_head_id_is_a_usage_error(tmp_path: Path) -> None:
+    # The run's sensor_frames.txt ("<time> <sensor> <frame>") could not carry it: frames rejected every line of it.
+    example = Path(layouts_init).with_name("example_station.toml").read_text(encoding="utf-8")
+    layout = tmp_path / "spaced.toml"
+    layout.write_text(example.replace('"WS3"', '"WS 3"'), encoding="utf-8")
+    result = CliRunner().invoke(
+        app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "60s", "--layout", str(layout)]
+    )
+    assert result.exit_code == 2, result.output
+    assert "head 'WS 3': the simulator writes head ids into sensor frames" in result.stderr
+    assert result.stderr.count("\n") == 1 and "internal error" not in result.output
+    assert not (tmp_path / "run").exists()
+
+
 def test_fault_rates_and_times_out_of_range_are_one_line_usage_errors(tmp_path: Path) -> None:
     for fault, says in (
         ("analog_drift:WS3:0s::1:1e308", "at most 10000 counts/day"),
@@ -38,6 +53,10 @@ def test_fault_rates_and_times_out_of_range_are_one_line_usage_errors(tmp_path: 
         ("disturbance_growth:WS3:0s::1:nan", "rate must be above 0"),
         ("gnss_decay:T1-eot:0s::1:2", "at most 1 share/day"),
         ("dead_channel:WS3:5m:1m", "END must come after START"),
+        # Said in the option's words, not int()'s or float()'s ("invalid literal for int() with base 10").
+        ("dead_channel:WS3:5m::x", "channel must be 1 or 2, found 'x'"),
+        ("dead_channel:WS3:5m::1.5", "channel must be 1 or 2, found '1.5'"),
+        ("analog_drift:WS3:0s::1:fast", "RATE: expected a number, found 'fast'"),
     ):
         result = CliRunner().invoke(
             app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "20m", "--fault", fault]
@@ -68,6 +87,14 @@ def test_a_duration_past_two_days_points_to_days(tmp_path: Path) -> None:
     assert not (tmp_path / "run").exists()
 
 
+def test_a_live_run_of_no_time_is_refused(tmp_path: Path) -> None:
+    # --live --duration 0s wrote a run's first records, said "simulated 0 s" and exited 0.
+    result = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "run"), "--live", "--duration", "0s"])
+    assert result.exit_code == 2, result.output
+    assert result.stderr == "trackside: error: --duration: a live run lasts more than 0s\n"
+    assert not (tmp_path / "run").exists()
+
+
 def test_a_fault_for_a_train_that_never_ran_is_said(tmp_path: Path) -> None:
     result = CliRunner().invoke(
         app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "20m", "--fault", "train_parting:T9:1m"]
@@ -78,3 +105,47 @@ def test_a_fault_for_a_train_that_never_ran_is_said(tmp_path: Path) -> None:
         app, ["simulate", "-o", str(tmp_path / "run2"), "--duration", "20m", "--fault", "train_parting:T1:5m"]
     )
     assert ok.exit_code == 0 and "warning" not in ok.stderr
+
+
+def test_the_days_summary_counts_in_words(tmp_path: Path) -> None:
+    # plural.count's rule: a single thing is never "1 days" (it said "1 days written", "1 heads" on osong).
+    result = CliRunner().invoke(
+        app, ["simulate", "-o", str(tmp_path / "run"), "--days", "1", "--health-only", "--layout", "osong"]
+    )
+    assert result.exit_code == 0, result.output
+    line = " ".join(result.stdout.split())
+    assert line.startswith("simulated 1 day of health registers of 1 head on ")
+    assert "0 trips; 1 day written into " in line
+
+
+def test_heads_off_the_track_are_said(tmp_path: Path) -> None:
+    # A head beyond the track polyline is never passed: the run had no axle passage there, without a word.
+    example = Path(layouts_init).with_name("example_station.toml").read_text(encoding="utf-8")
+    layout = tmp_path / "off.toml"
+    layout.write_text(
+        example.replace('"WS5"\ndevice_id = 4085\nchainage_m = 13950', '"WS5"\ndevice_id = 4085\nchainage_m = 99950'),
+        encoding="utf-8",
+    )
+    result = CliRunner().invoke(
+        app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "20m", "--layout", str(layout), "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    assert "warning: 1 counting head outside the track (10000 to 14200 m)" in result.stderr
+    assert result.stderr.rstrip().endswith(": WS5") and result.stderr.count("\n") == 1
+    truth = json.loads((tmp_path / "run" / "truth.json").read_text(encoding="utf-8"))
+    assert truth["axles"] and not [a for a in truth["axles"] if a["head"] == "WS5"]
+    ok = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "run2"), "--duration", "1m"])
+    assert ok.exit_code == 0 and "warning" not in ok.stderr
+
+
+def test_a_layout_name_with_control_characters_is_shown_escaped(tmp_path: Path) -> None:
+    # The summary printed the [line] name raw: an escape sequence in a layout recoloured the terminal.
+    example = Path(layouts_init).with_name("example_station.toml").read_text(encoding="utf-8")
+    layout = tmp_path / "named.toml"
+    layout.write_text(example.replace('name = "Example line:', 'name = "\\u001b[31mRed line:', 1), encoding="utf-8")
+    for args in (["--duration", "1m"], ["--days", "0.01", "--health-only"]):
+        result = CliRunner().invoke(
+            app, ["simulate", "-o", str(tmp_path / "run"), "--replace", "--layout", str(layout), *args]
+        )
+        assert result.exit_code == 0, result.output
+        assert "\x1b" not in result.stdout and "on \\x1b[31mRed line:" in result.stdout

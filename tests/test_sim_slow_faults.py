@@ -171,6 +171,12 @@ def test_the_daily_loss_of_a_unit_counts_the_reports_missing_from_its_period(tmp
         (["--fault", "gnss_decay:WS1:0s"], "not a GNSS unit"),
         (["--days", "2", "--fault", "gnss_decay:T9-eot:0s"], "T1 to T3"),
         (["--days", "2", "--health-only", "--fault", "gnss_decay:T1-eot:0s"], "no GNSS unit"),
+        # Train faults aimed at no trainset, and faults a health-only run never applies, did nothing silently.
+        (["--days", "0.02", "--fault", "train_parting:T9:1h"], "the fleet's trainsets are T1 to T3"),
+        (["--days", "0.02", "--fleet", "2", "--fault", "eot_loss:T3:1h"], "the fleet's trainsets are T1 to T2"),
+        (["--days", "0.02", "--health-only", "--fault", "train_parting:T1:1h"], "only analog_drift and"),
+        (["--days", "2", "--fleet", "1000000000000", "--fault", "gnss_decay:T01-eot:0s"], "T1 to T1000000000000"),
+        (["--days", "0.02", "--health-only", "--fault", "dead_channel:WS1:1h"], "only analog_drift and"),
         (["--fault", "dead_channel:WS1:0s::1:0.5"], "a RATE is for the slow faults"),
         (["--fault", "gnss_decay:T1-eot:0s::2:1.5"], "at most 1"),
         (["--fault", "analog_drift:WS1:0s::3"], "channel must be 1 or 2"),

@@ -499,6 +499,22 @@ def test_station_command_rejects_bad_input_cleanly(args: list[str], message: str
     assert "Traceback" not in result.output + result.stderr
 
 
+def test_the_speed_option_and_its_example_say_the_speeds_the_view_has() -> None:
+    # The help said "1 to 1000 × real time" and its example asked --speed 30: the view has steps, and 30 ran at 20×.
+    import re
+
+    import typer
+
+    from console.cli.app import app as cli
+    from console.cli.examples import EXAMPLES
+
+    command = typer.main.get_command(cli).commands["station"]  # type: ignore[attr-defined]
+    help_text = next(p.help for p in command.params if "--speed" in p.opts)
+    assert [int(n) for n in re.findall(r"\d+", help_text.split(":", 1)[1])] == list(SPEEDS)
+    asked = [float(m) for e in EXAMPLES["station"] for m in re.findall(r"--speed (\S+)", e)]
+    assert asked and all(x in SPEEDS for x in asked)
+
+
 def test_station_command_error_as_a_subprocess() -> None:
     import subprocess
     import sys

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from console.analysis.passages.diagnostics import SpeedSettings
-from console.analysis.timefmt import parse_time
+from console.analysis.timefmt import parse_time, time_ns
 from console.archive.parts import key_of_part
 from console.archive.records import ARCHIVED_RECORD_COLUMNS, REGISTER_COLUMNS, ChunkRebuilder
 from console.archive.store import READING, TMP, Manifest, read_current
@@ -90,6 +90,9 @@ def user_window(start: str | None, end: str | None, head: str | None = None, dev
     """``--from``/``--to`` as given: ValueError on a time that is not one, and on an empty window (it would
     report nothing, which reads as "nothing happened")."""
     window = Window(parse_time(start) if start else None, parse_time(end) if end else None, head, device_id)
+    for bound in (window.start, window.end):
+        if bound is not None:
+            time_ns(bound)  # a year like 9999 or 1600: DuckDB's ns timestamps cannot hold it (its internal error)
     if window.start is not None and window.end is not None and window.start >= window.end:
         raise ValueError(f"from {window.start.isoformat()} is not before to {window.end.isoformat()}")
     return window

@@ -55,7 +55,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "trackside ato --controller fuzzy-d --plant linear --json",
     ),
     "station": (
-        "trackside station --speed 30",
+        "trackside station --speed 50",
         "trackside station --replay sample_logs/example_station.log",
         "trackside station --serve --port 8000",
     ),

@@ -177,6 +177,13 @@ class StationSim:
         if not layout.consists:
             # Found at the first spawn otherwise, mid-run, where it is no longer a clean usage error.
             raise ValueError(f"{layout.source}: the simulator needs [[consists]]")
+        spaced = next((h.id for h in layout.heads if any(c.isspace() for c in h.id)), None)
+        if spaced is not None:
+            # Its sensor_frames.txt line is "<time> <sensor> <frame>": a space in the sensor splits the line.
+            raise ValueError(
+                f"{layout.source}: head {spaced!r}: the simulator writes head ids into sensor frames,"
+                " where a space ends the id; name the head without spaces"
+            )
         self.layout = layout
         self.cfg = config or SimConfig()
         self.rng = np.random.default_rng(self.cfg.seed)

@@ -11,10 +11,12 @@ import typer
 from console import exit_codes
 from console.cli.common import Console, fail, guard, load_layout, print_json
 from console.cli.options import JsonOpt
-from console.plural import count
+from console.plural import count, plural
 
 # The stepped run keeps its whole truth in memory until it writes: longer runs are --days.
 MAX_DURATION_S = 2 * 86_400.0
+# The faults a --health-only run honours: the slow wear of the heads' registers (console.sim.slow_faults).
+HEALTH_REGISTER_FAULTS = ("analog_drift", "disturbance_growth")
 
 
 def _parse_fault(text: str) -> Any:
@@ -34,18 +36,28 @@ def _parse_fault(text: str) -> Any:
         end = parse_duration(parts[3]) if len(parts) > 3 and parts[3] else float("inf")
         if end <= start:
             raise ValueError("END must come after START (a fault repaired before it begins never shows)")
-        channel = int(parts[4]) if len(parts) > 4 and parts[4] else 2
-        if channel not in (1, 2):
-            raise ValueError(f"channel must be 1 or 2, found {channel}")
+        channel_text = parts[4] if len(parts) > 4 and parts[4] else "2"
+        channel = int(channel_text) if channel_text.strip().lstrip("+").isdecimal() else 0
+        if channel not in (1, 2):  # said here: int() would say "invalid literal for int() with base 10"
+            raise ValueError(f"channel must be 1 or 2, found {channel_text!r}")
         rate = None
         if len(parts) > 5:
             if parts[0] not in SLOW_FAULT_KINDS:
                 raise ValueError(f"a RATE is for the slow faults ({', '.join(SLOW_FAULT_KINDS)})")
-            rate = float(parts[5])
+            try:
+                rate = float(parts[5])
+            except ValueError:
+                raise ValueError(f"RATE: expected a number, found {parts[5]!r}") from None
             check_rate(parts[0], rate)
     except ValueError as exc:
         raise fail(f"--fault {text!r}: {exc}") from None
     return Fault(parts[0], parts[1], start, end, channel, rate=rate)
+
+
+def _is_trainset(name: str, fleet: int) -> bool:
+    """``name`` is one of the fleet's trainsets T1..T{fleet} (read off the name: --fleet may be huge)."""
+    number = name[1:]
+    return name[:1] == "T" and number.isascii() and number.isdigit() and number[0] != "0" and int(number) <= fleet
 
 
 def _check_targets(faults: tuple[Any, ...], lay: Any, fleet: int, health_only: bool) -> None:
@@ -57,12 +69,21 @@ def _check_targets(faults: tuple[Any, ...], lay: Any, fleet: int, health_only: b
             train, _, role = f.target.rpartition("-")
             if role not in ("head", "eot") or not train:
                 raise fail(f"--fault gnss_decay: {f.target} is not a GNSS unit (TRAIN-head or TRAIN-eot, e.g. T1-eot)")
-            if fleet and train not in {f"T{i + 1}" for i in range(fleet)}:
+            if fleet and not _is_trainset(train, fleet):
                 raise fail(f"--fault gnss_decay: {f.target}: the fleet's trainsets are T1 to T{fleet}")
             if health_only:
                 raise fail("--fault gnss_decay: --health-only runs no trains, so no GNSS unit reports")
-        elif f.kind not in TRAIN_FAULTS and f.target not in heads:
+        elif f.kind in TRAIN_FAULTS:
+            if fleet and not _is_trainset(f.target, fleet):
+                raise fail(f"--fault {f.kind}: {f.target}: the fleet's trainsets are T1 to T{fleet}")
+        elif f.target not in heads:
             raise fail(f"--fault {f.kind}: {f.target} is not a counting head of {lay.source}")
+        if health_only and f.kind not in HEALTH_REGISTER_FAULTS:
+            # Nothing else reaches the registers: the fault would be listed in the truth yet change nothing.
+            raise fail(
+                f"--fault {f.kind}: --health-only writes only the heads' health registers, which only "
+                f"{' and '.join(HEALTH_REGISTER_FAULTS)} change"
+            )
 
 
 def simulate(
@@ -84,7 +105,16 @@ def simulate(
     seed: Annotated[
         int, typer.Option("--seed", metavar="N", help="Random seed: the same seed gives the same run.")
     ] = 1,
-    trains_per_hour: Annotated[float, typer.Option("--trains-per-hour", metavar="N", min=0.1, max=60)] = 6.0,
+    trains_per_hour: Annotated[
+        float,
+        typer.Option(
+            "--trains-per-hour",
+            metavar="N",
+            help="Trains entering the line an hour, on average (each interval varies by ±20 %).",
+            min=0.1,
+            max=60,
+        ),
+    ] = 6.0,
     spreading_factor: Annotated[
         int,
         typer.Option(
@@ -182,7 +212,7 @@ def simulate(
             staged_directory,
         )
         from console.progress import byte_progress
-        from console.safe_text import show_path
+        from console.safe_text import clean, show_path
         from console.sim.radio import LoRaLink
         from console.sim.station import SimConfig, StationSim
         from console.sim.writers import write_run
@@ -195,6 +225,8 @@ def simulate(
         if days is None and not 0 < seconds <= MAX_DURATION_S and not (live or mqtt):
             # The stepped run keeps its whole truth until it writes: longer runs go a day at a time (--days).
             raise fail("--duration: between 1s and 2d (longer runs: --days N, written a day at a time)")
+        if days is None and (live or mqtt) and seconds <= 0:
+            raise fail("--duration: a live run lasts more than 0s")  # it wrote its first records and stopped
         if health_period is not None and not 1 <= health_period <= 86_400:
             raise fail("--health-every: between 1s and 1d")
         if days is None and (one_log or health_only):
@@ -205,6 +237,8 @@ def simulate(
         faults = tuple(_parse_fault(f) for f in (fault or []))
         trainsets = fleet if fleet is not None else (3 if days is not None else 0)
         _check_targets(faults, lay, trainsets, health_only)
+        if not health_only:
+            _warn_heads_off_the_track(lay)
         layout_file = Path(layout)
         inputs = [layout_file] if layout_file.is_file() else []
         writes_run = live or not mqtt  # --mqtt alone publishes and writes nothing
@@ -287,7 +321,7 @@ def simulate(
         else:
             out = Console(highlight=False)
             out.print(
-                f"simulated {duration} on {lay.name} (seed {seed}): {count(len(sim.trains), 'train')}, "
+                f"simulated {duration} on {clean(lay.name)} (seed {seed}): {count(len(sim.trains), 'train')}, "
                 f"{count(len(sim.truth_axles), 'axle passage')};"
                 f" GNSS every {sim.period_s:.1f} s (LoRa SF{spreading_factor})",
                 markup=False,
@@ -301,6 +335,23 @@ def simulate(
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
+
+
+def _warn_heads_off_the_track(lay: Any) -> None:
+    """A head beyond the [[track]] polyline is never passed (the trains run the polyline): said, so a run
+    of no axle passages is not taken for a quiet line (a track in km beside heads in m, say)."""
+    from console.safe_text import clean
+
+    if len(lay.track) < 2:
+        return  # the simulator refuses the layout, with its reason
+    low, high = lay.track[0].chainage_m, lay.track[-1].chainage_m
+    off = [h.id for h in lay.heads if not low <= h.chainage_m <= high]
+    if off:
+        shown = ", ".join(clean(h) for h in off[:5]) + (", …" if len(off) > 5 else "")
+        sys.stderr.write(
+            f"trackside: warning: {count(len(off), 'counting head')} outside the track ({low:g} to {high:g} m),"
+            f" which no simulated train passes: {shown}\n"
+        )
 
 
 def _warn_unmet_train_faults(sim: Any, faults: tuple[Any, ...]) -> None:
@@ -356,7 +407,7 @@ def _run_days(
 ) -> int:
     from console.output_path import OutputError, staged_directory
     from console.progress import byte_progress
-    from console.safe_text import show_path
+    from console.safe_text import clean, show_path
     from console.sim.days import run_days
     from console.sim.faults import SLOW_FAULT_KINDS
 
@@ -392,8 +443,9 @@ def _run_days(
         out = Console(highlight=False)
         what = "health registers of" if health_only else "trains, GNSS units and"
         out.print(
-            f"simulated {days:g} days of {what} {len(sim.layout.heads)} heads on {sim.layout.name} (seed {seed}): "
-            f"{len(sim.trains)} trips; {len(written['days'])} days written into {show_path(output)}"
+            f"simulated {days:g} {plural(days, 'day')} of {what} {count(len(sim.layout.heads), 'head')} on "
+            f"{clean(sim.layout.name)} (seed {seed}): {count(len(sim.trains), 'trip')}; "
+            f"{count(len(written['days']), 'day')} written into {show_path(output)}"
             f"{' as one growing log' if one_log else ', a directory per day'}",
             markup=False,
         )

@@ -20,7 +20,15 @@ def station(
     ] = "example",
     seed: Annotated[int, typer.Option("--seed", metavar="N", help="Simulation seed.")] = 1,
     speed: Annotated[
-        float, typer.Option("--speed", metavar="X", help="Playback speed, 1 to 1000 × real time.", min=1, max=1000)
+        float,
+        typer.Option(
+            "--speed",
+            metavar="X",
+            # The view steps through console.tui.model.SPEEDS (its + and - keys): X starts at the nearest.
+            help="Playback speed × real time: 1, 2, 5, 10, 20, 50, 100, 200, 500 or 1000 (another X: the nearest).",
+            min=1,
+            max=1000,
+        ),
     ] = 5,
     replay: Annotated[
         bool,

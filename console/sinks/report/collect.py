@@ -64,6 +64,7 @@ from console.inputs.recognise import (
 )
 from console.layout import Layout, LayoutError, load_layout
 from console.memory import big_read_memory
+from console.plural import count
 from console.progress import byte_progress
 from console.sinks.report.model import InputFile, ReportData, gnss_units_of_columns
 from console.sinks.report.spooled import ReportPassages, SectionHistory, report_sink
@@ -127,10 +128,26 @@ def collect(
 
     try:
         _analyse(data, recognised, for_format, whole)
+        _refuse_nothing_read(data)
     except BaseException:
         data.close()
         raise
     return data
+
+
+def _refuse_nothing_read(data: ReportData) -> None:
+    """ReportInputError when the inputs gave not one record but rejected lines (a log of dates no time can
+    hold, a damaged export): a report of nothing would say "Verdict: OK", as analyze would not."""
+    reports = list(data.reports.values())
+    if any(rep.records for rep in reports):
+        return
+    rejected = sum(rep.rejected for rep in reports)
+    first = next((r for rep in reports for r in rep.rejections), None)
+    if rejected and first is not None:
+        raise ReportInputError(
+            f"nothing readable in the inputs: {count(rejected, 'line')} rejected, none read;"
+            f" {first.file} line {first.line}: {first.reason}"
+        )
 
 
 def _analyse(data: ReportData, recognised: list[tuple[Path, str, str]], for_format: str | None, whole: bool) -> None:
