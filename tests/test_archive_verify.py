@@ -187,3 +187,14 @@ def test_no_archive_is_one_line_and_exit_2(tmp_path: Path) -> None:
         f" {tmp_path / 'none'}`)"
     ]
     assert not (tmp_path / "none").exists()
+
+
+@pytest.mark.parametrize("command", [["verify"], ["query", "--schema"], ["forecast"], ["report", "--format", "json"]])
+def test_an_archive_given_as_a_file_is_said_of_the_path_given(tmp_path: Path, command: list[str]) -> None:
+    not_a_folder = tmp_path / "arc.parquet"
+    not_a_folder.write_bytes(b"PAR1")
+    res = runner.invoke(app, [*command, "--archive", str(not_a_folder)])
+    assert res.exit_code == 2
+    assert res.output.strip().splitlines() == [
+        f"trackside: error: {not_a_folder}: not a directory (an archive is a folder)"
+    ]

@@ -148,9 +148,10 @@ def read_current(root: Path) -> Manifest:
     pointer = root / CURRENT
     try:
         name = pointer.read_text(encoding="utf-8").strip()
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
         if root.exists() and not root.is_dir():
-            raise ArchiveError(f"{root}: not a directory") from None
+            # Said of the path given (it was "ROOT/CURRENT: cannot read (Not a directory)").
+            raise ArchiveError(f"{root}: not a directory (an archive is a folder)") from None
         return Manifest()
     except OSError as exc:
         raise ArchiveError(f"{pointer}: cannot read ({exc.strerror or exc})") from None
