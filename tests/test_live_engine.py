@@ -401,6 +401,41 @@ def test_a_log_followed_again_from_its_start_is_not_archived_twice(
     assert run_query(archive, "SELECT count(*) FROM records")[1] == [(2 * len(lines),)]
 
 
+def test_a_restart_after_a_rotation_archives_each_line_once(tmp_path: Path) -> None:
+    """A first run follows x.log through a rotation (its new file spooled as the rotation's own, "x.log#2"); the
+    restarted run reads the new file from its start as x.log, with its own rotation count.  Its lines were
+    compared with the old file's spool, differed, and were stored a second time.  Now a block read from a
+    file's first line goes to the spool file of that followed path whose content it repeats: each line once."""
+    from console.archive.views import run_query
+    from console.live.archive import LiveArchiver
+
+    archive = tmp_path / "arc"
+    lines = (REPO / "sample_logs" / "example_station.log").read_bytes().splitlines(keepends=True)
+    old, new = lines[:1500], lines[1500:]
+
+    def block(name: str, first: int, part: list[bytes]) -> LineBlock:
+        return LineBlock("file:x", name, first, b"".join(part), time.monotonic())
+
+    first = LiveArchiver(archive)
+    first(block("x.log", 1, old))
+    first(block("x.log#2", 1, new[:1000]))  # rotated: the new file, read as it grows
+    first.finish()
+    again = LiveArchiver(archive)
+    again(block("x.log", 1, new[:600]))  # restarted with --from-start: the current file, from its start
+    again(block("x.log", 601, new[600:]))
+    again(block("x.log#2", 1, old[:10]))  # and rotated once more (a file that happens to repeat the old start)
+    again.finish()
+    assert again.repeated_lines == 1000 + 10
+    assert again.errors == [] and again.spool_errors == []
+    assert run_query(archive, "SELECT count(*) FROM records")[1] == [(len(lines),)]
+    # Lines read from the middle of a file (a run without --from-start) still go to its spool as before.
+    late = LiveArchiver(archive)
+    late(block("x.log", 200, [line.replace(b"Date:2026-03-02", b"Date:2026-03-03") for line in lines[:5]]))
+    late.finish()
+    assert late.repeated_lines == 0
+    assert run_query(archive, "SELECT count(*) FROM records")[1] == [(len(lines) + 5,)]
+
+
 def test_a_spool_file_that_cannot_be_written_takes_nothing_more_and_says_from_where(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

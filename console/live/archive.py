@@ -17,7 +17,9 @@ repeats, from its first line, what an earlier run spooled: while a file's
 lines (or fixes, frames) are the same bytes its spool file holds from its
 start, they are counted (:attr:`LiveArchiver.repeated_lines`) and not spooled
 again; from the first block that differs (the log was rotated or rewritten),
-or past the spool's end, they are appended.
+or past the spool's end, they are appended.  A file read from its first line is
+compared with each spool file of its followed path (one per rotation), since a
+restarted run numbers the rotations again from the current file.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from __future__ import annotations
 import errno
 import math
 import os
+import re
 import threading
 import time
 from pathlib import Path
@@ -38,6 +41,7 @@ from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock
 
 INGEST_EVERY_S = 30.0
 FLUSH_LINES = 4096  # CAN frames come one by one: written in blocks
+_ROTATION = re.compile(r"#\d+$")  # the Nth file after a rotation: LineBlock.file's suffix
 FIXES_HEADER = b"time,device,role,lat,lon,speed,course\n"
 _HEX = np.array([f"{b:02X}" for b in range(256)], dtype=object)
 
@@ -66,6 +70,11 @@ def frame_rows_text(rows: FrameRows) -> str:
         stamp = pd.Series(np.datetime_as_string(t.view("datetime64[ns]"), unit="ns"))
         lines = stamp + " " + pd.Series(rows.sensor).astype(str) + " " + pd.Series(hexes)
     return "".join((lines + "\n").tolist())
+
+
+def _safe(key: str) -> str:
+    """A followed source's name as a spool file's (its last 120 characters, unusual ones as ``_``)."""
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in key)[-120:]
 
 
 def spool_dir(archive: Path) -> Path:
@@ -106,13 +115,39 @@ class LiveArchiver:
     def _path(self, key: str, suffix: str) -> Path:
         p = self._files.get(key)
         if p is None:
-            safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in key)[-120:]
-            p = self._files[key] = self.spool / f"{safe}{suffix}"
+            p = self._files[key] = self.spool / f"{_safe(key)}{suffix}"
         return p
+
+    def _log_path(self, item: LineBlock) -> Path:
+        """The spool file of a followed log's lines.  Read from its first line, a file goes to the spool file of
+        its followed path whose content it repeats from the start, else to a new one: a run's rotation count
+        (``x.log#2``) starts again with each run, so a restarted run's names do not say which file is which."""
+        p = self._files.get(item.file)
+        if p is not None:
+            return p
+        if item.first_line != 1:
+            return self._path(item.file, ".log")  # the middle of a file: nothing to compare its start with
+        base = _safe(_ROTATION.sub("", item.file))
+        taken = set(self._files.values())
+        n = 1
+        while True:
+            p = self.spool / (f"{base}.log" if n == 1 else f"{base}_{n}.log")
+            if p not in taken and (not p.exists() or self._repeats_start(p, item.data)):
+                self._files[item.file] = p
+                return p
+            n += 1
+
+    def _repeats_start(self, path: Path, data: bytes) -> bool:
+        try:
+            with path.open("rb") as f:
+                held = f.read(len(data))
+        except OSError:
+            return False
+        return data.startswith(held)
 
     def __call__(self, item: Item) -> None:
         if isinstance(item, LineBlock):
-            self._append(self._path(item.file, ".log"), item.data, first_line=item.first_line)
+            self._append(self._log_path(item), item.data, first_line=item.first_line)
         elif isinstance(item, GnssFix) and not (math.isnan(item.lat_deg) or math.isnan(item.lon_deg)):
             role = item.role or ("eot" if item.device.endswith("-eot") else "head")
             speed = "" if math.isnan(item.speed_mps) else f"{item.speed_mps:.2f}"
