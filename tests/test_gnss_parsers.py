@@ -7,6 +7,7 @@ samples written by sample_logs/make_gnss_samples.py.
 
 from __future__ import annotations
 
+import io
 import json
 import math
 from pathlib import Path
@@ -626,3 +627,27 @@ def test_tables_fit_80_columns_and_show_log_text_literally(tmp_path: Path) -> No
     assert "[bold]x.log" in "".join(line.strip() for line in text.splitlines())  # a file name is not markup
     assert "VN0001" in text and "head1" in text
     assert "first 5 of 10 fixes" in text
+
+
+def test_the_fixes_table_shows_the_degrees_the_source_carries(tmp_path: Path) -> None:
+    """The monitoring centre's table gives 0.1°: shown 20.6, not 20.60000 (a precision it never had); finer
+    sources keep up to 5 decimals (about a metre), one format per column."""
+
+    def shown(path: Path) -> str:
+        fixes, _report, _crossings = parse_gnss([path])
+        con = Console(width=200, record=True, file=io.StringIO())
+        con.print(fixes_table(fixes))
+        return con.export_text()
+
+    centre = shown(TABLE1)
+    assert " 20.6 " in centre and " 105.9 " in centre and "20.60000" not in centre
+    fine = tmp_path / "units.csv"
+    fine.write_text(
+        "time,device,role,lat,lon,speed\n"
+        "2026-01-19T10:00:00Z,T1-head,head,20.6,105.9,1.5\n"
+        "2026-01-19T10:00:01Z,T1-head,head,20.612345678,105.91,1.5\n",
+        "utf-8",
+    )
+    text = shown(fine)
+    assert " 20.60000 " in text and " 20.61235 " in text  # the column's finest value sets its decimals
+    assert " 105.90 " in text and " 105.91 " in text

@@ -28,6 +28,7 @@ if TYPE_CHECKING:
 
 FIXES_SHOWN = 200
 DEVICES_SHOWN = 200
+DEGREE_DECIMALS = 5  # 1e-5 degree: about a metre, finer than a GNSS fix is good for
 _MPS_TO_KMH = 3.6
 
 
@@ -207,6 +208,16 @@ def _num(value: Any, fmt: str, scale: float = 1.0) -> Text:
     return Text(fmt.format(f * scale))
 
 
+def _degrees_format(values: np.ndarray, most: int = DEGREE_DECIMALS) -> str:
+    """Degrees with as many decimals as the values carry, up to ``most`` (about a metre): a monitoring-centre
+    table that gives 20.7 is shown 20.7, not 20.70000, a precision it never had."""
+    finite = values[np.isfinite(values)]
+    for decimals in range(most):
+        if np.all(np.abs(np.round(finite, decimals) - finite) < 1e-9):
+            return f"{{:.{decimals}f}}"
+    return f"{{:.{most}f}}"
+
+
 def fixes_table(fixes: pd.DataFrame | FixColumns, limit: int = FIXES_SHOWN) -> Table:
     """One row per fix: time, device, position, speed (km/h), fix or not, what it came from.
 
@@ -235,8 +246,10 @@ def fixes_table(fixes: pd.DataFrame | FixColumns, limit: int = FIXES_SHOWN) -> T
     t.add_column("From", no_wrap=True)
     t.add_column("Line", justify="right", no_wrap=True)
     file_no = {name: i for i, name in enumerate(files, start=1)}
+    shown = min(limit, n)
+    lat_fmt, lon_fmt = (_degrees_format(np.asarray(v[:shown], float)) for v in (cols.lat, cols.lon))
     last_day: str | None = None
-    for i in range(min(limit, n)):
+    for i in range(shown):
         time_ns = cols.time_ns[i]
         day = clock.day(time_ns)
         if not clock.one_day and day is not None and day != last_day:
@@ -247,8 +260,8 @@ def fixes_table(fixes: pd.DataFrame | FixColumns, limit: int = FIXES_SHOWN) -> T
         t.add_row(
             clock.text(time_ns, with_day=False),
             inert(cols.device_names[int(cols.device_codes[i])]),
-            _num(cols.lat[i], "{:.5f}"),
-            _num(cols.lon[i], "{:.5f}"),
+            _num(cols.lat[i], lat_fmt),
+            _num(cols.lon[i], lon_fmt),
             _num(cols.speed_mps[i], "{:.1f}", _MPS_TO_KMH),
             _fix_text(bool(cols.valid[i]), FIX_QUALITIES[int(cols.fix_quality[i])]),
             inert(sentence_name(int(cols.sentence[i])) or SOURCES[int(cols.source[i])]),
