@@ -39,6 +39,7 @@ from console.safe_text import one_line
 # Tables whose rows carry the input file they came from (file_seq): counted per file against the ledger.
 RECORDS = "records"
 REJECTED = "rejected"
+BATCH_ROWS = 1 << 18  # rows decoded at a time: memory bounded whatever a part's size
 
 
 @dataclass(frozen=True)
@@ -133,15 +134,16 @@ def _check_part(out: Verification, root: Path, table: str, rel: str, by_file: Co
         pf = pq.ParquetFile(path)
         rows = int(pf.metadata.num_rows)
         if out.deep:
-            decoded = sum(batch.num_rows for batch in pf.iter_batches(batch_size=65_536))
+            decoded = sum(batch.num_rows for batch in pf.iter_batches(batch_size=BATCH_ROWS))
             if decoded != rows:
                 out.damaged.append(Damage(table, rel, f"its footer says {rows:,} rows, {decoded:,} decode"))
                 return None
         if by_file is not None and "file_seq" in pf.schema_arrow.names:
-            seqs = pf.read(columns=["file_seq"]).column("file_seq")
-            for entry in pc.value_counts(seqs).to_pylist():
-                if entry["values"] is not None:
-                    by_file[int(entry["values"])] += int(entry["counts"])
+            # A batch at a time: a part of millions of rows is never held whole.
+            for batch in pf.iter_batches(batch_size=BATCH_ROWS, columns=["file_seq"]):
+                for entry in pc.value_counts(batch.column(0)).to_pylist():
+                    if entry["values"] is not None:
+                        by_file[int(entry["values"])] += int(entry["counts"])
     except (OSError, pa.ArrowException) as exc:
         out.damaged.append(Damage(table, rel, f"cannot be read ({one_line(exc)})"))
         return None
