@@ -25,7 +25,6 @@ end.
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -43,6 +42,7 @@ from console.analysis.crossing.timeline import timeline
 from console.analysis.crossing_batch import OFF_TRACK_M, crossing_settings
 from console.analysis.geo import TrackProjector
 from console.analysis.timefmt import iso
+from console.analysis.window import Window
 from console.inputs.base import GnssFix
 from console.layout import Layout
 from parsers.units import NS
@@ -170,7 +170,7 @@ class CrossingFollow:
         consist = layout.consist()
         self.default_length_m = consist.length_m if consist else 100.0
         self.last: dict[tuple[str, str], Fix] = {}
-        self.recent: dict[str, deque[Fix]] = {}  # each train's last fixes, for the lead of its warnings
+        self.recent: dict[str, Window[Fix]] = {}  # each train's last fixes, for the lead of its warnings
         self.fixes = 0
         self.events = 0
 
@@ -183,7 +183,7 @@ class CrossingFollow:
         """Run the crossing units on a placed fix."""
         self.fixes += 1
         self.last[(fix.train, fix.role)] = fix
-        self.recent.setdefault(fix.train, deque(maxlen=RECENT_FIXES)).append(fix)
+        self.recent.setdefault(fix.train, Window(RECENT_FIXES)).append(fix)
         for code, ctl in self.controllers.items():
             ctl.add_train(TrainSpec(fix.train, self.default_length_m))
             self._out(ctl, ctl.step(fix))

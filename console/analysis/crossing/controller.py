@@ -77,13 +77,13 @@ from __future__ import annotations
 
 import heapq
 import math
-from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 from console.analysis.crossing.arrival import ArrivalBound, Motion, device_bound, earliest_s
 from console.analysis.crossing.estimate import FilterLimits, MotionFilter
 from console.analysis.crossing.evidence import ESTIMATED, REPORTED, DeviceEvidence, EvidenceLimits, Report
+from console.analysis.window import Window
 from console.layout import LevelCrossing
 from parsers.units import NS
 
@@ -191,8 +191,8 @@ class _Track:
     kf: dict[str, MotionFilter]
     head: Report | None = None
     eot: Report | None = None
-    recent: dict[str, deque[Report]] = field(
-        default_factory=lambda: {HEAD: deque(maxlen=RECENT_FIXES), EOT: deque(maxlen=RECENT_FIXES)}
+    recent: dict[str, Window[Report]] = field(
+        default_factory=lambda: {HEAD: Window(RECENT_FIXES), EOT: Window(RECENT_FIXES)}
     )
     bounds: dict[str, ArrivalBound | None] = field(default_factory=dict)  # per source, since the last fix
     kf_ok: dict[str, bool] = field(default_factory=lambda: {HEAD: False, EOT: False})  # last fix taken by the filter

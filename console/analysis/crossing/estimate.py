@@ -36,10 +36,10 @@ smooths the motion in hindsight (:func:`smoothed_motion`).
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 
 from console.analysis.crossing.noise import NoiseEstimate
+from console.analysis.window import Window
 from parsers.units import NS
 
 # (p00, p01, p02, p11, p12, p22): the symmetric 3 × 3 covariance of (chainage, speed, acceleration).
@@ -150,7 +150,7 @@ class MotionFilter:
         self.fixes = 0
         self.rejected = 0  # fixes set aside by the gate, in all
         self.restarts = 0
-        self._agree: deque[bool] = deque(maxlen=limits.settle_fixes)
+        self._agree: Window[bool] = Window(limits.settle_fixes)
         self._pending: tuple[int, float, float, int, float, float | None] | None = None  # the last set-aside fix
         self.noise = NoiseEstimate(limits.position_sigma_m)
 

@@ -33,9 +33,9 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections import deque
 from dataclasses import dataclass
 
+from console.analysis.window import Window
 from parsers.units import NS
 
 REPORTED, ESTIMATED, ASSUMED = "reported", "estimated", "assumed"
@@ -70,8 +70,8 @@ class DeviceEvidence:
     def __init__(self, limits: EvidenceLimits) -> None:
         self.lim = limits
         self.last: Report | None = None
-        self.history: deque[tuple[int, float]] = deque()  # (t_fix_ns, chainage_m), thinned
-        self.latest: deque[float] = deque(maxlen=3)  # chainages of the last accepted fixes
+        self.history: list[tuple[int, float]] = []  # (t_fix_ns, chainage_m), thinned: a list (a deque is 600 B)
+        self.latest: Window[float] = Window(3)  # chainages of the last accepted fixes
         self.jumps = 0  # fixes set aside as position jumps
         self.restarts = 0  # times the track started over from two agreeing set-aside fixes
         self.rejected_since_last = False  # a jump was set aside after the last accepted fix
@@ -120,7 +120,7 @@ class DeviceEvidence:
         if not h or (rep.t_fix_ns - h[-1][0]) >= self.lim.history_step_s * NS:
             h.append((rep.t_fix_ns, rep.chainage_m))
         while h and rep.t_fix_ns - h[0][0] > self.lim.window_s * NS:
-            h.popleft()
+            del h[0]  # ≤ window / history_step entries
         return rep
 
     # -- jumps -------------------------------------------------------------

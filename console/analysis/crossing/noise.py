@@ -27,8 +27,8 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections import deque
 
+from console.analysis.window import Window
 from parsers.units import NS
 
 HALF_NORMAL_MEDIAN = 0.6744897501960817  # the median of |N(0, 1)|
@@ -46,8 +46,8 @@ class NoiseEstimate:
         self.worst_m = worst_m
         self.floor_m = floor_m
         self.min_samples = min_samples
-        self._fixes: deque[tuple[float, float]] = deque(maxlen=4)  # (t s, chainage m)
-        self._resid: deque[float] = deque(maxlen=samples)  # |residual| / σ-weight, per fix
+        self._fixes: Window[tuple[float, float]] = Window(4)  # (t s, chainage m)
+        self._resid: Window[float] = Window(samples)  # |residual| / σ-weight, per fix
         self._sigma_m = worst_m
 
     def restart(self) -> None:

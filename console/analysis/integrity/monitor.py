@@ -48,7 +48,6 @@ import heapq
 import math
 import statistics
 from bisect import bisect_left
-from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -73,6 +72,7 @@ from console.analysis.integrity.gnss import (
 )
 from console.analysis.sections.state import Transition
 from console.analysis.timefmt import iso
+from console.analysis.window import Window
 from console.layout import Layout
 from parsers.units import NS
 
@@ -202,7 +202,7 @@ class _Train:
     samples: list[float] = field(default_factory=list)
     direction: int = 0
     state: str | None = None
-    judged: deque[_Judged] = field(default_factory=lambda: deque(maxlen=4))
+    judged: Window[_Judged] = field(default_factory=lambda: Window(4))
     gnss: Opinion = NONE
     counters: Opinion = NONE
     checks: dict[str, HeadCheck] = field(default_factory=dict)
