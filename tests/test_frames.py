@@ -263,6 +263,20 @@ def test_crlf_line_ends_and_a_utf8_bom_are_read(tmp_path: Path) -> None:
     assert report.files[0].encoding == "utf-8-sig"
 
 
+def test_a_rejected_crlf_line_is_shown_without_its_line_end(tmp_path: Path) -> None:
+    # A Windows-written log: the CR belongs to the line end, as the diagnostic and GNSS readers show it.
+    frames_file = write_raw(tmp_path / "f.txt", b"2021-06-06 10:15:01 AC07 4A05\r\n")
+    can_file = tmp_path / "bus.log"
+    can_file.write_bytes(b"(1.0) can0 187#03A5E80300 R\r\n(2.0) can0 187#03A5E803 R\r\nnot a frame\r\n")
+    _, frame_report = parse_frames([frames_file])
+    _, can_report = parse_can([can_file])
+    assert [r.text for r in frame_report.rejections] == ["2021-06-06 10:15:01 AC07 4A05"]
+    assert sorted((r.line, r.text) for r in can_report.rejections) == [
+        (2, "(2.0) can0 187#03A5E803 R"),
+        (3, "not a frame"),
+    ]
+
+
 def test_gzip_input_is_read_by_its_magic_bytes(tmp_path: Path) -> None:
     body = "".join(line(s, "AC07", *CLEAR) + "\n" for s in range(3)).encode()
     frames, report = parse_frames([write_raw(tmp_path / "frames.txt", gzip.compress(body))])

@@ -235,7 +235,8 @@ class _LineFeed:
     def __next__(self) -> str:
         self._check_unread()
         while True:
-            self.line_no, self.raw = next(self.lines)
+            self.line_no, raw = next(self.lines)
+            self.raw = raw.removesuffix(b"\r")  # a CRLF line's CR is its line end, not its text
             self.fr.lines_read += 1
             if len(self.raw) <= MAX_CAN_LINE_CHARS:
                 break
