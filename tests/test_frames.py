@@ -431,6 +431,18 @@ def test_a_malformed_candump_line_is_rejected_and_reading_goes_on(tmp_path: Path
     assert (report.lines_read, report.records, report.blank, report.rejected) == (5, 2, 1, 2)
 
 
+def test_comment_lines_in_a_candump_log_are_blank(tmp_path: Path) -> None:
+    # An annotated capture: '#' lines are comments, as in frame files (and as the file-kind check reads them).
+    path = tmp_path / "bus.log"
+    path.write_text(
+        "# depot test, node 7\n(1.0) can0 187#03A5E80300 R\n  # train passes\n(2.0) can0 187#03A5E80301 R\n"
+    )
+    frames, report = parse_can([path])
+    assert frames["seq"].tolist() == [0, 1]
+    report.check()
+    assert (report.lines_read, report.records, report.blank, report.rejected) == (4, 2, 2, 0)
+
+
 def test_gzip_candump_is_read(tmp_path: Path) -> None:
     path = tmp_path / "bus.log.gz"
     path.write_bytes(gzip.compress(b"(1.0) can0 187#03A5E80300 R\n"))

@@ -213,6 +213,7 @@ class _LineFeed:
         self.report = report
         self.on_unread = on_unread
         self.asc = fr.format == "asc"
+        self.candump = fr.format == "candump"
         self.line_no = 0
         self.text = ""
         self.raw = b""
@@ -242,6 +243,8 @@ class _LineFeed:
                 break
             self.reject("too long", f"line of {len(self.raw)} bytes; a CAN log line is under {MAX_CAN_LINE_CHARS}")
         self.text = self.raw.decode("utf-8", errors="replace").rstrip("\r")
+        if self.candump and self.text.lstrip().startswith("#"):
+            return ""  # a comment (an annotated capture): python-can's candump reader skips empty lines, blank here
         if self.asc:  # follow the measurement start
             if _ASC_RELATIVE.match(self.text):
                 raise InputError(
