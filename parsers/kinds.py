@@ -15,8 +15,9 @@ diagnostic records (``Diag_id:``); CAN logs (candump ``(…) can0 …``, ASC
 ``date``/``base hex`` headers, PEAK TRC ``;$FILEVERSION`` or, version 1.0,
 ``;`` comments before numbered messages); gpsd JSON
 (objects with a ``class``) and other JSON lines; NMEA or binary receiver
-packets anywhere in the head; then the first record line as a table header
-(monitoring-centre table, device-stream CSV, receiver voltages) or as a
+packets anywhere in the head; then one of the first record lines as a table
+header (monitoring-centre table, device-stream CSV, receiver voltages; a
+title or Excel's ``sep=`` line may come first) or the first as a
 sensor-frame line.
 """
 
@@ -69,6 +70,7 @@ DESCRIPTIONS: Final = {
 # Enough for a banner or a long run of comments before the first record (a preamble of 3,000 lines, a
 # 70 kB line of junk), and still a moment's read.
 HEAD_BYTES: Final = 1024 * 1024
+_TABLE_HEADER_WITHIN = 5  # record lines in which a table's header is looked for (a title, a 'sep=' line first)
 _NMEA_RE = re.compile(rb"[$!][A-Z][A-Z0-9]{4},")
 _CANDUMP_RE = re.compile(rb"\(\d+(?:\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
 _TRC_RECORD_RE = re.compile(rb"^\d+\)\s+\d")  # a PEAK trace's message: number, time (TRC 1.0 has no $ header)
@@ -135,19 +137,22 @@ def classify_head(head: bytes) -> KindGuess:
     if _NMEA_RE.search(head) or _has_packet(head):
         return KindGuess("nmea", "NMEA sentences or receiver packets")
     text = first.decode("utf-8", errors="replace")
-    cells = _cells(text)
     from parsers.voltages import parse_header as parse_voltage_header  # pandas: not for every kind asked
 
-    for kind, check in (
-        ("centre", parse_centre_header),
-        ("gnss-csv", parse_device_header),
-        ("voltages", parse_voltage_header),
-    ):
-        try:
-            check(cells)
-        except ValueError:
-            continue
-        return KindGuess(kind, "its header")
+    # A title or Excel's 'sep=;' line may stand before a table's header: the table readers reject such lines
+    # one by one and read on from the header, so the header is looked for among the first few lines.
+    for line in lines[:_TABLE_HEADER_WITHIN]:
+        cells = _cells(line.decode("utf-8", errors="replace"))
+        for kind, check in (
+            ("centre", parse_centre_header),
+            ("gnss-csv", parse_device_header),
+            ("voltages", parse_voltage_header),
+        ):
+            try:
+                check(cells)
+            except ValueError:
+                continue
+            return KindGuess(kind, "its header")
     from parsers.frames.sensor import frame_line_problem
 
     if len(text.split()) in (3, 4) and frame_line_problem(text) is None:

@@ -63,6 +63,29 @@ def test_speeds_is_the_passages_table_alone(samples: Path) -> None:
     assert round(doc["passages"][0]["speed_kmh_whole_train"], 2) == 17.24
 
 
+def test_speeds_and_approach_say_a_line_was_rejected(tmp_path: Path, samples: Path) -> None:
+    # A whole-second log with one line cut mid-field: the per-second count of its second lacks that record,
+    # so the table's speed is not the paper's; the text output says a line was rejected, as analyze does.
+    lines = (samples / "osong_ws4_0932_detection.log").read_bytes().splitlines(keepends=True)
+    cut = tmp_path / "cut.log"
+    cut.write_bytes(b"".join([*lines[:3], lines[3][:50] + b"\n", *lines[4:]]))
+    for args in (["speeds", str(cut)], ["approach", str(cut), "--layout", "osong"]):
+        res = runner.invoke(app, args, env={"COLUMNS": "120"})
+        assert res.exit_code == 0, res.output
+        assert "1 input line rejected (trackside analyze lists them)" in res.stdout
+
+
+def test_speeds_of_status_records_alone_says_so(tmp_path: Path, samples: Path) -> None:
+    wheel = (b"Label:Diagnose\t", b"Label:Radsensor\t")
+    lines = (samples / "ws4_subsecond.log").read_bytes().splitlines(keepends=True)
+    status = tmp_path / "status.log"
+    status.write_bytes(b"".join(line for line in lines[:40] if not any(w in line for w in wheel)))
+    res = runner.invoke(app, ["speeds", str(status)], env={"COLUMNS": "120"})
+    assert res.exit_code == 0, res.output
+    assert "Passages (0)" in res.stdout
+    assert "1 status-only record burst (no wheel onset) not listed; --include-status lists them" in res.stdout
+
+
 def test_missing_file_is_exit_2_with_one_line(tmp_path: Path) -> None:
     res = runner.invoke(app, ["analyze", str(tmp_path / "nope.log")])
     assert res.exit_code == 2

@@ -148,3 +148,17 @@ def test_a_reset_needs_a_section_of_the_layout_and_a_date_and_time(samples: Path
     assert ok.exit_code == 0, ok.output
     (r,) = json.loads(ok.stdout)["resets"]
     assert r["section"] == "B1" and r["time"].startswith("2026-03-02T09:30:00")
+
+
+def test_a_reset_outside_the_logs_span_is_decided_but_said(samples: Path) -> None:
+    # A mistyped year: after the log it overrides B1's end state, before it moves every section's start there.
+    doc = _sections(samples, "--reset", "B1@2030-03-02T09:30", "--reset", "B2@2020-03-02T09:30", *RESETS)
+    outside = [w for w in doc["warnings"] if w.startswith("--reset")]
+    assert len(outside) == 2
+    after, before = outside
+    assert after.startswith("--reset B1@2030-03-02T09:30:00") and "after the last record of the logs" in after
+    assert before.startswith("--reset B2@2020-03-02T09:30:00") and "before the first record of the logs" in before
+    text = runner.invoke(
+        app, ["sections", str(samples / "example_station.log"), "--layout", "example", "--reset", "B1@2030-03-02"]
+    )
+    assert "warning: --reset B1@2030-03-02T00:00:00" in text.stdout

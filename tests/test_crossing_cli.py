@@ -268,3 +268,36 @@ def test_the_spare_parts_shown_add_up_to_the_spare_shown() -> None:
     assert len(found) >= 2
     for spare, physics, doubt in found:
         assert int(spare) == int(physics) + int(doubt)
+
+
+def test_gga_only_captures_say_their_undated_fixes_were_set_aside(samples: Path, tmp_path: Path) -> None:
+    """A receiver set to GGA alone: positions with a time of day but no date (no RMC or ZDA), so no fix can
+    be placed in time; the run says so instead of an unexplained empty table."""
+    import csv
+    from functools import reduce
+
+    def sentence(body: str) -> str:
+        return f"${body}*{reduce(lambda a, b: a ^ b, body.encode(), 0):02X}"
+
+    def dm(value: float, width: int) -> str:
+        whole = int(abs(value))
+        return f"{whole:0{width}d}{(abs(value) - whole) * 60:07.4f}"
+
+    per_device: dict[str, list[str]] = {}
+    with (samples / "crossing_example.csv").open(newline="") as f:
+        for r in csv.DictReader(f):
+            hhmmss = r["time"][11:23].replace(":", "")
+            lat, lon = float(r["lat"]), float(r["lon"])
+            gga = f"GPGGA,{hhmmss},{dm(lat, 2)},N,{dm(lon, 3)},E,1,08,0.9,10.0,M,0.0,M,,"
+            per_device.setdefault(r["device"], []).append(sentence(gga))
+    paths = []
+    for device in ("A-head", "A-eot"):
+        path = tmp_path / f"{device}.nmea"
+        path.write_text("\n".join(per_device[device]) + "\n")
+        paths.append(str(path))
+    res = runner.invoke(app, ["crossing", *paths, "--layout", "example", "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    n = len(per_device["A-head"]) + len(per_device["A-eot"])
+    assert doc["timelines"] == []
+    assert f"{n} fixes without a date and time set aside (GGA with no RMC or ZDA to date it)" in doc["warnings"]

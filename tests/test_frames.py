@@ -263,6 +263,20 @@ def test_crlf_line_ends_and_a_utf8_bom_are_read(tmp_path: Path) -> None:
     assert report.files[0].encoding == "utf-8-sig"
 
 
+def test_a_rejected_crlf_line_is_shown_without_its_line_end(tmp_path: Path) -> None:
+    # A Windows-written log: the CR belongs to the line end, as the diagnostic and GNSS readers show it.
+    frames_file = write_raw(tmp_path / "f.txt", b"2021-06-06 10:15:01 AC07 4A05\r\n")
+    can_file = tmp_path / "bus.log"
+    can_file.write_bytes(b"(1.0) can0 187#03A5E80300 R\r\n(2.0) can0 187#03A5E803 R\r\nnot a frame\r\n")
+    _, frame_report = parse_frames([frames_file])
+    _, can_report = parse_can([can_file])
+    assert [r.text for r in frame_report.rejections] == ["2021-06-06 10:15:01 AC07 4A05"]
+    assert sorted((r.line, r.text) for r in can_report.rejections) == [
+        (2, "(2.0) can0 187#03A5E803 R"),
+        (3, "not a frame"),
+    ]
+
+
 def test_gzip_input_is_read_by_its_magic_bytes(tmp_path: Path) -> None:
     body = "".join(line(s, "AC07", *CLEAR) + "\n" for s in range(3)).encode()
     frames, report = parse_frames([write_raw(tmp_path / "frames.txt", gzip.compress(body))])
@@ -415,6 +429,18 @@ def test_a_malformed_candump_line_is_rejected_and_reading_goes_on(tmp_path: Path
     assert "\x1b" not in report.rejections[1].text
     report.check()
     assert (report.lines_read, report.records, report.blank, report.rejected) == (5, 2, 1, 2)
+
+
+def test_comment_lines_in_a_candump_log_are_blank(tmp_path: Path) -> None:
+    # An annotated capture: '#' lines are comments, as in frame files (and as the file-kind check reads them).
+    path = tmp_path / "bus.log"
+    path.write_text(
+        "# depot test, node 7\n(1.0) can0 187#03A5E80300 R\n  # train passes\n(2.0) can0 187#03A5E80301 R\n"
+    )
+    frames, report = parse_can([path])
+    assert frames["seq"].tolist() == [0, 1]
+    report.check()
+    assert (report.lines_read, report.records, report.blank, report.rejected) == (4, 2, 2, 0)
 
 
 def test_gzip_candump_is_read(tmp_path: Path) -> None:

@@ -338,6 +338,28 @@ def test_counter_reset_is_not_negative_growth() -> None:
     assert "14 disturbances in 2.0 h (7.0/h overall, 1 counter reset seen)" in f.message
 
 
+def test_clock_going_back_is_not_counter_resets() -> None:
+    # A board's clock set back an hour at 08:00 (a reboot, a DST change of local time): the readings
+    # are in the order the device wrote them, the counter rising by 1 every 10 minutes, 6/h.
+    start = pd.Timestamp("2015-10-31 06:00")
+    times = [start + pd.Timedelta(minutes=10 * k) for k in range(13)]  # 06:00 .. 08:00
+    times += [t - pd.Timedelta(hours=1) for t in times[-1] + pd.Timedelta(minutes=10) * np.arange(1, 13)]
+    readings = [(str(t), k) for k, t in enumerate(times)]
+    (f,) = disturbance_rate_findings(counter_records("WS9", 1, readings))
+    assert f.severity is Severity.INFO
+    assert f"{len(readings) - 1} disturbances" in f.message
+    assert "reset" not in f.message
+
+
+def test_overlapping_exports_in_any_order_read_as_one_log() -> None:
+    readings = [(f"2015-10-31 {6 + k // 6:02d}:{k % 6 * 10:02d}", 2 * k) for k in range(19)]  # 06:00 .. 09:00
+    whole = disturbance_rate_findings(counter_records("WS9", 1, readings))
+    early = counter_records("WS9", 1, readings[:12]).assign(file="a.log")
+    late = counter_records("WS9", 1, readings[8:]).assign(file="b.log")  # repeats 4 readings of a.log
+    for parts in ((early, late), (late, early)):
+        assert disturbance_rate_findings(pd.concat(parts, ignore_index=True)) == whole
+
+
 def test_disturbance_rate_thresholds() -> None:
     def verdict(per_hour: int) -> Severity:
         readings = [(f"2015-10-31 0{6 + h}:00", per_hour * h) for h in range(3)]

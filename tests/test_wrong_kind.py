@@ -148,3 +148,21 @@ def test_records_after_a_banner_or_a_long_preamble_are_recognised(tmp_path: Path
     res = CliRunner().invoke(app, ["gnss", str(nmea), "--json"])
     assert res.exit_code == 0, res.output
     assert len(json.loads(res.stdout)["fixes"]) == 1
+
+
+@pytest.mark.parametrize("first", ["sep=,", "Fleet export, train VN0001"])
+def test_a_device_csv_with_a_title_or_sep_line_is_read_not_refused(tmp_path: Path, first: str) -> None:
+    """Excel's 'sep=,' line or a title before the header: the CSV reader rejects that line with its reason and
+    reads the rows; the file-kind check does not refuse the whole file before it is read."""
+    import json
+
+    sample = (SAMPLES / "crossing_example.csv").read_text(encoding="utf-8")
+    path = tmp_path / "export.csv"
+    path.write_text(f"{first}\n{sample}", encoding="utf-8")
+    res = runner.invoke(app, ["gnss", str(path), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    (f,) = doc["parse_report"]["files"]
+    rows = sample.count("\n") - 1  # less the header
+    assert (f["lines_read"], f["records"], f["blank"], f["rejected"]) == (rows + 2, rows, 1, 1)
+    assert [r["line"] for r in doc["parse_report"]["rejections"]] == [1]

@@ -47,6 +47,7 @@ class CrossingRun:
     unassigned_devices: list[str] = field(default_factory=list)
     position_jumps: int = 0  # fixes set aside as implausible for a train (counted once, not per crossing)
     integrity: list[IntegrityEvent] = field(default_factory=list)  # every train's integrity changes, in time order
+    undated: int = 0  # the units' fixes set aside for want of a date and time (GGA with no RMC or ZDA to date it)
 
     @property
     def late_warnings(self) -> int:
@@ -117,6 +118,15 @@ def unit_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> pd.DataFr
         # In ns whatever resolution the table came in (pandas 3 keeps µs or s from its source).
         t_ns=pd.to_datetime(sel["time"], utc=True).dt.as_unit("ns").astype("int64"),
     )
+
+
+def undated_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> int:
+    """How many of the trains' units' valid, positioned fixes have no time (:func:`unit_fixes` sets them aside)."""
+    if not len(fixes):
+        return 0
+    units = {d for t in trains for d in (*t.head, *t.eot)}
+    mine = fixes["device"].astype(str).isin(units) & fixes["valid"].astype(bool)
+    return int((mine & fixes["lat"].notna() & fixes["lon"].notna() & fixes["time"].isna()).sum())
 
 
 def crossing_settings(

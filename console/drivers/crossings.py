@@ -26,6 +26,7 @@ from console.analysis.crossing_batch import (
     crossing_settings,
     integrity_settings,
     pair_trains,
+    undated_fixes,
     unit_fixes,
 )
 from console.analysis.integrity.monitor import ConsistSpec
@@ -88,7 +89,7 @@ def run_crossings(
         jumps = ctl.position_jumps  # every unit sees the same fixes and sets aside the same ones
     events.sort(key=lambda e: e.t_ns)
     integrity = stage.integrity.taken or []
-    return CrossingRun(rows, events, list(chosen), off, unassigned, jumps, integrity)
+    return CrossingRun(rows, events, list(chosen), off, unassigned, jumps, integrity, undated_fixes(fixes, chosen))
 
 
 def _reports(sel: pd.DataFrame) -> list[GnssFix]:

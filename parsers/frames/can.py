@@ -213,6 +213,7 @@ class _LineFeed:
         self.report = report
         self.on_unread = on_unread
         self.asc = fr.format == "asc"
+        self.candump = fr.format == "candump"
         self.line_no = 0
         self.text = ""
         self.raw = b""
@@ -235,12 +236,15 @@ class _LineFeed:
     def __next__(self) -> str:
         self._check_unread()
         while True:
-            self.line_no, self.raw = next(self.lines)
+            self.line_no, raw = next(self.lines)
+            self.raw = raw.removesuffix(b"\r")  # a CRLF line's CR is its line end, not its text
             self.fr.lines_read += 1
             if len(self.raw) <= MAX_CAN_LINE_CHARS:
                 break
             self.reject("too long", f"line of {len(self.raw)} bytes; a CAN log line is under {MAX_CAN_LINE_CHARS}")
         self.text = self.raw.decode("utf-8", errors="replace").rstrip("\r")
+        if self.candump and self.text.lstrip().startswith("#"):
+            return ""  # a comment (an annotated capture): python-can's candump reader skips empty lines, blank here
         if self.asc:  # follow the measurement start
             if _ASC_RELATIVE.match(self.text):
                 raise InputError(

@@ -163,7 +163,8 @@ def _frame_chunk(
             category, reason = problem
             if last_open and i == n - 1:
                 category, reason = "truncated", f"truncated last line (no newline at end of file): {reason}"
-            report.reject(fr, first_line + i, category, reason, raw_lines[i])
+            # A CRLF line's CR is its line end, not its text (as the other readers show it).
+            report.reject(fr, first_line + i, category, reason, raw_lines[i].removesuffix(b"\r"))
     return n
 
 

@@ -410,7 +410,7 @@ def disturbance_rate_findings(
     """
     if not 0 < warn_per_hour <= critical_per_hour:
         raise ValueError("disturbance thresholds: need 0 < warn_per_hour <= critical_per_hour")
-    counters = _rows(records, "counter_1_edge", extra=("address",))
+    counters = _counter_readings(records)
     if counters.empty:
         return []
     # One vectorized pass over all series: growth since the previous reading.
@@ -436,6 +436,35 @@ def disturbance_rate_findings(
         if f is not None:
             findings.append(f)
     return findings
+
+
+def _counter_readings(records: pd.DataFrame) -> pd.DataFrame:
+    """The 1-edge counter readings per series (head, channel, address) in the order the device wrote them.
+
+    Not by time: a board's clock that goes back (a reboot, a DST change of the log's local time) would
+    interleave two stretches of readings, each rise and fall a reset and a burst of growth.  Files are
+    taken in the order of their first readings (given in any order, they read as one log), lines in
+    file order; a reading repeated by an overlapping export (same series, time and value) is read once.
+    """
+    import pandas as pd
+
+    picked = records.loc[records["label_canonical"] == "counter_1_edge"]
+    files = pd.factorize(picked["file"])[0] if "file" in picked.columns else np.zeros(len(picked), np.intp)
+    out = pd.DataFrame(
+        {
+            "time_ns": _time_ns(picked["time"]),
+            "head": picked["counting_head"].astype(str).to_numpy(),
+            "channel": picked["channel"].to_numpy(dtype=np.int64),
+            "address": picked["address"].to_numpy(),
+            "value": picked["value"].to_numpy(dtype=np.float64),
+            "file": files,
+            "seq": np.arange(len(picked)),  # the table's rows are in read order
+        }
+    )
+    out = out.drop_duplicates(["head", "channel", "address", "time_ns", "value"])
+    out["file_start"] = out.groupby("file")["time_ns"].transform("min")
+    keys = ["head", "channel", "address", "file_start", "file", "seq"]
+    return out.sort_values(keys, kind="stable").reset_index(drop=True)
 
 
 def _judge_rate(

@@ -9,6 +9,7 @@ import typer
 from console import exit_codes
 from console.cli.common import Console, fail, guard, load_layout, one_json_form, print_document, read_logs
 from console.cli.options import FilesArg, JsonOpt, RecordsJsonlOpt, StrictOpt
+from console.plural import count
 
 
 def approach(
@@ -65,7 +66,11 @@ def approach(
                 {"warnings": "approach_warning"} if jsonl else None,
             )
         else:
-            Console(highlight=False).print(approach_table(rows))
+            out = Console(highlight=False)
+            out.print(approach_table(rows))
+            if job.report.rejected:  # a rejected line may be a detection the table lacks
+                rejected = count(job.report.rejected, "input line")
+                out.print(f"{rejected} rejected (trackside analyze lists them)", markup=False)
         return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
 
     raise typer.Exit(guard(body))

@@ -83,6 +83,10 @@ def crossing(
         warnings = []
         if run.off_track:
             warnings.append(f"{count(run.off_track, 'fix')} more than 100 m from the track set aside")
+        if run.undated:  # a GGA-only capture: positions but no date, none of them usable
+            warnings.append(
+                f"{count(run.undated, 'fix')} without a date and time set aside (GGA with no RMC or ZDA to date it)"
+            )
         if run.position_jumps:
             warnings.append(f"{count(run.position_jumps, 'fix')} set aside as position jumps (implausible for a train)")
         if run.unassigned_devices:

@@ -39,25 +39,42 @@ def _parse_resets(values: list[str], sections: set[str]) -> list[Any]:
     return out
 
 
-def _document_head(job: Any, lay: Any) -> dict[str, Any]:
+def _resets_outside(resets: list[Any], job: Any) -> list[str]:
+    """Warnings for reset requests outside the records' span: a mistyped date is decided all the same (before
+    the log it moves the sections' start there, after it overrides their end state), so it is said."""
+    from console.analysis.timefmt import iso
+
+    devices = job.analysis.devices
+    if not devices:
+        return []
+    first, last = min(d.first_ns for d in devices), max(d.last_ns for d in devices)
+    return [
+        f"--reset {r.head}@{iso(r.time_ns)}: {'before the first' if r.time_ns < first else 'after the last'}"
+        f" record of the logs ({iso(first)} to {iso(last)})"
+        for r in resets
+        if not first <= r.time_ns <= last
+    ]
+
+
+def _document_head(job: Any, lay: Any, warnings: list[str]) -> dict[str, Any]:
     """What ``sections_json`` says before its rows (``--jsonl``: its summary line)."""
     return {
         "schema": "trackside.sections/1",
         "files": job.files,
         "layout": lay.source,
         "parse_report": job.report.to_dict(),
-        "warnings": job.warnings,
+        "warnings": warnings,
     }
 
 
-def _write_json(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
+def _write_json(job: Any, lay: Any, final: dict[str, Any], sink: Any, warnings: list[str]) -> None:
     """The document of ``sections_json``, its timeline and ledger copied in from the sink's spill files."""
     import sys
 
     from console.jsonout import dumps
     from console.sinks.tables.section_tables import sections_summary
 
-    head = dumps(_document_head(job, lay) | sections_summary(final))
+    head = dumps(_document_head(job, lay, warnings) | sections_summary(final))
     out = sys.stdout
     out.write(head[:-1] + ",")
     sink.write_json_arrays(out)
@@ -65,7 +82,7 @@ def _write_json(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
     out.flush()
 
 
-def _write_jsonl(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
+def _write_jsonl(job: Any, lay: Any, final: dict[str, Any], sink: Any, warnings: list[str]) -> None:
     """``sections_json``'s rows as JSON lines: each section's end state, state changes, ledger rows, resets, then
     a summary."""
     import sys
@@ -78,11 +95,11 @@ def _write_jsonl(job: Any, lay: Any, final: dict[str, Any], sink: Any) -> None:
         out.write(typed_line("section_end", row) + "\n")
     for kind, text in sink.json_items():
         out.write(typed_line(kind, RawJSON(text)) + "\n")
-    out.write(typed_line("summary", RawJSON(dumps(_document_head(job, lay)))) + "\n")
+    out.write(typed_line("summary", RawJSON(dumps(_document_head(job, lay, warnings)))) + "\n")
     out.flush()
 
 
-def _print_tables(job: Any, final: dict[str, Any], sink: Any) -> None:
+def _print_tables(job: Any, final: dict[str, Any], sink: Any, warnings: list[str]) -> None:
     from console.analysis.sections.engine import SectionsResult, ledger_summary_frame
     from console.sinks.tables import section_tables as st
 
@@ -100,7 +117,7 @@ def _print_tables(job: Any, final: dict[str, Any], sink: Any) -> None:
     rt = st.resets_table(result)
     if rt is not None:
         out.print(rt)
-    for w in job.warnings:
+    for w in warnings:
         out.print(clean(f"warning: {w}"), markup=False)
     if job.report.rejected:
         out.print(f"{job.report.rejected} input lines rejected (trackside analyze lists them)", markup=False)
@@ -186,13 +203,14 @@ def sections(
             job = read_logs(files, settings, sink)
             assert job.sections is not None
             final = job.sections.final_states()
+            warnings = [*job.warnings, *_resets_outside(resets, job)]
             disturbed = [sid for sid, f in final.items() if f[0] == SectionState.DISTURBED]
             if json_out:
-                _write_json(job, lay, final, sink)
+                _write_json(job, lay, final, sink, warnings)
             elif jsonl:
-                _write_jsonl(job, lay, final, sink)
+                _write_jsonl(job, lay, final, sink, warnings)
             else:
-                _print_tables(job, final, sink)
+                _print_tables(job, final, sink, warnings)
         finally:
             sink.close()
         return exit_codes.FINDINGS if strict and (job.report.rejected or disturbed) else exit_codes.OK

@@ -20,6 +20,7 @@ from console.cli.options import (
     StrictOpt,
     TrainLengthOpt,
 )
+from console.plural import count
 
 
 def speeds(
@@ -69,7 +70,19 @@ def speeds(
         else:
             from console.sinks.tables.diag_tables import passages_table
 
-            Console(highlight=False).print(passages_table(job.analysis, unpaired=job.analysis.unpaired_detections))
+            out = Console(highlight=False)
+            out.print(passages_table(job.analysis, unpaired=job.analysis.unpaired_detections))
+            # Said, as analyze says them: a rejected line is a record the per-second count lacks, and a log of
+            # status records alone would otherwise be an empty table without a word.
+            if job.status is not None and job.status.passages.sum():
+                out.print(
+                    f"{count(int(job.status.passages.sum()), 'status-only record burst')} (no wheel onset)"
+                    " not listed; --include-status lists them",
+                    markup=False,
+                )
+            if job.report.rejected:
+                rejected = count(job.report.rejected, "input line")
+                out.print(f"{rejected} rejected (trackside analyze lists them)", markup=False)
         return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
 
     raise typer.Exit(guard(body))

@@ -340,6 +340,10 @@ def crossings_from_fixes(data: ReportData, fixes: pd.DataFrame) -> None:
     data.crossing = run
     if run.off_track:
         data.warnings.append(f"{run.off_track} GNSS fixes more than 100 m from the track were set aside")
+    if run.undated:
+        data.warnings.append(
+            f"{run.undated} GNSS fixes without a date and time were set aside (GGA with no RMC or ZDA to date it)"
+        )
     if run.unassigned_devices:
         data.warnings.append("GNSS devices in no train: " + ", ".join(run.unassigned_devices))
     if not run.trains:
