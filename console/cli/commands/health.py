@@ -21,6 +21,7 @@ from console.cli.common import (
     refuse_wrong_kind,
 )
 from console.cli.options import JsonOpt, RecordsJsonlOpt, StrictOpt
+from console.plural import count
 from console.safe_text import clean
 
 
@@ -118,7 +119,7 @@ def health(
             for w in warnings:
                 out.print(f"warning: {clean(w)}", markup=False)  # names from the input: escaped
             if rejected:
-                out.print(f"{rejected} input lines rejected (--json lists them)", markup=False)
+                out.print(f"{count(rejected, 'input line')} rejected (--json lists them)", markup=False)
         failing = threshold is not None and any(f.severity >= threshold for f in findings)
         return exit_codes.FINDINGS if failing or (strict and rejected) else exit_codes.OK
 
