@@ -138,7 +138,7 @@ def crossing(
             for w in warnings:
                 out.print(f"warning: {clean(w)}", markup=False)  # names from the input: escaped
             if report.rejected:
-                out.print(f"{report.rejected} input lines rejected (trackside gnss lists them)", markup=False)
+                out.print(f"{count(report.rejected, 'input line')} rejected (trackside gnss lists them)", markup=False)
         return exit_codes.FINDINGS if strict and (violations or report.rejected) else exit_codes.OK
 
     raise typer.Exit(guard(body))

@@ -120,7 +120,7 @@ def _print_tables(job: Any, final: dict[str, Any], sink: Any, warnings: list[str
     for w in warnings:
         out.print(clean(f"warning: {w}"), markup=False)
     if job.report.rejected:
-        out.print(f"{job.report.rejected} input lines rejected (trackside analyze lists them)", markup=False)
+        out.print(f"{count(job.report.rejected, 'input line')} rejected (trackside analyze lists them)", markup=False)
 
 
 def sections(
