@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import datetime as dt
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +23,7 @@ from console.cli.app import app
 from console.layout import load_layout
 from console.sinks.report.model import ReportData
 from tests.archive_days import DAYS, DRIFT_PER_DAY, write_days
+from tests.conftest import SAMPLES
 
 runner = CliRunner()
 
@@ -82,7 +85,13 @@ def _records(data: ReportData, label: str) -> pd.DataFrame:
 
 
 def test_disturbances_are_the_counter_growth_with_resets(trends: dict[str, Any], data: ReportData) -> None:
-    r = _records(data, "counter_1_edge").sort_values("time_ns", kind="stable")  # ties: file, line order
+    # The readings in the order the device wrote them (as the health rule reads them): a reading an overlapping
+    # export repeats once, files in the order of their first readings, lines in file order.
+    r = _records(data, "counter_1_edge")  # in read order
+    r = r.drop_duplicates(["counting_head", "channel", "address", "time_ns", "value"])
+    r["file_no"] = pd.factorize(r["file"])[0]
+    r["file_start"] = r.groupby("file_no")["time_ns"].transform("min")
+    r = r.sort_values(["file_start", "file_no"], kind="stable")
     series = r.groupby(["device_id", "counting_head", "channel", "address"])
     step = series["value"].diff()
     r["growth"] = np.where(step < 0, r["value"], step.fillna(0))
@@ -230,11 +239,18 @@ def test_a_heads_disturbances_are_its_channels_summed(archive: Path) -> None:
             )
             cur = con.execute(
                 f"""
-                WITH c AS (
+                WITH r AS (
+                    SELECT *, row_number() OVER (PARTITION BY counting_head, channel, address, time, value
+                                                 ORDER BY file_seq, line) AS copy
+                    FROM records{cond}
+                ), u AS (
+                    SELECT *, min(time) OVER (PARTITION BY file_seq) AS file_start FROM r WHERE copy = 1
+                ), c AS (
                     SELECT day, device_id, counting_head, time, value,
                            value - lag(value) OVER w AS step, lag(time) OVER w AS prev_time
-                    FROM records{cond}
-                    WINDOW w AS (PARTITION BY device_id, counting_head, channel, address ORDER BY time, file_seq, line)
+                    FROM u
+                    WINDOW w AS (PARTITION BY device_id, counting_head, channel, address
+                                 ORDER BY file_start, file_seq, line)
                 )
                 SELECT strftime(day, '%Y-%m-%d') AS day, device_id, counting_head,
                        sum(CASE WHEN step IS NULL THEN 0 WHEN step < 0 THEN value ELSE step END)::BIGINT,
@@ -252,3 +268,45 @@ def test_a_heads_disturbances_are_its_channels_summed(archive: Path) -> None:
                 assert r["hours"] == round(span_ns / 3.6e12, 3)
     finally:
         con.close()
+
+
+def test_a_board_clock_set_back_gives_the_same_disturbances_in_health_and_the_archive_trends(
+    tmp_path: Path,
+) -> None:
+    # ws4_health.log with its second half an hour back (a reboot, a DST change of a local-time log): health read
+    # its counters by time and saw resets (a critical WS4 Sys2); it reads them in the device's order now, and
+    # the archive's daily trend, a query of its own, must count the same growth.
+    lines = (SAMPLES / "ws4_health.log").read_text("utf-8").splitlines(keepends=True)
+    half = len(lines) // 2
+
+    def back(line: str) -> str:
+        head, _, clock = line.rpartition("Time:")
+        t = dt.datetime.strptime(clock.strip(), "%H:%M:%S.%f") - dt.timedelta(hours=1)
+        return f"{head}Time:{t:%H:%M:%S.%f}"[:-3] + "\n"
+
+    log = tmp_path / "ws4_set_back.log"
+    log.write_text("".join(lines[:half] + [back(x) for x in lines[half:]]), "utf-8")
+
+    def told(path: Path) -> dict[tuple[str, int], tuple[str, int]]:
+        """Per head and channel, the disturbance rule's severity and the disturbances it counted."""
+        doc = json.loads(runner.invoke(app, ["health", str(path), "--json"]).stdout)
+        out = {}
+        for f in doc["findings"]:
+            if f["rule"] == "disturbance_rate":
+                n = re.search(r"(\d+) disturbances? in ", f["message"])
+                assert n is not None, f["message"]
+                out[(f["counting_head"], f["channel"])] = (f["severity"], int(n.group(1)))
+        return out
+
+    shifted = told(log)
+    assert shifted == told(SAMPLES / "ws4_health.log")  # not a reset and a burst at the hour set back
+    arc = tmp_path / "arc"
+    assert runner.invoke(app, ["ingest", str(log), "--archive", str(arc)]).exit_code == 0
+    doc = json.loads(runner.invoke(app, ["report", "--archive", str(arc), "--format", "json"]).stdout)
+    per_day: dict[str, int] = {}
+    for x in doc["trends"]["disturbances_per_head_per_day"]:
+        per_day[x["counting_head"]] = per_day.get(x["counting_head"], 0) + x["disturbances"]
+    by_head: dict[str, int] = {}
+    for (head, _channel), (_severity, n) in shifted.items():
+        by_head[head] = by_head.get(head, 0) + n
+    assert per_day == by_head and by_head["WS4"] == 8 + 13

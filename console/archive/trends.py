@@ -75,15 +75,25 @@ def disturbance_rows(con: duckdb.DuckDBPyConnection, window: Window) -> list[dic
     :func:`disturbance_figures` makes both the per-channel and the per-head figures of."""
     where, params = window.where()
     cond = f"{where} AND label_canonical = 'counter_1_edge'" if where else " WHERE label_canonical = 'counter_1_edge'"
-    # Growth since the series' previous reading (file and line break ties, as the batch read orders them).
+    # Growth since the series' previous reading, in the order the device wrote them, as the health rule reads
+    # them (health.rules._counter_readings): a reading an overlapping export repeats counted once, files in the
+    # order of their first readings, lines in file order.  Not by time: a board clock set back (a reboot, a DST
+    # change of local time) would interleave two stretches, each fall a counter reset.
     return _rows(
         con,
         f"""
-        WITH c AS (
+        WITH r AS (
+            SELECT day, device_id, counting_head, channel, address, time, value, file_seq, line,
+                   row_number() OVER (PARTITION BY counting_head, channel, address, time, value
+                                      ORDER BY file_seq, line) AS copy
+            FROM records{cond}
+        ), u AS (
+            SELECT *, min(time) OVER (PARTITION BY file_seq) AS file_start FROM r WHERE copy = 1
+        ), c AS (
             SELECT day, device_id, counting_head, channel, time, value,
                    value - lag(value) OVER w AS step, lag(time) OVER w AS prev_time
-            FROM records{cond}
-            WINDOW w AS (PARTITION BY device_id, counting_head, channel, address ORDER BY time, file_seq, line)
+            FROM u
+            WINDOW w AS (PARTITION BY device_id, counting_head, channel, address ORDER BY file_start, file_seq, line)
         )
         SELECT day, device_id, counting_head, channel,
                sum(CASE WHEN step IS NULL THEN 0 WHEN step < 0 THEN value ELSE step END)::BIGINT AS disturbances,
