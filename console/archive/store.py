@@ -276,17 +276,14 @@ def missing_part(root: Path, m: Manifest) -> str | None:
     return None
 
 
-def collect_garbage(root: Path, current: Manifest) -> int:
-    """Remove what no kept manifest lists: parts of killed ingests, replaced parts, scratch files.
-
-    Runs under the writers' lock.  The previous manifests (KEEP_MANIFESTS)
-    and their parts stay, for queries that opened them a moment ago.
-    """
+def kept_parts(root: Path, current: Manifest) -> tuple[list[str], list[str], set[str]]:
+    """(every manifest's name, the kept ones': the current and the KEEP_MANIFESTS before it, the parts they
+    name).  A part no kept manifest names is garbage (a killed ingest's, a replaced one)."""
     mdir = root / MANIFESTS
     names = sorted(p.name for p in mdir.glob("manifest-*.json")) if mdir.is_dir() else []
     current_name = manifest_name(current.generation)
     kept = [n for n in names if n <= current_name][-(KEEP_MANIFESTS + 1) :]
-    listed: set[str] = set()
+    listed: set[str] = {rel for rels in current.tables.values() for rel in rels}
     for n in kept:
         try:
             doc = json.loads((mdir / n).read_text(encoding="utf-8"))
@@ -294,6 +291,17 @@ def collect_garbage(root: Path, current: Manifest) -> int:
             continue
         for parts in doc.get("tables", {}).values():
             listed.update(parts)
+    return names, kept, listed
+
+
+def collect_garbage(root: Path, current: Manifest) -> int:
+    """Remove what no kept manifest lists: parts of killed ingests, replaced parts, scratch files.
+
+    Runs under the writers' lock.  The previous manifests (KEEP_MANIFESTS)
+    and their parts stay, for queries that opened them a moment ago.
+    """
+    mdir = root / MANIFESTS
+    names, kept, listed = kept_parts(root, current)
     removed = 0
     for n in names:
         if n not in kept:

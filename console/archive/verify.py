@@ -19,7 +19,6 @@ Read-only: nothing is written or removed.
 
 from __future__ import annotations
 
-import json
 import os
 import stat
 from collections import Counter
@@ -32,7 +31,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from console.archive.store import DATA, KEEP_MANIFESTS, MANIFESTS, Manifest, read_current
+from console.archive.store import DATA, Manifest, kept_parts, read_current
 from console.inputs.recognise import DIAGNOSTIC
 from console.safe_text import one_line
 
@@ -186,16 +185,7 @@ def _table_of(m: Manifest, parts: list[str]) -> str:
 
 def _unlisted(root: Path, m: Manifest) -> int:
     """Files under data/ that neither the current manifest nor the kept earlier ones name."""
-    listed = {rel for rels in m.tables.values() for rel in rels}
-    mdir = root / MANIFESTS
-    names = sorted(p.name for p in mdir.glob("manifest-*.json")) if mdir.is_dir() else []
-    for name in names[-(KEEP_MANIFESTS + 1) :]:
-        try:
-            doc = json.loads((mdir / name).read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            continue
-        for rels in doc.get("tables", {}).values():
-            listed.update(rels)
+    _names, _kept, listed = kept_parts(root, m)
     n = 0
     for dirpath, _dirs, files in os.walk(root / DATA):
         for f in files:
