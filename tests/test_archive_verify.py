@@ -198,3 +198,34 @@ def test_an_archive_given_as_a_file_is_said_of_the_path_given(tmp_path: Path, co
     assert res.output.strip().splitlines() == [
         f"trackside: error: {not_a_folder}: not a directory (an archive is a folder)"
     ]
+
+
+def test_nmea_fixes_are_counted_against_the_rows_written_not_the_sentences(tmp_path: Path) -> None:
+    """An NMEA file's ledger counts sentences (RMC and GGA: two an epoch) and its part holds fixes (one an epoch):
+    checked against the rows its parts were written with; an archive made before that figure, at most one row a
+    sentence."""
+    run = tmp_path / "run"
+    res = runner.invoke(app, ["simulate", "-o", str(run), "--duration", "10m", "--seed", "4"])
+    assert res.exit_code == 0, res.output
+    arc = tmp_path / "arc"
+    assert runner.invoke(app, ["ingest", str(run), "--archive", str(arc)]).exit_code == 0
+    m = read_current(arc)
+    nmea = [e for e in m.files if e["kind"] == "nmea"]
+    assert nmea and all(0 < int(e["rows"]) < int(e["records"]) for e in nmea)
+    code, out = _verify(arc)
+    assert code == 0 and out["intact"], out
+    # As an older trackside wrote the ledger (no rows): still intact.
+    current = arc / "manifests" / (arc / "CURRENT").read_text().strip()
+    doc = json.loads(current.read_text())
+    for e in doc["files"]:
+        e.pop("rows", None)
+    current.write_text(json.dumps(doc))
+    code, out = _verify(arc)
+    assert code == 0 and out["intact"], out
+    # A fixes part holding its rows three times is more rows than sentences (twice would be as many): found,
+    # even without the figure.
+    part = nmea[0]["parts"][0]
+    fixes = pq.read_table(arc / part)
+    pq.write_table(pa.concat_tables([fixes] * 3), arc / part)
+    code, out = _verify(arc)
+    assert code == 1 and [m["file"] for m in out["mismatches"]] == [nmea[0]["path"]]

@@ -476,6 +476,8 @@ class _Ingest:
             self.new.tables.setdefault(name, []).append(rel)
             self.new_parts.append(rel)
             e["parts"] = [*e.get("parts", []), rel]
+            # The rows its parts hold, for `trackside verify`: an NMEA file's fixes are its epochs, not its sentences.
+            e["rows"] = int(e.get("rows", 0)) + arrow.num_rows
         for r in report.rejections:
             self._reject(
                 {
