@@ -8,8 +8,11 @@ at all; :func:`verify_archive` finds that before a report does:
 * each part: present, a regular file, with a Parquet footer that reads (a
   part cut short has none); ``deep``: every column of every row decoded too;
 * each input file: the rows stored under its ``file_seq`` (the ``records`` of
-  a diagnostic log, the parts of any other file, the ``rejected`` lines of
-  both) equal the counts its ledger entry holds.  A lost part, or rows stored
+  a diagnostic log, the rows written to the parts of any other file, the
+  ``rejected`` lines of both) equal the counts its ledger entry holds.  An
+  NMEA file's fixes are fewer than its sentences (RMC and GGA of an epoch
+  make one): a ledger from before its ``rows`` were kept is checked for no
+  more rows than records.  A lost part, or rows stored
   twice, shows here even when every part reads;
 * files under ``data/`` that no kept manifest names: what a killed ingest
   left, removed by the next ingest; counted, not damage.
@@ -38,9 +41,6 @@ from console.safe_text import one_line
 # Tables whose rows carry the input file they came from (file_seq): counted per file against the ledger.
 RECORDS = "records"
 REJECTED = "rejected"
-# Kinds whose records (sentences, packets) make fewer rows (fixes, one an epoch): an older ledger holds only the
-# records, so their rows are checked to be no more.
-SENTENCES_TO_FIXES = frozenset({"nmea"})
 BATCH_ROWS = 1 << 18  # rows decoded at a time: memory bounded whatever a part's size
 
 
@@ -173,9 +173,7 @@ def _check_counts(out: Verification, m: Manifest, per_file: dict[str, Counter[in
                 table = table_of.get(parts[0], "parts") if parts else "parts"
                 if "rows" in e:  # the rows written to its parts (ingests since stop 46)
                     _compare(out, shown, table, int(e["rows"]), stored)
-                elif e["kind"] not in SENTENCES_TO_FIXES:  # a row a record
-                    _compare(out, shown, table, int(e.get("records", 0)), stored)
-                elif stored > int(e.get("records", 0)):  # a fix is made of one sentence or more
+                elif stored > int(e.get("records", 0)):  # an older ledger: a row is made of one record or more
                     out.mismatches.append(CountMismatch(shown, table, int(e.get("records", 0)), stored))
         if rejected_whole:
             _compare(out, shown, REJECTED, int(e.get("rejected", 0)) if active else 0, per_file[REJECTED][seq])
