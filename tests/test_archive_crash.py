@@ -20,6 +20,7 @@ import pyarrow.parquet as pq
 
 from console.archive.ingest import run_ingest
 from console.archive.store import read_current
+from console.archive.verify import verify_archive
 from console.archive.views import run_query
 from tests.conftest import SAMPLES
 
@@ -53,6 +54,9 @@ def _check_whole(archive: Path, allowed: set[int]) -> int:
     for parts in m.tables.values():
         for rel in parts:
             pq.read_metadata(archive / rel)  # raises on a truncated part
+    # And `trackside verify`'s whole check: every part read, every file's rows as its ledger entry says.
+    checked = verify_archive(archive, deep=True)
+    assert checked.intact, (checked.damaged, checked.mismatches)
     n = _records(archive)
     assert n in allowed, f"record count {n} is neither before nor after {sorted(allowed)}"
     return n

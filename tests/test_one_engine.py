@@ -35,6 +35,7 @@ from benchmarks.gen_realistic_diag import generate
 from console.analysis.diag_events import DiagEventSettings
 from console.archive.history import report_data
 from console.archive.ingest import run_ingest
+from console.archive.verify import verify_archive
 from console.drivers.batch import ReadOptions, read_diag
 from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
 from console.engine.sinks import Sink, Sinks
@@ -199,6 +200,8 @@ def _ingest_pieces(log: Path, archive: Path, rng: random.Random, cluster: Any = 
 
 
 def archived(archive: Path) -> dict[str, Any]:
+    checked = verify_archive(archive)  # every route's archive whole: its parts read, every file's rows stored once
+    assert checked.intact, (checked.damaged, checked.mismatches)
     data = report_data(archive, job="history")
     assert data.job is not None and data.sections is not None
     p = data.job.analysis.passages
