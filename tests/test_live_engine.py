@@ -436,6 +436,43 @@ def test_a_restart_after_a_rotation_archives_each_line_once(tmp_path: Path) -> N
     assert run_query(archive, "SELECT count(*) FROM records")[1] == [(len(lines) + 5,)]
 
 
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_restarts_and_rotations_in_any_order_archive_each_line_once(
+    tmp_path_factory: pytest.TempPathFactory, data: st.DataObject
+) -> None:
+    """A log rotated at random points into files, followed by runs that each restart on the current file from its
+    start (`follow --from-start --archive`), read it in random blocks through later rotations, and stop anywhere:
+    every line any run read is archived exactly once, and the archive passes `verify`."""
+    from console.archive.verify import verify_archive
+    from console.archive.views import run_query
+    from console.live.archive import LiveArchiver
+
+    archive = tmp_path_factory.mktemp("rotations") / "arc"
+    lines = (REPO / "sample_logs" / "example_station.log").read_bytes().splitlines(keepends=True)
+    cuts = sorted(set(data.draw(st.lists(st.integers(1, len(lines) - 1), min_size=1, max_size=4), label="rotations")))
+    files = [lines[a:b] for a, b in itertools.pairwise([0, *cuts, len(lines)])]
+    starts = list(itertools.accumulate([0, *map(len, files)]))  # each file's first line in the log
+    read: set[int] = set()
+    at = 0  # the file current when the next run starts
+    for _run in range(data.draw(st.integers(1, 4), label="runs")):
+        at = data.draw(st.integers(at, len(files) - 1), label="restart on file")
+        last = data.draw(st.integers(at, len(files) - 1), label="stop in file")
+        arch = LiveArchiver(archive)
+        for k in range(at, last + 1):
+            name = "x.log" if k == at else f"x.log#{k - at + 1}"  # a run counts rotations from its first file
+            upto = len(files[k]) if k < last else data.draw(st.integers(1, len(files[k])), label="stop at line")
+            blocks = sorted(set(data.draw(st.lists(st.integers(1, max(1, upto - 1)), max_size=3), label="blocks")))
+            for a, b in itertools.pairwise([0, *[c for c in blocks if c < upto], upto]):
+                arch(LineBlock("file:x", name, a + 1, b"".join(files[k][a:b]), time.monotonic()))
+            read |= set(range(starts[k], starts[k] + upto))
+        arch.finish()
+        assert arch.errors == [] and arch.spool_errors == []
+        at = last
+    assert run_query(archive, "SELECT count(*) FROM records")[1] == [(len(read),)]
+    assert verify_archive(archive).intact
+
+
 def test_a_spool_file_that_cannot_be_written_takes_nothing_more_and_says_from_where(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
