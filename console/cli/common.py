@@ -429,6 +429,20 @@ def refuse_unread(reports: Any, expected: str) -> None:
             )
 
 
+def rejected_note(n: int, where: str = "trackside analyze lists them") -> str:
+    """The text faces' closing line for rejected input lines (a record a table may lack), and where to see them."""
+    from console.plural import count
+
+    return f"{count(n, 'input line')} rejected ({where})"
+
+
+def status_only_note(n: int) -> str:
+    """The text faces' note of the status-only record bursts a passage table does not list."""
+    from console.plural import count
+
+    return f"{count(n, 'status-only record burst')} (no wheel onset) not listed; --include-status lists them"
+
+
 def read_logs(
     files: list[Path],
     settings: Any,

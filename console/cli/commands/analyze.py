@@ -16,6 +16,7 @@ from console.cli.common import (
     one_json_form,
     print_json,
     read_logs,
+    status_only_note,
 )
 from console.cli.options import (
     REJECTIONS_LISTED,
@@ -148,11 +149,7 @@ def analyze(
                     + ", ".join(sorted(job.report.unknown_labels))
                 )
             if job.status is not None and job.status.passages.sum():
-                notes.append(
-                    f"{count(int(job.status.passages.sum()), 'status-only record burst')} (no wheel onset)"
-                    " not listed;"
-                    " --include-status lists them"
-                )
+                notes.append(status_only_note(int(job.status.passages.sum())))
             for n in notes:
                 out.print(clean(n), markup=False)
             if layout:

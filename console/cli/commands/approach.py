@@ -7,9 +7,17 @@ from typing import Annotated
 import typer
 
 from console import exit_codes
-from console.cli.common import Console, fail, guard, load_layout, one_json_form, print_document, read_logs
+from console.cli.common import (
+    Console,
+    fail,
+    guard,
+    load_layout,
+    one_json_form,
+    print_document,
+    read_logs,
+    rejected_note,
+)
 from console.cli.options import FilesArg, JsonOpt, RecordsJsonlOpt, StrictOpt
-from console.plural import count
 
 
 def approach(
@@ -69,8 +77,7 @@ def approach(
             out = Console(highlight=False)
             out.print(approach_table(rows))
             if job.report.rejected:  # a rejected line may be a detection the table lacks
-                rejected = count(job.report.rejected, "input line")
-                out.print(f"{rejected} rejected (trackside analyze lists them)", markup=False)
+                out.print(rejected_note(job.report.rejected), markup=False)
         return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
 
     raise typer.Exit(guard(body))

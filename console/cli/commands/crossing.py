@@ -17,6 +17,7 @@ from console.cli.common import (
     print_document,
     refuse_unread,
     refuse_wrong_kind,
+    rejected_note,
 )
 from console.cli.options import GnssFilesArg, JsonOpt, RecordsJsonlOpt
 from console.plural import count
@@ -138,7 +139,7 @@ def crossing(
             for w in warnings:
                 out.print(f"warning: {clean(w)}", markup=False)  # names from the input: escaped
             if report.rejected:
-                out.print(f"{count(report.rejected, 'input line')} rejected (trackside gnss lists them)", markup=False)
+                out.print(rejected_note(report.rejected, "trackside gnss lists them"), markup=False)
         return exit_codes.FINDINGS if strict and (violations or report.rejected) else exit_codes.OK
 
     raise typer.Exit(guard(body))

@@ -19,9 +19,9 @@ from console.cli.common import (
     read_logs,
     refuse_unread,
     refuse_wrong_kind,
+    rejected_note,
 )
 from console.cli.options import JsonOpt, RecordsJsonlOpt, StrictOpt
-from console.plural import count
 from console.safe_text import clean
 
 
@@ -119,7 +119,7 @@ def health(
             for w in warnings:
                 out.print(f"warning: {clean(w)}", markup=False)  # names from the input: escaped
             if rejected:
-                out.print(f"{count(rejected, 'input line')} rejected (--json lists them)", markup=False)
+                out.print(rejected_note(rejected, "--json lists them"), markup=False)
         failing = threshold is not None and any(f.severity >= threshold for f in findings)
         return exit_codes.FINDINGS if failing or (strict and rejected) else exit_codes.OK
 

@@ -7,7 +7,7 @@ from typing import Annotated, Any
 import typer
 
 from console import exit_codes
-from console.cli.common import Console, fail, guard, load_layout, one_json_form, read_logs
+from console.cli.common import Console, fail, guard, load_layout, one_json_form, read_logs, rejected_note
 from console.cli.options import FilesArg, JsonOpt, LayoutOpt, RecordsJsonlOpt
 from console.plural import count
 from console.safe_text import clean
@@ -120,7 +120,7 @@ def _print_tables(job: Any, final: dict[str, Any], sink: Any, warnings: list[str
     for w in warnings:
         out.print(clean(f"warning: {w}"), markup=False)
     if job.report.rejected:
-        out.print(f"{count(job.report.rejected, 'input line')} rejected (trackside analyze lists them)", markup=False)
+        out.print(rejected_note(job.report.rejected), markup=False)
 
 
 def sections(

@@ -8,7 +8,16 @@ from typing import Annotated
 import typer
 
 from console import exit_codes
-from console.cli.common import Console, guard, load_layout, one_json_form, print_json, read_logs
+from console.cli.common import (
+    Console,
+    guard,
+    load_layout,
+    one_json_form,
+    print_json,
+    read_logs,
+    rejected_note,
+    status_only_note,
+)
 from console.cli.options import (
     REJECTIONS_LISTED,
     FilesArg,
@@ -20,7 +29,6 @@ from console.cli.options import (
     StrictOpt,
     TrainLengthOpt,
 )
-from console.plural import count
 
 
 def speeds(
@@ -75,14 +83,9 @@ def speeds(
             # Said, as analyze says them: a rejected line is a record the per-second count lacks, and a log of
             # status records alone would otherwise be an empty table without a word.
             if job.status is not None and job.status.passages.sum():
-                out.print(
-                    f"{count(int(job.status.passages.sum()), 'status-only record burst')} (no wheel onset)"
-                    " not listed; --include-status lists them",
-                    markup=False,
-                )
+                out.print(status_only_note(int(job.status.passages.sum())), markup=False)
             if job.report.rejected:
-                rejected = count(job.report.rejected, "input line")
-                out.print(f"{rejected} rejected (trackside analyze lists them)", markup=False)
+                out.print(rejected_note(job.report.rejected), markup=False)
         return exit_codes.FINDINGS if strict and job.report.rejected else exit_codes.OK
 
     raise typer.Exit(guard(body))
