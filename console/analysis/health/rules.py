@@ -132,12 +132,12 @@ def _time_ns(times: pd.Series) -> np.ndarray:
     return times.to_numpy(dtype="datetime64[ns]").view(np.int64)
 
 
-def _rows(records: pd.DataFrame, canonical: str, extra: tuple[str, ...] = ()) -> pd.DataFrame:
-    """Records of one register, with a plain-string head, sorted by head, channel, time."""
+def _picked(records: pd.DataFrame, canonical: str, extra: tuple[str, ...] = ()) -> pd.DataFrame:
+    """Records of one register, with a plain-string head, in the table's (read) order."""
     import pandas as pd  # deferred: the report path reads its inputs before pandas is needed (memory)
 
     picked = records.loc[records["label_canonical"] == canonical, ["time", "counting_head", "channel", "value", *extra]]
-    out = pd.DataFrame(
+    return pd.DataFrame(
         {
             "time_ns": _time_ns(picked["time"]),
             "head": picked["counting_head"].astype(str).to_numpy(),
@@ -146,6 +146,11 @@ def _rows(records: pd.DataFrame, canonical: str, extra: tuple[str, ...] = ()) ->
             **{c: picked[c].to_numpy() for c in extra},
         }
     )
+
+
+def _rows(records: pd.DataFrame, canonical: str, extra: tuple[str, ...] = ()) -> pd.DataFrame:
+    """Records of one register, with a plain-string head, sorted by head, channel, time."""
+    out = _picked(records, canonical, extra)
     return out.sort_values(["head", "channel", *extra, "time_ns"], kind="stable").reset_index(drop=True)
 
 
@@ -448,19 +453,10 @@ def _counter_readings(records: pd.DataFrame) -> pd.DataFrame:
     """
     import pandas as pd
 
-    picked = records.loc[records["label_canonical"] == "counter_1_edge"]
-    files = pd.factorize(picked["file"])[0] if "file" in picked.columns else np.zeros(len(picked), np.intp)
-    out = pd.DataFrame(
-        {
-            "time_ns": _time_ns(picked["time"]),
-            "head": picked["counting_head"].astype(str).to_numpy(),
-            "channel": picked["channel"].to_numpy(dtype=np.int64),
-            "address": picked["address"].to_numpy(),
-            "value": picked["value"].to_numpy(dtype=np.float64),
-            "file": files,
-            "seq": np.arange(len(picked)),  # the table's rows are in read order
-        }
-    )
+    has_file = "file" in records.columns
+    out = _picked(records, "counter_1_edge", ("address", "file") if has_file else ("address",))
+    out["file"] = pd.factorize(out["file"])[0] if has_file else 0
+    out["seq"] = np.arange(len(out))  # the table's rows are in read order
     out = out.drop_duplicates(["head", "channel", "address", "time_ns", "value"])
     out["file_start"] = out.groupby("file")["time_ns"].transform("min")
     keys = ["head", "channel", "address", "file_start", "file", "seq"]
