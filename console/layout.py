@@ -189,6 +189,13 @@ class Layout:
             speeds.append(self.line_speed_mps)  # some of the stretch has no limit of its own
         return max(speeds)
 
+    def heads_off_track(self) -> list[str]:
+        """Heads outside the [[track]] line's chainages (no simulated train runs past them); none without a track."""
+        if len(self.track) < 2:
+            return []
+        low, high = self.track[0].chainage_m, self.track[-1].chainage_m
+        return [h.id for h in self.heads if not low <= h.chainage_m <= high]
+
     def spacing_m(self) -> float:
         """The line's Sys1–Sys2 spacing: most heads' (the first head's of a tie), for heads the layout does not
         name; a head of another spacing keeps its own (``SpeedSettings.of_layout``)."""

@@ -342,11 +342,9 @@ def _warn_heads_off_the_track(lay: Any) -> None:
     of no axle passages is not taken for a quiet line (a track in km beside heads in m, say)."""
     from console.safe_text import clean
 
-    if len(lay.track) < 2:
-        return  # the simulator refuses the layout, with its reason
-    low, high = lay.track[0].chainage_m, lay.track[-1].chainage_m
-    off = [h.id for h in lay.heads if not low <= h.chainage_m <= high]
+    off = lay.heads_off_track()  # none without a track: the simulator refuses that layout, with its reason
     if off:
+        low, high = lay.track[0].chainage_m, lay.track[-1].chainage_m
         shown = ", ".join(clean(h) for h in off[:5]) + (", …" if len(off) > 5 else "")
         sys.stderr.write(
             f"trackside: warning: {count(len(off), 'counting head')} outside the track ({low:g} to {high:g} m),"
