@@ -427,6 +427,9 @@ def layout_from_dict(doc: dict[str, Any], source: str = "<layout>") -> Layout:
         pt = TrackPoint(_chainage(r, t, "chainage_m", p), *_lat_lon(r, t, p))
         if track and pt.chainage_m <= track[-1].chainage_m:
             raise r.fail(f"{p}.chainage_m", f"more than the previous point's {track[-1].chainage_m}", pt.chainage_m)
+        if track and (pt.lat, pt.lon) == (track[-1].lat, track[-1].lon):
+            # A segment of no length: every position would project onto it as 0 / 0.
+            raise r.fail(f"{p}.lat", f"a place other than track[{i - 1}]'s (the same lat and lon)", pt.lat)
         track.append(pt)
 
     platforms = []

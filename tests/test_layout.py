@@ -10,6 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from console.analysis.layout_checks import check_layout, layout_document
 from console.layout import LayoutError, format_kilometre_post, load_layout, parse_kilometre_post
 
 MINIMAL = """
@@ -213,6 +214,8 @@ def test_any_layout_content_gives_a_layout_or_a_layout_error(tmp_path: Path, tex
         assert str(exc).startswith(f"{p}: ")
         return
     assert lay.heads  # a layout that loads has its heads
+    # What loads, `trackside layout` reads and checks: any track, crossings and signs; never a NaN in its JSON.
+    json.dumps(layout_document(lay, check_layout(lay)), allow_nan=False)
 
 
 def test_simulate_with_a_bad_layout_exits_2_with_one_line(tmp_path: Path) -> None:
@@ -323,3 +326,12 @@ def test_a_layout_from_a_device_is_bounded_and_a_byte_order_mark_is_read(tmp_pat
     bom = tmp_path / "bom.toml"
     bom.write_bytes(b"\xef\xbb\xbf" + text)  # as some editors save
     assert [h.id for h in load_layout(bom).heads] == [h.id for h in load_layout("example").heads]
+
+
+def test_a_track_point_at_the_place_of_the_one_before_is_refused(tmp_path: Path) -> None:
+    # Every position would project onto that segment as 0 / 0: NaN chainages in `crossing` and `layout`.
+    text = '[[heads]]\nid = "A"\nchainage_m = 100\n' + "".join(
+        f"[[track]]\nchainage_m = {c}\nlat = 20.0\nlon = 105.0\n" for c in (0, 1000)
+    )
+    with pytest.raises(LayoutError, match=r"track\[1\]\.lat: expected a place other than track\[0\]'s"):
+        load_layout(_write(tmp_path, text))

@@ -35,6 +35,7 @@ COMMANDS = (
     "approach",
     "gnss",
     "crossing",
+    "layout",
     "simulate",
     "ato",
     "station",

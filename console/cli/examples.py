@@ -77,6 +77,11 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "trackside query --archive arc --preset axles-per-head-per-day --format csv",
         'trackside query --archive arc "SELECT counting_head, count(*) AS records FROM records GROUP BY ALL"',
     ),
+    "layout": (
+        "trackside layout example",
+        "trackside layout example --plot line.png",
+        "trackside layout my_line.toml --strict --json   # exit 2: there is no my_line.toml here",
+    ),
     "verify": (
         "trackside verify --archive arc",
         "trackside verify --archive arc --deep --json",
