@@ -203,3 +203,20 @@ def test_a_track_point_mistyped_is_named_by_its_segments(tmp_path: Path) -> None
     scale = [(f["subject"], f["message"]) for f in doc["findings"] if f["check"] == "track_scale"]
     assert [s for s, _ in scale] == ["track[1]", "track[2]"]
     assert all("the chainage says 250 m" in m for _, m in scale)
+
+
+def test_commands_reading_a_doubtful_layout_say_so_in_one_line_and_go_on(tmp_path: Path) -> None:
+    log = Path(__file__).resolve().parent.parent / "sample_logs" / "example_station.log"
+    bad = _write(tmp_path, _edited(a=SWAP_B1))  # type: ignore[arg-type]
+    for spec, said in ((str(bad), True), ("example", False)):
+        p = subprocess.run(
+            [TRACKSIDE, "sections", str(log), "--layout", spec, "--json"], capture_output=True, text=True, cwd=tmp_path
+        )
+        assert p.returncode == 0, p.stderr
+        assert json.loads(p.stdout)["schema"] == "trackside.sections/1"
+        warned = [line for line in p.stderr.splitlines() if "layout warning" in line]
+        if said:
+            named = f"{bad}: 1 layout warning (section_signs B1); `trackside layout {bad}` explains them"
+            assert warned == [f"trackside: warning: {named}"]
+        else:
+            assert warned == []

@@ -477,13 +477,26 @@ def read_logs(
     return job
 
 
-def load_layout(spec: str) -> Any:
+def load_layout(spec: str, *, warn: bool = True) -> Any:
+    """The layout, or a one-line error (exit 2). With ``warn``, what `trackside layout` would warn of is named
+    on stderr in one line: a section with its signs swapped shows disturbed in every command that reads it."""
     from console.layout import LayoutError, load_layout
 
     try:
         lay = load_layout(spec)
     except LayoutError as exc:
         raise fail(str(exc)) from None
+    if warn:
+        from console.analysis.layout_checks import WARNING, check_layout
+        from console.plural import count
+
+        warned = [f for f in check_layout(lay) if f.level == WARNING]
+        if warned:
+            named = ", ".join(f"{f.check} {clean(f.subject)}" for f in warned[:4]) + (", …" if len(warned) > 4 else "")
+            sys.stderr.write(
+                f"trackside: warning: {clean(lay.source)}: {count(len(warned), 'layout warning')} ({named}); "
+                f"`trackside layout {clean(spec)}` explains them\n"
+            )
     return lay
 
 

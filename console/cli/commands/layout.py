@@ -56,7 +56,7 @@ def layout(
                 target = check_output_file(plot, layout_file, what="plot")
             except OutputError as exc:
                 raise fail(f"--plot {exc}") from None
-        lay = load_layout(spec)
+        lay = load_layout(spec, warn=False)  # it lists them itself
         findings = check_layout(lay)
         if target is not None:
             from console.output_path import open_output
