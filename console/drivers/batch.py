@@ -36,6 +36,7 @@ from console.engine.pipeline import DiagOutcome, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks
 from console.memory import read_memory
 from console.plural import count
+from console.safe_text import clean, show_path
 from parsers.diag.read import DiagChunk, DiagReader, chunks_to_frame, compiled_tokenizer
 from parsers.diag.registry import DiagRegistry
 from parsers.report import ParseReport
@@ -47,6 +48,7 @@ if TYPE_CHECKING:
     from console.analysis.events.detection import DetectionEvent
     from console.analysis.head_table import Heads
     from console.analysis.health.rules import Finding
+    from console.analysis.passages.clock_steps import ClockSteps
     from console.analysis.sections.engine import SectionEngine
     from console.layout import Layout
 
@@ -246,10 +248,22 @@ def read_diag(
                 f" (the log is out of time order by more than {ORDER_SLACK_S:g} s); passages near them may be split"
                 " or differ from a whole read: --json on the file reads it whole\n"
             )
+    if job.outcome is not None and job.outcome.clock_steps.steps:
+        _tell_clock_steps(job.outcome.clock_steps, job.outcome.heads, source.files)
     if table is not None:
         job.analysis.passage_columns = table.columns()
         job.analysis.axle_columns = table.axle_columns()
     return job
+
+
+def _tell_clock_steps(steps: ClockSteps, heads: Heads, files: list[str]) -> None:
+    """A line on stderr per head and file whose records go back in time (up to 5; then how many more)."""
+    lines = steps.warnings([clean(name) for _, name in heads], [show_path(f) for f in files])
+    for line in lines[:5]:
+        sys.stderr.write(f"trackside: warning: {line}\n")
+    if len(lines) > 5:
+        more = count(len(lines) - 5, "more head")
+        sys.stderr.write(f"trackside: warning: and {more} whose records go back in time\n")
 
 
 def _read(

@@ -45,9 +45,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from console.analysis.events.detection import DetectionEvent, EventKind, sort_events
+from console.analysis.passages.clock_steps import ClockSteps
 from console.analysis.passages.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, wheel_columns
 from console.analysis.passages.status import StatusSummary
-from console.analysis.passages.stream import PassageStream, by_start, take_passages
+from console.analysis.passages.stream import ORDER_SLACK_S, PassageStream, by_start, take_passages
 from console.analysis.sections.state import SectionState
 from console.engine.sinks import Sink
 from parsers.diag.read import DiagChunk
@@ -116,6 +117,7 @@ class DiagOutcome:
     overlap_by_file: list[int]
     overlap_times_ns: np.ndarray
     late_records: int
+    clock_steps: ClockSteps
     status: StatusSummary | None
     warnings: list[str]
     health_events: list[DetectionEvent]
@@ -197,6 +199,7 @@ class Pipeline:
         if not len(chunk):
             return
         s = self.settings
+        self.clock_steps.feed(chunk.file_id, self.acc._lookup().head_of(chunk.register_id), chunk.time_ns, chunk.line)
         if s.keep_registers:
             if len(self._wanted) < self.registry.n_registers:
                 self._wanted = self.registry.canonical_in(s.keep_registers)
@@ -273,6 +276,7 @@ class Pipeline:
             overlap_by_file=by_file,
             overlap_times_ns=self._overlap_times,
             late_records=self.stream.late_records if self.stream is not None else 0,
+            clock_steps=self.clock_steps,
             status=self.status,
             warnings=warnings,
             health_events=self.health_events,
@@ -283,6 +287,15 @@ class Pipeline:
         )
 
     # -- state ---------------------------------------------------------------
+    @property
+    def clock_steps(self) -> ClockSteps:
+        """Where a head's records went back in time (made on first use: a pipeline pickled by an archive before
+        there was such a check reads on)."""
+        steps: ClockSteps | None = self.__dict__.get("_clock_steps")
+        if steps is None:
+            steps = self.__dict__["_clock_steps"] = ClockSteps(int(ORDER_SLACK_S * NS))
+        return steps
+
     @property
     def heads(self) -> Heads:
         return self.acc._lookup().heads
