@@ -71,6 +71,12 @@ def test_a_clock_stepped_back_is_told_in_one_line_with_where(tmp_path: Path) -> 
         "back, or the file is not in time order; sorted by time, a section it bounds may show clear early after a "
         "step back)"
     ]
+    # The report carries it too: a report made overnight is read when its stderr is long gone.
+    md = tmp_path / "r.md"
+    r = subprocess.run([TRACKSIDE, "report", str(log), "--layout", "example", "--format", "md", "-o", str(md)])
+    assert r.returncode == 0
+    text = md.read_text("utf-8").replace("\\", "")  # Markdown's escapes in the path
+    assert f"- WS5: its records go back 20.0 s at {log} line {line:,}" in text
     clean = subprocess.run(
         [TRACKSIDE, "sections", str(SAMPLES / "example_station.log"), "--layout", "example"],
         capture_output=True,

@@ -48,7 +48,6 @@ if TYPE_CHECKING:
     from console.analysis.events.detection import DetectionEvent
     from console.analysis.head_table import Heads
     from console.analysis.health.rules import Finding
-    from console.analysis.passages.clock_steps import ClockSteps
     from console.analysis.sections.engine import SectionEngine
     from console.layout import Layout
 
@@ -94,6 +93,14 @@ class DiagJob:
     @property
     def warnings(self) -> list[str]:
         return self.outcome.warnings if self.outcome is not None else []
+
+    @property
+    def clock_step_warnings(self) -> list[str]:
+        """A line per head and file whose records go back in time (said on stderr as the read ends)."""
+        if self.outcome is None or not self.outcome.clock_steps.steps:
+            return []
+        heads = [clean(name) for _, name in self.outcome.heads]
+        return self.outcome.clock_steps.warnings(heads, [show_path(f) for f in self.files])
 
     @property
     def sections(self) -> SectionEngine | None:
@@ -248,17 +255,15 @@ def read_diag(
                 f" (the log is out of time order by more than {ORDER_SLACK_S:g} s); passages near them may be split"
                 " or differ from a whole read: --json on the file reads it whole\n"
             )
-    if job.outcome is not None and job.outcome.clock_steps.steps:
-        _tell_clock_steps(job.outcome.clock_steps, job.outcome.heads, source.files)
+    _tell_clock_steps(job.clock_step_warnings)
     if table is not None:
         job.analysis.passage_columns = table.columns()
         job.analysis.axle_columns = table.axle_columns()
     return job
 
 
-def _tell_clock_steps(steps: ClockSteps, heads: Heads, files: list[str]) -> None:
+def _tell_clock_steps(lines: list[str]) -> None:
     """A line on stderr per head and file whose records go back in time (up to 5; then how many more)."""
-    lines = steps.warnings([clean(name) for _, name in heads], [show_path(f) for f in files])
     for line in lines[:5]:
         sys.stderr.write(f"trackside: warning: {line}\n")
     if len(lines) > 5:

@@ -219,7 +219,7 @@ def diag_into_report(
     # The report reads the events only for the time the data ends: the last one stands for them.
     last = job.last_event
     data.events = [last] if last is not None else []
-    data.warnings += job.warnings
+    data.warnings += job.warnings + job.clock_step_warnings  # a report read next morning: stderr is gone
     engine = job.sections
     if engine is not None and history is not None:
         if whole:
