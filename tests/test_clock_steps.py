@@ -152,3 +152,21 @@ def test_one_step_is_found_where_it_is_whatever_the_chunks(
         found.append([(s.head_key, s.line, s.back_ns) for s in steps.steps])
     assert found[0] == found[1]
     assert [x[1] - 1 for x in found[0]] == ([] if step is None else [step])
+
+
+def test_follow_tells_the_step_as_it_reads_it(tmp_path: Path) -> None:
+    import json
+
+    log = tmp_path / "stepped.log"
+    line = _stepped(SAMPLES / "example_station.log", log, "WS5", "09:47:05", 40.0)
+    p = subprocess.run(
+        [TRACKSIDE, "follow", str(log), "--from-start", "--layout", "example", "--jsonl", "--idle-exit", "1"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 0, p.stderr
+    events = [json.loads(x) for x in p.stdout.splitlines()]
+    steps = [e for e in events if e.get("kind") == "clock_step"]
+    assert [(e["counting_head"], e["line"], e["back_s"]) for e in steps] == [("WS5", line, 20.0)]
+    assert steps[0]["file"] == str(log) and steps[0]["detail"].startswith("WS5: its records go back 20.0 s")

@@ -47,6 +47,7 @@ class DiagFollowStats:
     section_changes: int = 0
     health_findings: int = 0
     rejections_shown: int = 0
+    clock_steps_shown: int = 0
     by_file: dict[str, FileReport] = field(default_factory=dict)
 
 
@@ -147,6 +148,7 @@ class DiagFollow:
         chunk = self.reader.parse_lines(data, report, file_id, first_line)
         self._show_rejections()
         self.pipeline.feed(chunk)
+        self._show_clock_steps()
 
     def feed(self, chunk: DiagChunk) -> None:
         """Records already parsed (into the registry given), in read order: a replay of logs or the archive."""
@@ -157,6 +159,31 @@ class DiagFollow:
         for r in rej[self.stats.rejections_shown :]:
             self.emit({"type": "source", "kind": "rejected", **r.to_dict()})
         self.stats.rejections_shown = len(rej)
+
+    def _show_clock_steps(self) -> None:
+        """A head whose records went back in time in a followed file: told at once, the first per head and file."""
+        steps = self.pipeline.clock_steps
+        if len(steps.steps) == self.stats.clock_steps_shown:
+            return
+        names = [name for _, name in self.pipeline.heads]
+        files = list(self.reader.registry.files)
+        texts = steps.warnings(names, files)
+        for step, text in zip(
+            steps.steps[self.stats.clock_steps_shown :], texts[self.stats.clock_steps_shown :], strict=True
+        ):
+            self.emit(
+                {
+                    "type": "source",
+                    "kind": "clock_step",
+                    "source": files[step.file_id],
+                    "file": files[step.file_id],
+                    "line": step.line,
+                    "counting_head": names[step.head_key],
+                    "back_s": step.back_ns / 1e9,
+                    "detail": text,
+                }
+            )
+        self.stats.clock_steps_shown = len(steps.steps)
 
     def reset(self, section: str, t_ns: int) -> None:
         """An operator asks to reset ``section`` at ``t_ns``: decided in time order with the detections

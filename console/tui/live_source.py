@@ -87,7 +87,11 @@ def event_entry(ev: dict[str, Any], now_ns: int) -> tuple[Transition | None, Log
     if kind == "source":
         if ev.get("kind") == "rejected":
             return None, LogEntry(now_ns, "warning", f"rejected {ev['file']}:{ev['line']}: {ev['reason']}")
-        sev = "warning" if ev.get("kind") in ("disconnected", "malformed", "lost", "unrecognised") else "info"
+        sev = (
+            "warning"
+            if ev.get("kind") in ("disconnected", "malformed", "lost", "unrecognised", "clock_step")
+            else "info"
+        )
         return None, LogEntry(now_ns, sev, f"source {ev.get('source', '')}: {ev.get('kind')} {ev.get('detail', '')}")
     return None, None
 
