@@ -2,7 +2,10 @@
 
 Found on a hand-made case (2026-11-29): the example log with WS5's clock stepped back 40 s at 09:47 (an NTP
 correction) was read without a word, and 2G was shown clear at 09:47:37 while the train stood in it until
-09:48:17. The analysis still sorts by time (a file out of order is read right that way); the step is now said.
+09:48:17. The analysis still sorts by time (a file out of order is read right that way), but the step is said.
+
+Since then a step is doubt: the sections the head bounds are disturbed from the first record after it (a
+property over simulated hours with a head's clock stepped back at random, for every step the records show).
 
 The truths: steps made by hand at known lines; no step in logs written the way devices and exports write
 them (boards interleaved at µs, ms and whole-second resolution, the simulator's logs, the shipped samples),
@@ -12,17 +15,23 @@ and the same steps whatever the chunks a file is read in.
 from __future__ import annotations
 
 import datetime as dt
+import json
+import os
 import re
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
-from hypothesis import given, settings
+import pytest
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from typer.testing import CliRunner
 
 from benchmarks.gen_realistic_diag import generate
 from console.analysis.passages.clock_steps import ClockSteps
+from console.cli.app import app
+from console.layout import load_layout
 from parsers.diag.read import DiagReader
 from tests.conftest import SAMPLES
 
@@ -68,9 +77,21 @@ def test_a_clock_stepped_back_is_told_in_one_line_with_where(tmp_path: Path) -> 
     # WS5's heartbeat before the step was at 09:47:00; the one after it, 09:47:20, now reads 09:46:40.
     assert told == [
         f"trackside: warning: WS5: its records go back 20.0 s at {log} line {line:,} (the device's clock stepped "
-        "back, or the file is not in time order; sorted by time, a section it bounds may show clear early after a "
-        "step back)"
+        "back, or the file is not in time order): sections it bounds are disturbed from 2026-03-02 09:46:40, the "
+        "time of that line"
     ]
+    # 2G (WS4 → WS5) held a train then: it is disturbed from the step, never shown clear early.
+    doc = json.loads(
+        subprocess.run(
+            [TRACKSIDE, "sections", str(log), "--layout", "example", "--json"], capture_output=True, text=True
+        ).stdout
+    )
+    rows = [r for r in doc["timeline"] if r["section"] == "2G" and r["time"] >= "2026-03-02T09:46"]
+    assert [(r["state"], r["count"], r["time"]) for r in rows[:2]] == [
+        ("occupied", 0, "2026-03-02T09:46:33.750Z"),
+        ("disturbed", 8, "2026-03-02T09:46:40.000Z"),
+    ]
+    assert rows[1]["reason"] == "records of WS5 went back in time: counts after it may be out of order"
     # The report carries it too: a report made overnight is read when its stderr is long gone.
     md = tmp_path / "r.md"
     r = subprocess.run([TRACKSIDE, "report", str(log), "--layout", "example", "--format", "md", "-o", str(md)])
@@ -155,8 +176,6 @@ def test_one_step_is_found_where_it_is_whatever_the_chunks(
 
 
 def test_follow_tells_the_step_as_it_reads_it(tmp_path: Path) -> None:
-    import json
-
     log = tmp_path / "stepped.log"
     line = _stepped(SAMPLES / "example_station.log", log, "WS5", "09:47:05", 40.0)
     p = subprocess.run(
@@ -170,3 +189,85 @@ def test_follow_tells_the_step_as_it_reads_it(tmp_path: Path) -> None:
     steps = [e for e in events if e.get("kind") == "clock_step"]
     assert [(e["counting_head"], e["line"], e["back_s"]) for e in steps] == [("WS5", line, 20.0)]
     assert steps[0]["file"] == str(log) and steps[0]["detail"].startswith("WS5: its records go back 20.0 s")
+
+
+# -- fail-safe: a clock stepped back never shows a section clear with an axle inside ---------------------------
+
+
+def _simulated_runs(root: Path, seeds: range) -> list[tuple[Path, dict[str, list[tuple[int, int]]], int, int]]:
+    """Simulated hours (trains both ways, the example layout): each run's log, its true axles per section
+    (a step function in ns), and its start and end."""
+    from console.sim.station import SimConfig, StationSim
+    from console.sim.writers import write_run
+
+    out = []
+    for seed in seeds:
+        sim = StationSim(load_layout("example"), SimConfig(seed=seed, trains_per_hour=12))
+        sim.run(3600)
+        write_run(sim, root / f"run{seed}")
+        truth = json.loads((root / f"run{seed}" / "truth.json").read_text("utf-8"))
+        inside = {s: [(_ns(t), int(n)) for t, n in rows] for s, rows in truth["sections"].items()}
+        out.append((root / f"run{seed}", inside, _ns(truth["start"]), _ns(truth["end"])))
+    return out
+
+
+def _ns(iso_text: str) -> int:
+    return int(np.datetime64(iso_text.rstrip("Z"), "ns").astype(np.int64))
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> list[tuple[Path, dict[str, list[tuple[int, int]]], int, int]]:
+    return _simulated_runs(tmp_path_factory.mktemp("clock"), range(1, 5))
+
+
+def _step_at(log: Path, out: Path, head: str, at_ns: int, back_s: float) -> bool:
+    """``log`` with ``head``'s records stamped from ``at_ns`` on (true time) ``back_s`` earlier. True when the
+    step shows in the records: the first record after it is stamped more than the order slack before the
+    head's last record before it (a step back smaller than the time since the head's last record, its
+    heartbeat, leaves every record in order: no reader can see it)."""
+    lines = []
+    before = after = None
+    for line in log.read_text("utf-8").splitlines(keepends=True):
+        m = _STAMP.search(line)
+        if m and f"Trackinfo:{head}\t" in line:
+            t_ns = _ns(f"{m[1]}T{m[2]}")
+            if t_ns < at_ns:
+                before = t_ns
+            else:
+                after = t_ns if after is None else after
+                t = dt.datetime.fromisoformat(f"{m[1]} {m[2]}") - dt.timedelta(seconds=back_s)
+                line = line.replace(m[0], f"Date:{t:%Y-%m-%d}\tTime:{t:%H:%M:%S.%f}"[:-3])
+        lines.append(line)
+    out.write_text("".join(lines), "utf-8")
+    return before is not None and after is not None and before - (after - int(back_s * NS)) > SLACK_NS
+
+
+@settings(max_examples=int(os.environ.get("CLOCK_STEP_EXAMPLES", "40")), deadline=None)
+@given(
+    pick=st.integers(0, 3),
+    head=st.sampled_from(["WS1", "WS2", "WS3", "WS4", "WS5"]),
+    at=st.floats(0.02, 0.98),
+    back_s=st.floats(3.0, 3600.0),
+)
+def test_never_clear_with_an_axle_inside_when_a_clock_steps_back(
+    runs: list[tuple[Path, dict[str, list[tuple[int, int]]], int, int]],
+    tmp_path_factory: pytest.TempPathFactory,
+    pick: int,
+    head: str,
+    at: float,
+    back_s: float,
+) -> None:
+    run, inside, start_ns, end_ns = runs[pick]
+    log = tmp_path_factory.mktemp("step") / "diagnostic.log"
+    assume(_step_at(run / "diagnostic.log", log, head, start_ns + int(at * (end_ns - start_ns)), back_s))
+    res = CliRunner().invoke(app, ["sections", str(log), "--layout", str(run / "layout.toml"), "--json"])
+    assert res.exit_code == 0, res.output
+    timeline = json.loads(res.stdout)["timeline"]
+    for sid, steps in inside.items():
+        rows = sorted((_ns(r["time"]), r["state"]) for r in timeline if r["section"] == sid)
+        for (t0, state), (t1, _) in zip(rows, [*rows[1:], (end_ns + 1, "")], strict=True):
+            if state != "clear":
+                continue
+            # The true axles inside over [t0, t1): the value at t0 and every change before t1.
+            held = [n for t, n in steps if t <= t0][-1:] + [n for t, n in steps if t0 < t < t1]
+            assert max(held, default=0) == 0, f"{sid} clear from {t0} to {t1} with axles inside ({head} -{back_s} s)"

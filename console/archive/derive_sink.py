@@ -43,7 +43,9 @@ if TYPE_CHECKING:
 # 9: an axle stamped at its passage's start is on that passage's day (it was put on the head's previous passage's,
 #    or another head's, as the pipeline's batches fell: the Dask engine's days differed from the local engine's).
 # 10: the inventory's figures per day, device and head (console.archive.head_days), read by a report over whole days.
-DERIVE_VERSION = 10
+# 11: a head's records going back in time are a doubt event (clock_step) that disturbs its sections; the state
+#    holds where each file's heads stood.
+DERIVE_VERSION = 11
 # Rows each derived table buffers before a write-out (the records' writer has BUFFER_BYTES): derived rows come
 # a few per chunk, and five tables' full buffers cost memory (a 3 M-record ingest peaked 35 MB lower at 4 MB than
 # at 16 MB, for the same CPU).

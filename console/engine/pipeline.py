@@ -161,6 +161,8 @@ class Pipeline:
         self._judged_events = 0
         self._handed_rank: dict[tuple[str, str | None, int | None], int] = {}
         self.section_engine: SectionEngine | None = None
+        self.clock_steps = ClockSteps(int(ORDER_SLACK_S * NS))  # where a head's records went back in time
+        self._stepped: list[tuple[np.ndarray, np.ndarray]] = []  # whole mode: those heads, and from when
         if s.health is not None and not (s.events is not None and s.keep_registers >= HEALTH_REGISTERS):
             raise ValueError("health needs the detection events and the health registers kept")
         self._resets_pending = list(s.resets)
@@ -199,7 +201,16 @@ class Pipeline:
         if not len(chunk):
             return
         s = self.settings
-        self.clock_steps.feed(chunk.file_id, self.acc._lookup().head_of(chunk.register_id), chunk.time_ns, chunk.line)
+        stepped, before_ns = self.clock_steps.feed(
+            chunk.file_id, self.acc._lookup().head_of(chunk.register_id), chunk.time_ns, chunk.line
+        )
+        if len(stepped) and s.events is not None:
+            # Doubt from the record before the step on: a section it bounds is not shown clear on counts
+            # that sorting by time may have put out of order.
+            if self.events is not None:
+                self.events.add_clock_steps(stepped, before_ns, self.heads)
+            else:
+                self._stepped.append((stepped, before_ns))
         if s.keep_registers:
             if len(self._wanted) < self.registry.n_registers:
                 self._wanted = self.registry.canonical_in(s.keep_registers)
@@ -288,15 +299,6 @@ class Pipeline:
 
     # -- state ---------------------------------------------------------------
     @property
-    def clock_steps(self) -> ClockSteps:
-        """Where a head's records went back in time (made on first use: a pipeline pickled by an archive before
-        there was such a check reads on)."""
-        steps: ClockSteps | None = self.__dict__.get("_clock_steps")
-        if steps is None:
-            steps = self.__dict__["_clock_steps"] = ClockSteps(int(ORDER_SLACK_S * NS))
-        return steps
-
-    @property
     def heads(self) -> Heads:
         return self.acc._lookup().heads
 
@@ -378,6 +380,12 @@ class Pipeline:
             return []
         lay = s.layout or layout_from_heads(sorted({name for _, name in heads}))
         events, warnings = diag_detection_events(analysis, lay, s.events)
+        events += [
+            DetectionEvent(t, EventKind.CLOCK_STEP, heads[k][1], source="diag")
+            for stepped, before_ns in self._stepped
+            for k, t in zip(stepped.tolist(), before_ns.tolist(), strict=True)
+            if lay.has_head(heads[k][1])
+        ]
         self.health_events += [e for e in events if e.kind in HEALTH_EVENT_KINDS]
         if events:
             self.last_event = events[-1]

@@ -35,6 +35,10 @@ class EventKind(StrEnum):
     ACCIDENTAL = "accidental"  # that pulse was confirmed accidental: lift the hold
     COUNT_ERROR = "count_error"  # the channels disagreed (majority not unanimous, ERR = 1)
     RESET = "reset"  # an operator asks to reset a section (``head`` holds the section id)
+    # The head's records went back in time within a file (console.analysis.passages.clock_steps): a clock step
+    # back, or a file out of order; sorted by time, counts on either side of it may be out of order. Last of the
+    # kinds: the codes of the others, stored in archives, stay as they were.
+    CLOCK_STEP = "clock_step"
 
 
 @dataclass(frozen=True, slots=True)

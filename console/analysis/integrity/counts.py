@@ -36,6 +36,7 @@ COUNTER_DOUBT = {
     EventKind.CHANNEL_FAULT: "a channel fault",
     EventKind.POWER_LOSS: "a power or contact loss",
     EventKind.INTERFERENCE: "an isolated pulse",
+    EventKind.CLOCK_STEP: "its records going back in time",
 }
 
 

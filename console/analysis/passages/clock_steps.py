@@ -7,9 +7,11 @@ NTP or GPS correction, a real-time clock reset after power-up, a daylight-saving
 or a file not in time order (exports joined the wrong way round, an export written newest first).
 
 The analyses sort by time either way, which is right for a file out of order and wrong across a clock step:
-an axle counted out after a step back can fall before one counted in before it, and a section shows clear
-early. From the records alone the two cannot be told apart, so the steps are told, with where, and left to a
-person; they do not change the analysis.
+an axle counted out after a step back can fall before one counted in before it, and a section would show clear
+early. From the records alone the two cannot be told apart, so the first step of each file and head is doubt
+(``EventKind.CLOCK_STEP``): the sections the head bounds are disturbed from the first record after the step (no
+record after it is earlier) until a reset. For a file written newest first that is near its latest record: the
+analysis before it stands.
 
 Checked on every record of a head (status and register records too: the step often shows in a heartbeat long
 before the next train), in read order, vectorized per chunk.
@@ -21,7 +23,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from console.analysis.timefmt import display
 from parsers.units import NO_TIME, NS
+
+_NONE = np.zeros(0, np.int64)
 
 
 @dataclass(frozen=True)
@@ -31,6 +36,11 @@ class ClockStep:
     line: int  # 1-based, the first record after the step
     back_ns: int  # how much earlier it is than the head's record before it
     before_ns: int  # the time of that record
+
+    @property
+    def at_ns(self) -> int:
+        """The time of the first record after the step: every record after the step is at or after it."""
+        return self.before_ns - self.back_ns
 
 
 @dataclass
@@ -44,13 +54,18 @@ class ClockSteps:
     _last: dict[int, np.ndarray] = field(default_factory=dict)  # file id → per head key, its last record (NO_TIME)
     _kept: dict[tuple[int, int], int] = field(default_factory=dict)  # (file, head) → its index in steps
 
-    def feed(self, file_id: int, head: np.ndarray, time_ns: np.ndarray, line: np.ndarray) -> None:
-        """One chunk's records of one file, in read order (``head``: each record's head key, < 0 for none)."""
+    def feed(
+        self, file_id: int, head: np.ndarray, time_ns: np.ndarray, line: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """One chunk's records of one file, in read order (``head``: each record's head key, < 0 for none).
+        Returns the first steps of their file and head found in it: the heads, and the time of each one's first
+        record after the step, which no record after the step precedes (a file written newest first steps back
+        at nearly every record: only its first step, near its latest time, is news)."""
         mine = head >= 0
         if not mine.all():
             head, time_ns, line = head[mine], time_ns[mine], line[mine]
         if not len(head):
-            return
+            return _NONE, _NONE
         # Per head, in read order; a stable sort of 16-bit keys is a radix sort, linear in the records.
         order = np.argsort(head.astype(np.uint16) if int(head.max()) < 1 << 16 else head, kind="stable")
         h, t = head[order].astype(np.int64), time_ns[order]
@@ -63,6 +78,7 @@ class ClockSteps:
         prev[first] = last[keys]
         back = np.where(prev != NO_TIME, prev - t, 0)
         stepped = np.flatnonzero(back > self.slack_ns)
+        new: list[ClockStep] = []
         if len(stepped):
             self.count += len(stepped)
             at = line[order]
@@ -71,13 +87,16 @@ class ClockSteps:
                 kept = self._kept.get((file_id, k))
                 if kept is None:
                     self._kept[(file_id, k)] = len(self.steps)
-                    self.steps.append(ClockStep(k, file_id, int(at[i]), int(back[i]), int(prev[i])))
+                    new.append(ClockStep(k, file_id, int(at[i]), int(back[i]), int(prev[i])))
+                    self.steps.append(new[-1])
                     self.counts.append(c)
                 else:
                     self.counts[kept] += c
         ends = np.r_[np.flatnonzero(first)[1:], len(h)] - 1
         last[keys] = t[ends]
         self._last[file_id] = last
+        new.sort(key=lambda s: s.at_ns)
+        return np.array([s.head_key for s in new], np.int64), np.array([s.at_ns for s in new], np.int64)
 
     def warnings(self, head_names: list[str], file_names: list[str]) -> list[str]:
         """One line per head and file with a step (its first), for people."""
@@ -88,7 +107,7 @@ class ClockSteps:
             more = f", and {n - 1:,} more time{'s' if n > 2 else ''} in that file" if n > 1 else ""
             out.append(
                 f"{name}: its records go back {s.back_ns / NS:,.1f} s at {where} line {s.line:,}{more} (the device's "
-                "clock stepped back, or the file is not in time order; sorted by time, a section it bounds may show "
-                "clear early after a step back)"
+                f"clock stepped back, or the file is not in time order): sections it bounds are disturbed from "
+                f"{display(s.at_ns)}, the time of that line"
             )
         return out

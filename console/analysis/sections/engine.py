@@ -167,6 +167,11 @@ class SectionEngine:
                 out.append(
                     self._disturb(s, t, f"power or contact lost at {e.head}" + (f": {e.detail}" if e.detail else ""))
                 )
+        elif k is EventKind.CLOCK_STEP:
+            for s, _ in secs:
+                out.append(
+                    self._disturb(s, t, f"records of {e.head} went back in time: counts after it may be out of order")
+                )
         elif k is EventKind.POWER_RESTORED:
             self.powerless.discard(e.head)  # the sections stay disturbed until a reset
         elif k is EventKind.HEAD_DAMPED:

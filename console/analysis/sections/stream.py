@@ -56,7 +56,7 @@ import numpy as np
 from console.analysis.counting.bank import CounterBank
 from console.analysis.counting.holds import NONE
 from console.analysis.diag_events import DiagEventSettings, power_gap_columns, silent_heads, silent_loss_columns
-from console.analysis.events.block import KIND_CODE, EventBlock, StringPool
+from console.analysis.events.block import KIND_CODE, NO_CHANNEL, Detail, EventBlock, StringPool
 from console.analysis.events.detection import DetectionEvent, EventKind
 from console.analysis.events.queue import EventQueue
 from console.analysis.head_table import HeadNames
@@ -217,6 +217,27 @@ class EventStream:
             shown = block.of_kinds(self.event_kinds) if self.event_kinds is not None else block
             for e in shown.events():
                 self.on_event(e)
+
+    def add_clock_steps(self, head: np.ndarray, time_ns: np.ndarray, heads: Sequence[tuple[int, str]]) -> None:
+        """Heads whose records went back in time (``ClockSteps.feed``), each at its first record after the step:
+        queued before any event of the records after it, and released in time order with them."""
+        key_col = np.asarray(head, np.int64)
+        self._heads(key_col, heads)
+        mine = self._state[key_col] == _COUNTED
+        n = int(mine.sum())
+        if not n:
+            return
+        cols = {
+            "time_ns": np.asarray(time_ns, np.int64)[mine],
+            "kind": np.full(n, KIND_CODE[EventKind.CLOCK_STEP]),
+            "head": key_col[mine],
+            "direction": np.zeros(n, np.int64),
+            "channel": np.full(n, NO_CHANNEL),
+            "detail": np.full(n, Detail.NONE),
+            "aux_ns": np.zeros(n, np.int64),
+            "source": np.full(n, self.bank.source),
+        }
+        self._push(EventBlock.from_columns(cols, self.names, self.pool.strings), _POWER)
 
     def add_reset(self, e: DetectionEvent) -> None:
         """An operator reset (given up front, in the order given)."""
