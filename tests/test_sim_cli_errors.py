@@ -173,3 +173,10 @@ def test_days_and_duration_together_are_refused(tmp_path: Path) -> None:
     assert result.exit_code == 2, result.output
     assert result.stderr.count("\n") == 1 and "--days" in result.stderr and "--duration" in result.stderr
     assert not (tmp_path / "run").exists()
+
+
+def test_a_bare_duration_is_said_in_seconds(tmp_path: Path) -> None:
+    # --duration 30 is 30 s: the summary said "simulated 30 on …: 0 trains", leaving the unit to guess.
+    result = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "30"])
+    assert result.exit_code == 0, result.output
+    assert result.stdout.startswith("simulated 30s on "), result.stdout

@@ -101,7 +101,11 @@ def simulate(
     ] = "example",
     duration: Annotated[
         str | None,
-        typer.Option("--duration", metavar="DURATION", help="Simulated time: 90s, 30m, 2h, 1h30m.  [default: 2h]"),
+        typer.Option(
+            "--duration",
+            metavar="DURATION",
+            help="Simulated time: 90s, 30m, 2h, 1h30m (a bare number is seconds).  [default: 2h]",
+        ),
     ] = None,
     seed: Annotated[
         int, typer.Option("--seed", metavar="N", help="Random seed: the same seed gives the same run.")
@@ -324,9 +328,11 @@ def simulate(
         if json_out:
             print_json(summary)
         else:
+            bare = duration_text.strip().replace(".", "", 1).isdecimal()
+            shown = f"{duration_text.strip()}s" if bare else duration_text  # a bare number is seconds: said so
             out = Console(highlight=False)
             out.print(
-                f"simulated {duration_text} on {clean(lay.name)} (seed {seed}): {count(len(sim.trains), 'train')}, "
+                f"simulated {shown} on {clean(lay.name)} (seed {seed}): {count(len(sim.trains), 'train')}, "
                 f"{count(len(sim.truth_axles), 'axle passage')};"
                 f" GNSS every {sim.period_s:.1f} s (LoRa SF{spreading_factor})",
                 markup=False,
