@@ -176,10 +176,13 @@ def classify_file(path: Path | str) -> KindGuess:
 
 
 def not_gnss_reason(path: Path | str) -> str | None:
-    """None if the file may hold GNSS data, else ``"looks like …"`` for the error line."""
+    """None if the file may hold GNSS data, else ``"looks like …"`` for the error line.
+
+    An empty file is zero fixes, not an error (a unit that logged nothing), as an empty log is zero records.
+    """
     guess = classify_file(path)
-    if guess.kind in GNSS_KINDS:
+    if guess.kind in GNSS_KINDS or guess.kind == "empty":
         return None
-    if guess.kind in ("empty", "unknown"):
+    if guess.kind == "unknown":
         return f"{guess.description} ({guess.why})"
     return f"looks like {guess.description}"
