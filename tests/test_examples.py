@@ -241,3 +241,28 @@ def test_docs_example_runs(page: str, example: str, doc_dir: Callable[[str], Pat
         if key in example:
             pytest.skip(why)
     run_example(example, doc_dir(page))
+
+
+def test_the_readme_synopsis_names_every_option() -> None:
+    # It had left out speeds --layout, forecast --layout and forecast --fail-on-due.
+    import typer
+
+    from console.cli.app import app
+
+    block = (ROOT / "README.md").read_text("utf-8").split("## Commands", 1)[1].split("```", 2)[1]
+    synopsis: dict[str, str] = {}
+    command = ""
+    for line in block.splitlines():
+        m = re.match(r"trackside (\w+)", line)
+        command = m.group(1) if m else command
+        synopsis[command] = synopsis.get(command, "") + line
+    group = typer.main.get_command(app)
+    missing = [
+        f"{name} {'/'.join(p.opts)}"
+        for name, cmd in group.commands.items()  # type: ignore[attr-defined]
+        for p in cmd.params
+        if p.param_type_name == "option"
+        and p.opts != ["--help"]
+        and not any(re.search(rf"(?<![\w-]){re.escape(o)}(?![\w-])", synopsis.get(name, "")) for o in p.opts)
+    ]
+    assert not missing, missing
