@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Final, Literal
 
+from parsers.frames.can_head import can_format_of_lines, record_lines
 from parsers.gnss.headers import parse_centre_header, parse_device_header
 from parsers.sources import InputError, open_input
 
@@ -72,9 +73,6 @@ DESCRIPTIONS: Final = {
 HEAD_BYTES: Final = 1024 * 1024
 _TABLE_HEADER_WITHIN = 5  # record lines in which a table's header is looked for (a title, a 'sep=' line first)
 _NMEA_RE = re.compile(rb"[$!][A-Z][A-Z0-9]{4},")
-_CANDUMP_RE = re.compile(rb"\(\d+(?:\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]+#")
-_TRC_RECORD_RE = re.compile(rb"^\d+\)\s+\d")  # a PEAK trace's message: number, time (TRC 1.0 has no $ header)
-_ASC_RE = re.compile(rb"^(?:date |base hex|base dec|internal events|Begin Triggerblock)", re.IGNORECASE)
 
 
 @dataclass(frozen=True)
@@ -87,10 +85,6 @@ class KindGuess:
     @property
     def description(self) -> str:
         return DESCRIPTIONS[self.kind]
-
-
-def _record_lines(head: bytes) -> list[bytes]:
-    return [s for s in (line.strip() for line in head.split(b"\n")) if s and not s.startswith(b"#")]
 
 
 def _has_packet(head: bytes) -> bool:
@@ -116,7 +110,7 @@ def classify_head(head: bytes) -> KindGuess:
     """The kind of input whose first bytes (decoded to UTF-8-ish, LF line ends) are ``head``."""
     if head.startswith(b"LOGG"):
         return KindGuess("can", "a BLF container")
-    lines = _record_lines(head)
+    lines = record_lines(head)
     if not lines:
         return KindGuess("empty", "no line to read")
     first = lines[0]
@@ -126,10 +120,9 @@ def classify_head(head: bytes) -> KindGuess:
     if first.startswith(b"Diag_id:") or any(line.startswith(b"Diag_id:") for line in lines[1:]):
         # Records after a banner or junk lines: the parser rejects those lines one by one, with their reason.
         return KindGuess("diag", "lines of Diag_id:… records")
-    if _CANDUMP_RE.match(first) or _ASC_RE.match(first) or first.startswith(b";$FILEVERSION"):
-        return KindGuess("can", "CAN log lines")
-    if first.startswith(b";") and any(_TRC_RECORD_RE.match(line) for line in lines[:40]):
-        return KindGuess("can", "PEAK trace lines")
+    can_format = can_format_of_lines(lines)
+    if can_format is not None:
+        return KindGuess("can", "PEAK trace lines" if can_format == "trc" else "CAN log lines")
     if first.startswith(b"{"):
         if b'"class"' in first:
             return KindGuess("gpsd", "JSON objects with a gpsd class")
@@ -183,10 +176,13 @@ def classify_file(path: Path | str) -> KindGuess:
 
 
 def not_gnss_reason(path: Path | str) -> str | None:
-    """None if the file may hold GNSS data, else ``"looks like …"`` for the error line."""
+    """None if the file may hold GNSS data, else ``"looks like …"`` for the error line.
+
+    An empty file is zero fixes, not an error (a unit that logged nothing), as an empty log is zero records.
+    """
     guess = classify_file(path)
-    if guess.kind in GNSS_KINDS:
+    if guess.kind in GNSS_KINDS or guess.kind == "empty":
         return None
-    if guess.kind in ("empty", "unknown"):
+    if guess.kind == "unknown":
         return f"{guess.description} ({guess.why})"
     return f"looks like {guess.description}"

@@ -47,6 +47,22 @@ def made(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return arc
 
 
+def test_an_ingest_that_adds_nothing_leaves_no_file_behind(tmp_path: Path) -> None:
+    """docs/archive.md's second ingest ("already ingested", archive unchanged) left its ledger part under
+    data/ingests/, named by no manifest: verify then said "1 file under data/ no manifest names" of a clean
+    archive, as of one a killed ingest left."""
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    shutil.copy(SAMPLES / "osong_ws4_0932_detection.log", logs)
+    arc = tmp_path / "arc"
+    for _ in range(2):
+        res = runner.invoke(app, ["ingest", str(logs), "--archive", str(arc)])
+        assert res.exit_code == 0, res.output
+    assert "archive unchanged" in res.output
+    code, doc = _verify(arc)
+    assert code == 0 and doc["unlisted_files"] == 0, doc
+
+
 def _copy(made: Path, tmp_path: Path) -> Path:
     arc = tmp_path / "arc"
     shutil.copytree(made, arc)

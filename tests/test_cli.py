@@ -221,6 +221,22 @@ def test_help_and_version(cmd: list[str]) -> None:
     assert runner.invoke(app, cmd).exit_code == 0
 
 
+@pytest.mark.parametrize("cmd", [["-h"], ["analyze", "-h"], ["report", "-h"]])
+def test_h_is_help_as_in_most_tools(cmd: list[str]) -> None:
+    # -h said "No such option: -h" (exit 2).
+    res = runner.invoke(app, cmd)
+    assert res.exit_code == 0 and res.stdout.startswith("Usage: trackside"), res.output
+
+
+def test_help_as_a_command_points_to_the_help_not_to_health() -> None:
+    # `trackside help` said "No such command 'help'. Did you mean 'health'?".
+    for cmd in (["help"], ["help", "analyze"]):
+        res = runner.invoke(app, cmd)
+        assert res.exit_code == 2, res.output
+        (line,) = res.stderr.strip().splitlines()
+        assert "health" not in line and "trackside --help" in line and "trackside COMMAND --help" in line, line
+
+
 def test_a_reader_that_stops_early_is_not_an_error() -> None:
     """`trackside analyze ... | head -1`: quiet, exit 0 (Rich alone would exit 1)."""
     exe = Path(sys.executable).with_name("trackside")

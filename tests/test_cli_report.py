@@ -121,3 +121,14 @@ def test_report_over_files_of_every_kind_with_names_that_are_not_utf8(tmp_path: 
         "\\xff\u202ecan_counts.log": "can",
         "\\xff\u202ecrossing_example.csv": "gnss-csv",
     }
+
+
+def test_a_window_on_files_says_it_goes_with_the_archive() -> None:
+    # report FILE --from 2026-03-02 said "give input files or --archive, not both": no --archive was given.
+    for extra in (["--from", "2026-03-02"], ["--to", "2026-03-03"], ["--head", "WS2"], ["--device", "4082"]):
+        res = CliRunner().invoke(app, ["report", LOGS[0], *extra])
+        assert res.exit_code == 2, (extra, res.output)
+        (line,) = res.stderr.strip().splitlines()
+        assert f"{extra[0]} goes with --archive" in line and "not both" not in line, line
+    res = CliRunner().invoke(app, ["report", LOGS[0], "--archive", "arc"])
+    assert res.exit_code == 2 and "give input files or --archive, not both" in res.stderr

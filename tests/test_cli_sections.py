@@ -162,3 +162,23 @@ def test_a_reset_outside_the_logs_span_is_decided_but_said(samples: Path) -> Non
         app, ["sections", str(samples / "example_station.log"), "--layout", "example", "--reset", "B1@2030-03-02"]
     )
     assert "warning: --reset B1@2030-03-02T00:00:00" in text.stdout
+
+
+def test_a_log_without_detections_starts_its_sections_at_its_first_record_not_1970(
+    samples: Path, tmp_path: Path
+) -> None:
+    # The Osong excerpt has records but no wheel on both systems: the start rows were timed 1970-01-01 00:00:00.
+    res = runner.invoke(
+        app, ["sections", str(samples / "osong_ws4_0932_detection.log"), "--layout", "example", "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    times = {t["time"] for t in json.loads(res.stdout)["timeline"]}
+    assert times == {"2015-10-31T09:32:24.000Z"}, times
+    text = runner.invoke(app, ["sections", str(samples / "osong_ws4_0932_detection.log"), "--layout", "example"])
+    assert "1970" not in text.stdout and "2015-10-31 09:32:24" in text.stdout
+    # An empty log has no time at all: no start rows timed 1970 either.
+    empty = tmp_path / "empty.log"
+    empty.write_bytes(b"")
+    res = runner.invoke(app, ["sections", str(empty), "--layout", "example", "--json"])
+    assert res.exit_code == 0, res.output
+    assert "1970" not in res.stdout

@@ -70,6 +70,26 @@ def test_crossing_usage_errors_are_exit_2(samples: Path) -> None:
     assert res.exit_code == 2 and "TRAIN=HEAD_DEVICE,EOT_DEVICE" in res.stderr
 
 
+def test_a_train_of_misspelt_devices_is_refused_not_an_empty_table(samples: Path) -> None:
+    """--train naming devices none of the inputs has (a typo) gave an empty table, a warning that listed the
+    devices left over but not the ones misspelt, and exit 0."""
+    csv = str(samples / "crossing_example.csv")
+    res = runner.invoke(app, ["crossing", csv, "--layout", "example", "--train", "A=a-hed,a-eot"])
+    assert res.exit_code == 2, res.output
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "a-hed, a-eot" in lines[0] and "A-eot, A-head, B-eot, B-head" in lines[0], lines
+
+
+def test_a_named_device_without_fixes_is_said_and_the_train_still_runs(samples: Path) -> None:
+    # An EOT unit silent all day is a case to analyse (its warnings held on): not refused, but said by name.
+    csv = str(samples / "crossing_example.csv")
+    res = runner.invoke(app, ["crossing", csv, "--layout", "example", "--train", "A=A-head,A-eott", "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert any("A-eott" in w and "no fix" in w for w in doc["warnings"]), doc["warnings"]
+    assert {r["train"] for r in doc["timelines"]} == {"A"}
+
+
 def test_crossing_table_lists_violations_first(samples: Path) -> None:
     res = runner.invoke(app, ["crossing", str(samples / "crossing_example.csv"), "--layout", "example", *TRAINS])
     assert res.exit_code == 0

@@ -14,6 +14,7 @@ import re
 import shutil
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -185,3 +186,83 @@ def test_links_of_the_readme_and_docs_resolve() -> None:
             if not (page.parent / target).exists():
                 broken.append(f"{page.relative_to(ROOT)}: {target}")
     assert not broken, broken
+
+
+# The `sh` blocks of docs/*.md run as the README's do, page by page in a directory of their own (in order:
+# archive.md's ingest makes the archive its queries read).  What a page shows for a server, a cluster or a
+# benchmark's own data is not run here, for the reason given; `text` and bare blocks are output, not commands.
+DOC_NOT_RUN = {
+    "/srv/": "a server's paths (archive.md's and scaling.md's outline of a deployment)",
+    "broker.example": "needs a TLS MQTT broker (tests/test_live_mqtts.py starts one)",
+    "ruff check": "the linters run on the checkout, not on a copy of sample_logs (.ci/run runs them)",
+    "benchmarks": "benchmarks run by hand on data they generate (docs/development.md)",
+    "r3m.log": "measured runs on the benchmark logs (hundreds of MB, not shipped)",
+    "r12m.log": "measured runs on the benchmark logs (hundreds of MB, not shipped)",
+    "--archive ing3": "the archive the measured runs made of r3m.log",
+}
+
+
+def doc_examples() -> list[tuple[str, str]]:
+    """(page, command line) of every ``sh`` block of docs/*.md (``\\`` continuations joined)."""
+    out = []
+    for page in sorted((ROOT / "docs").glob("*.md")):
+        text = page.read_text("utf-8")
+        for block in re.findall(r"^```sh\n(.*?)^```", text, re.M | re.S):
+            joined = re.sub(r"\\\n\s*", "", block)
+            out += [(page.name, line.strip()) for line in joined.splitlines() if line.strip()]
+    return out
+
+
+DOCS = doc_examples()
+
+
+@pytest.fixture(scope="module")
+def doc_dir(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], Path]:
+    """A page's directory, holding a copy of sample_logs/: made at its first example, kept for the rest."""
+    made: dict[str, Path] = {}
+
+    def get(page: str) -> Path:
+        if page not in made:
+            made[page] = tmp_path_factory.mktemp(page.replace(".", "_"))
+            shutil.copytree(ROOT / "sample_logs", made[page] / "sample_logs")
+        return made[page]
+
+    return get
+
+
+def test_the_docs_pages_show_commands_that_run() -> None:
+    assert {page for page, _ in DOCS} >= {"archive.md", "development.md", "scaling.md"}
+    assert any(example.startswith("trackside query --archive arc") for _, example in DOCS)
+
+
+@pytest.mark.parametrize(("page", "example"), DOCS)
+def test_docs_example_runs(page: str, example: str, doc_dir: Callable[[str], Path]) -> None:
+    for key, why in DOC_NOT_RUN.items():
+        if key in example:
+            pytest.skip(why)
+    run_example(example, doc_dir(page))
+
+
+def test_the_readme_synopsis_names_every_option() -> None:
+    # It had left out speeds --layout, forecast --layout and forecast --fail-on-due.
+    import typer
+
+    from console.cli.app import app
+
+    block = (ROOT / "README.md").read_text("utf-8").split("## Commands", 1)[1].split("```", 2)[1]
+    synopsis: dict[str, str] = {}
+    command = ""
+    for line in block.splitlines():
+        m = re.match(r"trackside (\w+)", line)
+        command = m.group(1) if m else command
+        synopsis[command] = synopsis.get(command, "") + line
+    group = typer.main.get_command(app)
+    missing = [
+        f"{name} {'/'.join(p.opts)}"
+        for name, cmd in group.commands.items()  # type: ignore[attr-defined]
+        for p in cmd.params
+        if p.param_type_name == "option"
+        and p.opts != ["--help"]
+        and not any(re.search(rf"(?<![\w-]){re.escape(o)}(?![\w-])", synopsis.get(name, "")) for o in p.opts)
+    ]
+    assert not missing, missing

@@ -226,6 +226,15 @@ def test_forecast_errors_are_one_line(tmp_path: Path) -> None:
     assert res.exit_code == 2 and "--horizon" in res.output
 
 
+def test_a_horizon_without_its_unit_is_refused_not_taken_as_seconds(tmp_path: Path) -> None:
+    # --horizon 30 (meaning 30 days) said "Due for maintenance within 0.000347222 days" and exited 0.
+    for text in ("30", "30days"):
+        res = runner.invoke(app, ["forecast", "--horizon", text, "--archive", str(tmp_path)])
+        assert res.exit_code == 2, (text, res.output)
+        (line,) = res.stderr.strip().splitlines()
+        assert f"--horizon {text!r}" in line and "30d" in line, line
+
+
 def test_a_head_the_archive_never_saw_is_refused_not_reported_nothing_due(tmp_path: Path) -> None:
     # A typo (--head WS05) said "0 series ... Nothing is due within 30 days." and exited 0, as for a healthy head.
     arc = tmp_path / "arc"

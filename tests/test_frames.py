@@ -523,6 +523,45 @@ def test_an_unknown_can_log_suffix_is_an_input_error(tmp_path: Path) -> None:
         parse_can([write_raw(tmp_path / "bus.pcap", b"x\n")])
 
 
+# A CAN log saved under another name (a candump kept as .txt, an ASC export saved as .log, no suffix, gzip
+# without .gz) is read by its content, as docs/usage.md promises ("a file is told by its content, never by its
+# name"); it was refused as "unknown CAN log format '.txt'", or an ASC named .log had every line rejected.
+MISNAMED_CAN = [
+    ("can_counts.log", "candump.txt", False),
+    ("can_counts.asc", "asc_export.log", False),
+    ("can_counts.asc", "asc_export", False),
+    ("can_counts.trc", "trace.txt", False),
+    ("can_counts.log", "candump_gz", True),
+]
+
+
+@pytest.mark.parametrize(("sample", "name", "gz"), MISNAMED_CAN)
+def test_a_can_log_is_read_by_its_content_whatever_its_name(tmp_path: Path, sample: str, name: str, gz: bool) -> None:
+    data = (SAMPLES / sample).read_bytes()
+    misnamed = write_raw(tmp_path / name, gzip.compress(data) if gz else data)
+    expected, want = parse_can([SAMPLES / sample])
+    frames, report = parse_can([misnamed])
+    assert report.rejected == want.rejected == 0
+    assert report.files[0].format == want.files[0].format  # type: ignore[attr-defined]
+    pd.testing.assert_frame_equal(frames.drop(columns="file"), expected.drop(columns="file"))
+
+
+@pytest.mark.parametrize(("sample", "name", "gz"), MISNAMED_CAN)
+def test_frames_command_reads_a_misnamed_can_log(tmp_path: Path, sample: str, name: str, gz: bool) -> None:
+    import json
+
+    from typer.testing import CliRunner
+
+    from console.cli.app import app
+
+    data = (SAMPLES / sample).read_bytes()
+    misnamed = write_raw(tmp_path / name, gzip.compress(data) if gz else data)
+    res = CliRunner().invoke(app, ["frames", str(misnamed), "--json"])
+    assert res.exit_code == 0, res.output
+    right = json.loads(CliRunner().invoke(app, ["frames", str(SAMPLES / sample), "--json"]).stdout)
+    assert json.loads(res.stdout)["events"] == right["events"]
+
+
 def test_a_can_check_byte_frame_with_der_set_is_rejected(tmp_path: Path) -> None:
     path = tmp_path / "bus.log"
     path.write_text("(1.0) can0 187#03A5E80300 R\n(2.0) can0 187#0BA5E80301 R\n")

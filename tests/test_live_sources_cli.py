@@ -64,3 +64,12 @@ def test_follow_reads_every_source_given(tmp_path: Path) -> None:
     }
     assert [s["uri"] for s in summary["sources"]] == [f"file:{a}", str(b)]
     assert all(s["connected"] for s in summary["sources"]) or all(s["messages"] for s in summary["sources"])
+
+
+@pytest.mark.parametrize("uri", ["mqqt://127.0.0.1:1883/application/+/device/+/event/up", "gspd://127.0.0.1:2947"])
+def test_a_misspelt_source_type_is_named_not_taken_for_a_missing_directory(uri: str) -> None:
+    # It read as a file path and said "mqqt:/127.0.0.1:1883/application/+/…: no such directory mqqt:/127.0…".
+    out = run("follow", uri, "--idle-exit", "0.5")
+    assert out.returncode == 2, out
+    (line,) = out.stderr.strip().splitlines()
+    assert uri in line and f"unknown source type '{uri.split(':')[0]}'" in line and "mqtt://" in line, line

@@ -149,3 +149,34 @@ def test_a_layout_name_with_control_characters_is_shown_escaped(tmp_path: Path) 
         )
         assert result.exit_code == 0, result.output
         assert "\x1b" not in result.stdout and "on \\x1b[31mRed line:" in result.stdout
+
+
+def test_a_fault_that_starts_after_the_run_ends_is_refused(tmp_path: Path) -> None:
+    # --fault dead_channel:WS3:40m --duration 30m ran a clean run, said nothing and exited 0.
+    for args in (["--duration", "30m"], ["--days", "1"]):
+        start = "40m" if args[0] == "--duration" else "2d"
+        result = CliRunner().invoke(
+            app, ["simulate", "-o", str(tmp_path / "run"), *args, "--fault", f"dead_channel:WS3:{start}"]
+        )
+        assert result.exit_code == 2, (args, result.output)
+        assert result.stderr.count("\n") == 1 and "after the run ends" in result.stderr, result.stderr
+    assert not (tmp_path / "run").exists()
+    ok = CliRunner().invoke(
+        app, ["simulate", "-o", str(tmp_path / "ok"), "--duration", "30m", "--fault", "dead_channel:WS3:29m"]
+    )
+    assert ok.exit_code == 0, ok.output
+
+
+def test_days_and_duration_together_are_refused(tmp_path: Path) -> None:
+    # --days 0.5 --duration 1h simulated half a day and dropped --duration without a word.
+    result = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "run"), "--days", "0.5", "--duration", "1h"])
+    assert result.exit_code == 2, result.output
+    assert result.stderr.count("\n") == 1 and "--days" in result.stderr and "--duration" in result.stderr
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_bare_duration_is_said_in_seconds(tmp_path: Path) -> None:
+    # --duration 30 is 30 s: the summary said "simulated 30 on …: 0 trains", leaving the unit to guess.
+    result = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "run"), "--duration", "30"])
+    assert result.exit_code == 0, result.output
+    assert result.stdout.startswith("simulated 30s on "), result.stdout

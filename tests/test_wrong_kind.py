@@ -122,6 +122,28 @@ def test_an_empty_log_is_still_zero_records_not_an_error(tmp_path: Path) -> None
     assert result.exit_code == 0, result.output
 
 
+def test_an_empty_gnss_export_is_zero_fixes_beside_the_others_not_an_error(tmp_path: Path) -> None:
+    """A unit that logged nothing leaves an empty export: gnss and crossing refused it ("nothing readable as
+    GNSS: an empty file"), and with it the whole run of a day's files, where analyze, frames and health read
+    an empty file as zero records (docs/usage.md; refuse_wrong_kind's own rule)."""
+    import json
+
+    from tests.conftest import SAMPLES
+
+    empty = tmp_path / "T2-eot.csv"
+    empty.write_bytes(b"")
+    csv = str(SAMPLES / "crossing_example.csv")
+    alone = runner.invoke(app, ["gnss", str(empty), "--json"])
+    assert alone.exit_code == 0, alone.output
+    assert json.loads(alone.stdout)["fixes"] == []
+    both = runner.invoke(app, ["gnss", csv, str(empty), "--json"])
+    assert both.exit_code == 0, both.output
+    assert len(json.loads(both.stdout)["fixes"]) == 187
+    crossing = runner.invoke(app, ["crossing", csv, str(empty), "--layout", "example", "--json"])
+    assert crossing.exit_code == 0, crossing.output
+    assert len(json.loads(crossing.stdout)["timelines"]) == 4
+
+
 def test_records_after_a_banner_or_a_long_preamble_are_recognised(tmp_path: Path) -> None:
     """An export that opens with a banner, 3,000 lines of junk or a 70 kB line: its records are still read,
     and every line before them is rejected with its reason (the totals add up)."""

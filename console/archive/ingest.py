@@ -754,6 +754,10 @@ def run_ingest(
                 publish(root, job.new, [rel for rel in job.new_parts if rel not in job.synced])
                 summary.generation = job.gen
                 summary.published = True
+            else:
+                for rel in job.new_parts:  # the ledger's rows of files seen before: no manifest will name them
+                    with contextlib.suppress(OSError):
+                        (root / rel).unlink()
             clock.lap("publish")
         except BaseException:
             job.records.abort()

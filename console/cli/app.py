@@ -128,6 +128,14 @@ class _Group(_OneLineUsage, TyperGroup):
     """The app's group: an unknown command is one line too."""
 
     def resolve_command(self, ctx: Any, args: list[str]) -> Any:
+        if args[:1] == ["help"]:  # not "Did you mean 'health'?"
+            raise _one_line(
+                UsageError(
+                    "'help' is not a command: trackside --help lists the commands, trackside COMMAND --help "
+                    "explains one",
+                    ctx,
+                )
+            )
         try:
             return super().resolve_command(ctx, args)
         except UsageError as error:
@@ -140,6 +148,7 @@ def _new_app() -> _Trackside:
         name="trackside",
         help="Terminal console and log analyzer for railway train detection.",
         no_args_is_help=True,
+        context_settings={"help_option_names": ["-h", "--help"]},  # -h as most tools take it
         # Shell completion: `trackside --install-completion` (bash, zsh, fish, PowerShell).
         add_completion=True,
         pretty_exceptions_enable=False,

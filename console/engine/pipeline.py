@@ -272,7 +272,12 @@ class Pipeline:
                 warnings = self.events.warnings(self.stream.heads)
         s = self.settings
         if start_sections and s.sections is not None and s.events is not None and self.section_engine is None:
-            self._engine(0)  # no event at all: every section keeps its start state
+            # No event at all: every section keeps its start state, from the log's first record (none in an
+            # empty log: then no start rows, rather than rows timed 1970-01-01).
+            first = self.acc.first_record_ns()
+            engine = self._engine(first if first is not None else 0)
+            if first is None:
+                engine.transitions = []
             self.first_event_ns = None
             self._drain()
         if self.settings.health is not None:

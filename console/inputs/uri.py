@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import parse_qs, unquote, urlsplit
@@ -10,6 +11,7 @@ from console.inputs.base import Source, SourceError
 
 SCHEMES = ("file", "gpsd", "mqtt", "mqtts", "can")
 DEFAULT_PORTS = {"gpsd": 2947, "mqtt": 1883, "mqtts": 8883}
+_URI_SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.-]+")  # RFC 3986's, two letters at least (C:\ is a drive)
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,12 @@ def parse_uri(text: str) -> SourceURI:
     standard input.
     """
     scheme, sep, rest = text.partition(":")
+    unknown = sep and rest.startswith("//") and scheme not in SCHEMES and _URI_SCHEME.fullmatch(scheme)
+    if unknown and not Path(text).exists():  # mqqt://…, http://…: not a path whose directory is missing
+        raise SourceError(
+            f"{text}: unknown source type {scheme!r}: expected a file (PATH or file:PATH), - (standard input), "
+            "gpsd://HOST:PORT, mqtt://HOST:PORT/TOPIC, mqtts://HOST:PORT/TOPIC or can:INTERFACE[:CHANNEL]"
+        )
     if not sep or scheme not in SCHEMES or (len(scheme) == 1 and rest.startswith("\\")):
         return SourceURI("file", path=text)
     if scheme == "file":

@@ -35,6 +35,7 @@ import can
 import numpy as np
 import pandas as pd
 
+from parsers.frames.can_head import can_format_of_head
 from parsers.frames.table import CHECK_BYTE, DER_BIT, FRAME_COLUMNS, FrameColumns, finish_table, suspect_mask
 from parsers.frames.trc import ResumedTRCReader, check_trc_header, classify_unread, version_name
 from parsers.report import FileReport, ParseReport
@@ -463,6 +464,7 @@ def _read_blf(path: Path, fr: CanFileReport, report: ParseReport, msgs: _CanMess
 
 
 _FORMATS = {".log": "candump", ".asc": "asc", ".blf": "blf", ".trc": "trc"}
+_FORMAT_HEAD_BYTES = 64 * 1024  # a long run of comments or an ASC header before the first frame
 
 
 def can_log_format(path: Path) -> str | None:
@@ -474,16 +476,21 @@ def can_log_format(path: Path) -> str | None:
 
 
 def _can_format(path: Path) -> str:
+    """The file's format by its content (a candump saved as ``.txt``, an ASC export as ``.log``); by its name
+    only when the content is no CAN log at all (an empty file)."""
     stream, raw, _ = open_input(path)
     try:
-        head = stream.read(4)
-    except (OSError, EOFError) as exc:
+        head = stream.read(_FORMAT_HEAD_BYTES)
+    except (OSError, EOFError, zlib.error) as exc:
         raise InputError(f"{path}: cannot read ({exc})") from None
     finally:
         stream.close()
         raw.close()
-    if head == b"LOGG":
-        return "blf"
+    by_content = can_format_of_head(head)
+    if by_content is not None:
+        if by_content == "trc":
+            check_trc_header(path)
+        return by_content
     fmt = can_log_format(path)
     if fmt is None:
         suffix = path.suffix.lower()

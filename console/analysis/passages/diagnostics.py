@@ -297,6 +297,11 @@ class DiagAccumulator:
     def devices(self) -> DeviceTable:
         return inventory(self._lookup(), self.head_first_ns, self.head_last_ns, self._identity)
 
+    def first_record_ns(self) -> int | None:
+        """The time of the earliest timed record read so far (None: none yet)."""
+        first = int(self.head_first_ns.min()) if len(self.head_first_ns) else _BIG
+        return None if first == _BIG else first
+
     def _overlap(self, luts: RegisterTables, buckets: Columns) -> tuple[np.ndarray | None, list[int], np.ndarray]:
         """Records repeated from another file (a mask over all records, None: none), their count per file
         and their times."""

@@ -79,6 +79,15 @@ def crossing(
         fixes, report, _states = parse_gnss(files)
         # A file of which every line was rejected is refused, as gnss does: not an empty table and exit 0.
         refuse_unread(report, "gnss")
+        present = set(fixes["device"].astype(str).unique()) if len(fixes) else set()
+        named = [d for t in trains for d in (*t.head, *t.eot)]
+        absent = [d for d in dict.fromkeys(named) if d not in present]
+        if named and len(absent) == len(set(named)):
+            there = ", ".join(sorted(present)) or "none"
+            raise fail(  # fail escapes the names
+                f"--train: no fix from {', '.join(absent)} in the inputs "
+                f"(their devices: {there}); name devices as the gnss command lists them"
+            )
         run = run_crossings(fixes, lay, trains)
         violations = run.violations
         warnings = []
@@ -90,6 +99,8 @@ def crossing(
             )
         if run.position_jumps:
             warnings.append(f"{count(run.position_jumps, 'fix')} set aside as position jumps (implausible for a train)")
+        if absent:
+            warnings.append(f"--train names {', '.join(absent)}: no fix from {'it' if len(absent) == 1 else 'them'}")
         if run.unassigned_devices:
             warnings.append("devices in no train: " + ", ".join(run.unassigned_devices))
         if not run.trains:

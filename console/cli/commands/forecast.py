@@ -86,10 +86,14 @@ def forecast(
         from console.archive.reader import Window, names_a_unit
         from console.archive.views import require_archive
 
+        # A bare number would be seconds (as simulate's --duration takes it): for a horizon in days, a slip.
+        unitless = horizon.strip().replace(".", "", 1).isdecimal()
         try:
             horizon_days = parse_duration(horizon) / 86_400.0
-        except ValueError as exc:
-            raise fail(f"--horizon: {exc}") from None
+        except ValueError:
+            unitless = True
+        if unitless:
+            raise fail(f"--horizon {horizon!r}: expected a time with its unit, e.g. 30d (days) or 12h (hours)")
         if not 0 < horizon_days <= 3650:
             raise fail("--horizon: between 1s and 3650d")
         try:

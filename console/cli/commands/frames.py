@@ -22,28 +22,15 @@ from console.cli.options import JsonOpt, RecordsJsonlOpt, StrictOpt
 
 
 def _is_can_log(path: Path) -> bool:
-    """CAN logs by suffix (.asc, .blf, .trc, each maybe .gz) or, for .log, by content (candump lines start with '(')."""
+    """A CAN log by its content (candump, ASC, TRC lines, a BLF container: parsers.kinds), whatever its name; by
+    its name (.log, .asc, .blf, .trc, maybe .gz) only when the content tells nothing (an empty file)."""
     from parsers.frames.can import can_log_format
-    from parsers.sources import open_input
+    from parsers.kinds import classify_file
 
-    fmt = can_log_format(path)
-    if fmt in ("asc", "blf", "trc"):
-        return True
-    if fmt != "candump":
-        return False
-    stream, raw, _ = open_input(path)  # gzip and UTF-16 as the parsers see them
-    try:
-        head = stream.read(4096)
-    finally:
-        stream.close()
-        raw.close()
-    if head.startswith(b"LOGG"):
-        return True
-    for line in head.splitlines():
-        line = line.strip()
-        if line and not line.startswith(b"#"):
-            return line.startswith(b"(")
-    return False
+    kind = classify_file(path).kind
+    if kind == "empty":
+        return can_log_format(path) in ("asc", "blf", "trc")
+    return kind == "can"
 
 
 # Columns of a frame row that mean something only for a sensor's own (count) frame.
@@ -80,7 +67,10 @@ def _frame_rows(all_frames: Any) -> list[dict[str, Any]]:
 def frames(
     files: Annotated[
         list[Path],
-        typer.Argument(metavar="FILE...", help="Sensor frame files (text) or CAN logs (candump .log, .asc, .blf)."),
+        typer.Argument(
+            metavar="FILE...",
+            help="Sensor frame files (text) or CAN logs (candump, Vector ASC/BLF, PEAK TRC; told by content).",
+        ),
     ],
     layout: Annotated[
         str | None,

@@ -79,6 +79,10 @@ def report(
         if on_archive:
             from console.archive.history import archive_collector
 
+            if inputs and archive is None:
+                window = (("--from", start), ("--to", end), ("--head", head), ("--device", device))
+                given = next(name for name, value in window if value is not None and value != "")
+                raise fail(f"{given} goes with --archive DIR (a report on files covers them whole): drop it")
             if inputs:
                 raise fail("give input files or --archive, not both")
             if archive is not None and output is not None and os.fsdecode(output) != "-":

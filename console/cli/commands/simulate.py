@@ -100,8 +100,13 @@ def simulate(
         str, typer.Option("--layout", metavar="LAYOUT", help="Layout file, or osong / example.")
     ] = "example",
     duration: Annotated[
-        str, typer.Option("--duration", metavar="DURATION", help="Simulated time: 90s, 30m, 2h, 1h30m.")
-    ] = "2h",
+        str | None,
+        typer.Option(
+            "--duration",
+            metavar="DURATION",
+            help="Simulated time: 90s, 30m, 2h, 1h30m (a bare number is seconds).  [default: 2h]",
+        ),
+    ] = None,
     seed: Annotated[
         int, typer.Option("--seed", metavar="N", help="Random seed: the same seed gives the same run.")
     ] = 1,
@@ -217,8 +222,11 @@ def simulate(
         from console.sim.station import SimConfig, StationSim
         from console.sim.writers import write_run
 
+        if days is not None and duration is not None:
+            raise fail("--days runs whole days from midnight, --duration a stretch of time: give one or the other")
+        duration_text = duration or "2h"
         try:
-            seconds = parse_duration(duration) if days is None else days * 86_400.0
+            seconds = parse_duration(duration_text) if days is None else days * 86_400.0
             health_period = None if health_every is None else parse_duration(health_every)
         except ValueError as exc:
             raise fail(f"--duration/--health-every: {exc}") from None
@@ -237,6 +245,7 @@ def simulate(
         faults = tuple(_parse_fault(f) for f in (fault or []))
         trainsets = fleet if fleet is not None else (3 if days is not None else 0)
         _check_targets(faults, lay, trainsets, health_only)
+        _check_fault_times(faults, fault or [], seconds, duration_text if days is None else f"{days:g}d")
         if not health_only:
             _warn_heads_off_the_track(lay)
         layout_file = Path(layout)
@@ -319,9 +328,11 @@ def simulate(
         if json_out:
             print_json(summary)
         else:
+            bare = duration_text.strip().replace(".", "", 1).isdecimal()
+            shown = f"{duration_text.strip()}s" if bare else duration_text  # a bare number is seconds: said so
             out = Console(highlight=False)
             out.print(
-                f"simulated {duration} on {clean(lay.name)} (seed {seed}): {count(len(sim.trains), 'train')}, "
+                f"simulated {shown} on {clean(lay.name)} (seed {seed}): {count(len(sim.trains), 'train')}, "
                 f"{count(len(sim.truth_axles), 'axle passage')};"
                 f" GNSS every {sim.period_s:.1f} s (LoRa SF{spreading_factor})",
                 markup=False,
@@ -335,6 +346,13 @@ def simulate(
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
+
+
+def _check_fault_times(faults: tuple[Any, ...], texts: list[str], seconds: float, run: str) -> None:
+    """A fault that starts after the run ends never shows: refused, so the run is not taken for one with it."""
+    for f, text in zip(faults, texts, strict=True):
+        if f.start_s >= seconds:
+            raise fail(f"--fault {text!r}: starts after the run ends ({run}): it would never show")
 
 
 def _warn_heads_off_the_track(lay: Any) -> None:
