@@ -14,7 +14,8 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 
-from console.analysis.geo import TrackProjector, geodesic_m
+from geographiclib.geodesic import Geodesic
+
 from console.layout import Layout, LevelCrossing, Section, format_kilometre_post
 
 # The crossing controller's GNSS noise allowance (ControllerSettings.noise_m): two statements of where a
@@ -78,7 +79,12 @@ def section_spans(lay: Layout) -> list[SectionSpan]:
 
 def crossing_places(lay: Layout) -> list[CrossingPlace]:
     spans = section_spans(lay)
-    proj = TrackProjector(lay.track) if len(lay.track) >= 2 else None
+    proj = None
+    if len(lay.track) >= 2 and lay.crossings:
+        # Here, not at the top: shapely costs every command that reads a layout its start-up.
+        from console.analysis.geo import TrackProjector
+
+        proj = TrackProjector(lay.track)
     out = []
     for c in lay.crossings:
         section = next((sp.section.id for sp in spans if sp.from_m <= c.chainage_m <= sp.to_m), None)
@@ -158,7 +164,7 @@ def _track_findings(lay: Layout) -> list[LayoutFinding]:
     ]
     for i, (a, b) in enumerate(itertools.pairwise(lay.track)):
         by_chainage = b.chainage_m - a.chainage_m
-        apart = geodesic_m(a.lat, a.lon, b.lat, b.lon)
+        apart = float(Geodesic.WGS84.Inverse(a.lat, a.lon, b.lat, b.lon, Geodesic.DISTANCE)["s12"])
         if abs(apart - by_chainage) > max(TRACK_SCALE_MIN_M, TRACK_SCALE_TOLERANCE * by_chainage):
             out.append(
                 LayoutFinding(

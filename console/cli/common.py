@@ -477,9 +477,10 @@ def read_logs(
     return job
 
 
-def load_layout(spec: str, *, warn: bool = True) -> Any:
+def load_layout(spec: str, *, warn: bool = True, said_here: tuple[str, ...] = ()) -> Any:
     """The layout, or a one-line error (exit 2). With ``warn``, what `trackside layout` would warn of is named
-    on stderr in one line: a section with its signs swapped shows disturbed in every command that reads it."""
+    on stderr in one line: a section with its signs swapped shows disturbed in every command that reads it
+    (but the checks in ``said_here``, which the command words itself)."""
     from console.layout import LayoutError, load_layout
 
     try:
@@ -490,7 +491,7 @@ def load_layout(spec: str, *, warn: bool = True) -> Any:
         from console.analysis.layout_checks import WARNING, check_layout
         from console.plural import count
 
-        warned = [f for f in check_layout(lay) if f.level == WARNING]
+        warned = [f for f in check_layout(lay) if f.level == WARNING and f.check not in said_here]
         if warned:
             named = ", ".join(f"{f.check} {clean(f.subject)}" for f in warned[:4]) + (", …" if len(warned) > 4 else "")
             sys.stderr.write(

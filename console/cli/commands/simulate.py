@@ -241,7 +241,7 @@ def simulate(
             raise fail("--one-log and --health-only go with --days N")
         if days is not None and (live or mqtt):
             raise fail("--days writes finished logs; --live and --mqtt run now: give one or the other")
-        lay = load_layout(layout)
+        lay = load_layout(layout, said_here=("head_off_track",))  # said below, in its words
         faults = tuple(_parse_fault(f) for f in (fault or []))
         trainsets = fleet if fleet is not None else (3 if days is not None else 0)
         _check_targets(faults, lay, trainsets, health_only)
