@@ -325,3 +325,36 @@ def test_an_archive_without_diagnostic_records_reports_and_forecasts(tmp_path: P
         assert "internal error" not in res.output
     forecast = json.loads(runner.invoke(app, ["forecast", "--archive", str(arc), "--json"]).stdout)
     assert forecast["due"] == []
+
+
+def test_a_head_alone_is_forecast_from_the_archives_last_day_as_with_the_others(tmp_path: Path) -> None:
+    """``forecast --head H`` started the horizon at H's own last day: a head silent for the archive's last days
+    was `watch` alone and `due` among the others (docs/monitoring.md: the horizon counts from the end of the
+    archive's last day, the same day for every series)."""
+    run = tmp_path / "run"
+    args = ["simulate", "-o", str(run), "--days", "12", "--health-only", "--health-every", "2h", "--seed", "3"]
+    res = subprocess.run([TRACKSIDE, *args, "--fault", "analog_drift:WS2:0"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    for k, day in enumerate(sorted(p for p in run.iterdir() if p.is_dir())):
+        lines = (day / "diagnostic.log").read_text(encoding="utf-8").splitlines(keepends=True)
+        # WS2's board silent for the last five days (its logs lost), the other heads still reporting.
+        kept = [x for x in lines if k < 7 or "Trackinfo:WS2\t" not in x]
+        (logs / f"{day.name}.log").write_text("".join(kept), encoding="utf-8")
+    arc = tmp_path / "arc"
+    res = runner.invoke(app, ["ingest", str(logs), "--archive", str(arc)])
+    assert res.exit_code == 0, res.output
+
+    def statuses(*extra: str) -> dict[tuple[Any, ...], str]:
+        res = runner.invoke(app, ["forecast", "--archive", str(arc), "--horizon", "5d", "--json", *extra])
+        assert res.exit_code == 0, res.output
+        return {
+            (f["channel"], f["figure"]): f["status"]
+            for f in json.loads(res.stdout)["forecasts"]
+            if f["target"] == "WS2"
+        }
+
+    together = statuses()
+    assert together[(2, "analog_margin")] == "due"  # the drift crosses 7 days after WS2's last day: within 5 of now
+    assert statuses("--head", "WS2") == together

@@ -228,12 +228,18 @@ def _fit(x: np.ndarray, y: np.ndarray, settings: ForecastSettings) -> _Fit:
     return float(res[0]), float(res[2]), float(res[3]), float(np.median(x)), float(np.median(y))
 
 
-def forecasts(series: Iterable[Series], settings: ForecastSettings = ForecastSettings()) -> list[Forecast]:
-    """Every series' forecast: the due ones first by date, then the others by target."""
+def forecasts(
+    series: Iterable[Series], settings: ForecastSettings = ForecastSettings(), now_ns: int | None = None
+) -> list[Forecast]:
+    """Every series' forecast: the due ones first by date, then the others by target.
+
+    ``now_ns``: where every horizon starts, the end of the archive's last day (default: of the series' last day,
+    when they are all the archive's; a head alone is given the archive's, :func:`last_day_end`)."""
     from console.analysis.health.rules import natural_order_key
 
     given = [s for s in series if len(s.day)]
-    now_ns = (max(int(s.day[-1]) for s in given) + 1) * NS_PER_DAY if given else None
+    if now_ns is None:
+        now_ns = last_day_end(given)
     out = [forecast(s, settings, now_ns) for s in given]
     far = 2**62
 
@@ -248,6 +254,12 @@ def forecasts(series: Iterable[Series], settings: ForecastSettings = ForecastSet
         )
 
     return sorted(out, key=key)
+
+
+def last_day_end(series: Iterable[Series]) -> int | None:
+    """The end of the last day any of the series has a figure for (None: none has)."""
+    days = [int(s.day[-1]) for s in series if len(s.day)]
+    return (max(days) + 1) * NS_PER_DAY if days else None
 
 
 def due_list(items: Iterable[Forecast]) -> list[Forecast]:
