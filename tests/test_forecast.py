@@ -358,3 +358,18 @@ def test_a_head_alone_is_forecast_from_the_archives_last_day_as_with_the_others(
     together = statuses()
     assert together[(2, "analog_margin")] == "due"  # the drift crosses 7 days after WS2's last day: within 5 of now
     assert statuses("--head", "WS2") == together
+
+
+def test_a_textfile_named_dash_is_refused_not_written_as_a_file_named_dash(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--textfile -`` wrote a file called "-" in the working directory, where '-' is standard input or output
+    to every other trackside file argument (``report -o -``); standard output carries the forecast itself."""
+    arc = tmp_path / "arc"
+    res = runner.invoke(app, ["ingest", str(SAMPLES / "osong_ws4_0932_detection.log"), "--archive", str(arc)])
+    assert res.exit_code == 0, res.output
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, ["forecast", "--archive", str(arc), "--textfile", "-"])
+    assert res.exit_code == 2
+    assert res.output.count("\n") == 1 and "--textfile -:" in res.output and "/dev/stdout" in res.output
+    assert not (tmp_path / "-").exists()
