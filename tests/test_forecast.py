@@ -373,3 +373,18 @@ def test_a_textfile_named_dash_is_refused_not_written_as_a_file_named_dash(
     assert res.exit_code == 2
     assert res.output.count("\n") == 1 and "--textfile -:" in res.output and "/dev/stdout" in res.output
     assert not (tmp_path / "-").exists()
+
+
+def test_days_left_count_from_the_archives_last_day_for_a_silent_head_too() -> None:
+    """A head silent for the archive's last 16 days had its days left counted from its own last day: 16 days
+    more than the horizon's, which starts at the archive's (docs/monitoring.md: "days from the archive's last day
+    to the forecast crossing")."""
+    from console.sinks.tables.forecast_tables import _days_left
+
+    quiet = _series("analog_margin", [30 - 1.0 * k for k in range(14)])  # crosses 16.5 days after its end
+    later = Series("analog_margin", "WS9", 1, np.arange(DAY0, DAY0 + 30), np.full(30, 45.0), 0.0)
+    f = next(f for f in forecasts([quiet, later]) if f.target == "WS1")
+    archive_end = (DAY0 + 30) * NS_PER_DAY
+    assert f.crossing_ns is not None
+    assert f.to_dict()["days_left"] == round((f.crossing_ns - archive_end) / NS_PER_DAY, 2)  # 0.5, not 16.5
+    assert _days_left(f).startswith(f"{(f.crossing_ns - archive_end) / NS_PER_DAY:.0f}")
