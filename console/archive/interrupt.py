@@ -57,3 +57,13 @@ def interruptible(con: Any) -> Iterator[None]:
         os.close(write_end)
         watcher.join(timeout=5)
         os.close(read_end)
+
+
+def is_ctrl_c(exc: BaseException) -> bool:
+    """Ctrl-C as DuckDB reports it: its Python package turns the KeyboardInterrupt of a statement it runs into
+    ``RuntimeError: Query interrupted`` (and ``Connection.interrupt`` into ``InterruptException``)."""
+    if isinstance(exc, KeyboardInterrupt):
+        return True
+    if type(exc).__name__ == "InterruptException" and type(exc).__module__ in ("duckdb", "_duckdb"):
+        return True
+    return type(exc) is RuntimeError and str(exc) == "Query interrupted"
