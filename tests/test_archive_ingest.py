@@ -316,3 +316,27 @@ def test_an_ingest_leaves_a_reading_reports_spill_folder_alone_and_removes_a_dea
     assert sorted((arc / "tmp").iterdir()) == live
     assert list(reading) == []  # read to its end: its folder goes with it
     assert list((arc / "tmp").iterdir()) == []
+
+
+def test_what_a_directory_holds_but_ingest_does_not_read_is_said(tmp_path: Path) -> None:
+    """A dangling link, a FIFO and hidden files in an ingested directory vanished without a word (the report says
+    why it skips each); now the summary and --json name each, as the report does."""
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    (logs / "station.log").write_bytes((SAMPLES / "osong_ws4_0932_detection.log").read_bytes())
+    (logs / "gone.log").symlink_to(tmp_path / "nowhere.log")
+    os.mkfifo(logs / "feed.fifo")
+    (logs / ".hidden.log").write_bytes((SAMPLES / "osong_ws4_1032_detection.log").read_bytes())
+    expected = [
+        f"{logs / 'feed.fifo'}: a FIFO, not a regular file: skipped",
+        f"{logs / 'gone.log'}: a symlink to nothing: skipped",
+        f"{logs}: 1 hidden entries (names starting with '.') not read",
+    ]
+    res = _ingest(tmp_path / "arc", logs, extra=("--json",))
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["warnings"] == expected
+    res = _ingest(tmp_path / "arc", logs)
+    assert res.exit_code == 0, res.output
+    assert [line.removeprefix("warning  ") for line in res.stdout.splitlines() if line.startswith("warning")] == (
+        expected
+    )

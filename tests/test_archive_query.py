@@ -334,3 +334,31 @@ def test_a_part_cut_short_or_deleted_on_disk_is_named_not_an_internal_error(tmp_
     res = runner.invoke(app, ["report", "--archive", str(arc), "--format", "json"])
     assert res.exit_code == 2
     assert res.stderr == f"trackside: error: {arc}: the archive is damaged: {part.relative_to(arc)} is missing\n"
+
+
+@pytest.mark.parametrize("fmt", ["table", "csv", "jsonl"])
+def test_ctrl_c_stops_a_long_query_at_once_with_130(archive: Path, fmt: str) -> None:
+    """Ctrl-C in a query that runs for minutes: the table said "internal error: RuntimeError: Query interrupted"
+    (exit 2); csv, json and jsonl (DuckDB's engine alone, which does not look for Ctrl-C) ran on to the end."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    sql = "SELECT sum(hash(a.range * b.range)) AS s FROM range(400000) a, range(400000) b"  # minutes of work
+    command = [sys.executable, "-c", "from console.cli.app import app; app()", "query", sql]
+    proc = subprocess.Popen(
+        [*command, "--archive", str(archive), "--format", fmt],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # as from a shell: Ctrl-C not ignored
+    )
+    try:
+        time.sleep(3)  # started, and inside the statement
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=20)
+    finally:
+        proc.kill()
+    assert (proc.returncode, err) == (130, "")
+    assert out == ""

@@ -310,6 +310,37 @@ def test_a_signal_mid_run_exits_128_plus_n_and_leaves_no_partial_report(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.fifo"]
 
 
+def test_ctrl_c_that_a_library_turns_into_its_own_error_still_exits_130() -> None:
+    """DuckDB turns Ctrl-C in a running statement into ``RuntimeError: Query interrupted``: Ctrl-C in
+    `report --archive` (or `forecast`) said "internal error: RuntimeError: Query interrupted", exit 2."""
+    code = (
+        "import sys, duckdb\n"
+        "from console.cli.common import guard, install_process_guards\n"
+        "install_process_guards()\n"
+        "def body():\n"
+        "    con = duckdb.connect()\n"
+        "    print('started', flush=True)\n"
+        "    con.execute('SELECT sum(hash(a.range * b.range)) FROM range(400000) a, range(400000) b').fetchall()\n"
+        "    return 0\n"
+        "sys.exit(guard(body))\n"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_default_sigint,  # as from a shell: Ctrl-C not ignored
+    )
+    try:
+        assert proc.stdout is not None and proc.stdout.readline() == "started\n"
+        time.sleep(1)  # inside the statement
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert (proc.returncode, err) == (130, "")
+
+
 def test_an_output_inside_a_directory_that_is_read_is_refused_through_links_too(tmp_path: Path) -> None:
     from console.output_path import OutputError, check_outside
 
@@ -411,3 +442,13 @@ def test_ingest_says_what_it_holds_back_after_the_last_line_end(tmp_path: Path) 
 def test_ingest_of_standard_input_twice_is_one_line(tmp_path: Path) -> None:
     res = run("ingest", "--archive", tmp_path / "arc", "-", "-", input=SMALL_LOG.read_bytes())
     one_line_error(res, "-: standard input given twice")
+
+
+def test_a_report_over_the_archive_ended_by_ctrl_c_in_duckdb_is_ctrl_c_not_an_internal_error() -> None:
+    """`report --archive` has its own last resort for errors: Ctrl-C inside a DuckDB statement reached it as
+    "RuntimeError: Query interrupted" and it printed "internal error: …" (exit 2, seen on a 30 M-record archive)."""
+    from console.sinks.report.command import _internal
+
+    with pytest.raises(KeyboardInterrupt):
+        _internal(RuntimeError("Query interrupted"))
+    assert _internal(RuntimeError("something else")) == 2

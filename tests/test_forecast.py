@@ -334,3 +334,66 @@ def test_an_archive_without_diagnostic_records_reports_and_forecasts(tmp_path: P
         assert "internal error" not in res.output
     forecast = json.loads(runner.invoke(app, ["forecast", "--archive", str(arc), "--json"]).stdout)
     assert forecast["due"] == []
+
+
+def test_a_head_alone_is_forecast_from_the_archives_last_day_as_with_the_others(tmp_path: Path) -> None:
+    """``forecast --head H`` started the horizon at H's own last day: a head silent for the archive's last days
+    was `watch` alone and `due` among the others (docs/monitoring.md: the horizon counts from the end of the
+    archive's last day, the same day for every series)."""
+    run = tmp_path / "run"
+    args = ["simulate", "-o", str(run), "--days", "12", "--health-only", "--health-every", "2h", "--seed", "3"]
+    res = subprocess.run([TRACKSIDE, *args, "--fault", "analog_drift:WS2:0"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    for k, day in enumerate(sorted(p for p in run.iterdir() if p.is_dir())):
+        lines = (day / "diagnostic.log").read_text(encoding="utf-8").splitlines(keepends=True)
+        # WS2's board silent for the last five days (its logs lost), the other heads still reporting.
+        kept = [x for x in lines if k < 7 or "Trackinfo:WS2\t" not in x]
+        (logs / f"{day.name}.log").write_text("".join(kept), encoding="utf-8")
+    arc = tmp_path / "arc"
+    res = runner.invoke(app, ["ingest", str(logs), "--archive", str(arc)])
+    assert res.exit_code == 0, res.output
+
+    def statuses(*extra: str) -> dict[tuple[Any, ...], str]:
+        res = runner.invoke(app, ["forecast", "--archive", str(arc), "--horizon", "5d", "--json", *extra])
+        assert res.exit_code == 0, res.output
+        return {
+            (f["channel"], f["figure"]): f["status"]
+            for f in json.loads(res.stdout)["forecasts"]
+            if f["target"] == "WS2"
+        }
+
+    together = statuses()
+    assert together[(2, "analog_margin")] == "due"  # the drift crosses 7 days after WS2's last day: within 5 of now
+    assert statuses("--head", "WS2") == together
+
+
+def test_a_textfile_named_dash_is_refused_not_written_as_a_file_named_dash(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--textfile -`` wrote a file called "-" in the working directory, where '-' is standard input or output
+    to every other trackside file argument (``report -o -``); standard output carries the forecast itself."""
+    arc = tmp_path / "arc"
+    res = runner.invoke(app, ["ingest", str(SAMPLES / "osong_ws4_0932_detection.log"), "--archive", str(arc)])
+    assert res.exit_code == 0, res.output
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, ["forecast", "--archive", str(arc), "--textfile", "-"])
+    assert res.exit_code == 2
+    assert res.output.count("\n") == 1 and "--textfile -:" in res.output and "/dev/stdout" in res.output
+    assert not (tmp_path / "-").exists()
+
+
+def test_days_left_count_from_the_archives_last_day_for_a_silent_head_too() -> None:
+    """A head silent for the archive's last 16 days had its days left counted from its own last day: 16 days
+    more than the horizon's, which starts at the archive's (docs/monitoring.md: "days from the archive's last day
+    to the forecast crossing")."""
+    from console.sinks.tables.forecast_tables import _days_left
+
+    quiet = _series("analog_margin", [30 - 1.0 * k for k in range(14)])  # crosses 16.5 days after its end
+    later = Series("analog_margin", "WS9", 1, np.arange(DAY0, DAY0 + 30), np.full(30, 45.0), 0.0)
+    f = next(f for f in forecasts([quiet, later]) if f.target == "WS1")
+    archive_end = (DAY0 + 30) * NS_PER_DAY
+    assert f.crossing_ns is not None
+    assert f.to_dict()["days_left"] == round((f.crossing_ns - archive_end) / NS_PER_DAY, 2)  # 0.5, not 16.5
+    assert _days_left(f).startswith(f"{(f.crossing_ns - archive_end) / NS_PER_DAY:.0f}")

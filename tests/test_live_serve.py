@@ -205,3 +205,38 @@ def test_served_station_view_loads_in_headless_chromium_shows_the_track_and_upda
     assert "clear" in later
     assert shot1[:8] == b"\x89PNG\r\n\x1a\n" and shot1 != shot2
     (tmp_path / "served.png").write_bytes(shot2)
+
+
+@pytest.mark.parametrize(
+    ("args", "error"),
+    [
+        (["--replay", "/nonexistent/ws4.log"], "/nonexistent/ws4.log: no such file"),
+        (["--replay"], "--replay needs the logs to replay"),
+        (["--archive", "/nonexistent/arc"], "add --replay"),
+        (["--replay", "--archive", "/nonexistent/arc"], "/nonexistent/arc: no archive here yet"),
+        (["--replay", str(REPO / "sample_logs" / "README.md")], "nothing to replay"),
+    ],
+)
+def test_a_served_view_that_could_not_start_is_refused_before_serving(args: list[str], error: str) -> None:
+    """`station --serve` with a replay that cannot start served the page anyway: each browser tab then failed
+    (and --archive alone served the simulation, the archive ignored).  Now the same one-line error as without
+    --serve, exit 2, and no server."""
+    port = free_port()
+    proc = subprocess.run(
+        trackside("station", "--serve", "--port", str(port), *args), capture_output=True, text=True, timeout=60
+    )
+    assert proc.returncode == 2, proc.stdout
+    assert proc.stderr.count("\n") == 1 and error in proc.stderr, proc.stderr
+    assert "Serving" not in proc.stdout
+
+
+def test_a_served_archive_replay_runs_the_archive_replay_in_each_tab() -> None:
+    """The served command dropped --archive, --from and --to: every tab of `station --replay --archive DIR
+    --serve` failed with "--replay needs the logs to replay"."""
+    from console.cli.commands.station_live import served_command
+
+    argv = served_command("example", [], 1, 5.0, True, [], Path("arc"), "2026-03-02T08:00", "2026-03-02T09:00")
+    assert argv[argv.index("station") :] == [
+        *("station", "--layout", "example", "--seed", "1", "--speed", "5.0", "--replay"),
+        *("--archive", "arc", "--from", "2026-03-02T08:00", "--to", "2026-03-02T09:00"),
+    ]

@@ -147,6 +147,42 @@ def test_the_alert_rules_pass_promtool() -> None:
     assert "SUCCESS: 5 rules found" in res.stdout
 
 
+@pytest.mark.parametrize(
+    ("days_left", "says"),
+    [
+        ("5.4", "crosses its threshold within the forecast's horizon, or already has: 5.4 days left."),
+        # Due by the trend's interval alone (its central line does not worsen): no crossing, no days_left series.
+        (
+            None,
+            "crosses its threshold within the forecast's horizon, or already has: no date yet (the trend's interval"
+            " reaches the threshold within the horizon; `trackside forecast --head WS2` shows it).",
+        ),
+    ],
+)
+def test_the_forecast_alert_says_the_days_left_or_that_there_is_no_date(
+    tmp_path: Path, days_left: str | None, says: str
+) -> None:
+    """A due series without a crossing date (forecast --textfile writes no days_left for it) was described as
+    "…or already has:  days left."."""
+    promtool = need("promtool")
+    labels = 'target="WS2",channel="2",figure="analog_margin"'
+    series = f"      - series: 'trackside_forecast_due{{{labels}}}'\n        values: '1x5'\n"
+    if days_left is not None:
+        series += f"      - series: 'trackside_forecast_days_left{{{labels}}}'\n        values: '{days_left}x5'\n"
+    (tmp_path / "test.yml").write_text(
+        f"rule_files:\n  - {REPO / 'docs' / 'alerts.yml'}\nevaluation_interval: 1m\ntests:\n  - interval: 1m\n"
+        f"    input_series:\n{series}"
+        "    alert_rule_test:\n      - eval_time: 2m\n        alertname: TracksideForecastDue\n"
+        "        exp_alerts:\n          - exp_labels:\n"
+        "              {severity: warning, target: WS2, channel: '2', figure: analog_margin}\n"
+        "            exp_annotations:\n              summary: 'WS2 is due for maintenance (analog_margin)'\n"
+        f'              description: "The analog_margin of WS2 Sys2 {says}"\n',
+        encoding="utf-8",
+    )
+    res = subprocess.run([promtool, "test", "rules", str(tmp_path / "test.yml")], capture_output=True, text=True)
+    assert res.returncode == 0, res.stdout + res.stderr
+
+
 # --------------------------------------------------------------------------- a real Prometheus
 
 

@@ -548,3 +548,29 @@ def test_crossing_lights_then_barriers() -> None:
     assert all(not down for on, down in seen if not on)  # never down with the lights off
     downs = [i for i, (_, down) in enumerate(seen, 1) if down]
     assert downs and downs[0] - on_at >= BARRIER_DELAY_S - 1
+
+
+def test_a_replay_shows_the_lines_it_could_not_read(tmp_path: Path) -> None:
+    """Replayed logs' rejected lines vanished: the view showed nothing of them.  Now each is a warning in the
+    log, as ``station --live`` shows a followed file's."""
+    lines = (ROOT / "sample_logs" / "example_station.log").read_text(encoding="utf-8").splitlines()
+    log = tmp_path / "[b]station.log"  # a name that looks like markup is shown as written
+    log.write_text("\n".join([*lines[:100], "not a record", *lines[100:]]) + "\n", encoding="utf-8")
+    source = ReplaySource([log], _load_layout("example"))
+    app = StationApp(StationModel(source), autoplay=False)
+
+    async def go() -> None:
+        async with app.run_test(size=SIZE) as pilot:
+            app.advance(1)
+            await pilot.pause()
+            rejected = [e for e in app.model.log if e.text.startswith("rejected")]
+            assert [(e.severity, e.text.split(": ")[0]) for e in rejected] == [("warning", f"rejected {log}:101")]
+            app.advance(1)  # said once, not at every step
+            assert len([e for e in app.model.log if e.text.startswith("rejected")]) == 1
+            await pilot.press("f")  # warnings and worse: still listed
+            await pilot.pause()
+            from console.tui.widgets.event_log import EventLog
+
+            assert f"rejected {log}:101" in str(app.query_one(EventLog).render())
+
+    run(go())

@@ -20,7 +20,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from console.analysis.health.forecast import FIGURES, STATUSES, Forecast, ForecastSettings, Series, due_list, forecasts
+from console.analysis.health.forecast import (
+    FIGURES,
+    STATUSES,
+    Forecast,
+    ForecastSettings,
+    Series,
+    due_list,
+    forecasts,
+    last_day_end,
+)
 from console.archive.reader import Window, user_window
 from console.archive.store import archive_dir, read_current
 from console.archive.trends import (
@@ -185,15 +194,19 @@ def archive_forecasts(
     say: Callable[[str], None] | None = None,
     figures: RecordFigures | None = None,
 ) -> tuple[list[Forecast], list[Series]]:
-    """Every head's, channel's and unit's forecast over the window (and the series they were fitted on)."""
+    """Every head's, channel's and unit's forecast over the window (and the series they were fitted on).
+
+    A window of one head (or unit) is forecast from the end of the last day of every head's figures, as it is
+    among the others: the horizon starts on the same day whichever heads are asked for."""
     con, _ = connect(root, manifest, tables={"records", "fixes"})
     try:
-        series = series_of(daily_figures(con, window, layout, say, figures))
+        every = series_of(daily_figures(con, replace(window, head=None), layout, say, figures))
     finally:
         con.close()
+    series = every if window.head is None else [s for s in every if s.target == window.head]
     if say is not None:
         say(f"fitting the trends of {len(series):,} series")
-    return forecasts(series, settings or ForecastSettings()), series
+    return forecasts(series, settings or ForecastSettings(), now_ns=last_day_end(every)), series
 
 
 FORECAST_COLUMNS = (

@@ -83,6 +83,9 @@ class IngestSummary:
     phases: dict[str, float] = field(default_factory=dict)
     # Each step's end: (wall ``perf_counter``, this process's ``process_time``), for benchmarks/bench_fleet.py.
     phase_ends: dict[str, tuple[float, float]] = field(default_factory=dict)
+    # What the inputs held but the ingest did not read, and why (a directory's dangling links, FIFOs, hidden
+    # entries; a file given twice): the report's words (console.inputs.recognise.expand).
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def records(self) -> int:
@@ -110,6 +113,7 @@ class IngestSummary:
             "rejected": self.rejected,
             "seconds": round(self.seconds, 3),
             "phase_seconds": {k: round(v, 3) for k, v in self.phases.items()},
+            "warnings": self.warnings,
             "files": [f.__dict__ for f in self.files],
         }
 
@@ -643,18 +647,27 @@ class _PhaseClock:
         self.t = now
 
 
-def expand_inputs(paths: Sequence[Path], root: Path) -> list[tuple[Path, str]]:
-    """(file to read, name it is known by): directories read whole (the report's order), ``-`` is stdin."""
+def expand_inputs(paths: Sequence[Path], root: Path, warnings: list[str] | None = None) -> list[tuple[Path, str]]:
+    """(file to read, name it is known by): directories read whole (the report's order), ``-`` is stdin.
+
+    ``warnings`` gets what the inputs hold but is not read, and why (the report's words)."""
     from console.inputs.recognise import ReportInputError, expand
 
     out: list[tuple[Path, str]] = []
     files: list[Path] = []
+    said = warnings if warnings is not None else []
+
+    def expanded(given: list[Path]) -> list[tuple[Path, str]]:
+        found, notes = expand(given, exclude=None)
+        said.extend(notes)
+        return [(f, str(f.resolve())) for f in found]
+
     if sum(str(p) == "-" for p in paths) > 1:
         raise ArchiveError("-: standard input given twice")  # as every other command says
     for p in paths:
         if str(p) == "-":
             if files:
-                out += [(f, str(f.resolve())) for f in expand(files)[0]]
+                out += expanded(files)
                 files = []
             tmp = root / TMP / f"stdin-{time.time_ns()}"
             with tmp.open("wb") as dst:
@@ -664,7 +677,7 @@ def expand_inputs(paths: Sequence[Path], root: Path) -> list[tuple[Path, str]]:
             files.append(p)
     try:
         if files:
-            out += [(f, str(f.resolve())) for f in expand(files, exclude=None)[0]]
+            out += expanded(files)
     except ReportInputError as exc:
         raise ArchiveError(str(exc)) from None
     return out
@@ -721,7 +734,7 @@ def run_ingest(
         summary = IngestSummary(root, current.generation)
         try:
             clock = _PhaseClock(summary.phases, summary.phase_ends)
-            inputs = expand_inputs(paths, root)
+            inputs = expand_inputs(paths, root, summary.warnings)
             layout = _inputs_layout(job, inputs, layout)
             # The derivation writes into the new manifest, as the records do; on a cluster, per group of heads.
             job.derivation = Derivation(root, job.new, layout, grouped=on_cluster())

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from console.archive.interrupt import interruptible
 from console.archive.store import DATA, ArchiveError, Manifest, read_current
 from console.safe_text import one_line
 
@@ -459,29 +460,30 @@ def run_query_result(
     """
     con = _query_connection(root, sql, manifest, computed, engine_only=True)
     try:
-        plain = plain_result(con, sql)
-        if plain is not None:
-            return plain
-        import duckdb  # the package's relations: Arrow results and epoch_ns projections
+        with interruptible(con):
+            plain = plain_result(con, sql)
+            if plain is not None:
+                return plain
+            import duckdb  # the package's relations: Arrow results and epoch_ns projections
 
-        try:
-            rel = con.sql(sql)
-            if rel is None:  # a statement without a result (none passes check_read_only today)
-                raise QueryError("the statement returns no rows")
-            names = list(rel.columns)
-            types = [str(t).upper() for t in rel.types]
-            times = frozenset(i for i, t in enumerate(types) if t in _PLAIN_TIME_TYPES)
-            if any(word in t for i, t in enumerate(types) if i not in times for word in _ARROW_TYPE_WORDS):
-                return QueryResult(names, arrow=rel.to_arrow_table())
-            if times:
-                # Top-level times as epoch nanoseconds (Python's datetime would drop them below the µs): no
-                # pyarrow to import for the commonest queries (records of a head in a time window).
-                rel = rel.project(
-                    ", ".join(f"epoch_ns(#{i + 1})" if i in times else f"#{i + 1}" for i in range(len(types)))
-                )
-            return QueryResult(names, rows=rel.fetchall(), ns_columns=times)
-        except duckdb.Error as exc:
-            raise QueryError(one_line(exc)) from None
+            try:
+                rel = con.sql(sql)
+                if rel is None:  # a statement without a result (none passes check_read_only today)
+                    raise QueryError("the statement returns no rows")
+                names = list(rel.columns)
+                types = [str(t).upper() for t in rel.types]
+                times = frozenset(i for i, t in enumerate(types) if t in _PLAIN_TIME_TYPES)
+                if any(word in t for i, t in enumerate(types) if i not in times for word in _ARROW_TYPE_WORDS):
+                    return QueryResult(names, arrow=rel.to_arrow_table())
+                if times:
+                    # Top-level times as epoch nanoseconds (Python's datetime would drop them below the µs): no
+                    # pyarrow to import for the commonest queries (records of a head in a time window).
+                    rel = rel.project(
+                        ", ".join(f"epoch_ns(#{i + 1})" if i in times else f"#{i + 1}" for i in range(len(types)))
+                    )
+                return QueryResult(names, rows=rel.fetchall(), ns_columns=times)
+            except duckdb.Error as exc:
+                raise QueryError(one_line(exc)) from None
     finally:
         con.close()
 
@@ -539,17 +541,18 @@ def run_query_batches(
     A result that needs Arrow's types comes whole, as one batch."""
     con = _query_connection(root, sql, manifest, computed, engine_only=True)
     try:
-        found = _plain_cursor(con, sql)
-        if found is not None:
-            names, times, cursor = found
-            while True:
-                try:
-                    rows = cursor.fetchmany(batch_rows)
-                except engine().Error as exc:  # a cast or a division fails as the rows are made
-                    raise QueryError(one_line(exc)) from None
-                yield QueryResult(names, rows=rows, ns_columns=times)
-                if len(rows) < batch_rows:
-                    return
+        with interruptible(con):
+            found = _plain_cursor(con, sql)
+            if found is not None:
+                names, times, cursor = found
+                while True:
+                    try:
+                        rows = cursor.fetchmany(batch_rows)
+                    except engine().Error as exc:  # a cast or a division fails as the rows are made
+                        raise QueryError(one_line(exc)) from None
+                    yield QueryResult(names, rows=rows, ns_columns=times)
+                    if len(rows) < batch_rows:
+                        return
     finally:
         con.close()
     yield run_query_result(root, sql, manifest, computed)
@@ -569,13 +572,14 @@ def show_query(
 
     con = _query_connection(root, sql, manifest, computed)
     try:
-        try:
-            rel = con.sql(sql)
-            if rel is None:  # a statement without a result (none passes check_read_only today)
-                raise QueryError("the statement returns no rows")
-            return render(rel, width)
-        except duckdb.Error as exc:
-            raise QueryError(one_line(exc)) from None
+        with interruptible(con):
+            try:
+                rel = con.sql(sql)
+                if rel is None:  # a statement without a result (none passes check_read_only today)
+                    raise QueryError("the statement returns no rows")
+                return render(rel, width)
+            except duckdb.Error as exc:
+                raise QueryError(one_line(exc)) from None
     finally:
         con.close()
 

@@ -23,6 +23,7 @@ from typing import IO, TYPE_CHECKING, Any, cast
 import typer
 
 from console import exit_codes
+from console.archive.interrupt import is_ctrl_c
 from console.cli.options import REJECTIONS_LISTED, STDIN
 from console.safe_text import clean, show_path
 
@@ -303,7 +304,7 @@ def guard(fn: Callable[[], int]) -> int:
     from parsers.sources import InputError
 
     try:
-        code = fn()
+        code = _run(fn)
         if sys.stdout is not None:
             sys.stdout.flush()
         return code
@@ -331,6 +332,18 @@ def guard(fn: Callable[[], int]) -> int:
         if os.environ.get("TRACKSIDE_DEBUG"):
             raise
         raise fail(f"internal error: {type(exc).__name__}: {exc} (set TRACKSIDE_DEBUG=1 for details)") from None
+
+
+def _run(fn: Callable[[], int]) -> int:
+    """``fn()``, Ctrl-C that a library turned into an error of its own raised as the KeyboardInterrupt it was."""
+    try:
+        return fn()
+    except (typer.Exit, typer.Abort):
+        raise
+    except Exception as exc:
+        if is_ctrl_c(exc):
+            raise KeyboardInterrupt from None
+        raise
 
 
 def print_json(doc: dict[str, Any]) -> None:

@@ -17,6 +17,7 @@ from console.analysis.sections.state import SectionState, Transition
 from console.inputs.base import GnssFix
 from console.layout import Layout
 from console.live.engine import LiveEngine
+from console.plural import count
 from console.tui.live_source import take_events
 from console.tui.model import LogEntry, TrainView
 from console.tui.sources import engine_trains
@@ -28,6 +29,7 @@ if TYPE_CHECKING:
     from console.drivers.batch import ChunkSource
     from parsers.diag.read import DiagChunk
     from parsers.diag.registry import DiagRegistry
+    from parsers.report import ParseReport
 
 ORDER_SLACK_NS = int(ORDER_SLACK_S * NS)
 INTERLEAVE_NS = NS  # several files' records are fed a second at a time: well inside the order slack
@@ -59,11 +61,12 @@ class ReplaySource:
         diag = [p for p in paths if _is_diag(p)]
         other = [p for p in paths if p not in diag]
         frame = None
+        gnss_report = None
         if other and len(layout.track) >= 2:
             from parsers.gnss_files import parse_gnss
 
-            frame, _report, _states = parse_gnss(other)
-        self._setup(layout, LogFiles(diag) if diag else None, frame)
+            frame, gnss_report, _states = parse_gnss(other)
+        self._setup(layout, LogFiles(diag) if diag else None, frame, gnss_report)
 
     @classmethod
     def from_parts(cls, layout: Layout, records: ChunkSource | None, fixes: pd.DataFrame | None) -> ReplaySource:
@@ -72,9 +75,18 @@ class ReplaySource:
         source._setup(layout, records, fixes)
         return source
 
-    def _setup(self, layout: Layout, records: ChunkSource | None, frame: pd.DataFrame | None) -> None:
+    def _setup(
+        self,
+        layout: Layout,
+        records: ChunkSource | None,
+        frame: pd.DataFrame | None,
+        gnss_report: ParseReport | None = None,
+    ) -> None:
         self.layout = layout
-        self._registry, self._files = _records_by_file(records)
+        self._registry, self._files, diag_report = _records_by_file(records)
+        # The lines the replay could not read, for the log at the first step (as `station --live` lists a
+        # followed file's): nothing the logs hold vanishes unseen.
+        self._unread = [r for r in (diag_report, gnss_report) if r is not None]
         self.fixes = _fixes_in_time_order(frame) if frame is not None and len(layout.track) >= 2 else []
         firsts = [int(f.time_ns.min()) for f in self._files]
         lasts = [int(f.time_ns.max()) for f in self._files]
@@ -139,12 +151,25 @@ class ReplaySource:
         self.engine = self.live.diag.sections or self._placeholder
 
     def advance(self, seconds: float, skip_quiet: bool = True) -> tuple[list[Transition], list[LogEntry]]:
-        skipped = self._skip_quiet() if skip_quiet else []
+        skipped = self._unread_notes() + (self._skip_quiet() if skip_quiet else [])
         target = min(self.end_ns, self._now + int(seconds * NS))
         self._now = max(self._now, target)
         self._play(self._now)
         transitions, entries = take_events(self._events, self._counts, self._now)
         return transitions, skipped + entries
+
+    def _unread_notes(self) -> list[LogEntry]:
+        """The replayed files' rejected lines, as warnings, once (the first step after the logs are read)."""
+        entries: list[LogEntry] = []
+        for report in self._unread:
+            entries += [
+                LogEntry(self._now, "warning", f"rejected {r.file}:{r.line}: {r.reason}") for r in report.rejections
+            ]
+            more = report.rejected - len(report.rejections)
+            if more > 0:
+                entries.append(LogEntry(self._now, "warning", f"and {count(more, 'more rejected line')}"))
+        self._unread = []
+        return entries
 
     def _skip_quiet(self) -> list[LogEntry]:
         """Logs from different days leave hours of nothing between them: with no
@@ -196,14 +221,17 @@ class _FileRecords:
         return self.chunk.time_ns
 
 
-def _records_by_file(records: ChunkSource | None) -> tuple[DiagRegistry | None, list[_FileRecords]]:
-    """Every record of ``records``, parsed once, per file in read order (with the registry they refer to)."""
+def _records_by_file(
+    records: ChunkSource | None,
+) -> tuple[DiagRegistry | None, list[_FileRecords], ParseReport | None]:
+    """Every record of ``records``, parsed once, per file in read order (with the registry they refer to, and
+    the report of the lines read)."""
     if records is None:
-        return None, []
+        return None, [], None
     from console.drivers.batch import ReadOptions
     from parsers.diag.read import DiagChunk
 
-    registry, chunks, _report = records.open(ReadOptions())
+    registry, chunks, report = records.open(ReadOptions())
     by_file: dict[int, list[DiagChunk]] = {}
     for chunk in chunks:
         if len(chunk):
@@ -213,7 +241,7 @@ def _records_by_file(records: ChunkSource | None) -> tuple[DiagRegistry | None, 
         fields = [np.concatenate([getattr(p, name) for p in parts]) for name in _CHUNK_FIELDS]
         chunk = DiagChunk(file_id, *fields)
         out.append(_FileRecords(chunk, np.maximum.accumulate(chunk.time_ns)))
-    return registry, out
+    return registry, out, report
 
 
 _CHUNK_FIELDS = ("register_id", "time_ns", "subsecond", "value", "data_code", "data_kind", "line")

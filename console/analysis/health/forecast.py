@@ -95,7 +95,7 @@ class Forecast:
     status: str
     threshold: float
     days: int  # daily figures fitted
-    last_ns: int  # the end of the last day with a figure: "now" for the horizon
+    last_ns: int  # the end of the series' last day with a figure
     last_value: float
     slope_per_day: float | None
     slope_low: float | None
@@ -106,6 +106,14 @@ class Forecast:
     latest_ns: int | None  # None with a crossing: the interval has no late end (the trend may stop)
     pivot_day: float | None = None  # the fitted lines pass through (median day, median figure)
     pivot_value: float | None = None
+    # "Now": where the horizon starts and the days left count from, the end of the archive's last day (None: the
+    # series' own, ``last_ns``).
+    now_ns: int | None = None
+
+    @property
+    def from_ns(self) -> int:
+        """Where the horizon starts and the days left count from."""
+        return self.last_ns if self.now_ns is None else max(self.now_ns, self.last_ns)
 
     @property
     def due(self) -> bool:
@@ -131,7 +139,7 @@ class Forecast:
             "crossing": iso(self.crossing_ns),
             "earliest": iso(self.earliest_ns),
             "latest": iso(self.latest_ns),
-            "days_left": None if self.crossing_ns is None else r((self.crossing_ns - self.last_ns) / NS_PER_DAY, 2),
+            "days_left": None if self.crossing_ns is None else r((self.crossing_ns - self.from_ns) / NS_PER_DAY, 2),
             "pivot_day": r(self.pivot_day),
             "pivot_value": r(self.pivot_value),
         }
@@ -183,6 +191,7 @@ def forecast(series: Series, settings: ForecastSettings = ForecastSettings(), no
             late,
             px,
             py,
+            now_ns,
         )
 
     if series.beyond(float(value[-1])):
@@ -228,12 +237,18 @@ def _fit(x: np.ndarray, y: np.ndarray, settings: ForecastSettings) -> _Fit:
     return float(res[0]), float(res[2]), float(res[3]), float(np.median(x)), float(np.median(y))
 
 
-def forecasts(series: Iterable[Series], settings: ForecastSettings = ForecastSettings()) -> list[Forecast]:
-    """Every series' forecast: the due ones first by date, then the others by target."""
+def forecasts(
+    series: Iterable[Series], settings: ForecastSettings = ForecastSettings(), now_ns: int | None = None
+) -> list[Forecast]:
+    """Every series' forecast: the due ones first by date, then the others by target.
+
+    ``now_ns``: where every horizon starts, the end of the archive's last day (default: of the series' last day,
+    when they are all the archive's; a head alone is given the archive's, :func:`last_day_end`)."""
     from console.analysis.health.rules import natural_order_key
 
     given = [s for s in series if len(s.day)]
-    now_ns = (max(int(s.day[-1]) for s in given) + 1) * NS_PER_DAY if given else None
+    if now_ns is None:
+        now_ns = last_day_end(given)
     out = [forecast(s, settings, now_ns) for s in given]
     far = 2**62
 
@@ -248,6 +263,12 @@ def forecasts(series: Iterable[Series], settings: ForecastSettings = ForecastSet
         )
 
     return sorted(out, key=key)
+
+
+def last_day_end(series: Iterable[Series]) -> int | None:
+    """The end of the last day any of the series has a figure for (None: none has)."""
+    days = [int(s.day[-1]) for s in series if len(s.day)]
+    return (max(days) + 1) * NS_PER_DAY if days else None
 
 
 def due_list(items: Iterable[Forecast]) -> list[Forecast]:

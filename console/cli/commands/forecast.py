@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Annotated
 
@@ -11,6 +12,7 @@ from console import exit_codes
 from console.cli.commands.ingest import ArchiveOpt
 from console.cli.common import Console, fail, guard, load_layout, one_json_form, print_document
 from console.cli.options import JsonOpt, RecordsJsonlOpt
+from console.output_path import STDOUT
 
 
 def forecast(
@@ -70,6 +72,11 @@ def forecast(
         from console.output_path import OutputError, check_output_file, check_outside, open_output
 
         target = None
+        if textfile is not None and os.fsdecode(textfile) == STDOUT:
+            # Standard output carries the forecast; "-" would be a file of that name, found by nobody.
+            raise fail(
+                "--textfile -: give the metrics file's name (node_exporter reads a directory; /dev/stdout: here)"
+            )
         if textfile is not None:
             try:  # before any work: never a device replaced, nor a file among the archive's own
                 target = check_output_file(textfile, [], what="metrics file")

@@ -174,7 +174,7 @@ def _print_summary(summary: object) -> None:
     from console.plural import count
     from console.safe_text import clean
 
-    lines: list[str] = []
+    lines: list[str] = [f"warning  {clean(w)}" for w in summary.warnings]
     rate = summary.records / summary.seconds if summary.seconds > 0 else 0.0
     for f in summary.files:
         if f.action in ("new", "grown", "replace"):

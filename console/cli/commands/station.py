@@ -90,39 +90,30 @@ def station(
             from console.cli.commands.station_live import live_uris, run_live_station
 
             uris = live_uris(live or [], args or [], replay)
-            return run_live_station(layout, uris, serve, host, port, seed, speed, replay, files, metrics)
+            if serve and not uris:
+                # What every browser tab will run: refused here in one line, not in each tab once it is served.
+                view_source(load_layout(layout), files, replay, archive, start, end, seed)
+            elif archive is not None or start or end:
+                raise fail("--archive/--from/--to replay history, not live sources: give --replay or --live")
+            return run_live_station(
+                layout,
+                uris,
+                serve,
+                host,
+                port,
+                seed,
+                speed,
+                replay,
+                files,
+                metrics,
+                archive=archive,
+                start=start,
+                end=end,
+            )
         from console.tui.app import StationApp
         from console.tui.model import SPEEDS, StationModel
-        from console.tui.replay_source import ReplaySource
-        from console.tui.sim_source import SimSource
 
-        lay = load_layout(layout)
-        from_archive = archive is not None or bool(start) or bool(end)
-        if from_archive and not replay:
-            raise fail("--archive/--from/--to replay history: add --replay (trackside station --replay --archive DIR)")
-        if from_archive and files:
-            raise fail("replay either FILES or --archive, not both")
-        if replay and not files and not from_archive:
-            raise fail("--replay needs the logs to replay: trackside station --replay FILES... (or --archive DIR)")
-        if files and not replay:
-            raise fail("FILES are replayed: add --replay (trackside station --replay FILES...)")
-        source: Any
-        if from_archive:
-            source = archive_replay_source(archive, lay, start, end)
-        elif files:
-            if any(os.fsdecode(f) == "-" for f in files):
-                # The view reads its keys from standard input: the log must come another way.
-                raise fail("--replay -: the station view reads keys from standard input; give a file or <(zcat …)")
-            check_inputs(files)
-            try:
-                source = ReplaySource(files, lay)
-            except ValueError as exc:
-                raise fail(str(exc)) from None
-        else:
-            try:
-                source = SimSource(lay, seed=seed)
-            except ValueError as exc:
-                raise fail(str(exc)) from None
+        source = view_source(load_layout(layout), files, replay, archive, start, end, seed)
         if not (sys.stdin.isatty() and sys.stdout.isatty()) and "TEXTUAL_DRIVER" not in os.environ:
             # Textual would draw into a pipe and wait for keys that never come.
             raise fail("the station view needs a terminal: run it without pipes or redirection")
@@ -132,6 +123,40 @@ def station(
         return exit_codes.OK
 
     raise typer.Exit(guard(body))
+
+
+def view_source(
+    lay: Any, files: list[Path], replay: bool, archive: Path | None, start: str | None, end: str | None, seed: int
+) -> Any:
+    """The station view's source: the replay of FILES or of the archive's history, else the simulation; one line,
+    exit 2, on any usage or input error (before a terminal view or a server starts)."""
+    from console.tui.replay_source import ReplaySource
+    from console.tui.sim_source import SimSource
+
+    from_archive = archive is not None or bool(start) or bool(end)
+    if from_archive and not replay:
+        raise fail("--archive/--from/--to replay history: add --replay (trackside station --replay --archive DIR)")
+    if from_archive and files:
+        raise fail("replay either FILES or --archive, not both")
+    if replay and not files and not from_archive:
+        raise fail("--replay needs the logs to replay: trackside station --replay FILES... (or --archive DIR)")
+    if files and not replay:
+        raise fail("FILES are replayed: add --replay (trackside station --replay FILES...)")
+    if from_archive:
+        return archive_replay_source(archive, lay, start, end)
+    if files:
+        if any(os.fsdecode(f) == "-" for f in files):
+            # The view reads its keys from standard input: the log must come another way.
+            raise fail("--replay -: the station view reads keys from standard input; give a file or <(zcat …)")
+        check_inputs(files)
+        try:
+            return ReplaySource(files, lay)
+        except ValueError as exc:
+            raise fail(str(exc)) from None
+    try:
+        return SimSource(lay, seed=seed)
+    except ValueError as exc:
+        raise fail(str(exc)) from None
 
 
 def archive_replay_source(archive: Path | None, lay: Any, start: str | None, end: str | None) -> Any:

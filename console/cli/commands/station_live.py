@@ -14,7 +14,17 @@ _CLI = "from console.cli.app import app; app()"
 WEB_DRIVER_ENV = "TEXTUAL_DRIVER"  # set by textual-serve for the app it runs
 
 
-def served_command(layout: str, live: list[str], seed: int, speed: float, replay: bool, files: list[Path]) -> list[str]:
+def served_command(
+    layout: str,
+    live: list[str],
+    seed: int,
+    speed: float,
+    replay: bool,
+    files: list[Path],
+    archive: Path | None = None,
+    start: str | None = None,
+    end: str | None = None,
+) -> list[str]:
     """The command textual-serve runs for each browser: this station view, without --serve."""
     cmd = [sys.executable, "-c", _CLI, "station", "--layout", layout]
     for s in live:
@@ -23,6 +33,9 @@ def served_command(layout: str, live: list[str], seed: int, speed: float, replay
         cmd += ["--seed", str(seed), "--speed", str(speed)]
         if replay:
             cmd += ["--replay", *(str(f) for f in files)]
+            for option, value in (("--archive", archive), ("--from", start), ("--to", end)):
+                if value is not None:
+                    cmd += [option, str(value)]
     return cmd
 
 
@@ -46,6 +59,10 @@ def run_live_station(
     replay: bool,
     files: list[Path],
     metrics: str | None = None,
+    *,
+    archive: Path | None = None,
+    start: str | None = None,
+    end: str | None = None,
 ) -> int:
     from console.inputs.base import SourceError
     from console.inputs.stream import STDIN
@@ -62,7 +79,7 @@ def run_live_station(
     if serve:
         from console.tui.served import StationServer
 
-        argv = served_command(layout, live, seed, speed, replay, files)
+        argv = served_command(layout, live, seed, speed, replay, files, archive, start, end)
         server = StationServer(argv, host=host, port=port, title="trackside station")
         server.serve()
         stopped = {signal.SIGINT: exit_codes.INTERRUPTED, signal.SIGTERM: exit_codes.TERMINATED}

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from console import exit_codes
 from console.analysis.health.rules import Severity
+from console.archive.interrupt import is_ctrl_c
 from console.layout import LayoutError
 from console.output_path import STDOUT, OutputError, OutputTarget, check_output_file, open_output
 from console.safe_text import clean, show_path
@@ -197,6 +198,8 @@ def _say_where(path: Path) -> None:
 
 
 def _internal(exc: Exception) -> int:
+    if is_ctrl_c(exc):
+        raise KeyboardInterrupt from None  # Ctrl-C, as DuckDB reports it: the command's guard ends with 130
     if os.environ.get("TRACKSIDE_DEBUG"):
         raise exc
     return _error(f"internal error: {type(exc).__name__}: {exc} (set TRACKSIDE_DEBUG=1 for details)")

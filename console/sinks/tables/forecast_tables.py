@@ -46,10 +46,10 @@ def _days_left(f: Forecast) -> str:
     if f.crossing_ns is None and f.earliest_ns is None:
         return "–"
     if f.status == "past" and f.crossing_ns is not None:  # since when: a whole day
-        return f"{(f.crossing_ns - f.last_ns) / NS_PER_DAY:.0f}"
+        return f"{(f.crossing_ns - f.from_ns) / NS_PER_DAY:.0f}"
 
     def d(ns: int | None) -> str:
-        return "open" if ns is None else f"{(ns - f.last_ns) / NS_PER_DAY:.1f}"
+        return "open" if ns is None else f"{(ns - f.from_ns) / NS_PER_DAY:.1f}"
 
     point = "–" if f.crossing_ns is None else d(f.crossing_ns)
     return f"{point} ({d(f.earliest_ns)}…{d(f.latest_ns)})"
