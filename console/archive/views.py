@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from console.archive.interrupt import interruptible
 from console.archive.store import DATA, ArchiveError, Manifest, read_current
+from console.interrupt import interruptible
 from console.safe_text import one_line
 
 if TYPE_CHECKING:

@@ -23,8 +23,8 @@ from typing import IO, TYPE_CHECKING, Any, cast
 import typer
 
 from console import exit_codes
-from console.archive.interrupt import is_ctrl_c
 from console.cli.options import REJECTIONS_LISTED, STDIN
+from console.interrupt import is_ctrl_c
 from console.safe_text import clean, show_path
 
 JSON_SCHEMA_ANALYZE = "trackside.analyze/1"

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from console import exit_codes
 from console.analysis.health.rules import Severity
-from console.archive.interrupt import is_ctrl_c
+from console.interrupt import is_ctrl_c
 from console.layout import LayoutError
 from console.output_path import STDOUT, OutputError, OutputTarget, check_output_file, open_output
 from console.safe_text import clean, show_path
