@@ -311,34 +311,22 @@ def test_a_signal_mid_run_exits_128_plus_n_and_leaves_no_partial_report(
 
 
 def test_ctrl_c_that_a_library_turns_into_its_own_error_still_exits_130() -> None:
-    """DuckDB turns Ctrl-C in a running statement into ``RuntimeError: Query interrupted``: Ctrl-C in
-    `report --archive` (or `forecast`) said "internal error: RuntimeError: Query interrupted", exit 2."""
-    code = (
-        "import sys, duckdb\n"
-        "from console.cli.common import guard, install_process_guards\n"
-        "install_process_guards()\n"
-        "def body():\n"
-        "    con = duckdb.connect()\n"
-        "    print('started', flush=True)\n"
-        "    con.execute('SELECT sum(hash(a.range * b.range)) FROM range(400000) a, range(400000) b').fetchall()\n"
-        "    return 0\n"
-        "sys.exit(guard(body))\n"
-    )
-    proc = subprocess.Popen(
-        [sys.executable, "-c", code],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=_default_sigint,  # as from a shell: Ctrl-C not ignored
-    )
-    try:
-        assert proc.stdout is not None and proc.stdout.readline() == "started\n"
-        time.sleep(1)  # inside the statement
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=30)
-    finally:
-        proc.kill()
-    assert (proc.returncode, err) == (130, "")
+    """DuckDB turns Ctrl-C in a running statement into ``RuntimeError: Query interrupted`` (and its
+    ``Connection.interrupt`` into ``InterruptException``): Ctrl-C in `report --archive` (or `forecast`) said
+    "internal error: RuntimeError: Query interrupted", exit 2.  The error is raised here as DuckDB raises it:
+    whether DuckDB notices a SIGINT in time depends on the machine's load (on 2 busy cores it sometimes ran
+    on for 30 s), and what is under test is the guard's reading of it."""
+    for raised in ("RuntimeError('Query interrupted')", "duckdb.InterruptException('INTERRUPT Error')"):
+        code = (
+            "import sys, duckdb\n"
+            "from console.cli.common import guard, install_process_guards\n"
+            "install_process_guards()\n"
+            "def body():\n"
+            f"    raise {raised}\n"
+            "sys.exit(guard(body))\n"
+        )
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+        assert (proc.returncode, proc.stderr) == (130, ""), raised
 
 
 def test_an_output_inside_a_directory_that_is_read_is_refused_through_links_too(tmp_path: Path) -> None:
