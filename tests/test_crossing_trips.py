@@ -96,18 +96,26 @@ def _trip(t0_s: float, x0_m: float, d: int, v_mps: float, accel_s: float, cruise
     return t0_s + t, x0_m + d * x, np.maximum(v, 0.0), d
 
 
-def test_one_train_two_passes_in_opposite_directions() -> None:
-    """Up over the crossing, stabled 2.5 km past it (the units off, the crew changing ends), back down."""
-    crossing = LAYOUT.crossings[0]
-    c, length = crossing.chainage_m, 100.0
+def _back_and_forth(length: float, until_s: float = 1e9, swap: bool = True) -> list[Fix]:
+    """Up over the crossing, stabled 2.5 km past it (the units off, the crew changing ends: the head
+    unit the other end's, ``swap``), back down."""
+    c = LAYOUT.crossings[0].chainage_m
     up = _trip(0.0, c - 3000, 1, 20.0, 0.0, 255.0, 40.0)  # stops with the head at c + 2500
-    down = _trip(600.0, c + 2400, -1, 20.0, 40.0, 250.0, 0.0)  # the other end leads: 100 m nearer
+    down = _trip(600.0, c + 2500 - swap * length, -1, 20.0, 40.0, 250.0, 0.0)  # the other end leads
     fixes = []
     for ts, xs, vs, d in (up, down):
         for t, x, v in zip(ts, xs, vs, strict=True):
             for role, dt, at in ((HEAD, 0.0, x), (EOT, 0.5, x - d * length)):
                 t_fix = int((t + dt) * NS)
-                fixes.append(Fix(t_fix + int(0.2 * NS), t_fix, "T", role, float(at), float(v)))
+                if t + dt <= until_s:
+                    fixes.append(Fix(t_fix + int(0.2 * NS), t_fix, "T", role, float(at), float(v)))
+    return fixes
+
+
+def test_one_train_two_passes_in_opposite_directions() -> None:
+    crossing = LAYOUT.crossings[0]
+    length = 100.0
+    fixes = _back_and_forth(length)
     ctl = run_controller(crossing, [TrainSpec("T", length)], fixes)
     rows = timeline(ctl, fixes)
     # The truth: the head at the road's near edge, the tail past its far edge.
@@ -128,3 +136,21 @@ def test_one_train_two_passes_in_opposite_directions() -> None:
     # Each pass's spare split is its own warning's: the controller kept both onsets.
     onsets = ctl.tracks["T"].onsets
     assert [o.t_ns for o in onsets][-1] == second.t_on_ns and first.t_on_ns in [o.t_ns for o in onsets]
+
+
+@pytest.mark.parametrize(("until_s", "swap"), [(612.0, False), (660.0, True)])
+def test_a_warning_for_the_next_trip_is_not_paired_with_the_last_arrival(until_s: float, swap: bool) -> None:
+    """The fixes end with the train just off on its way back (612 s: 36 m moved, its head unit where it
+    stood; 660 s: 800 m), its warning on: the pass keeps its own warning, and the one on now is a row
+    without a head arrival, not a late warning of the pass."""
+    crossing = LAYOUT.crossings[0]
+    length = 100.0
+    alone = timeline(run_controller(crossing, [TrainSpec("T", length)], f := _back_and_forth(length, 400.0)), f)
+    fixes = _back_and_forth(length, until_s, swap)
+    ctl = run_controller(crossing, [TrainSpec("T", length)], fixes)
+    assert ctl.tracks["T"].warned  # on for the way back
+    passed, coming = timeline(ctl, fixes)
+    assert passed == alone[0]  # the row it gets without the way back
+    assert passed.violations == () and passed.lead_s is not None and passed.lead_s >= crossing.warning_time_s
+    assert coming.t_head_arrival_ns is None and coming.t_off_ns is None and coming.violations == ()
+    assert passed.t_off_ns is not None and coming.t_on_ns is not None and coming.t_on_ns > passed.t_off_ns

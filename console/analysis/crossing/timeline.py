@@ -145,10 +145,11 @@ def warnings_of(ctl: CrossingController, train: str) -> list[WarningSpan]:
     tr = ctl.tracks[train]
     ons, eps = tr.onsets, tr.episodes
     released = {(on, off) for on, off, _why in tr.releases}
-    out = [
-        WarningSpan(on, off, r_on, r_off, ons[i] if i < len(ons) else None, (on, off) in released)
-        for i, (on, off, r_on, r_off) in enumerate(eps)
-    ]
+    out = []
+    for i, (on, off, r_on, r_off) in enumerate(eps):
+        onset = ons[i] if i < len(ons) else None
+        t_on = onset.t_ns if onset is not None else on  # an episode's on may read 0 as unset: its onset's
+        out.append(WarningSpan(t_on, off, r_on, r_off, onset, (t_on, off) in released))
     if tr.t_on is not None and (tr.warned or len(eps) < max(len(ons), 1)):
         off = None if tr.warned else tr.t_off
         out.append(WarningSpan(tr.t_on, off, tr.reason_on, tr.reason_off if off is not None else "", tr.onset, False))
@@ -254,7 +255,7 @@ def _train_rows(ctl: CrossingController, s: ControllerSettings, train: str, own:
     et = np.array([f.t_fix_ns for f in eots], dtype=np.int64)
     ec = np.array([f.chainage_m for f in eots])
     dirs, starts = trips(ht, hc, c, half, s.noise_m) if len(ht) else trips(et, ec, c, half, s.noise_m)
-    if len(dirs) <= 1:  # one pass (or none yet): the train's last warning, all its fixes
+    if len(dirs) == 0:  # not past the crossing (yet): the train's last warning, all its fixes
         t_off = tr.t_off if not tr.warned else None
         w = WarningSpan(tr.t_on, t_off, tr.reason_on, tr.reason_off, tr.onset, False) if tr.t_on is not None else None
         t_head = _arrival(ht, hc, et, ec, tr.direction, tr.spec.length_m, c - tr.direction * half)
@@ -285,6 +286,7 @@ def _train_rows(ctl: CrossingController, s: ControllerSettings, train: str, own:
     if held and arrivals[-1] is None:
         paired[-1] = held.pop(0)
     came = [a for a in arrivals if a is not None]
+    held_from = ws[held[0]].t_on if held else np.iinfo(np.int64).max  # its alarms are its own row's
     trailing = (paired[-1] is not None and arrivals[-1] is None) or bool(held)
 
     def released(after: int | None, upto: int | None) -> int:
@@ -312,7 +314,7 @@ def _train_rows(ctl: CrossingController, s: ControllerSettings, train: str, own:
             t_head,
             None if j is None else ws[j],
             released(prev, upto),
-            [(t, why) for t, why in alarms if lo <= t < hi],
+            [(t, why) for t, why in alarms if lo <= t < min(hi, held_from)],
         )
         if row is not None:
             rows.append(row)
