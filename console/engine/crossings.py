@@ -223,20 +223,20 @@ class CrossingFollow:
                 "time": iso(e.t_ns),
             }
             if e.kind == "off" and self.lead:
-                ev |= self._lead(ctl, e.train)
+                ev |= self._lead(ctl, e.train, e.t_ns)
             self.emit(ev)
 
-    def _lead(self, ctl: CrossingController, train: str) -> dict[str, Any]:
-        """The warning that just went off: its lead (head arrival − on), as the batch timeline computes it."""
-        rows = [r for r in timeline(ctl, list(self.recent.get(train, ()))) if r.train == train]
-        lead = rows[0].lead_s if rows else None
-        if lead is None:
+    def _lead(self, ctl: CrossingController, train: str, off_ns: int) -> dict[str, Any]:
+        """The warning that just went off at ``off_ns``: its lead (head arrival − on), as the batch timeline
+        computes it (its pass's row; none for a warning released before the train arrived)."""
+        row = next(
+            (r for r in timeline(ctl, list(self.recent.get(train, ()))) if r.train == train and r.t_off_ns == off_ns),
+            None,
+        )
+        lead = row.lead_s if row is not None else None
+        if row is None or lead is None:
             return {"lead_s": None, "warning_time_s": ctl.crossing.warning_time_s, "late": None}
-        return {
-            "lead_s": round(lead, 3),
-            "warning_time_s": rows[0].warning_time_s,
-            "late": rows[0].late_by_s is not None,
-        }
+        return {"lead_s": round(lead, 3), "warning_time_s": row.warning_time_s, "late": row.late_by_s is not None}
 
     def warnings_on(self) -> dict[str, bool]:
         return {code: ctl.warning_on for code, ctl in self.controllers.items()}

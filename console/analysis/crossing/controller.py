@@ -205,7 +205,8 @@ class _Track:
     reason_on: str = ""
     t_off: int | None = None
     reason_off: str = ""
-    onset: Onset | None = None
+    onset: Onset | None = None  # the last warning's
+    onsets: list[Onset] = field(default_factory=list)  # every warning's, in order (a timeline row per pass)
     releases: list[tuple[int, int, str]] = field(default_factory=list)  # (on, off, why) of released warnings
     alarms: set[str] = field(default_factory=set)
     episodes: list[tuple[int, int | None, str, str]] = field(default_factory=list)
@@ -645,6 +646,7 @@ class CrossingController:
             reason += " (head unit lost: EOT + train length)" if basis == "eot+length" else f" ({basis}: no fresh unit)"
         tr.warned, tr.t_on, tr.reason_on, tr.t_off, tr.reason_off = True, t_ns, reason, None, ""
         tr.onset = self._onset(tr, t_ns, b, basis)
+        tr.onsets.append(tr.onset)
         return [self._emit(t_ns, tr, "on", reason)]
 
     def _check_release(self, tr: _Track, fix: Fix) -> list[CrossingEvent]:
