@@ -245,3 +245,31 @@ def test_nmea_fixes_are_counted_against_the_rows_written_not_the_sentences(tmp_p
     pq.write_table(pa.concat_tables([fixes] * 3), arc / part)
     code, out = _verify(arc)
     assert code == 1 and [m["file"] for m in out["mismatches"]] == [nmea[0]["path"]]
+
+
+@pytest.mark.parametrize(
+    ("edit", "said"),
+    [
+        (lambda doc: {**doc, "generation": "x"}, "damaged manifest (ValueError"),
+        (lambda doc: {**doc, "tables": []}, "damaged manifest (AttributeError"),
+        (lambda doc: {**doc, "tables": {"records": [1, 2]}}, "damaged manifest (TypeError: a part's name"),
+        (lambda doc: {**doc, "files": ["x"]}, "damaged manifest (TypeError: a file's entry"),
+        (lambda doc: [doc], "not a trackside archive manifest"),
+        (None, "names no manifest"),  # CURRENT emptied
+    ],
+)
+def test_a_manifest_edited_by_hand_is_one_line_never_an_internal_error(made: Path, tmp_path: Path, edit, said) -> None:
+    # Found by review47: "generation": "x" gave "internal error: ValueError", an empty CURRENT an unclear line.
+    arc = tmp_path / "arc"
+    shutil.copytree(made, arc)
+    current = arc / "CURRENT"
+    if edit is None:
+        current.write_text("", "utf-8")
+    else:
+        manifest = arc / "manifests" / current.read_text("utf-8").strip()
+        manifest.write_text(json.dumps(edit(json.loads(manifest.read_text("utf-8")))), "utf-8")
+    for command in (["verify"], ["query", "SELECT 1"], ["report", "--format", "json", "-o", str(tmp_path / "r.json")]):
+        p = subprocess.run([TRACKSIDE, *command, "--archive", str(arc)], capture_output=True, text=True, timeout=120)
+        assert p.returncode == 2, (command, p.stderr)
+        assert said in p.stderr and "internal error" not in p.stderr, (command, p.stderr)
+        assert len(p.stderr.strip().splitlines()) == 1, (command, p.stderr)

@@ -89,12 +89,19 @@ class Manifest:
 
     @classmethod
     def from_dict(cls, doc: dict[str, Any]) -> Manifest:
+        """TypeError or ValueError where a field is not of its kind (a part's name not a string, …)."""
         version = int(doc.get("schema_version", 0))
         doc = migrate(doc, version)
+        tables = {str(k): list(v) for k, v in doc["tables"].items()}
+        if not all(isinstance(p, str) for parts in tables.values() for p in parts):
+            raise TypeError("a part's name is not a string")
+        files = list(doc["files"])
+        if not all(isinstance(f, dict) for f in files):
+            raise TypeError("a file's entry is not an object")
         return cls(
             generation=int(doc["generation"]),
-            tables={k: list(v) for k, v in doc["tables"].items()},
-            files=list(doc["files"]),
+            tables=tables,
+            files=files,
             derived=dict(doc.get("derived", {})),
             schema_version=SCHEMA_VERSION,
             created=str(doc.get("created", "")),
@@ -155,14 +162,20 @@ def read_current(root: Path) -> Manifest:
         return Manifest()
     except OSError as exc:
         raise ArchiveError(f"{pointer}: cannot read ({exc.strerror or exc})") from None
+    if not name or "/" in name or name in (".", ".."):
+        raise ArchiveError(f"{pointer}: names no manifest ({name!r}): the archive is damaged")
     path = root / MANIFESTS / name
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise ArchiveError(f"{path}: unreadable manifest ({exc})") from None
-    if not str(doc.get("schema", "")).startswith(SCHEMA + "/"):
+    if not isinstance(doc, dict) or not str(doc.get("schema", "")).startswith(SCHEMA + "/"):
         raise ArchiveError(f"{path}: not a trackside archive manifest")
-    return Manifest.from_dict(doc)
+    try:
+        return Manifest.from_dict(doc)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        # A manifest edited by hand or damaged on disk: said of the file, never an internal error.
+        raise ArchiveError(f"{path}: damaged manifest ({type(exc).__name__}: {exc})") from None
 
 
 ARCHIVE_ENTRIES = frozenset({CURRENT, MANIFESTS, DATA, TMP, LOCK, f".{CURRENT}.tmp"})
