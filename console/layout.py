@@ -166,6 +166,14 @@ class Layout:
     def has_head(self, head_id: str) -> bool:
         return head_id in self._by_id
 
+    def counted_head(self, head_id: str, device_id: int) -> CountingHead | None:
+        """The head a log's records of ``head_id`` on device ``device_id`` count for: None when the layout has
+        no such head, or gives it another device."""
+        spec = self._by_id.get(head_id)
+        if spec is None or (spec.device_id is not None and spec.device_id != device_id):
+            return None
+        return spec
+
     def sections_of(self, head_id: str) -> list[tuple[Section, int]]:
         """The sections a head bounds, with the sign it contributes to each."""
         return [(s, b.sign) for s in self.sections for b in s.bounds if b.head == head_id]

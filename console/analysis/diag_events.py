@@ -73,19 +73,28 @@ def power_gap_columns(
     }
 
 
-def silent_loss_columns(head: np.ndarray, last_ns: np.ndarray, power_gap_ns: int) -> dict[str, np.ndarray]:
-    """POWER_LOSS events of heads silent since ``last_ns`` while the log ran on (not heard again yet):
-    each at ``last + power gap``.  Columns of an :class:`EventBlock` without ``source``."""
+def head_event_columns(
+    kind: EventKind, head: np.ndarray, time_ns: np.ndarray, detail: Detail = Detail.NONE, aux_ns: int = 0
+) -> dict[str, np.ndarray]:
+    """One event of ``kind`` per head key, at its time (no direction, no channel).  Columns of an
+    :class:`EventBlock` without ``source``."""
     n = len(head)
     return {
-        "time_ns": np.asarray(last_ns, np.int64) + power_gap_ns,
-        "kind": np.full(n, KIND_CODE[EventKind.POWER_LOSS]),
+        "time_ns": np.asarray(time_ns, np.int64),
+        "kind": np.full(n, KIND_CODE[kind]),
         "head": np.asarray(head, np.int64),
         "direction": np.zeros(n, np.int64),
         "channel": np.full(n, NO_CHANNEL),
-        "detail": np.full(n, Detail.NO_RECORDS),
-        "aux_ns": np.full(n, power_gap_ns, np.int64),
+        "detail": np.full(n, detail),
+        "aux_ns": np.full(n, aux_ns, np.int64),
     }
+
+
+def silent_loss_columns(head: np.ndarray, last_ns: np.ndarray, power_gap_ns: int) -> dict[str, np.ndarray]:
+    """POWER_LOSS events of heads silent since ``last_ns`` while the log ran on (not heard again yet):
+    each at ``last + power gap``.  Columns of an :class:`EventBlock` without ``source``."""
+    time_ns = np.asarray(last_ns, np.int64) + power_gap_ns
+    return head_event_columns(EventKind.POWER_LOSS, head, time_ns, Detail.NO_RECORDS, power_gap_ns)
 
 
 def silent_heads(last_ns: np.ndarray, watermark_ns: int, power_gap_ns: int) -> np.ndarray:

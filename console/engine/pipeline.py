@@ -389,7 +389,7 @@ class Pipeline:
             DetectionEvent(t, EventKind.CLOCK_STEP, heads[k][1], source="diag")
             for stepped, before_ns in self._stepped
             for k, t in zip(stepped.tolist(), before_ns.tolist(), strict=True)
-            if lay.has_head(heads[k][1])
+            if lay.counted_head(heads[k][1], heads[k][0]) is not None  # as the streamed events count heads
         ]
         self.health_events += [e for e in events if e.kind in HEALTH_EVENT_KINDS]
         if events:

@@ -30,7 +30,7 @@ from console.sinks.tables.passage_spool import passage_texts
 from parsers.diag.read import DiagChunk, DiagReader
 from parsers.diag.registry import DiagRegistry
 from parsers.report import FileReport
-from parsers.units import NO_TIME
+from parsers.units import NO_TIME, NS
 
 if TYPE_CHECKING:
     from console.analysis.head_table import Heads
@@ -179,7 +179,7 @@ class DiagFollow:
                     "file": files[step.file_id],
                     "line": step.line,
                     "counting_head": names[step.head_key],
-                    "back_s": step.back_ns / 1e9,
+                    "back_s": step.back_ns / NS,
                     "detail": text,
                 }
             )

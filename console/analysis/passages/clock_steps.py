@@ -57,18 +57,15 @@ class ClockSteps:
     def feed(
         self, file_id: int, head: np.ndarray, time_ns: np.ndarray, line: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """One chunk's records of one file, in read order (``head``: each record's head key, < 0 for none).
+        """One chunk's records of one file, in read order (``head``: each record's head key, int64).
         Returns the first steps of their file and head found in it: the heads, and the time of each one's first
         record after the step, which no record after the step precedes (a file written newest first steps back
         at nearly every record: only its first step, near its latest time, is news)."""
-        mine = head >= 0
-        if not mine.all():
-            head, time_ns, line = head[mine], time_ns[mine], line[mine]
         if not len(head):
             return _NONE, _NONE
         # Per head, in read order; a stable sort of 16-bit keys is a radix sort, linear in the records.
         order = np.argsort(head.astype(np.uint16) if int(head.max()) < 1 << 16 else head, kind="stable")
-        h, t = head[order].astype(np.int64), time_ns[order]
+        h, t = head[order], time_ns[order]
         first = np.r_[True, h[1:] != h[:-1]]
         keys = h[first]
         last = self._last.get(file_id, np.zeros(0, np.int64))

@@ -55,8 +55,14 @@ import numpy as np
 
 from console.analysis.counting.bank import CounterBank
 from console.analysis.counting.holds import NONE
-from console.analysis.diag_events import DiagEventSettings, power_gap_columns, silent_heads, silent_loss_columns
-from console.analysis.events.block import KIND_CODE, NO_CHANNEL, Detail, EventBlock, StringPool
+from console.analysis.diag_events import (
+    DiagEventSettings,
+    head_event_columns,
+    power_gap_columns,
+    silent_heads,
+    silent_loss_columns,
+)
+from console.analysis.events.block import KIND_CODE, EventBlock, StringPool
 from console.analysis.events.detection import DetectionEvent, EventKind
 from console.analysis.events.queue import EventQueue
 from console.analysis.head_table import HeadNames
@@ -179,10 +185,8 @@ class EventStream:
         lay = self.layout
         if lay is None:
             return CountingHead(id=name, chainage_m=0.0)
-        if not lay.has_head(name):
-            return None
-        spec = lay.head(name)
-        if spec.device_id is not None and spec.device_id != device_id:
+        spec = lay.counted_head(name, device_id)
+        if spec is None:
             return None
         if spec.channels == 3:
             raise ValueError(f"head {name}: three-element heads are counted from the whole log")
@@ -226,17 +230,9 @@ class EventStream:
         mine = self._state[key_col] == _COUNTED
         n = int(mine.sum())
         if not n:
-            return
-        cols = {
-            "time_ns": np.asarray(time_ns, np.int64)[mine],
-            "kind": np.full(n, KIND_CODE[EventKind.CLOCK_STEP]),
-            "head": key_col[mine],
-            "direction": np.zeros(n, np.int64),
-            "channel": np.full(n, NO_CHANNEL),
-            "detail": np.full(n, Detail.NONE),
-            "aux_ns": np.zeros(n, np.int64),
-            "source": np.full(n, self.bank.source),
-        }
+            return  # heads the layout does not count
+        cols = head_event_columns(EventKind.CLOCK_STEP, key_col[mine], np.asarray(time_ns, np.int64)[mine])
+        cols["source"] = np.full(n, self.bank.source)
         self._push(EventBlock.from_columns(cols, self.names, self.pool.strings), _POWER)
 
     def add_reset(self, e: DetectionEvent) -> None:
