@@ -10,7 +10,8 @@ import math
 import random
 
 from console.analysis.timefmt import iso
-from console.cli.commands.query import _plain, _plain_rows
+from console.sinks.query_text import plain_rows as _plain_rows
+from console.sinks.query_text import plain_value as _plain
 
 
 class _Code(enum.IntEnum):
