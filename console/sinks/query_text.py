@@ -8,7 +8,7 @@ the two to the same bytes).  The text rules:
 - floats as Python writes them (``repr``), a NaN as no value;
 - CSV: the csv module's (minimal quoting), text values made inert (console.safe_text.clean): a log line's
   escape sequences must not act on the terminal or the spreadsheet that shows the CSV;
-- JSON: ``json.dumps`` of the row as an object (JSON escapes C0 itself).
+- JSON: ``json.dumps`` of the row as an object (JSON escapes C0 itself), strict: an infinity is null.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import datetime as dt
 import json
+import math
 from collections.abc import Sequence
 from typing import IO, TYPE_CHECKING, Any, cast
 
@@ -156,7 +157,7 @@ class ResultWriter:
                 w.writerow(["" if v is None else clean(v) if isinstance(v, str) else v for v in r])
         else:
             for r in rows:
-                line = json.dumps(dict(zip(names, r, strict=True)), ensure_ascii=False, default=str)
+                line = json_text(dict(zip(names, r, strict=True)))
                 out.write(self._json_sep() + line if self.fmt == "json" else line + "\n")
                 self.rows_written += 1
         if self.fmt == "csv":
@@ -258,7 +259,7 @@ def _csv_cells(col: pa.Array, is_ns: bool) -> pa.Array:
     elif pa.types.is_boolean(typ):
         text = pc.if_else(col, "True", "False")
     elif pa.types.is_floating(typ):
-        text = _float_texts(col, json_text=False)
+        text = _float_texts(col, for_json=False)
     elif _is_text(typ):
         text = _redone(pc.cast(col, pa.large_string()), _CLEANED, clean)
     else:
@@ -289,13 +290,32 @@ def _json_values(col: pa.Array, is_ns: bool) -> pa.Array:
     elif pa.types.is_boolean(typ):
         text = pc.if_else(col, "true", "false")
     elif pa.types.is_floating(typ):
-        text = _float_texts(col, json_text=True)
+        text = _float_texts(col, for_json=True)
     elif _is_text(typ):
         text = _redone(pc.cast(col, pa.large_string()), _JSON_ESCAPED, _json_string, _quoted)
     else:
-        dumped = [None if v is None else json.dumps(v, ensure_ascii=False, default=str) for v in arrow_values(col)]
+        dumped = [None if v is None else json_text(v) for v in arrow_values(col)]
         text = pa.array(dumped, pa.large_string())
     return pc.fill_null(pc.cast(text, pa.large_string()), "null")
+
+
+def json_text(value: Any) -> str:
+    """``json.dumps`` of a row or a value, strict JSON: an infinity is null, as a NaN is (JSON has neither, and
+    a script's parser refuses ``Infinity``)."""
+    try:
+        return json.dumps(value, ensure_ascii=False, default=str, allow_nan=False)
+    except ValueError:
+        return json.dumps(_finite(value), ensure_ascii=False, default=str, allow_nan=False)
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    return value
 
 
 def _json_string(value: str) -> str:
@@ -341,8 +361,8 @@ def _redone(text: pa.Array, pattern: str, redo: Any, plain: Any = None) -> pa.Ar
     return pa.array(values, pa.large_string())
 
 
-def _float_texts(col: pa.Array, json_text: bool) -> pa.Array:
-    """Floats as ``repr`` writes them (NaN: null; JSON: ``Infinity``), Arrow's text where it is the same."""
+def _float_texts(col: pa.Array, for_json: bool) -> pa.Array:
+    """Floats as ``repr`` writes them (NaN: null; JSON: an infinity null too), Arrow's text where it is the same."""
     import numpy as np
     import pyarrow as pa
     import pyarrow.compute as pc
@@ -355,7 +375,7 @@ def _float_texts(col: pa.Array, json_text: bool) -> pa.Array:
     whole = pc.invert(pc.match_substring_regex(text, r"[.eEna]"))
     text = pc.if_else(whole, pc.binary_join_element_wise(text, _text_scalar(".0"), _text_scalar("")), text)
     # They differ where either uses an exponent, and for the infinities: those are written by repr (json.dumps
-    # writes repr too, Infinity for inf).
+    # writes repr too), an infinity in JSON as null (json_text).
     arr = values.to_numpy(zero_copy_only=False)
     with np.errstate(invalid="ignore"):
         mag = np.abs(arr)
@@ -367,5 +387,5 @@ def _float_texts(col: pa.Array, json_text: bool) -> pa.Array:
     values_text = text.to_pylist()
     for row in np.flatnonzero(odd).tolist():
         v = float(arr[row])
-        values_text[row] = json.dumps(v) if json_text else repr(v)
+        values_text[row] = None if for_json and math.isinf(v) else repr(v)
     return pa.array(values_text, pa.large_string())

@@ -40,7 +40,8 @@ def query(
             "--format",
             metavar="table|csv|json|jsonl",
             help="table (DuckDB's box fitted to the terminal: long values cut with …, the first and last 20 of"
-            " more than 40 rows), or csv, json, jsonl (every row, every value whole).",
+            " more than 40 rows), or csv, json, jsonl (every row, every value whole; in JSON a NaN or an infinity is"
+            " null).",
         ),
     ] = "table",
     show_schema: Annotated[bool, typer.Option("--schema", help="List the tables and their columns.")] = False,
