@@ -427,6 +427,22 @@ def test_an_operator_export_with_unit_headers_and_no_speed() -> None:
     assert "CSV column 'HDOP' (not read)" in report.skipped
 
 
+def test_a_gpsbabel_unicsv_export_with_slashed_dates_is_read(tmp_path: Path) -> None:
+    """GPSBabel's unicsv (and spreadsheets) write the date year first with slashes, beside a time column; speed in
+    m/s (https://www.gpsbabel.org/htmldoc-development/fmt_unicsv.html).  A date mixing - and / is refused."""
+    data = (
+        b"No,Latitude,Longitude,Altitude,Speed,Course,Date,Time\n"
+        b"1,36.620100,127.325000,45.0,20.5,90.0,2026/03/02,08:00:00\n"
+        b"2,36.620100,127.325230,45.0,20.6,90.0,2026/03/02,08:00:01.5\n"
+        b"3,36.620100,127.325460,45.1,20.7,90.0,2026/03-02,08:00:02\n"
+    )
+    fixes, report = parse_device_stream([write(tmp_path, "unicsv.csv", data)])
+    assert list(fixes["time"]) == [pd.Timestamp("2026-03-02T08:00:00Z"), pd.Timestamp("2026-03-02T08:00:01.5Z")]
+    assert list(fixes["speed_mps"]) == [20.5, 20.6]
+    assert report.rejected == 1 and report.rejections[0].line == 4
+    assert "2026/03-02 08:00:02" in report.rejections[0].reason
+
+
 @pytest.mark.parametrize(
     ("header", "row", "speed_mps"),
     [
@@ -463,6 +479,8 @@ _CELLS = {
         "2026-01-19T17:05:02+07:00",
         "2026-01-19T10:05:03.25Z",
         "19/01/2026 10:05:04",
+        "2026/01/19 10:05:04.5",
+        "2026/01-19 10:05:04",
         "2026-01-19T10:05:05,5Z",
         "2026-01-19T10:05:60Z",
         "9999-01-01T00:00:00Z",

@@ -11,21 +11,24 @@ _EPOCH = dt.date(1970, 1, 1)
 # Years a datetime64[ns] holds (1677-09-21 … 2262-04-11), whole years only.
 FIRST_YEAR, LAST_YEAR = 1678, 2261
 
+# ISO 8601, and its date with slashes (GPSBabel's unicsv and spreadsheets write 2026/03/02): year first, so
+# never ambiguous, and one separator throughout.
 _ISO_RE = re.compile(
-    r"(\d{4})-(\d{2})-(\d{2})[T ](\d{2}):(\d{2}):(\d{2})(?:[.,](\d{1,9}))?\s*(Z|[+-]\d{2}(?::?\d{2})?)?",
+    r"(\d{4})([-/])(\d{2})\2(\d{2})[T ](\d{2}):(\d{2}):(\d{2})(?:[.,](\d{1,9}))?\s*(Z|[+-]\d{2}(?::?\d{2})?)?",
     re.IGNORECASE,
 )
 _DMY_RE = re.compile(r"(\d{1,2})/(\d{1,2})/(\d{4})[T ](\d{2}):(\d{2}):(\d{2})(?:[.,](\d{1,9}))?")
 
 
 def parse_time_ns(text: str, utc_offset_h: float = 0.0) -> int:
-    """ISO 8601 date and time (``Z``/offset → UTC; no zone: local time at ``utc_offset_h``, default UTC)
-    or ``DD/MM/YYYY HH:MM:SS`` → ns since the epoch.  ValueError with the reason otherwise."""
+    """ISO 8601 date and time (``Z``/offset → UTC; no zone: local time at ``utc_offset_h``, default UTC), the
+    same with ``YYYY/MM/DD``, or ``DD/MM/YYYY HH:MM:SS`` → ns since the epoch.  ValueError with the reason
+    otherwise."""
     s = text.strip()
     m = _ISO_RE.fullmatch(s)
     zone = None
     if m:
-        year, month, day, hh, mm, ss, frac, zone = m.groups()
+        year, _, month, day, hh, mm, ss, frac, zone = m.groups()
     else:
         d = _DMY_RE.fullmatch(s)
         if d is None:
