@@ -31,7 +31,8 @@ from pathlib import Path
 from typing import Final, Literal
 
 from parsers.frames.can_head import can_format_of_lines, record_lines
-from parsers.gnss.headers import parse_centre_header, parse_device_header
+from parsers.gnss.fields import delimiter_of
+from parsers.gnss.headers import commented_header_cells, parse_centre_header, parse_device_header
 from parsers.sources import InputError, open_input
 
 Kind = Literal[
@@ -106,6 +107,16 @@ def _cells(text: str) -> list[str]:
         return []
 
 
+def _commented_device_header(head: bytes) -> list[str] | None:
+    comments = [s for s in (line.strip() for line in head.split(b"\n")) if s.startswith(b"#")]
+    for line in comments[:_TABLE_HEADER_WITHIN]:
+        text = line.decode("utf-8", errors="replace")
+        cells = commented_header_cells(text, delimiter_of(text))
+        if cells is not None:
+            return cells
+    return None
+
+
 def classify_head(head: bytes) -> KindGuess:
     """The kind of input whose first bytes (decoded to UTF-8-ish, LF line ends) are ``head``."""
     if head.startswith(b"LOGG"):
@@ -146,6 +157,8 @@ def classify_head(head: bytes) -> KindGuess:
             except ValueError:
                 continue
             return KindGuess(kind, "its header")
+    if _commented_device_header(head) is not None:
+        return KindGuess("gnss-csv", "its header, after '#' (gpsd's gpscsv --header 2)")
     from parsers.frames.sensor import frame_line_problem
 
     if len(text.split()) in (3, 4) and frame_line_problem(text) is None:

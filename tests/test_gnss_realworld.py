@@ -443,6 +443,44 @@ def test_a_gpsbabel_unicsv_export_with_slashed_dates_is_read(tmp_path: Path) -> 
     assert "2026/03-02 08:00:02" in report.rejections[0].reason
 
 
+def test_gpsd_gpscsv_output_is_read_in_each_of_its_shapes(tmp_path: Path) -> None:
+    """gpsd's gpscsv (clients/gpscsv.py): the header as field names (default), after '# ' (--header 2) or absent
+    (--header 0, refused: no column names); times ISO or seconds since 1970 (--cvt-isotime); TPV keys by -f, mode
+    0-3 (1 no fix, 2 2D, 3 3D).  Each shape gives the fixes of the ISO one."""
+    iso = ["2026-03-02T08:00:00.000Z", "2026-03-02T08:00:01.000Z", "2026-03-02T08:00:02.500Z"]
+    unix = ["1772438400.0", "1772438401.0", "1772438402.5"]
+    rows = [
+        "36.620100,127.325000,45.000,20.5,90.0,3",
+        "36.620100,127.325230,45.000,20.6,90.0,1",
+        "36.6201,127.32546,45.1,20.7,90.0,2",
+    ]
+    fields = "time,lat,lon,altHAE,speed,track,mode"
+
+    def fixes_of(header: str, times: list[str]) -> pd.DataFrame:
+        body = "".join(f"{t},{r}\n" for t, r in zip(times, rows, strict=True))
+        path = write(tmp_path, "gpscsv.csv", (header + body).encode())
+        assert classify_file(path).kind == "gnss-csv"
+        fixes, report = parse_device_stream([path])
+        assert report.rejected == 0 and report.records == 3, report.rejections
+        return fixes.drop(columns=["file"])
+
+    plain = fixes_of(fields + "\n", iso)
+    assert list(plain["valid"]) == [True, False, True]  # mode 1: no fix
+    assert list(plain["speed_mps"]) == [20.5, 20.6, 20.7] and list(plain["course_deg"]) == [90.0] * 3
+    assert plain["time"].iloc[2] == pd.Timestamp("2026-03-02T08:00:02.5Z")
+    pd.testing.assert_frame_equal(fixes_of(f"# {fields}\n", iso), plain)
+    pd.testing.assert_frame_equal(fixes_of(f"# {fields}\n", unix), plain)
+    pd.testing.assert_frame_equal(fixes_of(fields + "\n", unix), plain)
+
+
+def test_json_lines_with_times_in_seconds_since_1970(tmp_path: Path) -> None:
+    rows = [{"time": 1772438400.25, "lat": 36.62, "lon": 127.325}, {"time": 1772438401, "lat": 36.62, "lon": 127.3252}]
+    path = write(tmp_path, "epoch.jsonl", "".join(json.dumps(r) + "\n" for r in rows).encode())
+    fixes, report = parse_device_stream([path])
+    assert report.rejected == 0
+    assert list(fixes["time"]) == [pd.Timestamp("2026-03-02T08:00:00.25Z"), pd.Timestamp("2026-03-02T08:00:01Z")]
+
+
 @pytest.mark.parametrize(
     ("header", "row", "speed_mps"),
     [
@@ -481,6 +519,9 @@ _CELLS = {
         "19/01/2026 10:05:04",
         "2026/01/19 10:05:04.5",
         "2026/01-19 10:05:04",
+        "1768817106",
+        "1768817106.25",
+        "345600.5",
         "2026-01-19T10:05:05,5Z",
         "2026-01-19T10:05:60Z",
         "9999-01-01T00:00:00Z",

@@ -6,7 +6,8 @@ and unit notation (``lat``, ``Latitude``, ``Latitude [deg]``, ``lat_e7``,
 
 =============  ===========================================================
 ``time``       date and time (``time``, ``timestamp``, ``utc``, ``datetime``,
-               ``time utc``, ``gps time``); or a date column (``date``,
+               ``time utc``, ``gps time``), or seconds since 1970 (9-10 digits
+               before the point); or a date column (``date``,
                ``utc date``, ``gps date``) beside a time-of-day column
                (``time``, ``utc time``, ``time of day``), combined per row.
 ``lat, lon``   ``lat``/``latitude``, ``lon``/``lng``/``long``/``longitude``;
@@ -29,7 +30,8 @@ fix quality    ``fix``, ``fix type``, ``fix quality``, ``quality``,
                ``fixType`` codes when the name says *type* (0 no fix,
                1 dead reckoning, 2 2D, 3 3D, 4 GNSS+DR, 5 time only), NMEA GGA
                codes when it says *quality* (0 invalid, 1–5 fix, 6 dead
-               reckoning, 7 manual, 8 simulator).  Dead-reckoned fixes keep
+               reckoning, 7 manual, 8 simulator), gpsd / NMEA GSA mode codes
+               when it says *mode* (0 not seen, 1 no fix, 2 2D, 3 3D).  Dead-reckoned fixes keep
                ``valid`` and are marked ``fix_quality = "dead_reckoning"``.
 =============  ===========================================================
 
@@ -72,8 +74,10 @@ from parsers.gnss.headers import (
     DEVICE_COLUMN_BY_NAME,
     UNIT_FACTORS,
     DeviceHeader,
+    commented_header_cells,
     normal_name,
     parse_device_header,
+    quality_codes_of,
     split_unit,
 )
 from parsers.gnss.lines import open_lines
@@ -150,7 +154,13 @@ def fix_quality(value: Any, codes: str) -> tuple[bool, str]:
             if code == 6:
                 return True, "dead_reckoning"
             return (True, "gnss") if 1 <= code <= 5 else (False, "no_fix")
-        hint = "" if codes else " (name the column 'fix type' for u-blox codes or 'fix quality' for NMEA GGA codes)"
+        if codes == "mode" and code <= 3:  # 0 not seen, 1 no fix, 2 2D, 3 3D
+            return (True, "gnss") if code >= 2 else (False, "no_fix")
+        hint = (
+            ""
+            if codes
+            else " (name the column 'fix type' for u-blox codes, 'fix quality' for NMEA GGA codes or 'mode' for gpsd's)"
+        )
         raise RowError("quality", f"fix quality: code '{text[:12]}' is not known{hint}")
     if text in _QUALITY_WORDS_NO_FIX:
         return False, "no_fix"
@@ -242,7 +252,7 @@ def _json_values(text: str) -> tuple[dict[str, Any], DeviceHeader]:
         except JsonRowError as exc:
             raise RowError(exc.category, exc.reason) from None
         if column == "quality":
-            header.quality_codes = "ublox" if "type" in name else "gga" if "quality" in name or name == "fix" else ""
+            header.quality_codes = quality_codes_of(name)
     missing = [c for c in ("lat", "lon") if c not in values]
     if "time" not in values and not ("date" in values and "tod" in values):
         missing.insert(0, "time")
@@ -353,21 +363,29 @@ class DeviceLines:
             text = decode_line(raw, fr)
             if not text.strip() or text.lstrip().startswith("#"):
                 fr.blank += 1
+                if self.fmt == "csv" and (cells := commented_header_cells(text, delimiter_of(text))) is not None:
+                    self._take_header(cells, delimiter_of(text))  # gpscsv --header 2: "# time,lat,lon,…"
                 continue
             if self.fmt == "jsonl":
                 self._per_row(number, raw)
                 continue
-            self.delimiter = delimiter_of(text)
+            delimiter = delimiter_of(text)
             try:
-                self.header = parse_device_header(cells_of(text, self.delimiter))
+                cells = cells_of(text, delimiter)
+                parse_device_header(cells)
             except (ValueError, RowError) as exc:
                 reason = f"not the device-stream header: {exc}; expected time, lat, lon, …"
                 self.report.reject(fr, number, "header", reason, raw)
                 continue
-            for name in self.header.extra:
-                self.report.skipped[f"CSV column '{name[:40]}' (not read)"] += 1
+            self._take_header(cells, delimiter)
             fr.blank += 1  # the header: no record, nothing lost
         self._flush(batch)
+
+    def _take_header(self, cells: list[str], delimiter: str) -> None:
+        self.delimiter = delimiter
+        self.header = parse_device_header(cells)
+        for name in self.header.extra:
+            self.report.skipped[f"CSV column '{name[:40]}' (not read)"] += 1
 
 
 def parse_device_file(path: Path, report: ParseReport, rows: FixRows, fmt: str, roles: Mapping[str, str]) -> None:

@@ -14,7 +14,7 @@ import re
 import unicodedata
 from typing import Any
 
-from parsers.gnss.times import parse_time_ns
+from parsers.gnss.times import parse_epoch_s_ns, parse_time_ns
 from parsers.report import FileReport
 
 ROLE_ALIASES = {
@@ -100,8 +100,12 @@ def speed(value: Any, what: str, factor: float) -> float:
 def time_field(value: Any, utc_offset_h: float = 0.0) -> int:
     if value is None or (isinstance(value, str) and not value.strip()):
         raise RowError("time", "time: empty; every row needs a date and time")
+    if isinstance(value, bool):
+        raise RowError("time", f"time: {value!r} is not a date and time")
     try:
-        return parse_time_ns(str(value), utc_offset_h)
+        # A number is seconds since 1970 (UTC whatever the offset: a count of seconds has no zone).
+        epoch_ns = parse_epoch_s_ns(format(value, ".9f") if isinstance(value, float) else str(value))
+        return epoch_ns if epoch_ns is not None else parse_time_ns(str(value), utc_offset_h)
     except ValueError as exc:
         raise RowError("time", f"time: {exc}") from None
 

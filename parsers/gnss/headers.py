@@ -12,7 +12,7 @@ import re
 import unicodedata
 from dataclasses import dataclass, field
 
-from parsers.gnss.fields import header_key
+from parsers.gnss.fields import RowError, cells_of, header_key
 
 # ------------------------------------------------------------- centre table
 
@@ -105,6 +105,18 @@ DEVICE_NAMES: dict[str, tuple[str, ...]] = {
 }
 DEVICE_COLUMN_BY_NAME = {alias: name for name, aliases in DEVICE_NAMES.items() for alias in aliases}
 
+
+def quality_codes_of(name: str) -> str:
+    """Which codes a fix-quality column's numbers are, by its (normalised) name: u-blox ``fixType`` when it says
+    *type*, NMEA GGA when it says *quality* (or is ``fix``), gpsd's TPV / NMEA GSA mode when it says *mode*
+    (gpsd's gpscsv writes ``mode``); "" when it says none of these (numbers refused, not guessed)."""
+    if "type" in name:
+        return "ublox"
+    if "quality" in name or name == "fix":
+        return "gga"
+    return "mode" if "mode" in name else ""
+
+
 # Unit spelled in the header → (kind, factor to our unit: deg, m/s, deg).
 UNIT_FACTORS: dict[str, float] = {
     "": 1.0,
@@ -171,7 +183,7 @@ class DeviceHeader:
     width: int
     at: dict[str, int] = field(default_factory=dict)
     factor: dict[str, float] = field(default_factory=dict)
-    quality_codes: str = ""  # "ublox", "gga" or "" (numbers refused)
+    quality_codes: str = ""  # "ublox", "gga", "mode" or "" (numbers refused): quality_codes_of
     extra: list[str] = field(default_factory=list)
 
 
@@ -220,7 +232,7 @@ def parse_device_header(cells: list[str]) -> DeviceHeader:
                 raise ValueError(f"column '{cell.strip()}': unit '{unit}' is not one we know for {column}")
             header.factor[column] = factor
         if column == "quality":
-            header.quality_codes = "ublox" if "type" in name else "gga" if "quality" in name or name == "fix" else ""
+            header.quality_codes = quality_codes_of(name)
         header.at[column] = i
     if "date" in header.at and "time" in header.at and "tod" not in header.at:
         header.at["tod"] = header.at.pop("time")
@@ -229,3 +241,17 @@ def parse_device_header(cells: list[str]) -> DeviceHeader:
     if missing:
         raise ValueError(f"missing column(s) {', '.join(missing)}")
     return header
+
+
+def commented_header_cells(text: str, delimiter: str) -> list[str] | None:
+    """A ``#`` comment line's cells when the rest is a device CSV's header (gpsd's gpscsv --header 2 writes
+    ``# time,lat,lon,altHAE``); None for any other line."""
+    body = text.strip()
+    if not body.startswith("#"):
+        return None
+    try:
+        cells = cells_of(body[1:].strip(), delimiter)
+        parse_device_header(cells)
+    except (ValueError, RowError):
+        return None
+    return cells

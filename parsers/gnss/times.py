@@ -20,6 +20,25 @@ _ISO_RE = re.compile(
 _DMY_RE = re.compile(r"(\d{1,2})/(\d{1,2})/(\d{4})[T ](\d{2}):(\d{2}):(\d{2})(?:[.,](\d{1,9}))?")
 
 
+# Seconds since 1970 as a number (gpsd's gpscsv --cvt-isotime, JSON exports): 9 or 10 digits before the point,
+# 1973 to 2286.  Fewer digits is no date (a GPS time of week, a time of day in seconds): refused, not guessed.
+_EPOCH_S_RE = re.compile(r"\+?(\d{9,10})(?:\.(\d{1,9}))?")
+
+
+def parse_epoch_s_ns(text: str) -> int | None:
+    """``1772438400.25`` (seconds since 1970, UTC) → ns since the epoch; None when the text is not such a number.
+    ValueError when it is one but its year is beyond what a time holds here."""
+    m = _EPOCH_S_RE.fullmatch(text.strip())
+    if m is None:
+        return None
+    whole, frac = m.groups()
+    ns = int(whole) * NS + (int(frac.ljust(9, "0")) if frac else 0)
+    year = (_EPOCH + dt.timedelta(seconds=int(whole))).year
+    if year > LAST_YEAR:
+        raise ValueError(f"'{text.strip()}': {year} as seconds since 1970 is beyond {LAST_YEAR}")
+    return ns
+
+
 def parse_time_ns(text: str, utc_offset_h: float = 0.0) -> int:
     """ISO 8601 date and time (``Z``/offset → UTC; no zone: local time at ``utc_offset_h``, default UTC), the
     same with ``YYYY/MM/DD``, or ``DD/MM/YYYY HH:MM:SS`` → ns since the epoch.  ValueError with the reason
