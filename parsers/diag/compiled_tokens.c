@@ -216,7 +216,7 @@ static PyObject *tokenize(PyObject *self, PyObject *arg)
             reg_idx[j] = r;
             val_idx[j] = v;
 
-            /* Time: "Time:HH:MM:SS" plus an optional ".f" of 1-9 digits (rules of fields.parse_time). */
+            /* Time: "Time:HH:MM:SS" plus an optional ".f" or ",f" of 1-9 digits (rules of fields.parse_time). */
             int64_t ts = t10 + 1, tlen = e - ts;
             const unsigned char *h = buf + ts + 5;
             int ok = memcmp(buf + ts, "Time:", 5) == 0 && (tlen == 13 || (tlen >= 15 && tlen <= 23)) &&
@@ -229,7 +229,7 @@ static PyObject *tokenize(PyObject *self, PyObject *arg)
             int64_t tod = ((hh * 60 + mm) * 60 + ss) * NS_PER_S;
             int64_t n_frac = (tlen >= 15 && tlen <= 23) ? tlen - 14 : 0;
             if (n_frac > 0) {
-                ok = ok && buf[ts + 13] == '.';
+                ok = ok && (buf[ts + 13] == '.' || buf[ts + 13] == ',');
                 int64_t frac = 0;
                 for (int64_t k = e - n_frac; k < e; k++) {
                     ok = ok && is_digit(buf[k]);

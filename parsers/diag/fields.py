@@ -184,11 +184,12 @@ def decode_date(raw: bytes) -> int:
     return (day - _EPOCH).days * NS_PER_DAY
 
 
-_TIME_RE = re.compile(r"(\d{2}):(\d{2}):(\d{2})(?:\.(\d{1,9}))?")
+# The fraction after a point or a comma (ISO 8601 allows both; exports in a German locale write the comma).
+_TIME_RE = re.compile(r"(\d{2}):(\d{2}):(\d{2})(?:[.,](\d{1,9}))?")
 
 
 def parse_time(raw: bytes) -> tuple[int, bool]:
-    """``Time:09:32:24[.125]`` → (ns since midnight, has a fraction).
+    """``Time:09:32:24[.125]`` (or ``,125``) → (ns since midnight, has a fraction).
 
     The per-line reference for the vectorized time parse in :func:`_tokenize`
     (same rules), used for lines off the fast path.

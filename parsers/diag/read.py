@@ -1,6 +1,7 @@
 """Frauscher-style diagnostic records → a columnar table.
 
-A record is one line of twelve tab-separated ``Key:Value`` fields::
+A record is one line of twelve tab-separated ``Key:Value`` fields (spaces for the tabs are read too, off the
+fast path: a record copied from an e-mail or a PDF)::
 
     Diag_id:00002  ID:4083  Device:IM  Type:013  GS:GS03  Trackinfo:WS4  ch:1
     Adr:080  Label:Summenzä  Data:18  Date:2015-10-31  Time:09:32:24[.125]
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -336,7 +338,8 @@ def _tokenize_numpy(chunk: Chunk) -> _Tokens:
     n_frac = np.where((tlen >= 15) & (tlen <= 23), tlen - 14, 0)
     subsecond = n_frac > 0
     if subsecond.any():
-        time_ok &= ~subsecond | (arr[np.minimum(ts + 13, size - 1)] == ord("."))
+        point = arr[np.minimum(ts + 13, size - 1)]
+        time_ok &= ~subsecond | (point == ord(".")) | (point == ord(","))  # a decimal comma: German exports
         frac, frac_ok = _fraction_digits(arr, u8, en, n_frac)
         time_ok &= frac_ok
         tod += frac * _POW10[9 - n_frac]
@@ -600,6 +603,8 @@ class DiagReader:
         for li in rest_lines:
             raw = bytes(tok.buf[tok.starts[li] : tok.ends[li]])
             j = bad_fast.get(li)
+            if j is not None and b" " in raw and _spaced_fields(raw) is not None:
+                j = None  # spaces for some of its tabs: the fast path cut it wrong, the slow one reads it
             err: FieldError | None = None
             if j is not None and int(tok.reg_idx[j]) in reg_err:
                 err = reg_err[int(tok.reg_idx[j])]
@@ -654,7 +659,10 @@ class DiagReader:
             return None
         parts = raw.split(b"\t")
         if len(parts) != len(FIELD_KEYS):
-            return FieldError(*_shape_reason(raw, len(parts)))
+            spaced = _spaced_fields(raw)
+            if spaced is None:
+                return FieldError(*_shape_reason(raw, len(parts)))
+            parts = spaced
         rid = self.registry.register_id(b"\t".join(parts[:9]))
         if isinstance(rid, FieldError):
             return rid
@@ -667,6 +675,21 @@ class DiagReader:
             return exc
         code, value, kind, day_ns = val
         return rid, day_ns + tod, subsecond, value, code, kind
+
+
+# A record whose tabs became spaces (copied from an e-mail, a PDF, a terminal): its fields are cut before each
+# key instead.  The keys are fixed and in order; a label keeps its inner spaces ("Label:Software V").
+_SPACED_FIELDS = re.compile(("[ \t]+(?=(?:" + "|".join(FIELD_KEYS[1:]) + "):)").encode())
+
+
+def _spaced_fields(raw: bytes) -> list[bytes] | None:
+    """A record's twelve fields when spaces stand for its tabs; None when it is no such record."""
+    parts = _SPACED_FIELDS.split(raw.strip())
+    if len(parts) != len(FIELD_KEYS):
+        return None
+    if any(part.partition(b":")[0] != key.encode() for part, key in zip(parts, FIELD_KEYS, strict=True)):
+        return None
+    return parts
 
 
 def _shape_reason(raw: bytes, n_fields: int) -> tuple[str, str]:
