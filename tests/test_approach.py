@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -14,6 +16,8 @@ from console.analysis.passages.diagnostics import SpeedSettings
 from console.cli.app import app
 from console.layout import WorkSite, load_layout
 from tests.reads import whole_job
+
+TRACKSIDE = str(Path(sys.executable).with_name("trackside"))
 
 
 def test_earliest_arrival_with_and_without_acceleration() -> None:
@@ -57,6 +61,19 @@ def test_approach_cli(samples: Path) -> None:
     assert len(rows) == 3  # the three up trains past WS2; the down train and the trolley do not alarm
     assert all(r["lead_speed_s"] >= 30 and r["saved_s"] > 0 for r in rows)
     bad = CliRunner().invoke(
-        app, ["approach", str(samples / "example_station.log"), "--head", "WS9", "--distance", "5"]
+        app,
+        ["approach", str(samples / "example_station.log"), "--layout", "example", "--head", "WS9", "--distance", "5"],
     )
     assert bad.exit_code == 2
+
+
+def test_approach_without_a_layout_says_it_needs_one(samples: Path) -> None:
+    """It read any log against the shipped osong layout: example_station's WS4 (another line's head) gave
+    three "switch-works" warnings, exit 0, without a word."""
+    res = subprocess.run(
+        [TRACKSIDE, "approach", str(samples / "example_station.log")], capture_output=True, text=True, timeout=120
+    )
+    assert res.returncode == 2 and res.stdout == ""
+    assert res.stderr == "trackside: error: Missing option '--layout'. (see trackside approach --help)\n"
+    helped = subprocess.run([TRACKSIDE, "approach", "--help"], capture_output=True, text=True, timeout=120)
+    assert "--layout is required" in helped.stdout and "[required]" in helped.stdout

@@ -22,9 +22,17 @@ from console.cli.options import FilesArg, JsonOpt, RecordsJsonlOpt, StrictOpt
 
 def approach(
     files: FilesArg,
+    # Required, as in sections and crossing: a site is a distance from a head of one line, and the shipped
+    # osong layout it defaulted to read another line's log silently (example_station's WS4 is not Osong's).
     layout: Annotated[
-        str, typer.Option("--layout", metavar="LAYOUT", help="Layout with [[work_sites]] (file or osong, example).")
-    ] = "osong",
+        str,
+        typer.Option(
+            "--layout",
+            metavar="LAYOUT",
+            help="The line's layout: its [[work_sites]], or the heads --head names (file, or osong / example).",
+            show_default=False,
+        ),
+    ],
     head: Annotated[
         str | None, typer.Option("--head", metavar="HEAD", help="Approach counting head of an ad-hoc site.")
     ] = None,
@@ -39,7 +47,10 @@ def approach(
     jsonl: RecordsJsonlOpt = False,
     strict: StrictOpt = False,
 ) -> None:
-    """Track-worker approach warnings: alarm from detection vs from the speed measured at the head."""
+    """Track-worker approach warnings: alarm from detection vs from the speed measured at the head.
+
+    --layout is required: the sites are its [[work_sites]] (osong and example ship some), or one ad-hoc site
+    given by --head and --distance on its heads."""
 
     def body() -> int:
         one_json_form(json_out, jsonl)
