@@ -321,3 +321,27 @@ def test_gga_only_captures_say_their_undated_fixes_were_set_aside(samples: Path,
     n = len(per_device["A-head"]) + len(per_device["A-eot"])
     assert doc["timelines"] == []
     assert f"{n} fixes without a date and time set aside (GGA with no RMC or ZDA to date it)" in doc["warnings"]
+
+
+def test_units_not_paired_by_name_read_as_one_train_are_said(samples: Path, tmp_path: Path) -> None:
+    """Units named by their IMEI (a role column, no <train>-head names): the two trains were read as one,
+    silently, with a false parting and a 610 s stale EOT, and no word of it."""
+    imei = {"A-head": "860001", "A-eot": "860002", "B-head": "860003", "B-eot": "860004"}
+    text = (samples / "crossing_example.csv").read_text("utf-8")
+    for name, number in imei.items():
+        text = text.replace(f",{name},", f",{number},")
+    path = tmp_path / "imei.csv"
+    path.write_text(text, "utf-8")
+    said = "2 head and 2 EOT devices, not named <train>-head / <train>-eot, read as one train: give --train"
+    doc = _crossing(samples, path=path)
+    assert [t["train"] for t in doc["trains"]] == ["train"] and any(w.startswith(said) for w in doc["warnings"])
+    plain = runner.invoke(app, ["crossing", str(path), "--layout", "example"])
+    assert plain.exit_code == 0 and f"warning: {said}" in plain.stdout
+    paired = _crossing(samples, "--train", "A=860001,860002,120", "--train", "B=860003,860004,300", path=path)
+    assert [t["train"] for t in paired["trains"]] == ["A", "B"] and paired["warnings"] == []
+    # One head and one EOT unit however named are one train: nothing to say.
+    one = tmp_path / "one.csv"
+    one.write_text(
+        "\n".join(ln for ln in text.splitlines() if ",86000" not in ln or ",860001," in ln or ",860002," in ln)
+    )
+    assert _crossing(samples, path=one)["warnings"] == []

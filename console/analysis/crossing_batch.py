@@ -100,6 +100,21 @@ def pair_trains(
     return [TrainDevices("train", heads, eots, default_length_m)], other
 
 
+def merged_units(trains: Sequence[TrainDevices]) -> str | None:
+    """What to say when :func:`pair_trains` read several head or EOT devices as one train (no ``--train``, no
+    ``<train>-head`` / ``<train>-eot`` names to pair them by): two trains merged give false partings and stale
+    units, so it is said, never silent."""
+    if len(trains) != 1 or trains[0].train != "train":
+        return None
+    t = trains[0]
+    if len(t.head) <= 1 and len(t.eot) <= 1:
+        return None
+    return (
+        f"{len(t.head)} head and {len(t.eot)} EOT devices, not named <train>-head / <train>-eot, read as one train: "
+        "give --train TRAIN=HEAD,EOT for each train"
+    )
+
+
 def unit_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> pd.DataFrame:
     """The trains' units' valid fixes with a time and a position, one per device and instant, in time order,
     with each one's ``train`` and ``role`` and its time in ns (``t_ns``)."""

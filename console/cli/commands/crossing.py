@@ -55,7 +55,7 @@ def crossing(
 
     def body() -> int:
         one_json_form(json_out, jsonl)
-        from console.analysis.crossing_batch import parse_train_option
+        from console.analysis.crossing_batch import merged_units, parse_train_option
         from console.analysis.integrity.monitor import timelines
         from console.analysis.timefmt import iso
         from console.drivers.crossings import run_crossings
@@ -105,6 +105,8 @@ def crossing(
             warnings.append("devices in no train: " + ", ".join(run.unassigned_devices))
         if not run.trains:
             warnings.append("no head or EOT device found: give --train TRAIN=HEAD,EOT")
+        if not trains and (merged := merged_units(run.trains)):
+            warnings.append(merged)
         if json_out or jsonl:
             print_document(
                 {
