@@ -107,6 +107,16 @@ def test_a_fault_for_a_train_that_never_ran_is_said(tmp_path: Path) -> None:
     assert ok.exit_code == 0 and "warning" not in ok.stderr
 
 
+def test_a_gnss_decay_of_a_unit_whose_train_never_ran_is_said(tmp_path: Path) -> None:
+    # It was silent: the truth listed the fault, the run had no T9 to wear.
+    run = ["simulate", "--duration", "20m", "--fault"]
+    result = CliRunner().invoke(app, [*run, "gnss_decay:T9-eot:0s::2:0.02", "-o", str(tmp_path / "run")])
+    assert result.exit_code == 0, result.output
+    assert "--fault gnss_decay:T9-eot: no train T9 ran (T1, T2); nothing was injected" in result.stderr
+    ok = CliRunner().invoke(app, [*run, "gnss_decay:T1-eot:0s::2:0.02", "-o", str(tmp_path / "run2")])
+    assert ok.exit_code == 0 and "warning" not in ok.stderr
+
+
 def test_the_days_summary_counts_in_words(tmp_path: Path) -> None:
     # plural.count's rule: a single thing is never "1 days" (it said "1 days written", "1 heads" on osong).
     result = CliRunner().invoke(

@@ -377,9 +377,11 @@ def _warn_unmet_train_faults(sim: Any, faults: tuple[Any, ...]) -> None:
 
     ran = sorted({str(tr.id) for tr in sim.trains})
     for f in faults:
-        if f.kind in TRAIN_FAULTS and f.target not in ran:
+        # gnss_decay's target is a train's unit (T3-eot): its train must have run too.
+        train = f.target.rpartition("-")[0] if f.kind == "gnss_decay" else f.target
+        if (f.kind in TRAIN_FAULTS or f.kind == "gnss_decay") and train not in ran:
             sys.stderr.write(
-                f"trackside: warning: --fault {f.kind}:{clean(f.target)}: no train {clean(f.target)} ran "
+                f"trackside: warning: --fault {f.kind}:{clean(f.target)}: no train {clean(train)} ran "
                 f"({', '.join(ran) or 'none'}); nothing was injected\n"
             )
 
