@@ -345,3 +345,20 @@ def test_units_not_paired_by_name_read_as_one_train_are_said(samples: Path, tmp_
         "\n".join(ln for ln in text.splitlines() if ",86000" not in ln or ",860001," in ln or ",860002," in ln)
     )
     assert _crossing(samples, path=one)["warnings"] == []
+
+
+@pytest.mark.parametrize(
+    ("trains", "said"),
+    [
+        (["A=A-head,A-eot", "A=B-head,B-eot"], "--train A: given twice (one --train per train)"),
+        (["A=A-head,A-eot", "B=A-head,B-eot"], "--train B: A-head is already A's head"),
+        (["A=A-head,A-head"], "--train A: A-head is already A's head"),
+    ],
+)
+def test_a_train_or_a_device_named_twice_is_refused(samples: Path, trains: list[str], said: str) -> None:
+    """Two --train A merged both trains' units under A; a device in two trains gave its fixes to the last
+    (train A then ran on its EOT alone): both unsaid, exit 0."""
+    args = [a for t in trains for a in ("--train", t)]
+    res = runner.invoke(app, ["crossing", str(samples / "crossing_example.csv"), "--layout", "example", *args])
+    assert res.exit_code == 2 and res.stdout == ""
+    assert res.stderr.startswith(f"trackside: error: {said}") and res.stderr.count("\n") == 1, res.stderr

@@ -168,6 +168,25 @@ def integrity_settings(s: ControllerSettings) -> IntegritySettings:
 MAX_TRAIN_LENGTH_M = 5000.0  # past the longest freight trains run (about 3.5 km)
 
 
+def parse_train_options(texts: Sequence[str], default_length_m: float) -> list[TrainDevices]:
+    """Every ``--train``, each train and each device named once (ValueError with the reason): a device is one
+    train's head or EOT, and a train one pair (fixes go to a device's one owner; the second was taken unsaid)."""
+    trains = [parse_train_option(t, default_length_m) for t in texts]
+    names: set[str] = set()
+    owner: dict[str, str] = {}
+    for t in trains:
+        if t.train in names:
+            raise ValueError(f"--train {t.train}: given twice (one --train per train)")
+        names.add(t.train)
+        for role, device in (("head", t.head[0]), ("EOT", t.eot[0])):
+            if device in owner:
+                raise ValueError(
+                    f"--train {t.train}: {device} is already {owner[device]} (a device is one train's head or EOT)"
+                )
+            owner[device] = f"{t.train}'s {role}"
+    return trains
+
+
 def parse_train_option(text: str, default_length_m: float) -> TrainDevices:
     """``T1=head1,eot1[,length_m]`` → TrainDevices (ValueError with the reason)."""
     name, sep, rest = text.partition("=")

@@ -55,7 +55,7 @@ def crossing(
 
     def body() -> int:
         one_json_form(json_out, jsonl)
-        from console.analysis.crossing_batch import merged_units, parse_train_option
+        from console.analysis.crossing_batch import merged_units, parse_train_options
         from console.analysis.integrity.monitor import timelines
         from console.analysis.timefmt import iso
         from console.drivers.crossings import run_crossings
@@ -73,7 +73,7 @@ def crossing(
         consist = lay.consist()
         default_len = consist.length_m if consist else 100.0
         try:
-            trains = [parse_train_option(t, default_len) for t in (train or [])]
+            trains = parse_train_options(train or [], default_len)
         except ValueError as exc:
             raise fail(str(exc)) from None
         fixes, report, _states = parse_gnss(files)
