@@ -362,3 +362,30 @@ def test_a_train_or_a_device_named_twice_is_refused(samples: Path, trains: list[
     res = runner.invoke(app, ["crossing", str(samples / "crossing_example.csv"), "--layout", "example", *args])
     assert res.exit_code == 2 and res.stdout == ""
     assert res.stderr.startswith(f"trackside: error: {said}") and res.stderr.count("\n") == 1, res.stderr
+
+
+def test_times_on_a_later_day_are_marked_in_the_tables(samples: Path, tmp_path: Path) -> None:
+    """Train B's run moved past midnight: its times of day were shown under train A's date, unmarked, in the
+    timelines, and the integrity table had no date at all."""
+    import datetime as dt
+
+    lines = (samples / "crossing_example.csv").read_text("utf-8").splitlines()
+    out = [lines[0]]
+    for line in lines[1:]:
+        t, rest = line.split(",", 1)
+        if ",B-" in f",{rest}":
+            when = dt.datetime.fromisoformat(t.replace("Z", "+00:00")) + dt.timedelta(hours=6, minutes=50)
+            t = when.strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
+        out.append(f"{t},{rest}")
+    path = tmp_path / "midnight.csv"
+    path.write_text("\n".join(out) + "\n", "utf-8")
+    res = runner.invoke(app, ["crossing", str(path), "--layout", "example"])
+    assert res.exit_code == 0, res.output
+    text = res.stdout
+    assert "Level crossings (LC) 2026-01-19: times of day (+N: N days later)" in " ".join(text.split())
+    rows = [ln.split() for ln in text.splitlines() if ln.strip().startswith(("11+850", "12+940"))][:4]
+    assert {r[1]: r[2] for r in rows if r[0] == "11+850"} == {"A": "17:01:02", "B": "00:07:41+1"}
+    assert "Train integrity (2026-01-19, +N: N days later)" in text and "00:05:18+1" in text
+    # One day: no marks.
+    plain = runner.invoke(app, ["crossing", str(samples / "crossing_example.csv"), "--layout", "example"]).stdout
+    assert "+N" not in plain and "+1 " not in plain and "Train integrity (2026-01-19):" in plain
