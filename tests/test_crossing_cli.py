@@ -389,3 +389,21 @@ def test_times_on_a_later_day_are_marked_in_the_tables(samples: Path, tmp_path: 
     # One day: no marks.
     plain = runner.invoke(app, ["crossing", str(samples / "crossing_example.csv"), "--layout", "example"]).stdout
     assert "+N" not in plain and "+1 " not in plain and "Train integrity (2026-01-19):" in plain
+
+
+def test_units_named_in_capitals_pair_by_name(samples: Path, tmp_path: Path) -> None:
+    """A-HEAD / A-EOT (an export in capitals) paired by no name: both trains were read as one."""
+    text = (samples / "crossing_example.csv").read_text("utf-8")
+    path = tmp_path / "upper.csv"
+    path.write_text(text.replace("-head,head", "-HEAD,HEAD").replace("-eot,eot", "-EOT,EOT"), "utf-8")
+    doc = _crossing(samples, path=path)
+    assert [(t["train"], t["head"], t["eot"]) for t in doc["trains"]] == [
+        ("A", ["A-HEAD"], ["A-EOT"]),
+        ("B", ["B-HEAD"], ["B-EOT"]),
+    ]
+    assert doc["warnings"] == [] and doc["violations"] == 0
+    # Without a role column (NMEA has none) the name says the role too.
+    lines = [ln.split(",") for ln in path.read_text("utf-8").splitlines()]
+    no_role = tmp_path / "no_role.csv"
+    no_role.write_text("\n".join(",".join(c[:2] + c[3:]) for c in lines) + "\n", "utf-8")
+    assert [t["train"] for t in _crossing(samples, path=no_role)["trains"]] == ["A", "B"]

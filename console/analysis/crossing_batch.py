@@ -11,6 +11,7 @@ and integrity stage every mode runs.
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -58,6 +59,15 @@ class CrossingRun:
         return sum(1 for r in self.timelines if r.violations)
 
 
+_UNIT_NAME = re.compile(r"(.+)-(head|eot)", re.IGNORECASE)
+
+
+def _unit_name(device: str) -> tuple[str, str] | None:
+    """``T1-head`` (or ``T1-HEAD``) → ("T1", HEAD); None for a name that says no train and role."""
+    m = _UNIT_NAME.fullmatch(device)
+    return (m.group(1), HEAD if m.group(2).lower() == "head" else EOT) if m else None
+
+
 def pair_trains(
     fixes: pd.DataFrame, given: Sequence[TrainDevices], default_length_m: float
 ) -> tuple[list[TrainDevices], list[str]]:
@@ -70,24 +80,24 @@ def pair_trains(
         known = {d for t in given for d in (*t.head, *t.eot)}
         return list(given), [d for d in devices if d not in known]
     roles = fixes.groupby("device", observed=True)["role"].first() if len(fixes) else pd.Series(dtype=object)
-    # NMEA carries no role: a device named <train>-head / <train>-eot says it.
-    roles = pd.Series(
-        {
-            d: (r if r in (HEAD, EOT) else HEAD if str(d).endswith("-head") else EOT if str(d).endswith("-eot") else r)
-            for d, r in roles.items()
-        },
-        dtype=object,
-    )
+    # NMEA carries no role: a device named <train>-head / <train>-eot says it (any case: A-HEAD too).
+    names = {str(d): _unit_name(str(d)) for d in roles.index}
+
+    def role_of(device: object, given: object) -> object:
+        named = names[str(device)]
+        return given if given in (HEAD, EOT) or named is None else named[1]
+
+    roles = pd.Series({d: role_of(d, r) for d, r in roles.items()}, dtype=object)
     heads = tuple(str(d) for d, r in roles.items() if r == HEAD)
     eots = tuple(str(d) for d, r in roles.items() if r == EOT)
     # Devices named <train>-head / <train>-eot pair by name.
-    named = {d.rsplit("-", 1)[0] for d in (*heads, *eots) if d.endswith(("-head", "-eot"))}
+    named = {n[0] for d in (*heads, *eots) if (n := names[d])}
     if len(named) > 1 or (named and len(heads) + len(eots) == 2 * len(named)):
         out = [
             TrainDevices(
                 n,
-                tuple(d for d in heads if d == f"{n}-head"),
-                tuple(d for d in eots if d == f"{n}-eot"),
+                tuple(d for d in heads if names[d] == (n, HEAD)),
+                tuple(d for d in eots if names[d] == (n, EOT)),
                 default_length_m,
             )
             for n in sorted(named)
