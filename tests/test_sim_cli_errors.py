@@ -117,6 +117,19 @@ def test_a_gnss_decay_of_a_unit_whose_train_never_ran_is_said(tmp_path: Path) ->
     assert ok.exit_code == 0 and "warning" not in ok.stderr
 
 
+def test_a_parting_after_the_train_left_the_line_is_said(tmp_path: Path) -> None:
+    # T1 runs the line from 1 min to about 9: a parting at 10m never happened, and nothing said so.
+    run = ["simulate", "--duration", "30m", "--fault"]
+    late = CliRunner().invoke(app, [*run, "train_parting:T1:10m", "-o", str(tmp_path / "run")])
+    assert late.exit_code == 0, late.output
+    assert (
+        "--fault train_parting:T1: T1 did not run at or after 2026-03-02 08:10:00; nothing was injected" in late.stderr
+    )
+    assert json.loads((tmp_path / "run" / "truth.json").read_text("utf-8"))["partings"] == []
+    ok = CliRunner().invoke(app, [*run, "train_parting:T2:10m", "-o", str(tmp_path / "run2")])
+    assert ok.exit_code == 0 and "warning" not in ok.stderr
+
+
 def test_the_days_summary_counts_in_words(tmp_path: Path) -> None:
     # plural.count's rule: a single thing is never "1 days" (it said "1 days written", "1 heads" on osong).
     result = CliRunner().invoke(
