@@ -407,3 +407,16 @@ def test_units_named_in_capitals_pair_by_name(samples: Path, tmp_path: Path) -> 
     no_role = tmp_path / "no_role.csv"
     no_role.write_text("\n".join(",".join(c[:2] + c[3:]) for c in lines) + "\n", "utf-8")
     assert [t["train"] for t in _crossing(samples, path=no_role)["trains"]] == ["A", "B"]
+
+
+def test_units_whose_every_fix_is_invalid_are_named(samples: Path, tmp_path: Path) -> None:
+    """An export whose valid column says false throughout (no position fix): an empty table, no word why."""
+    lines = (samples / "crossing_example.csv").read_text("utf-8").splitlines()
+    path = tmp_path / "invalid.csv"
+    path.write_text(
+        "\n".join([lines[0] + ",valid"] + [ln + (",true" if ",B-" in ln else ",false") for ln in lines[1:]]) + "\n",
+        "utf-8",
+    )
+    doc = _crossing(samples, path=path)
+    assert doc["warnings"] == ["no valid fix from A-head, A-eot: every one marked invalid (no position fix)"]
+    assert {r["train"] for r in doc["timelines"]} == {"B"}

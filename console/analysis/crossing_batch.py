@@ -154,6 +154,17 @@ def undated_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> int:
     return int((mine & fixes["lat"].notna() & fixes["lon"].notna() & fixes["time"].isna()).sum())
 
 
+def units_never_valid(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> list[str]:
+    """The trains' units with fixes, every one marked invalid (no position fix): :func:`unit_fixes` sets them all
+    aside, and a run of nothing else was an empty table with no word why."""
+    if not len(fixes):
+        return []
+    devices = fixes["device"].astype(str)
+    valid = set(devices[fixes["valid"].astype(bool)])
+    present = set(devices)
+    return [d for t in trains for d in (*t.head, *t.eot) if d in present and d not in valid]
+
+
 def crossing_settings(
     layout: Layout, report_period_s: float | None = None, base: ControllerSettings | None = None
 ) -> ControllerSettings:

@@ -55,7 +55,7 @@ def crossing(
 
     def body() -> int:
         one_json_form(json_out, jsonl)
-        from console.analysis.crossing_batch import merged_units, parse_train_options
+        from console.analysis.crossing_batch import merged_units, parse_train_options, units_never_valid
         from console.analysis.integrity.monitor import timelines
         from console.analysis.timefmt import iso
         from console.drivers.crossings import run_crossings
@@ -97,6 +97,8 @@ def crossing(
             warnings.append(
                 f"{count(run.undated, 'fix')} without a date and time set aside (GGA with no RMC or ZDA to date it)"
             )
+        if never := units_never_valid(fixes, run.trains):
+            warnings.append(f"no valid fix from {', '.join(never)}: every one marked invalid (no position fix)")
         if run.position_jumps:
             warnings.append(f"{count(run.position_jumps, 'fix')} set aside as position jumps (implausible for a train)")
         if absent:
