@@ -44,3 +44,20 @@ def test_the_road_opens_only_when_the_rear_is_past(length: float, eot_leads: boo
     # Far out, a 300 m train pushed flickers on and off (on by "EOT + train length", released by the head
     # unit's own bound, a train's length further out): safe, the front never nearer than the warning time;
     # left as it is (the report of this review lists it).
+
+
+@pytest.mark.parametrize("eot_leads", [True, False])
+def test_the_timeline_times_the_front_and_the_rear_whichever_unit_leads(eot_leads: bool) -> None:
+    """The timeline's arrival was the head unit's, its tail clear the EOT's: with the EOT leading, the arrival
+    came a train's length late (the lead 8 s too long) and the tail cleared before the head arrived."""
+    from console.analysis.crossing.timeline import timeline
+
+    length = 120.0
+    fixes = _down(length, eot_leads)
+    ctl = run_controller(LAYOUT.crossings[0], [TrainSpec("T", length)], fixes)
+    (row,) = timeline(ctl, fixes)
+    half = ctl.s.crossing_half_width_m
+    assert row.t_head_arrival_ns is not None and row.t_tail_clear_ns is not None
+    assert abs(row.t_head_arrival_ns / NS - (START_M - half) / SPEED) < 1.0
+    assert abs(row.t_tail_clear_ns / NS - (START_M + half + length) / SPEED) < 1.0
+    assert row.violations == ()
