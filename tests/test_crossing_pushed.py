@@ -34,16 +34,16 @@ def _down(length: float, eot_leads: bool) -> list[Fix]:
 def test_the_road_opens_only_when_the_rear_is_past(length: float, eot_leads: bool) -> None:
     crossing = LAYOUT.crossings[0]
     ctl = run_controller(crossing, [TrainSpec("T", length)], _down(length, eot_leads))
-    off = [e for e in ctl.events if e.kind == "off"][-1]  # the last: before it, releases far out (see below)
+    # One warning, on until the rear is past: far out, a 300 m train pushed flickered on and off (on by "EOT
+    # + train length", released by the trailing head unit's bound, a train's length further out).
+    (off,) = [e for e in ctl.events if e.kind == "off"]
+    assert [e.kind for e in ctl.events] == ["on", "off"]
     half = ctl.s.crossing_half_width_m
     rear_clears_s = (START_M + half + length) / SPEED  # the truth: the rear end past the road's far edge
     assert off.t_ns / NS >= rear_clears_s + crossing.d_off_m / SPEED - 1.0, (off, rear_clears_s)
     assert ("EOT leading" in off.reason) == eot_leads
     if not eot_leads:  # the head leading: off as before, about d_off past, not held a train's length longer
         assert off.t_ns / NS < rear_clears_s + (crossing.d_off_m + 2 * SPEED) / SPEED
-    # Far out, a 300 m train pushed flickers on and off (on by "EOT + train length", released by the head
-    # unit's own bound, a train's length further out): safe, the front never nearer than the warning time;
-    # left as it is (the report of this review lists it).
 
 
 @pytest.mark.parametrize("eot_leads", [True, False])

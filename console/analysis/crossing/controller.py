@@ -676,6 +676,10 @@ class CrossingController:
         # Direction unknown, the bound is the nearer way round (it holds whichever way the train goes).
         if not tr.warned or "head" in tr.alarms or not tr.kf_ok[HEAD] or not self._fresh(tr.head, fix.t_ns):
             return []
+        if self._eot_leads(tr):
+            # The head unit trails: its bound is not the front's, and a release by it came on again at the
+            # next EOT fix (a pushed 300 m train: 22 times off and on, a second apart).
+            return []
         # The head's own filter settled too: a bound that leans on the train's filter alone, just
         # after the head's track was in doubt (a brake, a jump), came on again within seconds.
         head_est = tr.kf[HEAD].estimate
