@@ -1,8 +1,8 @@
 """``follow --idle-exit`` on a file that is not there (never was, or deleted): it ends, never waits forever.
 
 Decided: a followed file still absent when nothing has arrived for the idle time is an error (one line, exit
-2); one that appears within it is followed; one deleted after its records ends as an idle follow does (the
-summary, exit 0)."""
+2), and so is a source that never connected (gpsd, a broker not up); a file that appears within it is
+followed; one deleted after its records ends as an idle follow does (the summary, exit 0)."""
 
 from __future__ import annotations
 
@@ -103,3 +103,25 @@ def test_a_file_deleted_after_its_records_ends_as_an_idle_follow(
     out, err = p.communicate(timeout=60)
     assert p.returncode == 0, err
     assert '"type": "summary"' in out
+
+
+def test_a_source_that_never_connects_is_one_line_and_exit_2() -> None:
+    """gpsd (or a broker) not up: follow --idle-exit retried it forever, as a missing file."""
+    from tests.live_fixtures import free_port
+
+    uri = f"gpsd://127.0.0.1:{free_port()}"
+    p = subprocess.run([TRACKSIDE, "follow", uri, "--idle-exit", "1"], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2 and p.stdout == ""
+    assert p.stderr.splitlines()[-1] == (
+        f"trackside: error: {uri}: never connected: cannot connect: Connection refused"
+        " (nothing arrived within --idle-exit 1 s)"
+    )
+
+
+def test_a_stream_slow_to_write_is_still_waited_for() -> None:
+    # A pipe is connected from the start: its writer may be slow, and the end of it ends follow (exit 0).
+    p = subprocess.run(
+        f"sleep 2 | {TRACKSIDE} follow - --idle-exit 1 --jsonl", shell=True, capture_output=True, text=True, timeout=60
+    )
+    assert p.returncode == 0, p.stderr
+    assert '"type": "summary"' in p.stdout

@@ -222,7 +222,7 @@ def follow(
         started = time.monotonic()
         last = [started, engine.items]
         data_items = [0]
-        absent: list[Path] = []
+        absent: list[str] = []
 
         def idle() -> bool:
             # Counted from the first record or message: a follower started before its
@@ -236,8 +236,9 @@ def follow(
                 data_items[0] = n
                 return False
             if data_items[0] == 0 and time.monotonic() - started >= idle_exit:
-                # Nothing yet, and a file to wait for is not there (never was, or deleted): waiting for its
-                # first record would be forever, which --idle-exit asked not to do.
+                # Nothing yet, and a file to wait for is not there (never was, or deleted), or a source never
+                # came up (gpsd, a broker): waiting for its first record would be forever, which --idle-exit
+                # asked not to do.
                 absent[:] = missing_files(srcs)
                 return bool(absent)
             return data_items[0] > 0 and time.monotonic() - last[0] >= idle_exit
@@ -252,7 +253,7 @@ def follow(
             if sink is not None:
                 sink.close()
         if absent:
-            raise fail(f"{absent[0]}: no such file (nothing arrived within --idle-exit {idle_exit:g} s)")
+            raise fail(f"{absent[0]} (nothing arrived within --idle-exit {idle_exit:g} s)")
         summary = engine.summary(srcs)
         if jsonl:
             emit(summary)
@@ -268,11 +269,19 @@ def follow(
     raise typer.Exit(guard(body))
 
 
-def missing_files(sources: list[Any]) -> list[Path]:
-    """The followed files (``file:PATH``) not on disk now."""
+def missing_files(sources: list[Any]) -> list[str]:
+    """The followed files (``file:PATH``) not on disk now, and the other sources never connected, each with
+    why."""
     from console.inputs.follow import FileSource
 
-    return [s.path for s in sources if isinstance(s, FileSource) and not s.path.exists()]
+    out = []
+    for s in sources:
+        if isinstance(s, FileSource):
+            if not s.path.exists():
+                out.append(f"{s.path}: no such file")
+        elif not s.ever_connected:
+            out.append(f"{s.uri}: never connected: {s.status().detail.removesuffix('; retrying')}")
+    return out
 
 
 def metrics_sink(address: str | None, layout: Any, sources: list[Any]) -> Any:
