@@ -387,6 +387,14 @@ def _warn_unmet_train_faults(sim: Any, faults: tuple[Any, ...]) -> None:
                 f"trackside: warning: --fault {f.kind}:{clean(f.target)}: no train {clean(train)} ran "
                 f"({', '.join(ran) or 'none'}); nothing was injected\n"
             )
+        elif f.kind in ("eot_loss", "head_loss") and not sim.reports_lost.get((f.target, f.kind[:-5])):
+            # The unit sends nothing while the train is off the line: a window with no report in it.
+            when = display(sim.cfg.start_ns + round(f.start_s * NS))
+            unit = "EOT" if f.kind == "eot_loss" else "head"
+            sys.stderr.write(
+                f"trackside: warning: --fault {f.kind}:{clean(f.target)}: {clean(f.target)} was not running from "
+                f"{when} to the fault's end, no {unit} report to lose; nothing was injected\n"
+            )
         elif f.kind == "train_parting" and f.target not in parted:
             # It parts at START or the first moment after it the train runs: it had left the line by then.
             when = display(sim.cfg.start_ns + round(f.start_s * NS))
