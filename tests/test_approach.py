@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -14,6 +16,8 @@ from console.analysis.passages.diagnostics import SpeedSettings
 from console.cli.app import app
 from console.layout import WorkSite, load_layout
 from tests.reads import whole_job
+
+TRACKSIDE = str(Path(sys.executable).with_name("trackside"))
 
 
 def test_earliest_arrival_with_and_without_acceleration() -> None:
@@ -57,6 +61,56 @@ def test_approach_cli(samples: Path) -> None:
     assert len(rows) == 3  # the three up trains past WS2; the down train and the trolley do not alarm
     assert all(r["lead_speed_s"] >= 30 and r["saved_s"] > 0 for r in rows)
     bad = CliRunner().invoke(
-        app, ["approach", str(samples / "example_station.log"), "--head", "WS9", "--distance", "5"]
+        app,
+        ["approach", str(samples / "example_station.log"), "--layout", "example", "--head", "WS9", "--distance", "5"],
     )
     assert bad.exit_code == 2
+
+
+def test_approach_without_a_layout_says_it_needs_one(samples: Path) -> None:
+    """It read any log against the shipped osong layout: example_station's WS4 (another line's head) gave
+    three "switch-works" warnings, exit 0, without a word."""
+    res = subprocess.run(
+        [TRACKSIDE, "approach", str(samples / "example_station.log")], capture_output=True, text=True, timeout=120
+    )
+    assert res.returncode == 2 and res.stdout == ""
+    assert res.stderr == "trackside: error: Missing option '--layout'. (see trackside approach --help)\n"
+    helped = subprocess.run([TRACKSIDE, "approach", "--help"], capture_output=True, text=True, timeout=120)
+    assert "--layout is required" in helped.stdout and "[required]" in helped.stdout
+
+
+def _warnings(samples: Path, *extra: str) -> list[dict[str, object]]:
+    res = CliRunner().invoke(
+        app, ["approach", str(samples / "example_station.log"), "--layout", "example", "--json", *extra]
+    )
+    assert res.exit_code == 0, res.output
+    return list(json.loads(res.stdout)["warnings"])
+
+
+def test_warning_time_applies_to_the_layouts_sites_too(samples: Path) -> None:
+    """--warning-time was read for an ad-hoc site only: with the layout's sites 90 (or 1e9) changed nothing."""
+    own = _warnings(samples)  # gang-11+400: 30 s, and the trains give it 42-45 s from detection
+    assert own and all(r["saved_s"] > 0 and r["note"] == "" for r in own)
+    longer = _warnings(samples, "--warning-time", "90")
+    assert [r["t_detect"] for r in longer] == [r["t_detect"] for r in own]
+    assert all(r["saved_s"] == 0 and "move the warning point further out" in str(r["note"]) for r in longer)
+
+
+@pytest.mark.parametrize(
+    ("extra", "said"),
+    [
+        (["--warning-time", "1e6"], "Invalid value for '--warning-time': 1000000.0 is not in the range 1<=x<=86400"),
+        (["--head", "WS3", "--distance", "1e8"], "--distance: expected at most 1e+07 m either way, got 1e+08"),
+    ],
+)
+def test_approach_options_beyond_what_a_layout_takes_are_refused(samples: Path, extra: list[str], said: str) -> None:
+    """The bounds a layout's [[work_sites]] have (a warning time up to a day, a distance up to 10 000 km): a
+    site 1e9 m out was a table of three-year leads."""
+    res = subprocess.run(
+        [TRACKSIDE, "approach", str(samples / "example_station.log"), "--layout", "example", *extra],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert res.returncode == 2 and res.stdout == ""
+    assert said in res.stderr and len(res.stderr.splitlines()) == 1, res.stderr

@@ -304,7 +304,7 @@ STDIN_CASES = [
     (["health", "-", "--json"], "ws4_health.log", '"findings"'),
     (["health", "--voltages", "-", "--json"], "am_thuong_2021-06-06_voltages.csv", '"findings"'),
     (["frames", "-", "--json"], "sensor_frames.txt", '"frames"'),
-    (["approach", "-", "--json"], "osong_ws4_1732_passage.log", '"schema"'),
+    (["approach", "-", "--layout", "osong", "--json"], "osong_ws4_1732_passage.log", '"schema"'),
     (["gnss", "-", "--json"], "gnss_devices.csv", '"fixes"'),
     (["crossing", "-", "--layout", "example", "--json"], "crossing_example.csv", '"violations"'),
     (["report", "-", "--layout", "example", "--format", "json"], "example_station.log", '"diagnostic"'),

@@ -321,3 +321,102 @@ def test_gga_only_captures_say_their_undated_fixes_were_set_aside(samples: Path,
     n = len(per_device["A-head"]) + len(per_device["A-eot"])
     assert doc["timelines"] == []
     assert f"{n} fixes without a date and time set aside (GGA with no RMC or ZDA to date it)" in doc["warnings"]
+
+
+def test_units_not_paired_by_name_read_as_one_train_are_said(samples: Path, tmp_path: Path) -> None:
+    """Units named by their IMEI (a role column, no <train>-head names): the two trains were read as one,
+    silently, with a false parting and a 610 s stale EOT, and no word of it."""
+    imei = {"A-head": "860001", "A-eot": "860002", "B-head": "860003", "B-eot": "860004"}
+    text = (samples / "crossing_example.csv").read_text("utf-8")
+    for name, number in imei.items():
+        text = text.replace(f",{name},", f",{number},")
+    path = tmp_path / "imei.csv"
+    path.write_text(text, "utf-8")
+    said = "2 head and 2 EOT devices, not named <train>-head / <train>-eot, read as one train: give --train"
+    doc = _crossing(samples, path=path)
+    assert [t["train"] for t in doc["trains"]] == ["train"] and any(w.startswith(said) for w in doc["warnings"])
+    plain = runner.invoke(app, ["crossing", str(path), "--layout", "example"])
+    assert plain.exit_code == 0 and f"warning: {said}" in plain.stdout
+    paired = _crossing(samples, "--train", "A=860001,860002,120", "--train", "B=860003,860004,300", path=path)
+    assert [t["train"] for t in paired["trains"]] == ["A", "B"] and paired["warnings"] == []
+    # One head and one EOT unit however named are one train: nothing to say.
+    one = tmp_path / "one.csv"
+    one.write_text(
+        "\n".join(ln for ln in text.splitlines() if ",86000" not in ln or ",860001," in ln or ",860002," in ln)
+    )
+    assert _crossing(samples, path=one)["warnings"] == []
+
+
+@pytest.mark.parametrize(
+    ("trains", "said"),
+    [
+        (["A=A-head,A-eot", "A=B-head,B-eot"], "--train A: given twice (one --train per train)"),
+        (["A=A-head,A-eot", "B=A-head,B-eot"], "--train B: A-head is already A's head"),
+        (["A=A-head,A-head"], "--train A: A-head is already A's head"),
+    ],
+)
+def test_a_train_or_a_device_named_twice_is_refused(samples: Path, trains: list[str], said: str) -> None:
+    """Two --train A merged both trains' units under A; a device in two trains gave its fixes to the last
+    (train A then ran on its EOT alone): both unsaid, exit 0."""
+    args = [a for t in trains for a in ("--train", t)]
+    res = runner.invoke(app, ["crossing", str(samples / "crossing_example.csv"), "--layout", "example", *args])
+    assert res.exit_code == 2 and res.stdout == ""
+    assert res.stderr.startswith(f"trackside: error: {said}") and res.stderr.count("\n") == 1, res.stderr
+
+
+def test_times_on_a_later_day_are_marked_in_the_tables(samples: Path, tmp_path: Path) -> None:
+    """Train B's run moved past midnight: its times of day were shown under train A's date, unmarked, in the
+    timelines, and the integrity table had no date at all."""
+    import datetime as dt
+
+    lines = (samples / "crossing_example.csv").read_text("utf-8").splitlines()
+    out = [lines[0]]
+    for line in lines[1:]:
+        t, rest = line.split(",", 1)
+        if ",B-" in f",{rest}":
+            when = dt.datetime.fromisoformat(t.replace("Z", "+00:00")) + dt.timedelta(hours=6, minutes=50)
+            t = when.strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
+        out.append(f"{t},{rest}")
+    path = tmp_path / "midnight.csv"
+    path.write_text("\n".join(out) + "\n", "utf-8")
+    res = runner.invoke(app, ["crossing", str(path), "--layout", "example"])
+    assert res.exit_code == 0, res.output
+    text = res.stdout
+    assert "Level crossings (LC) 2026-01-19: times of day (+N: N days later)" in " ".join(text.split())
+    rows = [ln.split() for ln in text.splitlines() if ln.strip().startswith(("11+850", "12+940"))][:4]
+    assert {r[1]: r[2] for r in rows if r[0] == "11+850"} == {"A": "17:01:02", "B": "00:07:41+1"}
+    assert "Train integrity (2026-01-19, +N: N days later)" in text and "00:05:18+1" in text
+    # One day: no marks.
+    plain = runner.invoke(app, ["crossing", str(samples / "crossing_example.csv"), "--layout", "example"]).stdout
+    assert "+N" not in plain and "+1 " not in plain and "Train integrity (2026-01-19):" in plain
+
+
+def test_units_named_in_capitals_pair_by_name(samples: Path, tmp_path: Path) -> None:
+    """A-HEAD / A-EOT (an export in capitals) paired by no name: both trains were read as one."""
+    text = (samples / "crossing_example.csv").read_text("utf-8")
+    path = tmp_path / "upper.csv"
+    path.write_text(text.replace("-head,head", "-HEAD,HEAD").replace("-eot,eot", "-EOT,EOT"), "utf-8")
+    doc = _crossing(samples, path=path)
+    assert [(t["train"], t["head"], t["eot"]) for t in doc["trains"]] == [
+        ("A", ["A-HEAD"], ["A-EOT"]),
+        ("B", ["B-HEAD"], ["B-EOT"]),
+    ]
+    assert doc["warnings"] == [] and doc["violations"] == 0
+    # Without a role column (NMEA has none) the name says the role too.
+    lines = [ln.split(",") for ln in path.read_text("utf-8").splitlines()]
+    no_role = tmp_path / "no_role.csv"
+    no_role.write_text("\n".join(",".join(c[:2] + c[3:]) for c in lines) + "\n", "utf-8")
+    assert [t["train"] for t in _crossing(samples, path=no_role)["trains"]] == ["A", "B"]
+
+
+def test_units_whose_every_fix_is_invalid_are_named(samples: Path, tmp_path: Path) -> None:
+    """An export whose valid column says false throughout (no position fix): an empty table, no word why."""
+    lines = (samples / "crossing_example.csv").read_text("utf-8").splitlines()
+    path = tmp_path / "invalid.csv"
+    path.write_text(
+        "\n".join([lines[0] + ",valid"] + [ln + (",true" if ",B-" in ln else ",false") for ln in lines[1:]]) + "\n",
+        "utf-8",
+    )
+    doc = _crossing(samples, path=path)
+    assert doc["warnings"] == ["no valid fix from A-head, A-eot: every one marked invalid (no position fix)"]
+    assert {r["train"] for r in doc["timelines"]} == {"B"}

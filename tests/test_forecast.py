@@ -256,12 +256,21 @@ def test_the_forecast_as_a_textfile_for_prometheus(
     prom = tmp_path / "trackside.prom"
     res = runner.invoke(app, ["forecast", "--archive", str(arc), "--textfile", str(prom), "--json"])
     assert res.exit_code == 0, res.output
-    due = set()
+    due, left = set(), {}
     for fam in text_string_to_metric_families(prom.read_text(encoding="utf-8")):
         for x in fam.samples:
+            key = (x.labels.get("target"), x.labels.get("channel"), x.labels.get("figure"))
             if x.name == "trackside_forecast_due" and x.value == 1:
-                due.add((x.labels["target"], x.labels["channel"], x.labels["figure"]))
+                due.add(key)
+            elif x.name == "trackside_forecast_time_left_seconds":
+                left[key] = x.value / 86400
     assert due == {(f["target"], str(f["channel"] or ""), f["figure"]) for f in forecast_json["due"]}
+    days = {
+        (f["target"], str(f["channel"] or ""), f["figure"]): f["days_left"]
+        for f in forecast_json["forecasts"]
+        if f["days_left"] is not None
+    }
+    assert left.keys() == days.keys() and all(abs(left[k] - d) < 0.01 for k, d in days.items())
 
 
 def test_forecast_jsonl_is_the_document_a_record_a_line(

@@ -168,7 +168,8 @@ def test_the_forecast_alert_says_the_days_left_or_that_there_is_no_date(
     labels = 'target="WS2",channel="2",figure="analog_margin"'
     series = f"      - series: 'trackside_forecast_due{{{labels}}}'\n        values: '1x5'\n"
     if days_left is not None:
-        series += f"      - series: 'trackside_forecast_days_left{{{labels}}}'\n        values: '{days_left}x5'\n"
+        seconds = float(days_left) * 86400  # the textfile's series is in seconds; the alert says days
+        series += f"      - series: 'trackside_forecast_time_left_seconds{{{labels}}}'\n        values: '{seconds}x5'\n"
     (tmp_path / "test.yml").write_text(
         f"rule_files:\n  - {REPO / 'docs' / 'alerts.yml'}\nevaluation_interval: 1m\ntests:\n  - interval: 1m\n"
         f"    input_series:\n{series}"

@@ -107,6 +107,43 @@ def test_a_fault_for_a_train_that_never_ran_is_said(tmp_path: Path) -> None:
     assert ok.exit_code == 0 and "warning" not in ok.stderr
 
 
+def test_a_gnss_decay_of_a_unit_whose_train_never_ran_is_said(tmp_path: Path) -> None:
+    # It was silent: the truth listed the fault, the run had no T9 to wear.
+    run = ["simulate", "--duration", "20m", "--fault"]
+    result = CliRunner().invoke(app, [*run, "gnss_decay:T9-eot:0s::2:0.02", "-o", str(tmp_path / "run")])
+    assert result.exit_code == 0, result.output
+    assert "--fault gnss_decay:T9-eot: no train T9 ran (T1, T2); nothing was injected" in result.stderr
+    ok = CliRunner().invoke(app, [*run, "gnss_decay:T1-eot:0s::2:0.02", "-o", str(tmp_path / "run2")])
+    assert ok.exit_code == 0 and "warning" not in ok.stderr
+
+
+def test_a_parting_after_the_train_left_the_line_is_said(tmp_path: Path) -> None:
+    # T1 runs the line from 1 min to about 9: a parting at 10m never happened, and nothing said so.
+    run = ["simulate", "--duration", "30m", "--fault"]
+    late = CliRunner().invoke(app, [*run, "train_parting:T1:10m", "-o", str(tmp_path / "run")])
+    assert late.exit_code == 0, late.output
+    assert (
+        "--fault train_parting:T1: T1 did not run at or after 2026-03-02 08:10:00; nothing was injected" in late.stderr
+    )
+    assert json.loads((tmp_path / "run" / "truth.json").read_text("utf-8"))["partings"] == []
+    ok = CliRunner().invoke(app, [*run, "train_parting:T2:10m", "-o", str(tmp_path / "run2")])
+    assert ok.exit_code == 0 and "warning" not in ok.stderr
+
+
+def test_a_unit_loss_while_the_train_was_off_the_line_is_said(tmp_path: Path) -> None:
+    # T1 runs from about 1 min to 9: an EOT loss from 25m lost nothing, and nothing said so.
+    run = ["simulate", "--duration", "30m", "--fault"]
+    late = CliRunner().invoke(app, [*run, "eot_loss:T1:25m", "-o", str(tmp_path / "run")])
+    assert late.exit_code == 0, late.output
+    assert (
+        "--fault eot_loss:T1: T1 was not running from 2026-03-02 08:25:00 to the fault's end, no EOT report to"
+        " lose; nothing was injected" in late.stderr
+    )
+    for fault in ("eot_loss:T1:5m", "head_loss:T1:2m:3m"):
+        ok = CliRunner().invoke(app, [*run, fault, "-o", str(tmp_path / fault.replace(":", "_"))])
+        assert ok.exit_code == 0 and "warning" not in ok.stderr, (fault, ok.stderr)
+
+
 def test_the_days_summary_counts_in_words(tmp_path: Path) -> None:
     # plural.count's rule: a single thing is never "1 days" (it said "1 days written", "1 heads" on osong).
     result = CliRunner().invoke(

@@ -11,6 +11,7 @@ and integrity stage every mode runs.
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -58,6 +59,15 @@ class CrossingRun:
         return sum(1 for r in self.timelines if r.violations)
 
 
+_UNIT_NAME = re.compile(r"(.+)-(head|eot)", re.IGNORECASE)
+
+
+def _unit_name(device: str) -> tuple[str, str] | None:
+    """``T1-head`` (or ``T1-HEAD``) → ("T1", HEAD); None for a name that says no train and role."""
+    m = _UNIT_NAME.fullmatch(device)
+    return (m.group(1), HEAD if m.group(2).lower() == "head" else EOT) if m else None
+
+
 def pair_trains(
     fixes: pd.DataFrame, given: Sequence[TrainDevices], default_length_m: float
 ) -> tuple[list[TrainDevices], list[str]]:
@@ -70,24 +80,24 @@ def pair_trains(
         known = {d for t in given for d in (*t.head, *t.eot)}
         return list(given), [d for d in devices if d not in known]
     roles = fixes.groupby("device", observed=True)["role"].first() if len(fixes) else pd.Series(dtype=object)
-    # NMEA carries no role: a device named <train>-head / <train>-eot says it.
-    roles = pd.Series(
-        {
-            d: (r if r in (HEAD, EOT) else HEAD if str(d).endswith("-head") else EOT if str(d).endswith("-eot") else r)
-            for d, r in roles.items()
-        },
-        dtype=object,
-    )
+    # NMEA carries no role: a device named <train>-head / <train>-eot says it (any case: A-HEAD too).
+    names = {str(d): _unit_name(str(d)) for d in roles.index}
+
+    def role_of(device: object, given: object) -> object:
+        named = names[str(device)]
+        return given if given in (HEAD, EOT) or named is None else named[1]
+
+    roles = pd.Series({d: role_of(d, r) for d, r in roles.items()}, dtype=object)
     heads = tuple(str(d) for d, r in roles.items() if r == HEAD)
     eots = tuple(str(d) for d, r in roles.items() if r == EOT)
     # Devices named <train>-head / <train>-eot pair by name.
-    named = {d.rsplit("-", 1)[0] for d in (*heads, *eots) if d.endswith(("-head", "-eot"))}
+    named = {n[0] for d in (*heads, *eots) if (n := names[d])}
     if len(named) > 1 or (named and len(heads) + len(eots) == 2 * len(named)):
         out = [
             TrainDevices(
                 n,
-                tuple(d for d in heads if d == f"{n}-head"),
-                tuple(d for d in eots if d == f"{n}-eot"),
+                tuple(d for d in heads if names[d] == (n, HEAD)),
+                tuple(d for d in eots if names[d] == (n, EOT)),
                 default_length_m,
             )
             for n in sorted(named)
@@ -98,6 +108,21 @@ def pair_trains(
         return [], devices
     other = [d for d in devices if d not in heads and d not in eots]
     return [TrainDevices("train", heads, eots, default_length_m)], other
+
+
+def merged_units(trains: Sequence[TrainDevices]) -> str | None:
+    """What to say when :func:`pair_trains` read several head or EOT devices as one train (no ``--train``, no
+    ``<train>-head`` / ``<train>-eot`` names to pair them by): two trains merged give false partings and stale
+    units, so it is said, never silent."""
+    if len(trains) != 1 or trains[0].train != "train":
+        return None
+    t = trains[0]
+    if len(t.head) <= 1 and len(t.eot) <= 1:
+        return None
+    return (
+        f"{len(t.head)} head and {len(t.eot)} EOT devices, not named <train>-head / <train>-eot, read as one train: "
+        "give --train TRAIN=HEAD,EOT for each train"
+    )
 
 
 def unit_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> pd.DataFrame:
@@ -129,6 +154,17 @@ def undated_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> int:
     return int((mine & fixes["lat"].notna() & fixes["lon"].notna() & fixes["time"].isna()).sum())
 
 
+def units_never_valid(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> list[str]:
+    """The trains' units with fixes, every one marked invalid (no position fix): :func:`unit_fixes` sets them all
+    aside, and a run of nothing else was an empty table with no word why."""
+    if not len(fixes):
+        return []
+    devices = fixes["device"].astype(str)
+    valid = set(devices[fixes["valid"].astype(bool)])
+    present = set(devices)
+    return [d for t in trains for d in (*t.head, *t.eot) if d in present and d not in valid]
+
+
 def crossing_settings(
     layout: Layout, report_period_s: float | None = None, base: ControllerSettings | None = None
 ) -> ControllerSettings:
@@ -151,6 +187,25 @@ def integrity_settings(s: ControllerSettings) -> IntegritySettings:
 
 
 MAX_TRAIN_LENGTH_M = 5000.0  # past the longest freight trains run (about 3.5 km)
+
+
+def parse_train_options(texts: Sequence[str], default_length_m: float) -> list[TrainDevices]:
+    """Every ``--train``, each train and each device named once (ValueError with the reason): a device is one
+    train's head or EOT, and a train one pair (fixes go to a device's one owner; the second was taken unsaid)."""
+    trains = [parse_train_option(t, default_length_m) for t in texts]
+    names: set[str] = set()
+    owner: dict[str, str] = {}
+    for t in trains:
+        if t.train in names:
+            raise ValueError(f"--train {t.train}: given twice (one --train per train)")
+        names.add(t.train)
+        for role, device in (("head", t.head[0]), ("EOT", t.eot[0])):
+            if device in owner:
+                raise ValueError(
+                    f"--train {t.train}: {device} is already {owner[device]} (a device is one train's head or EOT)"
+                )
+            owner[device] = f"{t.train}'s {role}"
+    return trains
 
 
 def parse_train_option(text: str, default_length_m: float) -> TrainDevices:

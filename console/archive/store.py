@@ -50,6 +50,11 @@ class ArchiveError(Exception):
     """An archive that cannot be used as asked: one line for the user, exit 2."""
 
 
+class ArchiveDamaged(ArchiveError):
+    """The archive's own pointer or manifest is damaged (emptied, cut, edited by hand): ``verify`` says so with
+    exit 1, as of any damage it finds; the other commands cannot read the archive (exit 2)."""
+
+
 class ArchiveBusy(ArchiveError):
     """Another ingest holds the lock (and --no-wait was given)."""
 
@@ -122,7 +127,7 @@ def migrate(doc: dict[str, Any], version: int) -> dict[str, Any]:
             f"archive schema version {version} is newer than this trackside reads ({SCHEMA_VERSION}): upgrade trackside"
         )
     if version < 1:
-        raise ArchiveError(f"not a trackside archive manifest (schema version {version})")
+        raise ArchiveDamaged(f"not a trackside archive manifest (schema version {version})")
     steps: dict[int, Any] = {}  # e.g. {1: _v1_to_v2}; none yet
     while version < SCHEMA_VERSION:
         doc = steps[version](doc)
@@ -163,19 +168,21 @@ def read_current(root: Path) -> Manifest:
     except OSError as exc:
         raise ArchiveError(f"{pointer}: cannot read ({exc.strerror or exc})") from None
     if not name or "/" in name or name in (".", ".."):
-        raise ArchiveError(f"{pointer}: names no manifest ({name!r}): the archive is damaged")
+        raise ArchiveDamaged(f"{pointer}: names no manifest ({name!r}): the archive is damaged")
     path = root / MANIFESTS / name
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
+    except (FileNotFoundError, NotADirectoryError, ValueError) as exc:  # gone or cut: damage, not a permission
+        raise ArchiveDamaged(f"{path}: unreadable manifest ({exc})") from None
+    except OSError as exc:
         raise ArchiveError(f"{path}: unreadable manifest ({exc})") from None
     if not isinstance(doc, dict) or not str(doc.get("schema", "")).startswith(SCHEMA + "/"):
-        raise ArchiveError(f"{path}: not a trackside archive manifest")
+        raise ArchiveDamaged(f"{path}: not a trackside archive manifest")
     try:
         return Manifest.from_dict(doc)
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         # A manifest edited by hand or damaged on disk: said of the file, never an internal error.
-        raise ArchiveError(f"{path}: damaged manifest ({type(exc).__name__}: {exc})") from None
+        raise ArchiveDamaged(f"{path}: damaged manifest ({type(exc).__name__}: {exc})") from None
 
 
 ARCHIVE_ENTRIES = frozenset({CURRENT, MANIFESTS, DATA, TMP, LOCK, f".{CURRENT}.tmp"})

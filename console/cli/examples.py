@@ -34,6 +34,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     ),
     "approach": (
         "trackside approach sample_logs/osong_*.log --layout osong",
+        "trackside approach sample_logs/example_station.log --layout example",
         "trackside approach sample_logs/example_station.log --layout example --head WS3 --distance 800",
     ),
     "gnss": (

@@ -159,6 +159,7 @@ class Source(ABC):
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
         self._connected = False
+        self.ever_connected = False  # follow --idle-exit: a source never up is an error, not a wait
         self._told = False  # the first state is always told: a source that cannot open says so at once
         self._detail = "starting"
         self._last_mono: float | None = None
@@ -259,6 +260,7 @@ class Source(ABC):
         with self._lock:
             changed = connected != self._connected or not self._told
             self._connected, self._told = connected, True
+            self.ever_connected = self.ever_connected or connected
             self._detail = detail
         if changed:
             self.note("connected" if connected else "disconnected", detail)

@@ -213,6 +213,8 @@ class StationSim:
         }
         self.truth_crossings: list[dict[str, object]] = []
         self.truth_partings: list[PartingTruth] = []
+        # Reports an eot_loss / head_loss fault kept back, per (train, role): none means it hit no train.
+        self.reports_lost: dict[tuple[str, str], int] = {}
         self._crossing_seen: dict[tuple[str, str], dict[str, object]] = {}
         # Everything reported, for the writers.
         self.all_records: list[WheelRecord] = []
@@ -607,6 +609,9 @@ class StationSim:
                     f.kind == ("head_loss" if role == HEAD else "eot_loss") and f.target == tr.id and f.active(t)
                     for f in self.faults
                 )
+                if lost and t >= t0:
+                    key = (str(tr.id), role)
+                    self.reports_lost[key] = self.reports_lost.get(key, 0) + 1
                 if lost or t < t0:
                     continue
                 p_lost = unit_loss(self.faults, f"{tr.id}-{role}", t)

@@ -240,7 +240,7 @@ class MetricsSink:
 
 def forecast_exposition(items: Sequence[Any]) -> bytes:
     """``forecast --textfile``: the forecasts in the exposition format, for node_exporter's textfile collector
-    (a cron job's metrics): per series whether it is due and the days left.  The command writes it through
+    (a cron job's metrics): per series whether it is due and the time left.  The command writes it through
     ``console.output_path`` (atomically, never over a device, a FIFO or the archive's own files)."""
     from prometheus_client import generate_latest
 
@@ -248,9 +248,10 @@ def forecast_exposition(items: Sequence[Any]) -> bytes:
     r = CollectorRegistry()
     labels = ["target", "channel", "figure"]
     due = Gauge("trackside_forecast_due", "1 when the series is due for maintenance (or past).", labels, registry=r)
+    # Seconds, Prometheus' base unit: promtool flags a `_days` name (it was trackside_forecast_days_left).
     left = Gauge(
-        "trackside_forecast_days_left",
-        "Days from the archive's last day to the forecast crossing (negative: past).",
+        "trackside_forecast_time_left_seconds",
+        "Seconds from the archive's last day to the forecast crossing (negative: past).",
         labels,
         registry=r,
     )
@@ -259,9 +260,8 @@ def forecast_exposition(items: Sequence[Any]) -> bytes:
     for f in items:
         key = (f.target, "" if f.channel is None else str(f.channel), f.figure)
         due.labels(*key).set(1.0 if f.due else 0.0)
-        d = f.to_dict()["days_left"]
-        if d is not None:
-            left.labels(*key).set(float(d))
+        if f.crossing_ns is not None:
+            left.labels(*key).set((f.crossing_ns - f.from_ns) / 1e9)
         counts[f.status] = counts.get(f.status, 0) + 1
     for s, n in counts.items():
         status.labels(s).set(n)

@@ -52,7 +52,9 @@ travel.
   the device's track not just restarted: one wild fix, plausible-looking or
   not, cannot open the road.  This is the paper's "d ≤ d_off, then
   increasing" in signed form: past the crossing by the margin and moving
-  away.
+  away.  A train with its EOT end leading (backing, pushed: the EOT ahead
+  of the head unit) has its rear a train's length behind the EOT: past by
+  ``d_off`` plus the length.
 * **Fail-safe.**  Nothing ever ends a warning by timeout; a release needs a
   fresh, settled head estimate.  A stale EOT
   (no fix for ``stale_after_s``) raises an alarm and keeps the warning on.
@@ -460,6 +462,21 @@ class CrossingController:
         self.events.append(ev)
         return ev
 
+    def _eot_leads(self, tr: _Track) -> bool:
+        """The EOT unit ahead of the head unit in the direction of travel, by more than the head can have
+        run between their last fixes (and the noise): a train backing, or pushed.  Its rear is then the
+        head unit's end, a train's length behind the EOT."""
+        eot = tr.eot_kept or tr.eot
+        if eot is None or tr.head is None or not tr.direction:
+            return False
+        reach = tr.head.speed_hi_mps * abs(eot.t_fix_ns - tr.head.t_fix_ns) / NS + 2 * self.s.noise_m
+        return tr.direction * (eot.chainage_m - tr.head.chainage_m) > reach
+
+    def _eot_off_m(self, tr: _Track) -> float:
+        """How far past the crossing the EOT must be for the tail to be past by d_off: the train's length
+        more when the EOT leads (it was d_off alone, and a pushed train's rear was still on the road)."""
+        return self.crossing.d_off_m + (tr.spec.length_m if self._eot_leads(tr) else 0.0)
+
     def _tail_past(self, tr: _Track) -> bool:
         """The tail is past the crossing by d_off in the direction of travel, by the last EOT fix the
         filter took (one fix that jumped back does not put the tail on the road again)."""
@@ -467,7 +484,7 @@ class CrossingController:
             return False
         eot = tr.eot_kept or tr.eot
         if eot is not None:
-            return tr.direction * (eot.chainage_m - self.crossing.chainage_m) >= self.crossing.d_off_m
+            return tr.direction * (eot.chainage_m - self.crossing.chainage_m) >= self._eot_off_m(tr)
         if tr.head is None or tr.head.speed_basis != REPORTED:
             return False
         # No EOT at all: only the head's own position (moved on by a reported speed) can tell.
@@ -670,6 +687,10 @@ class CrossingController:
         # Direction unknown, the bound is the nearer way round (it holds whichever way the train goes).
         if not tr.warned or "head" in tr.alarms or not tr.kf_ok[HEAD] or not self._fresh(tr.head, fix.t_ns):
             return []
+        if self._eot_leads(tr):
+            # The head unit trails: its bound is not the front's, and a release by it came on again at the
+            # next EOT fix (a pushed 300 m train: 22 times off and on, a second apart).
+            return []
         # The head's own filter settled too: a bound that leans on the train's filter alone, just
         # after the head's track was in doubt (a brake, a jump), came on again within seconds.
         head_est = tr.kf[HEAD].estimate
@@ -717,20 +738,24 @@ class CrossingController:
             return []
         c = self.crossing.chainage_m
         past = tr.direction * (fix.chainage_m - c)
-        if past < self.crossing.d_off_m:
+        need = self._eot_off_m(tr)
+        if past < need:
             return []
         if prev_eot is None or rep.restarted or tr.direction_set_ns >= prev_eot.t_fix_ns:
             # A first EOT fix alone is not evidence, nor a pair read in a direction that has
             # just changed: wait for the next.
             return []
-        if tr.direction * (prev_eot.chainage_m - c) < self.crossing.d_off_m:
+        if tr.direction * (prev_eot.chainage_m - c) < need:
             return []  # one fix past could be a jump: two in a row are evidence
         dt = (fix.t_fix_ns - prev_eot.t_fix_ns) / NS
         step = tr.direction * (fix.chainage_m - prev_eot.chainage_m)
         if dt <= 0 or step < -self.s.noise_m or step > self.s.max_speed_mps * dt + self.s.noise_m:
             return []  # not consistent with the previous fix: not evidence
         tr.warned, tr.t_off = False, fix.t_ns
-        tr.reason_off = f"EOT {past:.0f} m past the crossing and moving away"
+        leads = (
+            " (the EOT leading: the head unit's end a train's length behind)" if need > self.crossing.d_off_m else ""
+        )
+        tr.reason_off = f"EOT {past:.0f} m past the crossing and moving away{leads}"
         tr.episodes.append((tr.t_on or fix.t_ns, fix.t_ns, tr.reason_on, tr.reason_off))
         return [self._emit(fix.t_ns, tr, "off", tr.reason_off)]
 
@@ -740,7 +765,7 @@ class CrossingController:
         end of the run is not worth an alarm at a crossing it left behind)."""
         if tr.warned or tr.eot is None or not tr.direction:
             return False
-        return tr.direction * (tr.eot.chainage_m - self.crossing.chainage_m) >= self.crossing.d_off_m
+        return tr.direction * (tr.eot.chainage_m - self.crossing.chainage_m) >= self._eot_off_m(tr)
 
     def _alarms(self, tr: _Track, t_ns: int) -> list[CrossingEvent]:
         out = []

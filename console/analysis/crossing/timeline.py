@@ -6,9 +6,10 @@ Times estimated from the fixes themselves (a real log has no other truth):
 
 * ``t_head_arrival`` — the head's chainage reaching the crossing,
   interpolated between the two head fixes around it (EOT + train length when
-  the head unit was lost);
+  the head unit was lost); the EOT's when it got there first (the EOT end
+  leading: a train backing, or pushed);
 * ``t_tail_clear`` — the EOT passing the far edge of the road, interpolated
-  between EOT fixes;
+  between EOT fixes; the head unit's when it passed later (it trails);
 * lead time = head arrival − warning on (should be ≥ the warning time); the
   warning that counts is the one on when the head arrived (one released for a
   train proven out of reach, then on again, counts from its second onset);
@@ -212,11 +213,13 @@ def trips(
 def _arrival(
     ht: np.ndarray, hc: np.ndarray, et: np.ndarray, ec: np.ndarray, d: int, length_m: float, at: float
 ) -> int | None:
-    """The head reaching ``at`` in direction ``d``: from its fixes, else the EOT's plus the length."""
+    """The head reaching ``at`` in direction ``d``: from its fixes, else the EOT's plus the length.  The
+    train's front, whichever unit leads: an EOT there first (a train backing, pushed) is the arrival."""
     t_head = crossing_time(ht, hc, at, d)
     if t_head is None and len(et):
-        t_head = crossing_time(et, ec + d * length_m, at, d)
-    return t_head
+        return crossing_time(et, ec + d * length_m, at, d)
+    t_eot = crossing_time(et, ec, at, d)
+    return t_eot if t_head is not None and t_eot is not None and t_eot < t_head else t_head
 
 
 def timeline(
@@ -375,6 +378,9 @@ def _row(
     et = np.array([f.t_fix_ns for f in eots], dtype=np.int64)
     ec = np.array([f.chainage_m for f in eots])
     t_tail = crossing_time(et, ec, c + d * half, d)
+    t_rear = crossing_time(ht, hc, c + d * half, d) if t_tail is not None else None
+    if t_rear is not None and t_tail is not None and t_rear > t_tail:  # the head unit trails: the EOT leads
+        t_tail = t_rear
     t_on, t_off = (None, None) if w is None else (w.t_on, w.t_off)
     if t_on is None and t_head is None:
         return None  # this train never came near the crossing

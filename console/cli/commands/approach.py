@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Annotated
 
 import typer
@@ -18,13 +19,22 @@ from console.cli.common import (
     rejected_note,
 )
 from console.cli.options import FilesArg, JsonOpt, RecordsJsonlOpt, StrictOpt
+from console.layout import MAX_CHAINAGE_M, MAX_TIME_S
 
 
 def approach(
     files: FilesArg,
+    # Required, as in sections and crossing: a site is a distance from a head of one line, and the shipped
+    # osong layout it defaulted to read another line's log silently (example_station's WS4 is not Osong's).
     layout: Annotated[
-        str, typer.Option("--layout", metavar="LAYOUT", help="Layout with [[work_sites]] (file or osong, example).")
-    ] = "osong",
+        str,
+        typer.Option(
+            "--layout",
+            metavar="LAYOUT",
+            help="The line's layout: its [[work_sites]], or the heads --head names (file, or osong / example).",
+            show_default=False,
+        ),
+    ],
     head: Annotated[
         str | None, typer.Option("--head", metavar="HEAD", help="Approach counting head of an ad-hoc site.")
     ] = None,
@@ -33,13 +43,26 @@ def approach(
         typer.Option("--distance", metavar="M", help="Metres from the head to the site: + up the line, − down."),
     ] = None,
     warning_time: Annotated[
-        float, typer.Option("--warning-time", metavar="S", help="Seconds of warning the workers need.", min=1)
-    ] = 30.0,
+        float | None,
+        typer.Option(
+            "--warning-time",
+            metavar="S",
+            help=(
+                "Seconds of warning the workers need, at every site (default: each layout site's own "
+                "warning_time_s; 30 for an ad-hoc site)."
+            ),
+            min=1,
+            max=MAX_TIME_S,
+        ),
+    ] = None,
     json_out: JsonOpt = False,
     jsonl: RecordsJsonlOpt = False,
     strict: StrictOpt = False,
 ) -> None:
-    """Track-worker approach warnings: alarm from detection vs from the speed measured at the head."""
+    """Track-worker approach warnings: alarm from detection vs from the speed measured at the head.
+
+    --layout is required: the sites are its [[work_sites]] (osong and example ship some), or one ad-hoc site
+    given by --head and --distance on its heads."""
 
     def body() -> int:
         one_json_form(json_out, jsonl)
@@ -52,11 +75,15 @@ def approach(
         if head is not None or distance is not None:
             if head is None or distance is None or distance == 0:
                 raise fail("an ad-hoc site needs both --head and a non-zero --distance")
+            if abs(distance) > MAX_CHAINAGE_M:  # as a layout's distance_m
+                raise fail(f"--distance: expected at most {MAX_CHAINAGE_M:g} m either way, got {distance:g}")
             if not lay.has_head(head):
                 raise fail(f"--head {head}: not a counting head of {lay.source}")
-            sites = [WorkSite("site", head, distance, warning_time)]
+            sites = [WorkSite("site", head, distance)]
         if not sites:
             raise fail(f"{lay.source} has no [[work_sites]]: give --head and --distance")
+        if warning_time is not None:  # it was read for an ad-hoc site only: a layout's sites ignored it unsaid
+            sites = [replace(site, warning_time_s=warning_time) for site in sites]
         from console.analysis.passages.diagnostics import SpeedSettings
         from console.engine.pipeline import PipelineSettings
 

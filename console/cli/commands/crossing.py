@@ -55,7 +55,7 @@ def crossing(
 
     def body() -> int:
         one_json_form(json_out, jsonl)
-        from console.analysis.crossing_batch import parse_train_option
+        from console.analysis.crossing_batch import merged_units, parse_train_options, units_never_valid
         from console.analysis.integrity.monitor import timelines
         from console.analysis.timefmt import iso
         from console.drivers.crossings import run_crossings
@@ -73,7 +73,7 @@ def crossing(
         consist = lay.consist()
         default_len = consist.length_m if consist else 100.0
         try:
-            trains = [parse_train_option(t, default_len) for t in (train or [])]
+            trains = parse_train_options(train or [], default_len)
         except ValueError as exc:
             raise fail(str(exc)) from None
         fixes, report, _states = parse_gnss(files)
@@ -97,6 +97,8 @@ def crossing(
             warnings.append(
                 f"{count(run.undated, 'fix')} without a date and time set aside (GGA with no RMC or ZDA to date it)"
             )
+        if never := units_never_valid(fixes, run.trains):
+            warnings.append(f"no valid fix from {', '.join(never)}: every one marked invalid (no position fix)")
         if run.position_jumps:
             warnings.append(f"{count(run.position_jumps, 'fix')} set aside as position jumps (implausible for a train)")
         if absent:
@@ -105,6 +107,8 @@ def crossing(
             warnings.append("devices in no train: " + ", ".join(run.unassigned_devices))
         if not run.trains:
             warnings.append("no head or EOT device found: give --train TRAIN=HEAD,EOT")
+        if not trains and (merged := merged_units(run.trains)):
+            warnings.append(merged)
         if json_out or jsonl:
             print_document(
                 {

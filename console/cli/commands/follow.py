@@ -159,7 +159,10 @@ def follow(
         typer.Option(
             "--idle-exit",
             metavar="S",
-            help="Stop when nothing has arrived for this many seconds (after the first record).",
+            help=(
+                "Stop when nothing has arrived for this many seconds (after the first record); a followed file "
+                "still absent after this long, nothing read: an error, exit 2."
+            ),
             min=0.1,
         ),
     ] = None,
@@ -216,8 +219,10 @@ def follow(
         except ArchiveError as exc:
             raise fail(f"--archive: {exc}") from None
         engine = LiveEngine(lay, emit, settings, archiver=archiver, include_status=include_status)
-        last = [time.monotonic(), engine.items]
+        started = time.monotonic()
+        last = [started, engine.items]
         data_items = [0]
+        absent: list[str] = []
 
         def idle() -> bool:
             # Counted from the first record or message: a follower started before its
@@ -230,6 +235,12 @@ def follow(
                 last[:] = [time.monotonic(), n]
                 data_items[0] = n
                 return False
+            if data_items[0] == 0 and time.monotonic() - started >= idle_exit:
+                # Nothing yet, and a file to wait for is not there (never was, or deleted), or a source never
+                # came up (gpsd, a broker): waiting for its first record would be forever, which --idle-exit
+                # asked not to do.
+                absent[:] = missing_files(srcs)
+                return bool(absent)
             return data_items[0] > 0 and time.monotonic() - last[0] >= idle_exit
 
         # Ctrl-C and SIGTERM (a service stopping) end it cleanly: the summary, then 130 or 143, as for
@@ -241,6 +252,8 @@ def follow(
         finally:
             if sink is not None:
                 sink.close()
+        if absent:
+            raise fail(f"{absent[0]} (nothing arrived within --idle-exit {idle_exit:g} s)")
         summary = engine.summary(srcs)
         if jsonl:
             emit(summary)
@@ -254,6 +267,21 @@ def follow(
         return exit_codes.FINDINGS if strict and rejected else exit_codes.OK
 
     raise typer.Exit(guard(body))
+
+
+def missing_files(sources: list[Any]) -> list[str]:
+    """The followed files (``file:PATH``) not on disk now, and the other sources never connected, each with
+    why."""
+    from console.inputs.follow import FileSource
+
+    out = []
+    for s in sources:
+        if isinstance(s, FileSource):
+            if not s.path.exists():
+                out.append(f"{s.path}: no such file")
+        elif not s.ever_connected:
+            out.append(f"{s.uri}: never connected: {s.status().detail.removesuffix('; retrying')}")
+    return out
 
 
 def metrics_sink(address: str | None, layout: Any, sources: list[Any]) -> Any:

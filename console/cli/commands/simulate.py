@@ -372,15 +372,35 @@ def _warn_heads_off_the_track(lay: Any) -> None:
 
 def _warn_unmet_train_faults(sim: Any, faults: tuple[Any, ...]) -> None:
     """A fault aimed at a train that never ran does nothing: said, so the run is not taken for one with it."""
+    from console.analysis.timefmt import display
     from console.safe_text import clean
     from console.sim.faults import TRAIN_FAULTS
+    from parsers.units import NS
 
     ran = sorted({str(tr.id) for tr in sim.trains})
+    parted = {p.train for p in sim.truth_partings}
     for f in faults:
-        if f.kind in TRAIN_FAULTS and f.target not in ran:
+        # gnss_decay's target is a train's unit (T3-eot): its train must have run too.
+        train = f.target.rpartition("-")[0] if f.kind == "gnss_decay" else f.target
+        if (f.kind in TRAIN_FAULTS or f.kind == "gnss_decay") and train not in ran:
             sys.stderr.write(
-                f"trackside: warning: --fault {f.kind}:{clean(f.target)}: no train {clean(f.target)} ran "
+                f"trackside: warning: --fault {f.kind}:{clean(f.target)}: no train {clean(train)} ran "
                 f"({', '.join(ran) or 'none'}); nothing was injected\n"
+            )
+        elif f.kind in ("eot_loss", "head_loss") and not sim.reports_lost.get((f.target, f.kind[:-5])):
+            # The unit sends nothing while the train is off the line: a window with no report in it.
+            when = display(sim.cfg.start_ns + round(f.start_s * NS))
+            unit = "EOT" if f.kind == "eot_loss" else "head"
+            sys.stderr.write(
+                f"trackside: warning: --fault {f.kind}:{clean(f.target)}: {clean(f.target)} was not running from "
+                f"{when} to the fault's end, no {unit} report to lose; nothing was injected\n"
+            )
+        elif f.kind == "train_parting" and f.target not in parted:
+            # It parts at START or the first moment after it the train runs: it had left the line by then.
+            when = display(sim.cfg.start_ns + round(f.start_s * NS))
+            sys.stderr.write(
+                f"trackside: warning: --fault train_parting:{clean(f.target)}: {clean(f.target)} did not run at "
+                f"or after {when}; nothing was injected\n"
             )
 
 

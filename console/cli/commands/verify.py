@@ -28,8 +28,9 @@ def verify(
     json_out: Annotated[bool, typer.Option("--json", help="Print the result as one JSON document.")] = False,
 ) -> None:
     """Check the archive against its manifest: every part there and readable, every input file's records and
-    rejected lines all stored once. Read-only. Exit 1 when the archive is damaged."""
-    from console.archive.store import ArchiveError, archive_dir
+    rejected lines all stored once. Read-only. Exit 1 when the archive is damaged (a part, a count, or its
+    CURRENT or manifest: that one a line on stderr), 2 when there is no archive to check."""
+    from console.archive.store import ArchiveDamaged, ArchiveError, archive_dir
     from console.archive.verify import verify_archive
     from console.cli.common import Console
 
@@ -43,6 +44,8 @@ def verify(
             require_archive(root)
             with _bar(err) as on_part:
                 result = verify_archive(root, deep=deep, on_part=on_part)
+        except ArchiveDamaged as exc:  # damage verify exists to find: its exit code, as for a damaged part
+            raise fail(str(exc), exit_codes.FINDINGS) from None
         except ArchiveError as exc:
             raise fail(str(exc)) from None
         if json_out:

@@ -12,10 +12,15 @@ from console.analysis.crossing.controller import CrossingEvent
 from console.analysis.crossing.timeline import TimelineRow
 from console.analysis.timefmt import display
 from console.safe_text import inert
+from parsers.units import NS_PER_DAY
 
 
-def _t(ns: int | None) -> Text:
-    return Text("–", style="dim") if ns is None else Text(display(ns)[11:19])
+def _t(ns: int | None, day0: int = 0) -> Text:
+    """A time of day; ``+N`` when it falls N days after the table's first day (a log over midnight)."""
+    if ns is None:
+        return Text("–", style="dim")
+    later = ns // NS_PER_DAY - day0
+    return Text(display(ns)[11:19] + (f"+{later}" if later else ""))
 
 
 def _s(x: float | None, warn_below: float | None = None) -> Text:
@@ -47,9 +52,13 @@ def violations_view(rows: list[TimelineRow]) -> Group | None:
 
 
 def timeline_table(rows: list[TimelineRow]) -> Table:
-    day = next((display(t)[:10] for r in rows for t in (r.t_on_ns, r.t_head_arrival_ns) if t), "")
+    # Times of day, of the first day: one of a later day is marked +N (they were all read as the first's).
+    times = [x for r in rows for x in (r.t_on_ns, r.t_head_arrival_ns, r.t_tail_clear_ns, r.t_off_ns) if x]
+    day0 = min(times) // NS_PER_DAY if times else 0
+    day = f" {display(min(times))[:10]}" if times else ""
+    later = " (+N: N days later)" if any(x // NS_PER_DAY != day0 for x in times) else ""
     t = Table(
-        title=f"Level crossings (LC) {day}: times of day; lead, excess (Exc) and baseline in s",
+        title=f"Level crossings (LC){day}: times of day{later}; lead, excess (Exc) and baseline in s",
         title_justify="left",
         box=box.SIMPLE_HEAD,
         pad_edge=False,
@@ -70,13 +79,13 @@ def timeline_table(rows: list[TimelineRow]) -> Table:
             base = Text(f"+{r.baseline_excess_s:.0f}")
         else:
             base = Text("–", style="dim")
-        off = _t(r.t_off_ns) if r.t_off_ns is not None else Text("held on", style="bold yellow")
+        off = _t(r.t_off_ns, day0) if r.t_off_ns is not None else Text("held on", style="bold yellow")
         t.add_row(
             inert(r.crossing),
             inert(r.train),
-            _t(r.t_on_ns),
-            _t(r.t_head_arrival_ns),
-            _t(r.t_tail_clear_ns),
+            _t(r.t_on_ns, day0),
+            _t(r.t_head_arrival_ns, day0),
+            _t(r.t_tail_clear_ns, day0),
             off,
             _s(r.lead_s, warn_below=r.warning_time_s),
             _s(r.excess_s),
