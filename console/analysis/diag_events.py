@@ -17,6 +17,7 @@ events in time order, then power events) and sorted by time, stably.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -104,6 +105,25 @@ def silent_heads(last_ns: np.ndarray, watermark_ns: int, power_gap_ns: int) -> n
     return (last_ns != NONE) & (watermark_ns > last_ns + power_gap_ns)
 
 
+ABSENT_HEAD = "of the layout has no record in the log"  # in each warning of absent_head_warnings
+
+
+def absent_head_warnings(layout: Layout, log_heads: Sequence[tuple[int, str]]) -> list[str]:
+    """The layout's heads bounding a section that no head of the log counts for (absent from the log, or there
+    only under another device): their sections are held, never shown clear on their other heads' counts alone
+    (:class:`~console.analysis.sections.engine.SectionEngine`), in layout order."""
+    counted = {spec.id for device_id, name in log_heads if (spec := layout.counted_head(name, device_id)) is not None}
+    out = []
+    for head in layout.heads:
+        secs = [s.id for s, _ in layout.sections_of(head.id)]
+        if secs and head.id not in counted:
+            out.append(
+                f"counting head {head.id} {ABSENT_HEAD}: the sections it bounds "
+                f"({', '.join(secs)}) are held, never shown clear on their other heads' counts alone"
+            )
+    return out
+
+
 def diag_detection_events(
     analysis: DiagAnalysis, layout: Layout, settings: DiagEventSettings | None = None
 ) -> tuple[list[DetectionEvent], list[str]]:
@@ -130,6 +150,7 @@ def diag_detection_events(
         up[key] = head.up_is_first_channel_first
         if head.channels == 3:
             three.append(key)
+    warnings += absent_head_warnings(layout, analysis.heads)
     pool = StringPool()
     queue = EventQueue(names, pool.strings)
     wr = analysis.wheel_records

@@ -38,6 +38,7 @@ class SteppedEngine(Protocol):
 
     sections: dict[str, EngineSection]
     damped: set[str]  # heads with something over them now
+    unheard: set[str]  # heads with no event yet: their sections hold
     ledger: list[LedgerEntry]
 
     def step(self, e: DetectionEvent) -> list[Transition]: ...
@@ -100,7 +101,12 @@ def _segment(engine: SteppedEngine, block: EventBlock, lo: int, hi: int) -> None
     pair_ok = disturbed[sec] | ((before > 0) & (after > 0))
     quiet_kind = ((kind == _AXLE) & (direction != 0)) | (kind == _DAMPED) | (kind == _FREE)
     bad_pairs = np.bincount(ev[~pair_ok], minlength=len(kind)) if len(ev) else np.zeros(len(kind), np.int64)
-    loud = np.flatnonzero(~quiet_kind | (bad_pairs > 0))
+    # A head's first event, while it is not heard yet, lifts its sections' hold: stepped one by one.
+    unheard = engine.unheard
+    first_of_head = np.unique(head, return_index=True)[1]
+    heard_now = np.zeros(len(kind), bool)
+    heard_now[first_of_head] = [names[int(head[i])] in unheard for i in first_of_head.tolist()]
+    loud = np.flatnonzero(~quiet_kind | (bad_pairs > 0) | heard_now)
 
     ctx = _Context(engine, block, lo, sections, names, head, kind, time_ns, ev, sec, delta, after, counted)
     prev = 0
