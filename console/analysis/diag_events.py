@@ -17,7 +17,7 @@ events in time order, then power events) and sorted by time, stably.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -105,23 +105,38 @@ def silent_heads(last_ns: np.ndarray, watermark_ns: int, power_gap_ns: int) -> n
     return (last_ns != NONE) & (watermark_ns > last_ns + power_gap_ns)
 
 
-ABSENT_HEAD = "of the layout has no record in the log"  # in each warning of absent_head_warnings
+HELD = "are held, never shown clear on their other heads' counts alone"  # in each warning of a head not heard
+
+
+def _held(layout: Layout, heads: Sequence[str], what: str) -> list[str]:
+    """A warning per head of the layout in ``heads`` (layout order) that bounds a section, saying ``what``."""
+    out = []
+    for head in layout.heads:
+        secs = [s.id for s, _ in layout.sections_of(head.id)]
+        if secs and head.id in heads:
+            out.append(
+                f"counting head {head.id} of the layout {what}: the sections it bounds ({', '.join(secs)}) {HELD}"
+            )
+    return out
+
+
+def _counted(layout: Layout, log_heads: Sequence[tuple[int, str]]) -> set[str]:
+    return {spec.id for device_id, name in log_heads if (spec := layout.counted_head(name, device_id)) is not None}
 
 
 def absent_head_warnings(layout: Layout, log_heads: Sequence[tuple[int, str]]) -> list[str]:
     """The layout's heads bounding a section that no head of the log counts for (absent from the log, or there
     only under another device): their sections are held, never shown clear on their other heads' counts alone
     (:class:`~console.analysis.sections.engine.SectionEngine`), in layout order."""
-    counted = {spec.id for device_id, name in log_heads if (spec := layout.counted_head(name, device_id)) is not None}
-    out = []
-    for head in layout.heads:
-        secs = [s.id for s, _ in layout.sections_of(head.id)]
-        if secs and head.id not in counted:
-            out.append(
-                f"counting head {head.id} {ABSENT_HEAD}: the sections it bounds "
-                f"({', '.join(secs)}) are held, never shown clear on their other heads' counts alone"
-            )
-    return out
+    counted = _counted(layout, log_heads)
+    return _held(layout, [h.id for h in layout.heads if h.id not in counted], "has no record in the log")
+
+
+def silent_head_warnings(layout: Layout, log_heads: Sequence[tuple[int, str]], unheard: Collection[str]) -> list[str]:
+    """The layout's heads in the log (not told by :func:`absent_head_warnings`) that the section engine never
+    heard of at the end (``unheard``: no wheel record of theirs, only status records)."""
+    counted = _counted(layout, log_heads)
+    return _held(layout, [h for h in unheard if h in counted], "has no wheel record in the log")
 
 
 def diag_detection_events(

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from console.analysis.diag_events import ABSENT_HEAD
+from console.analysis.diag_events import HELD
 from console.analysis.passages.buckets import Columns
 from console.analysis.passages.diagnostics import DiagAnalysis, SpeedSettings
 from console.analysis.passages.status import StatusSummary
@@ -258,7 +258,7 @@ def read_diag(
             )
     _tell_clock_steps(job.clock_step_warnings)
     for line in job.warnings:
-        if ABSENT_HEAD in line:  # a section held for it: said where the clock steps are, whatever the output
+        if HELD in line:  # a section held for it: said where the clock steps are, whatever the output
             sys.stderr.write(f"trackside: warning: {line}\n")
     if table is not None:
         job.analysis.passage_columns = table.columns()
