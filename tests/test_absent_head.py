@@ -166,3 +166,20 @@ def test_never_clear_on_one_head_when_the_other_is_missing(
                 continue
             held = [n for t, n in steps if t <= t0][-1:] + [n for t, n in steps if t0 < t < t1]
             assert max(held, default=0) == 0, f"{sid} clear from {t0} to {t1} with axles inside ({head} {how})"
+
+
+def test_follow_holds_the_section_and_says_why_in_its_row(tmp_path: Path) -> None:
+    log = _without(SAMPLES / "example_station.log", tmp_path / "no_ws5.log", "absent")
+    p = subprocess.run(
+        [TRACKSIDE, "follow", str(log), "--from-start", "--layout", "example", "--jsonl", "--idle-exit", "1"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 0, p.stderr
+    rows = [e for e in map(json.loads, p.stdout.splitlines()) if e.get("type") == "section" and e["section"] == "2G"]
+    # The sweep through WS4 (in at 08:05, out at 08:31) would have cleared 2G: it is held, and the row says why.
+    assert [(r["state"], r["reason"]) for r in rows] == [
+        ("preparatory", "start: state unknown until a sweep"),
+        ("preparatory", "sweep train in and out, held: no record of WS5 yet"),
+    ]

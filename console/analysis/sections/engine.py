@@ -125,6 +125,10 @@ class SectionEngine:
             if s.swept_in and not s.held_by:
                 s.swept_in = False
                 return self._set(s, SectionState.CLEAR, t, "sweep train in and out: counts balance")
+            waiting = sorted(h for h in s.held_by if h.startswith(_UNHEARD))
+            if s.swept_in and waiting:  # a sweep that would have cleared it but for a head not heard: said
+                why = f"sweep train in and out, held: {', '.join(waiting)}"
+                return self._set(s, SectionState.PREPARATORY, t, why, note=True)
             return None
         if s.count > 0:
             return self._set(s, SectionState.OCCUPIED, t, reason)
