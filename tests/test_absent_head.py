@@ -10,6 +10,10 @@ stderr and in the report.
 The truths: the engine's rule on events made by hand; the example log with a head removed, renamed by case, on
 another device, or with its heartbeats only; and a property over simulated hours (trains both ways) with a
 random head missing: its sections are never clear, and no section is ever clear with an axle inside.
+
+Two boards reporting one head (WS2's board set to say WS1) with a layout that gives no devices: before, 1G
+was swept clear at 08:35:31 from the merged counts, without a word; now WS2 is a head not heard (1G and B1
+hold) and both facts are told.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
+import console.layouts
 from console.analysis.events.detection import DOWN, UP, DetectionEvent, EventKind
 from console.analysis.sections.engine import SectionEngine
 from console.analysis.sections.state import SectionState
@@ -183,3 +188,24 @@ def test_follow_holds_the_section_and_says_why_in_its_row(tmp_path: Path) -> Non
         ("preparatory", "start: state unknown until a sweep"),
         ("preparatory", "sweep train in and out, held: no record of WS5 yet"),
     ]
+
+
+def test_two_boards_reporting_one_head_with_no_device_in_the_layout_are_told_and_hold(tmp_path: Path) -> None:
+    # WS2's board set to report itself as WS1; a layout that gives the heads no device cannot tell them apart.
+    lay = tmp_path / "no_devices.toml"
+    shipped = Path(console.layouts.__file__).parent / "example_station.toml"
+    lay.write_text("".join(x for x in shipped.read_text("utf-8").splitlines(keepends=True) if "device_id" not in x))
+    log = tmp_path / "ws2_as_ws1.log"
+    log.write_text((SAMPLES / "example_station.log").read_text("utf-8").replace("Trackinfo:WS2\t", "Trackinfo:WS1\t"))
+    p = subprocess.run(
+        [TRACKSIDE, "sections", str(log), "--layout", str(lay), "--json"], capture_output=True, text=True
+    )
+    assert p.returncode == 0, p.stderr
+    doc = json.loads(p.stdout)
+    assert doc["warnings"] == [
+        "counting head WS1 is in the log from devices 4081, 4082, and the layout gives it no device: their records "
+        "are counted as one head's (a board's Trackinfo set wrong?); give the head its device_id in the layout",
+        "counting head WS2 of the layout has no record in the log: the sections it bounds (1G, B1) are held, never "
+        "shown clear on their other heads' counts alone",
+    ]
+    assert not [r for r in doc["timeline"] if r["section"] in ("1G", "B1") and r["state"] == "clear"]

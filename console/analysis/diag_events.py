@@ -132,6 +132,24 @@ def absent_head_warnings(layout: Layout, log_heads: Sequence[tuple[int, str]]) -
     return _held(layout, [h.id for h in layout.heads if h.id not in counted], "has no record in the log")
 
 
+def shared_head_warnings(layout: Layout, log_heads: Sequence[tuple[int, str]]) -> list[str]:
+    """The layout's heads with no device of their own that several devices of the log report (a Trackinfo
+    set wrong on a board): their records are counted as one head's, which no layout can undo; in layout order."""
+    devices: dict[str, list[int]] = {}
+    for device_id, name in log_heads:
+        devices.setdefault(name, []).append(int(device_id))
+    out = []
+    for head in layout.heads:
+        ids = sorted(set(devices.get(head.id, [])))
+        if head.device_id is None and len(ids) > 1:
+            out.append(
+                f"counting head {head.id} is in the log from devices {', '.join(map(str, ids))}, and the layout "
+                "gives it no device: their records are counted as one head's (a board's Trackinfo set wrong?); "
+                "give the head its device_id in the layout"
+            )
+    return out
+
+
 def silent_head_warnings(layout: Layout, log_heads: Sequence[tuple[int, str]], unheard: Collection[str]) -> list[str]:
     """The layout's heads in the log (not told by :func:`absent_head_warnings`) that the section engine never
     heard of at the end (``unheard``: no wheel record of theirs, only status records)."""
@@ -165,7 +183,7 @@ def diag_detection_events(
         up[key] = head.up_is_first_channel_first
         if head.channels == 3:
             three.append(key)
-    warnings += absent_head_warnings(layout, analysis.heads)
+    warnings += shared_head_warnings(layout, analysis.heads) + absent_head_warnings(layout, analysis.heads)
     pool = StringPool()
     queue = EventQueue(names, pool.strings)
     wr = analysis.wheel_records
