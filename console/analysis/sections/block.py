@@ -102,10 +102,10 @@ def _segment(engine: SteppedEngine, block: EventBlock, lo: int, hi: int) -> None
     quiet_kind = ((kind == _AXLE) & (direction != 0)) | (kind == _DAMPED) | (kind == _FREE)
     bad_pairs = np.bincount(ev[~pair_ok], minlength=len(kind)) if len(ev) else np.zeros(len(kind), np.int64)
     # A head's first event, while it is not heard yet, lifts its sections' hold: stepped one by one.
-    unheard = engine.unheard
-    first_of_head = np.unique(head, return_index=True)[1]
     heard_now = np.zeros(len(kind), bool)
-    heard_now[first_of_head] = [names[int(head[i])] in unheard for i in first_of_head.tolist()]
+    if engine.unheard:  # until every head bounding a section is heard (the start of a log)
+        first_of_head = np.unique(head, return_index=True)[1]
+        heard_now[first_of_head] = [names[int(head[i])] in engine.unheard for i in first_of_head.tolist()]
     loud = np.flatnonzero(~quiet_kind | (bad_pairs > 0) | heard_now)
 
     ctx = _Context(engine, block, lo, sections, names, head, kind, time_ns, ev, sec, delta, after, counted)
