@@ -57,7 +57,8 @@ def _state(engine: SectionEngine) -> object:
     }
     faults = {h: sorted(c, key=str) for h, c in engine.faults.items()}
     damped, unheard = sorted(engine.damped), sorted(engine.unheard)
-    return (engine.transitions, engine.ledger, engine.resets, secs, damped, unheard, faults, engine.powerless)
+    heads = (damped, unheard, faults, engine.powerless)
+    return (engine.transitions, engine.ledger, engine.resets, secs, heads, engine.now_ns)
 
 
 @settings(max_examples=2000 if LONG else 200, deadline=None)

@@ -39,6 +39,7 @@ class SteppedEngine(Protocol):
     sections: dict[str, EngineSection]
     damped: set[str]  # heads with something over them now
     unheard: set[str]  # heads with no event yet: their sections hold
+    now_ns: int  # the latest event time stepped
     ledger: list[LedgerEntry]
 
     def step(self, e: DetectionEvent) -> list[Transition]: ...
@@ -146,6 +147,7 @@ class _Context:
     def quiet(self, a: int, b: int) -> None:
         """Events a … b - 1, none of which changes a state: counts, ledger, damped heads, holds, sweeps."""
         engine = self.engine
+        engine.now_ns = max(engine.now_ns, int(self.time_ns[a:b].max()))
         r0, r1 = np.searchsorted(self.ev, [a, b])
         ev, sec = self.ev[r0:r1], self.sec[r0:r1]
         counted = self.counted[r0:r1]

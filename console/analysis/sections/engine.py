@@ -65,6 +65,9 @@ class SectionEngine:
         # Heads not heard yet (no event of theirs): a section they bound holds, never clear on the count of its
         # other heads alone (a head absent from the log, or its records not counted, counts no axle in or out).
         self.unheard: set[str] = {h for s in layout.sections for h in s.heads}
+        # The latest event time stepped: doubt told late (a clock step read after records stamped later than
+        # it, as a followed file gives it) is stamped then, so the timeline never goes back in time.
+        self.now_ns = start_ns
         for s in self.sections.values():
             s.held_by.update(unheard_mark(h) for h in s.section.heads)
         self.damped: set[str] = set()  # heads with something over them now
@@ -148,6 +151,9 @@ class SectionEngine:
         """Apply one event; returns the state changes it caused."""
         out: list[Transition | None] = []
         t = e.time_ns
+        if e.kind is EventKind.CLOCK_STEP and t < self.now_ns:
+            t = self.now_ns  # read after later records (a followed file): doubt from when it was read
+        self.now_ns = max(self.now_ns, t)
         if e.kind is EventKind.RESET:
             out.append(self._reset(e))
             return [x for x in out if x is not None]
