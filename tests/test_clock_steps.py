@@ -271,3 +271,29 @@ def test_never_clear_with_an_axle_inside_when_a_clock_steps_back(
             # The true axles inside over [t0, t1): the value at t0 and every change before t1.
             held = [n for t, n in steps if t <= t0][-1:] + [n for t, n in steps if t0 < t < t1]
             assert max(held, default=0) == 0, f"{sid} clear from {t0} to {t1} with axles inside ({head} -{back_s} s)"
+
+
+def test_follow_never_stamps_a_section_row_before_the_rows_it_told_already(tmp_path: Path) -> None:
+    """A step read after later records (follow reads a file as it comes): the doubt is stamped when it was read.
+
+    Found by hand (2026-11-29): WS5's board back at 2000-03-02 after a battery loss, from 09:47:05 on; follow
+    told 2G disturbed in a row stamped 2000-03-02 09:47:20, after rows of 2026: read by time (a table, a
+    database), 2G was clear from its last 2026 row to the end. Now the row is stamped when the engine met it."""
+    log = tmp_path / "battery.log"
+    _stepped(SAMPLES / "example_station.log", log, "WS5", "09:47:05", 820_454_400.0)  # 26 years back: 2000
+    p = subprocess.run(
+        [TRACKSIDE, "follow", str(log), "--from-start", "--layout", "example", "--jsonl", "--idle-exit", "1"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 0, p.stderr
+    rows = [e for e in map(json.loads, p.stdout.splitlines()) if e.get("type") == "section"]
+    for sid in ("1G", "B1", "B2", "2G"):
+        times = [r["time_ns"] for r in rows if r["section"] == sid]
+        assert times == sorted(times), sid
+    # Stamped at the latest event the engine had when the step reached it: no later than the step's line
+    # (09:47:20), however the file was cut into reads, so never after a row that shows 2G clear too long.
+    last = [r for r in rows if r["section"] == "2G"][-1]
+    assert last["state"] == "disturbed" and "2026-03-02T08:00" <= last["time"] <= "2026-03-02T09:47:20"
+    assert last["reason"] == "records of WS5 went back in time: counts after it may be out of order"

@@ -63,6 +63,7 @@ def test_dead_channel_disturbs_the_sections_it_bounds() -> None:
 
 def test_isolated_pulse_holds_occupied_until_confirmed_accidental() -> None:
     eng = SectionEngine(LAY, initial=SectionState.CLEAR)
+    eng.step(ev(0, EventKind.CHANNEL_OK, "WS2", 1))  # WS2 heard: 1G's other bound is in the log
     eng.step(ev(0, EventKind.INTERFERENCE, "WS1", 1))
     assert eng.state("1G") is SectionState.OCCUPIED
     eng.step(ev(60, EventKind.ACCIDENTAL, "WS1", 1))

@@ -56,7 +56,9 @@ def _state(engine: SectionEngine) -> object:
         for sid, s in engine.sections.items()
     }
     faults = {h: sorted(c, key=str) for h, c in engine.faults.items()}
-    return (engine.transitions, engine.ledger, engine.resets, secs, sorted(engine.damped), faults, engine.powerless)
+    damped, unheard = sorted(engine.damped), sorted(engine.unheard)
+    heads = (damped, unheard, faults, engine.powerless)
+    return (engine.transitions, engine.ledger, engine.resets, secs, heads, engine.now_ns)
 
 
 @settings(max_examples=2000 if LONG else 200, deadline=None)

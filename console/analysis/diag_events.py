@@ -17,6 +17,7 @@ events in time order, then power events) and sorted by time, stably.
 
 from __future__ import annotations
 
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -104,6 +105,58 @@ def silent_heads(last_ns: np.ndarray, watermark_ns: int, power_gap_ns: int) -> n
     return (last_ns != NONE) & (watermark_ns > last_ns + power_gap_ns)
 
 
+HELD = "are held, never shown clear on their other heads' counts alone"  # in each warning of a head not heard
+
+
+def _held(layout: Layout, heads: Sequence[str], what: str) -> list[str]:
+    """A warning per head of the layout in ``heads`` (layout order) that bounds a section, saying ``what``."""
+    out = []
+    for head in layout.heads:
+        secs = [s.id for s, _ in layout.sections_of(head.id)]
+        if secs and head.id in heads:
+            out.append(
+                f"counting head {head.id} of the layout {what}: the sections it bounds ({', '.join(secs)}) {HELD}"
+            )
+    return out
+
+
+def _counted(layout: Layout, log_heads: Sequence[tuple[int, str]]) -> set[str]:
+    return {spec.id for device_id, name in log_heads if (spec := layout.counted_head(name, device_id)) is not None}
+
+
+def absent_head_warnings(layout: Layout, log_heads: Sequence[tuple[int, str]]) -> list[str]:
+    """The layout's heads bounding a section that no head of the log counts for (absent from the log, or there
+    only under another device): their sections are held, never shown clear on their other heads' counts alone
+    (:class:`~console.analysis.sections.engine.SectionEngine`), in layout order."""
+    counted = _counted(layout, log_heads)
+    return _held(layout, [h.id for h in layout.heads if h.id not in counted], "has no record in the log")
+
+
+def shared_head_warnings(layout: Layout, log_heads: Sequence[tuple[int, str]]) -> list[str]:
+    """The layout's heads with no device of their own that several devices of the log report (a Trackinfo
+    set wrong on a board): their records are counted as one head's, which no layout can undo; in layout order."""
+    devices: dict[str, list[int]] = {}
+    for device_id, name in log_heads:
+        devices.setdefault(name, []).append(int(device_id))
+    out = []
+    for head in layout.heads:
+        ids = sorted(set(devices.get(head.id, [])))
+        if head.device_id is None and len(ids) > 1:
+            out.append(
+                f"counting head {head.id} is in the log from devices {', '.join(map(str, ids))}, and the layout "
+                "gives it no device: their records are counted as one head's (a board's Trackinfo set wrong?); "
+                "give the head its device_id in the layout"
+            )
+    return out
+
+
+def silent_head_warnings(layout: Layout, log_heads: Sequence[tuple[int, str]], unheard: Collection[str]) -> list[str]:
+    """The layout's heads in the log (not told by :func:`absent_head_warnings`) that the section engine never
+    heard of at the end (``unheard``: no wheel record of theirs, only status records)."""
+    counted = _counted(layout, log_heads)
+    return _held(layout, [h for h in unheard if h in counted], "has no wheel record in the log")
+
+
 def diag_detection_events(
     analysis: DiagAnalysis, layout: Layout, settings: DiagEventSettings | None = None
 ) -> tuple[list[DetectionEvent], list[str]]:
@@ -130,6 +183,7 @@ def diag_detection_events(
         up[key] = head.up_is_first_channel_first
         if head.channels == 3:
             three.append(key)
+    warnings += shared_head_warnings(layout, analysis.heads) + absent_head_warnings(layout, analysis.heads)
     pool = StringPool()
     queue = EventQueue(names, pool.strings)
     wr = analysis.wheel_records

@@ -45,7 +45,9 @@ if TYPE_CHECKING:
 # 10: the inventory's figures per day, device and head (console.archive.head_days), read by a report over whole days.
 # 11: a head's records going back in time are a doubt event (clock_step) that disturbs its sections; the state
 #    holds where each file's heads stood.
-DERIVE_VERSION = 11
+# 12: a section bounded by a head not heard yet (no event of it: absent from the log) holds, never clear on its
+#    other heads' counts alone; the kept engine has the heads not heard yet.
+DERIVE_VERSION = 12
 # Rows each derived table buffers before a write-out (the records' writer has BUFFER_BYTES): derived rows come
 # a few per chunk, and five tables' full buffers cost memory (a 3 M-record ingest peaked 35 MB lower at 4 MB than
 # at 16 MB, for the same CPU).

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from console.analysis.diag_events import HELD
 from console.analysis.passages.buckets import Columns
 from console.analysis.passages.diagnostics import DiagAnalysis, SpeedSettings
 from console.analysis.passages.status import StatusSummary
@@ -256,6 +257,9 @@ def read_diag(
                 " or differ from a whole read: --json on the file reads it whole\n"
             )
     _tell_clock_steps(job.clock_step_warnings)
+    for line in job.warnings:
+        if HELD in line:  # a section held for it: said where the clock steps are, whatever the output
+            sys.stderr.write(f"trackside: warning: {line}\n")
     if table is not None:
         job.analysis.passage_columns = table.columns()
         job.analysis.axle_columns = table.axle_columns()

@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from console.analysis.diag_events import silent_head_warnings
 from console.analysis.events.detection import DetectionEvent, EventKind, sort_events
 from console.analysis.passages.clock_steps import ClockSteps
 from console.analysis.passages.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, wheel_columns
@@ -280,6 +281,9 @@ class Pipeline:
                 engine.transitions = []
             self.first_event_ns = None
             self._drain()
+        if self.section_engine is not None and s.sections is not None:
+            # Heads in the log the engine never heard (status records only): their sections held, said why.
+            warnings += silent_head_warnings(s.sections, self.heads, self.section_engine.unheard)
         if self.settings.health is not None:
             self._judge(final=True)
         heads = self.heads

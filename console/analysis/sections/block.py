@@ -38,6 +38,8 @@ class SteppedEngine(Protocol):
 
     sections: dict[str, EngineSection]
     damped: set[str]  # heads with something over them now
+    unheard: set[str]  # heads with no event yet: their sections hold
+    now_ns: int  # the latest event time stepped
     ledger: list[LedgerEntry]
 
     def step(self, e: DetectionEvent) -> list[Transition]: ...
@@ -100,7 +102,12 @@ def _segment(engine: SteppedEngine, block: EventBlock, lo: int, hi: int) -> None
     pair_ok = disturbed[sec] | ((before > 0) & (after > 0))
     quiet_kind = ((kind == _AXLE) & (direction != 0)) | (kind == _DAMPED) | (kind == _FREE)
     bad_pairs = np.bincount(ev[~pair_ok], minlength=len(kind)) if len(ev) else np.zeros(len(kind), np.int64)
-    loud = np.flatnonzero(~quiet_kind | (bad_pairs > 0))
+    # A head's first event, while it is not heard yet, lifts its sections' hold: stepped one by one.
+    heard_now = np.zeros(len(kind), bool)
+    if engine.unheard:  # until every head bounding a section is heard (the start of a log)
+        first_of_head = np.unique(head, return_index=True)[1]
+        heard_now[first_of_head] = [names[int(head[i])] in engine.unheard for i in first_of_head.tolist()]
+    loud = np.flatnonzero(~quiet_kind | (bad_pairs > 0) | heard_now)
 
     ctx = _Context(engine, block, lo, sections, names, head, kind, time_ns, ev, sec, delta, after, counted)
     prev = 0
@@ -140,6 +147,7 @@ class _Context:
     def quiet(self, a: int, b: int) -> None:
         """Events a … b - 1, none of which changes a state: counts, ledger, damped heads, holds, sweeps."""
         engine = self.engine
+        engine.now_ns = max(engine.now_ns, int(self.time_ns[a:b].max()))
         r0, r1 = np.searchsorted(self.ev, [a, b])
         ev, sec = self.ev[r0:r1], self.sec[r0:r1]
         counted = self.counted[r0:r1]

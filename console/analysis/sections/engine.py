@@ -45,6 +45,14 @@ if TYPE_CHECKING:
     from console.analysis.events.block import EventBlock
 
 
+_UNHEARD = "no record of "
+
+
+def unheard_mark(head: str) -> str:
+    """A section's hold while ``head``, one of its bounds, has not been heard (no event of it yet)."""
+    return f"{_UNHEARD}{head} yet"
+
+
 class SectionEngine:
     """The section state machine over a layout.  Feed it events with :meth:`step`."""
 
@@ -54,6 +62,14 @@ class SectionEngine:
         self.layout = layout
         reason = "start: line known empty" if initial is SectionState.CLEAR else "start: state unknown until a sweep"
         self.sections = {s.id: EngineSection(s, initial, reason=reason, since_ns=start_ns) for s in layout.sections}
+        # Heads not heard yet (no event of theirs): a section they bound holds, never clear on the count of its
+        # other heads alone (a head absent from the log, or its records not counted, counts no axle in or out).
+        self.unheard: set[str] = {h for s in layout.sections for h in s.heads}
+        # The latest event time stepped: doubt told late (a clock step read after records stamped later than
+        # it, as a followed file gives it) is stamped then, so the timeline never goes back in time.
+        self.now_ns = start_ns
+        for s in self.sections.values():
+            s.held_by.update(unheard_mark(h) for h in s.section.heads)
         self.damped: set[str] = set()  # heads with something over them now
         self.faults: dict[str, set[int | None]] = {}  # head → faulty channels (None: whole head)
         self.powerless: set[str] = set()
@@ -112,27 +128,40 @@ class SectionEngine:
             if s.swept_in and not s.held_by:
                 s.swept_in = False
                 return self._set(s, SectionState.CLEAR, t, "sweep train in and out: counts balance")
+            waiting = sorted(h for h in s.held_by if h.startswith(_UNHEARD))
+            if s.swept_in and waiting:  # a sweep that would have cleared it but for a head not heard: said
+                why = f"sweep train in and out, held: {', '.join(waiting)}"
+                return self._set(s, SectionState.PREPARATORY, t, why, note=True)
             return None
         if s.count > 0:
             return self._set(s, SectionState.OCCUPIED, t, reason)
         if s.held_by:
             what = sorted(s.held_by)
+            unheard = any(h.startswith(_UNHEARD) for h in what)
             why = (
                 f"held: {', '.join(what)}"
-                if any("damped" in h for h in what)
+                if unheard or any("damped" in h for h in what)
                 else f"held: isolated pulse at {', '.join(what)}"
             )
-            return self._set(s, SectionState.OCCUPIED, t, why)
+            # Counts balanced, and only a head not heard yet keeps it from clear: said in the timeline.
+            return self._set(s, SectionState.OCCUPIED, t, why, note=unheard)
         return self._set(s, SectionState.CLEAR, t, "counts balance")
 
     def step(self, e: DetectionEvent) -> list[Transition]:
         """Apply one event; returns the state changes it caused."""
         out: list[Transition | None] = []
         t = e.time_ns
+        if e.kind is EventKind.CLOCK_STEP and t < self.now_ns:
+            t = self.now_ns  # read after later records (a followed file): doubt from when it was read
+        self.now_ns = max(self.now_ns, t)
         if e.kind is EventKind.RESET:
             out.append(self._reset(e))
             return [x for x in out if x is not None]
         secs = self.bound(e.head)
+        if e.head in self.unheard:
+            self.unheard.discard(e.head)
+            for s, _ in secs:
+                s.held_by.discard(unheard_mark(e.head))
         k = e.kind
         if k is EventKind.AXLE:
             for s, sign in secs:
@@ -223,7 +252,7 @@ class SectionEngine:
             return None
         s = self.sections[sid]
         s.count, s.swept_in = 0, False
-        s.held_by = {h for h in s.held_by if h.endswith("damped")}
+        s.held_by = {h for h in s.held_by if h.endswith("damped") or h.startswith(_UNHEARD)}
         self.resets.append(ResetRecord(e.time_ns, sid, True, "preconditions hold: waiting for a sweep train"))
         return self._set(s, SectionState.PREPARATORY, e.time_ns, "reset accepted: waiting for a sweep train")
 

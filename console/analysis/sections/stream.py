@@ -57,8 +57,10 @@ from console.analysis.counting.bank import CounterBank
 from console.analysis.counting.holds import NONE
 from console.analysis.diag_events import (
     DiagEventSettings,
+    absent_head_warnings,
     head_event_columns,
     power_gap_columns,
+    shared_head_warnings,
     silent_heads,
     silent_loss_columns,
 )
@@ -203,7 +205,7 @@ class EventStream:
                 out.append(f"counting head {name} (device {device_id}) is in the log but not in the layout")
             elif (spec := lay.head(name)).device_id is not None and spec.device_id != device_id:
                 out.append(f"counting head {name}: the log's device {device_id} is not the layout's {spec.device_id}")
-        return out
+        return out + shared_head_warnings(lay, heads) + absent_head_warnings(lay, heads)
 
     @property
     def facts(self) -> dict[int, HeadFacts]:
