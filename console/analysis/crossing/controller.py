@@ -205,6 +205,9 @@ class _Track:
     # The last direction known (±1; 0: never known): one the witnesses left unknown is not reversed by
     # less than reverses a known one.
     known_direction: int = 0
+    # The direction the tail was last proven past the crossing in (0: not proven), by the off rule's own
+    # evidence (:meth:`CrossingController._tail_past_evidence`); an EOT fix the filter took short of it ends it.
+    tail_past_dir: int = 0
     warned: bool = False
     t_on: int | None = None
     reason_on: str = ""
@@ -478,13 +481,15 @@ class CrossingController:
         return self.crossing.d_off_m + (tr.spec.length_m if self._eot_leads(tr) else 0.0)
 
     def _tail_past(self, tr: _Track) -> bool:
-        """The tail is past the crossing by d_off in the direction of travel, by the last EOT fix the
-        filter took (one fix that jumped back does not put the tail on the road again)."""
+        """The tail is past the crossing by d_off in the direction of travel: proven by the off rule's
+        evidence (two EOT fixes past, moving away) and no EOT fix the filter took since short of it (one
+        fix that jumped back does not put the tail on the road again).  One EOT fix is no proof: a first
+        fix that jumped past the crossing (the device's next, true, fix then set aside against it, the
+        device silent after) kept a train approaching from ever being warned."""
         if not tr.direction:
             return False
-        eot = tr.eot_kept or tr.eot
-        if eot is not None:
-            return tr.direction * (eot.chainage_m - self.crossing.chainage_m) >= self._eot_off_m(tr)
+        if tr.eot is not None:
+            return tr.tail_past_dir == tr.direction
         if tr.head is None or tr.head.speed_basis != REPORTED:
             return False
         # No EOT at all: only the head's own position (moved on by a reported speed) can tell.
@@ -733,24 +738,51 @@ class CrossingController:
         tr.warned, tr.t_off, tr.reason_off = False, fix.t_ns, reason
         return [self._emit(fix.t_ns, tr, "off", reason)]
 
-    def _check_off(self, tr: _Track, fix: Fix, prev_eot: Report | None, rep: Report) -> list[CrossingEvent]:
-        if not tr.warned or fix.role != EOT or tr.direction == 0:
-            return []
+    def _tail_past_evidence(self, tr: _Track, fix: Fix, prev_eot: Report | None, rep: Report) -> float | None:
+        """How far past the crossing an EOT fix proves the tail (m), with the one before it; None when it
+        proves nothing: the two past by the margin in a known direction, consistent, and moving away."""
+        if fix.role != EOT or tr.direction == 0:
+            return None
         c = self.crossing.chainage_m
         past = tr.direction * (fix.chainage_m - c)
         need = self._eot_off_m(tr)
         if past < need:
-            return []
+            return None
         if prev_eot is None or rep.restarted or tr.direction_set_ns >= prev_eot.t_fix_ns:
             # A first EOT fix alone is not evidence, nor a pair read in a direction that has
             # just changed: wait for the next.
-            return []
+            return None
         if tr.direction * (prev_eot.chainage_m - c) < need:
-            return []  # one fix past could be a jump: two in a row are evidence
+            return None  # one fix past could be a jump: two in a row are evidence
         dt = (fix.t_fix_ns - prev_eot.t_fix_ns) / NS
         step = tr.direction * (fix.chainage_m - prev_eot.chainage_m)
         if dt <= 0 or step < -self.s.noise_m or step > self.s.max_speed_mps * dt + self.s.noise_m:
-            return []  # not consistent with the previous fix: not evidence
+            return None  # not consistent with the previous fix: not evidence
+        if not self._moving_away(tr, step):
+            return None
+        return past
+
+    def _moving_away(self, tr: _Track, step_m: float) -> bool:
+        """The EOT moves in the direction of travel, beyond its noise: the paper's "distance increasing".
+        A standing EOT is no evidence: read in a wrong direction (turned round by position jumps), a
+        train standing before the crossing, or with its tail on the road, was "past it and moving away"
+        (randomized runs: the road opened with the train standing on it)."""
+        if step_m > 2 * self.s.noise_m:
+            return True
+        if tr.eot_ev.direction(medians_only=True) == tr.direction:
+            return True
+        est = tr.kf[EOT].estimate
+        return (
+            est is not None
+            and est.settled
+            and tr.kf_ok[EOT]
+            and tr.direction * est.speed_mps > est.k_sigma * est.sigma_speed_mps + 2.0
+        )
+
+    def _check_off(self, tr: _Track, past: float | None, fix: Fix) -> list[CrossingEvent]:
+        if not tr.warned or past is None:
+            return []
+        need = self._eot_off_m(tr)
         tr.warned, tr.t_off = False, fix.t_ns
         leads = (
             " (the EOT leading: the head unit's end a train's length behind)" if need > self.crossing.d_off_m else ""
@@ -858,7 +890,16 @@ class CrossingController:
         # nor is a fix the filter set aside, or one after such a fix.
         kept = prev_kept and tr.kf_ok[fix.role]
         prev_eot = prev if fix.role == EOT and not jumped_before and kept else None
-        out = self._check_off(tr, fix, prev_eot, rep)
+        past = self._tail_past_evidence(tr, fix, prev_eot, rep)
+        if past is not None:
+            tr.tail_past_dir = tr.direction
+        elif (
+            fix.role == EOT
+            and tr.kf_ok[EOT]
+            and tr.direction * (fix.chainage_m - self.crossing.chainage_m) < (self._eot_off_m(tr))
+        ):
+            tr.tail_past_dir = 0  # an EOT fix the filter took, short of the margin: the tail is not proven past
+        out = self._check_off(tr, past, fix)
         out += self._check_release(tr, fix)
         out += self._check_on(tr, fix.t_ns)
         out += self._alarms(tr, fix.t_ns)
