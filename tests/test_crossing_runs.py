@@ -230,6 +230,53 @@ def test_a_standing_train_is_not_turned_round_by_one_witness(code: str, cond: Ru
     assert v.lead_s is not None and v.lead_s >= crossing.warning_time_s
 
 
+# One EOT fix is no proof that the tail is past, nor is a standing EOT "moving away".  The first: the EOT's first
+# fix jumped 262 m past the crossing, its next (true) one was set aside against it, and the unit failed; the
+# train, approaching, was never warned (seed 4851, run 761).  The second: a head unit lost at 5.5 s, the EOT's
+# filter swayed by jumps set the direction wrong, and the EOT standing on the road's near side with the train
+# stopped across it was "108 m past and moving away": the road opened (seed 4852, run 1149, with the direction
+# rule of f4b6fac alone; the moving-away rule stops it).
+TAIL_NOT_PROVEN_PAST = [
+    RunConditions(
+        10.0,
+        0.15044446396983546,
+        0.11009571175531162,
+        1.4965731701675278,
+        None,
+        28.861096363052518,
+        "crawl",
+        9.126810749499974,
+        -1,
+        28.6,
+        485100761,
+        jump_rate=0.027176221292551886,
+    ),
+    RunConditions(
+        10.0,
+        4.279514761326261,
+        0.2830572355045878,
+        0.35658154638634276,
+        5.544941293026007,
+        None,
+        "stop_on_crossing",
+        29.486457782462345,
+        1,
+        300.0,
+        485201149,
+        speed_reported=False,
+        jump_rate=0.03172908849272808,
+    ),
+]
+
+
+@pytest.mark.parametrize("cond", TAIL_NOT_PROVEN_PAST)
+def test_the_tail_is_past_only_on_two_eot_fixes_moving_away(cond: RunConditions) -> None:
+    crossing = next(c for c in LAYOUT.crossings if c.code == "12+940")
+    v = one_run(LAYOUT, crossing, cond)
+    assert v.violation is None and v.late_by_s is None
+    assert v.lead_s is not None and v.lead_s >= crossing.warning_time_s
+
+
 def test_lost_head_unit_falls_back_to_eot_plus_length() -> None:
     cond = RunConditions(
         period_s=2.6,
