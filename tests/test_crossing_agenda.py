@@ -64,15 +64,7 @@ class EveryTrain(CrossingController):
         tr.bounds.clear()
         kept = prev_kept and tr.kf_ok[fix.role]
         prev_eot = prev if fix.role == EOT and not jumped_before and kept else None
-        past = self._tail_past_evidence(tr, fix, prev_eot, rep)
-        if past is not None:
-            tr.tail_past_dir = tr.direction
-        elif (
-            fix.role == EOT
-            and tr.kf_ok[EOT]
-            and tr.direction * (fix.chainage_m - self.crossing.chainage_m) < (self._eot_off_m(tr))
-        ):
-            tr.tail_past_dir = 0
+        past = self._note_tail(tr, fix, prev_eot, rep)
         out = self._check_off(tr, past, fix)
         out += self._check_release(tr, fix)
         out += self._check_on(tr, fix.t_ns)

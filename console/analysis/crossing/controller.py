@@ -779,6 +779,19 @@ class CrossingController:
             and tr.direction * est.speed_mps > est.k_sigma * est.sigma_speed_mps + 2.0
         )
 
+    def _note_tail(self, tr: _Track, fix: Fix, prev_eot: Report | None, rep: Report) -> float | None:
+        """After an accepted fix: the tail proven past (→ how far, latched), or no longer (an EOT fix the
+        filter took, short of the margin)."""
+        past = self._tail_past_evidence(tr, fix, prev_eot, rep)
+        if past is not None:
+            tr.tail_past_dir = tr.direction
+        elif fix.role == EOT and tr.kf_ok[EOT] and not self._past_margin(tr, fix.chainage_m):
+            tr.tail_past_dir = 0
+        return past
+
+    def _past_margin(self, tr: _Track, eot_chainage_m: float) -> bool:
+        return tr.direction * (eot_chainage_m - self.crossing.chainage_m) >= self._eot_off_m(tr)
+
     def _check_off(self, tr: _Track, past: float | None, fix: Fix) -> list[CrossingEvent]:
         if not tr.warned or past is None:
             return []
@@ -890,15 +903,7 @@ class CrossingController:
         # nor is a fix the filter set aside, or one after such a fix.
         kept = prev_kept and tr.kf_ok[fix.role]
         prev_eot = prev if fix.role == EOT and not jumped_before and kept else None
-        past = self._tail_past_evidence(tr, fix, prev_eot, rep)
-        if past is not None:
-            tr.tail_past_dir = tr.direction
-        elif (
-            fix.role == EOT
-            and tr.kf_ok[EOT]
-            and tr.direction * (fix.chainage_m - self.crossing.chainage_m) < (self._eot_off_m(tr))
-        ):
-            tr.tail_past_dir = 0  # an EOT fix the filter took, short of the margin: the tail is not proven past
+        past = self._note_tail(tr, fix, prev_eot, rep)
         out = self._check_off(tr, past, fix)
         out += self._check_release(tr, fix)
         out += self._check_on(tr, fix.t_ns)
