@@ -208,6 +208,9 @@ class _Track:
     # The direction the tail was last proven past the crossing in (0: not proven), by the off rule's own
     # evidence (:meth:`CrossingController._tail_past_evidence`); an EOT fix the filter took short of it ends it.
     tail_past_dir: int = 0
+    # The direction in which an EOT fix the filter took was last short of the crossing (0: none): a tail seen
+    # on the near side and then past has crossed, standing there or not.
+    eot_short_dir: int = 0
     warned: bool = False
     t_on: int | None = None
     reason_on: str = ""
@@ -763,10 +766,14 @@ class CrossingController:
         return past
 
     def _moving_away(self, tr: _Track, step_m: float) -> bool:
-        """The EOT moves in the direction of travel, beyond its noise: the paper's "distance increasing".
-        A standing EOT is no evidence: read in a wrong direction (turned round by position jumps), a
-        train standing before the crossing, or with its tail on the road, was "past it and moving away"
-        (randomized runs: the road opened with the train standing on it)."""
+        """The EOT moves in the direction of travel, beyond its noise (the paper's "distance increasing"),
+        or it was seen short of the crossing in this direction and is past it now: it crossed.  A standing
+        EOT never seen on the near side is no evidence: read in a wrong direction (turned round by position
+        jumps), a train standing before the crossing, or with its tail on the road, was "past it and moving
+        away" (randomized runs: the road opened with the train standing on it).  A train that crossed and
+        stands beyond (a station past the crossing) is past."""
+        if tr.direction and tr.eot_short_dir == tr.direction:
+            return True
         if step_m > 2 * self.s.noise_m:
             return True
         if tr.eot_ev.direction(medians_only=True) == tr.direction:
@@ -782,6 +789,8 @@ class CrossingController:
     def _note_tail(self, tr: _Track, fix: Fix, prev_eot: Report | None, rep: Report) -> float | None:
         """After an accepted fix: the tail proven past (→ how far, latched), or no longer (an EOT fix the
         filter took, short of the margin)."""
+        if fix.role == EOT and tr.kf_ok[EOT] and tr.direction * (fix.chainage_m - self.crossing.chainage_m) < 0:
+            tr.eot_short_dir = tr.direction
         past = self._tail_past_evidence(tr, fix, prev_eot, rep)
         if past is not None:
             tr.tail_past_dir = tr.direction
