@@ -257,8 +257,10 @@ def read_diag(
                 " or differ from a whole read: --json on the file reads it whole\n"
             )
     _tell_clock_steps(job.clock_step_warnings)
-    for line in job.warnings:
-        if HELD in line:  # a section held for it: said where the clock steps are, whatever the output
+    # A section held for a head not heard: said where the clock steps are, whatever the output; not for a log
+    # of no record at all (every head unheard), which the command refuses in one line of its own.
+    for line in job.warnings if job.report.records else ():
+        if HELD in line:
             sys.stderr.write(f"trackside: warning: {line}\n")
     if table is not None:
         job.analysis.passage_columns = table.columns()
