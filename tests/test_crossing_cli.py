@@ -421,3 +421,27 @@ def test_units_whose_every_fix_is_invalid_are_named(samples: Path, tmp_path: Pat
     doc = _crossing(samples, path=path)
     assert doc["warnings"] == ["no valid fix from A-head, A-eot: every one marked invalid (no position fix)"]
     assert {r["train"] for r in doc["timelines"]} == {"B"}
+
+
+def test_a_device_written_twice_differently_is_said(samples: Path, tmp_path: Path) -> None:
+    """Each row of the sample written again 1.1 km north (the same device and instant): one row of each was kept
+    unsaid, and the run read as held warnings and late ones.  Now each device's conflicting instants are said;
+    an RMC and a GGA of one epoch (the same position) are not a conflict."""
+    lines = (samples / "crossing_example.csv").read_text("utf-8").splitlines()
+    header = lines[0].split(",")
+    lat = header.index("lat")
+    out = [lines[0]]
+    for line in lines[1:]:
+        out.append(line)
+        cells = line.split(",")
+        if len(cells) == len(header):
+            cells[lat] = f"{float(cells[lat]) + 0.01:.6f}"
+            out.append(",".join(cells))
+    twice = tmp_path / "twice.csv"
+    twice.write_text("\n".join(out) + "\n", "utf-8")
+    doc = _crossing(samples, path=twice)
+    said = {w.split(":")[0]: w for w in doc["warnings"] if "two positions" in w}
+    assert sorted(said) == ["A-eot", "A-head", "B-eot", "B-head"]
+    per_device = sum(1 for line in lines[1:] if ",A-head," in line)
+    assert said["A-head"].startswith(f"A-head: {per_device} instants with two positions up to 1,1")
+    assert not [w for w in _crossing(samples)["warnings"] if "two positions" in w]

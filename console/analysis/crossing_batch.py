@@ -15,6 +15,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
 import pandas as pd
 
 from console.analysis.crossing.controller import (
@@ -143,6 +144,36 @@ def unit_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> pd.DataFr
         # In ns whatever resolution the table came in (pandas 3 keeps µs or s from its source).
         t_ns=pd.to_datetime(sel["time"], utc=True).dt.as_unit("ns").astype("int64"),
     )
+
+
+# Two fixes of one device at one instant further apart than this are two positions, not one fix written twice
+# (an RMC and a GGA of one epoch agree to the metre).
+CONFLICT_M = 30.0
+M_PER_DEG = 111_320.0  # a degree of latitude (and of longitude × cos latitude): enough to tell 30 m from 1 km
+
+
+def conflicting_instants(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> list[tuple[str, int, float]]:
+    """(device, instants, the widest spread m) of the trains' units whose valid fixes give two positions for
+    one instant more than CONFLICT_M apart: :func:`unit_fixes` keeps one row of each (an export that wrote a
+    device twice, differently), which no reader can choose right, so it is said."""
+    units = {d for t in trains for d in (*t.head, *t.eot)}
+    sel = fixes[fixes["device"].astype(str).isin(units) & fixes["valid"].astype(bool)]
+    sel = sel.dropna(subset=["lat", "lon", "time"])
+    if not len(sel):
+        return []
+    g = sel.assign(device=sel["device"].astype(str)).groupby(["device", "time"], sort=False, observed=True)
+    lat, lon = g["lat"], g["lon"]
+    mid_lat = np.radians(lat.mean().to_numpy())
+    spread_m = np.hypot(
+        (lat.max() - lat.min()).to_numpy() * M_PER_DEG,
+        (lon.max() - lon.min()).to_numpy() * M_PER_DEG * np.cos(mid_lat),
+    )
+    wide = pd.Series(spread_m, index=lat.max().index)
+    wide = wide[wide > CONFLICT_M]
+    out = []
+    for device, per in wide.groupby(level=0, sort=True):
+        out.append((str(device), len(per), float(per.max())))
+    return out
 
 
 def undated_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> int:

@@ -55,7 +55,12 @@ def crossing(
 
     def body() -> int:
         one_json_form(json_out, jsonl)
-        from console.analysis.crossing_batch import merged_units, parse_train_options, units_never_valid
+        from console.analysis.crossing_batch import (
+            conflicting_instants,
+            merged_units,
+            parse_train_options,
+            units_never_valid,
+        )
         from console.analysis.integrity.monitor import timelines
         from console.analysis.timefmt import iso
         from console.drivers.crossings import run_crossings
@@ -96,6 +101,11 @@ def crossing(
         if run.undated:  # a GGA-only capture: positions but no date, none of them usable
             warnings.append(
                 f"{count(run.undated, 'fix')} without a date and time set aside (GGA with no RMC or ZDA to date it)"
+            )
+        for device, n, spread_m in conflicting_instants(fixes, run.trains):
+            warnings.append(
+                f"{device}: {count(n, 'instant')} with two positions up to {spread_m:,.0f} m apart (the device"
+                " written twice, differently?): the last row of each read, the other set aside"
             )
         if never := units_never_valid(fixes, run.trains):
             warnings.append(f"no valid fix from {', '.join(never)}: every one marked invalid (no position fix)")
