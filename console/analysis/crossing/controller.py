@@ -52,8 +52,12 @@ travel.
   the device's track not just restarted: one wild fix, plausible-looking or
   not, cannot open the road.  This is the paper's "d ≤ d_off, then
   increasing" in signed form: past the crossing by the margin and moving
-  away.  A train with its EOT end leading (backing, pushed: the EOT ahead
-  of the head unit) has its rear a train's length behind the EOT: past by
+  away, which a standing EOT is not unless it was seen short of the
+  crossing first (it crossed): read in a wrong direction, a standing EOT
+  before the crossing is "past" it.  The same evidence, latched, is what
+  puts the tail past (no more warnings for the train); one EOT fix never
+  is.  A train with its EOT end leading (backing, pushed: the EOT ahead of
+  the head unit) has its rear a train's length behind the EOT: past by
   ``d_off`` plus the length.
 * **Fail-safe.**  Nothing ever ends a warning by timeout; a release needs a
   fresh, settled head estimate.  A stale EOT
@@ -199,7 +203,7 @@ class _Track:
     bounds: dict[str, ArrivalBound | None] = field(default_factory=dict)  # per source, since the last fix
     kf_ok: dict[str, bool] = field(default_factory=lambda: {HEAD: False, EOT: False})  # last fix taken by the filter
     doubt_ns: dict[str, int | None] = field(default_factory=lambda: {HEAD: None, EOT: None})  # last jump / set aside
-    eot_kept: Report | None = None  # the last EOT fix the filter took (the tail-past test runs on it)
+    eot_kept: Report | None = None  # the last EOT fix the filter took (which unit leads is judged on it)
     direction: int = 0
     direction_set_ns: int = 0  # fix time of the last change of direction
     # The last direction known (±1; 0: never known): one the witnesses left unknown is not reversed by
