@@ -13,7 +13,6 @@ from typer.testing import CliRunner
 from console.analysis.timefmt import iso, iso_array
 from console.cli.app import app
 from console.cli.commands import query as query_cmd
-from console.sinks import query_text
 from parsers.units import ALL_TIME, NO_TIME
 from tests.conftest import SAMPLES
 
@@ -67,9 +66,7 @@ def test_few_rows_print_as_many_rows_do(archive: Path, fmt: str, monkeypatch: py
         return str(res.stdout)
 
     scalar = run()
-    monkeypatch.setattr(query_text, "SCALAR_TIMES_MAX_ROWS", 0)  # every result through iso_array
-    assert run() == scalar
-    monkeypatch.setattr(query_cmd, "ARROW_AFTER_ROWS", 0)  # every row from Arrow batches, column by column
+    monkeypatch.setattr(query_cmd, "ARROW_AFTER_ROWS", 0)  # every row from Arrow batches, times by iso_array
     assert run() == scalar
     # i = 1: -86,400.248999997 s, a second before 1970 counted down, its fraction up (as numpy's floor does).
     assert "1969-12-30T23:59:59.751000003Z" in scalar

@@ -25,10 +25,6 @@ from console.safe_text import clean
 if TYPE_CHECKING:
     import pyarrow as pa
 
-# Up to this many rows the times are formatted one by one (timefmt.iso), as the other values are: a query of a
-# head's hour (a few thousand rows) then never imports numpy, a tenth of a second of its start-up; above it the
-# vectorized iso_array is quicker than the import.  Both give the same text (tests/test_query_times.py).
-SCALAR_TIMES_MAX_ROWS = 50_000
 # Exact types plain_value returns unchanged (a subclass, a float's NaN, go through plain_value).
 AS_IS = frozenset((str, int, bool, type(None)))
 
@@ -41,31 +37,18 @@ def plain_rows(rows: list[tuple[object, ...]], ns_columns: frozenset[int]) -> li
     as_is = AS_IS
     if not ns_columns or not rows:
         return [tuple(v if type(v) in as_is else plain_value(v) for v in r) for r in rows]
-    if len(rows) <= SCALAR_TIMES_MAX_ROWS:
-        from console.analysis.timefmt import iso
+    # Times one by one (timefmt.iso): rows come here a few thousand at most (a longer result is written from
+    # Arrow batches, its times by iso_array; the same text, tests/test_query_times.py), and a head's hour
+    # never imports numpy, a tenth of a second of its start-up.
+    from console.analysis.timefmt import iso
 
-        return [
-            tuple(
-                iso(cast(int | None, v)) if i in ns_columns else v if type(v) in as_is else plain_value(v)
-                for i, v in enumerate(r)
-            )
-            for r in rows
-        ]
-    import numpy as np
-
-    from console.analysis.timefmt import iso_array
-
-    columns: list[list[Any]] = [list(c) for c in zip(*rows, strict=True)]
-    for i, col in enumerate(columns):
-        if i in ns_columns:
-            present = np.array([v is not None for v in col], bool)
-            values = np.array([v if v is not None else 0 for v in col], np.int64)
-            text = iso_array(values)
-            text[~present] = None
-            columns[i] = text.tolist()
-        else:
-            columns[i] = [plain_value(v) for v in col]
-    return list(zip(*columns, strict=True))
+    return [
+        tuple(
+            iso(cast(int | None, v)) if i in ns_columns else v if type(v) in as_is else plain_value(v)
+            for i, v in enumerate(r)
+        )
+        for r in rows
+    ]
 
 
 def plain_value(value: Any) -> Any:
