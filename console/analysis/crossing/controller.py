@@ -750,16 +750,13 @@ class CrossingController:
         proves nothing: the two past by the margin in a known direction, consistent, and moving away."""
         if fix.role != EOT or tr.direction == 0:
             return None
-        c = self.crossing.chainage_m
-        past = tr.direction * (fix.chainage_m - c)
-        need = self._eot_off_m(tr)
-        if past < need:
+        if not self._past_margin(tr, fix.chainage_m):
             return None
         if prev_eot is None or rep.restarted or tr.direction_set_ns >= prev_eot.t_fix_ns:
             # A first EOT fix alone is not evidence, nor a pair read in a direction that has
             # just changed: wait for the next.
             return None
-        if tr.direction * (prev_eot.chainage_m - c) < need:
+        if not self._past_margin(tr, prev_eot.chainage_m):
             return None  # one fix past could be a jump: two in a row are evidence
         dt = (fix.t_fix_ns - prev_eot.t_fix_ns) / NS
         step = tr.direction * (fix.chainage_m - prev_eot.chainage_m)
@@ -767,7 +764,7 @@ class CrossingController:
             return None  # not consistent with the previous fix: not evidence
         if not self._moving_away(tr, step):
             return None
-        return past
+        return self._past_m(tr, fix.chainage_m)
 
     def _moving_away(self, tr: _Track, step_m: float) -> bool:
         """The EOT moves in the direction of travel, beyond its noise (the paper's "distance increasing"),
@@ -793,7 +790,7 @@ class CrossingController:
     def _note_tail(self, tr: _Track, fix: Fix, prev_eot: Report | None, rep: Report) -> float | None:
         """After an accepted fix: the tail proven past (→ how far, latched), or no longer (an EOT fix the
         filter took, short of the margin)."""
-        if fix.role == EOT and tr.kf_ok[EOT] and tr.direction * (fix.chainage_m - self.crossing.chainage_m) < 0:
+        if fix.role == EOT and tr.kf_ok[EOT] and self._past_m(tr, fix.chainage_m) < 0:
             tr.eot_short_dir = tr.direction
         past = self._tail_past_evidence(tr, fix, prev_eot, rep)
         if past is not None:
@@ -802,8 +799,13 @@ class CrossingController:
             tr.tail_past_dir = 0
         return past
 
+    def _past_m(self, tr: _Track, chainage_m: float) -> float:
+        """How far past the crossing a chainage is in the train's direction of travel (m; < 0 short of it)."""
+        return tr.direction * (chainage_m - self.crossing.chainage_m)
+
     def _past_margin(self, tr: _Track, eot_chainage_m: float) -> bool:
-        return tr.direction * (eot_chainage_m - self.crossing.chainage_m) >= self._eot_off_m(tr)
+        """An EOT position past the crossing by the margin its tail needs (:meth:`_eot_off_m`)."""
+        return self._past_m(tr, eot_chainage_m) >= self._eot_off_m(tr)
 
     def _check_off(self, tr: _Track, past: float | None, fix: Fix) -> list[CrossingEvent]:
         if not tr.warned or past is None:
@@ -823,7 +825,7 @@ class CrossingController:
         end of the run is not worth an alarm at a crossing it left behind)."""
         if tr.warned or tr.eot is None or not tr.direction:
             return False
-        return tr.direction * (tr.eot.chainage_m - self.crossing.chainage_m) >= self._eot_off_m(tr)
+        return self._past_margin(tr, tr.eot.chainage_m)
 
     def _alarms(self, tr: _Track, t_ns: int) -> list[CrossingEvent]:
         out = []
