@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -126,13 +126,26 @@ def merged_units(trains: Sequence[TrainDevices]) -> str | None:
     )
 
 
+def _valid_unit_rows(fixes: pd.DataFrame, units: Collection[str]) -> pd.Series:
+    """The rows of ``units``' fixes marked valid (a mask)."""
+    return fixes["device"].astype(str).isin(units) & fixes["valid"].astype(bool)
+
+
+def _placeable(fixes: pd.DataFrame, units: Collection[str]) -> pd.DataFrame:
+    """``units``' valid fixes with a time and a position: the ones a crossing unit can take."""
+    return fixes[_valid_unit_rows(fixes, units)].dropna(subset=["lat", "lon", "time"])
+
+
+def _units(trains: Sequence[TrainDevices]) -> set[str]:
+    return {d for t in trains for d in (*t.head, *t.eot)}
+
+
 def unit_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> pd.DataFrame:
     """The trains' units' valid fixes with a time and a position, one per device and instant, in time order,
     with each one's ``train`` and ``role`` and its time in ns (``t_ns``)."""
     owner = {d: (t.train, HEAD) for t in trains for d in t.head}
     owner.update({d: (t.train, EOT) for t in trains for d in t.eot})
-    sel = fixes[fixes["device"].astype(str).isin(owner) & fixes["valid"].astype(bool)]
-    sel = sel.dropna(subset=["lat", "lon", "time"])
+    sel = _placeable(fixes, owner.keys())
     # One fix per device and instant: NMEA gives an RMC and a GGA for each (keep the one with a speed).
     sel = sel.assign(_has_speed=sel["speed_mps"].notna()).sort_values(["device", "time", "_has_speed"], kind="stable")
     sel = sel.drop_duplicates(["device", "time"], keep="last").sort_values("time", kind="stable")
@@ -156,9 +169,7 @@ def conflicting_instants(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) ->
     """(device, instants, the widest spread m) of the trains' units whose valid fixes give two positions for
     one instant more than CONFLICT_M apart: :func:`unit_fixes` keeps one row of each (an export that wrote a
     device twice, differently), which no reader can choose right, so it is said."""
-    units = {d for t in trains for d in (*t.head, *t.eot)}
-    sel = fixes[fixes["device"].astype(str).isin(units) & fixes["valid"].astype(bool)]
-    sel = sel.dropna(subset=["lat", "lon", "time"])
+    sel = _placeable(fixes, _units(trains))
     if not len(sel):
         return []
     g = sel.assign(device=sel["device"].astype(str)).groupby(["device", "time"], sort=False, observed=True)
@@ -180,8 +191,7 @@ def undated_fixes(fixes: pd.DataFrame, trains: Sequence[TrainDevices]) -> int:
     """How many of the trains' units' valid, positioned fixes have no time (:func:`unit_fixes` sets them aside)."""
     if not len(fixes):
         return 0
-    units = {d for t in trains for d in (*t.head, *t.eot)}
-    mine = fixes["device"].astype(str).isin(units) & fixes["valid"].astype(bool)
+    mine = _valid_unit_rows(fixes, _units(trains))
     return int((mine & fixes["lat"].notna() & fixes["lon"].notna() & fixes["time"].isna()).sum())
 
 
