@@ -445,3 +445,41 @@ def test_a_device_written_twice_differently_is_said(samples: Path, tmp_path: Pat
     per_device = sum(1 for line in lines[1:] if ",A-head," in line)
     assert said["A-head"].startswith(f"A-head: {per_device} instants with two positions up to 1,1")
     assert not [w for w in _crossing(samples)["warnings"] if "two positions" in w]
+
+
+def _doctored(samples: Path, tmp_path: Path, how: str) -> Path:
+    """The sample as other hands write it: a third of its rows written again 1.1 km north, its units named by
+    IMEI, or A's fixes all marked invalid."""
+    lines = (samples / "crossing_example.csv").read_text("utf-8").splitlines()
+    lat = lines[0].split(",").index("lat")
+    out = [lines[0] + (",valid" if how == "invalid" else "")]
+    for i, line in enumerate(lines[1:]):
+        if how == "invalid":
+            out.append(line + (",true" if ",B-" in line else ",false"))
+            continue
+        if how == "imei":
+            for n, name in enumerate(("A-head", "A-eot", "B-head", "B-eot")):
+                line = line.replace(f",{name},", f",86000{n},")
+        out.append(line)
+        if how == "twice" and i % 3 == 0:
+            cells = line.split(",")
+            cells[lat] = f"{float(cells[lat]) + 0.01:.6f}"
+            out.append(",".join(cells))
+    path = tmp_path / f"{how}.csv"
+    path.write_text("\n".join(out) + "\n", "utf-8")
+    return path
+
+
+@pytest.mark.parametrize("how", ["twice", "imei", "invalid"])
+def test_the_report_says_what_the_crossing_command_says_of_its_inputs(samples: Path, tmp_path: Path, how: str) -> None:
+    """The two faces composed their input warnings apart: the report left out the conflicting instants, the
+    position jumps, the invalid units and the merged trains that `trackside crossing` said of the same file."""
+    path = _doctored(samples, tmp_path, how)
+    said = _crossing(samples, path=path)["warnings"]
+    assert said  # each doctored file has something to say
+    res = runner.invoke(app, ["report", str(path), "--layout", "example", "--format", "json"])
+    assert res.exit_code in (0, 1), res.output
+    reported = [w.removeprefix("GNSS: ") for w in json.loads(res.stdout)["warnings"] if w.startswith("GNSS: ")]
+    # Each face's advice on pairing devices is its own (the report has no --train).
+    advice = ("give --train TRAIN=HEAD,EOT for each train", "name them <train>-head / <train>-eot")
+    assert [w.replace(*advice) for w in said] == reported

@@ -27,6 +27,7 @@ from console.analysis.crossing.controller import (
 from console.analysis.crossing.timeline import TimelineRow
 from console.analysis.integrity.monitor import IntegrityEvent, IntegritySettings
 from console.layout import Layout
+from console.plural import count
 
 OFF_TRACK_M = 100.0
 
@@ -111,7 +112,7 @@ def pair_trains(
     return [TrainDevices("train", heads, eots, default_length_m)], other
 
 
-def merged_units(trains: Sequence[TrainDevices]) -> str | None:
+def merged_units(trains: Sequence[TrainDevices], pairing_hint: str) -> str | None:
     """What to say when :func:`pair_trains` read several head or EOT devices as one train (no ``--train``, no
     ``<train>-head`` / ``<train>-eot`` names to pair them by): two trains merged give false partings and stale
     units, so it is said, never silent."""
@@ -122,8 +123,35 @@ def merged_units(trains: Sequence[TrainDevices]) -> str | None:
         return None
     return (
         f"{len(t.head)} head and {len(t.eot)} EOT devices, not named <train>-head / <train>-eot, read as one train: "
-        "give --train TRAIN=HEAD,EOT for each train"
+        + pairing_hint
     )
+
+
+def input_warnings(run: CrossingRun, fixes: pd.DataFrame, *, trains_named: bool, pairing_hint: str) -> list[str]:
+    """What a crossing run set aside or could not tell from ``fixes``, said the same by every face that runs it
+    (``trackside crossing``, the report of files or of the archive); ``pairing_hint``: how that face's user
+    pairs devices into trains."""
+    out = []
+    if run.off_track:
+        out.append(f"{count(run.off_track, 'fix')} more than {OFF_TRACK_M:.0f} m from the track set aside")
+    if run.undated:  # a GGA-only capture: positions but no date, none of them usable
+        out.append(f"{count(run.undated, 'fix')} without a date and time set aside (GGA with no RMC or ZDA to date it)")
+    for device, n, spread_m in conflicting_instants(fixes, run.trains):
+        out.append(
+            f"{device}: {count(n, 'instant')} with two positions up to {spread_m:,.0f} m apart (the device"
+            " written twice, differently?): the last row of each read, the other set aside"
+        )
+    if never := units_never_valid(fixes, run.trains):
+        out.append(f"no valid fix from {', '.join(never)}: every one marked invalid (no position fix)")
+    if run.position_jumps:
+        out.append(f"{count(run.position_jumps, 'fix')} set aside as position jumps (implausible for a train)")
+    if run.unassigned_devices:
+        out.append("devices in no train: " + ", ".join(run.unassigned_devices))
+    if not run.trains:
+        out.append(f"no head or EOT device found: {pairing_hint}")
+    if not trains_named and (merged := merged_units(run.trains, pairing_hint)):
+        out.append(merged)
+    return out
 
 
 def _valid_unit_rows(fixes: pd.DataFrame, units: Collection[str]) -> pd.Series:

@@ -52,7 +52,7 @@ def describe(window: Window, heads: set[str], bounded: list[str]) -> str:
 def _about_scope(warning: str, heads: set[str]) -> bool:
     """Whether a report's warning concerns the scope: one about another counting head does not, nor one about
     the trains' GNSS units (a scoped report judges no crossing)."""
-    if warning.startswith("no GNSS head or EOT device found"):
+    if warning.startswith("GNSS: no head or EOT device found"):
         return False
     if warning.startswith("counting head "):
         return warning[len("counting head ") :].split(":", 1)[0] in heads

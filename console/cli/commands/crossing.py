@@ -20,8 +20,10 @@ from console.cli.common import (
     rejected_note,
 )
 from console.cli.options import GnssFilesArg, JsonOpt, RecordsJsonlOpt
-from console.plural import count
 from console.safe_text import clean
+
+# How a user of this command pairs devices into trains (the input warnings' advice).
+PAIRING_HINT = "give --train TRAIN=HEAD,EOT for each train"
 
 CROSSING_LINES = {"timelines": "timeline", "events": "event", "trains": "train", "integrity": "integrity"}
 
@@ -56,10 +58,8 @@ def crossing(
     def body() -> int:
         one_json_form(json_out, jsonl)
         from console.analysis.crossing_batch import (
-            conflicting_instants,
-            merged_units,
+            input_warnings,
             parse_train_options,
-            units_never_valid,
         )
         from console.analysis.integrity.monitor import timelines
         from console.analysis.timefmt import iso
@@ -95,30 +95,9 @@ def crossing(
             )
         run = run_crossings(fixes, lay, trains)
         violations = run.violations
-        warnings = []
-        if run.off_track:
-            warnings.append(f"{count(run.off_track, 'fix')} more than 100 m from the track set aside")
-        if run.undated:  # a GGA-only capture: positions but no date, none of them usable
-            warnings.append(
-                f"{count(run.undated, 'fix')} without a date and time set aside (GGA with no RMC or ZDA to date it)"
-            )
-        for device, n, spread_m in conflicting_instants(fixes, run.trains):
-            warnings.append(
-                f"{device}: {count(n, 'instant')} with two positions up to {spread_m:,.0f} m apart (the device"
-                " written twice, differently?): the last row of each read, the other set aside"
-            )
-        if never := units_never_valid(fixes, run.trains):
-            warnings.append(f"no valid fix from {', '.join(never)}: every one marked invalid (no position fix)")
-        if run.position_jumps:
-            warnings.append(f"{count(run.position_jumps, 'fix')} set aside as position jumps (implausible for a train)")
+        warnings = input_warnings(run, fixes, trains_named=bool(trains), pairing_hint=PAIRING_HINT)
         if absent:
             warnings.append(f"--train names {', '.join(absent)}: no fix from {'it' if len(absent) == 1 else 'them'}")
-        if run.unassigned_devices:
-            warnings.append("devices in no train: " + ", ".join(run.unassigned_devices))
-        if not run.trains:
-            warnings.append("no head or EOT device found: give --train TRAIN=HEAD,EOT")
-        if not trains and (merged := merged_units(run.trains)):
-            warnings.append(merged)
         if json_out or jsonl:
             print_document(
                 {

@@ -76,6 +76,8 @@ if TYPE_CHECKING:
 
 
 DIAG_MMAP_THRESHOLD_BYTES = 512 << 10  # see _analyse
+# How a report's reader pairs GNSS devices into trains (the report has no --train: the devices' names).
+PAIRING_HINT = "name them <train>-head / <train>-eot"
 
 
 def _load(spec: str | Path) -> Layout:
@@ -334,17 +336,10 @@ def crossings_from_fixes(data: ReportData, fixes: pd.DataFrame) -> None:
     if own.any() and not own.all():
         note = "crossings use the NMEA and device streams (each unit's own fixes), not the centre's copy"
         data.inputs = [replace(i, note=note) if i.format == CENTRE else i for i in data.inputs]
+    from console.analysis.crossing_batch import input_warnings
     from console.drivers.crossings import run_crossings
 
     run = run_crossings(fixes[own] if own.any() else fixes, lay)
     data.crossing = run
-    if run.off_track:
-        data.warnings.append(f"{run.off_track} GNSS fixes more than 100 m from the track were set aside")
-    if run.undated:
-        data.warnings.append(
-            f"{run.undated} GNSS fixes without a date and time were set aside (GGA with no RMC or ZDA to date it)"
-        )
-    if run.unassigned_devices:
-        data.warnings.append("GNSS devices in no train: " + ", ".join(run.unassigned_devices))
-    if not run.trains:
-        data.warnings.append("no GNSS head or EOT device found: name them <train>-head / <train>-eot")
+    # The crossing command's words: the report is read without its stderr, so "GNSS" says which inputs.
+    data.warnings += [f"GNSS: {w}" for w in input_warnings(run, fixes, trains_named=False, pairing_hint=PAIRING_HINT)]
