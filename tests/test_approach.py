@@ -114,3 +114,27 @@ def test_approach_options_beyond_what_a_layout_takes_are_refused(samples: Path, 
     )
     assert res.returncode == 2 and res.stdout == ""
     assert said in res.stderr and len(res.stderr.splitlines()) == 1, res.stderr
+
+
+def test_an_arrival_after_midnight_is_marked_a_day_later() -> None:
+    """The Arrives column is a time of day beside Detected's date: a train detected at 23:59:50 that arrives
+    40 s after midnight read as arriving before it was detected."""
+    import datetime as dt
+
+    from rich.console import Console
+
+    from console.analysis.crossing.approach import ApproachRow
+    from console.analysis.timefmt import time_ns
+    from console.sinks.tables.approach_tables import approach_table
+
+    def row(detect: dt.datetime, arrive_s: float) -> ApproachRow:
+        t = time_ns(detect)
+        arrival = t + int(arrive_s * 1e9)
+        return ApproachRow("WS1", "H1", t, 80.0, "measured", arrival, t, arrive_s, arrive_s, 0.0, "")
+
+    day = dt.datetime(2026, 3, 2, 23, 59, 50)  # naive UTC, as parse_time gives
+    out = Console(width=160, record=True)
+    out.print(approach_table([row(day, 50.0), row(day - dt.timedelta(hours=1), 50.0)]))
+    text = out.export_text()
+    assert "2026-03-02 23:59:50" in text and "00:00:40+1" in text
+    assert "23:00:40" in text and "23:00:40+" not in text  # the same day: no mark

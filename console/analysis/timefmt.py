@@ -17,7 +17,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import TYPE_CHECKING
 
-from parsers.units import NS
+from parsers.units import NS, NS_PER_DAY
 
 if TYPE_CHECKING:
     import numpy as np
@@ -81,6 +81,13 @@ def display(ns: int | None) -> str:
     whole, frac = divmod(ns, NS)
     text = (_EPOCH + dt.timedelta(seconds=whole)).isoformat(sep=" ")
     return text + f".{frac // 1_000_000:03d}" if frac else text
+
+
+def time_of_day(ns: int, day0_index: int) -> str:
+    """For a table whose date is said once: ``09:32:24``, and ``09:32:24+1`` on the day after day ``day0_index``
+    (days since the epoch: ``ns // NS_PER_DAY`` of the table's first time)."""
+    later = int(ns) // NS_PER_DAY - day0_index
+    return display(ns)[11:19] + (f"+{later}" if later else "")
 
 
 _DURATION_UNITS = {"s": 1, "m": 60, "h": 3600, "d": 86400}

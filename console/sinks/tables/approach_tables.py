@@ -7,8 +7,9 @@ from rich.table import Table
 from rich.text import Text
 
 from console.analysis.crossing.approach import ApproachRow
-from console.analysis.timefmt import display
+from console.analysis.timefmt import display, time_of_day
 from console.safe_text import inert
+from parsers.units import NS_PER_DAY
 
 
 def _s(x: float | None) -> Text:
@@ -34,7 +35,8 @@ def approach_table(rows: list[ApproachRow]) -> Table:
             inert(r.site),
             Text(display(r.t_detect_ns)),
             Text("–" if r.speed_kmh is None else f"{r.speed_kmh:.1f}"),
-            Text("–" if r.t_arrival_ns is None else display(r.t_arrival_ns)[11:19]),
+            # The time of day, on the detection's date (shown beside it); +1 past midnight.
+            Text("–" if r.t_arrival_ns is None else time_of_day(r.t_arrival_ns, r.t_detect_ns // NS_PER_DAY)),
             _s(r.lead_fixed_s),
             _s(r.lead_speed_s),
             _s(r.saved_s),

@@ -10,7 +10,7 @@ from rich.text import Text
 
 from console.analysis.crossing.controller import CrossingEvent
 from console.analysis.crossing.timeline import TimelineRow
-from console.analysis.timefmt import display
+from console.analysis.timefmt import display, time_of_day
 from console.safe_text import inert
 from parsers.units import NS_PER_DAY
 
@@ -19,8 +19,7 @@ def _t(ns: int | None, day0: int = 0) -> Text:
     """A time of day; ``+N`` when it falls N days after the table's first day (a log over midnight)."""
     if ns is None:
         return Text("–", style="dim")
-    later = ns // NS_PER_DAY - day0
-    return Text(display(ns)[11:19] + (f"+{later}" if later else ""))
+    return Text(time_of_day(ns, day0))
 
 
 def _s(x: float | None, warn_below: float | None = None) -> Text:
