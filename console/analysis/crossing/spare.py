@@ -62,7 +62,6 @@ def smoothed_motion(
     with every fix before and after: forward filter, then the RTS smoother.  Reported speeds
     (not NaN) are used with the direction known.  None for fewer than two fixes."""
     # filterpy pulls in scipy: deferred, so the live units start fast (they never smooth).
-    from filterpy.common import Q_continuous_white_noise
     from filterpy.kalman import rts_smoother
 
     n = len(times_ns)
@@ -72,12 +71,19 @@ def smoothed_motion(
     p: Cov = (sigma_m**2, 0.0, 0.0, 30.0**2, 0.0, 0.5**2)
     xs = np.empty((n, 3))
     ps = np.empty((n, 3, 3))
+    # The smoother wants, at k, the transition from k to k+1 (none after the last): F, and filterpy's
+    # Q_continuous_white_noise(3, dt, jerk_psd) entry for entry (its scipy block_diag cost more than the filter).
     fs = np.empty((n, 3, 3))
     qs = np.empty((n, 3, 3))
+    fs[-1], qs[-1] = np.eye(3), np.zeros((3, 3))
+    q = jerk_psd
     for k in range(n):  # one train's fixes: the filter is sequential
-        dt = (int(times_ns[k]) - int(times_ns[k - 1])) / NS if k else 0.0
         if k:
+            dt = (int(times_ns[k]) - int(times_ns[k - 1])) / NS
             x, p = predict_ca(x, p, dt, jerk_psd)
+            fs[k - 1] = ((1.0, dt, 0.5 * dt * dt), (0.0, 1.0, dt), (0.0, 0.0, 1.0))
+            q5, q4, q3, q2 = (dt**5) / 20.0 * q, (dt**4) / 8.0 * q, (dt**3) / 6.0 * q, (dt**2) / 2.0 * q
+            qs[k - 1] = ((q5, q4, q3), (q4, (dt**3) / 3.0 * q, q2), (q3, q2, dt * q))
         x, p = update_position(x, p, float(chainage_m[k]), sigma_m**2)
         v = float(speed_mps[k])
         if direction and not math.isnan(v):
@@ -85,10 +91,6 @@ def smoothed_motion(
         xs[k] = x
         p00, p01, p02, p11, p12, p22 = p
         ps[k] = ((p00, p01, p02), (p01, p11, p12), (p02, p12, p22))
-        # The smoother wants, at k, the transition from k to k+1.
-        fs[k - 1 if k else 0] = ((1.0, dt, 0.5 * dt * dt), (0.0, 1.0, dt), (0.0, 0.0, 1.0))
-        qs[k - 1 if k else 0] = Q_continuous_white_noise(3, dt, jerk_psd) if k else np.zeros((3, 3))
-    fs[-1], qs[-1] = np.eye(3), np.zeros((3, 3))
     xs_s, _ps, _k, _pp = rts_smoother(xs, ps, fs, qs)
     return xs_s[:, 0], (direction or 1) * xs_s[:, 1]
 
