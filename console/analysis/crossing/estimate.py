@@ -153,6 +153,9 @@ class MotionFilter:
         self._agree: Window[bool] = Window(limits.settle_fixes)
         self._pending: tuple[int, float, float, int, float, float | None] | None = None  # the last set-aside fix
         self.noise = NoiseEstimate(limits.position_sigma_m)
+        # The estimate of the state as it stands: read many times between fixes (every wake of the unit, both
+        # roles' bounds); made again after each change of the state (None: not made yet).
+        self._estimate: MotionEstimate | None = None
 
     @property
     def noise_sigma_m(self) -> float:
@@ -161,6 +164,7 @@ class MotionFilter:
 
     def reset(self) -> None:
         self.x = self.P = None
+        self._estimate = None
         self.fixes = 0
         self._agree.clear()
         self._pending = None
@@ -188,6 +192,7 @@ class MotionFilter:
         self.fixes = 1
         self._agree.clear()
         self._pending = None
+        self._estimate = None
 
     def _predicted(self, t_ns: int) -> tuple[State, Cov]:
         assert self.x is not None and self.P is not None
@@ -239,6 +244,7 @@ class MotionFilter:
         self.fixes += 1
         self._agree.append(nu * nu <= 9.0 * s)
         self._pending = None
+        self._estimate = None
         return True
 
     def _set_aside(
@@ -246,6 +252,7 @@ class MotionFilter:
     ) -> bool:
         self.rejected += 1
         self._agree.clear()
+        self._estimate = None  # no longer settled
         pending, self._pending = self._pending, (t_ns, chainage_m, speed_mps, direction, extra_var, sigma_m)
         if pending is not None:
             dt = (t_ns - pending[0]) / NS
@@ -261,11 +268,13 @@ class MotionFilter:
 
     @property
     def estimate(self) -> MotionEstimate | None:
+        if self._estimate is not None:
+            return self._estimate
         if self.x is None or self.P is None:
             return None
         agree = self._agree
         settled = len(agree) == agree.maxlen and all(agree) and self.fixes > len(agree)
-        return MotionEstimate(
+        self._estimate = MotionEstimate(
             self.t_ns,
             self.x[0],
             self.x[1],
@@ -276,6 +285,7 @@ class MotionFilter:
             settled,
             self.lim.k_sigma,
         )
+        return self._estimate
 
     def speed_at(self, t_ns: int) -> tuple[float, float] | None:
         """(speed, σ) predicted to ``t_ns`` (a witness for the other device of the same train)."""
