@@ -15,16 +15,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from console.analysis.crossing.controller import (
-    EOT,
-    HEAD,
-    ControllerSettings,
-    CrossingController,
-    CrossingEvent,
-    Fix,
-    TrainSpec,
-    wake_until,
-)
+from console.analysis.crossing.controller import CrossingController, wake_until
+from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, CrossingEvent, Fix, TrainSpec
 from console.layout import LevelCrossing, load_layout
 from console.sim.crossing_runs import random_conditions, simulate
 from parsers.units import NS

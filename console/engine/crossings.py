@@ -28,17 +28,9 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from console.analysis.crossing.controller import (
-    EOT,
-    HEAD,
-    ControllerSettings,
-    CrossingController,
-    CrossingEvent,
-    Fix,
-    TrainSpec,
-    wake_until,
-)
+from console.analysis.crossing.controller import CrossingController, wake_until
 from console.analysis.crossing.timeline import timeline
+from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, CrossingEvent, Fix, TrainSpec
 from console.analysis.crossing_batch import OFF_TRACK_M, crossing_settings
 from console.analysis.geo import TrackProjector
 from console.analysis.timefmt import iso
