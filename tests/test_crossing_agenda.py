@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from console.analysis.crossing.bounds import source_bound
-from console.analysis.crossing.controller import CrossingController, wake_until
+from console.analysis.crossing.clock import wake_until
+from console.analysis.crossing.controller import CrossingController
 from console.analysis.crossing.direction import update_direction
 from console.analysis.crossing.release import check_release
 from console.analysis.crossing.tail import check_off, note_tail, tail_past

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from console.analysis.crossing.controller import run_controller
+from console.analysis.crossing.clock import run_controller
 from console.analysis.crossing.timeline import timeline
 from console.analysis.crossing.values import EOT, HEAD, Fix, TrainSpec
 from console.cli.app import app

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from console.analysis.crossing.controller import CrossingController, run_controller
+from console.analysis.crossing.clock import run_controller
+from console.analysis.crossing.controller import CrossingController
 from console.analysis.crossing.timeline import timeline
 from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, Fix, TrainSpec
 from console.analysis.geo import TrackProjector
