@@ -12,9 +12,10 @@ from __future__ import annotations
 import datetime as dt
 from pathlib import Path
 
-from console.analysis.crossing.controller import NS, ControllerSettings
+from console.analysis.crossing.values import ControllerSettings
 from console.layout import load_layout
 from console.sim.crossing_runs import RawFix, RunConditions, simulate
+from parsers.units import NS
 
 START = dt.datetime(2026, 1, 19, 17, 0, 0, tzinfo=dt.UTC)
 

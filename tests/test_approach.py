@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from console.analysis.crossing.approach import approach_timeline
-from console.analysis.crossing.controller import earliest_arrival_s
+from console.analysis.crossing.values import earliest_arrival_s
 from console.analysis.passages.diagnostics import SpeedSettings
 from console.cli.app import app
 from console.layout import WorkSite, load_layout

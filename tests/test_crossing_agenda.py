@@ -15,16 +15,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from console.analysis.crossing.controller import (
-    EOT,
-    HEAD,
-    ControllerSettings,
-    CrossingController,
-    CrossingEvent,
-    Fix,
-    TrainSpec,
-    wake_until,
-)
+from console.analysis.crossing.bounds import source_bound
+from console.analysis.crossing.clock import wake_until
+from console.analysis.crossing.controller import CrossingController
+from console.analysis.crossing.direction import update_direction
+from console.analysis.crossing.release import check_release
+from console.analysis.crossing.tail import check_off, note_tail, tail_past
+from console.analysis.crossing.track import feed_device_filter, feed_train_filter
+from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, CrossingEvent, Fix, TrainSpec
 from console.layout import LevelCrossing, load_layout
 from console.sim.crossing_runs import random_conditions, simulate
 from parsers.units import NS
@@ -58,15 +56,15 @@ class EveryTrain(CrossingController):
             tr.head = rep
         else:
             tr.eot = rep
-        self._filter(tr, fix, rep, ev)
-        self._update_direction(tr, fix)
-        self._filter_train(tr, fix, rep)
+        feed_device_filter(tr, fix, rep, ev)
+        update_direction(tr, fix)
+        feed_train_filter(tr, self.s, fix, rep)
         tr.bounds.clear()
         kept = prev_kept and tr.kf_ok[fix.role]
         prev_eot = prev if fix.role == EOT and not jumped_before and kept else None
-        past = self._note_tail(tr, fix, prev_eot, rep)
-        out = self._check_off(tr, past, fix)
-        out += self._check_release(tr, fix)
+        past = note_tail(tr, self.crossing, self.s, fix, prev_eot, rep)
+        out = self._off(fix.t_ns, tr, check_off(tr, self.crossing, self.s, past, fix))
+        out += self._off(fix.t_ns, tr, check_release(tr, self.s, self.motion, self.horizon_s, fix))
         out += self._check_on(tr, fix.t_ns)
         out += self._alarms(tr, fix.t_ns)
         for other in self.tracks.values():
@@ -100,9 +98,11 @@ class EveryTrain(CrossingController):
         t = max(last) + int(self.s.stale_after_s * NS)
         horizon_ns = int(self.horizon_s * NS)
         for tr in self.tracks.values():
-            if not tr.warned and not self._tail_past(tr):
+            if not tr.warned and not tail_past(tr, self.crossing, self.s):
                 due = [
-                    b.t_arrival_ns - horizon_ns for role in (HEAD, EOT, "train") if (b := self._device_bound(tr, role))
+                    b.t_arrival_ns - horizon_ns
+                    for role in (HEAD, EOT, "train")
+                    if (b := source_bound(tr, self.s, self.motion, role))
                 ]
                 t = max(t, max(due, default=t))
         return t

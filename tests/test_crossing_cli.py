@@ -9,8 +9,9 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from console.analysis.crossing.controller import ControllerSettings, CrossingController, Fix, TrainSpec
+from console.analysis.crossing.controller import CrossingController
 from console.analysis.crossing.timeline import timeline
+from console.analysis.crossing.values import ControllerSettings, Fix, TrainSpec
 from console.cli.app import app
 from console.layout import load_layout
 

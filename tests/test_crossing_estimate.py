@@ -27,8 +27,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from console.analysis.crossing.arrival import earliest_s
-from console.analysis.crossing.controller import ControllerSettings, CrossingController, Fix, TrainSpec, run_controller
+from console.analysis.crossing.clock import run_controller
+from console.analysis.crossing.controller import CrossingController
 from console.analysis.crossing.estimate import predict_ca, update_position, update_speed
+from console.analysis.crossing.values import ControllerSettings, Fix, TrainSpec
 from console.layout import load_layout
 from console.sim.crossing_runs import RunConditions, judge, random_conditions, simulate
 

@@ -13,9 +13,10 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from console.analysis.crossing.controller import ControllerSettings, CrossingController, Fix, TrainSpec
+from console.analysis.crossing.controller import CrossingController
 from console.analysis.crossing.evidence import ASSUMED, ESTIMATED, REPORTED, DeviceEvidence, EvidenceLimits
 from console.analysis.crossing.timeline import timeline
+from console.analysis.crossing.values import ControllerSettings, Fix, TrainSpec
 from console.layout import load_layout
 
 NS = 10**9

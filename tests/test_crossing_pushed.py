@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import pytest
 
-from console.analysis.crossing.controller import EOT, HEAD, Fix, TrainSpec, run_controller
+from console.analysis.crossing.clock import run_controller
+from console.analysis.crossing.values import EOT, HEAD, Fix, TrainSpec
 from console.layout import load_layout
 from parsers.units import NS
 

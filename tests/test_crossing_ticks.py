@@ -17,14 +17,9 @@ from collections.abc import Sequence
 import numpy as np
 import pytest
 
-from console.analysis.crossing.controller import (
-    ControllerSettings,
-    CrossingController,
-    Fix,
-    TrainSpec,
-    run_controller,
-    wake_until,
-)
+from console.analysis.crossing.clock import run_controller, wake_until
+from console.analysis.crossing.controller import CrossingController
+from console.analysis.crossing.values import ControllerSettings, Fix, TrainSpec
 from console.layout import LevelCrossing, load_layout
 from console.sim.crossing_runs import random_conditions, simulate
 from parsers.units import NS

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from console.analysis.crossing.controller import EOT, HEAD, Fix, TrainSpec, run_controller
+from console.analysis.crossing.clock import run_controller
 from console.analysis.crossing.timeline import timeline
+from console.analysis.crossing.values import EOT, HEAD, Fix, TrainSpec
 from console.cli.app import app
 from console.layout import load_layout
 from console.sim.station import SimConfig, StationSim

@@ -9,7 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from console.analysis.crossing.controller import EOT, HEAD, ControllerSettings, CrossingController, Fix, TrainSpec
+from console.analysis.crossing.controller import CrossingController
+from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, Fix, TrainSpec
 from console.analysis.integrity.monitor import PARTED, WHOLE, IntegrityEvent
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole

@@ -528,7 +528,7 @@ def test_station_command_error_as_a_subprocess() -> None:
 
 def test_crossing_lights_then_barriers() -> None:
     """The barriers come down a few seconds after the lights start, and rise with them."""
-    from console.analysis.crossing.controller import ControllerSettings
+    from console.analysis.crossing.values import ControllerSettings
 
     BARRIER_DELAY_S = ControllerSettings().barrier_delay_s
 

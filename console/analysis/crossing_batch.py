@@ -18,13 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from console.analysis.crossing.controller import (
-    EOT,
-    HEAD,
-    ControllerSettings,
-    CrossingEvent,
-)
 from console.analysis.crossing.timeline import TimelineRow
+from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, CrossingEvent
 from console.analysis.integrity.monitor import IntegrityEvent, IntegritySettings
 from console.layout import Layout
 from console.plural import count

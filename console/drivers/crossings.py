@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from console.analysis.crossing.controller import EOT, HEAD, ControllerSettings, CrossingEvent, TrainSpec
 from console.analysis.crossing.timeline import TimelineRow, timeline
+from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, CrossingEvent, TrainSpec
 from console.analysis.crossing_batch import (
     CrossingRun,
     TrainDevices,

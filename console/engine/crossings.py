@@ -16,7 +16,7 @@ clock runs ahead cannot make old positions look fresh.
 A *recorded* fix (read from a file, or the simulator's) is judged by its own
 time, and the units' clock ticks every tick step after each fix, before the
 next one, until nothing a tick does can change (as
-:func:`~console.analysis.crossing.controller.run_controller` ticks one unit).  The
+:func:`~console.analysis.crossing.clock.run_controller` ticks one unit).  The
 ticks after the latest fix are made as the recordings' clock is known to
 have passed them (:meth:`CrossingFollow.advance`), and all of them at the
 end.
@@ -28,17 +28,10 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from console.analysis.crossing.controller import (
-    EOT,
-    HEAD,
-    ControllerSettings,
-    CrossingController,
-    CrossingEvent,
-    Fix,
-    TrainSpec,
-    wake_until,
-)
+from console.analysis.crossing.clock import wake_until
+from console.analysis.crossing.controller import CrossingController
 from console.analysis.crossing.timeline import timeline
+from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, CrossingEvent, Fix, TrainSpec
 from console.analysis.crossing_batch import OFF_TRACK_M, crossing_settings
 from console.analysis.geo import TrackProjector
 from console.analysis.timefmt import iso

@@ -15,7 +15,7 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from console.analysis.crossing.controller import ControllerSettings, Fix, TrainSpec
+from console.analysis.crossing.values import ControllerSettings, Fix, TrainSpec
 from console.analysis.crossing_batch import crossing_settings, integrity_settings
 from console.analysis.integrity.monitor import ConsistSpec, IntegritySettings
 from console.engine.crossings import CrossingFollow

@@ -20,7 +20,7 @@ import math
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
-from console.analysis.crossing.controller import Fix
+from console.analysis.crossing.values import Fix
 from console.analysis.events.detection import DetectionEvent
 from console.analysis.integrity.monitor import ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
 from console.analysis.sections.state import Transition

@@ -32,7 +32,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from console.analysis.crossing.controller import CrossingEvent
+from console.analysis.crossing.values import CrossingEvent
 from console.analysis.sections.state import SectionState
 from console.inputs.base import GnssFix, LineBlock
 from console.live.engine import LiveEngine

@@ -24,16 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from console.analysis.crossing.controller import (
-    EOT,
-    HEAD,
-    ControllerSettings,
-    CrossingController,
-    Fix,
-    TrainSpec,
-    run_controller,
-)
+from console.analysis.crossing.clock import run_controller
+from console.analysis.crossing.controller import CrossingController
 from console.analysis.crossing.timeline import timeline
+from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, Fix, TrainSpec
 from console.analysis.geo import TrackProjector
 from console.layout import Layout, LevelCrossing
 from console.sim.crossing_yardsticks import Truth, fix_oracle_onset, kinematic_onset, oracle_onset, paper_onset

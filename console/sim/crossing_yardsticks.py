@@ -38,8 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from console.analysis.crossing.controller import EOT, HEAD, ControllerSettings, Fix
 from console.analysis.crossing.oracle import earliest_arrival_vec, oracle_onset_ns
+from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, Fix
 from console.layout import LevelCrossing
 from parsers.units import NS
 

@@ -35,7 +35,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from console.analysis.counting.wheels import SYS1, SYS2
-from console.analysis.crossing.controller import EOT, HEAD, ControllerSettings, CrossingEvent
+from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, CrossingEvent
 from console.analysis.geo import TrackProjector
 from console.layout import Consist, Layout
 from console.sim import brake_pipe as bp

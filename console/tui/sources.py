@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from console.analysis.crossing.controller import ControllerSettings, Fix
+from console.analysis.crossing.values import ControllerSettings, Fix
 from console.analysis.integrity.monitor import PARTED
 from console.tui.model import LogEntry, TrainView
 from parsers.units import NS

@@ -21,7 +21,7 @@ from typing import Any
 
 import pandas as pd
 
-from console.analysis.crossing.controller import earliest_arrival_s
+from console.analysis.crossing.values import earliest_arrival_s
 from console.analysis.timefmt import iso
 from console.layout import Layout, WorkSite
 from parsers.units import NS

@@ -31,34 +31,20 @@ travel.
   its σ; the bound is estimate + k·σ.  Until the filter is settled (its first
   fixes, fixes set aside lately), the model-free bounds below count too, the
   earlier wins.
-* **Release** (per train, at a fix while the head unit is fresh, before the head arrives): a warning
-  that came on early (a first fix without speed counts as the fastest train;
-  a train then stops out of reach) goes off when a settled estimate of a
-  fresh head unit proves the head cannot arrive within the warning time for a
-  while yet (``release_hold_s`` at least, and until the next fix is due: it
-  does not come on again before a new fix could renew the bound, no flicker), with no
-  jump set aside lately and no head-unit alarm: a train proven standing 2 km
-  out does not hold the road closed.  It comes on again by the same rule as any warning: from a
-  standstill the head cannot arrive sooner than √(2d/a).
+* **Release** (per train, :mod:`console.analysis.crossing.release`): a warning that came on early
+  goes off, before the head arrives, when a settled estimate of a fresh head unit proves the head
+  cannot arrive within the warning time for a while yet: a train proven standing 2 km out does not
+  hold the road closed.
 * **Model-free bounds** (:mod:`console.analysis.crossing.evidence`): the
   device's reported speed, or, when the export has none, an upper bound
   estimated from successive fixes; a single fix without speed is the worst
   case (the most a train can run), never a standstill.  Position jumps are set aside
   and counted; they do not refresh the device.
-* **Off** (per train): on positive evidence only: two consecutive accepted
-  EOT fixes past the crossing by ``d_off`` in the direction of travel, the
-  second consistent with the first (it moved forward, by no more than the
-  train could have run), with no fix set aside as a jump between them and
-  the device's track not just restarted: one wild fix, plausible-looking or
-  not, cannot open the road.  This is the paper's "d ≤ d_off, then
-  increasing" in signed form: past the crossing by the margin and moving
-  away, which a standing EOT is not unless it was seen short of the
-  crossing first (it crossed): read in a wrong direction, a standing EOT
-  before the crossing is "past" it.  The same evidence, latched, is what
-  puts the tail past (no more warnings for the train); one EOT fix never
-  is.  A train with its EOT end leading (backing, pushed: the EOT ahead of
-  the head unit) has its rear a train's length behind the EOT: past by
-  ``d_off`` plus the length.
+* **Off** (per train, :mod:`console.analysis.crossing.tail`): on positive evidence only: two
+  consecutive accepted EOT fixes past the crossing by ``d_off`` in the direction of travel
+  (:mod:`console.analysis.crossing.direction`), consistent and moving away: one wild fix,
+  plausible-looking or not, cannot open the road.  The same evidence, latched, puts the tail past
+  (no more warnings for the train).
 * **Fail-safe.**  Nothing ever ends a warning by timeout; a release needs a
   fresh, settled head estimate.  A stale EOT
   (no fix for ``stale_after_s``) raises an alarm and keeps the warning on.
@@ -76,163 +62,30 @@ margin) is computed beside it in the timeline, to show what the EOT saves
 and where the baseline would have opened the road too early.
 
 The controller is a pure state machine: :meth:`CrossingController.step` for
-each received fix, :meth:`CrossingController.tick` for the passing of time.
+each received fix, :meth:`CrossingController.tick` for the passing of time
+(:mod:`console.analysis.crossing.clock` runs its clock).  It keeps the order of
+things (which rule runs when, and for which trains) and says what happens
+(events); a train's state is a :class:`~console.analysis.crossing.track.Track`,
+the bounds it acts on are worked out in :mod:`console.analysis.crossing.bounds`,
+and the values it takes and gives are in :mod:`console.analysis.crossing.values`.
 """
 
 from __future__ import annotations
 
 import heapq
 import math
-from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Iterable
 
-from console.analysis.crossing.arrival import ArrivalBound, Motion, device_bound, earliest_s
-from console.analysis.crossing.estimate import FilterLimits, MotionFilter
-from console.analysis.crossing.evidence import ESTIMATED, REPORTED, DeviceEvidence, EvidenceLimits, Report
-from console.analysis.window import Window
+from console.analysis.crossing.arrival import ArrivalBound, Motion
+from console.analysis.crossing.bounds import EOT_WITNESS, acting_bound, onset_of, source_bound, speed_basis_text
+from console.analysis.crossing.direction import update_direction
+from console.analysis.crossing.evidence import REPORTED
+from console.analysis.crossing.release import check_release
+from console.analysis.crossing.tail import check_off, cleared, note_tail, tail_past
+from console.analysis.crossing.track import Track, feed_device_filter, feed_train_filter, fresh, new_track
+from console.analysis.crossing.values import EOT, HEAD, TRAIN, ControllerSettings, CrossingEvent, Fix, TrainSpec
 from console.layout import LevelCrossing
 from parsers.units import NS
-
-HEAD, EOT = "head", "eot"
-TRAIN = "train"  # the head's motion from both units: the EOT a second witness, its fixes moved on by the length
-
-
-@dataclass(frozen=True)
-class TrainSpec:
-    train: str
-    length_m: float  # first to last wheel; the EOT rides on the last vehicle
-
-
-@dataclass(frozen=True)
-class Fix:
-    """One position report as the crossing unit sees it."""
-
-    t_ns: int  # when it is received and processed
-    t_fix_ns: int  # when it was measured
-    train: str
-    role: str  # head | eot
-    chainage_m: float
-    speed_mps: float = math.nan
-    direction_hint: int = 0  # +1 up, -1 down, 0 unknown (e.g. course against the track bearing)
-    valid: bool = True
-
-
-@dataclass(frozen=True)
-class ControllerSettings:
-    guard_distance_m: float = 300.0  # warn inside this, whatever the speed
-    # The ETA is the *earliest* arrival: the train may accelerate at up to
-    # this to the line speed.  A train standing within reach of the crossing
-    # inside the warning time therefore keeps the road closed: nothing here
-    # knows when it will leave (a departure signal would).
-    accel_mps2: float = 0.5
-    line_speed_mps: float = 25.0
-    report_period_s: float = 10.0  # expected time between two fixes of a device
-    latency_s: float = 2.0  # radio and processing delay allowance
-    stale_after_s: float = 30.0  # no fix for this long: the device is stale
-    max_speed_mps: float = 45.0  # no train runs faster (plausibility; the speed assumed when none is known)
-    jump_accel_mps2: float = 1.5  # no train changes speed faster (a fix implying more is a position jump)
-    speed_window_s: float = 45.0  # how far back the speed bound from positions looks
-    noise_m: float = 15.0  # GNSS noise allowance in the plausibility check (≈ 3 σ)
-    crossing_half_width_m: float = 5.0  # the road's half width along the track
-    baseline_margin_s: float = 10.0  # the fixed-time method's safety margin
-    # Lights flash first; the barriers come down this much later (road users clear
-    # the crossing) and rise with the lights going out.
-    barrier_delay_s: float = 8.0
-    tick_s: float = 1.0  # the unit's clock: between fixes it looks again this often
-    onset_margin_s: float = 1.0  # on this much beyond the warning time (the clock wakes at the instant due)
-    # The estimate (crossing_estimate): speed σ of a reported (Doppler) speed; how fast the
-    # acceleration may change (white jerk, m²/s⁵); bounds at estimate + k·σ.
-    speed_sigma_mps: float = 0.2
-    jerk_psd: float = 0.003
-    k_sigma: float = 3.3
-    settle_fixes: int = 2  # fixes in a row inside the filter's prediction before its estimate alone counts
-    # The filter's update uses the noise each device's own fixes prove (σ at most noise_m / 3).
-    adaptive_noise: bool = True
-    # A warning is released only if, by the bound, the road stays open this long at least and
-    # it would not come on again before the next fix is in (one report period and the latency):
-    # no flicker.  (Waiting for the next fix *and* this long after it held a slow train's road
-    # closed one report period longer, for no gain: the bound alone guarantees the open time.)
-    release_hold_s: float = 10.0
-    length_sigma_m: float = 5.0  # how well the train's length is known (the EOT as a witness of the head)
-
-
-def earliest_arrival_s(distance_m: float, speed_mps: float, accel_mps2: float, max_speed_mps: float) -> float:
-    """Shortest time to run ``distance_m`` from ``speed_mps``, accelerating up to ``max_speed_mps``."""
-    return earliest_s(distance_m, speed_mps, accel_mps2, max(max_speed_mps, speed_mps))
-
-
-@dataclass(frozen=True)
-class CrossingEvent:
-    t_ns: int
-    crossing: str
-    train: str
-    kind: str  # on | off | alarm
-    reason: str
-
-
-RECENT_FIXES = 3  # the model-free bound takes each of this many last fixes on its own
-
-# Why a warning came on earlier than the evidence alone required: the causes a timeline names.
-NO_SPEED, SPARSE, STALE, JUMPS = "no speed", "sparse fixes", "stale units", "jumps"
-# The basis of a bound from the EOT and the length, nearer than the fresh head unit's own while
-# the train's filter (head and EOT together) is not settled.
-EOT_WITNESS = "eot+length (head unsettled)"
-
-
-@dataclass(frozen=True)
-class Onset:
-    """What the unit knew when it turned a warning on: the bound and its parts (s of ETA)."""
-
-    t_ns: int
-    eta_s: float  # the earliest arrival then, as the unit bounded it
-    nominal_eta_s: float | None  # the same from the best estimate, without margins (None: no estimate)
-    doubt_s: dict[str, float]  # how far each doubt brought the bound forward (ETA s)
-
-
-@dataclass
-class _Track:
-    spec: TrainSpec
-    head_ev: DeviceEvidence
-    eot_ev: DeviceEvidence
-    kf: dict[str, MotionFilter]
-    head: Report | None = None
-    eot: Report | None = None
-    recent: dict[str, Window[Report]] = field(
-        default_factory=lambda: {HEAD: Window(RECENT_FIXES), EOT: Window(RECENT_FIXES)}
-    )
-    bounds: dict[str, ArrivalBound | None] = field(default_factory=dict)  # per source, since the last fix
-    kf_ok: dict[str, bool] = field(default_factory=lambda: {HEAD: False, EOT: False})  # last fix taken by the filter
-    doubt_ns: dict[str, int | None] = field(default_factory=lambda: {HEAD: None, EOT: None})  # last jump / set aside
-    eot_kept: Report | None = None  # the last EOT fix the filter took (which unit leads is judged on it)
-    direction: int = 0
-    direction_set_ns: int = 0  # fix time of the last change of direction
-    # The last direction known (±1; 0: never known): one the witnesses left unknown is not reversed by
-    # less than reverses a known one.
-    known_direction: int = 0
-    # The direction the tail was last proven past the crossing in (0: not proven), by the off rule's own
-    # evidence (:meth:`CrossingController._tail_past_evidence`); an EOT fix the filter took short of it ends it.
-    tail_past_dir: int = 0
-    # The direction in which an EOT fix the filter took was last short of the crossing (0: none): a tail seen
-    # on the near side and then past has crossed, standing there or not.
-    eot_short_dir: int = 0
-    warned: bool = False
-    t_on: int | None = None
-    reason_on: str = ""
-    t_off: int | None = None
-    reason_off: str = ""
-    onset: Onset | None = None  # the last warning's
-    onsets: list[Onset] = field(default_factory=list)  # every warning's, in order (a timeline row per pass)
-    releases: list[tuple[int, int, str]] = field(default_factory=list)  # (on, off, why) of released warnings
-    alarms: set[str] = field(default_factory=set)
-    episodes: list[tuple[int, int | None, str, str]] = field(default_factory=list)
-    parted_ns: int | None = None  # when the integrity monitor saw the train parted
-    # The unit's agenda (see CrossingController): the order the train was first followed in, the
-    # first instant after its last evaluation at which time alone may change what the unit does for
-    # it (None: nothing pending), and its share of next_change_ns (None: none).
-    seq: int = 0
-    due_ns: int | None = None
-    late_ns: int | None = None
-
 
 # A train to evaluate at the next tick or fix whatever the time (its state changed outside a step).
 _AT_ONCE = -(2**63)
@@ -268,28 +121,9 @@ class CrossingController:
         # Fixes set aside as position jumps, per (train, role): their fix times.
         self.set_aside: dict[tuple[str, str], list[int]] = {}
 
-    def _new_track(self, spec: TrainSpec) -> _Track:
-        s = self.s
-        lim = EvidenceLimits(
-            s.noise_m,
-            s.accel_mps2,
-            s.jump_accel_mps2,
-            s.max_speed_mps,
-            s.speed_window_s,
-            speed_error_mps=s.k_sigma * s.speed_sigma_mps,  # the same bound on a reported speed as the filter's
-        )
-        flim = FilterLimits(
-            s.noise_m / 3.0,
-            s.speed_sigma_mps,
-            s.jerk_psd,
-            s.max_speed_mps,
-            k_sigma=s.k_sigma,
-            settle_fixes=s.settle_fixes,
-            adaptive_noise=s.adaptive_noise,
-        )
-        kf = {HEAD: MotionFilter(flim), EOT: MotionFilter(flim), TRAIN: MotionFilter(flim)}
+    def _new_track(self, spec: TrainSpec) -> Track:
         self._seq += 1
-        return _Track(spec, DeviceEvidence(lim), DeviceEvidence(lim), kf, seq=self._seq)
+        return new_track(spec, self.s, self._seq)
 
     @property
     def position_jumps(self) -> int:
@@ -316,199 +150,22 @@ class CrossingController:
     def warning_on(self) -> bool:
         return any(t.warned for t in self.tracks.values())
 
-    # -- estimates -------------------------------------------------------
-    def _fresh(self, r: Report | None, t_ns: int) -> bool:
-        """Heard from within the stale time: stale from ``stale_after_s`` after its fix on."""
-        return r is not None and (t_ns - r.t_fix_ns) < int(self.s.stale_after_s * NS)
-
-    def _speed(self, tr: _Track, t_ns: int) -> float:
-        """The fastest the train may be running at ``t_ns`` (m/s) by the model-free bounds: reported
-        speeds where the devices give them, else the tightest bound the positions prove; unknown is
-        the worst case.  Per device the largest of its last few fixes' bounds, each moved on to
-        ``t_ns`` (it may have accelerated since): one fix that jumped back and seemed to prove a
-        slow train cannot lower it."""
-        s = self.s
-        per_device = []
-        for role, r in ((HEAD, tr.head), (EOT, tr.eot)):
-            if r is None or not (self._fresh(r, t_ns) or not any(self._fresh(q, t_ns) for q in (tr.head, tr.eot))):
-                continue
-            hi = max(q.speed_hi_mps + s.accel_mps2 * max(0.0, (t_ns - q.t_fix_ns) / NS) for q in tr.recent[role])
-            per_device.append((r.speed_basis == REPORTED, hi))
-        reported = [hi for rep, hi in per_device if rep]
-        if reported:
-            return max(reported)
-        # Head and EOT ride one train: each bound holds for both, the smaller is the better.
-        best = min((hi for _rep, hi in per_device), default=s.max_speed_mps)
-        return min(best, self._witness_speed(tr))
-
-    def _witness_speed(self, tr: _Track) -> float:
-        """The EOT as a second witness of the head: a head fix and an EOT fix taken at different
-        times are two positions of the head (the EOT one a length behind it, the length known to
-        ``3 · length_sigma_m``), so they bound the speed as two fixes of one device do, before
-        either device has a second fix.  Direction unknown: the head could be a length either way.
-        Holds at either fix's time (it may have braked since the first or accelerated since)."""
-        h, e, s = tr.head, tr.eot, self.s
-        if h is None or e is None or h.t_fix_ns == e.t_fix_ns:
-            return math.inf
-        if not (tr.kf_ok[HEAD] and tr.kf_ok[EOT]):
-            # A fix its device's filter set aside is a jump: one position of it proves no slow train
-            # (the speed bounds from the device's own fixes keep the most of its last few instead).
-            return math.inf
-        dt = abs(h.t_fix_ns - e.t_fix_ns) / NS
-        d, length = tr.direction, tr.spec.length_m
-        gap = abs(h.chainage_m - e.chainage_m - d * length) if d else abs(h.chainage_m - e.chainage_m) + length
-        run_m = gap + s.noise_m * 2 + 3 * s.length_sigma_m
-        return run_m / dt + max(s.accel_mps2, s.jump_accel_mps2) * dt / 2
-
-    def _speed_basis(self, tr: _Track) -> str:
-        bases = {r.speed_basis for r in (tr.head, tr.eot) if r is not None}
-        for b, text in ((REPORTED, "reported"), (ESTIMATED, "estimated from the fixes")):
-            if b in bases:
-                return text
-        return "unknown: the most a train runs"
-
-    def _device_bound(self, tr: _Track, role: str) -> ArrivalBound | None:
-        """The head's earliest arrival from one source's evidence (head, EOT + length, the train's
-        filter); computed once after each fix of the train (the direction and the other device's
-        speed bound take part), then kept."""
-        if role in tr.bounds:
-            return tr.bounds[role]
-        last = tr.eot if role == EOT else tr.head
-        b = None
-        if last is not None:
-            est = tr.kf[role].estimate
-            # The cap holds at the time the bound is anchored: the train's filter may stand on a
-            # later fix (of the EOT) than the head's last, and the train may have accelerated since.
-            cap = self._speed(tr, last.t_fix_ns if est is None else max(last.t_fix_ns, est.t_ns))
-            extra = tr.spec.length_m if role == EOT else 0.0
-            b = device_bound(self.motion, est, tr.recent[EOT if role == EOT else HEAD], tr.direction, extra, cap)
-        tr.bounds[role] = b
-        return b
-
-    def _bound(self, tr: _Track, t_ns: int) -> tuple[ArrivalBound, str] | None:
-        """The bound that counts now: the head unit's while it is fresh (the EOT's plus the train's
-        length where it is nearer and the train's filter is not settled), else the EOT's plus the
-        train's length, else (every unit stale) the one heard last: the train is not forgotten."""
-        # A parted train's EOT rides on the rear part: it says nothing of the head (nor does the
-        # train's filter, which took it as a witness of the head).
-        whole = tr.parted_ns is None
-        if self._fresh(tr.head, t_ns):
-            tb = self._device_bound(tr, TRAIN) if whole else None
-            if tb is not None and tb.settled:
-                return tb, "head"
-            hb = self._device_bound(tr, HEAD)
-            if hb is not None:
-                # The train's filter not settled, the head's and the EOT's fixes have not agreed
-                # lately, and the head's bound stands on its own fixes alone: a first fix cannot be
-                # told from a position jump (nothing to gate it against), nor a jump inside the wide
-                # gate after a gap of sparse fixes from motion.  The EOT plus the length is a second
-                # witness of the same head: the nearer of the two counts (a jump in either only
-                # brings the warning forward).
-                if whole and self._fresh(tr.eot, t_ns):
-                    eb = self._device_bound(tr, EOT)
-                    if eb is not None and eb.t_arrival_ns < hb.t_arrival_ns:
-                        return eb, EOT_WITNESS
-                return hb, "head"
-        if whole and self._fresh(tr.eot, t_ns) and (eb := self._device_bound(tr, EOT)) is not None:
-            return eb, "eot+length"
-        heard = [(r.t_fix_ns, role) for role, r in ((HEAD, tr.head), (EOT, tr.eot)) if r is not None]
-        if not whole and tr.head is not None:
-            heard = [(tr.head.t_fix_ns, HEAD)]
-        if not heard:
-            return None
-        role = max(heard)[1]
-        b = self._device_bound(tr, role)
-        return (b, "stale " + ("head" if role == HEAD else "eot+length")) if b is not None else None
-
-    def _update_direction(self, tr: _Track, fix: Fix) -> None:
-        """Direction of travel from evidence one wild fix cannot fake; kept when there is none.
-
-        The witnesses, each +1, −1 or silent:
-
-        * the fix's course against the track's bearing (a receiver's course over ground at
-          speed: a measurement of the direction, it counts twice);
-        * each device's filter, settled, its speed clear of zero by k·σ and 2 m/s (its gate
-          sets jumps aside; the model overshoots a little below zero when a train stops dead);
-        * each device's own fixes: the median of the three oldest in the window against the
-          median of the three newest.
-
-        An unknown direction is set by any witness no other contradicts; a known one is
-        reversed by two that agree with none against.  Witnesses that disagree make the
-        direction unknown: a wrong direction reads a train approaching as one whose tail is
-        past the crossing (ignored, or its warning ended), an unknown one is treated as
-        approaching from the nearer side.  A direction left unknown so is set against the last
-        one known only as a reversal is (two witnesses): else one witness, after another had
-        disagreed, reversed it.  A standing train gives none but its devices' medians, which
-        position jumps its filter took can tilt; reversed so, its EOT standing before the
-        crossing read as past it, and its warning ended (found on a randomized run: the road
-        opened for a train standing 560 m out, and closed 26 s late when it moved on).  Two fixes
-        alone, or the head ahead of the EOT, are no witness: fixes some seconds apart on a fast
-        train put the EOT ahead of an older head fix.
-        """
-        votes = [fix.direction_hint, fix.direction_hint] if fix.direction_hint else []
-        for role, ev in ((HEAD, tr.head_ev), (EOT, tr.eot_ev)):
-            est = tr.kf[role].estimate
-            if est is not None and est.settled and abs(est.speed_mps) > est.k_sigma * est.sigma_speed_mps + 2.0:
-                votes.append(1 if est.speed_mps > 0 else -1)
-            if moved := ev.direction(medians_only=True):
-                votes.append(moved)
-        up, down = votes.count(1), votes.count(-1)
-        before = tr.direction
-        if up and down:
-            tr.direction = 0
-        elif up or down:
-            d, w = (1, up) if up else (-1, down)
-            against = before or tr.known_direction  # the direction this would reverse, if any
-            if not against or d == against or w >= 2:
-                tr.direction = d
-        if tr.direction != before:
-            tr.direction_set_ns = fix.t_fix_ns
-        if tr.direction:
-            tr.known_direction = tr.direction
-
     # -- the state machine -------------------------------------------------
-    def _emit(self, t_ns: int, tr: _Track, kind: str, reason: str) -> CrossingEvent:
+    def _emit(self, t_ns: int, tr: Track, kind: str, reason: str) -> CrossingEvent:
         ev = CrossingEvent(t_ns, self.crossing.code, tr.spec.train, kind, reason)
         self.events.append(ev)
         return ev
 
-    def _eot_leads(self, tr: _Track) -> bool:
-        """The EOT unit ahead of the head unit in the direction of travel, by more than the head can have
-        run between their last fixes (and the noise): a train backing, or pushed.  Its rear is then the
-        head unit's end, a train's length behind the EOT."""
-        eot = tr.eot_kept or tr.eot
-        if eot is None or tr.head is None or not tr.direction:
-            return False
-        reach = tr.head.speed_hi_mps * abs(eot.t_fix_ns - tr.head.t_fix_ns) / NS + 2 * self.s.noise_m
-        return tr.direction * (eot.chainage_m - tr.head.chainage_m) > reach
+    def _off(self, t_ns: int, tr: Track, reason: str | None) -> list[CrossingEvent]:
+        """The event of a warning a rule ended (``reason``; None: it did not)."""
+        return [] if reason is None else [self._emit(t_ns, tr, "off", reason)]
 
-    def _eot_off_m(self, tr: _Track) -> float:
-        """How far past the crossing the EOT must be for the tail to be past by d_off: the train's length
-        more when the EOT leads (it was d_off alone, and a pushed train's rear was still on the road)."""
-        return self.crossing.d_off_m + (tr.spec.length_m if self._eot_leads(tr) else 0.0)
-
-    def _tail_past(self, tr: _Track) -> bool:
-        """The tail is past the crossing by d_off in the direction of travel: proven by the off rule's
-        evidence (two EOT fixes past, moving away) and no EOT fix the filter took since short of it (one
-        fix that jumped back does not put the tail on the road again).  One EOT fix is no proof: a first
-        fix that jumped past the crossing (the device's next, true, fix then set aside against it, the
-        device silent after) kept a train approaching from ever being warned."""
-        if not tr.direction:
-            return False
-        if tr.eot is not None:
-            return tr.tail_past_dir == tr.direction
-        if tr.head is None or tr.head.speed_basis != REPORTED:
-            return False
-        # No EOT at all: only the head's own position (moved on by a reported speed) can tell.
-        past_m = tr.direction * (tr.head.chainage_m - self.crossing.chainage_m)
-        return past_m > tr.spec.length_m + self.crossing.d_off_m + 2 * self.s.noise_m
-
-    def _approach(self, tr: _Track, t_ns: int) -> tuple[float, float, str, ArrivalBound] | None:
+    def _approach(self, tr: Track, t_ns: int) -> tuple[float, float, str, ArrivalBound] | None:
         """The head's distance from the road (m, the nearest it may be; < 0 once past), its earliest
         arrival from now (s), the bound's basis and the bound; None without one or once the tail is past."""
-        if self._tail_past(tr):
+        if tail_past(tr, self.crossing, self.s):
             return None
-        got = self._bound(tr, t_ns)
+        got = acting_bound(tr, self.s, self.motion, t_ns)
         if got is None:
             return None
         b, basis = got
@@ -518,9 +175,9 @@ class CrossingController:
         """The bound on a train's arrival the unit acts on at ``t_ns``, and its basis (head,
         eot+length, stale …); None: no fix of the train yet, or its tail is past the crossing."""
         tr = self.tracks.get(train)
-        if tr is None or self._tail_past(tr):
+        if tr is None or tail_past(tr, self.crossing, self.s):
             return None
-        return self._bound(tr, t_ns)
+        return acting_bound(tr, self.s, self.motion, t_ns)
 
     def arrival_s(self, t_ns: int) -> float | None:
         """Earliest arrival of the nearest head still approaching, as this unit estimates it (s)."""
@@ -563,7 +220,7 @@ class CrossingController:
             heapq.heappush(self._due, (tr.due_ns, tr.seq, tr.spec.train))
         return min(wakes) if wakes else None
 
-    def _wake_ns(self, tr: _Track, now_ns: int) -> int | None:
+    def _wake_ns(self, tr: Track, now_ns: int) -> int | None:
         """The first instant after ``now_ns`` at which time alone may change what the unit does for
         ``tr``: a device going stale, or (no warning on) its bound coming due."""
         stale_ns = int(self.s.stale_after_s * NS)
@@ -573,20 +230,24 @@ class CrossingController:
         later = [t for t in wake if t > now_ns]
         return min(later) if later else None
 
-    def _late_ns(self, tr: _Track) -> int | None:
+    def _late_ns(self, tr: Track) -> int | None:
         """``tr``'s share of :meth:`next_change_ns`: the latest instant one of its bounds comes due, while
         no warning is on for it and its tail is not past (None: none)."""
-        if tr.warned or self._tail_past(tr):
+        if tr.warned or tail_past(tr, self.crossing, self.s):
             return None
         horizon_ns = int(self.horizon_s * NS)
-        due = [b.t_arrival_ns - horizon_ns for role in (HEAD, EOT, TRAIN) if (b := self._device_bound(tr, role))]
+        due = [
+            b.t_arrival_ns - horizon_ns
+            for role in (HEAD, EOT, TRAIN)
+            if (b := source_bound(tr, self.s, self.motion, role))
+        ]
         return max(due) if due else None
 
     def _entry_ok(self, entry: tuple[int, int, str]) -> bool:
         tr = self.tracks.get(entry[2])
         return tr is not None and tr.seq == entry[1] and tr.due_ns == entry[0]
 
-    def _arm(self, tr: _Track, t_ns: int) -> None:
+    def _arm(self, tr: Track, t_ns: int) -> None:
         """``tr`` was just evaluated at ``t_ns``: its next due instant and its share of next_change_ns."""
         tr.due_ns = self._wake_ns(tr, t_ns)
         if tr.due_ns is not None:
@@ -598,21 +259,21 @@ class CrossingController:
                 heapq.heappush(self._late, (-late, tr.seq, tr.spec.train))
         self._t_eval_ns = t_ns if self._t_eval_ns is None else max(self._t_eval_ns, t_ns)
 
-    def _at_once(self, tr: _Track) -> None:
+    def _at_once(self, tr: Track) -> None:
         """``tr``'s state changed outside an evaluation: evaluated at the next tick or fix."""
         tr.due_ns = _AT_ONCE
         heapq.heappush(self._due, (_AT_ONCE, tr.seq, tr.spec.train))
 
-    def _pop_due(self, t_ns: int) -> list[_Track]:
+    def _pop_due(self, t_ns: int) -> list[Track]:
         """The trains due at or before ``t_ns``, taken off the agenda, in the order they were followed."""
-        due: dict[int, _Track] = {}
+        due: dict[int, Track] = {}
         while self._due and self._due[0][0] <= t_ns:
             entry = heapq.heappop(self._due)
             if self._entry_ok(entry):
                 due[entry[1]] = self.tracks[entry[2]]
         return [due[k] for k in sorted(due)]
 
-    def _evaluate(self, t_ns: int, skip: _Track | None = None) -> list[CrossingEvent]:
+    def _evaluate(self, t_ns: int, skip: Track | None = None) -> list[CrossingEvent]:
         """What time alone does at ``t_ns`` to every train but ``skip``: warnings due, stale-unit alarms.
         Only the trains due are evaluated; all of them when the clock went back (a fix out of time
         order: a unit fresh again at that instant must be seen so)."""
@@ -629,35 +290,7 @@ class CrossingController:
             self._arm(tr, t_ns)
         return out
 
-    def _onset(self, tr: _Track, t_ns: int, b: ArrivalBound, basis: str) -> Onset:
-        """The bound's parts when the warning came on: what each doubt cost (ETA s)."""
-        eta = (b.t_arrival_ns - t_ns) / NS
-        doubt: dict[str, float] = {}
-
-        def add(cause: str, s: float) -> None:
-            if s > 0.05:
-                doubt[cause] = doubt.get(cause, 0.0) + s
-
-        last = tr.eot if "eot" in basis else tr.head
-        no_speed = last is not None and last.speed_basis != REPORTED
-        nominal = None
-        if b.t_nominal_ns is not None and b.t_position_ns is not None and b.t_filter_ns is not None:
-            nominal = (b.t_nominal_ns - t_ns) / NS
-        if basis not in ("head", EOT_WITNESS):
-            # The head unit lost (or every unit silent): the bound stands on the EOT and the length,
-            # or on an old fix: all of what it cost is the stale units'.
-            add(STALE, max(1.0, (nominal or eta) - eta))
-        elif nominal is not None:
-            assert b.t_nominal_ns is not None and b.t_position_ns is not None and b.t_filter_ns is not None
-            add(SPARSE, (b.t_nominal_ns - b.t_position_ns) / NS)  # the position's σ
-            add(NO_SPEED if no_speed else SPARSE, (b.t_position_ns - b.t_filter_ns) / NS)  # the speed's σ
-            fallback = (b.t_filter_ns - b.t_arrival_ns) / NS  # the model-free bound came first
-            clean_ns = int(max(self.s.speed_window_s, 3 * self.s.report_period_s) * NS)
-            jumped = any(d is not None and t_ns - d < clean_ns for d in tr.doubt_ns.values())
-            add(JUMPS if jumped else NO_SPEED if no_speed else SPARSE, fallback)
-        return Onset(t_ns, eta, nominal, doubt)
-
-    def _check_on(self, tr: _Track, t_ns: int) -> list[CrossingEvent]:
+    def _check_on(self, tr: Track, t_ns: int) -> list[CrossingEvent]:
         if tr.warned:
             return []
         approach = self._approach(tr, t_ns)
@@ -673,7 +306,7 @@ class CrossingController:
         elif t_ns >= b.t_arrival_ns - int(horizon_s * NS):  # in ns: the instant next_onset_ns wakes at is due
             extra = horizon_s - self.crossing.warning_time_s
             reason = f"ETA {eta:.0f} s ≤ {self.crossing.warning_time_s:g} s + {extra:.0f} s"
-            how = self._speed_basis(tr) if not b.settled else "estimated from the fixes"
+            how = speed_basis_text(tr) if not b.settled else "estimated from the fixes"
             if b.settled and (tr.head if basis.endswith("head") else tr.eot) is not None:
                 last = tr.head if basis.endswith("head") else tr.eot
                 how = "reported" if last is not None and last.speed_basis == REPORTED else how
@@ -685,201 +318,33 @@ class CrossingController:
         elif basis != "head":
             reason += " (head unit lost: EOT + train length)" if basis == "eot+length" else f" ({basis}: no fresh unit)"
         tr.warned, tr.t_on, tr.reason_on, tr.t_off, tr.reason_off = True, t_ns, reason, None, ""
-        tr.onset = self._onset(tr, t_ns, b, basis)
+        tr.onset = onset_of(tr, self.s, t_ns, b, basis)
         tr.onsets.append(tr.onset)
         return [self._emit(t_ns, tr, "on", reason)]
 
-    def _check_release(self, tr: _Track, fix: Fix) -> list[CrossingEvent]:
-        """Off before the head arrives, at a fix of either unit while the head unit is fresh, when a
-        settled estimate proves the train cannot arrive for a while yet (a train standing out of
-        reach, or slower than first feared).  An EOT fix counts only through the train's filter,
-        where it is a witness of the head (at fixes every 10 s it comes between two head fixes)."""
-        s = self.s
-        # A stale EOT does not hold a release back: whatever it would show is behind the head.
-        # Direction unknown, the bound is the nearer way round (it holds whichever way the train goes).
-        if not tr.warned or "head" in tr.alarms or not tr.kf_ok[HEAD] or not self._fresh(tr.head, fix.t_ns):
-            return []
-        if self._eot_leads(tr):
-            # The head unit trails: its bound is not the front's, and a release by it came on again at the
-            # next EOT fix (a pushed 300 m train: 22 times off and on, a second apart).
-            return []
-        # The head's own filter settled too: a bound that leans on the train's filter alone, just
-        # after the head's track was in doubt (a brake, a jump), came on again within seconds.
-        head_est = tr.kf[HEAD].estimate
-        if head_est is None or not head_est.settled:
-            return []
-        b = self._device_bound(tr, TRAIN) if tr.parted_ns is None else None
-        if fix.role != HEAD:
-            # An EOT fix renews the bound only as the train filter's witness of the head, and only
-            # while the head reports on time: a head unit silent since would go stale, and the
-            # EOT-plus-length bound that then counts can come due at once.
-            assert tr.head is not None
-            head_age_s = (fix.t_ns - tr.head.t_fix_ns) / NS
-            if b is None or not b.settled or not tr.kf_ok[fix.role] or head_age_s > s.report_period_s + s.latency_s:
-                return []
-        if b is None or not b.settled:
-            b = self._device_bound(tr, HEAD)
-        if b is None or not b.settled or b.ahead_m <= s.guard_distance_m:
-            return []
-        clean_s = max(s.speed_window_s, 3 * s.report_period_s)
-        for role in (HEAD, EOT):
-            last_doubt = tr.doubt_ns[role]
-            if last_doubt is not None and fix.t_fix_ns - last_doubt < clean_s * NS:
-                return []  # a jump set aside lately is doubt
-        if tr.head_ev.rejected_since_last or tr.eot_ev.rejected_since_last:
-            return []
-        eta = (b.t_arrival_ns - fix.t_ns) / NS
-        # The next fix of either unit is due one report period after its last, plus the latency:
-        # until then nothing can renew the bound, so it must not come due before that.
-        fresh = [r.t_fix_ns for r in (tr.head, tr.eot) if r is not None and self._fresh(r, fix.t_ns)]
-        next_fix_s = (min(fresh) - fix.t_ns) / NS + s.report_period_s + s.latency_s
-        # Released, the road stays open for release_hold_s at least by this bound, and until the
-        # next fix is in (no flicker); a later fix can only push the bound out for a train as seen.
-        if eta <= self.horizon_s + max(next_fix_s, s.release_hold_s):
-            return []
-        what = "train standing" if b.standing else f"head at most {b.speed_hi_mps:.1f} m/s"
-        reason = f"released: {what} {b.ahead_m:.0f} m out cannot arrive within {eta:.0f} s"
-        assert tr.t_on is not None
-        tr.releases.append((tr.t_on, fix.t_ns, reason))
-        tr.episodes.append((tr.t_on, fix.t_ns, tr.reason_on, reason))
-        tr.warned, tr.t_off, tr.reason_off = False, fix.t_ns, reason
-        return [self._emit(fix.t_ns, tr, "off", reason)]
-
-    def _tail_past_evidence(self, tr: _Track, fix: Fix, prev_eot: Report | None, rep: Report) -> float | None:
-        """How far past the crossing an EOT fix proves the tail (m), with the one before it; None when it
-        proves nothing: the two past by the margin in a known direction, consistent, and moving away."""
-        if fix.role != EOT or tr.direction == 0:
-            return None
-        if not self._past_margin(tr, fix.chainage_m):
-            return None
-        if prev_eot is None or rep.restarted or tr.direction_set_ns >= prev_eot.t_fix_ns:
-            # A first EOT fix alone is not evidence, nor a pair read in a direction that has
-            # just changed: wait for the next.
-            return None
-        if not self._past_margin(tr, prev_eot.chainage_m):
-            return None  # one fix past could be a jump: two in a row are evidence
-        dt = (fix.t_fix_ns - prev_eot.t_fix_ns) / NS
-        step = tr.direction * (fix.chainage_m - prev_eot.chainage_m)
-        if dt <= 0 or step < -self.s.noise_m or step > self.s.max_speed_mps * dt + self.s.noise_m:
-            return None  # not consistent with the previous fix: not evidence
-        if not self._moving_away(tr, step):
-            return None
-        return self._past_m(tr, fix.chainage_m)
-
-    def _moving_away(self, tr: _Track, step_m: float) -> bool:
-        """The EOT moves in the direction of travel, beyond its noise (the paper's "distance increasing"),
-        or it was seen short of the crossing in this direction and is past it now: it crossed.  A standing
-        EOT never seen on the near side is no evidence: read in a wrong direction (turned round by position
-        jumps), a train standing before the crossing, or with its tail on the road, was "past it and moving
-        away" (randomized runs: the road opened with the train standing on it).  A train that crossed and
-        stands beyond (a station past the crossing) is past."""
-        if tr.direction and tr.eot_short_dir == tr.direction:
-            return True
-        if step_m > 2 * self.s.noise_m:
-            return True
-        if tr.eot_ev.direction(medians_only=True) == tr.direction:
-            return True
-        est = tr.kf[EOT].estimate
-        return (
-            est is not None
-            and est.settled
-            and tr.kf_ok[EOT]
-            and tr.direction * est.speed_mps > est.k_sigma * est.sigma_speed_mps + 2.0
-        )
-
-    def _note_tail(self, tr: _Track, fix: Fix, prev_eot: Report | None, rep: Report) -> float | None:
-        """After an accepted fix: the tail proven past (→ how far, latched), or no longer (an EOT fix the
-        filter took, short of the margin)."""
-        if fix.role == EOT and tr.kf_ok[EOT] and self._past_m(tr, fix.chainage_m) < 0:
-            tr.eot_short_dir = tr.direction
-        past = self._tail_past_evidence(tr, fix, prev_eot, rep)
-        if past is not None:
-            tr.tail_past_dir = tr.direction
-        elif fix.role == EOT and tr.kf_ok[EOT] and not self._past_margin(tr, fix.chainage_m):
-            tr.tail_past_dir = 0
-        return past
-
-    def _past_m(self, tr: _Track, chainage_m: float) -> float:
-        """How far past the crossing a chainage is in the train's direction of travel (m; < 0 short of it)."""
-        return tr.direction * (chainage_m - self.crossing.chainage_m)
-
-    def _past_margin(self, tr: _Track, eot_chainage_m: float) -> bool:
-        """An EOT position past the crossing by the margin its tail needs (:meth:`_eot_off_m`)."""
-        return self._past_m(tr, eot_chainage_m) >= self._eot_off_m(tr)
-
-    def _check_off(self, tr: _Track, past: float | None, fix: Fix) -> list[CrossingEvent]:
-        if not tr.warned or past is None:
-            return []
-        need = self._eot_off_m(tr)
-        tr.warned, tr.t_off = False, fix.t_ns
-        leads = (
-            " (the EOT leading: the head unit's end a train's length behind)" if need > self.crossing.d_off_m else ""
-        )
-        tr.reason_off = f"EOT {past:.0f} m past the crossing and moving away{leads}"
-        tr.episodes.append((tr.t_on or fix.t_ns, fix.t_ns, tr.reason_on, tr.reason_off))
-        return [self._emit(fix.t_ns, tr, "off", tr.reason_off)]
-
-    def _cleared(self, tr: _Track) -> bool:
-        """The whole train is past this crossing and its warning is off: its head
-        unit no longer matters here (a head running off the mapped line at the
-        end of the run is not worth an alarm at a crossing it left behind)."""
-        if tr.warned or tr.eot is None or not tr.direction:
-            return False
-        return self._past_margin(tr, tr.eot.chainage_m)
-
-    def _alarms(self, tr: _Track, t_ns: int) -> list[CrossingEvent]:
+    def _alarms(self, tr: Track, t_ns: int) -> list[CrossingEvent]:
         out = []
-        if tr.warned and not self._fresh(tr.eot, t_ns) and "eot" not in tr.alarms:
+        if tr.warned and not fresh(tr.eot, t_ns, self.s) and "eot" not in tr.alarms:
             tr.alarms.add("eot")
             what = "no EOT fix yet" if tr.eot is None else f"EOT stale for {(t_ns - tr.eot.t_fix_ns) / NS:.0f} s"
             out.append(self._emit(t_ns, tr, "alarm", f"{what}: warning held on"))
         if (
-            not self._fresh(tr.head, t_ns)
-            and self._fresh(tr.eot, t_ns)
+            not fresh(tr.head, t_ns, self.s)
+            and fresh(tr.eot, t_ns, self.s)
             and "head" not in tr.alarms
             and tr.head is not None
-            and not self._cleared(tr)
+            and not cleared(tr, self.crossing, self.s)
         ):
             tr.alarms.add("head")
             fallback = (
                 "the train parted: its head is not placed" if tr.parted_ns else "using EOT position + train length"
             )
             out.append(self._emit(t_ns, tr, "alarm", f"head unit stale: {fallback}"))
-        if self._fresh(tr.eot, t_ns):
+        if fresh(tr.eot, t_ns, self.s):
             tr.alarms.discard("eot")
-        if self._fresh(tr.head, t_ns):
+        if fresh(tr.head, t_ns, self.s):
             tr.alarms.discard("head")
         return out
-
-    def _filter(self, tr: _Track, fix: Fix, rep: Report, ev: DeviceEvidence) -> None:
-        """Feed the device's filter; a fix it sets aside (or a track started over) is doubt."""
-        kf = tr.kf[fix.role]
-        if rep.restarted:
-            kf.reset()
-            tr.doubt_ns[fix.role] = fix.t_fix_ns
-            if len(ev.history) > 1:  # the set-aside fix the new track began with
-                t0, ch0 = ev.history[0]
-                kf.offer(t0, ch0, math.nan, tr.direction)
-        ok = kf.offer(fix.t_fix_ns, fix.chainage_m, fix.speed_mps, tr.direction)
-        tr.kf_ok[fix.role] = ok
-        if not ok:
-            tr.doubt_ns[fix.role] = fix.t_fix_ns
-        elif fix.role == EOT:
-            tr.eot_kept = rep
-
-    def _filter_train(self, tr: _Track, fix: Fix, rep: Report) -> None:
-        """The head's motion from both units: the EOT rides a train's length behind the head, so its
-        fix is a head fix with the length's doubt added (only with the direction known)."""
-        train = tr.kf[TRAIN]
-        if rep.restarted:
-            train.reset()
-        # Each fix with its own device's noise (the two receivers need not be alike).
-        sigma_m = tr.kf[fix.role].noise_sigma_m
-        if fix.role == HEAD:
-            train.offer(fix.t_fix_ns, fix.chainage_m, fix.speed_mps, tr.direction, sigma_m=sigma_m)
-        elif tr.direction and tr.parted_ns is None:  # a parted train's EOT is on the rear part
-            at = fix.chainage_m + tr.direction * tr.spec.length_m
-            train.offer(fix.t_fix_ns, at, fix.speed_mps, tr.direction, self.s.length_sigma_m**2, sigma_m)
 
     def step(self, fix: Fix) -> list[CrossingEvent]:
         """Process one received fix."""
@@ -910,17 +375,17 @@ class CrossingController:
         else:
             tr.eot = rep
         self._last_fix_ns = rep.t_fix_ns if self._last_fix_ns is None else max(self._last_fix_ns, rep.t_fix_ns)
-        self._filter(tr, fix, rep, ev)
-        self._update_direction(tr, fix)
-        self._filter_train(tr, fix, rep)
+        feed_device_filter(tr, fix, rep, ev)
+        update_direction(tr, fix)
+        feed_train_filter(tr, self.s, fix, rep)
         tr.bounds.clear()  # recomputed as they are asked for
         # A jump set aside since the previous fix is doubt: that pair is no evidence for off;
         # nor is a fix the filter set aside, or one after such a fix.
         kept = prev_kept and tr.kf_ok[fix.role]
         prev_eot = prev if fix.role == EOT and not jumped_before and kept else None
-        past = self._note_tail(tr, fix, prev_eot, rep)
-        out = self._check_off(tr, past, fix)
-        out += self._check_release(tr, fix)
+        past = note_tail(tr, self.crossing, self.s, fix, prev_eot, rep)
+        out = self._off(fix.t_ns, tr, check_off(tr, self.crossing, self.s, past, fix))
+        out += self._off(fix.t_ns, tr, check_release(tr, self.s, self.motion, self.horizon_s, fix))
         out += self._check_on(tr, fix.t_ns)
         out += self._alarms(tr, fix.t_ns)
         # The clock going back evaluates every train but this one; else the others due by now.
@@ -939,7 +404,7 @@ class CrossingController:
             return []
         tr.parted_ns = t_ns
         self._at_once(tr)  # its bound is another now
-        if self._cleared(tr):
+        if cleared(tr, self.crossing, self.s):
             return []  # its rear part is past this crossing already
         what = "warning held until the rear part is accounted for" if tr.warned else "its rear part is short of here"
         tr.alarms.add("parted")
@@ -971,70 +436,3 @@ class CrossingController:
     def tick(self, t_ns: int) -> list[CrossingEvent]:
         """The passing of time: activation by extrapolation, stale-device alarms."""
         return self._evaluate(t_ns)
-
-
-def run_controller(
-    crossing: LevelCrossing,
-    trains: Sequence[TrainSpec],
-    fixes: Sequence[Fix],
-    settings: ControllerSettings | None = None,
-    tick_s: float | None = None,
-    partings: Sequence[tuple[int, str, str]] = (),
-) -> CrossingController:
-    """Batch: feed fixes in reception order, ticking every ``tick_s`` (default: the settings') between them;
-    ``partings`` (time, train, evidence) from the integrity monitor are told to the unit as they come."""
-    ctl = CrossingController(crossing, trains, settings)
-    ordered = sorted(fixes, key=lambda f: f.t_ns)
-    if not ordered:
-        return ctl
-    tick_s = ctl.s.tick_s if tick_s is None else tick_s
-    t = ordered[0].t_ns
-    step = max(1, int(tick_s * NS))
-    told = sorted(partings)
-    for f in ordered:
-        if f.t_ns > t:
-            wake_until(ctl, _tick(ctl, t, (f.t_ns - t - 1) // step, step), f.t_ns)  # every tick and wake-up before it
-        while told and told[0][0] <= f.t_ns:
-            ctl.train_parted(told[0][1], told[0][0], told[0][2])
-            told.pop(0)
-        ctl.step(f)
-        t = f.t_ns
-    # A live unit keeps its clock running: let pending stale-device alarms fire, and the warning
-    # for a train last heard approaching come on when it could be near (it is not forgotten).
-    end = max(t + int((ctl.s.stale_after_s + tick_s) * NS), (ctl.next_change_ns() or t) + 2 * step)
-    _tick(ctl, t, -(-(end - t) // step), step)
-    return ctl
-
-
-def _tick(ctl: CrossingController, t0_ns: int, n: int, step_ns: int) -> int:
-    """``ctl.tick`` at ``t0 + k·step`` for k = 1..n, and at each instant between them when a warning
-    comes due (:meth:`CrossingController.next_onset_ns`), as a live unit's clock wakes.
-
-    Ticks stop one tick after nothing a tick does can change until the next fix
-    (:meth:`CrossingController.next_change_ns`): every device gone stale and every
-    warning due.  So a fix dated years after the one before it (a damaged year) costs
-    the stale time's ticks, not one tick per second of the years.  Returns the last instant ticked.
-    """
-    if n < 1:
-        return t0_ns
-    settled = ctl.next_change_ns()
-    done = t0_ns
-    for k in range(1, n + 1):
-        t = t0_ns + k * step_ns
-        if settled is None or t > settled + 2 * step_ns:  # two ticks past it: the stale time is a float
-            return done
-        wake_until(ctl, done, t)
-        ctl.tick(t)
-        done = t
-    return done
-
-
-def wake_until(ctl: CrossingController, from_ns: int, to_ns: int) -> tuple[int, list[CrossingEvent]]:
-    """Tick ``ctl`` at each instant in (``from_ns``, ``to_ns``) when something falls due (every driver's
-    wake-ups between its steady ticks); returns the last instant ticked (``from_ns`` if none) and the
-    events of those ticks."""
-    out: list[CrossingEvent] = []
-    while (w := ctl.next_onset_ns(from_ns)) is not None and w < to_ns:
-        out += ctl.tick(w)
-        from_ns = w
-    return from_ns, out

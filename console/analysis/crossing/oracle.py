@@ -36,7 +36,7 @@ def earliest_arrival_vec(
     """Shortest time (s) to run ``distance_m`` from ``speed_mps``, accelerating at ``accel_mps2``
     up to ``max(line_speed_mps, speed)`` (a train already faster keeps its speed): elementwise.
 
-    The same bound as :func:`console.analysis.crossing.controller.earliest_arrival_s` with the line speed as
+    The same bound as :func:`console.analysis.crossing.values.earliest_arrival_s` with the line speed as
     the top speed, for arrays."""
     d = np.maximum(np.asarray(distance_m, dtype=float), 0.0)
     v = np.maximum(np.asarray(speed_mps, dtype=float), 0.0)

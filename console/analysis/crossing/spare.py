@@ -13,7 +13,7 @@ forward and the Rauch-Tung-Striebel smoother back: Rauch, Tung and Striebel,
 *AIAA Journal* 3(8), 1965; filterpy's ``rts_smoother``), and the oracle is
 run on it.  The doubt is split among its causes in proportion to how far each
 brought the unit's bound forward when it turned the warning on
-(:class:`console.analysis.crossing.controller.Onset`): the speed unknown (no speed in
+(:class:`console.analysis.crossing.values.Onset`): the speed unknown (no speed in
 the export), units stale (the head unit lost), position jumps, sparse fixes
 (the estimate's σ).  On the randomized harness the
 hindsight physics is compared with the true one (benchmarks/crossing_spare.py).

@@ -39,16 +39,9 @@ from typing import Any
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from console.analysis.crossing.controller import (
-    EOT,
-    HEAD,
-    ControllerSettings,
-    CrossingController,
-    Fix,
-    Onset,
-    TrainSpec,
-)
+from console.analysis.crossing.controller import CrossingController
 from console.analysis.crossing.spare import SpareSplit, head_motion, split_spare
+from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, Fix, Onset, TrainSpec
 from console.analysis.timefmt import iso
 from parsers.units import NS
 

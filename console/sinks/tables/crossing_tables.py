@@ -8,8 +8,8 @@ from rich.padding import Padding
 from rich.table import Table
 from rich.text import Text
 
-from console.analysis.crossing.controller import CrossingEvent
 from console.analysis.crossing.timeline import TimelineRow
+from console.analysis.crossing.values import CrossingEvent
 from console.analysis.timefmt import display, time_of_day
 from console.safe_text import inert
 from parsers.units import NS_PER_DAY
