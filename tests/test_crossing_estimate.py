@@ -22,7 +22,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 from filterpy.common import Q_continuous_white_noise
-from filterpy.kalman import predict, update
+from filterpy.kalman import predict, rts_smoother, update
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -30,6 +30,7 @@ from console.analysis.crossing.arrival import earliest_s
 from console.analysis.crossing.clock import run_controller
 from console.analysis.crossing.controller import CrossingController
 from console.analysis.crossing.estimate import predict_ca, update_position, update_speed
+from console.analysis.crossing.spare import smoothed_motion
 from console.analysis.crossing.values import ControllerSettings, Fix, TrainSpec
 from console.layout import load_layout
 from console.sim.crossing_runs import RunConditions, judge, random_conditions, simulate
@@ -70,6 +71,52 @@ def test_the_written_out_filter_is_filterpys(
         x2, p2 = ours(x1, p1, z, r)
         assert np.allclose(x2, np.ravel(x_ref2), rtol=1e-7, atol=1e-6)
         assert np.allclose(_cov(p2), P_ref2, rtol=1e-7, atol=1e-6)
+
+
+def _smoothed_by_filterpy(
+    t_ns: np.ndarray, ch: np.ndarray, v: np.ndarray, direction: int, sigma: float, sv: float, q: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """smoothed_motion with filterpy's own pieces: the same forward filter (compared with filterpy's above),
+    then F, Q_continuous_white_noise and rts_smoother from filterpy, as the smoother first called them."""
+    x: tuple[float, float, float] = (float(ch[0]), 0.0, 0.0)
+    p = (sigma**2, 0.0, 0.0, 30.0**2, 0.0, 0.5**2)
+    n = len(t_ns)
+    xs, ps = np.empty((n, 3)), np.empty((n, 3, 3))
+    fs, qs = np.empty((n, 3, 3)), np.empty((n, 3, 3))
+    for k in range(n):
+        dt = (int(t_ns[k]) - int(t_ns[k - 1])) / NS if k else 0.0
+        if k:
+            x, p = predict_ca(x, p, dt, q)
+        x, p = update_position(x, p, float(ch[k]), sigma**2)
+        if direction and not math.isnan(v[k]):
+            x, p = update_speed(x, p, direction * float(v[k]), sv**2)
+        xs[k], ps[k] = x, _cov(p)
+        fs[k - 1 if k else 0] = ((1.0, dt, 0.5 * dt * dt), (0.0, 1.0, dt), (0.0, 0.0, 1.0))
+        qs[k - 1 if k else 0] = Q_continuous_white_noise(3, dt, q) if k else np.zeros((3, 3))
+    fs[-1], qs[-1] = np.eye(3), np.zeros((3, 3))
+    out, _p, _k, _pp = rts_smoother(xs, ps, fs, qs)
+    return out[:, 0], (direction or 1) * out[:, 1]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(2, 60),
+    seed=st.integers(0, 2**32 - 1),
+    direction=st.sampled_from([-1, 0, 1]),
+    speed_share=st.floats(0.0, 1.0),
+)
+def test_the_hindsight_smoother_is_filterpys(n: int, seed: int, direction: int, speed_share: float) -> None:
+    """The smoother (filterpy's rts_smoother, step for step, written out so that no command imports filterpy
+    and scipy.stats with it) gives filterpy's numbers exactly, on fixes 0.1 to 20 s apart with speeds or not."""
+    rng = np.random.default_rng(seed)
+    t_ns = 1_700_000_000 * NS + np.cumsum(rng.integers(NS // 10, 20 * NS, n)).astype(np.int64)
+    ch = np.cumsum(rng.normal(100.0, 60.0, n))
+    v = np.where(rng.random(n) < speed_share, rng.normal(15.0, 5.0, n), np.nan)
+    args = (t_ns, ch, v, direction, 3.0, 0.5, 0.1)
+    ours = smoothed_motion(*args)
+    assert ours is not None
+    ref = _smoothed_by_filterpy(*args)
+    assert np.array_equal(ours[0], ref[0]) and np.array_equal(ours[1], ref[1])
 
 
 @given(d=st.floats(0.0, 600.0), a=st.floats(0.1, 1.5))

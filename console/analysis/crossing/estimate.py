@@ -29,8 +29,8 @@ much better:
 
 The filter's predict and update are written out for the three states (this
 runs for every fix; numpy's 3 × 3 arrays cost more than the arithmetic); the
-tests compare them with filterpy's (Labbe, filterpy 2.0), which also
-smooths the motion in hindsight (:func:`smoothed_motion`).
+tests compare them with filterpy's (Labbe, filterpy 2.0), as they compare the
+hindsight smoother (:func:`console.analysis.crossing.spare.smoothed_motion`).
 """
 
 from __future__ import annotations

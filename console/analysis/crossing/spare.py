@@ -10,7 +10,7 @@ is **doubt**: what the unit did not know then.
 A log has no truth, so the physics is judged in hindsight: the head's motion
 is reconstructed from *all* the fixes, later ones included (a Kalman filter
 forward and the Rauch-Tung-Striebel smoother back: Rauch, Tung and Striebel,
-*AIAA Journal* 3(8), 1965; filterpy's ``rts_smoother``), and the oracle is
+*AIAA Journal* 3(8), 1965; filterpy's ``rts_smoother`` step for step), and the oracle is
 run on it.  The doubt is split among its causes in proportion to how far each
 brought the unit's bound forward when it turned the warning on
 (:class:`console.analysis.crossing.values.Onset`): the speed unknown (no speed in
@@ -61,9 +61,6 @@ def smoothed_motion(
     """(chainage, speed along ``direction``) at ``times_ns`` (ascending, the fixes' own), smoothed
     with every fix before and after: forward filter, then the RTS smoother.  Reported speeds
     (not NaN) are used with the direction known.  None for fewer than two fixes."""
-    # filterpy pulls in scipy: deferred, so the live units start fast (they never smooth).
-    from filterpy.kalman import rts_smoother
-
     n = len(times_ns)
     if n < 2:
         return None
@@ -91,8 +88,24 @@ def smoothed_motion(
         xs[k] = x
         p00, p01, p02, p11, p12, p22 = p
         ps[k] = ((p00, p01, p02), (p01, p11, p12), (p02, p12, p22))
-    xs_s, _ps, _k, _pp = rts_smoother(xs, ps, fs, qs)
+    xs_s = rts_smoothed(xs, ps, fs, qs)
     return xs_s[:, 0], (direction or 1) * xs_s[:, 1]
+
+
+def rts_smoothed(xs: np.ndarray, ps: np.ndarray, fs: np.ndarray, qs: np.ndarray) -> np.ndarray:
+    """The Rauch-Tung-Striebel smoother's states from a forward filter's states ``xs`` and covariances ``ps``,
+    with ``fs[k]``, ``qs[k]`` the transition from k to k+1 and its noise.
+
+    filterpy's ``rts_smoother`` step for step (the same numpy products and inverse, so the same numbers:
+    tests/test_crossing_estimate.py compares them), written here because importing filterpy costs every
+    command that draws a crossing timeline 0.6 s of start-up (its package imports scipy.stats)."""
+    x, p = xs.copy(), ps.copy()
+    for k in range(len(xs) - 2, -1, -1):
+        p_pred = np.dot(np.dot(fs[k], p[k]), fs[k].T) + qs[k]
+        gain = np.dot(np.dot(p[k], fs[k].T), np.linalg.inv(p_pred))
+        x[k] += np.dot(gain, x[k + 1] - np.dot(fs[k], x[k]))
+        p[k] += np.dot(np.dot(gain, p[k + 1] - p_pred), gain.T)
+    return x
 
 
 def split_spare(
