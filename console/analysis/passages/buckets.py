@@ -32,8 +32,9 @@ try:
 except ImportError:  # built without a C compiler: the numpy path, which gives the same columns
     compiled_runs = None  # type: ignore[assignment]
 
-_BIG = np.iinfo(np.int64).max
-_SMALL = np.iinfo(np.int64).min
+# The sentinels of min/max reductions over no record ("no time yet").
+INT64_MAX = np.iinfo(np.int64).max
+INT64_MIN = np.iinfo(np.int64).min
 _FIRST = ("t_first_ns", "t_first_sys1_ns", "t_first_sys2_ns")
 _LAST = ("t_last_ns", "t_last_sys1_ns", "t_last_sys2_ns")
 BUCKET_COLUMNS = ("head", "second", "records", "records_sys1", "records_sys2", "records_whole_second", *_FIRST, *_LAST)
@@ -75,8 +76,8 @@ def chunk_buckets(head: np.ndarray, channel: np.ndarray, time_ns: np.ndarray, su
     for ch in (1, 2):
         on = channel == ch
         out[f"records_sys{ch}"] = np.add.reduceat(on.astype(np.int64), starts)
-        out[f"t_first_sys{ch}_ns"] = np.minimum.reduceat(np.where(on, time_ns, _BIG), starts)
-        out[f"t_last_sys{ch}_ns"] = np.maximum.reduceat(np.where(on, time_ns, _SMALL), starts)
+        out[f"t_first_sys{ch}_ns"] = np.minimum.reduceat(np.where(on, time_ns, INT64_MAX), starts)
+        out[f"t_last_sys{ch}_ns"] = np.maximum.reduceat(np.where(on, time_ns, INT64_MIN), starts)
     return out
 
 
@@ -182,9 +183,9 @@ def _group_extremes_numpy(
     (int64 max and min where none).  (:data:`group_extremes`: this, or the compiled pass alike.)"""
     m = channel == wanted
     g, v = group[m], values[m]
-    least = np.full(n, _BIG, np.int64)
+    least = np.full(n, INT64_MAX, np.int64)
     np.minimum.at(least, g, v)
-    greatest = np.full(n, _SMALL, np.int64)
+    greatest = np.full(n, INT64_MIN, np.int64)
     np.maximum.at(greatest, g, v)
     return np.bincount(g, minlength=n).astype(np.int64), least, greatest
 
