@@ -19,7 +19,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.gen_realistic_diag import generate
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from tests.reads import whole_job
 
 

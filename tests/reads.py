@@ -1,7 +1,7 @@
 """Reading logs in tests: the whole-file reference and the pipeline, side by side.
 
 ``whole_job`` is the reference: every chunk into one
-:class:`~console.analysis.passages.diagnostics.DiagAccumulator`, analysed once at the
+:class:`~console.analysis.passages.accumulator.DiagAccumulator`, analysed once at the
 end, as the analysis has always been defined.  ``stream_job`` is the
 pipeline (:func:`console.drivers.batch.read_diag`) reading in chunks, with
 the passages and axles held as tables so the two can be compared.
@@ -15,7 +15,8 @@ from typing import Any
 
 from console.analysis.diag_events import DiagEventSettings, diag_detection_events
 from console.analysis.events.detection import DetectionEvent
-from console.analysis.passages.diagnostics import DiagAccumulator, SpeedSettings
+from console.analysis.passages.accumulator import DiagAccumulator
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.drivers.batch import DiagJob, ReadOptions, read_diag
 from console.engine.pipeline import PipelineSettings
 from console.engine.sinks import Sink

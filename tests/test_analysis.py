@@ -10,7 +10,7 @@ import pytest
 from benchmarks.gen_diag_log import generate
 from console.analysis.counting.speed import axle_kmh, per_second_method_kmh, whole_train_kmh
 from console.analysis.counting.wheels import PairingSettings, pair_axles
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from tests.conftest import record
 from tests.reads import whole_job
 

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from console.analysis.crossing.approach import approach_timeline
 from console.analysis.crossing.values import earliest_arrival_s
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.cli.app import app
 from console.layout import WorkSite, load_layout
 from tests.reads import whole_job

@@ -16,7 +16,7 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
-from console.analysis.passages.diagnostics import PASSAGE_COLUMNS
+from console.analysis.passages.passage_frame import PASSAGE_COLUMNS
 from console.archive.derive_sink import ArchiveSink
 from parsers.units import NS_PER_DAY
 

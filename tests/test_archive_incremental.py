@@ -187,7 +187,7 @@ def test_the_fingerprint_survives_the_manifest_and_keeps_older_archives_resuming
     import json
     from types import SimpleNamespace
 
-    from console.analysis.passages.diagnostics import SpeedSettings
+    from console.analysis.passages.speed_settings import SpeedSettings
     from console.archive.derive import fingerprint
     from console.layout import load_layout
     from console.layouts import __file__ as layouts_init

@@ -34,7 +34,8 @@ from console.analysis.counting.wheels import CountingSettings, HeadCounter
 from console.analysis.diag_events import DiagEventSettings, diag_detection_events
 from console.analysis.events.block import COLUMNS, EventBlock
 from console.analysis.events.detection import DetectionEvent, EventKind, sort_events
-from console.analysis.passages.diagnostics import DiagAnalysis, SpeedSettings
+from console.analysis.passages.diag_analysis import DiagAnalysis
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.passages.stream import ORDER_SLACK_S
 from console.layout import Layout, load_layout
 from console.sim.faults import Fault

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate
 from console.analysis.passages import json_text as pj
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from tests.conftest import SAMPLES
 from tests.reads import whole_job
 

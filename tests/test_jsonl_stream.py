@@ -193,7 +193,7 @@ def test_a_log_out_of_time_order_is_read_whole_for_json_and_warned_about_for_jso
     assert told and all(heads)
     assert all(int(m[2].replace(",", "")) >= junction for m in heads if m)
     assert len({m[1] for m in heads if m}) == len(told)
-    from console.analysis.passages.diagnostics import SpeedSettings
+    from console.analysis.passages.speed_settings import SpeedSettings
     from tests.reads import stream_job
 
     job = stream_job([swapped], SpeedSettings(), whole=True, include_status=False)

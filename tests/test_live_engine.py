@@ -241,7 +241,7 @@ def test_a_full_disk_at_the_spools_ingest_is_said_in_the_summary(
 
 @pytest.fixture(scope="module")
 def batch_passages() -> list[dict[str, Any]]:
-    from console.analysis.passages.diagnostics import SpeedSettings
+    from console.analysis.passages.speed_settings import SpeedSettings
     from tests.reads import whole_job
 
     job = whole_job([REPO / "sample_logs" / "example_station.log"], SpeedSettings())
@@ -288,7 +288,7 @@ def test_two_logs_with_skewed_clocks_give_each_logs_own_passages(skew_s: float, 
     """Two boards' logs followed at once, the second's clock ``skew_s`` off, arriving interleaved:
     each log's passages are what ``analyze`` finds in it alone (a log running ahead does not cut
     the other's trains into pieces), and the sections are those of both logs read together."""
-    from console.analysis.passages.diagnostics import SpeedSettings
+    from console.analysis.passages.speed_settings import SpeedSettings
     from tests.reads import whole_job
 
     lines = (REPO / "sample_logs" / "example_station.log").read_bytes().splitlines(keepends=True)

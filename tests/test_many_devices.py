@@ -140,7 +140,7 @@ _HEADS, _DEVICES = 20_000, 500
 @pytest.fixture(scope="module")
 def many_heads_job(tmp_path_factory: pytest.TempPathFactory) -> Any:
     """20 k heads on 500 devices, each head a wheel on Sys1 then Sys2 4 ms later, read in 256 KB chunks."""
-    from console.analysis.passages.diagnostics import SpeedSettings
+    from console.analysis.passages.speed_settings import SpeedSettings
     from tests.reads import stream_job
 
     heads, devices = _HEADS, _DEVICES

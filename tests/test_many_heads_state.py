@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate
 from console.analysis.head_table import HeadTable, heads_at
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.passages.status import STATUS_KIND
 from console.analysis.passages.stream import take_passages
 from console.jsonout import array_parts, dumps

@@ -390,7 +390,7 @@ def _clear_over_a_train(sim: StationSim, events: Sequence[dict[str, Any]]) -> li
 def _batch_of_run(run: Path) -> dict[str, Any]:
     """What the batch pipeline and the batch crossing run find in the files the run wrote, with the layout
     it wrote (its [devices]: the power gap, the GNSS units' period and delay), sections starting clear."""
-    from console.analysis.passages.diagnostics import SpeedSettings
+    from console.analysis.passages.speed_settings import SpeedSettings
     from console.analysis.sections.state import SectionState
     from console.drivers.crossings import run_crossings
     from parsers.gnss_files import parse_gnss

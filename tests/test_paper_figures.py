@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from tests.reads import whole_job
 
 

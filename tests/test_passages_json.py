@@ -9,7 +9,8 @@ import pandas as pd
 import pytest
 
 from console.analysis.passages import json_text as pj
-from console.analysis.passages.diagnostics import SpeedSettings, iso_strings, passages_json_text
+from console.analysis.passages.frame_json import iso_strings, passages_json_text
+from console.analysis.passages.speed_settings import SpeedSettings
 from tests.reads import whole_job
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"
@@ -186,7 +187,7 @@ def test_indented_objects_are_the_report_json(log: str, depth: int, monkeypatch:
     text, ``depth`` levels deep: from the table the archive reads, in one batch and in many."""
     import json
 
-    from console.analysis.passages.diagnostics import frame_columns
+    from console.analysis.passages.passage_frame import frame_columns
     from console.sinks.report.jsonwrite import indented
 
     p = whole_job([SAMPLES / log], SpeedSettings()).analysis.passages
@@ -205,7 +206,7 @@ def test_indented_objects_are_the_report_json(log: str, depth: int, monkeypatch:
 
 
 def test_frame_columns_refuse_what_has_no_code() -> None:
-    from console.analysis.passages.diagnostics import frame_columns
+    from console.analysis.passages.passage_frame import frame_columns
 
     p = whole_job([SAMPLES / "example_station.log"], SpeedSettings()).analysis.passages
     assert frame_columns(p) is not None

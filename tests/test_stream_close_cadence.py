@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from benchmarks.gen_realistic_diag import generate
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.passages.stream import PassageStream, concat_passages, take_passages
 from parsers.diag.read import DiagReader
 

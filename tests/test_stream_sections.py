@@ -31,7 +31,7 @@ from benchmarks.gen_realistic_diag import generate
 from console.analysis.counting.wheels import CountingSettings
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.events.detection import DetectionEvent, EventKind
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.sections.engine import ledger_summary_frame, run_sections
 from console.analysis.sections.state import SectionState
 from console.cli.app import app

@@ -19,7 +19,7 @@ from benchmarks.gen_realistic_diag import generate
 from console.analysis.counting.wheels import CountingSettings
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.events.detection import DetectionEvent
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.sections.stream import EventStream
 from console.engine.sinks import EventList
 from tests.reads import detection_events, pipeline_sections, whole_job

@@ -23,7 +23,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.passages.status import STATUS_KIND
 from console.layout import load_layout
 from console.sim.station import SimConfig, StationSim

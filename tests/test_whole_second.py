@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from benchmarks.gen_realistic_diag import generate as generate_realistic
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.cli.app import app
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole

@@ -26,7 +26,7 @@ from console.analysis.counting.majority import MajoritySettings, majority_events
 from console.analysis.counting.wheels import CountingSettings
 from console.analysis.events.block import KIND_CODE, NO_CHANNEL, Detail, EventBlock, StringPool
 from console.analysis.events.detection import DetectionEvent, EventKind
-from console.analysis.passages.diagnostics import DiagAnalysis
+from console.analysis.passages.diag_analysis import DiagAnalysis
 from console.analysis.passages.stream import ORDER_SLACK_S
 from console.layout import Layout
 from parsers.units import NS

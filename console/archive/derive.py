@@ -47,9 +47,9 @@ import pyarrow as pa
 
 from console.analysis.counting.wheels import SYS1, SYS2, WHEEL_SENSOR_ADDRESS
 from console.analysis.diag_events import DiagEventSettings
-from console.analysis.passages.diagnostics import SpeedSettings
 from console.analysis.passages.overlap import overlap_mask
 from console.analysis.passages.registers import RegisterTables
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.sections.engine import SectionEngine
 from console.analysis.sections.stream import EventStream, HeadFacts
 from console.archive import arrow_np

@@ -18,7 +18,7 @@ import pyarrow as pa
 
 from console.analysis.counting.wheels import DIRECTIONS
 from console.analysis.head_table import heads_at
-from console.analysis.passages.diagnostics import PASSAGE_BASES, PASSAGE_COLUMNS, PASSAGE_DIRECTIONS, PASSAGE_KINDS
+from console.analysis.passages.passage_frame import PASSAGE_BASES, PASSAGE_COLUMNS, PASSAGE_DIRECTIONS, PASSAGE_KINDS
 from console.archive import arrow_np
 from console.archive.parts import PartWriter
 from console.engine.pipeline import HEALTH_EVENT_KINDS
@@ -228,9 +228,9 @@ def _column(values: Any) -> pa.Array:
 
 
 def passages_table(cols: Columns, heads: Heads) -> tuple[np.ndarray, pa.Table]:
-    """(device ids, the passages as Arrow): the columns of :func:`~console.analysis.passages.diagnostics.passages_frame`
-    with the start as a time and each passage's axle speeds as a list, built from the pipeline's arrays (no
-    pandas: this runs for every chunk of an ingest)."""
+    """(device ids, the passages as Arrow): the columns of
+    :func:`~console.analysis.passages.passage_frame.passages_frame` with the start as a time and each passage's
+    axle speeds as a list, built from the pipeline's arrays (no pandas: this runs for every chunk of an ingest)."""
     device_id, counting_head = _heads_columns(heads, cols["head"])
     arrays: list[pa.Array] = [arrow_np.array(device_id, pa.int64()), counting_head]
     names = ["device_id", "counting_head"]

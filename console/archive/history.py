@@ -21,7 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from console.analysis.passages.diagnostics import DiagAnalysis
+from console.analysis.passages.diag_analysis import DiagAnalysis
 from console.archive.history_diag import channel_events, derived_for, history_diag
 from console.archive.reader import (
     ArchivedRecords,

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from console.analysis.passages.diagnostics import DiagAnalysis
+from console.analysis.passages.diag_analysis import DiagAnalysis
 from console.archive.derive_sink import DERIVE_VERSION
 from console.archive.reader import Window, health_records, parse_reports
 from console.archive.store import Manifest
@@ -41,7 +41,7 @@ if TYPE_CHECKING:
     from console.analysis.events.detection import DetectionEvent
     from console.analysis.inventory import DeviceInventory
     from console.analysis.passages.buckets import Columns
-    from console.analysis.passages.diagnostics import SpeedSettings
+    from console.analysis.passages.speed_settings import SpeedSettings
     from console.analysis.sections.engine import SectionsResult
     from console.layout import Layout
     from parsers.report import ParseReport
@@ -185,7 +185,12 @@ def _passage_columns(con: duckdb.DuckDBPyConnection, window: Window, heads: list
     hold them (a head ``heads`` does not list, a null head, count or flag, a text with no code): the caller
     reads them as a table (:func:`_passages`).
     """
-    from console.analysis.passages.diagnostics import PASSAGE_BASES, PASSAGE_COLUMNS, PASSAGE_DIRECTIONS, PASSAGE_KINDS
+    from console.analysis.passages.passage_frame import (
+        PASSAGE_BASES,
+        PASSAGE_COLUMNS,
+        PASSAGE_DIRECTIONS,
+        PASSAGE_KINDS,
+    )
     from console.archive.arrow_np import list_values, to_numpy
 
     names = con.sql("SELECT * FROM passages LIMIT 0").columns
@@ -249,7 +254,7 @@ def _passages(con: duckdb.DuckDBPyConnection, window: Window, heads: list[tuple[
     """The window's passages as ``DiagAnalysis.passages`` gives them (per-axle speeds in ``attrs``)."""
     import pandas as pd
 
-    from console.analysis.passages.diagnostics import PASSAGE_COLUMNS
+    from console.analysis.passages.passage_frame import PASSAGE_COLUMNS
 
     where, params = _where(window, "start_ns")
     columns = [c for c in PASSAGE_COLUMNS if c not in ("axle_speeds_start", "axle_speeds_stop")]

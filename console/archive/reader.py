@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.timefmt import parse_time, time_ns
 from console.archive.parts import key_of_part
 from console.archive.records import ARCHIVED_RECORD_COLUMNS, REGISTER_COLUMNS, ChunkRebuilder
@@ -162,7 +162,7 @@ def record_batches(
     ``labels``: only the records of these canonical labels (the health registers).
     ``merged``: in the order a batch read of all the files together gives each head's records instead
     (by time; equal times by file, the file whose records of that head begin earlier first, each file
-    in its own order: :func:`console.analysis.passages.diagnostics._merged_order`), for files whose time ranges
+    in its own order: :func:`console.analysis.passages.part_analysis._merged_order`), for files whose time ranges
     interleave.  ``on_registers`` is then first given every register, in the order the files meet them.
     ``where``: a further condition (SQL, parameters), e.g. a group's heads.
     """

@@ -30,7 +30,8 @@ import numpy as np
 
 from console.analysis.diag_events import HELD
 from console.analysis.passages.buckets import Columns
-from console.analysis.passages.diagnostics import DiagAnalysis, SpeedSettings
+from console.analysis.passages.diag_analysis import DiagAnalysis
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.passages.status import StatusSummary
 from console.analysis.passages.stream import ORDER_SLACK_S, by_head_and_start, concat_passages, take_passages
 from console.engine.pipeline import DiagOutcome, Pipeline, PipelineSettings

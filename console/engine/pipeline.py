@@ -46,8 +46,10 @@ import numpy as np
 
 from console.analysis.diag_events import silent_head_warnings
 from console.analysis.events.detection import DetectionEvent, EventKind, sort_events
+from console.analysis.passages.accumulator import DiagAccumulator, wheel_columns
 from console.analysis.passages.clock_steps import ClockSteps
-from console.analysis.passages.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, wheel_columns
+from console.analysis.passages.part_analysis import PartAnalysis
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.passages.status import StatusSummary
 from console.analysis.passages.stream import ORDER_SLACK_S, PassageStream, by_start, take_passages
 from console.analysis.sections.state import SectionState

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.events.detection import DetectionEvent, EventKind
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.sections.state import SectionState
 from console.engine.pipeline import HEALTH_REGISTERS, Pipeline, PipelineSettings
 from console.engine.sinks import Sink, Sinks

@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.sections.state import SectionState
 from console.engine.fixes import FixStage
 from console.inputs.base import CanFrame, FrameRows, GnssFix, Item, LineBlock, Source, SourceNote

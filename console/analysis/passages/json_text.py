@@ -1,6 +1,6 @@
 """The passages array as JSON text, built with numpy byte arithmetic.
 
-Writes, byte for byte, what ``diagnostics.passages_json_text`` gets from
+Writes, byte for byte, what ``frame_json.passages_json_text`` gets from
 pandas' ``DataFrame.to_json(orient="records", force_ascii=True,
 double_precision=10)``, without pandas and without a Python loop per
 passage: every value becomes a fixed-width row of bytes (padding is the
@@ -264,7 +264,7 @@ def _texts(codes: np.ndarray, values: Sequence[str | None]) -> np.ndarray | None
 
 
 def _iso(ns: np.ndarray) -> np.ndarray | None:
-    """``diagnostics.iso_strings`` as quoted bytes (UTC, ``Z``, ms at least, µs/ns where present); null for NaN."""
+    """``frame_json.iso_strings`` as quoted bytes (UTC, ``Z``, ms at least, µs/ns where present); null for NaN."""
     ints, ok = exact_ns(ns)
     n = len(ints)
     days, tod = np.divmod(ints, NS_PER_DAY)
@@ -558,7 +558,7 @@ encode_objects = _encode_objects_compiled if _COMPILED else _encode_objects_nump
 
 
 def encode_passages(cols: Columns, heads: Heads, workers: int = 2, lines_of_type: str | None = None) -> str | None:
-    """The passages (``diagnostics._passages`` columns) as a JSON array, or None if not covered.
+    """The passages (``passage_columns.passage_columns`` columns) as a JSON array, or None if not covered.
 
     With ``lines_of_type``, JSON lines instead: one object per passage, each
     beginning with ``"type"`` set to it and ending with a newline.  Batches

@@ -18,7 +18,7 @@ from console.analysis.head_table import Heads, heads_at
 from console.analysis.passages.buckets import Columns
 
 _BLOCK = 4096
-STATUS_KIND = 2  # diagnostics.PASSAGE_KINDS.index("status")
+STATUS_KIND = 2  # passage_frame.PASSAGE_KINDS.index("status")
 
 
 class StatusSummary:

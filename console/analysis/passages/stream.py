@@ -3,7 +3,7 @@
 A passage of a counting head ends where the head's records pause for more
 than the idle gap.  Reading a log in chunks, a head's records up to such a
 pause are *closed*: nothing read later can join them, so they are analysed
-at once (by the batch analysis itself, :func:`diagnostics.analyse_parts`)
+at once (by the batch analysis itself, :func:`part_analysis.analyse_parts`)
 and dropped.  What stays in memory is, per head, the reductions of its
 open run (activity buckets, wheel onsets) and a few numbers: memory grows
 with the heads and the open passages, not with the log.
@@ -39,8 +39,10 @@ from functools import partial
 import numpy as np
 
 from console.analysis.head_table import HeadTable, by_head_then_time
+from console.analysis.passages.accumulator import DiagAccumulator
 from console.analysis.passages.buckets import Columns, compiled_record_runs, compiled_runs, merge_buckets
-from console.analysis.passages.diagnostics import DiagAccumulator, PartAnalysis, SpeedSettings, analyse_parts
+from console.analysis.passages.part_analysis import PartAnalysis, analyse_parts
+from console.analysis.passages.speed_settings import SpeedSettings
 from parsers.diag.read import DiagChunk
 from parsers.diag.registry import DiagRegistry
 from parsers.units import ALL_TIME, NO_TIME, NS

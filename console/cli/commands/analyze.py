@@ -56,7 +56,7 @@ def analyze(
     """Inventory, passages with speeds, and the parse report of diagnostic logs."""
 
     def body() -> int:
-        from console.analysis.passages.diagnostics import SpeedSettings
+        from console.analysis.passages.speed_settings import SpeedSettings
         from console.engine.pipeline import HEALTH_REGISTERS, PipelineSettings
         from console.sinks.tables.diag_stream import JsonLinesOut, status_json, summary_doc
         from console.sinks.tables.passage_spool import FirstPassages, PassageSpool

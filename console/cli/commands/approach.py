@@ -84,7 +84,7 @@ def approach(
             raise fail(f"{lay.source} has no [[work_sites]]: give --head and --distance")
         if warning_time is not None:  # it was read for an ad-hoc site only: a layout's sites ignored it unsaid
             sites = [replace(site, warning_time_s=warning_time) for site in sites]
-        from console.analysis.passages.diagnostics import SpeedSettings
+        from console.analysis.passages.speed_settings import SpeedSettings
         from console.engine.pipeline import PipelineSettings
 
         job = read_logs(files, PipelineSettings(speed=SpeedSettings.of_layout(lay)), hold_passages=True)

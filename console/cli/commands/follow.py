@@ -176,7 +176,7 @@ def follow(
     does the end of every stream given (`… | trackside follow -`; exit 0)."""
 
     def body() -> int:
-        from console.analysis.passages.diagnostics import SpeedSettings
+        from console.analysis.passages.speed_settings import SpeedSettings
         from console.analysis.timefmt import parse_duration
 
         try:

@@ -173,7 +173,7 @@ def sections(
         from console.analysis.counting.majority import MajoritySettings
         from console.analysis.counting.wheels import CountingSettings
         from console.analysis.diag_events import DiagEventSettings
-        from console.analysis.passages.diagnostics import SpeedSettings
+        from console.analysis.passages.speed_settings import SpeedSettings
         from console.analysis.sections.state import SectionState
         from console.engine.pipeline import PipelineSettings
         from console.sinks.tables.section_history import SectionsSink

@@ -52,7 +52,7 @@ def speeds(
     """The passages table alone: per-second, whole-train and per-axle speeds."""
 
     def body() -> int:
-        from console.analysis.passages.diagnostics import SpeedSettings
+        from console.analysis.passages.speed_settings import SpeedSettings
         from console.engine.pipeline import PipelineSettings
         from console.sinks.tables.diag_stream import JsonLinesOut, status_json, summary_doc
         from console.sinks.tables.passage_spool import PassageSpool

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 
 from console.analysis.diag_events import DiagEventSettings
 from console.analysis.health.rules import Finding, sort_findings, voltage_margin_findings
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.sections.engine import run_sections
 from console.analysis.sections.state import SectionState
 from console.drivers.batch import ChunkSource, LogFiles, ReadOptions, input_bytes, read_diag

@@ -38,7 +38,7 @@ import numpy as np
 from console import __version__
 from console.analysis.events.detection import DetectionEvent, EventKind
 from console.analysis.health.rules import Finding, Severity
-from console.analysis.passages.diagnostics import SpeedSettings
+from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.passages.status import STATUS_KIND
 from console.analysis.passages.stream import take_passages
 from console.analysis.sections.engine import SectionsResult

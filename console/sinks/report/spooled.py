@@ -39,7 +39,7 @@ from console.sinks.tables.section_history import LedgerText, SectionsSink
 if TYPE_CHECKING:
     import pandas as pd
 
-TRAIN_KIND = 0  # diagnostics.PASSAGE_KINDS.index("train")
+TRAIN_KIND = 0  # passage_frame.PASSAGE_KINDS.index("train")
 # Where the document holds the section history's rows: doc → "sections" → "timeline" / "ledger" → a row.
 ROW_DEPTH = 3
 # What the speed plot reads of a passage besides its head and start, as the spool keeps it.
@@ -165,13 +165,13 @@ class PassageFrameRows(Rows):
         self.passages = passages
 
     def _items(self) -> Iterator[Any]:
-        from console.analysis.passages.diagnostics import passages_json_text
+        from console.analysis.passages.frame_json import passages_json_text
 
         return iter(json.loads(passages_json_text(self.passages)))
 
     def write_json(self, write: Write, depth: int) -> None:
-        from console.analysis.passages.diagnostics import frame_columns
         from console.analysis.passages.json_text import indented_objects
+        from console.analysis.passages.passage_frame import frame_columns
 
         found = frame_columns(self.passages) if self.count else None
         blobs = indented_objects(*found, depth) if found is not None else None
@@ -195,7 +195,7 @@ class PassageColumnRows(Rows):
         self.heads = heads
 
     def _table(self) -> PassageFrameRows:
-        from console.analysis.passages.diagnostics import passages_frame
+        from console.analysis.passages.passage_frame import passages_frame
 
         return PassageFrameRows(passages_frame(self.cols, self.heads))
 

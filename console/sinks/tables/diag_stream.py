@@ -52,7 +52,8 @@ class JsonLinesOut(Sink):
 
         text = encode_passages(cols, heads, workers=1, lines_of_type="passage")
         if text is None:  # text the byte encoder does not cover: pandas' encoder
-            from console.analysis.passages.diagnostics import passages_frame, passages_json_text
+            from console.analysis.passages.frame_json import passages_json_text
+            from console.analysis.passages.passage_frame import passages_frame
 
             rows = json.loads(passages_json_text(passages_frame(cols, heads)))
             text = "".join(line({"type": "passage", **p}) for p in rows)

@@ -18,7 +18,7 @@ from parsers.report import ParseReport
 
 if TYPE_CHECKING:  # the parse report tables (gnss) need neither the analysis nor Arrow behind it
     from console.analysis.inventory import DeviceInventory
-    from console.analysis.passages.diagnostics import DiagAnalysis
+    from console.analysis.passages.diag_analysis import DiagAnalysis
     from console.sinks.tables.passage_spool import FirstPassages
 
 REJECTIONS_SHOWN = 20
@@ -171,7 +171,7 @@ def _listed_passages(
 
     With a limit, only the rows shown are looked up: a log of a million heads has a passage per head.
     """
-    from console.analysis.passages.diagnostics import PASSAGE_KINDS
+    from console.analysis.passages.passage_frame import PASSAGE_KINDS
 
     cols = analysis.passage_columns
     if first is not None and cols is None:  # the job kept only the first rows (analyze's text face)
@@ -192,7 +192,7 @@ def _listed_passages(
 
 
 def _shown_columns(cols: Any, analysis: DiagAnalysis) -> dict[str, np.ndarray]:
-    """The shown columns from ``diagnostics._passages`` columns (codes turned into names), without pandas."""
+    """The shown columns from ``passage_columns.passage_columns`` columns (codes turned into names), without pandas."""
     from console.analysis.counting.wheels import DIRECTION_12, DIRECTION_21
     from console.analysis.head_table import heads_at
 

@@ -49,7 +49,8 @@ def passage_texts(cols: Columns, heads: Heads) -> list[str]:
     if text is not None:
         return ["{" + line[len(_PREFIX) :] for line in text.splitlines()]
     # Text the byte encoder does not cover: pandas' encoder, as for a whole read.
-    from console.analysis.passages.diagnostics import passages_frame, passages_json_text
+    from console.analysis.passages.frame_json import passages_json_text
+    from console.analysis.passages.passage_frame import passages_frame
     from console.jsonout import encode
 
     return [encode(p) for p in json.loads(passages_json_text(passages_frame(cols, heads)))]
