@@ -91,7 +91,7 @@ from console.archive.ingest_job import IngestJob
 from console.archive.store import ensure_layout, read_current
 root = Path(sys.argv[2])
 ensure_layout(root)
-job = IngestJob(root, read_current(root), None)
+job = IngestJob(root, read_current(root), None, None)  # no on_bytes, no derivation: the read alone
 for path, shown in expand_inputs([Path(sys.argv[1])], root):
     job.add_file(path, shown)
 finish_records(job)
