@@ -85,14 +85,16 @@ def run(cmd: list[str], keep_stdout: bool = False, cwd: Path | None = None) -> t
 READ_ONLY = """
 import sys
 from pathlib import Path
-from console.archive.ingest import _Ingest, expand_inputs
+from console.archive.ingest_finish import finish_records
+from console.archive.ingest_inputs import expand_inputs
+from console.archive.ingest_job import IngestJob
 from console.archive.store import ensure_layout, read_current
 root = Path(sys.argv[2])
 ensure_layout(root)
-job = _Ingest(root, read_current(root), None)
+job = IngestJob(root, read_current(root), None, None)  # no on_bytes, no derivation: the read alone
 for path, shown in expand_inputs([Path(sys.argv[1])], root):
     job.add_file(path, shown)
-job.finish_records()
+finish_records(job)
 """
 
 

@@ -68,7 +68,7 @@ def main() -> None:
     one_malloc_arena()  # as the ingest command does, before pyarrow is imported
     import pyarrow as pa
 
-    from console.archive import derive, ingest, parts
+    from console.archive import derive, ingest, ingest_summary, parts
 
     shutil.rmtree(args.archive, ignore_errors=True)
     writers: list[Any] = []
@@ -81,7 +81,7 @@ def main() -> None:
         init(self, *a, **k)
         writers.append(self)
 
-    lap = ingest._PhaseClock.lap
+    lap = ingest_summary.PhaseClock.lap
 
     def marked_lap(self: Any, name: str) -> None:
         lap(self, name)
@@ -97,7 +97,7 @@ def main() -> None:
         return out
 
     parts.PartWriter.__init__ = counted_init  # type: ignore[method-assign]
-    ingest._PhaseClock.lap = marked_lap  # type: ignore[method-assign]
+    ingest_summary.PhaseClock.lap = marked_lap  # type: ignore[method-assign]
     derive.derive_days = marked_derive_days
 
     stop = threading.Event()

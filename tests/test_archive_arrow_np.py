@@ -88,12 +88,13 @@ def test_an_ingests_read_does_not_import_pandas(tmp_path: Path) -> None:
         import sys
         from pathlib import Path
         import console.archive.ingest as ingest
-        lap = ingest._PhaseClock.lap
+        import console.archive.ingest_summary as ingest_summary
+        lap = ingest_summary.PhaseClock.lap
         seen = {{}}
         def watch(self, name):
             lap(self, name)
             seen.setdefault(name, "pandas" in sys.modules)
-        ingest._PhaseClock.lap = watch
+        ingest_summary.PhaseClock.lap = watch
         summary = ingest.run_ingest([Path({str(SAMPLES / "ws4_subsecond.log")!r})], Path({str(tmp_path / "arc")!r}))
         assert summary.records > 0, summary.records
         print(seen["read"])

@@ -87,7 +87,8 @@ def test_a_grown_file_is_read_from_where_the_last_ingest_stopped(tmp_path: Path)
 def test_each_ingest_of_a_growing_file_leaves_one_part_per_day_and_board(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import console.archive.ingest as ingest_module
+    from console.archive import ingest_finish
+    from console.archive.ingest import run_ingest
 
     lines = STATION.read_bytes().splitlines(keepends=True)
     log = tmp_path / "growing.log"
@@ -109,10 +110,10 @@ def test_each_ingest_of_a_growing_file_leaves_one_part_per_day_and_board(
     on_disk = {str(p.relative_to(arc)) for p in (arc / "data" / "records").rglob(f"g{gen:06d}-*.parquet")}
     assert on_disk == {rel for rel in read_current(arc).parts("records") if f"g{gen:06d}-" in rel}
     # A partition whose parts would exceed the compaction limit keeps them apart.
-    monkeypatch.setattr(ingest_module, "COMPACT_MAX_ROWS", 10)
+    monkeypatch.setattr(ingest_finish, "COMPACT_MAX_ROWS", 10)
     more = tmp_path / "more.log"
     more.write_bytes(b"".join(lines[:50]).replace(b"Diag_id:", b"Diag_id:9", 1))
-    run = ingest_module.run_ingest([more], arc)
+    run = run_ingest([more], arc)
     assert run.published
     folders = [str(Path(rel).parent) for rel in read_current(arc).parts("records")]
     assert len(folders) > len(set(folders))
@@ -160,10 +161,10 @@ def test_rejected_lines_are_kept_with_file_line_and_reason(tmp_path: Path) -> No
 def test_every_rejected_line_of_a_mostly_bad_file_is_archived(tmp_path: Path) -> None:
     # More rejections than a parse report lists (1000) and than one batch to the writer: every one is
     # stored, in line order, beside the good records; none is lost when the in-memory list is capped.
-    from console.archive import ingest
+    from console.archive.parse_pass import REJECTED_BATCH_ROWS
 
     good = (SAMPLES / "osong_ws4_0932_detection.log").read_bytes().splitlines(keepends=True)
-    bad = [f"junk {i}\n".encode() for i in range(2 * ingest.REJECTED_BATCH_ROWS + 7)]
+    bad = [f"junk {i}\n".encode() for i in range(2 * REJECTED_BATCH_ROWS + 7)]
     log = tmp_path / "mostly_bad.log"
     log.write_bytes(b"".join(good[:3] + bad + good[3:]))
     arc = tmp_path / "arc"
