@@ -12,7 +12,8 @@ import argparse
 import time
 
 from console.layout import load_layout
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 
 
 def main() -> None:

@@ -22,7 +22,7 @@ import numpy as np
 
 from console.analysis.counting.wheels import HeadCounter
 from console.analysis.events.detection import EventKind
-from console.sim.station import coil_edges
+from console.sim.head_reports import coil_edges
 
 NS = 1_000_000_000
 

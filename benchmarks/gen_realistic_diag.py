@@ -14,7 +14,7 @@ survive:
   a status record (Adr 000) every minute while a head is idle;
 * trains (the example line's consists) at 20-120 km/h in both directions;
   wheel edge times come from the simulator's own coil model
-  (:func:`console.sim.station.coil_edges`), so the truth is the simulator's;
+  (:func:`console.sim.head_reports.coil_edges`), so the truth is the simulator's;
 * about one line in 2000 is an extra, damaged line (cut short, a year out of
   range, binary junk): it must be rejected, and it never replaces a record.
 
@@ -44,7 +44,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from console.layout import load_layout  # noqa: E402
-from console.sim.station import coil_edges  # noqa: E402
+from console.sim.head_reports import coil_edges  # noqa: E402
 
 NS = 1_000_000_000
 RESOLUTIONS = ("us", "ms", "s")

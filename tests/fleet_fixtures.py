@@ -102,7 +102,8 @@ def simulate_over_midnight(
     simulator injects them.
     """
     from console.layout import load_layout
-    from console.sim.station import SimConfig, StationSim
+    from console.sim.line_values import SimConfig
+    from console.sim.station import StationSim
     from console.sim.writers import write_diagnostic
 
     lines: list[str] = []

@@ -21,7 +21,8 @@ from hypothesis import strategies as st
 from console.archive.ingest import run_ingest
 from console.archive.views import run_query
 from console.layout import load_layout
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from console.sim.writers import write_diagnostic
 from parsers.units import NS, NS_PER_DAY
 from tests.reads import whole_job

@@ -197,7 +197,8 @@ def test_follow_tells_the_step_as_it_reads_it(tmp_path: Path) -> None:
 def _simulated_runs(root: Path, seeds: range) -> list[tuple[Path, dict[str, list[tuple[int, int]]], int, int]]:
     """Simulated hours (trains both ways, the example layout): each run's log, its true axles per section
     (a step function in ns), and its start and end."""
-    from console.sim.station import SimConfig, StationSim
+    from console.sim.line_values import SimConfig
+    from console.sim.station import StationSim
     from console.sim.writers import write_run
 
     out = []

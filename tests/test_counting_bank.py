@@ -39,7 +39,8 @@ from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.passages.stream import ORDER_SLACK_S
 from console.layout import Layout, load_layout
 from console.sim.faults import Fault
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from console.sim.writers import write_diagnostic
 from tests.reads import whole_job
 

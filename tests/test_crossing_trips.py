@@ -18,7 +18,8 @@ from console.analysis.crossing.timeline import timeline
 from console.analysis.crossing.values import EOT, HEAD, Fix, TrainSpec
 from console.cli.app import app
 from console.layout import load_layout
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from console.sim.writers import write_run
 from parsers.units import NS
 

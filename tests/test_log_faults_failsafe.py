@@ -45,7 +45,8 @@ def _ns(iso_text: str) -> int:
 def runs(tmp_path_factory: pytest.TempPathFactory) -> list[tuple[Path, dict[str, list[tuple[int, int]]], int]]:
     """Simulated hours (trains both ways, the example layout): each run's directory, its true axles per section
     (a step function in ns) and its end."""
-    from console.sim.station import SimConfig, StationSim
+    from console.sim.line_values import SimConfig
+    from console.sim.station import StationSim
     from console.sim.writers import write_run
 
     root = tmp_path_factory.mktemp("faults")

@@ -43,7 +43,8 @@ from console.inputs.base import LineBlock
 from console.layout import Layout, load_layout
 from console.live.engine import LiveEngine
 from console.sim.faults import Fault
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from tests.fleet_fixtures import local_cluster, simulate_over_midnight
 
 RUNS = int(os.environ.get("TRACKSIDE_ONE_ENGINE_RUNS", 2))

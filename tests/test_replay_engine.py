@@ -19,7 +19,8 @@ import pytest
 
 from console.layout import load_layout
 from console.sim.faults import Fault
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from console.sim.writers import write_run
 from console.tui.replay_source import ReplaySource
 

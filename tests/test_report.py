@@ -37,7 +37,8 @@ from console.inputs.recognise import expand, natural_key
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
 from console.output_path import write_atomic
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from console.sim.writers import write_run
 from console.sinks.report import command, html
 from console.sinks.report.command import run_report

@@ -31,7 +31,8 @@ from console.analysis.sections.state import LedgerEntry, SectionState, Transitio
 from console.jsonout import valid_unicode
 from console.layout import load_layout
 from console.sim.faults import Fault
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from console.sim.writers import write_run
 from console.sinks.report import command, markdown, outline
 from console.sinks.report.collect import collect

@@ -15,7 +15,8 @@ from console.analysis.integrity.monitor import PARTED, WHOLE, IntegrityEvent
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
 from console.sim.faults import Fault
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from parsers.units import NS
 
 TRACKSIDE = Path(sys.executable).with_name("trackside")

@@ -16,8 +16,9 @@ from console.archive.views import connect
 from console.cli.app import app
 from console.layout import load_layout
 from console.sim.faults import Fault
+from console.sim.line_values import SimConfig
 from console.sim.slow_faults import DEFAULT_RATES, HealthRows, threshold_crossings
-from console.sim.station import SimConfig, StationSim
+from console.sim.station import StationSim
 
 runner = CliRunner()
 DAY = 86_400.0

@@ -16,8 +16,9 @@ from console.cli.app import app
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
 from console.sim.faults import Fault
+from console.sim.line_values import SimConfig
 from console.sim.radio import LoRaLink
-from console.sim.station import SimConfig, StationSim
+from console.sim.station import StationSim
 from console.sim.writers import write_run
 from tests.reads import whole_job
 

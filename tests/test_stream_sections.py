@@ -40,7 +40,8 @@ from console.engine.pipeline import HEALTH_REGISTERS
 from console.jsonout import dumps
 from console.layout import Layout, load_layout
 from console.sim.faults import Fault
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from console.sim.writers import write_diagnostic
 from console.sinks.tables.section_history import LedgerText, SectionsSink, ledger_json
 from console.sinks.tables.section_tables import sections_json

@@ -26,7 +26,8 @@ from benchmarks.gen_realistic_diag import generate
 from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.passages.status import STATUS_KIND
 from console.layout import load_layout
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from console.sim.writers import write_diagnostic
 from tests.reads import DiagJob, stream_job, whole_job
 

@@ -29,7 +29,8 @@ from console.analysis.passages.speed_settings import SpeedSettings
 from console.cli.app import app
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from console.sim.writers import write_diagnostic
 from tests.conftest import record
 from tests.reads import whole_job

@@ -46,7 +46,8 @@ from console.sim.diag_lines import (
     wheel_rows,
 )
 from console.sim.gnss_rows import as_written, unit_name
-from console.sim.station import SentFix, StationSim, StepResult
+from console.sim.line_values import SentFix, StepResult
+from console.sim.station import StationSim
 from parsers.units import NS
 
 Emit = Callable[[dict[str, Any]], None]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 
 from console.analysis.timefmt import iso
-from console.sim.station import SentFix
+from console.sim.line_values import SentFix
 
 DEVICE_STREAM_HEADER = "time,device,role,lat,lon,speed,course"
 

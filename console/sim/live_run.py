@@ -28,7 +28,8 @@ from console.sim.diag_lines import (
     in_order_lines,
     wheel_rows,
 )
-from console.sim.station import SentFix, StationSim, StepResult
+from console.sim.line_values import SentFix, StepResult
+from console.sim.station import StationSim
 from console.sim.writers import nmea_sentences, truth
 from parsers.gnss.lora import UnitReport, chirpstack_topic, chirpstack_uplink, encode_payload
 

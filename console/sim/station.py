@@ -6,18 +6,22 @@ by hand).  Each step:
 
 1. trains move under their speed control along the speed limits, platform
    stops and the train ahead (a simple protection rule keeps followers
-   behind and opposing trains off the line);
+   behind and opposing trains off the line: :mod:`console.sim.train_motion`);
+   a train parts on demand, its rear part braking to a stop
+   (:mod:`console.sim.parting`);
 2. every wheel passing a counting head damps Sys1 and Sys2 over the
    detection zone: onset and release times are interpolated exactly inside
    the step; faults on demand alter what the heads *report* (a head without
-   power reports nothing, status records included);
+   power reports nothing, status records included: :mod:`console.sim.head_reports`);
 3. each head's device writes a status record every heartbeat, and counts its
    own axles as an intelligent sensor does (:mod:`console.sim.sensor_count`);
 4. head and EOT GNSS units send fixes every radio report period (LoRa duty
    cycle), with noise; the radio loses some and delivers the rest after its
-   latency;
+   latency (:mod:`console.sim.gnss_units`);
 5. the **truth** (every axle at every head, true section occupancy, true
-   head and tail times at crossings) is kept beside it.
+   head and tail times at crossings) is kept beside it, here.
+
+The settings and the values passed between these parts are in :mod:`console.sim.line_values`.
 
 What the devices reported in a step (:class:`StepResult`) goes to the
 console watching the line, when one is attached (:meth:`StationSim.attach`):
@@ -27,143 +31,28 @@ files would feed ``trackside follow`` (:mod:`console.live.simulated`).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
-from console.analysis.counting.wheels import SYS1, SYS2
-from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, CrossingEvent
+from console.analysis.crossing.values import ControllerSettings
 from console.analysis.geo import TrackProjector
-from console.layout import Consist, Layout
-from console.sim import brake_pipe as bp
+from console.layout import Layout
 from console.sim.devices import line_devices, with_devices
-from console.sim.dynamics import LEVEL_LINE, TrainState, scaled_train
 from console.sim.faults import Fault
-from console.sim.parting import PartingTruth, braking_step, part_consist, split_axles
-from console.sim.radio import LoRaLink
+from console.sim.gnss_units import radio_delivery, unit_fixes
+from console.sim.head_reports import fault_records, heartbeats_until, reported_records, wheel_edges
+from console.sim.line_values import Console, SentFix, SimConfig, SimTrain, StepResult, TruthAxle, WheelRecord
+from console.sim.parting import PartingTruth, brake_pipe_step, braking_step, part_train
 from console.sim.sensor_count import SensorCounts
-from console.sim.slow_faults import HeadHealth, HealthRows, HealthSettings, unit_loss
+from console.sim.slow_faults import HeadHealth, HealthRows, HealthSettings
+from console.sim.train_motion import CONTROLLERS, ato_motion, speed_limit_mps, stop_check, target_speed_mps
 from parsers.units import NS
 
-DETECTION_ZONE_M = 0.25  # a wheel damps a coil over this length of travel
 # The truth's head arrival and tail clearance at a crossing: at the road's half width (the crossing units' figure).
 CROSSING_HALF_WIDTH_M = ControllerSettings().crossing_half_width_m
 ENTRY_ROOM_M = 400.0  # a new train enters only this far behind the tail of the one before it
-
-
-@dataclass(frozen=True)
-class SimConfig:
-    seed: int = 1
-    trains_per_hour: float = 6.0
-    first_train_s: float = 60.0
-    dwell_s: float = 30.0
-    accel_mps2: float = 0.6
-    brake_mps2: float = 0.7
-    gnss_noise_m: float = 3.0
-    gnss_loss: float = 0.05
-    radio: LoRaLink = field(default_factory=LoRaLink)
-    heartbeat_s: float = 20.0  # each head's device writes a status record this often
-    faults: tuple[Fault, ...] = ()
-    start_ns: int = 1_772_438_400 * NS  # 2026-03-02 08:00 UTC
-    # Each head's health registers (1-edge counters, analog values) every this often; None: not written,
-    # unless a slow fault on a head needs them (then every HealthSettings.period_s).
-    health_period_s: float | None = None
-    fleet: int = 0  # > 0: trains are this many trainsets, T1..Tn, each with its own units, making trip after trip
-
-
-@dataclass
-class SimTrain:
-    id: str
-    consist: Consist
-    direction: int
-    x_m: float  # head chainage
-    v_mps: float = 0.0
-    entered_s: float = 0.0
-    dwell_until_s: float | None = None
-    stops: list[float] = field(default_factory=list)  # head chainages to stop at, in order
-    done: bool = False
-    next_head_fix_s: float = 0.0
-    next_eot_fix_s: float = 0.0
-    controller: str = "pid"
-    driver: Any = None  # the ATO driver (console.sim.ato.Driver) when the force model runs the train
-    travelled_m: float = 0.0
-    units: tuple[str, ...] = ("head", "eot")  # the GNSS units riding on it
-    axle_offset: int = 0  # a rear part's first axle, in the whole consist's numbering
-    rear: SimTrain | None = None  # the rear part, once the train has parted
-    pipe_bar: float = bp.NOMINAL_BAR  # its brake pipe (both ends: the reduction's travel is neglected)
-    vent_from_s: float | None = None  # a rear part: its pipe vents from then (the break's wave at the EOT)
-    alarms_s: list[float] = field(default_factory=list)  # the EOT unit's emergency statuses still to send
-
-    @property
-    def tail_m(self) -> float:
-        return self.x_m - self.direction * self.consist.length_m
-
-
-@dataclass(frozen=True)
-class TruthAxle:
-    """One wheel passing one head's centre, as it really happened."""
-
-    train: str
-    head: str
-    axle: int
-    time_ns: int
-    speed_mps: float
-    direction: int
-
-
-@dataclass(frozen=True)
-class WheelRecord:
-    t_ns: int
-    head: str
-    channel: int
-    value: int  # 1 damped, 0 free
-
-
-@dataclass(frozen=True)
-class SentFix:
-    """A GNSS fix as a unit sends it (written to NMEA; the radio delivers it, or not, after its latency)."""
-
-    t_ns: int
-    train: str
-    role: str
-    lat: float
-    lon: float
-    speed_mps: float
-    course_deg: float
-    valid: bool
-    brake_pipe_bar: float = math.nan  # the unit's end of the brake pipe (the LoRa payload's version 2)
-    emergency: bool = False  # the unit's emergency status: its brake pipe venting, sent at once
-
-
-@dataclass
-class StepResult:
-    """What the devices reported in one step (each list in time order), up to ``t_ns``."""
-
-    t_ns: int
-    records: list[WheelRecord]  # wheel-sensor onsets and releases, as the heads report them
-    heartbeats: list[tuple[int, str]]  # (time, head): each powered head's status record
-    health: list[HealthRows]  # the heads' health registers written in this step
-    fixes: list[SentFix]  # fixes the units sent (their own logs: NMEA)
-    received: list[SentFix]  # fixes the radio delivered (sent earlier, less those it lost), in delivery order
-
-
-class Console(Protocol):
-    """What watches the simulated line: the station's console (console.live.simulated)."""
-
-    def take(self, step: StepResult) -> None:
-        """A step's reports."""
-
-    def finish(self) -> None:
-        """The run ends: what the console still holds is decided."""
-
-    def section_states(self) -> dict[str, str]:
-        """Each section's state as the console shows it."""
-
-    def crossing_events(self) -> dict[str, list[CrossingEvent]]:
-        """Each crossing unit's events so far (warnings on and off, alarms)."""
 
 
 class StationSim:
@@ -273,12 +162,12 @@ class StationSim:
             x0, v0 = tr.x_m, tr.v_mps
             if tr.rear is None and tr.v_mps > 1.0:
                 self._parting(tr, t0)
-            target = self._target_speed(tr, t0)
+            target = target_speed_mps(self.layout, tr, t0, self.cfg.brake_mps2, [*self.active, *self.rears])
             tr.x_m, tr.v_mps = self.motion(tr, target, dt_s, self.cfg)
-            self._pipe(tr, (tr.v_mps - v0) / dt_s if dt_s > 0 else 0.0, t1, dt_s)
+            brake_pipe_step(tr, (tr.v_mps - v0) / dt_s if dt_s > 0 else 0.0, t1, dt_s)
             if tr.dwell_until_s is not None and t1 >= tr.dwell_until_s:
                 tr.dwell_until_s = None
-            self._stop_check(tr, t1)
+            stop_check(tr, t1, self.cfg.dwell_s)
             records += self._wheels(tr, x0, tr.x_m, t0, t1, v0)
             fixes += self._gnss(tr, t0, t1, x0)
             if (tr.direction > 0 and tr.tail_m > self.line_end + 50) or (
@@ -293,12 +182,12 @@ class StationSim:
                 rear.x_m = x0 + rear.direction * (rear.travelled_m - before)
                 if rear.v_mps == 0.0:
                     self._rear_stopped(rear, t1)
-            self._pipe(rear, 0.0, t1, dt_s)
+            brake_pipe_step(rear, 0.0, t1, dt_s)
             records += self._wheels(rear, x0, rear.x_m, t0, t1, v0)
             fixes += self._gnss(rear, t0, t1, x0)
         self.active = [t for t in self.active if not t.done]
-        records += self._sensor_faults(t0, t1)
-        records = self._reported(records, t0)
+        records += fault_records(self.faults, self.cfg.start_ns, t0, t1)
+        records = reported_records(records, self.faults, self.cfg.start_ns, self._swallowed, self.rng)
         records.sort(key=lambda r: (r.t_ns, r.head, r.channel))
         self.all_records += records
         self.sensors.feed(
@@ -307,7 +196,10 @@ class StationSim:
             [r.t_ns for r in records],
             [r.value for r in records],
         )
-        beats = self._heartbeat(t1)
+        beats, self._next_heartbeat_s = heartbeats_until(
+            self.layout, self.faults, self.cfg.start_ns, self._next_heartbeat_s, self.cfg.heartbeat_s, t1
+        )
+        self.heartbeats += beats
         health: list[HealthRows] = []
         if self.health is not None and self.health.next_s < t1:
             health.append(self.health.until(t1, self.cfg.start_ns))
@@ -384,7 +276,7 @@ class StationSim:
         stops = sorted(((p.to_m - 15.0) if d > 0 else (p.from_m + 15.0) for p in self.layout.platforms), reverse=d < 0)
         tr = SimTrain(name, consist, d, start, 0.0, self.t_s, stops=stops)
         tr.controller = CONTROLLERS[k % len(CONTROLLERS)]
-        tr.v_mps = min(self.layout.line_speed_mps, self._limit(tr, start))
+        tr.v_mps = min(self.layout.line_speed_mps, speed_limit_mps(self.layout, tr, start))
         tr.next_head_fix_s = self.t_s + float(self.rng.uniform(0, self.period_s))
         tr.next_eot_fix_s = self.t_s + float(self.rng.uniform(0, self.period_s))
         self.trains.append(tr)
@@ -417,90 +309,14 @@ class StationSim:
             return self.active[0].direction
         return 1 if self._spawned % 2 == 0 else -1
 
-    def _limit(self, tr: SimTrain, x: float) -> float:
-        """The speed limit for the whole train at head position x."""
-        lo, hi = sorted((x, x - tr.direction * tr.consist.length_m))
-        v = self.layout.line_speed_mps
-        for lim in self.layout.speed_limits:
-            if lim.to_m > lo and lim.from_m < hi:
-                v = min(v, lim.limit_mps)
-        return v
-
-    def _target_speed(self, tr: SimTrain, t_s: float) -> float:
-        if tr.dwell_until_s is not None:
-            return 0.0
-        b = self.cfg.brake_mps2 * 0.8  # plan with a margin on the service brake
-        v = self._limit(tr, tr.x_m)
-        # Lower limits ahead and the next stop: the speed from which the train can still brake.
-        for lim in self.layout.speed_limits:
-            edge = lim.from_m if tr.direction > 0 else lim.to_m
-            dist = tr.direction * (edge - tr.x_m)
-            if 0 < dist < 2000 and lim.limit_mps < v:
-                v = min(v, math.sqrt(lim.limit_mps**2 + 2 * b * dist))
-        if tr.stops:
-            dist = tr.direction * (tr.stops[0] - tr.x_m)
-            v = min(v, math.sqrt(max(0.0, 2 * b * max(dist - 1.0, 0.0))))
-        # Protection: stay 80 m behind the train ahead (or a parted train's rear part, standing).
-        for other in [*self.active, *self.rears]:
-            if other is tr or other.direction != tr.direction:
-                continue
-            gap = tr.direction * (other.tail_m - tr.x_m) - 80.0
-            if tr.direction * (other.x_m - tr.x_m) > 0:
-                v = min(v, math.sqrt(max(0.0, 2 * b * gap)) if gap > 0 else 0.0)
-        return v
-
-    def _stop_check(self, tr: SimTrain, t_s: float) -> None:
-        if tr.stops and tr.dwell_until_s is None:
-            dist = tr.direction * (tr.stops[0] - tr.x_m)
-            if dist < 2.0 and tr.v_mps < 0.3:
-                tr.v_mps = 0.0
-                tr.dwell_until_s = t_s + self.cfg.dwell_s
-                tr.stops.pop(0)
-
     # -- partings ------------------------------------------------------------
     def _parting(self, tr: SimTrain, t_s: float) -> None:
-        """Part ``tr`` now if a ``train_parting`` fault says so (it parts while running, under pull)."""
-        if not any(f.kind == "train_parting" and f.target == tr.id and f.start_s <= t_s for f in self.faults):
-            return
-        k = split_axles(tr.consist)
-        front, rear_consist = part_consist(tr.consist, k)
-        rear_front_m = tr.x_m - tr.direction * tr.consist.axles_m[k]
-        rear = SimTrain(
-            tr.id,
-            rear_consist,
-            tr.direction,
-            rear_front_m,
-            tr.v_mps,
-            t_s,
-            controller="parted",
-            units=(EOT,),
-            axle_offset=k,
-            next_eot_fix_s=tr.next_eot_fix_s,
-            pipe_bar=tr.pipe_bar,
-            # The hoses part: the rear part's pipe vents from the break, the wave reaching its EOT unit
-            # after the rear part's length.
-            vent_from_s=t_s + rear_consist.length_m / bp.WAVE_MPS,
-        )
-        tr.consist, tr.units, tr.rear = front, (HEAD,), rear
-        self.rears.append(rear)
-        self.truth_partings.append(
-            PartingTruth(tr.id, self.cfg.start_ns + round(t_s * NS), tr.v_mps, tr.x_m, k, len(rear_consist.axles_m))
-        )
-
-    def _pipe(self, tr: SimTrain, accel_mps2: float, t1: float, dt_s: float) -> None:
-        """The train's brake pipe after a step: lowered for service braking, vented from ``vent_from_s``;
-        the EOT unit, seeing it vent, queues its emergency status (sent at once, repeated)."""
-        before = tr.pipe_bar
-        if tr.vent_from_s is not None and t1 >= tr.vent_from_s:
-            tr.pipe_bar = max(0.0, before - bp.VENT_BAR_S * dt_s)
-        else:
-            service = min(1.0, max(0.0, -accel_mps2 / bp.FULL_SERVICE_MPS2))
-            want = bp.NOMINAL_BAR - bp.FULL_SERVICE_DROP_BAR * service
-            rate = bp.SERVICE_BAR_S if want < before else bp.RECHARGE_FRONT_BAR_S
-            tr.pipe_bar = max(want, before - rate * dt_s) if want < before else min(want, before + rate * dt_s)
-        seen = dt_s > 0 and (before - tr.pipe_bar) / dt_s > bp.ALARM_FALL_BAR_S
-        if seen and EOT in tr.units and not tr.alarms_s and tr.vent_from_s is not None:
-            tr.alarms_s = [t1 + k * bp.ALARM_GAP_S for k in range(bp.ALARM_REPEATS)]
+        """Part ``tr`` now if a ``train_parting`` fault says so: its rear part stays on the line, braking."""
+        parted = part_train(tr, t_s, self.faults, self.cfg.start_ns)
+        if parted is not None:
+            rear, truth = parted
+            self.rears.append(rear)
+            self.truth_partings.append(truth)
 
     def _rear_stopped(self, rear: SimTrain, t_s: float) -> None:
         for rec in self.truth_partings:
@@ -508,31 +324,12 @@ class StationSim:
                 rec.t_rear_stopped_ns = self.cfg.start_ns + round(t_s * NS)
                 rec.rear_stop_front_m, rec.rear_stop_tail_m = rear.x_m, rear.tail_m
 
-    # -- counting heads -------------------------------------------------------
+    # -- counting heads and the truth at them -----------------------------------
     def _wheels(self, tr: SimTrain, x0: float, x1: float, t0: float, t1: float, v0: float) -> list[WheelRecord]:
-        """Onsets and releases of every coil the train's wheels passed in this step."""
-        out: list[WheelRecord] = []
-        if x1 == x0:
-            return out
-        axles = np.asarray(tr.consist.axles_m)
-        d = tr.direction
-        # The wheels run from the head back to the tail, behind the direction of travel.
-        ends = (x0, x1, x0 - d * tr.consist.length_m, x1 - d * tr.consist.length_m)
-        lo, hi = min(ends) - 1, max(ends) + 1
-        for head in self.layout.heads:
-            if not lo <= head.chainage_m <= hi:
-                continue
-            for t, ch, value in coil_edges(
-                head.chainage_m, head.spacing_m, head.up_is_first_channel_first, axles, d, x0, x1, t0, t1
-            ):
-                out.append(WheelRecord(self.cfg.start_ns + int(t * NS), head.id, ch, value))
-            # The truth: each wheel passing the head's centre.
-            p0, p1 = x0 - d * axles, x1 - d * axles
-            passed = (d * (p0 - head.chainage_m) < 0) & (d * (p1 - head.chainage_m) >= 0)
-            for k in np.flatnonzero(passed):
-                frac = (head.chainage_m - p0[k]) / (p1[k] - p0[k])
-                axle = tr.axle_offset + int(k)
-                self._truth_axle(tr, head.id, axle, t0 + frac * (t1 - t0), v0 + (tr.v_mps - v0) * frac)
+        """Onsets and releases of every coil the train's wheels passed in this step (the truth noted)."""
+        out, passages = wheel_edges(self.layout, self.cfg.start_ns, tr, x0, x1, t0, t1, v0)
+        for head, axle, t_s, v in passages:
+            self._truth_axle(tr, head, axle, t_s, v)
         return out
 
     def _truth_axle(self, tr: SimTrain, head: str, axle: int, t_s: float, v: float) -> None:
@@ -542,120 +339,29 @@ class StationSim:
             n = self.truth_sections[sec.id][-1][1] + sign * tr.direction
             self.truth_sections[sec.id].append((t_ns, n))
 
-    def _sensor_faults(self, t0: float, t1: float) -> list[WheelRecord]:
-        """Records that faults add: isolated pulses and damped heads."""
-        out = []
-        for f in self.faults:
-            if f.kind == "isolated_pulse" and t0 <= f.start_s < t1:
-                t = self.cfg.start_ns + int(f.start_s * NS)
-                out += [WheelRecord(t, f.target, f.channel, 1), WheelRecord(t + NS // 5, f.target, f.channel, 0)]
-            elif f.kind == "damped_head":
-                if t0 <= f.start_s < t1:
-                    out.append(WheelRecord(self.cfg.start_ns + int(f.start_s * NS), f.target, f.channel, 1))
-                if t0 <= f.end_s < t1:
-                    out.append(WheelRecord(self.cfg.start_ns + int(f.end_s * NS), f.target, f.channel, 0))
-        return out
-
-    def _reported(self, records: list[WheelRecord], t0: float) -> list[WheelRecord]:
-        """What the heads report, after dead channels, power loss and missed detections.
-
-        A damping whose onset a fault swallowed loses its release too (even in
-        a later step): a head never reports freeing a coil it never reported
-        damped.
-        """
-        keep = []
-        for r in sorted(records, key=lambda r: r.t_ns):
-            key = (r.head, r.channel)
-            if r.value == 0 and key in self._swallowed:
-                self._swallowed.discard(key)
-                continue
-            t_s = (r.t_ns - self.cfg.start_ns) / NS
-            drop = False
-            for f in self.faults:
-                if f.target != r.head or not f.active(t_s):
-                    continue
-                if f.kind == "power_loss" or (f.kind == "dead_channel" and f.channel == r.channel):
-                    drop = True
-                elif f.kind == "missed_detections" and f.channel == r.channel and r.value == 1:
-                    drop = bool(self.rng.random() < f.probability)
-            if drop and r.value == 1:
-                self._swallowed.add(key)
-            elif not drop:
-                keep.append(r)
-        return keep
-
-    def _heartbeat(self, t1: float) -> list[tuple[int, str]]:
-        """Each powered head's status records up to ``t1`` (a head without power writes none)."""
-        beats = []
-        while self._next_heartbeat_s <= t1:
-            t = self._next_heartbeat_s
-            for h in self.layout.heads:
-                dark = any(f.kind == "power_loss" and f.target == h.id and f.active(t) for f in self.faults)
-                if not dark:
-                    beats.append((self.cfg.start_ns + int(t * NS), h.id))
-            self._next_heartbeat_s += self.cfg.heartbeat_s
-        self.heartbeats += beats
-        return beats
-
-    # -- GNSS units -------------------------------------------------------------
+    # -- GNSS units, the radio, and the truth at the crossings --------------------
     def _gnss(self, tr: SimTrain, t0: float, t1: float, x0: float) -> list[SentFix]:
-        out = []
-        for role in tr.units:
-            attr = "next_head_fix_s" if role == HEAD else "next_eot_fix_s"
-            while getattr(tr, attr) < t1:
-                t = getattr(tr, attr)
-                setattr(tr, attr, t + self.period_s)
-                lost = any(
-                    f.kind == ("head_loss" if role == HEAD else "eot_loss") and f.target == tr.id and f.active(t)
-                    for f in self.faults
-                )
-                if lost and t >= t0:
-                    key = (str(tr.id), role)
-                    self.reports_lost[key] = self.reports_lost.get(key, 0) + 1
-                if lost or t < t0:
-                    continue
-                p_lost = unit_loss(self.faults, f"{tr.id}-{role}", t)
-                if p_lost > 0 and self._unit_rng.random() < p_lost:
-                    continue  # a wearing unit (gnss_decay): the report is never sent
-                frac = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
-                head_x = x0 + frac * (tr.x_m - x0)
-                x = head_x if role == HEAD else head_x - tr.direction * tr.consist.length_m
-                out.append(self._sent(tr, role, t, x))
-        # The EOT unit's emergency statuses due in this step: each a fresh report, the flag set.
-        while tr.alarms_s and tr.alarms_s[0] < t1 and EOT in tr.units:
-            t = max(tr.alarms_s.pop(0), t0)
-            if any(f.kind == "eot_loss" and f.target == tr.id and f.active(t) for f in self.faults):
-                continue
-            frac = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
-            x = x0 + frac * (tr.x_m - x0) - tr.direction * tr.consist.length_m
-            out.append(self._sent(tr, EOT, t, x, emergency=True))
-        return out
-
-    def _sent(self, tr: SimTrain, role: str, t: float, x: float, emergency: bool = False) -> SentFix:
-        rng = self._alarm_rng if emergency else self.rng  # the periodic fixes' draws are as they were
-        plat, plon = self.proj.position(x)
-        lat = float(plat[0]) + float(rng.normal(0, self.cfg.gnss_noise_m)) / self.proj.m_per_deg_lat
-        lon = float(plon[0]) + float(rng.normal(0, self.cfg.gnss_noise_m)) / self.proj.m_per_deg_lon
-        course = (self.proj.bearing_deg(x) + (0.0 if tr.direction > 0 else 180.0)) % 360.0
-        speed = max(0.0, tr.v_mps + float(rng.normal(0, 0.1)))
-        bar = round(tr.pipe_bar * 20) / 20  # the payload's 0.05 bar
-        return SentFix(self.cfg.start_ns + int(t * NS), tr.id, role, lat, lon, speed, course, True, bar, emergency)
+        return unit_fixes(
+            tr,
+            t0,
+            t1,
+            x0,
+            faults=self.faults,
+            period_s=self.period_s,
+            proj=self.proj,
+            noise_m=self.cfg.gnss_noise_m,
+            start_ns=self.cfg.start_ns,
+            reports_lost=self.reports_lost,
+            rng=self.rng,
+            unit_rng=self._unit_rng,
+            alarm_rng=self._alarm_rng,
+        )
 
     def _radio(self, sent: list[SentFix], t1: float) -> list[SentFix]:
-        """The radio: it loses some of the fixes sent and delivers the others after its latency; those due by
-        ``t1``, in delivery order.  (The truth at the crossings is noted here too, once per step.)"""
-        latency_ns = int(self.latency_s * NS)
-        for f in sent:
-            if self.rng.random() < self.cfg.gnss_loss:
-                continue
-            self._in_flight.append((f.t_ns + latency_ns, f))
-        self._in_flight.sort(key=lambda x: x[0])
+        """The fixes the radio delivers by ``t1``.  (The truth at the crossings is noted here too, once per
+        step.)"""
         now = self.cfg.start_ns + int(t1 * NS)
-        due = 0
-        while due < len(self._in_flight) and self._in_flight[due][0] <= now:
-            due += 1
-        received = [f for _, f in self._in_flight[:due]]
-        del self._in_flight[:due]
+        received = radio_delivery(sent, self._in_flight, now, self.latency_s, self.cfg.gnss_loss, self.rng)
         self.all_received += received
         self._truth_crossings(t1)
         return received
@@ -681,61 +387,3 @@ class StationSim:
                     rec["t_head_arrival_ns"] = now
                 if rec["t_tail_clear_ns"] is None and tr.direction * (tail_m - c.chainage_m) >= half:
                     rec["t_tail_clear_ns"] = now
-
-
-def coil_edges(
-    head_m: float,
-    spacing_m: float,
-    sys1_first_up: bool,
-    axles_m: np.ndarray,
-    direction: int,
-    x0: float,
-    x1: float,
-    t0: float,
-    t1: float,
-    zone_m: float = DETECTION_ZONE_M,
-) -> list[tuple[float, int, int]]:
-    """(time s, channel, 1 onset / 0 release) of every coil edge the wheels cross while the
-    head of the train moves from x0 to x1 between t0 and t1 (linear inside the step).
-
-    Sys1 sits on the side an up train reaches first when the head is "Sys1 first up"; a
-    wheel damps a coil while within ``zone_m / 2`` of it.
-    """
-    half = spacing_m / 2
-    c1 = head_m - half if sys1_first_up else head_m + half
-    coils = ((SYS1, c1), (SYS2, 2 * head_m - c1))
-    d = direction
-    p0, p1 = x0 - d * axles_m, x1 - d * axles_m
-    out = []
-    for ch, c in coils:
-        for edge, value in ((c - d * zone_m / 2, 1), (c + d * zone_m / 2, 0)):
-            crossed = (d * (p0 - edge) < 0) & (d * (p1 - edge) >= 0)
-            for k in np.flatnonzero(crossed):
-                frac = (edge - p0[k]) / (p1[k] - p0[k])
-                out.append((t0 + frac * (t1 - t0), ch, value))
-    return out
-
-
-CONTROLLERS = ("pid", "fuzzy", "fuzzy-d")
-
-
-def ato_motion(tr: SimTrain, target_mps: float, dt_s: float, cfg: SimConfig) -> tuple[float, float]:
-    """The train under its ATO controller on the force model (seed 001), on a level, straight line."""
-    from console.sim.ato import Driver
-
-    if tr.driver is None:
-        tr.driver = Driver(scaled_train(tr.consist.length_m), tr.controller)
-    state = tr.driver.step(LEVEL_LINE, TrainState(tr.travelled_m, tr.v_mps), target_mps, dt_s)
-    step_m = state.x_m - tr.travelled_m
-    tr.travelled_m = state.x_m
-    return tr.x_m + tr.direction * step_m, state.v_mps
-
-
-def kinematic_motion(tr: SimTrain, target_mps: float, dt_s: float, cfg: SimConfig) -> tuple[float, float]:
-    """A bounded-acceleration point mass following the target speed (the default motion)."""
-    v0 = tr.v_mps
-    dv = target_mps - v0
-    a = min(cfg.accel_mps2, dv / dt_s) if dv > 0 else max(-cfg.brake_mps2, dv / dt_s)
-    v1 = max(0.0, v0 + a * dt_s)
-    x1 = tr.x_m + tr.direction * 0.5 * (v0 + v1) * dt_s
-    return x1, v1

@@ -25,7 +25,8 @@ from console.analysis.sections.state import Transition
 from console.layout import Layout
 from console.live.simulated import INITIAL, SimulatedConsole
 from console.sim.faults import Fault
-from console.sim.station import SimConfig, StationSim
+from console.sim.line_values import SimConfig
+from console.sim.station import StationSim
 from console.tui.live_source import take_events
 from console.tui.model import LogEntry, TrainView
 from console.tui.sources import reported_train

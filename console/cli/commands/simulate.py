@@ -218,8 +218,9 @@ def simulate(
         )
         from console.progress import byte_progress
         from console.safe_text import clean, show_path
+        from console.sim.line_values import SimConfig
         from console.sim.radio import LoRaLink
-        from console.sim.station import SimConfig, StationSim
+        from console.sim.station import StationSim
         from console.sim.writers import write_run
 
         if days is not None and duration is not None:
