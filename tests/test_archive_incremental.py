@@ -13,7 +13,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from console.archive import derive, reader
+from console.archive import group_run, reader
 from console.archive.history import cross_head_tables, report_data
 from console.archive.ingest import run_ingest
 from console.archive.store import read_current
@@ -81,9 +81,9 @@ def no_record_reads(monkeypatch: pytest.MonkeyPatch) -> list[int]:
         reads.append(1)
         return real(*args, **kwargs)  # type: ignore[arg-type]
 
-    # Where it is defined (the archive's own reads) and where the derivation took it.
+    # Where it is defined (the archive's own reads) and where a group's run took it.
     monkeypatch.setattr(reader, "record_batches", counted)
-    monkeypatch.setattr(derive, "record_batches", counted)
+    monkeypatch.setattr(group_run, "record_batches", counted)
     return reads
 
 
@@ -188,7 +188,7 @@ def test_the_fingerprint_survives_the_manifest_and_keeps_older_archives_resuming
     from types import SimpleNamespace
 
     from console.analysis.passages.speed_settings import SpeedSettings
-    from console.archive.derive import fingerprint
+    from console.archive.derive_settings import fingerprint
     from console.layout import load_layout
     from console.layouts import __file__ as layouts_init
 

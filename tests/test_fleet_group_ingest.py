@@ -16,7 +16,7 @@ import pytest
 from typer.testing import CliRunner
 
 from console.archive import group_ingest
-from console.archive.derive import group_key_of
+from console.archive.derive_groups import group_key_of
 from console.archive.group_ingest import heads_hint, plan_tasks
 from console.archive.store import read_current
 from console.cli.app import app

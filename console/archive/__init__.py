@@ -4,7 +4,8 @@ Modules: :mod:`store` (directory layout, manifest, lock, atomic publish),
 :mod:`parts` (partitioned Parquet writing), :mod:`records` (parser chunks ⇄
 Arrow), :mod:`ledger` (what was read of which file), :mod:`ingest` (with its steps'
 modules ``ingest_*`` and :mod:`whole_files`),
-:mod:`derive` (the batch analyses run on the archive's records), :mod:`views`
+:mod:`derive` (the batch analyses run on the archive's records, with
+:mod:`group_run`, :mod:`derive_groups`, :mod:`derive_settings`, :mod:`group_records`), :mod:`views`
 (DuckDB, read-only), :mod:`presets` (named queries), :mod:`history`
 (report inputs and replay for a time window).
 """

@@ -1,7 +1,7 @@
 """Ingest on a cluster: the new diagnostic files planned by independent group of heads, and each set of files
 parsed, stored and derived in one pass by one task, as the local ingest does.
 
-The groups are the derivation's (:func:`console.archive.derive.group_key_of`: the heads of sections that
+The groups are the derivation's (:func:`console.archive.derive_groups.group_key_of`: the heads of sections that
 share heads, and per device the heads no section uses).  Files that hold records of one group must be read
 by one task, in file order, through the group's one pipeline; so the files are joined where they share a
 group, and each joined set is a task (:func:`plan_tasks`).  A task (:func:`ingest_files`) parses its files
@@ -30,7 +30,9 @@ from typing import Any
 
 import numpy as np
 
-from console.archive.derive import GroupResult, GroupRun, group_key_of, older_records
+from console.archive.derive_groups import group_key_of
+from console.archive.group_records import older_records
+from console.archive.group_run import GroupResult, GroupRun
 from console.archive.ledger import Scan, try_scan
 from console.archive.parse_pass import (
     RECORD_ORDER,

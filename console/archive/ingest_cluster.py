@@ -77,7 +77,7 @@ def _ingest_groups(job: IngestJob, d: Derivation) -> None:
     """The queued files parsed, stored and derived in one pass on the workers, a task per set of files
     sharing a group (:mod:`console.archive.group_ingest`); their parts, accounting and derivations taken
     in.  (Another version's, layout's or engine's derivation, or a file replaced: the two-step way.)"""
-    from console.archive.derive import group_key_of
+    from console.archive.derive_groups import group_key_of
     from console.archive.group_ingest import heads_hint, ingest_files, plan_tasks, task_name
     from console.fleet.engine import map_partitions
 
