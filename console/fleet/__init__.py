@@ -22,7 +22,7 @@ from typing import Any
 
 from console.fleet.options import EngineOpt, EngineSpec, FleetError, SchedulerOpt, WorkersOpt, engine_spec
 
-_ENGINE_NAMES = frozenset({"engine_scope", "fleet_mapper", "map_partitions", "run_with_engine"})
+_ENGINE_NAMES = frozenset({"engine_scope", "map_partitions", "run_with_engine"})
 
 
 def __getattr__(name: str) -> Any:
@@ -43,7 +43,6 @@ __all__ = [
     "WorkersOpt",
     "engine_scope",
     "engine_spec",
-    "fleet_mapper",
     "map_partitions",
     "run_with_engine",
 ]

@@ -3,8 +3,7 @@
 A command wraps its whole job — an ingest, a report's collection — in
 :func:`run_with_engine`; the archive code inside it calls
 :func:`map_partitions` at the point where it would loop over its
-partitions (:mod:`console.archive.partition`: one device's records of one
-day, with the neighbouring days it needs named in its ``Carried``).  The
+partitions (the files an ingest parses on the workers: :mod:`console.archive.ingest_cluster`).  The
 engine is held in a context variable, so nothing between the command and
 the archive's derivation passes it along, and the archive code runs
 unchanged on the local engine (the default) in every other caller.
@@ -273,24 +272,6 @@ def map_partitions(
     """
     engine = _current.get() or _Engine()
     return engine.map(fn, items, common or {}, label)
-
-
-def fleet_mapper(fn: Callable[[Any], R], items: Sequence[Any], label: str = "derive") -> Iterator[R]:
-    """``fn(item) for item in items`` on the current engine, in order, one result at a time: the ``mapper``
-    the archive's derivation takes.
-
-    :func:`console.archive.derive.derive_tables` hands its per-partition work
-    to a ``mapper(fn, items)``; this one sends it to the engine of the
-    enclosing :func:`run_with_engine` (``fn`` is sent once, each item is a task)
-    and gives the results back as they come, so the caller stores each one
-    and lets it go.
-    """
-    engine = _current.get() or _Engine()
-    return engine.imap(_apply_one, [{"item": it} for it in items], {"fn": fn}, label)
-
-
-def _apply_one(fn: Callable[[Any], R], item: Any) -> R:
-    return fn(item)
 
 
 def run_with_engine(
