@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import random
 import shutil
 import signal
 import socket
@@ -35,6 +36,28 @@ def free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def restartable_port() -> int:
+    """A free loopback port for a server a test stops and starts again on the same port.
+
+    A port the kernel handed out (:func:`free_port`) is in its ephemeral range, from which every
+    ``bind(0)`` and every outgoing connection of the other test workers draw too: while the server is
+    down one of them can take it, and the test then talks to a stranger (in CI a silent listener
+    took gpsd's port between its stop and start).  This port is below that range, where the kernel
+    never looks, in a block of its own for each pytest-xdist worker."""
+    low = int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw")
+    block = 500
+    first = max(1024, low - block * 16) + block * (int(worker) % 16 if worker.isdigit() else 0)
+    for port in random.sample(range(first, min(first + block, low)), k=min(block, low - first)):
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    return free_port()  # all taken: no better than the kernel's choice
 
 
 def wait_until(cond: Callable[[], bool], timeout_s: float = 10.0, step_s: float = 0.02) -> bool:
@@ -71,6 +94,21 @@ def port_open(port: int) -> bool:
         return s.connect_ex(("127.0.0.1", port)) == 0
 
 
+def gpsd_banner(port: int, timeout_s: float = 10.0) -> str:
+    """The first line a server on 127.0.0.1:port sends: gpsd greets every client with its VERSION."""
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=timeout_s) as s:
+            data = b""
+            while b"\n" not in data:
+                chunk = s.recv(4096)
+                if not chunk:
+                    break
+                data += chunk
+    except OSError as exc:
+        return f"nothing ({exc})"
+    return data.split(b"\n", 1)[0].decode(errors="replace")
+
+
 def need(binary: str) -> str:
     path = shutil.which(binary) or next(
         (p for p in (f"/usr/sbin/{binary}", f"/usr/bin/{binary}") if os.access(p, os.X_OK)), None
@@ -95,7 +133,7 @@ class Mosquitto:
 
     def __init__(self, workdir: Path) -> None:
         self.binary = need("mosquitto")
-        self.port = free_port()
+        self.port = restartable_port()
         self.conf = workdir / "mosquitto.conf"
         self.conf.write_text(
             f"listener {self.port} 127.0.0.1\nallow_anonymous true\npersistence false\nlog_dest none\n"
@@ -212,7 +250,7 @@ class GpsFake:
         self.binary = need("gpsfake")
         self.capture = capture
         self.cycle_s = cycle_s
-        self.port = free_port()
+        self.port = restartable_port()
         self.proc: subprocess.Popen[bytes] | None = None
 
     def start(self) -> None:
@@ -225,9 +263,13 @@ class GpsFake:
             stderr=subprocess.DEVNULL,
             start_new_session=True,
         )
-        if not wait_until(lambda: port_open(self.port), 15):
+        if not wait_until(lambda: self.proc is not None and self.proc.poll() is None and port_open(self.port), 15):
             self.stop()
             pytest.fail("gpsfake's gpsd did not start listening")
+        banner = gpsd_banner(self.port)
+        if '"class":"VERSION"' not in banner:
+            self.stop()
+            pytest.fail(f"what listens on 127.0.0.1:{self.port} is not gpsfake's gpsd: it said {banner!r}")
 
     def stop(self) -> None:
         if self.proc is not None and self.proc.poll() is None:
