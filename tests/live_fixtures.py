@@ -109,6 +109,25 @@ def gpsd_banner(port: int, timeout_s: float = 10.0) -> str:
     return data.split(b"\n", 1)[0].decode(errors="replace")
 
 
+def gpsd_devices(port: int) -> list[str]:
+    """The paths of the devices gpsd on 127.0.0.1:port lists (``?DEVICES;``); none if it does not answer."""
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+            lines = s.makefile("rb")
+            lines.readline()  # the VERSION greeting
+            s.sendall(b"?DEVICES;\n")
+            for _ in range(20):
+                line = lines.readline()
+                if not line:
+                    break
+                doc = json.loads(line)
+                if doc.get("class") == "DEVICES":
+                    return [str(d.get("path", "")) for d in doc.get("devices", [])]
+    except (OSError, ValueError):
+        pass
+    return []
+
+
 def need(binary: str) -> str:
     path = shutil.which(binary) or next(
         (p for p in (f"/usr/sbin/{binary}", f"/usr/bin/{binary}") if os.access(p, os.X_OK)), None
@@ -254,11 +273,21 @@ class GpsFake:
         self.proc: subprocess.Popen[bytes] | None = None
 
     def start(self) -> None:
-        # -P port, -c seconds between sentences, -q quiet; gpsfake starts feeding when the
-        # first client connects.  gpsd's own options (-o=...): -n reads the device at once;
-        # -G (listen on every address) is not given, so gpsd listens on loopback only.
+        # gpsfake adds its pty to gpsd through a control socket, and gives up silently when that socket,
+        # though its file exists, is not listening yet: a gpsd without a device, which clients connect to
+        # and hear nothing from (a CI run's restarted gpsd).  So a start counts once gpsd lists the pty.
+        for _attempt in range(3):
+            self._spawn()
+            if wait_until(lambda: any(p.startswith("/dev/") for p in gpsd_devices(self.port)), 10, 0.2):
+                return
+            self.stop()
+        pytest.fail(f"gpsfake's gpsd on 127.0.0.1:{self.port} never listed its device, in 3 starts")
+
+    def _spawn(self) -> None:
+        # -P port, -c seconds between sentences, -q quiet, -n: gpsd reads the device at once, before
+        # any client watches.  -G (listen on every address) is not given: gpsd listens on loopback only.
         self.proc = subprocess.Popen(
-            [self.binary, "-q", "-P", str(self.port), "-c", str(self.cycle_s), "-o=-n", str(self.capture)],
+            [self.binary, "-q", "-n", "-P", str(self.port), "-c", str(self.cycle_s), str(self.capture)],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
             start_new_session=True,
