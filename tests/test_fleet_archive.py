@@ -1,11 +1,11 @@
 """The archive on the fleet engine: the same rows and the same report bytes on Dask as here, whatever the workers.
 
 Random simulator archives (busy nights, passages over midnight, a sensor
-fault) are derived per (device, day) partition on the local engine and on
-Dask clusters of 1 and 3 workers; then ingested and reported through the
-commands with ``--engine local`` and ``--engine dask``.  A worker killed
-while it runs a partition costs a retry, never the answer, and the archive
-is never half written.  More examples with ``TRACKSIDE_FLEET_EXAMPLES=20``.
+fault), each in two pieces, are ingested and reported through the commands
+with ``--engine local`` and with ``--engine dask`` on clusters of 1 and 3
+workers: the same rows and the same report bytes.  A worker killed while it
+runs a task costs a retry, never the answer, and the archive is never half
+written.  More examples with ``TRACKSIDE_FLEET_EXAMPLES=20``.
 """
 
 from __future__ import annotations

@@ -1,19 +1,20 @@
-"""The fleet: the archive's per-partition analysis run in-process or on a Dask cluster, with the same answer.
+"""The fleet: the archive's tasks run in-process or on a Dask cluster, with the same answer.
 
-``--engine local`` (the default) runs every partition in this process;
-``--engine dask`` ships the same partition function to a ``distributed``
+``--engine local`` (the default) runs every task in this process;
+``--engine dask`` ships the same task function to a ``distributed``
 cluster — a LocalCluster started and stopped here (``--workers N``) or an
 existing scheduler (``--scheduler tcp://HOST:PORT``).  The tasks are the
 archive's own units of work (the files of a group of linked sections, parsed
 and derived in one pass: :mod:`console.archive.group_ingest`; a group to
 derive from its records: :mod:`console.archive.derive`); this
-package never derives anything itself, it only decides where a partition
-runs and gives the results back in partition order, so the combined answer
+package never derives anything itself, it only decides where a task
+runs and gives the results back in task order, so the combined answer
 cannot depend on the engine or the number of workers.
 
-Nothing here writes to the archive: results come back to the caller, which
-publishes them through the archive's manifest (:func:`console.archive.store.publish`),
-so a worker killed mid-run can never leave half a result behind.
+Nothing here writes to the archive.  The ingest tasks write parts under fresh
+names, which no reader sees until the caller publishes a manifest naming them
+(:func:`console.archive.store.publish`): a worker killed mid-run leaves parts
+no manifest names, which the next ingest removes, never half a result.
 """
 
 from __future__ import annotations

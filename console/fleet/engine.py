@@ -22,9 +22,9 @@ answer is the same, later.  A partition that kills
 that goes away, ends the run with one line (:class:`FleetError`); an
 error raised by the partition function itself is raised again as itself,
 for the caller's own one-line handling.  Nothing here writes to the
-archive: the caller publishes what this returns through the manifest
-(:func:`console.archive.store.publish`), so a failed run leaves the
-archive as it was.
+archive; what the tasks write (parts under fresh names) is seen only once
+the caller publishes a manifest naming it (:func:`console.archive.store.publish`),
+so a failed run leaves the archive as it was.
 """
 
 from __future__ import annotations

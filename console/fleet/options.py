@@ -18,9 +18,8 @@ from console.plural import count
 
 ENGINES = ("local", "dask")
 # A worker's memory is bounded: the nanny restarts a worker that goes over
-# (the partition is then retried elsewhere).  A derive partition (a counting
-# head for a day) needs a few tens of MB, but an ingest task parses a whole
-# group's files: 2.5 M records (56 days of a device) peaked at 400-450 MB,
+# (its task is then retried elsewhere).  An ingest task parses a whole group
+# of heads' files: 2.5 M records (56 days of a device) peaked at 400-450 MB,
 # against 512 MB's pause at 410 and restart at 486.  The rest is the
 # interpreter, pandas, pyarrow and DuckDB loaded once per worker.
 WORKER_MEMORY_LIMIT_BYTES = 1 << 30
@@ -32,7 +31,8 @@ EngineOpt = Annotated[
     typer.Option(
         "--engine",
         metavar="local|dask",
-        help="Where the archive's partitions (counting head × day) run: local (this process) or dask.",
+        help="Where the archive's tasks (the diagnostic logs of a group of linked heads, parsed and derived) run: "
+        "local (this process) or dask.",
     ),
 ]
 WorkersOpt = Annotated[
