@@ -43,14 +43,17 @@ def restartable_port() -> int:
 
     A port the kernel handed out (:func:`free_port`) is in its ephemeral range, from which every
     ``bind(0)`` and every outgoing connection of the other test workers draw too: while the server is
-    down one of them can take it, and the test then talks to a stranger (in CI a silent listener
-    took gpsd's port between its stop and start).  This port is below that range, where the kernel
-    never looks, in a block of its own for each pytest-xdist worker."""
-    low = int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    down one of them can take it, and the test then talks to a stranger.  This port is below that
+    range, where the kernel never looks, in a block of its own for each pytest-xdist worker."""
+    try:
+        low = int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return free_port()
     worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw")
     block = 500
     first = max(1024, low - block * 16) + block * (int(worker) % 16 if worker.isdigit() else 0)
-    for port in random.sample(range(first, min(first + block, low)), k=min(block, low - first)):
+    candidates = range(first, min(first + block, low))  # empty where the ephemeral range starts low
+    for port in random.sample(candidates, k=len(candidates)):
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
             try:
                 s.bind(("127.0.0.1", port))
