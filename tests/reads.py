@@ -21,7 +21,8 @@ from console.drivers.batch import DiagJob, ReadOptions, read_diag
 from console.engine.pipeline import PipelineSettings
 from console.engine.sinks import Sink
 from console.layout import Layout, layout_from_heads
-from parsers.diag.read import DiagReader, chunks_to_frame
+from parsers.diag.read import DiagReader
+from parsers.diag.records import chunks_to_frame
 
 
 def whole_job(

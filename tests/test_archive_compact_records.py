@@ -14,7 +14,8 @@ from console.archive.parse_pass import RECORD_ORDER
 from console.archive.parts import PartWriter
 from console.archive.records import RecordEncoder, expand_records
 from parsers.diag.fields import DATA_KINDS
-from parsers.diag.read import DiagChunk, DiagReader
+from parsers.diag.read import DiagReader
+from parsers.diag.records import DiagChunk
 from parsers.units import NS_PER_DAY
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_logs"

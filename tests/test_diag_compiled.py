@@ -21,6 +21,9 @@ from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate
 from parsers.diag import read as diag_read
+from parsers.diag.gather import gather_compiled, gather_numpy
+from parsers.diag.tokens import tokenize_compiled
+from parsers.diag.tokens_numpy import tokenize_numpy
 from parsers.sources import Chunk
 from tests.compiled_parts import needs_compiled
 from tests.conftest import SAMPLES, record
@@ -39,8 +42,8 @@ _PER_GOOD_TIME = ("tod_ns", "subsecond")  # meaningful where the time was read
 
 def _assert_same_tokens(data: bytes) -> None:
     chunk = Chunk(memoryview(bytearray(data)), final=True)
-    want = diag_read._tokenize_numpy(chunk)
-    got = diag_read._tokenize_compiled(chunk)
+    want = tokenize_numpy(chunk)
+    got = tokenize_compiled(chunk)
     for name in _PER_LINE + _PER_FAST_LINE:
         assert np.array_equal(getattr(got, name), getattr(want, name)), name
     ok = want.time_ok
@@ -55,8 +58,8 @@ def _read_both(
 ) -> list[tuple[pd.DataFrame, dict[str, object], list[dict[str, object]]]]:
     out: list[tuple[pd.DataFrame, dict[str, object], list[dict[str, object]]]] = []
     paths_by_kind = (
-        (diag_read._tokenize_numpy, diag_read._gather_numpy),
-        (diag_read._tokenize_compiled, diag_read._gather_compiled),
+        (tokenize_numpy, gather_numpy),
+        (tokenize_compiled, gather_compiled),
     )
     for tokenize, gather in paths_by_kind:
         with monkeypatch.context() as m:

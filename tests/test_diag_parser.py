@@ -10,7 +10,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from parsers.diag.read import RECORD_COLUMNS, read_diag
+from parsers.diag.read import read_diag
+from parsers.diag.records import RECORD_COLUMNS
 from tests.conftest import record
 
 

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from benchmarks.gen_realistic_diag import generate
 from console.analysis.passages import buckets, stream
-from parsers.diag.read import DiagChunk
+from parsers.diag.records import DiagChunk
 from tests.compiled_parts import needs_compiled
 from tests.conftest import SAMPLES
 

@@ -32,7 +32,7 @@ from console.archive import arrow_np
 from parsers.units import ALL_TIME, NO_TIME, NS_PER_DAY
 
 if TYPE_CHECKING:
-    from parsers.diag.read import DiagChunk
+    from parsers.diag.records import DiagChunk
     from parsers.diag.registry import DiagRegistry
 
 _POS_MAX = int(np.iinfo(np.int64).max)  # a minimum of positions starts above every position

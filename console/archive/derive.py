@@ -61,7 +61,7 @@ from parsers.diag.registry import DiagRegistry
 from parsers.units import NS_PER_DAY
 
 if TYPE_CHECKING:
-    from parsers.diag.read import DiagChunk
+    from parsers.diag.records import DiagChunk
 
 # Written by the pipeline as records are fed (committed, or the tail of the last ingest).
 STREAMED = ("passages", "axles", "section_states", "count_ledger", "channel_events")

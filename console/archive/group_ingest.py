@@ -43,7 +43,7 @@ from console.archive.parts import PartWriter
 from console.archive.records import ChunkRebuilder, ChunkTranslator, expand_records
 from console.archive.store import Manifest, sync_parts
 from console.engine.pipeline import PipelineSettings
-from parsers.diag.read import DiagChunk
+from parsers.diag.records import DiagChunk
 from parsers.diag.registry import DiagRegistry
 
 # The hint reads this many blocks of this size, spread over each file (the start, the end and between).

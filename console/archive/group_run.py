@@ -29,7 +29,7 @@ from console.engine.sinks import Sink
 from parsers.diag.registry import DiagRegistry
 
 if TYPE_CHECKING:
-    from parsers.diag.read import DiagChunk
+    from parsers.diag.records import DiagChunk
 
 STATE_TABLE = "pipeline_state"
 

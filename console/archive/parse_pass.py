@@ -25,7 +25,7 @@ from parsers.report import ParseReport
 from parsers.units import NS_PER_DAY
 
 if TYPE_CHECKING:
-    from parsers.diag.read import DiagChunk
+    from parsers.diag.records import DiagChunk
     from parsers.diag.registry import DiagRegistry
     from parsers.report import Rejection
 

@@ -29,7 +29,7 @@ from console.archive.views import connect
 from console.drivers.batch import ChunkSource, ReadOptions
 from console.engine.pipeline import HEALTH_REGISTERS
 from console.layout import Layout, load_layout
-from parsers.diag.read import DiagChunk, chunks_to_frame
+from parsers.diag.records import DiagChunk, chunks_to_frame
 from parsers.diag.registry import DiagRegistry
 from parsers.report import FileReport, ParseReport, Rejection
 

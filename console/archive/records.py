@@ -1,6 +1,6 @@
 """Diagnostic records between the parser's chunks and the archive's ``records`` table.
 
-:func:`chunk_to_arrow` turns a parsed :class:`~parsers.diag.read.DiagChunk` into
+:func:`chunk_to_arrow` turns a parsed :class:`~parsers.diag.records.DiagChunk` into
 Arrow columns (dictionary-encoded straight from the parser's interners, no
 per-record Python).  :class:`ChunkRebuilder` goes back: Arrow batches read
 from the archive become chunks keyed into a fresh
@@ -16,7 +16,7 @@ import pyarrow as pa
 
 from console.archive import arrow_np
 from parsers.diag.fields import DATA_KINDS, RegisterKey
-from parsers.diag.read import RECORD_COLUMNS, DiagChunk
+from parsers.diag.records import RECORD_COLUMNS, DiagChunk
 from parsers.diag.registry import DiagRegistry
 
 # The archive's record columns as read back: the parser's RECORD_COLUMNS with label_encoding and file_seq.

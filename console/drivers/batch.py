@@ -39,7 +39,8 @@ from console.engine.sinks import Sink, Sinks
 from console.memory import read_memory
 from console.plural import count
 from console.safe_text import clean, show_path
-from parsers.diag.read import DiagChunk, DiagReader, chunks_to_frame, compiled_tokenizer
+from parsers.diag.read import DiagReader, compiled_tokenizer
+from parsers.diag.records import DiagChunk, chunks_to_frame
 from parsers.diag.registry import DiagRegistry
 from parsers.report import ParseReport
 from parsers.sources import DEFAULT_CHUNK_BYTES

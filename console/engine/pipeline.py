@@ -54,7 +54,7 @@ from console.analysis.passages.status import StatusSummary
 from console.analysis.passages.stream import ORDER_SLACK_S, PassageStream, by_start, take_passages
 from console.analysis.sections.state import SectionState
 from console.engine.sinks import Sink
-from parsers.diag.read import DiagChunk
+from parsers.diag.records import DiagChunk
 from parsers.diag.registry import DiagRegistry
 from parsers.units import NO_TIME, NS
 
@@ -420,7 +420,7 @@ class Pipeline:
         on when new or graver than before for its rule, head and channel.
         """
         from console.analysis.health.rules import health_report
-        from parsers.diag.read import chunks_to_frame
+        from parsers.diag.records import chunks_to_frame
 
         s = self.settings
         closed = s.health == "closed"

@@ -27,7 +27,8 @@ from console.engine.sinks import Sink, Sinks
 from console.layout import Layout
 from console.sinks.tables.event_lines import health_event, reset_event, section_event
 from console.sinks.tables.passage_spool import passage_texts
-from parsers.diag.read import DiagChunk, DiagReader
+from parsers.diag.read import DiagReader
+from parsers.diag.records import DiagChunk
 from parsers.diag.registry import DiagRegistry
 from parsers.report import FileReport
 from parsers.units import NO_TIME, NS

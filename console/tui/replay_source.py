@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from console.drivers.batch import ChunkSource
-    from parsers.diag.read import DiagChunk
+    from parsers.diag.records import DiagChunk
     from parsers.diag.registry import DiagRegistry
     from parsers.report import ParseReport
 
@@ -229,7 +229,7 @@ def _records_by_file(
     if records is None:
         return None, [], None
     from console.drivers.batch import ReadOptions
-    from parsers.diag.read import DiagChunk
+    from parsers.diag.records import DiagChunk
 
     registry, chunks, report = records.open(ReadOptions())
     by_file: dict[int, list[DiagChunk]] = {}

@@ -1,6 +1,6 @@
 /* The compiled tokenizer of diagnostic records: one pass over a chunk.
  *
- * It does what parsers/diag/read.py's _tokenize_numpy does, rule for rule (the
+ * It does what parsers/diag/tokens_numpy.py's tokenize_numpy does, rule for rule (the
  * pure path is the reference; tests/test_diag_compiled.py checks both give the
  * same tokens, records and rejections): cut the chunk into lines, trim CR and
  * trailing blanks, find the last three tabs of each line of at least 64 bytes,

@@ -191,7 +191,7 @@ _TIME_RE = re.compile(r"(\d{2}):(\d{2}):(\d{2})(?:[.,](\d{1,9}))?")
 def parse_time(raw: bytes) -> tuple[int, bool]:
     """``Time:09:32:24[.125]`` (or ``,125``) → (ns since midnight, has a fraction).
 
-    The per-line reference for the vectorized time parse in :func:`_tokenize`
+    The per-line reference for the vectorized time parse in :func:`~parsers.diag.tokens_numpy.tokenize_numpy`
     (same rules), used for lines off the fast path.
     """
     name, sep, value = raw.partition(b":")

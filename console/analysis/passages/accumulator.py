@@ -19,7 +19,7 @@ from console.analysis.passages.overlap import fingerprints, overlap_mask
 from console.analysis.passages.part_analysis import analyse_parts
 from console.analysis.passages.registers import RegisterTables, inventory
 from console.analysis.passages.speed_settings import SpeedSettings
-from parsers.diag.read import DiagChunk
+from parsers.diag.records import DiagChunk
 from parsers.diag.registry import DiagRegistry
 
 

@@ -24,7 +24,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike
 
-from parsers.diag.read import DiagChunk
+from parsers.diag.records import DiagChunk
 from parsers.units import NS
 
 try:

@@ -43,7 +43,7 @@ from console.analysis.passages.accumulator import DiagAccumulator
 from console.analysis.passages.buckets import Columns, compiled_record_runs, compiled_runs, merge_buckets
 from console.analysis.passages.part_analysis import PartAnalysis, analyse_parts
 from console.analysis.passages.speed_settings import SpeedSettings
-from parsers.diag.read import DiagChunk
+from parsers.diag.records import DiagChunk
 from parsers.diag.registry import DiagRegistry
 from parsers.units import ALL_TIME, NO_TIME, NS
 
