@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from console.analysis.health.rules import learn_band
+from console.analysis.health.band import learn_band
 from console.archive.history import report_data
 from console.archive.reader import Window
 from console.archive.store import read_current

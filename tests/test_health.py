@@ -1,4 +1,4 @@
-"""Sensor and channel health (console/analysis/health/rules.py, parsers/voltages.py).
+"""Sensor and channel health (console/analysis/health/: the rules and their findings; parsers/voltages.py).
 
 Truths: seed 000 Table 2 (Âm Thượng station, 2021-06-06) and the generated
 sample_logs/ws4_health.log (sample_logs/make_ws4_health.py).
@@ -14,17 +14,12 @@ import pandas as pd
 import pytest
 
 from console.analysis.events.detection import DetectionEvent, EventKind
-from console.analysis.health.rules import (
-    BandSettings,
-    Finding,
-    Severity,
-    analog_band_findings,
-    channel_fault_findings,
-    disturbance_rate_findings,
-    health_report,
-    learn_band,
-    voltage_margin_findings,
-)
+from console.analysis.health.band import BandSettings, analog_band_findings, learn_band
+from console.analysis.health.channel_faults import channel_fault_findings
+from console.analysis.health.disturbance import disturbance_rate_findings
+from console.analysis.health.findings import Finding, Severity
+from console.analysis.health.rules import health_report
+from console.analysis.health.voltage import voltage_margin_findings
 from parsers.diag.read import read_diag
 from parsers.voltages import parse_voltage_text, read_voltages
 

@@ -31,7 +31,7 @@ import pytest
 
 from console.analysis.crossing.timeline import TimelineRow
 from console.analysis.crossing_batch import CrossingRun
-from console.analysis.health.rules import Severity
+from console.analysis.health.findings import Severity
 from console.analysis.passages.speed_settings import SpeedSettings
 from console.inputs.recognise import expand, natural_key
 from console.layout import load_layout

@@ -70,7 +70,8 @@ def report_data(
     step): (the channel events health reads, the warnings, the section engine's
     result or None); ``data.events`` is then left empty.
     """
-    from console.analysis.health.rules import Finding, sort_findings, voltage_margin_findings
+    from console.analysis.health.findings import Finding, sort_findings
+    from console.analysis.health.voltage import voltage_margin_findings
     from console.sinks.report.collect import crossings_from_fixes, frames_from_tables, sections_into_report
     from console.sinks.report.model import InputFile, ReportData
 

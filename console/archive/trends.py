@@ -8,14 +8,14 @@ registers), cut to the report's window (``--from/--to/--head/--device``):
 * **disturbances** per device, counting head and day: the growth of the
   1-edge counters (``counter_1_edge``) summed over the head's channels and
   addresses, a decrease counted as a reset (the new reading is the
-  growth), as :func:`console.analysis.health.rules.disturbance_rate_findings`
+  growth), as :func:`console.analysis.health.disturbance.disturbance_rate_findings`
   takes it; ``per_hour`` divides by the time that growth took: from the
   reading before the day's first (the day's first step is growth since then)
   to the day's last (none under 10 minutes, the health rule's shortest span);
 * **analog margin** per counting head, channel and day: how far the day's
   analog values (``analog_value``) stayed inside the channel's band, in
   counts (negative: out of band).  The band is the layout's for the head,
-  else the one :func:`console.analysis.health.rules.learn_band` learns from the
+  else the one :func:`console.analysis.health.band.learn_band` learns from the
   window's first values, as the health rule does;
 * **late warnings** per crossing and day (the day of the head's arrival,
   else of the warning's start): warnings and how many were late.
@@ -76,7 +76,7 @@ def disturbance_rows(con: duckdb.DuckDBPyConnection, window: Window) -> list[dic
     where, params = window.where()
     cond = f"{where} AND label_canonical = 'counter_1_edge'" if where else " WHERE label_canonical = 'counter_1_edge'"
     # Growth since the series' previous reading, in the order the device wrote them, as the health rule reads
-    # them (health.rules._counter_readings): a reading an overlapping export repeats counted once, files in the
+    # them (health.disturbance._counter_readings): a reading an overlapping export repeats counted once, files in the
     # order of their first readings, lines in file order.  Not by time: a board clock set back (a reboot, a DST
     # change of local time) would interleave two stretches, each fall a counter reset.
     return _rows(
@@ -151,7 +151,7 @@ def analog_margins_per_day(
 ) -> list[dict[str, Any]]:
     """Per (head, channel, day): values, min, max, the band, the margin (least distance inside it), the
     median (of each register, averaged over the channel's registers) and its distance inside the band."""
-    from console.analysis.health.rules import learn_band
+    from console.analysis.health.band import learn_band
 
     where, params = window.where()
     cond = f"{where} AND label_canonical = 'analog_value'" if where else " WHERE label_canonical = 'analog_value'"

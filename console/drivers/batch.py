@@ -50,7 +50,7 @@ if TYPE_CHECKING:
 
     from console.analysis.events.detection import DetectionEvent
     from console.analysis.head_table import Heads
-    from console.analysis.health.rules import Finding
+    from console.analysis.health.findings import Finding
     from console.analysis.sections.engine import SectionEngine
     from console.layout import Layout
 

@@ -64,7 +64,7 @@ if TYPE_CHECKING:
     from console.analysis.diag_events import DiagEventSettings
     from console.analysis.events.block import EventBlock
     from console.analysis.head_table import Heads
-    from console.analysis.health.rules import Finding
+    from console.analysis.health.findings import Finding
     from console.analysis.inventory import DeviceInventory
     from console.analysis.sections.engine import SectionEngine
     from console.analysis.sections.stream import EventStream, HeadFacts

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from console.analysis.events.block import EventBlock
     from console.analysis.events.detection import DetectionEvent
     from console.analysis.head_table import Heads
-    from console.analysis.health.rules import Finding
+    from console.analysis.health.findings import Finding
     from console.analysis.passages.buckets import Columns
     from console.analysis.sections.state import LedgerEntry, ResetRecord, Transition
 

@@ -35,7 +35,7 @@ from parsers.units import NO_TIME, NS
 
 if TYPE_CHECKING:
     from console.analysis.head_table import Heads
-    from console.analysis.health.rules import Finding
+    from console.analysis.health.findings import Finding
     from console.analysis.passages.buckets import Columns
     from console.analysis.sections.state import ResetRecord, Transition
 

@@ -44,7 +44,7 @@ import pandas as pd
 
 from console.analysis.events.detection import DOWN, UP, DetectionEvent, EventKind, sort_events
 from console.analysis.frame_events import frames_to_events
-from console.analysis.health.rules import channel_fault_findings
+from console.analysis.health.channel_faults import channel_fault_findings
 from console.analysis.sections.engine import SectionEngine
 from console.analysis.sections.state import SectionState, Transition
 from console.analysis.timefmt import iso

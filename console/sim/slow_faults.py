@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from console.analysis.health.band import BandSettings
 from console.analysis.health.forecast import DISTURBANCE_LIMIT_PER_H, GNSS_LOSS_LIMIT
-from console.analysis.health.rules import BandSettings
 from console.analysis.timefmt import iso
 from console.layout import Layout
 from console.sim.faults import SLOW_FAULT_KINDS, Fault

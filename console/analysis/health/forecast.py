@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from console.analysis.health.rules import DISTURBANCE_WARN_PER_H
+from console.analysis.health.disturbance import DISTURBANCE_WARN_PER_H
 from console.analysis.timefmt import iso
 from parsers.units import NS_PER_DAY
 
@@ -244,7 +244,7 @@ def forecasts(
 
     ``now_ns``: where every horizon starts, the end of the archive's last day (default: of the series' last day,
     when they are all the archive's; a head alone is given the archive's, :func:`last_day_end`)."""
-    from console.analysis.health.rules import natural_order_key
+    from console.analysis.health.findings import natural_order_key
 
     given = [s for s in series if len(s.day)]
     if now_ns is None:

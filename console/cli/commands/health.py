@@ -26,7 +26,7 @@ from console.safe_text import clean
 
 
 def _worst(findings: list[Any]) -> Any:
-    from console.analysis.health.rules import Severity
+    from console.analysis.health.findings import Severity
 
     return max((f.severity for f in findings), default=Severity.INFO, key=lambda s: s.rank)
 
@@ -64,7 +64,8 @@ def health(
 
     def body() -> int:
         from console.analysis.diag_events import DiagEventSettings
-        from console.analysis.health.rules import Severity, sort_findings, voltage_margin_findings
+        from console.analysis.health.findings import Severity, sort_findings
+        from console.analysis.health.voltage import voltage_margin_findings
         from console.sinks.tables.health_tables import findings_view
         from parsers.voltages import read_voltages
 

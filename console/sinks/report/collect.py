@@ -38,7 +38,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from console.analysis.diag_events import DiagEventSettings
-from console.analysis.health.rules import Finding, sort_findings, voltage_margin_findings
+from console.analysis.health.findings import Finding, sort_findings
+from console.analysis.health.voltage import voltage_margin_findings
 from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.sections.engine import run_sections
 from console.analysis.sections.state import SectionState

@@ -20,7 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from console import exit_codes
-from console.analysis.health.rules import Severity
+from console.analysis.health.findings import Severity
 from console.interrupt import is_ctrl_c
 from console.layout import LayoutError
 from console.output_path import STDOUT, OutputError, OutputTarget, check_output_file, open_output

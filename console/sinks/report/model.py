@@ -37,7 +37,7 @@ import numpy as np
 
 from console import __version__
 from console.analysis.events.detection import DetectionEvent, EventKind
-from console.analysis.health.rules import Finding, Severity
+from console.analysis.health.findings import Finding, Severity
 from console.analysis.passages.speed_settings import SpeedSettings
 from console.analysis.passages.status import STATUS_KIND
 from console.analysis.passages.stream import take_passages

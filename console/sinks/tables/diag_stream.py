@@ -22,7 +22,7 @@ from console.sinks.tables.event_lines import health_event, section_event
 from parsers.report import Rejection
 
 if TYPE_CHECKING:
-    from console.analysis.health.rules import Finding
+    from console.analysis.health.findings import Finding
     from console.analysis.sections.state import Transition
     from console.drivers.batch import DiagJob
 

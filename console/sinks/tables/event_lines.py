@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 from console.analysis.timefmt import iso
 
 if TYPE_CHECKING:
-    from console.analysis.health.rules import Finding
+    from console.analysis.health.findings import Finding
     from console.analysis.sections.state import ResetRecord, Transition
 
 

@@ -9,6 +9,7 @@ from rich.console import Group, RenderableType
 from rich.table import Table
 from rich.text import Text
 
+from console.analysis.health.findings import channel_name
 from console.analysis.health.forecast import (
     ANALOG_MARGIN_LIMIT,
     DISTURBANCE_LIMIT_PER_H,
@@ -16,7 +17,6 @@ from console.analysis.health.forecast import (
     STATUSES,
     Forecast,
 )
-from console.analysis.health.rules import channel_name
 from console.safe_text import inert
 from parsers.units import NS_PER_DAY
 

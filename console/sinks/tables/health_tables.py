@@ -8,7 +8,7 @@ from rich.console import Group, RenderableType
 from rich.padding import Padding
 from rich.text import Text
 
-from console.analysis.health.rules import Finding, Severity, channel_name
+from console.analysis.health.findings import Finding, Severity, channel_name
 from console.analysis.timefmt import display
 from console.plural import count
 from console.safe_text import inert
