@@ -192,7 +192,7 @@ def replicate(src: Path, dst: Path, replicas: int) -> int:
                 out.tables.setdefault(table, []).append(new_rel)
                 new.append(new_rel)
     publish(dst, out, new)
-    from console.archive.views import run_query
+    from console.archive.query import run_query
 
     return int(run_query(dst, "SELECT count(*) FROM records")[1][0][0])  # type: ignore[call-overload]
 
@@ -238,7 +238,7 @@ def big_commands(big: Path) -> dict[str, list[str]]:
     import datetime as dt
 
     sql = "SELECT min(time), counting_head FROM records GROUP BY counting_head ORDER BY 2 LIMIT 1"
-    ask = "import sys; from pathlib import Path; from console.archive.views import run_query; "
+    ask = "import sys; from pathlib import Path; from console.archive.query import run_query; "
     ask += "t, h = run_query(Path(sys.argv[1]), sys.argv[2])[1][0]; print(t.isoformat()); print(h)"
     lines = subprocess.run([sys.executable, "-c", ask, str(big), sql], capture_output=True, text=True, check=True)
     first, head = lines.stdout.splitlines()[-2:]  # after DuckDB's progress bar, if a slow machine shows one
@@ -344,7 +344,7 @@ def main() -> None:
             t_ing, r_ing = run([*exe, "ingest", str(args.log), "--archive", str(arc), "--json"], keep_stdout=True)
             cpu_ing = _LAST_CPU[0]
             phases = json.loads(_LAST_OUT[0]).get("phase_seconds", {})
-        from console.archive.views import run_query
+        from console.archive.query import run_query
 
         n = int(run_query(arc, "SELECT count(*) FROM records")[1][0][0])  # type: ignore[call-overload]
         print(f"log: {args.log} {raw / 1e6:.0f} MB, {n:,} records")
@@ -395,7 +395,7 @@ def main() -> None:
         )
         axles_sql = PRESETS["axles-per-head-per-day"].sql
         # What `trackside query` runs once its process is up: connection, views, the query, the rows.
-        from console.archive.views import run_query_result
+        from console.archive.query import run_query_result
 
         print(f"axles per head per day (query, in process): {timed(lambda: run_query_result(big, axles_sql))}")
         print(f"one hour of one head   (query, in process): {timed(lambda: run_query_result(big, hour_sql))}")

@@ -42,7 +42,7 @@ alternating, one run each, heavier load):
 205.9 s / 891 MB → 124.6 s / 539 MB (0.60×).
 
 `report` stayed over the target: the analysis streamed, but the report
-document (console/sinks/report/model.py ``document``) was built whole before it
+document (console/sinks/report/document.py ``document``) was built whole before it
 was rendered: every passage, every state change and every ledger row as a
 dict (332 k ledger rows and 41 k passages at 3 M), then the Markdown, HTML
 or JSON text in one string.

@@ -19,9 +19,9 @@ from pathlib import Path
 import pyarrow.parquet as pq
 
 from console.archive.ingest import run_ingest
+from console.archive.query import run_query
 from console.archive.store import read_current
 from console.archive.verify import verify_archive
-from console.archive.views import run_query
 from tests.conftest import SAMPLES
 
 KILL_RUNS_CI = 6

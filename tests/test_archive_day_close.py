@@ -12,8 +12,8 @@ import pytest
 from console.archive import parts
 from console.archive.ingest import run_ingest
 from console.archive.parts import PartWriter, read_part
+from console.archive.query import run_query
 from console.archive.store import read_current
-from console.archive.views import run_query
 from parsers.units import NS_PER_DAY
 from tests.conftest import SAMPLES
 from tests.test_archive_parts import _labelled

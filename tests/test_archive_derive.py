@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from console.archive.ingest import run_ingest
-from console.archive.views import run_query
+from console.archive.query import run_query
 from console.layout import load_layout
 from console.sim.line_values import SimConfig
 from console.sim.station import StationSim

@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 
 from console.archive.history import cross_head_tables, report_data
 from console.archive.ingest import run_ingest
+from console.archive.query import run_query
 from console.archive.reader import ArchivedRecords
 from console.archive.store import read_current
-from console.archive.views import run_query
 from console.drivers.batch import ReadOptions, read_diag
 from console.engine.pipeline import PipelineSettings
 from console.sinks.report.collect import collect

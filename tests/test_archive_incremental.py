@@ -16,8 +16,8 @@ import pytest
 from console.archive import group_run, reader
 from console.archive.history import cross_head_tables, report_data
 from console.archive.ingest import run_ingest
+from console.archive.query import run_query
 from console.archive.store import read_current
-from console.archive.views import run_query
 from parsers.units import NS
 from tests.reads import whole_job
 from tests.test_archive_derive import MIDNIGHT_S, simulate_over_midnight

@@ -107,7 +107,7 @@ PLAIN_SQL = (
 
 
 def test_plain_results_skip_arrow_and_print_as_arrow_would(archive: Path) -> None:
-    from console.archive.views import run_query_result
+    from console.archive.query import run_query_result
 
     plain = run_query_result(archive, "SELECT count(*) AS n, min(counting_head) AS head FROM records")
     assert plain.arrow is None and plain.rows is not None and plain.rows[0][0] > 0
@@ -157,7 +157,7 @@ def test_a_time_column_with_nulls_between_values_keeps_each_row(archive: Path) -
 def test_partition_filter_only_when_certain(sql: str, expected: dict[str, dict[str, str]]) -> None:
     import duckdb
 
-    from console.archive.views import partition_filter
+    from console.archive.partition_filter import partition_filter
 
     assert partition_filter(duckdb.connect(), sql) == expected
 
@@ -201,7 +201,9 @@ def two_days(tmp_path_factory: pytest.TempPathFactory) -> Path:
     ],
 )
 def test_a_pruned_view_gives_what_the_whole_view_gives(two_days: Path, sql: str) -> None:
-    from console.archive.views import check_read_only, connect, partition_filter
+    from console.archive.partition_filter import partition_filter
+    from console.archive.query import check_read_only
+    from console.archive.views import connect
 
     assert partition_filter(connect(two_days)[0], sql)  # pruned indeed
     pruned, _ = connect(two_days, sql=sql)
@@ -212,7 +214,7 @@ def test_a_pruned_view_gives_what_the_whole_view_gives(two_days: Path, sql: str)
     assert a.fetchall() == b.fetchall()
 
 
-# Statements whose every column is a plain value: answered by DuckDB's engine alone (views.engine).
+# Statements whose every column is a plain value: answered by DuckDB's engine alone (duck.engine).
 ENGINE_ONLY_SQL = [
     "SELECT count(*) AS n, min(counting_head) AS head FROM records",
     "SELECT 1 AS a, 2 AS a",
@@ -234,7 +236,7 @@ RELATION_SQL = ["SELECT [min(time)] AS t FROM records", "SELECT INTERVAL 90 SECO
 def test_the_engine_alone_answers_plain_queries_as_the_relations_do(archive: Path) -> None:
     import duckdb
 
-    from console.archive.views import _query_connection, plain_result
+    from console.archive.query import _query_connection, plain_result
 
     for sql in ENGINE_ONLY_SQL + RELATION_SQL:
         con = _query_connection(archive, sql, engine_only=True)
@@ -268,7 +270,7 @@ def test_a_plain_query_does_not_import_the_duckdb_package(archive: Path) -> None
     if importlib.util.find_spec("_duckdb") is None:
         pytest.skip("this DuckDB has no engine module apart from the package (1.x)")
     code = (
-        "import sys; from pathlib import Path; from console.archive.views import run_query_result; "
+        "import sys; from pathlib import Path; from console.archive.query import run_query_result; "
         "r = run_query_result(Path(sys.argv[1]), 'SELECT counting_head, count(*) FROM records GROUP BY ALL'); "
         "print(len(r.rows or []), 'duckdb' in sys.modules, 'pyarrow' in sys.modules)"
     )
@@ -285,7 +287,7 @@ def test_a_plain_query_does_not_import_the_duckdb_package(archive: Path) -> None
 
 
 def test_a_big_result_comes_in_batches_with_its_times(archive: Path) -> None:
-    from console.archive.views import run_query_batches
+    from console.archive.query import run_query_batches
 
     sql = "SELECT range AS i, TIMESTAMP_NS '2026-03-02 08:00:00' + to_microseconds(range) AS t FROM range(250000)"
     batches = list(run_query_batches(archive, sql, batch_rows=100_000))

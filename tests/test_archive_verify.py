@@ -19,8 +19,9 @@ import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
+from console.archive.query import run_query
 from console.archive.store import read_current
-from console.archive.views import TABLES, run_query
+from console.archive.tables import TABLES
 from console.cli.app import app
 from tests.conftest import SAMPLES
 

@@ -215,7 +215,7 @@ def test_a_full_disk_at_the_spools_ingest_is_said_in_the_summary(
 
     import pyarrow.parquet as pq
 
-    from console.archive.views import run_query
+    from console.archive.query import run_query
     from console.cli.commands.follow import _summary_lines
     from console.live.archive import LiveArchiver
 
@@ -374,7 +374,7 @@ def test_a_log_followed_again_from_its_start_is_not_archived_twice(
     archive's records held every line twice.  A first run that stopped anywhere (``stop``), a second run
     reading the log from its start in other blocks, then a rewritten log: each line is archived once, and
     the lines read again are counted."""
-    from console.archive.views import run_query
+    from console.archive.query import run_query
     from console.live.archive import LiveArchiver
 
     tmp_path = tmp_path_factory.mktemp("again")
@@ -406,7 +406,7 @@ def test_a_restart_after_a_rotation_archives_each_line_once(tmp_path: Path) -> N
     restarted run reads the new file from its start as x.log, with its own rotation count.  Its lines were
     compared with the old file's spool, differed, and were stored a second time.  Now a block read from a
     file's first line goes to the spool file of that followed path whose content it repeats: each line once."""
-    from console.archive.views import run_query
+    from console.archive.query import run_query
     from console.live.archive import LiveArchiver
 
     archive = tmp_path / "arc"
@@ -444,8 +444,8 @@ def test_restarts_and_rotations_in_any_order_archive_each_line_once(
     """A log rotated at random points into files, followed by runs that each restart on the current file from its
     start (`follow --from-start --archive`), read it in random blocks through later rotations, and stop anywhere:
     every line any run read is archived exactly once, and the archive passes `verify`."""
+    from console.archive.query import run_query
     from console.archive.verify import verify_archive
-    from console.archive.views import run_query
     from console.live.archive import LiveArchiver
 
     archive = tmp_path_factory.mktemp("rotations") / "arc"
@@ -481,7 +481,7 @@ def test_a_spool_file_that_cannot_be_written_takes_nothing_more_and_says_from_wh
     and the summary says from which line and how many lines were not archived."""
     import errno
 
-    from console.archive.views import run_query
+    from console.archive.query import run_query
     from console.cli.commands.follow import _summary_lines
     from console.live.archive import LiveArchiver
 

@@ -237,7 +237,8 @@ def test_many_devices_text_tables_show_the_first_and_say_how_many(many_heads_job
 
 def test_report_gnss_units_many_devices_in_natural_order(tmp_path: Path) -> None:
     """The report's GNSS units from grouped reductions: each device once, natural order, counts right."""
-    from console.sinks.report.model import ReportData, _gnss_units
+    from console.sinks.report.document import _gnss_units
+    from console.sinks.report.model import ReportData
     from parsers.gnss_files import parse_gnss
 
     rows = [f"2026-01-19T10:00:{i % 60:02d}Z,U{i},{'head' if i % 3 else 'eot'},20.6,105.9,1.0\n" for i in range(3000)]

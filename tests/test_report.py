@@ -42,7 +42,8 @@ from console.sim.station import StationSim
 from console.sim.writers import write_run
 from console.sinks.report import command, html
 from console.sinks.report.command import run_report
-from console.sinks.report.model import ReportData, document
+from console.sinks.report.document import document
+from console.sinks.report.model import ReportData
 from tests.conftest import ROOT, record
 
 GOLDEN = Path(__file__).parent / "golden"

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from console.inputs.recognise import natural_key
-from console.sinks.report.model import _natural_order
+from console.sinks.report.gnss_units import _natural_order
 
 _NAME = st.text(alphabet=st.sampled_from("aAbZ09-_ 7ÿ.ß"), max_size=8)
 
@@ -21,7 +21,8 @@ def test_natural_order_is_natural_key_order(names: list[str]) -> None:
 
 
 def test_units_as_rows_of_many_devices() -> None:
-    from console.sinks.report.model import ReportData, _gnss_units
+    from console.sinks.report.document import _gnss_units
+    from console.sinks.report.model import ReportData
 
     t = pd.to_datetime(["2026-01-01T00:00:00Z", "2026-01-01T00:00:01Z", "2026-01-01T00:00:02Z", "NaT"], utc=True)
     fixes = pd.DataFrame(

@@ -4,7 +4,7 @@ A diagnostic log's passages and section history are spooled to disk as the
 log is read and the report is written as it is rendered
 (:mod:`console.sinks.report.spooled`, :mod:`console.sinks.report.jsonwrite`).  The old
 path holds them as tables (``collect(whole=True)``, as the archive's report
-does) and serialises the whole document at once (:func:`console.sinks.report.model.json_text`).
+does) and serialises the whole document at once (:func:`console.sinks.report.document.json_text`).
 Both give the same bytes in every format, on the shipped samples, simulated
 runs and realistic multi-board logs with and without a layout, and with
 several files (read whole).  The JSON writer is ``json.dumps(indent=1)``
@@ -37,8 +37,9 @@ from console.sim.writers import write_run
 from console.sinks.report import command, markdown, outline
 from console.sinks.report.collect import collect
 from console.sinks.report.command import CHUNK_CHARS, render, render_to, run_report
+from console.sinks.report.document import document, json_text
 from console.sinks.report.jsonwrite import Rows, indented, write_json
-from console.sinks.report.model import ReportData, document, json_text
+from console.sinks.report.model import ReportData
 from console.sinks.report.spooled import ROW_DEPTH, _transition_text
 from console.sinks.tables.section_history import SPILL_BLOCK_BYTES, LedgerText
 from console.sinks.tables.section_tables import sections_json

@@ -65,7 +65,7 @@ def test_first_last_as_groupby(rows: list[tuple[int, int | None]]) -> None:
 
 def _natural_key(x: object) -> str:
     from console.inputs.recognise import NUMBER_PARTS
-    from console.sinks.report.model import _padded_number
+    from console.sinks.report.gnss_units import _padded_number
 
     return NUMBER_PARTS.sub(_padded_number, str(x).casefold())
 

@@ -12,7 +12,9 @@ import pandas as pd
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from console.sinks.report.model import ReportData, _gnss_units, gnss_units_of_columns
+from console.sinks.report.document import _gnss_units
+from console.sinks.report.gnss_units import gnss_units_of_columns
+from console.sinks.report.model import ReportData
 from console.sinks.report.unit_codes import sorted_name_codes
 from parsers.dictionary import StringDictionary
 from parsers.gnss.fix_table import NameTable

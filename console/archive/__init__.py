@@ -6,6 +6,7 @@ Arrow), :mod:`ledger` (what was read of which file), :mod:`ingest` (with its ste
 modules ``ingest_*`` and :mod:`whole_files`),
 :mod:`derive` (the batch analyses run on the archive's records, with
 :mod:`group_run`, :mod:`derive_groups`, :mod:`derive_settings`, :mod:`group_records`), :mod:`views`
-(DuckDB, read-only), :mod:`presets` (named queries), :mod:`history`
+(DuckDB, read-only, over :mod:`tables`, with :mod:`duck` and :mod:`partition_filter`), :mod:`query`
+(read-only queries on it), :mod:`presets` (named queries), :mod:`history`
 (report inputs and replay for a time window).
 """

@@ -30,6 +30,7 @@ from console.analysis.health.forecast import (
     forecasts,
     last_day_end,
 )
+from console.archive.query import QueryError
 from console.archive.reader import Window, user_window
 from console.archive.store import archive_dir, read_current
 from console.archive.trends import (
@@ -40,7 +41,7 @@ from console.archive.trends import (
     disturbances_per_day,
     record_figures,
 )
-from console.archive.views import QueryError, connect
+from console.archive.views import connect
 from console.layout import LayoutError, load_layout
 from parsers.units import NS_PER_DAY
 

@@ -19,8 +19,8 @@ if TYPE_CHECKING:
 
     import pyarrow as pa
 
+    from console.archive.query import QueryResult
     from console.archive.store import Manifest
-    from console.archive.views import QueryResult
 
 FORMATS = ("table", "csv", "json", "jsonl")
 # A result's first this many rows are written from Python values, the rest (if any) column by column from Arrow
@@ -55,8 +55,9 @@ def query(
 ) -> None:
     """SQL (DuckDB) over the archive, read-only: one view per table."""
     from console.archive.presets import PRESETS
+    from console.archive.query import QueryError, run_query_batches, show_query
     from console.archive.store import ArchiveError, archive_dir
-    from console.archive.views import QueryError, require_archive, run_query_batches, schema, show_query
+    from console.archive.views import require_archive, schema
 
     computed = {"forecasts": _forecasts}
 

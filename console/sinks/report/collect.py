@@ -67,7 +67,8 @@ from console.layout import Layout, LayoutError, load_layout
 from console.memory import big_read_memory
 from console.plural import count
 from console.progress import byte_progress
-from console.sinks.report.model import InputFile, ReportData, gnss_units_of_columns
+from console.sinks.report.gnss_units import gnss_units_of_columns
+from console.sinks.report.model import InputFile, ReportData
 from console.sinks.report.spooled import ReportPassages, SectionHistory, report_sink
 from console.sinks.tables.section_history import SectionsSink
 from parsers.sources import InputError

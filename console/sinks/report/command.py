@@ -26,8 +26,9 @@ from console.layout import LayoutError
 from console.output_path import STDOUT, OutputError, OutputTarget, check_output_file, open_output
 from console.safe_text import clean, show_path
 from console.sinks.report.collect import ReportInputError, collect
+from console.sinks.report.document import document
 from console.sinks.report.jsonwrite import Write, write_json
-from console.sinks.report.model import ReportData, document
+from console.sinks.report.model import ReportData
 from parsers.sources import InputError
 
 FORMATS = ("md", "html", "json")

@@ -29,9 +29,10 @@ from console.analysis.timefmt import display
 from console.inputs.recognise import natural_key
 from console.safe_text import PLAIN, clean
 from console.sinks.report import plots, trends
+from console.sinks.report.analog import analog_series
 from console.sinks.report.blocks import Block, Bullets, Cell, Figure, Heading, Para, Styled, Table
 from console.sinks.report.jsonwrite import Write
-from console.sinks.report.model import ReportData, analog_series, timeline_order
+from console.sinks.report.model import ReportData, timeline_order
 from console.sinks.report.outline import outline
 
 STYLE = """

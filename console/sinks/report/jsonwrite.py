@@ -119,6 +119,6 @@ def _write_value(value: Any, write: Write, depth: int) -> None:
 
 
 def write_json(doc: dict[str, Any], write: Write) -> None:
-    """The document as ``json_text`` gives it (:func:`console.sinks.report.model.json_text`), piece by piece."""
+    """The document as ``json_text`` gives it (:func:`console.sinks.report.document.json_text`), piece by piece."""
     _write_value(doc, write, 0)
     write("\n")

@@ -92,5 +92,5 @@ def write_blocks(blocks: list[Block], write: Write) -> None:
 
 
 def render_markdown(doc: dict[str, Any], write: Write) -> None:
-    """The report document (:func:`console.sinks.report.model.document`) as Markdown, piece by piece."""
+    """The report document (:func:`console.sinks.report.document.document`) as Markdown, piece by piece."""
     write_blocks(outline(doc), write)

@@ -1,7 +1,7 @@
 """The report as blocks: headings, paragraphs, tables, figures (:func:`outline`; the blocks are
 :mod:`console.sinks.report.blocks`).
 
-Built from the JSON document (:func:`console.sinks.report.model.document`); the
+Built from the JSON document (:func:`console.sinks.report.document.document`); the
 Markdown and HTML faces both render these blocks, so the formats cannot
 disagree.  Every string in a block is raw text (from a log or not): the
 renderers escape all of it for their format.

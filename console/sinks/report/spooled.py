@@ -10,7 +10,7 @@ uses, its rows already in the report's JSON form (:func:`report_sink`,
 change (the state plot) and totals; the numbers the speed plot reads of each
 passage go into the spool's records on disk with its place.
 
-The document (:func:`console.sinks.report.model.document`) refers to these
+The document (:func:`console.sinks.report.document.document`) refers to these
 through :class:`~console.sinks.report.jsonwrite.Rows`; the renderers read them
 one item at a time.
 """
