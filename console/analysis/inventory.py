@@ -83,7 +83,8 @@ def _scalar(values: list[IdentityValue]) -> str | None:
 
 
 def apply_identity(inv: DeviceInventory, values: list[IdentityValue]) -> None:
-    """Fill the inventory's identity fields from its registers' latest values."""
+    """Fill the inventory's identity fields from its registers' latest values, most recently read first (of
+    registers with the same name and address on several heads, the first given is taken)."""
     inv.identity = sorted(values, key=lambda v: (v.canonical, v.address))
     by: dict[str, list[IdentityValue]] = {}
     for v in inv.identity:

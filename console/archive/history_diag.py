@@ -369,8 +369,11 @@ def _inventory(
         key, at = r[:11], r[14:17]
         if key not in latest or at > latest[key][14:17]:
             latest[key] = r
+    # Most recently read first (time, file, line: no two records share a line), so that where a device's
+    # heads give one register different values the latest reading is the device's, whatever order DuckDB
+    # gave the groups in (it gave them in a different order from run to run).
     identity: dict[int, list[IdentityValue]] = {}
-    for r in latest.values():
+    for r in sorted(latest.values(), key=_recency, reverse=True):
         device_id, canonical, address, value, kind, data = r[0], r[9], r[7], r[11], r[12], r[13]
         identity.setdefault(int(device_id), []).append(
             IdentityValue(str(canonical), int(address), int(value), str(kind), str(data))
@@ -508,3 +511,9 @@ def channel_events(root: Path, manifest: Manifest, window: Window) -> list[Detec
             )
     out.sort(key=lambda e: e.time_ns)  # parts per day and ingest; within one, in the pipeline's order
     return out
+
+
+def _recency(row: tuple[Any, ...]) -> tuple[Any, ...]:
+    """An identity row's (time, file, line) read, in an order without None (an untimed register's: first)."""
+    at_time, file_seq, line = row[14:17]
+    return (at_time is not None, at_time if at_time is not None else 0, file_seq or 0, line or 0)

@@ -178,7 +178,10 @@ def inventory(
         hf = np.r_[hf, np.full(n_heads - len(hf), _NONE, np.int64)]
         hl = np.r_[hl, np.full(n_heads - len(hl), -_NONE, np.int64)]
     ident: dict[int, list[IdentityValue]] = {}
-    for r, (_, value, kind, data_code) in identity.items():  # a few dozen identity registers
+    # Most recently read first: where a device's heads give one register different values (two serial
+    # numbers), the latest reading is the device's, as the archive's report takes it (ties: the register
+    # seen first).  A few dozen identity registers.
+    for r, (_, value, kind, data_code) in sorted(identity.items(), key=lambda kv: (-kv[1][0], kv[0])):
         ident.setdefault(int(arr["device_id"][r]), []).append(
             IdentityValue(
                 reg.canonicals.value(int(arr["label_canonical"][r])),
