@@ -12,7 +12,8 @@ import pytest
 
 from console.analysis.events.detection import DetectionEvent, EventKind
 from console.analysis.integrity.counts import AXLES, SECTIONS
-from console.analysis.integrity.monitor import (
+from console.analysis.integrity.monitor import IntegrityMonitor
+from console.analysis.integrity.values import (
     DOUBTFUL,
     EOT,
     GNSS,
@@ -21,7 +22,6 @@ from console.analysis.integrity.monitor import (
     WHOLE,
     ConsistSpec,
     IntegrityEvent,
-    IntegrityMonitor,
     IntegritySettings,
     timelines,
 )

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from console.analysis.events.detection import DetectionEvent, EventKind
-from console.analysis.integrity.monitor import ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
+from console.analysis.integrity.monitor import IntegrityMonitor
+from console.analysis.integrity.values import ConsistSpec, IntegrityEvent, IntegritySettings
 from console.analysis.sections.engine import SectionEngine
 from console.analysis.sections.state import SectionState
 from console.sim.integrity_runs import START_NS, line_layout, make_train, random_conditions, simulate

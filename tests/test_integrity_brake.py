@@ -9,17 +9,9 @@ from __future__ import annotations
 
 import math
 
-from console.analysis.integrity.brake_pipe import BrakePipeWitness
-from console.analysis.integrity.monitor import (
-    BRAKE_PIPE,
-    DOUBTFUL,
-    EOT,
-    HEAD,
-    PARTED,
-    ConsistSpec,
-    IntegrityEvent,
-    IntegrityMonitor,
-)
+from console.analysis.integrity.brake_pipe import BRAKE_PIPE, BrakePipeWitness
+from console.analysis.integrity.monitor import IntegrityMonitor
+from console.analysis.integrity.values import DOUBTFUL, EOT, HEAD, PARTED, ConsistSpec, IntegrityEvent
 from parsers.units import NS
 
 T0 = 1_772_438_400 * NS

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from console.analysis.crossing.controller import CrossingController
 from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, Fix, TrainSpec
-from console.analysis.integrity.monitor import PARTED, WHOLE, IntegrityEvent
+from console.analysis.integrity.values import PARTED, WHOLE, IntegrityEvent
 from console.layout import load_layout
 from console.live.simulated import SimulatedConsole
 from console.sim.faults import Fault

@@ -20,7 +20,7 @@ import pandas as pd
 
 from console.analysis.crossing.timeline import TimelineRow
 from console.analysis.crossing.values import EOT, HEAD, ControllerSettings, CrossingEvent
-from console.analysis.integrity.monitor import IntegrityEvent, IntegritySettings
+from console.analysis.integrity.values import IntegrityEvent, IntegritySettings
 from console.layout import Layout
 from console.plural import count
 

@@ -29,7 +29,7 @@ from console.analysis.crossing_batch import (
     undated_fixes,
     unit_fixes,
 )
-from console.analysis.integrity.monitor import ConsistSpec
+from console.analysis.integrity.values import ConsistSpec
 from console.engine.crossings import TrackPlacer
 from console.engine.fixes import FixStage
 from console.inputs.base import GnssFix

@@ -17,7 +17,7 @@ from typing import Any
 
 from console.analysis.crossing.values import ControllerSettings, Fix, TrainSpec
 from console.analysis.crossing_batch import crossing_settings, integrity_settings
-from console.analysis.integrity.monitor import ConsistSpec, IntegritySettings
+from console.analysis.integrity.values import ConsistSpec, IntegritySettings
 from console.engine.crossings import CrossingFollow
 from console.engine.integrity import IntegrityFollow
 from console.inputs.base import GnssFix

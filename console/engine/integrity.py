@@ -22,7 +22,8 @@ from typing import TYPE_CHECKING, Any
 
 from console.analysis.crossing.values import Fix
 from console.analysis.events.detection import DetectionEvent
-from console.analysis.integrity.monitor import ConsistSpec, IntegrityEvent, IntegrityMonitor, IntegritySettings
+from console.analysis.integrity.monitor import IntegrityMonitor
+from console.analysis.integrity.values import ConsistSpec, IntegrityEvent, IntegritySettings
 from console.analysis.sections.state import Transition
 from console.engine.sinks import Sink
 from console.layout import Layout

@@ -42,14 +42,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from console.analysis.events.detection import DetectionEvent, EventKind
-from console.analysis.integrity.monitor import (
+from console.analysis.integrity.monitor import IntegrityMonitor
+from console.analysis.integrity.values import (
     DOUBTFUL,
     EOT,
     HEAD,
     PARTED,
     ConsistSpec,
     IntegrityEvent,
-    IntegrityMonitor,
     IntegritySettings,
 )
 from console.analysis.sections.engine import SectionEngine

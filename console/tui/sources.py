@@ -6,7 +6,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from console.analysis.crossing.values import ControllerSettings, Fix
-from console.analysis.integrity.monitor import PARTED
+from console.analysis.integrity.values import PARTED
 from console.tui.model import LogEntry, TrainView
 from parsers.units import NS
 

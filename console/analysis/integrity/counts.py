@@ -6,7 +6,7 @@ head was surely before it must be the consist's, and the section it left at
 that head must not stay occupied behind it.  :class:`CountsWitness` keeps
 what the counting heads said (axles, their own doubt, section changes) and
 gives an :class:`Opinion` per check; :mod:`console.analysis.integrity.monitor`
-weighs it with the GNSS witness.
+weighs it with the GNSS witness (:func:`console.analysis.integrity.verdict.fuse`).
 
 A check runs only once the counters have reported past the time the train
 should have cleared the head (so a log read after its telemetry is never

@@ -34,7 +34,8 @@ One EOT fix then gives, each beyond every allowance:
 part falling behind; a position jump moves a fix but not its Doppler
 speed, so the two together are no jump), ``slower``, ``behind``,
 ``inconsistent`` or ``consistent``.  The monitor
-(:mod:`console.analysis.integrity.monitor`) turns sequences of them into states.
+(:mod:`console.analysis.integrity.monitor`) turns sequences of them into states
+(:mod:`console.analysis.integrity.gnss_run`).
 """
 
 from __future__ import annotations

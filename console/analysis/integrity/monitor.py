@@ -46,174 +46,26 @@ from __future__ import annotations
 
 import heapq
 import math
-import statistics
-from bisect import bisect_left
-from dataclasses import dataclass, field
-from typing import Any
 
 from console.analysis.crossing.evidence import DeviceEvidence, EvidenceLimits
 from console.analysis.events.detection import DetectionEvent
-from console.analysis.integrity.brake_pipe import BRAKE_PIPE as BRAKE_PIPE  # the witnesses' names, re-exported
 from console.analysis.integrity.brake_pipe import BrakePipeWitness, BrakeSettings
-from console.analysis.integrity.counts import AXLES as AXLES
-from console.analysis.integrity.counts import NONE, CountsWitness, HeadCheck, Opinion
-from console.analysis.integrity.counts import SECTIONS as SECTIONS
-from console.analysis.integrity.gnss import (
-    BEHIND,
-    CONSISTENT,
-    INCONSISTENT,
-    SLOWER,
-    STRONG,
-    GnssLimits,
-    Point,
-    Verdict,
-    head_bounds,
-    judge_eot,
+from console.analysis.integrity.counts import NONE, CountsWitness
+from console.analysis.integrity.gnss_run import judge_fixes, set_direction
+from console.analysis.integrity.state import Judged, Train, Unit, other_train_in
+from console.analysis.integrity.values import (
+    DOUBTFUL,
+    EOT,
+    HEAD,
+    PARTED,
+    ConsistSpec,
+    IntegrityEvent,
+    IntegritySettings,
 )
+from console.analysis.integrity.verdict import fuse
 from console.analysis.sections.state import Transition
-from console.analysis.timefmt import iso
-from console.analysis.window import Window
 from console.layout import Layout
 from parsers.units import NS
-
-WHOLE, DOUBTFUL, PARTED = "whole", "doubtful", "parted"
-HEAD, EOT = "head", "eot"
-GNSS = "gnss"
-SEPARATION = (BEHIND, SLOWER, STRONG)
-AROUND = 2  # head fixes each side of an EOT fix's time that bound the head there
-
-
-@dataclass(frozen=True)
-class IntegritySettings:
-    noise_m: float = 5.0  # σ of a fix along the track (the receivers' figure)
-    speed_noise_mps: float = 0.2  # σ of a reported (Doppler) speed
-    k_sigma: float = 3.5  # allowances are this many σ (each fix: a difference of two gets twice)
-    max_accel_mps2: float = 1.5  # no train changes speed faster, emergency braking included
-    max_speed_mps: float = 45.0
-    clock_offset_s: float = 0.2  # each unit's clock may be this far off
-    coupling_slack_m: float = 5.0  # EOT mount beyond the last wheel, couplers' play
-    report_period_s: float = 10.0  # the units' report period
-    latency_s: float = 2.0  # radio and processing delay allowance
-    stale_after_s: float = 30.0  # at least this long without a fix: the unit is stale
-    counter_lag_s: float = 5.0  # axle events and section changes reach the monitor within this
-    history_s: float = 240.0  # fixes and axle events kept
-    emergency_hold_s: float = 30.0  # an emergency brake application is held at least this long
-
-    @property
-    def stale_s(self) -> float:
-        """A unit is stale after several missed reports (never after one lost packet) and the latency."""
-        return max(self.stale_after_s, 4 * self.report_period_s) + self.latency_s
-
-    def gnss_limits(self) -> GnssLimits:
-        return GnssLimits(
-            self.noise_m,
-            self.speed_noise_mps,
-            self.k_sigma,
-            self.max_accel_mps2,
-            self.max_speed_mps,
-            self.clock_offset_s,
-            self.coupling_slack_m,
-        )
-
-
-@dataclass(frozen=True)
-class ConsistSpec:
-    """What the console knows of a train: its length and, where the layout or the simulator
-    knows it, its axle count."""
-
-    train: str
-    length_m: float  # first to last wheel; the EOT rides on the last vehicle
-    axles: int | None = None
-    # False: the length is only the layout's guess; the monitor learns it from the first fixes
-    # (head–EOT distance while running whole) and judges by speed alone until then.
-    length_known: bool = True
-
-
-@dataclass(frozen=True)
-class IntegrityEvent:
-    """A change of a train's integrity state, with the evidence for it."""
-
-    t_ns: int
-    train: str
-    state: str  # whole | doubtful | parted
-    previous: str | None  # None: the first state known
-    witnesses: tuple[str, ...]  # gnss | axles | sections: who gave the evidence
-    evidence: tuple[str, ...]
-    rear_m: float | None = None  # the rear part's (EOT's) last chainage, when parted
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "train": self.train,
-            "state": self.state,
-            "previous": self.previous,
-            "witnesses": list(self.witnesses),
-            "evidence": list(self.evidence),
-            "rear_m": None if self.rear_m is None else round(self.rear_m, 1),
-            "time_ns": self.t_ns,
-            "time": iso(self.t_ns),
-        }
-
-
-@dataclass
-class _Unit:
-    """One GNSS unit's accepted fixes (chainage), in fix-time order."""
-
-    ev: DeviceEvidence
-    times: list[int] = field(default_factory=list)
-    chainage: list[float] = field(default_factory=list)
-    speed: list[float] = field(default_factory=list)
-    speed_hi: list[float] = field(default_factory=list)
-    last_fix_ns: int | None = None
-    first_rx_ns: int | None = None
-
-    def point(self, i: int, d: int) -> Point:
-        return Point(self.times[i], d * self.chainage[i], self.speed[i], self.speed_hi[i])
-
-    def around(self, t_ns: int, d: int, n: int = AROUND) -> list[Point]:
-        """The ``n`` fixes before ``t_ns`` and the ``n`` after it (fewer where there are none)."""
-        i = bisect_left(self.times, t_ns)
-        return [self.point(k, d) for k in range(max(0, i - n), min(len(self.times), i + n))]
-
-    def prune(self, before_ns: int) -> None:
-        k = bisect_left(self.times, before_ns)
-        if k > 0 and k < len(self.times):
-            del self.times[:k], self.chainage[:k], self.speed[:k], self.speed_hi[:k]
-
-
-@dataclass
-class _Judged:
-    t_fix_ns: int
-    s_m: float
-    speed_mps: float
-    speed_hi_mps: float
-    verdict: Verdict | None  # None: no head fix to judge it by yet
-    bracket: tuple[int, int] | None = None  # the head fixes' times just before and just after it, once bracketed
-
-
-LEARN_SAMPLES = 5  # head–EOT distances that make a learnt length (their median)
-
-
-@dataclass
-class _Train:
-    spec: ConsistSpec
-    head: _Unit
-    eot: _Unit
-    length_m: float | None = None  # as given, or learnt; None: still being learnt
-    samples: list[float] = field(default_factory=list)
-    direction: int = 0
-    state: str | None = None
-    judged: Window[_Judged] = field(default_factory=lambda: Window(4))
-    gnss: Opinion = NONE
-    counters: Opinion = NONE
-    checks: dict[str, HeadCheck] = field(default_factory=dict)
-    parted_by: Opinion | None = None
-    rear_m: float | None = None
-    events: list[IntegrityEvent] = field(default_factory=list)
-    brake: BrakePipeWitness = field(default_factory=BrakePipeWitness)
-    brake_opinion: Opinion = NONE
-    seq: int = 0  # the order it was first followed in (the order trains are evaluated in)
-    due_ns: int | None = None  # the next instant time alone may change its verdict (None: none pending)
-
 
 # A train to evaluate at the next fix or tick whatever the time (its evidence changed).
 _AT_ONCE = -(2**63)
@@ -226,7 +78,7 @@ class IntegrityMonitor:
         self.s = settings or IntegritySettings()
         self.lim = self.s.gnss_limits()
         self.layout = layout
-        self.trains: dict[str, _Train] = {}
+        self.trains: dict[str, Train] = {}
         self.now_ns: int | None = None  # the units' clock: the latest fix reception or tick
         self.counts = CountsWitness(
             layout, self.lim.pos_allow_m, self.lim.coupling_slack_m, self.s.counter_lag_s, self.s.history_s
@@ -236,7 +88,7 @@ class IntegrityMonitor:
         # followed.  A train's verdict changes with its own evidence (its fixes, brake reports, the
         # operator's reset: it is evaluated at once), with the counters' evidence (a train with a
         # counters' check still open is evaluated every time, as before), and with time alone only
-        # as a unit goes stale (the instants _stale and _silent turn at: its due instant).  Between
+        # as a unit goes stale (the instants stale_opinion and silent turn at: its due instant).  Between
         # them evaluating it finds the same verdict and changes nothing, so it is left out; doubt is
         # never late: a train is evaluated at the first fix or tick at or after each of its instants.
         self._seq = 0
@@ -244,18 +96,18 @@ class IntegrityMonitor:
         self._open: dict[int, str] = {}  # seq → train: trains with a counters' check still open
 
     # -- trains ------------------------------------------------------------
-    def _unit(self) -> _Unit:
+    def _unit(self) -> Unit:
         s = self.s
         noise = s.k_sigma * s.noise_m
         lim = EvidenceLimits(noise, s.max_accel_mps2, s.max_accel_mps2, s.max_speed_mps, speed_error_mps=0.5)
-        return _Unit(DeviceEvidence(lim))
+        return Unit(DeviceEvidence(lim))
 
     def add_train(self, spec: ConsistSpec) -> None:
         """Follow a train (again: its consist is updated, its history kept)."""
         tr = self.trains.get(spec.train)
         if tr is None:
             self._seq += 1
-            tr = self.trains[spec.train] = _Train(spec, self._unit(), self._unit(), seq=self._seq)
+            tr = self.trains[spec.train] = Train(spec, self._unit(), self._unit(), seq=self._seq)
             s = self.s
             tr.brake = BrakePipeWitness(BrakeSettings(s.clock_offset_s, s.emergency_hold_s, s.history_s))
         else:
@@ -356,117 +208,14 @@ class IntegrityMonitor:
         unit.speed.append(speed_mps)
         unit.speed_hi.append(rep.speed_hi_mps)
         unit.prune(t_fix_ns - int(self.s.history_s * NS))
-        self._direction(tr)
+        set_direction(tr)
         if role == EOT:
-            tr.judged.append(_Judged(t_fix_ns, chainage_m, speed_mps, rep.speed_hi_mps, None))
-            self._judge(tr)
+            tr.judged.append(Judged(t_fix_ns, chainage_m, speed_mps, rep.speed_hi_mps, None))
+            judge_fixes(tr, self.lim)
         else:
-            self._judge(tr)  # a new head fix brackets the EOT fixes before it
+            judge_fixes(tr, self.lim)  # a new head fix brackets the EOT fixes before it
             self.counts.open_checks(tr.checks, tr.head.times, tr.head.chainage, tr.direction, tr.length_m, now)
         return self._evaluate(now)
-
-    def _direction(self, tr: _Train) -> None:
-        # The head unit's movement says it; the EOT's only while nothing else has (a rear part
-        # falling behind must not turn the train round).
-        d = tr.head.ev.direction() or (0 if tr.direction else tr.eot.ev.direction())
-        if d and d != tr.direction:
-            if tr.direction:
-                tr.checks.clear()  # the train reversed: the counts so far were another run
-            tr.direction = d
-            for j in tr.judged:
-                j.verdict = None
-
-    def _judge(self, tr: _Train) -> None:
-        """Judge the EOT fixes not yet judged against a head fix on each side."""
-        d = tr.direction
-        if not d or tr.head.ev.rejected_since_last:
-            # No direction yet, or the head unit's last fix was set aside as a jump: its track is
-            # in doubt until a fix agrees with it again (or it starts over).
-            tr.gnss = self._gnss_opinion(tr)
-            return
-        for j in tr.judged:
-            if j.verdict is not None and j.verdict.bracketed:
-                continue
-            around = tr.head.around(j.t_fix_ns, d)
-            hb = head_bounds(around, j.t_fix_ns, self.lim)
-            if hb is None:
-                continue
-            if hb.bracketed:
-                k = bisect_left([p.t_fix_ns for p in around], j.t_fix_ns)
-                j.bracket = (around[max(0, k - 1)].t_fix_ns, around[min(k, len(around) - 1)].t_fix_ns)
-            eot = Point(j.t_fix_ns, d * j.s_m, j.speed_mps, j.speed_hi_mps)
-            j.verdict = judge_eot(eot, hb, tr.length_m, self.lim)
-            if tr.length_m is None and hb.bracketed and j.verdict.kind == CONSISTENT:
-                self._learn(tr, 0.5 * (hb.lo_m + hb.hi_m) - eot.s_m)
-        tr.gnss = self._gnss_opinion(tr)
-
-    def _learn(self, tr: _Train, separation_m: float) -> None:
-        """A head–EOT distance measured while both ran at one speed: the median of the first few
-        is the train's length (then every EOT fix is judged again by it)."""
-        tr.samples.append(separation_m)
-        if len(tr.samples) >= LEARN_SAMPLES:
-            tr.length_m = max(0.0, statistics.median(tr.samples))
-            for j in tr.judged:
-                j.verdict = None
-
-    def _gnss_opinion(self, tr: _Train) -> Opinion:
-        # The run of consecutive judged EOT fixes up to the latest judged one.
-        run: list[_Judged] = []
-        for j in reversed(tr.judged):
-            if j.verdict is None:
-                if run:
-                    break
-                continue
-            run.append(j)
-        if not run:
-            return NONE
-        run.reverse()
-        kinds = [j.verdict.kind for j in run if j.verdict is not None]
-        last = run[-1]
-        v = last.verdict
-        assert v is not None
-        t = last.t_fix_ns
-        length = tr.length_m
-        if v.kind == STRONG:
-            return Opinion(PARTED, (GNSS,), (v.describe(length),), t)
-        prev = run[-2].verdict if len(run) >= 2 else None
-        if prev is not None and prev.kind in SEPARATION and v.kind in SEPARATION and SLOWER in (v.kind, prev.kind):
-            why = (f"{prev.describe(length)}, then {v.describe(length)} (two fixes in a row)",)
-            return Opinion(PARTED, (GNSS,), why, t)
-        if prev is not None and self._standing_rear(run[-2], last):
-            why = (f"{v.describe(length)}, the EOT standing while the gap grew by {v.lag_m - prev.lag_m:.0f} m",)
-            return Opinion(PARTED, (GNSS,), why, t)
-        # Behind only (the head standing or crawling, or no speed reported): three fixes in a row,
-        # each judged between head fixes on both sides, and not all between the same ones: after a
-        # long gap in the head's fixes, one displaced head fix at its end put three EOT fixes 500 m
-        # "behind" at once (a whole train parted, seen in the 3,000-run sweep).
-        if (
-            len(kinds) >= 3
-            and all(j.verdict is not None and j.verdict.kind == BEHIND and j.verdict.bracketed for j in run[-3:])
-            and not set.intersection(*(set(j.bracket or ()) for j in run[-3:]))
-        ):
-            why = (f"{v.describe(length)}, three fixes in a row",)
-            return Opinion(PARTED, (GNSS,), why, t)
-        if v.kind in SEPARATION:
-            return Opinion("separation", (GNSS,), (v.describe(length) + " (one fix)",), t)
-        if v.kind == INCONSISTENT:
-            return Opinion("doubt", (GNSS,), ("fixes inconsistent: " + v.describe(length),), t)
-        return Opinion("ok", (GNSS,), (v.describe(length),), t)
-
-    def _standing_rear(self, a: _Judged, b: _Judged) -> bool:
-        """Two fixes in a row behind, the EOT standing at both (its Doppler speed nil, its place the
-        same) while the gap to the head grew by more than the noise: a rear part left standing.
-
-        A displaced fix keeps its Doppler speed, so a moving train's jumps never read as standing;
-        a whole train standing does not open the gap."""
-        va, vb = a.verdict, b.verdict
-        if va is None or vb is None or va.kind != BEHIND or vb.kind != BEHIND or not (va.bracketed and vb.bracketed):
-            return False
-        still = self.lim.speed_allow_mps
-        if math.isnan(a.speed_mps) or math.isnan(b.speed_mps) or max(a.speed_mps, b.speed_mps) > still:
-            return False
-        noise = 2 * self.lim.pos_allow_m
-        return abs(b.s_m - a.s_m) <= noise and vb.lag_m - va.lag_m > noise
 
     # -- the brake pipe ----------------------------------------------------
     def brake_pipe(
@@ -504,38 +253,18 @@ class IntegrityMonitor:
         self.counts.transition(tr)
         return []
 
-    def _run_checks(self, tr: _Train, now: int) -> None:
+    def _run_checks(self, tr: Train, now: int) -> None:
         for c in tr.checks.values():  # at most one per counting head: done ones are kept, not redone
             if not self.counts.ready(c, now):
                 continue
             c.done = True
 
             def others_in(_section: str, lo: float, hi: float, t_ns: int) -> bool:
-                return self._other_train_in(tr, lo, hi, t_ns)
+                return other_train_in(self.trains.values(), tr, lo, hi, t_ns, self.lim.pos_allow_m)
 
             op = self.counts.judge(c, tr.direction, tr.spec.axles, tr.length_m, others_in)
             if op is not None:
                 tr.counters = op
-
-    def _other_train_in(self, tr: _Train, lo: float, hi: float, t_ns: int) -> bool:
-        """Another followed train had a unit in (or a body across) ``lo``–``hi`` around ``t_ns``."""
-        lo, hi = lo - self.lim.pos_allow_m, hi + self.lim.pos_allow_m
-        for other in self.trains.values():
-            if other is tr:
-                continue
-            ends = []
-            for unit in (other.head, other.eot):
-                i = bisect_left(unit.times, t_ns)
-                near = [unit.chainage[k] for k in (i - 1, i) if 0 <= k < len(unit.times)]
-                ends += near
-            if not ends:
-                continue
-            if other.head.times and not other.eot.times:  # no EOT: the body a train length behind
-                d = other.direction or 1
-                ends += [x - d * (other.length_m or other.spec.length_m) for x in ends]
-            if max(ends) >= lo and min(ends) <= hi:
-                return True
-        return False
 
     # -- the verdict -------------------------------------------------------
     def tick(self, now_ns: int) -> list[IntegrityEvent]:
@@ -558,11 +287,11 @@ class IntegrityMonitor:
             self._arm(tr, now)
         return out
 
-    def _at_once(self, tr: _Train) -> None:
+    def _at_once(self, tr: Train) -> None:
         tr.due_ns = _AT_ONCE
         heapq.heappush(self._due, (_AT_ONCE, tr.seq, tr.spec.train))
 
-    def _arm(self, tr: _Train, now: int) -> None:
+    def _arm(self, tr: Train, now: int) -> None:
         """``tr`` was just evaluated at ``now``: the next instant a unit of it turns stale (``now − t >
         stale_s``, first true at t + ⌊stale_s⌋ + 1 ns), and whether a counters' check is still open."""
         after = math.floor(self.s.stale_s * NS) + 1
@@ -576,68 +305,12 @@ class IntegrityMonitor:
         else:
             self._open.pop(tr.seq, None)
 
-    def _stale(self, tr: _Train, now: int) -> Opinion:
-        stale = self.s.stale_s * NS
-        head, eot = tr.head, tr.eot
-        if eot.last_fix_ns is None:
-            if head.first_rx_ns is not None and now - head.first_rx_ns > stale:
-                return Opinion("doubt", (GNSS,), ("no EOT fix received",), now)
-            return NONE
-        head_stale = head.last_fix_ns is None or now - head.last_fix_ns > stale
-        if now - eot.last_fix_ns > stale:
-            return Opinion("doubt", (GNSS,), (f"EOT stale for {(now - eot.last_fix_ns) / NS:.0f} s",), now)
-        if head.last_fix_ns is not None and head_stale:
-            why = f"head unit stale for {(now - head.last_fix_ns) / NS:.0f} s: the EOT cannot be checked"
-            return Opinion("doubt", (GNSS,), (why,), now)
-        return NONE
-
-    def _silent(self, tr: _Train, now: int) -> bool:
-        stale = self.s.stale_s * NS
-        last = [u.last_fix_ns for u in (tr.head, tr.eot) if u.last_fix_ns is not None]
-        return bool(last) and now - max(last) > stale
-
-    def _fuse(self, tr: _Train, now: int) -> tuple[str | None, Opinion]:
-        g, c, b = tr.gnss, tr.counters, tr.brake_opinion
-        stale = self._stale(tr, now)
-        if self._silent(tr, now):
-            # Both units silent: the train has left the line, or the data ended. Their last word
-            # stands; only the counters can still change it.
-            if c.level in ("none", "ok") or c.t_ns <= max(tr.head.last_fix_ns or 0, tr.eot.last_fix_ns or 0):
-                return None, NONE
-            g = stale = b = NONE
-        if g.level == PARTED:
-            return PARTED, g
-        if b.level == PARTED:
-            return PARTED, b
-        if c.level == PARTED:
-            # A consistent EOT fix measured after the counters' check: the unit riding on the
-            # last vehicle says the train is whole there; the counters disagree (doubt).
-            if g.level == "ok" and g.t_ns > c.t_ns:
-                return DOUBTFUL, Opinion("doubt", (*c.witnesses, GNSS), (*c.evidence, "the EOT says whole"), now)
-            return PARTED, c
-        if g.level == "separation" and c.level == "separation":
-            return PARTED, Opinion(PARTED, (*g.witnesses, *c.witnesses), (*g.evidence, *c.evidence), now)
-        doubts = [o for o in (stale, g, b, c) if o.level in ("doubt", "separation")]
-        if doubts:
-            return DOUBTFUL, Opinion(
-                "doubt",
-                tuple(w for o in doubts for w in o.witnesses),
-                tuple(e for o in doubts for e in o.evidence),
-                now,
-            )
-        oks = [o for o in (g, c) if o.level == "ok"]
-        if oks:
-            return WHOLE, Opinion(
-                "ok", tuple(w for o in oks for w in o.witnesses), tuple(e for o in oks for e in o.evidence)
-            )
-        return None, NONE
-
-    def _settle(self, tr: _Train, now: int) -> list[IntegrityEvent]:
+    def _settle(self, tr: Train, now: int) -> list[IntegrityEvent]:
         if tr.parted_by is not None:
             if tr.eot.chainage:
                 tr.rear_m = tr.eot.chainage[-1]
             return []
-        state, why = self._fuse(tr, now)
+        state, why = fuse(tr, now, self.s)
         if state is None or state == tr.state:
             return []
         rear = None
@@ -648,15 +321,3 @@ class IntegrityMonitor:
         tr.state = state
         tr.events.append(ev)
         return [ev]
-
-
-def timelines(events: list[IntegrityEvent]) -> list[dict[str, Any]]:
-    """Per train (in the order they were first judged): its last state and every change, with evidence.
-
-    What ``crossing --json``, the report and the tables show."""
-    per: dict[str, list[IntegrityEvent]] = {}
-    for e in sorted(events, key=lambda e: e.t_ns):
-        per.setdefault(e.train, []).append(e)
-    return [
-        {"train": train, "state": evs[-1].state, "changes": [e.to_dict() for e in evs]} for train, evs in per.items()
-    ]

@@ -61,7 +61,7 @@ def crossing(
             input_warnings,
             parse_train_options,
         )
-        from console.analysis.integrity.monitor import timelines
+        from console.analysis.integrity.values import timelines
         from console.analysis.timefmt import iso
         from console.drivers.crossings import run_crossings
         from console.sinks.tables.crossing_tables import reasons_view, spare_view, timeline_table, violations_view

@@ -253,7 +253,7 @@ def _crossings(data: ReportData) -> dict[str, Any] | None:
     run = data.crossing
     if run is None:
         return None
-    from console.analysis.integrity.monitor import timelines as integrity_timelines
+    from console.analysis.integrity.values import timelines as integrity_timelines
 
     return {
         "violations": run.violations,
