@@ -20,7 +20,8 @@ import pytest
 
 from console.analysis.events.detection import DOWN, UNKNOWN, UP, DetectionEvent, EventKind
 from console.analysis.frame_events import frames_to_events
-from parsers.frames.can import CAN_COLUMNS, CanFileReport, count_frames_only, parse_can
+from parsers.frames.can import count_frames_only, parse_can
+from parsers.frames.can_report import CAN_COLUMNS, CanFileReport
 from parsers.frames.sensor import frame_line_problem, parse_frames
 from parsers.frames.table import FRAME_COLUMNS, check_byte_mask, decode_status, encode_status
 from parsers.sources import InputError

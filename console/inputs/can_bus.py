@@ -15,7 +15,7 @@ import time
 from typing import Any
 
 from console.inputs.base import CanFrame, Source, SourceError, backoff_delays
-from parsers.frames.can import COUNT_DLC, COUNT_ID_BASE, NODE_MAX, NODE_MIN
+from parsers.frames.can_report import COUNT_DLC, COUNT_ID_BASE, NODE_MAX, NODE_MIN
 
 RECV_TIMEOUT_S = 0.5
 # Receive times as nanoseconds fit an int64 up to 2262; a peer (udp_multicast, a virtual bus) sends any float.

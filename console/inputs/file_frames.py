@@ -1,8 +1,8 @@
 """A followed CAN log or sensor frame log's lines → :class:`~console.inputs.base.FrameRows`, as the batch reads them.
 
 CAN text logs (candump ``-l``, Vector ASC, PEAK TRC) are read by python-can's
-readers through :class:`parsers.frames.can.TextCanReader`, a block of lines at
-a time, and decoded by the batch decoder (:func:`parsers.frames.can.decode_messages`):
+readers through :class:`parsers.frames.can_text.TextCanReader`, a block of lines at
+a time, and decoded by the batch decoder (:func:`parsers.frames.can_decode.decode_messages`):
 the same frames, rejections and counts by kind as ``parse_can`` on the whole
 file.  Only count frames go on (other ids, remote and error frames are
 counted in the file's report).  The CAN format is told by content (the
@@ -24,7 +24,9 @@ import time
 import numpy as np
 
 from console.inputs.base import FrameRows
-from parsers.frames.can import CanFileReport, TextCanReader, decode_messages, header_complete
+from parsers.frames.can_decode import decode_messages
+from parsers.frames.can_report import CanFileReport
+from parsers.frames.can_text import TextCanReader, header_complete
 from parsers.frames.sensor import read_frame_lines
 from parsers.frames.table import FrameColumns
 from parsers.frames.trc import check_trc_head
@@ -33,7 +35,7 @@ from parsers.sources import InputError
 
 _CANDUMP_LINE = re.compile(rb"\s*\(")
 _ASC_MESSAGE = re.compile(rb"\s*\d+\.\d+\s+\d+\s+(?:[0-9A-Fa-f]+x?\s+(?:Rx|Tx)|ErrorFrame)\b", re.I)
-_KIND_COUNT = 0  # parsers.frames.can: the "kind" codes, count frames first
+_KIND_COUNT = 0  # parsers.frames.can_decode: the "kind" codes, count frames first
 
 
 def can_format(first_line: bytes) -> str:

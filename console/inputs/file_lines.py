@@ -35,7 +35,7 @@ from typing import Any, Protocol
 from console.inputs.base import GnssFix, Item, LineBlock, SourceStatus
 from console.inputs.file_frames import CanLines, SensorFrameLines, can_format
 from console.inputs.file_gnss import DEVICE_KINDS, STREAM_KINDS, GnssLines
-from parsers.frames.can import CanFileReport
+from parsers.frames.can_report import CanFileReport
 from parsers.kinds import DESCRIPTIONS, HEAD_BYTES, classify_head
 from parsers.report import FileReport, ParseReport, Rejection, device_of_file
 

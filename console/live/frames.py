@@ -51,7 +51,7 @@ from console.analysis.timefmt import iso
 from console.inputs.base import CanFrame, FrameRows
 from console.layout import Layout
 from console.sinks.tables.event_lines import section_event
-from parsers.frames.can import COUNT_DLC, COUNT_ID_BASE, NODE_MAX, NODE_MIN, default_sensor_name
+from parsers.frames.can_report import COUNT_DLC, COUNT_ID_BASE, NODE_MAX, NODE_MIN, default_sensor_name
 from parsers.frames.table import CHECK_BYTE, DER_BIT, check_byte_mask, decode_status
 from parsers.report import escape_text
 from parsers.units import NS

@@ -24,7 +24,7 @@ from console.cli.options import JsonOpt, RecordsJsonlOpt, StrictOpt
 def _is_can_log(path: Path) -> bool:
     """A CAN log by its content (candump, ASC, TRC lines, a BLF container: parsers.kinds), whatever its name; by
     its name (.log, .asc, .blf, .trc, maybe .gz) only when the content tells nothing (an empty file)."""
-    from parsers.frames.can import can_log_format
+    from parsers.frames.can_format import can_log_format
     from parsers.kinds import classify_file
 
     kind = classify_file(path).kind
@@ -43,7 +43,7 @@ def _frame_rows(all_frames: Any) -> list[dict[str, Any]]:
     import pandas as pd
 
     from console.analysis.timefmt import iso
-    from parsers.frames.can import CAN_COLUMNS
+    from parsers.frames.can_report import CAN_COLUMNS
 
     if all_frames.empty:
         return []

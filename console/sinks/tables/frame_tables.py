@@ -12,7 +12,7 @@ from rich.text import Text
 from console.analysis.events.detection import DetectionEvent, EventKind
 from console.analysis.timefmt import display
 from console.safe_text import inert
-from parsers.frames.can import CanFileReport
+from parsers.frames.can_report import CanFileReport
 from parsers.report import ParseReport
 
 
