@@ -366,8 +366,8 @@ def _inventory(
     # Per register, its latest value among the pieces (time, then file and line).
     latest: dict[tuple[Any, ...], tuple[Any, ...]] = {}
     for r in ident_rows:
-        key, at = r[:11], r[14:17]
-        if key not in latest or at > latest[key][14:17]:
+        key = r[:11]
+        if key not in latest or _recency(r) > _recency(latest[key]):
             latest[key] = r
     # Most recently read first (time, file, line: no two records share a line), so that where a device's
     # heads give one register different values the latest reading is the device's, whatever order DuckDB

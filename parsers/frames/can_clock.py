@@ -6,10 +6,10 @@ import datetime as dt
 
 from parsers.units import NS
 
-EPOCH = dt.datetime(1970, 1, 1)
+_EPOCH = dt.datetime(1970, 1, 1)
 # Frame times outside these years are not times (and would overflow 64-bit nanoseconds).
-TIME_MIN_NS = (dt.datetime(1900, 1, 1) - EPOCH) // dt.timedelta(microseconds=1) * 1000
-TIME_MAX_NS = (dt.datetime(2200, 1, 1) - EPOCH) // dt.timedelta(microseconds=1) * 1000
+TIME_MIN_NS = (dt.datetime(1900, 1, 1) - _EPOCH) // dt.timedelta(microseconds=1) * 1000
+TIME_MAX_NS = (dt.datetime(2200, 1, 1) - _EPOCH) // dt.timedelta(microseconds=1) * 1000
 _MONTHS = {
     **{m: i for i, m in enumerate(("Jan", "Feb", "Mar", "Apr", "May", "Jun"), 1)},
     **{m: i for i, m in enumerate(("Jul", "Aug", "Sep", "Oct", "Nov", "Dec"), 7)},
@@ -22,7 +22,7 @@ _ASC_DATE_FORMATS = ("%m %d %I:%M:%S.%f %p %Y", "%m %d %I:%M:%S %p %Y", "%m %d %
 
 
 def wall_ns(t: dt.datetime) -> int:
-    delta = t - EPOCH
+    delta = t - _EPOCH
     return (delta.days * 86400 + delta.seconds) * NS + delta.microseconds * 1000
 
 
